@@ -1,0 +1,13 @@
+// The component classes built into this repository.
+//
+// Real-time contract: not RT-safe (set-up only).
+#pragma once
+
+#include "rack/core/registry.h"
+
+namespace rack::components {
+
+// Registers every built-in class (Generator, Monitor, Probe, ...).
+void register_builtin(ComponentRegistry& registry);
+
+}  // namespace rack::components

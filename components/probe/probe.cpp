@@ -1,0 +1,53 @@
+#include "probe.h"
+
+#include <stdexcept>
+
+namespace rack::components {
+
+Probe::Probe()
+    : DataComponent(DataTaskMode::kPeriodic),
+      fail_init_(declare_bool("fail_init", false, {.doc = "init() throws"})),
+      fail_on_(declare_bool("fail_on", false, {.doc = "on() returns an error"})),
+      throw_on_(declare_bool("throw_on", false, {.doc = "on() throws"})),
+      fail_loop_(declare_bool("fail_loop", false, {.doc = "loop() returns an error"})),
+      throw_loop_(declare_bool("throw_loop", false, {.doc = "loop() throws"})),
+      on_delay_ms_(declare_int("on_delay_ms", 0, {.doc = "on() takes this long", .min = 0, .max = 60000})),
+      label_(declare_string("label", "probe", {.doc = "free text (string parameter tests)"})) {}
+
+void Probe::init() {
+  if (fail_init_.get_bool()) throw std::runtime_error("fail_init is set");
+}
+
+HookResult Probe::on() {
+  on_calls_.fetch_add(1, std::memory_order_relaxed);
+  rt::sleep_for(on_delay_ms_.get_int() * rt::kNsPerMs);
+  if (throw_on_.get_bool()) throw std::runtime_error("throw_on is set");
+  return fail_on_.get_bool() ? HookResult::kError : HookResult::kOk;
+}
+
+void Probe::off() { off_calls_.fetch_add(1, std::memory_order_relaxed); }
+
+HookResult Probe::loop() {
+  loops_.fetch_add(1, std::memory_order_relaxed);
+  if (throw_loop_.get_bool()) throw std::runtime_error("throw_loop is set");
+  interfaces::ProbeData d;
+  d.loops = loops_.load(std::memory_order_relaxed);
+  d.on_calls = on_calls_.load(std::memory_order_relaxed);
+  d.off_calls = off_calls_.load(std::memory_order_relaxed);
+  publish(d, rt::host_time_ns());
+  return fail_loop_.get_bool() ? HookResult::kError : HookResult::kOk;
+}
+
+CommandResult Probe::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
+  if (request.type == interfaces::kProbeThrow) throw std::runtime_error("kProbeThrow");
+  if (request.type != interfaces::kProbeEcho) return CommandResult::kUnknown;
+  if (body.size() != 8) {
+    reject_malformed(request, "ECHO takes an 8-byte body");
+    return CommandResult::kHandled;
+  }
+  const tims::ConstBuffer part{body.data(), body.size()};
+  reply(request, tims::msg::kOk, std::span<const tims::ConstBuffer>(&part, 1));
+  return CommandResult::kHandled;
+}
+
+}  // namespace rack::components

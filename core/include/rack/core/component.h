@@ -1,0 +1,195 @@
+// RACK's component: a command task that serves its command mailbox, hooks that a
+// component class overrides, runtime parameters, and the DISABLED/ENABLED/ERROR
+// life cycle. The framework owns the loops; a class overrides hooks (STYLE.md 1).
+//
+// Life cycle (all transitions run in the command task):
+//
+//   DISABLED --ON, on() ok----------------> ENABLED    ON answered OK when on() returns
+//   DISABLED --ON, on() fails or throws---> ERROR      ON answered ERROR
+//   ERROR ----back-off elapsed, on() ok---> ENABLED    (retry; no one is answered)
+//   ERROR ----back-off elapsed, fails-----> ERROR      next back-off
+//   ERROR ----ON--------------------------> as from DISABLED, at once
+//   ERROR ----OFF-------------------------> DISABLED   retries stop; OFF answered OK
+//   ENABLED --OFF-------------------------> DISABLED   off() runs; OFF answered OK
+//   ENABLED --loop() or command() fails---> ERROR      off() runs; listeners get ERROR
+//   any ------shutdown--------------------> off() if ENABLED, then cleanup()
+//   init() throws: the component stays in ERROR for good; ON is answered ERROR.
+//
+// A data component's listeners get an ERROR message and are dropped whenever it
+// leaves ENABLED. An exception or error in one component affects that component only.
+//
+// Real-time contract: on(), off(), command() and everything they call run in the
+// command task (an RT task): they must not allocate, lock without PI, print or make
+// blocking system calls. init() and cleanup() are not RT: allocate there. The
+// helpers below are RT-safe unless they say otherwise.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "rack/core/parameters.h"
+#include "rack/core/wire.h"
+#include "rack/rt/clock.h"
+#include "rack/tims/endpoint.h"
+
+namespace rack {
+
+enum class ComponentState : uint8_t { kDisabled = 0, kEnabled = 1, kError = 2 };
+[[nodiscard]] const char* describe(ComponentState s) noexcept;
+
+enum class HookResult : uint8_t { kOk, kError };
+enum class CommandResult : uint8_t { kHandled, kUnknown };
+enum class DataTaskMode : uint8_t { kNone = 0, kPeriodic = 1, kTriggered = 2 };
+[[nodiscard]] const char* describe(DataTaskMode m) noexcept;
+
+struct TaskSettings {
+  int priority = 0;                     // 1..99 SCHED_FIFO, 0 normal
+  int cpu = -1;                         // -1: any
+  std::size_t stack_bytes = 256 * 1024;
+};
+
+// How the executor runs one component (from the host file).
+struct ComponentSettings {
+  std::string name;                     // the host file's name ("ladar_front")
+  std::string impl;                     // implementation class ("Generator")
+  tims::Address address;                // command mailbox: Class(sys/inst)
+  TaskSettings command_task{30, -1, 256 * 1024};
+  TaskSettings data_task{40, -1, 256 * 1024};
+  int64_t period_ns = 0;                // periodic data task
+  int64_t data_timeout_ns = rt::kNsPerSec;  // triggered: loop() runs after this long without input
+  int64_t retry_ns = rt::kNsPerSec;     // ERROR back-off
+  int64_t rpc_timeout_ns = rt::kNsPerSec;   // cascading ON and other calls from hooks
+  uint32_t ring_size = 64;
+  uint32_t command_slots = 16;
+  uint32_t input_slots = 32;
+  uint32_t max_listeners = 16;
+  bool autostart = false;
+};
+
+class Executor;
+struct HostLoader;
+
+class Component {
+ public:
+  virtual ~Component();
+  Component(const Component&) = delete;
+  Component& operator=(const Component&) = delete;
+
+  [[nodiscard]] const ComponentSettings& settings() const noexcept { return settings_; }
+  [[nodiscard]] const std::string& name() const noexcept { return settings_.name; }
+  [[nodiscard]] tims::Address address() const noexcept { return settings_.address; }
+  [[nodiscard]] ComponentState state() const noexcept { return state_.load(std::memory_order_acquire); }
+  [[nodiscard]] ParameterSet& parameters() noexcept { return params_; }
+  [[nodiscard]] const ParameterSet& parameters() const noexcept { return params_; }
+  [[nodiscard]] virtual DataTaskMode data_task_mode() const noexcept { return DataTaskMode::kNone; }
+  // Statistics for GET_STATS and rackd's status lines. Any thread, RT-safe.
+  virtual void fill_stats(wire::StatsReply& out) const noexcept;
+
+ protected:
+  Component() = default;
+
+  // ---- hooks ----
+  virtual void init() {}                                   // non-RT: allocate; throw on failure
+  virtual HookResult on() { return HookResult::kOk; }      // switch the device/algorithm on
+  virtual void off() {}                                    // bounded time; never blocks long
+  // Class-specific requests (type >= 21). Reply with reply()/reply_error().
+  virtual CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) {
+    (void)request;
+    (void)body;
+    return CommandResult::kUnknown;
+  }
+  virtual void cleanup() {}                                // non-RT
+
+  // ---- declaration (constructor only) ----
+  Parameter& declare_int(const std::string& n, int64_t v, Parameter::Spec s = {}) { return params_.declare_int(n, v, std::move(s)); }
+  Parameter& declare_float(const std::string& n, double v, Parameter::Spec s = {}) { return params_.declare_float(n, v, std::move(s)); }
+  Parameter& declare_bool(const std::string& n, bool v, Parameter::Spec s = {}) { return params_.declare_bool(n, v, std::move(s)); }
+  Parameter& declare_string(const std::string& n, const std::string& v, Parameter::Spec s = {}) { return params_.declare_string(n, v, std::move(s)); }
+  // A required string parameter naming another component (host-file name or
+  // `Class(sys/inst)`); the executor resolves it and orders start and shutdown by it.
+  Parameter& declare_component_ref(const std::string& n, const std::string& doc);
+  // Command mailbox slot size, if the class's commands carry large bodies.
+  void set_command_slot_size(uint32_t bytes) { command_slot_size_ = bytes; }
+
+  // ---- for hooks (RT-safe) ----
+  // The address a component-ref parameter resolved to.
+  [[nodiscard]] tims::Address resolved(const Parameter& ref) const noexcept;
+  // RPCs from on() and command() (the command task's own reply mailbox).
+  [[nodiscard]] tims::Endpoint& command_endpoint() noexcept { return *command_endpoint_; }
+  // Cascading ON: switch on a component this one depends on, and wait for its answer.
+  [[nodiscard]] HookResult switch_on(tims::Address dest) noexcept;
+  void reply(const tims::MessageHeader& request, int8_t type,
+             std::span<const tims::ConstBuffer> body = {}) noexcept;
+  template <tims::Payload T>
+  void reply_with(const tims::MessageHeader& request, int8_t type, const T& body) noexcept {
+    const tims::ConstBuffer part = tims::buffer_of(body);
+    reply(request, type, std::span<const tims::ConstBuffer>(&part, 1));
+  }
+  void reply_error(const tims::MessageHeader& request, const char* reason) noexcept;
+  // Counts a malformed request and answers it ERROR with `reason`.
+  void reject_malformed(const tims::MessageHeader& request, const char* reason) noexcept;
+  [[nodiscard]] tims::Router& router() noexcept { return *router_; }
+
+ private:
+  friend class Executor;
+  friend struct HostLoader;
+  friend class DataComponentBase;
+
+  // Framework internals (called by the executor).
+  virtual void attach(tims::Router& router);  // settings_ already set by the loader
+  void detach() noexcept;
+  bool run_init(std::string& error);      // non-RT; catches
+  void run_command_task() noexcept;       // the command task's body
+  void request_stop() noexcept;           // wakes every task of this component
+  void run_cleanup() noexcept;            // non-RT; catches
+
+  // Extension points for DataComponentBase.
+  virtual bool handle_data_request(const tims::MessageHeader&, std::span<const std::byte>) noexcept { return false; }
+  virtual void leaving_enabled() noexcept {}    // before off(): stop the data task's loop
+  virtual void entered_enabled() noexcept {}    // after on() succeeded
+  virtual void stop_data_task() noexcept {}
+
+  void handle(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept;
+  void handle_on(const tims::MessageHeader* request) noexcept;
+  void handle_off() noexcept;
+  void go_error() noexcept;                  // ENABLED -> ERROR (loop or command failure)
+  HookResult call_on() noexcept;
+  void call_off() noexcept;
+  void handle_get_param(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept;
+  void handle_set_param(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept;
+
+ protected:
+  // For DataComponentBase: the data task reports a failed loop().
+  void report_loop_failure() noexcept;
+  [[nodiscard]] bool stopping() const noexcept { return stop_.load(std::memory_order_acquire); }
+  void set_state(ComponentState s) noexcept;
+
+ private:
+  ComponentSettings settings_;
+  ParameterSet params_;
+  std::vector<std::pair<const Parameter*, tims::Address>> refs_;  // filled by the executor
+  uint32_t command_slot_size_ = 1024;
+  tims::Router* router_ = nullptr;
+  std::unique_ptr<tims::Mailbox> command_mailbox_;
+  std::unique_ptr<tims::Mailbox> command_reply_mailbox_;
+  std::unique_ptr<tims::Endpoint> command_endpoint_;
+  std::vector<std::byte> command_buffer_;
+  std::vector<wire::ParamRecord> param_records_;
+  // State: written by the command task, read by everyone (acquire/release so a
+  // reader that sees ENABLED also sees what on() wrote).
+  std::atomic<ComponentState> state_{ComponentState::kDisabled};
+  std::atomic<bool> stop_{false};
+  // Set by the data task when loop() failed; consumed by the command task.
+  std::atomic<bool> loop_failed_{false};
+  bool init_failed_ = false;
+  char init_error_[120] = {};
+  int64_t retry_at_ns_ = 0;
+  // Statistics (written by the command task, relaxed: counters).
+  std::atomic<uint64_t> commands_{0}, malformed_{0}, errors_{0};
+};
+
+}  // namespace rack

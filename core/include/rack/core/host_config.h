@@ -1,0 +1,63 @@
+// The host file: which components one rackd runs, with their tasks and parameters.
+// See configs/demo.yaml for a commented example of every key.
+//
+// Loading validates everything before anything starts: unknown keys, wrong types,
+// missing or unknown parameters, unknown component classes, duplicate names and
+// addresses, priorities outside 1..99, CPUs that are not online, non-positive
+// periods, dependency cycles. Each problem is reported as `file:line:col: message`.
+//
+// Real-time contract: not RT-safe (set-up only).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "rack/core/component.h"
+#include "rack/core/registry.h"
+#include "rack/rt/capabilities.h"
+
+namespace rack {
+
+struct ConfigError {
+  std::string file;
+  int line = 0;     // 1-based; 0 when the error is about the whole file
+  int column = 0;   // 1-based
+  std::string message;
+  [[nodiscard]] std::string str() const;  // "file:line:col: message"
+};
+
+struct HostSettings {
+  std::string file;
+  std::string host;               // host name (default: the machine's)
+  uint8_t system = 0;             // robot id: the system byte of every address here
+  uint8_t host_id = 0;            // instance of this host's Executor(sys/id) mailbox
+  bool require_rt = false;        // refuse to start without RT scheduling and locked memory
+  std::string lcm_url;            // TiMS/LCM network ("" with lcm: false)
+  bool lcm = true;
+  std::size_t heap_prefault_bytes = 64u << 20;
+  std::vector<std::string> plugins;
+};
+
+// A validated host: the settings, and every component constructed with its
+// parameters applied, in start order (dependencies first).
+struct LoadedHost {
+  HostSettings settings;
+  std::vector<std::unique_ptr<Component>> components;
+  std::vector<std::vector<std::size_t>> dependencies;  // per component: indices it depends on
+};
+
+struct LoadResult {
+  std::unique_ptr<LoadedHost> host;  // null when errors is not empty
+  std::vector<ConfigError> errors;
+};
+
+// Reads and validates a host file. `caps` gives the online CPUs.
+[[nodiscard]] LoadResult load_host_file(const std::string& path, ComponentRegistry& registry,
+                                        const rt::RtCapabilities& caps);
+// The same from text (tests, tools); `file` names it in error messages.
+[[nodiscard]] LoadResult load_host_text(const std::string& text, const std::string& file,
+                                        ComponentRegistry& registry, const rt::RtCapabilities& caps);
+
+}  // namespace rack

@@ -1,0 +1,103 @@
+// Runtime parameters: declared by a component (in its constructor), filled from the
+// host file, read and set by message (GET_PARAM / SET_PARAM).
+//
+// Thread-safety: values are written by the command task (SET_PARAM) or by the
+// executor before tasks start (host file), and read by any task. int/float/bool are
+// atomics; a string is copied under a seqlock. Declaration is not thread-safe and
+// happens before the component is started.
+// Real-time contract: get_*(), copy_string(), set_from_wire() and to_record() are
+// RT-safe. declare_*() and set_from_text() are not (set-up only).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <deque>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "rack/core/wire.h"
+
+namespace rack {
+
+using wire::ParamKind;
+[[nodiscard]] const char* describe(ParamKind kind) noexcept;
+
+class Parameter {
+ public:
+  struct Spec {
+    std::string doc;           // one line, shown by rackctl params and --list-classes
+    bool required = false;     // the host file must give a value
+    double min = -std::numeric_limits<double>::infinity();
+    double max = std::numeric_limits<double>::infinity();
+    bool component_ref = false;  // a string that names a component (dependency)
+  };
+
+  Parameter(std::string name, ParamKind kind, Spec spec);
+  Parameter(const Parameter&) = delete;
+  Parameter& operator=(const Parameter&) = delete;
+
+  [[nodiscard]] const std::string& name() const noexcept { return name_; }
+  [[nodiscard]] ParamKind kind() const noexcept { return kind_; }
+  [[nodiscard]] const Spec& spec() const noexcept { return spec_; }
+
+  // Readers (RT-safe). A getter of the wrong kind returns the converted value
+  // (int<->float) or 0/false: kinds are fixed at declaration, so this is a bug.
+  [[nodiscard]] int64_t get_int() const noexcept;
+  [[nodiscard]] double get_float() const noexcept;
+  [[nodiscard]] bool get_bool() const noexcept;
+  // Copies the string value (NUL-terminated, cut to `size`). RT-safe.
+  void copy_string(char* out, std::size_t size) const noexcept;
+  [[nodiscard]] std::string get_string() const;  // not RT-safe
+
+  // From host-file text. nullopt on success, otherwise the reason. Not RT-safe.
+  std::optional<std::string> set_from_text(const std::string& text);
+  // From a SET_PARAM record (kinds must match; an int is accepted for a float).
+  // Returns nullptr on success, otherwise a static reason. RT-safe.
+  const char* set_from_wire(const wire::ParamRecord& record) noexcept;
+  void to_record(wire::ParamRecord& out) const noexcept;  // RT-safe
+  [[nodiscard]] std::string value_text() const;             // not RT-safe
+
+  [[nodiscard]] bool was_set() const noexcept { return set_.load(std::memory_order_relaxed); }
+
+ private:
+  void store_string(const char* text, std::size_t len) noexcept;
+
+  std::string name_;
+  ParamKind kind_;
+  Spec spec_;
+  // Each value is independent; relaxed is enough for int/float/bool: a reader sees
+  // the old or the new value, never a torn one.
+  std::atomic<int64_t> int_{0};
+  std::atomic<double> float_{0.0};
+  std::atomic<bool> set_{false};
+  // Seqlock for the string: odd while being written. acquire/release pair the
+  // sequence with the bytes (the bytes themselves are accessed through atomic_ref).
+  std::atomic<uint32_t> string_seq_{0};
+  alignas(8) char string_[wire::kParamStringLen] = {};
+};
+
+class ParameterSet {
+ public:
+  // Declaration (constructor of a component). Not RT-safe. Throws
+  // std::invalid_argument on a duplicate or too long name.
+  Parameter& declare_int(const std::string& name, int64_t initial, Parameter::Spec spec = {});
+  Parameter& declare_float(const std::string& name, double initial, Parameter::Spec spec = {});
+  Parameter& declare_bool(const std::string& name, bool initial, Parameter::Spec spec = {});
+  Parameter& declare_string(const std::string& name, const std::string& initial,
+                            Parameter::Spec spec = {});
+
+  [[nodiscard]] Parameter* find(const char* name) noexcept;  // RT-safe (linear, no allocation)
+  [[nodiscard]] const Parameter* find(const char* name) const noexcept;
+  [[nodiscard]] std::size_t size() const noexcept { return params_.size(); }
+  [[nodiscard]] Parameter& at(std::size_t i) noexcept { return params_[i]; }
+  [[nodiscard]] const Parameter& at(std::size_t i) const noexcept { return params_[i]; }
+  [[nodiscard]] std::string names() const;  // "a, b, c" for error messages
+
+ private:
+  Parameter& add(const std::string& name, ParamKind kind, Parameter::Spec spec);
+  std::deque<Parameter> params_;  // stable addresses
+};
+
+}  // namespace rack

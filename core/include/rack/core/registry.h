@@ -1,0 +1,45 @@
+// Component classes by implementation name. The executor knows classes only by
+// name (DESIGN.md); each component library registers its classes, and plug-ins
+// named in a host file register theirs from `rack_register_components`.
+//
+// Real-time contract: not RT-safe (set-up only). Not thread-safe.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "rack/core/component.h"
+
+namespace rack {
+
+struct ComponentClass {
+  std::string impl;         // the name host files use: "Generator"
+  uint8_t class_id = 0;     // TiMS class of its addresses (rack::tims::classes)
+  std::string description;  // one line for --list-classes
+  std::function<std::unique_ptr<Component>()> make;
+};
+
+class ComponentRegistry {
+ public:
+  // Throws std::invalid_argument when the name is taken.
+  void add(ComponentClass cls);
+  [[nodiscard]] const ComponentClass* find(const std::string& impl) const;
+  [[nodiscard]] std::vector<const ComponentClass*> all() const;
+  [[nodiscard]] std::string names() const;  // "A, B, C"
+
+  // Loads a plug-in (dlopen) and calls its
+  //   extern "C" void rack_register_components(rack::ComponentRegistry&);
+  // Throws std::runtime_error with dlerror()'s text.
+  void load_plugin(const std::string& path);
+
+ private:
+  std::map<std::string, ComponentClass> classes_;
+  std::vector<void*> plugins_;  // kept open for the process lifetime
+};
+
+
+}  // namespace rack

@@ -1,0 +1,169 @@
+// Bodies of RACK's generic messages (DESIGN.md message numbers). Every struct is a
+// TiMS payload (rack/tims/payload.h): fixed layout, field table for byte order.
+//
+// Real-time contract: plain data; everything here is RT-safe.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <span>
+
+#include "rack/tims/payload.h"
+
+namespace rack::wire {
+
+// GET_DATA request: time 0 = newest, else the sample nearest that host time.
+struct GetDataRequest {
+  int64_t time_ns = 0;
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(GetDataRequest, time_ns)};
+  }
+};
+
+// GET_CONT_DATA request: send every n-th sample to `mailbox`, n from the period.
+struct ContDataRequest {
+  int64_t period_ns = 0;   // 0: every sample
+  uint32_t mailbox = 0;    // where the samples go
+  uint32_t reserved = 0;
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(ContDataRequest, period_ns),
+                                      RACK_FIELD(ContDataRequest, mailbox)};
+  }
+};
+
+// CONT_DATA reply: the period the listener will really get.
+struct ContDataReply {
+  int64_t period_ns = 0;
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(ContDataReply, period_ns)};
+  }
+};
+
+// STOP_CONT_DATA request.
+struct StopContDataRequest {
+  uint32_t mailbox = 0;
+  uint32_t reserved = 0;
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(StopContDataRequest, mailbox)};
+  }
+};
+
+// Every DATA message body starts with this, followed by the class's sample.
+struct SampleHeader {
+  int64_t time_ns = 0;     // recording time (host clock)
+  uint64_t sequence = 0;   // per producer, counts every sample written
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(SampleHeader, time_ns),
+                                      RACK_FIELD(SampleHeader, sequence)};
+  }
+};
+
+// ERROR reply body (optional): a NUL-terminated reason.
+struct ErrorText {
+  char text[120] = {};
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(ErrorText, text)};
+  }
+};
+
+enum class ParamKind : uint8_t { kInt = 0, kFloat = 1, kBool = 2, kString = 3 };
+inline constexpr std::size_t kParamNameLen = 32;
+inline constexpr std::size_t kParamStringLen = 128;
+
+// GET_PARAM request body (empty body: every parameter), SET_PARAM/PARAM record.
+struct ParamName {
+  char name[kParamNameLen] = {};
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(ParamName, name)};
+  }
+};
+
+struct ParamRecord {
+  char name[kParamNameLen] = {};
+  uint8_t kind = 0;          // ParamKind
+  uint8_t flags = 0;         // bit 0: names a component (address reference)
+  uint8_t reserved[6] = {};
+  int64_t int_value = 0;     // kInt, kBool (0/1)
+  double float_value = 0.0;  // kFloat
+  char string_value[kParamStringLen] = {};
+  static constexpr auto fields() noexcept {
+    return std::array{
+      RACK_FIELD(ParamRecord, name), RACK_FIELD(ParamRecord, kind), RACK_FIELD(ParamRecord, flags),
+      RACK_FIELD(ParamRecord, int_value), RACK_FIELD(ParamRecord, float_value),
+      RACK_FIELD(ParamRecord, string_value)};
+  }
+};
+
+// Timing of one task (GET_STATS).
+struct TaskStats {
+  uint64_t cycles = 0;
+  uint64_t overruns = 0;
+  uint64_t samples = 0;
+  int64_t latency_min_ns = 0;
+  int64_t latency_max_ns = 0;
+  int64_t latency_p50_ns = 0;
+  int64_t latency_p99_ns = 0;
+  int64_t latency_p999_ns = 0;
+  int64_t latency_mean_ns = 0;
+};
+
+// STATS reply body.
+struct StatsReply {
+  uint8_t state = 0;           // ComponentState
+  uint8_t data_task = 0;       // 0 none, 1 periodic, 2 triggered
+  uint8_t reserved[6] = {};
+  int64_t period_ns = 0;
+  TaskStats data;
+  uint64_t commands = 0;       // requests handled by the command task
+  uint64_t malformed = 0;      // requests rejected as malformed (answered ERROR)
+  uint64_t errors = 0;         // transitions into ERROR
+  uint64_t listeners = 0;      // current getContData listeners
+  uint64_t published = 0;      // samples written
+  uint64_t listener_drops = 0; // samples a listener's mailbox refused
+  uint64_t command_drops = 0;  // command mailbox drops + refusals
+  uint64_t stale_replies = 0;
+  static constexpr auto fields() noexcept {
+    return std::array{
+      RACK_FIELD(StatsReply, state), RACK_FIELD(StatsReply, data_task),
+      RACK_FIELD(StatsReply, period_ns), RACK_FIELD(StatsReply, data.cycles),
+      RACK_FIELD(StatsReply, data.overruns), RACK_FIELD(StatsReply, data.samples),
+      RACK_FIELD(StatsReply, data.latency_min_ns), RACK_FIELD(StatsReply, data.latency_max_ns),
+      RACK_FIELD(StatsReply, data.latency_p50_ns), RACK_FIELD(StatsReply, data.latency_p99_ns),
+      RACK_FIELD(StatsReply, data.latency_p999_ns), RACK_FIELD(StatsReply, data.latency_mean_ns),
+      RACK_FIELD(StatsReply, commands), RACK_FIELD(StatsReply, malformed),
+      RACK_FIELD(StatsReply, errors), RACK_FIELD(StatsReply, listeners),
+      RACK_FIELD(StatsReply, published), RACK_FIELD(StatsReply, listener_drops),
+      RACK_FIELD(StatsReply, command_drops), RACK_FIELD(StatsReply, stale_replies)};
+  }
+};
+
+// Reads a payload from a body: exact size required, byte order converted when the
+// sender's differs. false: wrong size. RT-safe.
+template <tims::Payload T>
+[[nodiscard]] bool read_payload(std::span<const std::byte> body, bool native, T& out) noexcept {
+  if (body.size() != sizeof(T)) return false;
+  std::memcpy(&out, body.data(), sizeof(T));
+  if (!native) tims::swap_fields(tims::fields_of<T>, reinterpret_cast<std::byte*>(&out), sizeof(T));
+  return true;
+}
+
+// Copies a NUL-terminated string into a fixed char array (always terminated). RT-safe.
+template <std::size_t N>
+void copy_text(char (&dst)[N], const char* src) noexcept {
+  std::size_t i = 0;
+  for (; src != nullptr && src[i] != '\0' && i + 1 < N; ++i) dst[i] = src[i];
+  dst[i] = '\0';
+}
+
+// Appends to a NUL-terminated fixed char array (cuts at the end). RT-safe.
+template <std::size_t N>
+void append_text(char (&dst)[N], const char* src) noexcept {
+  std::size_t i = 0;
+  while (i < N && dst[i] != '\0') ++i;
+  for (std::size_t j = 0; src != nullptr && src[j] != '\0' && i + 1 < N; ++i, ++j) dst[i] = src[j];
+  if (i < N) dst[i] = '\0';
+}
+
+}  // namespace rack::wire

@@ -1,0 +1,45 @@
+#include "rack/rt/pi_mutex.h"
+
+#include <cerrno>
+#include <cstdlib>
+
+#include "rack/rt/clock.h"
+
+namespace rack::rt {
+
+PiMutex::PiMutex() {
+  pthread_mutexattr_t attr;
+  pthread_mutexattr_init(&attr);
+  pthread_mutexattr_setprotocol(&attr, PTHREAD_PRIO_INHERIT);
+  if (pthread_mutex_init(&mutex_, &attr) != 0) std::abort();
+  pthread_mutexattr_destroy(&attr);
+}
+
+PiMutex::~PiMutex() { pthread_mutex_destroy(&mutex_); }
+void PiMutex::lock() noexcept { pthread_mutex_lock(&mutex_); }
+void PiMutex::unlock() noexcept { pthread_mutex_unlock(&mutex_); }
+bool PiMutex::try_lock() noexcept { return pthread_mutex_trylock(&mutex_) == 0; }
+
+PiCondVar::PiCondVar() {
+  pthread_condattr_t attr;
+  pthread_condattr_init(&attr);
+  pthread_condattr_setclock(&attr, CLOCK_MONOTONIC);
+  if (pthread_cond_init(&cond_, &attr) != 0) std::abort();
+  pthread_condattr_destroy(&attr);
+}
+
+PiCondVar::~PiCondVar() { pthread_cond_destroy(&cond_); }
+
+bool PiCondVar::wait_until(PiMutex& mutex, int64_t deadline_ns) noexcept {
+  if (deadline_ns < 0) {
+    pthread_cond_wait(&cond_, mutex.native());
+    return true;
+  }
+  const timespec ts = to_timespec(deadline_ns);
+  return pthread_cond_timedwait(&cond_, mutex.native(), &ts) != ETIMEDOUT;
+}
+
+void PiCondVar::notify_one() noexcept { pthread_cond_signal(&cond_); }
+void PiCondVar::notify_all() noexcept { pthread_cond_broadcast(&cond_); }
+
+}  // namespace rack::rt

@@ -1,0 +1,94 @@
+#include "rack/rt/thread.h"
+
+#include <sched.h>
+
+#include <cerrno>
+#include <system_error>
+
+#include "rack/rt/memory.h"
+
+namespace rack::rt {
+
+namespace {
+
+int create(pthread_t* handle, const ThreadConfig& config, bool realtime, void* (*fn)(void*),
+           void* arg) {
+  pthread_attr_t attr;
+  pthread_attr_init(&attr);
+  pthread_attr_setstacksize(&attr, config.stack_bytes < PTHREAD_STACK_MIN
+                                       ? static_cast<std::size_t>(PTHREAD_STACK_MIN)
+                                       : config.stack_bytes);
+  if (realtime) {
+    // Explicit: without it the new thread inherits the creator's policy and the
+    // attributes below are silently ignored.
+    pthread_attr_setinheritsched(&attr, PTHREAD_EXPLICIT_SCHED);
+    pthread_attr_setschedpolicy(&attr, SCHED_FIFO);
+    sched_param param{};
+    param.sched_priority = config.priority;
+    pthread_attr_setschedparam(&attr, &param);
+  } else {
+    pthread_attr_setinheritsched(&attr, PTHREAD_EXPLICIT_SCHED);
+    pthread_attr_setschedpolicy(&attr, SCHED_OTHER);
+    sched_param param{};
+    pthread_attr_setschedparam(&attr, &param);
+  }
+  if (config.cpu >= 0) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(static_cast<std::size_t>(config.cpu), &set);
+    pthread_attr_setaffinity_np(&attr, sizeof(set), &set);
+  }
+  const int rc = pthread_create(handle, &attr, fn, arg);
+  pthread_attr_destroy(&attr);
+  return rc;
+}
+
+}  // namespace
+
+Thread::~Thread() {
+  if (started_) join();
+}
+
+void* Thread::trampoline(void* self) {
+  auto* thread = static_cast<Thread*>(self);
+  pthread_setname_np(pthread_self(), thread->config_.name.substr(0, 15).c_str());
+  // Touch most of the stack now, so the first cycles do not fault it in.
+  prefault_stack(thread->config_.stack_bytes * 3 / 4);
+  thread->body_();
+  return nullptr;
+}
+
+ThreadStart Thread::start(const ThreadConfig& config, std::function<void()> body,
+                          bool allow_fallback) {
+  config_ = config;
+  body_ = std::move(body);
+  const bool want_rt = config.priority > 0;
+  int rc = create(&handle_, config_, want_rt, &Thread::trampoline, this);
+  ThreadStart how = want_rt ? ThreadStart::kRealTime : ThreadStart::kNormal;
+  if (rc == EPERM && want_rt && allow_fallback) {
+    rc = create(&handle_, config_, false, &Thread::trampoline, this);
+    how = ThreadStart::kFallback;
+  }
+  if (rc != 0) {
+    throw std::system_error(rc, std::generic_category(),
+                            "cannot start thread '" + config.name + "' (priority " +
+                                std::to_string(config.priority) + ", cpu " +
+                                std::to_string(config.cpu) + ")");
+  }
+  started_ = true;
+  return how;
+}
+
+void Thread::join() {
+  if (!started_) return;
+  pthread_join(handle_, nullptr);
+  started_ = false;
+}
+
+int set_current_thread_priority(int priority) noexcept {
+  sched_param param{};
+  param.sched_priority = priority;
+  return pthread_setschedparam(pthread_self(), priority > 0 ? SCHED_FIFO : SCHED_OTHER, &param);
+}
+
+}  // namespace rack::rt

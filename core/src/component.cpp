@@ -1,0 +1,330 @@
+#include "rack/core/component.h"
+
+#include <exception>
+
+namespace rack {
+
+using tims::Address;
+using tims::ConstBuffer;
+using tims::MessageHeader;
+namespace msg = tims::msg;
+
+const char* describe(ComponentState s) noexcept {
+  switch (s) {
+    case ComponentState::kDisabled: return "DISABLED";
+    case ComponentState::kEnabled: return "ENABLED";
+    case ComponentState::kError: return "ERROR";
+  }
+  return "UNKNOWN";
+}
+
+const char* describe(DataTaskMode m) noexcept {
+  switch (m) {
+    case DataTaskMode::kNone: return "none";
+    case DataTaskMode::kPeriodic: return "periodic";
+    case DataTaskMode::kTriggered: return "triggered";
+  }
+  return "unknown";
+}
+
+namespace {
+void bump(std::atomic<uint64_t>& c) noexcept {
+  // Single writer (the command task).
+  c.store(c.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+}
+uint8_t message_priority(int sched_priority) noexcept {
+  return static_cast<uint8_t>(sched_priority < 0 ? 0 : (sched_priority > 255 ? 255 : sched_priority));
+}
+}  // namespace
+
+Component::~Component() = default;
+
+Parameter& Component::declare_component_ref(const std::string& n, const std::string& doc) {
+  Parameter::Spec spec;
+  spec.doc = doc;
+  spec.required = true;
+  spec.component_ref = true;
+  return params_.declare_string(n, "", std::move(spec));
+}
+
+Address Component::resolved(const Parameter& ref) const noexcept {
+  for (const auto& [p, a] : refs_) {
+    if (p == &ref) return a;
+  }
+  return Address();
+}
+
+void Component::attach(tims::Router& router) {
+  router_ = &router;
+  command_mailbox_ = std::make_unique<tims::Mailbox>(settings_.address.with_mailbox(0),
+                                                     settings_.command_slots, command_slot_size_);
+  // Replies to calls made from hooks: GET_DATA replies can be as large as a slot.
+  command_reply_mailbox_ = std::make_unique<tims::Mailbox>(settings_.address.with_mailbox(1), 8, 64 * 1024);
+  command_endpoint_ = std::make_unique<tims::Endpoint>(
+      router, *command_reply_mailbox_, message_priority(settings_.command_task.priority));
+  command_buffer_.assign(command_slot_size_ + 8, std::byte{0});
+  param_records_.assign(params_.size(), wire::ParamRecord{});
+  router.add(*command_mailbox_);
+  router.add(*command_reply_mailbox_);
+}
+
+void Component::detach() noexcept {
+  if (router_ == nullptr) return;
+  router_->remove(settings_.address.with_mailbox(0));
+  router_->remove(settings_.address.with_mailbox(1));
+}
+
+bool Component::run_init(std::string& error) {
+  try {
+    init();
+    return true;
+  } catch (const std::exception& e) {
+    error = e.what();
+  } catch (...) {
+    error = "unknown exception";
+  }
+  init_failed_ = true;
+  wire::copy_text(init_error_, ("init() failed: " + error).c_str());
+  set_state(ComponentState::kError);
+  bump(errors_);
+  return false;
+}
+
+void Component::run_cleanup() noexcept {
+  try {
+    cleanup();
+  } catch (...) {
+    // Shutting down: nothing left to put in ERROR.
+  }
+}
+
+void Component::set_state(ComponentState s) noexcept { state_.store(s, std::memory_order_release); }
+
+void Component::request_stop() noexcept {
+  stop_.store(true, std::memory_order_release);
+  if (command_mailbox_) command_mailbox_->close();
+  if (command_reply_mailbox_) command_reply_mailbox_->close();
+  stop_data_task();
+}
+
+void Component::report_loop_failure() noexcept {
+  loop_failed_.store(true, std::memory_order_release);
+  command_mailbox_->wake();
+}
+
+HookResult Component::call_on() noexcept {
+  try {
+    return on();
+  } catch (...) {
+    return HookResult::kError;
+  }
+}
+
+void Component::call_off() noexcept {
+  try {
+    off();
+  } catch (...) {
+    // off() must not fail; if it throws we are leaving ENABLED anyway.
+  }
+}
+
+void Component::handle_on(const MessageHeader* request) noexcept {
+  if (init_failed_) {
+    if (request != nullptr) reply_error(*request, init_error_);
+    return;
+  }
+  if (state() == ComponentState::kEnabled) {
+    if (request != nullptr) reply(*request, msg::kOk);
+    return;
+  }
+  if (call_on() == HookResult::kOk) {
+    set_state(ComponentState::kEnabled);
+    entered_enabled();
+    if (request != nullptr) reply(*request, msg::kOk);
+    return;
+  }
+  call_off();  // undo what on() did halfway
+  if (state() != ComponentState::kError) bump(errors_);
+  set_state(ComponentState::kError);
+  retry_at_ns_ = rt::monotonic_ns() + settings_.retry_ns;
+  if (request != nullptr) reply_error(*request, "on() failed");
+}
+
+void Component::handle_off() noexcept {
+  if (state() == ComponentState::kEnabled) {
+    leaving_enabled();
+    call_off();
+  }
+  set_state(ComponentState::kDisabled);
+}
+
+void Component::go_error() noexcept {
+  if (state() != ComponentState::kEnabled) return;
+  leaving_enabled();
+  call_off();
+  set_state(ComponentState::kError);
+  bump(errors_);
+  retry_at_ns_ = rt::monotonic_ns() + settings_.retry_ns;
+}
+
+HookResult Component::switch_on(Address dest) noexcept {
+  alignas(8) std::byte buf[256];
+  const auto r = command_endpoint_->call(dest, msg::kOn, std::span<std::byte>(buf), settings_.rpc_timeout_ns);
+  return r.ok() ? HookResult::kOk : HookResult::kError;
+}
+
+void Component::reply(const MessageHeader& request, int8_t type, std::span<const ConstBuffer> body) noexcept {
+  (void)command_endpoint_->reply(request, type, body);
+}
+
+void Component::reply_error(const MessageHeader& request, const char* reason) noexcept {
+  wire::ErrorText text;
+  wire::copy_text(text.text, reason);
+  reply_with(request, msg::kError, text);
+}
+
+void Component::reject_malformed(const MessageHeader& request, const char* reason) noexcept {
+  bump(malformed_);
+  reply_error(request, reason);
+}
+
+void Component::fill_stats(wire::StatsReply& out) const noexcept {
+  out.state = static_cast<uint8_t>(state());
+  out.data_task = static_cast<uint8_t>(data_task_mode());
+  out.period_ns = settings_.period_ns;
+  out.commands = commands_.load(std::memory_order_relaxed);
+  out.malformed = malformed_.load(std::memory_order_relaxed);
+  out.errors = errors_.load(std::memory_order_relaxed);
+  if (command_mailbox_) {
+    const auto c = command_mailbox_->counters();
+    out.command_drops = c.dropped + c.refused + c.too_large + c.truncated;
+  }
+  if (command_endpoint_) out.stale_replies = command_endpoint_->stale_replies();
+}
+
+void Component::handle_get_param(const MessageHeader& h, std::span<const std::byte> body) noexcept {
+  if (body.empty()) {
+    for (std::size_t i = 0; i < params_.size(); ++i) params_.at(i).to_record(param_records_[i]);
+    const ConstBuffer part{param_records_.data(), param_records_.size() * sizeof(wire::ParamRecord)};
+    reply(h, msg::kParam, std::span<const ConstBuffer>(&part, 1));
+    return;
+  }
+  wire::ParamName name;
+  if (!wire::read_payload(body, tims::body_is_native(h), name)) {
+    return reject_malformed(h, "GET_PARAM: body must be empty or a 32-byte parameter name");
+  }
+  name.name[sizeof name.name - 1] = '\0';
+  const Parameter* p = params_.find(name.name);
+  if (p == nullptr) {
+    wire::ErrorText text;
+    wire::copy_text(text.text, "unknown parameter '");
+    wire::append_text(text.text, name.name);
+    wire::append_text(text.text, "'");
+    reply_with(h, msg::kError, text);
+    return;
+  }
+  wire::ParamRecord record;
+  p->to_record(record);
+  reply_with(h, msg::kParam, record);
+}
+
+void Component::handle_set_param(const MessageHeader& h, std::span<const std::byte> body) noexcept {
+  wire::ParamRecord record;
+  if (!wire::read_payload(body, tims::body_is_native(h), record)) {
+    return reject_malformed(h, "SET_PARAM: body must be one parameter record");
+  }
+  record.name[sizeof record.name - 1] = '\0';
+  Parameter* p = params_.find(record.name);
+  wire::ErrorText text;
+  if (p == nullptr) {
+    wire::copy_text(text.text, "unknown parameter '");
+    wire::append_text(text.text, record.name);
+    wire::append_text(text.text, "'");
+    reply_with(h, msg::kError, text);
+    return;
+  }
+  if (const char* why = p->set_from_wire(record)) {
+    wire::copy_text(text.text, record.name);
+    wire::append_text(text.text, ": ");
+    wire::append_text(text.text, why);
+    reply_with(h, msg::kError, text);
+    return;
+  }
+  reply(h, msg::kOk);
+}
+
+void Component::handle(const MessageHeader& h, std::span<const std::byte> body) noexcept {
+  bump(commands_);
+  if (!h.is_request()) return;  // a late reply or notification: nothing to answer
+  switch (h.type) {
+    case msg::kOn:
+      if (!body.empty()) return reject_malformed(h, "ON takes no body");
+      return handle_on(&h);
+    case msg::kOff:
+      if (!body.empty()) return reject_malformed(h, "OFF takes no body");
+      // Answered at once; off() is bounded (STYLE: hooks never block long).
+      handle_off();
+      return reply(h, msg::kOk);
+    case msg::kGetStatus: {
+      if (!body.empty()) return reject_malformed(h, "GET_STATUS takes no body");
+      const ComponentState s = state();
+      return reply(h, s == ComponentState::kEnabled    ? msg::kEnabled
+                      : s == ComponentState::kDisabled ? msg::kDisabled
+                                                       : msg::kError);
+    }
+    case msg::kGetParam: return handle_get_param(h, body);
+    case msg::kSetParam: return handle_set_param(h, body);
+    case msg::kGetStats: {
+      if (!body.empty()) return reject_malformed(h, "GET_STATS takes no body");
+      wire::StatsReply stats;
+      fill_stats(stats);
+      return reply_with(h, msg::kStats, stats);
+    }
+    default: break;
+  }
+  if (handle_data_request(h, body)) return;
+  if (h.type >= msg::kFirstClassCommand) {
+    try {
+      if (command(h, body) == CommandResult::kHandled) return;
+    } catch (...) {
+      reply_error(h, "command handler failed");
+      go_error();
+      return;
+    }
+  }
+  bump(malformed_);
+  wire::ErrorText text;
+  wire::copy_text(text.text, "unknown command for this component");
+  reply_with(h, msg::kError, text);
+}
+
+void Component::run_command_task() noexcept {
+  const std::span<std::byte> buffer(command_buffer_);
+  while (!stopping()) {
+    int64_t timeout = tims::Mailbox::kForever;
+    if (state() == ComponentState::kError && !init_failed_) {
+      timeout = retry_at_ns_ - rt::monotonic_ns();
+      if (timeout < 0) timeout = 0;
+    }
+    const auto r = command_mailbox_->receive(buffer, timeout);
+    if (r.status == tims::RecvStatus::kClosed) break;
+    if (loop_failed_.exchange(false, std::memory_order_acq_rel)) go_error();
+    switch (r.status) {
+      case tims::RecvStatus::kOk:
+        handle(r.header, buffer.subspan(sizeof(MessageHeader), r.length - sizeof(MessageHeader)));
+        break;
+      case tims::RecvStatus::kTooSmall:
+        if (r.header.is_request()) reject_malformed(r.header, "request larger than the command buffer");
+        break;
+      case tims::RecvStatus::kTimeout:
+      case tims::RecvStatus::kEmpty:
+      case tims::RecvStatus::kClosed:
+        break;
+    }
+    if (state() == ComponentState::kError && !init_failed_ && rt::monotonic_ns() >= retry_at_ns_) {
+      handle_on(nullptr);  // back-off elapsed: retry
+    }
+  }
+}
+
+}  // namespace rack

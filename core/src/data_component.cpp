@@ -1,0 +1,327 @@
+#include "rack/core/data_component.h"
+
+#include <cmath>
+
+namespace rack {
+
+using tims::Address;
+using tims::ConstBuffer;
+using tims::MessageHeader;
+namespace msg = tims::msg;
+
+namespace {
+void bump(std::atomic<uint64_t>& c) noexcept { c.fetch_add(1, std::memory_order_relaxed); }
+uint8_t message_priority(int p) noexcept { return static_cast<uint8_t>(p < 0 ? 0 : (p > 255 ? 255 : p)); }
+}  // namespace
+
+DataComponentBase::DataComponentBase(DataTaskMode mode, uint32_t payload_size,
+                                     std::span<const tims::FieldDesc> fields)
+    : mode_(mode), payload_size_(payload_size), fields_(fields) {}
+
+void DataComponentBase::attach(tims::Router& router) {
+  Component::attach(router);
+  const ComponentSettings& settings = this->settings();
+  ring_ = std::make_unique<SampleRing>(settings.ring_size, payload_size_);
+  data_reply_mailbox_ = std::make_unique<tims::Mailbox>(address().with_mailbox(kDataReplyMailbox), 8,
+                                                        64 * 1024);
+  data_endpoint_ = std::make_unique<tims::Endpoint>(router, *data_reply_mailbox_,
+                                                    message_priority(settings.data_task.priority));
+  router.add(*data_reply_mailbox_);
+  if (input_slot_size_ > 0) {
+    input_mailbox_ = std::make_unique<tims::Mailbox>(input_address(), settings.input_slots, input_slot_size_);
+    router.add(*input_mailbox_);
+  }
+  scratch_.assign(sizeof(wire::SampleHeader) + payload_size_ + 8, std::byte{0});
+  listeners_.assign(settings.max_listeners, Listener{});
+}
+
+void DataComponentBase::stop_data_task() noexcept {
+  if (input_mailbox_) input_mailbox_->close();
+  if (data_reply_mailbox_) data_reply_mailbox_->close();
+}
+
+int64_t DataComponentBase::effective_period_ns() const noexcept {
+  if (mode_ == DataTaskMode::kPeriodic) return settings().period_ns;
+  return last_interval_ns_.load(std::memory_order_relaxed);
+}
+
+uint64_t DataComponentBase::publish_bytes(const void* sample, int64_t time_ns) noexcept {
+  const uint64_t seq = ring_->write(time_ns, sample);
+  const int64_t prev = last_time_ns_.exchange(time_ns, std::memory_order_relaxed);
+  if (prev != 0 && time_ns > prev) last_interval_ns_.store(time_ns - prev, std::memory_order_relaxed);
+  bump(published_);
+  const wire::SampleHeader sh{time_ns, seq};
+  rt::PiLock lock(listeners_mutex_);
+  for (auto& l : listeners_) {
+    if (!l.active) continue;
+    if (l.oneshot) {
+      send_sample(l, sh, sample);
+      l.active = false;
+      continue;
+    }
+    if (--l.countdown == 0) {
+      l.countdown = l.factor;
+      send_sample(l, sh, sample);
+    }
+  }
+  return seq;
+}
+
+void DataComponentBase::send_sample(const Listener& l, const wire::SampleHeader& sh,
+                                    const void* payload) noexcept {
+  const MessageHeader h = tims::make_header(Address(l.mailbox), address(), msg::kData, l.priority, l.seq,
+                                            sizeof sh + payload_size_);
+  const ConstBuffer parts[] = {tims::buffer_of(sh), ConstBuffer{payload, payload_size_}};
+  if (!tims::delivered(router().send(h, std::span<const ConstBuffer>(parts)))) bump(listener_drops_);
+}
+
+void DataComponentBase::drop_listeners() noexcept {
+  wire::ErrorText text;
+  wire::copy_text(text.text, "producer left ENABLED");
+  rt::PiLock lock(listeners_mutex_);
+  for (auto& l : listeners_) {
+    if (!l.active) continue;
+    const MessageHeader h = tims::make_header(Address(l.mailbox), address(), msg::kError, l.priority,
+                                              l.seq, sizeof text);
+    const ConstBuffer part = tims::buffer_of(text);
+    (void)router().send(h, std::span<const ConstBuffer>(&part, 1));
+    l.active = false;
+  }
+}
+
+void DataComponentBase::leaving_enabled() noexcept {
+  loop_enabled_.store(false, std::memory_order_seq_cst);
+  // Wait for a running loop() to finish (bounded by one loop() call).
+  while (in_loop_.load(std::memory_order_seq_cst)) rt::sleep_for(50 * rt::kNsPerUs);
+  drop_listeners();
+}
+
+void DataComponentBase::entered_enabled() noexcept {
+  loop_enabled_.store(true, std::memory_order_seq_cst);
+  if (input_mailbox_) input_mailbox_->wake();
+}
+
+HookResult DataComponentBase::subscribe(Address producer, int64_t period_ns, int64_t* real_period_ns) noexcept {
+  wire::ContDataRequest req;
+  req.period_ns = period_ns;
+  req.mailbox = input_address().raw();
+  alignas(8) std::byte buf[256];
+  const auto r = command_endpoint().call(producer.component(), msg::kGetContData, req,
+                                         std::span<std::byte>(buf), settings().rpc_timeout_ns);
+  if (r.status != tims::CallStatus::kOk || r.reply.type != msg::kContData) return HookResult::kError;
+  wire::ContDataReply reply;
+  if (!wire::read_payload(r.body, tims::body_is_native(r.reply), reply)) return HookResult::kError;
+  if (real_period_ns != nullptr) *real_period_ns = reply.period_ns;
+  return HookResult::kOk;
+}
+
+void DataComponentBase::unsubscribe(Address producer) noexcept {
+  wire::StopContDataRequest req;
+  req.mailbox = input_address().raw();
+  alignas(8) std::byte buf[256];
+  (void)command_endpoint().call(producer.component(), msg::kStopContData, req, std::span<std::byte>(buf),
+                                settings().rpc_timeout_ns);
+}
+
+bool DataComponentBase::handle_data_request(const MessageHeader& h, std::span<const std::byte> body) noexcept {
+  const bool native = tims::body_is_native(h);
+  switch (h.type) {
+    case msg::kGetData: {
+      wire::GetDataRequest req;
+      if (body.empty()) req.time_ns = 0;
+      else if (!wire::read_payload(body, native, req)) {
+        reject_malformed(h, "GET_DATA: body must be empty or an 8-byte time");
+        return true;
+      }
+      auto* sh = reinterpret_cast<wire::SampleHeader*>(scratch_.data());
+      const RingLookup res =
+          ring_->read(req.time_ns, 2 * effective_period_ns(), *sh, scratch_.data() + sizeof(wire::SampleHeader));
+      if (res != RingLookup::kOk) {
+        reply_error(h, describe(res));
+        return true;
+      }
+      const ConstBuffer part{scratch_.data(), sizeof(wire::SampleHeader) + payload_size_};
+      reply(h, msg::kData, std::span<const ConstBuffer>(&part, 1));
+      return true;
+    }
+    case msg::kGetContData: {
+      wire::ContDataRequest req;
+      if (!wire::read_payload(body, native, req)) {
+        reject_malformed(h, "GET_CONT_DATA: body must be a 16-byte period and mailbox");
+        return true;
+      }
+      if (state() != ComponentState::kEnabled) {
+        reply_error(h, "not enabled");
+        return true;
+      }
+      const int64_t own = effective_period_ns();
+      uint32_t factor = 1;
+      if (req.period_ns > 0 && own > 0) {
+        const double n = std::round(static_cast<double>(req.period_ns) / static_cast<double>(own));
+        factor = n < 1.0 ? 1u : (n > 1e6 ? 1'000'000u : static_cast<uint32_t>(n));
+      }
+      bool placed = false;
+      {
+        rt::PiLock lock(listeners_mutex_);
+        Listener* slot = nullptr;
+        for (auto& l : listeners_) {
+          if (l.active && !l.oneshot && l.mailbox == req.mailbox) { slot = &l; break; }
+        }
+        if (slot == nullptr) {
+          for (auto& l : listeners_) {
+            if (!l.active) { slot = &l; break; }
+          }
+        }
+        if (slot != nullptr) {
+          *slot = Listener{req.mailbox, factor, factor, 0, h.priority, false, true};
+          placed = true;
+        }
+      }
+      if (!placed) {
+        reply_error(h, "too many listeners");
+        return true;
+      }
+      wire::ContDataReply rep;
+      rep.period_ns = own > 0 ? own * factor : 0;
+      reply_with(h, msg::kContData, rep);
+      return true;
+    }
+    case msg::kStopContData: {
+      wire::StopContDataRequest req;
+      if (!wire::read_payload(body, native, req)) {
+        reject_malformed(h, "STOP_CONT_DATA: body must be an 8-byte mailbox");
+        return true;
+      }
+      {
+        rt::PiLock lock(listeners_mutex_);
+        for (auto& l : listeners_) {
+          if (l.active && !l.oneshot && l.mailbox == req.mailbox) l.active = false;
+        }
+      }
+      reply(h, msg::kOk);
+      return true;
+    }
+    case msg::kGetNextData: {
+      if (!body.empty()) {
+        reject_malformed(h, "GET_NEXT_DATA takes no body");
+        return true;
+      }
+      if (state() != ComponentState::kEnabled) {
+        reply_error(h, "not enabled");
+        return true;
+      }
+      bool placed = false;
+      {
+        rt::PiLock lock(listeners_mutex_);
+        for (auto& l : listeners_) {
+          if (!l.active) {
+            l = Listener{h.src, 1, 1, h.seq, h.priority, true, true};
+            placed = true;
+            break;
+          }
+        }
+      }
+      if (!placed) reply_error(h, "too many listeners");
+      return true;  // answered with the next sample
+    }
+    default: return false;
+  }
+}
+
+void DataComponentBase::fill_stats(wire::StatsReply& out) const noexcept {
+  Component::fill_stats(out);
+  const rt::LatencySummary s = stats_.summary();
+  out.data.cycles = s.cycles;
+  out.data.overruns = s.overruns;
+  out.data.samples = s.samples;
+  out.data.latency_min_ns = s.min_ns;
+  out.data.latency_max_ns = s.max_ns;
+  out.data.latency_p50_ns = s.p50_ns;
+  out.data.latency_p99_ns = s.p99_ns;
+  out.data.latency_p999_ns = s.p999_ns;
+  out.data.latency_mean_ns = s.mean_ns;
+  out.published = published_.load(std::memory_order_relaxed);
+  out.listener_drops = listener_drops_.load(std::memory_order_relaxed);
+  auto* self = const_cast<DataComponentBase*>(this);
+  rt::PiLock lock(self->listeners_mutex_);
+  uint64_t n = 0;
+  for (const auto& l : listeners_) n += l.active && !l.oneshot ? 1 : 0;
+  out.listeners = n;
+}
+
+void DataComponentBase::run_one_cycle() noexcept {
+  in_loop_.store(true, std::memory_order_seq_cst);
+  if (loop_enabled_.load(std::memory_order_seq_cst)) {
+    HookResult r = HookResult::kError;
+    try {
+      r = loop();
+    } catch (...) {
+      r = HookResult::kError;
+    }
+    if (r != HookResult::kOk) {
+      loop_enabled_.store(false, std::memory_order_seq_cst);
+      report_loop_failure();
+    }
+  }
+  in_loop_.store(false, std::memory_order_seq_cst);
+}
+
+void DataComponentBase::drain_input() noexcept {
+  // Disabled: input that still arrives (late samples, ERRORs) is stale.
+  while (input_mailbox_->peek(tims::Mailbox::kNonBlocking).status == tims::RecvStatus::kOk) {
+    input_mailbox_->peek_end();
+  }
+}
+
+void DataComponentBase::run_data_task() noexcept {
+  if (mode_ == DataTaskMode::kPeriodic) {
+    const int64_t period = settings().period_ns;
+    int64_t next = rt::monotonic_ns() + period;
+    while (!stopping()) {
+      rt::sleep_until_monotonic(next);
+      stats_.record_latency(rt::monotonic_ns() - next);
+      run_one_cycle();
+      stats_.record_cycle();
+      next += period;
+      const int64_t now = rt::monotonic_ns();
+      if (now >= next) {  // overrun: skip the missed deadlines, never burst to catch up
+        const int64_t missed = (now - next) / period + 1;
+        next += missed * period;
+        stats_.record_overruns(static_cast<uint64_t>(missed));
+      }
+    }
+    return;
+  }
+  // Triggered: loop() runs when input arrives, or when data_timeout passes without
+  // any (so a component notices a silent source). Wake-ups without input do not count.
+  const int64_t timeout = settings().data_timeout_ns;
+  bool was_enabled = false;
+  int64_t deadline = 0;
+  while (!stopping()) {
+    if (!input_mailbox_) {
+      rt::sleep_for(timeout);
+      run_one_cycle();
+      stats_.record_cycle();
+      continue;
+    }
+    if (!loop_enabled_.load(std::memory_order_seq_cst)) {
+      was_enabled = false;
+      drain_input();
+      input_mailbox_->wait(timeout);
+      continue;
+    }
+    if (!was_enabled) {  // just enabled: the timeout starts now
+      was_enabled = true;
+      deadline = rt::monotonic_ns() + timeout;
+    }
+    const int64_t left = deadline - rt::monotonic_ns();
+    const bool got = left > 0 && input_mailbox_->wait(left);
+    if (stopping()) break;
+    if (!got && rt::monotonic_ns() < deadline) continue;  // woken without input
+    run_one_cycle();
+    stats_.record_cycle();
+    deadline = rt::monotonic_ns() + timeout;
+  }
+}
+
+}  // namespace rack

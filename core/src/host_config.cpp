@@ -1,0 +1,404 @@
+#include "rack/core/host_config.h"
+
+#include <unistd.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <set>
+#include <sstream>
+
+namespace rack {
+
+std::string ConfigError::str() const {
+  if (line <= 0) return file + ": " + message;
+  return file + ":" + std::to_string(line) + ":" + std::to_string(column) + ": " + message;
+}
+
+// Friend of Component: sets settings and resolved references.
+struct HostLoader {
+  std::string file;
+  ComponentRegistry& registry;
+  const rt::RtCapabilities& caps;
+  std::vector<ConfigError> errors;
+
+  void error(const YAML::Mark& mark, const std::string& message) {
+    errors.push_back({file, mark.line + 1, mark.column + 1, message});
+  }
+
+  // Checks that a map has only known keys; reports each unknown one.
+  void check_keys(const YAML::Node& map, const std::set<std::string>& known, const std::string& where) {
+    for (auto it = map.begin(); it != map.end(); ++it) {
+      const std::string key = it->first.Scalar();
+      if (known.count(key) == 0) {
+        std::string list;
+        for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
+        error(it->first.Mark(), "unknown key '" + key + "' in " + where + " (known: " + list + ")");
+      }
+    }
+  }
+
+  template <typename T>
+  bool get(const YAML::Node& map, const char* key, T& out, const std::string& what) {
+    const YAML::Node n = map[key];
+    if (!n) return false;
+    if (!n.IsScalar()) {
+      error(n.Mark(), std::string("'") + key + "' must be " + what);
+      return false;
+    }
+    try {
+      out = n.as<T>();
+      return true;
+    } catch (const YAML::Exception&) {
+      error(n.Mark(), std::string("'") + key + "' must be " + what + ", got '" + n.Scalar() + "'");
+      return false;
+    }
+  }
+
+  bool get_int_range(const YAML::Node& map, const char* key, int64_t lo, int64_t hi, int64_t& out,
+                     const std::string& what) {
+    int64_t v = 0;
+    if (!get(map, key, v, what)) return false;
+    if (v < lo || v > hi) {
+      error(map[key].Mark(), std::string("'") + key + "' = " + std::to_string(v) + " is outside " +
+                                 std::to_string(lo) + ".." + std::to_string(hi));
+      return false;
+    }
+    out = v;
+    return true;
+  }
+
+  bool get_positive_ms(const YAML::Node& map, const char* key, int64_t& out_ns) {
+    double ms = 0;
+    if (!get(map, key, ms, "a number of milliseconds")) return false;
+    if (!(ms > 0) || !std::isfinite(ms)) {
+      error(map[key].Mark(), std::string("'") + key + "' must be positive, got " + map[key].Scalar());
+      return false;
+    }
+    out_ns = static_cast<int64_t>(std::llround(ms * 1e6));
+    if (out_ns <= 0) {
+      error(map[key].Mark(), std::string("'") + key + "' is below one nanosecond");
+      return false;
+    }
+    return true;
+  }
+
+  void read_task(const YAML::Node& node, TaskSettings& task, const std::string& where,
+                 const std::set<std::string>& extra_keys) {
+    std::set<std::string> keys{"priority", "cpu", "stack_kib"};
+    keys.insert(extra_keys.begin(), extra_keys.end());
+    check_keys(node, keys, where);
+    int64_t v = 0;
+    if (get_int_range(node, "priority", 1, 99, v, "an integer priority 1..99")) task.priority = static_cast<int>(v);
+    if (node["cpu"]) {
+      if (get(node, "cpu", v, "a CPU number")) {
+        if (v < 0 || !caps.cpu_online(static_cast<int>(v))) {
+          std::string online;
+          for (int c : caps.online_cpus) online += (online.empty() ? "" : ",") + std::to_string(c);
+          error(node["cpu"].Mark(), "CPU " + std::to_string(v) + " is not online (online: " + online + ")");
+        } else {
+          task.cpu = static_cast<int>(v);
+        }
+      }
+    }
+    if (get_int_range(node, "stack_kib", 16, 65536, v, "a stack size in KiB (16..65536)")) {
+      task.stack_bytes = static_cast<std::size_t>(v) * 1024;
+    }
+  }
+
+  static bool valid_name(const std::string& n) {
+    if (n.empty() || n.size() > 31) return false;
+    for (char c : n) {
+      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '-') return false;
+    }
+    return true;
+  }
+
+  LoadResult load(const std::string& text) {
+    LoadResult result;
+    YAML::Node root;
+    try {
+      root = YAML::Load(text);
+    } catch (const YAML::ParserException& e) {
+      error(e.mark, "YAML syntax: " + e.msg);
+      result.errors = errors;
+      return result;
+    }
+    if (!root || root.IsNull()) {
+      errors.push_back({file, 0, 0, "empty host file (expected a map with 'components')"});
+      result.errors = errors;
+      return result;
+    }
+    if (!root.IsMap()) {
+      error(root.Mark(), "a host file is a map (host, system, components, ...)");
+      result.errors = errors;
+      return result;
+    }
+    auto host = std::make_unique<LoadedHost>();
+    HostSettings& hs = host->settings;
+    hs.file = file;
+    check_keys(root, {"host", "system", "host_id", "require_rt", "lcm", "lcm_url", "heap_prefault_mib",
+                      "plugins", "components"},
+               "the host file");
+    char hostname[256] = {};
+    gethostname(hostname, sizeof hostname - 1);
+    hs.host = hostname;
+    get(root, "host", hs.host, "a host name");
+    int64_t v = 0;
+    if (get_int_range(root, "system", 0, 254, v, "a system (robot) id 0..254")) hs.system = static_cast<uint8_t>(v);
+    if (get_int_range(root, "host_id", 0, 255, v, "a host id 0..255")) hs.host_id = static_cast<uint8_t>(v);
+    get(root, "require_rt", hs.require_rt, "true or false");
+    get(root, "lcm", hs.lcm, "true or false");
+    hs.lcm_url = tims_default_url();
+    get(root, "lcm_url", hs.lcm_url, "an LCM URL such as udpm://239.255.76.67:7667?ttl=0");
+    if (get_int_range(root, "heap_prefault_mib", 0, 16384, v, "a size in MiB")) {
+      hs.heap_prefault_bytes = static_cast<std::size_t>(v) << 20;
+    }
+    if (const YAML::Node plugins = root["plugins"]) {
+      if (!plugins.IsSequence()) {
+        error(plugins.Mark(), "'plugins' must be a list of shared library paths");
+      } else {
+        for (const auto& p : plugins) {
+          if (!p.IsScalar()) { error(p.Mark(), "a plug-in is a path"); continue; }
+          try {
+            registry.load_plugin(p.Scalar());
+            hs.plugins.push_back(p.Scalar());
+          } catch (const std::exception& e) {
+            error(p.Mark(), e.what());
+          }
+        }
+      }
+    }
+    const YAML::Node comps = root["components"];
+    if (!comps) {
+      errors.push_back({file, 0, 0, "missing 'components' (the list of components to run)"});
+    } else if (!comps.IsSequence()) {
+      error(comps.Mark(), "'components' must be a list");
+    } else {
+      load_components(comps, *host);
+    }
+    if (!errors.empty()) {
+      result.errors = errors;
+      return result;
+    }
+    result.host = std::move(host);
+    return result;
+  }
+
+  static std::string tims_default_url() { return "udpm://239.255.76.67:7667?ttl=0"; }
+
+  void load_components(const YAML::Node& comps, LoadedHost& host) {
+    struct Pending {
+      YAML::Node node;
+      std::unique_ptr<Component> component;
+      std::vector<std::pair<Parameter*, YAML::Node>> refs;
+    };
+    std::vector<Pending> pending;
+    std::map<std::string, std::size_t> by_name;
+    std::map<uint32_t, std::size_t> by_address;
+    for (const auto& node : comps) {
+      if (!node.IsMap()) {
+        error(node.Mark(), "a component is a map (name, class, instance, tasks, params)");
+        continue;
+      }
+      check_keys(node, {"name", "class", "instance", "autostart", "retry_ms", "rpc_timeout_ms",
+                        "command_task", "data_task", "params"},
+                 "a component");
+      std::string name, impl;
+      if (!node["name"]) { error(node.Mark(), "component without 'name'"); continue; }
+      if (!get(node, "name", name, "a name")) continue;
+      if (!valid_name(name)) {
+        error(node["name"].Mark(), "component name '" + name + "' must be 1..31 letters, digits, '_' or '-'");
+        continue;
+      }
+      if (!node["class"]) { error(node.Mark(), "component '" + name + "' has no 'class'"); continue; }
+      if (!get(node, "class", impl, "a component class name")) continue;
+      const ComponentClass* cls = registry.find(impl);
+      if (cls == nullptr) {
+        error(node["class"].Mark(), "unknown component class '" + impl + "' (known: " + registry.names() + ")");
+        continue;
+      }
+      ComponentSettings s;
+      s.name = name;
+      s.impl = impl;
+      int64_t instance = 0;
+      get_int_range(node, "instance", 0, 255, instance, "an instance number 0..255");
+      s.address = tims::Address::make(host.settings.system, cls->class_id, static_cast<uint8_t>(instance));
+      get(node, "autostart", s.autostart, "true or false");
+      get_positive_ms(node, "retry_ms", s.retry_ns);
+      get_positive_ms(node, "rpc_timeout_ms", s.rpc_timeout_ns);
+
+      std::unique_ptr<Component> component;
+      try {
+        component = cls->make();
+      } catch (const std::exception& e) {
+        error(node["class"].Mark(), "cannot construct '" + impl + "': " + e.what());
+        continue;
+      }
+      const DataTaskMode mode = component->data_task_mode();
+      if (const YAML::Node ct = node["command_task"]) {
+        if (!ct.IsMap()) error(ct.Mark(), "'command_task' must be a map (priority, cpu, stack_kib, slots)");
+        else {
+          read_task(ct, s.command_task, "command_task", {"slots"});
+          int64_t slots = 0;
+          if (get_int_range(ct, "slots", 1, 4096, slots, "a slot count")) s.command_slots = static_cast<uint32_t>(slots);
+        }
+      }
+      const YAML::Node dt = node["data_task"];
+      if (mode == DataTaskMode::kNone) {
+        if (dt) error(dt.Mark(), "class '" + impl + "' has no data task");
+      } else if (!dt) {
+        if (mode == DataTaskMode::kPeriodic) {
+          error(node.Mark(), "component '" + name + "': class '" + impl +
+                                 "' has a periodic data task: give data_task.period_ms");
+        }
+      } else if (!dt.IsMap()) {
+        error(dt.Mark(), "'data_task' must be a map");
+      } else {
+        std::set<std::string> extra{"ring", "max_listeners"};
+        if (mode == DataTaskMode::kPeriodic) extra.insert("period_ms");
+        else extra.insert({"timeout_ms", "input_slots"});
+        read_task(dt, s.data_task, "data_task of a " + std::string(describe(mode)) + " class", extra);
+        int64_t n = 0;
+        if (get_int_range(dt, "ring", 2, 1'000'000, n, "a sample count")) s.ring_size = static_cast<uint32_t>(n);
+        if (get_int_range(dt, "max_listeners", 1, 1024, n, "a listener count")) s.max_listeners = static_cast<uint32_t>(n);
+        if (get_int_range(dt, "input_slots", 1, 4096, n, "a slot count")) s.input_slots = static_cast<uint32_t>(n);
+        if (mode == DataTaskMode::kPeriodic) {
+          if (!dt["period_ms"]) error(dt.Mark(), "periodic data task without 'period_ms'");
+          else get_positive_ms(dt, "period_ms", s.period_ns);
+        } else {
+          get_positive_ms(dt, "timeout_ms", s.data_timeout_ns);
+        }
+      }
+      // Parameters.
+      Pending p{node, std::move(component), {}};
+      ParameterSet& params = p.component->parameters();
+      std::set<std::string> given;
+      if (const YAML::Node pn = node["params"]) {
+        if (!pn.IsMap()) {
+          error(pn.Mark(), "'params' must be a map of parameter: value");
+        } else {
+          for (auto it = pn.begin(); it != pn.end(); ++it) {
+            const std::string key = it->first.Scalar();
+            Parameter* param = params.find(key.c_str());
+            if (param == nullptr) {
+              error(it->first.Mark(), "unknown parameter '" + key + "' for class '" + impl +
+                                          "' (known: " + params.names() + ")");
+              continue;
+            }
+            if (!it->second.IsScalar()) {
+              error(it->second.Mark(), "parameter '" + key + "' must be a single value");
+              continue;
+            }
+            if (auto err = param->set_from_text(it->second.Scalar())) {
+              error(it->second.Mark(), *err);
+              continue;
+            }
+            given.insert(key);
+            if (param->spec().component_ref) p.refs.emplace_back(param, it->second);
+          }
+        }
+      }
+      for (std::size_t i = 0; i < params.size(); ++i) {
+        const Parameter& prm = params.at(i);
+        if (prm.spec().required && given.count(prm.name()) == 0) {
+          error(node.Mark(), "component '" + name + "': missing required parameter '" + prm.name() +
+                                 "' (" + prm.spec().doc + ")");
+        }
+      }
+      if (by_name.count(name) != 0) {
+        error(node["name"].Mark(), "duplicate component name '" + name + "'");
+        continue;
+      }
+      if (const auto it = by_address.find(s.address.raw()); it != by_address.end()) {
+        error(node.Mark(), "component '" + name + "' has the address " + s.address.str() +
+                               " of component '" + pending[it->second].component->name() +
+                               "' (give another 'instance')");
+        continue;
+      }
+      p.component->settings_ = s;
+      by_name[name] = pending.size();
+      by_address[s.address.raw()] = pending.size();
+      pending.push_back(std::move(p));
+    }
+
+    // Resolve references; collect dependencies.
+    std::vector<std::vector<std::size_t>> deps(pending.size());
+    for (std::size_t i = 0; i < pending.size(); ++i) {
+      for (auto& [param, vnode] : pending[i].refs) {
+        const std::string target = param->get_string();
+        tims::Address addr;
+        if (const auto it = by_name.find(target); it != by_name.end()) {
+          addr = pending[it->second].component->address();
+          if (it->second == i) {
+            error(vnode.Mark(), "component '" + pending[i].component->name() + "' depends on itself");
+            continue;
+          }
+          deps[i].push_back(it->second);
+        } else if (const auto parsed = tims::parse_address(target)) {
+          addr = *parsed;
+          if (const auto it2 = by_address.find(addr.component().raw()); it2 != by_address.end()) {
+            deps[i].push_back(it2->second);
+          }
+        } else {
+          error(vnode.Mark(), "parameter '" + param->name() + "': no component named '" + target +
+                                  "' in this host file (give a name or an address like Generator(0/1))");
+          continue;
+        }
+        pending[i].component->refs_.emplace_back(param, addr.component());
+      }
+    }
+    // Topological order: dependencies first; a cycle is an error.
+    std::vector<int> mark(pending.size(), 0);
+    std::vector<std::size_t> order;
+    std::function<bool(std::size_t)> visit = [&](std::size_t i) {
+      if (mark[i] == 2) return true;
+      if (mark[i] == 1) {
+        error(pending[i].node.Mark(), "dependency cycle through component '" + pending[i].component->name() + "'");
+        return false;
+      }
+      mark[i] = 1;
+      for (std::size_t d : deps[i]) {
+        if (!visit(d)) return false;
+      }
+      mark[i] = 2;
+      order.push_back(i);
+      return true;
+    };
+    for (std::size_t i = 0; i < pending.size(); ++i) {
+      if (!visit(i)) break;
+    }
+    if (!errors.empty()) return;
+    std::vector<std::size_t> position(pending.size());
+    for (std::size_t k = 0; k < order.size(); ++k) position[order[k]] = k;
+    host.dependencies.assign(order.size(), {});
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      for (std::size_t d : deps[order[k]]) host.dependencies[k].push_back(position[d]);
+      host.components.push_back(std::move(pending[order[k]].component));
+    }
+  }
+};
+
+LoadResult load_host_text(const std::string& text, const std::string& file, ComponentRegistry& registry,
+                          const rt::RtCapabilities& caps) {
+  HostLoader loader{file, registry, caps, {}};
+  return loader.load(text);
+}
+
+LoadResult load_host_file(const std::string& path, ComponentRegistry& registry, const rt::RtCapabilities& caps) {
+  std::ifstream in(path);
+  if (!in) {
+    LoadResult r;
+    r.errors.push_back({path, 0, 0, std::string("cannot read the host file: ") + std::strerror(errno)});
+    return r;
+  }
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return load_host_text(ss.str(), path, registry, caps);
+}
+
+}  // namespace rack

@@ -1,0 +1,47 @@
+#include "rack/core/registry.h"
+
+#include <dlfcn.h>
+
+#include <stdexcept>
+
+namespace rack {
+
+void ComponentRegistry::add(ComponentClass cls) {
+  if (cls.impl.empty() || !cls.make) throw std::invalid_argument("component class without name or factory");
+  const std::string name = cls.impl;
+  if (!classes_.emplace(name, std::move(cls)).second) {
+    throw std::invalid_argument("component class '" + name + "' registered twice");
+  }
+}
+
+const ComponentClass* ComponentRegistry::find(const std::string& impl) const {
+  const auto it = classes_.find(impl);
+  return it == classes_.end() ? nullptr : &it->second;
+}
+
+std::vector<const ComponentClass*> ComponentRegistry::all() const {
+  std::vector<const ComponentClass*> out;
+  for (const auto& [name, cls] : classes_) out.push_back(&cls);
+  return out;
+}
+
+std::string ComponentRegistry::names() const {
+  std::string s;
+  for (const auto& [name, cls] : classes_) s += (s.empty() ? "" : ", ") + name;
+  return s;
+}
+
+void ComponentRegistry::load_plugin(const std::string& path) {
+  void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (handle == nullptr) throw std::runtime_error(std::string("cannot load plug-in: ") + dlerror());
+  using RegisterFn = void (*)(ComponentRegistry&);
+  auto fn = reinterpret_cast<RegisterFn>(dlsym(handle, "rack_register_components"));
+  if (fn == nullptr) {
+    dlclose(handle);
+    throw std::runtime_error("plug-in " + path + " has no 'rack_register_components' function");
+  }
+  fn(*this);
+  plugins_.push_back(handle);
+}
+
+}  // namespace rack

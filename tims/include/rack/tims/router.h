@@ -1,0 +1,93 @@
+// The local TiMS router: every mailbox of this process by address, and the way out
+// to other hosts (an uplink mailbox that the LCM transport drains).
+//
+// Routing rules:
+//  - a local mailbox gets the message directly;
+//  - an address of another system (robot), or of the tool system (kToolSystem), goes
+//    to the uplink when there is one;
+//  - otherwise the address is unknown: a request (type > 0) is answered
+//    NOT_AVAILABLE to its source, a reply or notification is dropped and counted.
+//    Until discovery between hosts exists (issue 3), a host treats its own system as
+//    fully known.
+//
+// Real-time contract: find() and send() are RT-safe and lock-free on the look-up
+// (a PI-locked mailbox send follows). add()/remove()/set_uplink() are not RT-safe
+// and must not race with each other (one set-up thread).
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <initializer_list>
+#include <span>
+
+#include "rack/tims/mailbox.h"
+
+namespace rack::tims {
+
+// System id of tools (rackctl, gdos): they live off-host, behind the uplink.
+inline constexpr uint8_t kToolSystem = 255;
+
+struct RouterCounters {
+  uint64_t delivered_local = 0;
+  uint64_t sent_uplink = 0;
+  uint64_t not_available = 0;  // requests to unknown mailboxes (answered NOT_AVAILABLE)
+  uint64_t unroutable = 0;     // replies/notifications to unknown mailboxes (dropped)
+  uint64_t failed = 0;         // local or uplink send refused (full, too large, closed)
+};
+
+class Router {
+ public:
+  static constexpr std::size_t kCapacity = 2048;  // mailboxes per process
+
+  explicit Router(uint8_t system) noexcept : system_(system) {}
+  Router(const Router&) = delete;
+  Router& operator=(const Router&) = delete;
+
+  [[nodiscard]] uint8_t system() const noexcept { return system_; }
+
+  // Registers a mailbox. Throws std::invalid_argument naming the address when it is
+  // taken, std::length_error when the table is full. Not RT-safe.
+  void add(Mailbox& mailbox);
+  void remove(Address address) noexcept;
+  // Messages for other systems go to `uplink` (nullptr: none). Not RT-safe.
+  void set_uplink(Mailbox* uplink) noexcept;
+
+  [[nodiscard]] Mailbox* find(Address address) const noexcept;  // RT-safe, lock-free
+  [[nodiscard]] bool is_remote(Address address) const noexcept;
+
+  // Routes header + body parts. RT-safe.
+  SendStatus send(const MessageHeader& header, std::initializer_list<ConstBuffer> body) noexcept;
+  SendStatus send(const MessageHeader& header, std::span<const ConstBuffer> body) noexcept;
+  // Routes a complete message whose header is in host byte order. RT-safe.
+  SendStatus send_bytes(std::span<const std::byte> message) noexcept;
+  // Delivers only to a local mailbox (used for messages that arrived from the uplink,
+  // so they are never sent back out). Unknown: a request is answered NOT_AVAILABLE when
+  // the address belongs to this system. RT-safe.
+  SendStatus deliver_local(std::span<const std::byte> message) noexcept;
+
+  [[nodiscard]] RouterCounters counters() const noexcept;
+
+ private:
+  struct Entry {
+    // Key first published (release) after the value, so a reader that sees the key
+    // also sees the mailbox pointer.
+    std::atomic<uint32_t> key{kEmpty};
+    std::atomic<Mailbox*> mailbox{nullptr};
+  };
+  static constexpr uint32_t kEmpty = 0xFFFFFFFFu;
+  static std::size_t slot_of(uint32_t key) noexcept {
+    return static_cast<std::size_t>((key * 2654435761u) % kCapacity);
+  }
+  SendStatus answer_not_available(const MessageHeader& request) noexcept;
+  SendStatus route_unknown(const MessageHeader& header) noexcept;
+
+  uint8_t system_;
+  std::array<Entry, kCapacity> table_{};
+  std::atomic<Mailbox*> uplink_{nullptr};
+  // Statistics, relaxed: independent counters read by tools.
+  std::atomic<uint64_t> delivered_local_{0}, sent_uplink_{0}, not_available_{0}, unroutable_{0},
+      failed_{0};
+};
+
+}  // namespace rack::tims

@@ -1,0 +1,129 @@
+#include "rack/tims/router.h"
+
+#include <cstring>
+#include <stdexcept>
+
+namespace rack::tims {
+
+void Router::add(Mailbox& mailbox) {
+  const uint32_t key = mailbox.address().raw();
+  if (key == kEmpty) throw std::invalid_argument("address " + mailbox.address().str() + " is reserved");
+  std::size_t i = slot_of(key);
+  for (std::size_t n = 0; n < kCapacity; ++n, i = (i + 1) % kCapacity) {
+    const uint32_t k = table_[i].key.load(std::memory_order_acquire);
+    if (k == key) {
+      if (table_[i].mailbox.load(std::memory_order_acquire) != nullptr) {
+        throw std::invalid_argument("mailbox " + mailbox.address().str() + " is already registered");
+      }
+      table_[i].mailbox.store(&mailbox, std::memory_order_release);
+      return;
+    }
+    if (k == kEmpty) {
+      table_[i].mailbox.store(&mailbox, std::memory_order_relaxed);
+      table_[i].key.store(key, std::memory_order_release);  // publishes the mailbox too
+      return;
+    }
+  }
+  throw std::length_error("router table full (" + std::to_string(kCapacity) + " mailboxes)");
+}
+
+void Router::remove(Address address) noexcept {
+  // The key stays as a tombstone (probe chains stay intact); a later add() of the
+  // same address reuses it.
+  std::size_t i = slot_of(address.raw());
+  for (std::size_t n = 0; n < kCapacity; ++n, i = (i + 1) % kCapacity) {
+    const uint32_t k = table_[i].key.load(std::memory_order_acquire);
+    if (k == address.raw()) {
+      table_[i].mailbox.store(nullptr, std::memory_order_release);
+      return;
+    }
+    if (k == kEmpty) return;
+  }
+}
+
+void Router::set_uplink(Mailbox* uplink) noexcept { uplink_.store(uplink, std::memory_order_release); }
+
+Mailbox* Router::find(Address address) const noexcept {
+  const uint32_t key = address.raw();
+  std::size_t i = slot_of(key);
+  for (std::size_t n = 0; n < kCapacity; ++n, i = (i + 1) % kCapacity) {
+    const uint32_t k = table_[i].key.load(std::memory_order_acquire);
+    if (k == key) return table_[i].mailbox.load(std::memory_order_acquire);
+    if (k == kEmpty) return nullptr;
+  }
+  return nullptr;
+}
+
+bool Router::is_remote(Address address) const noexcept {
+  return address.system() != system_ || address.system() == kToolSystem;
+}
+
+namespace {
+void bump(std::atomic<uint64_t>& c) noexcept { c.fetch_add(1, std::memory_order_relaxed); }
+}  // namespace
+
+SendStatus Router::answer_not_available(const MessageHeader& request) noexcept {
+  bump(not_available_);
+  const MessageHeader reply = make_reply_header(request, msg::kNotAvailable, 0);
+  // A reply never triggers another NOT_AVAILABLE, so this recursion ends here.
+  (void)send(reply, std::span<const ConstBuffer>{});
+  return SendStatus::kNotAvailable;
+}
+
+SendStatus Router::route_unknown(const MessageHeader& header) noexcept {
+  if (header.is_request()) return answer_not_available(header);
+  bump(unroutable_);
+  return SendStatus::kNotAvailable;
+}
+
+SendStatus Router::send(const MessageHeader& header, std::initializer_list<ConstBuffer> body) noexcept {
+  return send(header, std::span<const ConstBuffer>(body.begin(), body.size()));
+}
+
+SendStatus Router::send(const MessageHeader& header, std::span<const ConstBuffer> body) noexcept {
+  const Address dest = header.destination();
+  if (Mailbox* local = find(dest)) {
+    const SendStatus s = local->try_send(header, body);
+    bump(delivered(s) ? delivered_local_ : failed_);
+    return s;
+  }
+  if (is_remote(dest)) {
+    if (Mailbox* up = uplink_.load(std::memory_order_acquire)) {
+      const SendStatus s = up->try_send(header, body);
+      bump(delivered(s) ? sent_uplink_ : failed_);
+      return s;
+    }
+  }
+  return route_unknown(header);
+}
+
+SendStatus Router::send_bytes(std::span<const std::byte> message) noexcept {
+  MessageHeader header;
+  std::memcpy(&header, message.data(), sizeof header);
+  const ConstBuffer body{message.data() + sizeof header, message.size() - sizeof header};
+  return send(header, std::span<const ConstBuffer>(&body, 1));
+}
+
+SendStatus Router::deliver_local(std::span<const std::byte> message) noexcept {
+  MessageHeader header;
+  std::memcpy(&header, message.data(), sizeof header);
+  if (Mailbox* local = find(header.destination())) {
+    const SendStatus s = local->try_send_bytes(message);
+    bump(delivered(s) ? delivered_local_ : failed_);
+    return s;
+  }
+  if (header.destination().system() == system_ && system_ != kToolSystem) return route_unknown(header);
+  return SendStatus::kNotAvailable;  // someone else's: not ours to answer
+}
+
+RouterCounters Router::counters() const noexcept {
+  RouterCounters c;
+  c.delivered_local = delivered_local_.load(std::memory_order_relaxed);
+  c.sent_uplink = sent_uplink_.load(std::memory_order_relaxed);
+  c.not_available = not_available_.load(std::memory_order_relaxed);
+  c.unroutable = unroutable_.load(std::memory_order_relaxed);
+  c.failed = failed_.load(std::memory_order_relaxed);
+  return c;
+}
+
+}  // namespace rack::tims

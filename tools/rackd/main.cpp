@@ -1,0 +1,184 @@
+// rackd: the one executor per host. Reads a host file, validates it, deploys its
+// components as SCHED_FIFO tasks, runs until SIGINT/SIGTERM, then switches them OFF
+// in reverse dependency order and exits 0.
+#include <signal.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <iostream>
+#include <string>
+
+#include "rack/components/builtin.h"
+#include "rack/core/executor.h"
+#include "rack/core/host_config.h"
+#include "rack/rt/capabilities.h"
+#include "rack/rt/clock.h"
+#include "rack/rt/memory.h"
+
+namespace {
+
+constexpr const char* kUsage = R"(usage: rackd [options] HOSTFILE.yaml
+
+Runs the components listed in a host file (see configs/demo.yaml for every key)
+until SIGINT or SIGTERM, then switches them OFF in reverse dependency order.
+
+options:
+  --check            validate the host file and exit (nothing is started)
+  --duration SEC     shut down by itself after SEC seconds (as on SIGTERM)
+  --status SEC       print each component's state and timing every SEC seconds
+                     (default 0: only at shutdown)
+  --lcm URL          TiMS/LCM network, instead of the host file's lcm_url
+  --list-classes     print the component classes and their parameters, then exit
+  -h, --help         this text
+
+exit codes: 0 clean shutdown or valid host file, 1 could not start (real-time
+required but missing, a task or the network could not start), 2 usage error or
+invalid host file (each problem printed as file:line:col: message).
+)";
+
+void list_classes(const rack::ComponentRegistry& registry) {
+  for (const auto* cls : registry.all()) {
+    auto c = cls->make();
+    std::printf("%s  (class %s, data task: %s)\n  %s\n", cls->impl.c_str(),
+                rack::tims::class_name(cls->class_id) ? rack::tims::class_name(cls->class_id) : "?",
+                rack::describe(c->data_task_mode()), cls->description.c_str());
+    const auto& params = c->parameters();
+    for (std::size_t i = 0; i < params.size(); ++i) {
+      const auto& p = params.at(i);
+      std::printf("    %-14s %-6s %s%s%s\n", p.name().c_str(), rack::describe(p.kind()),
+                  p.spec().required ? "(required) " : ("= " + p.value_text() + "  ").c_str(),
+                  p.spec().doc.c_str(), p.spec().component_ref ? " [component]" : "");
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string file, lcm_url;
+  bool check = false, classes = false;
+  double duration = -1, status_every = 0;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const char* what) -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "rackd: %s needs %s\n%s", a.c_str(), what, kUsage);
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    auto number = [&](const char* what) {
+      const std::string v = value(what);
+      char* end = nullptr;
+      const double d = std::strtod(v.c_str(), &end);
+      if (*end != '\0' || d < 0) {
+        std::fprintf(stderr, "rackd: %s needs %s, got '%s'\n", a.c_str(), what, v.c_str());
+        std::exit(2);
+      }
+      return d;
+    };
+    if (a == "-h" || a == "--help") { std::fputs(kUsage, stdout); return 0; }
+    if (a == "--check") check = true;
+    else if (a == "--list-classes") classes = true;
+    else if (a == "--duration") duration = number("a number of seconds");
+    else if (a == "--status") status_every = number("a number of seconds");
+    else if (a == "--lcm") lcm_url = value("an LCM URL");
+    else if (!a.empty() && a[0] == '-') { std::fprintf(stderr, "rackd: unknown option '%s'\n%s", a.c_str(), kUsage); return 2; }
+    else if (file.empty()) file = a;
+    else { std::fprintf(stderr, "rackd: one host file only ('%s' and '%s')\n", file.c_str(), a.c_str()); return 2; }
+  }
+  rack::ComponentRegistry registry;
+  rack::components::register_builtin(registry);
+  if (classes) { list_classes(registry); return 0; }
+  if (file.empty()) { std::fprintf(stderr, "rackd: no host file given\n%s", kUsage); return 2; }
+
+  // Block the shutdown signals in every thread; main waits for them below.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+
+  const rack::rt::RtCapabilities caps = rack::rt::probe_capabilities();
+  auto loaded = rack::load_host_file(file, registry, caps);
+  if (!loaded.errors.empty()) {
+    for (const auto& e : loaded.errors) std::fprintf(stderr, "%s\n", e.str().c_str());
+    std::fprintf(stderr, "rackd: %zu error(s) in %s; nothing started\n", loaded.errors.size(), file.c_str());
+    return 2;
+  }
+  if (check) {
+    std::printf("%s: valid (%zu components)\n", file.c_str(), loaded.host->components.size());
+    return 0;
+  }
+  const rack::HostSettings settings = loaded.host->settings;
+  std::fprintf(stderr, "rackd: host '%s' system %u, %zu components from %s\n", settings.host.c_str(),
+               settings.system, loaded.host->components.size(), file.c_str());
+  std::fprintf(stderr, "rackd: %s\n", caps.describe().c_str());
+  const bool rt_ok = caps.sched_fifo && caps.memlock;
+  if (settings.require_rt && !rt_ok) {
+    std::fprintf(stderr,
+                 "rackd: %s demands real time (require_rt: true) but this process %s: refusing to start.\n"
+                 "       Run as root, or grant CAP_SYS_NICE and CAP_IPC_LOCK (or rtprio/memlock limits).\n",
+                 file.c_str(), !caps.sched_fifo ? "may not use SCHED_FIFO" : "may not lock memory");
+    return 1;
+  }
+  if (!rt_ok) {
+    std::fprintf(stderr,
+                 "rackd: WARNING: no real-time rights (%s): tasks run with normal scheduling; timing is not "
+                 "guaranteed.\n",
+                 !caps.sched_fifo ? "SCHED_FIFO refused" : "memory cannot be locked");
+  }
+  if (!caps.preempt_rt) {
+    std::fprintf(stderr, "rackd: note: the kernel is not PREEMPT_RT; latencies are those of a stock kernel.\n");
+  }
+  const auto mem = rack::rt::apply_memory_policy(settings.heap_prefault_bytes);
+  std::fprintf(stderr, "rackd: %s\n", mem.describe().c_str());
+  if (settings.require_rt && !mem.locked) {
+    std::fprintf(stderr, "rackd: require_rt is set and memory could not be locked: refusing to start.\n");
+    return 1;
+  }
+
+  rack::ExecutorOptions options;
+  options.allow_rt_fallback = !settings.require_rt;
+  options.lcm_url_override = lcm_url;
+  rack::Executor executor(std::move(loaded.host), options);
+  try {
+    executor.start();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rackd: cannot start: %s\n", e.what());
+    return 1;
+  }
+  if (executor.any_fallback()) {
+    std::fprintf(stderr, "rackd: WARNING: SCHED_FIFO was refused; tasks run SCHED_OTHER.\n");
+  }
+  std::fprintf(stderr, "rackd: running%s%s; SIGINT or SIGTERM stops\n",
+               executor.transport() ? ", TiMS on " : "",
+               executor.transport() ? executor.transport()->url().c_str() : "");
+
+  const int64_t start = rack::rt::monotonic_ns();
+  int64_t next_status = status_every > 0 ? start + static_cast<int64_t>(status_every * 1e9) : INT64_MAX;
+  const int64_t end = duration >= 0 ? start + static_cast<int64_t>(duration * 1e9) : INT64_MAX;
+  int signal_number = 0;
+  for (;;) {
+    const int64_t now = rack::rt::monotonic_ns();
+    if (now >= end) break;
+    if (now >= next_status) {
+      std::fprintf(stdout, "[%.1f s]\n%s", static_cast<double>(now - start) * 1e-9, executor.status_report().c_str());
+      std::fflush(stdout);
+      next_status += static_cast<int64_t>(status_every * 1e9);
+    }
+    const int64_t wait = std::min({end, next_status, now + rack::rt::kNsPerSec}) - now;
+    timespec ts = rack::rt::to_timespec(wait > 0 ? wait : 0);
+    const int sig = sigtimedwait(&stop_signals, nullptr, &ts);
+    if (sig > 0) { signal_number = sig; break; }
+  }
+  std::fprintf(stderr, "rackd: %s: switching components off\n",
+               signal_number != 0 ? strsignal(signal_number) : "duration elapsed");
+  std::fprintf(stdout, "final status:\n%s", executor.status_report().c_str());
+  std::fflush(stdout);
+  executor.stop();
+  std::fprintf(stderr, "rackd: stopped cleanly\n");
+  return 0;
+}
