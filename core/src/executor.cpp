@@ -147,18 +147,32 @@ std::string Executor::status_report() const {
     wire::StatsReply s;
     c.fill_stats(s);
     char line[512];
-    if (c.data_task_mode() != DataTaskMode::kNone) {
+    if (c.data_task_mode() == DataTaskMode::kPeriodic) {
       std::snprintf(line, sizeof line,
-                    "  %-16s %-16s %-8s cycles %-8llu overruns %-4llu wake-up latency p50 %lld us p99 %lld us max %lld us, published %llu, listeners %llu\n",
+                    "  %-14s %-15s %-8s cycles %-7llu overruns %-3llu wake-up p50 %lld us p99 %lld us max %lld us, "
+                    "published %llu, listeners %llu\n",
                     c.name().c_str(), c.address().str().c_str(), describe(c.state()),
                     static_cast<unsigned long long>(s.data.cycles), static_cast<unsigned long long>(s.data.overruns),
                     static_cast<long long>(s.data.latency_p50_ns / 1000), static_cast<long long>(s.data.latency_p99_ns / 1000),
                     static_cast<long long>(s.data.latency_max_ns / 1000), static_cast<unsigned long long>(s.published),
                     static_cast<unsigned long long>(s.listeners));
+    } else if (c.data_task_mode() == DataTaskMode::kTriggered) {
+      std::snprintf(line, sizeof line, "  %-14s %-15s %-8s cycles %-7llu (triggered), published %llu, listeners %llu\n",
+                    c.name().c_str(), c.address().str().c_str(), describe(c.state()),
+                    static_cast<unsigned long long>(s.data.cycles), static_cast<unsigned long long>(s.published),
+                    static_cast<unsigned long long>(s.listeners));
     } else {
-      std::snprintf(line, sizeof line, "  %-16s %-16s %-8s commands %llu\n", c.name().c_str(),
+      std::snprintf(line, sizeof line, "  %-14s %-15s %-8s commands %llu\n", c.name().c_str(),
                     c.address().str().c_str(), describe(c.state()), static_cast<unsigned long long>(s.commands));
     }
+    out += line;
+  }
+  if (transport_) {
+    const auto t = transport_->counters();
+    char line[256];
+    std::snprintf(line, sizeof line, "  TiMS/LCM: packets in %llu out %llu, malformed %llu, undeliverable %llu\n",
+                  static_cast<unsigned long long>(t.packets_in), static_cast<unsigned long long>(t.packets_out),
+                  static_cast<unsigned long long>(t.malformed), static_cast<unsigned long long>(t.delivery_failed));
     out += line;
   }
   return out;

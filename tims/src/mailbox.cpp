@@ -48,8 +48,8 @@ int Mailbox::find_next_locked() const noexcept {
   for (uint32_t i = 0; i < slot_count_; ++i) {
     const SlotInfo& s = slots_[i];
     if (s.state != SlotState::kReady) continue;
-    if (best < 0 || s.priority > slots_[best].priority ||
-        (s.priority == slots_[best].priority && s.order < slots_[best].order)) {
+    if (best < 0 || s.priority > slots_[static_cast<std::size_t>(best)].priority ||
+        (s.priority == slots_[static_cast<std::size_t>(best)].priority && s.order < slots_[static_cast<std::size_t>(best)].order)) {
       best = static_cast<int>(i);
     }
   }
@@ -82,12 +82,12 @@ SendStatus Mailbox::try_send(const MessageHeader& header, std::span<const ConstB
       for (uint32_t i = 0; i < slot_count_; ++i) {
         const SlotInfo& s = slots_[i];
         if (s.state != SlotState::kReady) continue;
-        if (victim < 0 || s.priority < slots_[victim].priority ||
-            (s.priority == slots_[victim].priority && s.order < slots_[victim].order)) {
+        if (victim < 0 || s.priority < slots_[static_cast<std::size_t>(victim)].priority ||
+            (s.priority == slots_[static_cast<std::size_t>(victim)].priority && s.order < slots_[static_cast<std::size_t>(victim)].order)) {
           victim = static_cast<int>(i);
         }
       }
-      if (victim < 0 || slots_[victim].priority > header.priority) {
+      if (victim < 0 || slots_[static_cast<std::size_t>(victim)].priority > header.priority) {
         bump(refused_);
         return SendStatus::kFull;
       }
@@ -96,11 +96,11 @@ SendStatus Mailbox::try_send(const MessageHeader& header, std::span<const ConstB
       bump(dropped_);
       dropped = true;
     }
-    slots_[index].state = SlotState::kWriting;
-    slots_[index].priority = header.priority;
+    slots_[static_cast<std::size_t>(index)].state = SlotState::kWriting;
+    slots_[static_cast<std::size_t>(index)].priority = header.priority;
     if (dropped) {
       // Copy outside the lock below, but remember how this send ended.
-      slots_[index].order = UINT64_MAX;  // marker until commit
+      slots_[static_cast<std::size_t>(index)].order = UINT64_MAX;  // marker until commit
     }
   }
   std::byte* dst = slot_data(index);
@@ -113,9 +113,9 @@ SendStatus Mailbox::try_send(const MessageHeader& header, std::span<const ConstB
   bool was_drop = false;
   {
     rt::PiLock lock(mutex_);
-    was_drop = slots_[index].order == UINT64_MAX;
-    slots_[index].order = next_order_++;
-    slots_[index].state = SlotState::kReady;
+    was_drop = slots_[static_cast<std::size_t>(index)].order == UINT64_MAX;
+    slots_[static_cast<std::size_t>(index)].order = next_order_++;
+    slots_[static_cast<std::size_t>(index)].state = SlotState::kReady;
     ++ready_count_;
     bump(sent_);
   }
@@ -147,7 +147,7 @@ int Mailbox::wait_ready_locked(int64_t timeout_ns, RecvStatus& status) noexcept 
 }
 
 void Mailbox::free_slot(int index) noexcept {
-  slots_[index].state = SlotState::kFree;
+  slots_[static_cast<std::size_t>(index)].state = SlotState::kFree;
 }
 
 Mailbox::Received Mailbox::receive(std::span<std::byte> buffer, int64_t timeout_ns) noexcept {
@@ -157,7 +157,7 @@ Mailbox::Received Mailbox::receive(std::span<std::byte> buffer, int64_t timeout_
     rt::PiLock lock(mutex_);
     index = wait_ready_locked(timeout_ns, r.status);
     if (index < 0) return r;
-    slots_[index].state = SlotState::kReading;
+    slots_[static_cast<std::size_t>(index)].state = SlotState::kReading;
     --ready_count_;
   }
   const std::byte* src = slot_data(index);
@@ -189,7 +189,7 @@ Mailbox::Peeked Mailbox::peek(int64_t timeout_ns) noexcept {
   }
   const int index = wait_ready_locked(timeout_ns, p.status);
   if (index < 0) return p;
-  slots_[index].state = SlotState::kReading;
+  slots_[static_cast<std::size_t>(index)].state = SlotState::kReading;
   --ready_count_;
   peeked_ = index;
   const std::byte* data = slot_data(index);

@@ -117,11 +117,13 @@ int main(int argc, char** argv) {
                settings.system, loaded.host->components.size(), file.c_str());
   std::fprintf(stderr, "rackd: %s\n", caps.describe().c_str());
   const bool rt_ok = caps.sched_fifo && caps.memlock;
-  if (settings.require_rt && !rt_ok) {
-    std::fprintf(stderr,
-                 "rackd: %s demands real time (require_rt: true) but this process %s: refusing to start.\n"
-                 "       Run as root, or grant CAP_SYS_NICE and CAP_IPC_LOCK (or rtprio/memlock limits).\n",
-                 file.c_str(), !caps.sched_fifo ? "may not use SCHED_FIFO" : "may not lock memory");
+  if (settings.require_rt && (!rt_ok || !caps.preempt_rt)) {
+    std::string missing;
+    if (!caps.sched_fifo) missing += " SCHED_FIFO rights (CAP_SYS_NICE or an rtprio limit);";
+    if (!caps.memlock) missing += " memory locking (CAP_IPC_LOCK or an unlimited memlock limit);";
+    if (!caps.preempt_rt) missing += " a PREEMPT_RT kernel;";
+    std::fprintf(stderr, "rackd: %s demands real time (require_rt: true) but this host lacks:%s refusing to start.\n",
+                 file.c_str(), missing.c_str());
     return 1;
   }
   if (!rt_ok) {
@@ -150,7 +152,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "rackd: cannot start: %s\n", e.what());
     return 1;
   }
-  if (executor.any_fallback()) {
+  if (executor.any_fallback() && caps.sched_fifo) {  // the probe said yes, a task was refused
     std::fprintf(stderr, "rackd: WARNING: SCHED_FIFO was refused; tasks run SCHED_OTHER.\n");
   }
   std::fprintf(stderr, "rackd: running%s%s; SIGINT or SIGTERM stops\n",

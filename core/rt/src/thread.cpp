@@ -15,9 +15,8 @@ int create(pthread_t* handle, const ThreadConfig& config, bool realtime, void* (
            void* arg) {
   pthread_attr_t attr;
   pthread_attr_init(&attr);
-  pthread_attr_setstacksize(&attr, config.stack_bytes < PTHREAD_STACK_MIN
-                                       ? static_cast<std::size_t>(PTHREAD_STACK_MIN)
-                                       : config.stack_bytes);
+  const auto min_stack = static_cast<std::size_t>(PTHREAD_STACK_MIN);
+  pthread_attr_setstacksize(&attr, config.stack_bytes < min_stack ? min_stack : config.stack_bytes);
   if (realtime) {
     // Explicit: without it the new thread inherits the creator's policy and the
     // attributes below are silently ignored.

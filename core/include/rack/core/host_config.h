@@ -33,7 +33,7 @@ struct HostSettings {
   std::string host;               // host name (default: the machine's)
   uint8_t system = 0;             // robot id: the system byte of every address here
   uint8_t host_id = 0;            // instance of this host's Executor(sys/id) mailbox
-  bool require_rt = false;        // refuse to start without RT scheduling and locked memory
+  bool require_rt = false;        // refuse to start without RT scheduling, locked memory, PREEMPT_RT
   std::string lcm_url;            // TiMS/LCM network ("" with lcm: false)
   bool lcm = true;
   std::size_t heap_prefault_bytes = 64u << 20;

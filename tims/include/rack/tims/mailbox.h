@@ -135,7 +135,9 @@ class Mailbox {
   int find_next_locked() const noexcept;  // highest priority, oldest; -1 if none
   // Waits (lock held) for a ready slot; returns its index or -1 with `status` set.
   int wait_ready_locked(int64_t timeout_ns, RecvStatus& status) noexcept;
-  std::byte* slot_data(int index) noexcept { return storage_.get() + std::size_t(index) * slot_size_; }
+  std::byte* slot_data(int index) noexcept {
+    return storage_.get() + static_cast<std::size_t>(index) * slot_size_;
+  }
   void free_slot(int index) noexcept;
 
   Address address_;

@@ -37,7 +37,9 @@ struct MessageHeader {
 
   [[nodiscard]] constexpr Address destination() const noexcept { return Address(dest); }
   [[nodiscard]] constexpr Address source() const noexcept { return Address(src); }
-  [[nodiscard]] constexpr uint32_t body_length() const noexcept { return length - sizeof(MessageHeader); }
+  [[nodiscard]] constexpr uint32_t body_length() const noexcept {
+    return length - static_cast<uint32_t>(sizeof(MessageHeader));
+  }
   [[nodiscard]] constexpr bool is_request() const noexcept { return type > 0; }
 };
 static_assert(sizeof(MessageHeader) == 16, "TiMS header is 16 bytes on the wire");

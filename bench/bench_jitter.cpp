@@ -1,0 +1,343 @@
+// bench_jitter: wake-up latency of a periodic data task in a rack::Executor beside
+// cyclictest (rt-tests) with the same interval, priority, CPU and duration, run one
+// after the other in the same invocation (never concurrently: they would disturb
+// each other). With --rounds R the duration is split into R segments per side and
+// the order alternates (rack, cyclictest, cyclictest, rack, ...).
+//
+// Both sides measure the same thing: wake-up time minus deadline on CLOCK_MONOTONIC
+// after clock_nanosleep(TIMER_ABSTIME), in 1-us buckets ([i, i+1) us, truncated), and
+// both skip missed periods instead of catching up. Percentiles of both come from the
+// same histogram code (bench_common.h).
+//
+//   rack side:  a host with one Generator (period = interval, data task SCHED_FIFO
+//               priority P pinned to CPU N, command task pinned there too), lcm: false,
+//               memory policy applied as rackd does; after D s its data task's
+//               LatencyStats histogram is read (DataComponentBase::data_task_stats()).
+//   reference:  cyclictest -m -p P -i INTERVAL -a N -t1 -D Ds -q -h 10000
+//               (rt-tests 2.x has no -n: clock_nanosleep is its default).
+//
+// PM QoS: cyclictest holds /dev/cpu_dma_latency at 0 by default, which keeps a VM's
+// CPUs polling instead of halting and cuts wake-up latency a lot; rackd does not.
+// So that both sides run under the same conditions, this program holds it at 0 for
+// the whole run (default), or with --no-pm-qos holds nothing and passes
+// --default-system to cyclictest.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "bench_common.h"
+#include "rack/components/builtin.h"
+#include "rack/core/executor.h"
+#include "rack/core/host_config.h"
+#include "rack/rt/capabilities.h"
+#include "rack/rt/clock.h"
+#include "rack/rt/latency_stats.h"
+#include "rack/rt/memory.h"
+
+namespace {
+
+using rack::bench::Percentiles;
+namespace rt = rack::rt;
+
+constexpr const char* kUsage =
+    "usage: bench_jitter [--seconds D] [--cpu N] [--json FILE] [--priority P] [--interval-us I]\n"
+    "                    [--rounds R] [--cyclictest PATH] [--no-pm-qos] [--verbose]\n"
+    "  --seconds D      measured seconds per side (default 30)\n"
+    "  --cpu N          CPU of the periodic task on both sides (default: highest online CPU)\n"
+    "  --json FILE      write machine-readable results (with both histograms)\n"
+    "  --priority P     SCHED_FIFO priority (default 80)\n"
+    "  --interval-us I  period (default 1000 = 1 kHz)\n"
+    "  --rounds R       split D into R alternating segments per side (default 1)\n"
+    "  --cyclictest P   the cyclictest binary (default: cyclictest from PATH)\n"
+    "  --no-pm-qos      do not hold /dev/cpu_dma_latency; cyclictest gets --default-system\n";
+
+constexpr std::size_t kBuckets = rt::LatencyStats::kBuckets;  // 10000 x 1 us, like -h 10000
+
+struct Options {
+  int seconds = 30;
+  int cpu = -1;
+  std::string json;
+  int priority = 80;
+  int interval_us = 1000;
+  int rounds = 1;
+  std::string cyclictest = "cyclictest";
+  bool pm_qos = true;
+  bool verbose = false;
+};
+
+struct Side {
+  std::string name;
+  std::vector<uint64_t> histogram = std::vector<uint64_t>(kBuckets, 0);
+  double max_ns = 0;        // exact where known
+  uint64_t overflows = 0;   // cyclictest: latencies beyond the histogram
+  uint64_t cycles = 0;
+  uint64_t overruns = 0;    // rack: periods missed
+  std::vector<std::string> loads;  // loadavg before/after each segment
+  Percentiles p;
+};
+
+std::string host_text(const Options& o) {
+  std::ostringstream y;
+  y << "host: bench-jitter\n"
+       "system: 0\n"
+       "host_id: 0\n"
+       "lcm: false\n"
+       "heap_prefault_mib: 16\n"
+       "components:\n"
+       "  - name: gen\n"
+       "    class: Generator\n"
+       "    instance: 0\n"
+       "    autostart: true\n"
+       "    command_task: {priority: 30, cpu: " << o.cpu << "}\n"
+       "    data_task: {priority: " << o.priority << ", cpu: " << o.cpu << ", period_ms: "
+    << static_cast<double>(o.interval_us) / 1000.0 << "}\n";
+  return y.str();
+}
+
+void run_rack_segment(const Options& o, const rt::RtCapabilities& caps, int seconds, Side& side) {
+  rack::ComponentRegistry registry;
+  rack::components::register_builtin(registry);
+  auto loaded = rack::load_host_text(host_text(o), "bench_jitter.yaml", registry, caps);
+  if (!loaded.errors.empty()) {
+    std::string all;
+    for (const auto& e : loaded.errors) all += e.str() + "\n";
+    throw std::runtime_error("host text rejected:\n" + all);
+  }
+  rack::ExecutorOptions eo;
+  eo.allow_rt_fallback = false;
+  const bool verbose = o.verbose;
+  eo.log = [verbose](const std::string& line) {
+    if (verbose) std::fprintf(stderr, "rackd: %s\n", line.c_str());
+  };
+  rack::Executor executor(std::move(loaded.host), eo);
+  executor.start();
+  auto* gen = dynamic_cast<rack::DataComponentBase*>(executor.find("gen"));
+  if (gen == nullptr) throw std::runtime_error("component 'gen' not found");
+  if (gen->state() != rack::ComponentState::kEnabled) {
+    throw std::runtime_error("the Generator did not switch on");
+  }
+  rt::sleep_for(static_cast<int64_t>(seconds) * rt::kNsPerSec);
+  auto hist = std::make_unique<std::array<uint64_t, kBuckets>>();
+  // Read while the task still runs: a snapshot a sample or two old is fine.
+  gen->data_task_stats().copy_histogram(*hist);
+  const rt::LatencySummary s = gen->data_task_stats().summary();
+  executor.stop();
+  for (std::size_t i = 0; i < kBuckets; ++i) side.histogram[i] += (*hist)[i];
+  side.max_ns = std::max(side.max_ns, static_cast<double>(s.max_ns));
+  side.cycles += s.cycles;
+  side.overruns += s.overruns;
+  if (executor.any_fallback()) throw std::runtime_error("SCHED_FIFO was refused");
+}
+
+// Runs cyclictest and adds its histogram to `side`.
+void run_cyclictest_segment(const Options& o, int seconds, Side& side) {
+  std::ostringstream cmd;
+  cmd << o.cyclictest << " -m -p " << o.priority << " -i " << o.interval_us << " -a " << o.cpu << " -t1 -D "
+      << seconds << "s -q -h " << kBuckets << (o.pm_qos ? "" : " --default-system") << " 2>&1";
+  if (o.verbose) std::fprintf(stderr, "bench_jitter: %s\n", cmd.str().c_str());
+  FILE* pipe = popen(cmd.str().c_str(), "r");
+  if (pipe == nullptr) throw std::runtime_error("cannot run " + cmd.str());
+  char line[512];
+  std::string unparsed;
+  uint64_t total = 0, counted = 0;
+  while (std::fgets(line, sizeof line, pipe) != nullptr) {
+    unsigned long long bucket = 0, count = 0;
+    if (std::sscanf(line, "%llu %llu", &bucket, &count) == 2 && line[0] != '#') {
+      if (bucket < kBuckets) side.histogram[bucket] += count;
+      counted += count;
+      continue;
+    }
+    if (std::sscanf(line, "# Total: %llu", &count) == 1) { total += count; continue; }
+    if (std::sscanf(line, "# Max Latencies: %llu", &count) == 1) {
+      side.max_ns = std::max(side.max_ns, static_cast<double>(count) * 1000.0);
+      continue;
+    }
+    if (std::sscanf(line, "# Histogram Overflows: %llu", &count) == 1) { side.overflows += count; continue; }
+    if (line[0] != '#') unparsed += line;
+  }
+  const int status = pclose(pipe);
+  if (status != 0 || total == 0) {
+    throw std::runtime_error("cyclictest failed (status " + std::to_string(status) + "): " + cmd.str() + "\n" +
+                             unparsed);
+  }
+  // Overflows (>= kBuckets us) go to the last bucket, as LatencyStats does.
+  side.histogram[kBuckets - 1] += side.overflows;
+  side.cycles += total;
+  (void)counted;
+}
+
+// A coarse side-by-side view of both histograms.
+void print_coarse(const Side& a, const Side& b) {
+  const int edges[] = {0, 5, 10, 20, 30, 50, 100, 200, 500, 1000, 2000, 5000, static_cast<int>(kBuckets)};
+  std::printf("%-18s %14s %14s\n", "latency (us)", a.name.c_str(), b.name.c_str());
+  for (std::size_t k = 0; k + 1 < std::size(edges); ++k) {
+    uint64_t ca = 0, cb = 0;
+    for (int i = edges[k]; i < edges[k + 1]; ++i) {
+      ca += a.histogram[static_cast<std::size_t>(i)];
+      cb += b.histogram[static_cast<std::size_t>(i)];
+    }
+    char label[32];
+    if (k + 2 == std::size(edges)) std::snprintf(label, sizeof label, ">= %d", edges[k]);
+    else std::snprintf(label, sizeof label, "[%d, %d)", edges[k], edges[k + 1]);
+    std::printf("%-18s %14llu %14llu\n", label, static_cast<unsigned long long>(ca), static_cast<unsigned long long>(cb));
+  }
+}
+
+std::string json_histogram(const std::vector<uint64_t>& h) {
+  std::ostringstream o;
+  o << "[";
+  bool first = true;
+  for (std::size_t i = 0; i < h.size(); ++i) {
+    if (h[i] == 0) continue;
+    o << (first ? "" : ", ") << "[" << i << ", " << h[i] << "]";
+    first = false;
+  }
+  o << "]";
+  return o.str();
+}
+
+void parse(int argc, char** argv, Options& o) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    const auto next = [&]() -> const char* {
+      if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
+      return argv[++i];
+    };
+    if (a == "--seconds") o.seconds = std::stoi(next());
+    else if (a == "--cpu") o.cpu = std::stoi(next());
+    else if (a == "--json") o.json = next();
+    else if (a == "--priority") o.priority = std::stoi(next());
+    else if (a == "--interval-us") o.interval_us = std::stoi(next());
+    else if (a == "--rounds") o.rounds = std::stoi(next());
+    else if (a == "--cyclictest") o.cyclictest = next();
+    else if (a == "--no-pm-qos") o.pm_qos = false;
+    else if (a == "--verbose") o.verbose = true;
+    else if (a == "--help" || a == "-h") { std::fputs(kUsage, stdout); std::exit(0); }
+    else throw std::invalid_argument("unknown option " + a);
+  }
+  if (o.seconds < 1) throw std::invalid_argument("--seconds must be >= 1");
+  if (o.priority < 1 || o.priority > 99) throw std::invalid_argument("--priority must be 1..99");
+  if (o.interval_us < 50) throw std::invalid_argument("--interval-us must be >= 50");
+  if (o.rounds < 1) o.rounds = 1;
+  if (o.rounds > o.seconds) o.rounds = o.seconds;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  try {
+    parse(argc, argv, o);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_jitter: %s\n%s", e.what(), kUsage);
+    return 2;
+  }
+  const rt::RtCapabilities caps = rt::probe_capabilities();
+  if (!caps.sched_fifo || !caps.memlock) {
+    std::fprintf(stderr, "bench_jitter: needs SCHED_FIFO and mlockall (run as root): %s\n", caps.describe().c_str());
+    return 1;
+  }
+  if (o.cpu < 0) o.cpu = caps.online_cpus.empty() ? 0 : caps.online_cpus.back();
+  if (!caps.cpu_online(o.cpu)) {
+    std::fprintf(stderr, "bench_jitter: CPU %d is not online\n", o.cpu);
+    return 2;
+  }
+  const auto mem = rt::apply_memory_policy(16u << 20);
+  std::unique_ptr<rack::bench::PmQosHold> qos;
+  if (o.pm_qos) {
+    qos = std::make_unique<rack::bench::PmQosHold>(0);
+    if (!qos->active()) std::fprintf(stderr, "bench_jitter: warning: cannot hold /dev/cpu_dma_latency at 0\n");
+  }
+  const std::string load_before = rack::bench::read_first_line("/proc/loadavg");
+  std::printf("bench_jitter: %s\nbench_jitter: %s; kernel %s (%s)\nbench_jitter: loadavg before: %s\n",
+              caps.describe().c_str(), mem.describe().c_str(), rack::bench::kernel_string().c_str(),
+              caps.preempt_rt ? "PREEMPT_RT" : "not PREEMPT_RT", load_before.c_str());
+
+  const int seg = o.seconds / o.rounds;
+  const int last = o.seconds - seg * (o.rounds - 1);
+  Side rack_side;
+  rack_side.name = "rack-rt";
+  Side ct_side;
+  ct_side.name = "cyclictest";
+  std::printf("bench_jitter: %d s per side on CPU %d, SCHED_FIFO %d, interval %d us, %d round(s), PM QoS %s\n",
+              o.seconds, o.cpu, o.priority, o.interval_us, o.rounds,
+              qos && qos->active() ? "held at 0 us" : "not held (cyclictest --default-system)");
+  std::fflush(stdout);
+  try {
+    for (int r = 0; r < o.rounds; ++r) {
+      const int secs = r + 1 == o.rounds ? last : seg;
+      for (int k = 0; k < 2; ++k) {
+        const bool rack_now = (k == 0) == (r % 2 == 0);  // rack, ct, ct, rack, rack, ct, ...
+        Side& side = rack_now ? rack_side : ct_side;
+        side.loads.push_back(rack::bench::read_first_line("/proc/loadavg"));
+        std::printf("bench_jitter: round %d: %s for %d s (loadavg %s)\n", r + 1, side.name.c_str(), secs,
+                    side.loads.back().c_str());
+        std::fflush(stdout);
+        if (rack_now) run_rack_segment(o, caps, secs, side);
+        else run_cyclictest_segment(o, secs, side);
+        side.loads.push_back(rack::bench::read_first_line("/proc/loadavg"));
+      }
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_jitter: %s\n", e.what());
+    return 1;
+  }
+  rack_side.p = rack::bench::percentiles_of_histogram(rack_side.histogram, rack_side.max_ns);
+  ct_side.p = rack::bench::percentiles_of_histogram(ct_side.histogram, ct_side.max_ns);
+  const double ratio_p99 = ct_side.p.p99_ns > 0 ? rack_side.p.p99_ns / ct_side.p.p99_ns : 0.0;
+  const double ratio_p50 = ct_side.p.p50_ns > 0 ? rack_side.p.p50_ns / ct_side.p.p50_ns : 0.0;
+  const std::string load_after = rack::bench::read_first_line("/proc/loadavg");
+
+  std::printf("\n== wake-up latency, %d us period, SCHED_FIFO %d, CPU %d, %d s each ==\n", o.interval_us, o.priority,
+              o.cpu, o.seconds);
+  std::printf("%-12s %10s %8s %8s %8s %8s %8s %10s %9s\n", "side (us)", "samples", "min", "p50", "p99", "p99.9",
+              "max", "mean", "overruns");
+  for (const Side* s : {&rack_side, &ct_side}) {
+    std::printf("%-12s %10llu %8.0f %8.0f %8.0f %8.0f %8.1f %10.1f %9llu\n", s->name.c_str(),
+                static_cast<unsigned long long>(s->p.samples), rack::bench::us(s->p.min_ns),
+                rack::bench::us(s->p.p50_ns), rack::bench::us(s->p.p99_ns), rack::bench::us(s->p.p999_ns),
+                rack::bench::us(s->p.max_ns), rack::bench::us(s->p.mean_ns),
+                static_cast<unsigned long long>(s == &rack_side ? s->overruns : s->overflows));
+  }
+  std::printf("(percentiles in whole us, truncated like cyclictest; cyclictest's last column counts "
+              "histogram overflows, rack's counts missed periods)\n");
+  std::printf("ratio rack-rt / cyclictest: p99 %.2fx (target <= 1.10x: %s), p50 %.2fx\n\n", ratio_p99,
+              ratio_p99 <= 1.1 ? "met" : "MISSED", ratio_p50);
+  print_coarse(rack_side, ct_side);
+  std::printf("bench_jitter: loadavg after: %s\n", load_after.c_str());
+
+  if (!o.json.empty()) {
+    std::ostringstream j;
+    j << "{\n  \"benchmark\": \"jitter\",\n  \"machine\": " << rack::bench::json_machine() << ",\n  \"seconds\": "
+      << o.seconds << ", \"cpu\": " << o.cpu << ", \"priority\": " << o.priority << ", \"interval_us\": "
+      << o.interval_us << ", \"rounds\": " << o.rounds << ", \"pm_qos_hold\": "
+      << (qos && qos->active() ? "true" : "false") << ",\n  \"loadavg_before\": \"" << load_before
+      << "\", \"loadavg_after\": \"" << load_after << "\",\n  \"target_ratio_p99\": 1.1, \"ratio_p99\": "
+      << rack::bench::json_number(ratio_p99) << ", \"ratio_p50\": " << rack::bench::json_number(ratio_p50)
+      << ",\n  \"sides\": {";
+    bool first = true;
+    for (const Side* s : {&rack_side, &ct_side}) {
+      j << (first ? "" : ",") << "\n    \"" << (s == &rack_side ? "rack" : "cyclictest")
+        << "\": {\"latency\": " << rack::bench::json_percentiles(s->p) << ", \"cycles\": " << s->cycles
+        << ", \"overruns\": " << s->overruns << ", \"histogram_overflows\": " << s->overflows << ", \"loadavg\": [";
+      for (std::size_t i = 0; i < s->loads.size(); ++i) j << (i ? ", " : "") << "\"" << s->loads[i] << "\"";
+      j << "],\n      \"histogram_us\": " << json_histogram(s->histogram) << "}";
+      first = false;
+    }
+    j << "\n  }\n}\n";
+    if (!rack::bench::write_file(o.json, j.str())) {
+      std::fprintf(stderr, "bench_jitter: cannot write %s\n", o.json.c_str());
+      return 1;
+    }
+  }
+  return 0;
+}

@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Installs what RACK-RT needs on Debian bookworm (as root), then configures and
+# builds a Release tree in build/. Safe to run again: installs only what is missing.
+#
+#   scripts/setup.sh            # install + build
+#   RACK_BUILD_DIR=out scripts/setup.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+packages=(
+  build-essential cmake pkg-config git
+  liblcm-dev liblcm-bin libglib2.0-dev   # TiMS between hosts (LCM 1.3 has no CMake config)
+  libyaml-cpp-dev                        # host files
+  libgtest-dev libgmock-dev              # tests
+  libbenchmark-dev rt-tests stress-ng    # benchmarks and their references (cyclictest)
+  libdw-dev libelf-dev                   # backtrace symbolisation (elfutils)
+  iproute2                               # network namespaces in the integration tests
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  if [[ $(id -u) -ne 0 ]]; then
+    echo "setup: missing packages: ${missing[*]}; run as root (or: sudo apt-get install ${missing[*]})" >&2
+    exit 1
+  fi
+  echo "setup: installing ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -q
+  apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+
+# LCM multicast needs a route for 224.0.0.0/4; a machine without a default route
+# (a bare container, a robot computer without uplink) has none: use loopback then.
+if ! ip route get 239.255.76.67 >/dev/null 2>&1; then
+  if [[ $(id -u) -eq 0 ]]; then
+    ip link set lo up
+    ip route add 224.0.0.0/4 dev lo
+    echo "setup: no multicast route: added 224.0.0.0/4 on lo"
+  else
+    echo "setup: WARNING: no route for multicast (LCM): ip route add 224.0.0.0/4 dev lo" >&2
+  fi
+fi
+
+build=${RACK_BUILD_DIR:-build}
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$build" -j"$(nproc)"
+echo "setup: built in $build/"
