@@ -109,7 +109,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (check) {
-    std::printf("%s: valid (%zu components)\n", file.c_str(), loaded.host->components.size());
+    std::printf("%s: valid (%zu component(s))\n", file.c_str(), loaded.host->components.size());
     return 0;
   }
   const rack::HostSettings settings = loaded.host->settings;
