@@ -127,10 +127,13 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (!rt_ok) {
+    std::string why;
+    if (!caps.sched_fifo) why += "SCHED_FIFO refused";
+    if (!caps.memlock) why += std::string(why.empty() ? "" : ", ") + "memory cannot be locked";
     std::fprintf(stderr,
-                 "rackd: WARNING: no real-time rights (%s): tasks run with normal scheduling; timing is not "
-                 "guaranteed.\n",
-                 !caps.sched_fifo ? "SCHED_FIFO refused" : "memory cannot be locked");
+                 "rackd: WARNING: no real-time rights (%s): tasks run with normal scheduling and timing is not "
+                 "guaranteed. Run as root or grant CAP_SYS_NICE and CAP_IPC_LOCK.\n",
+                 why.c_str());
   }
   if (!caps.preempt_rt) {
     std::fprintf(stderr, "rackd: note: the kernel is not PREEMPT_RT; latencies are those of a stock kernel.\n");
