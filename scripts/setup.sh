@@ -15,6 +15,7 @@ packages=(
   libbenchmark-dev rt-tests stress-ng    # benchmarks and their references (cyclictest)
   libdw-dev libelf-dev                   # backtrace symbolisation (elfutils)
   iproute2                               # network namespaces in the integration tests
+  python3                                # bench/run writes RESULTS.md
 )
 
 missing=()
