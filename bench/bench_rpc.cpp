@@ -9,6 +9,13 @@
 //   diagnostic "pi-condvar": the same ping-pong through two channels of
 //                           {PI mutex, condvar on CLOCK_MONOTONIC, flag}, i.e. the
 //                           primitives a TiMS mailbox is built from, without TiMS.
+//   diagnostic "pi-condvar-timed": the same with the reader's wait bounded by a
+//                           deadline 1 s ahead, as Endpoint::call() waits.
+//   diagnostic "pi-futex":  the same channels, but the reader sleeps on a plain futex
+//                           word instead of a glibc condvar (what a mailbox could do:
+//                           glibc re-acquires a PI mutex after a condvar wait with
+//                           FUTEX_WAITERS forced on, so the next unlock is always a
+//                           FUTEX_UNLOCK_PI system call).
 //   "rack-rpc":             tims::Endpoint::call(GET_STATUS) from a client thread to a
 //                           Generator's command task in a rack::Executor (lcm: false),
 //                           reply back into the client's own Mailbox.
@@ -55,7 +62,7 @@ namespace tims = rack::tims;
 constexpr const char* kUsage =
     "usage: bench_rpc [--iterations N] [--cpu-mode same|cross|both] [--json FILE]\n"
     "                 [--priority P] [--server-cpu C] [--cross-cpu C] [--rounds R]\n"
-    "                 [--gap-us G] [--warmup W] [--pm-qos] [--no-condvar] [--verbose]\n"
+    "                 [--gap-us G] [--warmup W] [--pm-qos] [--no-diagnostics] [--only M] [--verbose]\n"
     "  --iterations N   timed round trips per mechanism and placement (default 20000)\n"
     "  --cpu-mode M     same: client and server pinned to one CPU; cross: on two CPUs;\n"
     "                   both (default)\n"
@@ -67,7 +74,10 @@ constexpr const char* kUsage =
     "  --gap-us G       client sleeps G us between round trips (default 100)\n"
     "  --warmup W       untimed round trips at the start of every block (default 200)\n"
     "  --pm-qos         hold /dev/cpu_dma_latency at 0 during the run (default: leave it)\n"
-    "  --no-condvar     skip the pi-condvar diagnostic reference\n";
+    "  --no-diagnostics skip the diagnostic references (pi_condvar, pi_condvar_timed, pi_futex)\n"
+    "  --only M         run one mechanism only: futex, rack, pi_condvar, pi_condvar_timed or\n"
+    "                   pi_futex\n"
+    "                   (for strace/perf)\n";
 
 struct Options {
   uint64_t iterations = 20000;
@@ -80,7 +90,8 @@ struct Options {
   int64_t gap_us = 100;
   uint64_t warmup = 200;
   bool pm_qos = false;
-  bool condvar = true;
+  bool diagnostics = true;
+  std::string only;  // "" or one mechanism key ("rack" for rack_rpc)
   bool verbose = false;
 };
 
@@ -162,7 +173,10 @@ BlockResult run_futex_block(const Options& o, const Placement& pl, uint64_t coun
 
 // ---- PI mutex + condvar ping-pong (the mailbox's primitives, no TiMS) ---------
 
-struct Channel {
+// Timed: the reader waits with a deadline 1 s ahead, as tims::Endpoint::call does
+// (pthread_cond_timedwait: the kernel arms and cancels an hrtimer on every wait).
+template <bool Timed>
+struct CondvarChannel {
   rt::PiMutex mutex;
   rt::PiCondVar cv;
   bool full = false;  // guarded by mutex
@@ -175,8 +189,9 @@ struct Channel {
     cv.notify_one();
   }
   bool receive() noexcept {
+    const int64_t deadline = Timed ? rt::monotonic_ns() + rt::kNsPerSec : -1;
     rt::PiLock lock(mutex);
-    while (!full && !stop) cv.wait_until(mutex, -1);
+    while (!full && !stop) cv.wait_until(mutex, deadline);
     if (!full) return false;
     full = false;
     return true;
@@ -190,16 +205,59 @@ struct Channel {
   }
 };
 
-BlockResult run_condvar_block(const Options& o, const Placement& pl, uint64_t count, std::vector<int64_t>& out) {
+// The same channel with the wait on a futex word: the reader samples `seq` under the
+// mutex, unlocks, and sleeps only while `seq` is unchanged; a sender bumps `seq` after
+// its critical section and wakes. The PI mutex is then only ever taken uncontended
+// (user-space CAS, no system call) in this ping-pong.
+struct FutexChannel {
+  rt::PiMutex mutex;
+  alignas(64) std::atomic<uint32_t> seq{0};  // release/acquire: pairs the bump with the re-check
+  bool full = false;  // guarded by mutex
+  bool stop = false;  // guarded by mutex
+  void bump_and_wake() noexcept {
+    seq.fetch_add(1, std::memory_order_release);
+    futex_wake(&seq);
+  }
+  void send() noexcept {
+    {
+      rt::PiLock lock(mutex);
+      full = true;
+    }
+    bump_and_wake();
+  }
+  bool receive() noexcept {
+    mutex.lock();
+    while (!full && !stop) {
+      const uint32_t s = seq.load(std::memory_order_acquire);
+      mutex.unlock();
+      futex_wait(&seq, s);
+      mutex.lock();
+    }
+    const bool got = full;
+    full = false;
+    mutex.unlock();
+    return got;
+  }
+  void close() noexcept {
+    {
+      rt::PiLock lock(mutex);
+      stop = true;
+    }
+    bump_and_wake();
+  }
+};
+
+template <typename Channel>
+BlockResult run_channel_block(const Options& o, const Placement& pl, uint64_t count, std::vector<int64_t>& out) {
   Channel request;
   Channel reply;
   BlockResult result;
   rt::Thread server;
   rt::Thread client;
-  server.start(thread_config("ref-cv-srv", o.priority, pl.server_cpu), [&] {
+  server.start(thread_config("ref-ch-srv", o.priority, pl.server_cpu), [&] {
     while (request.receive()) reply.send();
   }, false);
-  client.start(thread_config("ref-cv-cli", o.priority, pl.client_cpu), [&] {
+  client.start(thread_config("ref-ch-cli", o.priority, pl.client_cpu), [&] {
     result = client_loop(o, count, out, [&] {
       request.send();
       return reply.receive();
@@ -315,6 +373,7 @@ void print_mode(const ModeResult& m, const Options& o) {
   std::printf("%-22s %9s %9s %9s %9s %9s %9s   %s\n", "mechanism (us)", "min", "p50", "p90", "p99", "p99.9",
               "max", "client ctx sw/rt (vol/invol)");
   for (const auto& mech : m.mechanisms) {
+    if (mech.p.samples == 0) continue;
     const Percentiles& p = mech.p;
     const double n = p.samples > 0 ? static_cast<double>(p.samples) : 1.0;
     std::printf("%-22s %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f   %.2f / %.3f%s\n", mech.label.c_str(),
@@ -323,8 +382,10 @@ void print_mode(const ModeResult& m, const Options& o) {
                 static_cast<double>(mech.voluntary) / n, static_cast<double>(mech.involuntary) / n,
                 mech.failures > 0 ? "  FAILURES!" : "");
   }
-  std::printf("ratio rack-rpc / raw futex: p50 %.2fx (target <= 1.50x: %s), p99 %.2fx\n", m.ratio_p50,
-              m.ratio_p50 <= 1.5 ? "met" : "MISSED", m.ratio_p99);
+  if (m.mechanisms[0].p.samples > 0 && m.mechanisms[1].p.samples > 0) {
+    std::printf("ratio rack-rpc / raw futex: p50 %.2fx (target <= 1.50x: %s), p99 %.2fx\n", m.ratio_p50,
+                m.ratio_p50 <= 1.5 ? "met" : "MISSED", m.ratio_p99);
+  }
   std::fflush(stdout);
 }
 
@@ -345,7 +406,8 @@ bool parse(int argc, char** argv, Options& o) {
     else if (a == "--gap-us") o.gap_us = std::stoll(next());
     else if (a == "--warmup") o.warmup = std::stoull(next());
     else if (a == "--pm-qos") o.pm_qos = true;
-    else if (a == "--no-condvar") o.condvar = false;
+    else if (a == "--no-diagnostics") o.diagnostics = false;
+    else if (a == "--only") o.only = next();
     else if (a == "--verbose") o.verbose = true;
     else if (a == "--help" || a == "-h") { std::fputs(kUsage, stdout); std::exit(0); }
     else throw std::invalid_argument("unknown option " + a);
@@ -353,6 +415,11 @@ bool parse(int argc, char** argv, Options& o) {
   if (o.cpu_mode != "same" && o.cpu_mode != "cross" && o.cpu_mode != "both") {
     throw std::invalid_argument("--cpu-mode must be same, cross or both");
   }
+  if (!o.only.empty() && o.only != "futex" && o.only != "rack" && o.only != "pi_condvar" &&
+      o.only != "pi_condvar_timed" && o.only != "pi_futex") {
+    throw std::invalid_argument("--only must be futex, rack, pi_condvar, pi_condvar_timed or pi_futex");
+  }
+  if (o.only.rfind("pi_", 0) == 0) o.diagnostics = true;
   if (o.priority < 1 || o.priority > 99) throw std::invalid_argument("--priority must be 1..99");
   if (o.rounds < 1) o.rounds = 1;
   if (o.iterations < static_cast<uint64_t>(o.rounds)) o.iterations = static_cast<uint64_t>(o.rounds);
@@ -420,7 +487,11 @@ int main(int argc, char** argv) {
       mr.placement = pl;
       mr.mechanisms.push_back({"futex", "raw futex ping-pong", {}, 0, 0, 0, {}});
       mr.mechanisms.push_back({"rack_rpc", "rack-rt GET_STATUS rpc", {}, 0, 0, 0, {}});
-      if (o.condvar) mr.mechanisms.push_back({"pi_condvar", "raw PI mutex+condvar", {}, 0, 0, 0, {}});
+      if (o.diagnostics) {
+        mr.mechanisms.push_back({"pi_condvar", "diag PI mutex+condvar", {}, 0, 0, 0, {}});
+        mr.mechanisms.push_back({"pi_condvar_timed", "diag PI+condvar timed", {}, 0, 0, 0, {}});
+        mr.mechanisms.push_back({"pi_futex", "diag PI mutex+futex", {}, 0, 0, 0, {}});
+      }
       for (auto& m : mr.mechanisms) m.samples.reserve(o.iterations);
       const uint64_t per_block = o.iterations / static_cast<uint64_t>(o.rounds);
       for (int r = 0; r < o.rounds; ++r) {
@@ -431,8 +502,11 @@ int main(int argc, char** argv) {
         if (r % 2 == 1) std::reverse(order.begin(), order.end());
         for (std::size_t k : order) {
           Mechanism& m = mr.mechanisms[k];
+          if (!o.only.empty() && m.key != o.only && !(o.only == "rack" && m.key == "rack_rpc")) continue;
           if (m.key == "futex") m.add(run_futex_block(o, pl, count, m.samples));
-          else if (m.key == "pi_condvar") m.add(run_condvar_block(o, pl, count, m.samples));
+          else if (m.key == "pi_condvar") m.add(run_channel_block<CondvarChannel<false>>(o, pl, count, m.samples));
+          else if (m.key == "pi_condvar_timed") m.add(run_channel_block<CondvarChannel<true>>(o, pl, count, m.samples));
+          else if (m.key == "pi_futex") m.add(run_channel_block<FutexChannel>(o, pl, count, m.samples));
           else m.add(run_rack_block(o, pl, side, count, m.samples));
         }
       }

@@ -1,1 +1,864 @@
-int main() { return 0; }
+// rackctl: controls the components of running rackd executors over TiMS/LCM, as any
+// other host would: it joins the LCM network as a tool (system kToolSystem), finds
+// components by announcement (discovery) or by address, and sends RACK's generic
+// messages (ON, OFF, GET_STATUS, GET_STATS, GET_PARAM, SET_PARAM, GET_DATA,
+// GET_CONT_DATA, STOP_CONT_DATA).
+//
+// A normal (non-RT) tool. It never hangs: every wait has a timeout.
+//
+// Exit codes: 0 ok, 1 the component answered ERROR (its reason is printed), 2 usage
+// error, 3 not available (NOT_AVAILABLE reply, unknown name, no reply in time).
+#include <signal.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cstdarg>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <optional>
+#include <set>
+#include <span>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "rack/core/data_component.h"
+#include "rack/core/parameters.h"
+#include "rack/core/payload_json.h"
+#include "rack/core/wire.h"
+#include "rack/interfaces/data_types.h"
+#include "rack/rt/clock.h"
+#include "rack/tims/address.h"
+#include "rack/tims/endpoint.h"
+#include "rack/tims/lcm_transport.h"
+#include "rack/tims/mailbox.h"
+#include "rack/tims/message.h"
+#include "rack/tims/router.h"
+
+namespace {
+
+using rack::tims::Address;
+using rack::tims::CallResult;
+using rack::tims::CallStatus;
+using rack::tims::ConstBuffer;
+using rack::tims::MessageHeader;
+namespace msg = rack::tims::msg;
+namespace rt = rack::rt;
+namespace tims = rack::tims;
+namespace wire = rack::wire;
+
+constexpr int kExitOk = 0;
+constexpr int kExitError = 1;        // the component answered ERROR
+constexpr int kExitUsage = 2;
+constexpr int kExitUnavailable = 3;  // NOT_AVAILABLE, unknown name, timeout
+
+// A command ends with this (thrown, so that the TiMS session shuts down on the way out).
+struct Failure {
+  int code;
+  std::string message;
+};
+[[noreturn]] void fail(int code, std::string message) { throw Failure{code, std::move(message)}; }
+
+// ---------------------------------------------------------------- help texts
+
+constexpr const char* kUsage = R"(usage: rackctl [options] COMMAND [ARGS]
+
+Controls the components of running rackd executors over TiMS/LCM.
+
+commands:
+  list                          every component that answers discovery, with its state
+  on NAME                       switch a component on (answered when its on() finished)
+  off NAME                      switch a component off
+  status NAME                   state and timing statistics (--json: one JSON object)
+  params NAME                   the component's runtime parameters
+  set-param NAME KEY VALUE      set one parameter (VALUE is parsed as the parameter's kind)
+  get-data NAME [--time T]      one sample as a JSON line
+  watch NAME [--period MS] [--count N]
+                                continuous data, one JSON line per sample
+  help [COMMAND]                this text, or a command's
+
+NAME is a component's name from its host file (found by discovery), or an address
+like Generator(0/0) (class, system/instance).
+
+options:
+  --lcm URL          TiMS/LCM network (default: $LCM_DEFAULT_URL, else
+                     udpm://239.255.76.67:7667?ttl=0)
+  --timeout MS       how long to wait for each reply (default 2000)
+  --discover-ms MS   how long to wait for announcements (default 300)
+  -h, --help         this text; after a command: the command's help
+
+exit codes: 0 ok, 1 the component answered ERROR, 2 usage error, 3 not available
+(NOT_AVAILABLE, unknown name, or no reply within the timeout).
+)";
+
+struct Options {
+  std::string lcm_url;
+  int64_t timeout_ms = 2000;
+  int64_t discover_ms = 300;
+  bool json = false;
+  bool help = false;
+  int64_t time_ns = 0;     // get-data --time
+  double period_ms = 0.0;  // watch --period
+  int64_t count = 0;       // watch --count (0: until SIGINT/SIGTERM)
+  std::set<std::string> given;  // command-specific options seen (checked per command)
+  std::string command;
+  std::vector<std::string> args;
+};
+
+class Session;
+struct Command {
+  const char* name;
+  const char* synopsis;
+  std::size_t min_args;
+  std::size_t max_args;
+  std::set<std::string> options;  // command-specific options it accepts
+  const char* help;
+  int (*run)(Session&, const Options&);
+};
+
+// ---------------------------------------------------------------- small helpers
+
+std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
+std::string format(const char* fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  char buf[1024];
+  std::vsnprintf(buf, sizeof buf, fmt, ap);
+  va_end(ap);
+  return buf;
+}
+
+std::optional<int64_t> parse_int(const std::string& text) {
+  int64_t v = 0;
+  const char* first = text.data();
+  const char* last = text.data() + text.size();
+  if (first != last && *first == '+') ++first;
+  const auto [ptr, ec] = std::from_chars(first, last, v);
+  if (ec != std::errc() || ptr != last || first == last) return std::nullopt;
+  return v;
+}
+
+std::optional<double> parse_double(const std::string& text) {
+  if (text.empty() || std::isspace(static_cast<unsigned char>(text[0])) != 0) return std::nullopt;
+  errno = 0;
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (end != text.c_str() + text.size() || errno == ERANGE || !std::isfinite(v)) return std::nullopt;
+  return v;
+}
+
+// Shortest text that reads back as the same double.
+std::string double_text(double v) {
+  if (!std::isfinite(v)) return "null";
+  char buf[64];
+  const auto [ptr, ec] = std::to_chars(buf, buf + sizeof buf, v);
+  if (ec != std::errc()) return format("%.17g", v);
+  return std::string(buf, ptr);
+}
+
+std::string quoted(const std::string& s) { return "\"" + rack::json_escape(s) + "\""; }
+
+// The text of an ERROR body (wire::ErrorText, possibly shorter or empty).
+std::string error_reason(std::span<const std::byte> body) {
+  if (body.empty()) return "no reason given";
+  const auto* text = reinterpret_cast<const char*>(body.data());
+  std::string reason(text, strnlen(text, body.size()));
+  return reason.empty() ? "no reason given" : reason;
+}
+
+const char* reply_name(int8_t type) {
+  const char* n = msg::name(type);
+  return n != nullptr ? n : "unknown reply";
+}
+
+// ---------------------------------------------------------------- the TiMS session
+
+struct Target {
+  Address address;
+  std::string name;  // from the host file; empty when given as an address
+  [[nodiscard]] std::string label() const {
+    return name.empty() ? address.str() : name + " " + address.str();
+  }
+};
+
+std::string default_lcm_url() {
+  const char* env = std::getenv("LCM_DEFAULT_URL");
+  return env != nullptr && *env != '\0' ? env : tims::kDefaultLcmUrl;
+}
+
+class Session {
+ public:
+  explicit Session(const Options& o)
+      : options_(o),
+        reply_mailbox_(own_address(0), 16, kSlotSize),
+        data_mailbox_(own_address(1), 64, kSlotSize),
+        endpoint_(router_, reply_mailbox_, kPriority),
+        transport_(router_, transport_config(o)),
+        buffer_(kSlotSize) {
+    router_.add(reply_mailbox_);
+    router_.add(data_mailbox_);
+    transport_.start();
+  }
+  ~Session() {
+    transport_.stop();
+    router_.remove(reply_mailbox_.address());
+    router_.remove(data_mailbox_.address());
+  }
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+
+  [[nodiscard]] const std::string& url() const { return transport_.url(); }
+  [[nodiscard]] int64_t timeout_ns() const { return options_.timeout_ms * rt::kNsPerMs; }
+  [[nodiscard]] tims::Mailbox& data_mailbox() { return data_mailbox_; }
+  [[nodiscard]] tims::Endpoint& endpoint() { return endpoint_; }
+  [[nodiscard]] std::span<std::byte> buffer() { return buffer_; }
+
+  // Asks every host to announce itself and waits up to --discover-ms (less when
+  // `stop` is given and returns true for what was heard so far).
+  template <typename Stop>
+  std::vector<tims::HostInfo> discover(Stop stop) {
+    const int64_t start = rt::monotonic_ns();
+    const int64_t deadline = start + options_.discover_ms * rt::kNsPerMs;
+    int64_t next_request = start;
+    for (;;) {
+      const int64_t now = rt::monotonic_ns();
+      if (now >= next_request) {
+        // Asked again every 100 ms: a multicast datagram can be lost.
+        transport_.request_discovery();
+        next_request = now + 100 * rt::kNsPerMs;
+      }
+      auto hosts = transport_.hosts();
+      if (stop(hosts) || now >= deadline) return hosts;
+      rt::sleep_for(std::min<int64_t>(10 * rt::kNsPerMs, deadline - now));
+    }
+  }
+
+  // NAME (host-file name) or address -> the component's command mailbox.
+  Target resolve(const std::string& text) {
+    if (const auto a = tims::parse_address(text)) return Target{a->component(), ""};
+    if (text.find('(') != std::string::npos) {
+      fail(kExitUsage, "'" + text + "' is not an address (expected Class(system/instance), e.g. Generator(0/0))");
+    }
+    std::optional<Target> found;
+    discover([&](const std::vector<tims::HostInfo>& hosts) {
+      for (const auto& h : hosts) {
+        for (const auto& c : h.components) {
+          if (c.name == text) {
+            found = Target{c.address.component(), c.name};
+            return true;
+          }
+        }
+      }
+      return false;
+    });
+    if (!found) {
+      fail(kExitUnavailable, format("no component named '%s' answered discovery within %lld ms on %s",
+                                    text.c_str(), static_cast<long long>(options_.discover_ms),
+                                    url().c_str()));
+    }
+    return *found;
+  }
+
+  // A request that must be answered; timeouts and NOT_AVAILABLE end the command
+  // (exit 3). The result's body points into buffer() until the next call.
+  CallResult call(const Target& t, int8_t type, std::span<const ConstBuffer> body = {}) {
+    const CallResult r = endpoint_.call(t.address, type, body, buffer_, timeout_ns());
+    const char* what = msg::name(type) != nullptr ? msg::name(type) : "request";
+    switch (r.status) {
+      case CallStatus::kOk: break;
+      case CallStatus::kTimeout:
+        fail(kExitUnavailable, format("%s: no reply to %s within %lld ms (is its rackd running on %s?)",
+                                      t.label().c_str(), what, static_cast<long long>(options_.timeout_ms),
+                                      url().c_str()));
+      default:
+        fail(kExitUnavailable, t.label() + ": " + what + ": " + tims::describe(r.status));
+    }
+    if (r.reply.type == msg::kNotAvailable) {
+      fail(kExitUnavailable, t.label() + ": NOT_AVAILABLE (no such component on a running host)");
+    }
+    return r;
+  }
+  template <typename T>
+  CallResult call(const Target& t, int8_t type, const T& body) {
+    const ConstBuffer part = tims::buffer_of(body);
+    return call(t, type, std::span<const ConstBuffer>(&part, 1));
+  }
+
+  // Ends the command when the reply is ERROR (exit 1, its reason) or not `expected`.
+  static void expect(const Target& t, const CallResult& r, int8_t expected, const char* what) {
+    if (r.reply.type == expected) return;
+    if (r.reply.type == msg::kError) fail(kExitError, t.label() + ": " + what + ": " + error_reason(r.body));
+    fail(kExitError, format("%s: %s: unexpected reply %s (%d)", t.label().c_str(), what,
+                            reply_name(r.reply.type), r.reply.type));
+  }
+
+ private:
+  static constexpr uint32_t kSlotSize = 64 * 1024;
+  static constexpr uint8_t kPriority = 10;
+
+  // Tool mailboxes: instance and mailbox from the low 16 bits of the pid, the
+  // mailbox even (replies) and odd (watch data), so two rackctl rarely collide.
+  static Address own_address(uint8_t which) {
+    const auto pid = static_cast<uint32_t>(getpid());
+    const auto inst = static_cast<uint8_t>(pid >> 8);
+    const auto mbx = static_cast<uint8_t>((pid & 0xFEu) | which);
+    return Address::make(tims::kToolSystem, tims::classes::kTool, inst, mbx);
+  }
+  static tims::LcmTransportConfig transport_config(const Options& o) {
+    tims::LcmTransportConfig c;
+    c.url = o.lcm_url.empty() ? default_lcm_url() : o.lcm_url;
+    c.uplink_slots = 32;
+    c.announce_period_ns = 0;  // a tool announces nothing
+    c.warn = [](const std::string& s) { std::fprintf(stderr, "rackctl: %s\n", s.c_str()); };
+    return c;
+  }
+
+  const Options& options_;
+  tims::Router router_{tims::kToolSystem};
+  tims::Mailbox reply_mailbox_;
+  tims::Mailbox data_mailbox_;
+  tims::Endpoint endpoint_;
+  tims::LcmTransport transport_;
+  std::vector<std::byte> buffer_;
+};
+
+// ---------------------------------------------------------------- commands
+
+const char* state_name(int8_t reply_type) {
+  switch (reply_type) {
+    case msg::kEnabled: return "ENABLED";
+    case msg::kDisabled: return "DISABLED";
+    case msg::kError: return "ERROR";
+    default: return "?";
+  }
+}
+
+std::string class_label(Address a, const std::string& impl) {
+  const char* cls = tims::class_name(a.class_id());
+  const std::string c = cls != nullptr ? cls : format("Class0x%02x", a.class_id());
+  return impl.empty() ? c : c + "(" + impl + ")";
+}
+
+int cmd_list(Session& s, const Options& o) {
+  struct Row {
+    tims::ComponentInfo info;
+    std::string host;
+    uint8_t seq = 0;
+    std::string state = "no reply";
+  };
+  const auto hosts = s.discover([](const std::vector<tims::HostInfo>&) { return false; });
+  std::vector<Row> rows;
+  for (const auto& h : hosts) {
+    for (const auto& c : h.components) rows.push_back(Row{c, h.host + " (pid " + std::to_string(h.pid) + ")", 0, "no reply"});
+  }
+  std::sort(rows.begin(), rows.end(), [](const Row& a, const Row& b) {
+    return a.info.address.raw() < b.info.address.raw();
+  });
+  if (rows.empty()) {
+    fail(kExitUnavailable, format("no rackd answered discovery within %lld ms on %s",
+                                  static_cast<long long>(o.discover_ms), s.url().c_str()));
+  }
+  // All GET_STATUS requests at once, then the replies within one timeout.
+  for (auto& r : rows) {
+    const auto st = s.endpoint().send(r.info.address.component(), msg::kGetStatus, {}, Address(), &r.seq);
+    if (!tims::delivered(st)) r.state = std::string("not sent: ") + tims::describe(st);
+  }
+  std::size_t pending = rows.size();
+  const int64_t deadline = rt::monotonic_ns() + s.timeout_ns();
+  while (pending > 0) {
+    const int64_t left = deadline - rt::monotonic_ns();
+    if (left <= 0) break;
+    const auto got = s.endpoint().mailbox().receive(s.buffer(), left);
+    if (got.status != tims::RecvStatus::kOk) continue;
+    for (auto& r : rows) {
+      if (r.state == "no reply" && got.header.source() == r.info.address.component() && got.header.seq == r.seq) {
+        r.state = got.header.type == msg::kNotAvailable ? "NOT_AVAILABLE" : state_name(got.header.type);
+        --pending;
+        break;
+      }
+    }
+  }
+  if (o.json) {
+    std::string out = "[";
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const auto& r = rows[i];
+      out += (i == 0 ? "" : ",") + std::string("{\"address\":") + quoted(r.info.address.str()) +
+             ",\"name\":" + quoted(r.info.name) + ",\"class\":" +
+             quoted(class_label(r.info.address, "")) + ",\"impl\":" + quoted(r.info.impl) +
+             ",\"state\":" + quoted(r.state) + ",\"host\":" + quoted(r.host) + "}";
+    }
+    std::printf("%s]\n", out.c_str());
+    return kExitOk;
+  }
+  std::printf("%-18s %-16s %-24s %-9s %s\n", "ADDRESS", "NAME", "CLASS(IMPL)", "STATE", "HOST");
+  for (const auto& r : rows) {
+    std::printf("%-18s %-16s %-24s %-9s %s\n", r.info.address.str().c_str(), r.info.name.c_str(),
+                class_label(r.info.address, r.info.impl).c_str(), r.state.c_str(), r.host.c_str());
+  }
+  return kExitOk;
+}
+
+int switch_command(Session& s, const Options& o, int8_t type) {
+  const Target t = s.resolve(o.args[0]);
+  const CallResult r = s.call(t, type);
+  Session::expect(t, r, msg::kOk, type == msg::kOn ? "ON" : "OFF");
+  std::printf("%s: %s\n", t.label().c_str(), type == msg::kOn ? "ENABLED" : "DISABLED");
+  return kExitOk;
+}
+int cmd_on(Session& s, const Options& o) { return switch_command(s, o, msg::kOn); }
+int cmd_off(Session& s, const Options& o) { return switch_command(s, o, msg::kOff); }
+
+std::string us(int64_t ns) { return double_text(static_cast<double>(ns) / 1000.0); }
+
+int cmd_status(Session& s, const Options& o) {
+  const Target t = s.resolve(o.args[0]);
+  const CallResult status = s.call(t, msg::kGetStatus);
+  if (status.reply.type != msg::kEnabled && status.reply.type != msg::kDisabled &&
+      status.reply.type != msg::kError) {
+    Session::expect(t, status, msg::kEnabled, "GET_STATUS");
+  }
+  const std::string state = state_name(status.reply.type);
+  const CallResult r = s.call(t, msg::kGetStats);
+  Session::expect(t, r, msg::kStats, "GET_STATS");
+  wire::StatsReply st;
+  if (!wire::read_payload(r.body, tims::body_is_native(r.reply), st)) {
+    fail(kExitError, format("%s: GET_STATS: reply of %zu bytes, expected %zu", t.label().c_str(), r.body.size(),
+                            sizeof st));
+  }
+  const char* mode = rack::describe(static_cast<rack::DataTaskMode>(st.data_task));
+  if (o.json) {
+    std::string j = "{\"component\":" + quoted(t.address.str()) + ",\"name\":" +
+                    (t.name.empty() ? std::string("null") : quoted(t.name)) + ",\"state\":" + quoted(state) +
+                    ",\"data_task\":" + quoted(mode) + ",\"period_ns\":" + std::to_string(st.period_ns) +
+                    ",\"cycles\":" + std::to_string(st.data.cycles) +
+                    ",\"overruns\":" + std::to_string(st.data.overruns) +
+                    ",\"latency_us\":{\"min\":" + us(st.data.latency_min_ns) +
+                    ",\"p50\":" + us(st.data.latency_p50_ns) + ",\"p99\":" + us(st.data.latency_p99_ns) +
+                    ",\"p99.9\":" + us(st.data.latency_p999_ns) + ",\"max\":" + us(st.data.latency_max_ns) +
+                    ",\"mean\":" + us(st.data.latency_mean_ns) + ",\"samples\":" +
+                    std::to_string(st.data.samples) + "}" + ",\"published\":" + std::to_string(st.published) +
+                    ",\"listeners\":" + std::to_string(st.listeners) +
+                    ",\"listener_drops\":" + std::to_string(st.listener_drops) +
+                    ",\"malformed\":" + std::to_string(st.malformed) +
+                    ",\"commands\":" + std::to_string(st.commands) + ",\"errors\":" + std::to_string(st.errors) +
+                    ",\"command_drops\":" + std::to_string(st.command_drops) + "}";
+    std::printf("%s\n", j.c_str());
+    return kExitOk;
+  }
+  std::printf("%s\n", t.label().c_str());
+  std::printf("  %-16s %s\n", "state", state.c_str());
+  if (st.period_ns > 0) {
+    std::printf("  %-16s %s, period %s ms\n", "data task", mode,
+                double_text(static_cast<double>(st.period_ns) / 1e6).c_str());
+  } else {
+    std::printf("  %-16s %s\n", "data task", mode);
+  }
+  const auto u = [](uint64_t v) { return static_cast<unsigned long long>(v); };
+  std::printf("  %-16s %llu\n", "cycles", u(st.data.cycles));
+  std::printf("  %-16s %llu\n", "overruns", u(st.data.overruns));
+  if (st.data.samples > 0) {
+    std::printf("  %-16s min %s us, p50 %s us, p99 %s us, p99.9 %s us, max %s us (%llu samples)\n",
+                "wake-up latency", us(st.data.latency_min_ns).c_str(), us(st.data.latency_p50_ns).c_str(),
+                us(st.data.latency_p99_ns).c_str(), us(st.data.latency_p999_ns).c_str(),
+                us(st.data.latency_max_ns).c_str(), u(st.data.samples));
+  } else {
+    std::printf("  %-16s none measured\n", "wake-up latency");
+  }
+  std::printf("  %-16s %llu\n", "published", u(st.published));
+  std::printf("  %-16s %llu\n", "listeners", u(st.listeners));
+  std::printf("  %-16s %llu\n", "listener drops", u(st.listener_drops));
+  std::printf("  %-16s %llu\n", "malformed", u(st.malformed));
+  std::printf("  %-16s %llu\n", "commands", u(st.commands));
+  std::printf("  %-16s %llu\n", "errors", u(st.errors));
+  std::printf("  %-16s %llu\n", "command drops", u(st.command_drops));
+  return kExitOk;
+}
+
+std::string param_value(const wire::ParamRecord& p) {
+  switch (static_cast<wire::ParamKind>(p.kind)) {
+    case wire::ParamKind::kInt: return std::to_string(p.int_value);
+    case wire::ParamKind::kFloat: return double_text(p.float_value);
+    case wire::ParamKind::kBool: return p.int_value != 0 ? "true" : "false";
+    case wire::ParamKind::kString: return std::string(p.string_value, strnlen(p.string_value, sizeof p.string_value));
+  }
+  return "?";
+}
+std::string param_name(const wire::ParamRecord& p) { return std::string(p.name, strnlen(p.name, sizeof p.name)); }
+
+int cmd_params(Session& s, const Options& o) {
+  const Target t = s.resolve(o.args[0]);
+  const CallResult r = s.call(t, msg::kGetParam);
+  Session::expect(t, r, msg::kParam, "GET_PARAM");
+  if (r.body.size() % sizeof(wire::ParamRecord) != 0) {
+    fail(kExitError, format("%s: GET_PARAM: reply of %zu bytes is not a list of %zu-byte records",
+                            t.label().c_str(), r.body.size(), sizeof(wire::ParamRecord)));
+  }
+  const bool native = tims::body_is_native(r.reply);
+  std::vector<wire::ParamRecord> records(r.body.size() / sizeof(wire::ParamRecord));
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    (void)wire::read_payload(r.body.subspan(i * sizeof(wire::ParamRecord), sizeof(wire::ParamRecord)), native,
+                             records[i]);
+  }
+  if (o.json) {
+    std::string j = "[";
+    for (std::size_t i = 0; i < records.size(); ++i) {
+      const auto& p = records[i];
+      const auto kind = static_cast<wire::ParamKind>(p.kind);
+      const std::string v = kind == wire::ParamKind::kString ? quoted(param_value(p)) : param_value(p);
+      j += (i == 0 ? "" : ",") + std::string("{\"name\":") + quoted(param_name(p)) + ",\"kind\":" +
+           quoted(rack::describe(kind)) + ",\"value\":" + v + "}";
+    }
+    std::printf("%s]\n", j.c_str());
+    return kExitOk;
+  }
+  for (const auto& p : records) {
+    std::printf("%-20s %-6s %s%s\n", param_name(p).c_str(), rack::describe(static_cast<wire::ParamKind>(p.kind)),
+                param_value(p).c_str(), (p.flags & 1u) != 0 ? "   (component)" : "");
+  }
+  return kExitOk;
+}
+
+int cmd_set_param(Session& s, const Options& o) {
+  const std::string& key = o.args[1];
+  const std::string& text = o.args[2];
+  if (key.empty() || key.size() >= wire::kParamNameLen) {
+    fail(kExitUsage, format("parameter name '%s' must be 1..%zu characters", key.c_str(), wire::kParamNameLen - 1));
+  }
+  const Target t = s.resolve(o.args[0]);
+  // Learn the parameter's kind first.
+  wire::ParamName name;
+  wire::copy_text(name.name, key.c_str());
+  CallResult r = s.call(t, msg::kGetParam, name);
+  Session::expect(t, r, msg::kParam, "GET_PARAM");
+  wire::ParamRecord record;
+  if (!wire::read_payload(r.body, tims::body_is_native(r.reply), record)) {
+    fail(kExitError, format("%s: GET_PARAM %s: reply of %zu bytes is not one parameter record", t.label().c_str(),
+                            key.c_str(), r.body.size()));
+  }
+  const auto kind = static_cast<wire::ParamKind>(record.kind);
+  const auto bad = [&](const char* what) {
+    return Failure{kExitUsage, format("'%s' is not %s (parameter '%s' of %s is a %s)", text.c_str(), what, key.c_str(),
+                            t.label().c_str(), rack::describe(kind))};
+  };
+  switch (kind) {
+    case wire::ParamKind::kInt: {
+      const auto v = parse_int(text);
+      if (!v) throw bad("an integer");
+      record.int_value = *v;
+      break;
+    }
+    case wire::ParamKind::kFloat: {
+      const auto v = parse_double(text);
+      if (!v) throw bad("a finite number");
+      record.float_value = *v;
+      break;
+    }
+    case wire::ParamKind::kBool:
+      if (text == "true" || text == "1") record.int_value = 1;
+      else if (text == "false" || text == "0") record.int_value = 0;
+      else throw bad("a bool (true, false, 1 or 0)");
+      break;
+    case wire::ParamKind::kString:
+      if (text.size() >= wire::kParamStringLen) {
+        throw bad(format("a string of at most %zu characters", wire::kParamStringLen - 1).c_str());
+      }
+      std::memset(record.string_value, 0, sizeof record.string_value);
+      wire::copy_text(record.string_value, text.c_str());
+      break;
+    default:
+      fail(kExitError, format("%s: parameter '%s' has an unknown kind %u", t.label().c_str(), key.c_str(),
+                              record.kind));
+  }
+  r = s.call(t, msg::kSetParam, record);
+  Session::expect(t, r, msg::kOk, "SET_PARAM");
+  std::printf("%s: %s = %s\n", t.label().c_str(), key.c_str(), param_value(record).c_str());
+  return kExitOk;
+}
+
+// One DATA body (SampleHeader + sample) as a JSON line.
+std::string sample_json(const Target& t, const MessageHeader& h, std::span<const std::byte> body) {
+  wire::SampleHeader sh;
+  if (body.size() < sizeof sh ||
+      !wire::read_payload(body.first(sizeof sh), tims::body_is_native(h), sh)) {
+    fail(kExitError, format("%s: DATA of %zu bytes is shorter than a sample header", t.label().c_str(), body.size()));
+  }
+  const auto sample = body.subspan(sizeof sh);
+  std::string j = "{\"component\":" + quoted(t.address.str()) + ",\"name\":" +
+                  (t.name.empty() ? std::string("null") : quoted(t.name)) + ",\"time_ns\":" +
+                  std::to_string(sh.time_ns) + ",\"sequence\":" + std::to_string(sh.sequence);
+  const auto* type = rack::interfaces::data_type_for_class(t.address.class_id());
+  if (type != nullptr && type->size == sample.size()) {
+    j += ",\"data\":" + rack::payload_to_json(type->fields, sample, tims::body_is_native(h));
+  } else {
+    std::string hex;
+    static constexpr char kDigits[] = "0123456789abcdef";
+    for (const std::byte b : sample) {
+      hex += kDigits[static_cast<unsigned>(b) >> 4];
+      hex += kDigits[static_cast<unsigned>(b) & 0xFu];
+    }
+    j += ",\"data_hex\":\"" + hex + "\"";
+  }
+  return j + "}";
+}
+
+int cmd_get_data(Session& s, const Options& o) {
+  const Target t = s.resolve(o.args[0]);
+  wire::GetDataRequest req;
+  req.time_ns = o.time_ns;
+  const CallResult r = s.call(t, msg::kGetData, req);
+  Session::expect(t, r, msg::kData, "GET_DATA");
+  std::printf("%s\n", sample_json(t, r.reply, r.body).c_str());
+  return kExitOk;
+}
+
+// watch: SIGINT/SIGTERM set this; the receive loop polls it.
+std::atomic<bool> g_stop{false};
+extern "C" void on_stop_signal(int) { g_stop.store(true, std::memory_order_relaxed); }
+
+int cmd_watch(Session& s, const Options& o) {
+  const Target t = s.resolve(o.args[0]);
+  struct sigaction sa {};
+  sa.sa_handler = on_stop_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  signal(SIGPIPE, SIG_IGN);  // a closed stdout ends the watch (checked below), not the process
+
+  tims::Mailbox& data = s.data_mailbox();
+  wire::ContDataRequest req;
+  req.period_ns = static_cast<int64_t>(std::llround(o.period_ms * 1e6));
+  req.mailbox = data.address().raw();
+  const CallResult r = s.call(t, msg::kGetContData, req);
+  Session::expect(t, r, msg::kContData, "GET_CONT_DATA");
+  wire::ContDataReply rep;
+  if (!wire::read_payload(r.body, tims::body_is_native(r.reply), rep)) {
+    fail(kExitError, t.label() + ": GET_CONT_DATA: malformed CONT_DATA reply");
+  }
+  std::fprintf(stderr, "rackctl: watching %s, period %s ms\n", t.label().c_str(),
+               rep.period_ns > 0 ? double_text(static_cast<double>(rep.period_ns) / 1e6).c_str() : "unknown");
+
+  const auto stop_cont_data = [&] {
+    wire::StopContDataRequest stop;
+    stop.mailbox = data.address().raw();
+    const ConstBuffer part = tims::buffer_of(stop);
+    // Best effort: the producer may be gone.
+    (void)s.endpoint().call(t.address, msg::kStopContData, std::span<const ConstBuffer>(&part, 1), s.buffer(),
+                            s.timeout_ns());
+  };
+  // No sample for this long: the producer is gone (or silent).
+  const int64_t silence_ns = std::max<int64_t>(5 * rt::kNsPerSec, 2 * rep.period_ns + s.timeout_ns());
+  std::vector<std::byte> buf(data.slot_size());
+  int64_t last_sample = rt::monotonic_ns();
+  int64_t received = 0;
+  while (!g_stop.load(std::memory_order_relaxed)) {
+    const int64_t now = rt::monotonic_ns();
+    if (now - last_sample >= silence_ns) {
+      stop_cont_data();
+      fail(kExitUnavailable, format("%s: no sample for %lld s", t.label().c_str(),
+                                    static_cast<long long>(silence_ns / rt::kNsPerSec)));
+    }
+    const auto got = data.receive(buf, std::min<int64_t>(100 * rt::kNsPerMs, silence_ns - (now - last_sample)));
+    if (got.status != tims::RecvStatus::kOk) continue;
+    if (got.header.source().component() != t.address) continue;  // a late message of someone else
+    const auto body = std::span<const std::byte>(buf).subspan(sizeof(MessageHeader), got.length - sizeof(MessageHeader));
+    if (got.header.type == msg::kError) {
+      // The producer left ENABLED and dropped us: no STOP_CONT_DATA needed.
+      fail(kExitError, t.label() + ": " + error_reason(body));
+    }
+    if (got.header.type != msg::kData) continue;
+    const std::string line = sample_json(t, got.header, body);
+    if (std::printf("%s\n", line.c_str()) < 0 || std::fflush(stdout) != 0) break;  // stdout closed
+    last_sample = rt::monotonic_ns();
+    if (o.count > 0 && ++received >= o.count) break;
+  }
+  stop_cont_data();
+  return kExitOk;
+}
+
+int cmd_help(Session&, const Options&);  // handled before a session exists
+
+const std::vector<Command>& commands() {
+  static const std::vector<Command> kCommands = {
+      {"list", "list [--json]", 0, 0, {"--json"},
+       "Discovers every rackd on the network (waits the full --discover-ms), asks each\n"
+       "component for its state and prints ADDRESS NAME CLASS(IMPL) STATE HOST.\n"
+       "STATE is ENABLED, DISABLED, ERROR, or 'no reply' when none came within --timeout.\n"
+       "--json prints one JSON array instead.",
+       cmd_list},
+      {"on", "on NAME", 1, 1, {},
+       "Switches the component on. The reply comes when its on() has finished, so\n"
+       "this also switches on what it depends on (cascading ON). ERROR: exit 1.",
+       cmd_on},
+      {"off", "off NAME", 1, 1, {},
+       "Switches the component off (answered at once). Its listeners get an ERROR\n"
+       "message and are dropped.",
+       cmd_off},
+      {"status", "status NAME [--json]", 1, 1, {"--json"},
+       "Prints the state and the timing statistics: data task mode and period,\n"
+       "cycles, overruns, wake-up latency (min, p50, p99, p99.9, max in us),\n"
+       "samples published, listeners, listener drops, malformed requests, commands.\n"
+       "--json prints the same as one JSON object.",
+       cmd_status},
+      {"params", "params NAME [--json]", 1, 1, {"--json"},
+       "Prints the component's runtime parameters, one per line: name kind value.",
+       cmd_params},
+      {"set-param", "set-param NAME KEY VALUE", 3, 3, {},
+       "Sets one runtime parameter. VALUE is parsed as the parameter's kind (int,\n"
+       "float, bool as true|false|1|0, string); a value that does not parse is a\n"
+       "usage error (exit 2). The component's refusal (unknown parameter, out of\n"
+       "range) is printed with exit 1.",
+       cmd_set_param},
+      {"get-data", "get-data NAME [--time T]", 1, 1, {"--time"},
+       "Prints one sample as a JSON line:\n"
+       "  {\"component\":...,\"name\":...,\"time_ns\":...,\"sequence\":...,\"data\":{...}}\n"
+       "--time T: the sample nearest host time T (ns); default 0 = the newest.\n"
+       "Classes whose data type rackctl does not know print \"data_hex\" instead.",
+       cmd_get_data},
+      {"watch", "watch NAME [--period MS] [--count N]", 1, 1, {"--period", "--count"},
+       "Subscribes (GET_CONT_DATA) and prints one JSON line per sample (as get-data).\n"
+       "--period MS: the wanted period (the producer sends every n-th sample; the real\n"
+       "period is printed on stderr); default 0 = every sample. --count N: stop after\n"
+       "N samples. SIGINT/SIGTERM stop it too (exit 0). The producer going off: exit 1.\n"
+       "No sample for 5 s: exit 3.",
+       cmd_watch},
+      {"help", "help [COMMAND]", 0, 1, {}, "Prints the usage, or a command's help.", cmd_help},
+  };
+  return kCommands;
+}
+
+const Command* find_command(const std::string& name) {
+  for (const auto& c : commands()) {
+    if (name == c.name) return &c;
+  }
+  return nullptr;
+}
+
+void print_command_help(const Command& c, FILE* out) {
+  std::fprintf(out, "usage: rackctl [options] %s\n\n%s\n\n(rackctl --help for the common options)\n", c.synopsis,
+               c.help);
+}
+
+int cmd_help(Session&, const Options&) { return kExitOk; }
+
+// ---------------------------------------------------------------- arguments
+
+bool looks_like_option(const std::string& a) {
+  if (a.size() < 2 || a[0] != '-') return false;
+  // "-5" and "-.5" are values (set-param NAME KEY -5), not options.
+  return !(std::isdigit(static_cast<unsigned char>(a[1])) != 0 || a[1] == '.');
+}
+
+Options parse_arguments(int argc, char** argv) {
+  Options o;
+  bool only_positional = false;
+  for (int i = 1; i < argc; ++i) {
+    std::string a = argv[i];
+    if (only_positional || !looks_like_option(a)) {
+      if (o.command.empty()) o.command = a;
+      else o.args.push_back(a);
+      continue;
+    }
+    if (a == "--") { only_positional = true; continue; }
+    std::optional<std::string> inline_value;
+    if (const auto eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos) {
+      inline_value = a.substr(eq + 1);
+      a = a.substr(0, eq);
+    }
+    const auto value = [&](const char* what) -> std::string {
+      if (inline_value) return *inline_value;
+      if (i + 1 >= argc) fail(kExitUsage, a + " needs " + what);
+      return argv[++i];
+    };
+    const auto non_negative = [&](const char* what) -> int64_t {
+      const std::string v = value(what);
+      const auto n = parse_int(v);
+      if (!n || *n < 0) fail(kExitUsage, a + " needs " + what + ", got '" + v + "'");
+      return *n;
+    };
+    if (a == "-h" || a == "--help") o.help = true;
+    else if (a == "--json") { o.json = true; o.given.insert(a); }
+    else if (a == "--lcm") o.lcm_url = value("an LCM URL");
+    else if (a == "--timeout") {
+      o.timeout_ms = non_negative("a number of milliseconds");
+      if (o.timeout_ms == 0) fail(kExitUsage, "--timeout needs at least 1 ms");
+    }
+    else if (a == "--discover-ms") o.discover_ms = non_negative("a number of milliseconds");
+    else if (a == "--time") { o.time_ns = non_negative("a host time in ns (0: newest)"); o.given.insert(a); }
+    else if (a == "--count") {
+      o.count = non_negative("a number of samples");
+      if (o.count == 0) fail(kExitUsage, "--count needs at least 1");
+      o.given.insert(a);
+    } else if (a == "--period") {
+      const std::string v = value("a period in milliseconds");
+      const auto p = parse_double(v);
+      if (!p || *p < 0) fail(kExitUsage, "--period needs a period in milliseconds >= 0, got '" + v + "'");
+      o.period_ms = *p;
+      o.given.insert(a);
+    } else {
+      fail(kExitUsage, "unknown option '" + a + "' (rackctl --help lists them)");
+    }
+  }
+  return o;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  try {
+    o = parse_arguments(argc, argv);
+  } catch (const Failure& f) {
+    std::fprintf(stderr, "rackctl: %s\n", f.message.c_str());
+    return f.code;
+  }
+  if (o.command.empty()) {
+    if (o.help) { std::fputs(kUsage, stdout); return kExitOk; }
+    std::fputs(kUsage, stderr);
+    return kExitUsage;
+  }
+  const Command* cmd = find_command(o.command);
+  if (cmd == nullptr) {
+    std::fprintf(stderr, "rackctl: unknown command '%s' (rackctl --help lists them)\n", o.command.c_str());
+    return kExitUsage;
+  }
+  if (std::string(cmd->name) == "help") {
+    if (o.args.empty()) { std::fputs(kUsage, stdout); return kExitOk; }
+    const Command* about = find_command(o.args[0]);
+    if (about == nullptr || o.args.size() > 1) {
+      std::fprintf(stderr, "rackctl: no command '%s' (rackctl --help lists them)\n", o.args[0].c_str());
+      return kExitUsage;
+    }
+    print_command_help(*about, stdout);
+    return kExitOk;
+  }
+  if (o.help) { print_command_help(*cmd, stdout); return kExitOk; }
+  if (o.args.size() < cmd->min_args || o.args.size() > cmd->max_args) {
+    std::fprintf(stderr, "rackctl: %s: wrong number of arguments (%zu)\n\n", cmd->name, o.args.size());
+    print_command_help(*cmd, stderr);
+    return kExitUsage;
+  }
+  for (const auto& opt : o.given) {
+    if (cmd->options.count(opt) == 0) {
+      std::fprintf(stderr, "rackctl: %s does not take %s\n\n", cmd->name, opt.c_str());
+      print_command_help(*cmd, stderr);
+      return kExitUsage;
+    }
+  }
+  try {
+    Session session(o);
+    return cmd->run(session, o);
+  } catch (const Failure& f) {
+    std::fprintf(stderr, "rackctl: %s\n", f.message.c_str());
+    return f.code;
+  } catch (const std::exception& e) {
+    // Set-up failures: the LCM network cannot be joined, a mailbox is taken.
+    std::fprintf(stderr, "rackctl: %s\n", e.what());
+    return kExitUnavailable;
+  }
+}

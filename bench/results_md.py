@@ -1,0 +1,303 @@
+#!/usr/bin/env python3
+"""Writes bench/RESULTS.md (to stdout) from the JSON results of bench_rpc and
+bench_jitter and the environment bench/run recorded. Called by bench/run."""
+
+import argparse
+import json
+import os
+import re
+import sys
+
+
+def load_env(path):
+    env = {}
+    with open(path) as f:
+        for line in f:
+            key, _, value = line.rstrip("\n").partition("=")
+            env[key] = value
+    return env
+
+
+def us(ns):
+    return "–" if ns is None else f"{ns / 1000.0:.1f}"
+
+
+def us2(ns):
+    return "–" if ns is None else f"{ns / 1000.0:.2f}"
+
+
+def verdict(ratio, target):
+    if ratio is None:
+        return "no data"
+    if ratio <= target:
+        return f"**met** ({ratio:.2f}x <= {target:.2f}x)"
+    return f"**MISSED** by {100.0 * (ratio / target - 1.0):.0f}% ({ratio:.2f}x > {target:.2f}x)"
+
+
+def strace_calls(path):
+    """{"futex:FUTEX_OP": n, "clock_nanosleep": n} from `strace -f -e trace=... -o` output:
+    each call counted once, at its start line."""
+    calls = {}
+    if not os.path.exists(path):
+        return calls
+    with open(path) as f:
+        for line in f:
+            if "resumed>" in line:
+                continue
+            m = re.search(r"\bfutex\(0x[0-9a-f]+, ([A-Z_|]+)", line)
+            if m:
+                op = m.group(1).split("|")[0].replace("_PRIVATE", "")
+                calls["futex:" + op] = calls.get("futex:" + op, 0) + 1
+                calls["futex"] = calls.get("futex", 0) + 1
+            elif re.search(r"\bclock_nanosleep\(", line):
+                calls["clock_nanosleep"] = calls.get("clock_nanosleep", 0) + 1
+    return calls
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--results", required=True)
+    ap.add_argument("--rpc-cmd", required=True)
+    ap.add_argument("--jitter-cmd", required=True)
+    ap.add_argument("--root", required=True)
+    a = ap.parse_args()
+
+    env = load_env(os.path.join(a.results, "env.txt"))
+    with open(os.path.join(a.results, "rpc.json")) as f:
+        rpc = json.load(f)
+    with open(os.path.join(a.results, "jitter.json")) as f:
+        jit = json.load(f)
+    root = a.root.rstrip("/") + "/"
+    rpc_cmd = a.rpc_cmd.replace(root, "")
+    jitter_cmd = a.jitter_cmd.replace(root, "")
+    mode = env.get("mode", "?")
+    preempt_rt = env.get("preempt_rt", "0").strip() == "1"
+
+    out = []
+    w = out.append
+    w("# RACK-RT benchmarks: results")
+    w("")
+    w(f"Written by `bench/run --{mode}` on {env.get('date', '?')}, commit {env.get('commit', '?')}. "
+      "Each benchmark runs its reference in the same run, same binary or same invocation, "
+      "with the same placement and priority (STYLE.md 11). Raw JSON and logs: "
+      "`<build-dir>/bench/results/`. Regenerate with `bench/run --quick` (about 1 minute) "
+      "or `bench/run` (full, a few minutes).")
+    w("")
+    w("## Machine and load")
+    w("")
+    w(f"- Kernel: `{env.get('uname', '?')}`")
+    w(f"- PREEMPT_RT: **{'yes' if preempt_rt else 'no'}**"
+      + ("" if preempt_rt else
+         " (a stock PREEMPT_DYNAMIC kernel in a VM: absolute latencies are not those of an RT "
+         "system; the ratios against the reference measured beside them are what count)."))
+    w(f"- CPU: {env.get('cpu_model', '?')}, {env.get('nproc', '?')} online CPUs, cpuidle driver "
+      f"`{env.get('cpuidle', '?')}`, clocksource `{env.get('clocksource', '?')}`, "
+      f"RT throttling `sched_rt_runtime_us/period` = {env.get('rt_runtime', '?')}")
+    w(f"- {env.get('cyclictest', 'cyclictest ?')}")
+    w(f"- Load average (1/5/15 min): at start {env.get('load_start', '?')}; after bench_rpc "
+      f"{env.get('load_rpc_after', '?')}; after bench_jitter {env.get('load_jitter_after', '?')}. "
+      "The benchmarks' own threads count towards it (they are runnable part of the time).")
+    busy_s = env.get("busy_start", "").strip()
+    busy_e = env.get("busy_end", "").strip()
+    w(f"- Other processes above 5% CPU (lifetime average, from ps) at start: {busy_s or 'none'}; "
+      f"at the end: {busy_e or 'none'}. Other builds and tests share this 2-CPU VM; outliers "
+      "(p99.9, max) move with them from run to run, medians much less.")
+    w("")
+
+    # ---- summary ----------------------------------------------------------------
+    w("## Summary")
+    w("")
+    w("| benchmark | placement | RACK-RT | reference | ratio | target |")
+    w("|---|---|---|---|---|---|")
+    for m in rpc["modes"]:
+        mech = m["mechanisms"]
+        r = mech.get("rack_rpc", {}).get("latency", {})
+        f = mech.get("futex", {}).get("latency", {})
+        place = (f"same CPU ({m['server_cpu']})" if m["mode"] == "same"
+                 else f"cross CPU (client {m['client_cpu']}, server {m['server_cpu']})")
+        w(f"| RPC round trip, median | {place} | {us2(r.get('p50_ns'))} us | "
+          f"{us2(f.get('p50_ns'))} us (futex ping-pong) | {m['ratio_p50']:.2f}x | "
+          f"{verdict(m['ratio_p50'], rpc['target_ratio_p50'])} |")
+    rk = jit["sides"]["rack"]["latency"]
+    ct = jit["sides"]["cyclictest"]["latency"]
+    w(f"| 1 kHz wake-up latency, p99 | CPU {jit['cpu']}, SCHED_FIFO {jit['priority']} | "
+      f"{us(rk['p99_ns'])} us | {us(ct['p99_ns'])} us (cyclictest) | {jit['ratio_p99']:.2f}x | "
+      f"{verdict(jit['ratio_p99'], jit['target_ratio_p99'])} |")
+    w("")
+
+    # ---- rpc ------------------------------------------------------------------------
+    w("## 1. bench_rpc: RPC round trip inside one executor vs a raw ping-pong")
+    w("")
+    w("A client thread (SCHED_FIFO, same priority as the command task) calls "
+      "`tims::Endpoint::call(GET_STATUS)` on a Generator's command task in a `rack::Executor` "
+      "(`lcm: false`, memory policy applied) and waits for the reply in its own mailbox; "
+      "each round trip is timed with `clock_gettime(CLOCK_MONOTONIC)`. The reference is two "
+      "SCHED_FIFO threads of the same priority in the same binary handing a ball back and forth "
+      "through one **futex** word (`FUTEX_WAIT/FUTEX_WAKE_PRIVATE`, no spinning). Two diagnostic "
+      "ping-pongs show where the difference comes from: `PI mutex+condvar` (two channels of "
+      "PI mutex + condvar + flag: the primitives a TiMS mailbox is built from, without TiMS) and "
+      "`PI mutex+futex` (the same channels, the reader sleeping on a futex word instead of a "
+      "glibc condvar). The mechanisms run in alternating blocks; between round trips the "
+      f"client sleeps {rpc['gap_us']} us (so the CPU is never 100% busy with RT threads, which "
+      "would trigger RT throttling); each block starts with "
+      f"{rpc['warmup']} untimed round trips. SCHED_FIFO priority {rpc['priority']}; "
+      f"{rpc['iterations']} timed round trips per mechanism and placement in {rpc['rounds']} blocks; "
+      f"PM QoS {'held at 0' if rpc['pm_qos_hold'] else 'left at the system default'}.")
+    w("")
+    labels = {"futex": "raw futex ping-pong (reference)", "rack_rpc": "**RACK-RT GET_STATUS RPC**",
+              "pi_condvar": "diag: PI mutex + condvar", "pi_futex": "diag: PI mutex + futex word"}
+    for m in rpc["modes"]:
+        if m["mode"] == "same":
+            w(f"### Same CPU: client and server pinned to CPU {m['server_cpu']}")
+        else:
+            w(f"### Across CPUs: client on CPU {m['client_cpu']}, server on CPU {m['server_cpu']}")
+        w("")
+        w("| mechanism | min | p50 | p90 | p99 | p99.9 | max | vs futex p50 |")
+        w("|---|---|---|---|---|---|---|---|")
+        base = m["mechanisms"].get("futex", {}).get("latency", {}).get("p50_ns")
+        for key in ("futex", "rack_rpc", "pi_condvar", "pi_futex"):
+            if key not in m["mechanisms"]:
+                continue
+            lat = m["mechanisms"][key]["latency"]
+            rel = f"{lat['p50_ns'] / base:.2f}x" if base else "–"
+            w(f"| {labels[key]} | {us2(lat['min_ns'])} | {us2(lat['p50_ns'])} | {us2(lat['p90_ns'])} | "
+              f"{us2(lat['p99_ns'])} | {us2(lat['p999_ns'])} | {us2(lat['max_ns'])} | {rel} |")
+        w("")
+        w(f"All figures in us. Ratio RACK-RT / futex: **p50 {m['ratio_p50']:.2f}x** "
+          f"(target <= {rpc['target_ratio_p50']:.1f}x: {verdict(m['ratio_p50'], rpc['target_ratio_p50'])}), "
+          f"p99 {m['ratio_p99']:.2f}x.")
+        w("")
+
+    calls = {k: strace_calls(os.path.join(a.results, f"strace-{k}.txt"))
+             for k in ("futex", "rack", "pi_condvar", "pi_futex")}
+    if any(calls.values()):
+        w("**System calls per round trip** (same CPU, 2000 round trips under "
+          "`strace -f -e trace=futex,clock_nanosleep`; thread start/stop adds a few):")
+        w("")
+        w("| mechanism | futex calls / round trip | FUTEX_WAIT(_BITSET) | FUTEX_WAKE | FUTEX_UNLOCK_PI | FUTEX_LOCK_PI | clock_nanosleep (the gap) |")
+        w("|---|---|---|---|---|---|---|")
+        for key, label in (("futex", "raw futex ping-pong"), ("rack", "RACK-RT RPC"),
+                           ("pi_condvar", "PI mutex + condvar"), ("pi_futex", "PI mutex + futex word")):
+            c = calls.get(key, {})
+            if not c:
+                continue
+            n = 2000.0
+            wait = c.get("futex:FUTEX_WAIT", 0) + c.get("futex:FUTEX_WAIT_BITSET", 0)
+            w(f"| {label} | {c.get('futex', 0) / n:.2f} | {wait / n:.2f} | {c.get('futex:FUTEX_WAKE', 0) / n:.2f} | "
+              f"{c.get('futex:FUTEX_UNLOCK_PI', 0) / n:.2f} | {c.get('futex:FUTEX_LOCK_PI', 0) / n:.2f} | "
+              f"{c.get('clock_nanosleep', 0) / n:.2f} |")
+        w("")
+
+    # ---- jitter -----------------------------------------------------------------
+    w("## 2. bench_jitter: 1 kHz periodic data task vs cyclictest")
+    w("")
+    w(f"RACK-RT side: a host with one Generator, `period_ms: {jit['interval_us'] / 1000:g}`, data task "
+      f"SCHED_FIFO {jit['priority']} pinned to CPU {jit['cpu']} (command task pinned there too, idle), "
+      "`lcm: false`, switched on, memory policy applied as rackd does; after the run its data "
+      "task's latency histogram is read (`DataComponentBase::data_task_stats()`). Reference: "
+      f"`cyclictest -m -p {jit['priority']} -i {jit['interval_us']} -a {jit['cpu']} -t1 -D <s>s -q -h 10000` "
+      "(rt-tests 2.x has no `-n`; `clock_nanosleep` is its default). Both measure wake-up time minus "
+      "deadline on CLOCK_MONOTONIC after an absolute `clock_nanosleep`, in 1-us buckets, and both skip "
+      "missed periods; percentiles of both come from the same code and are truncated to whole us, "
+      f"as cyclictest prints them. {jit['seconds']} s per side in {jit['rounds']} round(s), run one after "
+      "the other (alternating order), never concurrently. /dev/cpu_dma_latency "
+      + ("was held at 0 for both sides (cyclictest does that by default; rackd does not)."
+         if jit["pm_qos_hold"] else "was left alone for both sides (cyclictest `--default-system`)."))
+    w("")
+    w("| side | samples | min | p50 | p90 | p99 | p99.9 | max | mean |")
+    w("|---|---|---|---|---|---|---|---|---|")
+    for key, label in (("rack", "**RACK-RT data task**"), ("cyclictest", "cyclictest (reference)")):
+        lat = jit["sides"][key]["latency"]
+        w(f"| {label} | {lat['samples']} | {us(lat['min_ns'])} | {us(lat['p50_ns'])} | {us(lat['p90_ns'])} | "
+          f"{us(lat['p99_ns'])} | {us(lat['p999_ns'])} | {us(lat['max_ns'])} | {us(lat['mean_ns'])} |")
+    w("")
+    w(f"All figures in us. Ratio RACK-RT / cyclictest: **p99 {jit['ratio_p99']:.2f}x** "
+      f"(target <= {jit['target_ratio_p99']:.1f}x: {verdict(jit['ratio_p99'], jit['target_ratio_p99'])}), "
+      f"p50 {jit['ratio_p50']:.2f}x. RACK-RT missed periods: {jit['sides']['rack']['overruns']}; "
+      f"cyclictest histogram overflows (>= 10 ms): {jit['sides']['cyclictest']['histogram_overflows']}.")
+    w("")
+    edges = [0, 10, 20, 30, 50, 100, 200, 500, 1000, 10000]
+    hists = {k: dict((b, c) for b, c in jit["sides"][k]["histogram_us"]) for k in ("rack", "cyclictest")}
+    w("Histogram (counts per latency range, us):")
+    w("")
+    w("| range | " + " | ".join(
+        f"[{edges[i]}, {edges[i + 1]})" if i + 2 < len(edges) else f">= {edges[i]}"
+        for i in range(len(edges) - 1)) + " |")
+    w("|---|" + "---|" * (len(edges) - 1))
+    for k, label in (("rack", "RACK-RT"), ("cyclictest", "cyclictest")):
+        row = []
+        for i in range(len(edges) - 1):
+            row.append(str(sum(c for b, c in hists[k].items() if edges[i] <= b < edges[i + 1])))
+        w(f"| {label} | " + " | ".join(row) + " |")
+    w("")
+
+    # ---- analysis -----------------------------------------------------------------
+    w("## Notes: where RACK-RT is slower, and why")
+    w("")
+    for m in rpc["modes"]:
+        mech = m["mechanisms"]
+        f50 = mech.get("futex", {}).get("latency", {}).get("p50_ns")
+        r50 = mech.get("rack_rpc", {}).get("latency", {}).get("p50_ns")
+        c50 = mech.get("pi_condvar", {}).get("latency", {}).get("p50_ns")
+        p50 = mech.get("pi_futex", {}).get("latency", {}).get("p50_ns")
+        if None in (f50, r50):
+            continue
+        line = (f"- RPC, {m['mode']} CPU: RACK-RT's median is {us2(r50 - f50)} us "
+                f"({100.0 * (r50 / f50 - 1.0):+.0f}%) from the raw futex ping-pong")
+        if c50 is not None and p50 is not None:
+            line += (f"; the bare mailbox primitives (PI mutex + glibc condvar) account for "
+                     f"{us2(c50 - f50)} us of it, TiMS itself (router look-up, header, two lock/unlock "
+                     f"pairs per send, copies, deadline clock reads) for {us2(r50 - c50)} us; the same channels "
+                     f"with a futex word instead of the condvar take {us2(p50)} us ({p50 / f50:.2f}x futex)")
+        w(line + ".")
+    w("- **glibc's condvar and PI mutexes**: after `pthread_cond_wait`/`timedwait` returns, glibc "
+      "re-acquires a PI mutex with `FUTEX_WAITERS` forced on (`__pthread_mutex_cond_lock`, a leftover of "
+      "requeue-PI), so the very next unlock of that mailbox's mutex is a `FUTEX_UNLOCK_PI` system call "
+      "through the kernel's rt-mutex code, even with nobody waiting. Every mailbox hand-off pays it"
+      + (f": strace counted {calls['rack'].get('futex', 0) / 2000.0:.1f} futex calls per RACK-RT round trip "
+         f"({calls['rack'].get('futex:FUTEX_UNLOCK_PI', 0) / 2000.0:.1f} of them FUTEX_UNLOCK_PI) against "
+         f"{calls['futex'].get('futex', 0) / 2000.0:.1f} for the raw ping-pong and "
+         f"{calls['pi_futex'].get('futex', 0) / 2000.0:.1f} for PI mutex + futex word"
+         if calls.get("rack") and calls.get("futex") and calls.get("pi_futex") else "")
+      + ". A mailbox that sleeps on a futex "
+      "word (sequence counter bumped after the critical section) instead of `pthread_cond_t` would drop "
+      "those calls and keep priority inheritance on the mutex; not changed here (a design change in "
+      "tims/, not a bug).")
+    w("- Every `Endpoint::call` waits with a deadline (`pthread_cond_timedwait`, an hrtimer armed and "
+      "cancelled per call) and reads CLOCK_MONOTONIC three more times; the raw ping-pong waits without "
+      "a timeout. Small next to the system calls.")
+    w("- **Across CPUs** the figures are dominated by waking a halted virtual CPU (an IPI through the "
+      "hypervisor, then the guest's haltpoll exit): every mechanism pays it twice per round trip, "
+      "so ratios there are close to 1 and the spread (p99, max) follows the other load on the "
+      "VM more than the mechanism.")
+    w("- **Periodic task**: the executor's data task is the same loop as cyclictest's "
+      "(`clock_nanosleep(TIMER_ABSTIME)` on CLOCK_MONOTONIC, latency recorded right after), plus "
+      "`loop()` (Generator: a sine, a ring write, no listeners) and a few relaxed counter updates after "
+      "the measurement; so the two distributions should match within the run-to-run noise of a shared "
+      "VM, which is what the ratio shows. The floor of about 10 us and medians of tens of us are the "
+      "VM's timer path, not either program. cyclictest holds `/dev/cpu_dma_latency` at 0 by default; "
+      "rackd does not, so a rackd without it would see slower wake-ups from idle than here (this "
+      "benchmark holds it for both sides unless `--no-pm-qos`). Holding it belongs in the "
+      "executor's start-up policy (core/rt), next to mlockall.")
+    w("")
+
+    w("## Exact commands")
+    w("")
+    w("```")
+    w(f"bench/run --{mode}")
+    w(f"{rpc_cmd}")
+    w(f"{jitter_cmd}")
+    w("# inside bench_jitter, per segment:")
+    w(f"cyclictest -m -p {jit['priority']} -i {jit['interval_us']} -a {jit['cpu']} -t1 -D <seconds>s -q -h 10000"
+      + ("" if jit["pm_qos_hold"] else " --default-system"))
+    if any(calls.values()):
+        w("# syscall counts:")
+        w("strace -f -e trace=futex,clock_nanosleep -o strace-M.txt <build-dir>/bench/bench_rpc --cpu-mode same "
+          "--iterations 2000 --rounds 1 --warmup 0 --gap-us 100 --only M   # M: futex rack pi_condvar pi_futex")
+    w("```")
+    w("")
+    sys.stdout.write("\n".join(out))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,109 @@
+// Support for integration tests that run the real rackd and rackctl binaries:
+// child processes with captured output, a watchdog, a private LCM bus per test and
+// a temporary directory.
+//
+// Every child is started with PR_SET_PDEATHSIG(SIGKILL), so it dies with the test
+// process, and is registered so the watchdog can kill it.
+#pragma once
+
+#include <sys/types.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace rack::test {
+
+// What a finished child left behind.
+struct RunResult {
+  int exit_code = -1;      // -1 when killed by a signal (or by the timeout)
+  int term_signal = 0;
+  bool timed_out = false;  // killed because it ran past its bound
+  std::string out;
+  std::string err;
+  [[nodiscard]] std::string describe() const;  // for assertion messages
+};
+
+// Runs `args` (args[0] is the path) to completion, capturing stdout and stderr.
+// Killed (SIGKILL) after `timeout`.
+RunResult run(const std::vector<std::string>& args, std::chrono::milliseconds timeout);
+
+// A long-running child (rackd) whose stdout and stderr go to files in `dir`.
+class Process {
+ public:
+  Process(const std::vector<std::string>& args, const std::filesystem::path& dir, const std::string& tag);
+  ~Process();  // SIGKILL and reap if still running
+  Process(const Process&) = delete;
+  Process& operator=(const Process&) = delete;
+
+  [[nodiscard]] pid_t pid() const { return pid_; }
+  [[nodiscard]] bool running();
+  // Waits until stderr contains `text`; false on timeout or when the child exited.
+  bool wait_for_stderr(const std::string& text, std::chrono::milliseconds timeout);
+  void signal(int sig);
+  // Exit code once the child exited within `timeout` (-1: killed by a signal);
+  // nullopt when it is still running.
+  std::optional<int> wait_exit(std::chrono::milliseconds timeout);
+  [[nodiscard]] std::string out() const;
+  [[nodiscard]] std::string err() const;
+
+ private:
+  pid_t pid_ = -1;
+  std::optional<int> status_;
+  std::filesystem::path out_path_, err_path_;
+};
+
+// Kills every registered child and ends the test process when a test runs past its
+// bound (so a hang fails fast and leaves no rackd behind).
+class Watchdog {
+ public:
+  Watchdog(std::chrono::seconds limit, std::string what);
+  ~Watchdog();
+  Watchdog(const Watchdog&) = delete;
+  Watchdog& operator=(const Watchdog&) = delete;
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool done_ = false;
+  std::thread thread_;
+};
+
+// A private LCM bus: a UDP port nobody else in these tests uses at the same time
+// (an flock on a file per port, held for the object's lifetime, across processes).
+class LcmBus {
+ public:
+  LcmBus();
+  ~LcmBus();
+  LcmBus(const LcmBus&) = delete;
+  LcmBus& operator=(const LcmBus&) = delete;
+  [[nodiscard]] std::string url() const;
+  [[nodiscard]] int port() const { return port_; }
+
+ private:
+  int fd_ = -1;
+  int port_ = 0;
+};
+
+// A fresh directory under $TMPDIR (or /tmp), removed with its contents.
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  [[nodiscard]] const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path write(const std::string& name, const std::string& text) const;
+
+ private:
+  std::filesystem::path path_;
+};
+
+std::string read_file(const std::filesystem::path& path);
+
+}  // namespace rack::test

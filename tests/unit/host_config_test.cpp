@@ -1,0 +1,424 @@
+// Host file loading from text: every validation error names its line and key; a
+// valid file yields components in dependency order.
+#include "rack/core/host_config.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "rack/components/builtin.h"
+#include "rack/rt/clock.h"
+
+namespace rack {
+namespace {
+
+class HostConfigTest : public ::testing::Test {
+ protected:
+  HostConfigTest() {
+    components::register_builtin(registry_);
+    caps_.online_cpus = {0, 1};  // fixed, so "not online" does not depend on the machine
+  }
+
+  LoadResult load(const std::string& text) { return load_host_text(text, "host.yaml", registry_, caps_); }
+
+  // Expects the text to be rejected with an error on `line` whose message contains
+  // every one of `words`.
+  void expect_error(const std::string& text, int line, std::initializer_list<const char*> words) {
+    const LoadResult r = load(text);
+    EXPECT_EQ(r.host, nullptr);
+    ASSERT_FALSE(r.errors.empty()) << "accepted:\n" << text;
+    std::string all;
+    for (const auto& e : r.errors) all += "  " + e.str() + "\n";
+    bool found = false;
+    for (const auto& e : r.errors) {
+      if (e.line != line) continue;
+      bool has_all = true;
+      for (const char* w : words) has_all = has_all && e.message.find(w) != std::string::npos;
+      if (has_all) {
+        found = true;
+        EXPECT_EQ(e.file, "host.yaml");
+        EXPECT_GT(e.column, 0);
+        EXPECT_EQ(e.str().rfind("host.yaml:" + std::to_string(line) + ":", 0), 0u) << e.str();
+      }
+    }
+    EXPECT_TRUE(found) << "no error on line " << line << " naming the key; got:\n" << all;
+  }
+
+  ComponentRegistry registry_;
+  rt::RtCapabilities caps_;
+};
+
+// Line numbers in the texts below are written in the comments at the right.
+TEST_F(HostConfigTest, UnknownTopLevelKey) {
+  expect_error(R"(system: 0
+lcm: false
+colour: red
+components: []
+)",
+               3, {"unknown key 'colour'"});
+}
+
+TEST_F(HostConfigTest, UnknownComponentAndTaskKeys) {
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    speed: 3
+    data_task: {period_ms: 10}
+)",
+               5, {"unknown key 'speed'"});
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task:
+      period_ms: 10
+      timeout_ms: 100
+)",
+               7, {"unknown key 'timeout_ms'"});  // triggered-only key on a periodic class
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    command_task:
+      priority: 30
+      period_ms: 10
+    data_task: {period_ms: 10}
+)",
+               7, {"unknown key 'period_ms'"});
+}
+
+TEST_F(HostConfigTest, WrongTypes) {
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    instance: one
+    data_task: {period_ms: 10}
+)",
+               5, {"'instance'"});
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    autostart: maybe
+    data_task: {period_ms: 10}
+)",
+               5, {"'autostart'"});
+  expect_error(R"(lcm: maybe
+components: []
+)",
+               1, {"'lcm'"});
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task: {period_ms: ten}
+)",
+               5, {"'period_ms'"});
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task: {period_ms: 10}
+    params: [1, 2]
+)",
+               6, {"'params'"});
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task:
+      period_ms: 10
+      priority: [1]
+)",
+               7, {"'priority'"});
+}
+
+TEST_F(HostConfigTest, ParameterValueOfTheWrongType) {
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task: {period_ms: 10}
+    params:
+      amplitude: loud
+)",
+               7, {"'amplitude'"});
+}
+
+TEST_F(HostConfigTest, MissingRequiredParameter) {
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task: {period_ms: 10}
+  - name: mon
+    class: Monitor
+    params:
+      period_ms: 50
+)",
+               6, {"missing required parameter 'source'"});
+}
+
+TEST_F(HostConfigTest, UnknownParameter) {
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task: {period_ms: 10}
+    params:
+      amplitude: 2
+      bogus: 1
+)",
+               8, {"unknown parameter 'bogus'", "amplitude"});
+}
+
+TEST_F(HostConfigTest, UnknownClass) {
+  expect_error(R"(lcm: false
+components:
+  - name: thing
+    class: Nope
+)",
+               4, {"unknown component class 'Nope'", "Generator"});
+}
+
+TEST_F(HostConfigTest, DuplicateAddress) {
+  expect_error(R"(lcm: false
+components:
+  - name: a
+    class: Generator
+    instance: 1
+    data_task: {period_ms: 10}
+  - name: b
+    class: Generator
+    instance: 1
+    data_task: {period_ms: 10}
+)",
+               7, {"Generator(0/1)", "'instance'"});
+}
+
+TEST_F(HostConfigTest, DuplicateName) {
+  expect_error(R"(lcm: false
+components:
+  - name: a
+    class: Generator
+    data_task: {period_ms: 10}
+  - name: a
+    class: Probe
+    data_task: {period_ms: 10}
+)",
+               6, {"duplicate component name 'a'"});
+}
+
+TEST_F(HostConfigTest, PriorityOutsideOneToNinetyNine) {
+  for (const char* prio : {"0", "100", "-5"}) {
+    expect_error(std::string(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    command_task:
+      priority: )") + prio + R"(
+    data_task: {period_ms: 10}
+)",
+                 6, {"'priority'", "1..99"});
+  }
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task:
+      period_ms: 10
+      priority: 100
+)",
+               7, {"'priority'"});
+}
+
+TEST_F(HostConfigTest, CpuNotOnline) {
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task:
+      period_ms: 10
+      cpu: 7
+)",
+               7, {"CPU 7", "not online", "0,1"});
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    command_task: {cpu: -1}
+    data_task: {period_ms: 10}
+)",
+               5, {"not online"});
+}
+
+TEST_F(HostConfigTest, NonPositivePeriod) {
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task:
+      period_ms: 0
+)",
+               6, {"'period_ms'", "positive"});
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task:
+      period_ms: -10
+)",
+               6, {"'period_ms'"});
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task:
+      priority: 40
+)",
+               6, {"'period_ms'"});  // periodic without a period: reported at the data_task map
+}
+
+TEST_F(HostConfigTest, DependencyCycleBetweenTwoMonitors) {
+  expect_error(R"(lcm: false
+components:
+  - name: mon_a
+    class: Monitor
+    params: {source: mon_b}
+  - name: mon_b
+    class: Monitor
+    instance: 1
+    params: {source: mon_a}
+)",
+               3, {"cycle", "mon_a"});
+}
+
+TEST_F(HostConfigTest, SelfDependencyAndUnknownReference) {
+  expect_error(R"(lcm: false
+components:
+  - name: mon
+    class: Monitor
+    params: {source: mon}
+)",
+               5, {"depends on itself"});
+  expect_error(R"(lcm: false
+components:
+  - name: mon
+    class: Monitor
+    params:
+      source: nobody
+)",
+               6, {"'source'", "nobody"});
+}
+
+TEST_F(HostConfigTest, YamlSyntaxErrorHasALine) {
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: [Generator
+)",
+               5, {"YAML"});
+}
+
+TEST_F(HostConfigTest, ValidFileGivesComponentsInDependencyOrder) {
+  const LoadResult r = load(R"yaml(host: unit
+system: 3
+host_id: 2
+lcm: false
+components:
+  - name: mon
+    class: Monitor
+    instance: 4
+    autostart: true
+    retry_ms: 250
+    data_task: {priority: 45, timeout_ms: 400, input_slots: 8}
+    params:
+      source: gen
+      period_ms: 50
+  - name: probe
+    class: Probe
+    data_task: {period_ms: 20, ring: 10}
+    params: {label: hello, on_delay_ms: 5}
+  - name: gen
+    class: Generator
+    instance: 1
+    command_task: {priority: 31, cpu: 1, slots: 4}
+    data_task: {period_ms: 10, priority: 61}
+    params: {amplitude: 2.5}
+  - name: mon2
+    class: Monitor
+    instance: 5
+    params: {source: "Generator(3/1)"}
+)yaml");
+  ASSERT_TRUE(r.errors.empty()) << r.errors.front().str();
+  ASSERT_NE(r.host, nullptr);
+  const LoadedHost& h = *r.host;
+  EXPECT_EQ(h.settings.host, "unit");
+  EXPECT_EQ(h.settings.system, 3);
+  EXPECT_EQ(h.settings.host_id, 2);
+  EXPECT_FALSE(h.settings.lcm);
+  ASSERT_EQ(h.components.size(), 4u);
+  ASSERT_EQ(h.dependencies.size(), 4u);
+
+  std::map<std::string, std::size_t> pos;
+  for (std::size_t i = 0; i < h.components.size(); ++i) pos[h.components[i]->name()] = i;
+  ASSERT_EQ(pos.size(), 4u);
+  EXPECT_LT(pos["gen"], pos["mon"]) << "a producer starts before its consumer";
+  EXPECT_LT(pos["gen"], pos["mon2"]) << "a reference by address orders too";
+  EXPECT_EQ(h.dependencies[pos["mon"]], std::vector<std::size_t>{pos["gen"]});
+  EXPECT_EQ(h.dependencies[pos["mon2"]], std::vector<std::size_t>{pos["gen"]});
+  EXPECT_TRUE(h.dependencies[pos["gen"]].empty());
+  EXPECT_TRUE(h.dependencies[pos["probe"]].empty());
+
+  const Component& gen = *h.components[pos["gen"]];
+  EXPECT_EQ(gen.address(), tims::Address::make(3, tims::classes::kGenerator, 1));
+  EXPECT_EQ(gen.settings().impl, "Generator");
+  EXPECT_EQ(gen.settings().period_ns, 10 * rt::kNsPerMs);
+  EXPECT_EQ(gen.settings().command_task.priority, 31);
+  EXPECT_EQ(gen.settings().command_task.cpu, 1);
+  EXPECT_EQ(gen.settings().command_slots, 4u);
+  EXPECT_EQ(gen.settings().data_task.priority, 61);
+  EXPECT_DOUBLE_EQ(gen.parameters().find("amplitude")->get_float(), 2.5);
+
+  const Component& mon = *h.components[pos["mon"]];
+  EXPECT_EQ(mon.address(), tims::Address::make(3, tims::classes::kMonitor, 4));
+  EXPECT_TRUE(mon.settings().autostart);
+  EXPECT_EQ(mon.settings().retry_ns, 250 * rt::kNsPerMs);
+  EXPECT_EQ(mon.settings().data_timeout_ns, 400 * rt::kNsPerMs);
+  EXPECT_EQ(mon.settings().input_slots, 8u);
+  EXPECT_EQ(mon.parameters().find("source")->get_string(), "gen");
+
+  const Component& probe = *h.components[pos["probe"]];
+  EXPECT_EQ(probe.address(), tims::Address::make(3, tims::classes::kProbe, 0));
+  EXPECT_EQ(probe.settings().ring_size, 10u);
+  EXPECT_EQ(probe.parameters().find("label")->get_string(), "hello");
+  EXPECT_EQ(probe.parameters().find("on_delay_ms")->get_int(), 5);
+}
+
+TEST_F(HostConfigTest, MissingComponentsIsAWholeFileError) {
+  const LoadResult r = load("lcm: false\n");
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_EQ(r.errors[0].line, 0);
+  EXPECT_NE(r.errors[0].message.find("'components'"), std::string::npos);
+  EXPECT_EQ(r.errors[0].str(), "host.yaml: " + r.errors[0].message);
+}
+
+TEST_F(HostConfigTest, ReportsEveryProblemNotJustTheFirst) {
+  const LoadResult r = load(R"(lcm: false
+components:
+  - name: a
+    class: Generator
+    data_task: {period_ms: 0}
+  - name: b
+    class: Nope
+)");
+  EXPECT_EQ(r.host, nullptr);
+  EXPECT_GE(r.errors.size(), 2u);
+}
+
+}  // namespace
+}  // namespace rack
