@@ -1,6 +1,7 @@
 #include "rack/interfaces/data_types.h"
 
 #include "rack/interfaces/demo.h"
+#include "rack/interfaces/robot.h"
 #include "rack/tims/address.h"
 
 namespace rack::interfaces {
@@ -13,6 +14,12 @@ constexpr DataTypeInfo info(const char* name) {
 constexpr DataTypeInfo kGenerator = info<GeneratorData>("GeneratorData");
 constexpr DataTypeInfo kMonitor = info<MonitorData>("MonitorData");
 constexpr DataTypeInfo kProbe = info<ProbeData>("ProbeData");
+constexpr DataTypeInfo kChassis = info<ChassisData>("ChassisData");
+constexpr DataTypeInfo kLadar = info<LadarData>("LadarData");
+constexpr DataTypeInfo kOdometry = info<OdometryData>("OdometryData");
+constexpr DataTypeInfo kPosition = info<PositionData>("PositionData");
+constexpr DataTypeInfo kScan2d = info<Scan2dData>("Scan2dData");
+constexpr DataTypeInfo kMcl = info<MclData>("MclData");
 }  // namespace
 
 const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
@@ -20,6 +27,12 @@ const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
     case tims::classes::kGenerator: return &kGenerator;
     case tims::classes::kMonitor: return &kMonitor;
     case tims::classes::kProbe: return &kProbe;
+    case tims::classes::kChassis: return &kChassis;
+    case tims::classes::kLadar: return &kLadar;
+    case tims::classes::kOdometry: return &kOdometry;
+    case tims::classes::kPosition: return &kPosition;
+    case tims::classes::kScan2d: return &kScan2d;
+    case tims::classes::kMcl: return &kMcl;
     default: return nullptr;
   }
 }
