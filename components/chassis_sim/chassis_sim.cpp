@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <stdexcept>
+#include <string>
 
 namespace rack::components {
 
@@ -34,9 +36,16 @@ ChassisSim::ChassisSim()
       initial_x_(declare_float("initial_x", 0.0, {.doc = "m, true start pose in the map frame"})),
       initial_y_(declare_float("initial_y", 0.0, {.doc = "m, true start pose in the map frame"})),
       initial_phi_(declare_float("initial_phi", 0.0, {.doc = "rad, true start heading", .min = -7.0, .max = 7.0})),
-      battery_(declare_float("battery_v", 24.0, {.doc = "V, the battery voltage reported", .min = 0.0, .max = 1000.0})) {}
+      battery_(declare_float("battery_v", 24.0, {.doc = "V, the battery voltage reported", .min = 0.0, .max = 1000.0})),
+      map_(declare_string("map", "", {.doc = "optional map_server YAML: the robot stops at occupied cells (\"\": no walls)"})) {}
 
 void ChassisSim::init() {
+  const std::string path = map_.get_string();
+  if (!path.empty()) {
+    auto loaded = maps::load_map(path);
+    if (!loaded.ok()) throw std::runtime_error("map: " + loaded.error_text());
+    map_data_ = std::move(loaded.map);
+  }
   rng_.seed(static_cast<uint64_t>(seed_.get_int()));
   truth_ = Pose2d{initial_x_.get_float(), initial_y_.get_float(), normalize_angle(initial_phi_.get_float())};
 }
@@ -63,6 +72,7 @@ HookResult ChassisSim::on() {
   last_move_ns_.store(rt::monotonic_ns(), std::memory_order_relaxed);
   last_loop_ns_ = 0;
   watchdog_stops_ = 0;
+  collisions_ = 0;
   return HookResult::kOk;
 }
 
@@ -97,8 +107,16 @@ HookResult ChassisSim::loop() {
   measured_.vy = ramp(measured_.vy, target.vy, acc, dec, dt);
   measured_.omega = ramp(measured_.omega, target.omega, wacc, wacc, dt);
 
-  const Pose2d motion = integrate_twist(measured_.vx, measured_.vy, measured_.omega, dt);
-  truth_ = compose(truth_, motion);
+  Pose2d motion = integrate_twist(measured_.vx, measured_.vy, measured_.omega, dt);
+  const Pose2d next = compose(truth_, motion);
+  if (map_data_ && (motion.x != 0.0 || motion.y != 0.0 || motion.phi != 0.0) && collides(next)) {
+    // A wall: the robot stands where it is (a bumper stop), nothing is reported moved.
+    motion = Pose2d{};
+    measured_ = Velocity{};
+    ++collisions_;
+  } else {
+    truth_ = next;
+  }
 
   // Odometry: the true increment with a random walk whose variance grows with the
   // distance travelled and the angle turned (independent of the period), plus an
@@ -124,8 +142,36 @@ HookResult ChassisSim::loop() {
   d.truth_x = truth_.x;
   d.truth_y = truth_.y;
   d.truth_phi = truth_.phi;
+  d.collisions = collisions_;
   publish(d, rt::host_time_ns());
   return HookResult::kOk;
+}
+
+bool ChassisSim::collides(const Pose2d& pose) const noexcept {
+  // The outline's edges, sampled at half the map resolution (a wall is at least one
+  // cell thick, so it cannot slip between two samples).
+  const double f = boundary_front_.get_float();
+  const double b = -boundary_back_.get_float();
+  const double l = boundary_left_.get_float();
+  const double r = -boundary_right_.get_float();
+  const double step = map_data_->resolution() / 2.0;
+  const double c = std::cos(pose.phi);
+  const double s = std::sin(pose.phi);
+  const auto occupied = [&](double x, double y) {
+    int ix = 0, iy = 0;
+    if (!map_data_->world_to_cell(pose.x + c * x - s * y, pose.y + s * x + c * y, ix, iy)) return false;
+    return map_data_->cell_state(ix, iy) == maps::CellState::kOccupied;
+  };
+  const auto edge = [&](double x0, double y0, double x1, double y1) {
+    const double len = std::hypot(x1 - x0, y1 - y0);
+    const int n = static_cast<int>(std::ceil(len / step));
+    for (int i = 0; i <= n; ++i) {
+      const double t = n == 0 ? 0.0 : static_cast<double>(i) / n;
+      if (occupied(x0 + (x1 - x0) * t, y0 + (y1 - y0) * t)) return true;
+    }
+    return false;
+  };
+  return edge(b, r, f, r) || edge(f, r, f, l) || edge(f, l, b, l) || edge(b, l, b, r);
 }
 
 ChassisParams ChassisSim::limits() const noexcept {

@@ -3,6 +3,11 @@
 // pose, and publishes the odometry increments with seeded noise, plus the true pose
 // (truth_*) for evaluating localisation.
 //
+// With a `map` (map_server YAML), the robot's outline never enters an occupied cell:
+// a step that would is not taken, the robot stands (velocities zero) and the step is
+// counted in `collisions`. A missing or malformed map puts the component in ERROR
+// with the loader's message.
+//
 // Who may drive: only the active pilot (SET_ACTIVE_PILOT) may MOVE; anyone else gets
 // ERROR. Changing the active pilot stops the robot. A command watchdog stops the
 // robot when no MOVE arrived for `watchdog_ms` (counted in watchdog_stops).
@@ -14,11 +19,13 @@
 #pragma once
 
 #include <atomic>
+#include <optional>
 #include <random>
 
 #include "common/pose2d.h"
 #include "rack/core/data_component.h"
 #include "rack/interfaces/robot.h"
+#include "rack/maps/occupancy_map.h"
 #include "rack/rt/pi_mutex.h"
 
 namespace rack::components {
@@ -47,6 +54,8 @@ class ChassisSim final : public DataComponent<interfaces::ChassisData> {
   void set_command(const Velocity& v) noexcept;
   [[nodiscard]] interfaces::ChassisParams limits() const noexcept;
   [[nodiscard]] double gauss(double sigma) noexcept;
+  // True when the outline at `pose` covers an occupied map cell. RT-safe.
+  [[nodiscard]] bool collides(const Pose2d& pose) const noexcept;
 
   Parameter& vx_max_;
   Parameter& vx_min_;
@@ -70,6 +79,9 @@ class ChassisSim final : public DataComponent<interfaces::ChassisData> {
   Parameter& initial_y_;
   Parameter& initial_phi_;
   Parameter& battery_;
+  Parameter& map_;
+
+  std::optional<maps::OccupancyMap> map_data_;  // loaded in init(), immutable after
 
   rt::PiMutex command_mutex_;  // guards command_ (command task writes, data task reads)
   Velocity command_;
@@ -87,6 +99,7 @@ class ChassisSim final : public DataComponent<interfaces::ChassisData> {
   Pose2d truth_;
   int64_t last_loop_ns_ = 0;
   uint32_t watchdog_stops_ = 0;
+  uint32_t collisions_ = 0;
 };
 
 }  // namespace rack::components

@@ -38,7 +38,7 @@ Pilot::Pilot()
       omega_max_(declare_float("omega_max", 1.0, {.doc = "rad/s, fastest turn (also capped by the chassis)", .min = 0.0, .max = 20.0})),
       lookahead_(declare_float("lookahead", 0.6, {.doc = "m, pure-pursuit look-ahead distance", .min = 0.05, .max = 20.0})),
       goal_tolerance_(declare_float("goal_tolerance", 0.15, {.doc = "m, a destination this close counts as reached", .min = 0.01, .max = 10.0})),
-      turn_in_place_deg_(declare_float("turn_in_place_deg", 60.0, {.doc = "turn on the spot when the goal is further off the heading", .min = 5.0, .max = 180.0})),
+      turn_in_place_deg_(declare_float("turn_in_place_deg", 45.0, {.doc = "turn on the spot when the goal is further off the heading", .min = 5.0, .max = 180.0})),
       brake_fraction_(declare_float("brake_fraction", 0.5, {.doc = "plan braking with this fraction of the chassis' dec_max", .min = 0.05, .max = 1.0})),
       input_timeout_ms_(declare_int("input_timeout_ms", 500, {.doc = "stand when Position or Scan2D data is older than this", .min = 10, .max = 60000})) {
   use_input_mailbox(kInputSlot);
@@ -120,6 +120,7 @@ HookResult Pilot::on() {
   destination_.copy_string(last_destination_, sizeof last_destination_);
   double x = 0.0, y = 0.0;
   if (last_destination_[0] != '\0' && parse_destination(last_destination_, x, y)) {
+    line_pending_ = true;
     data_.mode = u8(PilotMode::kDestination);
     data_.target_x = x;
     data_.target_y = y;
@@ -301,6 +302,7 @@ HookResult Pilot::loop() {
         data_.mode = u8(PilotMode::kDestination);
         data_.target_x = request_x_;
         data_.target_y = request_y_;
+        line_pending_ = true;
         break;
     }
     reclaim = request_ != Request::kNone;
@@ -319,6 +321,7 @@ HookResult Pilot::loop() {
       data_.mode = u8(PilotMode::kDestination);
       data_.target_x = x;
       data_.target_y = y;
+      line_pending_ = true;
       reclaim = true;
     } else {
       ++data_.bad_destinations;
@@ -368,8 +371,23 @@ HookResult Pilot::loop() {
     if (mode == PilotMode::kFollowPath) {
       going = path_goal(pose, gx, gy, remaining);
     } else {
+      if (line_pending_) {
+        line_x_ = pose.x;
+        line_y_ = pose.y;
+        line_pending_ = false;
+      }
       remaining = std::hypot(gx - pose.x, gy - pose.y);
       going = remaining >= goal_tolerance_.get_float();
+      // The look-ahead point on the line: `lookahead` beyond the robot's projection.
+      const double lx = data_.target_x - line_x_;
+      const double ly = data_.target_y - line_y_;
+      const double len = std::hypot(lx, ly);
+      if (len > 1e-6) {
+        const double t = ((pose.x - line_x_) * lx + (pose.y - line_y_) * ly) / len;
+        const double at = std::clamp(t + lookahead_.get_float(), 0.0, len);
+        gx = line_x_ + lx / len * at;
+        gy = line_y_ + ly / len * at;
+      }
     }
     if (!going) {
       data_.status = u8(PilotStatus::kReached);

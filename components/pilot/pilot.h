@@ -95,6 +95,10 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
   interfaces::PositionData position_data_{};
   interfaces::Scan2dData scan_{};
   interfaces::PathData path_data_{};
+  // Destination mode drives along the line from where the robot was when it got the
+  // destination (pure pursuit on that line, so it arrives straight, e.g. through a door).
+  double line_x_ = 0.0, line_y_ = 0.0;
+  bool line_pending_ = false;  // the line starts at the next pose
   bool have_path_ = false;
   bool path_fresh_ = false;     // a new path arrived: find the nearest point again
   int64_t position_mono_ns_ = 0;
