@@ -2,6 +2,7 @@
 
 #include "generator/generator.h"
 #include "monitor/monitor.h"
+#include "modeswitch_demo/modeswitch_demo.h"
 #include "probe/probe.h"
 #include "rack/tims/address.h"
 
@@ -15,6 +16,9 @@ void register_builtin(ComponentRegistry& registry) {
                 [] { return std::make_unique<Monitor>(); }});
   registry.add({"Probe", cls::kProbe, "test: hooks fail or throw on demand",
                 [] { return std::make_unique<Probe>(); }});
+  registry.add({"ModeSwitchDemo", cls::kModeSwitchDemo,
+                "demo: class commands that trigger each mode-switch reason and a crash (configs/modeswitch_demo.yaml)",
+                [] { return std::make_unique<ModeSwitchDemo>(); }});
 }
 
 }  // namespace rack::components

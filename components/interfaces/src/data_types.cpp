@@ -13,6 +13,7 @@ constexpr DataTypeInfo info(const char* name) {
 constexpr DataTypeInfo kGenerator = info<GeneratorData>("GeneratorData");
 constexpr DataTypeInfo kMonitor = info<MonitorData>("MonitorData");
 constexpr DataTypeInfo kProbe = info<ProbeData>("ProbeData");
+constexpr DataTypeInfo kModeSwitchDemo = info<ModeSwitchDemoData>("ModeSwitchDemoData");
 }  // namespace
 
 const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
@@ -20,6 +21,7 @@ const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
     case tims::classes::kGenerator: return &kGenerator;
     case tims::classes::kMonitor: return &kMonitor;
     case tims::classes::kProbe: return &kProbe;
+    case tims::classes::kModeSwitchDemo: return &kModeSwitchDemo;
     default: return nullptr;
   }
 }

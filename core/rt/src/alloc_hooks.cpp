@@ -84,7 +84,10 @@ static LockFn real_lock() noexcept {
 __attribute__((constructor)) static void resolve_real_lock() { (void)real_lock(); }
 
 int pthread_mutex_lock(pthread_mutex_t* mutex) noexcept {
-  return rack::rt::modeswitch::detail::checked_mutex_lock(mutex, real_lock());
+  const int rc = rack::rt::modeswitch::detail::checked_mutex_lock(mutex, real_lock());
+  // Not a tail call: the detector skips a fixed number of frames (this one included).
+  asm volatile("" ::: "memory");
+  return rc;
 }
 }  // extern "C"
 

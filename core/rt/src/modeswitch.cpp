@@ -87,6 +87,7 @@ struct TaskSlot {
   // Written only by the owning thread and its own signal handlers (same thread:
   // volatile and signal fences are enough, no cross-thread ordering needed).
   volatile uint32_t cycle_reports = 0;
+  volatile bool xcpu_reported = false;  // one RLIMIT_RTTIME report per cycle
   rusage ru_start{};
 };
 
@@ -804,7 +805,10 @@ void on_sigtrap(int sig, siginfo_t* info, void* ctx) {
 
 void on_sigxcpu(int, siginfo_t*, void* ctx) {
   TaskSlot* s = t_slot;
-  if (s == nullptr || t_busy != 0) return;  // a non-RT thread: RLIMIT_RTTIME is about RT tasks
+  // A non-RT thread: RLIMIT_RTTIME is about RT tasks. Once per cycle: the kernel
+  // repeats SIGXCPU while the task keeps the CPU.
+  if (s == nullptr || t_busy != 0 || s->xcpu_reported) return;
+  s->xcpu_reported = true;
   const int saved_errno = errno;
   const char saved = s->selector;
   s->selector = kAllow;
@@ -1225,6 +1229,7 @@ void enter_cycle() noexcept {
   TaskSlot* s = t_slot;
   if (s == nullptr) return;
   s->cycle_reports = 0;
+  s->xcpu_reported = false;
   if (g_rusage) getrusage(RUSAGE_THREAD, &s->ru_start);
   t_in_cycle = true;
   std::atomic_signal_fence(std::memory_order_seq_cst);
