@@ -149,7 +149,19 @@ class Symbolizer {
     Dwarf_Addr bias = 0;
     Dwarf_Die* cu = dwfl_module_addrdie(mod, pc, &bias);
     Dwarf_Die* scopes = nullptr;
-    const int n = cu != nullptr ? dwarf_getscopes(cu, pc - bias, &scopes) : 0;
+    int n = cu != nullptr ? dwarf_getscopes(cu, pc - bias, &scopes) : 0;
+    if (n > 0) {
+      // dwarf_getscopes follows an inlined function's abstract origin (where it was
+      // written); its physical nesting (where it was inlined) comes from the concrete
+      // DIE, as eu-addr2line -i does it.
+      Dwarf_Addr dwarf_bias = 0;
+      Dwarf_Die concrete;
+      Dwarf* dbg = dwfl_module_getdwarf(mod, &dwarf_bias);
+      const bool found = dbg != nullptr && dwarf_offdie(dbg, dwarf_dieoffset(&scopes[0]), &concrete) != nullptr;
+      free(scopes);
+      scopes = nullptr;
+      n = found ? dwarf_getscopes_die(&concrete, &scopes) : 0;
+    }
     Dwarf_Files* files = nullptr;
     size_t nfiles = 0;
     if (cu != nullptr) dwarf_getsrcfiles(cu, &files, &nfiles);

@@ -88,6 +88,7 @@ struct TaskSlot {
   // volatile and signal fences are enough, no cross-thread ordering needed).
   volatile uint32_t cycle_reports = 0;
   volatile bool xcpu_reported = false;  // one RLIMIT_RTTIME report per cycle
+  volatile uint32_t framework_waits = 0;  // TrustedScope(may_block) in this cycle
   rusage ru_start{};
 };
 
@@ -1230,6 +1231,7 @@ void enter_cycle() noexcept {
   if (s == nullptr) return;
   s->cycle_reports = 0;
   s->xcpu_reported = false;
+  s->framework_waits = 0;
   if (g_rusage) getrusage(RUSAGE_THREAD, &s->ru_start);
   t_in_cycle = true;
   std::atomic_signal_fence(std::memory_order_seq_cst);
@@ -1248,7 +1250,11 @@ Verdict leave_cycle() noexcept {
     const uint64_t d[6] = {static_cast<uint64_t>(now.ru_minflt - s->ru_start.ru_minflt),
                            static_cast<uint64_t>(now.ru_majflt - s->ru_start.ru_majflt),
                            static_cast<uint64_t>(now.ru_nvcsw - s->ru_start.ru_nvcsw), 0, 0, 0};
-    if (d[0] != 0 || d[1] != 0 || d[2] != 0) record(Reason::kRusage, nullptr, 1, -1, d, 0, 0);
+    // A voluntary switch is expected when the cycle waited through the framework (an
+    // RPC from on(), a contended PI lock); without such a wait something else blocked.
+    if (d[0] != 0 || d[1] != 0 || (d[2] != 0 && s->framework_waits == 0)) {
+      record(Reason::kRusage, nullptr, 1, -1, d, 0, 0);
+    }
   }
   Verdict v;
   v.reports = s->cycle_reports;
@@ -1273,8 +1279,9 @@ void note_overrun(uint64_t missed_periods, int64_t cycle_ns) noexcept {
   record(Reason::kWatchdog, nullptr, 1, 0, nullptr, 0, static_cast<int64_t>(missed_periods), cycle_ns);
 }
 
-TrustedScope::TrustedScope() noexcept : saved_(kAllow) {
+TrustedScope::TrustedScope(bool may_block) noexcept : saved_(kAllow) {
   if (TaskSlot* s = t_slot) {
+    if (may_block) s->framework_waits = s->framework_waits + 1;
     saved_ = s->selector;
     s->selector = kAllow;
     std::atomic_signal_fence(std::memory_order_seq_cst);

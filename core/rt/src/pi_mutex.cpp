@@ -20,7 +20,7 @@ PiMutex::~PiMutex() { pthread_mutex_destroy(&mutex_); }
 // The TrustedScopes: a PI mutex and its condition variable are the framework's RT-safe
 // way to wait; their futex calls are not mode switches (see modeswitch.h).
 void PiMutex::lock() noexcept {
-  modeswitch::TrustedScope trusted;
+  modeswitch::TrustedScope trusted(true);
   pthread_mutex_lock(&mutex_);
 }
 void PiMutex::unlock() noexcept {
@@ -40,7 +40,7 @@ PiCondVar::PiCondVar() {
 PiCondVar::~PiCondVar() { pthread_cond_destroy(&cond_); }
 
 bool PiCondVar::wait_until(PiMutex& mutex, int64_t deadline_ns) noexcept {
-  modeswitch::TrustedScope trusted;
+  modeswitch::TrustedScope trusted(true);
   if (deadline_ns < 0) {
     pthread_cond_wait(&cond_, mutex.native());
     return true;

@@ -17,8 +17,9 @@
 //   WATCHDOG  a cycle that overran by more than N periods, or a task that kept the CPU
 //             past RLIMIT_RTTIME (SIGXCPU in the hogging thread, with its backtrace)
 //   NOMLOCK   a task started while the process memory was not locked
-//   RUSAGE    getrusage(RUSAGE_THREAD) saw page faults or a voluntary context switch
-//             during the cycle (optional second opinion; two system calls per cycle)
+//   RUSAGE    getrusage(RUSAGE_THREAD) saw page faults during the cycle, or a voluntary
+//             context switch in a cycle that made no framework wait (PI lock, condition
+//             wait, sleep); optional second opinion, two system calls per cycle
 //   CRASH     SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT in any thread: the report is
 //             written synchronously before the signal is re-raised with its default
 //             action, so the process still dies with it (and dumps core)
@@ -198,10 +199,12 @@ Verdict leave_cycle() noexcept;
 void note_overrun(uint64_t missed_periods, int64_t cycle_ns) noexcept;
 
 // While alive, system calls of the calling thread are not trapped (the framework's
-// own RT-safe primitives use it around futex and clock_nanosleep). RT-safe.
+// own RT-safe primitives use it around futex and clock_nanosleep). `may_block`: the
+// call may wait (a PI lock, a condition wait, a sleep), so a voluntary context switch
+// in this cycle is expected and RUSAGE does not report it. RT-safe.
 class TrustedScope {
  public:
-  TrustedScope() noexcept;
+  explicit TrustedScope(bool may_block = false) noexcept;
   ~TrustedScope();
   TrustedScope(const TrustedScope&) = delete;
   TrustedScope& operator=(const TrustedScope&) = delete;
