@@ -105,6 +105,13 @@ __attribute__((noinline)) void ModeSwitchDemo::do_overrun() noexcept {
   do_spin(30 * period_ns() / rt::kNsPerMs + 1);  // DEMO-LINE: OVERRUN
 }
 
+// clock_nanosleep is on the allow-list, but a sleep that bypasses the framework is
+// a voluntary context switch without a framework wait: RUSAGE sees it.
+__attribute__((noinline)) void ModeSwitchDemo::do_sleep() noexcept {
+  ::usleep(2000);  // DEMO-LINE: SLEEP
+  ++deeds_;
+}
+
 HookResult ModeSwitchDemo::loop() {
   ++cycles_;
   if (loop_syscall_.exchange(false, std::memory_order_relaxed)) do_loop_syscall();
@@ -139,6 +146,7 @@ CommandResult ModeSwitchDemo::command(const tims::MessageHeader& request, std::s
     case i::kDemoOverrun: overrun_.store(true, std::memory_order_relaxed); break;
     case i::kDemoLoopSyscall: loop_syscall_.store(true, std::memory_order_relaxed); break;
     case i::kDemoDevice: do_device(); break;
+    case i::kDemoSleep: do_sleep(); break;
     case i::kDemoCrash: do_crash(); break;
     case i::kDemoAbort: do_abort(); break;
     default: return CommandResult::kUnknown;

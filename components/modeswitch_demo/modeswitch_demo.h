@@ -38,6 +38,7 @@ class ModeSwitchDemo final : public DataComponent<interfaces::ModeSwitchDemoData
   void do_abort() noexcept;
   void do_loop_syscall() noexcept;
   void do_overrun() noexcept;
+  void do_sleep() noexcept;
 
   int null_fd_ = -1;          // /dev/null
   int device_[2] = {-1, -1};  // a pipe registered as an RT device

@@ -119,7 +119,7 @@ components:
 
 TEST_F(ModeSwitchIntegrationTest, EachReasonIsReportedAndSymbolizesToTheDemoLine) {
   const auto lines = demo_lines();
-  ASSERT_EQ(lines.size(), 9u) << "markers in " << kDemoSource;
+  ASSERT_EQ(lines.size(), 10u) << "markers in " << kDemoSource;
   auto rackd = start_rackd(kDemoHost);
   ASSERT_TRUE(rackd);
   ASSERT_TRUE(contains(rackd->err(), "SYSCALL on, FAULT on, ALLOC on, PRIOINV on, crash reports on, RLIMIT_RTTIME on"))
@@ -272,6 +272,62 @@ components:
   EXPECT_FALSE(contains(err, "MODE SWITCH")) << err;
   EXPECT_FALSE(contains(err, "mode switch(es) reported")) << err;
   EXPECT_TRUE(report_files().empty()) << "an empty report file is removed at exit";
+}
+
+TEST_F(ModeSwitchIntegrationTest, AbortProcessWritesTheReportThenDumpsCore) {
+  auto rackd = start_rackd(R"(host: it-modeswitch-abort-process
+system: 0
+heap_prefault_mib: 16
+modeswitch:
+  mode: abort
+  abort: process
+components:
+  - name: demo
+    class: ModeSwitchDemo
+    instance: 0
+    autostart: true
+    data_task: {period_ms: 10}
+)");
+  ASSERT_TRUE(rackd);
+  (void)ctl({"send", "demo", "21", "--timeout", "1000"});  // never answered: rackd aborts
+  const auto code = rackd->wait_exit(30s);
+  ASSERT_TRUE(code.has_value()) << rackd->err();
+  EXPECT_EQ(rackd->term_signal(), SIGABRT) << rackd->err();
+  const std::string err = rackd->err();
+  const auto syscall = err.find("reason=SYSCALL mode=abort task=demo:cmd");
+  const auto crash = err.find("reason=CRASH");
+  ASSERT_NE(syscall, std::string::npos) << err;
+  ASSERT_NE(crash, std::string::npos) << err;
+  EXPECT_LT(syscall, crash) << "the mode switch is reported before the abort";
+  const auto files = report_files();
+  ASSERT_EQ(files.size(), 1u);
+  const RunResult r = backtrace({"--reason", "SYSCALL", files[0]});
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(contains(r.out, "modeswitch_demo.cpp:" + std::to_string(demo_lines().at("SYSCALL")))) << r.out;
+}
+
+TEST_F(ModeSwitchIntegrationTest, RusageSeesASleepThatBypassesTheFramework) {
+  auto rackd = start_rackd(R"(host: it-modeswitch-rusage
+system: 0
+heap_prefault_mib: 16
+modeswitch:
+  rusage: true
+components:
+  - name: demo
+    class: ModeSwitchDemo
+    instance: 0
+    autostart: true
+    data_task: {period_ms: 10}
+)");
+  ASSERT_TRUE(rackd);
+  ASSERT_EQ(ctl({"send", "demo", "31"}).exit_code, 0);
+  ASSERT_TRUE(wait_reports(*rackd, "RUSAGE", 1)) << rackd->err();
+  rackd->signal(SIGTERM);
+  ASSERT_EQ(rackd->wait_exit(30s), 0) << rackd->err();
+  const std::string err = rackd->err();
+  EXPECT_EQ(count_of(err, "reason=RUSAGE mode=warn task=demo:cmd"), 1) << err;
+  EXPECT_TRUE(contains(err, "voluntary context switches +")) << err;
+  EXPECT_EQ(count_of(err, "reason=SYSCALL"), 0) << "clock_nanosleep itself is allowed\n" << err;
 }
 
 class CrashTest : public ModeSwitchIntegrationTest, public ::testing::WithParamInterface<const char*> {};

@@ -20,6 +20,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "rack/rt/clock.h"
 #include "rack/rt/modeswitch.h"
@@ -291,6 +292,61 @@ TEST_F(ModeSwitchTest, ReportFileHoldsModulesAndCompleteReports) {
   EXPECT_NE(text.find("frame 0 0x", at), std::string::npos);
   if (::testing::Test::HasFailure() || std::getenv("RACK_SHOW_REPORT") != nullptr) std::fputs(text.c_str(), stderr);
   EXPECT_NE(text.find("\nend ", at), std::string::npos);
+}
+
+// The interface the GDOS issue will plug into: every report reaches every sink, on
+// the reporter thread, with its fields and the same text as the file.
+class CollectingSink : public ReportSink {
+ public:
+  void publish(const ReportView& r, std::string_view text) override {
+    std::lock_guard lock(mutex_);
+    if (r.task != "test:sink") return;
+    reasons_.push_back(r.reason);
+    details_.emplace_back(r.detail);
+    texts_.emplace_back(text);
+    frames_ = r.frames.size();
+    component_ = std::string(r.component);
+    label_ = std::string(r.label);
+  }
+  std::mutex mutex_;
+  std::vector<Reason> reasons_;
+  std::vector<std::string> details_, texts_;
+  std::size_t frames_ = 0;
+  std::string component_, label_;
+};
+
+TEST_F(ModeSwitchTest, SinksReceiveEveryReport) {
+  auto sink = std::make_shared<CollectingSink>();
+  add_sink(sink);
+  std::thread t([] {
+    TaskAttachment attach(TaskInfo{"test:sink", "sinky", "Sink(0/3)", 0, Mode::kWarn});
+    enter_cycle();
+    g_sink = std::malloc(24);
+    std::free(g_sink);
+    (void)leave_cycle();
+  });
+  t.join();
+  bool got = false;
+  for (int i = 0; i < 300 && !got; ++i) {
+    {
+      std::lock_guard lock(sink->mutex_);
+      got = sink->reasons_.size() >= 2;
+    }
+    if (!got) sleep_for(10 * kNsPerMs);
+  }
+  std::lock_guard lock(sink->mutex_);
+  ASSERT_GE(sink->reasons_.size(), 2u);
+  EXPECT_EQ(sink->component_, "sinky");
+  EXPECT_EQ(sink->label_, "Sink(0/3)");
+  EXPECT_GT(sink->frames_, 0u);
+  bool malloc_seen = false;
+  for (std::size_t k = 0; k < sink->reasons_.size(); ++k) {
+    if (sink->reasons_[k] == Reason::kAlloc && sink->details_[k] == "malloc(24 bytes) in a real-time cycle") {
+      malloc_seen = true;
+      EXPECT_NE(sink->texts_[k].find("reason=ALLOC mode=warn task=test:sink"), std::string::npos) << sink->texts_[k];
+    }
+  }
+  EXPECT_TRUE(malloc_seen);
 }
 
 TEST_F(ModeSwitchTest, SyscallNamesComeFromTheKernelHeaders) {

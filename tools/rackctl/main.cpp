@@ -81,7 +81,7 @@ commands:
   get-data NAME [--time T]      one sample as a JSON line
   watch NAME [--period MS] [--count N]
                                 continuous data, one JSON line per sample
-  send NAME CMD [--i64 N]       a class command (number >= 21) and its reply
+  send NAME CMD [--i64 N]       a class command (number 21..127) and its reply
   help [COMMAND]                this text, or a command's
 
 NAME is a component's name from its host file (found by discovery), or an address

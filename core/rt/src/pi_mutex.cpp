@@ -20,7 +20,9 @@ PiMutex::~PiMutex() { pthread_mutex_destroy(&mutex_); }
 // The TrustedScopes: a PI mutex and its condition variable are the framework's RT-safe
 // way to wait; their futex calls are not mode switches (see modeswitch.h).
 void PiMutex::lock() noexcept {
-  modeswitch::TrustedScope trusted(true);
+  modeswitch::TrustedScope trusted;
+  if (pthread_mutex_trylock(&mutex_) == 0) return;
+  modeswitch::TrustedScope waiting(true);  // contended: this cycle may block here
   pthread_mutex_lock(&mutex_);
 }
 void PiMutex::unlock() noexcept {

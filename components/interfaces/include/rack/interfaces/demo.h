@@ -67,6 +67,7 @@ inline constexpr int8_t kDemoDevice = 27;    // write() to a registered RT devic
 inline constexpr int8_t kDemoCrash = 28;     // write through a null pointer                  -> CRASH (SIGSEGV)
 inline constexpr int8_t kDemoAbort = 29;     // std::abort()                                  -> CRASH (SIGABRT)
 inline constexpr int8_t kDemoLoopSyscall = 30;  // the next loop() makes a write()            -> SYSCALL in the data task
+inline constexpr int8_t kDemoSleep = 31;     // usleep(2000) directly, not through rack::rt  -> RUSAGE (with rusage: true)
 
 struct ModeSwitchDemoData {
   int64_t cycles = 0;     // loop() calls since ON

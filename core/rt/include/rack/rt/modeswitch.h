@@ -8,6 +8,18 @@
 //   SYSCALL   a system call that is not on the allow-list (Syscall User Dispatch: one
 //             selector byte per thread, flipped at cycle start and end; the SIGSYS
 //             handler records, then re-issues the call itself)
+//
+// How the SIGSYS handler gets out again: the allowed region given to the kernel is
+// glibc's signal restorer (`mov $15,%rax; syscall`, its address read back from the
+// kernel after installing the handler), so every rt_sigreturn passes. The handler
+// opens the selector while it runs (its own calls, nested handlers, the re-issued
+// call pass), re-issues the call with the trapped registers, stores the result in
+// the saved RAX and closes the selector again before returning. We keep glibc's
+// restorer instead of a trampoline of our own because its CFI describes the signal
+// frame: the unwinder walks from the handler into the interrupted code. Calls that
+// must run in the thread's own context (rt_sigprocmask, sigaltstack, clone, execve,
+// exit, ...) are rewound to their `syscall` instruction and run natively with the
+// selector open; the rest of that cycle is not filtered.
 //   FAULT     a page fault (a perf software page-fault event with sigtrap: a
 //             synchronous SIGTRAP in the faulting thread, at the faulting instruction)
 //   ALLOC     malloc/free family or any operator new/delete (the interposers in
