@@ -260,6 +260,8 @@ components:
     EXPECT_EQ(ctl({"get-data", "monitor"}).exit_code, 0);
     EXPECT_EQ(ctl({"params", "generator"}).exit_code, 0);
     EXPECT_EQ(ctl({"set-param", "generator", "amplitude", "3.5"}).exit_code, 0);
+    EXPECT_EQ(ctl({"set-param", "probe", "label", "round" + std::to_string(round)}).exit_code, 0);  // string
+    EXPECT_EQ(ctl({"status", "probe"}).exit_code, 0);
     EXPECT_EQ(ctl({"watch", "generator", "--count", "5"}).exit_code, 0);
     EXPECT_EQ(ctl({"off", "monitor2"}).exit_code, 0);
     EXPECT_EQ(ctl({"on", "monitor2"}).exit_code, 0);
@@ -389,6 +391,13 @@ TEST_F(ModeSwitchIntegrationTest, BacktraceToolNamesTruncatedReportsAndMismatche
   r = backtrace({dir_.write("junk.txt", "hello\n").string()});
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_TRUE(contains(r.err, "not a RACK mode-switch report")) << r.err;
+  r = run({"/bin/sh", "-c", kBacktrace + " --reason ALLOC < " + files[0]}, 60s);  // standard input
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_EQ(count_of(r.out, "[ALLOC]"), 2) << r.out;
+  EXPECT_TRUE(contains(r.out, "<stdin>:")) << r.out;
+  r = run({kRackctl, "--lcm", bus_.url(), "send", "demo", "5"}, 30s);  // a generic command number
+  EXPECT_EQ(r.exit_code, 2) << r.describe();
+  EXPECT_TRUE(contains(r.err, "class command number 21..127")) << r.err;
   r = backtrace({"--help"});
   EXPECT_EQ(r.exit_code, 0);
   EXPECT_TRUE(contains(r.out, "usage: rack-backtrace")) << r.out;

@@ -7,6 +7,7 @@
 // directory. The process does not lock its memory, which is what NOMLOCK reports.
 #include <fcntl.h>
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -166,6 +167,20 @@ TEST_F(ModeSwitchTest, RegisteredRtDeviceIsAllowed) {
   EXPECT_EQ(n, 3);
   EXPECT_EQ(std::string(buf, 3), "abc");
   EXPECT_EQ(ok.total(), 0u);
+  // poll: allowed when every descriptor in the array is registered; a bad array
+  // pointer is the kernel's EFAULT, not a crash in the handler.
+  int polled = -2, bad_poll = -2, bad_errno = 0;
+  const auto p = run_cycle([&] {
+    pollfd pfd[2] = {{fds[0], POLLIN, 0}, {fds[1], POLLOUT, 0}};
+    polled = ::poll(pfd, 2, 0);
+    pollfd* volatile unreadable = reinterpret_cast<pollfd*>(16);
+    bad_poll = ::poll(unreadable, 1, 0);
+    bad_errno = errno;
+  });
+  EXPECT_EQ(polled, 1) << "the pipe is writable";
+  EXPECT_EQ(bad_poll, -1);
+  EXPECT_EQ(bad_errno, EFAULT);
+  EXPECT_EQ(p.delta(Reason::kSyscall), 1u) << "only the poll with the unreadable array";
   unregister_rt_device(fds[1]);
   const auto bad = run_cycle([&] { w = ::write(fds[1], "x", 1); });
   EXPECT_EQ(bad.delta(Reason::kSyscall), 1u) << "an unregistered descriptor is reported";

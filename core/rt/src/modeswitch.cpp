@@ -16,6 +16,7 @@
 #include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/uio.h>
 #include <sys/syscall.h>
 #include <ucontext.h>
 #include <unistd.h>
@@ -118,6 +119,7 @@ int g_report_fd = -1;
 char g_report_path[512] = {};
 char g_exe_path[256] = {};
 std::atomic<bool> g_rttime_hit{false};
+pid_t g_pid = 0;
 
 // Bounded, always terminated copy. Async-signal-safe.
 void copy_text(char* out, std::size_t size, const char* in) noexcept {
@@ -714,12 +716,17 @@ bool syscall_allowed(long nr, const uint64_t* a) noexcept {
   if (bit(g_allowed, nr)) return true;
   if (!fd_syscall(nr)) return false;
   if (nr == SYS_poll || nr == SYS_ppoll) {
-    // Every descriptor in the pollfd array must be an RT device.
-    const auto* fds = reinterpret_cast<const int*>(a[0]);  // struct pollfd: int fd; short, short
+    // Every descriptor in the pollfd array must be an RT device. The array is the
+    // caller's and may be a bad pointer (the kernel would say EFAULT): read it with
+    // process_vm_readv, which fails instead of faulting in this handler.
+    struct { int fd; short events, revents; } fds[64];
     const uint64_t n = a[1];
-    if (fds == nullptr || n > 64) return false;
+    if (n == 0 || n > 64) return false;
+    const iovec local{fds, n * sizeof fds[0]};
+    const iovec remote{reinterpret_cast<void*>(a[0]), n * sizeof fds[0]};
+    if (process_vm_readv(g_pid, &local, 1, &remote, 1, 0) != static_cast<ssize_t>(local.iov_len)) return false;
     for (uint64_t k = 0; k < n; ++k) {
-      if (!rt_fd(fds[k * 2])) return false;
+      if (!rt_fd(fds[k].fd)) return false;
     }
     return true;
   }
@@ -1004,6 +1011,7 @@ StartResult start(const Config& config) {
     return result;
   }
   g_config = config;
+  g_pid = getpid();
   init_ring();
   build_allow_lists();
   for (const auto& n : config.allow_syscalls) {
