@@ -186,6 +186,11 @@ int main(int argc, char** argv) {
     if (now >= end) break;
     if (now >= next_status) {
       std::fprintf(stdout, "[%.1f s]\n%s", static_cast<double>(now - start) * 1e-9, executor.status_report().c_str());
+      if (const auto c = rack::rt::modeswitch::counters(); c.reports > 0) {
+        std::fprintf(stdout, "  mode switches: %llu reported, %llu dropped; see %s\n",
+                     static_cast<unsigned long long>(c.reports), static_cast<unsigned long long>(c.dropped),
+                     detector.report_path.empty() ? "stderr" : detector.report_path.c_str());
+      }
       std::fflush(stdout);
       next_status += static_cast<int64_t>(status_every * 1e9);
     }
