@@ -117,6 +117,12 @@ components:
     data_task: {priority: 40, period_ms: 10}
 )";
 
+TEST_F(ModeSwitchIntegrationTest, DemoHostFileIsValid) {
+  const RunResult r = run({kRackd, "--check", std::string(RACK_CONFIGS_DIR) + "/modeswitch_demo.yaml"}, 30s);
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(contains(r.out, "valid (3 component(s))")) << r.describe();
+}
+
 TEST_F(ModeSwitchIntegrationTest, EachReasonIsReportedAndSymbolizesToTheDemoLine) {
   const auto lines = demo_lines();
   ASSERT_EQ(lines.size(), 10u) << "markers in " << kDemoSource;
