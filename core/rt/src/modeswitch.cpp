@@ -12,6 +12,7 @@
 #include <link.h>
 #include <linux/perf_event.h>
 #include <signal.h>
+#include <poll.h>
 #include <sys/mman.h>
 #include <sys/prctl.h>
 #include <sys/resource.h>
@@ -333,8 +334,12 @@ class Text {
   std::size_t len_ = 0;
 };
 
+// Writes everything, or gives up when `fd` stays unwritable for 200 ms (stderr may be
+// a pipe nobody reads: a crash handler must not hang on it). Async-signal-safe.
 void write_all(int fd, const char* p, std::size_t n) noexcept {
   while (n > 0 && fd >= 0) {
+    pollfd pfd{fd, POLLOUT, 0};
+    if (::poll(&pfd, 1, 200) == 0) return;
     const ssize_t w = ::write(fd, p, n);
     if (w < 0) {
       if (errno == EINTR) continue;
@@ -837,6 +842,15 @@ void on_crash(int sig, siginfo_t* info, void* ctx) {
   while (!g_crashing_tid.compare_exchange_weak(expected, tid, std::memory_order_acquire) && expected != tid &&
          monotonic_ns() < until) {
     expected = 0;
+  }
+  {
+    // First a line that needs no unwinding: if the stack is too broken to unwind,
+    // this is what is left.
+    char line[160];
+    Text t(line, sizeof line);
+    t.s("rack: CRASH ").s(signal_name(sig)).s(" at address ").hex(reinterpret_cast<uintptr_t>(info->si_addr));
+    t.s(" in thread ").i(tid).s(": writing the report\n");
+    write_all(STDERR_FILENO, t.data(), t.size());
   }
   static Record r;  // under g_crashing_tid
   fill(r, Reason::kCrash, static_cast<ucontext_t*>(ctx), 0, -1, nullptr,
