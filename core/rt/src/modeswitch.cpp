@@ -1108,12 +1108,12 @@ StartResult start(const Config& config) {
   g_alloc_on = config.allocations;
   g_locks_on = config.locks;
   g_rusage = config.rusage;
-  if (config.allocations) {
-    // The interposers are linked into the program (rack::rt_hooks); without them
-    // nothing calls on_heap_call.
-    if (&rack_rt_hooks_linked == nullptr) {
-      result.notes.push_back("ALLOC, PRIOINV: the program is not linked with rack::rt_hooks (no interposers)");
-    }
+  // The interposers are linked into the program (rack::rt_hooks); without them
+  // (a sanitizer build, a program that did not link them) nothing calls the hooks.
+  const bool hooks = &rack_rt_hooks_linked != nullptr;
+  if (!hooks && (config.allocations || config.locks)) {
+    result.notes.push_back("ALLOC, PRIOINV: skipped: the program is not linked with rack::rt_hooks "
+                           "(the interposers; left out of sanitizer builds)");
   }
   if (config.rttime_us > 0) {
     install(SIGXCPU, &on_sigxcpu, 0, &g_old_sigxcpu);
@@ -1136,8 +1136,8 @@ StartResult start(const Config& config) {
   }
   result.syscalls = g_sud_ok;
   result.faults = g_fault_ok;
-  result.allocations = g_alloc_on;
-  result.locks = g_locks_on;
+  result.allocations = g_alloc_on && hooks;
+  result.locks = g_locks_on && hooks;
   result.crash = g_crash_installed;
   result.rttime = g_rttime_on;
   {
