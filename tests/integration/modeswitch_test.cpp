@@ -345,6 +345,35 @@ components:
   EXPECT_EQ(count_of(err, "reason=SYSCALL"), 0) << "clock_nanosleep itself is allowed\n" << err;
 }
 
+// A class from a plug-in: the report symbolizes into the shared library through its
+// own load address and build id.
+TEST_F(ModeSwitchIntegrationTest, PluginCodeSymbolizesToItsOwnSource) {
+  const std::string plugin = RACK_TEST_PLUGIN_PATH;
+  auto rackd = start_rackd("host: it-modeswitch-plugin\nsystem: 0\nheap_prefault_mib: 16\nplugins: [" + plugin +
+                           "]\ncomponents:\n  - name: plug\n    class: PluginDemo\n    instance: 0\n"
+                           "    autostart: true\n");
+  ASSERT_TRUE(rackd);
+  if (contains(rackd->err(), "SYSCALL: skipped: ")) GTEST_SKIP() << "no Syscall User Dispatch:\n" << rackd->err();
+  ASSERT_EQ(ctl({"send", "plug", "21"}).exit_code, 0);
+  ASSERT_TRUE(wait_reports(*rackd, "SYSCALL", 1)) << rackd->err();
+  rackd->signal(SIGTERM);
+  ASSERT_EQ(rackd->wait_exit(30s), 0) << rackd->err();
+  const auto files = report_files();
+  ASSERT_EQ(files.size(), 1u);
+  EXPECT_TRUE(contains(read_file(files[0]), "path=" + plugin)) << "the plug-in's module line";
+  int line = 0;
+  std::ifstream in(std::string(RACK_SOURCE_DIR) + "/tests/integration/plugin/modeswitch_plugin.cpp");
+  std::string text;
+  for (int n = 1; std::getline(in, text); ++n) {
+    if (contains(text, "PLUGIN-LINE: SYSCALL")) line = n;
+  }
+  ASSERT_GT(line, 0);
+  const RunResult r = backtrace({"--reason", "SYSCALL", files[0]});
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(contains(r.out, "modeswitch_plugin.cpp:" + std::to_string(line) + "  (librack_test_plugin.so+0x"))
+      << r.out;
+}
+
 class CrashTest : public ModeSwitchIntegrationTest, public ::testing::WithParamInterface<const char*> {};
 
 TEST_P(CrashTest, ReportIsCompleteAndTheProcessDiesWithTheSignal) {
