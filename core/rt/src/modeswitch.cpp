@@ -875,6 +875,12 @@ void on_crash(int sig, siginfo_t* info, void* ctx) {
 }
 
 void install(int sig, void (*fn)(int, siginfo_t*, void*), int extra_flags, struct sigaction* old) {
+  // Already ours (start() after stop()): keep the handler saved the first time, or
+  // chaining would call ourselves.
+  struct sigaction current{};
+  if (sigaction(sig, nullptr, &current) == 0 && (current.sa_flags & SA_SIGINFO) != 0 && current.sa_sigaction == fn) {
+    return;
+  }
   struct sigaction sa{};
   sa.sa_sigaction = fn;
   sa.sa_flags = SA_SIGINFO | SA_RESTART | extra_flags;
