@@ -301,10 +301,13 @@ components:
   wire::ContDataRequest cont;
   cont.mailbox = host.data_mailbox().address().raw();
   ASSERT_EQ(host.call_with(gen, msg::kGetContData, cont).type, msg::kContData);
+  // Both producers have a sample (the warm-up asks both for their newest; on a loaded
+  // machine the generator's first period may not have passed yet).
   ASSERT_TRUE(test::eventually([&] {
     wire::SampleHeader h;
     interfaces::ProbeData d;
-    return host.get_data(probe, h, d);
+    interfaces::GeneratorData g;
+    return host.get_data(probe, h, d) && host.get_data(gen, h, g);
   }));
 
   tims::Endpoint& ep = host.endpoint();
