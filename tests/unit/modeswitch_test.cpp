@@ -26,6 +26,7 @@
 #include "rack/rt/clock.h"
 #include "rack/rt/modeswitch.h"
 #include "rack/rt/pi_mutex.h"
+#include "report_file.h"
 #include "test_support.h"
 
 namespace rack::rt::modeswitch {
@@ -391,6 +392,52 @@ TEST_F(ModeSwitchTest, AFullRingDropsAndCountsAndRecovers) {
   const auto again = run_cycle([] { g_sink = std::malloc(8); std::free(g_sink); });
   EXPECT_EQ(again.delta(Reason::kAlloc), 2u);
   EXPECT_EQ(counters().dropped, dropped);
+}
+
+// Several RT threads report at once (the ring's producers race on their CAS) while
+// the reporter writes: every report that was not dropped reaches the file exactly
+// once and complete (read back with rack-backtrace's own parser).
+TEST_F(ModeSwitchTest, ConcurrentProducersLoseNothingButWhatIsCountedAsDropped) {
+  if (!g_started.allocations || g_started.report_path.empty()) GTEST_SKIP() << "no interposers or no report file";
+  auto count_in_file = [] {
+    std::ifstream in(g_started.report_path);
+    const auto file = backtrace::parse_report_file(in, g_started.report_path);
+    EXPECT_TRUE(file.errors.empty()) << file.errors.front();
+    uint64_t n = 0;
+    for (const auto& r : file.reports) {
+      if (r.field("task").rfind("test:mp", 0) == 0 && r.field("reason") == "ALLOC") ++n;
+    }
+    return n;
+  };
+  sleep_for(100 * kNsPerMs);  // what earlier tests (or repetitions) reported is written
+  const uint64_t in_file_before = count_in_file();
+  const Counters before = counters();
+  constexpr int kThreads = 4, kCycles = 150;
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t) {
+    threads.emplace_back([t] {
+      TaskAttachment attach(TaskInfo{"test:mp" + std::to_string(t), "mp", "Mp(0/0)", 0, Mode::kWarn});
+      for (int k = 0; k < kCycles; ++k) {
+        enter_cycle();
+        g_sink = std::malloc(32);
+        std::free(g_sink);
+        (void)leave_cycle();
+        if (k % 10 == 0) sleep_for(200 * kNsPerUs);
+      }
+    });
+  }
+  for (auto& th : threads) th.join();
+  const Counters after = counters();
+  const uint64_t recorded = after.by_reason[static_cast<int>(Reason::kAlloc)] - before.by_reason[static_cast<int>(Reason::kAlloc)];
+  const uint64_t dropped = after.dropped - before.dropped;
+  EXPECT_EQ(recorded, uint64_t{kThreads} * kCycles * 2);
+  uint64_t in_file = 0;
+  for (int i = 0; i < 300; ++i) {
+    in_file = count_in_file() - in_file_before;
+    if (in_file >= recorded - dropped) break;
+    sleep_for(10 * kNsPerMs);
+  }
+  EXPECT_EQ(in_file, recorded - dropped) << "recorded " << recorded << ", dropped " << dropped;
 }
 
 TEST_F(ModeSwitchTest, SyscallNamesComeFromTheKernelHeaders) {

@@ -143,7 +143,11 @@ struct Record {
   int64_t time_ns = 0;
   Reason reason = Reason::kSyscall;
   Mode mode = Mode::kWarn;
-  int16_t task = -1;  // index into g_tasks, -1: not an RT task
+  // Copied from the task's slot, so the slot can be reused once its task ended
+  // while reports about it still wait in the ring. "" when not an RT task.
+  char task[32] = {};
+  char component[32] = {};
+  char label[48] = {};
   int32_t tid = 0;
   int32_t signo = 0, code = 0;
   int64_t nr = -1;          // syscall number, heap call kind, sub-reason
@@ -442,11 +446,10 @@ void describe_record(const Record& r, Text& t) noexcept {
 
 // The report block (file format: see tools/backtrace/README.md).
 void format_record(const Record& r, Text& t) noexcept {
-  const TaskSlot* slot = r.task >= 0 ? &g_tasks[r.task] : nullptr;
   t.s("report ").u(r.sequence).s(" reason=").s(reason_name(r.reason)).s(" mode=").s(mode_name(r.mode));
-  t.s(" task=").s(slot != nullptr ? slot->task : "-");
-  t.s(" component=").s(slot != nullptr && slot->component[0] != '\0' ? slot->component : "-");
-  t.s(" label=").s(slot != nullptr && slot->label[0] != '\0' ? slot->label : "-");
+  t.s(" task=").s(r.task[0] != '\0' ? r.task : "-");
+  t.s(" component=").s(r.component[0] != '\0' ? r.component : "-");
+  t.s(" label=").s(r.label[0] != '\0' ? r.label : "-");
   t.s(" tid=").i(r.tid).s(" time_ns=").i(r.time_ns);
   if (r.reason == Reason::kSyscall) t.s(" syscall=").i(r.nr);
   if (r.reason == Reason::kCrash) t.s(" signal=").i(r.signo);
@@ -547,7 +550,9 @@ __attribute__((noinline)) void fill(Record& r, Reason reason, const ucontext_t* 
   r.time_ns = now_realtime();
   r.reason = reason;
   r.mode = s != nullptr ? s->mode : Mode::kWarn;
-  r.task = s != nullptr ? static_cast<int16_t>(s - g_tasks) : int16_t{-1};
+  copy_text(r.task, sizeof r.task, s != nullptr ? s->task : "");
+  copy_text(r.component, sizeof r.component, s != nullptr ? s->component : "");
+  copy_text(r.label, sizeof r.label, s != nullptr ? s->label : "");
   r.tid = current_tid();
   r.signo = 0;
   r.code = 0;
@@ -624,16 +629,15 @@ void emit(const Record& r, bool sinks) noexcept {
   char detail[512];
   Text d(detail, sizeof detail);
   describe_record(r, d);
-  const TaskSlot* slot = r.task >= 0 ? &g_tasks[r.task] : nullptr;
   ReportView v;
   v.sequence = r.sequence;
   v.reason = r.reason;
   v.mode = r.mode;
   v.tid = r.tid;
   v.time_ns = r.time_ns;
-  v.task = slot != nullptr ? std::string_view(slot->task) : std::string_view("-");
-  v.component = slot != nullptr ? std::string_view(slot->component) : std::string_view();
-  v.label = slot != nullptr ? std::string_view(slot->label) : std::string_view();
+  v.task = r.task[0] != '\0' ? std::string_view(r.task) : std::string_view("-");
+  v.component = std::string_view(r.component);
+  v.label = std::string_view(r.label);
   v.detail = d.view();
   v.frames = std::span<const uintptr_t>(r.pc, r.frames);
   std::lock_guard lock(g_sinks_mutex);
@@ -1250,8 +1254,9 @@ void detach_current_thread() noexcept {
     munmap(s->altstack, kAltStackBytes);
   }
   t_slot = nullptr;
-  // The slot keeps its names (reports still in the ring refer to it) and is not
-  // reused: a process has a bounded number of tasks.
+  // Free for the next task (reports carry copies of the names). Release: the next
+  // owner's acquire CAS sees this thread done with it.
+  s->used.store(false, std::memory_order_release);
 }
 
 void enter_cycle() noexcept {
