@@ -771,21 +771,30 @@ void on_sigsys(int sig, siginfo_t* info, void* ctx) {
   const int saved_errno = errno;
   const char saved = s->selector;
   s->selector = kAllow;  // our own system calls (and nested handlers') pass
+  // Detector code from here on: a page fault in this handler (its stack frame on a
+  // fresh page) is ours, not the task's.
+  const bool nested = t_busy != 0;
+  t_busy = t_busy + 1;
   std::atomic_signal_fence(std::memory_order_seq_cst);
   greg_t* g = uc->uc_mcontext.gregs;
   const long nr = info->si_syscall;
   const uint64_t a[6] = {static_cast<uint64_t>(g[REG_RDI]), static_cast<uint64_t>(g[REG_RSI]),
                          static_cast<uint64_t>(g[REG_RDX]), static_cast<uint64_t>(g[REG_R10]),
                          static_cast<uint64_t>(g[REG_R8]),  static_cast<uint64_t>(g[REG_R9])};
-  if (t_in_cycle && t_busy == 0 && !syscall_allowed(nr, a)) record(Reason::kSyscall, uc, 0, nr, a, 0, 0);
+  if (t_in_cycle && !nested && !syscall_allowed(nr, a)) record(Reason::kSyscall, uc, 0, nr, a, 0, 0);
   if (run_natively(nr)) {
     // Back to the `syscall` instruction with the selector open: it runs as if never
     // trapped. The rest of this cycle is not filtered; the next cycle re-arms.
     g[REG_RIP] -= 2;
     g[REG_RAX] = nr;
+    t_busy = t_busy - 1;
     errno = saved_errno;
     return;
   }
+  // The re-issued call is the task's own again: a fault in the kernel on its behalf
+  // (copy_from_user) is the task's.
+  t_busy = t_busy - 1;
+  std::atomic_signal_fence(std::memory_order_seq_cst);
   g[REG_RAX] = raw_syscall6(nr, a[0], a[1], a[2], a[3], a[4], a[5]);
   std::atomic_signal_fence(std::memory_order_seq_cst);
   errno = saved_errno;
@@ -811,6 +820,8 @@ void on_sigtrap(int sig, siginfo_t* info, void* ctx) {
   }
   TaskSlot* s = t_slot;
   if (s == nullptr || !t_in_cycle || t_busy != 0 || (flags & kTrapPerfAsync) != 0) return;
+  t_busy = t_busy + 1;  // a fault of this handler's own frame is not the task's
+  std::atomic_signal_fence(std::memory_order_seq_cst);
   const int saved_errno = errno;
   const char saved = s->selector;
   s->selector = kAllow;
@@ -818,6 +829,8 @@ void on_sigtrap(int sig, siginfo_t* info, void* ctx) {
          reinterpret_cast<uintptr_t>(info->si_addr), 0);
   s->selector = saved;
   errno = saved_errno;
+  std::atomic_signal_fence(std::memory_order_seq_cst);
+  t_busy = t_busy - 1;
 }
 
 void on_sigxcpu(int, siginfo_t*, void* ctx) {
