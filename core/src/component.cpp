@@ -310,9 +310,13 @@ void Component::run_command_task() noexcept {
     if (r.status == tims::RecvStatus::kClosed) break;
     if (loop_failed_.exchange(false, std::memory_order_acq_rel)) go_error();
     switch (r.status) {
-      case tims::RecvStatus::kOk:
+      case tims::RecvStatus::kOk: {
+        // One command is one cycle of the command task: the mode-switch window.
+        rt::modeswitch::enter_cycle();
         handle(r.header, buffer.subspan(sizeof(MessageHeader), r.length - sizeof(MessageHeader)));
+        if (rt::modeswitch::leave_cycle().abort) go_error();  // abort mode: the component goes to ERROR
         break;
+      }
       case tims::RecvStatus::kTooSmall:
         if (r.header.is_request()) reject_malformed(r.header, "request larger than the command buffer");
         break;
@@ -322,7 +326,9 @@ void Component::run_command_task() noexcept {
         break;
     }
     if (state() == ComponentState::kError && !init_failed_ && rt::monotonic_ns() >= retry_at_ns_) {
+      rt::modeswitch::enter_cycle();
       handle_on(nullptr);  // back-off elapsed: retry
+      if (rt::modeswitch::leave_cycle().abort) go_error();
     }
   }
 }

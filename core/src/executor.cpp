@@ -69,10 +69,20 @@ void Executor::start() {
     for (auto& v : views_) {
       Component& c = *v.component;
       const ComponentSettings& s = c.settings();
+      // Each task registers itself with the mode-switch detector (a no-op when
+      // rackd did not start it) before its first cycle.
+      auto watch = [&](const TaskSettings& t, const char* suffix) {
+        return rt::modeswitch::TaskInfo{c.name() + suffix, c.name(), c.address().str(), c.address().raw(),
+                                        t.modeswitch.value_or(hs.modeswitch.default_mode)};
+      };
       auto cmd = std::make_unique<rt::Thread>();
       const auto how = cmd->start({c.name().substr(0, 11) + ":cmd", s.command_task.priority, s.command_task.cpu,
                                    s.command_task.stack_bytes},
-                                  [&c] { c.run_command_task(); }, options_.allow_rt_fallback);
+                                  [&c, info = watch(s.command_task, ":cmd")] {
+                                    rt::modeswitch::TaskAttachment attach(info);
+                                    c.run_command_task();
+                                  },
+                                  options_.allow_rt_fallback);
       v.realtime = how == rt::ThreadStart::kRealTime;
       fallback_ = fallback_ || how == rt::ThreadStart::kFallback;
       threads_.push_back(std::move(cmd));
@@ -80,7 +90,11 @@ void Executor::start() {
         auto data = std::make_unique<rt::Thread>();
         const auto how2 = data->start({c.name().substr(0, 10) + ":data", s.data_task.priority, s.data_task.cpu,
                                        s.data_task.stack_bytes},
-                                      [dc] { dc->run_data_task(); }, options_.allow_rt_fallback);
+                                      [dc, info = watch(s.data_task, ":data")] {
+                                        rt::modeswitch::TaskAttachment attach(info);
+                                        dc->run_data_task();
+                                      },
+                                      options_.allow_rt_fallback);
         fallback_ = fallback_ || how2 == rt::ThreadStart::kFallback;
         threads_.push_back(std::move(data));
       }

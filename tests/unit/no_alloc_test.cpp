@@ -2,7 +2,9 @@
 //
 // This binary replaces the global allocator (operator new/delete and glibc's malloc
 // family, forwarding to glibc's __libc_* entry points) with versions that count every
-// allocation made, by any thread, while counting is switched on. Each test sets up
+// allocation made, by any thread, while counting is switched on. Each replacement
+// also calls the mode-switch detector's hook (modeswitch::detail::on_heap_call), as
+// any program that replaces the allocator must to keep ALLOC detection working. Each test sets up
 // and warms up its path, then switches counting on around the measured loop only:
 // the count must stay 0. Alone in its binary because the replacement is global.
 #include <gtest/gtest.h>
@@ -18,6 +20,7 @@
 #include "rack/interfaces/demo.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
+#include "rack/rt/modeswitch.h"
 #include "test_support.h"
 
 // ---- the counting allocator ----------------------------------------------------
@@ -27,7 +30,9 @@ namespace {
 // the count is read after the threads involved have synchronised through mailboxes.
 std::atomic<bool> g_counting{false};
 std::atomic<uint64_t> g_allocations{0};
-void note_allocation() noexcept {
+using rack::rt::modeswitch::detail::HeapCall;
+void note_allocation(HeapCall call, std::size_t size) noexcept {
+  rack::rt::modeswitch::detail::on_heap_call(call, size);
   if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
 }
 }  // namespace
@@ -40,44 +45,47 @@ void* __libc_memalign(std::size_t alignment, std::size_t size);
 void __libc_free(void* ptr);
 
 void* malloc(std::size_t size) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kMalloc, size);
   return __libc_malloc(size);
 }
 void* calloc(std::size_t count, std::size_t size) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kCalloc, count * size);
   return __libc_calloc(count, size);
 }
 void* realloc(void* ptr, std::size_t size) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kRealloc, size);
   return __libc_realloc(ptr, size);
 }
 void* aligned_alloc(std::size_t alignment, std::size_t size) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kAlignedAlloc, size);
   return __libc_memalign(alignment, size);
 }
 void* memalign(std::size_t alignment, std::size_t size) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kAlignedAlloc, size);
   return __libc_memalign(alignment, size);
 }
 int posix_memalign(void** out, std::size_t alignment, std::size_t size) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kAlignedAlloc, size);
   if (alignment < sizeof(void*) || (alignment & (alignment - 1)) != 0) return EINVAL;
   void* p = __libc_memalign(alignment, size);
   if (p == nullptr) return ENOMEM;
   *out = p;
   return 0;
 }
-void free(void* ptr) noexcept { __libc_free(ptr); }
+void free(void* ptr) noexcept {
+  if (ptr != nullptr) rack::rt::modeswitch::detail::on_heap_call(HeapCall::kFree, 0);
+  __libc_free(ptr);
+}
 }  // extern "C"
 
 namespace {
 void* counted_new(std::size_t size) {
-  note_allocation();
+  note_allocation(HeapCall::kNew, size);
   if (void* p = __libc_malloc(size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }
 void* counted_new_aligned(std::size_t size, std::align_val_t align) {
-  note_allocation();
+  note_allocation(HeapCall::kNew, size);
   if (void* p = __libc_memalign(static_cast<std::size_t>(align), size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }
@@ -86,11 +94,11 @@ void* counted_new_aligned(std::size_t size, std::align_val_t align) {
 void* operator new(std::size_t size) { return counted_new(size); }
 void* operator new[](std::size_t size) { return counted_new(size); }
 void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kNew, size);
   return __libc_malloc(size == 0 ? 1 : size);
 }
 void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kNew, size);
   return __libc_malloc(size == 0 ? 1 : size);
 }
 void* operator new(std::size_t size, std::align_val_t align) { return counted_new_aligned(size, align); }
@@ -295,10 +303,13 @@ components:
   wire::ContDataRequest cont;
   cont.mailbox = host.data_mailbox().address().raw();
   ASSERT_EQ(host.call_with(gen, msg::kGetContData, cont).type, msg::kContData);
+  // Both producers have a sample (the warm-up asks both for their newest; on a loaded
+  // machine the generator's first period may not have passed yet).
   ASSERT_TRUE(test::eventually([&] {
     wire::SampleHeader h;
     interfaces::ProbeData d;
-    return host.get_data(probe, h, d);
+    interfaces::GeneratorData g;
+    return host.get_data(probe, h, d) && host.get_data(gen, h, g);
   }));
 
   tims::Endpoint& ep = host.endpoint();

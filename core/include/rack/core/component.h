@@ -27,6 +27,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -34,6 +35,7 @@
 #include "rack/core/parameters.h"
 #include "rack/core/wire.h"
 #include "rack/rt/clock.h"
+#include "rack/rt/modeswitch.h"
 #include "rack/tims/endpoint.h"
 
 namespace rack {
@@ -50,6 +52,9 @@ struct TaskSettings {
   int priority = 0;                     // 1..99 SCHED_FIFO, 0 normal
   int cpu = -1;                         // -1: any
   std::size_t stack_bytes = 256 * 1024;
+  // Mode-switch detection for this task (off, warn, abort); unset: the host file's
+  // modeswitch.mode.
+  std::optional<rt::modeswitch::Mode> modeswitch;
 };
 
 // How the executor runs one component (from the host file).
@@ -57,8 +62,8 @@ struct ComponentSettings {
   std::string name;                     // the host file's name ("ladar_front")
   std::string impl;                     // implementation class ("Generator")
   tims::Address address;                // command mailbox: Class(sys/inst)
-  TaskSettings command_task{30, -1, 256 * 1024};
-  TaskSettings data_task{40, -1, 256 * 1024};
+  TaskSettings command_task{30, -1, 256 * 1024, std::nullopt};
+  TaskSettings data_task{40, -1, 256 * 1024, std::nullopt};
   int64_t period_ns = 0;                // periodic data task
   int64_t data_timeout_ns = rt::kNsPerSec;  // triggered: loop() runs after this long without input
   int64_t retry_ns = rt::kNsPerSec;     // ERROR back-off
@@ -132,6 +137,11 @@ class Component {
   void reply_error(const tims::MessageHeader& request, const char* reason) noexcept;
   // Counts a malformed request and answers it ERROR with `reason`.
   void reject_malformed(const tims::MessageHeader& request, const char* reason) noexcept;
+  // Declares a file descriptor a real-time device (CAN socket, serial port): the
+  // mode-switch detector then allows read/write/ioctl/poll/send/recv on it inside
+  // cycles. Call from init() or on(); unregister before closing it. RT-safe.
+  static void register_rt_device(int fd) noexcept { (void)rt::modeswitch::register_rt_device(fd); }
+  static void unregister_rt_device(int fd) noexcept { rt::modeswitch::unregister_rt_device(fd); }
   [[nodiscard]] tims::Router& router() noexcept { return *router_; }
 
  private:

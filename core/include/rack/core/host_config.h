@@ -17,6 +17,7 @@
 #include "rack/core/component.h"
 #include "rack/core/registry.h"
 #include "rack/rt/capabilities.h"
+#include "rack/rt/modeswitch.h"
 
 namespace rack {
 
@@ -39,6 +40,8 @@ struct HostSettings {
   std::size_t heap_prefault_bytes = 64u << 20;
   int cpu_dma_latency_us = 0;     // PM QoS bound held while running; -1: leave to the system
   std::vector<std::string> plugins;
+  // Mode-switch detection (the `modeswitch:` block); rackd starts the detector.
+  rt::modeswitch::Config modeswitch;
 };
 
 // A validated host: the settings, and every component constructed with its
