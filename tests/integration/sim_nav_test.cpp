@@ -92,6 +92,21 @@ TEST_F(SimNavTest, TheShippedHostFilesAreValid) {
   EXPECT_EQ(r.exit_code, 0) << r.describe();
 }
 
+TEST_F(SimNavTest, TheMainJobsHostFileIsValidWhenMclIsBuiltIn) {
+  // sim_mcl.yaml is sim_nav.yaml plus the MCL component, which another part of the
+  // project provides; until it is built in, the host file cannot load.
+  const auto classes = run({kRackd, "--list-classes"}, 30s);
+  ASSERT_EQ(classes.exit_code, 0) << classes.describe();
+  if (!contains(classes.out, "MCL  (class MCL")) GTEST_SKIP() << "class MCL is not built into this rackd";
+  std::string text = read_file(kConfigs + "/sim_mcl.yaml");
+  const std::string rel = "map: configs/maps/office.yaml";
+  for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1)) {
+    text.replace(at, rel.size(), "map: " + kConfigs + "/maps/office.yaml");
+  }
+  const auto r = run({kRackd, "--check", dir_.write("sim_mcl.yaml", text).string()}, 30s);
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+}
+
 TEST_F(SimNavTest, TheRobotFollowsThePathAndTakesADestinationFromRackctl) {
   start(host_file());
   // The pilot (autostart) switched the whole robot on and drives along the path.
