@@ -209,9 +209,11 @@ HookResult Path::loop() {
   char text[wire::kParamStringLen];
   waypoints_.copy_string(text, sizeof text);
   const bool closed = closed_.get_bool();
-  if (std::strcmp(text, last_text_) != 0 || closed != last_closed_) {
+  const double resolution = resolution_.get_float();
+  if (std::strcmp(text, last_text_) != 0 || closed != last_closed_ || resolution != last_resolution_) {
     std::memcpy(last_text_, text, sizeof text);
     last_closed_ = closed;
+    last_resolution_ = resolution;
     if (text[0] != '\0') {
       if (make_from_parameters(current_, last_error_)) {
         ++makes_;
