@@ -348,6 +348,34 @@ TEST_F(RobotSimTest, PositionUpdateUsesTheOdometryAtTheUpdatesTimeTolerant) {
   EXPECT_EQ(h().stats(position).malformed, 1u);
 }
 
+TEST_F(RobotSimTest, PositionSwitchedOnAgainContinuesFromItsLastPose) {
+  Watchdog dog;
+  start(host(chassis_yaml("", 5000) + odometry_position_yaml(", initial_x: 1.0, initial_y: 2.0")));
+  const Address chassis = h().address_of("chassis");
+  const Address odometry = h().address_of("odometry");
+  const Address position = h().address_of("position");
+  ASSERT_EQ(h().call(position, msg::kOn).type, msg::kOk);
+  ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
+  ASSERT_EQ(move(chassis, 0.5).type, msg::kOk);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  ASSERT_EQ(move(chassis, 0.0).type, msg::kOk);
+  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  wire::SampleHeader before_header;
+  const auto before = newest<PositionData>(position, &before_header);
+  ASSERT_GT(before.x, 1.1);
+  // The odometry goes away (the position follows it into ERROR) and comes back at zero.
+  ASSERT_EQ(h().call(odometry, msg::kOff).type, msg::kOk);
+  ASSERT_TRUE(h().wait_status(position, msg::kError));
+  ASSERT_EQ(h().call(position, msg::kOn).type, msg::kOk);
+  // Samples made after the restart (the rings still hold the old ones).
+  const auto after = newer_than<PositionData>(position, before_header.time_ns);
+  EXPECT_NEAR(newer_than<OdometryData>(odometry, before_header.time_ns).x, 0.0, 1e-9)
+      << "the odometry started again at zero";
+  EXPECT_NEAR(after.x, before.x, 1e-6) << "not back at initial_x";
+  EXPECT_NEAR(after.y, before.y, 1e-6);
+}
+
 // ---------------------------------------------------------------- Scan2D
 
 interfaces::LadarData make_ladar(std::initializer_list<float> ranges, float start, float step) {
