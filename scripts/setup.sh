@@ -15,7 +15,7 @@ packages=(
   libbenchmark-dev rt-tests stress-ng    # benchmarks and their references (cyclictest)
   libdw-dev libelf-dev                   # backtrace symbolisation (elfutils)
   iproute2                               # network namespaces in the integration tests
-  python3                                # bench/run writes RESULTS.md
+  python3 python3-matplotlib             # bench/run writes RESULTS.md and its plots
 )
 
 missing=()
