@@ -144,6 +144,9 @@ const char* Path::make_path(const PathMake& w, double resolution, PathData& out)
   }
   out.point_count = k;
   out.length = length;
+  // Clear what a previous, longer path left behind (tools print whole arrays).
+  for (uint32_t i = n; i < interfaces::kPathMaxWaypoints; ++i) out.waypoint_x[i] = out.waypoint_y[i] = 0.0F;
+  for (uint32_t i = k; i < interfaces::kPathMaxPoints; ++i) out.x[i] = out.y[i] = 0.0F;
   return nullptr;
 }
 
