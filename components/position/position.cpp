@@ -71,13 +71,15 @@ HookResult Position::loop() {
         reference_.distance = o.distance;
         reference_.time_ns = sh.time_ns;
         reference_.resets = o.resets;
-      } else if (reference_.resets != o.resets) {  // RESET: keep the pose, new odometry frame
+      } else if (reference_.resets != o.resets) {
+        // RESET: the odometry restarted from zero just before this sample's increment,
+        // so the previous pose is the new frame's origin (nothing of this step is lost).
         reference_.pose = Pose2d{last_.x, last_.y, last_.phi};
         reference_.var_x = last_.var_x;
         reference_.var_y = last_.var_y;
         reference_.var_phi = last_.var_phi;
-        reference_.odometry = odo;
-        reference_.distance = o.distance;
+        reference_.odometry = Pose2d{};
+        reference_.distance = 0.0;
         reference_.resets = o.resets;
       }
       ref = reference_;

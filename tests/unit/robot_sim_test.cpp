@@ -377,6 +377,32 @@ TEST_F(RobotSimTest, PositionSwitchedOnAgainContinuesFromItsLastPose) {
   EXPECT_NEAR(after.y, before.y, 1e-6);
 }
 
+TEST_F(RobotSimTest, OdometryResetDoesNotMoveThePositionTolerant) {
+  Watchdog dog;
+  start(host(chassis_yaml("", 5000) + odometry_position_yaml(", initial_x: 1.0, initial_y: 2.0")));
+  const Address chassis = h().address_of("chassis");
+  const Address odometry = h().address_of("odometry");
+  const Address position = h().address_of("position");
+  ASSERT_EQ(h().call(position, msg::kOn).type, msg::kOk);
+  // Anchored (initial pose at its first odometry sample) before the robot moves.
+  ASSERT_NEAR(newest<PositionData>(position).x, 1.0, 1e-9);
+  ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
+  ASSERT_EQ(move(chassis, 0.5).type, msg::kOk);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ASSERT_EQ(h().call(odometry, interfaces::kOdometryReset).type, msg::kOk);
+  ASSERT_TRUE(test::eventually([&] { return newest<OdometryData>(odometry).resets == 1; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_EQ(move(chassis, 0.0).type, msg::kOk);
+  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  // The odometry restarted near zero; the position kept counting from (1, 2).
+  const auto c = newest<ChassisData>(chassis);
+  const auto p = newest<PositionData>(position);
+  EXPECT_LT(newest<OdometryData>(odometry).x, c.truth_x - 0.1);
+  EXPECT_NEAR(p.x, 1.0 + c.truth_x, 1e-6);
+  EXPECT_NEAR(p.y, 2.0 + c.truth_y, 1e-6);
+}
+
 // ---------------------------------------------------------------- Scan2D
 
 interfaces::LadarData make_ladar(std::initializer_list<float> ranges, float start, float step) {
