@@ -1,5 +1,6 @@
 #include "rack/core/component.h"
 
+#include <cstring>
 #include <exception>
 
 namespace rack {
@@ -269,6 +270,13 @@ void Component::handle_set_param(const MessageHeader& h, std::span<const std::by
     wire::copy_text(text.text, "unknown parameter '");
     wire::append_text(text.text, record.name);
     wire::append_text(text.text, "'");
+    reply_with(h, msg::kError, text);
+    return;
+  }
+  if (p == log_level_param_ && record.kind == static_cast<uint8_t>(wire::ParamKind::kString) &&
+      !gdos::parse_level(std::string_view(record.string_value, strnlen(record.string_value, sizeof record.string_value)))) {
+    wire::copy_text(text.text, "gdosLevel must be one of ");
+    wire::append_text(text.text, gdos::kLevelNames);
     reply_with(h, msg::kError, text);
     return;
   }

@@ -31,9 +31,9 @@ char letter(Level level) noexcept {
 std::optional<Level> parse_level(std::string_view t) noexcept {
   if (t == "print") return Level::kPrint;
   if (t == "error") return Level::kError;
-  if (t == "warning" || t == "warn") return Level::kWarning;
+  if (t == "warning") return Level::kWarning;
   if (t == "info") return Level::kInfo;
-  if (t == "detail" || t == "debug") return Level::kDetail;
+  if (t == "detail") return Level::kDetail;
   return std::nullopt;
 }
 

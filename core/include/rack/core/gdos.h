@@ -57,7 +57,7 @@ enum class Level : uint8_t { kPrint = 0, kError = 1, kWarning = 2, kInfo = 3, kD
 inline constexpr Level kDefaultLevel = Level::kInfo;
 [[nodiscard]] const char* describe(Level level) noexcept;          // "warning"
 [[nodiscard]] char letter(Level level) noexcept;                   // 'W'
-// "print", "error", "warning", "info", "detail" (also "warn", "debug" = detail). RT-safe.
+// "print", "error", "warning", "info", "detail"; nullopt otherwise. RT-safe.
 [[nodiscard]] std::optional<Level> parse_level(std::string_view text) noexcept;
 inline constexpr const char* kLevelNames = "print, error, warning, info, detail";
 
