@@ -46,13 +46,15 @@ void Executor::gdos_pass() {
     bool to_stderr;
     std::string& out;
     tims::GdosPublisher* publisher;
-  } pass{to_stderr, out, gdos_publisher_.get()};
+    const std::function<void(const gdos::Record&)>& sink;
+  } pass{to_stderr, out, gdos_publisher_.get(), options_.gdos_sink};
   // One captured pointer: fits std::function's small buffer, so an idle pass
   // allocates nothing (the no-allocation tests count every thread).
   hub_.drain([p = &pass](const gdos::Record& r) {
     if (p->to_stderr) {
       gdos::append_line(r, p->out);
     }
+    if (p->sink) p->sink(r);
     if (p->publisher != nullptr) {
       p->publisher->add(r.source.raw(), r.name, static_cast<uint8_t>(r.level), r.time_ns, r.sequence,
                         r.dropped_before, r.text);

@@ -41,6 +41,9 @@ struct ExecutorOptions {
   // Executor events are always logged through GDOS; `log`, when set, also gets
   // each event's text (tests capture them this way).
   std::function<void(const std::string&)> log;
+  // Every GDOS record of this host, as the GDOS thread hands it to stderr and LCM
+  // (tests, embedders). Called on the GDOS thread (not RT).
+  std::function<void(const gdos::Record&)> gdos_sink;
 };
 
 struct ComponentView {

@@ -427,9 +427,14 @@ class Writer {
     } else if constexpr (info.kind == ArgKind::kString) {
       if constexpr (std::is_array_v<U>) {
         constexpr std::size_t kN = std::extent_v<U> < kMaxStringBytes ? std::extent_v<U> : kMaxStringBytes;
-        put_string(value, strnlen(value, kN));
+        std::size_t n = strnlen(value, kN);
+        if (n > kN) n = kN;  // strnlen's bound, spelled out for the compiler's bounds check
+        put_string(value, n);
       } else if constexpr (std::is_pointer_v<D>) {
-        if (value == nullptr) put_string("(null)", 6);  // what glibc prints
+        // What glibc prints for a null %s (an array as long as any string, so the
+        // compiler can see the copy below stays in bounds).
+        static constexpr char kNull[kMaxStringBytes + 1] = "(null)";
+        if (value == nullptr) put_string(kNull, 6);
         else put_string(value, strnlen(value, kMaxStringBytes + 1));
       } else {
         const std::string_view s(value);
