@@ -368,6 +368,12 @@ void Hub::publish_text(Level level, tims::Address source, std::string name, std:
 
 std::size_t Hub::drain(const std::function<void(const Record&)>& sink) {
   std::lock_guard rings_lock(rings_mutex_);
+  // Only records stamped before the pass started are taken. Why: the scan over the
+  // rings is not atomic; without a cutoff, a record committed to ring A just after
+  // A was scanned could be overtaken by a later record of the same component in
+  // ring B (the other task). A record stamped at or before the cutoff was committed
+  // before anything stamped after it, so it is visible to this scan.
+  const int64_t cutoff = rt::monotonic_ns();
   std::deque<Text>& texts = draining_;  // a member: a std::deque allocates when made
   {
     std::lock_guard lock(text_mutex_);
@@ -399,6 +405,7 @@ std::size_t Hub::drain(const std::function<void(const Record&)>& sink) {
       if (p == nullptr) continue;
       RecordHeader h;
       std::memcpy(&h, p, sizeof h);
+      if (h.mono_ns > cutoff) continue;  // the next pass takes it
       if (h.mono_ns < best_ns) {
         best_ns = h.mono_ns;
         best = i;
