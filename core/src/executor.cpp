@@ -42,6 +42,12 @@ void Executor::gdos_pass() {
   }
   std::string& out = gdos_out_;  // reused: steady-state passes do not allocate for stderr
   out.clear();
+  if (g.to_stderr == GdosSettings::Stderr::kAuto && to_stderr != gdos_to_stderr_) {
+    // Say why the log appears on or vanishes from stderr.
+    out += to_stderr ? "rackd: GDOS: no gdos viewer listens: the log goes to stderr too\n"
+                     : "rackd: GDOS: a gdos viewer listens: the log goes to LCM only (gdos.stderr: auto)\n";
+    gdos_to_stderr_ = to_stderr;
+  }
   struct Pass {
     bool to_stderr;
     std::string& out;

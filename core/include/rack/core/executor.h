@@ -113,6 +113,7 @@ class Executor {
   std::thread gdos_thread_;
   uint64_t gdos_errors_reported_ = 0;   // publish errors already reported
   std::string gdos_out_;                // stderr text of one pass (GDOS thread)
+  bool gdos_to_stderr_ = true;          // gdos.stderr: auto: the current choice
 };
 
 }  // namespace rack
