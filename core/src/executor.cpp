@@ -293,6 +293,21 @@ std::string Executor::status_report() const {
     }
     out += line;
   }
+  {
+    const auto g = hub_.counters();
+    char line[256];
+    std::snprintf(line, sizeof line, "  GDOS: records %llu, dropped in full rings %llu", static_cast<unsigned long long>(g.records),
+                  static_cast<unsigned long long>(g.dropped));
+    out += line;
+    if (gdos_publisher_) {
+      const auto p = gdos_publisher_->counters();
+      std::snprintf(line, sizeof line, ", published %llu in %llu batches, publish errors %llu",
+                    static_cast<unsigned long long>(p.records), static_cast<unsigned long long>(p.batches),
+                    static_cast<unsigned long long>(p.publish_errors));
+      out += line;
+    }
+    out += '\n';
+  }
   if (transport_) {
     const auto t = transport_->counters();
     char line[256];

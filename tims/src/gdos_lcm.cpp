@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <lcm/lcm-cpp.hpp>
+#include <atomic>
 #include <mutex>
 #include <stdexcept>
 
@@ -37,7 +38,8 @@ struct GdosPublisher::Impl {
   rack_lcm::gdos_batch batch;
   std::size_t batch_bytes = 0;
   int64_t last_listener_ns = INT64_MIN / 2;
-  GdosPublisherCounters counters;
+  // Written by the publishing thread, read by any (relaxed: statistics).
+  std::atomic<uint64_t> records{0}, batches{0}, publish_errors{0};
 
   void on_listener(const lcm::ReceiveBuffer*, const std::string&, const rack_lcm::gdos_listener*) {
     last_listener_ns = rt::monotonic_ns();
@@ -75,10 +77,10 @@ void GdosPublisher::flush() {
   b.count = static_cast<int32_t>(b.records.size());
   b.time_ns = rt::host_time_ns();
   if (impl_->lcm.publish(impl_->config.channel, &b) != 0) {
-    ++impl_->counters.publish_errors;
+    impl_->publish_errors.fetch_add(1, std::memory_order_relaxed);
   } else {
-    ++impl_->counters.batches;
-    impl_->counters.records += b.records.size();
+    impl_->batches.fetch_add(1, std::memory_order_relaxed);
+    impl_->records.fetch_add(b.records.size(), std::memory_order_relaxed);
   }
   b.records.clear();
   impl_->batch_bytes = 0;
@@ -94,7 +96,13 @@ bool GdosPublisher::listener_present(int64_t within_ns) {
   return rt::monotonic_ns() - impl_->last_listener_ns <= within_ns;
 }
 
-GdosPublisherCounters GdosPublisher::counters() const noexcept { return impl_->counters; }
+GdosPublisherCounters GdosPublisher::counters() const noexcept {
+  GdosPublisherCounters c;
+  c.records = impl_->records.load(std::memory_order_relaxed);
+  c.batches = impl_->batches.load(std::memory_order_relaxed);
+  c.publish_errors = impl_->publish_errors.load(std::memory_order_relaxed);
+  return c;
+}
 const std::string& GdosPublisher::url() const noexcept { return impl_->config.url; }
 
 // ---- subscriber ----

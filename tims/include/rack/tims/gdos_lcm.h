@@ -9,7 +9,8 @@
 // while somebody listens (gdos.stderr: auto).
 //
 // Real-time contract: nothing here is RT-safe; the publisher runs in the host's
-// GDOS thread, the subscriber in a tool. Thread-safety: one thread per object.
+// GDOS thread, the subscriber in a tool. Thread-safety: one thread per object,
+// except GdosPublisher::counters() (any thread).
 #pragma once
 
 #include <cstdint>
