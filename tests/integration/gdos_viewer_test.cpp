@@ -48,9 +48,9 @@ class GdosViewerTest : public ::testing::Test {
  protected:
   GdosViewerTest() : watchdog_(kTestLimit, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
 
-  std::string host_file(const std::string& to_stderr) {
-    return "host: gdos-host\n"
-           "system: 0\n"
+  std::string host_file(const std::string& to_stderr, const std::string& host = "gdos-host", int system = 0) {
+    return "host: " + host + "\n"
+           "system: " + std::to_string(system) + "\n"
            "lcm_url: \"" + bus_.url() + "\"\n"
            "heap_prefault_mib: 8\n"
            "gdos: {stderr: " + to_stderr + "}\n"
@@ -67,9 +67,10 @@ class GdosViewerTest : public ::testing::Test {
            "    data_task: {priority: 50}\n"
            "    params: {source: generator, period_ms: 100}\n";
   }
-  std::unique_ptr<Process> start_rackd(const std::string& to_stderr) {
-    const auto file = dir_.write("host.yaml", host_file(to_stderr));
-    auto p = std::make_unique<Process>(std::vector<std::string>{kRackd, file.string()}, dir_.path(), "rackd");
+  std::unique_ptr<Process> start_rackd(const std::string& to_stderr, const std::string& host = "gdos-host",
+                                       int system = 0) {
+    const auto file = dir_.write(host + ".yaml", host_file(to_stderr, host, system));
+    auto p = std::make_unique<Process>(std::vector<std::string>{kRackd, file.string()}, dir_.path(), host);
     if (!p->wait_for_stderr("rackd: running", kStartLimit)) {
       ADD_FAILURE() << "rackd did not start:\n" << p->err();
       return nullptr;
@@ -238,6 +239,47 @@ TEST_F(GdosViewerTest, ViewerStartedAfterTheHostRecordsAndReplays) {
 
   rackd->signal(SIGTERM);
   EXPECT_EQ(rackd->wait_exit(kSettleLimit), std::optional<int>(0)) << rackd->err();
+}
+
+TEST_F(GdosViewerTest, OneViewerShowsEveryHostAndFiltersByHost) {
+  auto all = start_viewer({"--json"}, "gdos-all");
+  ASSERT_NE(all, nullptr);
+  auto one = start_viewer({"--json", "--host", "robot-b"}, "gdos-b");
+  ASSERT_NE(one, nullptr);
+  auto a = start_rackd("never", "robot-a", 1);
+  ASSERT_NE(a, nullptr);
+  auto b = start_rackd("never", "robot-b", 2);
+  ASSERT_NE(b, nullptr);
+  auto host_seen = [](const std::vector<Json>& v, const std::string& host, const std::string& name) {
+    for (const auto& j : v) {
+      if (j.at("host").string == host && j.at("name").string == name && j.at("text").string == "ON: ENABLED") {
+        return true;
+      }
+    }
+    return false;
+  };
+  ASSERT_TRUE(eventually([&] {
+    const auto v = records(all->out());
+    return host_seen(v, "robot-a", "generator") && host_seen(v, "robot-b", "generator") &&
+           host_seen(v, "robot-a", "monitor") && host_seen(v, "robot-b", "monitor");
+  })) << all->out() << all->err();
+  ASSERT_TRUE(eventually([&] { return host_seen(records(one->out()), "robot-b", "monitor"); })) << one->out();
+  // Addresses carry each host's system: Generator(1/0) and Generator(2/0).
+  bool sys1 = false, sys2 = false;
+  for (const auto& j : records(all->out())) {
+    sys1 = sys1 || j.at("source").string == "Generator(1/0)";
+    sys2 = sys2 || j.at("source").string == "Generator(2/0)";
+  }
+  EXPECT_TRUE(sys1 && sys2) << all->out();
+  a->signal(SIGTERM);
+  b->signal(SIGTERM);
+  EXPECT_EQ(a->wait_exit(kSettleLimit), std::optional<int>(0)) << a->err();
+  EXPECT_EQ(b->wait_exit(kSettleLimit), std::optional<int>(0)) << b->err();
+  one->signal(SIGINT);
+  EXPECT_EQ(one->wait_exit(kSettleLimit), std::optional<int>(0)) << one->err();
+  for (const auto& j : records(one->out())) EXPECT_EQ(j.at("host").string, "robot-b");
+  // gdos.stderr: never: nothing of the log on rackd's stderr.
+  EXPECT_FALSE(contains(a->err(), "ON: ENABLED")) << a->err();
 }
 
 TEST_F(GdosViewerTest, UsageAndBadArguments) {
