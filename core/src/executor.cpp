@@ -89,9 +89,21 @@ void Executor::gdos_loop() {
       gdos_cv_.wait_for(lock, period, [this] { return !gdos_running_; });
       if (!gdos_running_) break;
     }
-    gdos_pass();
+    pass_guarded();
   }
-  gdos_pass();  // what the last moments left behind
+  pass_guarded();  // what the last moments left behind
+}
+
+void Executor::pass_guarded() noexcept {
+  // The GDOS thread must outlive a failing pass (out of memory while formatting, a
+  // sink that throws): say so and go on with the next one.
+  try {
+    gdos_pass();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rackd: GDOS: a log pass failed: %s\n", e.what());
+  } catch (...) {
+    std::fprintf(stderr, "rackd: GDOS: a log pass failed\n");
+  }
 }
 
 Component* Executor::find(const std::string& name_or_address) noexcept {

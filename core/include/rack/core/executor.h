@@ -90,6 +90,7 @@ class Executor {
  private:
   void log(gdos::Level level, const std::string& line);
   void gdos_pass();
+  void pass_guarded() noexcept;
   void gdos_loop();
   bool send_command(Component& c, int8_t type, int64_t timeout_ns, std::string& why);
 
