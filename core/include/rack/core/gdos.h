@@ -29,7 +29,8 @@
 //     ring to the thread). From any other thread (main, init(), cleanup(), tool
 //     threads) the call is NOT RT-safe: it formats at once and queues the text under
 //     a lock (such threads are never RT in RACK-RT: components do not make threads).
-//   LogRing: try_write_* producer only (one thread), read side consumer only.
+//   LogRing: try_claim/commit/take_pending_drops by the producer only (one thread),
+//     peek/pop by the consumer only; counters from any thread. write_record() RT-safe.
 //   Hub: everything is non-RT (construction, make_ring, drain, publish_text).
 #pragma once
 
@@ -69,7 +70,6 @@ struct ArgInfo {
   ArgKind kind = ArgKind::kUnsupported;
   uint8_t size = 0;  // after default promotion (ints: 4 or 8)
   bool is_signed = false;
-  bool is_char_pointer = false;  // rejected for %p (ambiguous: string or address?)
 };
 
 template <class E, bool = std::is_enum_v<E>>
@@ -82,24 +82,24 @@ consteval ArgInfo arg_info() {
   using U = std::remove_cvref_t<T>;
   using D = std::decay_t<U>;
   if constexpr (std::is_same_v<D, bool>) {
-    return {ArgKind::kInt, 4, true, false};
+    return {ArgKind::kInt, 4, true};
   } else if constexpr (std::is_integral_v<D>) {
     return {ArgKind::kInt, static_cast<uint8_t>(sizeof(D) < sizeof(int) ? sizeof(int) : sizeof(D)),
-            std::is_signed_v<D> || sizeof(D) < sizeof(int), false};
+            std::is_signed_v<D> || sizeof(D) < sizeof(int)};
   } else if constexpr (IsUnscopedEnum<D>::value) {
     return arg_info<std::underlying_type_t<D>>();  // unscoped enum: promotes like its type
   } else if constexpr (std::is_same_v<D, float> || std::is_same_v<D, double>) {
-    return {ArgKind::kDouble, 8, true, false};
+    return {ArgKind::kDouble, 8, true};
   } else if constexpr (std::is_same_v<D, long double>) {
-    return {ArgKind::kLongDouble, static_cast<uint8_t>(sizeof(long double)), true, false};
+    return {ArgKind::kLongDouble, static_cast<uint8_t>(sizeof(long double)), true};
   } else if constexpr (std::is_same_v<D, const char*> || std::is_same_v<D, char*>) {
-    return {ArgKind::kString, 8, false, true};
+    return {ArgKind::kString, 8, false};  // a string, never a pointer for %p
   } else if constexpr (std::is_convertible_v<const U&, std::string_view> && !std::is_pointer_v<D>) {
-    return {ArgKind::kString, 8, false, false};
+    return {ArgKind::kString, 8, false};
   } else if constexpr (std::is_same_v<D, tims::Address>) {
-    return {ArgKind::kAddress, 4, false, false};
+    return {ArgKind::kAddress, 4, false};
   } else if constexpr (std::is_pointer_v<D> || std::is_null_pointer_v<D>) {
-    return {ArgKind::kPointer, 8, false, false};
+    return {ArgKind::kPointer, 8, false};
   } else {
     return {};
   }
@@ -453,7 +453,7 @@ class Writer {
   }
   void put_string(const char* s, std::size_t n) noexcept {
     // Kind, 2-byte length, bytes; what does not fit is cut (and flagged).
-    std::size_t room = capacity_ - used_ - 3 - reserve_after_;
+    std::size_t room = capacity_ - used_ - 3 - reserve_after_;  // never negative: fixed parts were reserved
     if (n > kMaxStringBytes) { n = kMaxStringBytes; truncated_ = true; }
     if (n > room) { n = room; truncated_ = true; }
     const auto len = static_cast<uint16_t>(n);
@@ -464,9 +464,12 @@ class Writer {
   }
 
  public:
-  std::size_t reserve_after_ = 0;  // fixed bytes still needed by later arguments
+  // Fixed bytes still needed by the arguments after the next one (strings must
+  // leave them room).
+  void set_reserve_after(std::size_t bytes) noexcept { reserve_after_ = bytes; }
 
  private:
+  std::size_t reserve_after_ = 0;
   std::byte* out_;
   std::size_t capacity_;
   std::size_t used_ = 0;
@@ -555,7 +558,7 @@ bool write_record(LogRing& ring, const LogSource* source, tims::Address address,
   // Each argument in order; strings may use what the fixed parts leave over.
   (([&] {
      remaining_fixed -= detail::fixed_bytes<Args>();
-     w.reserve_after_ = remaining_fixed;
+     w.set_reserve_after(remaining_fixed);
      w.put(args);
    }()),
    ...);
