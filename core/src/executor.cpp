@@ -1,5 +1,6 @@
 #include "rack/core/executor.h"
 
+#include <pthread.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -82,6 +83,7 @@ void Executor::gdos_pass() {
 }
 
 void Executor::gdos_loop() {
+  pthread_setname_np(pthread_self(), "rackd:gdos");  // for top and ps (not RT: SCHED_OTHER)
   const auto period = std::chrono::nanoseconds(host_->settings.gdos.drain_ns);
   for (;;) {
     {
