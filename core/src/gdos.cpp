@@ -363,6 +363,12 @@ LogRing& Hub::make_ring(uint32_t slots, std::string owner) {
 void Hub::publish_text(Level level, tims::Address source, std::string name, std::string text) {
   const int64_t now = rt::monotonic_ns();
   std::lock_guard lock(text_mutex_);
+  // Bounded like the rings: a GDOS thread that cannot keep up must not let the
+  // queue of preformatted text eat the heap.
+  if (texts_.size() >= kMaxQueuedTexts) {
+    texts_dropped_.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
   texts_.push_back(Text{now, level, source, std::move(name), std::move(text)});
 }
 
@@ -468,6 +474,7 @@ HubCounters Hub::counters() const noexcept {
   auto* self = const_cast<Hub*>(this);
   std::lock_guard lock(self->rings_mutex_);
   for (const auto& r : rings_) c.dropped += r->dropped();
+  c.dropped += texts_dropped_.load(std::memory_order_relaxed);
   return c;
 }
 

@@ -625,7 +625,7 @@ void append_line(const Record& r, std::string& out);
 
 struct HubCounters {
   uint64_t records = 0;        // handed to the sinks
-  uint64_t dropped = 0;        // lost in full rings (all rings)
+  uint64_t dropped = 0;        // lost in full rings (all rings) and a full text queue
   uint64_t malformed = 0;      // records whose arguments did not match their format
   uint64_t unbound = 0;        // records from threads without a ring (formatted at once)
 };
@@ -643,7 +643,8 @@ class Hub {
   LogRing& make_ring(uint32_t slots, std::string owner);
 
   // Queues preformatted text (non-RT entry point: executor events, mode-switch
-  // reports, threads without a ring). Thread-safe; allocates.
+  // reports, threads without a ring). Thread-safe; allocates. At most 65536 texts
+  // wait; beyond that they are dropped and counted.
   void publish_text(Level level, tims::Address source, std::string name, std::string text);
 
   // Formats every queued record, oldest first across all rings (records of one
@@ -675,7 +676,8 @@ class Hub {
   std::deque<Text> draining_;  // drain() only
   std::string scratch_;
   uint64_t sequence_ = 0;
-  std::atomic<uint64_t> records_{0}, malformed_{0}, unbound_{0};
+  static constexpr std::size_t kMaxQueuedTexts = 65536;
+  std::atomic<uint64_t> records_{0}, malformed_{0}, unbound_{0}, texts_dropped_{0};
   friend void detail::log_unbound(const LogSource&, Level, const char*, const Value*, std::size_t) noexcept;
 };
 
