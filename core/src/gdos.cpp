@@ -52,6 +52,7 @@ namespace {
 // initial-exec: the variable lives in the executable's static TLS block, so reading
 // it never calls __tls_get_addr (which may allocate for dlopen'ed modules).
 thread_local LogRing* t_ring __attribute__((tls_model("initial-exec"))) = nullptr;
+// Release/acquire: a thread that sees the hub's address sees the constructed hub.
 std::atomic<Hub*> g_process_hub{nullptr};
 }  // namespace
 

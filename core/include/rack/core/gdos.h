@@ -677,6 +677,7 @@ class Hub {
   std::string scratch_;
   uint64_t sequence_ = 0;
   static constexpr std::size_t kMaxQueuedTexts = 65536;
+  // Relaxed: statistics, read by status reports; nothing is published through them.
   std::atomic<uint64_t> records_{0}, malformed_{0}, unbound_{0}, texts_dropped_{0};
   friend void detail::log_unbound(const LogSource&, Level, const char*, const Value*, std::size_t) noexcept;
 };
