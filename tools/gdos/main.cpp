@@ -197,6 +197,10 @@ int main(int argc, char** argv) {
     if (!w.empty()) std::fputs(w.c_str(), stderr);
   }
   std::fflush(stdout);
+  const auto c = sub->counters();
+  std::fprintf(stderr, "gdos: %llu record(s) received, %lld shown, %llu lost on the network, %llu malformed batch(es)\n",
+               static_cast<unsigned long long>(c.records), shown, static_cast<unsigned long long>(c.lost),
+               static_cast<unsigned long long>(c.malformed));
   if (writer) {
     writer->flush();
     std::fprintf(stderr, "gdos: %llu record(s) written to %s\n", static_cast<unsigned long long>(writer->records()),
