@@ -279,6 +279,10 @@ void DataComponentBase::run_data_task() noexcept {
   if (mode_ == DataTaskMode::kPeriodic) {
     const int64_t period = settings().period_ns;
     int64_t next = rt::monotonic_ns() + period;
+    // Overruns are reported through GDOS at most once a second, with the count since
+    // the last report (a task that overruns every cycle must not flood its ring).
+    uint64_t unreported = 0;
+    int64_t next_report = 0;
     while (!stopping()) {
       rt::sleep_until_monotonic(next);
       stats_.record_latency(rt::monotonic_ns() - next);
@@ -292,6 +296,13 @@ void DataComponentBase::run_data_task() noexcept {
         next += missed * period;
         stats_.record_overruns(static_cast<uint64_t>(missed));
         rt::modeswitch::note_overrun(static_cast<uint64_t>(missed), now - cycle_start);  // WATCHDOG
+        unreported += static_cast<uint64_t>(missed);
+      }
+      if (unreported > 0 && now >= next_report) {
+        log_warning("overrun: %llu period(s) of %lld us missed since the last report",
+                    static_cast<unsigned long long>(unreported), static_cast<long long>(period / rt::kNsPerUs));
+        unreported = 0;
+        next_report = now + rt::kNsPerSec;
       }
     }
     return;

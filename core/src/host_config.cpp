@@ -206,7 +206,7 @@ struct HostLoader {
     HostSettings& hs = host->settings;
     hs.file = file;
     check_keys(root, {"host", "system", "host_id", "require_rt", "lcm", "lcm_url", "heap_prefault_mib",
-                      "cpu_dma_latency_us", "plugins", "modeswitch", "components"},
+                      "cpu_dma_latency_us", "plugins", "modeswitch", "components", "gdos"},
                "the host file");
     char hostname[256] = {};
     gethostname(hostname, sizeof hostname - 1);
@@ -242,6 +242,7 @@ struct HostLoader {
         }
       }
     }
+    if (const YAML::Node g = root["gdos"]) read_gdos(g, hs.gdos);
     const YAML::Node comps = root["components"];
     if (!comps) {
       errors.push_back({file, 0, 0, "missing 'components' (the list of components to run)"});
@@ -256,6 +257,33 @@ struct HostLoader {
     }
     result.host = std::move(host);
     return result;
+  }
+
+  void read_gdos(const YAML::Node& g, GdosSettings& out) {
+    if (!g.IsMap()) {
+      error(g.Mark(), "'gdos' must be a map (level, stderr, ring, drain_ms, lcm, lcm_url, channel)");
+      return;
+    }
+    check_keys(g, {"level", "stderr", "ring", "drain_ms", "lcm", "lcm_url", "channel"}, "gdos");
+    std::string text;
+    if (get(g, "level", text, std::string("a GDOS level (") + gdos::kLevelNames + ")")) {
+      if (const auto l = gdos::parse_level(text)) out.level = *l;
+      else error(g["level"].Mark(), "'level' must be one of " + std::string(gdos::kLevelNames) + ", got '" + text + "'");
+    }
+    if (get(g, "stderr", text, "always, auto or never")) {
+      if (text == "always") out.to_stderr = GdosSettings::Stderr::kAlways;
+      else if (text == "auto") out.to_stderr = GdosSettings::Stderr::kAuto;
+      else if (text == "never") out.to_stderr = GdosSettings::Stderr::kNever;
+      else error(g["stderr"].Mark(), "'stderr' must be always, auto or never, got '" + text + "'");
+    }
+    int64_t v = 0;
+    if (get_int_range(g, "ring", 2, 65536, v, "a record count 2..65536")) out.ring = static_cast<uint32_t>(v);
+    get_positive_ms(g, "drain_ms", out.drain_ns);
+    get(g, "lcm", out.lcm, "true or false");
+    get(g, "lcm_url", out.lcm_url, "an LCM URL");
+    if (get(g, "channel", out.channel, "an LCM channel name") && out.channel.empty()) {
+      error(g["channel"].Mark(), "'channel' must not be empty");
+    }
   }
 
   static std::string tims_default_url() { return "udpm://239.255.76.67:7667?ttl=0"; }
@@ -371,6 +399,10 @@ struct HostLoader {
             if (param->spec().component_ref) p.refs.emplace_back(param, it->second);
           }
         }
+      }
+      // The host's default log level for components that do not set their own.
+      if (given.count(Component::kLogLevelParam) == 0) {
+        if (Parameter* lp = params.find(Component::kLogLevelParam)) (void)lp->set_from_text(gdos::describe(host.settings.gdos.level));
       }
       for (std::size_t i = 0; i < params.size(); ++i) {
         const Parameter& prm = params.at(i);

@@ -39,6 +39,11 @@ options:
   --list-classes     print the component classes and their parameters, then exit
   -h, --help         this text
 
+The log (GDOS: executor events and the components' log calls) goes to stderr, one
+line per record, and to LCM for the gdos viewer; the host file's gdos: map sets
+levels and outputs (configs/demo.yaml), `rackctl set-param NAME gdosLevel LEVEL`
+changes a component's level at run time.
+
 exit codes: 0 clean shutdown or valid host file, 1 could not start (real-time
 required but missing, a task or the network could not start), 2 usage error or
 invalid host file (each problem printed as file:line:col: message).

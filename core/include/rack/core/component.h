@@ -32,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "rack/core/gdos.h"
 #include "rack/core/parameters.h"
 #include "rack/core/wire.h"
 #include "rack/rt/clock.h"
@@ -93,9 +94,32 @@ class Component {
   [[nodiscard]] virtual DataTaskMode data_task_mode() const noexcept { return DataTaskMode::kNone; }
   // Statistics for GET_STATS and rackd's status lines. Any thread, RT-safe.
   virtual void fill_stats(wire::StatsReply& out) const noexcept;
+  // This component as a GDOS log source (address, name, level). Any thread.
+  [[nodiscard]] const gdos::LogSource& log_source() const noexcept { return log_source_; }
+  // The standard parameter that holds the log level (every component has it).
+  static constexpr const char* kLogLevelParam = "gdosLevel";
 
  protected:
-  Component() = default;
+  Component();  // declares the standard parameter gdosLevel
+
+  // ---- logging (GDOS, rack/core/gdos.h) ----
+  // printf-style, checked at compile time, tagged with this component's address.
+  // RT-safe from the command and data tasks (no formatting, allocation, lock or
+  // system call: the arguments are copied into the task's log ring; a full ring
+  // drops and counts). From init()/cleanup() (main thread) the text is formatted
+  // at once (not RT). A TiMS address argument for %s prints as `Ladar(0/1)`.
+  // Levels: print (always), error, warning, info, detail; the threshold is the
+  // parameter gdosLevel (host file, or `rackctl set-param NAME gdosLevel warning`).
+  template <class... Args>
+  void log_print(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kPrint, f, a...); }
+  template <class... Args>
+  void log_error(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kError, f, a...); }
+  template <class... Args>
+  void log_warning(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kWarning, f, a...); }
+  template <class... Args>
+  void log_info(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kInfo, f, a...); }
+  template <class... Args>
+  void log_detail(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kDetail, f, a...); }
 
   // ---- hooks ----
   virtual void init() {}                                   // non-RT: allocate; throw on failure
@@ -179,8 +203,12 @@ class Component {
   void set_state(ComponentState s) noexcept;
 
  private:
+  void sync_log_level() noexcept;  // gdosLevel parameter -> log_source_ (RT-safe)
+
   ComponentSettings settings_;
   ParameterSet params_;
+  gdos::LogSource log_source_;
+  Parameter* log_level_param_ = nullptr;
   std::vector<std::pair<const Parameter*, tims::Address>> refs_;  // filled by the executor
   uint32_t command_slot_size_ = 1024;
   tims::Router* router_ = nullptr;

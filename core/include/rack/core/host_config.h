@@ -29,6 +29,18 @@ struct ConfigError {
   [[nodiscard]] std::string str() const;  // "file:line:col: message"
 };
 
+// GDOS on this host (the `gdos:` map of a host file; configs/demo.yaml explains it).
+struct GdosSettings {
+  gdos::Level level = gdos::kDefaultLevel;  // default gdosLevel of every component here
+  enum class Stderr : uint8_t { kAlways, kAuto, kNever };
+  Stderr to_stderr = Stderr::kAlways;      // auto: only while no gdos viewer listens
+  uint32_t ring = 256;                      // records per task ring (rounded up to a power of 2)
+  int64_t drain_ns = 20 * rt::kNsPerMs;     // how often the GDOS thread drains the rings
+  bool lcm = true;                          // publish on LCM (needs the host's lcm: true)
+  std::string lcm_url;                      // "": the host's TiMS URL
+  std::string channel = "RACK_GDOS";
+};
+
 struct HostSettings {
   std::string file;
   std::string host;               // host name (default: the machine's)
@@ -42,6 +54,7 @@ struct HostSettings {
   std::vector<std::string> plugins;
   // Mode-switch detection (the `modeswitch:` block); rackd starts the detector.
   rt::modeswitch::Config modeswitch;
+  GdosSettings gdos;
 };
 
 // A validated host: the settings, and every component constructed with its
