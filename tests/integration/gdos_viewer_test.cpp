@@ -303,3 +303,40 @@ TEST_F(GdosViewerTest, UsageAndBadArguments) {
 
 }  // namespace
 }  // namespace rack::test
+
+namespace rack::test {
+namespace {
+
+// A mode-switch report (issue 4) reaches GDOS as a warning of the component that
+// caused it, naming the reason and the system call; the report file keeps the rest.
+TEST_F(GdosViewerTest, ModeSwitchReportsArriveAsWarningsOfTheirComponent) {
+  auto viewer = start_viewer({"--json"}, "gdos");
+  ASSERT_NE(viewer, nullptr);
+  const auto file = dir_.write("ms.yaml", "host: ms-host\n"
+                                          "lcm_url: \"" + bus_.url() + "\"\n"
+                                          "heap_prefault_mib: 8\n"
+                                          "gdos: {stderr: always}\n"
+                                          "components:\n"
+                                          "  - name: demo\n"
+                                          "    class: ModeSwitchDemo\n"
+                                          "    instance: 0\n"
+                                          "    autostart: true\n"
+                                          "    data_task: {priority: 40, period_ms: 10}\n");
+  Process rackd({kRackd, file.string(), "--crash-dir", (dir_.path() / "crash").string()}, dir_.path(), "rackd");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", kStartLimit)) << rackd.err();
+  const RunResult r = ctl({"send", "demo", "21"});  // SYSCALL: write() in the command handler
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_TRUE(eventually([&] {
+    return has(records(viewer->out()), "demo", "mode switch SYSCALL", "warning");
+  })) << viewer->out() << "\nrackd:\n" << rackd.err();
+  bool names_the_call = false;
+  for (const auto& j : records(viewer->out())) {
+    names_the_call = names_the_call || (contains(j.at("text").string, "mode switch SYSCALL") &&
+                                        contains(j.at("text").string, "write(") &&
+                                        j.at("source").string == "ModeSwitchDemo(0/0)");
+  }
+  EXPECT_TRUE(names_the_call) << viewer->out();
+}
+
+}  // namespace
+}  // namespace rack::test

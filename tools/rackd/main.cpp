@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
+#include <mutex>
 #include <string>
 
 #include "rack/components/builtin.h"
@@ -66,6 +67,32 @@ void list_classes(const rack::ComponentRegistry& registry) {
 }
 
 }  // namespace
+
+// Publishes each mode-switch report as one GDOS warning line of the component that
+// caused it (the report file keeps the whole backtrace). Runs on the detector's
+// reporter thread (not RT).
+class GdosReportSink final : public rack::rt::modeswitch::ReportSink {
+ public:
+  explicit GdosReportSink(rack::Executor& executor) : executor_(&executor) {}
+  void publish(const rack::rt::modeswitch::ReportView& r, std::string_view) override {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (executor_ == nullptr) return;
+    const auto source = rack::tims::parse_address(r.label);
+    std::string line = std::string("mode switch ") + rack::rt::modeswitch::reason_name(r.reason) + " #" +
+                       std::to_string(r.sequence) + " in task " + std::string(r.task) + ": " +
+                       std::string(r.detail) + " (rack-backtrace on the report file gives the line)";
+    executor_->publish_report(rack::gdos::Level::kWarning, line, source.value_or(rack::tims::Address()),
+                              std::string(r.component));
+  }
+  void detach() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    executor_ = nullptr;
+  }
+
+ private:
+  std::mutex mutex_;
+  rack::Executor* executor_;
+};
 
 int main(int argc, char** argv) {
   std::string file, lcm_url, crash_dir;
@@ -178,6 +205,11 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "rackd: cannot start: %s\n", e.what());
     return 1;
   }
+  // Mode-switch reports also go to GDOS, as a warning of the component that caused
+  // them (Xenomai printed SIGDEBUG reports on the console; a robot's operator reads
+  // GDOS). The reporter thread calls the sink; it is detached before the executor stops.
+  const auto gdos_sink = std::make_shared<GdosReportSink>(executor);
+  rack::rt::modeswitch::add_sink(gdos_sink);
   if (executor.any_fallback() && caps.sched_fifo) {  // the probe said yes, a task was refused
     std::fprintf(stderr, "rackd: WARNING: SCHED_FIFO was refused; tasks run SCHED_OTHER.\n");
   }
@@ -211,6 +243,7 @@ int main(int argc, char** argv) {
                signal_number != 0 ? strsignal(signal_number) : "duration elapsed");
   std::fprintf(stdout, "final status:\n%s", executor.status_report().c_str());
   std::fflush(stdout);
+  gdos_sink->detach();
   executor.stop();
   const auto counts = rack::rt::modeswitch::counters();
   rack::rt::modeswitch::stop();
