@@ -28,6 +28,7 @@ using namespace std::chrono_literals;
 
 const std::string kRackd = RACK_RACKD_PATH;
 const std::string kRackctl = RACK_RACKCTL_PATH;
+const std::string kConfigs = RACK_CONFIGS_DIR;
 
 constexpr auto kTestLimit = 110s;
 constexpr auto kCommandLimit = 30s;
@@ -249,6 +250,121 @@ TEST_F(MultiHostTest, LinkDownAndUp) {
   net_->set_link(0, true);
   EXPECT_TRUE(eventually([&] { return state_of(1, "monitor1") == "ENABLED" && receiving(1, "monitor1"); }));
   EXPECT_TRUE(eventually([&] { return state_of(2, "monitor2") == "ENABLED" && receiving(2, "monitor2"); }));
+}
+
+// ------------------------------------------------------------------ two robots
+
+// The shipped example (configs/two_robots/): robot 1 (system router + sensor computer),
+// robot 2 (system router with a consumer of robot 1's scanner), a base station with
+// the top router. Each computer in its own namespace; the example's ports are
+// replaced by this test's private ones.
+class TwoRobotsTest : public MultiHostTest {
+ protected:
+  void SetUp() override {
+    if (const auto why = NetnsTopology::unsupported_reason()) GTEST_SKIP() << *why;
+    net_ = std::make_unique<NetnsTopology>(4);
+  }
+  std::string example(const std::string& name) {
+    std::string text = read_file(kConfigs + "/two_robots/" + name);
+    const auto swap = [&](const std::string& from, int port) {
+      for (auto at = text.find(from); at != std::string::npos; at = text.find(from, at + 1)) {
+        std::string to = ":";
+        to += std::to_string(port);
+        to += '?';
+        text.replace(at, from.size(), to);
+      }
+    };
+    swap(":7711?", robot1_.port());
+    swap(":7712?", robot2_.port());
+    swap(":7700?", fleet_.port());
+    return text;
+  }
+  RunResult ctl_on(int host, const std::string& url, std::vector<std::string> args) {
+    args.insert(args.begin(), {kRackctl, "--lcm", url, "--discover-ms", "3000", "--timeout", "1500"});
+    return run(args, kCommandLimit, net_->host(host));
+  }
+  std::string state_on(int host, const std::string& url, const std::string& name) {
+    const RunResult r = ctl_on(host, url, {"status", name, "--json"});
+    const auto j = r.exit_code == 0 ? parse_json(r.out) : std::nullopt;
+    const Json* v = j ? j->get("state") : nullptr;
+    return v != nullptr && v->is_string() ? v->string : "";
+  }
+  double cycles_on(int host, const std::string& url, const std::string& name) {
+    const RunResult r = ctl_on(host, url, {"status", name, "--json"});
+    const auto j = r.exit_code == 0 ? parse_json(r.out) : std::nullopt;
+    const Json* v = j ? j->get("cycles") : nullptr;
+    return v != nullptr && v->is_number() ? v->number : -1;
+  }
+  // The last "packets in N" that a rackd printed in its status lines.
+  static uint64_t packets_in(Process& p) {
+    const std::string out = p.out();
+    const auto at = out.rfind("packets in ");
+    return at == std::string::npos ? 0 : std::strtoull(out.c_str() + at + 11, nullptr, 10);
+  }
+  std::string url(const LcmBus& bus) const {
+    return "udpm://239.255.76.68:" + std::to_string(bus.port()) + "?ttl=1";
+  }
+  std::string robot_url(const LcmBus& bus) const {
+    return "udpm://239.255.76.67:" + std::to_string(bus.port()) + "?ttl=1";
+  }
+
+  LcmBus robot1_, robot2_, fleet_;
+};
+
+TEST_F(TwoRobotsTest, RoutersCarryFleetTrafficAndKeepRobotTrafficHome) {
+  Process* base = start_host(3, example("base_station.yaml"));
+  ASSERT_NE(base, nullptr);
+  ASSERT_NE(start_host(1, example("robot1_aux.yaml")), nullptr);
+  ASSERT_NE(start_host(0, example("robot1_main.yaml")), nullptr);
+  ASSERT_NE(start_host(2, example("robot2_main.yaml")), nullptr);
+  const std::string fleet = url(fleet_);
+  const std::string robot1 = robot_url(robot1_);
+
+  // Robot 1's internal consumer and robot 2's cross-robot consumer both run.
+  EXPECT_TRUE(eventually([&] { return state_on(0, robot1, "nav-monitor") == "ENABLED"; }));
+  EXPECT_TRUE(eventually([&] { return state_on(3, fleet, "fleet-monitor") == "ENABLED"; }));
+  EXPECT_TRUE(eventually([&] {
+    const double before = cycles_on(3, fleet, "fleet-monitor");
+    std::this_thread::sleep_for(500ms);
+    return before >= 0 && cycles_on(3, fleet, "fleet-monitor") > before;
+  }));
+
+  // From the base station (fleet link): every component of every robot, and RPC into
+  // robot 1's internal bus through its system router.
+  const RunResult list = ctl_on(3, fleet, {"list"});
+  ASSERT_EQ(list.exit_code, 0) << list.describe();
+  for (const char* want : {"Generator(1/0)", "Monitor(1/1)", "Monitor(2/0)", "robot1-aux", "robot2-main"}) {
+    EXPECT_TRUE(contains(list.out, want)) << want << "\n" << list.describe();
+  }
+  EXPECT_FALSE(contains(list.out, "no reply")) << list.describe();
+  RunResult r = ctl_on(3, fleet, {"get-data", "scanner"});
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+  // From robot 1's bus to robot 2 and back.
+  r = ctl_on(1, robot1, {"status", "fleet-monitor"});
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+
+  // NOT_AVAILABLE: a robot nobody knows (the top router answers), a mailbox robot 1
+  // does not have (robot 1's system router answers).
+  r = ctl_on(3, fleet, {"status", "Generator(7/0)"});
+  EXPECT_EQ(r.exit_code, 3) << r.describe();
+  EXPECT_TRUE(contains(r.err, "NOT_AVAILABLE")) << r.describe();
+  r = ctl_on(3, fleet, {"status", "Generator(1/9)"});
+  EXPECT_TRUE(contains(r.err, "NOT_AVAILABLE")) << r.describe();
+  r = ctl_on(1, robot1, {"status", "Generator(1/9)"});
+  EXPECT_TRUE(contains(r.err, "NOT_AVAILABLE")) << r.describe();
+
+  // Robot 1's 100 Hz internal stream stays off the fleet link: over the same few
+  // seconds the top router hears far fewer TiMS packets than robot 1's internal
+  // consumer receives samples (only robot 2's 10 Hz subscription crosses).
+  std::this_thread::sleep_for(1500ms);
+  const uint64_t fleet_before = packets_in(*base);
+  const double internal_before = cycles_on(0, robot1, "nav-monitor");
+  std::this_thread::sleep_for(3s);
+  const uint64_t fleet_packets = packets_in(*base) - fleet_before;
+  const double internal = cycles_on(0, robot1, "nav-monitor") - internal_before;
+  EXPECT_GT(internal, 100) << "robot 1's internal stream is not flowing";
+  EXPECT_LT(static_cast<double>(fleet_packets), internal / 2)
+      << "fleet link carried " << fleet_packets << " TiMS packets while robot 1's consumer got " << internal;
 }
 
 }  // namespace

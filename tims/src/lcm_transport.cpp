@@ -732,13 +732,14 @@ struct LcmTransport::Impl {
       else rebuild_owners_locked();  // cheap; components may have changed in place
     }
     if (!replaced.empty()) warn("restart " + replaced, [&] { return replaced; });
-    // Routers pass announcements on like messages: a robot's own outwards, other
-    // robots' inwards.
+    // Routers pass announcements on: a robot's own outwards, other robots' inwards.
     if ((role() == NodeRole::kSystemRouter || role() == NodeRole::kTopRouter) && a.hops < kMaxHops) {
       for (auto& out : networks) {
-        if (out.get() == &n || !should_forward(n.config.scope, out->config.scope, static_cast<uint8_t>(a.system))) {
-          continue;
-        }
+        // The opposite direction of messages: a robot's own hosts are made known to
+        // the fleet, other robots' hosts to the robot.
+        if (out.get() == &n || n.config.scope == out->config.scope) continue;
+        const bool own = static_cast<uint8_t>(a.system) == own_system;
+        if (own != (n.config.scope == NetworkScope::kRobot)) continue;
         rack_lcm::host_announce f = a;
         f.relay = origin;
         f.hops = static_cast<int8_t>(a.hops + 1);
