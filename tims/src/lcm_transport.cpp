@@ -68,9 +68,12 @@ constexpr int8_t kMaxHops = 4;
 constexpr std::size_t kMinComponentBytes = 4 + 5 + 5;
 
 void put_be(uint8_t* p, uint64_t v, int bytes) {
-  for (int i = bytes - 1; i >= 0; --i) {
-    p[i] = static_cast<uint8_t>(v);
-    v >>= 8;
+  if (bytes == 8) {
+    v = __builtin_bswap64(v);
+    std::memcpy(p, &v, 8);
+  } else {
+    auto w = __builtin_bswap32(static_cast<uint32_t>(v));
+    std::memcpy(p, &w, 4);
   }
 }
 uint64_t get_be(const uint8_t* p, int bytes) {
