@@ -279,7 +279,7 @@ struct HostLoader {
         error(node.Mark(), "a component is a map (name, class, instance, tasks, params)");
         continue;
       }
-      check_keys(node, {"name", "class", "instance", "autostart", "retry_ms", "rpc_timeout_ms",
+      check_keys(node, {"name", "class", "instance", "autostart", "retry_ms", "rpc_timeout_ms", "rpc_retries",
                         "command_task", "data_task", "params"},
                  "a component");
       std::string name, impl;
@@ -305,6 +305,9 @@ struct HostLoader {
       get(node, "autostart", s.autostart, "true or false");
       get_positive_ms(node, "retry_ms", s.retry_ns);
       get_positive_ms(node, "rpc_timeout_ms", s.rpc_timeout_ns);
+      if (int64_t retries = 0; get_int_range(node, "rpc_retries", 0, 10, retries, "a number of retries 0..10")) {
+        s.rpc_retries = static_cast<uint32_t>(retries);
+      }
 
       std::unique_ptr<Component> component;
       try {

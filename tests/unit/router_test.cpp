@@ -189,6 +189,49 @@ TEST_F(EndpointTest, StaleReplyWithAnotherSequenceIsDiscardedAndCounted) {
   EXPECT_EQ(client.stale_replies(), 1u);
 }
 
+TEST_F(EndpointTest, RetryAfterALostRequestGetsTheReplyAndALateReplyIsStale) {
+  Watchdog dog;
+  Endpoint client(router_, client_box_, 5);
+  Endpoint server(router_, server_box_, 5);
+  // The first request is "lost" (never answered in time); the second is answered, and
+  // only then the late answer to the first arrives.
+  std::thread t([&] {
+    alignas(8) std::array<std::byte, 512> b{};
+    const auto first = server_box_.receive(b, 10 * rt::kNsPerSec);
+    ASSERT_EQ(first.status, RecvStatus::kOk);
+    const auto second = server_box_.receive(b, 10 * rt::kNsPerSec);
+    ASSERT_EQ(second.status, RecvStatus::kOk);
+    EXPECT_NE(first.header.seq, second.header.seq);
+    (void)server.reply(second.header, msg::kOk);
+    (void)server.reply(first.header, msg::kError);
+  });
+  const auto r = client.call_with_retry(kServer, msg::kOn, {}, buf_, RetryPolicy{200 * rt::kNsPerMs, 3});
+  t.join();
+  ASSERT_EQ(r.status, CallStatus::kOk);
+  EXPECT_EQ(r.reply.type, msg::kOk);
+  EXPECT_EQ(client.retries(), 1u);
+  // The late ERROR to the first attempt is discarded by the next call.
+  auto t2 = serve_one([&](const MessageHeader& req) { (void)server.reply(req, msg::kOk); });
+  const auto r2 = client.call(kServer, msg::kGetStatus, buf_, test::kCallTimeoutNs);
+  t2.join();
+  EXPECT_EQ(r2.reply.type, msg::kOk);
+  EXPECT_EQ(client.stale_replies(), 1u);
+}
+
+TEST_F(EndpointTest, RetriesStopAtTheLastAttemptAndNeverAfterAReply) {
+  Watchdog dog;
+  Endpoint client(router_, client_box_, 5);
+  auto r = client.call_with_retry(kServer, msg::kOn, {}, buf_, RetryPolicy{50 * rt::kNsPerMs, 3});
+  EXPECT_EQ(r.status, CallStatus::kTimeout);
+  EXPECT_EQ(client.retries(), 2u);
+  EXPECT_EQ(server_box_.queued(), 3u);  // three attempts were sent
+  // NOT_AVAILABLE is an answer: no retry.
+  r = client.call_with_retry(kUnknown, msg::kOn, {}, buf_, RetryPolicy{50 * rt::kNsPerMs, 3});
+  EXPECT_EQ(r.status, CallStatus::kOk);
+  EXPECT_EQ(r.reply.type, msg::kNotAvailable);
+  EXPECT_EQ(client.retries(), 2u);
+}
+
 TEST_F(EndpointTest, ReplyFromTheWrongSourceIsNotAccepted) {
   Watchdog dog;
   Endpoint client(router_, client_box_, 5);

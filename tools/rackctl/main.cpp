@@ -90,6 +90,8 @@ options:
   --lcm URL          TiMS/LCM network (default: $LCM_DEFAULT_URL, else
                      udpm://239.255.76.67:7667?ttl=0)
   --timeout MS       how long to wait for each reply (default 2000)
+  --retries N        ask again this often when no reply came in time (default 1;
+                     a datagram on a network link can be lost)
   --discover-ms MS   how long to wait for announcements (default 300)
   -h, --help         this text; after a command: the command's help
 
@@ -101,6 +103,7 @@ struct Options {
   std::string lcm_url;
   int64_t timeout_ms = 2000;
   int64_t discover_ms = 300;
+  int64_t retries = 1;
   bool json = false;
   bool help = false;
   int64_t time_ns = 0;     // get-data --time
@@ -268,14 +271,15 @@ class Session {
   // A request that must be answered; timeouts and NOT_AVAILABLE end the command
   // (exit 3). The result's body points into buffer() until the next call.
   CallResult call(const Target& t, int8_t type, std::span<const ConstBuffer> body = {}) {
-    const CallResult r = endpoint_.call(t.address, type, body, buffer_, timeout_ns());
+    const CallResult r = endpoint_.call_with_retry(
+        t.address, type, body, buffer_, {timeout_ns(), static_cast<uint32_t>(options_.retries + 1)});
     const char* what = msg::name(type) != nullptr ? msg::name(type) : "request";
     switch (r.status) {
       case CallStatus::kOk: break;
       case CallStatus::kTimeout:
-        fail(kExitUnavailable, format("%s: no reply to %s within %lld ms (is its rackd running on %s?)",
+        fail(kExitUnavailable, format("%s: no reply to %s within %lld ms, %lld attempt(s) (is its rackd running on %s?)",
                                       t.label().c_str(), what, static_cast<long long>(options_.timeout_ms),
-                                      url().c_str()));
+                                      static_cast<long long>(options_.retries + 1), url().c_str()));
       default:
         fail(kExitUnavailable, t.label() + ": " + what + ": " + tims::describe(r.status));
     }
@@ -315,6 +319,11 @@ class Session {
     c.url = o.lcm_url.empty() ? default_lcm_url() : o.lcm_url;
     c.uplink_slots = 32;
     c.announce_period_ns = 0;  // a tool announces nothing
+    c.role = tims::NodeRole::kTool;
+    // Its mailboxes take 64 KiB messages: no need for 4 MiB reassembly buffers.
+    c.max_message_bytes = kSlotSize;
+    c.reassembly_slots = 2;
+    c.large_slots = 1;
     c.warn = [](const std::string& s) { std::fprintf(stderr, "rackctl: %s\n", s.c_str()); };
     return c;
   }
@@ -789,6 +798,10 @@ Options parse_arguments(int argc, char** argv) {
       if (o.timeout_ms == 0) fail(kExitUsage, "--timeout needs at least 1 ms");
     }
     else if (a == "--discover-ms") o.discover_ms = non_negative("a number of milliseconds");
+    else if (a == "--retries") {
+      o.retries = non_negative("a number of retries");
+      if (o.retries > 10) fail(kExitUsage, "--retries takes 0..10");
+    }
     else if (a == "--time") { o.time_ns = non_negative("a host time in ns (0: newest)"); o.given.insert(a); }
     else if (a == "--count") {
       o.count = non_negative("a number of samples");
