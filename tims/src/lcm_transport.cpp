@@ -523,7 +523,7 @@ struct LcmTransport::Impl {
     }
     const auto* data = reinterpret_cast<const std::byte*>(d + kPacketPrefix);
     if (offset == 0 && chunk == encoded) {  // one chunk: the common case
-      return take_stream(n, data, static_cast<uint32_t>(encoded), static_cast<uint32_t>(total), encoding, pkt_origin,
+      return take_stream(n, data, false, static_cast<uint32_t>(encoded), static_cast<uint32_t>(total), encoding, pkt_origin,
                          mseq, hops);
     }
     Reassembly* slot = nullptr;
@@ -563,13 +563,15 @@ struct LcmTransport::Impl {
     std::memcpy(slot->data.data() + offset, data, static_cast<std::size_t>(chunk));
     if (slot->received == slot->chunks) {
       slot->used = false;
-      take_stream(n, slot->data.data(), slot->encoded, slot->total, slot->encoding, slot->origin, slot->message_seq,
+      take_stream(n, slot->data.data(), true, slot->encoded, slot->total, slot->encoding, slot->origin, slot->message_seq,
                   slot->hops);
     }
   }
 
-  // A whole encoded message: decode into n.message, then handle it.
-  void take_stream(Network& n, const std::byte* stream, uint32_t encoded, uint32_t total, int8_t encoding,
+  // A whole encoded message: decode it (into n.message, or in place when `stream` is
+  // our own reassembly buffer: a 4 MiB message is not copied once more), then handle it.
+  void take_stream(Network& n, const std::byte* stream, bool own_buffer, uint32_t encoded, uint32_t total,
+                   int8_t encoding,
                    int64_t msg_origin, int32_t mseq, int8_t hops) {
     if (encoding == 1) {
       const unsigned long long size = ZSTD_getFrameContentSize(stream, encoded);
@@ -583,15 +585,17 @@ struct LcmTransport::Impl {
                  (ZSTD_isError(got) != 0 ? ZSTD_getErrorName(got) : "wrong size");
         });
       }
+    } else if (own_buffer) {
+      return handle_message(n, const_cast<std::byte*>(stream), total, msg_origin, mseq, hops);
     } else {
       std::memcpy(n.message.data(), stream, total);
     }
-    handle_message(n, total, msg_origin, mseq, hops);
+    handle_message(n, n.message.data(), total, msg_origin, mseq, hops);
   }
 
-  void handle_message(Network& n, uint32_t len, int64_t msg_origin, int32_t mseq, int8_t hops) {
+  void handle_message(Network& n, std::byte* msg, uint32_t len, int64_t msg_origin, int32_t mseq, int8_t hops) {
     bump(messages_in);
-    const std::span<const std::byte> bytes(n.message.data(), len);
+    const std::span<const std::byte> bytes(msg, len);
     MessageHeader h;
     const MessageError err = decode_header(bytes, h);
     if (err != MessageError::kOk) {
@@ -629,7 +633,7 @@ struct LcmTransport::Impl {
                ", which does not own " + h.source().str();
       });
     }
-    std::memcpy(n.message.data(), &h, sizeof h);  // header in host byte order
+    std::memcpy(msg, &h, sizeof h);  // header in host byte order
     if (router.find(h.destination()) != nullptr) {
       const SendStatus s = router.deliver_local(bytes);
       if (!delivered(s)) {
@@ -649,21 +653,22 @@ struct LcmTransport::Impl {
       (void)publish_message(n, raw, sizeof raw, origin, 0, 0, next_message_seq());
       return;
     }
-    if (forward_message(n, h, len, msg_origin, mseq, hops)) return;
+    if (forward_message(n, msg, h, len, msg_origin, mseq, hops)) return;
     bump(not_for_us);
   }
 
   int32_t next_message_seq() { return message_seq.fetch_add(1, std::memory_order_relaxed) + 1; }
 
   // Routers: relays a message heard on `in` to the networks where it belongs.
-  bool forward_message(Network& in, const MessageHeader& h, uint32_t len, int64_t msg_origin, int32_t mseq,
+  bool forward_message(Network& in, const std::byte* msg, const MessageHeader& h, uint32_t len, int64_t msg_origin,
+                       int32_t mseq,
                        int8_t hops) {
     if (role() != NodeRole::kSystemRouter && role() != NodeRole::kTopRouter) return false;
     if (hops >= kMaxHops) return false;
     bool any = false;
     for (auto& out : networks) {
       if (out.get() == &in || !should_forward(in.config.scope, out->config.scope, h.destination().system())) continue;
-      if (publish_message(*out, in.message.data(), len, msg_origin, origin, static_cast<int8_t>(hops + 1), mseq)) {
+      if (publish_message(*out, msg, len, msg_origin, origin, static_cast<int8_t>(hops + 1), mseq)) {
         bump(forwarded);
         any = true;
       }

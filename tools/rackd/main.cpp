@@ -29,7 +29,8 @@ options:
   --duration SEC     shut down by itself after SEC seconds (as on SIGTERM)
   --status SEC       print each component's state and timing every SEC seconds
                      (default 0: only at shutdown)
-  --lcm URL          TiMS/LCM network, instead of the host file's lcm_url
+  --lcm URL          TiMS/LCM network, instead of the host file's lcm_url (or of
+                     the first network under 'tims: networks:')
   --list-classes     print the component classes and their parameters, then exit
   -h, --help         this text
 
