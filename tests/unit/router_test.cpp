@@ -135,6 +135,32 @@ TEST_F(RouterTest, DeliverLocalAnswersOnlyForItsOwnSystem) {
   EXPECT_EQ(client_box_.queued(), 1u);
 }
 
+TEST_F(RouterTest, SharedSystemSendsUnknownOwnAddressesToTheUplinkAndLeavesAnswersToIt) {
+  Mailbox uplink(Address::make(kSys, classes::kExecutor, 0, 7), 4, 512);
+  Mailbox large(Address::make(kSys, classes::kExecutor, 0, 8), 1, 4096);
+  router_.set_uplink(&uplink, &large);
+  router_.set_system_shared(true);
+  const Tag t{5, 0};
+  // Another host of this robot may own it: out it goes, no NOT_AVAILABLE here.
+  EXPECT_EQ(router_.send(test::tag_header(kUnknown, kClient, 1, msg::kOn), {buffer_of(t)}), SendStatus::kOk);
+  EXPECT_EQ(uplink.queued(), 1u);
+  EXPECT_EQ(client_box_.queued(), 0u);
+  // Larger than the uplink's slots: the large uplink.
+  std::array<std::byte, 1000> big{};
+  const MessageHeader h = make_header(kUnknown, kClient, msg::kData, 1, 2, big.size());
+  EXPECT_EQ(router_.send(h, {ConstBuffer{big.data(), big.size()}}), SendStatus::kOk);
+  EXPECT_EQ(large.queued(), 1u);
+  // From the network: not ours to answer either (the transport decides).
+  alignas(8) std::array<std::byte, sizeof(MessageHeader)> raw{};
+  const MessageHeader req = make_header(kUnknown, kClient, msg::kGetStatus, 1, 4, 0);
+  std::memcpy(raw.data(), &req, sizeof req);
+  EXPECT_EQ(router_.deliver_local(raw), SendStatus::kNotAvailable);
+  EXPECT_EQ(router_.counters().not_available, 0u);
+  EXPECT_EQ(client_box_.queued(), 0u);
+  router_.set_uplink(nullptr);
+  router_.set_system_shared(false);
+}
+
 class EndpointTest : public RouterTest {
  protected:
   // Serves one request on the server mailbox with `respond`, from another thread.
