@@ -258,12 +258,14 @@ BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, co
   std::atomic<int64_t> last{0};
   std::atomic<bool> stop{false};
   std::thread reader([&] {
-    std::vector<std::byte> buf(size + 64);
+    // Zero-copy, as a component reads large messages (peek/peek_end); the raw LCM
+    // handler does not copy either.
     while (!stop.load()) {
-      const auto r = rx.inbox.receive(buf, 50 * rt::kNsPerMs);
+      const auto r = rx.inbox.peek(50 * rt::kNsPerMs);
       if (r.status != tims::RecvStatus::kOk) continue;
       received.fetch_add(1);
-      bytes.fetch_add(r.length - sizeof(tims::MessageHeader));
+      bytes.fetch_add(r.body.size());
+      rx.inbox.peek_end();
       last.store(rt::monotonic_ns());
     }
   });
@@ -277,7 +279,7 @@ BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, co
     // Back-pressure like a blocking publish(): at most two messages queued for the
     // sender (the large uplink has four slots; when full, it drops its oldest).
     while (tx.transport->counters().messages_out - before.messages_out + 2 < static_cast<uint64_t>(i + 1)) {
-      std::this_thread::yield();
+      rt::sleep_for(20 * rt::kNsPerUs);  // not a spin: it would take a CPU from the sender
     }
   }
   rt::sleep_for(700 * rt::kNsPerMs);

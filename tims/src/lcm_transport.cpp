@@ -6,6 +6,7 @@
 #include <zstd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cstring>
 #include <iostream>
@@ -279,9 +280,12 @@ struct LcmTransport::Impl {
 
   // ------------------------------------------------------------------ publishing
   // Publishes one TiMS message (host byte order header at the start) on `n`, chunked
-  // and compressed as the network says. Any non-RT thread.
+  // and compressed as the network says. `writable`: the caller owns `msg` and lets it
+  // be used as scratch (restored before return), so that chunks after the first go out
+  // in place (the 50-byte prefix written over the tail of the chunk before, which has
+  // been sent) instead of being copied into the packet buffer first. Any non-RT thread.
   bool publish_message(Network& n, const std::byte* msg, uint32_t len, int64_t msg_origin, int64_t relay,
-                       int8_t hops, int32_t seq) {
+                       int8_t hops, int32_t seq, bool writable = false) {
     std::lock_guard lock(n.publish_mutex);
     const std::byte* stream = msg;
     uint32_t encoded = len;
@@ -292,32 +296,44 @@ struct LcmTransport::Impl {
         stream = n.compressed.data();
         encoded = static_cast<uint32_t>(c);
         encoding = 1;
+        writable = true;  // our own buffer
         bump(compressed_out);
       }
     }
-    uint8_t* p = n.packet.data();
-    put_be(p + kOffOrigin, static_cast<uint64_t>(msg_origin), 8);
-    put_be(p + kOffRelay, static_cast<uint64_t>(relay), 8);
-    put_be(p + kOffMessageSeq, static_cast<uint32_t>(seq), 4);
-    put_be(p + kOffTotal, len, 4);
-    put_be(p + kOffEncoded, encoded, 4);
-    p[kOffEncoding] = static_cast<uint8_t>(encoding);
-    p[kOffHops] = static_cast<uint8_t>(hops);
     bool ok = true;
-    for (uint32_t off = 0; off < encoded || (encoded == 0 && off == 0); off += kChunk) {
+    for (uint32_t off = 0; off < encoded; off += kChunk) {
       const uint32_t size = std::min(kChunk, encoded - off);
+      const bool in_place = writable && off >= kPacketPrefix;
+      std::array<uint8_t, kPacketPrefix> saved{};
+      uint8_t* p = nullptr;
+      if (in_place) {
+        // const_cast: `writable` says the caller owns this memory exclusively.
+        p = reinterpret_cast<uint8_t*>(const_cast<std::byte*>(stream + off - kPacketPrefix));
+        std::memcpy(saved.data(), p, kPacketPrefix);
+      } else {
+        p = n.packet.data();
+        std::memcpy(p + kPacketPrefix, stream + off, size);
+      }
+      put_be(p, static_cast<uint64_t>(rack_lcm::tims_packet::getHash()), 8);
+      put_be(p + kOffOrigin, static_cast<uint64_t>(msg_origin), 8);
+      put_be(p + kOffRelay, static_cast<uint64_t>(relay), 8);
       put_be(p + kOffPacketSeq, ++n.packet_seq, 4);
+      put_be(p + kOffMessageSeq, static_cast<uint32_t>(seq), 4);
+      put_be(p + kOffTotal, len, 4);
+      put_be(p + kOffEncoded, encoded, 4);
       put_be(p + kOffOffset, off, 4);
+      p[kOffEncoding] = static_cast<uint8_t>(encoding);
+      p[kOffHops] = static_cast<uint8_t>(hops);
       put_be(p + kOffSize, size, 4);
-      std::memcpy(p + kPacketPrefix, stream + off, size);
-      if (n.lcm->publish(kTimsChannel, p, static_cast<unsigned>(kPacketPrefix + size)) != 0) {
+      const int rc = n.lcm->publish(kTimsChannel, p, static_cast<unsigned>(kPacketPrefix + size));
+      if (in_place) std::memcpy(p, saved.data(), kPacketPrefix);
+      if (rc != 0) {
         bump(publish_errors);
         ok = false;
         warn("publish", [&] { return "TiMS/LCM: publish on " + n.config.url + " failed"; });
         break;
       }
       bump(packets_out);
-      if (encoded == 0) break;
     }
     if (ok) {
       bump(messages_out);
@@ -668,7 +684,7 @@ struct LcmTransport::Impl {
     bool any = false;
     for (auto& out : networks) {
       if (out.get() == &in || !should_forward(in.config.scope, out->config.scope, h.destination().system())) continue;
-      if (publish_message(*out, msg, len, msg_origin, origin, static_cast<int8_t>(hops + 1), mseq)) {
+      if (publish_message(*out, msg, len, msg_origin, origin, static_cast<int8_t>(hops + 1), mseq, true)) {
         bump(forwarded);
         any = true;
       }
@@ -862,8 +878,9 @@ struct LcmTransport::Impl {
         continue;
       }
       const int32_t seq = next_message_seq();
+      // The peeked slot is ours until peek_end(): chunks may go out in place.
       for_networks_to(h.destination(),
-                      [&](Network& n) { (void)publish_message(n, bytes, h.length, origin, 0, 0, seq); });
+                      [&](Network& n) { (void)publish_message(n, bytes, h.length, origin, 0, 0, seq, true); });
       box.peek_end();
     }
   }
