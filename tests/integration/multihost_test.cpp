@@ -237,6 +237,19 @@ TEST_F(MultiHostTest, SigkillOfTheProducerHostAndRecovery) {
   EXPECT_TRUE(eventually([&] { return state_of(2, "monitor2") == "ENABLED" && receiving(2, "monitor2"); }));
 }
 
+TEST_F(MultiHostTest, ProducerStopsStreamingToAKilledConsumerHost) {
+  start_three();
+  ASSERT_TRUE(eventually([&] { return number_of(0, "generator", "listeners") == 2; }));
+  rackd_[1]->signal(SIGKILL);  // host b, monitor1's host
+  ASSERT_TRUE(rackd_[1]->wait_exit(kCommandLimit).has_value());
+  // After the expiry the producer's host tells the generator to drop that listener;
+  // host c's stream goes on.
+  EXPECT_TRUE(eventually([&] { return number_of(0, "generator", "listeners") == 1; }, 15s));
+  EXPECT_TRUE(receiving(2, "monitor2"));
+  EXPECT_TRUE(contains(rackd_[0]->err(), "expired")) << rackd_[0]->err();
+  rackd_.erase(rackd_.begin() + 1);  // nothing to stop there
+}
+
 TEST_F(MultiHostTest, LinkDownAndUp) {
   start_three();
   ASSERT_TRUE(eventually([&] { return state_of(1, "monitor1") == "ENABLED" && receiving(1, "monitor1"); }));

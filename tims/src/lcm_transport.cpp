@@ -197,6 +197,7 @@ struct LcmTransport::Impl {
         uplink(Address::make(kToolSystem, classes::kTool, 0xFF, 0xFF), config.uplink_slots, config.uplink_slot_size),
         large_uplink(Address::make(kToolSystem, classes::kTool, 0xFF, 0xFE), std::max<uint32_t>(config.large_slots, 1),
                      std::max(config.max_message_bytes, config.uplink_slot_size)),
+        control(Address::make(kToolSystem, classes::kTool, 0xFF, 0xFD), 16, 512),
         warn(config.warn ? config.warn : [](const std::string& s) { std::cerr << s << std::endl; }) {
     if (config.networks.empty()) {
       NetworkConfig n;
@@ -217,6 +218,7 @@ struct LcmTransport::Impl {
   const int64_t origin;
   Mailbox uplink;
   Mailbox large_uplink;
+  Mailbox control;  // replies to the transport's own requests (STOP_CONT_DATA), drained
   RateLimitedWarn warn;
   std::vector<std::unique_ptr<Network>> networks;
   std::thread sender, large_sender, maintenance;
@@ -229,6 +231,10 @@ struct LcmTransport::Impl {
   std::map<int64_t, HostEntry> hosts;                  // by origin
   std::unordered_map<uint32_t, int64_t> owners;        // component address -> origin
   std::vector<Subscription> subscriptions;
+  // Streams that leave this host: (local producer component << 32 | remote listener
+  // mailbox). When the listener's host is lost, the producer is told to stop
+  // (STOP_CONT_DATA), or it would stream into the void for good.
+  std::unordered_map<uint64_t, int64_t> streams;
   uint8_t own_system = 0;
   uint8_t own_host_id = 0;
 
@@ -238,7 +244,7 @@ struct LcmTransport::Impl {
 
   std::atomic<uint64_t> packets_in{0}, packets_out{0}, messages_in{0}, messages_out{0}, malformed{0}, forged{0},
       not_for_us{0}, forwarded{0}, not_available{0}, sequence_gaps{0}, lost_messages{0}, publish_errors{0},
-      delivery_failed{0}, hosts_expired{0}, subscriptions_failed{0}, compressed_out{0}, bytes_out{0},
+      delivery_failed{0}, hosts_expired{0}, subscriptions_failed{0}, streams_stopped{0}, compressed_out{0}, bytes_out{0},
       wire_bytes_out{0};
 
   // ------------------------------------------------------------------ set-up
@@ -416,6 +422,20 @@ struct LcmTransport::Impl {
       (void)router.send(h, std::span<const ConstBuffer>(&part, 1));
       bump(subscriptions_failed);
       it = subscriptions.erase(it);
+    }
+    for (auto st = streams.begin(); st != streams.end();) {
+      const auto listener = static_cast<uint32_t>(st->first);
+      if (gone.count(Address(listener).component().raw()) == 0) {
+        ++st;
+        continue;
+      }
+      const Address producer(static_cast<uint32_t>(st->first >> 32));
+      const uint32_t body[2] = {listener, 0};  // rack::wire::StopContDataRequest
+      const MessageHeader h = make_header(producer, control.address(), msg::kStopContData, 0, 0, sizeof body);
+      const ConstBuffer part{body, sizeof body};
+      (void)router.send(h, std::span<const ConstBuffer>(&part, 1));
+      bump(streams_stopped);
+      st = streams.erase(st);
     }
   }
 
@@ -824,6 +844,7 @@ struct LcmTransport::Impl {
         next_announce = rt::monotonic_ns() + config.announce_period_ns;
       }
       expire_hosts();
+      while (control.peek(Mailbox::kNonBlocking).status == RecvStatus::kOk) control.peek_end();
     }
   }
 
@@ -861,6 +882,10 @@ struct LcmTransport::Impl {
       {
         std::lock_guard lock(table_mutex);
         track_subscription_locked(h, p.body);
+        if (h.type == msg::kData && router.find(h.source()) != nullptr) {
+          const uint64_t key = (uint64_t{h.source().component().raw()} << 32) | h.dest;
+          if (streams.size() < 4096 || streams.count(key) != 0) streams[key] = rt::monotonic_ns();
+        }
         if (h.destination().system() != kToolSystem && !known_locked(h.destination()) &&
             authoritative_locked(h.destination().system())) {
           (h.is_request() ? answer_na : drop) = true;
@@ -898,6 +923,7 @@ void LcmTransport::start() {
   if (m.running.exchange(true)) return;
   m.started_ns = rt::monotonic_ns();
   m.router.set_uplink(&m.uplink, &m.large_uplink);
+  m.router.add(m.control);
   for (auto& n : m.networks) {
     Impl::Network* net = n.get();
     net->receiver = std::thread([&m, net] { m.receive_loop(*net); });
@@ -915,6 +941,7 @@ void LcmTransport::stop() {
   m.router.set_uplink(nullptr);
   m.uplink.close();
   m.large_uplink.close();
+  m.router.remove(m.control.address());
   for (auto& n : m.networks) {
     if (n->receiver.joinable()) n->receiver.join();
   }
@@ -1001,6 +1028,7 @@ TransportCounters LcmTransport::counters() const noexcept {
   c.delivery_failed = r(m.delivery_failed);
   c.hosts_expired = r(m.hosts_expired);
   c.subscriptions_failed = r(m.subscriptions_failed);
+  c.streams_stopped = r(m.streams_stopped);
   c.compressed_out = r(m.compressed_out);
   c.bytes_out = r(m.bytes_out);
   c.wire_bytes_out = r(m.wire_bytes_out);

@@ -30,7 +30,9 @@
 // replaced (same system and host id, new origin: it restarted). Every local
 // subscription (GET_CONT_DATA sent from here) to a component of that host gets an
 // ERROR message in the producer's name, as a producer going OFF sends; the consumer
-// goes to ERROR and re-subscribes by its own retry when the host returns.
+// goes to ERROR and re-subscribes by its own retry when the host returns. In the
+// other direction, every local producer that streams to a mailbox of that host gets a
+// STOP_CONT_DATA for it, so it does not stream into the void.
 //
 // Bad input (not a tims_packet, wrong lengths, bad chunk fields, bad header, forged
 // source, own echo with a foreign origin) is dropped, counted and logged at most once
@@ -112,6 +114,7 @@ struct TransportCounters {
   uint64_t delivery_failed = 0;  // local mailbox refused (full, too large)
   uint64_t hosts_expired = 0;
   uint64_t subscriptions_failed = 0;  // ERRORs sent to local consumers of lost hosts
+  uint64_t streams_stopped = 0;       // local producers told to stop streaming to lost hosts
   uint64_t compressed_out = 0;
   uint64_t bytes_out = 0;        // TiMS bytes published (before compression)
   uint64_t wire_bytes_out = 0;   // payload bytes on the wire (after compression)
