@@ -350,6 +350,11 @@ TEST_F(TwoRobotsTest, RoutersCarryFleetTrafficAndKeepRobotTrafficHome) {
     EXPECT_TRUE(contains(list.out, want)) << want << "\n" << list.describe();
   }
   EXPECT_FALSE(contains(list.out, "no reply")) << list.describe();
+  const RunResult hosts = ctl_on(3, fleet, {"hosts"});
+  ASSERT_EQ(hosts.exit_code, 0) << hosts.describe();
+  for (const char* want : {"robot1-main", "robot1-aux", "robot2-main", "base-station", "system_router", "top_router"}) {
+    EXPECT_TRUE(contains(hosts.out, want)) << want << "\n" << hosts.describe();
+  }
   RunResult r = ctl_on(3, fleet, {"get-data", "scanner"});
   EXPECT_EQ(r.exit_code, 0) << r.describe();
   // From robot 1's bus to robot 2 and back.

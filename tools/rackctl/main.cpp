@@ -73,6 +73,7 @@ Controls the components of running rackd executors over TiMS/LCM.
 
 commands:
   list                          every component that answers discovery, with its state
+  hosts                         every host that answers discovery: system, role, network
   on NAME                       switch a component on (answered when its on() finished)
   off NAME                      switch a component off
   status NAME                   state and timing statistics (--json: one JSON object)
@@ -413,6 +414,39 @@ int cmd_list(Session& s, const Options& o) {
   return kExitOk;
 }
 
+int cmd_hosts(Session& s, const Options& o) {
+  auto hosts = s.discover([](const std::vector<tims::HostInfo>&) { return false; });
+  if (hosts.empty()) {
+    fail(kExitUnavailable, format("no host answered discovery within %lld ms on %s",
+                                  static_cast<long long>(o.discover_ms), s.url().c_str()));
+  }
+  std::sort(hosts.begin(), hosts.end(), [](const tims::HostInfo& a, const tims::HostInfo& b) {
+    return a.system != b.system ? a.system < b.system : a.host_id < b.host_id;
+  });
+  const int64_t now = rt::monotonic_ns();
+  if (o.json) {
+    std::string out = "[";
+    for (std::size_t i = 0; i < hosts.size(); ++i) {
+      const auto& h = hosts[i];
+      out += (i == 0 ? "" : ",") + std::string("{\"host\":") + quoted(h.host) +
+             ",\"system\":" + std::to_string(h.system) + ",\"host_id\":" + std::to_string(h.host_id) +
+             ",\"role\":" + quoted(tims::describe(h.role)) + ",\"pid\":" + std::to_string(h.pid) +
+             ",\"components\":" + std::to_string(h.components.size()) + ",\"network\":" + quoted(h.network) +
+             ",\"seen_ms_ago\":" + std::to_string((now - h.last_seen_ns) / rt::kNsPerMs) + "}";
+    }
+    std::printf("%s]\n", out.c_str());
+    return kExitOk;
+  }
+  std::printf("%-18s %-6s %-7s %-14s %-8s %-10s %-10s %s\n", "HOST", "SYSTEM", "HOST_ID", "ROLE", "PID",
+              "COMPONENTS", "NETWORK", "SEEN");
+  for (const auto& h : hosts) {
+    std::printf("%-18s %-6u %-7u %-14s %-8d %-10zu %-10s %lld ms ago\n", h.host.c_str(), h.system, h.host_id,
+                tims::describe(h.role), h.pid, h.components.size(), h.network.c_str(),
+                static_cast<long long>((now - h.last_seen_ns) / rt::kNsPerMs));
+  }
+  return kExitOk;
+}
+
 int switch_command(Session& s, const Options& o, int8_t type) {
   const Target t = s.resolve(o.args[0]);
   const CallResult r = s.call(t, type);
@@ -700,6 +734,12 @@ const std::vector<Command>& commands() {
        "STATE is ENABLED, DISABLED, ERROR, or 'no reply' when none came within --timeout.\n"
        "--json prints one JSON array instead.",
        cmd_list},
+      {"hosts", "hosts [--json]", 0, 0, {"--json"},
+       "Discovers every host on the network (waits the full --discover-ms) and prints\n"
+       "HOST SYSTEM HOST_ID ROLE PID COMPONENTS NETWORK SEEN: what each announced, on\n"
+       "which of this tool's networks it was heard, and how long ago (ms). Routers pass\n"
+       "on the announcements of the robots behind them.",
+       cmd_hosts},
       {"on", "on NAME", 1, 1, {},
        "Switches the component on. The reply comes when its on() has finished, so\n"
        "this also switches on what it depends on (cascading ON). ERROR: exit 1.",
