@@ -1,6 +1,9 @@
 #include "rack/tims/lcm_transport.h"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <poll.h>
+#include <sys/socket.h>
 #include <sys/random.h>
 #include <unistd.h>
 #include <zstd.h>
@@ -13,6 +16,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <stdexcept>
 #include <thread>
@@ -127,6 +131,47 @@ class RateLimitedWarn {
 
 void bump(std::atomic<uint64_t>& c, uint64_t n = 1) { c.fetch_add(n, std::memory_order_relaxed); }
 
+// An LCM udpm URL: udpm://GROUP:PORT?ttl=N&recv_buf_size=BYTES (LCM's defaults).
+struct UdpmUrl {
+  in_addr group{};
+  uint16_t port = 7667;
+  int recv_buf_size = 0;
+};
+std::optional<UdpmUrl> parse_udpm(const std::string& url) {
+  const std::string prefix = "udpm://";
+  if (url.rfind(prefix, 0) != 0) return std::nullopt;
+  std::string rest = url.substr(prefix.size());
+  std::string params;
+  if (const auto q = rest.find('?'); q != std::string::npos) {
+    params = rest.substr(q + 1);
+    rest = rest.substr(0, q);
+  }
+  UdpmUrl u;
+  std::string host = rest.empty() ? "239.255.76.67" : rest;
+  if (const auto c = rest.find(':'); c != std::string::npos) {
+    host = rest.substr(0, c);
+    char* end = nullptr;
+    const long port = std::strtol(rest.c_str() + c + 1, &end, 10);
+    if (*end != '\0' || port <= 0 || port > 65535) return std::nullopt;
+    u.port = static_cast<uint16_t>(port);
+  }
+  if (inet_pton(AF_INET, host.c_str(), &u.group) != 1) return std::nullopt;
+  for (std::size_t at = 0; at < params.size();) {
+    auto amp = params.find('&', at);
+    if (amp == std::string::npos) amp = params.size();
+    const std::string kv = params.substr(at, amp - at);
+    if (kv.rfind("recv_buf_size=", 0) == 0) u.recv_buf_size = std::atoi(kv.c_str() + 14);
+    at = amp + 1;
+  }
+  return u;
+}
+
+// LCM's framing of a datagram (lcm_udpm.c): a short message is "LC02", a 32-bit
+// sequence number, the channel NUL-terminated, the payload; "LC03" marks a fragment
+// of a message above about 64 KB (never ours: our chunks are smaller).
+constexpr uint32_t kLcmShortMagic = 0x4c433032;
+constexpr uint32_t kLcmFragmentMagic = 0x4c433033;
+
 std::string origin_text(int64_t origin) {
   char buf[24];
   std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(origin));
@@ -171,13 +216,20 @@ struct LcmTransport::Impl {
     std::vector<std::byte> message;   // a whole message in host byte order, for delivery
     ZSTD_DCtx* dctx = nullptr;
     std::unordered_map<int64_t, uint32_t> last_packet_seq;  // per publisher
+    // Our own socket on a udpm network: the receive thread reads datagrams itself
+    // instead of through LCM's receive thread and notify pipe (two thread hand-offs
+    // less per message; LCM 1.3 has no other way). -1: receive through LCM.
+    int raw_fd = -1;
+    std::vector<uint8_t> datagram;
 
-    void on_packet(const lcm::ReceiveBuffer* rbuf, const std::string& channel) { impl->on_packet(*this, rbuf, channel); }
+    void on_packet(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+      impl->on_packet(*this, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, channel);
+    }
     void on_announce(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-      impl->on_announce(*this, rbuf, channel);
+      impl->on_announce(*this, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, channel);
     }
     void on_discover(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-      impl->on_discover(*this, rbuf, channel);
+      impl->on_discover(*this, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, channel);
     }
   };
 
@@ -208,6 +260,7 @@ struct LcmTransport::Impl {
   }
   ~Impl() {
     for (auto& n : networks) {
+      if (n->raw_fd >= 0) close(n->raw_fd);
       if (n->cctx != nullptr) ZSTD_freeCCtx(n->cctx);
       if (n->dctx != nullptr) ZSTD_freeDCtx(n->dctx);
     }
@@ -276,12 +329,72 @@ struct LcmTransport::Impl {
         s.data.resize(max_encoded);
         s.have.resize(max_chunks + 1);
       }
-      auto* sub = n->lcm->subscribe(kTimsChannel, &Network::on_packet, n.get());
-      sub->setQueueCapacity(1024);  // LCM's default (~30) silently drops bursts
-      n->lcm->subscribe(kAnnounceChannel, &Network::on_announce, n.get())->setQueueCapacity(256);
-      n->lcm->subscribe(kDiscoverChannel, &Network::on_discover, n.get())->setQueueCapacity(64);
+      if (const auto u = parse_udpm(n->config.url)) {
+        // LCM then only publishes: it opens its receive socket and thread on the first
+        // subscription, and there is none.
+        open_raw(*n, *u);
+      } else {
+        auto* sub = n->lcm->subscribe(kTimsChannel, &Network::on_packet, n.get());
+        sub->setQueueCapacity(1024);  // LCM's default (~30) silently drops bursts
+        n->lcm->subscribe(kAnnounceChannel, &Network::on_announce, n.get())->setQueueCapacity(256);
+        n->lcm->subscribe(kDiscoverChannel, &Network::on_discover, n.get())->setQueueCapacity(64);
+      }
       networks.push_back(std::move(n));
     }
+  }
+
+  // The receive side of a udpm network, as LCM sets it up: any address, the port,
+  // shared with every other member on this machine, the group joined.
+  void open_raw(Network& n, const UdpmUrl& u) {
+    const auto fail = [&](const char* what) {
+      const std::string why = std::string(what) + ": " + std::strerror(errno);
+      if (n.raw_fd >= 0) close(n.raw_fd);
+      n.raw_fd = -1;
+      throw std::runtime_error("cannot join the LCM network '" + n.config.url + "' (" + why +
+                               "; a network namespace needs 'ip link set lo up' and a multicast route: "
+                               "ip route add 224.0.0.0/4 dev IFACE)");
+    };
+    n.raw_fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+    if (n.raw_fd < 0) fail("socket");
+    const int one = 1;
+    if (setsockopt(n.raw_fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) != 0) fail("SO_REUSEADDR");
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_addr.s_addr = htonl(INADDR_ANY);
+    addr.sin_port = htons(u.port);
+    if (bind(n.raw_fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) fail("bind");
+    ip_mreq mreq{};
+    mreq.imr_multiaddr = u.group;
+    mreq.imr_interface.s_addr = htonl(INADDR_ANY);
+    if (setsockopt(n.raw_fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &mreq, sizeof mreq) != 0) fail("IP_ADD_MEMBERSHIP");
+    if (u.recv_buf_size > 0) {
+      // Capped by net.core.rmem_max, as for LCM (README: socket buffers).
+      (void)setsockopt(n.raw_fd, SOL_SOCKET, SO_RCVBUF, &u.recv_buf_size, sizeof u.recv_buf_size);
+    }
+    n.datagram.resize(65536);
+  }
+
+  // One datagram from our own socket: LCM's framing, then our channels.
+  void on_datagram(Network& n, const uint8_t* d, std::size_t size) {
+    if (size < 8) {
+      return reject(n, "lcm", [&] { return std::to_string(size) + " bytes: not an LCM datagram"; });
+    }
+    const auto magic = static_cast<uint32_t>(get_be(d, 4));
+    if (magic == kLcmFragmentMagic) return;  // someone else's large LCM message
+    if (magic != kLcmShortMagic) {
+      return reject(n, "lcm", [&] { return std::string("not an LCM datagram (magic differs)"); });
+    }
+    const auto* name = reinterpret_cast<const char*>(d + 8);
+    const std::size_t max_name = std::min<std::size_t>(size - 8, 64);
+    const std::size_t len = strnlen(name, max_name);
+    if (len == max_name) return reject(n, "lcm", [&] { return std::string("LCM channel name not terminated"); });
+    const std::string_view channel(name, len);
+    const uint8_t* payload = d + 8 + len + 1;
+    const std::size_t payload_size = size - 8 - len - 1;
+    if (channel == kTimsChannel) return on_packet(n, payload, payload_size, kTimsChannel);
+    if (channel == kAnnounceChannel) return on_announce(n, payload, payload_size, kAnnounceChannel);
+    if (channel == kDiscoverChannel) return on_discover(n, payload, payload_size, kDiscoverChannel);
+    // Other channels on the same network (GDOS, tools): not ours.
   }
 
   // ------------------------------------------------------------------ publishing
@@ -514,10 +627,8 @@ struct LcmTransport::Impl {
     }
   }
 
-  void on_packet(Network& n, const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+  void on_packet(Network& n, const uint8_t* d, std::size_t size, const std::string& channel) {
     bump(packets_in);
-    const auto* d = static_cast<const uint8_t*>(rbuf->data);
-    const auto size = static_cast<std::size_t>(rbuf->data_size);
     if (size < kPacketPrefix) {
       return reject(n, "short", [&] {
         return "'" + channel + "': " + std::to_string(size) + " bytes, shorter than a tims_packet";
@@ -720,9 +831,7 @@ struct LcmTransport::Impl {
   }
 
   // ------------------------------------------------------------------ announcements
-  void on_announce(Network& n, const lcm::ReceiveBuffer* rbuf, const std::string&) {
-    const auto* d = static_cast<const uint8_t*>(rbuf->data);
-    const auto size = static_cast<std::size_t>(rbuf->data_size);
+  void on_announce(Network& n, const uint8_t* d, std::size_t size, const std::string&) {
     // Bound the component count by the datagram before lcm-gen's decoder allocates it.
     if (size < 12) return reject(n, "announce", [&] { return std::string("announcement shorter than its header"); });
     const int32_t count = get_i32(d + 8);
@@ -732,7 +841,7 @@ struct LcmTransport::Impl {
       });
     }
     rack_lcm::host_announce a;
-    if (a.decode(rbuf->data, 0, static_cast<int>(size)) < 0 || a.system < 0 || a.system > 254 || a.host_id < 0 ||
+    if (a.decode(d, 0, static_cast<int>(size)) < 0 || a.system < 0 || a.system > 254 || a.host_id < 0 ||
         a.host_id > 255 || a.role < 0 || a.role > 2 || a.hops < 0 || a.hops > kMaxHops) {
       return reject(n, "announce", [&] { return std::string("announcement does not decode or has bad fields"); });
     }
@@ -793,9 +902,9 @@ struct LcmTransport::Impl {
     }
   }
 
-  void on_discover(Network& n, const lcm::ReceiveBuffer* rbuf, const std::string&) {
+  void on_discover(Network& n, const uint8_t* d, std::size_t size, const std::string&) {
     rack_lcm::discover_request r;
-    if (r.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0 || r.hops < 0 || r.hops > kMaxHops) {
+    if (r.decode(d, 0, static_cast<int>(size)) < 0 || r.hops < 0 || r.hops > kMaxHops) {
       return reject(n, "discover", [&] { return std::string("discover request does not decode"); });
     }
     if (r.origin == origin || r.relay == origin) return;
@@ -826,11 +935,26 @@ struct LcmTransport::Impl {
 
   // ------------------------------------------------------------------ threads
   void receive_loop(Network& n) {
-    pollfd pfd{n.lcm->getFileno(), POLLIN, 0};
+    pollfd pfd{n.raw_fd >= 0 ? n.raw_fd : n.lcm->getFileno(), POLLIN, 0};
     while (running.load(std::memory_order_acquire)) {
       pfd.revents = 0;
       const int rc = poll(&pfd, 1, 50);
-      if (rc > 0 && (pfd.revents & POLLIN) != 0) n.lcm->handle();
+      if (rc > 0 && (pfd.revents & POLLIN) != 0) {
+        if (n.raw_fd < 0) {
+          n.lcm->handle();
+        } else {
+          // Drain what is there; a burst (a large message) is many datagrams.
+          for (int i = 0; i < 256; ++i) {
+            const ssize_t got = recv(n.raw_fd, n.datagram.data(), n.datagram.size(), MSG_DONTWAIT | MSG_TRUNC);
+            if (got < 0) break;
+            if (static_cast<std::size_t>(got) > n.datagram.size()) {
+              reject(n, "lcm", [&] { return "datagram of " + std::to_string(got) + " bytes truncated"; });
+              continue;
+            }
+            on_datagram(n, n.datagram.data(), static_cast<std::size_t>(got));
+          }
+        }
+      }
       expire_reassembly(n);
     }
   }

@@ -1,9 +1,15 @@
 // TiMS over LCM: the only place that links LCM (DESIGN.md).
 //
 // A transport joins one or more LCM networks (a robot's internal bus, a fleet link).
-// Per network one non-RT receive thread (polls LCM's descriptor, validates each
-// packet, delivers it to the local router, forwards it when this host is a router,
-// answers NOT_AVAILABLE when it is authoritative). Two non-RT sender threads drain the
+// Per network one non-RT receive thread (validates each packet, delivers it to the
+// local router, forwards it when this host is a router, answers NOT_AVAILABLE when it
+// is authoritative). On a udpm:// network it reads the datagrams from a socket of its
+// own, in LCM's framing, instead of through LCM 1.3's receive thread and notify pipe:
+// two thread hand-offs less per message (bench_lcm), and LCM's fragment reassembly,
+// which trusts its input, never sees our network (our chunks are single datagrams;
+// LCM fragments of others are ignored). LCM still publishes, so lcm-logger and
+// lcm-logplayer see and replay the same datagrams. Other URLs (memq://, file://)
+// receive through LCM. Two non-RT sender threads drain the
 // router's uplink mailboxes (one with many small slots, one with a few large ones)
 // and publish. One maintenance thread announces this host and expires silent hosts.
 // RT tasks never touch the network: they queue into an uplink mailbox (PI-locked
