@@ -56,6 +56,8 @@ constexpr const char* kUsage =
     "  --rounds R      alternate the two RPC mechanisms in R blocks (default 4)\n"
     "  --bulk-count N  messages per size and mechanism in the bulk test (default 200; 1 MB: N/4)\n"
     "  --port P        LCM port (default 7790); URL udpm://239.255.76.67:P?ttl=1&recv_buf_size=4194304\n"
+    "  --cpus A,B      CPU of host A's and of host B's threads (default 0,1: one CPU per\n"
+    "                  computer); any: not pinned\n"
     "  --json FILE     machine-readable results\n"
     "  --quick         1000 round trips, 2 rounds, 60 bulk messages\n";
 
@@ -64,6 +66,8 @@ struct Options {
   int rounds = 4;
   int bulk_count = 200;
   int port = 7790;
+  int cpu_a = 0;  // -1: not pinned
+  int cpu_b = 1;
   std::string json;
 };
 
@@ -104,12 +108,22 @@ void enter(const std::string& ns) {
   close(fd);
 }
 
-// Runs `fn` on a thread inside namespace `ns` and waits for it (objects made there
-// keep their sockets in that namespace).
-void in_ns(const std::string& ns, const std::function<void()>& fn) {
+// Pins the calling thread (and every thread it creates later) to one CPU.
+void pin(int cpu) {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  CPU_SET(static_cast<std::size_t>(cpu), &set);
+  if (sched_setaffinity(0, sizeof set, &set) != 0) throw std::runtime_error("cannot pin to CPU " + std::to_string(cpu));
+}
+
+// Runs `fn` on a thread inside namespace `ns`, pinned to `cpu`, and waits for it:
+// objects made there keep their sockets in that namespace, and the threads they start
+// (transport, executor tasks, LCM's own) stay on that CPU, as on a computer of its own.
+void in_ns(const std::string& ns, int cpu, const std::function<void()>& fn) {
   std::exception_ptr err;
   std::thread t([&] {
     try {
+      if (cpu >= 0) pin(cpu);
       enter(ns);
       fn();
     } catch (...) {
@@ -323,6 +337,11 @@ int main(int argc, char** argv) {
     else if (a == "--bulk-count") o.bulk_count = std::atoi(next().c_str());
     else if (a == "--port") o.port = std::atoi(next().c_str());
     else if (a == "--json") o.json = next();
+    else if (a == "--cpus") {
+      const std::string v = next();
+      if (v == "any") { o.cpu_a = o.cpu_b = -1; }
+      else if (std::sscanf(v.c_str(), "%d,%d", &o.cpu_a, &o.cpu_b) != 2) { std::fputs(kUsage, stderr); return 2; }
+    }
     else if (a == "--quick") { o.iterations = 1000; o.rounds = 2; o.bulk_count = 60; }
     else { std::fputs(kUsage, a == "-h" || a == "--help" ? stdout : stderr); return a == "-h" || a == "--help" ? 0 : 2; }
   }
@@ -334,7 +353,8 @@ int main(int argc, char** argv) {
     Namespaces ns;
     const std::string url =
         "udpm://239.255.76.67:" + std::to_string(o.port) + "?ttl=1&recv_buf_size=4194304";
-    std::printf("bench_lcm: hosts %s and %s on a veth pair, %s\n", ns.a.c_str(), ns.b.c_str(), url.c_str());
+    std::printf("bench_lcm: hosts %s (CPU %d) and %s (CPU %d) on a veth pair, %s\n", ns.a.c_str(), o.cpu_a,
+                ns.b.c_str(), o.cpu_b, url.c_str());
 
     // Host B: a rack::Executor with a Generator, the raw LCM echo, and a bare TiMS
     // host (system 1) for the bulk test.
@@ -345,7 +365,7 @@ int main(int argc, char** argv) {
     std::unique_ptr<LcmEcho> echo;
     std::unique_ptr<TimsHost> rx_plain;
     std::thread echo_thread;
-    in_ns(ns.b, [&] {
+    in_ns(ns.b, o.cpu_b, [&] {
       auto loaded = rack::load_host_text(host_b_text(url), "bench_lcm.yaml", registry, caps);
       if (!loaded.errors.empty()) throw std::runtime_error(loaded.errors.front().str());
       rack::ExecutorOptions eo;
@@ -355,19 +375,23 @@ int main(int argc, char** argv) {
       echo = std::make_unique<LcmEcho>(url);
       rx_plain = std::make_unique<TimsHost>(1, url, tims::Compression::kNone, 1100 * 1000);
     });
-    echo_thread = std::thread([&] { echo->run(); });
+    echo_thread = std::thread([&] {
+      if (o.cpu_b >= 0) pin(o.cpu_b);
+      echo->run();
+    });
 
     // Host A: the client tool, the raw pinger and bulk publisher, TiMS bulk senders.
     std::unique_ptr<TimsHost> tool, tx_plain, tx_zstd;
     std::unique_ptr<LcmPinger> pinger;
     std::unique_ptr<lcm::LCM> bulk_tx;
-    in_ns(ns.a, [&] {
+    in_ns(ns.a, o.cpu_a, [&] {
       tool = std::make_unique<TimsHost>(tims::kToolSystem, url, tims::Compression::kNone, 64 * 1024);
       pinger = std::make_unique<LcmPinger>(url);
       bulk_tx = std::make_unique<lcm::LCM>(url);
       tx_plain = std::make_unique<TimsHost>(2, url, tims::Compression::kNone, 64 * 1024);
       tx_zstd = std::make_unique<TimsHost>(3, url, tims::Compression::kZstd, 64 * 1024);
     });
+    if (o.cpu_a >= 0) pin(o.cpu_a);  // the measuring (client) thread belongs to host A
     rt::sleep_for(1500 * rt::kNsPerMs);  // discovery warm-up on every side
 
     // ------------------------------------------------------------ RPC
