@@ -250,6 +250,17 @@ TEST_F(MultiHostTest, ProducerStopsStreamingToAKilledConsumerHost) {
   rackd_.erase(rackd_.begin() + 1);  // nothing to stop there
 }
 
+TEST_F(MultiHostTest, TwoHostsWithTheSameHostIdAreReported) {
+  ASSERT_NE(a_ = start_host(0, producer_host(url_)), nullptr);
+  // A configuration error: host b also claims host id 0 of system 0.
+  std::string text = consumer_host(url_, 1, 1);
+  text.replace(text.find("host_id: 1"), 10, "host_id: 0");
+  ASSERT_NE(start_host(1, text), nullptr);
+  EXPECT_TRUE(eventually([&] { return contains(a_->err(), "own system 0 and host id 0"); }, 10s)) << a_->err();
+  EXPECT_TRUE(contains(a_->err(), "give every computer of a robot its own host_id")) << a_->err();
+  EXPECT_TRUE(a_->running());
+}
+
 TEST_F(MultiHostTest, LinkDownAndUp) {
   start_three();
   ASSERT_TRUE(eventually([&] { return state_of(1, "monitor1") == "ENABLED" && receiving(1, "monitor1"); }));

@@ -288,6 +288,8 @@ struct LcmTransport::Impl {
   // mailbox). When the listener's host is lost, the producer is told to stop
   // (STOP_CONT_DATA), or it would stream into the void for good.
   std::unordered_map<uint64_t, int64_t> streams;
+  std::set<int64_t> retired;  // origins of hosts taken for restarted (bounded)
+  bool have_own_id = false;
   uint8_t own_system = 0;
   uint8_t own_host_id = 0;
 
@@ -859,24 +861,44 @@ struct LcmTransport::Impl {
     for (const auto& c : a.components) {
       info.components.push_back({Address(static_cast<uint32_t>(c.address)), c.name, c.impl});
     }
-    std::string replaced;
+    std::string replaced, conflict;
     {
       std::lock_guard lock(table_mutex);
+      const auto same_id = [&](const HostInfo& h) {
+        return h.system == info.system && h.host_id == info.host_id && h.role == info.role;
+      };
+      if (have_own_id && role() != NodeRole::kTool && info.system == own_system && info.host_id == own_host_id &&
+          info.role == role()) {
+        conflict = "TiMS/LCM: host '" + info.host + "' (pid " + std::to_string(info.pid) +
+                   ") announces this host's own system " + std::to_string(own_system) + " and host id " +
+                   std::to_string(own_host_id) + ": give every computer of a robot its own host_id";
+      }
       // Same host (system and host id), new origin: it restarted. What we knew of the
-      // old one is gone now, not only after the expiry.
+      // old one is gone now, not only after the expiry. Unless the "old" one is still
+      // alive: an origin we retired that announces again, or that a retired one
+      // replaced, means two hosts share the id (a configuration error, reported).
       for (auto it = hosts.begin(); it != hosts.end();) {
         const HostInfo& old = it->second.info;
-        if (it->first != a.origin && old.system == info.system && old.host_id == info.host_id &&
-            old.role == info.role) {
-          replaced = "TiMS/LCM: host '" + old.host + "' (system " + std::to_string(old.system) + ", host id " +
-                     std::to_string(old.host_id) + ") restarted: pid " + std::to_string(old.pid) + " -> " +
-                     std::to_string(info.pid);
-          fail_subscriptions_locked(old, "restarted");
-          bump(hosts_expired);
-          it = hosts.erase(it);
-        } else {
+        if (it->first == a.origin || !same_id(old)) {
           ++it;
+          continue;
         }
+        if (retired.count(a.origin) != 0 || retired.count(it->first) != 0) {
+          conflict = "TiMS/LCM: two hosts announce system " + std::to_string(info.system) + " host id " +
+                     std::to_string(info.host_id) + ": '" + old.host + "' (pid " + std::to_string(old.pid) +
+                     ") and '" + info.host + "' (pid " + std::to_string(info.pid) +
+                     "): give every computer of a robot its own host_id";
+          ++it;
+          continue;
+        }
+        replaced = "TiMS/LCM: host '" + old.host + "' (system " + std::to_string(old.system) + ", host id " +
+                   std::to_string(old.host_id) + ") restarted: pid " + std::to_string(old.pid) + " -> " +
+                   std::to_string(info.pid);
+        if (retired.size() > 1024) retired.clear();
+        retired.insert(it->first);
+        fail_subscriptions_locked(old, "restarted");
+        bump(hosts_expired);
+        it = hosts.erase(it);
       }
       auto& e = hosts[a.origin];
       const bool changed = e.info.components.size() != info.components.size() || e.info.origin == 0 || !replaced.empty();
@@ -885,6 +907,9 @@ struct LcmTransport::Impl {
       else rebuild_owners_locked();  // cheap; components may have changed in place
     }
     if (!replaced.empty()) warn("restart " + replaced, [&] { return replaced; });
+    if (!conflict.empty()) {
+      warn("conflict " + std::to_string(a.system) + "/" + std::to_string(a.host_id), [&] { return conflict; });
+    }
     // Routers pass announcements on: a robot's own outwards, other robots' inwards.
     if ((role() == NodeRole::kSystemRouter || role() == NodeRole::kTopRouter) && a.hops < kMaxHops) {
       for (auto& out : networks) {
@@ -1104,6 +1129,7 @@ void LcmTransport::set_announcement(HostInfo info) {
     std::lock_guard lock(m.table_mutex);
     m.own_system = info.system;
     m.own_host_id = info.host_id;
+    m.have_own_id = true;
   }
   if (m.running.load()) m.publish_announcement(nullptr);
 }
