@@ -193,6 +193,9 @@ std::string host_b_text(const std::string& url) {
          "    command_task: {priority: 80}\n    data_task: {priority: 79, period_ms: 1000}\n";
 }
 
+// Large uplink slots of the bulk senders (host file key tims: large_slots).
+constexpr uint32_t kLargeSlots = 8;
+
 // A bare TiMS host: router, transport, one mailbox.
 struct TimsHost {
   TimsHost(uint8_t system, const std::string& url, tims::Compression c, uint32_t inbox_slot)
@@ -205,6 +208,7 @@ struct TimsHost {
     n.compression = c;
     cfg.networks = {n};
     cfg.role = system == tims::kToolSystem ? tims::NodeRole::kTool : tims::NodeRole::kExecutor;
+    cfg.large_slots = kLargeSlots;
     cfg.warn = [](const std::string& s) { std::fprintf(stderr, "  [transport] %s\n", s.c_str()); };
     router.add(inbox);
     router.add(reply);
@@ -290,10 +294,12 @@ BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, co
         tims::make_header(rx.inbox.address(), tx.reply.address(), tims::msg::kData, 1, static_cast<uint8_t>(i), size);
     const tims::ConstBuffer part{payload.data(), payload.size()};
     (void)tx.router.send(h, std::span<const tims::ConstBuffer>(&part, 1));
-    // Back-pressure like a blocking publish(): at most two messages queued for the
-    // sender (the large uplink has four slots; when full, it drops its oldest).
-    while (tx.transport->counters().messages_out - before.messages_out + 2 < static_cast<uint64_t>(i + 1)) {
-      rt::sleep_for(20 * rt::kNsPerUs);  // not a spin: it would take a CPU from the sender
+    // Back-pressure like a blocking publish(): never more queued than the large uplink
+    // holds (when full, it drops its oldest). Polled every 100 us: not a spin, which
+    // would take the CPU from the sender thread.
+    while (tx.transport->counters().messages_out - before.messages_out + (kLargeSlots - 2) <
+           static_cast<uint64_t>(i + 1)) {
+      rt::sleep_for(100 * rt::kNsPerUs);
     }
   }
   rt::sleep_for(700 * rt::kNsPerMs);
