@@ -706,6 +706,9 @@ struct LcmTransport::Impl {
       return reject(n, "chunk", [&] { return std::string("a chunk disagrees with its message's first chunk"); });
     }
     const uint32_t index = static_cast<uint32_t>(offset) / kChunk;
+    if (index >= slot->have.size()) {  // cannot happen after the checks above; belt and braces
+      return reject(n, "chunk", [&] { return "chunk index " + std::to_string(index) + " out of range"; });
+    }
     if (slot->have[index] != 0) return;  // duplicate
     slot->have[index] = 1;
     ++slot->received;
