@@ -338,5 +338,24 @@ TEST_F(TimsInputTest, ChunkedMessageWithAMissingChunkIsReportedLost) {
   EXPECT_TRUE(rackd_->running());
 }
 
+TEST_F(TimsInputTest, ChunkedMessageForAnotherHostIsSkippedNotReportedLost) {
+  // The first of three chunks of a DATA message for a mailbox this host does not have
+  // (another host's, on a shared network): its header says so, the rest would be
+  // dropped unassembled, and nothing is reported lost when the rest never comes.
+  const Address elsewhere = Address::make(0, tims::classes::kScan3d, 5, 3);
+  const Address producer = Address::make(0, tims::classes::kScan3d, 6, 0);
+  const auto msg = tims_message(elsewhere, producer, tims::msg::kData, 0, std::vector<uint8_t>(150000 - 16, 1),
+                                true, true);
+  RawLcm raw(bus_.port());
+  Chunk c;
+  c.origin = 0x9999;
+  c.total = c.encoded = static_cast<int32_t>(msg.size());
+  raw.send("TIMS", packet(c, std::vector<uint8_t>(msg.begin(), msg.begin() + 60000)));
+  std::this_thread::sleep_for(2500ms);  // past the reassembly timeout, two status lines
+  EXPECT_FALSE(contains(rackd_->err(), "lost")) << rackd_->err();
+  EXPECT_EQ(transport_counter("lost"), 0u) << rackd_->out();
+  EXPECT_GE(transport_counter("packets in"), 1u) << rackd_->out();
+}
+
 }  // namespace
 }  // namespace rack::test

@@ -125,5 +125,24 @@ TEST_F(TimsLargeTest, CompressedLinkCarriesLargeMessagesInFewerBytes) {
   EXPECT_EQ(receiver_->counters().malformed, 0u) << warnings_;
 }
 
+TEST_F(TimsLargeTest, LargeMessagesForOtherHostsAreNotReassembled) {
+  start(tims::Compression::kNone);
+  // 1 MiB of samples for a mailbox this receiver does not have (another host's, on a
+  // shared network): recognised by its first chunk, the rest dropped unassembled.
+  const auto body = random_body(1 << 20, 3);
+  const tims::MessageHeader h = tims::make_header(Address::make(1, tims::classes::kScan3d, 5, 3),
+                                                  Address::make(2, tims::classes::kTool, 1, 1), tims::msg::kData, 1,
+                                                  9, body.size());
+  const tims::ConstBuffer part{body.data(), body.size()};
+  ASSERT_TRUE(tims::delivered(tx_router_.send(h, std::span<const tims::ConstBuffer>(&part, 1))));
+  // A message for the inbox right behind it arrives, and nothing was reported lost.
+  EXPECT_TRUE(send_and_receive(random_body(100 * 1000, 4), 10)) << warnings_;
+  rt::sleep_for(1200 * rt::kNsPerMs);  // past the reassembly timeout
+  const auto c = receiver_->counters();
+  EXPECT_GE(c.not_for_us, 1u);
+  EXPECT_EQ(c.lost_messages, 0u) << warnings_;
+  EXPECT_EQ(c.malformed, 0u) << warnings_;
+}
+
 }  // namespace
 }  // namespace rack::test

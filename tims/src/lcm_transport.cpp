@@ -213,6 +213,11 @@ struct LcmTransport::Impl {
     ZSTD_CCtx* cctx = nullptr;
     // Receiving (this network's receive thread only).
     std::vector<Reassembly> slots;
+    // Large messages for someone else, recognised by their first chunk: their other
+    // chunks are dropped at once instead of reassembled (on a shared network every
+    // host hears every 4 MB scan). A small ring of (origin, message number).
+    std::array<std::pair<int64_t, int32_t>, 16> skipped{};
+    std::size_t next_skipped = 0;
     std::vector<std::byte> message;   // a whole message in host byte order, for delivery
     ZSTD_DCtx* dctx = nullptr;
     std::unordered_map<int64_t, uint32_t> last_packet_seq;  // per publisher
@@ -675,9 +680,19 @@ struct LcmTransport::Impl {
       return take_stream(n, data, false, static_cast<uint32_t>(encoded), static_cast<uint32_t>(total), encoding, pkt_origin,
                          mseq, hops);
     }
+    for (const auto& k : n.skipped) {
+      if (k.first == pkt_origin && k.second == mseq && pkt_origin != 0) return;
+    }
     Reassembly* slot = nullptr;
     for (auto& s : n.slots) {
       if (s.used && s.origin == pkt_origin && s.message_seq == mseq) slot = &s;
+    }
+    if (offset == 0 && encoding == 0 && !wants(data, static_cast<std::size_t>(chunk))) {
+      bump(not_for_us);
+      n.skipped[n.next_skipped] = {pkt_origin, mseq};
+      n.next_skipped = (n.next_skipped + 1) % n.skipped.size();
+      if (slot != nullptr) slot->used = false;  // chunks that came before the first
+      return;
     }
     if (slot == nullptr) {
       for (auto& s : n.slots) {
@@ -718,6 +733,22 @@ struct LcmTransport::Impl {
       take_stream(n, slot->data.data(), true, slot->encoded, slot->total, slot->encoding, slot->origin, slot->message_seq,
                   slot->hops);
     }
+  }
+
+  // Whether a message whose first bytes (its header, any byte order) are `head` is worth
+  // reassembling here: for a local mailbox, or anything when this host routes, or a
+  // request this host may have to answer NOT_AVAILABLE.
+  bool wants(const std::byte* head, std::size_t size) {
+    if (role() == NodeRole::kSystemRouter || role() == NodeRole::kTopRouter) return true;
+    if (size < sizeof(MessageHeader)) return true;  // let the full check reject it
+    MessageHeader h;
+    std::memcpy(&h, head, sizeof h);
+    if (((h.flags & kFlagHeaderLittleEndian) != 0) != kHostLittleEndian) h.dest = bswap(h.dest);
+    const Address dest(h.dest);
+    if (router.find(dest) != nullptr) return true;
+    if (!h.is_request()) return false;
+    std::lock_guard lock(table_mutex);
+    return !known_locked(dest);
   }
 
   // A whole encoded message: decode it (into n.message, or in place when `stream` is
