@@ -935,10 +935,9 @@ struct LcmTransport::Impl {
         it = hosts.erase(it);
       }
       auto& e = hosts[a.origin];
-      const bool changed = e.info.components.size() != info.components.size() || e.info.origin == 0 || !replaced.empty();
       e.info = std::move(info);
-      if (changed) rebuild_owners_locked();
-      else rebuild_owners_locked();  // cheap; components may have changed in place
+      // Every time: an announcement may change a host's components (few hosts, cheap).
+      rebuild_owners_locked();
     }
     if (!replaced.empty()) warn("restart " + replaced, [&] { return replaced; });
     if (!conflict.empty()) {
