@@ -209,9 +209,18 @@ TEST_F(MultiHostTest, UnknownMailboxIsNotAvailableOnEveryHost) {
     EXPECT_EQ(r.exit_code, 3) << r.describe();
     EXPECT_TRUE(contains(r.err, "NOT_AVAILABLE")) << "from host " << from << ": " << r.describe();
   }
-  // Exactly one authority answers (host-a, the lowest host id): the others count nothing.
   const RunResult r = ctl(1, {"status", "Monitor(0/7)"});
   EXPECT_TRUE(contains(r.err, "NOT_AVAILABLE")) << r.describe();
+  // Exactly one authority answered (host a, the lowest host id); the others did not.
+  const auto answered = [](Process& p) {
+    const std::string out = p.out();
+    const auto at = out.rfind(" not available ");
+    return at == std::string::npos ? -1 : std::atol(out.c_str() + at + 15);
+  };
+  EXPECT_TRUE(eventually([&] { return answered(*rackd_[0]) >= 4; }, 5s)) << rackd_[0]->out();
+  std::this_thread::sleep_for(1200ms);  // every rackd printed its counters since (--status 1)
+  EXPECT_EQ(answered(*rackd_[1]), 0) << rackd_[1]->out();
+  EXPECT_EQ(answered(*rackd_[2]), 0) << rackd_[2]->out();
 }
 
 TEST_F(MultiHostTest, SigkillOfTheProducerHostAndRecovery) {
