@@ -199,7 +199,8 @@ void Component::go_error() noexcept {
 
 HookResult Component::switch_on(Address dest) noexcept {
   alignas(8) std::byte buf[256];
-  const auto r = command_endpoint_->call(dest, msg::kOn, std::span<std::byte>(buf), settings_.rpc_timeout_ns);
+  const auto r = command_endpoint_->call_with_retry(dest, msg::kOn, {}, std::span<std::byte>(buf),
+                                                    {settings_.rpc_timeout_ns, settings_.rpc_retries + 1});
   return r.ok() ? HookResult::kOk : HookResult::kError;
 }
 

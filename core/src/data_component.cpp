@@ -106,8 +106,11 @@ HookResult DataComponentBase::subscribe(Address producer, int64_t period_ns, int
   req.period_ns = period_ns;
   req.mailbox = input_address().raw();
   alignas(8) std::byte buf[256];
-  const auto r = command_endpoint().call(producer.component(), msg::kGetContData, req,
-                                         std::span<std::byte>(buf), settings().rpc_timeout_ns);
+  const tims::ConstBuffer part = tims::buffer_of(req);
+  const auto r = command_endpoint().call_with_retry(producer.component(), msg::kGetContData,
+                                                    std::span<const tims::ConstBuffer>(&part, 1),
+                                                    std::span<std::byte>(buf),
+                                                    {settings().rpc_timeout_ns, settings().rpc_retries + 1});
   if (r.status != tims::CallStatus::kOk || r.reply.type != msg::kContData) return HookResult::kError;
   wire::ContDataReply reply;
   if (!wire::read_payload(r.body, tims::body_is_native(r.reply), reply)) return HookResult::kError;

@@ -147,7 +147,10 @@ void Executor::start() {
   // GDOS first, so that everything from here on is logged.
   log_source_.set_identity(self.component(), "rackd");
   gdos::Hub::set_process_hub(&hub_);
-  const std::string url = options_.lcm_url_override.empty() ? hs.lcm_url : options_.lcm_url_override;
+  // The host's (first) TiMS network: --lcm, else the first of `tims: networks:`, else lcm_url.
+  const std::string url = !options_.lcm_url_override.empty() ? options_.lcm_url_override
+                          : !hs.networks.empty()             ? hs.networks.front().url
+                                                             : hs.lcm_url;
   if (hs.lcm && hs.gdos.lcm && !url.empty()) {
     tims::GdosPublisherConfig pc;
     pc.url = hs.gdos.lcm_url.empty() ? url : hs.gdos.lcm_url;
@@ -211,14 +214,27 @@ void Executor::start() {
         threads_.push_back(std::move(data));
       }
     }
-    if (hs.lcm && !url.empty()) {
+    if (hs.lcm && (!url.empty() || !hs.networks.empty())) {
       tims::LcmTransportConfig tc;
       tc.url = url;
+      tc.networks = hs.networks;
+      // --lcm replaces the first network's URL (tests and one-off runs).
+      if (!tc.networks.empty() && !options_.lcm_url_override.empty()) tc.networks.front().url = url;
+      tc.role = hs.role;
+      tc.announce_period_ns = hs.announce_period_ns;
+      tc.expiry_ns = hs.expiry_ns;
+      tc.max_message_bytes = hs.max_message_bytes;
+      tc.large_slots = hs.large_slots;
       tc.warn = [this](const std::string& s) { log(gdos::Level::kWarning, s); };
       transport_ = std::make_unique<tims::LcmTransport>(router_, tc);
+      // Other hosts of this robot own the rest of its addresses: let the transport
+      // decide (discovery) instead of answering NOT_AVAILABLE here.
+      router_.set_system_shared(true);
       tims::HostInfo info;
       info.host = hs.host;
       info.system = hs.system;
+      info.host_id = hs.host_id;
+      info.role = hs.role;
       info.pid = static_cast<int32_t>(getpid());
       info.executor = self.component();
       for (const auto& v : views_) {
@@ -226,6 +242,8 @@ void Executor::start() {
       }
       transport_->set_announcement(std::move(info));
       transport_->start();
+      // Autostarted components subscribe to other hosts: let discovery fill first.
+      transport_->wait_until_warm();
     }
   } catch (...) {
     stop();
@@ -332,10 +350,15 @@ std::string Executor::status_report() const {
   }
   if (transport_) {
     const auto t = transport_->counters();
-    char line[256];
-    std::snprintf(line, sizeof line, "  TiMS/LCM: packets in %llu out %llu, malformed %llu, undeliverable %llu\n",
-                  static_cast<unsigned long long>(t.packets_in), static_cast<unsigned long long>(t.packets_out),
-                  static_cast<unsigned long long>(t.malformed), static_cast<unsigned long long>(t.delivery_failed));
+    char line[512];
+    const auto u = [](uint64_t x) { return static_cast<unsigned long long>(x); };
+    std::snprintf(line, sizeof line,
+                  "  TiMS/LCM: packets in %llu out %llu, malformed %llu, forged %llu, undeliverable %llu, "
+                  "sequence gaps %llu, lost %llu, forwarded %llu, not available %llu, hosts %zu, expired %llu, "
+                  "subscriptions failed %llu\n",
+                  u(t.packets_in), u(t.packets_out), u(t.malformed), u(t.forged), u(t.delivery_failed),
+                  u(t.sequence_gaps), u(t.lost_messages), u(t.forwarded), u(t.not_available),
+                  transport_->hosts().size(), u(t.hosts_expired), u(t.subscriptions_failed));
     out += line;
   }
   return out;

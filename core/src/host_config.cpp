@@ -206,7 +206,7 @@ struct HostLoader {
     HostSettings& hs = host->settings;
     hs.file = file;
     check_keys(root, {"host", "system", "host_id", "require_rt", "lcm", "lcm_url", "heap_prefault_mib",
-                      "cpu_dma_latency_us", "plugins", "modeswitch", "components", "gdos"},
+                      "cpu_dma_latency_us", "plugins", "modeswitch", "components", "gdos", "tims"},
                "the host file");
     char hostname[256] = {};
     gethostname(hostname, sizeof hostname - 1);
@@ -227,6 +227,7 @@ struct HostLoader {
       hs.cpu_dma_latency_us = static_cast<int>(v);
     }
     if (const YAML::Node ms = root["modeswitch"]) read_modeswitch(ms, hs.modeswitch);
+    if (const YAML::Node t = root["tims"]) load_tims(t, hs, root["lcm_url"].IsDefined());
     if (const YAML::Node plugins = root["plugins"]) {
       if (!plugins.IsSequence()) {
         error(plugins.Mark(), "'plugins' must be a list of shared library paths");
@@ -288,6 +289,79 @@ struct HostLoader {
 
   static std::string tims_default_url() { return "udpm://239.255.76.67:7667?ttl=0"; }
 
+  // The `tims:` section: role, discovery timing, message limits, networks.
+  void load_tims(const YAML::Node& t, HostSettings& hs, bool have_lcm_url) {
+    if (!t.IsMap()) {
+      error(t.Mark(), "'tims' must be a map (role, announce_ms, expiry_ms, max_message_kib, large_slots, networks)");
+      return;
+    }
+    check_keys(t, {"role", "announce_ms", "expiry_ms", "max_message_kib", "large_slots", "networks"}, "'tims'");
+    std::string role;
+    if (get(t, "role", role, "executor, system_router or top_router")) {
+      if (role == "executor") hs.role = tims::NodeRole::kExecutor;
+      else if (role == "system_router") hs.role = tims::NodeRole::kSystemRouter;
+      else if (role == "top_router") hs.role = tims::NodeRole::kTopRouter;
+      else error(t["role"].Mark(), "'role' must be executor, system_router or top_router, got '" + role + "'");
+    }
+    int64_t ns = 0;
+    if (get_positive_ms(t, "announce_ms", ns)) hs.announce_period_ns = ns;
+    if (get_positive_ms(t, "expiry_ms", ns)) hs.expiry_ns = ns;
+    if (t["expiry_ms"] && hs.expiry_ns <= hs.announce_period_ns) {
+      error(t["expiry_ms"].Mark(), "'expiry_ms' must be longer than 'announce_ms' (" +
+                                       std::to_string(hs.announce_period_ns / 1'000'000) +
+                                       " ms), or every host expires between two announcements");
+    }
+    int64_t v = 0;
+    if (get_int_range(t, "max_message_kib", 64, 256 * 1024, v, "a size in KiB")) {
+      hs.max_message_bytes = static_cast<uint32_t>(v * 1024 + 4096);
+    }
+    if (get_int_range(t, "large_slots", 1, 64, v, "a number of slots")) hs.large_slots = static_cast<uint32_t>(v);
+    const YAML::Node nets = t["networks"];
+    if (!nets) return;
+    if (!nets.IsSequence() || nets.size() == 0) {
+      error(nets.Mark(), "'networks' must be a non-empty list of {name, url, scope, compress}");
+      return;
+    }
+    if (have_lcm_url) error(nets.Mark(), "give either 'lcm_url' or 'tims: networks:', not both");
+    std::set<std::string> names;
+    for (const auto& n : nets) {
+      if (!n.IsMap()) {
+        error(n.Mark(), "a network is a map {name, url, scope, compress, compress_min_kib}");
+        continue;
+      }
+      check_keys(n, {"name", "url", "scope", "compress", "compress_min_kib"}, "a network");
+      tims::NetworkConfig nc;
+      get(n, "name", nc.name, "a name");
+      if (!n["url"]) error(n.Mark(), "network '" + nc.name + "' has no 'url'");
+      get(n, "url", nc.url, "an LCM URL such as udpm://239.255.76.67:7667?ttl=1");
+      if (!names.insert(nc.name).second) error(n.Mark(), "two networks named '" + nc.name + "'");
+      std::string scope = "robot";
+      if (get(n, "scope", scope, "robot or fleet")) {
+        if (scope == "robot") nc.scope = tims::NetworkScope::kRobot;
+        else if (scope == "fleet") nc.scope = tims::NetworkScope::kFleet;
+        else error(n["scope"].Mark(), "'scope' must be robot or fleet, got '" + scope + "'");
+      }
+      std::string compress = "none";
+      if (get(n, "compress", compress, "none or zstd")) {
+        if (compress == "none") nc.compression = tims::Compression::kNone;
+        else if (compress == "zstd") nc.compression = tims::Compression::kZstd;
+        else error(n["compress"].Mark(), "'compress' must be none or zstd, got '" + compress + "'");
+      }
+      if (get_int_range(n, "compress_min_kib", 0, 1024 * 1024, v, "a size in KiB")) {
+        nc.compress_min_bytes = static_cast<uint32_t>(v * 1024);
+      }
+      hs.networks.push_back(nc);
+    }
+    if (hs.role == tims::NodeRole::kSystemRouter) {
+      bool robot = false, fleet = false;
+      for (const auto& nc : hs.networks) (nc.scope == tims::NetworkScope::kRobot ? robot : fleet) = true;
+      if (!robot || !fleet) {
+        error(nets.Mark(), "a system_router bridges its robot's network and the fleet network: list one of "
+                           "each (scope: robot, scope: fleet)");
+      }
+    }
+  }
+
   void load_components(const YAML::Node& comps, LoadedHost& host) {
     struct Pending {
       YAML::Node node;
@@ -302,7 +376,7 @@ struct HostLoader {
         error(node.Mark(), "a component is a map (name, class, instance, tasks, params)");
         continue;
       }
-      check_keys(node, {"name", "class", "instance", "autostart", "retry_ms", "rpc_timeout_ms",
+      check_keys(node, {"name", "class", "instance", "autostart", "retry_ms", "rpc_timeout_ms", "rpc_retries",
                         "command_task", "data_task", "params"},
                  "a component");
       std::string name, impl;
@@ -328,6 +402,9 @@ struct HostLoader {
       get(node, "autostart", s.autostart, "true or false");
       get_positive_ms(node, "retry_ms", s.retry_ns);
       get_positive_ms(node, "rpc_timeout_ms", s.rpc_timeout_ns);
+      if (int64_t retries = 0; get_int_range(node, "rpc_retries", 0, 10, retries, "a number of retries 0..10")) {
+        s.rpc_retries = static_cast<uint32_t>(retries);
+      }
 
       std::unique_ptr<Component> component;
       try {

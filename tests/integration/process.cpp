@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <poll.h>
+#include <sched.h>
 #include <signal.h>
 #include <sys/file.h>
 #include <sys/prctl.h>
@@ -42,9 +43,10 @@ std::vector<char*> make_argv(const std::vector<std::string>& args) {
 }
 
 // In the child between fork and exec: only async-signal-safe calls.
-[[noreturn]] void exec_child(char* const* argv, pid_t parent, int out_fd, int err_fd) {
+[[noreturn]] void exec_child(char* const* argv, pid_t parent, int out_fd, int err_fd, int netns_fd) {
   prctl(PR_SET_PDEATHSIG, SIGKILL);  // dies with the test process
   if (getppid() != parent) _exit(127);
+  if (netns_fd >= 0 && setns(netns_fd, CLONE_NEWNET) != 0) _exit(126);
   const int null_fd = open("/dev/null", O_RDONLY);
   if (null_fd >= 0) dup2(null_fd, STDIN_FILENO);
   dup2(out_fd, STDOUT_FILENO);
@@ -64,6 +66,15 @@ int decode_status(int status, int& term_signal) {
   return -1;
 }
 
+// The namespace's file, opened before fork (the child only calls setns on it).
+int open_netns(const std::string& netns) {
+  if (netns.empty()) return -1;
+  const std::string path = "/run/netns/" + netns;
+  const int fd = open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw std::runtime_error("cannot open network namespace " + path + ": " + std::strerror(errno));
+  return fd;
+}
+
 int64_t now_ms() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(
              std::chrono::steady_clock::now().time_since_epoch())
@@ -81,8 +92,9 @@ std::string RunResult::describe() const {
   return s.str();
 }
 
-RunResult run(const std::vector<std::string>& args, std::chrono::milliseconds timeout) {
+RunResult run(const std::vector<std::string>& args, std::chrono::milliseconds timeout, const std::string& netns) {
   RunResult result;
+  const int netns_fd = open_netns(netns);
   int out_pipe[2];
   int err_pipe[2];
   if (pipe2(out_pipe, O_CLOEXEC) != 0 || pipe2(err_pipe, O_CLOEXEC) != 0) {
@@ -92,8 +104,9 @@ RunResult run(const std::vector<std::string>& args, std::chrono::milliseconds ti
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid < 0) throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
-  if (pid == 0) exec_child(argv.data(), parent, out_pipe[1], err_pipe[1]);
+  if (pid == 0) exec_child(argv.data(), parent, out_pipe[1], err_pipe[1], netns_fd);
   register_child(pid);
+  if (netns_fd >= 0) close(netns_fd);
   close(out_pipe[1]);
   close(err_pipe[1]);
 
@@ -131,8 +144,10 @@ RunResult run(const std::vector<std::string>& args, std::chrono::milliseconds ti
   return result;
 }
 
-Process::Process(const std::vector<std::string>& args, const std::filesystem::path& dir, const std::string& tag)
+Process::Process(const std::vector<std::string>& args, const std::filesystem::path& dir, const std::string& tag,
+                 const std::string& netns)
     : out_path_(dir / (tag + ".stdout")), err_path_(dir / (tag + ".stderr")) {
+  const int netns_fd = open_netns(netns);
   const int out_fd = open(out_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   const int err_fd = open(err_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (out_fd < 0 || err_fd < 0) throw std::runtime_error("cannot create output files in " + dir.string());
@@ -140,8 +155,9 @@ Process::Process(const std::vector<std::string>& args, const std::filesystem::pa
   const pid_t parent = getpid();
   pid_ = fork();
   if (pid_ < 0) throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
-  if (pid_ == 0) exec_child(argv.data(), parent, out_fd, err_fd);
+  if (pid_ == 0) exec_child(argv.data(), parent, out_fd, err_fd, netns_fd);
   register_child(pid_);
+  if (netns_fd >= 0) close(netns_fd);
   close(out_fd);
   close(err_fd);
 }

@@ -30,13 +30,16 @@ struct RunResult {
 };
 
 // Runs `args` (args[0] is the path) to completion, capturing stdout and stderr.
-// Killed (SIGKILL) after `timeout`.
-RunResult run(const std::vector<std::string>& args, std::chrono::milliseconds timeout);
+// Killed (SIGKILL) after `timeout`. `netns`: the named network namespace
+// (/run/netns/NAME) the child enters before exec; empty: the test's own.
+RunResult run(const std::vector<std::string>& args, std::chrono::milliseconds timeout,
+              const std::string& netns = "");
 
 // A long-running child (rackd) whose stdout and stderr go to files in `dir`.
 class Process {
  public:
-  Process(const std::vector<std::string>& args, const std::filesystem::path& dir, const std::string& tag);
+  Process(const std::vector<std::string>& args, const std::filesystem::path& dir, const std::string& tag,
+          const std::string& netns = "");
   ~Process();  // SIGKILL and reap if still running
   Process(const Process&) = delete;
   Process& operator=(const Process&) = delete;

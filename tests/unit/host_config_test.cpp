@@ -407,6 +407,89 @@ TEST_F(HostConfigTest, MissingComponentsIsAWholeFileError) {
   EXPECT_EQ(r.errors[0].str(), "host.yaml: " + r.errors[0].message);
 }
 
+TEST_F(HostConfigTest, TimsSectionIsReadWithEveryKey) {
+  const LoadResult r = load(R"(system: 3
+host_id: 2
+tims:
+  role: system_router
+  announce_ms: 500
+  expiry_ms: 2000
+  max_message_kib: 1024
+  large_slots: 2
+  networks:
+    - {name: robot3, url: "udpm://239.255.76.67:7713?ttl=1", scope: robot}
+    - {name: fleet, url: "udpm://239.255.76.68:7700?ttl=1", scope: fleet, compress: zstd, compress_min_kib: 8}
+components: []
+)");
+  ASSERT_NE(r.host, nullptr) << (r.errors.empty() ? "" : r.errors.front().str());
+  const HostSettings& hs = r.host->settings;
+  EXPECT_EQ(hs.role, tims::NodeRole::kSystemRouter);
+  EXPECT_EQ(hs.announce_period_ns, 500 * rt::kNsPerMs);
+  EXPECT_EQ(hs.expiry_ns, 2000 * rt::kNsPerMs);
+  EXPECT_EQ(hs.max_message_bytes, 1024u * 1024u + 4096u);
+  EXPECT_EQ(hs.large_slots, 2u);
+  ASSERT_EQ(hs.networks.size(), 2u);
+  EXPECT_EQ(hs.networks[0].name, "robot3");
+  EXPECT_EQ(hs.networks[0].scope, tims::NetworkScope::kRobot);
+  EXPECT_EQ(hs.networks[0].compression, tims::Compression::kNone);
+  EXPECT_EQ(hs.networks[1].url, "udpm://239.255.76.68:7700?ttl=1");
+  EXPECT_EQ(hs.networks[1].scope, tims::NetworkScope::kFleet);
+  EXPECT_EQ(hs.networks[1].compression, tims::Compression::kZstd);
+  EXPECT_EQ(hs.networks[1].compress_min_bytes, 8u * 1024u);
+}
+
+TEST_F(HostConfigTest, TimsSectionErrorsNameTheirLine) {
+  expect_error(R"(system: 0
+tims:
+  role: king
+components: []
+)",
+               3, {"'role'", "king"});
+  expect_error(R"(system: 0
+tims:
+  announce_ms: 1000
+  expiry_ms: 500
+components: []
+)",
+               4, {"'expiry_ms'", "longer than 'announce_ms'"});
+  expect_error(R"(system: 0
+tims:
+  networks:
+    - {name: a, url: "udpm://239.255.76.67:7711?ttl=1", scope: sideways}
+components: []
+)",
+               4, {"'scope'", "sideways"});
+  expect_error(R"(system: 0
+tims:
+  networks:
+    - {name: a, url: "udpm://239.255.76.67:7711?ttl=1", compress: lzma}
+components: []
+)",
+               4, {"'compress'", "lzma"});
+  expect_error(R"(system: 0
+lcm_url: "udpm://239.255.76.67:7667?ttl=0"
+tims:
+  networks:
+    - {name: a, url: "udpm://239.255.76.67:7711?ttl=1"}
+components: []
+)",
+               5, {"either 'lcm_url' or"});
+  expect_error(R"(system: 0
+tims:
+  role: system_router
+  networks:
+    - {name: a, url: "udpm://239.255.76.67:7711?ttl=1", scope: robot}
+components: []
+)",
+               5, {"system_router", "scope: fleet"});
+  expect_error(R"(system: 0
+tims:
+  colour: blue
+components: []
+)",
+               3, {"unknown key 'colour'"});
+}
+
 TEST_F(HostConfigTest, ReportsEveryProblemNotJustTheFirst) {
   const LoadResult r = load(R"(lcm: false
 components:

@@ -135,6 +135,32 @@ TEST_F(RouterTest, DeliverLocalAnswersOnlyForItsOwnSystem) {
   EXPECT_EQ(client_box_.queued(), 1u);
 }
 
+TEST_F(RouterTest, SharedSystemSendsUnknownOwnAddressesToTheUplinkAndLeavesAnswersToIt) {
+  Mailbox uplink(Address::make(kSys, classes::kExecutor, 0, 7), 4, 512);
+  Mailbox large(Address::make(kSys, classes::kExecutor, 0, 8), 1, 4096);
+  router_.set_uplink(&uplink, &large);
+  router_.set_system_shared(true);
+  const Tag t{5, 0};
+  // Another host of this robot may own it: out it goes, no NOT_AVAILABLE here.
+  EXPECT_EQ(router_.send(test::tag_header(kUnknown, kClient, 1, msg::kOn), {buffer_of(t)}), SendStatus::kOk);
+  EXPECT_EQ(uplink.queued(), 1u);
+  EXPECT_EQ(client_box_.queued(), 0u);
+  // Larger than the uplink's slots: the large uplink.
+  std::array<std::byte, 1000> big{};
+  const MessageHeader h = make_header(kUnknown, kClient, msg::kData, 1, 2, big.size());
+  EXPECT_EQ(router_.send(h, {ConstBuffer{big.data(), big.size()}}), SendStatus::kOk);
+  EXPECT_EQ(large.queued(), 1u);
+  // From the network: not ours to answer either (the transport decides).
+  alignas(8) std::array<std::byte, sizeof(MessageHeader)> raw{};
+  const MessageHeader req = make_header(kUnknown, kClient, msg::kGetStatus, 1, 4, 0);
+  std::memcpy(raw.data(), &req, sizeof req);
+  EXPECT_EQ(router_.deliver_local(raw), SendStatus::kNotAvailable);
+  EXPECT_EQ(router_.counters().not_available, 0u);
+  EXPECT_EQ(client_box_.queued(), 0u);
+  router_.set_uplink(nullptr);
+  router_.set_system_shared(false);
+}
+
 class EndpointTest : public RouterTest {
  protected:
   // Serves one request on the server mailbox with `respond`, from another thread.
@@ -187,6 +213,49 @@ TEST_F(EndpointTest, StaleReplyWithAnotherSequenceIsDiscardedAndCounted) {
   EXPECT_EQ(r.reply.type, msg::kOk);  // not the stale ERROR queued before it
   EXPECT_TRUE(r.ok());
   EXPECT_EQ(client.stale_replies(), 1u);
+}
+
+TEST_F(EndpointTest, RetryAfterALostRequestGetsTheReplyAndALateReplyIsStale) {
+  Watchdog dog;
+  Endpoint client(router_, client_box_, 5);
+  Endpoint server(router_, server_box_, 5);
+  // The first request is "lost" (never answered in time); the second is answered, and
+  // only then the late answer to the first arrives.
+  std::thread t([&] {
+    alignas(8) std::array<std::byte, 512> b{};
+    const auto first = server_box_.receive(b, 10 * rt::kNsPerSec);
+    ASSERT_EQ(first.status, RecvStatus::kOk);
+    const auto second = server_box_.receive(b, 10 * rt::kNsPerSec);
+    ASSERT_EQ(second.status, RecvStatus::kOk);
+    EXPECT_NE(first.header.seq, second.header.seq);
+    (void)server.reply(second.header, msg::kOk);
+    (void)server.reply(first.header, msg::kError);
+  });
+  const auto r = client.call_with_retry(kServer, msg::kOn, {}, buf_, RetryPolicy{200 * rt::kNsPerMs, 3});
+  t.join();
+  ASSERT_EQ(r.status, CallStatus::kOk);
+  EXPECT_EQ(r.reply.type, msg::kOk);
+  EXPECT_EQ(client.retries(), 1u);
+  // The late ERROR to the first attempt is discarded by the next call.
+  auto t2 = serve_one([&](const MessageHeader& req) { (void)server.reply(req, msg::kOk); });
+  const auto r2 = client.call(kServer, msg::kGetStatus, buf_, test::kCallTimeoutNs);
+  t2.join();
+  EXPECT_EQ(r2.reply.type, msg::kOk);
+  EXPECT_EQ(client.stale_replies(), 1u);
+}
+
+TEST_F(EndpointTest, RetriesStopAtTheLastAttemptAndNeverAfterAReply) {
+  Watchdog dog;
+  Endpoint client(router_, client_box_, 5);
+  auto r = client.call_with_retry(kServer, msg::kOn, {}, buf_, RetryPolicy{50 * rt::kNsPerMs, 3});
+  EXPECT_EQ(r.status, CallStatus::kTimeout);
+  EXPECT_EQ(client.retries(), 2u);
+  EXPECT_EQ(server_box_.queued(), 3u);  // three attempts were sent
+  // NOT_AVAILABLE is an answer: no retry.
+  r = client.call_with_retry(kUnknown, msg::kOn, {}, buf_, RetryPolicy{50 * rt::kNsPerMs, 3});
+  EXPECT_EQ(r.status, CallStatus::kOk);
+  EXPECT_EQ(r.reply.type, msg::kNotAvailable);
+  EXPECT_EQ(client.retries(), 2u);
 }
 
 TEST_F(EndpointTest, ReplyFromTheWrongSourceIsNotAccepted) {

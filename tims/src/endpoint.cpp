@@ -78,4 +78,16 @@ CallResult Endpoint::call(Address dest, int8_t type, std::span<const ConstBuffer
   }
 }
 
+CallResult Endpoint::call_with_retry(Address dest, int8_t type, std::span<const ConstBuffer> body,
+                                     std::span<std::byte> buffer, RetryPolicy policy) noexcept {
+  CallResult r;
+  const uint32_t attempts = policy.attempts == 0 ? 1 : policy.attempts;
+  for (uint32_t i = 0; i < attempts; ++i) {
+    if (i > 0) ++retries_;
+    r = call(dest, type, body, buffer, policy.timeout_ns);
+    if (r.status != CallStatus::kTimeout) return r;
+  }
+  return r;
+}
+
 }  // namespace rack::tims

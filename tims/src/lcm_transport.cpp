@@ -1,14 +1,26 @@
 #include "rack/tims/lcm_transport.h"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <poll.h>
+#include <sys/socket.h>
+#include <sys/random.h>
 #include <unistd.h>
+#include <zstd.h>
 
-#include <chrono>
+#include <algorithm>
+#include <array>
+#include <atomic>
 #include <cstring>
 #include <iostream>
 #include <lcm/lcm-cpp.hpp>
 #include <map>
+#include <mutex>
+#include <optional>
+#include <set>
 #include <stdexcept>
+#include <thread>
+#include <unordered_map>
 
 #include "rack/rt/clock.h"
 #include "rack_lcm/discover_request.hpp"
@@ -17,20 +29,73 @@
 
 namespace rack::tims {
 
+const char* describe(NetworkScope s) noexcept {
+  return s == NetworkScope::kRobot ? "robot" : "fleet";
+}
+const char* describe(Compression c) noexcept { return c == Compression::kZstd ? "zstd" : "none"; }
+const char* describe(NodeRole r) noexcept {
+  switch (r) {
+    case NodeRole::kExecutor: return "executor";
+    case NodeRole::kSystemRouter: return "system_router";
+    case NodeRole::kTopRouter: return "top_router";
+    case NodeRole::kTool: return "tool";
+  }
+  return "unknown";
+}
+
 namespace {
 
 constexpr const char* kTimsChannel = "TIMS";
 constexpr const char* kAnnounceChannel = "TIMS_ANNOUNCE";
 constexpr const char* kDiscoverChannel = "TIMS_DISCOVER";
-// Wire layout of tims_packet: 8-byte fingerprint, int32 size (big-endian), bytes.
-constexpr std::size_t kPacketPrefix = 12;
 
-void put_be64(uint8_t* p, uint64_t v) {
-  for (int i = 7; i >= 0; --i) { p[i] = static_cast<uint8_t>(v); v >>= 8; }
+// Wire layout of tims_packet (LCM encodes big-endian): 8-byte fingerprint, then the
+// fields in declaration order. Offsets of each field:
+constexpr std::size_t kOffOrigin = 8;
+constexpr std::size_t kOffRelay = 16;
+constexpr std::size_t kOffPacketSeq = 24;
+constexpr std::size_t kOffMessageSeq = 28;
+constexpr std::size_t kOffTotal = 32;
+constexpr std::size_t kOffEncoded = 36;
+constexpr std::size_t kOffOffset = 40;
+constexpr std::size_t kOffEncoding = 44;
+constexpr std::size_t kOffHops = 45;
+constexpr std::size_t kOffSize = 46;
+constexpr std::size_t kPacketPrefix = 50;
+// Bytes of a message per chunk: every LCM datagram stays below LCM's own
+// fragmentation limit (about 64 KB), so LCM never reassembles our traffic and a
+// receiver knows which message a lost chunk belongs to. Every chunk but the last of a
+// message is exactly this long (receivers check it).
+constexpr uint32_t kChunk = 60000;
+// Routers passed before a packet is dropped (a mis-wired fleet must not loop forever).
+constexpr int8_t kMaxHops = 4;
+// Smallest encoded component_info (address, two empty strings with their NULs).
+constexpr std::size_t kMinComponentBytes = 4 + 5 + 5;
+
+void put_be(uint8_t* p, uint64_t v, int bytes) {
+  if (bytes == 8) {
+    v = __builtin_bswap64(v);
+    std::memcpy(p, &v, 8);
+  } else {
+    auto w = __builtin_bswap32(static_cast<uint32_t>(v));
+    std::memcpy(p, &w, 4);
+  }
 }
-uint64_t get_be64(const uint8_t* p) {
+uint64_t get_be(const uint8_t* p, int bytes) {
   uint64_t v = 0;
-  for (int i = 0; i < 8; ++i) v = (v << 8) | p[i];
+  for (int i = 0; i < bytes; ++i) v = (v << 8) | p[i];
+  return v;
+}
+int64_t get_i64(const uint8_t* p) { return static_cast<int64_t>(get_be(p, 8)); }
+int32_t get_i32(const uint8_t* p) { return static_cast<int32_t>(static_cast<uint32_t>(get_be(p, 4))); }
+
+int64_t random_origin() {
+  int64_t v = 0;
+  while (v == 0) {
+    if (getrandom(&v, sizeof v, 0) != static_cast<ssize_t>(sizeof v)) {
+      v = rt::monotonic_ns() ^ (static_cast<int64_t>(getpid()) << 32);
+    }
+  }
   return v;
 }
 
@@ -38,222 +103,1048 @@ uint64_t get_be64(const uint8_t* p) {
 class RateLimitedWarn {
  public:
   explicit RateLimitedWarn(std::function<void(const std::string&)> sink) : sink_(std::move(sink)) {}
-  void operator()(const std::string& kind, const std::string& text) {
+  template <typename MakeText>
+  void operator()(const std::string& kind, MakeText make_text) {
     std::lock_guard lock(mutex_);
     const int64_t now = rt::monotonic_ns();
     auto& s = state_[kind];
-    if (now - s.last_ns < rt::kNsPerSec) { ++s.suppressed; return; }
-    std::string line = text;
-    if (s.suppressed > 0) line += " (" + std::to_string(s.suppressed) + " more suppressed)";
+    if (now - s.last_ns < rt::kNsPerSec) {
+      ++s.suppressed;
+      return;
+    }
+    std::string line = make_text();
+    if (s.suppressed > 0) line += " (" + std::to_string(s.suppressed) + " more like it suppressed)";
     s.suppressed = 0;
     s.last_ns = now;
     sink_(line);
   }
 
  private:
-  struct State { int64_t last_ns = INT64_MIN / 2; uint64_t suppressed = 0; };
+  struct State {
+    int64_t last_ns = INT64_MIN / 2;
+    uint64_t suppressed = 0;
+  };
   std::function<void(const std::string&)> sink_;
   std::mutex mutex_;
   std::map<std::string, State> state_;
 };
 
+void bump(std::atomic<uint64_t>& c, uint64_t n = 1) { c.fetch_add(n, std::memory_order_relaxed); }
+
+// An LCM udpm URL: udpm://GROUP:PORT?ttl=N&recv_buf_size=BYTES (LCM's defaults).
+struct UdpmUrl {
+  in_addr group{};
+  uint16_t port = 7667;
+  int recv_buf_size = 0;
+};
+std::optional<UdpmUrl> parse_udpm(const std::string& url) {
+  const std::string prefix = "udpm://";
+  if (url.rfind(prefix, 0) != 0) return std::nullopt;
+  std::string rest = url.substr(prefix.size());
+  std::string params;
+  if (const auto q = rest.find('?'); q != std::string::npos) {
+    params = rest.substr(q + 1);
+    rest = rest.substr(0, q);
+  }
+  UdpmUrl u;
+  std::string host = rest.empty() ? "239.255.76.67" : rest;
+  if (const auto c = rest.find(':'); c != std::string::npos) {
+    host = rest.substr(0, c);
+    char* end = nullptr;
+    const long port = std::strtol(rest.c_str() + c + 1, &end, 10);
+    if (*end != '\0' || port <= 0 || port > 65535) return std::nullopt;
+    u.port = static_cast<uint16_t>(port);
+  }
+  if (inet_pton(AF_INET, host.c_str(), &u.group) != 1) return std::nullopt;
+  for (std::size_t at = 0; at < params.size();) {
+    auto amp = params.find('&', at);
+    if (amp == std::string::npos) amp = params.size();
+    const std::string kv = params.substr(at, amp - at);
+    if (kv.rfind("recv_buf_size=", 0) == 0) u.recv_buf_size = std::atoi(kv.c_str() + 14);
+    at = amp + 1;
+  }
+  return u;
+}
+
+// LCM's framing of a datagram (lcm_udpm.c): a short message is "LC02", a 32-bit
+// sequence number, the channel NUL-terminated, the payload; "LC03" marks a fragment
+// of a message above about 64 KB (never ours: our chunks are smaller).
+constexpr uint32_t kLcmShortMagic = 0x4c433032;
+constexpr uint32_t kLcmFragmentMagic = 0x4c433033;
+
+std::string origin_text(int64_t origin) {
+  char buf[24];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(origin));
+  return buf;
+}
+
 }  // namespace
 
 struct LcmTransport::Impl {
-  Impl(Router& r, const LcmTransportConfig& c)
+  struct Network;
+
+  // A large message being received, in a preallocated buffer.
+  struct Reassembly {
+    bool used = false;
+    int64_t origin = 0;
+    int32_t message_seq = 0;
+    uint32_t total = 0;
+    uint32_t encoded = 0;
+    int8_t encoding = 0;
+    int8_t hops = 0;
+    uint32_t chunks = 0;
+    uint32_t received = 0;
+    int64_t started_ns = 0;
+    std::vector<std::byte> data;
+    std::vector<uint8_t> have;  // one flag per chunk
+  };
+
+  struct Network {
+    Impl* impl = nullptr;
+    std::size_t index = 0;
+    NetworkConfig config;
+    std::unique_ptr<lcm::LCM> lcm;
+    std::thread receiver;
+    // Publishing (any non-RT thread of this transport): buffers under the mutex.
+    std::mutex publish_mutex;
+    uint32_t packet_seq = 0;
+    std::vector<uint8_t> packet;      // prefix + one chunk
+    std::vector<std::byte> compressed;
+    ZSTD_CCtx* cctx = nullptr;
+    // Receiving (this network's receive thread only).
+    std::vector<Reassembly> slots;
+    // Large messages for someone else, recognised by their first chunk: their other
+    // chunks are dropped at once instead of reassembled (on a shared network every
+    // host hears every 4 MB scan). A small ring of (origin, message number).
+    std::array<std::pair<int64_t, int32_t>, 16> skipped{};
+    std::size_t next_skipped = 0;
+    std::vector<std::byte> message;   // a whole message in host byte order, for delivery
+    ZSTD_DCtx* dctx = nullptr;
+    std::unordered_map<int64_t, uint32_t> last_packet_seq;  // per publisher
+    // Our own socket on a udpm network: the receive thread reads datagrams itself
+    // instead of through LCM's receive thread and notify pipe (two thread hand-offs
+    // less per message; LCM 1.3 has no other way). -1: receive through LCM.
+    int raw_fd = -1;
+    std::vector<uint8_t> datagram;
+
+    void on_packet(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+      impl->on_packet(*this, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, channel);
+    }
+    void on_announce(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+      impl->on_announce(*this, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, channel);
+    }
+    void on_discover(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+      impl->on_discover(*this, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, channel);
+    }
+  };
+
+  struct HostEntry {
+    HostInfo info;
+  };
+  struct Subscription {
+    uint32_t producer = 0;  // component address of the remote producer
+    uint32_t listener = 0;  // local mailbox that receives the samples
+    uint8_t priority = 0;
+  };
+
+  Impl(Router& r, LcmTransportConfig c)
       : router(r),
-        config(c),
-        lcm(c.url),
-        uplink(Address::make(kToolSystem, classes::kTool, 0xFF, 0xFF), c.uplink_slots, c.uplink_slot_size),
-        warn(c.warn ? c.warn : [](const std::string& s) { std::cerr << s << std::endl; }),
-        receive_buffer(c.uplink_slot_size),
-        publish_buffer(kPacketPrefix + c.uplink_slot_size) {}
+        config(std::move(c)),
+        origin(random_origin()),
+        uplink(Address::make(kToolSystem, classes::kTool, 0xFF, 0xFF), config.uplink_slots, config.uplink_slot_size),
+        large_uplink(Address::make(kToolSystem, classes::kTool, 0xFF, 0xFE), std::max<uint32_t>(config.large_slots, 1),
+                     std::max(config.max_message_bytes, config.uplink_slot_size)),
+        control(Address::make(kToolSystem, classes::kTool, 0xFF, 0xFD), 16, 512),
+        warn(config.warn ? config.warn : [](const std::string& s) { std::cerr << s << std::endl; }) {
+    if (config.networks.empty()) {
+      NetworkConfig n;
+      n.url = config.url;
+      config.networks.push_back(n);
+    }
+    own_system = router.system();
+  }
+  ~Impl() {
+    for (auto& n : networks) {
+      if (n->raw_fd >= 0) close(n->raw_fd);
+      if (n->cctx != nullptr) ZSTD_freeCCtx(n->cctx);
+      if (n->dctx != nullptr) ZSTD_freeDCtx(n->dctx);
+    }
+  }
 
   Router& router;
   LcmTransportConfig config;
-  lcm::LCM lcm;
+  const int64_t origin;
   Mailbox uplink;
+  Mailbox large_uplink;
+  Mailbox control;  // replies to the transport's own requests (STOP_CONT_DATA), drained
   RateLimitedWarn warn;
-  std::vector<std::byte> receive_buffer;
-  std::vector<uint8_t> publish_buffer;
-  std::thread receiver;
-  std::thread sender;
+  std::vector<std::unique_ptr<Network>> networks;
+  std::thread sender, large_sender, maintenance;
   std::atomic<bool> running{false};
+  int64_t started_ns = 0;
+  std::atomic<int32_t> message_seq{0};
 
-  mutable std::mutex hosts_mutex;
-  std::map<std::string, HostInfo> hosts;  // by host name + pid
+  // Discovery table and subscriptions (non-RT threads only).
+  mutable std::mutex table_mutex;
+  std::map<int64_t, HostEntry> hosts;                  // by origin
+  std::unordered_map<uint32_t, int64_t> owners;        // component address -> origin
+  std::vector<Subscription> subscriptions;
+  // Streams that leave this host: (local producer component << 32 | remote listener
+  // mailbox). When the listener's host is lost, the producer is told to stop
+  // (STOP_CONT_DATA), or it would stream into the void for good.
+  std::unordered_map<uint64_t, int64_t> streams;
+  std::set<int64_t> retired;  // origins of hosts taken for restarted (bounded)
+  bool have_own_id = false;
+  uint8_t own_system = 0;
+  uint8_t own_host_id = 0;
+
   std::mutex announce_mutex;
   bool have_announcement = false;
   rack_lcm::host_announce announcement;
 
-  std::atomic<uint64_t> packets_in{0}, packets_out{0}, malformed{0}, not_for_us{0},
-      publish_errors{0}, delivery_failed{0};
+  std::atomic<uint64_t> packets_in{0}, packets_out{0}, messages_in{0}, messages_out{0}, malformed{0}, forged{0},
+      not_for_us{0}, forwarded{0}, not_available{0}, sequence_gaps{0}, lost_messages{0}, publish_errors{0},
+      delivery_failed{0}, hosts_expired{0}, subscriptions_failed{0}, streams_stopped{0}, compressed_out{0}, bytes_out{0},
+      wire_bytes_out{0};
 
-  void on_packet(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
-  void on_announce(const lcm::ReceiveBuffer*, const std::string&, const rack_lcm::host_announce* msg);
-  void on_discover(const lcm::ReceiveBuffer*, const std::string&, const rack_lcm::discover_request*) {
-    publish_announcement();
+  // ------------------------------------------------------------------ set-up
+  void join() {
+    for (std::size_t i = 0; i < config.networks.size(); ++i) {
+      auto n = std::make_unique<Network>();
+      n->impl = this;
+      n->index = i;
+      n->config = config.networks[i];
+      n->lcm = std::make_unique<lcm::LCM>(n->config.url);
+      if (!n->lcm->good()) {
+        throw std::runtime_error("cannot join the LCM network '" + n->config.url +
+                                 "' (a network namespace needs 'ip link set lo up' and a multicast "
+                                 "route: ip route add 224.0.0.0/4 dev IFACE)");
+      }
+      n->packet.assign(kPacketPrefix + kChunk, 0);
+      put_be(n->packet.data(), static_cast<uint64_t>(rack_lcm::tims_packet::getHash()), 8);
+      if (n->config.compression == Compression::kZstd) {
+        n->compressed.resize(ZSTD_compressBound(config.max_message_bytes));
+        n->cctx = ZSTD_createCCtx();
+      }
+      n->dctx = ZSTD_createDCtx();
+      n->message.resize(config.max_message_bytes);
+      n->slots.resize(std::max<uint32_t>(config.reassembly_slots, 1));
+      const uint32_t max_chunks = (config.max_message_bytes + kChunk - 1) / kChunk + 1;
+      // Compressed streams can exceed the message a little (incompressible data).
+      const std::size_t max_encoded = ZSTD_compressBound(config.max_message_bytes);
+      for (auto& s : n->slots) {
+        s.data.resize(max_encoded);
+        s.have.resize(max_chunks + 1);
+      }
+      if (const auto u = parse_udpm(n->config.url)) {
+        // LCM then only publishes: it opens its receive socket and thread on the first
+        // subscription, and there is none.
+        open_raw(*n, *u);
+      } else {
+        auto* sub = n->lcm->subscribe(kTimsChannel, &Network::on_packet, n.get());
+        sub->setQueueCapacity(1024);  // LCM's default (~30) silently drops bursts
+        n->lcm->subscribe(kAnnounceChannel, &Network::on_announce, n.get())->setQueueCapacity(256);
+        n->lcm->subscribe(kDiscoverChannel, &Network::on_discover, n.get())->setQueueCapacity(64);
+      }
+      networks.push_back(std::move(n));
+    }
   }
-  void publish_announcement();
-  void receive_loop();
-  void send_loop();
-  void reject(const std::string& why, const std::string& channel) {
-    malformed.fetch_add(1, std::memory_order_relaxed);
-    warn("malformed", "TiMS/LCM: dropped a malformed packet on '" + channel + "' (" + config.url +
-                          "): " + why);
+
+  // The receive side of a udpm network, as LCM sets it up: any address, the port,
+  // shared with every other member on this machine, the group joined.
+  void open_raw(Network& n, const UdpmUrl& u) {
+    const auto fail = [&](const char* what) {
+      const std::string why = std::string(what) + ": " + std::strerror(errno);
+      if (n.raw_fd >= 0) close(n.raw_fd);
+      n.raw_fd = -1;
+      throw std::runtime_error("cannot join the LCM network '" + n.config.url + "' (" + why +
+                               "; a network namespace needs 'ip link set lo up' and a multicast route: "
+                               "ip route add 224.0.0.0/4 dev IFACE)");
+    };
+    n.raw_fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+    if (n.raw_fd < 0) fail("socket");
+    const int one = 1;
+    if (setsockopt(n.raw_fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) != 0) fail("SO_REUSEADDR");
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_addr.s_addr = htonl(INADDR_ANY);
+    addr.sin_port = htons(u.port);
+    if (bind(n.raw_fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) fail("bind");
+    ip_mreq mreq{};
+    mreq.imr_multiaddr = u.group;
+    mreq.imr_interface.s_addr = htonl(INADDR_ANY);
+    if (setsockopt(n.raw_fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &mreq, sizeof mreq) != 0) fail("IP_ADD_MEMBERSHIP");
+    if (u.recv_buf_size > 0) {
+      // Capped by net.core.rmem_max, as for LCM (README: socket buffers).
+      (void)setsockopt(n.raw_fd, SOL_SOCKET, SO_RCVBUF, &u.recv_buf_size, sizeof u.recv_buf_size);
+    }
+    n.datagram.resize(65536);
+  }
+
+  // One datagram from our own socket: LCM's framing, then our channels.
+  void on_datagram(Network& n, const uint8_t* d, std::size_t size) {
+    if (size < 8) {
+      return reject(n, "lcm", [&] { return std::to_string(size) + " bytes: not an LCM datagram"; });
+    }
+    const auto magic = static_cast<uint32_t>(get_be(d, 4));
+    if (magic == kLcmFragmentMagic) return;  // someone else's large LCM message
+    if (magic != kLcmShortMagic) {
+      return reject(n, "lcm", [&] { return std::string("not an LCM datagram (magic differs)"); });
+    }
+    const auto* name = reinterpret_cast<const char*>(d + 8);
+    const std::size_t max_name = std::min<std::size_t>(size - 8, 64);
+    const std::size_t len = strnlen(name, max_name);
+    if (len == max_name) return reject(n, "lcm", [&] { return std::string("LCM channel name not terminated"); });
+    const std::string_view channel(name, len);
+    const uint8_t* payload = d + 8 + len + 1;
+    const std::size_t payload_size = size - 8 - len - 1;
+    if (channel == kTimsChannel) return on_packet(n, payload, payload_size, kTimsChannel);
+    if (channel == kAnnounceChannel) return on_announce(n, payload, payload_size, kAnnounceChannel);
+    if (channel == kDiscoverChannel) return on_discover(n, payload, payload_size, kDiscoverChannel);
+    // Other channels on the same network (GDOS, tools): not ours.
+  }
+
+  // ------------------------------------------------------------------ publishing
+  // Publishes one TiMS message (host byte order header at the start) on `n`, chunked
+  // and compressed as the network says. `writable`: the caller owns `msg` and lets it
+  // be used as scratch (restored before return), so that chunks after the first go out
+  // in place (the 50-byte prefix written over the tail of the chunk before, which has
+  // been sent) instead of being copied into the packet buffer first. Any non-RT thread.
+  bool publish_message(Network& n, const std::byte* msg, uint32_t len, int64_t msg_origin, int64_t relay,
+                       int8_t hops, int32_t seq, bool writable = false) {
+    std::lock_guard lock(n.publish_mutex);
+    const std::byte* stream = msg;
+    uint32_t encoded = len;
+    int8_t encoding = 0;
+    if (n.cctx != nullptr && len >= n.config.compress_min_bytes) {
+      const std::size_t c = ZSTD_compressCCtx(n.cctx, n.compressed.data(), n.compressed.size(), msg, len, 1);
+      if (ZSTD_isError(c) == 0 && c < len) {
+        stream = n.compressed.data();
+        encoded = static_cast<uint32_t>(c);
+        encoding = 1;
+        writable = true;  // our own buffer
+        bump(compressed_out);
+      }
+    }
+    bool ok = true;
+    for (uint32_t off = 0; off < encoded; off += kChunk) {
+      const uint32_t size = std::min(kChunk, encoded - off);
+      const bool in_place = writable && off >= kPacketPrefix;
+      std::array<uint8_t, kPacketPrefix> saved{};
+      uint8_t* p = nullptr;
+      if (in_place) {
+        // const_cast: `writable` says the caller owns this memory exclusively.
+        p = reinterpret_cast<uint8_t*>(const_cast<std::byte*>(stream + off - kPacketPrefix));
+        std::memcpy(saved.data(), p, kPacketPrefix);
+      } else {
+        p = n.packet.data();
+        std::memcpy(p + kPacketPrefix, stream + off, size);
+      }
+      put_be(p, static_cast<uint64_t>(rack_lcm::tims_packet::getHash()), 8);
+      put_be(p + kOffOrigin, static_cast<uint64_t>(msg_origin), 8);
+      put_be(p + kOffRelay, static_cast<uint64_t>(relay), 8);
+      put_be(p + kOffPacketSeq, ++n.packet_seq, 4);
+      put_be(p + kOffMessageSeq, static_cast<uint32_t>(seq), 4);
+      put_be(p + kOffTotal, len, 4);
+      put_be(p + kOffEncoded, encoded, 4);
+      put_be(p + kOffOffset, off, 4);
+      p[kOffEncoding] = static_cast<uint8_t>(encoding);
+      p[kOffHops] = static_cast<uint8_t>(hops);
+      put_be(p + kOffSize, size, 4);
+      const int rc = n.lcm->publish(kTimsChannel, p, static_cast<unsigned>(kPacketPrefix + size));
+      if (in_place) std::memcpy(p, saved.data(), kPacketPrefix);
+      if (rc != 0) {
+        bump(publish_errors);
+        ok = false;
+        warn("publish", [&] { return "TiMS/LCM: publish on " + n.config.url + " failed"; });
+        break;
+      }
+      bump(packets_out);
+    }
+    if (ok) {
+      bump(messages_out);
+      bump(bytes_out, len);
+      bump(wire_bytes_out, encoded);
+    }
+    return ok;
+  }
+
+  // Networks a message for `dest` leaves on (sender threads).
+  template <typename Fn>
+  void for_networks_to(Address dest, Fn fn) {
+    const uint8_t sys = dest.system();
+    bool any_fleet = false;
+    for (auto& n : networks) any_fleet = any_fleet || n->config.scope == NetworkScope::kFleet;
+    for (auto& n : networks) {
+      bool use = true;
+      if (sys != kToolSystem && any_fleet && networks.size() > 1) {
+        const bool other = sys != own_system || role() == NodeRole::kTopRouter;
+        use = (n->config.scope == NetworkScope::kFleet) == other;
+      }
+      if (use) fn(*n);
+    }
+  }
+
+  NodeRole role() const { return config.role; }
+
+  // ------------------------------------------------------------------ discovery table
+  // Lock held. A component (or executor) address that a live host announced.
+  bool known_locked(Address a) const { return owners.count(a.component().raw()) != 0; }
+
+  bool warm() const {
+    return rt::monotonic_ns() - started_ns >= config.warmup_ns;
+  }
+
+  // Lock held. Whether this transport answers NOT_AVAILABLE for unknown mailboxes of
+  // `system` (see the header: exactly one authority per system).
+  bool authoritative_locked(uint8_t system) const {
+    if (system == kToolSystem || role() == NodeRole::kTool || !warm()) return false;
+    bool system_router = false, lower_executor = false;
+    for (const auto& [o, e] : hosts) {
+      if (e.info.system != system) continue;
+      if (e.info.role == NodeRole::kSystemRouter) system_router = true;
+      if (e.info.role == NodeRole::kExecutor && e.info.host_id < own_host_id) lower_executor = true;
+    }
+    switch (role()) {
+      case NodeRole::kTopRouter: return !system_router;
+      case NodeRole::kSystemRouter: return system == own_system;
+      case NodeRole::kExecutor: return system == own_system && !system_router && !lower_executor;
+      case NodeRole::kTool: return false;
+    }
+    return false;
+  }
+
+  void rebuild_owners_locked() {
+    owners.clear();
+    for (const auto& [o, e] : hosts) {
+      owners[e.info.executor.component().raw()] = o;
+      for (const auto& c : e.info.components) owners[c.address.component().raw()] = o;
+    }
+  }
+
+  // Lock held. Sends an ERROR, in the producer's name, to every local consumer of a
+  // component of `lost` (as the producer would when going OFF) and forgets them.
+  void fail_subscriptions_locked(const HostInfo& lost, const std::string& why) {
+    std::set<uint32_t> gone;
+    gone.insert(lost.executor.component().raw());
+    for (const auto& c : lost.components) gone.insert(c.address.component().raw());
+    char text[120] = {};
+    std::snprintf(text, sizeof text, "host '%s' lost: %s", lost.host.c_str(), why.c_str());
+    auto it = subscriptions.begin();
+    while (it != subscriptions.end()) {
+      if (gone.count(it->producer) == 0) {
+        ++it;
+        continue;
+      }
+      const MessageHeader h =
+          make_header(Address(it->listener), Address(it->producer), msg::kError, it->priority, 0, sizeof text);
+      const ConstBuffer part{text, sizeof text};
+      (void)router.send(h, std::span<const ConstBuffer>(&part, 1));
+      bump(subscriptions_failed);
+      it = subscriptions.erase(it);
+    }
+    for (auto st = streams.begin(); st != streams.end();) {
+      const auto listener = static_cast<uint32_t>(st->first);
+      if (gone.count(Address(listener).component().raw()) == 0) {
+        ++st;
+        continue;
+      }
+      const Address producer(static_cast<uint32_t>(st->first >> 32));
+      const uint32_t body[2] = {listener, 0};  // rack::wire::StopContDataRequest
+      const MessageHeader h = make_header(producer, control.address(), msg::kStopContData, 0, 0, sizeof body);
+      const ConstBuffer part{body, sizeof body};
+      (void)router.send(h, std::span<const ConstBuffer>(&part, 1));
+      bump(streams_stopped);
+      st = streams.erase(st);
+    }
+  }
+
+  void expire_hosts() {
+    std::vector<std::string> lines;
+    {
+      std::lock_guard lock(table_mutex);
+      const int64_t now = rt::monotonic_ns();
+      bool changed = false;
+      for (auto it = hosts.begin(); it != hosts.end();) {
+        const int64_t silent = now - it->second.info.last_seen_ns;
+        if (silent <= config.expiry_ns) {
+          ++it;
+          continue;
+        }
+        const HostInfo& info = it->second.info;
+        lines.push_back("TiMS/LCM: host '" + info.host + "' (system " + std::to_string(info.system) + ", host id " +
+                        std::to_string(info.host_id) + ", pid " + std::to_string(info.pid) + ", " +
+                        describe(info.role) + ") expired: no announcement for " +
+                        std::to_string(silent / rt::kNsPerMs) + " ms");
+        fail_subscriptions_locked(info, "no announcement for " + std::to_string(silent / rt::kNsPerMs) + " ms");
+        bump(hosts_expired);
+        it = hosts.erase(it);
+        changed = true;
+      }
+      if (changed) rebuild_owners_locked();
+    }
+    // Host events are rare and each matters: not rate-limited by kind.
+    for (const auto& l : lines) warn("expired " + l, [&] { return l; });
+  }
+
+  // ------------------------------------------------------------------ receiving
+  void reject(Network& n, const std::string& kind, const std::function<std::string()>& why) {
+    bump(malformed);
+    warn("malformed " + kind, [&] {
+      return "TiMS/LCM: dropped a malformed packet on network '" + n.config.name + "' (" + n.config.url + "): " + why();
+    });
+  }
+
+  void count_gap(Network& n, int64_t publisher, uint32_t seq) {
+    if (n.last_packet_seq.size() > 4096) n.last_packet_seq.clear();  // bounded; a restart of counting
+    auto [it, fresh] = n.last_packet_seq.try_emplace(publisher, seq);
+    if (fresh) return;
+    const uint32_t expected = it->second + 1;
+    const uint32_t ahead = seq - expected;  // modulo 2^32
+    if (ahead != 0 && ahead < (1u << 20)) bump(sequence_gaps, ahead);
+    if (ahead < (1u << 31)) it->second = seq;  // ignore late (reordered) packets
+  }
+
+  void report_lost(Network& n, Reassembly& s, const char* why) {
+    bump(lost_messages);
+    std::string what = "message " + std::to_string(s.message_seq) + " of origin " + origin_text(s.origin);
+    if (s.have[0] != 0 && s.encoding == 0 && s.total >= sizeof(MessageHeader)) {
+      MessageHeader h;
+      if (decode_header(std::span<const std::byte>(s.data.data(), s.total), h) != MessageError::kOk) {
+        // decode_header checks the length too, which is the full one here: read raw.
+        std::memcpy(&h, s.data.data(), sizeof h);
+      }
+      what = "message from " + h.source().str() + " to " + h.destination().str();
+    }
+    const uint32_t received = s.received;
+    const uint32_t chunks = s.chunks;
+    const uint32_t total = s.total;
+    warn("lost", [&] {
+      return "TiMS/LCM: " + what + " (" + std::to_string(total) + " bytes) lost on network '" + n.config.name +
+             "': " + std::to_string(chunks - received) + " of " + std::to_string(chunks) + " chunks missing (" +
+             why + "); raise recv_buf_size in the LCM URL and net.core.rmem_max";
+    });
+    s.used = false;
+  }
+
+  void expire_reassembly(Network& n) {
+    const int64_t now = rt::monotonic_ns();
+    for (auto& s : n.slots) {
+      if (s.used && now - s.started_ns > config.reassembly_timeout_ns) report_lost(n, s, "timed out");
+    }
+  }
+
+  void on_packet(Network& n, const uint8_t* d, std::size_t size, const std::string& channel) {
+    bump(packets_in);
+    if (size < kPacketPrefix) {
+      return reject(n, "short", [&] {
+        return "'" + channel + "': " + std::to_string(size) + " bytes, shorter than a tims_packet";
+      });
+    }
+    if (get_be(d, 8) != static_cast<uint64_t>(rack_lcm::tims_packet::getHash())) {
+      return reject(n, "type", [&] { return "'" + channel + "': not a rack_lcm.tims_packet (fingerprint differs)"; });
+    }
+    const int64_t pkt_origin = get_i64(d + kOffOrigin);
+    const int64_t relay = get_i64(d + kOffRelay);
+    const auto pseq = static_cast<uint32_t>(get_i32(d + kOffPacketSeq));
+    const int32_t mseq = get_i32(d + kOffMessageSeq);
+    const int32_t total = get_i32(d + kOffTotal);
+    const int32_t encoded = get_i32(d + kOffEncoded);
+    const int32_t offset = get_i32(d + kOffOffset);
+    const auto encoding = static_cast<int8_t>(d[kOffEncoding]);
+    const auto hops = static_cast<int8_t>(d[kOffHops]);
+    const int32_t chunk = get_i32(d + kOffSize);
+    if (static_cast<int64_t>(chunk) != static_cast<int64_t>(size - kPacketPrefix)) {
+      return reject(n, "size", [&] {
+        return "size field " + std::to_string(chunk) + " but " + std::to_string(size - kPacketPrefix) +
+               " bytes follow";
+      });
+    }
+    if (pkt_origin == origin || relay == origin) return;  // our own packet, back over multicast
+    count_gap(n, relay != 0 ? relay : pkt_origin, pseq);
+    const uint32_t max_encoded = static_cast<uint32_t>(n.slots[0].data.size());
+    if (total < static_cast<int32_t>(sizeof(MessageHeader)) || static_cast<uint32_t>(total) > config.max_message_bytes ||
+        encoded < 0 || static_cast<uint32_t>(encoded) > max_encoded || offset < 0 || static_cast<uint32_t>(offset) % kChunk != 0 ||
+        static_cast<int64_t>(offset) + chunk > encoded ||
+        (static_cast<int64_t>(offset) + chunk != encoded && static_cast<uint32_t>(chunk) != kChunk) ||
+        (encoding != 0 && encoding != 1) || (encoding == 0 && encoded != total) || hops < 0 || hops > kMaxHops) {
+      return reject(n, "fields", [&] {
+        return "bad chunk fields (total " + std::to_string(total) + ", encoded " + std::to_string(encoded) +
+               ", offset " + std::to_string(offset) + ", size " + std::to_string(chunk) + ", encoding " +
+               std::to_string(encoding) + ", hops " + std::to_string(hops) + ", limit " +
+               std::to_string(config.max_message_bytes) + " bytes)";
+      });
+    }
+    const auto* data = reinterpret_cast<const std::byte*>(d + kPacketPrefix);
+    if (offset == 0 && chunk == encoded) {  // one chunk: the common case
+      return take_stream(n, data, false, static_cast<uint32_t>(encoded), static_cast<uint32_t>(total), encoding, pkt_origin,
+                         mseq, hops);
+    }
+    for (const auto& k : n.skipped) {
+      if (k.first == pkt_origin && k.second == mseq && pkt_origin != 0) return;
+    }
+    Reassembly* slot = nullptr;
+    for (auto& s : n.slots) {
+      if (s.used && s.origin == pkt_origin && s.message_seq == mseq) slot = &s;
+    }
+    if (offset == 0 && encoding == 0 && !wants(data, static_cast<std::size_t>(chunk))) {
+      bump(not_for_us);
+      n.skipped[n.next_skipped] = {pkt_origin, mseq};
+      n.next_skipped = (n.next_skipped + 1) % n.skipped.size();
+      if (slot != nullptr) slot->used = false;  // chunks that came before the first
+      return;
+    }
+    if (slot == nullptr) {
+      for (auto& s : n.slots) {
+        if (!s.used) { slot = &s; break; }
+      }
+      if (slot == nullptr) {  // all busy: the oldest gives way
+        slot = &n.slots[0];
+        for (auto& s : n.slots) {
+          if (s.started_ns < slot->started_ns) slot = &s;
+        }
+        report_lost(n, *slot, "displaced by newer messages");
+      }
+      slot->used = true;
+      slot->origin = pkt_origin;
+      slot->message_seq = mseq;
+      slot->total = static_cast<uint32_t>(total);
+      slot->encoded = static_cast<uint32_t>(encoded);
+      slot->encoding = encoding;
+      slot->hops = hops;
+      slot->chunks = (static_cast<uint32_t>(encoded) + kChunk - 1) / kChunk;
+      slot->received = 0;
+      slot->started_ns = rt::monotonic_ns();
+      std::fill(slot->have.begin(), slot->have.end(), 0);
+    } else if (slot->total != static_cast<uint32_t>(total) || slot->encoded != static_cast<uint32_t>(encoded) ||
+               slot->encoding != encoding) {
+      return reject(n, "chunk", [&] { return std::string("a chunk disagrees with its message's first chunk"); });
+    }
+    const uint32_t index = static_cast<uint32_t>(offset) / kChunk;
+    if (index >= slot->have.size()) {  // cannot happen after the checks above; belt and braces
+      return reject(n, "chunk", [&] { return "chunk index " + std::to_string(index) + " out of range"; });
+    }
+    if (slot->have[index] != 0) return;  // duplicate
+    slot->have[index] = 1;
+    ++slot->received;
+    std::memcpy(slot->data.data() + offset, data, static_cast<std::size_t>(chunk));
+    if (slot->received == slot->chunks) {
+      slot->used = false;
+      take_stream(n, slot->data.data(), true, slot->encoded, slot->total, slot->encoding, slot->origin, slot->message_seq,
+                  slot->hops);
+    }
+  }
+
+  // Whether a message whose first bytes (its header, any byte order) are `head` is worth
+  // reassembling here: for a local mailbox, or anything when this host routes, or a
+  // request this host may have to answer NOT_AVAILABLE.
+  bool wants(const std::byte* head, std::size_t size) {
+    if (role() == NodeRole::kSystemRouter || role() == NodeRole::kTopRouter) return true;
+    if (size < sizeof(MessageHeader)) return true;  // let the full check reject it
+    MessageHeader h;
+    std::memcpy(&h, head, sizeof h);
+    if (((h.flags & kFlagHeaderLittleEndian) != 0) != kHostLittleEndian) h.dest = bswap(h.dest);
+    const Address dest(h.dest);
+    if (router.find(dest) != nullptr) return true;
+    if (!h.is_request()) return false;
+    std::lock_guard lock(table_mutex);
+    return !known_locked(dest);
+  }
+
+  // A whole encoded message: decode it (into n.message, or in place when `stream` is
+  // our own reassembly buffer: a 4 MiB message is not copied once more), then handle it.
+  void take_stream(Network& n, const std::byte* stream, bool own_buffer, uint32_t encoded, uint32_t total,
+                   int8_t encoding,
+                   int64_t msg_origin, int32_t mseq, int8_t hops) {
+    if (encoding == 1) {
+      const unsigned long long size = ZSTD_getFrameContentSize(stream, encoded);
+      if (size != total) {
+        return reject(n, "zstd", [&] { return std::string("compressed message whose frame size differs from its total"); });
+      }
+      const std::size_t got = ZSTD_decompressDCtx(n.dctx, n.message.data(), total, stream, encoded);
+      if (ZSTD_isError(got) != 0 || got != total) {
+        return reject(n, "zstd", [&] {
+          return std::string("compressed message does not decompress: ") +
+                 (ZSTD_isError(got) != 0 ? ZSTD_getErrorName(got) : "wrong size");
+        });
+      }
+    } else if (own_buffer) {
+      return handle_message(n, const_cast<std::byte*>(stream), total, msg_origin, mseq, hops);
+    } else {
+      std::memcpy(n.message.data(), stream, total);
+    }
+    handle_message(n, n.message.data(), total, msg_origin, mseq, hops);
+  }
+
+  void handle_message(Network& n, std::byte* msg, uint32_t len, int64_t msg_origin, int32_t mseq, int8_t hops) {
+    bump(messages_in);
+    const std::span<const std::byte> bytes(msg, len);
+    MessageHeader h;
+    const MessageError err = decode_header(bytes, h);
+    if (err != MessageError::kOk) {
+      if (err == MessageError::kLengthMismatch && h.is_request() && router.find(h.destination()) != nullptr &&
+          router.find(h.source()) == nullptr) {
+        // We know who sent it: a request to one of our mailboxes gets an ERROR reply.
+        const MessageHeader reply = make_reply_header(h, msg::kError, 0);
+        (void)router.send(reply, std::span<const ConstBuffer>{});
+      }
+      return reject(n, "header", [&] {
+        return std::string(describe(err)) + (err == MessageError::kLengthMismatch
+                                                 ? " (from " + h.source().str() + " to " + h.destination().str() + ")"
+                                                 : std::string());
+      });
+    }
+    // Forged source: an address of ours, or of a component another host announced.
+    bool forged_source = router.find(h.source()) != nullptr;
+    bool dest_known = false;
+    bool authority = false;
+    {
+      std::lock_guard lock(table_mutex);
+      if (!forged_source && h.source().system() != kToolSystem) {
+        const auto it = owners.find(h.source().component().raw());
+        forged_source = it != owners.end() && it->second != msg_origin;
+      }
+      dest_known = known_locked(h.destination());
+      if (!dest_known && h.is_request()) authority = authoritative_locked(h.destination().system());
+      if (h.type == msg::kError) forget_subscription_locked(h.source().component().raw(), h.dest);
+    }
+    if (forged_source) {
+      bump(forged);
+      return warn("forged", [&] {
+        return "TiMS/LCM: dropped a message with a forged source on network '" + n.config.name + "': " +
+               h.source().str() + " -> " + h.destination().str() + " from origin " + origin_text(msg_origin) +
+               ", which does not own " + h.source().str();
+      });
+    }
+    std::memcpy(msg, &h, sizeof h);  // header in host byte order
+    if (router.find(h.destination()) != nullptr) {
+      const SendStatus s = router.deliver_local(bytes);
+      if (!delivered(s)) {
+        bump(delivery_failed);
+        warn("delivery", [&] {
+          return "TiMS/LCM: message from " + h.source().str() + " to " + h.destination().str() + " (" +
+                 std::to_string(len) + " bytes) not delivered: " + describe(s);
+        });
+      }
+      return;
+    }
+    if (authority) {
+      bump(not_available);
+      const MessageHeader reply = make_reply_header(h, msg::kNotAvailable, 0);
+      alignas(8) std::byte raw[sizeof reply];
+      std::memcpy(raw, &reply, sizeof reply);
+      (void)publish_message(n, raw, sizeof raw, origin, 0, 0, next_message_seq());
+      return;
+    }
+    if (forward_message(n, msg, h, len, msg_origin, mseq, hops)) return;
+    bump(not_for_us);
+  }
+
+  int32_t next_message_seq() { return message_seq.fetch_add(1, std::memory_order_relaxed) + 1; }
+
+  // Routers: relays a message heard on `in` to the networks where it belongs.
+  bool forward_message(Network& in, const std::byte* msg, const MessageHeader& h, uint32_t len, int64_t msg_origin,
+                       int32_t mseq,
+                       int8_t hops) {
+    if (role() != NodeRole::kSystemRouter && role() != NodeRole::kTopRouter) return false;
+    if (hops >= kMaxHops) return false;
+    bool any = false;
+    for (auto& out : networks) {
+      if (out.get() == &in || !should_forward(in.config.scope, out->config.scope, h.destination().system())) continue;
+      if (publish_message(*out, msg, len, msg_origin, origin, static_cast<int8_t>(hops + 1), mseq, true)) {
+        bump(forwarded);
+        any = true;
+      }
+    }
+    return any;
+  }
+
+  bool should_forward(NetworkScope from, NetworkScope to, uint8_t dest_system) const {
+    if (from == to) return false;
+    if (dest_system == kToolSystem) return true;
+    if (from == NetworkScope::kRobot) return dest_system != own_system;  // leaves the robot
+    return dest_system == own_system;                                   // enters the robot
+  }
+
+  // ------------------------------------------------------------------ announcements
+  void on_announce(Network& n, const uint8_t* d, std::size_t size, const std::string&) {
+    // Bound the component count by the datagram before lcm-gen's decoder allocates it.
+    if (size < 12) return reject(n, "announce", [&] { return std::string("announcement shorter than its header"); });
+    const int32_t count = get_i32(d + 8);
+    if (count < 0 || static_cast<std::size_t>(count) > (size - 12) / kMinComponentBytes) {
+      return reject(n, "announce", [&] {
+        return "announcement claims " + std::to_string(count) + " components in " + std::to_string(size) + " bytes";
+      });
+    }
+    rack_lcm::host_announce a;
+    if (a.decode(d, 0, static_cast<int>(size)) < 0 || a.system < 0 || a.system > 254 || a.host_id < 0 ||
+        a.host_id > 255 || a.role < 0 || a.role > 2 || a.hops < 0 || a.hops > kMaxHops) {
+      return reject(n, "announce", [&] { return std::string("announcement does not decode or has bad fields"); });
+    }
+    if (a.origin == origin || a.relay == origin) return;  // our own
+    HostInfo info;
+    info.host = a.host;
+    info.system = static_cast<uint8_t>(a.system);
+    info.host_id = static_cast<uint8_t>(a.host_id);
+    info.role = static_cast<NodeRole>(a.role);
+    info.pid = a.pid;
+    info.origin = a.origin;
+    info.executor = Address(static_cast<uint32_t>(a.executor));
+    info.last_seen_ns = rt::monotonic_ns();
+    info.network = n.config.name;
+    for (const auto& c : a.components) {
+      info.components.push_back({Address(static_cast<uint32_t>(c.address)), c.name, c.impl});
+    }
+    std::string replaced, conflict;
+    {
+      std::lock_guard lock(table_mutex);
+      const auto same_id = [&](const HostInfo& h) {
+        return h.system == info.system && h.host_id == info.host_id && h.role == info.role;
+      };
+      if (have_own_id && role() != NodeRole::kTool && info.system == own_system && info.host_id == own_host_id &&
+          info.role == role()) {
+        conflict = "TiMS/LCM: host '" + info.host + "' (pid " + std::to_string(info.pid) +
+                   ") announces this host's own system " + std::to_string(own_system) + " and host id " +
+                   std::to_string(own_host_id) + ": give every computer of a robot its own host_id";
+      }
+      // Same host (system and host id), new origin: it restarted. What we knew of the
+      // old one is gone now, not only after the expiry. Unless the "old" one is still
+      // alive: an origin we retired that announces again, or that a retired one
+      // replaced, means two hosts share the id (a configuration error, reported).
+      for (auto it = hosts.begin(); it != hosts.end();) {
+        const HostInfo& old = it->second.info;
+        if (it->first == a.origin || !same_id(old)) {
+          ++it;
+          continue;
+        }
+        if (retired.count(a.origin) != 0 || retired.count(it->first) != 0) {
+          conflict = "TiMS/LCM: two hosts announce system " + std::to_string(info.system) + " host id " +
+                     std::to_string(info.host_id) + ": '" + old.host + "' (pid " + std::to_string(old.pid) +
+                     ") and '" + info.host + "' (pid " + std::to_string(info.pid) +
+                     "): give every computer of a robot its own host_id";
+          ++it;
+          continue;
+        }
+        replaced = "TiMS/LCM: host '" + old.host + "' (system " + std::to_string(old.system) + ", host id " +
+                   std::to_string(old.host_id) + ") restarted: pid " + std::to_string(old.pid) + " -> " +
+                   std::to_string(info.pid);
+        if (retired.size() > 1024) retired.clear();
+        retired.insert(it->first);
+        fail_subscriptions_locked(old, "restarted");
+        bump(hosts_expired);
+        it = hosts.erase(it);
+      }
+      auto& e = hosts[a.origin];
+      e.info = std::move(info);
+      // Every time: an announcement may change a host's components (few hosts, cheap).
+      rebuild_owners_locked();
+    }
+    if (!replaced.empty()) warn("restart " + replaced, [&] { return replaced; });
+    if (!conflict.empty()) {
+      warn("conflict " + std::to_string(a.system) + "/" + std::to_string(a.host_id), [&] { return conflict; });
+    }
+    // Routers pass announcements on: a robot's own outwards, other robots' inwards.
+    if ((role() == NodeRole::kSystemRouter || role() == NodeRole::kTopRouter) && a.hops < kMaxHops) {
+      for (auto& out : networks) {
+        // The opposite direction of messages: a robot's own hosts are made known to
+        // the fleet, other robots' hosts to the robot.
+        if (out.get() == &n || n.config.scope == out->config.scope) continue;
+        const bool own = static_cast<uint8_t>(a.system) == own_system;
+        if (own != (n.config.scope == NetworkScope::kRobot)) continue;
+        rack_lcm::host_announce f = a;
+        f.relay = origin;
+        f.hops = static_cast<int8_t>(a.hops + 1);
+        std::lock_guard lock(out->publish_mutex);
+        if (out->lcm->publish(kAnnounceChannel, &f) != 0) bump(publish_errors);
+      }
+    }
+  }
+
+  void on_discover(Network& n, const uint8_t* d, std::size_t size, const std::string&) {
+    rack_lcm::discover_request r;
+    if (r.decode(d, 0, static_cast<int>(size)) < 0 || r.hops < 0 || r.hops > kMaxHops) {
+      return reject(n, "discover", [&] { return std::string("discover request does not decode"); });
+    }
+    if (r.origin == origin || r.relay == origin) return;
+    publish_announcement(&n);
+    if ((role() == NodeRole::kSystemRouter || role() == NodeRole::kTopRouter) && r.hops < kMaxHops) {
+      for (auto& out : networks) {
+        if (out.get() == &n) continue;
+        rack_lcm::discover_request f = r;
+        f.relay = origin;
+        f.hops = static_cast<int8_t>(r.hops + 1);
+        std::lock_guard lock(out->publish_mutex);
+        if (out->lcm->publish(kDiscoverChannel, &f) != 0) bump(publish_errors);
+      }
+    }
+  }
+
+  // On one network, or on all (nullptr).
+  void publish_announcement(Network* only) {
+    std::lock_guard lock(announce_mutex);
+    if (!have_announcement) return;
+    announcement.time_ns = rt::host_time_ns();
+    for (auto& n : networks) {
+      if (only != nullptr && n.get() != only) continue;
+      std::lock_guard plock(n->publish_mutex);
+      if (n->lcm->publish(kAnnounceChannel, &announcement) != 0) bump(publish_errors);
+    }
+  }
+
+  // ------------------------------------------------------------------ threads
+  void receive_loop(Network& n) {
+    pollfd pfd{n.raw_fd >= 0 ? n.raw_fd : n.lcm->getFileno(), POLLIN, 0};
+    while (running.load(std::memory_order_acquire)) {
+      pfd.revents = 0;
+      const int rc = poll(&pfd, 1, 50);
+      if (rc > 0 && (pfd.revents & POLLIN) != 0) {
+        if (n.raw_fd < 0) {
+          n.lcm->handle();
+        } else {
+          // Drain what is there; a burst (a large message) is many datagrams.
+          for (int i = 0; i < 256; ++i) {
+            const ssize_t got = recv(n.raw_fd, n.datagram.data(), n.datagram.size(), MSG_DONTWAIT | MSG_TRUNC);
+            if (got < 0) break;
+            if (static_cast<std::size_t>(got) > n.datagram.size()) {
+              reject(n, "lcm", [&] { return "datagram of " + std::to_string(got) + " bytes truncated"; });
+              continue;
+            }
+            on_datagram(n, n.datagram.data(), static_cast<std::size_t>(got));
+          }
+        }
+      }
+      expire_reassembly(n);
+    }
+  }
+
+  void maintenance_loop() {
+    int64_t next_announce = rt::monotonic_ns() + config.announce_period_ns;
+    while (running.load(std::memory_order_acquire)) {
+      rt::sleep_for(50 * rt::kNsPerMs);
+      if (config.announce_period_ns > 0 && rt::monotonic_ns() >= next_announce) {
+        publish_announcement(nullptr);
+        next_announce = rt::monotonic_ns() + config.announce_period_ns;
+      }
+      expire_hosts();
+      while (control.peek(Mailbox::kNonBlocking).status == RecvStatus::kOk) control.peek_end();
+    }
+  }
+
+  void forget_subscription_locked(uint32_t producer, uint32_t listener) {
+    subscriptions.erase(std::remove_if(subscriptions.begin(), subscriptions.end(),
+                                       [&](const Subscription& s) { return s.producer == producer && s.listener == listener; }),
+                        subscriptions.end());
+  }
+
+  // Remembers GET_CONT_DATA/STOP_CONT_DATA that leave this host, so that local
+  // consumers learn of a lost producer host. Body layouts: rack::wire::ContDataRequest
+  // (int64 period, uint32 mailbox) and StopContDataRequest (uint32 mailbox), native.
+  void track_subscription_locked(const MessageHeader& h, std::span<const std::byte> body) {
+    if (h.type == msg::kGetContData && body.size() >= 12) {
+      uint32_t mailbox = 0;
+      std::memcpy(&mailbox, body.data() + 8, 4);
+      const uint32_t producer = h.destination().component().raw();
+      forget_subscription_locked(producer, mailbox);
+      if (subscriptions.size() < 4096) subscriptions.push_back({producer, mailbox, h.priority});
+    } else if (h.type == msg::kStopContData && body.size() >= 4) {
+      uint32_t mailbox = 0;
+      std::memcpy(&mailbox, body.data(), 4);
+      forget_subscription_locked(h.destination().component().raw(), mailbox);
+    }
+  }
+
+  void send_loop(Mailbox& box) {
+    while (running.load(std::memory_order_acquire)) {
+      const auto p = box.peek(100 * rt::kNsPerMs);
+      if (p.status == RecvStatus::kClosed) break;
+      if (p.status != RecvStatus::kOk) continue;
+      const MessageHeader h = *p.header;
+      const auto* bytes = reinterpret_cast<const std::byte*>(p.header);
+      bool answer_na = false, drop = false;
+      {
+        std::lock_guard lock(table_mutex);
+        track_subscription_locked(h, p.body);
+        if (h.type == msg::kData && router.find(h.source()) != nullptr) {
+          const uint64_t key = (uint64_t{h.source().component().raw()} << 32) | h.dest;
+          if (streams.size() < 4096 || streams.count(key) != 0) streams[key] = rt::monotonic_ns();
+        }
+        if (h.destination().system() != kToolSystem && !known_locked(h.destination()) &&
+            authoritative_locked(h.destination().system())) {
+          (h.is_request() ? answer_na : drop) = true;
+        }
+      }
+      if (answer_na || drop) {
+        box.peek_end();
+        if (answer_na) {
+          bump(not_available);
+          const MessageHeader reply = make_reply_header(h, msg::kNotAvailable, 0);
+          (void)router.send(reply, std::span<const ConstBuffer>{});
+        } else {
+          bump(not_for_us);
+        }
+        continue;
+      }
+      const int32_t seq = next_message_seq();
+      // The peeked slot is ours until peek_end(): chunks may go out in place.
+      for_networks_to(h.destination(),
+                      [&](Network& n) { (void)publish_message(n, bytes, h.length, origin, 0, 0, seq, true); });
+      box.peek_end();
+    }
   }
 };
 
-void LcmTransport::Impl::on_packet(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-  packets_in.fetch_add(1, std::memory_order_relaxed);
-  const auto* data = static_cast<const uint8_t*>(rbuf->data);
-  const auto size = static_cast<std::size_t>(rbuf->data_size);
-  if (size < kPacketPrefix) return reject("shorter than a tims_packet (" + std::to_string(size) + " bytes)", channel);
-  if (get_be64(data) != static_cast<uint64_t>(rack_lcm::tims_packet::getHash())) {
-    return reject("not a rack_lcm.tims_packet (fingerprint differs)", channel);
-  }
-  const uint32_t declared = static_cast<uint32_t>(get_be64(data + 4) & 0xFFFFFFFFu);
-  if (declared != size - kPacketPrefix) {
-    return reject("size field " + std::to_string(static_cast<int32_t>(declared)) + " but " +
-                      std::to_string(size - kPacketPrefix) + " bytes follow",
-                  channel);
-  }
-  const std::span<const std::byte> message(reinterpret_cast<const std::byte*>(data + kPacketPrefix),
-                                           size - kPacketPrefix);
-  MessageHeader header;
-  const MessageError err = decode_header(message, header);
-  if (err != MessageError::kOk) {
-    if (err == MessageError::kLengthMismatch) {
-      // We know who sent it: a request to one of our mailboxes gets an ERROR reply.
-      if (header.is_request() && router.find(header.destination()) != nullptr &&
-          router.find(header.source()) == nullptr) {
-        const MessageHeader reply = make_reply_header(header, msg::kError, 0);
-        (void)router.send(reply, std::span<const ConstBuffer>{});
-      }
-      return reject(std::string(describe(err)) + " from " + header.source().str() + " to " +
-                        header.destination().str(),
-                    channel);
-    }
-    return reject(describe(err), channel);
-  }
-  // Our own packets come back to us over multicast: a source of ours means we sent it.
-  if (router.find(header.source()) != nullptr) return;
-  if (message.size() > receive_buffer.size()) {
-    return reject("message of " + std::to_string(message.size()) + " bytes exceeds " +
-                      std::to_string(receive_buffer.size()),
-                  channel);
-  }
-  // Header now in host byte order: write it back in front of the body.
-  std::memcpy(receive_buffer.data(), &header, sizeof header);
-  std::memcpy(receive_buffer.data() + sizeof header, message.data() + sizeof header,
-              message.size() - sizeof header);
-  const SendStatus s = router.deliver_local({receive_buffer.data(), message.size()});
-  if (s == SendStatus::kNotAvailable) {
-    not_for_us.fetch_add(1, std::memory_order_relaxed);
-  } else if (!delivered(s)) {
-    delivery_failed.fetch_add(1, std::memory_order_relaxed);
-    warn("delivery", "TiMS/LCM: message from " + header.source().str() + " to " +
-                         header.destination().str() + " not delivered: " + describe(s));
-  }
-}
-
-void LcmTransport::Impl::on_announce(const lcm::ReceiveBuffer*, const std::string&,
-                                     const rack_lcm::host_announce* msg) {
-  HostInfo info;
-  info.host = msg->host;
-  info.system = static_cast<uint8_t>(msg->system);
-  info.pid = msg->pid;
-  info.executor = Address(static_cast<uint32_t>(msg->executor));
-  info.last_seen_ns = rt::monotonic_ns();
-  for (const auto& c : msg->components) {
-    info.components.push_back({Address(static_cast<uint32_t>(c.address)), c.name, c.impl});
-  }
-  std::lock_guard lock(hosts_mutex);
-  hosts[info.host + "/" + std::to_string(info.pid)] = std::move(info);
-}
-
-void LcmTransport::Impl::publish_announcement() {
-  std::lock_guard lock(announce_mutex);
-  if (!have_announcement) return;
-  announcement.time_ns = rt::host_time_ns();
-  if (lcm.publish(kAnnounceChannel, &announcement) != 0) {
-    publish_errors.fetch_add(1, std::memory_order_relaxed);
-  }
-}
-
-void LcmTransport::Impl::receive_loop() {
-  pollfd pfd{lcm.getFileno(), POLLIN, 0};
-  int64_t next_announce = rt::monotonic_ns() + config.announce_period_ns;
-  while (running.load(std::memory_order_acquire)) {
-    pfd.revents = 0;
-    const int rc = poll(&pfd, 1, 50);
-    if (rc > 0 && (pfd.revents & POLLIN) != 0) lcm.handle();
-    if (config.announce_period_ns > 0 && rt::monotonic_ns() >= next_announce) {
-      publish_announcement();
-      next_announce = rt::monotonic_ns() + config.announce_period_ns;
-    }
-  }
-}
-
-void LcmTransport::Impl::send_loop() {
-  const uint64_t hash = static_cast<uint64_t>(rack_lcm::tims_packet::getHash());
-  put_be64(publish_buffer.data(), hash);
-  while (running.load(std::memory_order_acquire)) {
-    const auto p = uplink.peek(100 * rt::kNsPerMs);
-    if (p.status == RecvStatus::kClosed) break;
-    if (p.status != RecvStatus::kOk) continue;
-    const uint32_t len = p.header->length;
-    const uint32_t be = __builtin_bswap32(len);
-    std::memcpy(publish_buffer.data() + 8, &be, 4);
-    std::memcpy(publish_buffer.data() + kPacketPrefix, p.header, len);
-    uplink.peek_end();
-    if (lcm.publish(kTimsChannel, publish_buffer.data(), kPacketPrefix + len) != 0) {
-      publish_errors.fetch_add(1, std::memory_order_relaxed);
-      warn("publish", "TiMS/LCM: publish on " + config.url + " failed");
-    } else {
-      packets_out.fetch_add(1, std::memory_order_relaxed);
-    }
-  }
-}
-
 LcmTransport::LcmTransport(Router& router, LcmTransportConfig config)
-    : router_(router), config_(std::move(config)) {
-  impl_ = std::make_unique<Impl>(router_, config_);
-  if (!impl_->lcm.good()) {
-    throw std::runtime_error("cannot join the LCM network '" + config_.url +
-                             "' (a network namespace needs 'ip link set lo up' and a multicast "
-                             "route: ip route add 224.0.0.0/4 dev lo)");
-  }
-  auto* sub = impl_->lcm.subscribe(kTimsChannel, &Impl::on_packet, impl_.get());
-  sub->setQueueCapacity(1024);  // LCM's default (~30) silently drops bursts
-  impl_->lcm.subscribe(kAnnounceChannel, &Impl::on_announce, impl_.get())->setQueueCapacity(256);
-  impl_->lcm.subscribe(kDiscoverChannel, &Impl::on_discover, impl_.get());
+    : impl_(std::make_unique<Impl>(router, std::move(config))) {
+  impl_->join();
 }
 
 LcmTransport::~LcmTransport() { stop(); }
 
 void LcmTransport::start() {
-  if (impl_->running.exchange(true)) return;
-  router_.set_uplink(&impl_->uplink);
-  impl_->receiver = std::thread([this] { impl_->receive_loop(); });
-  impl_->sender = std::thread([this] { impl_->send_loop(); });
-  impl_->publish_announcement();
+  Impl& m = *impl_;
+  if (m.running.exchange(true)) return;
+  m.started_ns = rt::monotonic_ns();
+  m.router.set_uplink(&m.uplink, &m.large_uplink);
+  m.router.add(m.control);
+  for (auto& n : m.networks) {
+    Impl::Network* net = n.get();
+    net->receiver = std::thread([&m, net] { m.receive_loop(*net); });
+  }
+  m.sender = std::thread([&m] { m.send_loop(m.uplink); });
+  m.large_sender = std::thread([&m] { m.send_loop(m.large_uplink); });
+  m.maintenance = std::thread([&m] { m.maintenance_loop(); });
+  m.publish_announcement(nullptr);
+  request_discovery();
 }
 
 void LcmTransport::stop() {
   if (!impl_ || !impl_->running.exchange(false)) return;
-  router_.set_uplink(nullptr);
-  impl_->uplink.close();
-  if (impl_->receiver.joinable()) impl_->receiver.join();
-  if (impl_->sender.joinable()) impl_->sender.join();
+  Impl& m = *impl_;
+  m.router.set_uplink(nullptr);
+  m.uplink.close();
+  m.large_uplink.close();
+  m.router.remove(m.control.address());
+  for (auto& n : m.networks) {
+    if (n->receiver.joinable()) n->receiver.join();
+  }
+  if (m.sender.joinable()) m.sender.join();
+  if (m.large_sender.joinable()) m.large_sender.join();
+  if (m.maintenance.joinable()) m.maintenance.join();
 }
 
 void LcmTransport::set_announcement(HostInfo info) {
+  Impl& m = *impl_;
   {
-    std::lock_guard lock(impl_->announce_mutex);
-    auto& a = impl_->announcement;
+    std::lock_guard lock(m.announce_mutex);
+    auto& a = m.announcement;
+    a.origin = m.origin;
+    a.relay = 0;
+    a.hops = 0;
+    a.role = static_cast<int8_t>(m.config.role == NodeRole::kTool ? NodeRole::kExecutor : m.config.role);
+    a.period_ns = m.config.announce_period_ns;
     a.host = info.host;
     a.system = info.system;
+    a.host_id = info.host_id;
     a.pid = info.pid;
     a.executor = static_cast<int32_t>(info.executor.raw());
     a.components.clear();
@@ -265,36 +1156,69 @@ void LcmTransport::set_announcement(HostInfo info) {
       a.components.push_back(ci);
     }
     a.count = static_cast<int32_t>(a.components.size());
-    impl_->have_announcement = true;
+    m.have_announcement = true;
   }
-  if (impl_->running.load()) impl_->publish_announcement();
+  {
+    std::lock_guard lock(m.table_mutex);
+    m.own_system = info.system;
+    m.own_host_id = info.host_id;
+    m.have_own_id = true;
+  }
+  if (m.running.load()) m.publish_announcement(nullptr);
 }
 
 void LcmTransport::request_discovery() {
+  Impl& m = *impl_;
   rack_lcm::discover_request req;
+  req.origin = m.origin;
+  req.relay = 0;
+  req.hops = 0;
   req.time_ns = rt::host_time_ns();
   req.requester = "pid " + std::to_string(getpid());
-  if (impl_->lcm.publish(kDiscoverChannel, &req) != 0) {
-    impl_->publish_errors.fetch_add(1, std::memory_order_relaxed);
+  for (auto& n : m.networks) {
+    std::lock_guard lock(n->publish_mutex);
+    if (n->lcm->publish(kDiscoverChannel, &req) != 0) bump(m.publish_errors);
   }
 }
 
+void LcmTransport::wait_until_warm() const {
+  while (impl_->running.load() && !impl_->warm()) rt::sleep_for(10 * rt::kNsPerMs);
+}
+
 std::vector<HostInfo> LcmTransport::hosts() const {
-  std::lock_guard lock(impl_->hosts_mutex);
+  std::lock_guard lock(impl_->table_mutex);
   std::vector<HostInfo> out;
-  for (const auto& [key, info] : impl_->hosts) out.push_back(info);
+  for (const auto& [key, e] : impl_->hosts) out.push_back(e.info);
   return out;
 }
 
 TransportCounters LcmTransport::counters() const noexcept {
+  const Impl& m = *impl_;
+  const auto r = [](const std::atomic<uint64_t>& a) { return a.load(std::memory_order_relaxed); };
   TransportCounters c;
-  c.packets_in = impl_->packets_in.load(std::memory_order_relaxed);
-  c.packets_out = impl_->packets_out.load(std::memory_order_relaxed);
-  c.malformed = impl_->malformed.load(std::memory_order_relaxed);
-  c.not_for_us = impl_->not_for_us.load(std::memory_order_relaxed);
-  c.publish_errors = impl_->publish_errors.load(std::memory_order_relaxed);
-  c.delivery_failed = impl_->delivery_failed.load(std::memory_order_relaxed);
+  c.packets_in = r(m.packets_in);
+  c.packets_out = r(m.packets_out);
+  c.messages_in = r(m.messages_in);
+  c.messages_out = r(m.messages_out);
+  c.malformed = r(m.malformed);
+  c.forged = r(m.forged);
+  c.not_for_us = r(m.not_for_us);
+  c.forwarded = r(m.forwarded);
+  c.not_available = r(m.not_available);
+  c.sequence_gaps = r(m.sequence_gaps);
+  c.lost_messages = r(m.lost_messages);
+  c.publish_errors = r(m.publish_errors);
+  c.delivery_failed = r(m.delivery_failed);
+  c.hosts_expired = r(m.hosts_expired);
+  c.subscriptions_failed = r(m.subscriptions_failed);
+  c.streams_stopped = r(m.streams_stopped);
+  c.compressed_out = r(m.compressed_out);
+  c.bytes_out = r(m.bytes_out);
+  c.wire_bytes_out = r(m.wire_bytes_out);
   return c;
 }
+
+const std::string& LcmTransport::url() const noexcept { return impl_->config.networks.front().url; }
+int64_t LcmTransport::origin() const noexcept { return impl_->origin; }
 
 }  // namespace rack::tims

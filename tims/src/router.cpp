@@ -41,7 +41,12 @@ void Router::remove(Address address) noexcept {
   }
 }
 
-void Router::set_uplink(Mailbox* uplink) noexcept { uplink_.store(uplink, std::memory_order_release); }
+void Router::set_uplink(Mailbox* uplink, Mailbox* large_uplink) noexcept {
+  large_uplink_.store(large_uplink, std::memory_order_release);
+  uplink_.store(uplink, std::memory_order_release);
+}
+
+void Router::set_system_shared(bool shared) noexcept { system_shared_.store(shared, std::memory_order_relaxed); }
 
 Mailbox* Router::find(Address address) const noexcept {
   const uint32_t key = address.raw();
@@ -87,8 +92,11 @@ SendStatus Router::send(const MessageHeader& header, std::span<const ConstBuffer
     bump(delivered(s) ? delivered_local_ : failed_);
     return s;
   }
-  if (is_remote(dest)) {
+  if (is_remote(dest) || system_shared_.load(std::memory_order_relaxed)) {
     if (Mailbox* up = uplink_.load(std::memory_order_acquire)) {
+      if (header.length > up->slot_size()) {
+        if (Mailbox* large = large_uplink_.load(std::memory_order_acquire)) up = large;
+      }
       const SendStatus s = up->try_send(header, body);
       bump(delivered(s) ? sent_uplink_ : failed_);
       return s;
@@ -112,7 +120,10 @@ SendStatus Router::deliver_local(std::span<const std::byte> message) noexcept {
     bump(delivered(s) ? delivered_local_ : failed_);
     return s;
   }
-  if (header.destination().system() == system_ && system_ != kToolSystem) return route_unknown(header);
+  if (header.destination().system() == system_ && system_ != kToolSystem &&
+      !system_shared_.load(std::memory_order_relaxed)) {
+    return route_unknown(header);
+  }
   return SendStatus::kNotAvailable;  // someone else's: not ours to answer
 }
 

@@ -73,6 +73,7 @@ Controls the components of running rackd executors over TiMS/LCM.
 
 commands:
   list                          every component that answers discovery, with its state
+  hosts                         every host that answers discovery: system, role, network
   on NAME                       switch a component on (answered when its on() finished)
   off NAME                      switch a component off
   status NAME                   state and timing statistics (--json: one JSON object)
@@ -91,6 +92,8 @@ options:
   --lcm URL          TiMS/LCM network (default: $LCM_DEFAULT_URL, else
                      udpm://239.255.76.67:7667?ttl=0)
   --timeout MS       how long to wait for each reply (default 2000)
+  --retries N        ask again this often when no reply came in time (default 1;
+                     a datagram on a network link can be lost)
   --discover-ms MS   how long to wait for announcements (default 300)
   -h, --help         this text; after a command: the command's help
 
@@ -102,6 +105,7 @@ struct Options {
   std::string lcm_url;
   int64_t timeout_ms = 2000;
   int64_t discover_ms = 300;
+  int64_t retries = 1;
   bool json = false;
   bool help = false;
   int64_t time_ns = 0;     // get-data --time
@@ -270,14 +274,15 @@ class Session {
   // A request that must be answered; timeouts and NOT_AVAILABLE end the command
   // (exit 3). The result's body points into buffer() until the next call.
   CallResult call(const Target& t, int8_t type, std::span<const ConstBuffer> body = {}) {
-    const CallResult r = endpoint_.call(t.address, type, body, buffer_, timeout_ns());
+    const CallResult r = endpoint_.call_with_retry(
+        t.address, type, body, buffer_, {timeout_ns(), static_cast<uint32_t>(options_.retries + 1)});
     const char* what = msg::name(type) != nullptr ? msg::name(type) : "request";
     switch (r.status) {
       case CallStatus::kOk: break;
       case CallStatus::kTimeout:
-        fail(kExitUnavailable, format("%s: no reply to %s within %lld ms (is its rackd running on %s?)",
+        fail(kExitUnavailable, format("%s: no reply to %s within %lld ms, %lld attempt(s) (is its rackd running on %s?)",
                                       t.label().c_str(), what, static_cast<long long>(options_.timeout_ms),
-                                      url().c_str()));
+                                      static_cast<long long>(options_.retries + 1), url().c_str()));
       default:
         fail(kExitUnavailable, t.label() + ": " + what + ": " + tims::describe(r.status));
     }
@@ -317,6 +322,11 @@ class Session {
     c.url = o.lcm_url.empty() ? default_lcm_url() : o.lcm_url;
     c.uplink_slots = 32;
     c.announce_period_ns = 0;  // a tool announces nothing
+    c.role = tims::NodeRole::kTool;
+    // Its mailboxes take 64 KiB messages: no need for 4 MiB reassembly buffers.
+    c.max_message_bytes = kSlotSize;
+    c.reassembly_slots = 2;
+    c.large_slots = 1;
     c.warn = [](const std::string& s) { std::fprintf(stderr, "rackctl: %s\n", s.c_str()); };
     return c;
   }
@@ -402,6 +412,39 @@ int cmd_list(Session& s, const Options& o) {
   for (const auto& r : rows) {
     std::printf("%-18s %-16s %-24s %-9s %s\n", r.info.address.str().c_str(), r.info.name.c_str(),
                 class_label(r.info.address, r.info.impl).c_str(), r.state.c_str(), r.host.c_str());
+  }
+  return kExitOk;
+}
+
+int cmd_hosts(Session& s, const Options& o) {
+  auto hosts = s.discover([](const std::vector<tims::HostInfo>&) { return false; });
+  if (hosts.empty()) {
+    fail(kExitUnavailable, format("no host answered discovery within %lld ms on %s",
+                                  static_cast<long long>(o.discover_ms), s.url().c_str()));
+  }
+  std::sort(hosts.begin(), hosts.end(), [](const tims::HostInfo& a, const tims::HostInfo& b) {
+    return a.system != b.system ? a.system < b.system : a.host_id < b.host_id;
+  });
+  const int64_t now = rt::monotonic_ns();
+  if (o.json) {
+    std::string out = "[";
+    for (std::size_t i = 0; i < hosts.size(); ++i) {
+      const auto& h = hosts[i];
+      out += (i == 0 ? "" : ",") + std::string("{\"host\":") + quoted(h.host) +
+             ",\"system\":" + std::to_string(h.system) + ",\"host_id\":" + std::to_string(h.host_id) +
+             ",\"role\":" + quoted(tims::describe(h.role)) + ",\"pid\":" + std::to_string(h.pid) +
+             ",\"components\":" + std::to_string(h.components.size()) + ",\"network\":" + quoted(h.network) +
+             ",\"seen_ms_ago\":" + std::to_string((now - h.last_seen_ns) / rt::kNsPerMs) + "}";
+    }
+    std::printf("%s]\n", out.c_str());
+    return kExitOk;
+  }
+  std::printf("%-18s %-6s %-7s %-14s %-8s %-10s %-10s %s\n", "HOST", "SYSTEM", "HOST_ID", "ROLE", "PID",
+              "COMPONENTS", "NETWORK", "SEEN");
+  for (const auto& h : hosts) {
+    std::printf("%-18s %-6u %-7u %-14s %-8d %-10zu %-10s %lld ms ago\n", h.host.c_str(), h.system, h.host_id,
+                tims::describe(h.role), h.pid, h.components.size(), h.network.c_str(),
+                static_cast<long long>((now - h.last_seen_ns) / rt::kNsPerMs));
   }
   return kExitOk;
 }
@@ -714,6 +757,12 @@ const std::vector<Command>& commands() {
        "STATE is ENABLED, DISABLED, ERROR, or 'no reply' when none came within --timeout.\n"
        "--json prints one JSON array instead.",
        cmd_list},
+      {"hosts", "hosts [--json]", 0, 0, {"--json"},
+       "Discovers every host on the network (waits the full --discover-ms) and prints\n"
+       "HOST SYSTEM HOST_ID ROLE PID COMPONENTS NETWORK SEEN: what each announced, on\n"
+       "which of this tool's networks it was heard, and how long ago (ms). Routers pass\n"
+       "on the announcements of the robots behind them.",
+       cmd_hosts},
       {"on", "on NAME", 1, 1, {},
        "Switches the component on. The reply comes when its on() has finished, so\n"
        "this also switches on what it depends on (cascading ON). ERROR: exit 1.",
@@ -823,6 +872,10 @@ Options parse_arguments(int argc, char** argv) {
       o.i64 = parse_int(v);
       if (!o.i64) fail(kExitUsage, "--i64 needs a 64-bit integer, got '" + v + "'");
       o.given.insert(a);
+    }
+    else if (a == "--retries") {
+      o.retries = non_negative("a number of retries");
+      if (o.retries > 10) fail(kExitUsage, "--retries takes 0..10");
     }
     else if (a == "--time") { o.time_ns = non_negative("a host time in ns (0: newest)"); o.given.insert(a); }
     else if (a == "--count") {

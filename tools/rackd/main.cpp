@@ -32,7 +32,8 @@ options:
   --duration SEC     shut down by itself after SEC seconds (as on SIGTERM)
   --status SEC       print each component's state and timing every SEC seconds
                      (default 0: only at shutdown)
-  --lcm URL          TiMS/LCM network, instead of the host file's lcm_url
+  --lcm URL          TiMS/LCM network, instead of the host file's lcm_url (or of
+                     the first network under 'tims: networks:')
   --crash-dir DIR    where mode-switch and crash reports go, instead of the host
                      file's modeswitch.crash_dir (default /var/tmp/rack); the report
                      file is DIR/rackd-PID.report (removed at exit when empty);

@@ -69,6 +69,7 @@ struct ComponentSettings {
   int64_t data_timeout_ns = rt::kNsPerSec;  // triggered: loop() runs after this long without input
   int64_t retry_ns = rt::kNsPerSec;     // ERROR back-off
   int64_t rpc_timeout_ns = rt::kNsPerSec;   // cascading ON and other calls from hooks
+  uint32_t rpc_retries = 0;                 // more attempts after a timeout (tims::RetryPolicy)
   uint32_t ring_size = 64;
   uint32_t command_slots = 16;
   uint32_t input_slots = 32;

@@ -18,6 +18,7 @@
 #include "rack/core/registry.h"
 #include "rack/rt/capabilities.h"
 #include "rack/rt/modeswitch.h"
+#include "rack/tims/lcm_transport.h"
 
 namespace rack {
 
@@ -49,6 +50,14 @@ struct HostSettings {
   bool require_rt = false;        // refuse to start without RT scheduling, locked memory, PREEMPT_RT
   std::string lcm_url;            // TiMS/LCM network ("" with lcm: false)
   bool lcm = true;
+  // The `tims:` section (configs/two_robots/ shows every key). networks is empty
+  // unless the file lists them; then lcm_url is not used.
+  tims::NodeRole role = tims::NodeRole::kExecutor;
+  std::vector<tims::NetworkConfig> networks;
+  int64_t announce_period_ns = 1'000'000'000;
+  int64_t expiry_ns = 3'000'000'000;
+  uint32_t max_message_bytes = 4 * 1024 * 1024 + 4096;
+  uint32_t large_slots = 4;
   std::size_t heap_prefault_bytes = 64u << 20;
   int cpu_dma_latency_us = 0;     // PM QoS bound held while running; -1: leave to the system
   std::vector<std::string> plugins;

@@ -32,6 +32,18 @@ struct CallResult {
   [[nodiscard]] bool ok() const noexcept { return status == CallStatus::kOk && reply.type == msg::kOk; }
 };
 
+// RPC over an unreliable link (TiMS/LCM loses datagrams): how long to wait for each
+// attempt, and how many attempts. A call is retried only when no reply arrived in
+// time; never after a reply (ERROR and NOT_AVAILABLE are answers too). Each attempt
+// carries a new sequence number, so a late reply to an earlier attempt is discarded
+// as stale. Meant for idempotent requests: RACK's generic ones are (ON of an enabled
+// component answers OK again, OFF, GET_*, SET_PARAM of the same value, GET_CONT_DATA
+// for the same mailbox replaces the listener).
+struct RetryPolicy {
+  int64_t timeout_ns = 1'000'000'000;  // per attempt
+  uint32_t attempts = 1;               // 1: no retry
+};
+
 class Endpoint {
  public:
   Endpoint(Router& router, Mailbox& reply_mailbox, uint8_t priority) noexcept
@@ -55,6 +67,11 @@ class Endpoint {
     return call(dest, type, std::span<const ConstBuffer>(&part, 1), buffer, timeout_ns);
   }
 
+  // Request/reply with retries on timeout (see RetryPolicy). RT-safe; blocks at most
+  // attempts * timeout_ns.
+  CallResult call_with_retry(Address dest, int8_t type, std::span<const ConstBuffer> body,
+                             std::span<std::byte> buffer, RetryPolicy policy) noexcept;
+
   // A message that expects no reply (or whose replies the caller reads itself).
   // Returns the sequence number used through `seq_out` when given. RT-safe.
   SendStatus send(Address dest, int8_t type, std::span<const ConstBuffer> body,
@@ -64,6 +81,7 @@ class Endpoint {
   SendStatus reply(const MessageHeader& request, int8_t type, std::span<const ConstBuffer> body = {}) noexcept;
 
   [[nodiscard]] uint64_t stale_replies() const noexcept { return stale_; }
+  [[nodiscard]] uint64_t retries() const noexcept { return retries_; }
 
  private:
   Router& router_;
@@ -71,6 +89,7 @@ class Endpoint {
   uint8_t priority_;
   uint8_t seq_ = 0;
   uint64_t stale_ = 0;
+  uint64_t retries_ = 0;
 };
 
 }  // namespace rack::tims

@@ -1,24 +1,58 @@
 // TiMS over LCM: the only place that links LCM (DESIGN.md).
 //
-// Two non-RT threads per transport: a receiver (polls LCM's descriptor, validates
-// each packet, hands it to the local router) and a sender (drains the router's
-// uplink mailbox and publishes). RT tasks never touch the network: they queue into
-// the uplink mailbox (PI-locked bookkeeping, copy outside the lock) and go on.
+// A transport joins one or more LCM networks (a robot's internal bus, a fleet link).
+// Per network one non-RT receive thread (validates each packet, delivers it to the
+// local router, forwards it when this host is a router, answers NOT_AVAILABLE when it
+// is authoritative). On a udpm:// network it reads the datagrams from a socket of its
+// own, in LCM's framing, instead of through LCM 1.3's receive thread and notify pipe:
+// two thread hand-offs less per message (bench_lcm), and LCM's fragment reassembly,
+// which trusts its input, never sees our network (our chunks are single datagrams;
+// LCM fragments of others are ignored). LCM still publishes, so lcm-logger and
+// lcm-logplayer see and replay the same datagrams. Other URLs (memq://, file://)
+// receive through LCM. Two non-RT sender threads drain the
+// router's uplink mailboxes (one with many small slots, one with a few large ones)
+// and publish. One maintenance thread announces this host and expires silent hosts.
+// RT tasks never touch the network: they queue into an uplink mailbox (PI-locked
+// bookkeeping, copy outside the lock) and go on.
 //
-// Channels: "TIMS" (tims_packet), "TIMS_ANNOUNCE" (host_announce), "TIMS_DISCOVER".
+// Channels: "TIMS" (tims_packet chunks), "TIMS_ANNOUNCE" (host_announce),
+// "TIMS_DISCOVER" (discover_request). See tims/lcm/rack_tims.lcm.
+//
+// Routing (RACK's hierarchy on LCM multicast, where every member of a network hears
+// every packet and routing means choosing networks and who answers):
+//  - an executor delivers what is addressed to its own mailboxes;
+//  - a system router joins its robot's network and the fleet network, and forwards
+//    between them: robot -> fleet what is addressed to another system (or a tool),
+//    fleet -> robot what is addressed to its own system (or a tool); robot-internal
+//    traffic never reaches the fleet link. It also forwards announcements the same way;
+//  - a top router (base station, on the fleet network) knows every robot and answers
+//    NOT_AVAILABLE for what nobody can place.
+// A request to a mailbox that no live host announced is answered NOT_AVAILABLE by
+// exactly one authority: the system router of the destination's system, else (no
+// system router) the top router, else the live executor with the lowest host id of
+// that system. Authority starts after a warm-up (the discovery table must be full).
+//
+// Failures: a host expires when it has not announced for `expiry_ns`, or when it is
+// replaced (same system and host id, new origin: it restarted). Every local
+// subscription (GET_CONT_DATA sent from here) to a component of that host gets an
+// ERROR message in the producer's name, as a producer going OFF sends; the consumer
+// goes to ERROR and re-subscribes by its own retry when the host returns. In the
+// other direction, every local producer that streams to a mailbox of that host gets a
+// STOP_CONT_DATA for it, so it does not stream into the void.
+//
+// Bad input (not a tims_packet, wrong lengths, bad chunk fields, bad header, forged
+// source, own echo with a foreign origin) is dropped, counted and logged at most once
+// per second per kind.
 //
 // Real-time contract: nothing here is RT-safe; everything is set-up or runs in the
-// transport's own non-RT threads. Thread-safety: hosts(), counters() and
-// set_announcement() may be called from any non-RT thread.
+// transport's own non-RT threads. Thread-safety: hosts(), counters(),
+// set_announcement() and request_discovery() may be called from any non-RT thread.
 #pragma once
 
-#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
-#include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "rack/tims/mailbox.h"
@@ -27,6 +61,29 @@
 namespace rack::tims {
 
 inline constexpr const char* kDefaultLcmUrl = "udpm://239.255.76.67:7667?ttl=0";
+
+enum class NetworkScope : uint8_t {
+  kRobot,  // one robot's internal bus: its own system's traffic
+  kFleet,  // between robots: other systems' traffic
+};
+enum class Compression : uint8_t { kNone = 0, kZstd = 1 };
+enum class NodeRole : uint8_t {
+  kExecutor = 0,      // routes its own mailboxes
+  kSystemRouter = 1,  // knows every mailbox of its robot; bridges robot and fleet networks
+  kTopRouter = 2,     // knows all robots; answers NOT_AVAILABLE for what nobody can place
+  kTool = 3,          // rackctl and other tools: no announcements, never answers for others
+};
+[[nodiscard]] const char* describe(NetworkScope s) noexcept;
+[[nodiscard]] const char* describe(Compression c) noexcept;
+[[nodiscard]] const char* describe(NodeRole r) noexcept;
+
+struct NetworkConfig {
+  std::string name = "robot";
+  std::string url = kDefaultLcmUrl;
+  NetworkScope scope = NetworkScope::kRobot;
+  Compression compression = Compression::kNone;
+  uint32_t compress_min_bytes = 16 * 1024;  // smaller messages are sent as they are
+};
 
 struct ComponentInfo {
   Address address;
@@ -37,58 +94,89 @@ struct ComponentInfo {
 struct HostInfo {
   std::string host;
   uint8_t system = 0;
+  uint8_t host_id = 0;
+  NodeRole role = NodeRole::kExecutor;
   int32_t pid = 0;
+  int64_t origin = 0;
   Address executor;
   std::vector<ComponentInfo> components;
   int64_t last_seen_ns = 0;  // CLOCK_MONOTONIC of the receiver
+  std::string network;       // where it was heard
 };
 
 struct TransportCounters {
   uint64_t packets_in = 0;
   uint64_t packets_out = 0;
-  uint64_t malformed = 0;       // dropped: not a TiMS packet, bad header, bad length
-  uint64_t not_for_us = 0;      // valid, for a mailbox not on this host
+  uint64_t messages_in = 0;      // whole TiMS messages received (after reassembly)
+  uint64_t messages_out = 0;
+  uint64_t malformed = 0;        // dropped: not a TiMS packet, bad fields, bad header, bad length
+  uint64_t forged = 0;           // dropped: source address not owned by the sending host
+  uint64_t not_for_us = 0;       // valid, for a mailbox not on this host
+  uint64_t forwarded = 0;        // relayed to another network (routers)
+  uint64_t not_available = 0;    // requests answered NOT_AVAILABLE by this authority
+  uint64_t sequence_gaps = 0;    // packets missing between consecutive packet numbers
+  uint64_t lost_messages = 0;    // chunked messages that never completed (reported)
   uint64_t publish_errors = 0;
-  uint64_t delivery_failed = 0; // local mailbox refused (full, too large)
+  uint64_t delivery_failed = 0;  // local mailbox refused (full, too large)
+  uint64_t hosts_expired = 0;
+  uint64_t subscriptions_failed = 0;  // ERRORs sent to local consumers of lost hosts
+  uint64_t streams_stopped = 0;       // local producers told to stop streaming to lost hosts
+  uint64_t compressed_out = 0;
+  uint64_t bytes_out = 0;        // TiMS bytes published (before compression)
+  uint64_t wire_bytes_out = 0;   // payload bytes on the wire (after compression)
 };
 
 struct LcmTransportConfig {
+  // The networks to join. Empty: one robot network on `url`.
+  std::vector<NetworkConfig> networks;
   std::string url = kDefaultLcmUrl;
+  NodeRole role = NodeRole::kExecutor;
   uint32_t uplink_slots = 256;
   uint32_t uplink_slot_size = 64 * 1024;
+  // Messages above uplink_slot_size go through a second uplink of a few large slots.
+  uint32_t large_slots = 4;
+  uint32_t max_message_bytes = 4 * 1024 * 1024 + 4096;  // largest message sent or accepted
+  uint32_t reassembly_slots = 4;  // large messages being received at once (per network)
   int64_t announce_period_ns = 1'000'000'000;  // 0: only at start, on change, on request
-  // Where warnings go (malformed packets, publish errors), rate-limited by the
-  // transport. Default: stderr.
+  int64_t expiry_ns = 3'000'000'000;           // a host silent this long is gone
+  int64_t reassembly_timeout_ns = 1'000'000'000;  // an incomplete message is lost after this
+  // After start (which asks every host to announce itself) the discovery table needs
+  // this long to fill before this host may answer NOT_AVAILABLE for others.
+  int64_t warmup_ns = 500'000'000;
+  // Where warnings go (malformed packets, publish errors, expired hosts), rate-limited
+  // by the transport. Default: stderr.
   std::function<void(const std::string&)> warn;
 };
 
 class LcmTransport {
  public:
-  // Joins the LCM network and makes the uplink mailbox (its address is on the tool
-  // system, never routed to). Throws std::runtime_error naming the URL on failure.
+  // Joins every network and makes the uplink mailboxes (their addresses are on the
+  // tool system, never routed to). Throws std::runtime_error naming the URL on failure.
   LcmTransport(Router& router, LcmTransportConfig config);
   ~LcmTransport();
   LcmTransport(const LcmTransport&) = delete;
   LcmTransport& operator=(const LcmTransport&) = delete;
 
-  void start();  // starts the two threads and connects the router's uplink
+  void start();  // starts the threads, connects the router's uplinks, asks for discovery
   void stop();   // idempotent
 
-  // What this host announces (executors only). Publishes at once when running.
+  // What this host announces (executors and routers). Publishes at once when running.
   void set_announcement(HostInfo info);
   // Asks every host to announce itself.
   void request_discovery();
-  // Hosts heard from (announcements), newest first per host.
+  // Blocks until the warm-up after start() has passed (the discovery table is full).
+  void wait_until_warm() const;
+  // Live hosts heard from (announcements), one entry per host.
   [[nodiscard]] std::vector<HostInfo> hosts() const;
 
   [[nodiscard]] TransportCounters counters() const noexcept;
-  [[nodiscard]] const std::string& url() const noexcept { return config_.url; }
+  // URL of the first network (tools print it).
+  [[nodiscard]] const std::string& url() const noexcept;
+  [[nodiscard]] int64_t origin() const noexcept;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
-  Router& router_;
-  LcmTransportConfig config_;
 };
 
 }  // namespace rack::tims

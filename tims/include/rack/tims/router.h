@@ -5,10 +5,12 @@
 //  - a local mailbox gets the message directly;
 //  - an address of another system (robot), or of the tool system (kToolSystem), goes
 //    to the uplink when there is one;
+//  - an address of this system that is not local goes to the uplink too when the
+//    system is shared (set_system_shared: other hosts of this robot may own it; the
+//    LCM transport then decides, from discovery, whether to publish it or to answer
+//    NOT_AVAILABLE);
 //  - otherwise the address is unknown: a request (type > 0) is answered
 //    NOT_AVAILABLE to its source, a reply or notification is dropped and counted.
-//    Until discovery between hosts exists (issue 3), a host treats its own system as
-//    fully known.
 //
 // Real-time contract: find() and send() are RT-safe and lock-free on the look-up
 // (a PI-locked mailbox send follows). add()/remove()/set_uplink() are not RT-safe
@@ -50,8 +52,12 @@ class Router {
   // taken, std::length_error when the table is full. Not RT-safe.
   void add(Mailbox& mailbox);
   void remove(Address address) noexcept;
-  // Messages for other systems go to `uplink` (nullptr: none). Not RT-safe.
-  void set_uplink(Mailbox* uplink) noexcept;
+  // Messages for other hosts go to `uplink` (nullptr: none); those longer than its
+  // slots go to `large_uplink` when given. Not RT-safe.
+  void set_uplink(Mailbox* uplink, Mailbox* large_uplink = nullptr) noexcept;
+  // true: other hosts share this system, so a non-local address of it goes to the
+  // uplink and deliver_local() leaves unknown addresses to the transport. Not RT-safe.
+  void set_system_shared(bool shared) noexcept;
 
   [[nodiscard]] Mailbox* find(Address address) const noexcept;  // RT-safe, lock-free
   [[nodiscard]] bool is_remote(Address address) const noexcept;
@@ -63,7 +69,7 @@ class Router {
   SendStatus send_bytes(std::span<const std::byte> message) noexcept;
   // Delivers only to a local mailbox (used for messages that arrived from the uplink,
   // so they are never sent back out). Unknown: a request is answered NOT_AVAILABLE when
-  // the address belongs to this system. RT-safe.
+  // the address belongs to this system and the system is not shared. RT-safe.
   SendStatus deliver_local(std::span<const std::byte> message) noexcept;
 
   [[nodiscard]] RouterCounters counters() const noexcept;
@@ -85,6 +91,8 @@ class Router {
   uint8_t system_;
   std::array<Entry, kCapacity> table_{};
   std::atomic<Mailbox*> uplink_{nullptr};
+  std::atomic<Mailbox*> large_uplink_{nullptr};
+  std::atomic<bool> system_shared_{false};  // relaxed: set before traffic flows
   // Statistics, relaxed: independent counters read by tools.
   std::atomic<uint64_t> delivered_local_{0}, sent_uplink_{0}, not_available_{0}, unroutable_{0},
       failed_{0};

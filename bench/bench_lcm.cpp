@@ -1,0 +1,481 @@
+// bench_lcm: TiMS between two hosts over LCM, beside raw LCM on the same URL in the
+// same run. The two "hosts" are two network namespaces joined by a veth pair (MTU
+// 1500, as Ethernet), made by this program and deleted at its end; each side's LCM
+// sockets are created by a thread that entered its namespace.
+//
+//   rpc:  round trip of tims::Endpoint::call(GET_STATUS) from a tool endpoint in host A
+//         to a Generator's command task in a rack::Executor in host B (TiMS/LCM both
+//         ways, through the transports' sender and receive threads), beside
+//         reference "lcm-ping": a 64-byte LCM message from A, echoed by a plain LCM
+//         handler in B (the shortest path LCM itself offers). Blocks alternate.
+//   bulk: 100 KB and 1 MB messages from A to B as fast as the sender is allowed,
+//         TiMS (chunked by the transport; optionally zstd on the link) beside raw LCM
+//         publish() of the same sizes (LCM fragments them itself). Reported:
+//         throughput of what arrived and the fraction lost.
+//
+// Needs root (namespaces). Not RT code; no SCHED_FIFO for the measuring threads (both
+// mechanisms run their LCM threads at normal priority alike).
+#include <poll.h>
+#include <sched.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <functional>
+#include <lcm/lcm-cpp.hpp>
+#include <memory>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bench_common.h"
+#include "rack/components/builtin.h"
+#include "rack/core/executor.h"
+#include "rack/core/host_config.h"
+#include "rack/rt/capabilities.h"
+#include "rack/rt/clock.h"
+#include "rack/tims/endpoint.h"
+#include "rack/tims/lcm_transport.h"
+
+namespace {
+
+using rack::bench::Percentiles;
+namespace rt = rack::rt;
+namespace tims = rack::tims;
+
+constexpr const char* kUsage =
+    "usage: bench_lcm [--iterations N] [--rounds R] [--bulk-count N] [--port P] [--json FILE] [--quick]\n"
+    "  --iterations N  timed round trips per mechanism (default 4000)\n"
+    "  --rounds R      alternate the two RPC mechanisms in R blocks (default 4)\n"
+    "  --bulk-count N  messages per size and mechanism in the bulk test (default 200; 1 MB: N/4)\n"
+    "  --port P        LCM port (default 7790); URL udpm://239.255.76.67:P?ttl=1&recv_buf_size=4194304\n"
+    "  --cpus A,B      CPU of host A's and of host B's threads (default 0,1: one CPU per\n"
+    "                  computer); any: not pinned\n"
+    "  --json FILE     machine-readable results\n"
+    "  --quick         1000 round trips, 2 rounds, 60 bulk messages\n";
+
+struct Options {
+  int iterations = 4000;
+  int rounds = 4;
+  int bulk_count = 200;
+  int port = 7790;
+  int cpu_a = 0;  // -1: not pinned
+  int cpu_b = 1;
+  std::string json;
+};
+
+int sh(const std::string& cmd) { return std::system((cmd + " >/dev/null 2>&1").c_str()); }
+
+// Two namespaces on a veth pair; deleted by the destructor.
+struct Namespaces {
+  std::string a, b;
+  Namespaces() {
+    const std::string p = "rkbench-" + std::to_string(getpid());
+    a = p + "-a";
+    b = p + "-b";
+    const std::vector<std::string> cmds = {
+        "ip netns add " + a, "ip netns add " + b,
+        "ip link add eth0 netns " + a + " type veth peer name eth0 netns " + b,
+        "ip -n " + a + " link set lo up", "ip -n " + b + " link set lo up",
+        "ip -n " + a + " addr add 10.78.0.1/24 dev eth0", "ip -n " + b + " addr add 10.78.0.2/24 dev eth0",
+        "ip -n " + a + " link set eth0 up", "ip -n " + b + " link set eth0 up",
+        "ip -n " + a + " route add 224.0.0.0/4 dev eth0", "ip -n " + b + " route add 224.0.0.0/4 dev eth0"};
+    for (const auto& c : cmds) {
+      if (sh(c) != 0) {
+        cleanup();
+        throw std::runtime_error("'" + c + "' failed (root and iproute2 needed)");
+      }
+    }
+  }
+  ~Namespaces() { cleanup(); }
+  void cleanup() {
+    sh("ip netns del " + a);
+    sh("ip netns del " + b);
+  }
+};
+
+void enter(const std::string& ns) {
+  const std::string path = "/run/netns/" + ns;
+  const int fd = open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0 || setns(fd, CLONE_NEWNET) != 0) throw std::runtime_error("cannot enter " + path);
+  close(fd);
+}
+
+// Pins the calling thread (and every thread it creates later) to one CPU.
+void pin(int cpu) {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  CPU_SET(static_cast<std::size_t>(cpu), &set);
+  if (sched_setaffinity(0, sizeof set, &set) != 0) throw std::runtime_error("cannot pin to CPU " + std::to_string(cpu));
+}
+
+// Runs `fn` on a thread inside namespace `ns`, pinned to `cpu`, and waits for it:
+// objects made there keep their sockets in that namespace, and the threads they start
+// (transport, executor tasks, LCM's own) stay on that CPU, as on a computer of its own.
+void in_ns(const std::string& ns, int cpu, const std::function<void()>& fn) {
+  std::exception_ptr err;
+  std::thread t([&] {
+    try {
+      if (cpu >= 0) pin(cpu);
+      enter(ns);
+      fn();
+    } catch (...) {
+      err = std::current_exception();
+    }
+  });
+  t.join();
+  if (err) std::rethrow_exception(err);
+}
+
+// ---------------------------------------------------------------- raw LCM references
+
+// Echoes BENCH_PING as BENCH_PONG, and counts BENCH_BULK messages (in host B).
+struct LcmEcho {
+  explicit LcmEcho(const std::string& url) : lcm(url) {
+    if (!lcm.good()) throw std::runtime_error("LCM " + url);
+    lcm.subscribe("BENCH_PING", &LcmEcho::on_ping, this);
+    lcm.subscribe("BENCH_BULK", &LcmEcho::on_bulk, this)->setQueueCapacity(1000);
+  }
+  void on_ping(const lcm::ReceiveBuffer* r, const std::string&) { lcm.publish("BENCH_PONG", r->data, r->data_size); }
+  void on_bulk(const lcm::ReceiveBuffer* r, const std::string&) {
+    bulk_count.fetch_add(1);
+    bulk_bytes.fetch_add(r->data_size);
+    last_ns.store(rt::monotonic_ns());
+  }
+  void run() {
+    pollfd p{lcm.getFileno(), POLLIN, 0};
+    while (!stop.load()) {
+      if (poll(&p, 1, 50) > 0) lcm.handle();
+    }
+  }
+  lcm::LCM lcm;
+  std::atomic<bool> stop{false};
+  std::atomic<uint64_t> bulk_count{0}, bulk_bytes{0};
+  std::atomic<int64_t> last_ns{0};
+};
+
+struct LcmPinger {
+  explicit LcmPinger(const std::string& url) : lcm(url) {
+    if (!lcm.good()) throw std::runtime_error("LCM " + url);
+    lcm.subscribe("BENCH_PONG", &LcmPinger::on_pong, this);
+  }
+  void on_pong(const lcm::ReceiveBuffer*, const std::string&) { got = true; }
+  // One round trip in ns, or -1 after a second without an answer.
+  int64_t ping(const std::vector<uint8_t>& payload) {
+    got = false;
+    const int64_t t0 = rt::monotonic_ns();
+    lcm.publish("BENCH_PING", payload.data(), static_cast<unsigned>(payload.size()));
+    pollfd p{lcm.getFileno(), POLLIN, 0};
+    while (!got) {
+      if (rt::monotonic_ns() - t0 > rt::kNsPerSec) return -1;
+      if (poll(&p, 1, 100) > 0) lcm.handle();
+    }
+    return rt::monotonic_ns() - t0;
+  }
+  lcm::LCM lcm;
+  bool got = false;
+};
+
+// ---------------------------------------------------------------- TiMS sides
+
+std::string host_b_text(const std::string& url) {
+  return "host: bench-b\nsystem: 0\nhost_id: 0\nheap_prefault_mib: 16\nlcm_url: \"" + url +
+         "\"\n"
+         "components:\n"
+         "  - name: gen\n    class: Generator\n    instance: 0\n    autostart: false\n"
+         "    command_task: {priority: 80}\n    data_task: {priority: 79, period_ms: 1000}\n";
+}
+
+// Large uplink slots of the bulk senders (host file key tims: large_slots).
+constexpr uint32_t kLargeSlots = 8;
+
+// A bare TiMS host: router, transport, one mailbox.
+struct TimsHost {
+  TimsHost(uint8_t system, const std::string& url, tims::Compression c, uint32_t inbox_slot)
+      : router(system),
+        inbox(tims::Address::make(system, tims::classes::kScan3d, 0, 3), 8, inbox_slot),
+        reply(tims::Address::make(system, tims::classes::kTool, 1, 1), 8, 64 * 1024) {
+    tims::LcmTransportConfig cfg;
+    tims::NetworkConfig n;
+    n.url = url;
+    n.compression = c;
+    cfg.networks = {n};
+    cfg.role = system == tims::kToolSystem ? tims::NodeRole::kTool : tims::NodeRole::kExecutor;
+    cfg.large_slots = kLargeSlots;
+    cfg.warn = [](const std::string& s) { std::fprintf(stderr, "  [transport] %s\n", s.c_str()); };
+    router.add(inbox);
+    router.add(reply);
+    transport = std::make_unique<tims::LcmTransport>(router, cfg);
+    transport->start();
+  }
+  ~TimsHost() {
+    transport->stop();
+    router.remove(inbox.address());
+    router.remove(reply.address());
+  }
+  tims::Router router;
+  tims::Mailbox inbox;
+  tims::Mailbox reply;
+  std::unique_ptr<tims::LcmTransport> transport;
+};
+
+struct BulkResult {
+  std::string mechanism;
+  std::size_t size = 0;
+  uint64_t sent = 0, received = 0;
+  double seconds = 0;
+  double mb_per_s = 0;
+  double loss = 0;
+  uint64_t wire_bytes = 0;
+};
+
+std::vector<uint8_t> bulk_payload(std::size_t n) {
+  // Like a depth image or a point cloud's range channel: 16-bit samples of a smooth
+  // surface with a little sensor noise in the low bits. Compressible, not trivially.
+  // Same bytes for every mechanism.
+  std::vector<uint8_t> v(n);
+  std::mt19937 rng(42);
+  for (std::size_t i = 0; i + 1 < n; i += 2) {
+    const auto x = static_cast<double>(i % 1280), y = static_cast<double>(i / 1280);
+    const auto depth = static_cast<uint16_t>(2000.0 + 500.0 * std::sin(x / 200.0) * std::cos(y / 150.0) + static_cast<double>(rng() % 4));
+    v[i] = static_cast<uint8_t>(depth & 0xFF);
+    v[i + 1] = static_cast<uint8_t>(depth >> 8);
+  }
+  return v;
+}
+
+BulkResult bulk_lcm(LcmEcho& echo, lcm::LCM& tx, std::size_t size, int count) {
+  const auto payload = bulk_payload(size);
+  echo.bulk_count = 0;
+  echo.bulk_bytes = 0;
+  const int64_t t0 = rt::monotonic_ns();
+  for (int i = 0; i < count; ++i) tx.publish("BENCH_BULK", payload.data(), static_cast<unsigned>(payload.size()));
+  rt::sleep_for(700 * rt::kNsPerMs);  // let the tail arrive
+  BulkResult r;
+  r.mechanism = "raw LCM";
+  r.size = size;
+  r.sent = static_cast<uint64_t>(count);
+  r.received = echo.bulk_count.load();
+  r.seconds = static_cast<double>(echo.last_ns.load() - t0) / 1e9;
+  r.mb_per_s = r.seconds > 0 ? static_cast<double>(echo.bulk_bytes.load()) / r.seconds / 1e6 : 0;
+  r.loss = 1.0 - static_cast<double>(r.received) / static_cast<double>(r.sent);
+  r.wire_bytes = static_cast<uint64_t>(count) * size;
+  return r;
+}
+
+BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, const char* name) {
+  const auto payload = bulk_payload(size);
+  std::atomic<uint64_t> received{0}, bytes{0};
+  std::atomic<int64_t> last{0};
+  std::atomic<bool> stop{false};
+  std::thread reader([&] {
+    // Zero-copy, as a component reads large messages (peek/peek_end); the raw LCM
+    // handler does not copy either.
+    while (!stop.load()) {
+      const auto r = rx.inbox.peek(50 * rt::kNsPerMs);
+      if (r.status != tims::RecvStatus::kOk) continue;
+      received.fetch_add(1);
+      bytes.fetch_add(r.body.size());
+      rx.inbox.peek_end();
+      last.store(rt::monotonic_ns());
+    }
+  });
+  const auto before = tx.transport->counters();
+  const int64_t t0 = rt::monotonic_ns();
+  for (int i = 0; i < count; ++i) {
+    const tims::MessageHeader h =
+        tims::make_header(rx.inbox.address(), tx.reply.address(), tims::msg::kData, 1, static_cast<uint8_t>(i), size);
+    const tims::ConstBuffer part{payload.data(), payload.size()};
+    (void)tx.router.send(h, std::span<const tims::ConstBuffer>(&part, 1));
+    // Back-pressure like a blocking publish(): never more queued than the large uplink
+    // holds (when full, it drops its oldest). Polled every 100 us: not a spin, which
+    // would take the CPU from the sender thread.
+    while (tx.transport->counters().messages_out - before.messages_out + (kLargeSlots - 2) <
+           static_cast<uint64_t>(i + 1)) {
+      rt::sleep_for(100 * rt::kNsPerUs);
+    }
+  }
+  rt::sleep_for(700 * rt::kNsPerMs);
+  stop = true;
+  reader.join();
+  const auto after = tx.transport->counters();
+  BulkResult r;
+  r.mechanism = name;
+  r.size = size;
+  r.sent = static_cast<uint64_t>(count);
+  r.received = received.load();
+  r.seconds = static_cast<double>(last.load() - t0) / 1e9;
+  r.mb_per_s = r.seconds > 0 ? static_cast<double>(bytes.load()) / r.seconds / 1e6 : 0;
+  r.loss = 1.0 - static_cast<double>(r.received) / static_cast<double>(r.sent);
+  r.wire_bytes = after.wire_bytes_out - before.wire_bytes_out;
+  return r;
+}
+
+void print(const char* name, const Percentiles& p) {
+  std::printf("  %-12s n=%-6llu min %7.1f  p50 %7.1f  p90 %7.1f  p99 %7.1f  p99.9 %7.1f  max %8.1f us\n", name,
+              static_cast<unsigned long long>(p.samples), rack::bench::us(p.min_ns), rack::bench::us(p.p50_ns),
+              rack::bench::us(p.p90_ns), rack::bench::us(p.p99_ns), rack::bench::us(p.p999_ns),
+              rack::bench::us(p.max_ns));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::fputs(kUsage, stderr);
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--iterations") o.iterations = std::atoi(next().c_str());
+    else if (a == "--rounds") o.rounds = std::atoi(next().c_str());
+    else if (a == "--bulk-count") o.bulk_count = std::atoi(next().c_str());
+    else if (a == "--port") o.port = std::atoi(next().c_str());
+    else if (a == "--json") o.json = next();
+    else if (a == "--cpus") {
+      const std::string v = next();
+      if (v == "any") { o.cpu_a = o.cpu_b = -1; }
+      else if (std::sscanf(v.c_str(), "%d,%d", &o.cpu_a, &o.cpu_b) != 2) { std::fputs(kUsage, stderr); return 2; }
+    }
+    else if (a == "--quick") { o.iterations = 1000; o.rounds = 2; o.bulk_count = 60; }
+    else { std::fputs(kUsage, a == "-h" || a == "--help" ? stdout : stderr); return a == "-h" || a == "--help" ? 0 : 2; }
+  }
+  if (geteuid() != 0) {
+    std::fprintf(stderr, "bench_lcm: needs root (network namespaces)\n");
+    return 1;
+  }
+  try {
+    Namespaces ns;
+    const std::string url =
+        "udpm://239.255.76.67:" + std::to_string(o.port) + "?ttl=1&recv_buf_size=4194304";
+    std::printf("bench_lcm: hosts %s (CPU %d) and %s (CPU %d) on a veth pair, %s\n", ns.a.c_str(), o.cpu_a,
+                ns.b.c_str(), o.cpu_b, url.c_str());
+
+    // Host B: a rack::Executor with a Generator, the raw LCM echo, and a bare TiMS
+    // host (system 1) for the bulk test.
+    rack::ComponentRegistry registry;
+    rack::components::register_builtin(registry);
+    const auto caps = rt::probe_capabilities();
+    std::unique_ptr<rack::Executor> exec;
+    std::unique_ptr<LcmEcho> echo;
+    std::unique_ptr<TimsHost> rx_plain;
+    std::thread echo_thread;
+    in_ns(ns.b, o.cpu_b, [&] {
+      auto loaded = rack::load_host_text(host_b_text(url), "bench_lcm.yaml", registry, caps);
+      if (!loaded.errors.empty()) throw std::runtime_error(loaded.errors.front().str());
+      rack::ExecutorOptions eo;
+      eo.log = [](const std::string&) {};
+      exec = std::make_unique<rack::Executor>(std::move(loaded.host), eo);
+      exec->start();
+      echo = std::make_unique<LcmEcho>(url);
+      rx_plain = std::make_unique<TimsHost>(1, url, tims::Compression::kNone, 1100 * 1000);
+    });
+    echo_thread = std::thread([&] {
+      if (o.cpu_b >= 0) pin(o.cpu_b);
+      echo->run();
+    });
+
+    // Host A: the client tool, the raw pinger and bulk publisher, TiMS bulk senders.
+    std::unique_ptr<TimsHost> tool, tx_plain, tx_zstd;
+    std::unique_ptr<LcmPinger> pinger;
+    std::unique_ptr<lcm::LCM> bulk_tx;
+    in_ns(ns.a, o.cpu_a, [&] {
+      tool = std::make_unique<TimsHost>(tims::kToolSystem, url, tims::Compression::kNone, 64 * 1024);
+      pinger = std::make_unique<LcmPinger>(url);
+      bulk_tx = std::make_unique<lcm::LCM>(url);
+      tx_plain = std::make_unique<TimsHost>(2, url, tims::Compression::kNone, 64 * 1024);
+      tx_zstd = std::make_unique<TimsHost>(3, url, tims::Compression::kZstd, 64 * 1024);
+    });
+    if (o.cpu_a >= 0) pin(o.cpu_a);  // the measuring (client) thread belongs to host A
+    rt::sleep_for(1500 * rt::kNsPerMs);  // discovery warm-up on every side
+
+    // ------------------------------------------------------------ RPC
+    tims::Endpoint ep(tool->router, tool->reply, 10);
+    const tims::Address gen = tims::Address::make(0, tims::classes::kGenerator, 0);
+    std::vector<std::byte> buf(64 * 1024);
+    const std::vector<uint8_t> ping(64, 0x5a);
+    std::vector<int64_t> rack_rt, lcm_rt;
+    uint64_t rack_fail = 0, lcm_fail = 0;
+    const int per_block = std::max(1, o.iterations / o.rounds);
+    for (int round = 0; round < o.rounds; ++round) {
+      for (int w = 0; w < 50; ++w) (void)ep.call(gen, tims::msg::kGetStatus, buf, rt::kNsPerSec);
+      for (int i = 0; i < per_block; ++i) {
+        const int64_t t0 = rt::monotonic_ns();
+        const auto r = ep.call(gen, tims::msg::kGetStatus, buf, rt::kNsPerSec);
+        const int64_t dt = rt::monotonic_ns() - t0;
+        if (r.status == tims::CallStatus::kOk) rack_rt.push_back(dt);
+        else ++rack_fail;
+      }
+      for (int w = 0; w < 50; ++w) (void)pinger->ping(ping);
+      for (int i = 0; i < per_block; ++i) {
+        const int64_t dt = pinger->ping(ping);
+        if (dt >= 0) lcm_rt.push_back(dt);
+        else ++lcm_fail;
+      }
+    }
+    const Percentiles pr = rack::bench::percentiles_of(rack_rt);
+    const Percentiles pl = rack::bench::percentiles_of(lcm_rt);
+    std::printf("RPC round trip between two namespaces (us), %d rounds alternating:\n", o.rounds);
+    print("TiMS RPC", pr);
+    print("raw LCM ping", pl);
+    std::printf("  ratio TiMS/LCM: p50 %.2fx, p90 %.2fx, p99 %.2fx (target p50 <= 1.15x); failures %llu / %llu\n",
+                pr.p50_ns / pl.p50_ns, pr.p90_ns / pl.p90_ns, pr.p99_ns / pl.p99_ns,
+                static_cast<unsigned long long>(rack_fail), static_cast<unsigned long long>(lcm_fail));
+
+    // ------------------------------------------------------------ bulk
+    std::vector<BulkResult> bulk;
+    for (const std::size_t size : {std::size_t{100 * 1000}, std::size_t{1000 * 1000}}) {
+      const int count = size > 500000 ? std::max(10, o.bulk_count / 4) : o.bulk_count;
+      bulk.push_back(bulk_lcm(*echo, *bulk_tx, size, count));
+      bulk.push_back(bulk_tims(*tx_plain, *rx_plain, size, count, "TiMS"));
+      bulk.push_back(bulk_tims(*tx_zstd, *rx_plain, size, count, "TiMS+zstd"));
+    }
+    std::printf("Bulk A -> B (sender as fast as it may):\n");
+    for (const auto& b : bulk) {
+      std::printf("  %-10s %7zu B x %4llu: received %4llu (loss %5.1f%%), %7.1f MB/s, wire %.1f MB\n",
+                  b.mechanism.c_str(), b.size, static_cast<unsigned long long>(b.sent),
+                  static_cast<unsigned long long>(b.received), 100 * b.loss, b.mb_per_s,
+                  static_cast<double>(b.wire_bytes) / 1e6);
+    }
+
+    if (!o.json.empty()) {
+      std::ostringstream j;
+      j << "{\"machine\": " << rack::bench::json_machine() << ", \"url\": \"" << rack::bench::json_escape(url)
+        << "\", \"rpc\": {\"tims\": " << rack::bench::json_percentiles(pr)
+        << ", \"lcm\": " << rack::bench::json_percentiles(pl) << ", \"tims_failures\": " << rack_fail
+        << ", \"lcm_failures\": " << lcm_fail << "}, \"bulk\": [";
+      for (std::size_t i = 0; i < bulk.size(); ++i) {
+        const auto& b = bulk[i];
+        j << (i ? ", " : "") << "{\"mechanism\": \"" << b.mechanism << "\", \"size\": " << b.size
+          << ", \"sent\": " << b.sent << ", \"received\": " << b.received << ", \"mb_per_s\": "
+          << rack::bench::json_number(b.mb_per_s) << ", \"loss\": " << rack::bench::json_number(b.loss)
+          << ", \"wire_bytes\": " << b.wire_bytes << "}";
+      }
+      j << "]}\n";
+      rack::bench::write_file(o.json, j.str());
+    }
+
+    echo->stop = true;
+    echo_thread.join();
+    tool.reset();
+    tx_plain.reset();
+    tx_zstd.reset();
+    rx_plain.reset();
+    exec->stop();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_lcm: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
