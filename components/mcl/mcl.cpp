@@ -57,7 +57,7 @@ Mcl::Mcl()
       max_range_(declare_float("max_range", 30.0, {.doc = "likelihood field: sensor range for the random-reading term (m)", .min = 0.1, .max = 1000.0})),
       odom_noise_xy_(declare_float("odom_noise_xy", 0.05, {.doc = "motion model: translation std dev per metre travelled (m/m)", .min = 0.0, .max = 10.0})),
       odom_noise_phi_(declare_float("odom_noise_phi", 0.05, {.doc = "motion model: rotation std dev per radian turned (rad/rad)", .min = 0.0, .max = 10.0})),
-      inject_max_fraction_(declare_float("inject_max_fraction", 0.10, {.doc = "recovery: most particles replaced by random ones per update", .min = 0.0, .max = 1.0})),
+      inject_max_fraction_(declare_float("inject_max_fraction", 0.10, {.doc = "recovery: most random particles added per update, as a fraction of particles_max", .min = 0.0, .max = 1.0})),
       fit_min_(declare_float("fit_min", 0.6, {.doc = "recovery: inject while the scan fit (MclData.fit) stays below this (0: off)", .min = 0.0, .max = 0.99})),
       alpha_slow_(declare_float("alpha_slow", 0.01, {.doc = "recovery: long-term scan-fit average rate", .min = 1e-6, .max = 1.0})),
       alpha_fast_(declare_float("alpha_fast", 0.2, {.doc = "recovery: short-term scan-fit average rate (> alpha_slow)", .min = 1e-6, .max = 1.0})),

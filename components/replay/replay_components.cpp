@@ -16,6 +16,19 @@ namespace {
 // At most this many records per cycle: a long stall (or a high speed) must not turn
 // one cycle into an unbounded burst.
 constexpr std::size_t kMaxPerCycle = 64;
+// A component that joins the clock within this long of its start plays the log from
+// its beginning (components of one host are switched on one after the other); one that
+// joins later skips what has already played, as a live sensor would.
+constexpr int64_t kJoinWindowNs = 2 * rt::kNsPerSec;
+
+// Index of the first record to play when joining the clock at `now`.
+template <typename Records>
+std::size_t join_index(const replay::SharedLog& log, const Records& records, std::size_t next, int64_t now,
+                       int64_t anchor, int64_t period) noexcept {
+  if (next == 0 && now - anchor < kJoinWindowNs) return 0;
+  while (next < records.size() && log.host_time(records[next].time) < now - period) ++next;
+  return next;
+}
 
 double wrap(double a) noexcept { return std::remainder(a, 2.0 * std::numbers::pi); }
 
@@ -84,10 +97,10 @@ HookResult ChassisReplay::on() {
 HookResult ChassisReplay::loop() {
   const int64_t now = rt::host_time_ns();
   if (!joined_.exchange(true, std::memory_order_acq_rel)) {
-    (void)shared_->start(now);
+    const int64_t anchor = shared_->start(now);
     // Joining a running clock: records that played more than a period ago are skipped;
     // the next increment then spans them, so the integrated odometry stays right.
-    while (next_ < stream_.size() && shared_->host_time(stream_[next_].time) < now - period_ns()) ++next_;
+    next_ = join_index(*shared_, stream_, next_, now, anchor, period_ns());
   }
   for (std::size_t k = 0; k < kMaxPerCycle && next_ < stream_.size(); ++k) {
     const replay::OdometryRecord& r = stream_[next_];
@@ -174,8 +187,8 @@ HookResult LadarReplay::loop() {
   const int64_t now = rt::host_time_ns();
   const auto& scans = shared_->log().scans;
   if (!joined_.exchange(true, std::memory_order_acq_rel)) {
-    (void)shared_->start(now);
-    while (next_ < scans.size() && shared_->host_time(scans[next_].time) < now - period_ns()) ++next_;
+    const int64_t anchor = shared_->start(now);
+    next_ = join_index(*shared_, scans, next_, now, anchor, period_ns());
   }
   for (std::size_t k = 0; k < kMaxPerCycle && next_ < scans.size(); ++k) {
     const replay::ScanRecord& s = scans[next_];

@@ -13,8 +13,10 @@
 // Both components that name the same file share its replay clock (one per file and
 // process): log time t plays at host time anchor + (t - t_first) / speed, the anchor
 // being when the first of them was switched on, so scans and odometry stay in step.
-// A component switched on later (or again) joins the running clock. At the end of the
-// log both stop publishing. Sample times are the host times the records play at.
+// A component switched on within 2 s of that plays from the log's beginning; one
+// switched on later (or again) joins the running clock and skips what has played.
+// At the end of the log both stop publishing. Sample times are the host times the
+// records play at.
 //
 // Real-time contract: init() loads the file (not RT); on(), off(), loop() and command()
 // are RT-safe (the log is preloaded; no allocation).
