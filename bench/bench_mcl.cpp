@@ -10,7 +10,8 @@
 // mrpt-common ships no laser rawlog with ground truth (see bench/RESULTS.md), so the
 // accuracy figures come from this simulated run.
 //
-//   bench_mcl [--quick] [--seed N] [--no-latency] [--latency-seconds S]
+//   bench_mcl [--quick] [--no-latency] [--latency-seconds S]
+//   bench_mcl --write-carmen FILE [--steps N] [--beams B]   (the example log in configs/logs/)
 //
 // Not RT code. The latency part needs root (SCHED_FIFO); without it that part is skipped.
 #include <sched.h>
@@ -531,18 +532,63 @@ void bench_latency(const rack::maps::OccupancyMap& map, const std::vector<Step>&
               static_cast<unsigned long>(mcl_updates.load()));
 }
 
+// Writes the tour as a CARMEN log: ODOM at every step (0.1 s), ROBOTLASER1 at every
+// second step with `beams` beams, TRUEPOS (ground truth, which replay ignores). The
+// laser sits at the robot's reference point.
+int write_carmen(const rack::maps::OccupancyMap& map, const std::string& path, std::size_t max_steps, int beams) {
+  SimConfig cfg;
+  cfg.beams = beams;
+  ScriptedRobot robot(map, cfg, 1);
+  robot.place({kTour[0].first, kTour[0].second, 0.0});
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) {
+    std::fprintf(stderr, "bench_mcl: cannot write %s\n", path.c_str());
+    return 1;
+  }
+  std::fprintf(f, "# CARMEN Logfile\n# written by bench_mcl --write-carmen: the scripted robot's tour of "
+                  "configs/maps/office.yaml (1 cm range noise, 2 %% odometry noise); TRUEPOS is the ground truth\n"
+                  "# message formats: ODOM, ROBOTLASER1, TRUEPOS (see components/replay/include/rack/replay/carmen_log.h)\n");
+  std::size_t step = 0;
+  for (std::size_t w = 1; w < kTour.size() && step < max_steps; ++w) {
+    for (int guard = 0; guard < 5000 && step < max_steps && !robot.step_towards(kTour[w].first, kTour[w].second);
+         ++guard, ++step) {
+      const double t = 1000.0 + 0.1 * static_cast<double>(step);
+      const SimPose o = robot.odometry(), tr = robot.truth();
+      std::fprintf(f, "ODOM %.4f %.4f %.5f 0.5 0 0 %.3f sim %.3f\n", o.x, o.y, o.phi, t, t);
+      std::fprintf(f, "TRUEPOS %.4f %.4f %.5f %.4f %.4f %.5f %.3f sim %.3f\n", tr.x, tr.y, tr.phi, o.x, o.y, o.phi, t, t);
+      if (step % 2 != 0) continue;
+      const SimScan s = robot.scan();
+      std::fprintf(f, "ROBOTLASER1 0 %.5f %.5f %.6f %.1f 0.01 0 %zu", double{s.start_angle},
+                   1.5 * std::numbers::pi, double{s.step}, double{s.max_range}, s.ranges.size());
+      for (float r : s.ranges) std::fprintf(f, " %.3f", double{r});
+      std::fprintf(f, " 0 %.4f %.4f %.5f %.4f %.4f %.5f 0.5 0 0 0 0 %.3f sim %.3f\n", o.x, o.y, o.phi, o.x, o.y, o.phi,
+                   t, t);
+    }
+  }
+  std::fclose(f);
+  std::printf("bench_mcl: wrote %zu steps to %s\n", step, path.c_str());
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   bool quick = false, latency = true;
   int latency_seconds = 20;
+  std::string carmen;
+  std::size_t carmen_steps = 400;
+  int carmen_beams = 91;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--quick") quick = true;
     else if (a == "--no-latency") latency = false;
     else if (a == "--latency-seconds" && i + 1 < argc) latency_seconds = std::atoi(argv[++i]);
+    else if (a == "--write-carmen" && i + 1 < argc) carmen = argv[++i];
+    else if (a == "--steps" && i + 1 < argc) carmen_steps = static_cast<std::size_t>(std::atol(argv[++i]));
+    else if (a == "--beams" && i + 1 < argc) carmen_beams = std::atoi(argv[++i]);
     else if (a == "-h" || a == "--help") {
-      std::printf("bench_mcl [--quick] [--no-latency] [--latency-seconds S]\n");
+      std::printf("bench_mcl [--quick] [--no-latency] [--latency-seconds S]\n"
+                  "bench_mcl --write-carmen FILE [--steps N] [--beams B]   write the simulated tour as a CARMEN log\n");
       return 0;
     } else {
       std::fprintf(stderr, "bench_mcl: unknown option %s\n", a.c_str());
@@ -556,6 +602,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   const rack::maps::OccupancyMap& map = *loaded.map;
+  if (!carmen.empty()) return write_carmen(map, carmen, carmen_steps, carmen_beams);
   std::printf("bench_mcl: kernel %s (%s), %s, %ld CPUs; loadavg %s\n", rack::bench::kernel_string().c_str(),
               rack::bench::kernel_is_preempt_rt() ? "PREEMPT_RT" : "not PREEMPT_RT", rack::bench::cpu_model().c_str(),
               sysconf(_SC_NPROCESSORS_ONLN), rack::bench::read_first_line("/proc/loadavg").c_str());

@@ -10,6 +10,13 @@
 #include <string>
 #include <variant>
 
+#include <array>
+#include <map>
+#include <sstream>
+#include <vector>
+
+#include "rack/maps/occupancy_map.h"
+#include "rack/mcl/mcl_filter.h"
 #include "rack/replay/carmen_log.h"
 #include "rack/replay/replay_log.h"
 
@@ -173,6 +180,60 @@ TEST(RawlogTest, NotARawlogIsAnErrorWithTheFileName) {
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error_text().find(path.string()), std::string::npos) << r.error_text();
   std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace rack::replay
+
+namespace rack::replay {
+namespace {
+
+// The example log shipped in configs/logs/ (written by bench_mcl --write-carmen), parsed
+// and fed to MCL scan by scan: the estimate follows the TRUEPOS lines (ground truth,
+// which the replay ignores; read here by hand).
+TEST(CarmenLogTest, ShippedExampleLogLocalisesWithMcl) {
+  const std::string dir = std::string(RACK_SOURCE_DIR) + "/configs";
+  const LoadLogResult r = load_carmen_log(dir + "/logs/office_tour.clf");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  ASSERT_GT(r.log.scans.size(), 100U);
+  std::map<double, std::array<double, 3>> truth;
+  {
+    std::ifstream in(dir + "/logs/office_tour.clf");
+    std::string kind;
+    for (std::string line; std::getline(in, line);) {
+      std::istringstream ls(line);
+      ls >> kind;
+      if (kind != "TRUEPOS") continue;
+      double x, y, th, ox, oy, oth, t;
+      ls >> x >> y >> th >> ox >> oy >> oth >> t;
+      truth[t] = {x, y, th};
+    }
+  }
+  auto map = maps::load_map(dir + "/maps/office.yaml");
+  ASSERT_TRUE(map.ok()) << map.error_text();
+  mcl::MclOptions o;
+  o.seed = 3;
+  mcl::MclFilter f(*map.map, o);
+  f.init_pose({2.0, 8.0, 0.0}, 0.2, 0.1);
+  double sum_sq = 0;
+  int n = 0;
+  for (const ScanRecord& s : r.log.scans) {
+    std::vector<float> xs, ys;
+    for (std::size_t i = 0; i < s.ranges.size(); ++i) {
+      if (!(s.ranges[i] > 0 && s.ranges[i] < s.max_range)) continue;
+      const double a = s.start_angle + static_cast<double>(i) * s.angle_step;
+      xs.push_back(static_cast<float>(s.ranges[i] * std::cos(a)));
+      ys.push_back(static_cast<float>(s.ranges[i] * std::sin(a)));
+    }
+    if (!f.update({s.odom_x, s.odom_y, s.odom_phi}, xs, ys)) continue;
+    const auto it = truth.find(s.time);
+    ASSERT_NE(it, truth.end()) << "no TRUEPOS at " << s.time;
+    const auto e = f.estimate();
+    const double err = std::hypot(e.pose.x - it->second[0], e.pose.y - it->second[1]);
+    if (++n > 5) sum_sq += err * err;
+  }
+  ASSERT_GT(n, 50);
+  EXPECT_LT(std::sqrt(sum_sq / (n - 5)), 0.05);
 }
 
 }  // namespace
