@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <numbers>
 #include <string>
 #include <variant>
@@ -234,6 +235,31 @@ TEST(CarmenLogTest, ShippedExampleLogLocalisesWithMcl) {
   }
   ASSERT_GT(n, 50);
   EXPECT_LT(std::sqrt(sum_sq / (n - 5)), 0.05);
+}
+
+}  // namespace
+}  // namespace rack::replay
+
+namespace rack::replay {
+namespace {
+
+// A rawlog cut in the middle of a record is an error naming the byte offset, not a
+// shorter log.
+TEST(RawlogTest, TruncatedRawlogIsAnErrorWithTheOffset) {
+  const std::string src = "/usr/share/mrpt/datasets/localization_demo.rawlog";
+  ASSERT_TRUE(std::filesystem::exists(src)) << src << " missing: run scripts/setup.sh (mrpt-common)";
+  const auto path = std::filesystem::temp_directory_path() / "rack_truncated_test.rawlog";
+  {
+    std::ifstream in(src, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream out(path, std::ios::binary);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size() / 2));
+  }
+  const LoadLogResult r = load_replay_log(path.string());
+  ASSERT_FALSE(r.ok()) << "a truncated rawlog was accepted with " << r.log.scans.size() << " scans";
+  EXPECT_NE(r.error_text().find("byte offset"), std::string::npos) << r.error_text();
+  EXPECT_NE(r.error_text().find(path.string()), std::string::npos) << r.error_text();
+  std::filesystem::remove(path);
 }
 
 }  // namespace

@@ -1,5 +1,5 @@
-// MRPT rawlog files, read with MRPT's own reader (CRawlog::getActionObservationPairOrObservation
-// over a gz-capable stream), in both layouts MRPT writes:
+// MRPT rawlog files, read with MRPT's own deserialisation (CArchive::ReadObject over a
+// gz-capable stream), in both layouts MRPT writes:
 // - actions + sensory frames: each CActionRobotMovement2D is the odometry increment
 //   since the previous frame; summing them gives the odometry pose at each frame;
 // - observations only: CObservationOdometry carries the absolute odometry pose.
@@ -11,7 +11,6 @@
 #include <mrpt/obs/CActionRobotMovement2D.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
 #include <mrpt/obs/CObservationOdometry.h>
-#include <mrpt/obs/CRawlog.h>
 #include <mrpt/obs/CSensoryFrame.h>
 #include <mrpt/poses/CPose2D.h>
 #include <mrpt/serialization/CArchive.h>
@@ -47,7 +46,8 @@ struct Builder {
   void add_scan(const mrpt::obs::CObservation2DRangeScan& o, double time, int index) {
     const std::size_t n = o.getScanSize();
     if (n < 2) {
-      out.errors.push_back({out.log.source, index, "2-D scan with " + std::to_string(n) + " beams"});
+      out.errors.push_back({out.log.source, 0, "record " + std::to_string(index) + ": 2-D scan with " +
+                                                   std::to_string(n) + " beams"});
       return;
     }
     ScanRecord s;
@@ -145,28 +145,43 @@ LoadLogResult load_rawlog(const std::string& path) {
   }
   auto archive = mrpt::serialization::archiveFrom(file);
   Builder b{result, 0.0, false, mrpt::poses::CPose2D(), false};
-  std::size_t entry = 0;
+  mrpt::obs::CActionCollection::Ptr pending_action;
+  // Objects are read one by one with MRPT's deserialisation (not through
+  // CRawlog::getActionObservationPairOrObservation, which prints a failure to stderr
+  // and reports it as a clean end of file: a truncated rawlog would pass unnoticed).
+  int index = 0;
   for (;;) {
-    mrpt::obs::CActionCollection::Ptr action;
-    mrpt::obs::CSensoryFrame::Ptr sf;
-    mrpt::obs::CObservation::Ptr obs;
     const uint64_t offset = file.getPosition();
-    bool more = false;
+    mrpt::serialization::CSerializable::Ptr object;
     try {
-      more = mrpt::obs::CRawlog::getActionObservationPairOrObservation(archive, action, sf, obs, entry);
+      object = archive.ReadObject();
+    } catch (const mrpt::serialization::CExceptionEOF&) {
+      if (file.getPosition() == offset) break;  // a clean end between two records
+      result.errors.push_back({path, 0, "record " + std::to_string(index) + " truncated at byte offset " +
+                                            std::to_string(offset) + " (uncompressed)"});
+      break;
     } catch (const std::exception& e) {
-      // MRPT's message is long (a stack of frames); its first line says what.
+      // MRPT's message is long (nested frames); its first line that names the cause is kept.
       std::string what = e.what();
+      if (const auto m = what.find("Message:"); m != std::string::npos) what = what.substr(m + 8);
       if (const auto nl = what.find('\n'); nl != std::string::npos) what.resize(nl);
-      result.errors.push_back({path, static_cast<int>(entry),
-                               "unreadable record (byte offset " + std::to_string(offset) + "): " + what});
+      if (const auto start = what.find_first_not_of(' '); start != std::string::npos) what = what.substr(start);
+      result.errors.push_back({path, 0, "record " + std::to_string(index) + " at byte offset " +
+                                            std::to_string(offset) + " (uncompressed) is unreadable: " + what});
       break;
     }
-    if (!more) break;
     ++result.lines;
-    const int index = static_cast<int>(entry);
-    if (obs) b.observation(obs, index);
-    else b.frame(action, sf, index);
+    if (auto sf = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(object)) {
+      b.frame(pending_action, sf, index);
+      pending_action.reset();
+    } else if (auto act = std::dynamic_pointer_cast<mrpt::obs::CActionCollection>(object)) {
+      pending_action = act;  // applies to the next sensory frame
+    } else if (auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(object)) {
+      b.observation(obs, index);
+    } else {
+      ++result.ignored;
+    }
+    ++index;
   }
   if (result.errors.empty() && result.log.scans.empty()) {
     result.errors.push_back({path, 0, "no 2-D laser scan in " + std::to_string(result.lines) + " rawlog entries"});

@@ -50,7 +50,7 @@ struct ReplayLog {
 // A problem with one line (or record) of a log file.
 struct LogError {
   std::string file;
-  int line = 0;  // 1-based line (CARMEN) or record index (rawlog); 0: the file itself
+  int line = 0;  // 1-based line (CARMEN); 0: not about a line (rawlogs name the record in the message)
   std::string message;
   [[nodiscard]] std::string str() const;  // "file:line: message"
 };
