@@ -83,8 +83,12 @@ struct MclFilter::Impl {
   // OccupancyMap's.
   double ox = 0.0, oy = 0.0;
   double resolution = 0.0;
-  std::shared_ptr<mrpt::maps::COccupancyGridMap2D> grid_ptr = std::make_shared<mrpt::maps::COccupancyGridMap2D>();
-  mrpt::maps::COccupancyGridMap2D& grid = *grid_ptr;
+  // The grid is rebuilt when a likelihood-field option changes: MRPT caches the field
+  // per cell (enableLikelihoodCache) and offers no way to invalidate that cache.
+  std::shared_ptr<mrpt::maps::COccupancyGridMap2D> grid;
+  int width = 0, height = 0;
+  std::vector<float> cells;  // MRPT's values (probability of FREE), row 0 at the bottom
+  MclOptions grid_opt;       // the likelihood-field options the grid was built with
   std::vector<std::pair<int, int>> free_cells;
   PointsMcl pdf{1};
   mrpt::bayes::CParticleFilter pf;
@@ -97,7 +101,35 @@ struct MclFilter::Impl {
   mrpt::poses::CPose2D odometry_now;
   MclEstimate est;                          // particles' estimate at the last update (shifted frame)
 
+  static bool same_field(const MclOptions& a, const MclOptions& b) {
+    return a.sigma_hit == b.sigma_hit && a.z_hit == b.z_hit && a.z_random == b.z_random &&
+           a.max_range == b.max_range && a.max_corr_distance == b.max_corr_distance;
+  }
+
+  void build_grid() {
+    grid = std::make_shared<mrpt::maps::COccupancyGridMap2D>();
+    const auto res = static_cast<float>(resolution);
+    grid->setSize(0.0F, static_cast<float>(width * resolution), 0.0F, static_cast<float>(height * resolution), res,
+                  0.5F);
+    const int w = std::min<int>(width, static_cast<int>(grid->getSizeX()));
+    const int h = std::min<int>(height, static_cast<int>(grid->getSizeY()));
+    for (int iy = 0; iy < h; ++iy) {
+      for (int ix = 0; ix < w; ++ix) grid->setCell(ix, iy, cells[static_cast<std::size_t>(iy * width + ix)]);
+    }
+    auto& lf = grid->likelihoodOptions;
+    lf.likelihoodMethod = mrpt::maps::COccupancyGridMap2D::lmLikelihoodField_Thrun;
+    lf.LF_stdHit = static_cast<float>(opt.sigma_hit);
+    lf.LF_zHit = static_cast<float>(opt.z_hit);
+    lf.LF_zRandom = static_cast<float>(opt.z_random);
+    lf.LF_maxRange = static_cast<float>(opt.max_range);
+    lf.LF_maxCorrsDistance = static_cast<float>(opt.max_corr_distance);
+    lf.LF_decimation = 1;  // points are subsampled here (`beams`)
+    lf.enableLikelihoodCache = true;
+    grid_opt = opt;
+  }
+
   void apply_options() {
+    if (!grid || !same_field(opt, grid_opt)) build_grid();
     pf.m_options.PF_algorithm = mrpt::bayes::CParticleFilter::pfStandardProposal;
     pf.m_options.resamplingMethod = mrpt::bayes::CParticleFilter::prMultinomial;  // MRPT requires it with KLD (dynamic count)
     pf.m_options.adaptiveSampleSize = true;
@@ -110,17 +142,8 @@ struct MclFilter::Impl {
     kld.KLD_binSize_PHI = opt.kld_bin_phi;
     kld.KLD_delta = opt.kld_delta;
     kld.KLD_epsilon = opt.kld_epsilon;
-    auto& lf = grid.likelihoodOptions;
-    lf.likelihoodMethod = mrpt::maps::COccupancyGridMap2D::lmLikelihoodField_Thrun;
-    lf.LF_stdHit = static_cast<float>(opt.sigma_hit);
-    lf.LF_zHit = static_cast<float>(opt.z_hit);
-    lf.LF_zRandom = static_cast<float>(opt.z_random);
-    lf.LF_maxRange = static_cast<float>(opt.max_range);
-    lf.LF_maxCorrsDistance = static_cast<float>(opt.max_corr_distance);
-    lf.LF_decimation = 1;  // points are subsampled here (`beams`)
-    lf.enableLikelihoodCache = true;
-    pdf.options.metricMap = grid_ptr;
-    pdf.grid = &grid;
+    pdf.options.metricMap = grid;
+    pdf.grid = grid.get();
     pdf.points = &points;
     pdf.log_lik.assign(opt.particles_max + 1, 0.0);  // KLD never draws more than particles_max
   }
@@ -183,7 +206,7 @@ struct MclFilter::Impl {
       double x = 0, y = 0, phi = 0;
       random_free_pose(x, y, phi);
       const mrpt::poses::CPose2D pose(x, y, phi);
-      const double ll = grid.computeLikelihoodField_Thrun(&points, &pose);
+      const double ll = grid->computeLikelihoodField_Thrun(&points, &pose);
       auto& part = pdf.m_particles.emplace_back();
       part.d = mrpt::math::TPose2D(x, y, phi);
       part.log_w = opt.likelihood_power * ll + c;
@@ -207,21 +230,19 @@ MclFilter::MclFilter(const maps::OccupancyMap& map, const MclOptions& options) :
   s.ox = map.origin_x();
   s.oy = map.origin_y();
   s.resolution = map.resolution();
-  const auto res = static_cast<float>(map.resolution());
-  s.grid.setSize(0.0F, static_cast<float>(map.width() * map.resolution()), 0.0F,
-                 static_cast<float>(map.height() * map.resolution()), res, 0.5F);
-  // MRPT stores the probability of a cell being FREE.
-  const int w = std::min<int>(map.width(), static_cast<int>(s.grid.getSizeX()));
-  const int h = std::min<int>(map.height(), static_cast<int>(s.grid.getSizeY()));
-  for (int iy = 0; iy < h; ++iy) {
-    for (int ix = 0; ix < w; ++ix) {
+  s.width = map.width();
+  s.height = map.height();
+  s.cells.assign(static_cast<std::size_t>(map.width()) * static_cast<std::size_t>(map.height()), 0.5F);
+  for (int iy = 0; iy < map.height(); ++iy) {
+    for (int ix = 0; ix < map.width(); ++ix) {
+      float& c = s.cells[static_cast<std::size_t>(iy * map.width() + ix)];
       switch (map.cell_state(ix, iy)) {
-        case maps::CellState::kFree:
-          s.grid.setCell(ix, iy, 1.0F);
+        case maps::CellState::kFree:  // MRPT stores the probability of a cell being FREE
+          c = 1.0F;
           s.free_cells.emplace_back(ix, iy);
           break;
-        case maps::CellState::kOccupied: s.grid.setCell(ix, iy, 0.0F); break;
-        case maps::CellState::kUnknown: s.grid.setCell(ix, iy, 0.5F); break;
+        case maps::CellState::kOccupied: c = 0.0F; break;
+        case maps::CellState::kUnknown: c = 0.5F; break;
       }
     }
   }
