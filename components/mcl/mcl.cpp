@@ -205,7 +205,12 @@ HookResult Mcl::loop() {
     if (!apply_init()) return HookResult::kError;
     const Scan2dData& s = *scan_;
     if (s.odometry_valid == 0) {  // no motion model without odometry: wait for the next
-      no_odometry_.fetch_add(1, std::memory_order_relaxed);
+      if (no_odometry_.fetch_add(1, std::memory_order_relaxed) == 0) {
+        std::fprintf(stderr,
+                     "MCL '%s': scans carry no odometry (odometry_valid 0); give the Scan2D component an "
+                     "'odometry' parameter. Such scans are skipped.\n",
+                     name().c_str());
+      }
       return HookResult::kOk;
     }
     std::size_t n = 0;
