@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -94,6 +95,8 @@ TEST_F(MclFilterTest, TracksTheTourWithinFiveCentimetresRms) {
     robot.place({kTour[0].first, kTour[0].second, 0.0});
     f.init_pose({kTour[0].first + 0.1, kTour[0].second - 0.1, 0.05}, 0.2, 0.1);
     const RunStats st = drive(f, robot, kTour, 5);
+    std::printf("seed %lu: RMS %.4f m over %d updates, max heading error %.3f rad\n", static_cast<unsigned long>(seed),
+                st.rms, st.updates, st.max_heading);
     EXPECT_GT(st.updates, 100) << "seed " << seed;
     EXPECT_LT(st.rms, 0.05) << "seed " << seed << ": RMS " << st.rms << " m over " << st.updates << " updates";
     EXPECT_LT(st.max_heading, 0.1) << "seed " << seed;
