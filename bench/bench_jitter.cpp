@@ -16,11 +16,16 @@
 //   reference:  cyclictest -m -p P -i INTERVAL -a N -t1 -D Ds -q -h 10000
 //               (rt-tests 2.x has no -n: clock_nanosleep is its default).
 //
+// Load: --load-cmd CMD runs CMD (through /bin/sh, in its own process group, normal
+// scheduling) for the whole run, both sides, and stops it at the end: e.g. stress-ng,
+// or a rackd running MCL at lower priority. --load-name labels it in the results.
+//
 // PM QoS: cyclictest holds /dev/cpu_dma_latency at 0 by default, which keeps a VM's
 // CPUs polling instead of halting and cuts wake-up latency a lot; rackd does not.
 // So that both sides run under the same conditions, this program holds it at 0 for
 // the whole run (default), or with --no-pm-qos holds nothing and passes
 // --default-system to cyclictest.
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -50,7 +55,8 @@ namespace rt = rack::rt;
 
 constexpr const char* kUsage =
     "usage: bench_jitter [--seconds D] [--cpu N] [--json FILE] [--priority P] [--interval-us I]\n"
-    "                    [--rounds R] [--cyclictest PATH] [--no-pm-qos] [--verbose]\n"
+    "                    [--rounds R] [--cyclictest PATH] [--no-pm-qos] [--load-cmd CMD]\n"
+    "                    [--load-name NAME] [--verbose]\n"
     "  --seconds D      measured seconds per side (default 30)\n"
     "  --cpu N          CPU of the periodic task on both sides (default: highest online CPU)\n"
     "  --json FILE      write machine-readable results (with both histograms)\n"
@@ -58,7 +64,10 @@ constexpr const char* kUsage =
     "  --interval-us I  period (default 1000 = 1 kHz)\n"
     "  --rounds R       split D into R alternating segments per side (default 1)\n"
     "  --cyclictest P   the cyclictest binary (default: cyclictest from PATH)\n"
-    "  --no-pm-qos      do not hold /dev/cpu_dma_latency; cyclictest gets --default-system\n";
+    "  --no-pm-qos      do not hold /dev/cpu_dma_latency; cyclictest gets --default-system\n"
+    "  --load-cmd CMD   run CMD (sh -c) as background load during both sides, e.g.\n"
+    "                   'stress-ng --cpu 2 --vm 1 --vm-bytes 128M --io 1' (stopped at the end)\n"
+    "  --load-name NAME the load's label in the output (default: idle, or the command)\n";
 
 constexpr std::size_t kBuckets = rt::LatencyStats::kBuckets;  // 10000 x 1 us, like -h 10000
 
@@ -71,7 +80,51 @@ struct Options {
   int rounds = 1;
   std::string cyclictest = "cyclictest";
   bool pm_qos = true;
+  std::string load_cmd;
+  std::string load_name;
   bool verbose = false;
+};
+
+// The background load: a shell command in its own process group, so that stopping it
+// stops everything it started (stress-ng forks workers; rackd has threads).
+class BackgroundLoad {
+ public:
+  explicit BackgroundLoad(const std::string& cmd) {
+    if (cmd.empty()) return;
+    pid_ = fork();
+    if (pid_ < 0) throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
+    if (pid_ == 0) {
+      setpgid(0, 0);
+      execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    setpgid(pid_, pid_);  // also here: no race with the child's own call
+    rt::sleep_for(2 * rt::kNsPerSec);  // let it ramp up before measuring
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) == pid_) {
+      pid_ = -1;
+      throw std::runtime_error("the load command exited at once (status " + std::to_string(status) + "): " + cmd);
+    }
+  }
+  ~BackgroundLoad() {
+    if (pid_ <= 0) return;
+    kill(-pid_, SIGTERM);
+    for (int i = 0; i < 50; ++i) {
+      if (waitpid(pid_, nullptr, WNOHANG) == pid_) {
+        kill(-pid_, SIGKILL);  // stragglers of the group
+        return;
+      }
+      rt::sleep_for(100 * rt::kNsPerMs);
+    }
+    kill(-pid_, SIGKILL);
+    waitpid(pid_, nullptr, 0);
+  }
+  BackgroundLoad(const BackgroundLoad&) = delete;
+  BackgroundLoad& operator=(const BackgroundLoad&) = delete;
+  [[nodiscard]] bool alive() const noexcept { return pid_ > 0 && waitpid(pid_, nullptr, WNOHANG) == 0; }
+
+ private:
+  pid_t pid_ = -1;
 };
 
 struct Side {
@@ -220,6 +273,8 @@ void parse(int argc, char** argv, Options& o) {
     else if (a == "--rounds") o.rounds = std::stoi(next());
     else if (a == "--cyclictest") o.cyclictest = next();
     else if (a == "--no-pm-qos") o.pm_qos = false;
+    else if (a == "--load-cmd") o.load_cmd = next();
+    else if (a == "--load-name") o.load_name = next();
     else if (a == "--verbose") o.verbose = true;
     else if (a == "--help" || a == "-h") { std::fputs(kUsage, stdout); std::exit(0); }
     else throw std::invalid_argument("unknown option " + a);
@@ -227,6 +282,7 @@ void parse(int argc, char** argv, Options& o) {
   if (o.seconds < 1) throw std::invalid_argument("--seconds must be >= 1");
   if (o.priority < 1 || o.priority > 99) throw std::invalid_argument("--priority must be 1..99");
   if (o.interval_us < 50) throw std::invalid_argument("--interval-us must be >= 50");
+  if (o.load_name.empty()) o.load_name = o.load_cmd.empty() ? "idle" : o.load_cmd;
   if (o.rounds < 1) o.rounds = 1;
   if (o.rounds > o.seconds) o.rounds = o.seconds;
 }
@@ -235,6 +291,12 @@ void parse(int argc, char** argv, Options& o) {
 
 int main(int argc, char** argv) {
   Options o;
+  std::string command_line;
+  for (int i = 0; i < argc; ++i) {
+    const std::string arg = argv[i];
+    const bool quote = arg.find_first_of(" '\"") != std::string::npos;
+    command_line += (i ? " " : "") + (quote ? "'" + arg + "'" : arg);
+  }
   try {
     parse(argc, argv, o);
   } catch (const std::exception& e) {
@@ -271,8 +333,12 @@ int main(int argc, char** argv) {
   std::printf("bench_jitter: %d s per side on CPU %d, SCHED_FIFO %d, interval %d us, %d round(s), PM QoS %s\n",
               o.seconds, o.cpu, o.priority, o.interval_us, o.rounds,
               qos && qos->active() ? "held at 0 us" : "not held (cyclictest --default-system)");
+  std::printf("bench_jitter: load: %s%s%s\n", o.load_name.c_str(), o.load_cmd.empty() ? "" : " = ",
+              o.load_cmd.c_str());
   std::fflush(stdout);
+  bool load_survived = true;
   try {
+    BackgroundLoad load(o.load_cmd);
     for (int r = 0; r < o.rounds; ++r) {
       const int secs = r + 1 == o.rounds ? last : seg;
       for (int k = 0; k < 2; ++k) {
@@ -287,8 +353,13 @@ int main(int argc, char** argv) {
         side.loads.push_back(rack::bench::read_first_line("/proc/loadavg"));
       }
     }
+    load_survived = o.load_cmd.empty() || load.alive();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_jitter: %s\n", e.what());
+    return 1;
+  }
+  if (!load_survived) {
+    std::fprintf(stderr, "bench_jitter: the load command ended before the measurement did: %s\n", o.load_cmd.c_str());
     return 1;
   }
   rack_side.p = rack::bench::percentiles_of_histogram(rack_side.histogram, rack_side.max_ns);
@@ -297,8 +368,8 @@ int main(int argc, char** argv) {
   const double ratio_p50 = ct_side.p.p50_ns > 0 ? rack_side.p.p50_ns / ct_side.p.p50_ns : 0.0;
   const std::string load_after = rack::bench::read_first_line("/proc/loadavg");
 
-  std::printf("\n== wake-up latency, %d us period, SCHED_FIFO %d, CPU %d, %d s each ==\n", o.interval_us, o.priority,
-              o.cpu, o.seconds);
+  std::printf("\n== wake-up latency, %d us period, SCHED_FIFO %d, CPU %d, %d s each, load: %s ==\n",
+              o.interval_us, o.priority, o.cpu, o.seconds, o.load_name.c_str());
   std::printf("%-12s %10s %8s %8s %8s %8s %8s %10s %9s\n", "side (us)", "samples", "min", "p50", "p99", "p99.9",
               "max", "mean", "overruns");
   for (const Side* s : {&rack_side, &ct_side}) {
@@ -317,9 +388,11 @@ int main(int argc, char** argv) {
 
   if (!o.json.empty()) {
     std::ostringstream j;
-    j << "{\n  \"benchmark\": \"jitter\",\n  \"machine\": " << rack::bench::json_machine() << ",\n  \"seconds\": "
+    j << "{\n  \"benchmark\": \"jitter\",\n  \"command\": \"" << rack::bench::json_escape(command_line)
+      << "\",\n  \"machine\": " << rack::bench::json_machine() << ",\n  \"seconds\": "
       << o.seconds << ", \"cpu\": " << o.cpu << ", \"priority\": " << o.priority << ", \"interval_us\": "
-      << o.interval_us << ", \"rounds\": " << o.rounds << ", \"pm_qos_hold\": "
+      << o.interval_us << ", \"rounds\": " << o.rounds << ", \"load_name\": \"" << rack::bench::json_escape(o.load_name)
+      << "\", \"load_cmd\": \"" << rack::bench::json_escape(o.load_cmd) << "\", \"pm_qos_hold\": "
       << (qos && qos->active() ? "true" : "false") << ",\n  \"loadavg_before\": \"" << load_before
       << "\", \"loadavg_after\": \"" << load_after << "\",\n  \"target_ratio_p99\": 1.1, \"ratio_p99\": "
       << rack::bench::json_number(ratio_p99) << ", \"ratio_p50\": " << rack::bench::json_number(ratio_p50)

@@ -9,6 +9,52 @@ import re
 import sys
 
 
+# Loads bench_jitter runs under, in this order; bench/run writes jitter-<key>.json.
+JITTER_LOADS = [("idle", "idle"), ("stress", "under stress-ng"), ("mcl", "with MCL running at lower priority")]
+
+# Everything after this line in RESULTS.md is kept when bench/run rewrites the file:
+# sections of benchmarks that bench/run does not run yet (their commands are in them).
+KEEP_MARKER = ("<!-- bench/run writes everything above this line; the sections below come from "
+               "other benchmarks and are kept as they are -->")
+
+
+def plot_jitter(jitters, folder):
+    """PNG histograms (log counts) of both sides per load; {} when matplotlib is missing."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        sys.stderr.write("results_md.py: matplotlib missing (apt-get install python3-matplotlib): no plots\n")
+        return {}
+    os.makedirs(folder, exist_ok=True)
+    out = {}
+    for key, label, j in jitters:
+        fig, ax = plt.subplots(figsize=(7, 3.6), dpi=100)
+        for side, name, colour in (("rack", "RACK-RT data task", "tab:blue"),
+                                   ("cyclictest", "cyclictest", "tab:orange")):
+            h = j["sides"][side]["histogram_us"]
+            if not h:
+                continue
+            xs = [b for b, _ in h]
+            ys = [c for _, c in h]
+            ax.step(xs, ys, where="post", label=f"{name} (p99 {j['sides'][side]['latency']['p99_ns'] / 1000:.0f} us)",
+                    color=colour)
+        ax.set_yscale("log")
+        ax.set_xscale("log")
+        ax.set_xlabel("wake-up latency (us)")
+        ax.set_ylabel("cycles")
+        ax.set_title(f"1 kHz periodic task, SCHED_FIFO {j['priority']}, CPU {j['cpu']}: {label}")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+        fig.tight_layout()
+        path = os.path.join(folder, f"jitter-{key}.png")
+        fig.savefig(path)
+        plt.close(fig)
+        out[key] = path
+    return out
+
+
 def load_env(path):
     env = {}
     with open(path) as f:
@@ -58,18 +104,27 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--results", required=True)
     ap.add_argument("--rpc-cmd", required=True)
-    ap.add_argument("--jitter-cmd", required=True)
     ap.add_argument("--root", required=True)
+    ap.add_argument("--keep-tail", help="an existing RESULTS.md whose part after the KEEP marker is kept")
+    ap.add_argument("--plots", help="folder for PNG plots (matplotlib); relative links from RESULTS.md")
     a = ap.parse_args()
 
     env = load_env(os.path.join(a.results, "env.txt"))
     with open(os.path.join(a.results, "rpc.json")) as f:
         rpc = json.load(f)
-    with open(os.path.join(a.results, "jitter.json")) as f:
-        jit = json.load(f)
+    jitters = []  # (key, label, results), idle first
+    for key, label in JITTER_LOADS:
+        path = os.path.join(a.results, f"jitter-{key}.json")
+        if os.path.exists(path):
+            with open(path) as f:
+                jitters.append((key, label, json.load(f)))
+    if not jitters:
+        sys.exit("results_md.py: no jitter-*.json results")
+    jit = jitters[0][2]
     root = a.root.rstrip("/") + "/"
     rpc_cmd = a.rpc_cmd.replace(root, "")
-    jitter_cmd = a.jitter_cmd.replace(root, "")
+    plots = plot_jitter(jitters, a.plots) if a.plots else {}
+    plot_rel = os.path.relpath(a.plots, os.path.join(a.root, "bench")) if a.plots else ""
     mode = env.get("mode", "?")
     preempt_rt = env.get("preempt_rt", "0").strip() == "1"
 
@@ -118,11 +173,12 @@ def main():
         w(f"| RPC round trip, median | {place} | {us2(r.get('p50_ns'))} us | "
           f"{us2(f.get('p50_ns'))} us (futex ping-pong) | {m['ratio_p50']:.2f}x | "
           f"{verdict(m['ratio_p50'], rpc['target_ratio_p50'])} |")
-    rk = jit["sides"]["rack"]["latency"]
-    ct = jit["sides"]["cyclictest"]["latency"]
-    w(f"| 1 kHz wake-up latency, p99 | CPU {jit['cpu']}, SCHED_FIFO {jit['priority']} | "
-      f"{us(rk['p99_ns'])} us | {us(ct['p99_ns'])} us (cyclictest) | {jit['ratio_p99']:.2f}x | "
-      f"{verdict(jit['ratio_p99'], jit['target_ratio_p99'])} |")
+    for key, label, j in jitters:
+        rk = j["sides"]["rack"]["latency"]
+        ct = j["sides"]["cyclictest"]["latency"]
+        w(f"| 1 kHz wake-up latency, p99, {label} | CPU {j['cpu']}, SCHED_FIFO {j['priority']} | "
+          f"{us(rk['p99_ns'])} us | {us(ct['p99_ns'])} us (cyclictest, same load) | {j['ratio_p99']:.2f}x | "
+          f"{verdict(j['ratio_p99'], j['target_ratio_p99'])} |")
     w("")
 
     # ---- rpc ------------------------------------------------------------------------
@@ -204,32 +260,42 @@ def main():
       + ("was held at 0 for both sides (cyclictest does that by default; rackd does not)."
          if jit["pm_qos_hold"] else "was left alone for both sides (cyclictest `--default-system`)."))
     w("")
-    w("| side | samples | min | p50 | p90 | p99 | p99.9 | max | mean |")
-    w("|---|---|---|---|---|---|---|---|---|")
-    for key, label in (("rack", "**RACK-RT data task**"), ("cyclictest", "cyclictest (reference)")):
-        lat = jit["sides"][key]["latency"]
-        w(f"| {label} | {lat['samples']} | {us(lat['min_ns'])} | {us(lat['p50_ns'])} | {us(lat['p90_ns'])} | "
-          f"{us(lat['p99_ns'])} | {us(lat['p999_ns'])} | {us(lat['max_ns'])} | {us(lat['mean_ns'])} |")
-    w("")
-    w(f"All figures in us. Ratio RACK-RT / cyclictest: **p99 {jit['ratio_p99']:.2f}x** "
-      f"(target <= {jit['target_ratio_p99']:.1f}x: {verdict(jit['ratio_p99'], jit['target_ratio_p99'])}), "
-      f"p50 {jit['ratio_p50']:.2f}x. RACK-RT missed periods: {jit['sides']['rack']['overruns']}; "
-      f"cyclictest histogram overflows (>= 10 ms): {jit['sides']['cyclictest']['histogram_overflows']}.")
-    w("")
-    edges = [0, 10, 20, 30, 50, 100, 200, 500, 1000, 10000]
-    hists = {k: dict((b, c) for b, c in jit["sides"][k]["histogram_us"]) for k in ("rack", "cyclictest")}
-    w("Histogram (counts per latency range, us):")
-    w("")
-    w("| range | " + " | ".join(
-        f"[{edges[i]}, {edges[i + 1]})" if i + 2 < len(edges) else f">= {edges[i]}"
-        for i in range(len(edges) - 1)) + " |")
-    w("|---|" + "---|" * (len(edges) - 1))
-    for k, label in (("rack", "RACK-RT"), ("cyclictest", "cyclictest")):
-        row = []
-        for i in range(len(edges) - 1):
-            row.append(str(sum(c for b, c in hists[k].items() if edges[i] <= b < edges[i + 1])))
-        w(f"| {label} | " + " | ".join(row) + " |")
-    w("")
+    for jkey, label, jit in jitters:
+        w(f"### Load: {label}")
+        w("")
+        if jit.get("load_cmd"):
+            w(f"Background load for both sides, started 2 s before and stopped after the measurement: "
+              f"`{jit['load_cmd'].replace(root, '')}` (normal scheduling).")
+            w("")
+        w("| side | samples | min | p50 | p90 | p99 | p99.9 | max | mean |")
+        w("|---|---|---|---|---|---|---|---|---|")
+        for key, side_label in (("rack", "**RACK-RT data task**"), ("cyclictest", "cyclictest (reference)")):
+            lat = jit["sides"][key]["latency"]
+            w(f"| {side_label} | {lat['samples']} | {us(lat['min_ns'])} | {us(lat['p50_ns'])} | {us(lat['p90_ns'])} | "
+              f"{us(lat['p99_ns'])} | {us(lat['p999_ns'])} | {us(lat['max_ns'])} | {us(lat['mean_ns'])} |")
+        w("")
+        w(f"All figures in us. Ratio RACK-RT / cyclictest: **p99 {jit['ratio_p99']:.2f}x** "
+          f"(target <= {jit['target_ratio_p99']:.1f}x: {verdict(jit['ratio_p99'], jit['target_ratio_p99'])}), "
+          f"p50 {jit['ratio_p50']:.2f}x. RACK-RT missed periods: {jit['sides']['rack']['overruns']}; "
+          f"cyclictest histogram overflows (>= 10 ms): {jit['sides']['cyclictest']['histogram_overflows']}.")
+        w("")
+        edges = [0, 10, 20, 30, 50, 100, 200, 500, 1000, 10000]
+        hists = {k: dict((b, c) for b, c in jit["sides"][k]["histogram_us"]) for k in ("rack", "cyclictest")}
+        w("Histogram (counts per latency range, us):")
+        w("")
+        w("| range | " + " | ".join(
+            f"[{edges[i]}, {edges[i + 1]})" if i + 2 < len(edges) else f">= {edges[i]}"
+            for i in range(len(edges) - 1)) + " |")
+        w("|---|" + "---|" * (len(edges) - 1))
+        for k, side_label in (("rack", "RACK-RT"), ("cyclictest", "cyclictest")):
+            row = []
+            for i in range(len(edges) - 1):
+                row.append(str(sum(c for b, c in hists[k].items() if edges[i] <= b < edges[i + 1])))
+            w(f"| {side_label} | " + " | ".join(row) + " |")
+        w("")
+        if jkey in plots:
+            w(f"![wake-up latency histogram, {label}]({plot_rel}/{os.path.basename(plots[jkey])})")
+            w("")
 
     # ---- analysis -----------------------------------------------------------------
     w("## Notes: where RACK-RT is slower, and why")
@@ -286,7 +352,8 @@ def main():
     w("```")
     w(f"bench/run --{mode}")
     w(f"{rpc_cmd}")
-    w(f"{jitter_cmd}")
+    for _, _, j in jitters:
+        w(j.get("command", "bench_jitter ?").replace(root, ""))
     w("# inside bench_jitter, per segment:")
     w(f"cyclictest -m -p {jit['priority']} -i {jit['interval_us']} -a {jit['cpu']} -t1 -D <seconds>s -q -h 10000"
       + ("" if jit["pm_qos_hold"] else " --default-system"))
@@ -296,7 +363,14 @@ def main():
           "--iterations 2000 --rounds 1 --warmup 0 --gap-us 100 --only M   # M: futex rack pi_condvar pi_futex")
     w("```")
     w("")
-    sys.stdout.write("\n".join(out))
+    w(KEEP_MARKER)
+    tail = ""
+    if a.keep_tail and os.path.exists(a.keep_tail):
+        with open(a.keep_tail) as f:
+            text = f.read()
+        if KEEP_MARKER in text:
+            tail = text.split(KEEP_MARKER, 1)[1].lstrip("\n")
+    sys.stdout.write("\n".join(out) + "\n" + tail)
 
 
 if __name__ == "__main__":

@@ -1,10 +1,17 @@
 #include "rack/components/builtin.h"
 
+#include "chassis_sim/chassis_sim.h"
 #include "generator/generator.h"
+#include "ladar_sim/ladar_sim.h"
 #include "mcl/mcl.h"
 #include "monitor/monitor.h"
+#include "odometry/odometry.h"
+#include "path/path.h"
+#include "pilot/pilot.h"
+#include "position/position.h"
 #include "probe/probe.h"
 #include "replay/replay_components.h"
+#include "scan2d/scan2d.h"
 #include "rack/tims/address.h"
 
 namespace rack::components {
@@ -23,6 +30,21 @@ void register_builtin(ComponentRegistry& registry) {
                 [] { return std::make_unique<ChassisReplay>(); }});
   registry.add({"LadarReplay", cls::kLadar, "replay: a CARMEN log or MRPT rawlog's laser scans as Ladar data",
                 [] { return std::make_unique<LadarReplay>(); }});
+  // The simulated robot and navigation (README: "Simulated robot and navigation").
+  registry.add({"ChassisSim", cls::kChassis, "simulated drive: velocity commands, odometry with noise, true pose",
+                [] { return std::make_unique<ChassisSim>(); }});
+  registry.add({"LadarSim", cls::kLadar, "simulated laser scanner: ray-casts a map_server map from the true pose",
+                [] { return std::make_unique<LadarSim>(); }});
+  registry.add({"Odometry", cls::kOdometry, "integrates a Chassis' increments; getData(t) gives the odometry at t",
+                [] { return std::make_unique<Odometry>(); }});
+  registry.add({"Position", cls::kPosition, "pose = reference (UPDATE at a time) + odometry since that time",
+                [] { return std::make_unique<Position>(); }});
+  registry.add({"Scan2D", cls::kScan2d, "ladar scans as robot-frame points (mounting, range window, median)",
+                [] { return std::make_unique<Scan2d>(); }});
+  registry.add({"Path", cls::kPath, "spline path through waypoints (parameter or MAKE)",
+                [] { return std::make_unique<Path>(); }});
+  registry.add({"Pilot", cls::kPilot, "pure-pursuit pilot: follows a Path or goes to a destination, obstacle speed limit",
+                [] { return std::make_unique<Pilot>(); }});
 }
 
 }  // namespace rack::components

@@ -149,7 +149,7 @@ struct HostLoader {
     HostSettings& hs = host->settings;
     hs.file = file;
     check_keys(root, {"host", "system", "host_id", "require_rt", "lcm", "lcm_url", "heap_prefault_mib",
-                      "plugins", "components"},
+                      "cpu_dma_latency_us", "plugins", "components"},
                "the host file");
     char hostname[256] = {};
     gethostname(hostname, sizeof hostname - 1);
@@ -164,6 +164,10 @@ struct HostLoader {
     get(root, "lcm_url", hs.lcm_url, "an LCM URL such as udpm://239.255.76.67:7667?ttl=0");
     if (get_int_range(root, "heap_prefault_mib", 0, 16384, v, "a size in MiB")) {
       hs.heap_prefault_bytes = static_cast<std::size_t>(v) << 20;
+    }
+    if (get_int_range(root, "cpu_dma_latency_us", -1, 100000, v,
+                      "a latency bound in us (0: shallowest idle state; -1: leave to the system)")) {
+      hs.cpu_dma_latency_us = static_cast<int>(v);
     }
     if (const YAML::Node plugins = root["plugins"]) {
       if (!plugins.IsSequence()) {

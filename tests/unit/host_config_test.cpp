@@ -443,3 +443,20 @@ components:
 
 }  // namespace
 }  // namespace rack
+
+namespace rack {
+namespace {
+
+TEST_F(HostConfigTest, CpuDmaLatencyIsReadAndRangeChecked) {
+  LoadResult r = load("lcm: false\ncpu_dma_latency_us: 20\ncomponents: []\n");
+  ASSERT_NE(r.host, nullptr);
+  EXPECT_EQ(r.host->settings.cpu_dma_latency_us, 20);
+  r = load("lcm: false\ncomponents: []\n");
+  ASSERT_NE(r.host, nullptr);
+  EXPECT_EQ(r.host->settings.cpu_dma_latency_us, 0) << "the default holds the shallowest idle state";
+  expect_error("lcm: false\ncpu_dma_latency_us: -2\ncomponents: []\n", 2, {"'cpu_dma_latency_us'", "-1..100000"});
+  expect_error("lcm: false\ncpu_dma_latency_us: low\ncomponents: []\n", 2, {"cpu_dma_latency_us"});
+}
+
+}  // namespace
+}  // namespace rack

@@ -16,6 +16,8 @@
 #include <thread>
 
 #include "rack/interfaces/demo.h"
+#include "rack/interfaces/navigation.h"
+#include "rack/interfaces/robot.h"
 #include "test_support.h"
 
 // ---- the counting allocator ----------------------------------------------------
@@ -333,6 +335,116 @@ components:
   }
   EXPECT_EQ(bad, 0u);
   EXPECT_GT(streamed, 0u) << "the producer published during the measurement";
+  EXPECT_EQ(allocations, 0u);
+}
+
+// The simulated robot and navigation stack (issue 6) in steady state: every task of
+// ChassisSim, LadarSim (ray casting), Odometry, Scan2D (with odometry look-ups by
+// time), Position, Path and Pilot (MOVEs every cycle), plus UPDATE, SET_DESTINATION,
+// FOLLOW_PATH and MAKE commands, without one allocation.
+TEST_F(NoAllocationTest, SimulatedRobotDrivingAndCommands) {
+  test::Watchdog dog(std::chrono::seconds(60));
+  const std::string map = std::string(RACK_SOURCE_DIR) + "/configs/maps/office.yaml";
+  test::HostUnderTest host(R"(system: 0
+lcm: false
+components:
+  - name: chassis
+    class: ChassisSim
+    instance: 0
+    data_task: {priority: 45, period_ms: 10, ring: 200}
+    params: {map: ")" + map + R"(", initial_x: 3.0, initial_y: 7.0}
+  - name: odometry
+    class: Odometry
+    instance: 0
+    data_task: {priority: 44, timeout_ms: 1000, ring: 500}
+    params: {chassis: chassis}
+  - name: position
+    class: Position
+    instance: 0
+    data_task: {priority: 43, timeout_ms: 1000, ring: 100}
+    params: {odometry: odometry, initial_x: 3.0, initial_y: 7.0}
+  - name: ladar
+    class: LadarSim
+    instance: 0
+    data_task: {priority: 42, period_ms: 40, ring: 10}
+    params: {chassis: chassis, map: ")" + map + R"(", mount_x: 0.2}
+  - name: scan2d
+    class: Scan2D
+    instance: 0
+    data_task: {priority: 41, timeout_ms: 1000, ring: 10}
+    params: {ladar: ladar, odometry: odometry, mount_x: 0.2, median: 3}
+  - name: path
+    class: Path
+    instance: 0
+    data_task: {priority: 20, period_ms: 20, ring: 4}
+    params: {waypoints: "3,7; 12,7.5; 21,7; 22,8; 21,9; 12,8.5; 3,9; 2,8", closed: true}
+  - name: pilot
+    class: Pilot
+    instance: 0
+    data_task: {priority: 40, period_ms: 50}
+    params: {chassis: chassis, position: position, scan2d: scan2d, path: path}
+)");
+  const Address pilot = host.address_of("pilot");
+  const Address position = host.address_of("position");
+  const Address path = host.address_of("path");
+  ASSERT_EQ(host.call(pilot, msg::kOn).type, msg::kOk);
+  ASSERT_TRUE(test::eventually([&] {
+    wire::SampleHeader h;
+    interfaces::PilotData d;
+    return host.get_data(pilot, h, d) && d.status == static_cast<uint8_t>(interfaces::PilotStatus::kDriving);
+  }));
+  tims::Endpoint& ep = host.endpoint();
+  alignas(8) std::array<std::byte, 32 * 1024> buf{};
+  uint64_t bad = 0;
+  int64_t last_odometry_ns = 0;
+  auto round = [&](int i) {
+    // An UPDATE for a moment 100 ms ago (as MCL sends), at the pose Position had then.
+    auto r = ep.call(position, msg::kGetData, buf, test::kCallTimeoutNs);
+    wire::SampleHeader sh;
+    interfaces::PositionData p;
+    if (r.status == tims::CallStatus::kOk && r.reply.type == msg::kData && read_sample(r.reply, r.body, sh, p)) {
+      interfaces::PositionUpdate u;
+      u.time_ns = sh.time_ns - 100 * rt::kNsPerMs;
+      u.x = p.x;
+      u.y = p.y;
+      u.phi = p.phi;
+      u.var_x = u.var_y = 0.01;
+      u.var_phi = 0.001;
+      r = ep.call(position, interfaces::kPositionUpdate, u, buf, test::kCallTimeoutNs);
+      bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kOk ? 0 : 1;
+      last_odometry_ns = sh.time_ns;
+    } else {
+      ++bad;
+    }
+    if (i % 5 == 0) {
+      interfaces::PilotDestination d{12.0, 8.0};
+      r = ep.call(pilot, interfaces::kPilotSetDestination, d, buf, test::kCallTimeoutNs);
+      bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kOk ? 0 : 1;
+    }
+    if (i % 5 == 2) {
+      r = ep.call(pilot, interfaces::kPilotFollowPath, buf, test::kCallTimeoutNs);
+      bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kOk ? 0 : 1;
+      r = ep.call(path, interfaces::kPathMake, buf, test::kCallTimeoutNs);
+      bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kOk ? 0 : 1;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  };
+  // The odometry's ring must reach back further than the UPDATEs' 100 ms.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  for (int i = 0; i < 10; ++i) round(i);
+  ASSERT_EQ(bad, 0u);
+  uint64_t allocations = 0;
+  {
+    AllocationCounter counter;  // every thread: the component tasks run meanwhile
+    for (int i = 0; i < 60; ++i) round(i);
+    allocations = counter.stop();
+  }
+  EXPECT_EQ(bad, 0u);
+  EXPECT_GT(last_odometry_ns, 0);
+  wire::SampleHeader h;
+  interfaces::PilotData d;
+  ASSERT_TRUE(host.get_data(pilot, h, d));
+  EXPECT_EQ(d.moves_refused, 0u);
   EXPECT_EQ(allocations, 0u);
 }
 

@@ -16,6 +16,7 @@
 #include "rack/rt/capabilities.h"
 #include "rack/rt/clock.h"
 #include "rack/rt/memory.h"
+#include "rack/rt/pm_qos.h"
 
 namespace {
 
@@ -144,6 +145,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "rackd: require_rt is set and memory could not be locked: refusing to start.\n");
     return 1;
   }
+  const rack::rt::CpuLatencyHold cpu_latency(settings.cpu_dma_latency_us);
+  std::fprintf(stderr, "rackd: %s\n", cpu_latency.describe().c_str());
 
   rack::ExecutorOptions options;
   options.allow_rt_fallback = !settings.require_rt;

@@ -1,6 +1,7 @@
 #include "rack/interfaces/data_types.h"
 
 #include "rack/interfaces/demo.h"
+#include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
 #include "rack/tims/address.h"
 
@@ -20,6 +21,8 @@ constexpr DataTypeInfo kOdometry = info<OdometryData>("OdometryData");
 constexpr DataTypeInfo kPosition = info<PositionData>("PositionData");
 constexpr DataTypeInfo kScan2d = info<Scan2dData>("Scan2dData");
 constexpr DataTypeInfo kMcl = info<MclData>("MclData");
+constexpr DataTypeInfo kPath = info<PathData>("PathData");
+constexpr DataTypeInfo kPilot = info<PilotData>("PilotData");
 }  // namespace
 
 const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
@@ -33,6 +36,8 @@ const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
     case tims::classes::kPosition: return &kPosition;
     case tims::classes::kScan2d: return &kScan2d;
     case tims::classes::kMcl: return &kMcl;
+    case tims::classes::kPath: return &kPath;
+    case tims::classes::kPilot: return &kPilot;
     default: return nullptr;
   }
 }

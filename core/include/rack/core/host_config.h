@@ -38,6 +38,7 @@ struct HostSettings {
   std::string lcm_url;            // TiMS/LCM network ("" with lcm: false)
   bool lcm = true;
   std::size_t heap_prefault_bytes = 64u << 20;
+  int cpu_dma_latency_us = 0;     // PM QoS bound held while running; -1: leave to the system
   std::vector<std::string> plugins;
 };
 

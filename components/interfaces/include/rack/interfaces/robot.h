@@ -44,6 +44,10 @@ struct ChassisData {
   double truth_x = 0.0;
   double truth_y = 0.0;
   double truth_phi = 0.0;
+  // Simulation only: moves refused because the outline would have entered an occupied
+  // map cell (ChassisSim with a `map`), since ON.
+  uint32_t collisions = 0;
+  uint32_t pad2_ = 0;
   static constexpr auto fields() noexcept {
     return std::array{RACK_FIELD(ChassisData, delta_x), RACK_FIELD(ChassisData, delta_y),
                       RACK_FIELD(ChassisData, delta_phi), RACK_FIELD(ChassisData, vx),
@@ -51,7 +55,7 @@ struct ChassisData {
                       RACK_FIELD(ChassisData, battery), RACK_FIELD(ChassisData, active_pilot),
                       RACK_FIELD(ChassisData, watchdog_stops), RACK_FIELD(ChassisData, truth_valid),
                       RACK_FIELD(ChassisData, truth_x), RACK_FIELD(ChassisData, truth_y),
-                      RACK_FIELD(ChassisData, truth_phi)};
+                      RACK_FIELD(ChassisData, truth_phi), RACK_FIELD(ChassisData, collisions)};
   }
 };
 

@@ -1,0 +1,71 @@
+#include "odometry/odometry.h"
+
+#include <cmath>
+
+namespace rack::components {
+
+using interfaces::ChassisData;
+
+Odometry::Odometry()
+    : DataComponent(DataTaskMode::kTriggered), chassis_(declare_component_ref("chassis", "the Chassis to integrate")) {
+  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(ChassisData) + 64);
+}
+
+HookResult Odometry::on() {
+  odo_ = interfaces::OdometryData{};
+  resets_applied_ = reset_requests_.load(std::memory_order_relaxed);
+  const tims::Address chassis = resolved(chassis_);
+  if (switch_on(chassis) != HookResult::kOk) return HookResult::kError;  // cascading ON
+  return subscribe(chassis, 0);  // every sample: increments must not be skipped
+}
+
+void Odometry::off() { unsubscribe(resolved(chassis_)); }
+
+HookResult Odometry::loop() {
+  bool got = false;
+  for (;;) {
+    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
+    if (p.status != tims::RecvStatus::kOk) break;
+    const tims::MessageHeader h = *p.header;
+    if (h.type == tims::msg::kError) {  // the chassis left ENABLED: ERROR, re-subscribe on retry
+      input_mailbox().peek_end();
+      return HookResult::kError;
+    }
+    wire::SampleHeader sh;
+    ChassisData c;
+    const bool ok = h.type == tims::msg::kData && read_sample(h, p.body, sh, c);
+    input_mailbox().peek_end();
+    if (!ok) continue;
+    got = true;
+    const uint32_t requested = reset_requests_.load(std::memory_order_relaxed);
+    if (requested != resets_applied_) {
+      odo_.x = odo_.y = odo_.phi = odo_.distance = 0.0;
+      odo_.resets += requested - resets_applied_;
+      resets_applied_ = requested;
+    }
+    if (std::isfinite(c.delta_x) && std::isfinite(c.delta_y) && std::isfinite(c.delta_phi)) {
+      const Pose2d pose = compose(Pose2d{odo_.x, odo_.y, odo_.phi}, Pose2d{c.delta_x, c.delta_y, c.delta_phi});
+      odo_.x = pose.x;
+      odo_.y = pose.y;
+      odo_.phi = pose.phi;
+      odo_.distance += std::hypot(c.delta_x, c.delta_y);
+    }
+    odo_.vx = c.vx;
+    odo_.omega = c.omega;
+    publish(odo_, sh.time_ns);
+  }
+  return got ? HookResult::kOk : HookResult::kError;  // data_timeout without a sample: the chassis is silent
+}
+
+CommandResult Odometry::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
+  if (request.type != interfaces::kOdometryReset) return CommandResult::kUnknown;
+  if (!body.empty()) {
+    reject_malformed(request, "RESET takes no body");
+    return CommandResult::kHandled;
+  }
+  reset_requests_.fetch_add(1, std::memory_order_relaxed);
+  reply(request, tims::msg::kOk);
+  return CommandResult::kHandled;
+}
+
+}  // namespace rack::components

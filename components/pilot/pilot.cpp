@@ -1,0 +1,446 @@
+#include "pilot/pilot.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+namespace rack::components {
+
+using interfaces::ChassisMove;
+using interfaces::ChassisParams;
+using interfaces::PathData;
+using interfaces::PilotData;
+using interfaces::PilotMode;
+using interfaces::PilotStatus;
+using interfaces::PositionData;
+using interfaces::Scan2dData;
+
+namespace {
+constexpr uint32_t kInputSlot =
+    sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + (sizeof(Scan2dData) > sizeof(PathData) ? sizeof(Scan2dData) : sizeof(PathData)) + 64;
+uint8_t u8(PilotMode m) noexcept { return static_cast<uint8_t>(m); }
+uint8_t u8(PilotStatus s) noexcept { return static_cast<uint8_t>(s); }
+}  // namespace
+
+Pilot::Pilot()
+    : DataComponent(DataTaskMode::kPeriodic),
+      chassis_(declare_component_ref("chassis", "the Chassis to drive")),
+      position_(declare_component_ref("position", "the Position estimate to steer on")),
+      scan2d_(declare_component_ref("scan2d", "the Scan2D whose points limit the speed")),
+      path_(declare_string("path", "", {.doc = "optional Path to follow", .component_ref = true})),
+      mode_(declare_string("mode", "path", {.doc = "at ON: 'path' (follow the Path) or 'hold' (stand)"})),
+      destination_(declare_string("destination", "", {.doc = "\"x,y\": drive there (map frame); \"\": back to the mode"})),
+      vx_max_(declare_float("vx_max", 0.6, {.doc = "m/s, cruising speed (also capped by the chassis)", .min = 0.0, .max = 20.0})),
+      omega_max_(declare_float("omega_max", 1.0, {.doc = "rad/s, fastest turn (also capped by the chassis)", .min = 0.0, .max = 20.0})),
+      lookahead_(declare_float("lookahead", 0.6, {.doc = "m, pure-pursuit look-ahead distance", .min = 0.05, .max = 20.0})),
+      goal_tolerance_(declare_float("goal_tolerance", 0.15, {.doc = "m, a destination this close counts as reached", .min = 0.01, .max = 10.0})),
+      turn_in_place_deg_(declare_float("turn_in_place_deg", 45.0, {.doc = "turn on the spot when the goal is further off the heading", .min = 5.0, .max = 180.0})),
+      brake_fraction_(declare_float("brake_fraction", 0.5, {.doc = "plan braking with this fraction of the chassis' dec_max", .min = 0.05, .max = 1.0})),
+      input_timeout_ms_(declare_int("input_timeout_ms", 500, {.doc = "stand when Position or Scan2D data is older than this", .min = 10, .max = 60000})) {
+  use_input_mailbox(kInputSlot);
+}
+
+void Pilot::init() {
+  const std::string mode = mode_.get_string();
+  if (mode != "path" && mode != "hold") {
+    throw std::invalid_argument("parameter mode: '" + mode + "' is neither 'path' nor 'hold'");
+  }
+  const std::string dest = destination_.get_string();
+  double x = 0.0, y = 0.0;
+  if (!dest.empty() && !parse_destination(dest.c_str(), x, y)) {
+    throw std::invalid_argument("parameter destination: '" + dest + "' is not \"x,y\"");
+  }
+  rpc_buffer_.assign(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(PathData) + 256, std::byte{0});
+}
+
+bool Pilot::parse_destination(const char* text, double& x, double& y) const noexcept {
+  char* end = nullptr;
+  x = std::strtod(text, &end);
+  if (end == text) return false;
+  const char* p = end;
+  while (*p == ' ') ++p;
+  if (*p != ',') return false;
+  ++p;
+  y = std::strtod(p, &end);
+  if (end == p) return false;
+  p = end;
+  while (*p == ' ') ++p;
+  return *p == '\0' && std::isfinite(x) && std::isfinite(y);
+}
+
+HookResult Pilot::on() {
+  const tims::Address chassis = resolved(chassis_);
+  const tims::Address position = resolved(position_);
+  const tims::Address scan = resolved(scan2d_);
+  const tims::Address path = resolved(path_);
+  data_ = PilotData{};
+  have_path_ = path_fresh_ = have_scan_ = false;
+  position_mono_ns_ = scan_mono_ns_ = 0;
+  {
+    rt::PiLock lock(mutex_);
+    request_ = Request::kNone;
+  }
+  // Cascading ON: everything this pilot reads or drives.
+  if (switch_on(chassis) != HookResult::kOk || switch_on(position) != HookResult::kOk ||
+      switch_on(scan) != HookResult::kOk || (path.raw() != 0 && switch_on(path) != HookResult::kOk)) {
+    return HookResult::kError;
+  }
+  // The outline, margin and limits the chassis reports.
+  auto& ep = command_endpoint();
+  const auto r = ep.call(chassis, interfaces::kChassisGetParams, std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
+  if (r.status != tims::CallStatus::kOk || r.reply.type != interfaces::kChassisParamsReply ||
+      !wire::read_payload(r.body, tims::body_is_native(r.reply), limits_)) {
+    return HookResult::kError;
+  }
+  outline_ = Outline{limits_.boundary_front, limits_.boundary_back, limits_.boundary_left, limits_.boundary_right,
+                     limits_.safety_margin};
+  interfaces::ChassisSetActivePilot claim;
+  claim.pilot = address().raw();
+  if (!ep.call(chassis, interfaces::kChassisSetActivePilot, claim, std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns).ok()) {
+    return HookResult::kError;
+  }
+  if (subscribe(position, 0) != HookResult::kOk || subscribe(scan, 0) != HookResult::kOk) return HookResult::kError;
+  if (path.raw() != 0) {
+    if (subscribe(path, 0) != HookResult::kOk) return HookResult::kError;
+    // A path made before we subscribed is not sent again: fetch the newest.
+    const auto pr = ep.call(path, tims::msg::kGetData, std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
+    wire::SampleHeader sh;
+    if (pr.status == tims::CallStatus::kOk && pr.reply.type == tims::msg::kData &&
+        read_sample(pr.reply, pr.body, sh, path_data_) && path_data_.point_count >= 2) {
+      have_path_ = path_fresh_ = true;
+    }
+  }
+  char mode[16];
+  mode_.copy_string(mode, sizeof mode);
+  data_.mode = u8(std::strcmp(mode, "path") == 0 && path.raw() != 0 ? PilotMode::kFollowPath : PilotMode::kHold);
+  destination_.copy_string(last_destination_, sizeof last_destination_);
+  double x = 0.0, y = 0.0;
+  if (last_destination_[0] != '\0' && parse_destination(last_destination_, x, y)) {
+    line_pending_ = true;
+    data_.mode = u8(PilotMode::kDestination);
+    data_.target_x = x;
+    data_.target_y = y;
+  }
+  return HookResult::kOk;
+}
+
+void Pilot::off() {
+  auto& ep = command_endpoint();
+  const tims::Address chassis = resolved(chassis_);
+  (void)ep.call(chassis, interfaces::kChassisMove, ChassisMove{}, std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
+  // Release the chassis if it is still ours (never take it from another pilot).
+  const auto r = ep.call(chassis, tims::msg::kGetData, std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
+  wire::SampleHeader sh;
+  interfaces::ChassisData c;
+  if (r.status == tims::CallStatus::kOk && r.reply.type == tims::msg::kData && read_sample(r.reply, r.body, sh, c) &&
+      c.active_pilot == address().raw()) {
+    (void)ep.call(chassis, interfaces::kChassisSetActivePilot, interfaces::ChassisSetActivePilot{},
+                  std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
+  }
+  unsubscribe(resolved(position_));
+  unsubscribe(resolved(scan2d_));
+  if (resolved(path_).raw() != 0) unsubscribe(resolved(path_));
+}
+
+Pilot::Clearance Pilot::clearance(const Scan2dData& scan, const Outline& o) noexcept {
+  Clearance c;
+  c.free_ahead = scan.max_range > 0.0F ? static_cast<double>(scan.max_range) : 1e3;
+  const double turn_radius = std::hypot(std::max(o.front, o.back), std::max(o.left, o.right)) + 0.02;
+  const uint32_t n = std::min(scan.point_count, interfaces::kScan2dMaxPoints);
+  for (uint32_t i = 0; i < n; ++i) {
+    if (scan.type[i] == interfaces::kScanPointMaxRange) continue;
+    const double x = scan.x[i];
+    const double y = scan.y[i];
+    const bool in_corridor = y <= o.left + o.margin && y >= -(o.right + o.margin);
+    if (in_corridor && x >= -(o.back + o.margin) && x <= o.front + o.margin) c.inside = true;
+    if (in_corridor && x > o.front) c.free_ahead = std::min(c.free_ahead, x - o.front);
+    if (std::hypot(x, y) < turn_radius) c.turn_blocked = true;
+  }
+  return c;
+}
+
+void Pilot::handle_input(int64_t now) noexcept {
+  const tims::Address position = resolved(position_);
+  const tims::Address scan = resolved(scan2d_);
+  const tims::Address path = resolved(path_);
+  for (;;) {
+    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
+    if (p.status != tims::RecvStatus::kOk) break;
+    const tims::MessageHeader h = *p.header;
+    const tims::Address src = h.source().component();
+    wire::SampleHeader sh;
+    if (h.type == tims::msg::kError) {
+      // A source left ENABLED: its data stops; the timeouts below make the robot stand.
+      // (The subscription is gone: the pilot goes to ERROR and re-subscribes on retry.)
+      if (src == position) position_mono_ns_ = -1;
+      if (src == scan) scan_mono_ns_ = -1;
+    } else if (h.type == tims::msg::kData) {
+      if (src == position && read_sample(h, p.body, sh, position_data_)) {
+        position_mono_ns_ = now;
+      } else if (src == scan && read_sample(h, p.body, sh, scan_)) {
+        scan_mono_ns_ = now;
+        have_scan_ = true;
+      } else if (path.raw() != 0 && src == path && read_sample(h, p.body, sh, path_data_)) {
+        have_path_ = path_data_.point_count >= 2;
+        path_fresh_ = true;
+      }
+    }
+    input_mailbox().peek_end();
+  }
+}
+
+bool Pilot::path_goal(const Pose2d& pose, double& gx, double& gy, double& remaining) noexcept {
+  const PathData& p = path_data_;
+  const uint32_t n = std::min(p.point_count, interfaces::kPathMaxPoints);
+  const bool closed = p.closed != 0;
+  const auto dist2 = [&](uint32_t i) {
+    const double dx = static_cast<double>(p.x[i]) - pose.x;
+    const double dy = static_cast<double>(p.y[i]) - pose.y;
+    return dx * dx + dy * dy;
+  };
+  uint32_t index = data_.path_index < n ? data_.path_index : 0;
+  if (path_fresh_) {  // a new path: start from the nearest point
+    index = 0;
+    for (uint32_t i = 1; i < n; ++i) {
+      if (dist2(i) < dist2(index)) index = i;
+    }
+    path_fresh_ = false;
+  } else {  // progress: the nearest point a little way ahead (never backwards)
+    uint32_t best = index;
+    for (uint32_t k = 1; k < 64 && (closed || index + k < n); ++k) {
+      const uint32_t i = (index + k) % n;
+      if (dist2(i) < dist2(best)) best = i;
+    }
+    if (closed && best < index) ++data_.laps;  // went round past the first point
+    index = best;
+  }
+  data_.path_index = index;
+  // The look-ahead point: the first point at least `lookahead` away, walking forward.
+  const double look2 = lookahead_.get_float() * lookahead_.get_float();
+  uint32_t goal = index;
+  for (uint32_t k = 0; k < n; ++k) {
+    const uint32_t i = closed ? (index + k) % n : index + k;
+    if (i >= n) break;
+    goal = i;
+    if (dist2(i) >= look2) break;
+  }
+  gx = p.x[goal];
+  gy = p.y[goal];
+  data_.target_x = p.x[closed ? goal : n - 1];
+  data_.target_y = p.y[closed ? goal : n - 1];
+  if (closed) {
+    remaining = -1.0;
+    return true;
+  }
+  // Open path: the distance still to drive, for braking; finished at the last point.
+  remaining = std::sqrt(dist2(index));
+  for (uint32_t i = index; i + 1 < n; ++i) {
+    remaining += std::hypot(static_cast<double>(p.x[i + 1] - p.x[i]), static_cast<double>(p.y[i + 1] - p.y[i]));
+  }
+  return !(index + 2 >= n && std::sqrt(dist2(n - 1)) < goal_tolerance_.get_float());
+}
+
+void Pilot::steer(const Pose2d& pose, double gx, double gy, double final_distance) noexcept {
+  const Pose2d rel = between(pose, Pose2d{gx, gy, 0.0});
+  const double l2 = rel.x * rel.x + rel.y * rel.y;
+  const double alpha = std::atan2(rel.y, rel.x);
+  const double vmax = std::min(vx_max_.get_float(), limits_.vx_max);
+  const double wmax = std::min(omega_max_.get_float(), limits_.omega_max);
+  const double brake = brake_fraction_.get_float() * limits_.dec_max;
+  double v = 0.0;
+  double w = 0.0;
+  if (std::abs(alpha) > turn_in_place_deg_.get_float() * std::numbers::pi / 180.0 || l2 < 1e-6) {
+    w = std::clamp(2.0 * alpha, -wmax, wmax);  // turn on the spot towards the goal
+  } else {
+    const double kappa = 2.0 * rel.y / l2;  // the arc through the goal (pure pursuit)
+    v = vmax;
+    if (std::abs(kappa) > 1e-9) v = std::min(v, wmax / std::abs(kappa));
+    if (final_distance >= 0.0) v = std::min(v, std::max(limits_.vx_min, std::sqrt(2.0 * brake * final_distance)));
+    v = std::min(v, data_.speed_limit);
+    w = std::clamp(v * kappa, -wmax, wmax);
+  }
+  data_.vx = v;
+  data_.omega = w;
+}
+
+void Pilot::send_move(double vx, double omega) noexcept {
+  alignas(8) std::byte buf[256];
+  ChassisMove m;
+  m.vx = vx;
+  m.omega = omega;
+  const auto r = data_endpoint().call(resolved(chassis_), interfaces::kChassisMove, m, std::span<std::byte>(buf),
+                                      settings().rpc_timeout_ns);
+  if (r.status == tims::CallStatus::kOk && r.reply.type == tims::msg::kError) {
+    ++data_.moves_refused;  // another pilot has the chassis: stand until told again
+    data_.mode = u8(PilotMode::kHold);
+    data_.status = u8(PilotStatus::kPreempted);
+    data_.vx = data_.omega = 0.0;
+  }
+}
+
+HookResult Pilot::loop() {
+  const int64_t now = rt::monotonic_ns();
+  handle_input(now);
+  if (position_mono_ns_ < 0 || scan_mono_ns_ < 0) return HookResult::kError;  // a source went away
+
+  // New orders: commands first, then a changed `destination` parameter.
+  bool reclaim = false;
+  {
+    rt::PiLock lock(mutex_);
+    switch (request_) {
+      case Request::kNone: break;
+      case Request::kFollowPath:
+        data_.mode = u8(PilotMode::kFollowPath);
+        path_fresh_ = true;
+        break;
+      case Request::kHold: data_.mode = u8(PilotMode::kHold); break;
+      case Request::kDestination:
+        data_.mode = u8(PilotMode::kDestination);
+        data_.target_x = request_x_;
+        data_.target_y = request_y_;
+        line_pending_ = true;
+        break;
+    }
+    reclaim = request_ != Request::kNone;
+    request_ = Request::kNone;
+  }
+  char text[wire::kParamStringLen];
+  destination_.copy_string(text, sizeof text);
+  if (std::strcmp(text, last_destination_) != 0) {
+    std::memcpy(last_destination_, text, sizeof text);
+    double x = 0.0, y = 0.0;
+    if (text[0] == '\0') {
+      data_.mode = u8(resolved(path_).raw() != 0 ? PilotMode::kFollowPath : PilotMode::kHold);
+      path_fresh_ = true;
+      reclaim = true;
+    } else if (parse_destination(text, x, y)) {
+      data_.mode = u8(PilotMode::kDestination);
+      data_.target_x = x;
+      data_.target_y = y;
+      line_pending_ = true;
+      reclaim = true;
+    } else {
+      ++data_.bad_destinations;
+    }
+  }
+  if (reclaim && data_.status == u8(PilotStatus::kPreempted)) {
+    alignas(8) std::byte buf[256];
+    interfaces::ChassisSetActivePilot claim;
+    claim.pilot = address().raw();
+    (void)data_endpoint().call(resolved(chassis_), interfaces::kChassisSetActivePilot, claim, std::span<std::byte>(buf),
+                               settings().rpc_timeout_ns);
+    data_.status = u8(PilotStatus::kIdle);
+  }
+  if (data_.status == u8(PilotStatus::kPreempted)) {  // stand without MOVEs (they would be refused)
+    publish(data_, rt::host_time_ns());
+    return HookResult::kOk;
+  }
+
+  const int64_t timeout = input_timeout_ms_.get_int() * rt::kNsPerMs;
+  const bool fresh = position_mono_ns_ > 0 && now - position_mono_ns_ <= timeout && have_scan_ &&
+                     now - scan_mono_ns_ <= timeout;
+  const Pose2d pose{position_data_.x, position_data_.y, position_data_.phi};
+  data_.pose_x = pose.x;
+  data_.pose_y = pose.y;
+  data_.pose_phi = pose.phi;
+  const double previous_vx = data_.vx;
+  data_.vx = data_.omega = 0.0;
+
+  // The obstacle speed limit from the newest scan.
+  const Clearance c = have_scan_ ? clearance(scan_, outline_) : Clearance{};
+  data_.obstacle_distance = c.free_ahead;
+  const double brake = brake_fraction_.get_float() * limits_.dec_max;
+  // Keep the margin, and allow for one cycle of travel before the next scan is seen.
+  const double usable = c.free_ahead - outline_.margin - previous_vx * static_cast<double>(period_ns()) * 1e-9;
+  data_.speed_limit = c.inside ? 0.0 : std::sqrt(2.0 * brake * std::max(0.0, usable));
+
+  const auto mode = static_cast<PilotMode>(data_.mode);
+  if (mode == PilotMode::kHold) {
+    data_.status = u8(PilotStatus::kIdle);
+  } else if (!fresh) {
+    data_.status = u8(PilotStatus::kNoInput);
+  } else if (mode == PilotMode::kFollowPath && !have_path_) {
+    data_.status = u8(PilotStatus::kNoPath);
+  } else {
+    double gx = data_.target_x, gy = data_.target_y, remaining = 0.0;
+    bool going = true;
+    if (mode == PilotMode::kFollowPath) {
+      going = path_goal(pose, gx, gy, remaining);
+    } else {
+      if (line_pending_) {
+        line_x_ = pose.x;
+        line_y_ = pose.y;
+        line_pending_ = false;
+      }
+      remaining = std::hypot(gx - pose.x, gy - pose.y);
+      going = remaining >= goal_tolerance_.get_float();
+      // The look-ahead point on the line: `lookahead` beyond the robot's projection.
+      const double lx = data_.target_x - line_x_;
+      const double ly = data_.target_y - line_y_;
+      const double len = std::hypot(lx, ly);
+      if (len > 1e-6) {
+        const double t = ((pose.x - line_x_) * lx + (pose.y - line_y_) * ly) / len;
+        const double at = std::clamp(t + lookahead_.get_float(), 0.0, len);
+        gx = line_x_ + lx / len * at;
+        gy = line_y_ + ly / len * at;
+      }
+    }
+    if (!going) {
+      data_.status = u8(PilotStatus::kReached);
+    } else {
+      steer(pose, gx, gy, remaining);
+      data_.status = u8(PilotStatus::kDriving);
+      if (c.inside || (data_.vx == 0.0 && data_.speed_limit <= 0.0)) {
+        // Blocked: stand; turning on the spot only when nothing is within the turning circle.
+        data_.vx = 0.0;
+        if (c.turn_blocked) data_.omega = 0.0;
+        data_.status = u8(PilotStatus::kBlocked);
+        ++data_.blocked_cycles;
+      }
+    }
+  }
+  data_.distance_to_target = std::hypot(data_.target_x - pose.x, data_.target_y - pose.y);
+  send_move(data_.vx, data_.omega);
+  publish(data_, rt::host_time_ns());
+  return HookResult::kOk;
+}
+
+CommandResult Pilot::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
+  switch (request.type) {
+    case interfaces::kPilotSetDestination: {
+      interfaces::PilotDestination d;
+      if (!wire::read_payload(body, tims::body_is_native(request), d) || !std::isfinite(d.x) || !std::isfinite(d.y)) {
+        reject_malformed(request, "SET_DESTINATION: body must be two finite doubles x, y");
+        return CommandResult::kHandled;
+      }
+      rt::PiLock lock(mutex_);
+      request_ = Request::kDestination;
+      request_x_ = d.x;
+      request_y_ = d.y;
+      break;
+    }
+    case interfaces::kPilotFollowPath:
+    case interfaces::kPilotHold: {
+      if (!body.empty()) {
+        reject_malformed(request, "FOLLOW_PATH and HOLD take no body");
+        return CommandResult::kHandled;
+      }
+      if (request.type == interfaces::kPilotFollowPath && resolved(path_).raw() == 0) {
+        reply_error(request, "FOLLOW_PATH: no 'path' component configured");
+        return CommandResult::kHandled;
+      }
+      rt::PiLock lock(mutex_);
+      request_ = request.type == interfaces::kPilotHold ? Request::kHold : Request::kFollowPath;
+      break;
+    }
+    default: return CommandResult::kUnknown;
+  }
+  reply(request, tims::msg::kOk);
+  return CommandResult::kHandled;
+}
+
+}  // namespace rack::components

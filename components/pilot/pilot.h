@@ -1,0 +1,111 @@
+// Pilot (class Pilot): drives the chassis along the Path component's path or straight
+// to a destination, on the Position estimate, with pure-pursuit steering (Coulter,
+// "Implementation of the Pure Pursuit Path Tracking Algorithm", CMU-RI-TR-92-01):
+// aim at the path point `lookahead` metres ahead and drive the arc through it.
+//
+// Speed: at most the chassis' vx_max and the `vx_max` parameter, slower in tight
+// arcs (omega_max), braking towards the end of an open path or a destination, and
+// limited by the nearest obstacle in the Scan2D data: the free distance d ahead of
+// the outline (in the corridor the outline sweeps, widened by the safety margin)
+// allows v = sqrt(2 * brake * (d - margin)); a point inside outline + margin stops
+// the robot (status BLOCKED) until it is gone. The outline, margin and limits come
+// from the chassis (GET_PARAMS) at ON.
+//
+// Arbitration: ON makes this pilot the chassis' active pilot (SET_ACTIVE_PILOT) and
+// it then sends a MOVE every cycle (which also feeds the chassis watchdog). When the
+// chassis refuses a MOVE (another pilot took over) the pilot stands (PREEMPTED)
+// until it is told where to go again. OFF stops the robot.
+//
+// What to do: the `mode` parameter at ON (path, hold), FOLLOW_PATH, HOLD and
+// SET_DESTINATION commands, or the `destination` parameter ("x,y"; set it with
+// rackctl set-param to send the robot somewhere; "" goes back to the path).
+//
+// Threads: commands (command task) hand requests to the data task under a PI mutex.
+// Real-time contract: on(), off(), loop() and command() are RT-safe; init() allocates.
+#pragma once
+
+#include <vector>
+
+#include "common/pose2d.h"
+#include "rack/core/data_component.h"
+#include "rack/interfaces/navigation.h"
+#include "rack/interfaces/robot.h"
+#include "rack/rt/pi_mutex.h"
+
+namespace rack::components {
+
+class Pilot final : public DataComponent<interfaces::PilotData> {
+ public:
+  Pilot();
+
+  struct Outline {
+    double front = 0.3, back = 0.3, left = 0.25, right = 0.25, margin = 0.1;
+  };
+  struct Clearance {
+    double free_ahead = 0.0;  // m from the front of the outline to the nearest point in the swept corridor
+    bool inside = false;      // a point lies inside outline + margin
+    bool turn_blocked = false;  // a point lies inside the circle the outline sweeps when turning in place
+  };
+  // Obstacle clearance of a robot-frame scan (pure, RT-safe). Max-range points are ignored.
+  static Clearance clearance(const interfaces::Scan2dData& scan, const Outline& o) noexcept;
+
+ protected:
+  void init() override;
+  HookResult on() override;
+  void off() override;
+  HookResult loop() override;  // RT, periodic
+  CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override;
+
+ private:
+  enum class Request : uint8_t { kNone, kFollowPath, kHold, kDestination };
+  void handle_input(int64_t now) noexcept;
+  [[nodiscard]] bool parse_destination(const char* text, double& x, double& y) const noexcept;
+  // Steering towards `goal` (map frame); fills vx/omega in data_. `final_distance`
+  // is how far the robot still has to go (braking), < 0 for an endless path.
+  void steer(const Pose2d& pose, double gx, double gy, double final_distance) noexcept;
+  // Picks the pure-pursuit goal on the path; false when the path is finished.
+  bool path_goal(const Pose2d& pose, double& gx, double& gy, double& remaining) noexcept;
+  void send_move(double vx, double omega) noexcept;
+
+  Parameter& chassis_;
+  Parameter& position_;
+  Parameter& scan2d_;
+  Parameter& path_;
+  Parameter& mode_;
+  Parameter& destination_;
+  Parameter& vx_max_;
+  Parameter& omega_max_;
+  Parameter& lookahead_;
+  Parameter& goal_tolerance_;
+  Parameter& turn_in_place_deg_;
+  Parameter& brake_fraction_;
+  Parameter& input_timeout_ms_;
+
+  // Command task -> data task.
+  rt::PiMutex mutex_;
+  Request request_ = Request::kNone;
+  double request_x_ = 0.0, request_y_ = 0.0;
+
+  // Set in on() (before the data task runs loop()), read by the data task.
+  interfaces::ChassisParams limits_{};
+  Outline outline_;
+
+  // Data task.
+  interfaces::PilotData data_{};
+  interfaces::PositionData position_data_{};
+  interfaces::Scan2dData scan_{};
+  interfaces::PathData path_data_{};
+  // Destination mode drives along the line from where the robot was when it got the
+  // destination (pure pursuit on that line, so it arrives straight, e.g. through a door).
+  double line_x_ = 0.0, line_y_ = 0.0;
+  bool line_pending_ = false;  // the line starts at the next pose
+  bool have_path_ = false;
+  bool path_fresh_ = false;     // a new path arrived: find the nearest point again
+  int64_t position_mono_ns_ = 0;
+  int64_t scan_mono_ns_ = 0;
+  bool have_scan_ = false;
+  char last_destination_[wire::kParamStringLen] = {};
+  std::vector<std::byte> rpc_buffer_;  // command task (on(): the Path's newest sample)
+};
+
+}  // namespace rack::components
