@@ -52,6 +52,7 @@ Mcl::Mcl()
       global_(declare_bool("global", false, {.doc = "start with global localisation over the map's free space"})),
       update_distance_(declare_float("update_distance", 0.10, {.doc = "run the filter after this much travel (m)", .min = 0.0, .max = 100.0})),
       update_angle_(declare_float("update_angle", 0.10, {.doc = "... or this much turn (rad)", .min = 0.0, .max = 10.0})),
+      odometry_jump_(declare_float("odometry_jump", 1.0, {.doc = "odometry moving more than this between two scans is a jump (RESET): re-anchor, do not move (m; 0: off)", .min = 0.0, .max = 1e3})),
       beams_(declare_int("beams", 60, {.doc = "scan points used per update, evenly chosen (0: all)", .min = 0, .max = 100000})),
       sigma_hit_(declare_float("sigma_hit", 0.10, {.doc = "likelihood field: std dev of a point's distance to the nearest wall (m)", .min = 1e-3, .max = 10.0})),
       max_range_(declare_float("max_range", 30.0, {.doc = "likelihood field: sensor range for the random-reading term (m)", .min = 0.1, .max = 1000.0})),
@@ -77,6 +78,7 @@ mcl::MclOptions Mcl::read_options() const {
   o.update_distance = update_distance_.get_float();
   o.update_angle = update_angle_.get_float();
   o.beams = static_cast<uint32_t>(beams_.get_int());
+  o.odometry_jump = odometry_jump_.get_float();
   o.sigma_hit = sigma_hit_.get_float();
   o.max_range = max_range_.get_float();
   o.odom_a1 = odom_noise_xy_.get_float();

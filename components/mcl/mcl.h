@@ -66,6 +66,7 @@ class Mcl final : public DataComponent<interfaces::MclData> {
   Parameter& global_;
   Parameter& update_distance_;
   Parameter& update_angle_;
+  Parameter& odometry_jump_;
   Parameter& beams_;
   Parameter& sigma_hit_;
   Parameter& max_range_;

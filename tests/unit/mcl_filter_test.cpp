@@ -209,6 +209,25 @@ TEST_F(MclFilterTest, UpdatesAreGatedByTravelAndTurn) {
   EXPECT_EQ(f.estimate().updates, 3U);
 }
 
+// An Odometry RESET between two scans (the odometry jumps back to zero) must not throw
+// the particles across the map: MCL re-anchors on the new odometry.
+TEST_F(MclFilterTest, OdometryJumpIsReanchoredNotApplied) {
+  MclFilter f(*map_, tracking_options(61));
+  ScriptedRobot robot(*map_, SimConfig{}, 61);
+  robot.place({2.0, 8.0, 0.0});
+  f.init_pose({2.0, 8.0, 0.0}, 0.05, 0.02);
+  for (int i = 0; i < 60 && !robot.step_towards(8.0, 8.0); ++i) {
+    const test::SimScan s = robot.scan();
+    const SimPose od = robot.odometry();
+    (void)f.update({od.x, od.y, od.phi}, s.xs, s.ys);
+  }
+  const test::SimScan s = robot.scan();
+  (void)f.update({0.0, 0.0, 0.0}, s.xs, s.ys);  // RESET: odometry back at zero, robot still
+  const MclEstimate e = f.estimate();
+  EXPECT_EQ(e.odometry_jumps, 1U);
+  EXPECT_LT(std::hypot(e.pose.x - robot.truth().x, e.pose.y - robot.truth().y), 0.1);
+}
+
 TEST_F(MclFilterTest, KldShrinksTheParticleSetOnceLocalised) {
   MclOptions o = tracking_options(51);
   o.particles_min = 100;

@@ -160,7 +160,9 @@ struct MclFilter::Impl {
   void reset_particles(std::size_t n) {
     pdf.m_particles.resize(n);
     for (auto& p : pdf.m_particles) p.log_w = 0.0;
+    const uint64_t jumps = est.odometry_jumps;
     est = MclEstimate{};
+    est.odometry_jumps = jumps;
     force_update = true;
   }
 
@@ -298,8 +300,15 @@ bool MclFilter::update(const MclPose& odometry, std::span<const float> xs, std::
     s.odometry_at_update = odo;
     s.have_odometry = true;
   }
+  mrpt::poses::CPose2D incr = odo - s.odometry_at_update;  // in the frame of the last update
+  if (s.opt.odometry_jump > 0 && std::hypot(incr.x(), incr.y()) > s.opt.odometry_jump) {
+    // The odometry jumped (Odometry RESET, a restarted driver): no robot moves that
+    // far between two scans. Re-anchor on the new odometry; the particles stay.
+    ++s.est.odometry_jumps;
+    s.odometry_at_update = odo;
+    incr = mrpt::poses::CPose2D();
+  }
   s.odometry_now = odo;
-  const mrpt::poses::CPose2D incr = odo - s.odometry_at_update;  // in the frame of the last update
   const bool moved = std::hypot(incr.x(), incr.y()) >= s.opt.update_distance ||
                      std::fabs(incr.phi()) >= s.opt.update_angle;
   const std::size_t n = std::min(xs.size(), ys.size());

@@ -66,6 +66,9 @@ struct MclOptions {
   double odom_a4 = 0.05;          // rad/rad: rotation noise per radian
   double odom_min_std_xy = 0.01;  // m
   double odom_min_std_phi = 0.01; // rad
+  // Odometry increments longer than this between two scans are a jump (an Odometry
+  // RESET): MCL re-anchors on the new odometry instead of moving the particles (0: off).
+  double odometry_jump = 1.0;     // m
   // Update gating.
   double update_distance = 0.10;  // m of odometry travel
   double update_angle = 0.10;     // rad of odometry turn
@@ -95,6 +98,7 @@ struct MclEstimate {
   uint64_t updates = 0;         // filter updates since the last init
   double w_slow = 0.0, w_fast = 0.0;  // scan-fit averages (recovery)
   double fit = 0.0;             // mean scan fit at the last update
+  uint64_t odometry_jumps = 0;  // odometry discontinuities re-anchored on (since construction)
 };
 
 class MclFilter {
