@@ -9,6 +9,7 @@
 #include "path/path.h"
 #include "pilot/pilot.h"
 #include "position/position.h"
+#include "modeswitch_demo/modeswitch_demo.h"
 #include "probe/probe.h"
 #include "replay/replay_components.h"
 #include "scan2d/scan2d.h"
@@ -45,6 +46,9 @@ void register_builtin(ComponentRegistry& registry) {
                 [] { return std::make_unique<Path>(); }});
   registry.add({"Pilot", cls::kPilot, "pure-pursuit pilot: follows a Path or goes to a destination, obstacle speed limit",
                 [] { return std::make_unique<Pilot>(); }});
+  registry.add({"ModeSwitchDemo", cls::kModeSwitchDemo,
+                "demo: class commands that trigger each mode-switch reason and a crash (configs/modeswitch_demo.yaml)",
+                [] { return std::make_unique<ModeSwitchDemo>(); }});
 }
 
 }  // namespace rack::components

@@ -144,6 +144,9 @@ const char* Path::make_path(const PathMake& w, double resolution, PathData& out)
   }
   out.point_count = k;
   out.length = length;
+  // Clear what a previous, longer path left behind (tools print whole arrays).
+  for (uint32_t i = n; i < interfaces::kPathMaxWaypoints; ++i) out.waypoint_x[i] = out.waypoint_y[i] = 0.0F;
+  for (uint32_t i = k; i < interfaces::kPathMaxPoints; ++i) out.x[i] = out.y[i] = 0.0F;
   return nullptr;
 }
 
@@ -209,9 +212,11 @@ HookResult Path::loop() {
   char text[wire::kParamStringLen];
   waypoints_.copy_string(text, sizeof text);
   const bool closed = closed_.get_bool();
-  if (std::strcmp(text, last_text_) != 0 || closed != last_closed_) {
+  const double resolution = resolution_.get_float();
+  if (std::strcmp(text, last_text_) != 0 || closed != last_closed_ || resolution != last_resolution_) {
     std::memcpy(last_text_, text, sizeof text);
     last_closed_ = closed;
+    last_resolution_ = resolution;
     if (text[0] != '\0') {
       if (make_from_parameters(current_, last_error_)) {
         ++makes_;

@@ -5,7 +5,7 @@
 // sampled every `resolution` metres. Waypoints come from the `waypoints` parameter
 // ("x,y; x,y; ...", metres in the map frame) or from a MAKE command. A periodic data
 // task publishes a path when one was made: at ON, after MAKE, and when the
-// `waypoints` or `closed` parameter changed (so `rackctl set-param path waypoints ...`
+// `waypoints`, `closed` or `resolution` parameter changed (so `rackctl set-param path waypoints ...`
 // re-plans). A malformed waypoint text is counted in `rejected` with its reason in
 // `last_error`, and the previous path stays.
 //
@@ -57,6 +57,7 @@ class Path final : public DataComponent<interfaces::PathData> {
   interfaces::PathData current_{};
   char last_text_[wire::kParamStringLen] = {};
   bool last_closed_ = false;
+  double last_resolution_ = 0.0;
   uint32_t makes_ = 0;
   uint32_t rejected_ = 0;
   char last_error_[96] = {};

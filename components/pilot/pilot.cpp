@@ -248,6 +248,7 @@ void Pilot::steer(const Pose2d& pose, double gx, double gy, double final_distanc
   const Pose2d rel = between(pose, Pose2d{gx, gy, 0.0});
   const double l2 = rel.x * rel.x + rel.y * rel.y;
   const double alpha = std::atan2(rel.y, rel.x);
+  goal_bearing_ = alpha;
   const double vmax = std::min(vx_max_.get_float(), limits_.vx_max);
   const double wmax = std::min(omega_max_.get_float(), limits_.omega_max);
   const double brake = brake_fraction_.get_float() * limits_.dec_max;
@@ -395,9 +396,11 @@ HookResult Pilot::loop() {
       steer(pose, gx, gy, remaining);
       data_.status = u8(PilotStatus::kDriving);
       if (c.inside || (data_.vx == 0.0 && data_.speed_limit <= 0.0)) {
-        // Blocked: stand; turning on the spot only when nothing is within the turning circle.
+        // Blocked: stand. Turning on the spot towards the goal is safe when nothing is
+        // within the turning circle (and lets the robot face a path that bends away).
         data_.vx = 0.0;
-        if (c.turn_blocked) data_.omega = 0.0;
+        const double wmax = std::min(omega_max_.get_float(), limits_.omega_max);
+        data_.omega = c.turn_blocked ? 0.0 : std::clamp(2.0 * goal_bearing_, -wmax, wmax);
         data_.status = u8(PilotStatus::kBlocked);
         ++data_.blocked_cycles;
       }

@@ -99,6 +99,7 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
   // destination (pure pursuit on that line, so it arrives straight, e.g. through a door).
   double line_x_ = 0.0, line_y_ = 0.0;
   bool line_pending_ = false;  // the line starts at the next pose
+  double goal_bearing_ = 0.0;  // rad, the goal seen from the robot (set by steer())
   bool have_path_ = false;
   bool path_fresh_ = false;     // a new path arrived: find the nearest point again
   int64_t position_mono_ns_ = 0;

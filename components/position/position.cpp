@@ -25,11 +25,19 @@ HookResult Position::on() {
   {
     rt::PiLock lock(mutex_);
     reference_ = Reference{};
-    reference_.pose = Pose2d{initial_x_.get_float(), initial_y_.get_float(), normalize_angle(initial_phi_.get_float())};
-    reference_.var_x = reference_.var_y = initial_var_xy_.get_float();
-    reference_.var_phi = initial_var_phi_.get_float();
+    if (published_) {
+      // Switched on again (e.g. after its odometry went away and came back): the robot
+      // is where it was last seen, not at the initial pose. Motion while off is lost.
+      reference_.pose = Pose2d{last_.x, last_.y, last_.phi};
+      reference_.var_x = last_.var_x;
+      reference_.var_y = last_.var_y;
+      reference_.var_phi = last_.var_phi;
+    } else {
+      reference_.pose = Pose2d{initial_x_.get_float(), initial_y_.get_float(), normalize_angle(initial_phi_.get_float())};
+      reference_.var_x = reference_.var_y = initial_var_xy_.get_float();
+      reference_.var_phi = initial_var_phi_.get_float();
+    }
   }
-  last_ = PositionData{};
   const tims::Address odo = resolved(odometry_);
   if (switch_on(odo) != HookResult::kOk) return HookResult::kError;
   return subscribe(odo, 0);
@@ -63,13 +71,15 @@ HookResult Position::loop() {
         reference_.distance = o.distance;
         reference_.time_ns = sh.time_ns;
         reference_.resets = o.resets;
-      } else if (reference_.resets != o.resets) {  // RESET: keep the pose, new odometry frame
+      } else if (reference_.resets != o.resets) {
+        // RESET: the odometry restarted from zero just before this sample's increment,
+        // so the previous pose is the new frame's origin (nothing of this step is lost).
         reference_.pose = Pose2d{last_.x, last_.y, last_.phi};
         reference_.var_x = last_.var_x;
         reference_.var_y = last_.var_y;
         reference_.var_phi = last_.var_phi;
-        reference_.odometry = odo;
-        reference_.distance = o.distance;
+        reference_.odometry = Pose2d{};
+        reference_.distance = 0.0;
         reference_.resets = o.resets;
       }
       ref = reference_;
@@ -85,6 +95,7 @@ HookResult Position::loop() {
     last_.reference_time_ns = ref.updates == 0 ? 0 : ref.time_ns;
     last_.updates = ref.updates;
     publish(last_, sh.time_ns);
+    published_ = true;
   }
   return got ? HookResult::kOk : HookResult::kError;  // the odometry fell silent
 }

@@ -2,7 +2,8 @@
 // composed with the odometry travelled since the reference's time.
 //
 // The reference starts as the `initial_*` parameters at the first odometry sample
-// after ON. UPDATE (e.g. from MCL, for a scan taken a while ago) re-anchors it: the
+// after the first ON; a later ON continues from the last published pose (the robot
+// did not jump back to its start because a component was restarted). UPDATE (e.g. from MCL, for a scan taken a while ago) re-anchors it: the
 // command task looks up the Odometry's sample AT THE UPDATE'S TIME (GET_DATA by
 // time), advances it by that sample's velocities to the exact time, and from then on
 // pose = update (+) (odometry(update time)^-1 (+) odometry(now)). Motion after the
@@ -61,7 +62,8 @@ class Position final : public DataComponent<interfaces::PositionData> {
   // The odometry's RESET count in its newest sample (data task writes; the command
   // task refuses UPDATEs from an older frame). Relaxed: a one-sample lag is harmless.
   std::atomic<uint32_t> odometry_resets_{0};
-  interfaces::PositionData last_{};  // data task
+  interfaces::PositionData last_{};  // data task (on() reads it while the data task is idle)
+  bool published_ = false;           // a pose was published since init(): later ONs continue from it
 };
 
 }  // namespace rack::components

@@ -1,5 +1,6 @@
 #include "rack/core/component.h"
 
+#include <cstring>
 #include <exception>
 
 namespace rack {
@@ -37,7 +38,20 @@ uint8_t message_priority(int sched_priority) noexcept {
 }
 }  // namespace
 
+Component::Component() {
+  Parameter::Spec spec;
+  spec.doc = "GDOS log level: print, error, warning, info or detail (records above it are not logged)";
+  spec.choices = {"print", "error", "warning", "info", "detail"};
+  log_level_param_ = &params_.declare_string(kLogLevelParam, gdos::describe(gdos::kDefaultLevel), std::move(spec));
+}
+
 Component::~Component() = default;
+
+void Component::sync_log_level() noexcept {
+  char text[16];
+  log_level_param_->copy_string(text, sizeof text);
+  if (const auto level = gdos::parse_level(text)) log_source_.set_level(*level);
+}
 
 Parameter& Component::declare_component_ref(const std::string& n, const std::string& doc) {
   Parameter::Spec spec;
@@ -56,6 +70,8 @@ Address Component::resolved(const Parameter& ref) const noexcept {
 
 void Component::attach(tims::Router& router) {
   router_ = &router;
+  log_source_.set_identity(settings_.address, settings_.name);
+  sync_log_level();
   command_mailbox_ = std::make_unique<tims::Mailbox>(settings_.address.with_mailbox(0),
                                                      settings_.command_slots, command_slot_size_);
   // Replies to calls made from hooks: GET_DATA replies can be as large as a slot.
@@ -137,25 +153,37 @@ void Component::handle_on(const MessageHeader* request) noexcept {
     if (request != nullptr) reply(*request, msg::kOk);
     return;
   }
+  const bool retry = request == nullptr;
   if (call_on() == HookResult::kOk) {
     set_state(ComponentState::kEnabled);
     entered_enabled();
+    if (retry) log_info("ON (retry succeeded): ENABLED");
+    else log_info("ON: ENABLED");
     if (request != nullptr) reply(*request, msg::kOk);
     return;
   }
   call_off();  // undo what on() did halfway
-  if (state() != ComponentState::kError) bump(errors_);
+  const bool first = state() != ComponentState::kError;
+  if (first) bump(errors_);
   set_state(ComponentState::kError);
   retry_at_ns_ = rt::monotonic_ns() + settings_.retry_ns;
+  // A retry that fails again is detail: the first failure already said so.
+  if (first || !retry) {
+    log_error("ON: on() failed: ERROR (retrying every %lld ms)", static_cast<long long>(settings_.retry_ns / rt::kNsPerMs));
+  } else {
+    log_detail("retry of on() failed: still ERROR");
+  }
   if (request != nullptr) reply_error(*request, "on() failed");
 }
 
 void Component::handle_off() noexcept {
-  if (state() == ComponentState::kEnabled) {
+  const ComponentState before = state();
+  if (before == ComponentState::kEnabled) {
     leaving_enabled();
     call_off();
   }
   set_state(ComponentState::kDisabled);
+  if (before != ComponentState::kDisabled) log_info("OFF: DISABLED (was %s)", describe(before));
 }
 
 void Component::go_error() noexcept {
@@ -165,6 +193,8 @@ void Component::go_error() noexcept {
   set_state(ComponentState::kError);
   bump(errors_);
   retry_at_ns_ = rt::monotonic_ns() + settings_.retry_ns;
+  log_error("ENABLED -> ERROR (loop() or a command handler failed); retrying on() every %lld ms",
+            static_cast<long long>(settings_.retry_ns / rt::kNsPerMs));
 }
 
 HookResult Component::switch_on(Address dest) noexcept {
@@ -243,12 +273,23 @@ void Component::handle_set_param(const MessageHeader& h, std::span<const std::by
     reply_with(h, msg::kError, text);
     return;
   }
+  if (p == log_level_param_ && record.kind == static_cast<uint8_t>(wire::ParamKind::kString) &&
+      !gdos::parse_level(std::string_view(record.string_value, strnlen(record.string_value, sizeof record.string_value)))) {
+    wire::copy_text(text.text, "gdosLevel must be one of ");
+    wire::append_text(text.text, gdos::kLevelNames);
+    reply_with(h, msg::kError, text);
+    return;
+  }
   if (const char* why = p->set_from_wire(record)) {
     wire::copy_text(text.text, record.name);
     wire::append_text(text.text, ": ");
     wire::append_text(text.text, why);
     reply_with(h, msg::kError, text);
     return;
+  }
+  if (p == log_level_param_) {
+    sync_log_level();
+    log_print("log level now %s", gdos::describe(log_source_.level()));
   }
   reply(h, msg::kOk);
 }
@@ -310,9 +351,13 @@ void Component::run_command_task() noexcept {
     if (r.status == tims::RecvStatus::kClosed) break;
     if (loop_failed_.exchange(false, std::memory_order_acq_rel)) go_error();
     switch (r.status) {
-      case tims::RecvStatus::kOk:
+      case tims::RecvStatus::kOk: {
+        // One command is one cycle of the command task: the mode-switch window.
+        rt::modeswitch::enter_cycle();
         handle(r.header, buffer.subspan(sizeof(MessageHeader), r.length - sizeof(MessageHeader)));
+        if (rt::modeswitch::leave_cycle().abort) go_error();  // abort mode: the component goes to ERROR
         break;
+      }
       case tims::RecvStatus::kTooSmall:
         if (r.header.is_request()) reject_malformed(r.header, "request larger than the command buffer");
         break;
@@ -322,7 +367,9 @@ void Component::run_command_task() noexcept {
         break;
     }
     if (state() == ComponentState::kError && !init_failed_ && rt::monotonic_ns() >= retry_at_ns_) {
+      rt::modeswitch::enter_cycle();
       handle_on(nullptr);  // back-off elapsed: retry
+      if (rt::modeswitch::leave_cycle().abort) go_error();
     }
   }
 }

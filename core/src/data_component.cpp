@@ -253,11 +253,13 @@ void DataComponentBase::run_one_cycle() noexcept {
   in_loop_.store(true, std::memory_order_seq_cst);
   if (loop_enabled_.load(std::memory_order_seq_cst)) {
     HookResult r = HookResult::kError;
+    rt::modeswitch::enter_cycle();  // primary mode: loop() and nothing else
     try {
       r = loop();
     } catch (...) {
       r = HookResult::kError;
     }
+    if (rt::modeswitch::leave_cycle().abort) r = HookResult::kError;  // abort mode: to ERROR
     if (r != HookResult::kOk) {
       loop_enabled_.store(false, std::memory_order_seq_cst);
       report_loop_failure();
@@ -277,9 +279,14 @@ void DataComponentBase::run_data_task() noexcept {
   if (mode_ == DataTaskMode::kPeriodic) {
     const int64_t period = settings().period_ns;
     int64_t next = rt::monotonic_ns() + period;
+    // Overruns are reported through GDOS at most once a second, with the count since
+    // the last report (a task that overruns every cycle must not flood its ring).
+    uint64_t unreported = 0;
+    int64_t next_report = 0;
     while (!stopping()) {
       rt::sleep_until_monotonic(next);
       stats_.record_latency(rt::monotonic_ns() - next);
+      const int64_t cycle_start = rt::monotonic_ns();
       run_one_cycle();
       stats_.record_cycle();
       next += period;
@@ -288,6 +295,14 @@ void DataComponentBase::run_data_task() noexcept {
         const int64_t missed = (now - next) / period + 1;
         next += missed * period;
         stats_.record_overruns(static_cast<uint64_t>(missed));
+        rt::modeswitch::note_overrun(static_cast<uint64_t>(missed), now - cycle_start);  // WATCHDOG
+        unreported += static_cast<uint64_t>(missed);
+      }
+      if (unreported > 0 && now >= next_report) {
+        log_warning("overrun: %llu period(s) of %lld us missed since the last report",
+                    static_cast<unsigned long long>(unreported), static_cast<long long>(period / rt::kNsPerUs));
+        unreported = 0;
+        next_report = now + rt::kNsPerSec;
       }
     }
     return;

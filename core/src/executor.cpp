@@ -1,7 +1,9 @@
 #include "rack/core/executor.h"
 
+#include <pthread.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdio>
 #include <iostream>
 #include <stdexcept>
@@ -18,9 +20,92 @@ Executor::Executor(std::unique_ptr<LoadedHost> host, ExecutorOptions options)
 
 Executor::~Executor() { stop(); }
 
-void Executor::log(const std::string& line) const {
+void Executor::log(gdos::Level level, const std::string& line) {
   if (options_.log) options_.log(line);
-  else std::cerr << "rackd: " << line << std::endl;
+  hub_.publish_text(level, log_source_.address(), log_source_.name(), line);
+}
+
+void Executor::publish_report(gdos::Level level, const std::string& text, Address source,
+                              const std::string& source_name) {
+  if (source == Address()) hub_.publish_text(level, log_source_.address(), log_source_.name(), text);
+  else hub_.publish_text(level, source, source_name, text);
+}
+
+void Executor::flush_log() { gdos_pass(); }
+
+void Executor::gdos_pass() {
+  std::lock_guard lock(gdos_mutex_);
+  const GdosSettings& g = host_->settings.gdos;
+  bool to_stderr = g.to_stderr == GdosSettings::Stderr::kAlways;
+  if (g.to_stderr == GdosSettings::Stderr::kAuto) {
+    // A viewer says it listens once a second; 3 s without one: back to stderr.
+    to_stderr = gdos_publisher_ == nullptr || !gdos_publisher_->listener_present(3 * rt::kNsPerSec);
+  }
+  std::string& out = gdos_out_;  // reused: steady-state passes do not allocate for stderr
+  out.clear();
+  if (g.to_stderr == GdosSettings::Stderr::kAuto && to_stderr != gdos_to_stderr_) {
+    // Say why the log appears on or vanishes from stderr.
+    out += to_stderr ? "rackd: GDOS: no gdos viewer listens: the log goes to stderr too\n"
+                     : "rackd: GDOS: a gdos viewer listens: the log goes to LCM only (gdos.stderr: auto)\n";
+    gdos_to_stderr_ = to_stderr;
+  }
+  struct Pass {
+    bool to_stderr;
+    std::string& out;
+    tims::GdosPublisher* publisher;
+    const std::function<void(const gdos::Record&)>& sink;
+  } pass{to_stderr, out, gdos_publisher_.get(), options_.gdos_sink};
+  // One captured pointer: fits std::function's small buffer, so an idle pass
+  // allocates nothing (the no-allocation tests count every thread).
+  hub_.drain([p = &pass](const gdos::Record& r) {
+    if (p->to_stderr) {
+      gdos::append_line(r, p->out);
+    }
+    if (p->sink) p->sink(r);
+    if (p->publisher != nullptr) {
+      p->publisher->add(r.source.raw(), r.name, static_cast<uint8_t>(r.level), r.time_ns, r.sequence,
+                        r.dropped_before, r.text);
+    }
+  });
+  if (gdos_publisher_) {
+    gdos_publisher_->flush();
+    const uint64_t errors = gdos_publisher_->counters().publish_errors;
+    if (errors > gdos_errors_reported_) {
+      out += "rackd: GDOS: " + std::to_string(errors - gdos_errors_reported_) + " batch(es) could not be published on " +
+             gdos_publisher_->url() + "\n";
+      gdos_errors_reported_ = errors;
+    }
+  }
+  if (!out.empty()) {
+    std::fwrite(out.data(), 1, out.size(), stderr);
+    std::fflush(stderr);
+  }
+}
+
+void Executor::gdos_loop() {
+  pthread_setname_np(pthread_self(), "rackd:gdos");  // for top and ps (not RT: SCHED_OTHER)
+  const auto period = std::chrono::nanoseconds(host_->settings.gdos.drain_ns);
+  for (;;) {
+    {
+      std::unique_lock lock(gdos_mutex_);
+      gdos_cv_.wait_for(lock, period, [this] { return !gdos_running_; });
+      if (!gdos_running_) break;
+    }
+    pass_guarded();
+  }
+  pass_guarded();  // what the last moments left behind
+}
+
+void Executor::pass_guarded() noexcept {
+  // The GDOS thread must outlive a failing pass (out of memory while formatting, a
+  // sink that throws): say so and go on with the next one.
+  try {
+    gdos_pass();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rackd: GDOS: a log pass failed: %s\n", e.what());
+  } catch (...) {
+    std::fprintf(stderr, "rackd: GDOS: a log pass failed\n");
+  }
 }
 
 Component* Executor::find(const std::string& name_or_address) noexcept {
@@ -59,37 +144,80 @@ void Executor::start() {
   router_.add(*mailbox_);
   endpoint_ = std::make_unique<tims::Endpoint>(router_, *mailbox_, 1);
 
+  // GDOS first, so that everything from here on is logged.
+  log_source_.set_identity(self.component(), "rackd");
+  gdos::Hub::set_process_hub(&hub_);
+  const std::string url = options_.lcm_url_override.empty() ? hs.lcm_url : options_.lcm_url_override;
+  if (hs.lcm && hs.gdos.lcm && !url.empty()) {
+    tims::GdosPublisherConfig pc;
+    pc.url = hs.gdos.lcm_url.empty() ? url : hs.gdos.lcm_url;
+    pc.channel = hs.gdos.channel;
+    pc.host = hs.host;
+    pc.pid = static_cast<int32_t>(getpid());
+    try {
+      gdos_publisher_ = std::make_unique<tims::GdosPublisher>(pc);
+    } catch (...) {
+      started_ = false;
+      router_.remove(mailbox_->address());
+      gdos::Hub::set_process_hub(nullptr);
+      throw;
+    }
+  }
+  gdos_running_ = true;
+  gdos_thread_ = std::thread([this] { gdos_loop(); });
+
   for (auto& v : views_) v.component->attach(router_);
   for (auto& v : views_) {
     if (!v.component->run_init(v.init_error)) {
-      log("component '" + v.component->name() + "' " + v.component->address().str() + " is in ERROR: init() failed: " + v.init_error);
+      log(gdos::Level::kError, "component '" + v.component->name() + "' " + v.component->address().str() +
+                                   " is in ERROR: init() failed: " + v.init_error);
     }
   }
   try {
     for (auto& v : views_) {
       Component& c = *v.component;
       const ComponentSettings& s = c.settings();
+      // Each task registers itself with the mode-switch detector (a no-op when
+      // rackd did not start it) before its first cycle.
+      auto watch = [&](const TaskSettings& t, const char* suffix) {
+        // A priority-0 task runs with normal scheduling: it is not real-time, so what it
+        // does (MCL allocates every update) is not a mode switch unless asked for.
+        const auto fallback = t.priority == 0 ? rt::modeswitch::Mode::kOff : hs.modeswitch.default_mode;
+        return rt::modeswitch::TaskInfo{c.name() + suffix, c.name(), c.address().str(), c.address().raw(),
+                                        t.modeswitch.value_or(fallback)};
+      };
       auto cmd = std::make_unique<rt::Thread>();
+      gdos::LogRing* cmd_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " command task");
       const auto how = cmd->start({c.name().substr(0, 11) + ":cmd", s.command_task.priority, s.command_task.cpu,
                                    s.command_task.stack_bytes},
-                                  [&c] { c.run_command_task(); }, options_.allow_rt_fallback);
+                                  [&c, cmd_ring, info = watch(s.command_task, ":cmd")] {
+                                    gdos::bind_thread_ring(cmd_ring);
+                                    rt::modeswitch::TaskAttachment attach(info);
+                                    c.run_command_task();
+                                  },
+                                  options_.allow_rt_fallback);
       v.realtime = how == rt::ThreadStart::kRealTime;
       fallback_ = fallback_ || how == rt::ThreadStart::kFallback;
       threads_.push_back(std::move(cmd));
       if (auto* dc = dynamic_cast<DataComponentBase*>(&c); dc != nullptr && c.data_task_mode() != DataTaskMode::kNone) {
         auto data = std::make_unique<rt::Thread>();
+        gdos::LogRing* data_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " data task");
         const auto how2 = data->start({c.name().substr(0, 10) + ":data", s.data_task.priority, s.data_task.cpu,
                                        s.data_task.stack_bytes},
-                                      [dc] { dc->run_data_task(); }, options_.allow_rt_fallback);
+                                      [dc, data_ring, info = watch(s.data_task, ":data")] {
+                                        gdos::bind_thread_ring(data_ring);
+                                        rt::modeswitch::TaskAttachment attach(info);
+                                        dc->run_data_task();
+                                      },
+                                      options_.allow_rt_fallback);
         fallback_ = fallback_ || how2 == rt::ThreadStart::kFallback;
         threads_.push_back(std::move(data));
       }
     }
-    const std::string url = options_.lcm_url_override.empty() ? hs.lcm_url : options_.lcm_url_override;
     if (hs.lcm && !url.empty()) {
       tims::LcmTransportConfig tc;
       tc.url = url;
-      tc.warn = [this](const std::string& s) { log(s); };
+      tc.warn = [this](const std::string& s) { log(gdos::Level::kWarning, s); };
       transport_ = std::make_unique<tims::LcmTransport>(router_, tc);
       tims::HostInfo info;
       info.host = hs.host;
@@ -106,15 +234,25 @@ void Executor::start() {
     stop();
     throw;
   }
+  std::size_t realtime = 0;
+  for (const auto& v : views_) realtime += v.realtime ? 1 : 0;
+  log(gdos::Level::kInfo, "host '" + hs.host + "' started " + std::to_string(views_.size()) + " component(s), " +
+                              std::to_string(realtime) + " with SCHED_FIFO tasks" +
+                              (transport_ ? ", TiMS on " + transport_->url() : std::string(", no LCM")) +
+                              (gdos_publisher_ ? ", GDOS on " + gdos_publisher_->url() + " channel " + hs.gdos.channel
+                                               : std::string()));
   for (auto& v : views_) {
     Component& c = *v.component;
     if (!c.settings().autostart) continue;
     std::string why;
     if (!send_command(c, msg::kOn, c.settings().rpc_timeout_ns * 4, why)) {
-      log("autostart of '" + c.name() + "' " + c.address().str() + " failed: " + why +
-          " (it retries every " + std::to_string(c.settings().retry_ns / rt::kNsPerMs) + " ms)");
+      log(gdos::Level::kWarning, "autostart of '" + c.name() + "' " + c.address().str() + " failed: " + why +
+                                     " (it retries every " + std::to_string(c.settings().retry_ns / rt::kNsPerMs) +
+                                     " ms)");
     }
   }
+  // The start-up events are out before start() returns (rackd then says "running").
+  gdos_pass();
 }
 
 void Executor::stop() {
@@ -127,7 +265,7 @@ void Executor::stop() {
       if (c.state() == ComponentState::kDisabled) continue;
       std::string why;
       if (!send_command(c, msg::kOff, c.settings().rpc_timeout_ns, why)) {
-        log("OFF of '" + c.name() + "' failed: " + why);
+        log(gdos::Level::kError, "OFF of '" + c.name() + "' failed: " + why);
       }
     }
   }
@@ -138,6 +276,19 @@ void Executor::stop() {
   for (auto it = views_.rbegin(); it != views_.rend(); ++it) it->component->run_cleanup();
   for (auto& v : views_) v.component->detach();
   if (mailbox_) router_.remove(mailbox_->address());
+  const auto c = hub_.counters();
+  if (c.dropped > 0) {
+    log(gdos::Level::kWarning, "GDOS: " + std::to_string(c.dropped) + " log record(s) were dropped in full rings");
+  }
+  // Last: the GDOS thread drains what the shutdown logged, then ends.
+  {
+    std::lock_guard lock(gdos_mutex_);
+    gdos_running_ = false;
+  }
+  gdos_cv_.notify_all();
+  if (gdos_thread_.joinable()) gdos_thread_.join();
+  gdos_publisher_.reset();
+  if (gdos::Hub::process_hub() == &hub_) gdos::Hub::set_process_hub(nullptr);
 }
 
 std::string Executor::status_report() const {
@@ -166,6 +317,21 @@ std::string Executor::status_report() const {
                     c.address().str().c_str(), describe(c.state()), static_cast<unsigned long long>(s.commands));
     }
     out += line;
+  }
+  {
+    const auto g = hub_.counters();
+    char line[256];
+    std::snprintf(line, sizeof line, "  GDOS: records %llu, dropped in full rings %llu", static_cast<unsigned long long>(g.records),
+                  static_cast<unsigned long long>(g.dropped));
+    out += line;
+    if (gdos_publisher_) {
+      const auto p = gdos_publisher_->counters();
+      std::snprintf(line, sizeof line, ", published %llu in %llu batches, publish errors %llu",
+                    static_cast<unsigned long long>(p.records), static_cast<unsigned long long>(p.batches),
+                    static_cast<unsigned long long>(p.publish_errors));
+      out += line;
+    }
+    out += '\n';
   }
   if (transport_) {
     const auto t = transport_->counters();

@@ -92,7 +92,7 @@ struct HostLoader {
   // Command tasks stay SCHED_FIFO: they answer ON/OFF and must stay responsive.
   void read_task(const YAML::Node& node, TaskSettings& task, const std::string& where,
                  const std::set<std::string>& extra_keys, int64_t min_priority = 1) {
-    std::set<std::string> keys{"priority", "cpu", "stack_kib"};
+    std::set<std::string> keys{"priority", "cpu", "stack_kib", "modeswitch"};
     keys.insert(extra_keys.begin(), extra_keys.end());
     check_keys(node, keys, where);
     int64_t v = 0;
@@ -114,6 +114,70 @@ struct HostLoader {
     }
     if (get_int_range(node, "stack_kib", 16, 65536, v, "a stack size in KiB (16..65536)")) {
       task.stack_bytes = static_cast<std::size_t>(v) * 1024;
+    }
+    if (node["modeswitch"]) task.modeswitch = get_mode(node, "modeswitch");
+  }
+
+  std::optional<rt::modeswitch::Mode> get_mode(const YAML::Node& map, const char* key) {
+    std::string text;
+    if (!get(map, key, text, "off, warn or abort")) return std::nullopt;
+    const auto mode = rt::modeswitch::parse_mode(text);
+    if (!mode) error(map[key].Mark(), std::string("'") + key + "' must be off, warn or abort, got '" + text + "'");
+    return mode;
+  }
+
+  // The host file's `modeswitch:` block (configs/modeswitch_demo.yaml documents it).
+  void read_modeswitch(const YAML::Node& node, rt::modeswitch::Config& c) {
+    if (!node.IsMap()) {
+      error(node.Mark(), "'modeswitch' must be a map (mode, abort, crash_dir, ...)");
+      return;
+    }
+    check_keys(node, {"mode", "abort", "crash_dir", "crash_handlers", "syscalls", "faults", "allocations",
+                      "locks", "rusage", "lock_wait_us", "watchdog_periods", "rttime_ms", "allow_syscalls",
+                      "stderr", "stderr_per_second"},
+               "modeswitch");
+    if (node["mode"]) {
+      if (const auto m = get_mode(node, "mode")) c.default_mode = *m;
+    }
+    std::string text;
+    if (get(node, "abort", text, "component or process")) {
+      if (text == "component") c.abort_action = rt::modeswitch::AbortAction::kComponent;
+      else if (text == "process") c.abort_action = rt::modeswitch::AbortAction::kProcess;
+      else error(node["abort"].Mark(), "'abort' must be component (to ERROR) or process (abort, core dump), got '" + text + "'");
+    }
+    if (get(node, "crash_dir", text, "a directory")) {
+      if (text.empty()) error(node["crash_dir"].Mark(), "'crash_dir' must not be empty");
+      else c.crash_dir = text;
+    }
+    get(node, "crash_handlers", c.crash_handlers, "true or false");
+    get(node, "syscalls", c.syscalls, "true or false");
+    get(node, "faults", c.faults, "true or false");
+    get(node, "allocations", c.allocations, "true or false");
+    get(node, "locks", c.locks, "true or false");
+    get(node, "rusage", c.rusage, "true or false");
+    get(node, "stderr", c.to_stderr, "true or false");
+    int64_t v = 0;
+    if (get_int_range(node, "lock_wait_us", 1, 60'000'000, v, "a wait in microseconds")) c.lock_wait_ns = v * 1000;
+    if (get_int_range(node, "watchdog_periods", 0, 1'000'000, v, "a number of periods (0: off)")) {
+      c.watchdog_periods = static_cast<uint32_t>(v);
+    }
+    if (get_int_range(node, "rttime_ms", 0, 3'600'000, v, "milliseconds (0: off)")) c.rttime_us = v * 1000;
+    if (get_int_range(node, "stderr_per_second", 0, 1'000'000, v, "a report count")) {
+      c.stderr_per_second = static_cast<uint32_t>(v);
+    }
+    if (const YAML::Node list = node["allow_syscalls"]) {
+      if (!list.IsSequence()) {
+        error(list.Mark(), "'allow_syscalls' must be a list of system call names");
+      } else {
+        for (const auto& n : list) {
+          if (!n.IsScalar() || rt::modeswitch::syscall_number(n.Scalar()) < 0) {
+            error(n.Mark(), "'" + (n.IsScalar() ? n.Scalar() : std::string("?")) +
+                                "' is not a system call of this kernel (names as in man 2 syscalls)");
+            continue;
+          }
+          c.allow_syscalls.push_back(n.Scalar());
+        }
+      }
     }
   }
 
@@ -149,7 +213,7 @@ struct HostLoader {
     HostSettings& hs = host->settings;
     hs.file = file;
     check_keys(root, {"host", "system", "host_id", "require_rt", "lcm", "lcm_url", "heap_prefault_mib",
-                      "cpu_dma_latency_us", "plugins", "components"},
+                      "cpu_dma_latency_us", "plugins", "modeswitch", "components", "gdos"},
                "the host file");
     char hostname[256] = {};
     gethostname(hostname, sizeof hostname - 1);
@@ -169,6 +233,7 @@ struct HostLoader {
                       "a latency bound in us (0: shallowest idle state; -1: leave to the system)")) {
       hs.cpu_dma_latency_us = static_cast<int>(v);
     }
+    if (const YAML::Node ms = root["modeswitch"]) read_modeswitch(ms, hs.modeswitch);
     if (const YAML::Node plugins = root["plugins"]) {
       if (!plugins.IsSequence()) {
         error(plugins.Mark(), "'plugins' must be a list of shared library paths");
@@ -184,6 +249,7 @@ struct HostLoader {
         }
       }
     }
+    if (const YAML::Node g = root["gdos"]) read_gdos(g, hs.gdos);
     const YAML::Node comps = root["components"];
     if (!comps) {
       errors.push_back({file, 0, 0, "missing 'components' (the list of components to run)"});
@@ -198,6 +264,33 @@ struct HostLoader {
     }
     result.host = std::move(host);
     return result;
+  }
+
+  void read_gdos(const YAML::Node& g, GdosSettings& out) {
+    if (!g.IsMap()) {
+      error(g.Mark(), "'gdos' must be a map (level, stderr, ring, drain_ms, lcm, lcm_url, channel)");
+      return;
+    }
+    check_keys(g, {"level", "stderr", "ring", "drain_ms", "lcm", "lcm_url", "channel"}, "gdos");
+    std::string text;
+    if (get(g, "level", text, std::string("a GDOS level (") + gdos::kLevelNames + ")")) {
+      if (const auto l = gdos::parse_level(text)) out.level = *l;
+      else error(g["level"].Mark(), "'level' must be one of " + std::string(gdos::kLevelNames) + ", got '" + text + "'");
+    }
+    if (get(g, "stderr", text, "always, auto or never")) {
+      if (text == "always") out.to_stderr = GdosSettings::Stderr::kAlways;
+      else if (text == "auto") out.to_stderr = GdosSettings::Stderr::kAuto;
+      else if (text == "never") out.to_stderr = GdosSettings::Stderr::kNever;
+      else error(g["stderr"].Mark(), "'stderr' must be always, auto or never, got '" + text + "'");
+    }
+    int64_t v = 0;
+    if (get_int_range(g, "ring", 2, 65536, v, "a record count 2..65536")) out.ring = static_cast<uint32_t>(v);
+    get_positive_ms(g, "drain_ms", out.drain_ns);
+    get(g, "lcm", out.lcm, "true or false");
+    get(g, "lcm_url", out.lcm_url, "an LCM URL");
+    if (get(g, "channel", out.channel, "an LCM channel name") && out.channel.empty()) {
+      error(g["channel"].Mark(), "'channel' must not be empty");
+    }
   }
 
   static std::string tims_default_url() { return "udpm://239.255.76.67:7667?ttl=0"; }
@@ -313,6 +406,10 @@ struct HostLoader {
             if (param->spec().component_ref) p.refs.emplace_back(param, it->second);
           }
         }
+      }
+      // The host's default log level for components that do not set their own.
+      if (given.count(Component::kLogLevelParam) == 0) {
+        if (Parameter* lp = params.find(Component::kLogLevelParam)) (void)lp->set_from_text(gdos::describe(host.settings.gdos.level));
       }
       for (std::size_t i = 0; i < params.size(); ++i) {
         const Parameter& prm = params.at(i);

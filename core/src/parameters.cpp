@@ -120,6 +120,11 @@ std::optional<std::string> Parameter::set_from_text(const std::string& text) {
       break;
     }
     case ParamKind::kString:
+      if (!spec_.choices.empty() && !is_choice(text.c_str())) {
+        std::string list;
+        for (const auto& c : spec_.choices) list += (list.empty() ? "" : ", ") + c;
+        return "parameter '" + name_ + "' must be one of " + list + ", got '" + text + "'";
+      }
       if (text.size() >= wire::kParamStringLen) {
         return "parameter '" + name_ + "' is longer than " +
                std::to_string(wire::kParamStringLen - 1) + " characters";
@@ -158,12 +163,21 @@ const char* Parameter::set_from_wire(const wire::ParamRecord& r) noexcept {
       if (spec_.component_ref) return "a component reference cannot change at run time";
       const std::size_t len = strnlen(r.string_value, sizeof r.string_value);
       if (len == sizeof r.string_value) return "string not terminated";
+      if (!spec_.choices.empty() && !is_choice(r.string_value)) return "not one of the allowed values";
       store_string(r.string_value, len);
       break;
     }
   }
   set_.store(true, std::memory_order_relaxed);
   return nullptr;
+}
+
+bool Parameter::is_choice(const char* text) const noexcept {
+  // RT-safe: compares against strings made at declaration; allocates nothing.
+  for (const auto& c : spec_.choices) {
+    if (std::strcmp(c.c_str(), text) == 0) return true;
+  }
+  return false;
 }
 
 void Parameter::to_record(wire::ParamRecord& out) const noexcept {

@@ -161,6 +161,7 @@ bool Process::running() {
   if (waitpid(pid_, &status, WNOHANG) == pid_) {
     int sig = 0;
     status_ = decode_status(status, sig);
+    term_signal_ = sig;
     unregister_child(pid_);
     return false;
   }

@@ -51,9 +51,12 @@ class Process {
   std::optional<int> wait_exit(std::chrono::milliseconds timeout);
   [[nodiscard]] std::string out() const;
   [[nodiscard]] std::string err() const;
+  // The signal that ended the child (0: it exited), once wait_exit() saw it end.
+  [[nodiscard]] int term_signal() const { return term_signal_; }
 
  private:
   pid_t pid_ = -1;
+  int term_signal_ = 0;
   std::optional<int> status_;
   std::filesystem::path out_path_, err_path_;
 };

@@ -441,6 +441,81 @@ components:
   EXPECT_GE(r.errors.size(), 2u);
 }
 
+// ---- mode-switch detection keys (configs/modeswitch_demo.yaml documents them)
+
+TEST_F(HostConfigTest, ModeSwitchBlockAndTaskModes) {
+  const LoadResult r = load(R"(system: 0
+lcm: false
+modeswitch:
+  mode: abort
+  abort: process
+  crash_dir: /tmp/crashes
+  rusage: true
+  lock_wait_us: 50
+  watchdog_periods: 3
+  rttime_ms: 250
+  allow_syscalls: [sched_yield, ioctl]
+components:
+  - name: generator
+    class: Generator
+    command_task: {priority: 30, modeswitch: off}
+    data_task: {priority: 60, period_ms: 10, modeswitch: warn}
+  - name: probe
+    class: Probe
+    data_task: {period_ms: 10}
+)");
+  ASSERT_NE(r.host, nullptr) << (r.errors.empty() ? "" : r.errors[0].str());
+  const auto& ms = r.host->settings.modeswitch;
+  EXPECT_EQ(ms.default_mode, rt::modeswitch::Mode::kAbort);
+  EXPECT_EQ(ms.abort_action, rt::modeswitch::AbortAction::kProcess);
+  EXPECT_EQ(ms.crash_dir, "/tmp/crashes");
+  EXPECT_TRUE(ms.rusage);
+  EXPECT_EQ(ms.lock_wait_ns, 50'000);
+  EXPECT_EQ(ms.watchdog_periods, 3u);
+  EXPECT_EQ(ms.rttime_us, 250'000);
+  EXPECT_EQ(ms.allow_syscalls, (std::vector<std::string>{"sched_yield", "ioctl"}));
+  const Component* gen = nullptr;
+  const Component* probe = nullptr;
+  for (const auto& c : r.host->components) (c->name() == "generator" ? gen : probe) = c.get();
+  ASSERT_TRUE(gen != nullptr && probe != nullptr);
+  EXPECT_EQ(gen->settings().command_task.modeswitch, rt::modeswitch::Mode::kOff);
+  EXPECT_EQ(gen->settings().data_task.modeswitch, rt::modeswitch::Mode::kWarn);
+  EXPECT_FALSE(probe->settings().data_task.modeswitch.has_value()) << "unset: the host default applies";
+}
+
+TEST_F(HostConfigTest, ModeSwitchErrorsNameTheirLine) {
+  expect_error(R"(system: 0
+lcm: false
+modeswitch:
+  mode: loud
+components: []
+)",
+               4, {"'mode' must be off, warn or abort", "loud"});
+  expect_error(R"(system: 0
+lcm: false
+modeswitch:
+  allow_syscalls: [futex, fly]
+components: []
+)",
+               4, {"'fly' is not a system call"});
+  expect_error(R"(system: 0
+lcm: false
+modeswitch:
+  abort: everything
+  colour: red
+components: []
+)",
+               4, {"'abort' must be component"});
+  expect_error(R"(system: 0
+lcm: false
+components:
+  - name: generator
+    class: Generator
+    data_task: {period_ms: 10, modeswitch: sometimes}
+)",
+               6, {"'modeswitch' must be off, warn or abort"});
+}
+
 }  // namespace
 }  // namespace rack
 

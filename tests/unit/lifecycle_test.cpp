@@ -482,8 +482,10 @@ TEST_F(LifecycleTest, GetAndSetParam) {
   r = host().call(probe_, msg::kGetParam);
   ASSERT_EQ(r.type, msg::kParam);
   ASSERT_EQ(r.body.size() % sizeof rec, 0u);
-  EXPECT_EQ(r.body.size() / sizeof rec, 7u);
+  EXPECT_EQ(r.body.size() / sizeof rec, 8u);  // Probe's 7 and the standard gdosLevel (first)
   std::memcpy(&rec, r.body.data(), sizeof rec);
+  EXPECT_STREQ(rec.name, "gdosLevel");
+  std::memcpy(&rec, r.body.data() + sizeof rec, sizeof rec);
   EXPECT_STREQ(rec.name, "fail_init");
 }
 

@@ -2,7 +2,9 @@
 //
 // This binary replaces the global allocator (operator new/delete and glibc's malloc
 // family, forwarding to glibc's __libc_* entry points) with versions that count every
-// allocation made, by any thread, while counting is switched on. Each test sets up
+// allocation made, by any thread, while counting is switched on. Each replacement
+// also calls the mode-switch detector's hook (modeswitch::detail::on_heap_call), as
+// any program that replaces the allocator must to keep ALLOC detection working. Each test sets up
 // and warms up its path, then switches counting on around the measured loop only:
 // the count must stay 0. Alone in its binary because the replacement is global.
 #include <gtest/gtest.h>
@@ -15,9 +17,11 @@
 #include <string>
 #include <thread>
 
+#include "rack/core/gdos.h"
 #include "rack/interfaces/demo.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
+#include "rack/rt/modeswitch.h"
 #include "test_support.h"
 
 // ---- the counting allocator ----------------------------------------------------
@@ -27,7 +31,9 @@ namespace {
 // the count is read after the threads involved have synchronised through mailboxes.
 std::atomic<bool> g_counting{false};
 std::atomic<uint64_t> g_allocations{0};
-void note_allocation() noexcept {
+using rack::rt::modeswitch::detail::HeapCall;
+void note_allocation(HeapCall call, std::size_t size) noexcept {
+  rack::rt::modeswitch::detail::on_heap_call(call, size);
   if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
 }
 }  // namespace
@@ -40,44 +46,47 @@ void* __libc_memalign(std::size_t alignment, std::size_t size);
 void __libc_free(void* ptr);
 
 void* malloc(std::size_t size) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kMalloc, size);
   return __libc_malloc(size);
 }
 void* calloc(std::size_t count, std::size_t size) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kCalloc, count * size);
   return __libc_calloc(count, size);
 }
 void* realloc(void* ptr, std::size_t size) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kRealloc, size);
   return __libc_realloc(ptr, size);
 }
 void* aligned_alloc(std::size_t alignment, std::size_t size) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kAlignedAlloc, size);
   return __libc_memalign(alignment, size);
 }
 void* memalign(std::size_t alignment, std::size_t size) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kAlignedAlloc, size);
   return __libc_memalign(alignment, size);
 }
 int posix_memalign(void** out, std::size_t alignment, std::size_t size) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kAlignedAlloc, size);
   if (alignment < sizeof(void*) || (alignment & (alignment - 1)) != 0) return EINVAL;
   void* p = __libc_memalign(alignment, size);
   if (p == nullptr) return ENOMEM;
   *out = p;
   return 0;
 }
-void free(void* ptr) noexcept { __libc_free(ptr); }
+void free(void* ptr) noexcept {
+  if (ptr != nullptr) rack::rt::modeswitch::detail::on_heap_call(HeapCall::kFree, 0);
+  __libc_free(ptr);
+}
 }  // extern "C"
 
 namespace {
 void* counted_new(std::size_t size) {
-  note_allocation();
+  note_allocation(HeapCall::kNew, size);
   if (void* p = __libc_malloc(size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }
 void* counted_new_aligned(std::size_t size, std::align_val_t align) {
-  note_allocation();
+  note_allocation(HeapCall::kNew, size);
   if (void* p = __libc_memalign(static_cast<std::size_t>(align), size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }
@@ -86,11 +95,11 @@ void* counted_new_aligned(std::size_t size, std::align_val_t align) {
 void* operator new(std::size_t size) { return counted_new(size); }
 void* operator new[](std::size_t size) { return counted_new(size); }
 void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kNew, size);
   return __libc_malloc(size == 0 ? 1 : size);
 }
 void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {
-  note_allocation();
+  note_allocation(HeapCall::kNew, size);
   return __libc_malloc(size == 0 ? 1 : size);
 }
 void* operator new(std::size_t size, std::align_val_t align) { return counted_new_aligned(size, align); }
@@ -295,10 +304,13 @@ components:
   wire::ContDataRequest cont;
   cont.mailbox = host.data_mailbox().address().raw();
   ASSERT_EQ(host.call_with(gen, msg::kGetContData, cont).type, msg::kContData);
+  // Both producers have a sample (the warm-up asks both for their newest; on a loaded
+  // machine the generator's first period may not have passed yet).
   ASSERT_TRUE(test::eventually([&] {
     wire::SampleHeader h;
     interfaces::ProbeData d;
-    return host.get_data(probe, h, d);
+    interfaces::GeneratorData g;
+    return host.get_data(probe, h, d) && host.get_data(gen, h, g);
   }));
 
   tims::Endpoint& ep = host.endpoint();
@@ -324,6 +336,9 @@ components:
   };
   for (int i = 0; i < kWarmUp; ++i) round();
   ASSERT_EQ(bad, 0u);
+  // The start-up and ON log records are formatted now, not during the measurement
+  // (the GDOS thread is not RT and may allocate while its buffers grow).
+  host.executor().flush_log();
   streamed = 0;
   uint64_t allocations = 0;
   {
@@ -446,6 +461,44 @@ components:
   ASSERT_TRUE(host.get_data(pilot, h, d));
   EXPECT_EQ(d.moves_refused, 0u);
   EXPECT_EQ(allocations, 0u);
+}
+
+TEST_F(NoAllocationTest, GdosLogCallsInAnRtTask) {
+  // The RT side of GDOS: a task with a bound ring logs records of every argument
+  // kind, with the ring filling up (drops) in between; nothing allocates.
+  test::Watchdog dog;
+  gdos::LogRing ring(16, "test task");
+  gdos::LogSource src(Address::make(0, tims::classes::kLadar, 1), "ladar", gdos::Level::kInfo);
+  const Address dest = Address::make(0, tims::classes::kPosition, 2);
+  const std::string name = "a std::string longer than the small-string buffer";
+  uint64_t allocations = ~uint64_t{0};
+  uint64_t written = 0;
+  std::thread task([&] {
+    (void)rt::set_current_thread_priority(50);  // SCHED_FIFO when allowed (the test runs either way)
+    gdos::bind_thread_ring(&ring);
+    auto round = [&](int i) {
+      gdos::log(src, gdos::Level::kInfo, "cycle %d: %f m at %s (%s), %zu points, %p", i, 0.25 * i, dest, "scan",
+                static_cast<std::size_t>(i) * 3, static_cast<const void*>(&ring));
+      gdos::log(src, gdos::Level::kWarning, "%s %.*s %lld %Lg %c", name, 3, std::string_view("abcdef"),
+                static_cast<long long>(i), static_cast<long double>(i), 'x');
+      gdos::log(src, gdos::Level::kDetail, "filtered out by the level %d", i);
+      gdos::log(src, gdos::Level::kPrint, "print");
+      if (i % 8 == 7) {
+        // The consumer side (here: the same thread, so SPSC holds) empties the ring
+        // only every 8th round: the rounds in between overflow it.
+        while (ring.peek() != nullptr) ring.pop();
+      }
+    };
+    for (int i = 0; i < kWarmUp; ++i) round(i);
+    AllocationCounter counter;
+    for (int i = 0; i < kRounds; ++i) round(i);
+    allocations = counter.stop();
+    written = ring.written();
+  });
+  task.join();
+  EXPECT_EQ(allocations, 0u);
+  EXPECT_GT(ring.dropped(), 0u) << "the drop path ran too";
+  EXPECT_GT(written, static_cast<uint64_t>(kRounds)) << "records were written";
 }
 
 }  // namespace

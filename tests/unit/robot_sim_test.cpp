@@ -180,13 +180,13 @@ TEST_F(RobotSimTest, OnlyTheActivePilotMayMoveAndChangingPilotStopsTheRobot) {
 
 TEST_F(RobotSimTest, WatchdogStopsTheRobotWhenMovesStopTolerant) {
   Watchdog dog;
-  start(host(chassis_yaml("", 200)));
+  start(host(chassis_yaml("", 500)));
   const Address chassis = h().address_of("chassis");
   ASSERT_EQ(h().call(chassis, msg::kOn).type, msg::kOk);
   ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
 
-  // MOVEs every 20 ms (10x inside the 200 ms watchdog): the robot keeps driving.
-  const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(600);
+  // MOVEs every 20 ms (25x inside the 500 ms watchdog): the robot keeps driving.
+  const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(1000);
   while (std::chrono::steady_clock::now() < end) {
     ASSERT_EQ(move(chassis, 0.4, 0.1).type, msg::kOk);
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -203,7 +203,7 @@ TEST_F(RobotSimTest, WatchdogStopsTheRobotWhenMovesStopTolerant) {
   d = newest<ChassisData>(chassis);
   EXPECT_EQ(d.watchdog_stops, 1u);
   // Standing still is not a watchdog event.
-  std::this_thread::sleep_for(std::chrono::milliseconds(400));
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
   EXPECT_EQ(newest<ChassisData>(chassis).watchdog_stops, 1u);
 }
 
@@ -246,8 +246,9 @@ TEST_F(RobotSimTest, ChassisStopsAtWallsOfTheMapTolerant) {
   ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).collisions > 0; }));
   const auto d = newest<ChassisData>(chassis);
   EXPECT_EQ(d.vx, 0.0);
-  // The front (0.3 m ahead) touches the wall's first cell, never beyond.
-  EXPECT_GT(d.truth_y + 0.3, 9.85);
+  // The front (0.3 m ahead) stops short of the wall's first cell (9.90), never
+  // beyond; by at most one step (0.01 m, or 0.1 m after a 10-period overrun).
+  EXPECT_GT(d.truth_y + 0.3, 9.75);
   EXPECT_LT(d.truth_y + 0.3, 10.0);
 }
 
@@ -346,6 +347,60 @@ TEST_F(RobotSimTest, PositionUpdateUsesTheOdometryAtTheUpdatesTimeTolerant) {
   u.x = std::nan("");
   EXPECT_EQ(h().call_with(position, interfaces::kPositionUpdate, u).type, msg::kError);
   EXPECT_EQ(h().stats(position).malformed, 1u);
+}
+
+TEST_F(RobotSimTest, PositionSwitchedOnAgainContinuesFromItsLastPose) {
+  Watchdog dog;
+  start(host(chassis_yaml("", 5000) + odometry_position_yaml(", initial_x: 1.0, initial_y: 2.0")));
+  const Address chassis = h().address_of("chassis");
+  const Address odometry = h().address_of("odometry");
+  const Address position = h().address_of("position");
+  ASSERT_EQ(h().call(position, msg::kOn).type, msg::kOk);
+  ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
+  ASSERT_EQ(move(chassis, 0.5).type, msg::kOk);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  ASSERT_EQ(move(chassis, 0.0).type, msg::kOk);
+  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  wire::SampleHeader before_header;
+  const auto before = newest<PositionData>(position, &before_header);
+  ASSERT_GT(before.x, 1.1);
+  // The odometry goes away (the position follows it into ERROR) and comes back at zero.
+  ASSERT_EQ(h().call(odometry, msg::kOff).type, msg::kOk);
+  ASSERT_TRUE(h().wait_status(position, msg::kError));
+  ASSERT_EQ(h().call(position, msg::kOn).type, msg::kOk);
+  // Samples made after the restart (the rings still hold the old ones).
+  const auto after = newer_than<PositionData>(position, before_header.time_ns);
+  EXPECT_NEAR(newer_than<OdometryData>(odometry, before_header.time_ns).x, 0.0, 1e-9)
+      << "the odometry started again at zero";
+  EXPECT_NEAR(after.x, before.x, 1e-6) << "not back at initial_x";
+  EXPECT_NEAR(after.y, before.y, 1e-6);
+}
+
+TEST_F(RobotSimTest, OdometryResetDoesNotMoveThePositionTolerant) {
+  Watchdog dog;
+  start(host(chassis_yaml("", 5000) + odometry_position_yaml(", initial_x: 1.0, initial_y: 2.0")));
+  const Address chassis = h().address_of("chassis");
+  const Address odometry = h().address_of("odometry");
+  const Address position = h().address_of("position");
+  ASSERT_EQ(h().call(position, msg::kOn).type, msg::kOk);
+  // Anchored (initial pose at its first odometry sample) before the robot moves.
+  ASSERT_NEAR(newest<PositionData>(position).x, 1.0, 1e-9);
+  ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
+  ASSERT_EQ(move(chassis, 0.5).type, msg::kOk);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ASSERT_EQ(h().call(odometry, interfaces::kOdometryReset).type, msg::kOk);
+  ASSERT_TRUE(test::eventually([&] { return newest<OdometryData>(odometry).resets == 1; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_EQ(move(chassis, 0.0).type, msg::kOk);
+  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  // The odometry restarted near zero; the position kept counting from (1, 2).
+  const auto c = newest<ChassisData>(chassis);
+  const auto p = newest<PositionData>(position);
+  EXPECT_LT(newest<OdometryData>(odometry).x, c.truth_x - 0.1);
+  EXPECT_NEAR(p.x, 1.0 + c.truth_x, 1e-6);
+  EXPECT_NEAR(p.y, 2.0 + c.truth_y, 1e-6);
 }
 
 // ---------------------------------------------------------------- Scan2D
@@ -465,6 +520,40 @@ TEST_F(RobotSimTest, LadarSimRangesMatchTheKnownWallsOfTheMap) {
   EXPECT_NEAR(s.y[i], l.range[i], 1e-4);
   EXPECT_EQ(s.odometry_valid, 1);
   EXPECT_NEAR(s.odometry_x, 0.0, 1e-6);  // standing: the odometry is still at its origin
+}
+
+TEST_F(RobotSimTest, ScansCarryTheOdometryOfTheirOwnTimeWhileDrivingTolerant) {
+  Watchdog dog;
+  start(host(chassis_yaml(", initial_x: 5.0, initial_y: 8.0", 5000) + odometry_position_yaml() +
+             ladar_scan_yaml(kOffice)));
+  const Address chassis = h().address_of("chassis");
+  const Address scan2d = h().address_of("scan2d");
+  ASSERT_EQ(h().call(scan2d, msg::kOn).type, msg::kOk);
+  ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
+  ASSERT_EQ(move(chassis, 0.8, 0.2).type, msg::kOk);
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));  // up to speed
+  // Each scan's odometry is the motion up to the scan's own time: without noise it
+  // equals the true pose at that time relative to the start. A scan paired with the
+  // odometry of another moment would be off by 0.8 m/s x the time difference.
+  int checked = 0;
+  int64_t last = 0;
+  for (int i = 0; i < 5; ++i) {
+    wire::SampleHeader sh;
+    const auto s = newer_than<interfaces::Scan2dData>(scan2d, last, &sh);
+    last = sh.time_ns;
+    ASSERT_EQ(s.odometry_valid, 1);
+    wire::SampleHeader ch;
+    ChassisData c;
+    ASSERT_TRUE(h().get_data(chassis, ch, c, sh.time_ns));
+    ASSERT_EQ(ch.time_ns, sh.time_ns) << "LadarSim stamps a scan with the chassis sample it rendered";
+    const Pose2d rel = components::between(Pose2d{5.0, 8.0, 0.0}, Pose2d{c.truth_x, c.truth_y, c.truth_phi});
+    EXPECT_NEAR(s.odometry_x, rel.x, 1e-6);
+    EXPECT_NEAR(s.odometry_y, rel.y, 1e-6);
+    EXPECT_NEAR(s.odometry_phi, rel.phi, 1e-6);
+    ++checked;
+  }
+  EXPECT_EQ(checked, 5);
+  ASSERT_EQ(move(chassis, 0.0).type, msg::kOk);
 }
 
 TEST_F(RobotSimTest, MissingMapPutsOnlyTheLadarInErrorWithTheFileName) {

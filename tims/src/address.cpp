@@ -26,6 +26,7 @@ constexpr std::array kBuiltinClasses{
     ClassEntry{classes::kScan3d, "Scan3D"},     ClassEntry{classes::kObjRecog, "ObjRecog"},
     ClassEntry{classes::kMcl, "Mcl"},           ClassEntry{classes::kGenerator, "Generator"},
     ClassEntry{classes::kMonitor, "Monitor"},   ClassEntry{classes::kProbe, "Probe"},
+    ClassEntry{classes::kModeSwitchDemo, "ModeSwitchDemo"},
 };
 
 // User classes: written only before tasks start (register_class_name), read anywhere.

@@ -81,6 +81,7 @@ commands:
   get-data NAME [--time T]      one sample as a JSON line
   watch NAME [--period MS] [--count N]
                                 continuous data, one JSON line per sample
+  send NAME CMD [--i64 N]       a class command (number 21..127) and its reply
   help [COMMAND]                this text, or a command's
 
 NAME is a component's name from its host file (found by discovery), or an address
@@ -106,6 +107,7 @@ struct Options {
   int64_t time_ns = 0;     // get-data --time
   double period_ms = 0.0;  // watch --period
   int64_t count = 0;       // watch --count (0: until SIGINT/SIGTERM)
+  std::optional<int64_t> i64;  // send --i64: an 8-byte body
   std::set<std::string> given;  // command-specific options seen (checked per command)
   std::string command;
   std::vector<std::string> args;
@@ -681,6 +683,27 @@ int cmd_watch(Session& s, const Options& o) {
   return kExitOk;
 }
 
+// A class command: any request type from 21 to 127, an optional 8-byte integer
+// body (host byte order, as class commands of this repository read it).
+int cmd_send(Session& s, const Options& o) {
+  const auto type = parse_int(o.args[1]);
+  if (!type || *type < msg::kFirstClassCommand || *type > 127) {
+    fail(kExitUsage, "CMD must be a class command number " + std::to_string(msg::kFirstClassCommand) +
+                         "..127 (generic commands have their own rackctl commands), got '" + o.args[1] + "'");
+  }
+  const Target t = s.resolve(o.args[0]);
+  const auto cmd = static_cast<int8_t>(*type);
+  CallResult r;
+  if (o.i64) r = s.call(t, cmd, *o.i64);
+  else r = s.call(t, cmd);
+  if (r.reply.type == msg::kError) fail(kExitError, t.label() + ": command " + o.args[1] + ": " + error_reason(r.body));
+  std::string hex;
+  for (std::size_t k = 0; k < r.body.size() && k < 256; ++k) hex += format("%02x", static_cast<unsigned>(r.body[k]));
+  std::printf("%s: %s (%d)%s%s\n", t.label().c_str(), reply_name(r.reply.type), r.reply.type,
+              r.body.empty() ? "" : ", body ", hex.c_str());
+  return kExitOk;
+}
+
 int cmd_help(Session&, const Options&);  // handled before a session exists
 
 const std::vector<Command>& commands() {
@@ -727,6 +750,12 @@ const std::vector<Command>& commands() {
        "N samples. SIGINT/SIGTERM stop it too (exit 0). The producer going off: exit 1.\n"
        "No sample for 5 s: exit 3.",
        cmd_watch},
+      {"send", "send NAME CMD [--i64 N]", 2, 2, {"--i64"},
+       "Sends class command CMD (a number from 21 to 127; each class documents its\n"
+       "own, e.g. configs/modeswitch_demo.yaml) and prints the reply type and body\n"
+       "(hex). --i64 N: an 8-byte integer body. ERROR: its reason, exit 1; no reply\n"
+       "within --timeout: exit 3.",
+       cmd_send},
       {"help", "help [COMMAND]", 0, 1, {}, "Prints the usage, or a command's help.", cmd_help},
   };
   return kCommands;
@@ -789,6 +818,12 @@ Options parse_arguments(int argc, char** argv) {
       if (o.timeout_ms == 0) fail(kExitUsage, "--timeout needs at least 1 ms");
     }
     else if (a == "--discover-ms") o.discover_ms = non_negative("a number of milliseconds");
+    else if (a == "--i64") {
+      const std::string v = value("a 64-bit integer");
+      o.i64 = parse_int(v);
+      if (!o.i64) fail(kExitUsage, "--i64 needs a 64-bit integer, got '" + v + "'");
+      o.given.insert(a);
+    }
     else if (a == "--time") { o.time_ns = non_negative("a host time in ns (0: newest)"); o.given.insert(a); }
     else if (a == "--count") {
       o.count = non_negative("a number of samples");

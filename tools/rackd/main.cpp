@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
+#include <mutex>
 #include <string>
 
 #include "rack/components/builtin.h"
@@ -17,6 +18,7 @@
 #include "rack/rt/clock.h"
 #include "rack/rt/memory.h"
 #include "rack/rt/pm_qos.h"
+#include "rack/rt/modeswitch.h"
 
 namespace {
 
@@ -31,8 +33,17 @@ options:
   --status SEC       print each component's state and timing every SEC seconds
                      (default 0: only at shutdown)
   --lcm URL          TiMS/LCM network, instead of the host file's lcm_url
+  --crash-dir DIR    where mode-switch and crash reports go, instead of the host
+                     file's modeswitch.crash_dir (default /var/tmp/rack); the report
+                     file is DIR/rackd-PID.report (removed at exit when empty);
+                     symbolize it with rack-backtrace
   --list-classes     print the component classes and their parameters, then exit
   -h, --help         this text
+
+The log (GDOS: executor events and the components' log calls) goes to stderr, one
+line per record, and to LCM for the gdos viewer; the host file's gdos: map sets
+levels and outputs (configs/demo.yaml), `rackctl set-param NAME gdosLevel LEVEL`
+changes a component's level at run time.
 
 exit codes: 0 clean shutdown or valid host file, 1 could not start (real-time
 required but missing, a task or the network could not start), 2 usage error or
@@ -57,8 +68,34 @@ void list_classes(const rack::ComponentRegistry& registry) {
 
 }  // namespace
 
+// Publishes each mode-switch report as one GDOS warning line of the component that
+// caused it (the report file keeps the whole backtrace). Runs on the detector's
+// reporter thread (not RT).
+class GdosReportSink final : public rack::rt::modeswitch::ReportSink {
+ public:
+  explicit GdosReportSink(rack::Executor& executor) : executor_(&executor) {}
+  void publish(const rack::rt::modeswitch::ReportView& r, std::string_view) override {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (executor_ == nullptr) return;
+    const auto source = rack::tims::parse_address(r.label);
+    std::string line = std::string("mode switch ") + rack::rt::modeswitch::reason_name(r.reason) + " #" +
+                       std::to_string(r.sequence) + " in task " + std::string(r.task) + ": " +
+                       std::string(r.detail) + " (rack-backtrace on the report file gives the line)";
+    executor_->publish_report(rack::gdos::Level::kWarning, line, source.value_or(rack::tims::Address()),
+                              std::string(r.component));
+  }
+  void detach() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    executor_ = nullptr;
+  }
+
+ private:
+  std::mutex mutex_;
+  rack::Executor* executor_;
+};
+
 int main(int argc, char** argv) {
-  std::string file, lcm_url;
+  std::string file, lcm_url, crash_dir;
   bool check = false, classes = false;
   double duration = -1, status_every = 0;
   for (int i = 1; i < argc; ++i) {
@@ -86,6 +123,7 @@ int main(int argc, char** argv) {
     else if (a == "--duration") duration = number("a number of seconds");
     else if (a == "--status") status_every = number("a number of seconds");
     else if (a == "--lcm") lcm_url = value("an LCM URL");
+    else if (a == "--crash-dir") crash_dir = value("a directory");
     else if (!a.empty() && a[0] == '-') { std::fprintf(stderr, "rackd: unknown option '%s'\n%s", a.c_str(), kUsage); return 2; }
     else if (file.empty()) file = a;
     else { std::fprintf(stderr, "rackd: one host file only ('%s' and '%s')\n", file.c_str(), a.c_str()); return 2; }
@@ -148,6 +186,15 @@ int main(int argc, char** argv) {
   const rack::rt::CpuLatencyHold cpu_latency(settings.cpu_dma_latency_us);
   std::fprintf(stderr, "rackd: %s\n", cpu_latency.describe().c_str());
 
+  // Mode-switch detection and crash reports: after the memory policy (so NOMLOCK
+  // reflects it) and the plug-ins (so their load addresses are recorded), before
+  // any task starts.
+  rack::rt::modeswitch::Config detection = settings.modeswitch;
+  detection.program = "rackd";
+  if (!crash_dir.empty()) detection.crash_dir = crash_dir;
+  const auto detector = rack::rt::modeswitch::start(detection);
+  std::fprintf(stderr, "rackd: %s\n", detector.describe().c_str());
+
   rack::ExecutorOptions options;
   options.allow_rt_fallback = !settings.require_rt;
   options.lcm_url_override = lcm_url;
@@ -158,6 +205,11 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "rackd: cannot start: %s\n", e.what());
     return 1;
   }
+  // Mode-switch reports also go to GDOS, as a warning of the component that caused
+  // them (Xenomai printed SIGDEBUG reports on the console; a robot's operator reads
+  // GDOS). The reporter thread calls the sink; it is detached before the executor stops.
+  const auto gdos_sink = std::make_shared<GdosReportSink>(executor);
+  rack::rt::modeswitch::add_sink(gdos_sink);
   if (executor.any_fallback() && caps.sched_fifo) {  // the probe said yes, a task was refused
     std::fprintf(stderr, "rackd: WARNING: SCHED_FIFO was refused; tasks run SCHED_OTHER.\n");
   }
@@ -174,6 +226,11 @@ int main(int argc, char** argv) {
     if (now >= end) break;
     if (now >= next_status) {
       std::fprintf(stdout, "[%.1f s]\n%s", static_cast<double>(now - start) * 1e-9, executor.status_report().c_str());
+      if (const auto c = rack::rt::modeswitch::counters(); c.reports > 0) {
+        std::fprintf(stdout, "  mode switches: %llu reported, %llu dropped; see %s\n",
+                     static_cast<unsigned long long>(c.reports), static_cast<unsigned long long>(c.dropped),
+                     detector.report_path.empty() ? "stderr" : detector.report_path.c_str());
+      }
       std::fflush(stdout);
       next_status += static_cast<int64_t>(status_every * 1e9);
     }
@@ -186,7 +243,23 @@ int main(int argc, char** argv) {
                signal_number != 0 ? strsignal(signal_number) : "duration elapsed");
   std::fprintf(stdout, "final status:\n%s", executor.status_report().c_str());
   std::fflush(stdout);
+  gdos_sink->detach();
   executor.stop();
+  const auto counts = rack::rt::modeswitch::counters();
+  rack::rt::modeswitch::stop();
+  if (counts.reports > 0) {
+    std::string by;
+    for (int k = 1; k < rack::rt::modeswitch::kReasonCount; ++k) {
+      if (counts.by_reason[k] == 0) continue;
+      by += std::string(by.empty() ? "" : ", ") +
+            rack::rt::modeswitch::reason_name(static_cast<rack::rt::modeswitch::Reason>(k)) + " " +
+            std::to_string(counts.by_reason[k]);
+    }
+    std::fprintf(stderr, "rackd: %llu mode switch(es) reported (%s)%s; see %s\n",
+                 static_cast<unsigned long long>(counts.reports), by.c_str(),
+                 counts.dropped > 0 ? (", " + std::to_string(counts.dropped) + " dropped (ring full)").c_str() : "",
+                 detector.report_path.empty() ? "stderr" : detector.report_path.c_str());
+  }
   std::fprintf(stderr, "rackd: stopped cleanly\n");
   return 0;
 }

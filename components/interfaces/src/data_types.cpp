@@ -23,6 +23,7 @@ constexpr DataTypeInfo kScan2d = info<Scan2dData>("Scan2dData");
 constexpr DataTypeInfo kMcl = info<MclData>("MclData");
 constexpr DataTypeInfo kPath = info<PathData>("PathData");
 constexpr DataTypeInfo kPilot = info<PilotData>("PilotData");
+constexpr DataTypeInfo kModeSwitchDemo = info<ModeSwitchDemoData>("ModeSwitchDemoData");
 }  // namespace
 
 const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
@@ -38,6 +39,7 @@ const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
     case tims::classes::kMcl: return &kMcl;
     case tims::classes::kPath: return &kPath;
     case tims::classes::kPilot: return &kPilot;
+    case tims::classes::kModeSwitchDemo: return &kModeSwitchDemo;
     default: return nullptr;
   }
 }

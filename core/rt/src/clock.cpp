@@ -2,6 +2,8 @@
 
 #include <cerrno>
 
+#include "rack/rt/modeswitch.h"
+
 namespace rack::rt {
 
 int64_t monotonic_ns() noexcept {
@@ -18,6 +20,7 @@ int64_t host_time_ns() noexcept {
 
 void sleep_until_monotonic(int64_t deadline_ns) noexcept {
   const timespec ts = to_timespec(deadline_ns);
+  modeswitch::TrustedScope trusted(true);  // the one blocking call a periodic task makes
   // clock_nanosleep returns the error number directly (not via errno).
   while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
   }

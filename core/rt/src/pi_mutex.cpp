@@ -4,6 +4,7 @@
 #include <cstdlib>
 
 #include "rack/rt/clock.h"
+#include "rack/rt/modeswitch.h"
 
 namespace rack::rt {
 
@@ -16,8 +17,18 @@ PiMutex::PiMutex() {
 }
 
 PiMutex::~PiMutex() { pthread_mutex_destroy(&mutex_); }
-void PiMutex::lock() noexcept { pthread_mutex_lock(&mutex_); }
-void PiMutex::unlock() noexcept { pthread_mutex_unlock(&mutex_); }
+// The TrustedScopes: a PI mutex and its condition variable are the framework's RT-safe
+// way to wait; their futex calls are not mode switches (see modeswitch.h).
+void PiMutex::lock() noexcept {
+  modeswitch::TrustedScope trusted;
+  if (pthread_mutex_trylock(&mutex_) == 0) return;
+  modeswitch::TrustedScope waiting(true);  // contended: this cycle may block here
+  pthread_mutex_lock(&mutex_);
+}
+void PiMutex::unlock() noexcept {
+  modeswitch::TrustedScope trusted;
+  pthread_mutex_unlock(&mutex_);
+}
 bool PiMutex::try_lock() noexcept { return pthread_mutex_trylock(&mutex_) == 0; }
 
 PiCondVar::PiCondVar() {
@@ -31,6 +42,7 @@ PiCondVar::PiCondVar() {
 PiCondVar::~PiCondVar() { pthread_cond_destroy(&cond_); }
 
 bool PiCondVar::wait_until(PiMutex& mutex, int64_t deadline_ns) noexcept {
+  modeswitch::TrustedScope trusted(true);
   if (deadline_ns < 0) {
     pthread_cond_wait(&cond_, mutex.native());
     return true;
@@ -39,7 +51,13 @@ bool PiCondVar::wait_until(PiMutex& mutex, int64_t deadline_ns) noexcept {
   return pthread_cond_timedwait(&cond_, mutex.native(), &ts) != ETIMEDOUT;
 }
 
-void PiCondVar::notify_one() noexcept { pthread_cond_signal(&cond_); }
-void PiCondVar::notify_all() noexcept { pthread_cond_broadcast(&cond_); }
+void PiCondVar::notify_one() noexcept {
+  modeswitch::TrustedScope trusted;
+  pthread_cond_signal(&cond_);
+}
+void PiCondVar::notify_all() noexcept {
+  modeswitch::TrustedScope trusted;
+  pthread_cond_broadcast(&cond_);
+}
 
 }  // namespace rack::rt

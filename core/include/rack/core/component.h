@@ -27,13 +27,16 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
+#include "rack/core/gdos.h"
 #include "rack/core/parameters.h"
 #include "rack/core/wire.h"
 #include "rack/rt/clock.h"
+#include "rack/rt/modeswitch.h"
 #include "rack/tims/endpoint.h"
 
 namespace rack {
@@ -50,6 +53,10 @@ struct TaskSettings {
   int priority = 0;                     // 1..99 SCHED_FIFO, 0 normal
   int cpu = -1;                         // -1: any
   std::size_t stack_bytes = 256 * 1024;
+  // Mode-switch detection for this task (off, warn, abort); unset: the host file's
+  // modeswitch.mode, or off for a priority-0 task (normal scheduling is not real-time:
+  // MCL and other heavy components allocate there by design).
+  std::optional<rt::modeswitch::Mode> modeswitch;
 };
 
 // How the executor runs one component (from the host file).
@@ -57,8 +64,8 @@ struct ComponentSettings {
   std::string name;                     // the host file's name ("ladar_front")
   std::string impl;                     // implementation class ("Generator")
   tims::Address address;                // command mailbox: Class(sys/inst)
-  TaskSettings command_task{30, -1, 256 * 1024};
-  TaskSettings data_task{40, -1, 256 * 1024};
+  TaskSettings command_task{30, -1, 256 * 1024, std::nullopt};
+  TaskSettings data_task{40, -1, 256 * 1024, std::nullopt};
   int64_t period_ns = 0;                // periodic data task
   int64_t data_timeout_ns = rt::kNsPerSec;  // triggered: loop() runs after this long without input
   int64_t retry_ns = rt::kNsPerSec;     // ERROR back-off
@@ -88,9 +95,32 @@ class Component {
   [[nodiscard]] virtual DataTaskMode data_task_mode() const noexcept { return DataTaskMode::kNone; }
   // Statistics for GET_STATS and rackd's status lines. Any thread, RT-safe.
   virtual void fill_stats(wire::StatsReply& out) const noexcept;
+  // This component as a GDOS log source (address, name, level). Any thread.
+  [[nodiscard]] const gdos::LogSource& log_source() const noexcept { return log_source_; }
+  // The standard parameter that holds the log level (every component has it).
+  static constexpr const char* kLogLevelParam = "gdosLevel";
 
  protected:
-  Component() = default;
+  Component();  // declares the standard parameter gdosLevel
+
+  // ---- logging (GDOS, rack/core/gdos.h) ----
+  // printf-style, checked at compile time, tagged with this component's address.
+  // RT-safe from the command and data tasks (no formatting, allocation, lock or
+  // system call: the arguments are copied into the task's log ring; a full ring
+  // drops and counts). From init()/cleanup() (main thread) the text is formatted
+  // at once (not RT). A TiMS address argument for %s prints as `Ladar(0/1)`.
+  // Levels: print (always), error, warning, info, detail; the threshold is the
+  // parameter gdosLevel (host file, or `rackctl set-param NAME gdosLevel warning`).
+  template <class... Args>
+  void log_print(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kPrint, f, a...); }
+  template <class... Args>
+  void log_error(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kError, f, a...); }
+  template <class... Args>
+  void log_warning(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kWarning, f, a...); }
+  template <class... Args>
+  void log_info(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kInfo, f, a...); }
+  template <class... Args>
+  void log_detail(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kDetail, f, a...); }
 
   // ---- hooks ----
   virtual void init() {}                                   // non-RT: allocate; throw on failure
@@ -132,6 +162,11 @@ class Component {
   void reply_error(const tims::MessageHeader& request, const char* reason) noexcept;
   // Counts a malformed request and answers it ERROR with `reason`.
   void reject_malformed(const tims::MessageHeader& request, const char* reason) noexcept;
+  // Declares a file descriptor a real-time device (CAN socket, serial port): the
+  // mode-switch detector then allows read/write/ioctl/poll/send/recv on it inside
+  // cycles. Call from init() or on(); unregister before closing it. RT-safe.
+  static void register_rt_device(int fd) noexcept { (void)rt::modeswitch::register_rt_device(fd); }
+  static void unregister_rt_device(int fd) noexcept { rt::modeswitch::unregister_rt_device(fd); }
   [[nodiscard]] tims::Router& router() noexcept { return *router_; }
 
  private:
@@ -169,8 +204,12 @@ class Component {
   void set_state(ComponentState s) noexcept;
 
  private:
+  void sync_log_level() noexcept;  // gdosLevel parameter -> log_source_ (RT-safe)
+
   ComponentSettings settings_;
   ParameterSet params_;
+  gdos::LogSource log_source_;
+  Parameter* log_level_param_ = nullptr;
   std::vector<std::pair<const Parameter*, tims::Address>> refs_;  // filled by the executor
   uint32_t command_slot_size_ = 1024;
   tims::Router* router_ = nullptr;

@@ -8,18 +8,29 @@
 // first). stop(): OFF in reverse dependency order, stop and join every task,
 // cleanup() each, leave the network.
 //
+// GDOS: every task gets its own log ring (gdos.ring records) bound to its thread;
+// one non-RT thread (the GDOS thread) drains them every gdos.drain_ms, formats the
+// records and writes them to stderr (gdos.stderr) and publishes them on LCM
+// (gdos.lcm_url, channel gdos.channel). Executor events (start, init failures, ON,
+// OFF, ERROR, overruns, autostart failures) go the same way.
+//
 // Real-time contract: not RT-safe; call from the main (non-RT) thread.
 // Thread-safety: start/stop from one thread; status() from any non-RT thread.
 #pragma once
 
+#include <condition_variable>
 #include <functional>
 #include <memory>
+#include <mutex>
+#include <thread>
 #include <string>
 #include <vector>
 
 #include "rack/core/data_component.h"
+#include "rack/core/gdos.h"
 #include "rack/core/host_config.h"
 #include "rack/rt/thread.h"
+#include "rack/tims/gdos_lcm.h"
 #include "rack/tims/lcm_transport.h"
 
 namespace rack {
@@ -27,7 +38,12 @@ namespace rack {
 struct ExecutorOptions {
   bool allow_rt_fallback = true;   // run SCHED_OTHER when SCHED_FIFO is refused
   std::string lcm_url_override;    // replaces the host file's lcm_url when not empty
-  std::function<void(const std::string&)> log;  // executor events; default stderr
+  // Executor events are always logged through GDOS; `log`, when set, also gets
+  // each event's text (tests capture them this way).
+  std::function<void(const std::string&)> log;
+  // Every GDOS record of this host, as the GDOS thread hands it to stderr and LCM
+  // (tests, embedders). Called on the GDOS thread (not RT).
+  std::function<void(const gdos::Record&)> gdos_sink;
 };
 
 struct ComponentView {
@@ -60,8 +76,22 @@ class Executor {
   // One line per component: state, data task cycles/overruns/latency (for rackd).
   [[nodiscard]] std::string status_report() const;
 
+  // The non-RT entry point for preformatted reports (mode-switch reports, crash
+  // reports): queued to GDOS as a record of `source` (the executor when empty),
+  // published with the next pass. Not RT-safe (allocates); any non-RT thread.
+  void publish_report(gdos::Level level, const std::string& text, tims::Address source = tims::Address(),
+                      const std::string& source_name = {});
+  [[nodiscard]] gdos::Hub& gdos_hub() noexcept { return hub_; }
+  [[nodiscard]] const gdos::LogSource& log_source() const noexcept { return log_source_; }
+  // Formats and hands out what is queued now (the GDOS thread does this every
+  // gdos.drain_ms; tests call it to flush). Not RT-safe; any non-RT thread.
+  void flush_log();
+
  private:
-  void log(const std::string& line) const;
+  void log(gdos::Level level, const std::string& line);
+  void gdos_pass();
+  void pass_guarded() noexcept;
+  void gdos_loop();
   bool send_command(Component& c, int8_t type, int64_t timeout_ns, std::string& why);
 
   std::unique_ptr<LoadedHost> host_;
@@ -74,6 +104,17 @@ class Executor {
   std::vector<std::unique_ptr<rt::Thread>> threads_;
   bool started_ = false;
   bool fallback_ = false;
+
+  gdos::Hub hub_;
+  gdos::LogSource log_source_;
+  std::unique_ptr<tims::GdosPublisher> gdos_publisher_;
+  std::mutex gdos_mutex_;               // one pass at a time; guards gdos_running_ with the cv
+  std::condition_variable gdos_cv_;
+  bool gdos_running_ = false;
+  std::thread gdos_thread_;
+  uint64_t gdos_errors_reported_ = 0;   // publish errors already reported
+  std::string gdos_out_;                // stderr text of one pass (GDOS thread)
+  bool gdos_to_stderr_ = true;          // gdos.stderr: auto: the current choice
 };
 
 }  // namespace rack

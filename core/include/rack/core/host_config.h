@@ -18,6 +18,7 @@
 #include "rack/core/component.h"
 #include "rack/core/registry.h"
 #include "rack/rt/capabilities.h"
+#include "rack/rt/modeswitch.h"
 
 namespace rack {
 
@@ -27,6 +28,18 @@ struct ConfigError {
   int column = 0;   // 1-based
   std::string message;
   [[nodiscard]] std::string str() const;  // "file:line:col: message"
+};
+
+// GDOS on this host (the `gdos:` map of a host file; configs/demo.yaml explains it).
+struct GdosSettings {
+  gdos::Level level = gdos::kDefaultLevel;  // default gdosLevel of every component here
+  enum class Stderr : uint8_t { kAlways, kAuto, kNever };
+  Stderr to_stderr = Stderr::kAlways;      // auto: only while no gdos viewer listens
+  uint32_t ring = 256;                      // records per task ring (rounded up to a power of 2)
+  int64_t drain_ns = 20 * rt::kNsPerMs;     // how often the GDOS thread drains the rings
+  bool lcm = true;                          // publish on LCM (needs the host's lcm: true)
+  std::string lcm_url;                      // "": the host's TiMS URL
+  std::string channel = "RACK_GDOS";
 };
 
 struct HostSettings {
@@ -40,6 +53,9 @@ struct HostSettings {
   std::size_t heap_prefault_bytes = 64u << 20;
   int cpu_dma_latency_us = 0;     // PM QoS bound held while running; -1: leave to the system
   std::vector<std::string> plugins;
+  // Mode-switch detection (the `modeswitch:` block); rackd starts the detector.
+  rt::modeswitch::Config modeswitch;
+  GdosSettings gdos;
 };
 
 // A validated host: the settings, and every component constructed with its

@@ -32,6 +32,8 @@ class Parameter {
     double min = -std::numeric_limits<double>::infinity();
     double max = std::numeric_limits<double>::infinity();
     bool component_ref = false;  // a string that names a component (dependency)
+    // A string parameter that takes only these values (e.g. gdosLevel); empty: any.
+    std::vector<std::string> choices{};
   };
 
   Parameter(std::string name, ParamKind kind, Spec spec);
@@ -63,6 +65,7 @@ class Parameter {
 
  private:
   void store_string(const char* text, std::size_t len) noexcept;
+  [[nodiscard]] bool is_choice(const char* text) const noexcept;
 
   std::string name_;
   ParamKind kind_;

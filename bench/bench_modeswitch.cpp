@@ -1,0 +1,159 @@
+// Cost of mode-switch detection per cycle, each mode beside its reference in the
+// same run (STYLE.md 11).
+//
+// A cycle is what a small data task does: a PI mutex lock/unlock (as publish() does),
+// a 256-byte copy into a ring slot and a clock read. Variants, interleaved round by
+// round on the same SCHED_FIFO thread settings and CPU:
+//
+//   reference       the cycle alone: no window, the thread not attached
+//   off             window calls on a task whose mode is off (what every task pays)
+//   warn            window on, detector armed (SUD selector, page-fault event,
+//                   interposers), nothing reported: the normal cost
+//   abort           the same with mode abort
+//   +syscall ref    the cycle plus one getpid() system call, not attached
+//   +syscall warn   the same in a warn window: getpid is on the allow-list but is
+//                   trapped (SIGSYS round trip) because the cycle calls it directly
+//
+// With --rusage the detector runs with per-cycle getrusage (two system calls).
+//
+//   bench_modeswitch [--cycles N] [--rounds R] [--cpu C] [--priority P] [--rusage]
+//
+// Needs root (SCHED_FIFO, mlockall). Prints a table; figures go to bench/RESULTS.md
+// by hand (see its mode-switch section).
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bench_common.h"
+#include "rack/rt/clock.h"
+#include "rack/rt/memory.h"
+#include "rack/rt/modeswitch.h"
+#include "rack/rt/pi_mutex.h"
+#include "rack/rt/thread.h"
+
+namespace {
+
+using namespace rack::rt;
+using rack::bench::Percentiles;
+using rack::bench::percentiles_of;
+using rack::bench::kernel_string;
+namespace ms = rack::rt::modeswitch;
+
+struct Variant {
+  const char* name;
+  bool attach;
+  ms::Mode mode;
+  bool window;
+  bool syscall;
+  std::vector<int64_t> samples;
+};
+
+struct Shared {
+  PiMutex mutex;
+  alignas(64) char ring[64][256] = {};
+  char sample[256] = {};
+};
+
+__attribute__((noinline)) void cycle_body(Shared& s, unsigned i, bool syscall) {
+  {
+    PiLock lock(s.mutex);
+    std::memcpy(s.ring[i % 64], s.sample, sizeof s.sample);
+  }
+  s.sample[i % 256] = static_cast<char>(monotonic_ns());
+  if (syscall) (void)::syscall(SYS_getpid);  // direct, not through a framework call
+}
+
+void run_variant(Variant& v, Shared& shared, int cycles, int cpu, int priority) {
+  Thread t;
+  t.start({std::string("bench:") + v.name, priority, cpu, 256 * 1024},
+          [&] {
+            if (v.attach) ms::attach_current_thread(ms::TaskInfo{"bench", "bench", "Bench(0/0)", 0, v.mode});
+            for (int k = 0; k < 200; ++k) cycle_body(shared, static_cast<unsigned>(k), v.syscall);  // warm-up
+            for (int k = 0; k < cycles; ++k) {
+              const int64_t t0 = monotonic_ns();
+              if (v.window) ms::enter_cycle();
+              cycle_body(shared, static_cast<unsigned>(k), v.syscall);
+              if (v.window) (void)ms::leave_cycle();
+              v.samples.push_back(monotonic_ns() - t0);
+            }
+            if (v.attach) ms::detach_current_thread();
+          },
+          false);
+  t.join();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int cycles = 20000, rounds = 10, cpu = 1, priority = 80;
+  bool rusage = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&] {
+      if (i + 1 >= argc) { std::fprintf(stderr, "%s needs a value\n", a.c_str()); std::exit(2); }
+      return std::atoi(argv[++i]);
+    };
+    if (a == "--cycles") cycles = next();
+    else if (a == "--rounds") rounds = next();
+    else if (a == "--cpu") cpu = next();
+    else if (a == "--priority") priority = next();
+    else if (a == "--rusage") rusage = true;
+    else if (a == "-h" || a == "--help") {
+      std::puts("bench_modeswitch [--cycles N] [--rounds R] [--cpu C] [--priority P] [--rusage]");
+      return 0;
+    } else {
+      std::fprintf(stderr, "unknown option %s\n", a.c_str());
+      return 2;
+    }
+  }
+  const auto mem = apply_memory_policy(64u << 20);
+  ms::Config config;
+  config.program = "bench_modeswitch";
+  config.crash_dir = "/tmp/rack-bench-modeswitch";
+  config.rusage = rusage;
+  const auto started = ms::start(config);
+  std::fprintf(stderr, "%s\n%s\n", mem.describe().c_str(), started.describe().c_str());
+
+  std::vector<Variant> variants = {
+      {"reference", false, ms::Mode::kWarn, false, false, {}},
+      {"off", true, ms::Mode::kOff, true, false, {}},
+      {"warn", true, ms::Mode::kWarn, true, false, {}},
+      {"abort", true, ms::Mode::kAbort, true, false, {}},
+      {"+syscall ref", false, ms::Mode::kWarn, false, true, {}},
+      {"+syscall warn", true, ms::Mode::kWarn, true, true, {}},
+  };
+  for (auto& v : variants) v.samples.reserve(static_cast<std::size_t>(cycles) * static_cast<std::size_t>(rounds));
+  Shared shared;
+  for (int r = 0; r < rounds; ++r) {
+    for (auto& v : variants) run_variant(v, shared, cycles, cpu, priority);
+  }
+  const auto counts = ms::counters();
+  ms::stop();
+
+  std::printf("mode-switch detection cost per cycle%s: %d rounds x %d cycles per variant, CPU %d, SCHED_FIFO %d\n",
+              rusage ? " (with per-cycle getrusage)" : "", rounds, cycles, cpu, priority);
+  std::printf("kernel %s\n", kernel_string().c_str());
+  std::printf("%-14s %9s %9s %9s %9s   %-22s %s\n", "variant", "p50 ns", "p99 ns", "p99.9 ns", "max ns",
+              "minus ref p50 / p99", "ratio to ref p50 / p99");
+  Percentiles ref{}, ref_sys{};
+  for (auto& v : variants) {
+    const Percentiles p = percentiles_of(v.samples);
+    const bool sys = v.syscall;
+    if (std::string(v.name) == "reference") ref = p;
+    if (std::string(v.name) == "+syscall ref") ref_sys = p;
+    const Percentiles& base = sys ? ref_sys : ref;
+    char diff[64];
+    std::snprintf(diff, sizeof diff, "%+.0f / %+.0f ns", p.p50_ns - base.p50_ns, p.p99_ns - base.p99_ns);
+    std::printf("%-14s %9.0f %9.0f %9.0f %9.0f   %-22s %.2fx / %.2fx\n", v.name, p.p50_ns, p.p99_ns, p.p999_ns,
+                p.max_ns, diff, p.p50_ns / base.p50_ns, p.p99_ns / base.p99_ns);
+  }
+  std::printf("reports recorded during the run: %llu (expected 0: getpid is on the allow-list, trapped but not reported)\n",
+              static_cast<unsigned long long>(counts.reports));
+  return 0;
+}

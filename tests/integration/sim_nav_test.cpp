@@ -1,0 +1,168 @@
+// Integration: the simulated robot (configs/sim_nav.yaml) in the real rackd, driven
+// by the real rackctl over TiMS/LCM, each test on its own LCM bus with a watchdog.
+//
+// Asserts behaviour only (states, data, exit codes); waits are generous bounds.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <chrono>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "mini_json.h"
+#include "process.h"
+
+namespace rack::test {
+namespace {
+
+using namespace std::chrono_literals;
+
+const std::string kRackd = RACK_RACKD_PATH;
+const std::string kRackctl = RACK_RACKCTL_PATH;
+const std::string kConfigs = RACK_CONFIGS_DIR;
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+class SimNavTest : public ::testing::Test {
+ protected:
+  SimNavTest() : watchdog_(100s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
+  void TearDown() override {
+    if (rackd_ && rackd_->running()) {
+      rackd_->signal(SIGTERM);
+      EXPECT_EQ(rackd_->wait_exit(30s), std::optional<int>(0)) << rackd_->err();
+    }
+  }
+
+  // configs/sim_nav.yaml with its map paths made absolute (the shipped file names
+  // them relative to the repository root, where the README runs rackd), optionally
+  // with the ladar's map replaced.
+  std::string host_file(const std::string& ladar_map = "") {
+    std::string text = read_file(kConfigs + "/sim_nav.yaml");
+    const std::string rel = "map: configs/maps/office.yaml";
+    const std::string abs = "map: " + kConfigs + "/maps/office.yaml";
+    int replaced = 0;
+    for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1)) {
+      // The second occurrence is the ladar's.
+      text.replace(at, rel.size(), ++replaced == 2 && !ladar_map.empty() ? "map: " + ladar_map : abs);
+    }
+    EXPECT_EQ(replaced, 2) << "sim_nav.yaml names the map for the chassis and the ladar";
+    return dir_.write("sim_nav.yaml", text).string();
+  }
+  void start(const std::string& path) {
+    rackd_ = std::make_unique<Process>(std::vector<std::string>{kRackd, path, "--lcm", bus_.url()}, dir_.path(), "rackd");
+    ASSERT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
+  }
+  RunResult ctl(std::vector<std::string> args) {
+    args.insert(args.begin(), {kRackctl, "--lcm", bus_.url(), "--discover-ms", "3000"});
+    return run(args, 30s);
+  }
+  // The `data` object of `rackctl get-data NAME`.
+  std::optional<Json> data(const std::string& name) {
+    const RunResult r = ctl({"get-data", name});
+    if (r.exit_code != 0) return std::nullopt;
+    auto j = parse_json(r.out);
+    if (!j || !j->at("data").is_object()) return std::nullopt;
+    return j->at("data");
+  }
+  double number(const std::string& name, const std::string& field) {
+    const auto d = data(name);
+    return d && d->at(field).is_number() ? d->at(field).number : -1e9;
+  }
+  template <typename Pred>
+  bool eventually(Pred pred, std::chrono::milliseconds bound = 30s) {
+    const auto deadline = std::chrono::steady_clock::now() + bound;
+    for (;;) {
+      if (pred()) return true;
+      if (std::chrono::steady_clock::now() >= deadline) return false;
+      std::this_thread::sleep_for(100ms);
+    }
+  }
+
+  Watchdog watchdog_;
+  TempDir dir_;
+  LcmBus bus_;
+  std::unique_ptr<Process> rackd_;
+};
+
+TEST_F(SimNavTest, TheShippedHostFilesAreValid) {
+  const auto r = run({kRackd, "--check", host_file()}, 30s);
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+}
+
+TEST_F(SimNavTest, TheMainJobsHostFileIsValidWhenMclIsBuiltIn) {
+  // sim_mcl.yaml is sim_nav.yaml plus the MCL component, which another part of the
+  // project provides; until it is built in, the host file cannot load.
+  const auto classes = run({kRackd, "--list-classes"}, 30s);
+  ASSERT_EQ(classes.exit_code, 0) << classes.describe();
+  if (!contains(classes.out, "MCL  (class ")) GTEST_SKIP() << "class MCL is not built into this rackd";
+  std::string text = read_file(kConfigs + "/sim_mcl.yaml");
+  const std::string rel = "map: configs/maps/office.yaml";
+  for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1)) {
+    text.replace(at, rel.size(), "map: " + kConfigs + "/maps/office.yaml");
+  }
+  const auto r = run({kRackd, "--check", dir_.write("sim_mcl.yaml", text).string()}, 30s);
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+}
+
+TEST_F(SimNavTest, TheRobotFollowsThePathAndTakesADestinationFromRackctl) {
+  start(host_file());
+  // The pilot (autostart) switched the whole robot on and drives along the path.
+  ASSERT_TRUE(eventually([&] { return number("pilot", "status") == 1 && number("pilot", "vx") > 0.2; }))
+      << rackd_->err();
+  EXPECT_EQ(number("path", "waypoint_count"), 8);
+  EXPECT_EQ(number("path", "closed"), 1);
+  const auto chassis = data("chassis");
+  ASSERT_TRUE(chassis.has_value());
+  EXPECT_EQ(chassis->at("truth_valid").number, 1);
+  EXPECT_EQ(chassis->at("collisions").number, 0);
+  EXPECT_EQ(chassis->at("active_pilot").number, 0x19 << 16) << "Pilot(0/0) is the active pilot";
+  // The robot moved along the corridor from its start at x = 4.
+  ASSERT_TRUE(eventually([&] { return number("chassis", "truth_x") > 5.0; }));
+
+  // A destination through rackctl: the pilot drives there and reports it reached.
+  RunResult r = ctl({"set-param", "pilot", "destination", "6.5,8.0"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  ASSERT_TRUE(eventually([&] {
+    const auto p = data("pilot");
+    return p && p->at("mode").number == 2 && p->at("target_x").number == 6.5 && p->at("status").number == 2;
+  }, 60s)) << ctl({"get-data", "pilot"}).out;
+  EXPECT_NEAR(number("chassis", "truth_x"), 6.5, 0.4);
+  EXPECT_NEAR(number("chassis", "truth_y"), 8.0, 0.4);
+  // A malformed destination is counted and ignored.
+  r = ctl({"set-param", "pilot", "destination", "six,eight"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  ASSERT_TRUE(eventually([&] { return number("pilot", "bad_destinations") == 1; }));
+  EXPECT_EQ(number("pilot", "mode"), 2);
+  // Back to the path.
+  r = ctl({"set-param", "pilot", "destination", ""});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  ASSERT_TRUE(eventually([&] { return number("pilot", "mode") == 1 && number("pilot", "status") == 1; }));
+  EXPECT_EQ(number("chassis", "collisions"), 0);
+  // OFF stops the robot.
+  ASSERT_EQ(ctl({"off", "pilot"}).exit_code, 0);
+  ASSERT_TRUE(eventually([&] { return number("chassis", "vx") == 0.0 && number("chassis", "active_pilot") == 0; }));
+}
+
+TEST_F(SimNavTest, AMissingMapStopsOnlyTheLadarAndWhatNeedsIt) {
+  const std::string missing = dir_.path().string() + "/no_such_map.yaml";
+  start(host_file(missing));
+  // rackd says which file is missing and keeps running.
+  ASSERT_TRUE(rackd_->wait_for_stderr("no_such_map.yaml", 30s)) << rackd_->err();
+  const RunResult on = ctl({"on", "ladar"});
+  EXPECT_EQ(on.exit_code, 1) << on.describe();
+  EXPECT_TRUE(contains(on.err + on.out, "no_such_map.yaml")) << on.describe();
+  // The chassis and the odometry chain run; the pilot cannot (no scans), and says so.
+  ASSERT_EQ(ctl({"on", "position"}).exit_code, 0);
+  ASSERT_TRUE(eventually([&] { return number("odometry", "x") > -1e9; }));
+  const auto st = ctl({"status", "chassis"});
+  EXPECT_EQ(st.exit_code, 0) << st.describe();
+  EXPECT_TRUE(contains(st.out, "ENABLED")) << st.describe();
+  EXPECT_EQ(ctl({"on", "pilot"}).exit_code, 1);
+  EXPECT_TRUE(rackd_->running());
+}
+
+}  // namespace
+}  // namespace rack::test

@@ -1,0 +1,109 @@
+// GDOS on LCM: how a host publishes its formatted log records and how tools (the
+// `gdos` viewer) receive them. The LCM types are in tims/lcm/rack_gdos.lcm.
+//
+// A host publishes batches (rack_lcm.gdos_batch) on its own LCM instance, by
+// default on the TiMS URL, channel "RACK_GDOS". Each record carries the host, the
+// component's address and name, the level, the host time and a sequence number per
+// publishing process (gaps are losses on the network). A viewer announces itself on
+// "RACK_GDOS_LISTENER" once a second, so a host can stop copying its log to stderr
+// while somebody listens (gdos.stderr: auto).
+//
+// Real-time contract: nothing here is RT-safe; the publisher runs in the host's
+// GDOS thread, the subscriber in a tool. Thread-safety: one thread per object,
+// except GdosPublisher::counters() (any thread).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <string_view>
+
+namespace rack::tims {
+
+inline constexpr const char* kGdosChannel = "RACK_GDOS";
+inline constexpr const char* kGdosListenerChannel = "RACK_GDOS_LISTENER";
+
+// One record as tools see it.
+struct GdosRecord {
+  std::string host;
+  int32_t pid = 0;
+  uint32_t source = 0;        // TiMS address (bits)
+  std::string name;           // component name ("" if unknown)
+  uint8_t level = 0;          // 0 print .. 4 detail
+  int64_t time_ns = 0;        // host clock
+  uint64_t sequence = 0;
+  uint32_t dropped_before = 0;
+  std::string text;
+};
+
+struct GdosPublisherConfig {
+  std::string url;                     // LCM URL
+  std::string channel = kGdosChannel;
+  std::string host;                    // host name in every batch
+  int32_t pid = 0;
+  std::size_t max_batch_bytes = 16 * 1024;  // well below LCM's fragmentation size
+};
+
+struct GdosPublisherCounters {
+  uint64_t records = 0;
+  uint64_t batches = 0;
+  uint64_t publish_errors = 0;
+};
+
+class GdosPublisher {
+ public:
+  // Joins the LCM network. Throws std::runtime_error naming the URL on failure.
+  explicit GdosPublisher(GdosPublisherConfig config);
+  ~GdosPublisher();
+  GdosPublisher(const GdosPublisher&) = delete;
+  GdosPublisher& operator=(const GdosPublisher&) = delete;
+
+  // Adds a record to the current batch; publishes the batch when it is full.
+  void add(uint32_t source, std::string_view name, uint8_t level, int64_t time_ns, uint64_t sequence,
+           uint32_t dropped_before, std::string_view text);
+  void flush();  // publishes what is batched
+  // Reads pending listener announcements (non-blocking) and says whether a viewer
+  // announced itself within the last `within_ns`.
+  [[nodiscard]] bool listener_present(int64_t within_ns);
+  [[nodiscard]] GdosPublisherCounters counters() const noexcept;
+  [[nodiscard]] const std::string& url() const noexcept;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+struct GdosSubscriberCounters {
+  uint64_t batches = 0;
+  uint64_t records = 0;
+  uint64_t malformed = 0;   // undecodable batches on the channel
+  uint64_t lost = 0;        // sequence gaps (records lost between a host and us)
+};
+
+class GdosSubscriber {
+ public:
+  // Joins the LCM network and subscribes to `channel` and to the TiMS announcements
+  // (names of components). With `announce`, says once a second that it listens.
+  // Throws std::runtime_error naming the URL on failure.
+  GdosSubscriber(const std::string& url, const std::string& channel, bool announce, std::string name);
+  ~GdosSubscriber();
+  GdosSubscriber(const GdosSubscriber&) = delete;
+  GdosSubscriber& operator=(const GdosSubscriber&) = delete;
+
+  // Waits up to `timeout_ms` for traffic and hands every record received to `sink`
+  // (in arrival order; a host's records in its order). Returns the records handled.
+  std::size_t poll(int timeout_ms, const std::function<void(const GdosRecord&)>& sink);
+  // The name of a component address from the hosts' TiMS announcements, or "".
+  [[nodiscard]] std::string announced_name(uint32_t address) const;
+  [[nodiscard]] GdosSubscriberCounters counters() const noexcept;
+  // Warnings to show the user (malformed batches, losses); cleared by the call.
+  [[nodiscard]] std::string take_warnings();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rack::tims

@@ -1,0 +1,141 @@
+#include "report_file.h"
+
+#include <cerrno>
+#include <cstdlib>
+#include <sstream>
+
+namespace rack::backtrace {
+
+namespace {
+
+bool starts_with(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
+
+// "key=value key=value ..." (values without spaces), from `pos`.
+std::map<std::string, std::string> key_values(const std::string& line, std::size_t pos) {
+  std::map<std::string, std::string> out;
+  std::istringstream in(line.substr(pos));
+  std::string word;
+  while (in >> word) {
+    const auto eq = word.find('=');
+    if (eq != std::string::npos) out[word.substr(0, eq)] = word.substr(eq + 1);
+  }
+  return out;
+}
+
+bool parse_u64(const std::string& text, uint64_t& out) {
+  if (text.empty()) return false;
+  char* end = nullptr;
+  errno = 0;
+  out = std::strtoull(text.c_str(), &end, 0);
+  return errno == 0 && end != nullptr && *end == '\0';
+}
+
+}  // namespace
+
+const ModuleLine* ReportFile::module_of(uint64_t pc) const {
+  for (const auto& m : modules) {
+    if (pc >= m.lo && pc < m.hi) return &m;
+  }
+  return nullptr;
+}
+
+ReportFile parse_report_file(std::istream& in, const std::string& name) {
+  ReportFile f;
+  f.name = name;
+  std::string line;
+  int n = 0;
+  auto where = [&](int at) { return name + ":" + std::to_string(at); };
+  if (!std::getline(in, line)) {
+    f.errors.push_back(name + ": empty (not a RACK mode-switch report)");
+    return f;
+  }
+  n = 1;
+  if (!starts_with(line, "RACK-MODESWITCH-REPORT ")) {
+    f.errors.push_back(where(1) + ": not a RACK mode-switch report (expected 'RACK-MODESWITCH-REPORT 1 ...', got '" +
+                       line.substr(0, 60) + "')");
+    return f;
+  }
+  if (!starts_with(line, "RACK-MODESWITCH-REPORT 1 ")) {
+    f.errors.push_back(where(1) + ": report format version not understood (this tool reads version 1)");
+    return f;
+  }
+  f.header = line;
+  bool open = false;
+  Report current;
+  uint64_t expected_frames = 0;
+  int open_line = 0;
+  auto close_truncated = [&](const std::string& why) {
+    f.errors.push_back(where(open_line) + ": report " + std::to_string(current.sequence) + " is truncated: " +
+                       std::to_string(current.pcs.size()) + " of " + std::to_string(expected_frames) +
+                       " frames and no 'end " + std::to_string(current.sequence) + "' line (" + why + ")");
+    open = false;
+  };
+  while (std::getline(in, line)) {
+    ++n;
+    if (line.empty()) continue;
+    if (starts_with(line, "module ")) {
+      if (open) close_truncated("a module line follows it");
+      ModuleLine m;
+      const auto path_at = line.find(" path=");
+      const auto kv = key_values(line.substr(0, path_at), 7);
+      std::istringstream id(line.substr(7));
+      if (path_at == std::string::npos || !(id >> m.id) || !kv.count("base") || !parse_u64(kv.at("base"), m.base) ||
+          !kv.count("lo") || !parse_u64(kv.at("lo"), m.lo) || !kv.count("hi") || !parse_u64(kv.at("hi"), m.hi)) {
+        f.errors.push_back(where(n) + ": malformed module line");
+        continue;
+      }
+      m.build_id = kv.count("build_id") && kv.at("build_id") != "-" ? kv.at("build_id") : "";
+      m.path = line.substr(path_at + 6);
+      f.modules.push_back(m);
+    } else if (starts_with(line, "report ")) {
+      if (open) close_truncated("the next report starts");
+      current = Report{};
+      current.fields = key_values(line, 7);
+      current.where = where(n);
+      std::istringstream seq(line.substr(7));
+      if (!(seq >> current.sequence) || !current.fields.count("reason") || !current.fields.count("frames") ||
+          !parse_u64(current.fields.at("frames"), expected_frames)) {
+        f.errors.push_back(where(n) + ": malformed report line");
+        continue;
+      }
+      open = true;
+      open_line = n;
+    } else if (starts_with(line, "detail ")) {
+      if (!open) { f.errors.push_back(where(n) + ": 'detail' outside a report"); continue; }
+      current.detail = line.substr(7);
+    } else if (starts_with(line, "frame ")) {
+      if (!open) { f.errors.push_back(where(n) + ": 'frame' outside a report"); continue; }
+      std::istringstream fr(line.substr(6));
+      uint64_t index = 0;
+      std::string pc_text;
+      uint64_t pc = 0;
+      if (!(fr >> index >> pc_text) || !parse_u64(pc_text, pc) || index != current.pcs.size()) {
+        f.errors.push_back(where(n) + ": malformed frame line (expected 'frame " +
+                           std::to_string(current.pcs.size()) + " 0x...')");
+        continue;
+      }
+      current.pcs.push_back(pc);
+    } else if (starts_with(line, "end ")) {
+      uint64_t seq = 0;
+      if (!open || !parse_u64(line.substr(4), seq) || seq != current.sequence) {
+        f.errors.push_back(where(n) + ": 'end' without its report");
+        open = false;
+        continue;
+      }
+      if (current.pcs.size() != expected_frames) {
+        f.errors.push_back(where(open_line) + ": report " + std::to_string(seq) + " has " +
+                           std::to_string(current.pcs.size()) + " frames, its header says " +
+                           std::to_string(expected_frames));
+      } else {
+        f.reports.push_back(current);
+      }
+      open = false;
+    } else {
+      f.errors.push_back(where(n) + ": unknown line '" + line.substr(0, 40) + "'");
+    }
+  }
+  if (open) close_truncated("the file ends: the process died while writing, or the file was cut");
+  return f;
+}
+
+}  // namespace rack::backtrace

@@ -1,0 +1,210 @@
+// gdos: the live log of every rackd on an LCM network (RACK's GDOS viewer), or the
+// replay of a recorded log. Names instead of addresses, colours by level on a
+// terminal, filters, --record/--replay, --json for scripts.
+#include <signal.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "gdos_view.h"
+#include "rack/rt/clock.h"
+#include "rack/tims/gdos_lcm.h"
+#include "rack/tims/lcm_transport.h"
+
+namespace {
+
+constexpr const char* kUsage = R"(usage: gdos [options]
+
+Shows the GDOS log of every rackd on an LCM network as it happens: one line per
+record with time (UTC), host, level (P print, E error, W warning, I info,
+D detail), component name and text. Start it before or after the hosts; it
+listens until Ctrl-C (or --count / --duration).
+
+options:
+  --lcm URL          the LCM network (default: $LCM_DEFAULT_URL, else
+                     udpm://239.255.76.67:7667?ttl=0, rackd's default)
+  --channel NAME     the GDOS channel (default RACK_GDOS; a host file's
+                     gdos.channel)
+  --level LEVEL      show records at or below LEVEL: print, error, warning,
+                     info, detail (default detail: all); print always shows
+  --host HOST        only records from HOST (repeatable)
+  --component NAME   only records of component NAME: its host-file name or its
+                     address such as Generator(0/1) (repeatable)
+  --grep TEXT        only records whose text contains TEXT
+  --record FILE      also write every record received (before the filters) to
+                     FILE, in gdos's record format (see tools/gdos/README.md)
+  --replay FILE      show the records of FILE instead of listening (filters
+                     and --json apply); a malformed or truncated file is
+                     rejected with the byte offset of the problem (exit 1)
+  --json             one JSON object per line (host, pid, time_ns, time,
+                     sequence, level, source, source_raw, name, dropped_before,
+                     text) instead of text
+  --color, --no-color  force colours on or off (default: on when stdout is a
+                     terminal and NO_COLOR is unset)
+  --count N          exit after N records shown
+  --duration SEC     exit after SEC seconds
+  --silent           do not announce this viewer (hosts with gdos.stderr: auto
+                     keep writing their log to stderr)
+  -h, --help         this text
+
+Losses are reported on stderr: records a host's ring dropped (its next record
+says how many) and records lost on the network (gaps in a host's sequence).
+
+exit codes: 0 ok (Ctrl-C, --count or --duration reached, end of a replay),
+1 cannot join the network or read/write a file (malformed file included),
+2 usage error.
+)";
+
+std::atomic<bool> g_stop{false};
+void on_signal(int) { g_stop.store(true); }
+
+[[noreturn]] void usage_error(const std::string& what) {
+  std::fprintf(stderr, "gdos: %s\n(gdos --help for the options)\n", what.c_str());
+  std::exit(2);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace rack;
+  gdos_view::Filter filter;
+  std::string url = std::getenv("LCM_DEFAULT_URL") != nullptr ? std::getenv("LCM_DEFAULT_URL") : tims::kDefaultLcmUrl;
+  std::string channel = tims::kGdosChannel;
+  std::string record_path, replay_path;
+  bool json = false, silent = false;
+  std::optional<bool> colour_opt;
+  long long count = -1;
+  double duration = -1;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const char* what) -> std::string {
+      if (i + 1 >= argc) usage_error(a + " needs " + what);
+      return argv[++i];
+    };
+    if (a == "-h" || a == "--help") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    } else if (a == "--lcm") {
+      url = value("an LCM URL");
+    } else if (a == "--channel") {
+      channel = value("a channel name");
+      if (channel.empty()) usage_error("--channel needs a non-empty name");
+    } else if (a == "--level") {
+      const std::string v = value("a level");
+      const auto l = gdos::parse_level(v);
+      if (!l) usage_error("--level must be one of " + std::string(gdos::kLevelNames) + ", got '" + v + "'");
+      filter.max_level = *l;
+    } else if (a == "--host") {
+      filter.hosts.push_back(value("a host name"));
+    } else if (a == "--component") {
+      filter.components.push_back(value("a component name or address"));
+    } else if (a == "--grep") {
+      filter.text = value("a text");
+    } else if (a == "--record") {
+      record_path = value("a file");
+    } else if (a == "--replay") {
+      replay_path = value("a file");
+    } else if (a == "--json") {
+      json = true;
+    } else if (a == "--color" || a == "--colour") {
+      colour_opt = true;
+    } else if (a == "--no-color" || a == "--no-colour") {
+      colour_opt = false;
+    } else if (a == "--silent") {
+      silent = true;
+    } else if (a == "--count") {
+      const std::string v = value("a number");
+      char* end = nullptr;
+      count = std::strtoll(v.c_str(), &end, 10);
+      if (v.empty() || *end != '\0' || count <= 0) usage_error("--count needs a positive number, got '" + v + "'");
+    } else if (a == "--duration") {
+      const std::string v = value("seconds");
+      char* end = nullptr;
+      duration = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end != '\0' || !(duration > 0)) usage_error("--duration needs positive seconds, got '" + v + "'");
+    } else {
+      usage_error("unknown argument '" + a + "'");
+    }
+  }
+  if (!record_path.empty() && !replay_path.empty()) usage_error("--record and --replay exclude each other");
+  const bool colour = colour_opt.value_or(isatty(STDOUT_FILENO) == 1 && std::getenv("NO_COLOR") == nullptr);
+
+  long long shown = 0;
+  auto show = [&](const tims::GdosRecord& r, const std::string& name) {
+    if (!filter.matches(r, name)) return;
+    const std::string line = json ? gdos_view::json_line(r, name) : gdos_view::text_line(r, name, colour);
+    std::fputs(line.c_str(), stdout);
+    std::fputc('\n', stdout);
+    ++shown;
+  };
+
+  if (!replay_path.empty()) {
+    try {
+      gdos_view::RecordReader reader(replay_path);
+      tims::GdosRecord r;
+      while ((count < 0 || shown < count) && reader.next(r)) show(r, r.name);
+    } catch (const std::exception& e) {
+      std::fflush(stdout);
+      std::fprintf(stderr, "gdos: %s\n", e.what());
+      return 1;
+    }
+    std::fflush(stdout);
+    return 0;
+  }
+
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+
+  std::unique_ptr<tims::GdosSubscriber> sub;
+  std::unique_ptr<gdos_view::RecordWriter> writer;
+  try {
+    sub = std::make_unique<tims::GdosSubscriber>(url, channel, !silent, "gdos");
+    if (!record_path.empty()) writer = std::make_unique<gdos_view::RecordWriter>(record_path, url + " " + channel);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "gdos: %s\n", e.what());
+    return 1;
+  }
+  std::fprintf(stderr, "gdos: listening on %s channel %s%s\n", url.c_str(), channel.c_str(),
+               writer ? (", recording to " + record_path).c_str() : "");
+  const int64_t end = duration > 0 ? rack::rt::monotonic_ns() + static_cast<int64_t>(duration * 1e9) : INT64_MAX;
+  int exit_code = 0;
+  while (!g_stop.load() && (count < 0 || shown < count) && rack::rt::monotonic_ns() < end) {
+    try {
+      sub->poll(100, [&](const tims::GdosRecord& r) {
+        if (writer) writer->write(r);
+        if (count >= 0 && shown >= count) return;
+        std::string name = r.name;
+        if (name.empty()) name = sub->announced_name(r.source);
+        show(r, name);
+      });
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "gdos: %s\n", e.what());
+      exit_code = 1;
+      break;
+    }
+    std::fflush(stdout);
+    if (writer) writer->flush();
+    const std::string w = sub->take_warnings();
+    if (!w.empty()) std::fputs(w.c_str(), stderr);
+  }
+  std::fflush(stdout);
+  const auto c = sub->counters();
+  std::fprintf(stderr, "gdos: %llu record(s) received, %lld shown, %llu lost on the network, %llu malformed batch(es)\n",
+               static_cast<unsigned long long>(c.records), shown, static_cast<unsigned long long>(c.lost),
+               static_cast<unsigned long long>(c.malformed));
+  if (writer) {
+    writer->flush();
+    std::fprintf(stderr, "gdos: %llu record(s) written to %s\n", static_cast<unsigned long long>(writer->records()),
+                 record_path.c_str());
+  }
+  return exit_code;
+}
