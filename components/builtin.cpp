@@ -3,6 +3,7 @@
 #include "chassis_sim/chassis_sim.h"
 #include "generator/generator.h"
 #include "ladar_sim/ladar_sim.h"
+#include "mcl/mcl.h"
 #include "monitor/monitor.h"
 #include "odometry/odometry.h"
 #include "path/path.h"
@@ -10,6 +11,7 @@
 #include "position/position.h"
 #include "modeswitch_demo/modeswitch_demo.h"
 #include "probe/probe.h"
+#include "replay/replay_components.h"
 #include "scan2d/scan2d.h"
 #include "rack/tims/address.h"
 
@@ -23,6 +25,12 @@ void register_builtin(ComponentRegistry& registry) {
                 [] { return std::make_unique<Monitor>(); }});
   registry.add({"Probe", cls::kProbe, "test: hooks fail or throw on demand",
                 [] { return std::make_unique<Probe>(); }});
+  registry.add({"MCL", cls::kMcl, "Monte Carlo localisation on MRPT: Scan2D + map -> pose; Position UPDATE",
+                [] { return std::make_unique<Mcl>(); }});
+  registry.add({"ChassisReplay", cls::kChassis, "replay: a CARMEN log or MRPT rawlog's odometry as Chassis increments",
+                [] { return std::make_unique<ChassisReplay>(); }});
+  registry.add({"LadarReplay", cls::kLadar, "replay: a CARMEN log or MRPT rawlog's laser scans as Ladar data",
+                [] { return std::make_unique<LadarReplay>(); }});
   // The simulated robot and navigation (README: "Simulated robot and navigation").
   registry.add({"ChassisSim", cls::kChassis, "simulated drive: velocity commands, odometry with noise, true pose",
                 [] { return std::make_unique<ChassisSim>(); }});

@@ -17,6 +17,8 @@ packages=(
   libdw-dev libelf-dev                   # backtrace symbolisation (elfutils)
   iproute2                               # network namespaces in the integration tests
   python3 python3-matplotlib             # bench/run writes RESULTS.md and its plots
+  libmrpt-slam-dev libmrpt-maps-dev libmrpt-obs-dev libmrpt-poses-dev libmrpt-bayes-dev
+  mrpt-common                            # MCL and rawlog replay (MRPT 2.5); datasets for bench
 )
 
 missing=()

@@ -183,8 +183,11 @@ void Executor::start() {
       // Each task registers itself with the mode-switch detector (a no-op when
       // rackd did not start it) before its first cycle.
       auto watch = [&](const TaskSettings& t, const char* suffix) {
+        // A priority-0 task runs with normal scheduling: it is not real-time, so what it
+        // does (MCL allocates every update) is not a mode switch unless asked for.
+        const auto fallback = t.priority == 0 ? rt::modeswitch::Mode::kOff : hs.modeswitch.default_mode;
         return rt::modeswitch::TaskInfo{c.name() + suffix, c.name(), c.address().str(), c.address().raw(),
-                                        t.modeswitch.value_or(hs.modeswitch.default_mode)};
+                                        t.modeswitch.value_or(fallback)};
       };
       auto cmd = std::make_unique<rt::Thread>();
       gdos::LogRing* cmd_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " command task");

@@ -87,13 +87,20 @@ struct HostLoader {
     return true;
   }
 
+  // min_priority 0 (data tasks only) means normal scheduling (SCHED_OTHER): for heavy,
+  // allocating components such as MCL that must not compete with the control tasks.
+  // Command tasks stay SCHED_FIFO: they answer ON/OFF and must stay responsive.
   void read_task(const YAML::Node& node, TaskSettings& task, const std::string& where,
-                 const std::set<std::string>& extra_keys) {
+                 const std::set<std::string>& extra_keys, int64_t min_priority = 1) {
     std::set<std::string> keys{"priority", "cpu", "stack_kib", "modeswitch"};
     keys.insert(extra_keys.begin(), extra_keys.end());
     check_keys(node, keys, where);
     int64_t v = 0;
-    if (get_int_range(node, "priority", 1, 99, v, "an integer priority 1..99")) task.priority = static_cast<int>(v);
+    if (get_int_range(node, "priority", min_priority, 99, v,
+                      min_priority == 0 ? "an integer priority 0..99 (0: normal scheduling)"
+                                        : "an integer priority 1..99")) {
+      task.priority = static_cast<int>(v);
+    }
     if (node["cpu"]) {
       if (get(node, "cpu", v, "a CPU number")) {
         if (v < 0 || !caps.cpu_online(static_cast<int>(v))) {
@@ -436,7 +443,7 @@ struct HostLoader {
         std::set<std::string> extra{"ring", "max_listeners"};
         if (mode == DataTaskMode::kPeriodic) extra.insert("period_ms");
         else extra.insert({"timeout_ms", "input_slots"});
-        read_task(dt, s.data_task, "data_task of a " + std::string(describe(mode)) + " class", extra);
+        read_task(dt, s.data_task, "data_task of a " + std::string(describe(mode)) + " class", extra, 0);
         int64_t n = 0;
         if (get_int_range(dt, "ring", 2, 1'000'000, n, "a sample count")) s.ring_size = static_cast<uint32_t>(n);
         if (get_int_range(dt, "max_listeners", 1, 1024, n, "a listener count")) s.max_listeners = static_cast<uint32_t>(n);

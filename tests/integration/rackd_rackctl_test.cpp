@@ -223,9 +223,11 @@ const MalformedCase kMalformed[] = {
      {},
      "  - name: generator2  # <-- error\n    class: Generator\n    instance: 0\n    data_task: {period_ms: 10}\n",
      "has the address Generator(0/0)"},
-    {"priority_0", {{"      priority: 60", "      priority: 0  # <-- error"}}, "", "'priority' = 0 is outside 1..99"},
+    // A data task may have priority 0 (normal scheduling, for heavy components such as
+    // MCL); below that, or above 99, is an error.
+    {"priority_negative", {{"      priority: 60", "      priority: -1  # <-- error"}}, "", "'priority' = -1 is outside 0..99"},
     {"priority_100", {{"      priority: 60", "      priority: 100  # <-- error"}}, "",
-     "'priority' = 100 is outside 1..99"},
+     "'priority' = 100 is outside 0..99"},
     {"cpu_not_online", {{"      priority: 60", "      priority: 60\n      cpu: 999  # <-- error"}}, "",
      "CPU 999 is not online"},
     {"period_zero", {{"      period_ms: 10", "      period_ms: 0  # <-- error"}}, "", "'period_ms' must be positive"},

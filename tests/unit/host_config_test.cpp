@@ -234,6 +234,27 @@ components:
       priority: 100
 )",
                7, {"'priority'"});
+  expect_error(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task:
+      period_ms: 10
+      priority: -1
+)",
+               7, {"'priority'", "0..99"});
+}
+
+// Priority 0 on a data task means normal scheduling (heavy components such as MCL).
+TEST_F(HostConfigTest, DataTaskPriorityZeroIsNormalScheduling) {
+  const auto r = load(R"(lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task: {period_ms: 10, priority: 0}
+)");
+  ASSERT_TRUE(r.errors.empty()) << r.errors.front().str();
+  EXPECT_EQ(r.host->components.at(0)->settings().data_task.priority, 0);
 }
 
 TEST_F(HostConfigTest, CpuNotOnline) {

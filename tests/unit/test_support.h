@@ -100,8 +100,10 @@ class HostUnderTest {
  public:
   static constexpr uint32_t kReplySlotSize = 64 * 1024;
 
-  explicit HostUnderTest(const std::string& yaml) {
+  // `extra` registers test-only component classes beside the built-in ones.
+  explicit HostUnderTest(const std::string& yaml, const std::function<void(ComponentRegistry&)>& extra = {}) {
     components::register_builtin(registry_);
+    if (extra) extra(registry_);
     auto loaded = load_host_text(yaml, "test.yaml", registry_, rt::probe_capabilities());
     if (!loaded.errors.empty()) {
       std::string all;

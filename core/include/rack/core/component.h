@@ -54,7 +54,8 @@ struct TaskSettings {
   int cpu = -1;                         // -1: any
   std::size_t stack_bytes = 256 * 1024;
   // Mode-switch detection for this task (off, warn, abort); unset: the host file's
-  // modeswitch.mode.
+  // modeswitch.mode, or off for a priority-0 task (normal scheduling is not real-time:
+  // MCL and other heavy components allocate there by design).
   std::optional<rt::modeswitch::Mode> modeswitch;
 };
 

@@ -3,8 +3,9 @@
 //
 // Loading validates everything before anything starts: unknown keys, wrong types,
 // missing or unknown parameters, unknown component classes, duplicate names and
-// addresses, priorities outside 1..99, CPUs that are not online, non-positive
-// periods, dependency cycles. Each problem is reported as `file:line:col: message`.
+// addresses, priorities outside 1..99 (0..99 for data tasks: 0 is normal scheduling),
+// CPUs that are not online, non-positive periods, dependency cycles. Each problem is
+// reported as `file:line:col: message`.
 //
 // Real-time contract: not RT-safe (set-up only).
 #pragma once

@@ -243,6 +243,11 @@ struct MclData {
   float particle_y[kMclMaxShownParticles] = {};
   float particle_phi[kMclMaxShownParticles] = {};
   float particle_weight[kMclMaxShownParticles] = {};  // normalised over the shown ones
+  // Added by the MCL component (fields at the end): how well the scan fits the map at
+  // the particles, per point (geometric mean of the likelihood field, in (0, 1]); MCL
+  // injects random particles while it stays below the `fit_min` parameter.
+  float fit = 0.0F;
+  uint32_t pad2_ = 0;
   static constexpr auto fields() noexcept {
     return std::array{RACK_FIELD(MclData, x), RACK_FIELD(MclData, y), RACK_FIELD(MclData, phi),
                       RACK_FIELD(MclData, covariance), RACK_FIELD(MclData, scan_time_ns),
@@ -250,7 +255,7 @@ struct MclData {
                       RACK_FIELD(MclData, effective_sample_size), RACK_FIELD(MclData, injected),
                       RACK_FIELD(MclData, shown), RACK_FIELD(MclData, particle_x),
                       RACK_FIELD(MclData, particle_y), RACK_FIELD(MclData, particle_phi),
-                      RACK_FIELD(MclData, particle_weight)};
+                      RACK_FIELD(MclData, particle_weight), RACK_FIELD(MclData, fit)};
   }
 };
 // INIT (request): re-initialise the filter around a pose with a spread (global = 1:

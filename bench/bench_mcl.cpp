@@ -1,0 +1,634 @@
+// bench_mcl: Monte Carlo localisation (rack::mcl::MclFilter on MRPT) beside MRPT's own
+// CMonteCarloLocalization2D driven directly, on the same scans, map and options, in
+// the same run; accuracy against ground truth; global localisation and kidnapping
+// with and without the random injection; and the wake-up latency of a 1 kHz
+// SCHED_FIFO control task with and without MCL running beside it.
+//
+// Dataset: the scripted robot of tests/unit/mcl_sim.h drives a tour of the shipped
+// office map (configs/maps/office.yaml); scans are ray-cast from the true pose with
+// 1 cm range noise (181 beams over 270 degrees, 10 m), odometry has 2 % noise. Debian's
+// mrpt-common ships no laser rawlog with ground truth (see bench/RESULTS.md), so the
+// accuracy figures come from this simulated run.
+//
+//   bench_mcl [--quick] [--no-latency] [--latency-seconds S]
+//   bench_mcl --write-carmen FILE [--steps N] [--beams B]   (the example log in configs/logs/)
+//
+// Not RT code. The latency part needs root (SCHED_FIFO); without it that part is skipped.
+#include <sched.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <mrpt/bayes/CParticleFilter.h>
+#include <mrpt/maps/COccupancyGridMap2D.h>
+#include <mrpt/obs/CActionCollection.h>
+#include <mrpt/obs/CActionRobotMovement2D.h>
+#include <mrpt/obs/CObservation2DRangeScan.h>
+#include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/poses/CPose2D.h>
+#include <mrpt/random/RandomGenerators.h>
+#include <mrpt/slam/CMonteCarloLocalization2D.h>
+#include <numbers>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bench_common.h"
+#include "mcl_sim.h"
+#include "rack/components/builtin.h"
+#include "rack/core/data_component.h"
+#include "rack/core/executor.h"
+#include "rack/core/host_config.h"
+#include "rack/core/registry.h"
+#include "rack/maps/occupancy_map.h"
+#include "rack/mcl/mcl_filter.h"
+#include "rack/rt/capabilities.h"
+#include "rack/rt/clock.h"
+#include "rack/rt/memory.h"
+
+namespace {
+
+using rack::bench::Percentiles;
+using rack::mcl::MclFilter;
+using rack::mcl::MclOptions;
+using rack::test::ScriptedRobot;
+using rack::test::SimConfig;
+using rack::test::SimPose;
+using rack::test::SimScan;
+
+struct Step {
+  SimPose odometry, truth;
+  SimScan scan;
+};
+
+const std::vector<std::pair<double, double>> kTour = {{2.0, 8.0},  {9.6, 8.0},  {9.6, 4.0},  {11.0, 3.0},
+                                                      {9.6, 4.0},  {9.6, 8.0},  {18.0, 8.0}, {19.6, 11.5},
+                                                      {19.6, 13.5}, {19.6, 8.0}, {4.0, 8.0}};
+
+std::vector<Step> record(const rack::maps::OccupancyMap& map, uint64_t seed,
+                         const std::vector<std::pair<double, double>>& tour = kTour) {
+  ScriptedRobot robot(map, SimConfig{}, seed);
+  robot.place({tour[0].first, tour[0].second, 0.0});
+  std::vector<Step> steps;
+  for (std::size_t w = 1; w < tour.size(); ++w) {
+    for (int guard = 0; guard < 5000 && !robot.step_towards(tour[w].first, tour[w].second); ++guard) {
+      steps.push_back({robot.odometry(), robot.truth(), robot.scan()});
+    }
+  }
+  return steps;
+}
+
+// MRPT's own filter, as its pf-localization application drives it: a grid map, a
+// CSensoryFrame holding a CObservation2DRangeScan, a CActionRobotMovement2D from the
+// odometry increment, CParticleFilter::executeOn. Same options as rack's filter.
+class MrptReference {
+ public:
+  MrptReference(const rack::maps::OccupancyMap& map, const MclOptions& o) : opt_(o) {
+    grid_ = std::make_shared<mrpt::maps::COccupancyGridMap2D>();
+    ox_ = map.origin_x();
+    oy_ = map.origin_y();
+    grid_->setSize(0.0F, static_cast<float>(map.width() * map.resolution()), 0.0F,
+                   static_cast<float>(map.height() * map.resolution()), static_cast<float>(map.resolution()), 0.5F);
+    for (int iy = 0; iy < map.height(); ++iy) {
+      for (int ix = 0; ix < map.width(); ++ix) {
+        const auto s = map.cell_state(ix, iy);
+        grid_->setCell(ix, iy, s == rack::maps::CellState::kFree ? 1.0F : (s == rack::maps::CellState::kOccupied ? 0.0F : 0.5F));
+      }
+    }
+    auto& lf = grid_->likelihoodOptions;
+    lf.likelihoodMethod = mrpt::maps::COccupancyGridMap2D::lmLikelihoodField_Thrun;
+    lf.LF_stdHit = static_cast<float>(o.sigma_hit);
+    lf.LF_zHit = static_cast<float>(o.z_hit);
+    lf.LF_zRandom = static_cast<float>(o.z_random);
+    lf.LF_maxRange = static_cast<float>(o.max_range);
+    lf.LF_maxCorrsDistance = static_cast<float>(o.max_corr_distance);
+    lf.enableLikelihoodCache = true;
+    pf_.m_options.PF_algorithm = mrpt::bayes::CParticleFilter::pfStandardProposal;
+    pf_.m_options.resamplingMethod = mrpt::bayes::CParticleFilter::prMultinomial;
+    pf_.m_options.adaptiveSampleSize = true;
+    pf_.m_options.powFactor = o.likelihood_power;
+    auto& kld = pdf_.options.KLD_params;
+    kld.KLD_minSampleSize = o.particles_min;
+    kld.KLD_maxSampleSize = o.particles_max;
+    kld.KLD_binSize_XY = o.kld_bin_xy;
+    kld.KLD_binSize_PHI = o.kld_bin_phi;
+    kld.KLD_delta = o.kld_delta;
+    kld.KLD_epsilon = o.kld_epsilon;
+    pdf_.options.metricMap = grid_;
+  }
+  void set_decimation(uint32_t d) { grid_->likelihoodOptions.LF_decimation = d; }
+
+  void init_pose(const SimPose& p, double sxy, double sphi, uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> nxy(0.0, sxy), nphi(0.0, sphi);
+    pdf_.m_particles.resize(opt_.particles_max);
+    for (auto& part : pdf_.m_particles) {
+      part.d = mrpt::math::TPose2D(p.x - ox_ + nxy(rng), p.y - oy_ + nxy(rng), p.phi + nphi(rng));
+      part.log_w = 0;
+    }
+    have_odo_ = false;
+  }
+
+  // One update from the odometry pose and the raw scan; false when gated.
+  bool update(const SimPose& odo_pose, const SimScan& s, bool gate) {
+    const mrpt::poses::CPose2D odo(odo_pose.x, odo_pose.y, odo_pose.phi);
+    if (!have_odo_) {
+      last_ = odo;
+      have_odo_ = true;
+    }
+    const mrpt::poses::CPose2D incr = odo - last_;
+    if (gate && std::hypot(incr.x(), incr.y()) < opt_.update_distance && std::fabs(incr.phi()) < opt_.update_angle &&
+        updates_ > 0) {
+      return false;
+    }
+    auto obs = mrpt::obs::CObservation2DRangeScan::Create();
+    obs->aperture = static_cast<float>(1.5 * std::numbers::pi);
+    obs->rightToLeft = true;
+    obs->maxRange = s.max_range;
+    obs->resizeScan(s.ranges.size());
+    for (std::size_t i = 0; i < s.ranges.size(); ++i) {
+      obs->setScanRange(i, s.ranges[i]);
+      obs->setScanRangeValidity(i, s.valid[i] != 0);
+    }
+    mrpt::obs::CSensoryFrame sf;
+    sf.insert(obs);
+    mrpt::obs::CActionRobotMovement2D move;
+    move.motionModelConfiguration.modelSelection = mrpt::obs::CActionRobotMovement2D::mmGaussian;
+    auto& g = move.motionModelConfiguration.gaussianModel;
+    g.a1 = opt_.odom_a1;
+    g.a2 = opt_.odom_a2;
+    g.a3 = opt_.odom_a3;
+    g.a4 = opt_.odom_a4;
+    g.minStdXY = opt_.odom_min_std_xy;
+    g.minStdPHI = opt_.odom_min_std_phi;
+    move.computeFromOdometry(incr, move.motionModelConfiguration);
+    mrpt::obs::CActionCollection actions;
+    actions.insert(move);
+    pf_.executeOn(pdf_, &actions, &sf);
+    last_ = odo;
+    ++updates_;
+    return true;
+  }
+  SimPose estimate() const {
+    mrpt::poses::CPose2D m;
+    pdf_.getMean(m);
+    return {m.x() + ox_, m.y() + oy_, m.phi()};
+  }
+
+ private:
+  MclOptions opt_;
+  std::shared_ptr<mrpt::maps::COccupancyGridMap2D> grid_;
+  double ox_ = 0, oy_ = 0;
+  mrpt::slam::CMonteCarloLocalization2D pdf_{1};
+  mrpt::bayes::CParticleFilter pf_;
+  mrpt::poses::CPose2D last_;
+  bool have_odo_ = false;
+  uint64_t updates_ = 0;
+};
+
+int64_t now_ns() { return rack::rt::monotonic_ns(); }
+
+struct Dist {
+  std::size_t n = 0;
+  double p50 = 0, p95 = 0, p99 = 0, max = 0;  // ms
+};
+Dist dist_of(std::vector<int64_t> v) {
+  Dist d;
+  if (v.empty()) return d;
+  std::sort(v.begin(), v.end());
+  const auto at = [&](double q) { return static_cast<double>(v[rack::bench::nearest_rank(q, v.size()) - 1]) / 1e6; };
+  d.n = v.size();
+  d.p50 = at(0.50);
+  d.p95 = at(0.95);
+  d.p99 = at(0.99);
+  d.max = static_cast<double>(v.back()) / 1e6;
+  return d;
+}
+
+// ---- 1. update time against particle count, rack vs MRPT ------------------------
+void bench_update_time(const rack::maps::OccupancyMap& map, const std::vector<Step>& steps, bool quick) {
+  const std::size_t n_steps = std::min<std::size_t>(steps.size(), quick ? 150 : 400);
+  std::printf("\n### Update time per scan\n\n");
+  std::printf("Every scan updates (no gating), %zu scans per round, 2 rounds; fixed particle count (KLD min = max). "
+              "Both filters run in lockstep, one after the other on each scan (order alternating per scan), so that "
+              "both see the same machine load. Same map, options and scans; rack's filter gets the echoes as "
+              "robot-frame points (as Scan2D delivers them), MRPT's the same beams as a CObservation2DRangeScan "
+              "(which MRPT turns into points itself, with its own filtering; rack uses every echo). Time: CLOCK_MONOTONIC "
+              "around one update call, SCHED_OTHER.\n\n",
+              n_steps);
+  std::printf("| particles | side | updates | p50 ms | p95 ms | p99 ms | max ms | p50 ratio | p95 ratio | median per-scan ratio |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+  struct Config {
+    uint32_t n, beams, decimation;
+  };
+  std::vector<Config> configs;
+  for (uint32_t n : quick ? std::vector<uint32_t>{250, 1000, 4000} : std::vector<uint32_t>{250, 500, 1000, 2000, 4000}) {
+    configs.push_back({n, 0, 1});  // every echo on both sides (MRPT: LF_decimation 1)
+  }
+  // MCL's default: 60 points per scan; MRPT: every 3rd of the 181 beams.
+  configs.push_back({1000, 60, 3});
+  for (const Config& c : configs) {
+    const uint32_t n = c.n;
+    MclOptions o;
+    o.particles_min = n;
+    o.particles_max = n;
+    o.update_distance = 0.0;
+    o.update_angle = 0.0;
+    o.beams = c.beams;
+    o.seed = 1;
+    std::vector<int64_t> rack_t, ref_t;
+    std::vector<double> pair_ratio;
+    for (int round = 0; round < 2; ++round) {
+      MclFilter f(map, o);
+      f.init_pose({steps[0].truth.x, steps[0].truth.y, steps[0].truth.phi}, 0.1, 0.05);
+      MrptReference ref(map, o);
+      ref.set_decimation(c.decimation);
+      ref.init_pose(steps[0].truth, 0.1, 0.05, 1);
+      // Lockstep: both filters take the same scan one after the other (order alternating
+      // per scan), so both see the same load on this shared machine.
+      for (std::size_t i = 0; i < n_steps; ++i) {
+        const auto& s = steps[i];
+        int64_t tr = 0, tm = 0;
+        for (int k = 0; k < 2; ++k) {
+          if ((k == 0) == (i % 2 == 0)) {
+            const int64_t t0 = now_ns();
+            (void)f.update({s.odometry.x, s.odometry.y, s.odometry.phi}, s.scan.xs, s.scan.ys);
+            tr = now_ns() - t0;
+          } else {
+            const int64_t t0 = now_ns();
+            (void)ref.update(s.odometry, s.scan, false);
+            tm = now_ns() - t0;
+          }
+        }
+        rack_t.push_back(tr);
+        ref_t.push_back(tm);
+        pair_ratio.push_back(static_cast<double>(tr) / static_cast<double>(tm));
+      }
+    }
+    std::sort(pair_ratio.begin(), pair_ratio.end());
+    const double median_pair = pair_ratio[pair_ratio.size() / 2];
+    const Dist a = dist_of(rack_t), b = dist_of(ref_t);
+    char label[64];
+    if (c.beams == 0) std::snprintf(label, sizeof label, "%u", n);
+    else std::snprintf(label, sizeof label, "%u, %u points (MRPT: 1 in %u beams)", n, c.beams, c.decimation);
+    std::printf("| %s | **rack MclFilter** | %zu | %.3f | %.3f | %.3f | %.3f | **%.2fx** | **%.2fx** | **%.2fx** |\n", label,
+                a.n, a.p50, a.p95, a.p99, a.max, a.p50 / b.p50, a.p95 / b.p95, median_pair);
+    std::printf("| %s | MRPT CMonteCarloLocalization2D (reference) | %zu | %.3f | %.3f | %.3f | %.3f | 1 | 1 | 1 |\n", label,
+                b.n, b.p50, b.p95, b.p99, b.max);
+    std::fflush(stdout);
+  }
+}
+
+// ---- 2. accuracy against ground truth ---------------------------------------------
+struct Accuracy {
+  double ate = 0;        // m, RMS position error over the filter updates
+  double ate_phi = 0;    // rad, RMS heading error
+  double rpe_t = 0;      // translational error per metre travelled (ratio), 1 m segments, RMS
+  double rpe_r = 0;      // rad per metre, RMS
+  double max_err = 0;    // m
+  std::size_t n = 0;
+};
+
+Accuracy accuracy_of(const std::vector<SimPose>& est, const std::vector<SimPose>& truth) {
+  Accuracy a;
+  double se = 0, sp = 0;
+  for (std::size_t i = 0; i < est.size(); ++i) {
+    const double e = std::hypot(est[i].x - truth[i].x, est[i].y - truth[i].y);
+    se += e * e;
+    sp += std::pow(rack::test::angle_diff(est[i].phi, truth[i].phi), 2);
+    a.max_err = std::max(a.max_err, e);
+  }
+  a.n = est.size();
+  a.ate = std::sqrt(se / static_cast<double>(std::max<std::size_t>(1, a.n)));
+  a.ate_phi = std::sqrt(sp / static_cast<double>(std::max<std::size_t>(1, a.n)));
+  // Relative error over segments of >= 1 m of travel: the estimate's motion against the
+  // truth's, both expressed in the segment start's frame.
+  double st = 0, sr = 0;
+  std::size_t m = 0;
+  std::size_t j = 0;
+  double run = 0;
+  for (std::size_t i = 0; i + 1 < truth.size(); ++i) {
+    run = 0;
+    for (j = i + 1; j < truth.size(); ++j) {
+      run += std::hypot(truth[j].x - truth[j - 1].x, truth[j].y - truth[j - 1].y);
+      if (run >= 1.0) break;
+    }
+    if (j >= truth.size()) break;
+    const mrpt::poses::CPose2D t0(truth[i].x, truth[i].y, truth[i].phi), t1(truth[j].x, truth[j].y, truth[j].phi);
+    const mrpt::poses::CPose2D e0(est[i].x, est[i].y, est[i].phi), e1(est[j].x, est[j].y, est[j].phi);
+    const mrpt::poses::CPose2D dt = t1 - t0, de = e1 - e0;
+    const mrpt::poses::CPose2D err = de - dt;
+    st += std::pow(std::hypot(err.x(), err.y()) / run, 2);
+    sr += std::pow(err.phi() / run, 2);
+    ++m;
+  }
+  a.rpe_t = std::sqrt(st / static_cast<double>(std::max<std::size_t>(1, m)));
+  a.rpe_r = std::sqrt(sr / static_cast<double>(std::max<std::size_t>(1, m)));
+  return a;
+}
+
+void bench_accuracy(const rack::maps::OccupancyMap& map, bool quick) {
+  std::printf("\n### Accuracy on the simulated tour (ground truth)\n\n");
+  const int seeds = quick ? 2 : 5;
+  std::printf("Tour of the office map (%zu waypoints, about 60 m), default MCL options (particles 100..2000, "
+              "update after 0.10 m or 0.10 rad, 60 beams), start pose known within 0.2 m / 0.1 rad; seeds 1..%d. "
+              "ATE: RMS of the position (heading) error at every filter update; RPE: RMS over 1 m segments of the "
+              "relative-motion error per metre. Odometry alone (aligned at the start) and MRPT's own filter "
+              "(same options, every echo, same gating) beside it.\n\n",
+              kTour.size(), seeds);
+  std::printf("| side | updates | ATE m | ATE heading deg | max error m | RPE %% | RPE deg/m |\n|---|---|---|---|---|---|---|\n");
+  std::vector<SimPose> e_rack, e_ref, e_odo, t_all;
+  for (int seed = 1; seed <= seeds; ++seed) {
+    const auto steps = record(map, static_cast<uint64_t>(seed));
+    MclOptions o;
+    o.seed = static_cast<uint64_t>(seed);
+    MclFilter f(map, o);
+    f.init_pose({steps[0].truth.x + 0.1, steps[0].truth.y - 0.1, steps[0].truth.phi + 0.05}, 0.2, 0.1);
+    mrpt::random::getRandomGenerator().randomize(static_cast<uint32_t>(seed));
+    MclOptions ro = o;
+    MrptReference ref(map, ro);
+    ref.set_decimation(1);
+    ref.init_pose({steps[0].truth.x + 0.1, steps[0].truth.y - 0.1, steps[0].truth.phi + 0.05}, 0.2, 0.1,
+                  static_cast<uint64_t>(seed));
+    const mrpt::poses::CPose2D start(steps[0].truth.x, steps[0].truth.y, steps[0].truth.phi);
+    const mrpt::poses::CPose2D odo0(steps[0].odometry.x, steps[0].odometry.y, steps[0].odometry.phi);
+    for (const auto& s : steps) {
+      const bool ran = f.update({s.odometry.x, s.odometry.y, s.odometry.phi}, s.scan.xs, s.scan.ys);
+      (void)ref.update(s.odometry, s.scan, true);
+      if (!ran) continue;
+      const auto e = f.estimate();
+      e_rack.push_back({e.pose.x, e.pose.y, e.pose.phi});
+      e_ref.push_back(ref.estimate());
+      const mrpt::poses::CPose2D od = start + (mrpt::poses::CPose2D(s.odometry.x, s.odometry.y, s.odometry.phi) - odo0);
+      e_odo.push_back({od.x(), od.y(), od.phi()});
+      t_all.push_back(s.truth);
+    }
+  }
+  const auto row = [&](const char* name, const std::vector<SimPose>& e) {
+    const Accuracy a = accuracy_of(e, t_all);
+    std::printf("| %s | %zu | %.4f | %.2f | %.3f | %.2f | %.3f |\n", name, a.n, a.ate, a.ate_phi * 180 / std::numbers::pi,
+                a.max_err, a.rpe_t * 100, a.rpe_r * 180 / std::numbers::pi);
+  };
+  row("**rack MclFilter**", e_rack);
+  row("MRPT CMonteCarloLocalization2D (reference)", e_ref);
+  row("odometry alone", e_odo);
+  std::fflush(stdout);
+}
+
+// ---- 3. global localisation and kidnapping, with and without injection -----------
+double travel_to_converge(MclFilter& f, const std::vector<Step>& steps, std::size_t from, double tol) {
+  double travelled = 0, at = 1e9;
+  for (std::size_t i = from; i < steps.size(); ++i) {
+    const auto& s = steps[i];
+    if (i > from) travelled += std::hypot(s.truth.x - steps[i - 1].truth.x, s.truth.y - steps[i - 1].truth.y);
+    if (!f.update({s.odometry.x, s.odometry.y, s.odometry.phi}, s.scan.xs, s.scan.ys)) continue;
+    const auto e = f.estimate();
+    const bool good = std::hypot(e.pose.x - s.truth.x, e.pose.y - s.truth.y) < tol;
+    if (!good) at = 1e9;
+    else if (at > 1e8) at = travelled;
+  }
+  return at;
+}
+
+void bench_recovery(const rack::maps::OccupancyMap& map, bool quick) {
+  const int seeds = quick ? 8 : 20;
+  std::printf("\n### Global localisation and kidnapping (travel until the estimate is within 0.3 m and stays)\n\n");
+  std::printf("Seeds 11..%d (global) and 21..%d (kidnap); particles 300..8000 (global) and 200..3000 (kidnap); "
+              "'no injection' is the same filter with inject_max_fraction 0, i.e. MRPT's filter as it is.\n\n",
+              10 + seeds, 20 + seeds);
+  std::printf("| case | side | within 5 m | within 15 m | within 40 m | never | median m |\n|---|---|---|---|---|---|---|\n");
+  for (int kind = 0; kind < 2; ++kind) {
+    for (int inj = 1; inj >= 0; --inj) {
+      std::vector<double> at;
+      for (int k = 0; k < seeds; ++k) {
+        const uint64_t seed = static_cast<uint64_t>((kind == 0 ? 11 : 21) + k);
+        MclOptions o;
+        o.seed = seed;
+        if (inj == 0) o.inject_max_fraction = 0.0;
+        if (kind == 0) {
+          o.particles_min = 300;
+          o.particles_max = 8000;
+          const auto steps = record(map, seed);
+          MclFilter f(map, o);
+          f.init_global();
+          at.push_back(travel_to_converge(f, steps, 0, 0.3));
+        } else {
+          o.particles_min = 200;
+          o.particles_max = 3000;
+          // Track from (2, 8) to (8, 8), then the robot is carried to (15.6, 8).
+          const auto before = record(map, seed, {{2.0, 8.0}, {8.0, 8.0}});
+          auto after = record(map, seed + 1000, {{15.6, 8.0}, {21.0, 8.0}, {21.1, 4.0}, {21.1, 8.0}, {14.0, 8.0},
+                                                 {13.6, 11.5}, {13.6, 13.5}, {13.6, 8.0}, {4.0, 8.0}});
+          // The odometry continues from where it was: shift the second part's odometry.
+          const mrpt::poses::CPose2D last_odo(before.back().odometry.x, before.back().odometry.y,
+                                              before.back().odometry.phi);
+          const mrpt::poses::CPose2D first_odo(after.front().odometry.x, after.front().odometry.y,
+                                               after.front().odometry.phi);
+          for (auto& s : after) {
+            const mrpt::poses::CPose2D p =
+                last_odo + (mrpt::poses::CPose2D(s.odometry.x, s.odometry.y, s.odometry.phi) - first_odo);
+            s.odometry = {p.x(), p.y(), p.phi()};
+          }
+          MclFilter f(map, o);
+          f.init_pose({2.0, 8.0, 0.0}, 0.1, 0.05);
+          for (const auto& s : before) (void)f.update({s.odometry.x, s.odometry.y, s.odometry.phi}, s.scan.xs, s.scan.ys);
+          at.push_back(travel_to_converge(f, after, 0, 0.3));
+        }
+      }
+      std::vector<double> sorted = at;
+      std::sort(sorted.begin(), sorted.end());
+      int w5 = 0, w15 = 0, w40 = 0, never = 0;
+      for (double a : at) {
+        w5 += a <= 5 ? 1 : 0;
+        w15 += a <= 15 ? 1 : 0;
+        w40 += a <= 40 ? 1 : 0;
+        never += a > 1e8 ? 1 : 0;
+      }
+      const double med = sorted[sorted.size() / 2];
+      char medtxt[32];
+      if (med > 1e8) std::snprintf(medtxt, sizeof medtxt, "never");
+      else std::snprintf(medtxt, sizeof medtxt, "%.1f", med);
+      std::printf("| %s | %s | %d/%d | %d/%d | %d/%d | %d | %s |\n", kind == 0 ? "global" : "kidnap",
+                  inj ? "**rack (injection)**" : "no injection (MRPT as is)", w5, seeds, w15, seeds, w40, seeds, never,
+                  medtxt);
+      std::fflush(stdout);
+    }
+  }
+}
+
+// ---- 4. a 1 kHz control task with and without MCL beside it ----------------------
+struct LatencyResult {
+  std::vector<uint64_t> hist;
+  double max_ns = 0;
+  uint64_t overruns = 0;
+};
+
+LatencyResult run_control(int seconds, const std::function<void(std::atomic<bool>&)>& load) {
+  rack::ComponentRegistry registry;
+  rack::components::register_builtin(registry);
+  const auto caps = rack::rt::probe_capabilities();
+  const int cpu = caps.online_cpus.empty() ? 0 : caps.online_cpus.back();
+  const std::string text = "host: bench-mcl\nsystem: 0\nlcm: false\ncomponents:\n  - name: control\n    class: Generator\n"
+                           "    autostart: true\n    command_task: {priority: 30, cpu: " + std::to_string(cpu) +
+                           "}\n    data_task: {priority: 80, cpu: " + std::to_string(cpu) + ", period_ms: 1}\n";
+  auto loaded = rack::load_host_text(text, "bench_mcl.yaml", registry, caps);
+  if (!loaded.errors.empty()) throw std::runtime_error(loaded.errors.front().str());
+  rack::ExecutorOptions eo;
+  eo.allow_rt_fallback = false;
+  eo.log = [](const std::string&) {};
+  rack::Executor executor(std::move(loaded.host), eo);
+  executor.start();
+  std::atomic<bool> stop{false};
+  std::thread worker([&] { load(stop); });
+  rack::rt::sleep_for(static_cast<int64_t>(seconds) * rack::rt::kNsPerSec);
+  auto* gen = dynamic_cast<rack::DataComponentBase*>(executor.find("control"));
+  LatencyResult r;
+  auto hist = std::make_unique<std::array<uint64_t, rack::rt::LatencyStats::kBuckets>>();
+  gen->data_task_stats().copy_histogram(*hist);
+  const auto s = gen->data_task_stats().summary();
+  stop = true;
+  worker.join();
+  executor.stop();
+  r.hist.assign(hist->begin(), hist->end());
+  r.max_ns = static_cast<double>(s.max_ns);
+  r.overruns = s.overruns;
+  return r;
+}
+
+void bench_latency(const rack::maps::OccupancyMap& map, const std::vector<Step>& steps, int seconds) {
+  const auto caps = rack::rt::probe_capabilities();
+  std::printf("\n### 1 kHz control task with and without MCL running\n\n");
+  if (!caps.sched_fifo) {
+    std::printf("Skipped: no SCHED_FIFO rights (run as root).\n");
+    return;
+  }
+  const int cpu = caps.online_cpus.empty() ? 0 : caps.online_cpus.back();
+  std::printf("A Generator data task at SCHED_FIFO 80, 1 ms period, pinned to CPU %d, in an executor with the "
+              "memory policy applied (mlockall); %d s idle, then %d s with MCL updating continuously (every scan, "
+              "2000 particles, 60 beams) in a SCHED_OTHER thread of the same process, unpinned (as MCL's priority-0 "
+              "data task runs in rackd). Wake-up latency histogram of the control task, 1-us buckets.\n\n",
+              cpu, seconds, seconds);
+  const auto mem = rack::rt::apply_memory_policy(64u << 20);
+  (void)mem;
+  rack::bench::PmQosHold qos(0);
+  std::atomic<uint64_t> mcl_updates{0};
+  const auto idle = run_control(seconds, [](std::atomic<bool>& stop) {
+    while (!stop) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  });
+  const auto busy = run_control(seconds, [&](std::atomic<bool>& stop) {
+    (void)rack::rt::set_current_thread_priority(0);
+    MclOptions o;
+    o.particles_min = 2000;
+    o.particles_max = 2000;
+    o.update_distance = 0;
+    o.update_angle = 0;
+    o.seed = 3;
+    while (!stop) {
+      MclFilter f(map, o);  // re-created each pass: allocation churn, as after an INIT
+      f.init_pose({steps[0].truth.x, steps[0].truth.y, steps[0].truth.phi}, 0.1, 0.05);
+      for (std::size_t i = 0; i < steps.size() && !stop; ++i) {
+        const auto& s = steps[i];
+        (void)f.update({s.odometry.x, s.odometry.y, s.odometry.phi}, s.scan.xs, s.scan.ys);
+        mcl_updates.fetch_add(1);
+      }
+    }
+  });
+  const Percentiles a = rack::bench::percentiles_of_histogram(idle.hist, idle.max_ns);
+  const Percentiles b = rack::bench::percentiles_of_histogram(busy.hist, busy.max_ns);
+  std::printf("| side | samples | p50 us | p90 us | p99 us | p99.9 us | max us | missed periods |\n|---|---|---|---|---|---|---|---|\n");
+  std::printf("| control task, idle (reference) | %lu | %.0f | %.0f | %.0f | %.0f | %.0f | %lu |\n",
+              static_cast<unsigned long>(a.samples), a.p50_ns / 1e3, a.p90_ns / 1e3, a.p99_ns / 1e3, a.p999_ns / 1e3,
+              a.max_ns / 1e3, static_cast<unsigned long>(idle.overruns));
+  std::printf("| **control task, MCL running** | %lu | %.0f | %.0f | %.0f | %.0f | %.0f | %lu |\n",
+              static_cast<unsigned long>(b.samples), b.p50_ns / 1e3, b.p90_ns / 1e3, b.p99_ns / 1e3, b.p999_ns / 1e3,
+              b.max_ns / 1e3, static_cast<unsigned long>(busy.overruns));
+  std::printf("\nRatio with MCL / idle: p99 **%.2fx** (target <= 1.2x), p50 %.2fx; MCL updates during the run: %lu.\n",
+              a.p99_ns > 0 ? b.p99_ns / a.p99_ns : 0.0, a.p50_ns > 0 ? b.p50_ns / a.p50_ns : 0.0,
+              static_cast<unsigned long>(mcl_updates.load()));
+}
+
+// Writes the tour as a CARMEN log: ODOM at every step (0.1 s), ROBOTLASER1 at every
+// second step with `beams` beams, TRUEPOS (ground truth, which replay ignores). The
+// laser sits at the robot's reference point.
+int write_carmen(const rack::maps::OccupancyMap& map, const std::string& path, std::size_t max_steps, int beams) {
+  SimConfig cfg;
+  cfg.beams = beams;
+  ScriptedRobot robot(map, cfg, 1);
+  robot.place({kTour[0].first, kTour[0].second, 0.0});
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) {
+    std::fprintf(stderr, "bench_mcl: cannot write %s\n", path.c_str());
+    return 1;
+  }
+  std::fprintf(f, "# CARMEN Logfile\n# written by bench_mcl --write-carmen: the scripted robot's tour of "
+                  "configs/maps/office.yaml (1 cm range noise, 2 %% odometry noise); TRUEPOS is the ground truth\n"
+                  "# message formats: ODOM, ROBOTLASER1, TRUEPOS (see components/replay/include/rack/replay/carmen_log.h)\n");
+  std::size_t step = 0;
+  for (std::size_t w = 1; w < kTour.size() && step < max_steps; ++w) {
+    for (int guard = 0; guard < 5000 && step < max_steps && !robot.step_towards(kTour[w].first, kTour[w].second);
+         ++guard, ++step) {
+      const double t = 1000.0 + 0.1 * static_cast<double>(step);
+      const SimPose o = robot.odometry(), tr = robot.truth();
+      std::fprintf(f, "ODOM %.4f %.4f %.5f 0.5 0 0 %.3f sim %.3f\n", o.x, o.y, o.phi, t, t);
+      std::fprintf(f, "TRUEPOS %.4f %.4f %.5f %.4f %.4f %.5f %.3f sim %.3f\n", tr.x, tr.y, tr.phi, o.x, o.y, o.phi, t, t);
+      if (step % 2 != 0) continue;
+      const SimScan s = robot.scan();
+      std::fprintf(f, "ROBOTLASER1 0 %.5f %.5f %.6f %.1f 0.01 0 %zu", double{s.start_angle},
+                   1.5 * std::numbers::pi, double{s.step}, double{s.max_range}, s.ranges.size());
+      for (float r : s.ranges) std::fprintf(f, " %.3f", double{r});
+      std::fprintf(f, " 0 %.4f %.4f %.5f %.4f %.4f %.5f 0.5 0 0 0 0 %.3f sim %.3f\n", o.x, o.y, o.phi, o.x, o.y, o.phi,
+                   t, t);
+    }
+  }
+  std::fclose(f);
+  std::printf("bench_mcl: wrote %zu steps to %s\n", step, path.c_str());
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bool quick = false, latency = true;
+  int latency_seconds = 20;
+  std::string carmen;
+  std::size_t carmen_steps = 400;
+  int carmen_beams = 91;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--quick") quick = true;
+    else if (a == "--no-latency") latency = false;
+    else if (a == "--latency-seconds" && i + 1 < argc) latency_seconds = std::atoi(argv[++i]);
+    else if (a == "--write-carmen" && i + 1 < argc) carmen = argv[++i];
+    else if (a == "--steps" && i + 1 < argc) carmen_steps = static_cast<std::size_t>(std::atol(argv[++i]));
+    else if (a == "--beams" && i + 1 < argc) carmen_beams = std::atoi(argv[++i]);
+    else if (a == "-h" || a == "--help") {
+      std::printf("bench_mcl [--quick] [--no-latency] [--latency-seconds S]\n"
+                  "bench_mcl --write-carmen FILE [--steps N] [--beams B]   write the simulated tour as a CARMEN log\n");
+      return 0;
+    } else {
+      std::fprintf(stderr, "bench_mcl: unknown option %s\n", a.c_str());
+      return 2;
+    }
+  }
+  const std::string map_path = std::string(RACK_SOURCE_DIR) + "/configs/maps/office.yaml";
+  auto loaded = rack::maps::load_map(map_path);
+  if (!loaded.ok()) {
+    std::fprintf(stderr, "bench_mcl: %s\n", loaded.error_text().c_str());
+    return 1;
+  }
+  const rack::maps::OccupancyMap& map = *loaded.map;
+  if (!carmen.empty()) return write_carmen(map, carmen, carmen_steps, carmen_beams);
+  std::printf("bench_mcl: kernel %s (%s), %s, %ld CPUs; loadavg %s\n", rack::bench::kernel_string().c_str(),
+              rack::bench::kernel_is_preempt_rt() ? "PREEMPT_RT" : "not PREEMPT_RT", rack::bench::cpu_model().c_str(),
+              sysconf(_SC_NPROCESSORS_ONLN), rack::bench::read_first_line("/proc/loadavg").c_str());
+  const auto steps = record(map, 1);
+  std::printf("bench_mcl: map %s, tour of %zu scans\n", map_path.c_str(), steps.size());
+  bench_update_time(map, steps, quick);
+  bench_accuracy(map, quick);
+  bench_recovery(map, quick);
+  if (latency) bench_latency(map, steps, quick ? 5 : latency_seconds);
+  std::printf("\nbench_mcl: loadavg after: %s\n", rack::bench::read_first_line("/proc/loadavg").c_str());
+  return 0;
+}

@@ -1,0 +1,274 @@
+#include "mcl.h"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <stdexcept>
+
+#include "rack/maps/occupancy_map.h"
+#include "rack/mcl/mcl_filter.h"
+
+namespace rack::components {
+
+using interfaces::MclData;
+using interfaces::Scan2dData;
+
+namespace {
+
+// "x y phi" or "x, y, phi" (metres, metres, radians). RT-safe (strtod, no allocation).
+bool parse_pose(const char* text, double& x, double& y, double& phi) noexcept {
+  double v[3] = {};
+  const char* p = text;
+  for (double& out : v) {
+    while (*p == ' ' || *p == ',' || *p == '\t' || *p == '[') ++p;
+    char* end = nullptr;
+    out = std::strtod(p, &end);
+    if (end == p || !std::isfinite(out)) return false;
+    p = end;
+  }
+  while (*p == ' ' || *p == ']' || *p == '\t') ++p;
+  if (*p != '\0') return false;
+  x = v[0];
+  y = v[1];
+  phi = v[2];
+  return true;
+}
+}  // namespace
+
+Mcl::Mcl()
+    : DataComponent(DataTaskMode::kTriggered),
+      map_(declare_string("map", "", {.doc = "map_server YAML file of the map (e.g. configs/maps/office.yaml)", .required = true})),
+      scan2d_(declare_component_ref("scan2d", "the Scan2D component whose scans (with odometry) MCL uses")),
+      position_(declare_string("position", "",
+                               {.doc = "Position component to send UPDATE to (optional; empty: none)",
+                                .component_ref = true})),
+      period_ms_(declare_float("period_ms", 0.0, {.doc = "requested scan period (0: every scan)", .min = 0.0, .max = 60000.0})),
+      particles_min_(declare_int("particles_min", 100, {.doc = "KLD-sampling: fewest particles", .min = 1, .max = 1e6})),
+      particles_max_(declare_int("particles_max", 2000, {.doc = "KLD-sampling: most particles (also the count after an init)", .min = 1, .max = 1e6})),
+      initial_pose_(declare_string("initial_pose", "0 0 0", {.doc = "start pose 'x y phi' (m, m, rad) in the map frame, used when global is false"})),
+      initial_sigma_xy_(declare_float("initial_sigma_xy", 0.3, {.doc = "spread (std dev, m) around initial_pose", .min = 0.0, .max = 1e3})),
+      initial_sigma_phi_(declare_float("initial_sigma_phi", 0.2, {.doc = "spread (std dev, rad) around initial_pose", .min = 0.0, .max = 10.0})),
+      global_(declare_bool("global", false, {.doc = "start with global localisation over the map's free space"})),
+      update_distance_(declare_float("update_distance", 0.10, {.doc = "run the filter after this much travel (m)", .min = 0.0, .max = 100.0})),
+      update_angle_(declare_float("update_angle", 0.10, {.doc = "... or this much turn (rad)", .min = 0.0, .max = 10.0})),
+      odometry_jump_(declare_float("odometry_jump", 1.0, {.doc = "odometry moving more than this between two scans is a jump (RESET): re-anchor, do not move (m; 0: off)", .min = 0.0, .max = 1e3})),
+      beams_(declare_int("beams", 60, {.doc = "scan points used per update, evenly chosen (0: all)", .min = 0, .max = 100000})),
+      sigma_hit_(declare_float("sigma_hit", 0.10, {.doc = "likelihood field: std dev of a point's distance to the nearest wall (m)", .min = 1e-3, .max = 10.0})),
+      max_range_(declare_float("max_range", 30.0, {.doc = "likelihood field: sensor range for the random-reading term (m)", .min = 0.1, .max = 1000.0})),
+      odom_noise_xy_(declare_float("odom_noise_xy", 0.05, {.doc = "motion model: translation std dev per metre travelled (m/m)", .min = 0.0, .max = 10.0})),
+      odom_noise_phi_(declare_float("odom_noise_phi", 0.05, {.doc = "motion model: rotation std dev per radian turned (rad/rad)", .min = 0.0, .max = 10.0})),
+      inject_max_fraction_(declare_float("inject_max_fraction", 0.10, {.doc = "recovery: most random particles added per update, as a fraction of particles_max", .min = 0.0, .max = 1.0})),
+      fit_min_(declare_float("fit_min", 0.6, {.doc = "recovery: inject while the scan fit (MclData.fit) stays below this (0: off)", .min = 0.0, .max = 0.99})),
+      alpha_slow_(declare_float("alpha_slow", 0.01, {.doc = "recovery: long-term scan-fit average rate", .min = 1e-6, .max = 1.0})),
+      alpha_fast_(declare_float("alpha_fast", 0.2, {.doc = "recovery: short-term scan-fit average rate (> alpha_slow)", .min = 1e-6, .max = 1.0})),
+      seed_(declare_int("seed", 0, {.doc = "random seed (0: from the clock)", .min = 0, .max = 4294967295.0})),
+      show_particles_(declare_int("show_particles", 100, {.doc = "particles published per sample (at most 256)", .min = 0, .max = interfaces::kMclMaxShownParticles})),
+      position_max_std_(declare_float("position_max_std", 0.5, {.doc = "send Position UPDATE only when the position std dev is below this (m)", .min = 0.0, .max = 1e3})) {
+  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(Scan2dData) + 128);
+  set_command_slot_size(1024);
+}
+
+Mcl::~Mcl() = default;
+
+mcl::MclOptions Mcl::read_options() const {
+  mcl::MclOptions o;
+  o.particles_min = static_cast<uint32_t>(particles_min_.get_int());
+  o.particles_max = static_cast<uint32_t>(particles_max_.get_int());
+  o.update_distance = update_distance_.get_float();
+  o.update_angle = update_angle_.get_float();
+  o.beams = static_cast<uint32_t>(beams_.get_int());
+  o.odometry_jump = odometry_jump_.get_float();
+  o.sigma_hit = sigma_hit_.get_float();
+  o.max_range = max_range_.get_float();
+  o.odom_a1 = odom_noise_xy_.get_float();
+  o.odom_a3 = odom_noise_xy_.get_float() * 0.4;  // rad per metre: heading drift of a travelling robot
+  o.odom_a4 = odom_noise_phi_.get_float();
+  o.inject_max_fraction = inject_max_fraction_.get_float();
+  o.fit_min = fit_min_.get_float();
+  o.alpha_slow = alpha_slow_.get_float();
+  o.alpha_fast = alpha_fast_.get_float();
+  o.seed = static_cast<uint64_t>(seed_.get_int());
+  return o;
+}
+
+void Mcl::init() {
+  const std::string path = map_.get_string();
+  maps::LoadMapResult loaded = maps::load_map(path);
+  if (!loaded.ok()) throw std::runtime_error("map: " + loaded.error_text());
+  char pose[wire::kParamStringLen];
+  initial_pose_.copy_string(pose, sizeof pose);
+  double x = 0, y = 0, phi = 0;
+  if (!parse_pose(pose, x, y, phi)) {
+    throw std::runtime_error(std::string("parameter 'initial_pose': '") + pose + "' is not 'x y phi'");
+  }
+  mcl::MclOptions options = read_options();
+  try {
+    mcl::validate(options);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(std::string("parameters: ") + e.what());
+  }
+  filter_ = std::make_unique<mcl::MclFilter>(*loaded.map, options);
+  scan_ = std::make_unique<Scan2dData>();
+  out_ = std::make_unique<MclData>();
+  xs_ = std::make_unique<float[]>(interfaces::kScan2dMaxPoints);
+  ys_ = std::make_unique<float[]>(interfaces::kScan2dMaxPoints);
+  std::fprintf(stderr, "MCL '%s': map %s (%d x %d cells of %.3f m), particles %u..%u\n", name().c_str(),
+               path.c_str(), loaded.map->width(), loaded.map->height(), loaded.map->resolution(),
+               options.particles_min, options.particles_max);
+}
+
+HookResult Mcl::on() {
+  const tims::Address source = resolved(scan2d_);
+  if (switch_on(source) != HookResult::kOk) return HookResult::kError;  // cascading ON
+  reinit_.store(true, std::memory_order_release);
+  const auto period = static_cast<int64_t>(period_ms_.get_float() * 1e6);
+  return subscribe(source, period);
+}
+
+void Mcl::off() { unsubscribe(resolved(scan2d_)); }
+
+CommandResult Mcl::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
+  if (request.type != interfaces::kMclInit) return CommandResult::kUnknown;
+  interfaces::MclInit init;
+  if (!wire::read_payload(body, tims::body_is_native(request), init)) {
+    reject_malformed(request, "INIT: body must be an MclInit (56 bytes)");
+    return CommandResult::kHandled;
+  }
+  if (!std::isfinite(init.x) || !std::isfinite(init.y) || !std::isfinite(init.phi) || !(init.sigma_xy >= 0) ||
+      !(init.sigma_phi >= 0) || !std::isfinite(init.sigma_xy) || !std::isfinite(init.sigma_phi)) {
+    reject_malformed(request, "INIT: pose must be finite and spreads >= 0");
+    return CommandResult::kHandled;
+  }
+  {
+    rt::PiLock lock(init_mutex_);
+    pending_init_ = init;
+    init_pending_ = true;
+  }
+  reply(request, tims::msg::kOk);
+  return CommandResult::kHandled;
+}
+
+bool Mcl::apply_init() {
+  bool have = false;
+  interfaces::MclInit init;
+  {
+    rt::PiLock lock(init_mutex_);
+    if (init_pending_) {
+      init = pending_init_;
+      init_pending_ = false;
+      have = true;
+    }
+  }
+  if (reinit_.exchange(false, std::memory_order_acquire) && !have) {
+    // ON: from the parameters (they may have been changed with SET_PARAM).
+    filter_->set_options(read_options());
+    if (global_.get_bool()) {
+      init.global = 1;
+    } else {
+      char pose[wire::kParamStringLen];
+      initial_pose_.copy_string(pose, sizeof pose);
+      if (!parse_pose(pose, init.x, init.y, init.phi)) return false;
+      init.sigma_xy = initial_sigma_xy_.get_float();
+      init.sigma_phi = initial_sigma_phi_.get_float();
+    }
+    have = true;
+  }
+  if (!have) return true;
+  if (init.global != 0) filter_->init_global();
+  else filter_->init_pose({init.x, init.y, init.phi}, init.sigma_xy, init.sigma_phi);
+  updates_since_init_ = 0;
+  return true;
+}
+
+HookResult Mcl::loop() {
+  bool got = false;
+  wire::SampleHeader sh{};
+  for (;;) {
+    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
+    if (p.status != tims::RecvStatus::kOk) break;
+    const tims::MessageHeader h = *p.header;
+    if (h.type == tims::msg::kError) {  // Scan2D left ENABLED: ERROR now, re-subscribe on retry
+      input_mailbox().peek_end();
+      return HookResult::kError;
+    }
+    // Only the newest scan counts: the odometry in each scan is absolute, so skipping
+    // older ones loses nothing but keeps MCL from lagging behind.
+    wire::SampleHeader this_sh{};
+    const bool ok = h.type == tims::msg::kData && read_sample(h, p.body, this_sh, *scan_);
+    input_mailbox().peek_end();
+    if (!ok) continue;
+    sh = this_sh;
+    got = true;
+  }
+  if (!got) return HookResult::kError;  // data_timeout without a scan: the source is silent
+  scans_.fetch_add(1, std::memory_order_relaxed);
+  try {
+    if (!apply_init()) return HookResult::kError;
+    const Scan2dData& s = *scan_;
+    if (s.odometry_valid == 0) {  // no motion model without odometry: wait for the next
+      if (no_odometry_.fetch_add(1, std::memory_order_relaxed) == 0) {
+        std::fprintf(stderr,
+                     "MCL '%s': scans carry no odometry (odometry_valid 0); give the Scan2D component an "
+                     "'odometry' parameter. Such scans are skipped.\n",
+                     name().c_str());
+      }
+      return HookResult::kOk;
+    }
+    std::size_t n = 0;
+    const std::size_t count = std::min<std::size_t>(s.point_count, interfaces::kScan2dMaxPoints);
+    for (std::size_t i = 0; i < count; ++i) {
+      if (s.type[i] == interfaces::kScanPointMaxRange) continue;  // no echo: says nothing about walls
+      xs_[n] = s.x[i];
+      ys_[n] = s.y[i];
+      ++n;
+    }
+    const bool ran = filter_->update({s.odometry_x, s.odometry_y, s.odometry_phi},
+                                     std::span<const float>(xs_.get(), n), std::span<const float>(ys_.get(), n));
+    if (ran) ++updates_since_init_;
+    const mcl::MclEstimate e = filter_->estimate();
+    MclData& d = *out_;
+    d.x = e.pose.x;
+    d.y = e.pose.y;
+    d.phi = e.pose.phi;
+    for (int i = 0; i < 9; ++i) d.covariance[i] = e.covariance[i];
+    d.scan_time_ns = sh.time_ns;
+    d.particle_count = e.particles;
+    d.updates = updates_since_init_;
+    d.effective_sample_size = e.ess;
+    d.injected = e.injected;
+    d.fit = static_cast<float>(e.fit);
+    const auto shown = static_cast<std::size_t>(show_particles_.get_int());
+    d.shown = static_cast<uint32_t>(filter_->sample_particles(
+        std::span<float>(d.particle_x, shown), std::span<float>(d.particle_y, shown),
+        std::span<float>(d.particle_phi, shown), std::span<float>(d.particle_weight, shown)));
+    publish(d, sh.time_ns);
+    if (ran) send_position_update(sh.time_ns);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "MCL '%s': update failed: %s\n", name().c_str(), e.what());
+    return HookResult::kError;
+  }
+  return HookResult::kOk;
+}
+
+void Mcl::send_position_update(int64_t time_ns) noexcept {
+  const tims::Address position = resolved(position_);
+  if (position.raw() == 0) return;  // no Position configured
+  const MclData& d = *out_;
+  const double std_xy = std::sqrt(std::max(0.0, d.covariance[0] + d.covariance[4]));
+  if (!(std_xy <= position_max_std_.get_float())) return;  // not localised yet
+  interfaces::PositionUpdate u;
+  u.time_ns = time_ns;
+  u.x = d.x;
+  u.y = d.y;
+  u.phi = d.phi;
+  u.var_x = d.covariance[0];
+  u.var_y = d.covariance[4];
+  u.var_phi = d.covariance[8];
+  alignas(8) std::byte buf[512];
+  const auto r = data_endpoint().call(position, interfaces::kPositionUpdate, u, std::span<std::byte>(buf),
+                                      settings().rpc_timeout_ns);
+  (r.ok() ? position_ok_ : position_failed_).fetch_add(1, std::memory_order_relaxed);
+}
+
+}  // namespace rack::components

@@ -1,0 +1,266 @@
+// Recorded logs: the CARMEN parser (each line kind, malformed lines with their number
+// and reason) and the MRPT rawlog reader (a dataset Debian's mrpt-common ships, and
+// files that are not rawlogs).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <numbers>
+#include <string>
+#include <variant>
+
+#include <array>
+#include <map>
+#include <sstream>
+#include <vector>
+
+#include "rack/maps/occupancy_map.h"
+#include "rack/mcl/mcl_filter.h"
+#include "rack/replay/carmen_log.h"
+#include "rack/replay/replay_log.h"
+
+namespace rack::replay {
+namespace {
+
+std::string reason_of(const CarmenLine& l) {
+  const auto* m = std::get_if<CarmenMalformed>(&l);
+  return m == nullptr ? std::string("(not malformed)") : m->reason;
+}
+
+TEST(CarmenLogTest, OdomLine) {
+  const CarmenLine l = parse_carmen_line("ODOM 1.5 -2.25 0.5 0.3 -0.1 0.0 1234.5678 host 0.01", 7);
+  const auto* o = std::get_if<OdometryRecord>(&l);
+  ASSERT_NE(o, nullptr) << reason_of(l);
+  EXPECT_DOUBLE_EQ(o->x, 1.5);
+  EXPECT_DOUBLE_EQ(o->y, -2.25);
+  EXPECT_DOUBLE_EQ(o->phi, 0.5);
+  EXPECT_DOUBLE_EQ(o->tv, 0.3);
+  EXPECT_DOUBLE_EQ(o->rv, -0.1);
+  EXPECT_DOUBLE_EQ(o->time, 1234.5678);
+  EXPECT_EQ(o->line, 7);
+}
+
+TEST(CarmenLogTest, FlaserLine) {
+  const CarmenLine l =
+      parse_carmen_line("FLASER 5 1.0 2.0 3.0 4.0 5.0 10.0 20.0 0.1 1.0 2.0 0.2 100.25 robot 0.5", 3);
+  const auto* s = std::get_if<ScanRecord>(&l);
+  ASSERT_NE(s, nullptr) << reason_of(l);
+  ASSERT_EQ(s->ranges.size(), 5U);
+  EXPECT_FLOAT_EQ(s->ranges[4], 5.0F);
+  EXPECT_FLOAT_EQ(s->start_angle, static_cast<float>(-std::numbers::pi / 2));
+  EXPECT_FLOAT_EQ(s->angle_step, static_cast<float>(std::numbers::pi / 4));  // 180 deg over 4 gaps
+  EXPECT_TRUE(s->has_odometry);
+  EXPECT_DOUBLE_EQ(s->odom_x, 1.0);  // odom_x, not the corrected x
+  EXPECT_DOUBLE_EQ(s->odom_y, 2.0);
+  EXPECT_DOUBLE_EQ(s->odom_phi, 0.2);
+  EXPECT_DOUBLE_EQ(s->time, 100.25);
+  EXPECT_GT(s->max_range, 0.0F);
+}
+
+TEST(CarmenLogTest, RobotLaser1Line) {
+  // 3 beams from -0.5 rad by 0.5 rad, 3 remissions; laser 0.2 m ahead of the robot,
+  // which stands at (1, 1) facing +y.
+  const CarmenLine l = parse_carmen_line(
+      "ROBOTLASER1 0 -0.5 1.0 0.5 30.0 0.01 0 3 1.5 2.5 3.5 3 10 20 30 "
+      "1.0 1.2 1.5707963 1.0 1.0 1.5707963 0.4 0.1 0.5 0.3 0.0 55.5 host 1.0",
+      9);
+  const auto* s = std::get_if<ScanRecord>(&l);
+  ASSERT_NE(s, nullptr) << reason_of(l);
+  ASSERT_EQ(s->ranges.size(), 3U);
+  ASSERT_EQ(s->intensities.size(), 3U);
+  EXPECT_FLOAT_EQ(s->start_angle, -0.5F);
+  EXPECT_FLOAT_EQ(s->angle_step, 0.5F);
+  EXPECT_FLOAT_EQ(s->max_range, 30.0F);
+  EXPECT_FLOAT_EQ(s->intensities[2], 30.0F);
+  EXPECT_DOUBLE_EQ(s->odom_x, 1.0);
+  EXPECT_DOUBLE_EQ(s->odom_phi, 1.5707963);
+  EXPECT_NEAR(s->laser_x, 0.2, 1e-6);  // mounting, robot frame
+  EXPECT_NEAR(s->laser_y, 0.0, 1e-6);
+  EXPECT_NEAR(s->laser_phi, 0.0, 1e-6);
+  EXPECT_DOUBLE_EQ(s->time, 55.5);
+}
+
+TEST(CarmenLogTest, CommentsBlankLinesAndOtherKindsAreIgnored) {
+  EXPECT_TRUE(std::holds_alternative<CarmenIgnored>(parse_carmen_line("# a comment", 1)));
+  EXPECT_TRUE(std::holds_alternative<CarmenIgnored>(parse_carmen_line("   \t", 1)));
+  EXPECT_TRUE(std::holds_alternative<CarmenIgnored>(parse_carmen_line("PARAM robot_length 0.5 nohost 0", 1)));
+  EXPECT_TRUE(std::holds_alternative<CarmenIgnored>(parse_carmen_line("TRUEPOS 1 2 3 4 5 6 7 h 8", 1)));
+}
+
+TEST(CarmenLogTest, MalformedLinesSayWhy) {
+  struct Case {
+    const char* line;
+    const char* expect;
+  };
+  const Case cases[] = {
+      {"ODOM 1 2 3 0.3 0.1 0 12.0 host", "missing logger_timestamp"},
+      {"ODOM 1 2 x 0.3 0.1 0 12.0 host 0", "theta is not a number: 'x'"},
+      {"ODOM 1 2 3 0.3 0.1 0 12.0 host 0 extra", "extra field"},
+      {"ODOM 1 2 nan 0.3 0.1 0 12.0 host 0", "theta is not finite"},
+      {"FLASER 5 1 2 3", "line ends inside the range readings"},
+      {"FLASER 5 1 2 3 4.0 1 1 0 1 1 0 100 host 0", "ipc_timestamp is not a number: 'host'"},
+      {"FLASER -3 1 2 3", "num_readings must be a count"},
+      {"FLASER 2.5 1 2 3", "num_readings must be a count"},
+      {"FLASER 1 5.0 1 1 0 1 1 0 100 host 0", "at least 2"},
+      {"ROBOTLASER1 0 -0.5 1.0 0.5 30.0 0.01 0 3 1.5 2.5 3.5 2 10 20 1 1 0 1 1 0 0 0 0 0 0 5 h 1",
+       "2 remission values for 3"},
+      {"ROBOTLASER1 0 -0.5 1.0 0.5 0.0 0.01 0 2 1.5 2.5 0 1 1 0 1 1 0 0 0 0 0 0 5 h 1",
+       "maximum_range must be positive"},
+      {"\x01\x02garbage", "not a CARMEN message"},
+  };
+  for (const auto& c : cases) {
+    const std::string why = reason_of(parse_carmen_line(c.line, 1));
+    EXPECT_NE(why.find(c.expect), std::string::npos) << "line: " << c.line << "\nreason: " << why;
+  }
+}
+
+TEST(CarmenLogTest, WholeLogKeepsRecordsSortedAndReportsLineNumbers) {
+  const std::string text =
+      "# CARMEN Logfile\n"
+      "PARAM robot_width 0.5 nohost 0\n"
+      "ODOM 0.1 0 0 0 0 0 2.0 h 2.0\n"
+      "ODOM 0.0 0 0 0 0 0 1.0 h 1.0\n"
+      "FLASER 3 1 2 3 0 0 0 0 0 0 1.5 h 1.5\n"
+      "ODOM 1 2\n"
+      "\n"
+      "FLASER 3 1 2 three 0 0 0 0 0 0 1.7 h 1.7\n";
+  const LoadLogResult r = parse_carmen_text(text, "test.log");
+  EXPECT_EQ(r.lines, 8U);
+  EXPECT_EQ(r.ignored, 1U);
+  ASSERT_EQ(r.log.odometry.size(), 2U);
+  EXPECT_DOUBLE_EQ(r.log.odometry[0].time, 1.0);  // sorted by time
+  EXPECT_EQ(r.log.odometry[0].line, 4);
+  ASSERT_EQ(r.log.scans.size(), 1U);
+  ASSERT_EQ(r.errors.size(), 2U);
+  EXPECT_EQ(r.errors[0].line, 6);
+  EXPECT_EQ(r.errors[1].line, 8);
+  EXPECT_NE(r.errors[1].str().find("test.log:8: FLASER: range reading is not a number: 'three'"), std::string::npos)
+      << r.errors[1].str();
+  EXPECT_DOUBLE_EQ(r.log.first_time(), 1.0);
+  EXPECT_DOUBLE_EQ(r.log.last_time(), 2.0);
+}
+
+TEST(CarmenLogTest, MissingAndEmptyFilesAreErrors) {
+  const LoadLogResult missing = load_replay_log("/nonexistent/robot.log");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error_text().find("/nonexistent/robot.log: cannot open"), std::string::npos);
+  const LoadLogResult empty = parse_carmen_text("# nothing\n", "empty.log");
+  ASSERT_FALSE(empty.ok());
+  EXPECT_NE(empty.error_text().find("no ODOM, FLASER or ROBOTLASER1"), std::string::npos);
+}
+
+// MRPT's own reader on a dataset Debian's mrpt-common ships (scripts/setup.sh installs
+// it): an actions + sensory-frames rawlog with 2-D laser scans and odometry.
+TEST(RawlogTest, ReadsMrptLocalisationDemo) {
+  const std::string path = "/usr/share/mrpt/datasets/localization_demo.rawlog";
+  ASSERT_TRUE(std::filesystem::exists(path)) << path << " missing: run scripts/setup.sh (mrpt-common)";
+  const LoadLogResult r = load_replay_log(path);
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  EXPECT_GT(r.log.scans.size(), 10U);
+  EXPECT_EQ(r.log.odometry.size(), r.log.scans.size());
+  const ScanRecord& s = r.log.scans.front();
+  EXPECT_GE(s.ranges.size(), 2U);
+  EXPECT_GT(s.max_range, 0.0F);
+  EXPECT_TRUE(s.has_odometry);
+  // Odometry accumulates: the robot moves during the dataset.
+  const auto& a = r.log.odometry.front();
+  const auto& b = r.log.odometry.back();
+  EXPECT_GT(std::hypot(b.x - a.x, b.y - a.y), 0.5);
+  for (std::size_t i = 1; i < r.log.scans.size(); ++i) EXPECT_GE(r.log.scans[i].time, r.log.scans[i - 1].time);
+}
+
+TEST(RawlogTest, NotARawlogIsAnErrorWithTheFileName) {
+  const auto path = std::filesystem::temp_directory_path() / "rack_bad_test.rawlog";
+  {
+    std::ofstream out(path, std::ios::binary);
+    out << "this is not a rawlog, just text that MRPT cannot deserialise\n";
+  }
+  const LoadLogResult r = load_replay_log(path.string());
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error_text().find(path.string()), std::string::npos) << r.error_text();
+  std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace rack::replay
+
+namespace rack::replay {
+namespace {
+
+// The example log shipped in configs/logs/ (written by bench_mcl --write-carmen), parsed
+// and fed to MCL scan by scan: the estimate follows the TRUEPOS lines (ground truth,
+// which the replay ignores; read here by hand).
+TEST(CarmenLogTest, ShippedExampleLogLocalisesWithMcl) {
+  const std::string dir = std::string(RACK_SOURCE_DIR) + "/configs";
+  const LoadLogResult r = load_carmen_log(dir + "/logs/office_tour.clf");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  ASSERT_GT(r.log.scans.size(), 100U);
+  std::map<double, std::array<double, 3>> truth;
+  {
+    std::ifstream in(dir + "/logs/office_tour.clf");
+    std::string kind;
+    for (std::string line; std::getline(in, line);) {
+      std::istringstream ls(line);
+      ls >> kind;
+      if (kind != "TRUEPOS") continue;
+      double x, y, th, ox, oy, oth, t;
+      ls >> x >> y >> th >> ox >> oy >> oth >> t;
+      truth[t] = {x, y, th};
+    }
+  }
+  auto map = maps::load_map(dir + "/maps/office.yaml");
+  ASSERT_TRUE(map.ok()) << map.error_text();
+  mcl::MclOptions o;
+  o.seed = 3;
+  mcl::MclFilter f(*map.map, o);
+  f.init_pose({2.0, 8.0, 0.0}, 0.2, 0.1);
+  double sum_sq = 0;
+  int n = 0;
+  for (const ScanRecord& s : r.log.scans) {
+    std::vector<float> xs, ys;
+    for (std::size_t i = 0; i < s.ranges.size(); ++i) {
+      if (!(s.ranges[i] > 0 && s.ranges[i] < s.max_range)) continue;
+      const double a = s.start_angle + static_cast<double>(i) * s.angle_step;
+      xs.push_back(static_cast<float>(s.ranges[i] * std::cos(a)));
+      ys.push_back(static_cast<float>(s.ranges[i] * std::sin(a)));
+    }
+    if (!f.update({s.odom_x, s.odom_y, s.odom_phi}, xs, ys)) continue;
+    const auto it = truth.find(s.time);
+    ASSERT_NE(it, truth.end()) << "no TRUEPOS at " << s.time;
+    const auto e = f.estimate();
+    const double err = std::hypot(e.pose.x - it->second[0], e.pose.y - it->second[1]);
+    if (++n > 5) sum_sq += err * err;
+  }
+  ASSERT_GT(n, 50);
+  EXPECT_LT(std::sqrt(sum_sq / (n - 5)), 0.05);
+}
+
+}  // namespace
+}  // namespace rack::replay
+
+namespace rack::replay {
+namespace {
+
+// A rawlog cut in the middle of a record is an error naming the byte offset, not a
+// shorter log.
+TEST(RawlogTest, TruncatedRawlogIsAnErrorWithTheOffset) {
+  const std::string src = "/usr/share/mrpt/datasets/localization_demo.rawlog";
+  ASSERT_TRUE(std::filesystem::exists(src)) << src << " missing: run scripts/setup.sh (mrpt-common)";
+  const auto path = std::filesystem::temp_directory_path() / "rack_truncated_test.rawlog";
+  {
+    std::ifstream in(src, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream out(path, std::ios::binary);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size() / 2));
+  }
+  const LoadLogResult r = load_replay_log(path.string());
+  ASSERT_FALSE(r.ok()) << "a truncated rawlog was accepted with " << r.log.scans.size() << " scans";
+  EXPECT_NE(r.error_text().find("byte offset"), std::string::npos) << r.error_text();
+  EXPECT_NE(r.error_text().find(path.string()), std::string::npos) << r.error_text();
+  std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace rack::replay
