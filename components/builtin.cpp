@@ -9,6 +9,7 @@
 #include "path/path.h"
 #include "pilot/pilot.h"
 #include "position/position.h"
+#include "evaluator/evaluator.h"
 #include "modeswitch_demo/modeswitch_demo.h"
 #include "probe/probe.h"
 #include "replay/replay_components.h"
@@ -46,6 +47,9 @@ void register_builtin(ComponentRegistry& registry) {
                 [] { return std::make_unique<Path>(); }});
   registry.add({"Pilot", cls::kPilot, "pure-pursuit pilot: follows a Path or goes to a destination, obstacle speed limit",
                 [] { return std::make_unique<Pilot>(); }});
+  registry.add({"Evaluator", cls::kEvaluator,
+                "simulation: localisation error of Position and MCL against ChassisSim's true pose",
+                [] { return std::make_unique<Evaluator>(); }});
   registry.add({"ModeSwitchDemo", cls::kModeSwitchDemo,
                 "demo: class commands that trigger each mode-switch reason and a crash (configs/modeswitch_demo.yaml)",
                 [] { return std::make_unique<ModeSwitchDemo>(); }});

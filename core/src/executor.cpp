@@ -335,6 +335,9 @@ std::string Executor::status_report() const {
                     c.address().str().c_str(), describe(c.state()), static_cast<unsigned long long>(s.commands));
     }
     out += line;
+    std::string extra;
+    c.describe_status(extra);
+    if (!extra.empty()) out += "      " + extra + "\n";
   }
   {
     const auto g = hub_.counters();

@@ -24,9 +24,9 @@ constexpr std::array kBuiltinClasses{
     ClassEntry{classes::kPath, "Path"},         ClassEntry{classes::kPilot, "Pilot"},
     ClassEntry{classes::kPosition, "Position"}, ClassEntry{classes::kScan2d, "Scan2D"},
     ClassEntry{classes::kScan3d, "Scan3D"},     ClassEntry{classes::kObjRecog, "ObjRecog"},
-    ClassEntry{classes::kMcl, "Mcl"},           ClassEntry{classes::kGenerator, "Generator"},
+    ClassEntry{classes::kMcl, "MCL"},           ClassEntry{classes::kGenerator, "Generator"},
     ClassEntry{classes::kMonitor, "Monitor"},   ClassEntry{classes::kProbe, "Probe"},
-    ClassEntry{classes::kModeSwitchDemo, "ModeSwitchDemo"},
+    ClassEntry{classes::kModeSwitchDemo, "ModeSwitchDemo"}, ClassEntry{classes::kEvaluator, "Evaluator"},
 };
 
 // User classes: written only before tasks start (register_class_name), read anywhere.

@@ -1,6 +1,7 @@
 #include "rack/interfaces/data_types.h"
 
 #include "rack/interfaces/demo.h"
+#include "rack/interfaces/evaluation.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
 #include "rack/tims/address.h"
@@ -23,6 +24,7 @@ constexpr DataTypeInfo kScan2d = info<Scan2dData>("Scan2dData");
 constexpr DataTypeInfo kMcl = info<MclData>("MclData");
 constexpr DataTypeInfo kPath = info<PathData>("PathData");
 constexpr DataTypeInfo kPilot = info<PilotData>("PilotData");
+constexpr DataTypeInfo kEvaluator = info<EvaluatorData>("EvaluatorData");
 constexpr DataTypeInfo kModeSwitchDemo = info<ModeSwitchDemoData>("ModeSwitchDemoData");
 }  // namespace
 
@@ -39,6 +41,7 @@ const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
     case tims::classes::kMcl: return &kMcl;
     case tims::classes::kPath: return &kPath;
     case tims::classes::kPilot: return &kPilot;
+    case tims::classes::kEvaluator: return &kEvaluator;
     case tims::classes::kModeSwitchDemo: return &kModeSwitchDemo;
     default: return nullptr;
   }

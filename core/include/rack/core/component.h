@@ -96,6 +96,10 @@ class Component {
   [[nodiscard]] virtual DataTaskMode data_task_mode() const noexcept { return DataTaskMode::kNone; }
   // Statistics for GET_STATS and rackd's status lines. Any thread, RT-safe.
   virtual void fill_stats(wire::StatsReply& out) const noexcept;
+  // Class-specific progress for rackd's --status lines ("" for none): appended to
+  // `out` as one short line. Called from rackd's main thread while the tasks run, so
+  // it reads only atomics or other thread-safe state. Not RT-safe (it may allocate).
+  virtual void describe_status(std::string& out) const { (void)out; }
   // This component as a GDOS log source (address, name, level). Any thread.
   [[nodiscard]] const gdos::LogSource& log_source() const noexcept { return log_source_; }
   // The standard parameter that holds the log level (every component has it).

@@ -72,6 +72,7 @@ inline constexpr uint8_t kGenerator = 0x40;  // demo: periodic producer
 inline constexpr uint8_t kMonitor = 0x41;    // demo: consumer with statistics
 inline constexpr uint8_t kProbe = 0x42;      // test component whose hooks can fail on demand
 inline constexpr uint8_t kModeSwitchDemo = 0x43;  // demo: triggers each mode-switch reason on demand
+inline constexpr uint8_t kEvaluator = 0x44;   // simulation: localisation error against the true pose
 inline constexpr uint8_t kFirstUser = 0x80;
 }  // namespace classes
 

@@ -1,0 +1,44 @@
+// Evaluator (class Evaluator): how far the robot's estimates are from the simulated
+// truth (ChassisSim's true pose at the same time). Simulation only: a real robot has
+// no truth to compare with.
+//
+// Real-time contract: plain data; RT-safe.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "rack/tims/payload.h"
+
+namespace rack::interfaces {
+
+struct EvaluatorData {
+  double distance = 0.0;        // m the robot truly travelled since ON
+  // Position (the pose the pilot steers on) against the truth at its sample time.
+  uint64_t position_samples = 0;
+  double position_error = 0.0;  // m, the last sample's
+  double position_rms = 0.0;    // m, over every sample since ON
+  double position_p95 = 0.0;    // m (1 mm resolution, up to 10 m)
+  double position_max = 0.0;    // m
+  double position_heading_rms = 0.0;  // rad
+  // MCL's estimate against the truth at its scan's time.
+  uint64_t mcl_samples = 0;
+  double mcl_error = 0.0;
+  double mcl_rms = 0.0;
+  double mcl_p95 = 0.0;
+  double mcl_max = 0.0;
+  double mcl_heading_rms = 0.0;
+  uint64_t unmatched = 0;       // estimates with no truth sample within 20 ms of their time
+  static constexpr auto fields() noexcept {
+    return std::array{
+        RACK_FIELD(EvaluatorData, distance),         RACK_FIELD(EvaluatorData, position_samples),
+        RACK_FIELD(EvaluatorData, position_error),   RACK_FIELD(EvaluatorData, position_rms),
+        RACK_FIELD(EvaluatorData, position_p95),     RACK_FIELD(EvaluatorData, position_max),
+        RACK_FIELD(EvaluatorData, position_heading_rms), RACK_FIELD(EvaluatorData, mcl_samples),
+        RACK_FIELD(EvaluatorData, mcl_error),        RACK_FIELD(EvaluatorData, mcl_rms),
+        RACK_FIELD(EvaluatorData, mcl_p95),          RACK_FIELD(EvaluatorData, mcl_max),
+        RACK_FIELD(EvaluatorData, mcl_heading_rms),  RACK_FIELD(EvaluatorData, unmatched)};
+  }
+};
+
+}  // namespace rack::interfaces
