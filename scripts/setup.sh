@@ -16,6 +16,8 @@ packages=(
   libdw-dev libelf-dev                   # backtrace symbolisation (elfutils)
   iproute2                               # network namespaces in the integration tests
   python3 python3-matplotlib             # bench/run writes RESULTS.md and its plots
+  libopencv-dev                          # Camera component (OpenCV VideoCapture), linked PRIVATE there only
+  can-utils                              # cansend/candump: vcan tests and CAN debugging on robots
 )
 
 missing=()
