@@ -1,6 +1,9 @@
 #include "rack/components/builtin.h"
 
+#include "chassis_can/chassis_can.h"
 #include "generator/generator.h"
+#include "gps_nmea/gps_nmea.h"
+#include "joystick/joystick.h"
 #include "monitor/monitor.h"
 #include "probe/probe.h"
 #include "rack/tims/address.h"
@@ -15,6 +18,14 @@ void register_builtin(ComponentRegistry& registry) {
                 [] { return std::make_unique<Monitor>(); }});
   registry.add({"Probe", cls::kProbe, "test: hooks fail or throw on demand",
                 [] { return std::make_unique<Probe>(); }});
+  // Hardware drivers (issue 8); simulators for each: rack-devsim.
+  registry.add({"GpsNmea", cls::kGps, "GPS: NMEA 0183 receiver on a serial port (GGA/RMC/GSA/VTG, UTM, local x/y)",
+                [] { return std::make_unique<GpsNmea>(); }});
+  registry.add({"ChassisCan", cls::kChassis,
+                "Chassis: differential drive with two CiA 402 drives over SocketCAN (profile velocity)",
+                [] { return std::make_unique<ChassisCan>(); }});
+  registry.add({"Joystick", cls::kJoystick, "Joystick: Linux joystick API; optionally the active pilot of a chassis",
+                [] { return std::make_unique<Joystick>(); }});
 }
 
 }  // namespace rack::components

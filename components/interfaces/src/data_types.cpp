@@ -1,6 +1,7 @@
 #include "rack/interfaces/data_types.h"
 
 #include "rack/interfaces/demo.h"
+#include "rack/interfaces/devices.h"
 #include "rack/interfaces/robot.h"
 #include "rack/tims/address.h"
 
@@ -20,6 +21,8 @@ constexpr DataTypeInfo kOdometry = info<OdometryData>("OdometryData");
 constexpr DataTypeInfo kPosition = info<PositionData>("PositionData");
 constexpr DataTypeInfo kScan2d = info<Scan2dData>("Scan2dData");
 constexpr DataTypeInfo kMcl = info<MclData>("MclData");
+constexpr DataTypeInfo kGps = info<GpsData>("GpsData");
+constexpr DataTypeInfo kJoystick = info<JoystickData>("JoystickData");
 }  // namespace
 
 const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
@@ -33,6 +36,8 @@ const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
     case tims::classes::kPosition: return &kPosition;
     case tims::classes::kScan2d: return &kScan2d;
     case tims::classes::kMcl: return &kMcl;
+    case tims::classes::kGps: return &kGps;
+    case tims::classes::kJoystick: return &kJoystick;
     default: return nullptr;
   }
 }

@@ -1,0 +1,435 @@
+// The driver components in an in-process executor against the shipped simulators:
+// GpsNmea on a pty, ChassisCan on the CiA 402 simulator's CAN-frame socket, Joystick
+// on a FIFO carrying struct js_event. Each test covers the normal path, malformed
+// traffic, and a device that disappears or falls silent and comes back.
+#include <fcntl.h>
+#include <linux/joystick.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "../unit/test_support.h"
+#include "rack/interfaces/devices.h"
+#include "rack/interfaces/robot.h"
+#include "rack/sims/cia402_sim.h"
+#include "rack/sims/nmea_gps_sim.h"
+
+namespace rack {
+namespace {
+
+using interfaces::ChassisData;
+using interfaces::GpsData;
+using interfaces::JoystickData;
+using test::HostUnderTest;
+using test::Watchdog;
+using tims::Address;
+namespace msg = tims::msg;
+
+std::string temp_path(const std::string& what) {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  return "/tmp/rack-" + what + "-" + std::to_string(::getpid()) + "-" + info->name();
+}
+
+template <typename T>
+bool wait_sample(HostUnderTest& host, Address a, T& out, const std::function<bool(const T&)>& pred,
+                 std::chrono::milliseconds limit = std::chrono::milliseconds(10000)) {
+  return test::eventually(
+      [&] {
+        wire::SampleHeader h;
+        return host.get_data(a, h, out) && pred(out);
+      },
+      limit);
+}
+
+// ---------------------------------------------------------------------------
+
+class GpsNmeaTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    sims::NmeaGpsSim::Config c;
+    c.link = temp_path("gps");
+    c.period_ns = 20 * rt::kNsPerMs;
+    c.course_deg = 90.0;  // due east
+    c.speed_mps = 2.0;
+    config_ = c;
+    sim_ = std::make_unique<sims::NmeaGpsSim>(c);
+    sim_->start();
+    host_ = std::make_unique<HostUnderTest>(R"(system: 0
+lcm: false
+components:
+  - name: gps
+    class: GpsNmea
+    instance: 0
+    autostart: true
+    retry_ms: 100
+    data_task: {period_ms: 10, ring: 64}
+    params:
+      device: )" + c.link + R"(
+      baud: 115200
+      timeout_ms: 300
+      origin_latitude_deg: )" + std::to_string(c.latitude_deg) + R"(
+      origin_longitude_deg: )" + std::to_string(c.longitude_deg) + "\n");
+    gps_ = host_->address_of("gps");
+  }
+  void TearDown() override {
+    if (HasFailure()) std::fprintf(stderr, "executor log:\n%s", host_->log().c_str());
+    host_.reset();
+    sim_.reset();
+  }
+  sims::NmeaGpsSim::Config config_;
+  std::unique_ptr<sims::NmeaGpsSim> sim_;
+  std::unique_ptr<HostUnderTest> host_;
+  Address gps_;
+};
+
+TEST_F(GpsNmeaTest, PublishesTheFixInWgs84UtmAndTheLocalFrame) {
+  Watchdog w;
+  GpsData d;
+  ASSERT_TRUE(wait_sample<GpsData>(*host_, gps_, d, [](const GpsData& g) { return g.sentences >= 20; }));
+  EXPECT_EQ(d.fix_quality, interfaces::kGpsFixGps);
+  EXPECT_EQ(d.fix_mode, 3);
+  EXPECT_EQ(d.satellites, config_.satellites);
+  EXPECT_NEAR(d.latitude_deg, config_.latitude_deg, 1e-4);
+  EXPECT_NEAR(d.speed, 2.0, 0.01);
+  EXPECT_NEAR(d.course_deg, 90.0, 0.1);
+  EXPECT_EQ(d.utm_zone, 32U);  // 9.7 E
+  EXPECT_EQ(d.utm_north, 1);
+  EXPECT_NEAR(d.utm_easting, 550000.0, 5000.0);
+  EXPECT_GT(d.utm_northing, 5.8e6);
+  EXPECT_EQ(d.checksum_errors, 0U);
+  // Driving east at 2 m/s from the origin: x grows, y stays near 0 (NMEA rounds to ~0.2 m).
+  GpsData later;
+  ASSERT_TRUE(wait_sample<GpsData>(*host_, gps_, later, [&](const GpsData& g) { return g.x > d.x + 0.5; }));
+  EXPECT_GT(later.x, 0.0);
+  EXPECT_LT(std::fabs(later.y), 1.0);
+  EXPECT_NEAR(static_cast<double>(later.utc_ns), static_cast<double>(rt::host_time_ns()), 5e9);
+}
+
+TEST_F(GpsNmeaTest, GarbageIsCountedWhileTheFixGoesOn) {
+  Watchdog w;
+  GpsData d;
+  ASSERT_TRUE(wait_sample<GpsData>(*host_, gps_, d, [](const GpsData& g) { return g.sentences > 0; }));
+  sim_->set_fault(sims::NmeaGpsSim::Fault::kGarbage);
+  ASSERT_TRUE(wait_sample<GpsData>(*host_, gps_, d, [](const GpsData& g) {
+    return g.garbage_bytes > 50 && g.malformed > 3 && g.checksum_errors == 0;
+  }));
+  EXPECT_EQ(host_->status(gps_), msg::kEnabled) << "half epochs still carry GGA: the fix goes on";
+}
+
+TEST_F(GpsNmeaTest, WrongChecksumsAndSilenceAreErrorsAndItRecovers) {
+  Watchdog w;
+  ASSERT_TRUE(host_->wait_status(gps_, msg::kEnabled));
+  sim_->set_fault(sims::NmeaGpsSim::Fault::kBadChecksum);
+  ASSERT_TRUE(host_->wait_status(gps_, msg::kError)) << "no valid sentence for timeout_ms";
+  sim_->set_fault(sims::NmeaGpsSim::Fault::kNone);
+  ASSERT_TRUE(host_->wait_status(gps_, msg::kEnabled)) << "on() retries and the receiver talks again";
+  GpsData d;
+  ASSERT_TRUE(wait_sample<GpsData>(*host_, gps_, d, [](const GpsData& g) { return g.checksum_errors >= 8; }))
+      << "the rejected sentences were counted";
+  sim_->set_fault(sims::NmeaGpsSim::Fault::kSilent);
+  ASSERT_TRUE(host_->wait_status(gps_, msg::kError));
+  sim_->set_fault(sims::NmeaGpsSim::Fault::kNone);
+  EXPECT_TRUE(host_->wait_status(gps_, msg::kEnabled));
+}
+
+TEST_F(GpsNmeaTest, AnUnpluggedReceiverIsAnErrorAndComesBackUnderANewDevice) {
+  Watchdog w;
+  ASSERT_TRUE(host_->wait_status(gps_, msg::kEnabled));
+  sim_->unplug();
+  ASSERT_TRUE(host_->wait_status(gps_, msg::kError));
+  sim_->plug();  // a new pty; the symlink moves, as udev would move /dev/gps0
+  ASSERT_TRUE(host_->wait_status(gps_, msg::kEnabled));
+  wire::SampleHeader h1, h2;
+  GpsData d;
+  ASSERT_TRUE(test::eventually([&] { return host_->get_data(gps_, h1, d); }));  // the ring restarts at ON
+  EXPECT_TRUE(test::eventually([&] { return host_->get_data(gps_, h2, d) && h2.sequence > h1.sequence; }));
+}
+
+// ---------------------------------------------------------------------------
+
+class ChassisCanTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    socket_ = temp_path("can") + ".sock";
+    sim_ = std::make_unique<sims::Cia402DriveSim>(sims::Cia402DriveSim::Config{});
+    sim_->listen_unix(socket_);
+    sim_->start();
+  }
+  void start_host(const std::string& extra = "") {
+    host_ = std::make_unique<HostUnderTest>(R"(system: 0
+lcm: false
+components:
+  - name: chassis
+    class: ChassisCan
+    instance: 0
+    autostart: true
+    retry_ms: 100
+    data_task: {period_ms: 10, ring: 64}
+    params:
+      can: unix:)" + socket_ + R"(
+      counts_per_meter: 10000
+      track_width: 0.5
+      acc_max: 5.0
+      dec_max: 5.0
+      heartbeat_ms: 20
+      heartbeat_timeout_ms: 150
+      sdo_timeout_ms: 50
+      watchdog_ms: 300
+)" + extra);
+    chassis_ = host_->address_of("chassis");
+  }
+  void TearDown() override {
+    if (HasFailure() && host_) std::fprintf(stderr, "executor log:\n%s", host_->log().c_str());
+    host_.reset();
+    sim_.reset();
+  }
+  // The test's own tool mailbox is the pilot.
+  [[nodiscard]] uint32_t me() const { return Address::make(0, tims::classes::kTool, 1, 0).raw(); }
+  HostUnderTest::Reply move(double vx, double omega) {
+    const interfaces::ChassisMove m{vx, 0.0, omega};
+    return host_->call_with(chassis_, interfaces::kChassisMove, m);
+  }
+  HostUnderTest::Reply set_pilot(uint32_t pilot) {
+    const interfaces::ChassisSetActivePilot p{pilot};
+    return host_->call_with(chassis_, interfaces::kChassisSetActivePilot, p);
+  }
+
+  std::string socket_;
+  std::unique_ptr<sims::Cia402DriveSim> sim_;
+  std::unique_ptr<HostUnderTest> host_;
+  Address chassis_;
+};
+
+TEST_F(ChassisCanTest, DrivesBothWheelsAndPublishesOdometry) {
+  Watchdog w;
+  start_host();
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kEnabled));
+  EXPECT_EQ(sim_->state(1).nmt, 0x05) << "NMT operational";
+  EXPECT_EQ(sim_->state(1).mode, 3) << "profile velocity mode, configured over SDO";
+  EXPECT_EQ(sim_->state(2).heartbeat_ms, 20);
+  ASSERT_EQ(set_pilot(me()).type, msg::kOk);
+  // Keep MOVE coming faster than the watchdog.
+  ChassisData d;
+  double travelled = 0.0;
+  const int64_t end = rt::monotonic_ns() + 3 * rt::kNsPerSec;
+  bool reached = false;
+  while (!reached && rt::monotonic_ns() < end) {
+    ASSERT_EQ(move(0.5, 0.0).type, msg::kOk);
+    wire::SampleHeader h;
+    reached = host_->get_data(chassis_, h, d) && std::fabs(d.vx - 0.5) < 0.01;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_TRUE(reached) << "vx " << d.vx;
+  EXPECT_NEAR(sim_->state(1).target_velocity, 5000, 0);
+  EXPECT_NEAR(sim_->state(2).target_velocity, 5000, 0);
+  EXPECT_NEAR(d.omega, 0.0, 1e-6);
+  EXPECT_GT(d.delta_x, 0.0);
+  EXPECT_NEAR(d.delta_phi, 0.0, 1e-9);
+  EXPECT_EQ(d.active_pilot, me());
+  (void)travelled;
+  // Turning on the spot: the left wheel backwards, the right forwards.
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_EQ(move(0.0, 1.0).type, msg::kOk);
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(sim_->state(1).target_velocity, -2500);
+  EXPECT_EQ(sim_->state(2).target_velocity, 2500);
+  ASSERT_TRUE(wait_sample<ChassisData>(*host_, chassis_, d,
+                                       [](const ChassisData& c) { return std::fabs(c.omega - 1.0) < 0.01; }));
+  EXPECT_GT(d.delta_phi, 0.0);
+  // GET_PARAMS.
+  const auto r = host_->call(chassis_, interfaces::kChassisGetParams);
+  ASSERT_EQ(r.type, interfaces::kChassisParamsReply);
+  interfaces::ChassisParams p;
+  ASSERT_EQ(r.body.size(), sizeof p);
+  std::memcpy(&p, r.body.data(), sizeof p);
+  EXPECT_DOUBLE_EQ(p.vx_max, 1.0);
+  EXPECT_EQ(p.watchdog_ns, 300 * rt::kNsPerMs);
+}
+
+TEST_F(ChassisCanTest, OnlyTheActivePilotMovesAndVelocitiesAreClamped) {
+  Watchdog w;
+  start_host();
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kEnabled));
+  auto r = move(0.3, 0.0);
+  EXPECT_EQ(r.type, msg::kError);
+  EXPECT_NE(r.error_text().find("not the active pilot"), std::string::npos) << r.error_text();
+  ASSERT_EQ(set_pilot(Address::make(0, tims::classes::kPilot, 7, 0).raw()).type, msg::kOk);
+  EXPECT_EQ(move(0.3, 0.0).type, msg::kError);
+  ASSERT_EQ(set_pilot(me()).type, msg::kOk);
+  EXPECT_EQ(move(5.0, 0.0).type, msg::kOk);
+  EXPECT_TRUE(test::eventually([&] { return sim_->state(1).target_velocity == 10000; })) << "clamped to vx_max 1 m/s";
+  // Malformed bodies are answered ERROR and counted.
+  const uint8_t junk[3] = {1, 2, 3};
+  EXPECT_EQ(host_->call(chassis_, interfaces::kChassisMove, junk, sizeof junk).type, msg::kError);
+  const interfaces::ChassisMove nan{std::nan(""), 0.0, 0.0};
+  EXPECT_EQ(host_->call_with(chassis_, interfaces::kChassisMove, nan).type, msg::kError);
+  EXPECT_GE(host_->stats(chassis_).malformed, 2U);
+  // Changing the pilot stops the robot.
+  ASSERT_EQ(set_pilot(0).type, msg::kOk);
+  EXPECT_TRUE(test::eventually([&] { return sim_->state(1).target_velocity == 0; }));
+}
+
+TEST_F(ChassisCanTest, TheWatchdogStopsTheRobotWhenMovesStop) {
+  Watchdog w;
+  start_host();
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kEnabled));
+  ASSERT_EQ(set_pilot(me()).type, msg::kOk);
+  ASSERT_EQ(move(0.2, 0.0).type, msg::kOk);
+  ASSERT_TRUE(test::eventually([&] { return sim_->state(1).target_velocity == 2000; }));
+  // No more MOVEs: within watchdog_ms (300) plus a cycle the targets are zero.
+  ChassisData d;
+  ASSERT_TRUE(wait_sample<ChassisData>(*host_, chassis_, d, [](const ChassisData& c) { return c.watchdog_stops == 1; }));
+  EXPECT_EQ(sim_->state(1).target_velocity, 0);
+  EXPECT_EQ(sim_->state(2).target_velocity, 0);
+  EXPECT_EQ(host_->status(chassis_), msg::kEnabled) << "a watchdog stop is not an error";
+}
+
+TEST_F(ChassisCanTest, ASilentDriveIsAnErrorStopsTheOtherAndRecovery) {
+  Watchdog w;
+  start_host();
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kEnabled));
+  ASSERT_EQ(set_pilot(me()).type, msg::kOk);
+  ASSERT_EQ(move(0.2, 0.0).type, msg::kOk);
+  ASSERT_TRUE(test::eventually([&] { return sim_->state(1).velocity > 1000; }));
+  sim_->set_silent(2, true);  // the right drive loses power
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kError, std::chrono::milliseconds(3000)));
+  EXPECT_EQ(sim_->state(1).target_velocity, 0) << "the left drive was stopped";
+  EXPECT_EQ(sim_->state(1).velocity, 0.0);
+  EXPECT_NE(move(0.2, 0.0).type, msg::kOk) << "no MOVE while in ERROR";
+  sim_->set_silent(2, false);
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kEnabled)) << "on() retried and reconfigured both drives";
+  EXPECT_EQ(sim_->state(2).statusword & 0x6F, 0x27);
+}
+
+TEST_F(ChassisCanTest, GarbageOnTheBusIsIgnoredAndALostConnectionRecovers) {
+  Watchdog w;
+  start_host();
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kEnabled));
+  sim_->inject_garbage(20);
+  wire::SampleHeader h1, h2;
+  ChassisData d;
+  ASSERT_TRUE(test::eventually([&] { return host_->get_data(chassis_, h1, d); }));  // the ring restarts at ON
+  ASSERT_TRUE(test::eventually([&] { return host_->get_data(chassis_, h2, d) && h2.sequence > h1.sequence + 20; }));
+  EXPECT_EQ(host_->status(chassis_), msg::kEnabled);
+  sim_->drop_client();  // the cable is pulled and plugged back in
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kError));
+  EXPECT_TRUE(host_->wait_status(chassis_, msg::kEnabled));
+}
+
+TEST_F(ChassisCanTest, NoSimulatorMeansErrorUntilItAppears) {
+  Watchdog w;
+  sim_.reset();
+  start_host();
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kError));
+  sim_ = std::make_unique<sims::Cia402DriveSim>(sims::Cia402DriveSim::Config{});
+  sim_->listen_unix(socket_);
+  sim_->start();
+  EXPECT_TRUE(host_->wait_status(chassis_, msg::kEnabled));
+}
+
+// ---------------------------------------------------------------------------
+
+class JoystickTest : public ChassisCanTest {
+ protected:
+  void SetUp() override {
+    ChassisCanTest::SetUp();
+    fifo_ = temp_path("js");
+    ::unlink(fifo_.c_str());
+    ASSERT_EQ(::mkfifo(fifo_.c_str(), 0600), 0);
+    open_writer();
+  }
+  void TearDown() override {
+    ChassisCanTest::TearDown();
+    if (writer_ >= 0) ::close(writer_);
+    ::unlink(fifo_.c_str());
+  }
+  void open_writer() {
+    // O_RDWR: a FIFO opened for writing this way never blocks and never sees EPIPE.
+    writer_ = ::open(fifo_.c_str(), O_RDWR | O_NONBLOCK);
+    ASSERT_GE(writer_, 0);
+  }
+  void event(uint8_t type, uint8_t number, int16_t value) {
+    js_event e{};
+    e.time = 0;
+    e.type = type;
+    e.number = number;
+    e.value = value;
+    ASSERT_EQ(::write(writer_, &e, sizeof e), static_cast<ssize_t>(sizeof e));
+  }
+  void start_joystick(bool deadman) {
+    start_host(R"(  - name: joystick
+    class: Joystick
+    instance: 0
+    autostart: true
+    retry_ms: 100
+    data_task: {period_ms: 20, ring: 64}
+    params:
+      device: )" + fifo_ + R"(
+      chassis: chassis
+      deadman_button: )" + (deadman ? "0" : "-1") + "\n");
+    joystick_ = host_->address_of("joystick");
+  }
+  std::string fifo_;
+  int writer_ = -1;
+  Address joystick_;
+};
+
+TEST_F(JoystickTest, TheStickDrivesTheChassisAsActivePilot) {
+  Watchdog w;
+  start_joystick(/*deadman=*/true);
+  ASSERT_TRUE(host_->wait_status(joystick_, msg::kEnabled));
+  ASSERT_EQ(host_->status(chassis_), msg::kEnabled) << "cascading ON";
+  event(JS_EVENT_AXIS | JS_EVENT_INIT, 0, 0);
+  event(JS_EVENT_AXIS | JS_EVENT_INIT, 1, 0);
+  event(JS_EVENT_AXIS, 1, -32767);  // full forward
+  JoystickData j;
+  ASSERT_TRUE(wait_sample<JoystickData>(*host_, joystick_, j, [](const JoystickData& s) { return s.events >= 3; }));
+  EXPECT_FLOAT_EQ(j.axis[1], -1.0F);
+  EXPECT_EQ(j.vx, 0.0) << "dead-man button not held";
+  event(JS_EVENT_BUTTON, 0, 1);
+  ASSERT_TRUE(wait_sample<JoystickData>(*host_, joystick_, j, [](const JoystickData& s) { return s.vx > 0.0; }));
+  EXPECT_DOUBLE_EQ(j.vx, 0.5) << "vx_max 1 m/s * speed_scale 0.5";
+  EXPECT_EQ(j.buttons, 1U);
+  ChassisData c;
+  ASSERT_TRUE(wait_sample<ChassisData>(*host_, chassis_, c, [](const ChassisData& s) { return s.vx > 0.45; }));
+  EXPECT_EQ(c.active_pilot, joystick_.raw());
+  // Turn left: axis 0 negative is left on Linux; omega positive (counter-clockwise).
+  event(JS_EVENT_AXIS, 0, -16384);
+  ASSERT_TRUE(wait_sample<ChassisData>(*host_, chassis_, c, [](const ChassisData& s) { return s.omega > 0.5; }));
+  // Releasing the dead-man button stops the robot.
+  event(JS_EVENT_BUTTON, 0, 0);
+  EXPECT_TRUE(wait_sample<ChassisData>(*host_, chassis_, c,
+                                       [](const ChassisData& s) { return std::fabs(s.vx) < 1e-3; }));
+}
+
+TEST_F(JoystickTest, BadEventsAreCountedAndAnUnpluggedStickStopsTheRobot) {
+  Watchdog w;
+  start_joystick(/*deadman=*/false);
+  ASSERT_TRUE(host_->wait_status(joystick_, msg::kEnabled));
+  event(0x40, 0, 1);               // unknown type
+  event(JS_EVENT_AXIS, 200, 5);    // axis out of range
+  event(JS_EVENT_BUTTON, 40, 1);   // button out of range
+  event(JS_EVENT_AXIS, 1, -32767);
+  JoystickData j;
+  ASSERT_TRUE(wait_sample<JoystickData>(*host_, joystick_, j, [](const JoystickData& s) { return s.events >= 1; }));
+  EXPECT_EQ(j.bad_events, 3U);
+  ChassisData c;
+  ASSERT_TRUE(wait_sample<ChassisData>(*host_, chassis_, c, [](const ChassisData& s) { return s.vx > 0.45; }));
+  ::close(writer_);  // the stick is unplugged
+  writer_ = -1;
+  ASSERT_TRUE(host_->wait_status(joystick_, msg::kError));
+  ASSERT_TRUE(wait_sample<ChassisData>(*host_, chassis_, c,
+                                       [](const ChassisData& s) { return std::fabs(s.vx) < 1e-3 && s.active_pilot == 0; }))
+      << "the joystick stopped the robot and released the chassis";
+  open_writer();
+  EXPECT_TRUE(host_->wait_status(joystick_, msg::kEnabled));
+}
+
+}  // namespace
+}  // namespace rack
