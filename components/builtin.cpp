@@ -4,6 +4,7 @@
 #include "generator/generator.h"
 #include "gps_nmea/gps_nmea.h"
 #include "joystick/joystick.h"
+#include "ladar_hokuyo/ladar_hokuyo.h"
 #include "monitor/monitor.h"
 #include "probe/probe.h"
 #include "rack/tims/address.h"
@@ -24,6 +25,8 @@ void register_builtin(ComponentRegistry& registry) {
   registry.add({"ChassisCan", cls::kChassis,
                 "Chassis: differential drive with two CiA 402 drives over SocketCAN (profile velocity)",
                 [] { return std::make_unique<ChassisCan>(); }});
+  registry.add({"LadarHokuyo", cls::kLadar, "Ladar: Hokuyo URG/UTM scanner, SCIP 2.0 over serial or USB-ACM",
+                [] { return std::make_unique<LadarHokuyo>(); }});
   registry.add({"Joystick", cls::kJoystick, "Joystick: Linux joystick API; optionally the active pilot of a chassis",
                 [] { return std::make_unique<Joystick>(); }});
 }

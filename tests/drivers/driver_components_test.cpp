@@ -17,6 +17,7 @@
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/robot.h"
 #include "rack/sims/cia402_sim.h"
+#include "rack/sims/hokuyo_scip_sim.h"
 #include "rack/sims/nmea_gps_sim.h"
 
 namespace rack {
@@ -25,6 +26,7 @@ namespace {
 using interfaces::ChassisData;
 using interfaces::GpsData;
 using interfaces::JoystickData;
+using interfaces::LadarData;
 using test::HostUnderTest;
 using test::Watchdog;
 using tims::Address;
@@ -433,6 +435,98 @@ TEST_F(JoystickTest, BadEventsAreCountedAndAnUnpluggedStickStopsTheRobot) {
       << "the joystick stopped the robot and released the chassis";
   open_writer();
   EXPECT_TRUE(host_->wait_status(joystick_, msg::kEnabled));
+}
+
+// ---------------------------------------------------------------------------
+
+class LadarHokuyoTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    sims::HokuyoScipSim::Config c;
+    c.link = temp_path("urg");
+    c.scan_rpm = 1200;  // 20 Hz keeps the test short
+    config_ = c;
+    sim_ = std::make_unique<sims::HokuyoScipSim>(c);
+    sim_->start();
+    host_ = std::make_unique<HostUnderTest>(R"(system: 0
+lcm: false
+components:
+  - name: ladar
+    class: LadarHokuyo
+    instance: 0
+    autostart: true
+    retry_ms: 100
+    data_task: {period_ms: 10, ring: 16}
+    params:
+      device: )" + c.link + R"(
+      timeout_ms: 300
+)");
+    ladar_ = host_->address_of("ladar");
+  }
+  void TearDown() override {
+    if (HasFailure()) std::fprintf(stderr, "executor log:\n%s", host_->log().c_str());
+    host_.reset();
+    sim_.reset();
+  }
+  bool next_scan(LadarData& d, uint64_t after_sequence, wire::SampleHeader& h) {
+    return test::eventually([&] { return host_->get_data(ladar_, h, d) && h.sequence > after_sequence; });
+  }
+  sims::HokuyoScipSim::Config config_;
+  std::unique_ptr<sims::HokuyoScipSim> sim_;
+  std::unique_ptr<HostUnderTest> host_;
+  Address ladar_;
+};
+
+TEST_F(LadarHokuyoTest, ReadsTheParametersAndPublishesContinuousScans) {
+  Watchdog w;
+  auto d = std::make_unique<LadarData>();
+  wire::SampleHeader h;
+  ASSERT_TRUE(next_scan(*d, 0, h));
+  EXPECT_TRUE(sim_->streaming()) << "MD started";
+  EXPECT_EQ(d->beam_count, 725U - 44U + 1U);
+  const double step = 2.0 * M_PI / 1024.0;
+  EXPECT_NEAR(d->start_angle, (44.0 - 384.0) * step, 1e-6);
+  EXPECT_NEAR(d->angle_step, step, 1e-7);
+  EXPECT_FLOAT_EQ(d->max_range, 5.6F);
+  EXPECT_NEAR(d->range[384 - 44], 2.0, 1e-3) << "the wall ahead";
+  EXPECT_NEAR(d->range[640 - 44], 1.5, 1e-3) << "the wall to the left (counter-clockwise)";
+  EXPECT_NEAR(d->range[128 - 44], 1.5, 1e-3) << "the wall to the right";
+  for (uint32_t i = 0; i < d->beam_count; ++i) {
+    EXPECT_EQ(d->range[i], static_cast<float>(sim_->range_mm(44 + i)) * 1e-3F) << "beam " << i;
+    if (HasFailure()) break;
+  }
+  EXPECT_GT(d->duration_ns, 0);
+  EXPECT_LT(h.time_ns, rt::host_time_ns());
+  wire::SampleHeader h2;
+  ASSERT_TRUE(next_scan(*d, h.sequence + 3, h2)) << "continuous output";
+}
+
+TEST_F(LadarHokuyoTest, CorruptScansAreDroppedThenErrorAndRecovery) {
+  Watchdog w;
+  auto d = std::make_unique<LadarData>();
+  wire::SampleHeader h;
+  ASSERT_TRUE(next_scan(*d, 0, h));
+  for (const auto fault : {sims::HokuyoScipSim::Fault::kBadChecksum, sims::HokuyoScipSim::Fault::kGarbage,
+                           sims::HokuyoScipSim::Fault::kSilent}) {
+    sim_->set_fault(fault);
+    ASSERT_TRUE(host_->wait_status(ladar_, msg::kError)) << "no valid scan for timeout_ms";
+    sim_->set_fault(sims::HokuyoScipSim::Fault::kNone);
+    ASSERT_TRUE(host_->wait_status(ladar_, msg::kEnabled)) << "on() restarted the output";
+    ASSERT_TRUE(test::eventually([&] { return host_->get_data(ladar_, h, *d); }));
+    EXPECT_NEAR(d->range[384 - 44], 2.0, 1e-3);
+  }
+}
+
+TEST_F(LadarHokuyoTest, AnUnpluggedScannerIsAnErrorAndComesBack) {
+  Watchdog w;
+  ASSERT_TRUE(host_->wait_status(ladar_, msg::kEnabled));
+  sim_->unplug();
+  ASSERT_TRUE(host_->wait_status(ladar_, msg::kError));
+  sim_->plug();
+  ASSERT_TRUE(host_->wait_status(ladar_, msg::kEnabled));
+  auto d = std::make_unique<LadarData>();
+  wire::SampleHeader h;
+  EXPECT_TRUE(next_scan(*d, 0, h));
 }
 
 }  // namespace

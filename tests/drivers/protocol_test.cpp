@@ -13,6 +13,7 @@
 #include "rack/devices/can_port.h"
 #include "rack/devices/canopen.h"
 #include "rack/devices/nmea.h"
+#include "rack/devices/scip.h"
 #include "rack/devices/serial_port.h"
 #include "rack/devices/utm.h"
 #include "rack/sims/cia402_sim.h"
@@ -289,6 +290,77 @@ TEST_F(Cia402SimTest, GarbageOnTheBusIsCountedByThePort) {
     (void)port_.receive(f, 10 * kMs);
     return port_.counters().malformed >= 6;
   }));
+}
+
+}  // namespace
+}  // namespace rack::devices
+
+// ---------------------------------------------------------------------------
+// SCIP 2.0
+
+namespace rack::devices {
+namespace {
+
+std::size_t scip_feed(scip::Parser& p, const std::string& s, int* scans = nullptr) {
+  return p.feed(std::span(reinterpret_cast<const uint8_t*>(s.data()), s.size()),
+                [](void* user, scip::Parser::Event e, const char*, const char*) {
+                  if (user != nullptr && e == scip::Parser::Event::kScan) ++*static_cast<int*>(user);
+                },
+                scans);
+}
+
+std::string scip_line(const std::string& payload) { return payload + scip::checksum(payload.data(), payload.size()) + "\n"; }
+
+TEST(ScipTest, ChecksumAndEncodingAsTheSpecificationShowsThem) {
+  EXPECT_EQ(scip::checksum("00", 2), 'P');  // "00P": the status line of every OK answer
+  EXPECT_EQ(scip::checksum("99", 2), 'b');  // "99b": MD data follows
+  char e[3];
+  scip::encode3(5432, e);  // SCIP's example: 5432 mm = "1Dh"
+  EXPECT_EQ(std::string(e, 3), "1Dh");
+  EXPECT_EQ(scip::decode("1Dh", 3), 5432U);
+  EXPECT_EQ(scip::decode("CB", 2), 1234U);  // 2-character example: 1234 = "CB"
+}
+
+TEST(ScipTest, ParsesParametersAndAScanSplitAcrossLines) {
+  scip::Parser p;
+  const std::string pp = "PP\n" + scip_line("00") + "DMIN:20;" +
+                         scip::checksum("DMIN:20", 7) + "\nDMAX:5600;" + scip::checksum("DMAX:5600", 9) + "\nARES:1024;" +
+                         scip::checksum("ARES:1024", 9) + "\nAMIN:44;" + scip::checksum("AMIN:44", 7) + "\nAMAX:725;" +
+                         scip::checksum("AMAX:725", 8) + "\nAFRT:384;" + scip::checksum("AFRT:384", 8) + "\nSCAN:600;" +
+                         scip::checksum("SCAN:600", 8) + "\n\n";
+  EXPECT_EQ(scip_feed(p, pp), 1U);
+  EXPECT_TRUE(p.parameters().complete());
+  EXPECT_EQ(p.parameters().afrt, 384U);
+  // 30 steps (100..129), 90 characters: one full 64-character line and one of 26.
+  std::string data;
+  for (uint32_t i = 0; i < 30; ++i) {
+    char e[3];
+    scip::encode3(1000 + i, e);
+    data.append(e, 3);
+  }
+  const std::string scan = "MD0100012901000\n" + scip_line("99") + scip_line("0000") + scip_line(data.substr(0, 64)) +
+                           scip_line(data.substr(64)) + "\n";
+  int scans = 0;
+  EXPECT_EQ(scip_feed(p, scan.substr(0, 50), &scans) + scip_feed(p, scan.substr(50), &scans), 1U);
+  EXPECT_EQ(scans, 1);
+  EXPECT_EQ(p.scan().count, 30U);
+  EXPECT_EQ(p.scan().range_mm[0], 1000U);
+  EXPECT_EQ(p.scan().range_mm[29], 1029U);
+  EXPECT_EQ(p.scan().first_step, 100U);
+  // A corrupted data line: the whole scan is dropped and counted.
+  std::string bad = scan;
+  bad[bad.size() - 30] = bad[bad.size() - 30] == '0' ? '1' : '0';
+  EXPECT_EQ(scip_feed(p, bad, &scans), 0U);
+  EXPECT_EQ(p.counters().checksum_errors, 1U);
+  // Fewer values than the echo announces: malformed.
+  const std::string short_scan = "MD0100012901000\n" + scip_line("99") + scip_line("0000") + scip_line(data.substr(0, 63)) + "\n";
+  EXPECT_EQ(scip_feed(p, short_scan, &scans), 0U);
+  EXPECT_EQ(p.counters().malformed, 1U);
+  // Garbage without empty lines overflows the block and is counted, then parsing resumes.
+  EXPECT_EQ(scip_feed(p, std::string(scip::kMaxBlock + 10, 'x')), 0U);
+  EXPECT_EQ(p.counters().overflows, 1U);
+  EXPECT_EQ(scip_feed(p, "\n\n" + scan, &scans), 1U);
+  EXPECT_EQ(scans, 2);
 }
 
 }  // namespace

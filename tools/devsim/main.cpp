@@ -4,6 +4,7 @@
 //   rack-devsim gps --link /tmp/rack-gps0 [--rate 10] [--lat 52.38 --lon 9.72] [--speed 1 --course 90]
 //   rack-devsim cia402 --socket /tmp/rack-can0.sock [--nodes 1,2]
 //   rack-devsim cia402 --can vcan0 [--nodes 1,2]        (where the kernel has SocketCAN)
+//   rack-devsim hokuyo --link /tmp/rack-urg0
 //   rack-devsim joystick --fifo /tmp/rack-js0 [--forward 0.5] [--turn 0.2] [--deadman 0]
 //
 // Each runs until SIGINT/SIGTERM or --duration SECONDS. A plain (non-RT) program.
@@ -29,6 +30,7 @@
 
 #include "rack/rt/clock.h"
 #include "rack/sims/cia402_sim.h"
+#include "rack/sims/hokuyo_scip_sim.h"
 #include "rack/sims/nmea_gps_sim.h"
 
 namespace {
@@ -48,6 +50,11 @@ Simulated devices for RACK-RT's drivers. Runs until SIGINT/SIGTERM or --duration
               --socket PATH     listen on AF_UNIX SOCK_SEQPACKET (ChassisCan 'can: unix:PATH')
               --can IFACE       or a SocketCAN interface (vcan0, can0)
               --nodes LIST      node ids (default 1,2)
+  hokuyo    a Hokuyo URG-04LX speaking SCIP 2.0 on a pseudo-terminal, in a rectangular room
+              --link PATH       symlink to the pty (give it to LadarHokuyo's 'device')
+              --rpm N           scan rate (default 600 = 10 Hz)
+              --front M --side M    distances to the walls (default 2.0 and 1.5)
+              --fault none|checksum|garbage|silent
   joystick  a stick writing struct js_event into a FIFO (Joystick 'device')
               --fifo PATH       created if missing
               --forward F --turn T   deflection in [-1, 1] (default 0.5 forward, 0 turn)
@@ -181,6 +188,28 @@ int main(int argc, char** argv) {
       }
       sim.start();
       std::printf("rack-devsim cia402: %zu drive(s) on %s\n", c.nodes.size(), where.c_str());
+      std::fflush(stdout);
+      run_until_stopped(duration, 100, [] {});
+      sim.stop();
+      return 0;
+    }
+    if (device == "hokuyo") {
+      rack::sims::HokuyoScipSim::Config c;
+      if (!o.count("link")) throw std::runtime_error("hokuyo needs --link PATH");
+      c.link = o.at("link");
+      c.scan_rpm = static_cast<uint32_t>(number(o, "rpm", 600));
+      if (c.scan_rpm < 60 || c.scan_rpm > 6000) throw std::runtime_error("--rpm must be in [60, 6000]");
+      c.room_front = number(o, "front", c.room_front);
+      c.room_side = number(o, "side", c.room_side);
+      rack::sims::HokuyoScipSim sim(c);
+      sim.start();
+      const std::string fault = o.count("fault") ? o.at("fault") : "none";
+      using F = rack::sims::HokuyoScipSim::Fault;
+      if (fault == "checksum") sim.set_fault(F::kBadChecksum);
+      else if (fault == "garbage") sim.set_fault(F::kGarbage);
+      else if (fault == "silent") sim.set_fault(F::kSilent);
+      else if (fault != "none") throw std::runtime_error("--fault: none, checksum, garbage or silent");
+      std::printf("rack-devsim hokuyo: SCIP 2.0 at %u rpm on %s\n", c.scan_rpm, sim.device().c_str());
       std::fflush(stdout);
       run_until_stopped(duration, 100, [] {});
       sim.stop();
