@@ -5,6 +5,7 @@
 #include "gps_nmea/gps_nmea.h"
 #include "joystick/joystick.h"
 #include "ladar_hokuyo/ladar_hokuyo.h"
+#include "ladar_sick/ladar_sick.h"
 #include "monitor/monitor.h"
 #include "probe/probe.h"
 #include "rack/tims/address.h"
@@ -27,6 +28,8 @@ void register_builtin(ComponentRegistry& registry) {
                 [] { return std::make_unique<ChassisCan>(); }});
   registry.add({"LadarHokuyo", cls::kLadar, "Ladar: Hokuyo URG/UTM scanner, SCIP 2.0 over serial or USB-ACM",
                 [] { return std::make_unique<LadarHokuyo>(); }});
+  registry.add({"LadarSick", cls::kLadar, "Ladar: SICK LMS1xx/LMS5xx/TiM5xx over TCP (CoLa-A, continuous output)",
+                [] { return std::make_unique<LadarSick>(); }});
   registry.add({"Joystick", cls::kJoystick, "Joystick: Linux joystick API; optionally the active pilot of a chassis",
                 [] { return std::make_unique<Joystick>(); }});
 }

@@ -192,6 +192,16 @@ HookResult ChassisCan::loop() {
   Drive& right = drives_[1];
   const int32_t tl = to_counts(vx - omega * half, left_inverted_.get_bool());
   const int32_t tr = to_counts(vx + omega * half, right_inverted_.get_bool());
+  // Frames still queued answer the previous SYNC (a drive that was late): take them
+  // now, so that what arrives after this SYNC belongs to it. Late increments are not
+  // lost, only counted one cycle later: each wheel's odometry uses its own last reading.
+  for (int i = 0; i < 16; ++i) {
+    can_frame f{};
+    const devices::IoResult r = port_.receive(f, 0);
+    if (r.status == IoStatus::kTimeout) break;
+    if (r.status != IoStatus::kOk) return fail(Fault::kBus);
+    handle_frame(f, rt::monotonic_ns());
+  }
   for (Drive& d : drives_) d.got_tpdo1 = d.got_tpdo2 = false;
   if (port_.send(co::rpdo1(left.node, co::kCwEnableOperation, tl)).status == IoStatus::kClosed ||
       port_.send(co::rpdo1(right.node, co::kCwEnableOperation, tr)).status == IoStatus::kClosed ||
@@ -207,12 +217,6 @@ HookResult ChassisCan::loop() {
     const devices::IoResult r = port_.receive(f, wait);
     if (r.status == IoStatus::kTimeout) break;
     if (r.status != IoStatus::kOk) return fail(Fault::kBus);
-    handle_frame(f, rt::monotonic_ns());
-  }
-  // Drain what else is queued (heartbeats that came after the TPDOs), without waiting.
-  for (int i = 0; i < 8; ++i) {
-    can_frame f{};
-    if (port_.receive(f, 0).status != IoStatus::kOk) break;
     handle_frame(f, rt::monotonic_ns());
   }
   // Safety checks: a silent drive, a drive that left OPERATIONAL or faulted.

@@ -12,6 +12,7 @@
 #include "../unit/test_support.h"
 #include "rack/devices/can_port.h"
 #include "rack/devices/canopen.h"
+#include "rack/devices/cola.h"
 #include "rack/devices/nmea.h"
 #include "rack/devices/scip.h"
 #include "rack/devices/serial_port.h"
@@ -361,6 +362,71 @@ TEST(ScipTest, ParsesParametersAndAScanSplitAcrossLines) {
   EXPECT_EQ(p.counters().overflows, 1U);
   EXPECT_EQ(scip_feed(p, "\n\n" + scan, &scans), 1U);
   EXPECT_EQ(scans, 2);
+}
+
+}  // namespace
+}  // namespace rack::devices
+
+// ---------------------------------------------------------------------------
+// CoLa-A
+
+namespace rack::devices {
+namespace {
+
+std::size_t cola_feed(cola::Parser& p, const std::string& s, int* scans = nullptr) {
+  return p.feed(std::span(reinterpret_cast<const uint8_t*>(s.data()), s.size()),
+                [](void* user, const char*, std::size_t, bool is_scan) {
+                  if (user != nullptr && is_scan) ++*static_cast<int*>(user);
+                },
+                scans);
+}
+
+// A telegram as an LMS111 sends it (fields per SICK's telegram listing), 5 points.
+const std::string kScanBody =
+    "sSN LMDscandata 1 1 89A27F 0 0 343 347 277B3F9 277F7EC 0 0 0 0 0 1388 168 0 1 DIST1 3F800000 00000000 "
+    "FFF92230 1388 5 3E8 7D0 BB8 0 FA0 0 0 0 0 0 0";
+
+TEST(ColaTest, ParsesAnLmdScanDataTelegram) {
+  cola::Parser p;
+  int scans = 0;
+  EXPECT_EQ(cola_feed(p, "\x02" + kScanBody + "\x03", &scans), 1U);
+  ASSERT_EQ(scans, 1);
+  const cola::Scan& s = p.scan();
+  EXPECT_EQ(s.count, 5U);
+  EXPECT_DOUBLE_EQ(s.start_angle_deg, -45.0);  // FFF92230 = -450000
+  EXPECT_DOUBLE_EQ(s.step_deg, 0.5);           // 1388 = 5000
+  EXPECT_EQ(s.scan_frequency_centihz, 5000U);  // 50 Hz
+  EXPECT_EQ(s.scan_counter, 0x347U);
+  EXPECT_FLOAT_EQ(s.range_m[0], 1.0F);
+  EXPECT_FLOAT_EQ(s.range_m[2], 3.0F);
+  EXPECT_FLOAT_EQ(s.range_m[3], 0.0F);
+  EXPECT_FALSE(s.has_rssi);
+}
+
+TEST(ColaTest, MalformedTelegramsAndGarbageAreCountedAndChangeNothing) {
+  cola::Parser p;
+  ASSERT_EQ(cola_feed(p, "\x02" + kScanBody + "\x03"), 1U);
+  int scans = 0;
+  // Fewer points than announced.
+  std::string shorter = kScanBody;
+  shorter.replace(shorter.find("5 3E8"), 5, "C 3E8");  // 12 announced; 5 and the trailer follow
+  cola_feed(p, "\x02" + shorter + "\x03", &scans);
+  // A field that is not a number.
+  std::string bad = kScanBody;
+  bad.replace(bad.find("BB8"), 3, "BXB");
+  cola_feed(p, "\x02" + bad + "\x03", &scans);
+  // A truncated telegram followed by a good one.
+  cola_feed(p, "\x02" + kScanBody.substr(0, 60) + "\x02" + kScanBody + "\x03", &scans);
+  EXPECT_EQ(scans, 1);
+  EXPECT_EQ(p.counters().malformed, 3U);
+  cola_feed(p, "noise\x03\xff");
+  EXPECT_EQ(p.counters().garbage_bytes, 7U);
+  cola_feed(p, "\x02" + std::string(cola::kMaxTelegram + 5, 'A'));
+  EXPECT_EQ(p.counters().overflows, 1U);
+  // Other telegrams are passed on, not scans.
+  EXPECT_EQ(cola_feed(p, "\x02sEA LMDscandata 1\x03", &scans), 1U);
+  EXPECT_EQ(scans, 1);
+  EXPECT_FLOAT_EQ(p.scan().range_m[0], 1.0F);
 }
 
 }  // namespace

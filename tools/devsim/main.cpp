@@ -5,6 +5,7 @@
 //   rack-devsim cia402 --socket /tmp/rack-can0.sock [--nodes 1,2]
 //   rack-devsim cia402 --can vcan0 [--nodes 1,2]        (where the kernel has SocketCAN)
 //   rack-devsim hokuyo --link /tmp/rack-urg0
+//   rack-devsim sick --port 2111
 //   rack-devsim joystick --fifo /tmp/rack-js0 [--forward 0.5] [--turn 0.2] [--deadman 0]
 //
 // Each runs until SIGINT/SIGTERM or --duration SECONDS. A plain (non-RT) program.
@@ -32,6 +33,7 @@
 #include "rack/sims/cia402_sim.h"
 #include "rack/sims/hokuyo_scip_sim.h"
 #include "rack/sims/nmea_gps_sim.h"
+#include "rack/sims/sick_lms1xx_sim.h"
 
 namespace {
 
@@ -55,6 +57,9 @@ Simulated devices for RACK-RT's drivers. Runs until SIGINT/SIGTERM or --duration
               --rpm N           scan rate (default 600 = 10 Hz)
               --front M --side M    distances to the walls (default 2.0 and 1.5)
               --fault none|checksum|garbage|silent
+  sick      a SICK LMS1xx speaking CoLa-A on 127.0.0.1 (541 points, -45..225 deg, 50 Hz)
+              --port N          TCP port (default 2111; LadarSick 'host: 127.0.0.1', 'port')
+              --fault none|garbage|truncated|silent
   joystick  a stick writing struct js_event into a FIFO (Joystick 'device')
               --fifo PATH       created if missing
               --forward F --turn T   deflection in [-1, 1] (default 0.5 forward, 0 turn)
@@ -210,6 +215,25 @@ int main(int argc, char** argv) {
       else if (fault == "silent") sim.set_fault(F::kSilent);
       else if (fault != "none") throw std::runtime_error("--fault: none, checksum, garbage or silent");
       std::printf("rack-devsim hokuyo: SCIP 2.0 at %u rpm on %s\n", c.scan_rpm, sim.device().c_str());
+      std::fflush(stdout);
+      run_until_stopped(duration, 100, [] {});
+      sim.stop();
+      return 0;
+    }
+    if (device == "sick") {
+      rack::sims::SickLms1xxSim::Config c;
+      const double port = number(o, "port", 2111);
+      if (port < 1 || port > 65535) throw std::runtime_error("--port must be in 1..65535");
+      c.port = static_cast<uint16_t>(port);
+      rack::sims::SickLms1xxSim sim(c);
+      sim.start();
+      const std::string fault = o.count("fault") ? o.at("fault") : "none";
+      using F = rack::sims::SickLms1xxSim::Fault;
+      if (fault == "garbage") sim.set_fault(F::kGarbage);
+      else if (fault == "truncated") sim.set_fault(F::kTruncated);
+      else if (fault == "silent") sim.set_fault(F::kSilent);
+      else if (fault != "none") throw std::runtime_error("--fault: none, garbage, truncated or silent");
+      std::printf("rack-devsim sick: CoLa-A on 127.0.0.1:%u\n", sim.port());
       std::fflush(stdout);
       run_until_stopped(duration, 100, [] {});
       sim.stop();
