@@ -177,7 +177,24 @@ IoResult CanPort::receive(can_frame& frame, int64_t timeout_ns) noexcept {
     return r;
   }
   const int64_t deadline = rt::monotonic_ns() + timeout_ns;
+  // A caller that gives a timeout usually expects to wait (an answer to what it just
+  // sent): ppoll first, then one recvmsg (two system calls instead of a failing
+  // recvmsg, ppoll and recvmsg). With timeout 0 (draining), recvmsg alone.
+  bool poll_first = timeout_ns > 0;
   for (;;) {
+    if (poll_first) {
+      poll_first = false;
+      short revents = 0;
+      const int w = detail::wait_fd(fd_, POLLIN, deadline - rt::monotonic_ns(), revents);
+      if (w == 0) {
+        r.status = IoStatus::kTimeout;
+        return r;
+      }
+      if (w < 0) {
+        r.error = -w;
+        return r;
+      }
+    }
     iovec iov{&frame, sizeof frame};
     msghdr msg{};
     msg.msg_iov = &iov;
