@@ -6,6 +6,7 @@
 #include "joystick/joystick.h"
 #include "ladar_hokuyo/ladar_hokuyo.h"
 #include "ladar_sick/ladar_sick.h"
+#include "servo_drive_can/servo_drive_can.h"
 #include "monitor/monitor.h"
 #include "probe/probe.h"
 #include "rack/tims/address.h"
@@ -30,6 +31,9 @@ void register_builtin(ComponentRegistry& registry) {
                 [] { return std::make_unique<LadarHokuyo>(); }});
   registry.add({"LadarSick", cls::kLadar, "Ladar: SICK LMS1xx/LMS5xx/TiM5xx over TCP (CoLa-A, continuous output)",
                 [] { return std::make_unique<LadarSick>(); }});
+  registry.add({"ServoDriveCan", cls::kServoDrive,
+                "ServoDrive: one axis on a CiA 402 drive over SocketCAN (profile position; HOME, MOVE_POS, MOVE_VEL)",
+                [] { return std::make_unique<ServoDriveCan>(); }});
   registry.add({"Joystick", cls::kJoystick, "Joystick: Linux joystick API; optionally the active pilot of a chassis",
                 [] { return std::make_unique<Joystick>(); }});
 }

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "rack/devices/canopen.h"
+#include "rack/devices/canopen_client.h"
 
 namespace rack::components {
 
@@ -46,33 +47,8 @@ HookResult ChassisCan::fail(Fault f) noexcept {
 }
 
 bool ChassisCan::sdo_write(uint8_t node, uint16_t index, uint8_t sub, uint32_t value, uint8_t size) noexcept {
-  if (port_.send(co::sdo_write(node, index, sub, value, size)).status != IoStatus::kOk) return false;
-  const int64_t deadline = rt::monotonic_ns() + static_cast<int64_t>(sdo_timeout_ms_.get_float() * 1e6);
-  for (;;) {
-    const int64_t left = deadline - rt::monotonic_ns();
-    if (left <= 0) return false;
-    can_frame f{};
-    const devices::IoResult r = port_.receive(f, left);
-    if (r.status != IoStatus::kOk) return false;
-    const co::SdoResponse s = co::parse_sdo_response(f, node);
-    if (s.kind == co::SdoResponse::Kind::kNone || s.index != index || s.sub != sub) continue;
-    return s.kind == co::SdoResponse::Kind::kWriteOk;
-  }
-}
-
-bool ChassisCan::sdo_read(uint8_t node, uint16_t index, uint8_t sub, uint32_t& value) noexcept {
-  if (port_.send(co::sdo_read(node, index, sub)).status != IoStatus::kOk) return false;
-  const int64_t deadline = rt::monotonic_ns() + static_cast<int64_t>(sdo_timeout_ms_.get_float() * 1e6);
-  for (;;) {
-    const int64_t left = deadline - rt::monotonic_ns();
-    if (left <= 0) return false;
-    can_frame f{};
-    if (port_.receive(f, left).status != IoStatus::kOk) return false;
-    const co::SdoResponse s = co::parse_sdo_response(f, node);
-    if (s.kind == co::SdoResponse::Kind::kNone || s.index != index || s.sub != sub) continue;
-    value = s.value;
-    return s.kind == co::SdoResponse::Kind::kReadOk;
-  }
+  return co::sdo_write_wait(port_, node, index, sub, value, size,
+                            static_cast<int64_t>(sdo_timeout_ms_.get_float() * 1e6)) == co::SdoResult::kOk;
 }
 
 bool ChassisCan::configure(Drive& d) noexcept {
@@ -112,11 +88,7 @@ HookResult ChassisCan::on() {
     if (!configure(d)) return fail(Fault::kSdo);
   }
   for (Drive& d : drives_) {
-    uint32_t sw = 0;
-    if (!sdo_write(d.node, co::kObjControlword, 0, co::kCwShutdown, 2) ||
-        !sdo_write(d.node, co::kObjControlword, 0, co::kCwSwitchOn, 2) ||
-        !sdo_write(d.node, co::kObjControlword, 0, co::kCwEnableOperation, 2) ||
-        !sdo_read(d.node, co::kObjStatusword, 0, sw) || (sw & co::kSwStateMask) != co::kSwOperationEnabled) {
+    if (!co::power_up(port_, d.node, static_cast<int64_t>(sdo_timeout_ms_.get_float() * 1e6))) {
       return fail(Fault::kPowerUp);
     }
   }

@@ -57,7 +57,6 @@ class ChassisCan final : public DataComponent<interfaces::ChassisData> {
   enum class Fault : uint8_t { kNone, kOpen, kSdo, kPowerUp, kHeartbeat, kNmtState, kDriveFault, kBus, kNoPdo };
 
   [[nodiscard]] bool sdo_write(uint8_t node, uint16_t index, uint8_t sub, uint32_t value, uint8_t size) noexcept;
-  [[nodiscard]] bool sdo_read(uint8_t node, uint16_t index, uint8_t sub, uint32_t& value) noexcept;
   [[nodiscard]] bool configure(Drive& d) noexcept;
   void handle_frame(const can_frame& f, int64_t now) noexcept;
   void stop_drive(const Drive& d) noexcept;

@@ -625,5 +625,126 @@ TEST_F(LadarSickTest, ALostConnectionAndASwitchedOffScannerRecover) {
   EXPECT_TRUE(host_->wait_status(ladar_, msg::kEnabled));
 }
 
+// ---------------------------------------------------------------------------
+
+class ServoDriveCanTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    socket_ = temp_path("servo") + ".sock";
+    sim_ = std::make_unique<sims::Cia402DriveSim>(sims::Cia402DriveSim::Config{{3}, 1'000'000});
+    sim_->listen_unix(socket_);
+    sim_->start();
+    host_ = std::make_unique<HostUnderTest>(R"(system: 0
+lcm: false
+components:
+  - name: servo
+    class: ServoDriveCan
+    instance: 0
+    autostart: true
+    retry_ms: 100
+    data_task: {period_ms: 10, ring: 32}
+    params:
+      can: unix:)" + socket_ + R"(
+      node: 3
+      counts_per_unit: 10000
+      max_velocity: 2.0
+      acceleration: 10.0
+      position_min: -1.0
+      position_max: 1.0
+      heartbeat_ms: 20
+      heartbeat_timeout_ms: 400
+      sdo_timeout_ms: 200
+)");
+    servo_ = host_->address_of("servo");
+    // A mailbox of our own that receives the POSITION_REACHED notifications.
+    mailbox_ = std::make_unique<tims::Mailbox>(Address::make(0, tims::classes::kTool, 2, 1), 8, 256);
+    host_->executor().router().add(*mailbox_);
+    endpoint_ = std::make_unique<tims::Endpoint>(host_->executor().router(), *mailbox_, 10);
+  }
+  void TearDown() override {
+    if (HasFailure()) std::fprintf(stderr, "executor log:\n%s", host_->log().c_str());
+    host_->executor().stop();
+    host_->executor().router().remove(mailbox_->address());
+    host_.reset();
+    sim_.reset();
+  }
+  int8_t call(int8_t type, const void* body, std::size_t size) {
+    std::array<std::byte, 256> buf{};
+    const tims::ConstBuffer part{body, size};
+    const auto r = endpoint_->call(servo_, type, std::span<const tims::ConstBuffer>(&part, size == 0 ? 0 : 1), buf,
+                                   test::kCallTimeoutNs);
+    return r.status == tims::CallStatus::kOk ? r.reply.type : int8_t{99};
+  }
+  int8_t move_pos(double position, double velocity) {
+    const interfaces::ServoDriveMovePos m{position, velocity};
+    return call(interfaces::kServoDriveMovePos, &m, sizeof m);
+  }
+  // The next POSITION_REACHED notification's position, or NaN after 10 s.
+  double reached() {
+    std::array<std::byte, 256> buf{};
+    const int64_t end = rt::monotonic_ns() + 10 * rt::kNsPerSec;
+    while (rt::monotonic_ns() < end) {
+      const auto r = mailbox_->receive(buf, 100 * rt::kNsPerMs);
+      if (r.status != tims::RecvStatus::kOk || r.header.type != interfaces::kServoDrivePositionReached) continue;
+      double at;
+      std::memcpy(&at, buf.data() + sizeof(tims::MessageHeader), sizeof at);
+      return at;
+    }
+    return std::nan("");
+  }
+  std::string socket_;
+  std::unique_ptr<sims::Cia402DriveSim> sim_;
+  std::unique_ptr<HostUnderTest> host_;
+  std::unique_ptr<tims::Mailbox> mailbox_;
+  std::unique_ptr<tims::Endpoint> endpoint_;
+  Address servo_;
+};
+
+TEST_F(ServoDriveCanTest, HomeMoveToPositionAndPositionReached) {
+  Watchdog w;
+  ASSERT_TRUE(host_->wait_status(servo_, msg::kEnabled));
+  EXPECT_EQ(sim_->state(3).mode, 1) << "profile position mode, configured over SDO";
+  EXPECT_EQ(move_pos(0.5, 0.0), msg::kError) << "MOVE_POS before HOME";
+  ASSERT_EQ(call(interfaces::kServoDriveHome, nullptr, 0), msg::kOk);
+  ASSERT_EQ(move_pos(0.5, 1.0), msg::kOk);
+  const double at = reached();
+  EXPECT_NEAR(at, 0.5, 1e-3) << "drive: position " << sim_->state(3).position << " statusword " << std::hex
+                             << sim_->state(3).statusword << " target " << std::dec << sim_->state(3).target_position
+                             << " active " << sim_->state(3).active_target << " rpdos " << sim_->state(3).rpdos
+                             << " syncs " << sim_->state(3).syncs << " status " << int(host_->status(servo_))
+                             << " errors " << host_->stats(servo_).errors;
+  interfaces::ServoDriveData d;
+  ASSERT_TRUE(wait_sample<interfaces::ServoDriveData>(*host_, servo_, d,
+                                                      [](const interfaces::ServoDriveData& s) { return s.target_reached == 1; }));
+  EXPECT_NEAR(d.position, 0.5, 1e-3);
+  EXPECT_EQ(d.homed, 1);
+  EXPECT_EQ(d.reached, 1U);
+  EXPECT_NEAR(sim_->state(3).position, 5000.0, 1.0) << "0.5 unit = 5000 counts from home";
+  // Back, then beyond the limit (refused), then a second move.
+  ASSERT_EQ(move_pos(-0.25, 2.0), msg::kOk);
+  EXPECT_NEAR(reached(), -0.25, 1e-3);
+  EXPECT_EQ(move_pos(1.5, 1.0), msg::kError) << "outside [position_min, position_max]";
+  const uint8_t junk[3] = {};
+  EXPECT_EQ(call(interfaces::kServoDriveMovePos, junk, sizeof junk), msg::kError);
+}
+
+TEST_F(ServoDriveCanTest, MoveAtVelocityStopsAtTheLimitAndASilentDriveIsAnError) {
+  Watchdog w;
+  ASSERT_TRUE(host_->wait_status(servo_, msg::kEnabled));
+  ASSERT_EQ(call(interfaces::kServoDriveHome, nullptr, 0), msg::kOk);
+  const interfaces::ServoDriveMoveVel v{2.0};
+  ASSERT_EQ(call(interfaces::kServoDriveMoveVel, &v, sizeof v), msg::kOk);
+  interfaces::ServoDriveData d;
+  ASSERT_TRUE(wait_sample<interfaces::ServoDriveData>(
+      *host_, servo_, d, [](const interfaces::ServoDriveData& s) { return s.velocity > 1.5; }));
+  ASSERT_TRUE(wait_sample<interfaces::ServoDriveData>(
+      *host_, servo_, d, [](const interfaces::ServoDriveData& s) { return s.target_reached == 1; }));
+  EXPECT_NEAR(d.position, 1.0, 1e-3) << "stopped at position_max";
+  sim_->set_silent(3, true);
+  ASSERT_TRUE(host_->wait_status(servo_, msg::kError));
+  sim_->set_silent(3, false);
+  EXPECT_TRUE(host_->wait_status(servo_, msg::kEnabled));
+}
+
 }  // namespace
 }  // namespace rack

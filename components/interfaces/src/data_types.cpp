@@ -23,6 +23,7 @@ constexpr DataTypeInfo kScan2d = info<Scan2dData>("Scan2dData");
 constexpr DataTypeInfo kMcl = info<MclData>("MclData");
 constexpr DataTypeInfo kGps = info<GpsData>("GpsData");
 constexpr DataTypeInfo kJoystick = info<JoystickData>("JoystickData");
+constexpr DataTypeInfo kServoDrive = info<ServoDriveData>("ServoDriveData");
 }  // namespace
 
 const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
@@ -38,6 +39,7 @@ const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
     case tims::classes::kMcl: return &kMcl;
     case tims::classes::kGps: return &kGps;
     case tims::classes::kJoystick: return &kJoystick;
+    case tims::classes::kServoDrive: return &kServoDrive;
     default: return nullptr;
   }
 }

@@ -120,30 +120,38 @@ void Cia402DriveSim::send_garbage() {
 
 void Cia402DriveSim::control(Drive& d, uint16_t cw) {
   uint16_t& sw = d.s.statusword;
+  // The power state lives in the bits of kSwStateMask; target reached (10) and set-point
+  // acknowledge (12) are kept across controlwords.
+  auto set_state = [&sw](uint16_t state) {
+    sw = static_cast<uint16_t>((sw & ~(co::kSwStateMask | co::kSwFault)) | state);
+  };
   const uint16_t state = sw & co::kSwStateMask;
-  const bool fault = (sw & co::kSwFault) != 0;
-  if (fault) {
-    if ((cw & co::kCwFaultReset) != 0) sw = co::kSwSwitchOnDisabled;
+  if ((sw & co::kSwFault) != 0) {
+    if ((cw & co::kCwFaultReset) != 0) set_state(co::kSwSwitchOnDisabled);
     return;
   }
   if ((cw & 0x82) == 0x00) {  // disable voltage
-    sw = co::kSwSwitchOnDisabled;
+    set_state(co::kSwSwitchOnDisabled);
+    d.position_active = false;
   } else if ((cw & 0x86) == 0x02) {  // quick stop
-    sw = co::kSwSwitchOnDisabled;
+    set_state(co::kSwSwitchOnDisabled);
+    d.position_active = false;
     d.s.velocity = 0.0;
     d.s.target_velocity = 0;
   } else if ((cw & 0x87) == 0x06) {  // shutdown
-    sw = co::kSwReadyToSwitchOn;
+    set_state(co::kSwReadyToSwitchOn);
   } else if ((cw & 0x8F) == 0x07) {  // switch on / disable operation
-    if (state == co::kSwReadyToSwitchOn || state == co::kSwOperationEnabled) sw = co::kSwSwitchedOn;
+    if (state == co::kSwReadyToSwitchOn || state == co::kSwOperationEnabled) set_state(co::kSwSwitchedOn);
   } else if ((cw & 0x8F) == 0x0F) {  // enable operation
-    if (state == co::kSwSwitchedOn || state == co::kSwOperationEnabled) sw = co::kSwOperationEnabled;
+    if (state == co::kSwSwitchedOn || state == co::kSwOperationEnabled) set_state(co::kSwOperationEnabled);
   }
-  // Profile position: a rising "new set-point" bit latches the target.
+  // Profile position: a rising "new set-point" bit latches the target and is
+  // acknowledged (bit 12) until the master drops bit 4.
   const bool setpoint = (cw & co::kCwNewSetPoint) != 0;
   if (setpoint && !d.new_setpoint && (sw & co::kSwStateMask) == co::kSwOperationEnabled) {
-    sw = static_cast<uint16_t>(sw | co::kSwSetPointAck);
-    sw = static_cast<uint16_t>(sw & ~co::kSwTargetReached);
+    sw = static_cast<uint16_t>((sw | co::kSwSetPointAck) & ~co::kSwTargetReached);
+    d.position_active = true;  // the drive moves until the set-point is reached
+    d.s.active_target = d.s.target_position;
   } else if (!setpoint) {
     sw = static_cast<uint16_t>(sw & ~co::kSwSetPointAck);
   }
@@ -267,6 +275,9 @@ void Cia402DriveSim::handle(const uint8_t* data, std::size_t len) {
     if (d->s.mode == co::kModeProfilePosition) d->s.target_position = target;
     else d->s.target_velocity = target;
     control(*d, co::get_u16(&f.data[0]));
+  } else if (fn == co::kRpdo2 && f.len >= 4 && d->s.nmt == co::kStateOperational) {
+    ++d->s.rpdos;
+    d->profile_velocity = co::get_u32(&f.data[0]);
   }
 }
 
@@ -276,8 +287,8 @@ void Cia402DriveSim::tick(double dt, int64_t now) {
     double target = 0.0;
     if (enabled && d.s.mode == co::kModeProfileVelocity) {
       target = d.s.target_velocity;
-    } else if (enabled && d.s.mode == co::kModeProfilePosition && (d.s.statusword & co::kSwSetPointAck) != 0) {
-      const double err = d.s.target_position - d.s.position;
+    } else if (enabled && d.s.mode == co::kModeProfilePosition && d.position_active) {
+      const double err = d.s.active_target - d.s.position;
       const double v = std::min<double>(d.profile_velocity, std::fabs(err) / dt);
       target = err >= 0 ? v : -v;
     }
@@ -290,7 +301,7 @@ void Cia402DriveSim::tick(double dt, int64_t now) {
     }
     d.s.position += d.s.velocity * dt;
     const bool reached = d.s.mode == co::kModeProfilePosition
-                             ? std::fabs(d.s.target_position - d.s.position) < 1.0
+                             ? d.position_active && std::fabs(d.s.active_target - d.s.position) < 1.0
                              : std::fabs(target - d.s.velocity) < 1.0;
     d.s.statusword = static_cast<uint16_t>(reached ? d.s.statusword | co::kSwTargetReached
                                                    : d.s.statusword & ~co::kSwTargetReached);

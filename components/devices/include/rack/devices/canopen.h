@@ -6,6 +6,7 @@
 // drive needs; the simulator implements exactly this layout):
 //   RPDO1 0x200+node  controlword u16 | target velocity i32 (0x60FF) or
 //                     target position i32 (0x607A)          -- event driven
+//   RPDO2 0x300+node  profile velocity u32 (0x6081)           -- profile position moves
 //   TPDO1 0x180+node  velocity actual i32 (0x606C) | position actual i32 (0x6064)
 //   TPDO2 0x280+node  statusword u16 (0x6041)                -- both on every SYNC
 //
@@ -26,6 +27,7 @@ inline constexpr canid_t kEmcy = 0x080;  // + node (1..127)
 inline constexpr canid_t kTpdo1 = 0x180;
 inline constexpr canid_t kRpdo1 = 0x200;
 inline constexpr canid_t kTpdo2 = 0x280;
+inline constexpr canid_t kRpdo2 = 0x300;
 inline constexpr canid_t kSdoTx = 0x580;  // server -> client (responses)
 inline constexpr canid_t kSdoRx = 0x600;  // client -> server (requests)
 inline constexpr canid_t kHeartbeat = 0x700;
@@ -161,6 +163,13 @@ struct SdoResponse {
   return r;
 }
 
+[[nodiscard]] inline can_frame rpdo2_profile_velocity(uint8_t node, uint32_t velocity) noexcept {
+  can_frame f{};
+  f.can_id = kRpdo2 + node;
+  f.len = 4;
+  put_u32(&f.data[0], velocity);
+  return f;
+}
 [[nodiscard]] inline can_frame rpdo1(uint8_t node, uint16_t controlword, int32_t target) noexcept {
   can_frame f{};
   f.can_id = kRpdo1 + node;

@@ -1,4 +1,4 @@
-// Data types and class commands of RACK's device classes: GPS, Joystick (the
+// Data types and class commands of RACK's device classes: GPS, Joystick, ServoDrive (the
 // Chassis and Ladar drivers publish rack/interfaces/robot.h's types).
 //
 // Conventions as in robot.h (SI units, fixed-size payloads, the sample's time is the
@@ -86,5 +86,50 @@ struct JoystickData {
                       RACK_FIELD(JoystickData, omega)};
   }
 };
+
+// ---------------------------------------------------------------------------
+// ServoDrive (class ServoDrive): one positioning axis (a pan unit, a lift, a gripper)
+// on a CiA 402 drive in profile position mode. Positions in the axis' unit (metres or
+// radians, by the driver's counts_per_unit), relative to the home set by HOME.
+struct ServoDriveData {
+  double position = 0.0;  // unit
+  double velocity = 0.0;  // unit/s
+  double target = 0.0;    // the set-point being approached (unit)
+  uint16_t statusword = 0;   // CiA 402, for diagnostics
+  uint8_t target_reached = 0;
+  uint8_t homed = 0;
+  uint32_t moves = 0;        // MOVE_POS/MOVE_VEL accepted since ON
+  uint32_t reached = 0;      // POSITION_REACHED notifications sent since ON
+  uint32_t pad_ = 0;
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(ServoDriveData, position), RACK_FIELD(ServoDriveData, velocity),
+                      RACK_FIELD(ServoDriveData, target), RACK_FIELD(ServoDriveData, statusword),
+                      RACK_FIELD(ServoDriveData, target_reached), RACK_FIELD(ServoDriveData, homed),
+                      RACK_FIELD(ServoDriveData, moves), RACK_FIELD(ServoDriveData, reached)};
+  }
+};
+// HOME (request, no body): the current position becomes the driver's home_position
+// (software homing: for drives whose encoder keeps its count). Reply OK.
+inline constexpr int8_t kServoDriveHome = 21;
+// MOVE_POS (request): move to `position` at `velocity` (0: the driver's max_velocity).
+// Reply OK when the drive took the set-point, ERROR outside [position_min,
+// position_max] or before HOME; then a POSITION_REACHED notification (body: the
+// reached position as one double) goes to the requester when the drive reports it.
+inline constexpr int8_t kServoDriveMovePos = 22;
+struct ServoDriveMovePos {
+  double position = 0.0;
+  double velocity = 0.0;
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(ServoDriveMovePos, position), RACK_FIELD(ServoDriveMovePos, velocity)};
+  }
+};
+// MOVE_VEL (request): move at `velocity` (sign: direction) until the position limit in
+// that direction or the next command; 0 stops where the axis is. Reply OK.
+inline constexpr int8_t kServoDriveMoveVel = 23;
+struct ServoDriveMoveVel {
+  double velocity = 0.0;
+  static constexpr auto fields() noexcept { return std::array{RACK_FIELD(ServoDriveMoveVel, velocity)}; }
+};
+inline constexpr int8_t kServoDrivePositionReached = -21;
 
 }  // namespace rack::interfaces

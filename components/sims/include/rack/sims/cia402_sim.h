@@ -8,7 +8,7 @@
 // power state machine driven by the controlword, profile velocity mode (ramps to the
 // target velocity with the profile acceleration/deceleration) and profile position
 // mode (moves to a target position at the profile velocity, "target reached" bit),
-// TPDO1/TPDO2 on every SYNC while operational, and heartbeats at the configured
+// RPDO2 (profile velocity, for profile position moves), TPDO1/TPDO2 on every SYNC while operational, and heartbeats at the configured
 // producer time (0x1017).
 //
 // Transports: attach(fd) serves a socket carrying one struct can_frame per packet
@@ -40,7 +40,8 @@ class Cia402DriveSim {
     uint16_t statusword = 0;
     int8_t mode = 0;
     int32_t target_velocity = 0;  // counts/s
-    int32_t target_position = 0;  // counts
+    int32_t target_position = 0;  // counts (the last one written)
+    int32_t active_target = 0;    // counts (the set-point being approached)
     double velocity = 0.0;        // counts/s
     double position = 0.0;        // counts
     uint16_t heartbeat_ms = 0;
@@ -78,6 +79,7 @@ class Cia402DriveSim {
     uint32_t profile_velocity = 1000;
     uint8_t tpdo_type[2] = {1, 1};
     bool new_setpoint = false;
+    bool position_active = false;
   };
   void run();
   void handle(const uint8_t* data, std::size_t len);
