@@ -1,5 +1,8 @@
 #include "rack/components/builtin.h"
 
+#if RACK_HAVE_CAMERA
+#include "camera/camera.h"
+#endif
 #include "chassis_can/chassis_can.h"
 #include "generator/generator.h"
 #include "gps_nmea/gps_nmea.h"
@@ -34,6 +37,10 @@ void register_builtin(ComponentRegistry& registry) {
   registry.add({"ServoDriveCan", cls::kServoDrive,
                 "ServoDrive: one axis on a CiA 402 drive over SocketCAN (profile position; HOME, MOVE_POS, MOVE_VEL)",
                 [] { return std::make_unique<ServoDriveCan>(); }});
+#if RACK_HAVE_CAMERA
+  registry.add({"Camera", cls::kCamera, "Camera: OpenCV VideoCapture (V4L2 device, video file, image sequence)",
+                [] { return std::make_unique<Camera>(); }});
+#endif
   registry.add({"Joystick", cls::kJoystick, "Joystick: Linux joystick API; optionally the active pilot of a chassis",
                 [] { return std::make_unique<Joystick>(); }});
 }

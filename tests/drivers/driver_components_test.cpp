@@ -11,7 +11,9 @@
 
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <string>
+#include <vector>
 
 #include "../unit/test_support.h"
 #include "rack/interfaces/devices.h"
@@ -745,6 +747,149 @@ TEST_F(ServoDriveCanTest, MoveAtVelocityStopsAtTheLimitAndASilentDriveIsAnError)
   sim_->set_silent(3, false);
   EXPECT_TRUE(host_->wait_status(servo_, msg::kEnabled));
 }
+
+// ---------------------------------------------------------------------------
+
+#if RACK_HAVE_CAMERA
+// An image sequence of PPM files written here (OpenCV's image-sequence backend reads
+// them), 64 x 48, frame i filled with the colour (i, 2i, 3i) and one marked pixel.
+class CameraTest : public ::testing::Test {
+ protected:
+  static constexpr int kW = 64, kH = 48, kFrames = 20;
+  void SetUp() override {
+    dir_ = temp_path("cam");
+    std::filesystem::create_directories(dir_);
+    for (int i = 0; i < kFrames; ++i) {
+      char name[64];
+      std::snprintf(name, sizeof name, "/img_%03d.ppm", i);
+      FILE* f = std::fopen((dir_ + name).c_str(), "wb");
+      ASSERT_NE(f, nullptr);
+      std::fprintf(f, "P6\n%d %d\n255\n", kW, kH);
+      for (int p = 0; p < kW * kH; ++p) {
+        const uint8_t px[3] = {static_cast<uint8_t>(i), static_cast<uint8_t>(2 * i),
+                               static_cast<uint8_t>(p == 5 * kW + 7 ? 255 : 3 * i)};
+        std::fwrite(px, 1, 3, f);
+      }
+      std::fclose(f);
+    }
+    calibration_ = dir_ + "/calib.yaml";
+    FILE* c = std::fopen(calibration_.c_str(), "w");
+    std::fputs("%YAML:1.0\n---\nimage_width: 128\nimage_height: 96\n"
+               "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+               "   data: [ 200., 0., 64., 0., 210., 48., 0., 0., 1. ]\n"
+               "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n"
+               "   data: [ 0.1, -0.2, 0.001, 0.002, 0.05 ]\n", c);
+    std::fclose(c);
+  }
+  void TearDown() override {
+    if (HasFailure() && host_) std::fprintf(stderr, "executor log:\n%s", host_->log().c_str());
+    if (host_) {
+      host_->executor().stop();
+      if (mailbox_) host_->executor().router().remove(mailbox_->address());
+    }
+    host_.reset();
+    std::filesystem::remove_all(dir_);
+  }
+  void start(const std::string& params) {
+    host_ = std::make_unique<HostUnderTest>(R"(system: 0
+lcm: false
+components:
+  - name: camera
+    class: Camera
+    instance: 0
+    autostart: true
+    retry_ms: 100
+    data_task: {period_ms: 10, ring: 4}
+    params:
+)" + params);
+    camera_ = host_->address_of("camera");
+    // CameraData is 0.9 MB: GET_DATA needs a mailbox with slots that large.
+    mailbox_ = std::make_unique<tims::Mailbox>(Address::make(0, tims::classes::kTool, 3, 1), 2, 1100 * 1024);
+    host_->executor().router().add(*mailbox_);
+    endpoint_ = std::make_unique<tims::Endpoint>(host_->executor().router(), *mailbox_, 10);
+    buffer_.resize(1100 * 1024);
+  }
+  bool get(interfaces::CameraData& d, wire::SampleHeader& h) {
+    const auto r = endpoint_->call(camera_, msg::kGetData, std::span<std::byte>(buffer_), test::kCallTimeoutNs);
+    if (r.status != tims::CallStatus::kOk || r.reply.type != msg::kData || r.body.size() != sizeof h + sizeof d) {
+      return false;
+    }
+    std::memcpy(&h, r.body.data(), sizeof h);
+    std::memcpy(&d, r.body.data() + sizeof h, sizeof d);
+    return true;
+  }
+  std::string dir_, calibration_;
+  std::unique_ptr<HostUnderTest> host_;
+  std::unique_ptr<tims::Mailbox> mailbox_;
+  std::unique_ptr<tims::Endpoint> endpoint_;
+  std::vector<std::byte> buffer_;
+  Address camera_;
+};
+
+TEST_F(CameraTest, AnImageSequenceWithCalibrationIsPublishedThenItsEndIsAnError) {
+  Watchdog w;
+  start("      source: " + dir_ + "/img_%03d.ppm\n      fps: 50\n      calibration: " + calibration_ + "\n");
+  auto d = std::make_unique<interfaces::CameraData>();
+  wire::SampleHeader h;
+  ASSERT_TRUE(test::eventually([&] { return get(*d, h) && d->frame >= 3; }));
+  EXPECT_EQ(d->width, 64U);
+  EXPECT_EQ(d->height, 48U);
+  EXPECT_EQ(d->format, interfaces::kCameraRgb8);
+  EXPECT_EQ(d->bytes, 64U * 48U * 3U);
+  const int i = static_cast<int>(d->frame) - 1;  // frame n shows img_(n-1)
+  EXPECT_EQ(d->data[0], i);
+  EXPECT_EQ(d->data[1], 2 * i);
+  EXPECT_EQ(d->data[2], 3 * i);
+  EXPECT_EQ(d->data[(5 * 64 + 7) * 3 + 2], 255) << "rows top to bottom, RGB order";
+  EXPECT_EQ(d->calibrated, 1);
+  EXPECT_DOUBLE_EQ(d->fx, 100.0) << "calibrated at 128x96: the matrix scales to 64x48";
+  EXPECT_DOUBLE_EQ(d->fy, 105.0);
+  EXPECT_DOUBLE_EQ(d->cx, 32.0);
+  EXPECT_DOUBLE_EQ(d->distortion[4], 0.05);
+  EXPECT_LE(h.time_ns, rt::host_time_ns());
+  // 20 frames at 50 fps: then the sequence ends and the camera is in ERROR.
+  EXPECT_TRUE(host_->wait_status(camera_, msg::kError));
+}
+
+TEST_F(CameraTest, JpegAndLooping) {
+  Watchdog w;
+  start("      source: " + dir_ + "/img_%03d.ppm\n      fps: 200\n      format: jpeg\n      loop: true\n");
+  auto d = std::make_unique<interfaces::CameraData>();
+  wire::SampleHeader h;
+  ASSERT_TRUE(test::eventually([&] { return get(*d, h) && d->frame > kFrames + 5; })) << "looped past the end";
+  EXPECT_EQ(d->format, interfaces::kCameraJpeg);
+  ASSERT_GT(d->bytes, 4U);
+  EXPECT_EQ(d->data[0], 0xFF);
+  EXPECT_EQ(d->data[1], 0xD8) << "a JPEG starts with SOI";
+  EXPECT_EQ(host_->status(camera_), msg::kEnabled);
+}
+
+TEST_F(CameraTest, MonoIsOneBytePerPixel) {
+  Watchdog w;
+  start("      source: " + dir_ + "/img_%03d.ppm\n      fps: 50\n      format: mono\n");
+  auto d = std::make_unique<interfaces::CameraData>();
+  wire::SampleHeader h;
+  ASSERT_TRUE(test::eventually([&] { return get(*d, h) && d->frame >= 5; }));
+  EXPECT_EQ(d->format, interfaces::kCameraMono8);
+  EXPECT_EQ(d->bytes, 64U * 48U);
+  const int i = static_cast<int>(d->frame) - 1;
+  EXPECT_NEAR(d->data[0], 0.299 * i + 0.587 * 2 * i + 0.114 * 3 * i, 1.0) << "ITU-R BT.601 luma";
+}
+
+TEST_F(CameraTest, AMissingSourceIsAnErrorAndABadCalibrationFailsInit) {
+  Watchdog w;
+  start("      source: " + dir_ + "/nothing_%03d.ppm\n      timeout_ms: 300\n");
+  EXPECT_TRUE(host_->wait_status(camera_, msg::kError));
+  host_.reset();
+  FILE* c = std::fopen(calibration_.c_str(), "w");
+  std::fputs("%YAML:1.0\n---\nimage_width: 10\n", c);
+  std::fclose(c);
+  start("      source: " + dir_ + "/img_%03d.ppm\n      calibration: " + calibration_ + "\n");
+  const auto r = host_->call(camera_, msg::kOn);
+  EXPECT_EQ(r.type, msg::kError);
+  EXPECT_NE(r.error_text().find("calibration"), std::string::npos) << r.error_text();
+}
+#endif
 
 }  // namespace
 }  // namespace rack

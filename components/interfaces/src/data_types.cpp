@@ -24,6 +24,7 @@ constexpr DataTypeInfo kMcl = info<MclData>("MclData");
 constexpr DataTypeInfo kGps = info<GpsData>("GpsData");
 constexpr DataTypeInfo kJoystick = info<JoystickData>("JoystickData");
 constexpr DataTypeInfo kServoDrive = info<ServoDriveData>("ServoDriveData");
+constexpr DataTypeInfo kCamera = info<CameraData>("CameraData");
 }  // namespace
 
 const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
@@ -40,6 +41,7 @@ const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
     case tims::classes::kGps: return &kGps;
     case tims::classes::kJoystick: return &kJoystick;
     case tims::classes::kServoDrive: return &kServoDrive;
+    case tims::classes::kCamera: return &kCamera;
     default: return nullptr;
   }
 }

@@ -1,4 +1,5 @@
-// Data types and class commands of RACK's device classes: GPS, Joystick, ServoDrive (the
+// Data types and class commands of RACK's device classes: GPS, Joystick, ServoDrive,
+// Camera (the
 // Chassis and Ladar drivers publish rack/interfaces/robot.h's types).
 //
 // Conventions as in robot.h (SI units, fixed-size payloads, the sample's time is the
@@ -131,5 +132,38 @@ struct ServoDriveMoveVel {
   static constexpr auto fields() noexcept { return std::array{RACK_FIELD(ServoDriveMoveVel, velocity)}; }
 };
 inline constexpr int8_t kServoDrivePositionReached = -21;
+
+// ---------------------------------------------------------------------------
+// Camera (class Camera): one image, raw (RGB8 or MONO8, rows top to bottom, no padding)
+// or JPEG-encoded (for remote viewing over slow links), with the calibration from the
+// driver's OpenCV calibration file. Frames larger than the payload are scaled down
+// (aspect kept) by the driver. A fixed-size payload: keep the ring short (ring: 4).
+inline constexpr uint32_t kCameraMaxBytes = 640 * 480 * 3;
+inline constexpr uint8_t kCameraRgb8 = 1;
+inline constexpr uint8_t kCameraMono8 = 2;
+inline constexpr uint8_t kCameraJpeg = 3;
+struct CameraData {
+  uint32_t width = 0;
+  uint32_t height = 0;
+  uint32_t bytes = 0;           // used bytes of data
+  uint32_t frame = 0;           // frames delivered since ON
+  uint32_t dropped = 0;         // frames the device gave that were never published (too slow)
+  uint32_t bad_frames = 0;      // frames the device failed to deliver or decode
+  uint8_t format = 0;           // kCamera*
+  uint8_t calibrated = 0;       // the fields below come from a calibration file
+  uint8_t pad_[6] = {};
+  double fx = 0.0, fy = 0.0;    // focal lengths, pixels (of this image's size)
+  double cx = 0.0, cy = 0.0;    // principal point, pixels
+  double distortion[5] = {};    // k1 k2 p1 p2 k3 (OpenCV's model)
+  uint8_t data[kCameraMaxBytes] = {};
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(CameraData, width), RACK_FIELD(CameraData, height), RACK_FIELD(CameraData, bytes),
+                      RACK_FIELD(CameraData, frame), RACK_FIELD(CameraData, dropped),
+                      RACK_FIELD(CameraData, bad_frames), RACK_FIELD(CameraData, format),
+                      RACK_FIELD(CameraData, calibrated), RACK_FIELD(CameraData, fx), RACK_FIELD(CameraData, fy),
+                      RACK_FIELD(CameraData, cx), RACK_FIELD(CameraData, cy), RACK_FIELD(CameraData, distortion),
+                      RACK_FIELD(CameraData, data)};
+  }
+};
 
 }  // namespace rack::interfaces
