@@ -90,5 +90,12 @@ TEST_F(DriversEndToEndTest, TheJoystickDrivesTheCanChassisThroughTheSimulators) 
   EXPECT_EQ(rackd.wait_exit(30s), 0) << rackd.err();
 }
 
+TEST(DriversConfigTest, TheDriverHostFilesAreValid) {
+  for (const char* file : {"can_joystick.yaml", "sensors.yaml"}) {
+    const RunResult r = run({RACK_RACKD_PATH, "--check", std::string(RACK_CONFIGS_DIR) + "/" + file}, 30s);
+    EXPECT_EQ(r.exit_code, 0) << file << ": " << r.describe();
+  }
+}
+
 }  // namespace
 }  // namespace rack::test
