@@ -3,6 +3,11 @@
 // on a FIFO carrying struct js_event. Each test covers the normal path, malformed
 // traffic, and a device that disappears or falls silent and comes back.
 #include <fcntl.h>
+#include <linux/can.h>
+#include <linux/can/raw.h>
+#include <net/if.h>
+#include <sys/ioctl.h>
+#include <sys/socket.h>
 #include <linux/joystick.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -336,6 +341,47 @@ TEST_F(ChassisCanTest, GarbageOnTheBusIsIgnoredAndALostConnectionRecovers) {
   sim_->drop_client();  // the cable is pulled and plugged back in
   ASSERT_TRUE(host_->wait_status(chassis_, msg::kError));
   EXPECT_TRUE(host_->wait_status(chassis_, msg::kEnabled));
+}
+
+// The same driver on a real SocketCAN interface, the drive simulator on another
+// CAN_RAW socket of the same vcan0. Needs AF_CAN and vcan0.
+TEST(ChassisCanVcanTest, DrivesTheSimulatorOnVcan0) {
+  const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
+  if (fd < 0) GTEST_SKIP() << "this kernel has no AF_CAN (" << std::strerror(errno)
+                           << "); ChassisCanTest runs the same driver over AF_UNIX";
+  ifreq ifr{};
+  std::strncpy(ifr.ifr_name, "vcan0", IFNAMSIZ - 1);
+  sockaddr_can addr{};
+  addr.can_family = AF_CAN;
+  if (::ioctl(fd, SIOCGIFINDEX, &ifr) != 0) {
+    ::close(fd);
+    GTEST_SKIP() << "no vcan0 (ip link add vcan0 type vcan && ip link set vcan0 up)";
+  }
+  addr.can_ifindex = ifr.ifr_ifindex;
+  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  Watchdog w;
+  sims::Cia402DriveSim sim({});
+  sim.attach(fd);
+  sim.start();
+  HostUnderTest host(R"(system: 0
+lcm: false
+components:
+  - name: chassis
+    class: ChassisCan
+    instance: 0
+    autostart: true
+    retry_ms: 100
+    data_task: {period_ms: 10}
+    params:
+      can: vcan0
+      heartbeat_ms: 20
+      heartbeat_timeout_ms: 400
+      sdo_timeout_ms: 200
+)");
+  const Address chassis = host.address_of("chassis");
+  EXPECT_TRUE(host.wait_status(chassis, msg::kEnabled)) << host.log();
+  EXPECT_EQ(sim.state(1).nmt, 0x05);
+  sim.stop();
 }
 
 TEST_F(ChassisCanTest, NoSimulatorMeansErrorUntilItAppears) {
