@@ -1,9 +1,12 @@
 #include "joystick.h"
 
+#include "obstacle.h"
+
 #include <fcntl.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -24,7 +27,23 @@ Joystick::Joystick()
                                   {.doc = "button that must be held to move (-1: none)", .min = -1, .max = 31})),
       deadband_(declare_float("deadband", 0.05, {.doc = "axis values below this count as zero", .min = 0.0, .max = 0.9})),
       speed_scale_(declare_float("speed_scale", 0.5,
-                                 {.doc = "fraction of the chassis vx_max at full stick", .min = 0.0, .max = 1.0})) {}
+                                 {.doc = "fraction of the chassis vx_max at full stick", .min = 0.0, .max = 1.0})),
+      obstacles_(declare_string("obstacles", "",
+                                {.doc = "Scan2D or Ladar whose scans limit the forward speed (empty: none)",
+                                 .required = false,
+                                 .component_ref = true})),
+      slow_distance_(declare_float("slow_distance", 1.0,
+                                   {.doc = "m of free space ahead below which forward speed is reduced", .min = 0.01})),
+      obstacle_timeout_ms_(declare_float("obstacle_timeout_ms", 500.0,
+                                         {.doc = "no scan this long: no forward motion", .min = 1.0})) {
+  // Scans arrive here (a Scan2dData is the largest payload accepted).
+  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(interfaces::Scan2dData) + 128);
+}
+
+void Joystick::init() {
+  scan2d_ = std::make_unique<interfaces::Scan2dData>();
+  ladar_ = std::make_unique<interfaces::LadarData>();
+}
 
 Joystick::~Joystick() { close_device(); }
 
@@ -61,10 +80,41 @@ HookResult Joystick::on() {
                         sizeof limits_);
     }
   }
+  obstacles_address_ = resolved(obstacles_);
+  free_ahead_ = 0.0;
+  obstacles_lost_ = false;
+  last_obstacles_ns_ = rt::monotonic_ns();
+  if (obstacles_address_.raw() != 0) {
+    if (switch_on(obstacles_address_) != HookResult::kOk) return HookResult::kError;
+    if (subscribe(obstacles_address_, 0) != HookResult::kOk) return HookResult::kError;
+  }
   return HookResult::kOk;
 }
 
+void Joystick::take_obstacles() noexcept {
+  if (chassis_address_.raw() == 0) return;
+  const double front = limits_.boundary_front + limits_.safety_margin;
+  const double half = std::fmax(limits_.boundary_left, limits_.boundary_right) + limits_.safety_margin;
+  for (;;) {
+    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
+    if (p.status != tims::RecvStatus::kOk) break;
+    const tims::MessageHeader h = *p.header;
+    wire::SampleHeader sh;
+    if (h.type == tims::msg::kError) {
+      obstacles_lost_ = true;  // the source left ENABLED
+    } else if (h.type == tims::msg::kData && read_sample(h, p.body, sh, *scan2d_)) {
+      free_ahead_ = obstacle::free_ahead(*scan2d_, front, half);
+      last_obstacles_ns_ = rt::monotonic_ns();
+    } else if (h.type == tims::msg::kData && read_sample(h, p.body, sh, *ladar_)) {
+      free_ahead_ = obstacle::free_ahead(*ladar_, front, half);
+      last_obstacles_ns_ = rt::monotonic_ns();
+    }
+    input_mailbox().peek_end();
+  }
+}
+
 void Joystick::off() {
+  if (obstacles_address_.raw() != 0) unsubscribe(obstacles_address_);
   if (chassis_address_.raw() != 0) {
     // Stop and release: bounded calls; the chassis may already be gone.
     const interfaces::ChassisMove stop{};
@@ -108,6 +158,14 @@ HookResult Joystick::loop() {
     if (pending_ > 0) std::memmove(buffer_.data(), buffer_.data() + at, pending_);
   }
   state_.vx = state_.omega = 0.0;
+  state_.free_ahead = -1.0;
+  if (obstacles_address_.raw() != 0) {
+    take_obstacles();
+    if (obstacles_lost_) return HookResult::kError;  // off() stops the robot; on() re-subscribes
+    const bool stale = static_cast<double>(rt::monotonic_ns() - last_obstacles_ns_) >
+                       obstacle_timeout_ms_.get_float() * 1e6;
+    state_.free_ahead = stale ? 0.0 : std::fmin(free_ahead_, 1e3);
+  }
   if (chassis_address_.raw() != 0) {
     auto shaped = [this](uint32_t axis) {
       const double v = -static_cast<double>(state_.axis[axis]);
@@ -118,6 +176,9 @@ HookResult Joystick::loop() {
     if (armed) {
       state_.vx = shaped(static_cast<uint32_t>(axis_forward_.get_int())) * limits_.vx_max * speed_scale_.get_float();
       state_.omega = shaped(static_cast<uint32_t>(axis_turn_.get_int())) * limits_.omega_max;
+      if (state_.vx > 0.0 && state_.free_ahead >= 0.0) {  // slow down before what is ahead
+        state_.vx *= std::clamp(state_.free_ahead / slow_distance_.get_float(), 0.0, 1.0);
+      }
     }
     const interfaces::ChassisMove m{state_.vx, 0.0, state_.omega};
     // Bounded by half a period; a refused or lost MOVE is counted and the chassis

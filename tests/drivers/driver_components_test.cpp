@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "../unit/test_support.h"
+#include "joystick/obstacle.h"
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/robot.h"
 #include "rack/sims/cia402_sim.h"
@@ -424,8 +425,8 @@ class JoystickTest : public ChassisCanTest {
     e.value = value;
     ASSERT_EQ(::write(writer_, &e, sizeof e), static_cast<ssize_t>(sizeof e));
   }
-  void start_joystick(bool deadman) {
-    start_host(R"(  - name: joystick
+  void start_joystick(bool deadman, const std::string& extra_params = "", const std::string& extra_components = "") {
+    start_host(extra_components + R"(  - name: joystick
     class: Joystick
     instance: 0
     autostart: true
@@ -434,7 +435,7 @@ class JoystickTest : public ChassisCanTest {
     params:
       device: )" + fifo_ + R"(
       chassis: chassis
-      deadman_button: )" + (deadman ? "0" : "-1") + "\n");
+      deadman_button: )" + (deadman ? "0" : "-1") + "\n" + extra_params);
     joystick_ = host_->address_of("joystick");
   }
   std::string fifo_;
@@ -470,6 +471,41 @@ TEST_F(JoystickTest, TheStickDrivesTheChassisAsActivePilot) {
                                        [](const ChassisData& s) { return std::fabs(s.vx) < 1e-3; }));
 }
 
+TEST_F(JoystickTest, ForwardSpeedIsLimitedByTheFreeSpaceAheadInALadarScan) {
+  Watchdog w;
+  sims::HokuyoScipSim::Config c;
+  c.link = temp_path("urg");
+  c.room_front = 2.0;  // a wall 2 m ahead of the scanner
+  c.scan_rpm = 1200;
+  sims::HokuyoScipSim urg(c);
+  urg.start();
+  start_joystick(false, "      obstacles: ladar\n      slow_distance: 3.2\n", R"(  - name: ladar
+    class: LadarHokuyo
+    instance: 0
+    retry_ms: 100
+    data_task: {period_ms: 10, ring: 8}
+    params:
+      device: )" + c.link + "\n      timeout_ms: 300\n");
+  ASSERT_TRUE(host_->wait_status(joystick_, msg::kEnabled));
+  event(JS_EVENT_AXIS, 1, -32767);  // full forward: 0.5 m/s without obstacles
+  // Free ahead: 2.0 m - boundary_front 0.3 - safety_margin 0.1 = 1.6 m; over 3.2 m: half.
+  JoystickData j;
+  ASSERT_TRUE(wait_sample<JoystickData>(*host_, joystick_, j, [](const JoystickData& s) { return s.vx > 0.0; }));
+  EXPECT_NEAR(j.free_ahead, 1.6, 0.01);
+  EXPECT_NEAR(j.vx, 0.25, 0.01);
+  event(JS_EVENT_AXIS, 1, 32767);  // backwards is not limited by what is ahead
+  ASSERT_TRUE(wait_sample<JoystickData>(*host_, joystick_, j, [](const JoystickData& s) { return s.vx < -0.45; }));
+  // The scanner goes away: its listeners get ERROR, the joystick stops the robot.
+  event(JS_EVENT_AXIS, 1, -32767);
+  urg.unplug();
+  ASSERT_TRUE(host_->wait_status(joystick_, msg::kError));
+  ChassisData cd;
+  EXPECT_TRUE(wait_sample<ChassisData>(*host_, chassis_, cd, [](const ChassisData& s) {
+    return std::fabs(s.vx) < 1e-3 && s.active_pilot == 0;
+  }));
+  urg.stop();
+}
+
 TEST_F(JoystickTest, BadEventsAreCountedAndAnUnpluggedStickStopsTheRobot) {
   Watchdog w;
   start_joystick(/*deadman=*/false);
@@ -494,6 +530,30 @@ TEST_F(JoystickTest, BadEventsAreCountedAndAnUnpluggedStickStopsTheRobot) {
 }
 
 // ---------------------------------------------------------------------------
+
+TEST(ObstacleTest, FreeAheadInTheCorridorFromScan2dAndLadar) {
+  auto s = std::make_unique<interfaces::Scan2dData>();
+  s->point_count = 4;
+  s->x[0] = 2.0F, s->y[0] = 0.1F;   // ahead, in the corridor
+  s->x[1] = 1.0F, s->y[1] = 0.9F;   // nearer but beside the corridor
+  s->x[2] = -0.5F, s->y[2] = 0.0F;  // behind
+  s->x[3] = 0.5F, s->y[3] = 0.0F;
+  s->type[3] = interfaces::kScanPointMaxRange;  // no echo
+  EXPECT_NEAR(components::obstacle::free_ahead(*s, 0.4, 0.5), 1.6, 1e-6);
+  s->x[0] = 0.2F;  // inside the outline: no free space at all
+  EXPECT_EQ(components::obstacle::free_ahead(*s, 0.4, 0.5), 0.0);
+  auto l = std::make_unique<LadarData>();
+  l->beam_count = 3;
+  l->start_angle = static_cast<float>(-M_PI / 2);
+  l->angle_step = static_cast<float>(M_PI / 2);
+  l->max_range = 10.0F;
+  l->range[0] = 1.0F;  // right, beside the corridor
+  l->range[1] = 3.0F;  // straight ahead
+  l->range[2] = 0.0F;  // no echo
+  EXPECT_NEAR(components::obstacle::free_ahead(*l, 0.5, 0.4), 2.5, 1e-5);
+  l->beam_count = 0;
+  EXPECT_TRUE(std::isinf(components::obstacle::free_ahead(*l, 0.5, 0.4)));
+}
 
 class LadarHokuyoTest : public ::testing::Test {
  protected:

@@ -79,12 +79,13 @@ struct JoystickData {
   uint32_t moves_rejected = 0;        // MOVEs the chassis refused (another pilot is active)
   double vx = 0.0;                    // m/s, the command sent to the chassis
   double omega = 0.0;                 // rad/s
+  double free_ahead = -1.0;           // m free ahead in the corridor (obstacles), -1: not used
   static constexpr auto fields() noexcept {
     return std::array{RACK_FIELD(JoystickData, axis), RACK_FIELD(JoystickData, buttons),
                       RACK_FIELD(JoystickData, axis_count), RACK_FIELD(JoystickData, button_count),
                       RACK_FIELD(JoystickData, events), RACK_FIELD(JoystickData, bad_events),
                       RACK_FIELD(JoystickData, moves_rejected), RACK_FIELD(JoystickData, vx),
-                      RACK_FIELD(JoystickData, omega)};
+                      RACK_FIELD(JoystickData, omega), RACK_FIELD(JoystickData, free_ahead)};
   }
 };
 
