@@ -221,24 +221,25 @@ TEST_F(ChassisCanTest, DrivesBothWheelsAndPublishesOdometry) {
   Watchdog w;
   start_host();
   ASSERT_TRUE(host_->wait_status(chassis_, msg::kEnabled));
-  EXPECT_EQ(sim_->state(1).nmt, 0x05) << "NMT operational";
+  // on() sent NMT start last; the simulator takes it within its 1 ms tick.
+  EXPECT_TRUE(test::eventually([&] { return sim_->state(1).nmt == 0x05 && sim_->state(2).nmt == 0x05; }))
+      << "NMT operational";
   EXPECT_EQ(sim_->state(1).mode, 3) << "profile velocity mode, configured over SDO";
   EXPECT_EQ(sim_->state(2).heartbeat_ms, 20);
   ASSERT_EQ(set_pilot(me()).type, msg::kOk);
   // Keep MOVE coming faster than the watchdog.
   ChassisData d;
-  double travelled = 0.0;
   const int64_t end = rt::monotonic_ns() + 3 * rt::kNsPerSec;
   bool reached = false;
   while (!reached && rt::monotonic_ns() < end) {
-    ASSERT_EQ(move(0.5, 0.0).type, msg::kOk);
+    (void)move(0.5, 0.0);  // tolerant: a loaded machine may delay the first cycles
     wire::SampleHeader h;
     reached = host_->get_data(chassis_, h, d) && std::fabs(d.vx - 0.5) < 0.01;
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   ASSERT_TRUE(reached) << "vx " << d.vx;
-  EXPECT_NEAR(sim_->state(1).target_velocity, 5000, 0);
-  EXPECT_NEAR(sim_->state(2).target_velocity, 5000, 0);
+  EXPECT_EQ(sim_->state(1).target_velocity, 5000);
+  EXPECT_EQ(sim_->state(2).target_velocity, 5000);
   EXPECT_NEAR(d.omega, 0.0, 1e-6);
   // Straight ahead: a cycle whose TPDOs all came within half a period has no rotation.
   // (On a loaded machine a late TPDO moves one wheel's increment to the next cycle.)
@@ -250,16 +251,17 @@ TEST_F(ChassisCanTest, DrivesBothWheelsAndPublishesOdometry) {
            std::fabs(d.delta_x - 0.005) < 0.0015;
   })) << "vx " << d.vx << " delta_phi " << d.delta_phi << " delta_x " << d.delta_x;
   EXPECT_EQ(d.active_pilot, me());
-  (void)travelled;
   // Turning on the spot: the left wheel backwards, the right forwards.
-  for (int i = 0; i < 20; ++i) {
-    ASSERT_EQ(move(0.0, 1.0).type, msg::kOk);
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  EXPECT_EQ(sim_->state(1).target_velocity, -2500);
-  EXPECT_EQ(sim_->state(2).target_velocity, 2500);
-  ASSERT_TRUE(wait_sample<ChassisData>(*host_, chassis_, d,
-                                       [](const ChassisData& c) { return std::fabs(c.omega - 1.0) < 0.01; }));
+  ASSERT_EQ(move(0.0, 1.0).type, msg::kOk);
+  EXPECT_TRUE(test::eventually([&] {
+    (void)move(0.0, 1.0);
+    return sim_->state(1).target_velocity == -2500 && sim_->state(2).target_velocity == 2500;
+  }));
+  ASSERT_TRUE(test::eventually([&] {
+    (void)move(0.0, 1.0);  // keeps the watchdog fed
+    wire::SampleHeader h;
+    return host_->get_data(chassis_, h, d) && std::fabs(d.omega - 1.0) < 0.01;
+  }));
   EXPECT_GT(d.delta_phi, 0.0);
   // GET_PARAMS.
   const auto r = host_->call(chassis_, interfaces::kChassisGetParams);
@@ -381,7 +383,7 @@ components:
 )");
   const Address chassis = host.address_of("chassis");
   EXPECT_TRUE(host.wait_status(chassis, msg::kEnabled)) << host.log();
-  EXPECT_EQ(sim.state(1).nmt, 0x05);
+  EXPECT_TRUE(test::eventually([&] { return sim.state(1).nmt == 0x05; }));
   sim.stop();
 }
 
