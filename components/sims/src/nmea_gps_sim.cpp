@@ -160,7 +160,7 @@ void NmeaGpsSim::run() {
         out[i + 1] = out[i + 1] == '0' ? '1' : '0';
       }
     } else if (f == Fault::kGarbage) {
-      out = std::string("\x01\xff garbage $GPXXX,,,\r\n$GPGGA,1,2*ZZ\r\n\x7f", 40) + out.substr(0, out.size() / 2);
+      out = std::string("\x01\xff garbage $GPXXX,,,\r\n$GPGGA,1,2*ZZ\r\n\x7f") + out.substr(0, out.size() / 2);
     }
     if (f != Fault::kSilent) {
       std::lock_guard lock(mutex_);
