@@ -116,7 +116,10 @@ inline constexpr int8_t kServoDriveHome = 21;
 // MOVE_POS (request): move to `position` at `velocity` (0: the driver's max_velocity).
 // Reply OK when the drive took the set-point, ERROR outside [position_min,
 // position_max] or before HOME; then a POSITION_REACHED notification (body: the
-// reached position as one double) goes to the requester when the drive reports it.
+// reached position as one double) goes to the mailbox the MOVE_POS came from when the
+// drive reports it. Send MOVE_POS from a mailbox you read (an Endpoint::call's reply
+// mailbox discards later messages as stale replies), or poll ServoDriveData's
+// target_reached instead.
 inline constexpr int8_t kServoDriveMovePos = 22;
 struct ServoDriveMovePos {
   double position = 0.0;
