@@ -190,6 +190,7 @@ components:
       heartbeat_ms: 20
       heartbeat_timeout_ms: 400
       sdo_timeout_ms: 200
+      max_missed_syncs: 50
       watchdog_ms: 300
 )" + extra);
     chassis_ = host_->address_of("chassis");
@@ -385,6 +386,16 @@ components:
   EXPECT_TRUE(host.wait_status(chassis, msg::kEnabled)) << host.log();
   EXPECT_TRUE(test::eventually([&] { return sim.state(1).nmt == 0x05; }));
   sim.stop();
+}
+
+TEST_F(ChassisCanTest, BusOffIsAnErrorAndTheChassisRecoversAfterTheRestart) {
+  Watchdog w;
+  start_host();
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kEnabled));
+  // The controller goes bus-off: no frames either way until it restarts 1 s later.
+  sim_->inject_bus_off(1000 * rt::kNsPerMs);
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kError)) << "no TPDOs: ERROR after max_missed_syncs";
+  EXPECT_TRUE(host_->wait_status(chassis_, msg::kEnabled)) << "after the restart on() succeeds again";
 }
 
 TEST_F(ChassisCanTest, NoSimulatorMeansErrorUntilItAppears) {

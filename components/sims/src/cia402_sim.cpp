@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <linux/can.h>
+#include <linux/can/error.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <sys/un.h>
@@ -98,6 +99,7 @@ Cia402DriveSim::Drive* Cia402DriveSim::find(uint8_t id) {
 
 void Cia402DriveSim::send(uint32_t id, const uint8_t* data, uint8_t len) {
   if (fd_ < 0) return;
+  if (silenced_by_bus_off_ && (id & CAN_ERR_FLAG) == 0) return;
   can_frame f{};
   f.can_id = id;
   f.len = len;
@@ -364,6 +366,19 @@ void Cia402DriveSim::run() {
       next += config_.tick_ns;
       if (next < now) next = now + config_.tick_ns;
       for (int g = garbage_.exchange(0); g > 0 && fd_ >= 0; --g) send_garbage();
+      const int64_t restart = bus_off_.exchange(-1);
+      if (restart >= 0 && fd_ >= 0) {
+        const uint8_t none[8] = {};
+        send(CAN_ERR_FLAG | CAN_ERR_BUSOFF, none, 8);
+        restart_at_ns_ = now + restart;
+        silenced_by_bus_off_ = true;  // a controller off the bus sends nothing
+      }
+      if (restart_at_ns_ >= 0 && now >= restart_at_ns_) {
+        restart_at_ns_ = -1;
+        silenced_by_bus_off_ = false;
+        const uint8_t none[8] = {};
+        send(CAN_ERR_FLAG | CAN_ERR_RESTARTED, none, 8);
+      }
     }
   }
 }

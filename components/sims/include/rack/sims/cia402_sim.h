@@ -63,6 +63,9 @@ class Cia402DriveSim {
   // Sends `count` malformed packets (short packets, oversized dlc) and frames with
   // ids nobody uses, interleaved with the normal traffic.
   void inject_garbage(int count) { garbage_.fetch_add(count); }
+  // Sends a controller error frame reporting bus-off (as a CAN controller's driver
+  // does), then, after `restart_after_ns`, one reporting the restart (restart-ms).
+  void inject_bus_off(int64_t restart_after_ns) { bus_off_.store(restart_after_ns); }
   // Closes the current client connection (a cable pulled); listen_unix keeps accepting.
   void drop_client();
   [[nodiscard]] DriveState state(uint8_t node) const;
@@ -97,6 +100,9 @@ class Cia402DriveSim {
   int listen_fd_ = -1;
   std::string listen_path_;
   std::atomic<int> garbage_{0};
+  std::atomic<int64_t> bus_off_{-1};  // >= 0: send bus-off now, restart after this long
+  int64_t restart_at_ns_ = -1;
+  bool silenced_by_bus_off_ = false;
   std::atomic<bool> stop_{false};
   std::atomic<bool> drop_{false};
   std::thread thread_;
