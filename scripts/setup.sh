@@ -19,6 +19,8 @@ packages=(
   python3 python3-matplotlib             # bench/run writes RESULTS.md and its plots
   libmrpt-slam-dev libmrpt-maps-dev libmrpt-obs-dev libmrpt-poses-dev libmrpt-bayes-dev
   mrpt-common                            # MCL and rawlog replay (MRPT 2.5); datasets for bench
+  libopencv-dev                          # Camera component (OpenCV VideoCapture), linked PRIVATE there only
+  can-utils                              # cansend/candump: vcan tests and CAN debugging on robots
 )
 
 missing=()

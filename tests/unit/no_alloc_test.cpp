@@ -319,6 +319,12 @@ components:
     interfaces::GeneratorData d;
     return host.get_data(gen, h, d);
   }));
+  // The generator too: GET_DATA on an empty ring is (rightly) an ERROR.
+  ASSERT_TRUE(test::eventually([&] {
+    wire::SampleHeader h;
+    interfaces::GeneratorData d;
+    return host.get_data(gen, h, d);
+  }));
 
   tims::Endpoint& ep = host.endpoint();
   alignas(8) std::array<std::byte, 4096> buf{};

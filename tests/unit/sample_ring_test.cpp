@@ -155,9 +155,12 @@ TEST_F(SampleRingTest, ConcurrentWriterAndReaderNeverSeeATornSample) {
   uint64_t ok = 0, torn = 0, contended = 0, last_newest = 0;
   bool monotonic = true;
   std::array<uint64_t, kWords> p{};
-  uint64_t i = 0;
-  while (!done.load(std::memory_order_acquire) || i < 1000) {
+  uint64_t i = 0, after_done = 0;
+  // Until the writer is done and then some: under load every read while it writes may be
+  // contended, and the reads after it finished must then succeed.
+  while (!done.load(std::memory_order_acquire) || i < 1000 || after_done < 10) {
     ++i;
+    if (done.load(std::memory_order_acquire)) ++after_done;
     wire::SampleHeader h;
     const uint64_t written = ring.written();
     // Alternate newest and a time lookup near the head.

@@ -3,6 +3,7 @@
 #include "rack/interfaces/demo.h"
 #include "rack/interfaces/evaluation.h"
 #include "rack/interfaces/navigation.h"
+#include "rack/interfaces/devices.h"
 #include "rack/interfaces/robot.h"
 #include "rack/tims/address.h"
 
@@ -26,6 +27,10 @@ constexpr DataTypeInfo kPath = info<PathData>("PathData");
 constexpr DataTypeInfo kPilot = info<PilotData>("PilotData");
 constexpr DataTypeInfo kEvaluator = info<EvaluatorData>("EvaluatorData");
 constexpr DataTypeInfo kModeSwitchDemo = info<ModeSwitchDemoData>("ModeSwitchDemoData");
+constexpr DataTypeInfo kGps = info<GpsData>("GpsData");
+constexpr DataTypeInfo kJoystick = info<JoystickData>("JoystickData");
+constexpr DataTypeInfo kServoDrive = info<ServoDriveData>("ServoDriveData");
+constexpr DataTypeInfo kCamera = info<CameraData>("CameraData");
 }  // namespace
 
 const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
@@ -43,6 +48,10 @@ const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
     case tims::classes::kPilot: return &kPilot;
     case tims::classes::kEvaluator: return &kEvaluator;
     case tims::classes::kModeSwitchDemo: return &kModeSwitchDemo;
+    case tims::classes::kGps: return &kGps;
+    case tims::classes::kJoystick: return &kJoystick;
+    case tims::classes::kServoDrive: return &kServoDrive;
+    case tims::classes::kCamera: return &kCamera;
     default: return nullptr;
   }
 }

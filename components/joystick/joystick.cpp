@@ -1,0 +1,194 @@
+#include "joystick.h"
+
+#include "obstacle.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+namespace rack::components {
+
+using interfaces::kJoystickMaxAxes;
+
+Joystick::Joystick()
+    : DataComponent(DataTaskMode::kPeriodic),
+      device_(declare_string("device", "/dev/input/js0", {.doc = "joystick device (Linux joystick API)"})),
+      chassis_(declare_string("chassis", "",
+                              {.doc = "Chassis to drive as its active pilot (empty: only publish)",
+                               .required = false,
+                               .component_ref = true})),
+      axis_forward_(declare_int("axis_forward", 1, {.doc = "axis for forward speed", .min = 0, .max = 7})),
+      axis_turn_(declare_int("axis_turn", 0, {.doc = "axis for turning", .min = 0, .max = 7})),
+      deadman_button_(declare_int("deadman_button", -1,
+                                  {.doc = "button that must be held to move (-1: none)", .min = -1, .max = 31})),
+      deadband_(declare_float("deadband", 0.05, {.doc = "axis values below this count as zero", .min = 0.0, .max = 0.9})),
+      speed_scale_(declare_float("speed_scale", 0.5,
+                                 {.doc = "fraction of the chassis vx_max at full stick", .min = 0.0, .max = 1.0})),
+      obstacles_(declare_string("obstacles", "",
+                                {.doc = "Scan2D or Ladar whose scans limit the forward speed (empty: none)",
+                                 .required = false,
+                                 .component_ref = true})),
+      slow_distance_(declare_float("slow_distance", 1.0,
+                                   {.doc = "m of free space ahead below which forward speed is reduced", .min = 0.01})),
+      obstacle_timeout_ms_(declare_float("obstacle_timeout_ms", 500.0,
+                                         {.doc = "no scan this long: no forward motion", .min = 1.0})) {
+  // Scans arrive here (a Scan2dData is the largest payload accepted).
+  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(interfaces::Scan2dData) + 128);
+}
+
+void Joystick::init() {
+  scan2d_ = std::make_unique<interfaces::Scan2dData>();
+  ladar_ = std::make_unique<interfaces::LadarData>();
+}
+
+Joystick::~Joystick() { close_device(); }
+
+void Joystick::close_device() noexcept {
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
+}
+
+HookResult Joystick::on() {
+  device_.copy_string(path_, sizeof path_);
+  close_device();
+  // O_NONBLOCK: loop() reads what is there each cycle and never waits in read().
+  fd_ = ::open(path_, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd_ < 0) return HookResult::kError;
+  // RT device: register with the mode-switch detector (fd_: loop() reads it).
+  state_ = interfaces::JoystickData{};
+  pending_ = 0;
+  chassis_address_ = resolved(chassis_);
+  if (chassis_address_.raw() != 0) {
+    if (switch_on(chassis_address_) != HookResult::kOk) return HookResult::kError;  // cascading ON
+    const interfaces::ChassisSetActivePilot p{address().raw()};
+    const int64_t timeout = settings().rpc_timeout_ns;
+    if (!command_endpoint().call(chassis_address_, interfaces::kChassisSetActivePilot, p, reply_, timeout).ok()) {
+      return HookResult::kError;
+    }
+    const tims::CallResult r = command_endpoint().call(chassis_address_, interfaces::kChassisGetParams, reply_, timeout);
+    if (r.status != tims::CallStatus::kOk || r.reply.type != interfaces::kChassisParamsReply ||
+        r.body.size() != sizeof limits_) {
+      return HookResult::kError;
+    }
+    std::memcpy(&limits_, r.body.data(), sizeof limits_);
+    if (!tims::body_is_native(r.reply)) {
+      tims::swap_fields(tims::fields_of<interfaces::ChassisParams>, reinterpret_cast<std::byte*>(&limits_),
+                        sizeof limits_);
+    }
+  }
+  obstacles_address_ = resolved(obstacles_);
+  free_ahead_ = 0.0;
+  obstacles_lost_ = false;
+  last_obstacles_ns_ = rt::monotonic_ns();
+  if (obstacles_address_.raw() != 0) {
+    if (switch_on(obstacles_address_) != HookResult::kOk) return HookResult::kError;
+    if (subscribe(obstacles_address_, 0) != HookResult::kOk) return HookResult::kError;
+  }
+  return HookResult::kOk;
+}
+
+void Joystick::take_obstacles() noexcept {
+  if (chassis_address_.raw() == 0) return;
+  const double front = limits_.boundary_front + limits_.safety_margin;
+  const double half = std::fmax(limits_.boundary_left, limits_.boundary_right) + limits_.safety_margin;
+  for (;;) {
+    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
+    if (p.status != tims::RecvStatus::kOk) break;
+    const tims::MessageHeader h = *p.header;
+    wire::SampleHeader sh;
+    if (h.type == tims::msg::kError) {
+      obstacles_lost_ = true;  // the source left ENABLED
+    } else if (h.type == tims::msg::kData && read_sample(h, p.body, sh, *scan2d_)) {
+      free_ahead_ = obstacle::free_ahead(*scan2d_, front, half);
+      last_obstacles_ns_ = rt::monotonic_ns();
+    } else if (h.type == tims::msg::kData && read_sample(h, p.body, sh, *ladar_)) {
+      free_ahead_ = obstacle::free_ahead(*ladar_, front, half);
+      last_obstacles_ns_ = rt::monotonic_ns();
+    }
+    input_mailbox().peek_end();
+  }
+}
+
+void Joystick::off() {
+  if (obstacles_address_.raw() != 0) unsubscribe(obstacles_address_);
+  if (chassis_address_.raw() != 0) {
+    // Stop and release: bounded calls; the chassis may already be gone.
+    const interfaces::ChassisMove stop{};
+    const int64_t timeout = settings().rpc_timeout_ns;
+    (void)command_endpoint().call(chassis_address_, interfaces::kChassisMove, stop, reply_, timeout);
+    const interfaces::ChassisSetActivePilot none{};
+    (void)command_endpoint().call(chassis_address_, interfaces::kChassisSetActivePilot, none, reply_, timeout);
+  }
+  close_device();
+}
+
+void Joystick::apply(const js_event& e) noexcept {
+  const uint8_t type = e.type & static_cast<uint8_t>(~JS_EVENT_INIT);  // INIT: the state at open
+  if (type == JS_EVENT_AXIS && e.number < kJoystickMaxAxes) {
+    state_.axis[e.number] = static_cast<float>(e.value) / 32767.0F;
+    if (e.number + 1U > state_.axis_count) state_.axis_count = e.number + 1U;
+  } else if (type == JS_EVENT_BUTTON && e.number < 32 && (e.value == 0 || e.value == 1)) {
+    const uint32_t bit = 1U << e.number;
+    state_.buttons = e.value != 0 ? (state_.buttons | bit) : (state_.buttons & ~bit);
+    if (e.number + 1U > state_.button_count) state_.button_count = e.number + 1U;
+  } else {
+    ++state_.bad_events;
+    return;
+  }
+  ++state_.events;
+}
+
+HookResult Joystick::loop() {
+  for (int i = 0; i < 8; ++i) {
+    const ssize_t n = ::read(fd_, buffer_.data() + pending_, buffer_.size() - pending_);
+    if (n < 0 && (errno == EAGAIN || errno == EINTR)) break;
+    if (n <= 0) return HookResult::kError;  // unplugged (ENODEV) or the FIFO's writer left
+    std::size_t have = pending_ + static_cast<std::size_t>(n);
+    std::size_t at = 0;
+    for (; at + sizeof(js_event) <= have; at += sizeof(js_event)) {
+      js_event e;
+      std::memcpy(&e, buffer_.data() + at, sizeof e);
+      apply(e);
+    }
+    pending_ = have - at;
+    if (pending_ > 0) std::memmove(buffer_.data(), buffer_.data() + at, pending_);
+  }
+  state_.vx = state_.omega = 0.0;
+  state_.free_ahead = -1.0;
+  if (obstacles_address_.raw() != 0) {
+    take_obstacles();
+    if (obstacles_lost_) return HookResult::kError;  // off() stops the robot; on() re-subscribes
+    const bool stale = static_cast<double>(rt::monotonic_ns() - last_obstacles_ns_) >
+                       obstacle_timeout_ms_.get_float() * 1e6;
+    state_.free_ahead = stale ? 0.0 : std::fmin(free_ahead_, 1e3);
+  }
+  if (chassis_address_.raw() != 0) {
+    auto shaped = [this](uint32_t axis) {
+      const double v = -static_cast<double>(state_.axis[axis]);
+      return std::fabs(v) < deadband_.get_float() ? 0.0 : v;
+    };
+    const int64_t deadman = deadman_button_.get_int();
+    const bool armed = deadman < 0 || (state_.buttons & (1U << deadman)) != 0;
+    if (armed) {
+      state_.vx = shaped(static_cast<uint32_t>(axis_forward_.get_int())) * limits_.vx_max * speed_scale_.get_float();
+      state_.omega = shaped(static_cast<uint32_t>(axis_turn_.get_int())) * limits_.omega_max;
+      if (state_.vx > 0.0 && state_.free_ahead >= 0.0) {  // slow down before what is ahead
+        state_.vx *= std::clamp(state_.free_ahead / slow_distance_.get_float(), 0.0, 1.0);
+      }
+    }
+    const interfaces::ChassisMove m{state_.vx, 0.0, state_.omega};
+    // Bounded by half a period; a refused or lost MOVE is counted and the chassis
+    // watchdog stops the robot if they keep failing.
+    const tims::CallResult r =
+        data_endpoint().call(chassis_address_, interfaces::kChassisMove, m, reply_, period_ns() / 2);
+    if (!r.ok()) ++state_.moves_rejected;
+  }
+  publish(state_, rt::host_time_ns());
+  return HookResult::kOk;
+}
+
+}  // namespace rack::components

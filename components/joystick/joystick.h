@@ -1,0 +1,80 @@
+// Joystick (class Joystick): a game controller through the Linux joystick API
+// (/dev/input/jsN, struct js_event), and optionally a pilot that drives a chassis.
+//
+// Publishes JoystickData every cycle: axes scaled to [-1, 1], buttons as a bit mask,
+// counters. With `chassis` set it also drives that chassis: on() switches the chassis
+// on (cascading ON), makes itself the active pilot and reads the chassis limits;
+// loop() sends MOVE every cycle (which also keeps the chassis watchdog fed):
+//   vx = -axis[axis_forward] * vx_max * speed_scale,  omega = -axis[axis_turn] * omega_max
+// (pushing the stick forward/left reports negative values on Linux), zero inside
+// `deadband`, and zero unless the dead-man button is held (deadman_button >= 0).
+// off() stops the robot and releases the chassis.
+//
+// With `obstacles` set (a Scan2D or Ladar component) it subscribes to its scans and
+// limits forward speed by the free distance ahead in the robot's corridor (the chassis
+// outline plus its safety margin): full speed at `slow_distance` or more, zero at the
+// outline. No scan for obstacle_timeout_ms allows no forward motion (fail safe); the
+// source leaving ENABLED puts the joystick in ERROR (and stops the robot).
+//
+// Bad input: short events, unknown event types and out-of-range axis/button numbers
+// are counted (bad_events) and ignored. A device that disappears (unplugged: ENODEV,
+// EOF on a FIFO) puts the component in ERROR; on() retries and reopens it.
+//
+// Data task: periodic (e.g. 20 ms). Real-time contract: loop() does non-blocking
+// read() on the device and one bounded MOVE call; on() opens the device.
+#pragma once
+
+#include <linux/joystick.h>
+
+#include <array>
+#include <memory>
+
+#include "rack/core/data_component.h"
+#include "rack/interfaces/devices.h"
+#include "rack/interfaces/robot.h"
+
+namespace rack::components {
+
+class Joystick final : public DataComponent<interfaces::JoystickData> {
+ public:
+  Joystick();
+  ~Joystick() override;
+
+ protected:
+  HookResult on() override;
+  void off() override;
+  HookResult loop() override;  // RT
+
+ private:
+  void init() override;
+  void apply(const js_event& e) noexcept;
+  void take_obstacles() noexcept;
+  void close_device() noexcept;
+
+  Parameter& device_;
+  Parameter& chassis_;
+  Parameter& axis_forward_;
+  Parameter& axis_turn_;
+  Parameter& deadman_button_;
+  Parameter& deadband_;
+  Parameter& speed_scale_;
+  Parameter& obstacles_;
+  Parameter& slow_distance_;
+  Parameter& obstacle_timeout_ms_;
+  int fd_ = -1;
+  char path_[256] = {};
+  interfaces::JoystickData state_{};
+  std::array<uint8_t, sizeof(js_event) * 32> buffer_{};
+  std::size_t pending_ = 0;  // bytes of an incomplete event carried to the next read
+  interfaces::ChassisParams limits_{};
+  tims::Address chassis_address_;
+  std::array<std::byte, 512> reply_{};
+  tims::Address obstacles_address_;
+  std::unique_ptr<interfaces::Scan2dData> scan2d_;  // allocated in init()
+  std::unique_ptr<interfaces::LadarData> ladar_;    // allocated in init()
+  double free_ahead_ = 0.0;
+  int64_t last_obstacles_ns_ = 0;
+  bool obstacles_lost_ = false;
+};
+
+}  // namespace rack::components
