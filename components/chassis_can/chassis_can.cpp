@@ -73,8 +73,8 @@ HookResult ChassisCan::on() {
   drives_[1].node = static_cast<uint8_t>(right_node_.get_int());
   std::string error;  // allocates only when opening fails (allocation at open only)
   if (!port_.open(spec_, error)) return fail(Fault::kOpen);
-  // RT device: register with the mode-switch detector (port_.fd(): loop() and command()
-  // use send/recvmsg/ppoll on it).
+  // The port registered its descriptor(s) as RT devices when it opened: mode-switch
+  // detection allows their I/O in this component's RT tasks.
   // Only what this driver listens to: SDO answers, TPDO1/2 and heartbeats of its drives.
   can_filter filters[8];
   std::size_t n = 0;

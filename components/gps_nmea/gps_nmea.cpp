@@ -20,7 +20,8 @@ GpsNmea::GpsNmea()
 
 HookResult GpsNmea::on() {
   device_.copy_string(path_, sizeof path_);
-  // RT device: register with the mode-switch detector (port_.fd() after open()).
+  // The port registered its descriptor(s) as RT devices when it opened: mode-switch
+  // detection allows their I/O in this component's RT tasks.
   if (!port_.open(path_, static_cast<int>(baud_.get_int()), error_, sizeof error_)) return HookResult::kError;
   parser_.reset();  // a partial sentence from before is not this session's; counters keep counting
   last_position_ns_ = rt::monotonic_ns();

@@ -48,7 +48,11 @@ void Joystick::init() {
 Joystick::~Joystick() { close_device(); }
 
 void Joystick::close_device() noexcept {
-  if (fd_ >= 0) ::close(fd_);
+  const rt::modeswitch::DeviceSetupScope setup;  // closing a device: deliberate set-up
+  if (fd_ >= 0) {
+    rt::modeswitch::unregister_rt_device(fd_);
+    ::close(fd_);
+  }
   fd_ = -1;
 }
 
@@ -56,9 +60,12 @@ HookResult Joystick::on() {
   device_.copy_string(path_, sizeof path_);
   close_device();
   // O_NONBLOCK: loop() reads what is there each cycle and never waits in read().
-  fd_ = ::open(path_, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  {
+    const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
+    fd_ = ::open(path_, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  }
   if (fd_ < 0) return HookResult::kError;
-  // RT device: register with the mode-switch detector (fd_: loop() reads it).
+  (void)rt::modeswitch::register_rt_device(fd_);  // loop() reads it every cycle
   state_ = interfaces::JoystickData{};
   pending_ = 0;
   chassis_address_ = resolved(chassis_);

@@ -55,7 +55,8 @@ bool LadarHokuyo::transact(const char* command, scip::Parser::Event until) noexc
 HookResult LadarHokuyo::on() {
   device_.copy_string(path_, sizeof path_);
   if (!port_.open(path_, static_cast<int>(baud_.get_int()), error_, sizeof error_)) return HookResult::kError;
-  // RT device: register with the mode-switch detector (port_.fd(): loop() reads it).
+  // The port registered its descriptor(s) as RT devices when it opened: mode-switch
+  // detection allows their I/O in this component's RT tasks.
   parser_->reset();
   // A sensor still streaming from a previous session answers QT after its current scan.
   if (!transact("QT\n", scip::Parser::Event::kStatus) || !transact("PP\n", scip::Parser::Event::kParameters)) {

@@ -23,7 +23,8 @@ void LadarSick::init() {
   const std::string start = "\x02sEN LMDscandata 1\x03";  // continuous output after every connect
   c.greeting.assign(start.begin(), start.end());
   link_.start(std::move(c));
-  // RT device: register with the mode-switch detector (the link's eventfd, which loop() polls).
+  // The port registered its descriptor(s) as RT devices when it opened: mode-switch
+  // detection allows their I/O in this component's RT tasks.
 }
 
 void LadarSick::cleanup() { link_.stop(); }

@@ -37,7 +37,8 @@ HookResult ServoDriveCan::on() {
   node_id_ = static_cast<uint8_t>(node_.get_int());
   std::string error;  // allocates only when opening fails
   if (!port_.open(spec_, error)) return HookResult::kError;
-  // RT device: register with the mode-switch detector (port_.fd(): loop() and command()).
+  // The port registered its descriptor(s) as RT devices when it opened: mode-switch
+  // detection allows their I/O in this component's RT tasks.
   const can_filter filters[] = {{co::kSdoTx + node_id_, CAN_SFF_MASK},
                                 {co::kTpdo1 + node_id_, CAN_SFF_MASK},
                                 {co::kTpdo2 + node_id_, CAN_SFF_MASK},

@@ -63,7 +63,9 @@ TEST_F(DriversEndToEndTest, TheJoystickDrivesTheCanChassisThroughTheSimulators) 
       dir_.path(), "stick");
   ASSERT_TRUE(eventually([&] { return std::filesystem::exists(can) && std::filesystem::exists(js); }))
       << drives.err() << stick->err();
-  Process rackd({RACK_RACKD_PATH, host_file.string(), "--lcm", bus_.url()}, dir_.path(), "rackd");
+  const auto crash_dir = dir_.path() / "crash";
+  Process rackd({RACK_RACKD_PATH, host_file.string(), "--lcm", bus_.url(), "--crash-dir", crash_dir.string()},
+                dir_.path(), "rackd");
   ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
 
   // vx = 0.4 (stick) * 1.0 (vx_max) * 0.5 (speed_scale); omega = 0.2 * 1.5.
@@ -88,6 +90,12 @@ TEST_F(DriversEndToEndTest, TheJoystickDrivesTheCanChassisThroughTheSimulators) 
   })) << rackd.err();
   rackd.signal(SIGTERM);
   EXPECT_EQ(rackd.wait_exit(30s), 0) << rackd.err();
+  // The drivers' device I/O in their RT tasks (CAN send/receive/poll, joystick reads),
+  // their device set-up in on() and the unplugging path are all legitimate: mode-switch
+  // detection (on by default, warn) must not have reported anything.
+  EXPECT_EQ(rackd.err().find("MODE SWITCH"), std::string::npos) << rackd.err();
+  EXPECT_FALSE(std::filesystem::exists(crash_dir) && !std::filesystem::is_empty(crash_dir))
+      << "a mode-switch report file was left in " << crash_dir;
 }
 
 TEST(DriversConfigTest, TheDriverHostFilesAreValid) {

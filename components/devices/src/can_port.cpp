@@ -1,4 +1,5 @@
 #include "rack/devices/can_port.h"
+#include "rack/rt/modeswitch.h"
 
 #include <fcntl.h>
 #include <linux/can/raw.h>
@@ -69,6 +70,7 @@ bool CanPort::open_socketcan(const char* ifname, std::string& error) {
     return false;
   }
   fd_ = fd;
+  (void)rt::modeswitch::register_rt_device(fd_);  // RT tasks send, receive and poll on it
   kind_ = CanKind::kSocketCan;
   if (!configure_common(error)) {
     close();
@@ -97,6 +99,7 @@ bool CanPort::open_unix(const char* path, std::string& error) {
     return false;
   }
   fd_ = fd;
+  (void)rt::modeswitch::register_rt_device(fd_);  // RT tasks send, receive and poll on it
   kind_ = CanKind::kOther;
   if (!configure_common(error)) {
     close();
@@ -106,20 +109,27 @@ bool CanPort::open_unix(const char* path, std::string& error) {
 }
 
 bool CanPort::open(const char* spec, std::string& error) {
+  const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
   if (std::strncmp(spec, "unix:", 5) == 0) return open_unix(spec + 5, error);
   return open_socketcan(spec, error);
 }
 
 void CanPort::adopt(int fd) {
+  const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
   close();
   fd_ = fd;
+  (void)rt::modeswitch::register_rt_device(fd_);  // RT tasks send, receive and poll on it
   kind_ = CanKind::kOther;
   std::string ignored;
   (void)configure_common(ignored);  // best effort: a socketpair supports both
 }
 
 void CanPort::close() noexcept {
-  if (fd_ >= 0) ::close(fd_);
+  const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
+  if (fd_ >= 0) {
+    rt::modeswitch::unregister_rt_device(fd_);
+    ::close(fd_);
+  }
   fd_ = -1;
   kind_ = CanKind::kNone;
   bus_off_.store(false, std::memory_order_relaxed);

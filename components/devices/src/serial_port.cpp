@@ -1,4 +1,5 @@
 #include "rack/devices/serial_port.h"
+#include "rack/rt/modeswitch.h"
 
 #include <fcntl.h>
 #include <linux/serial.h>
@@ -49,6 +50,7 @@ bool SerialPort::open(const char* path, int baud, std::string& error) {
 }
 
 bool SerialPort::open(const char* path, int baud, char* error, std::size_t error_size) noexcept {
+  const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
   close();
   const unsigned speed = speed_constant(baud);
   if (speed == 0) {
@@ -89,11 +91,16 @@ bool SerialPort::open(const char* path, int baud, char* error, std::size_t error
   }
   ::tcflush(fd, TCIOFLUSH);  // stale bytes from before we opened are not this session's
   fd_ = fd;
+  (void)rt::modeswitch::register_rt_device(fd_);  // RT tasks read, write and poll on it
   return true;
 }
 
 void SerialPort::close() noexcept {
-  if (fd_ >= 0) ::close(fd_);
+  const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
+  if (fd_ >= 0) {
+    rt::modeswitch::unregister_rt_device(fd_);
+    ::close(fd_);
+  }
   fd_ = -1;
   low_latency_ = false;
 }

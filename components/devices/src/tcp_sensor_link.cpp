@@ -1,4 +1,5 @@
 #include "rack/devices/tcp_sensor_link.h"
+#include "rack/rt/modeswitch.h"
 
 #include <arpa/inet.h>
 #include <fcntl.h>
@@ -38,6 +39,10 @@ void TcpSensorLink::start(TcpSensorConfig config) {
     stop();
     throw std::system_error(e, std::generic_category(), "TcpSensorLink: eventfd");
   }
+  // The RT side polls and reads data_event_ and wakes the I/O thread through
+  // control_event_: both are RT devices for the mode-switch detector.
+  (void)rt::modeswitch::register_rt_device(data_event_);
+  (void)rt::modeswitch::register_rt_device(control_event_);
   stop_.store(false);
   thread_ = std::thread([this] { run(); });
 }
@@ -49,8 +54,11 @@ void TcpSensorLink::stop() noexcept {
     (void)::write(control_event_, &one, sizeof one);
     thread_.join();
   }
-  if (data_event_ >= 0) ::close(data_event_);
-  if (control_event_ >= 0) ::close(control_event_);
+  for (const int fd : {data_event_, control_event_}) {
+    if (fd < 0) continue;
+    rt::modeswitch::unregister_rt_device(fd);
+    ::close(fd);
+  }
   data_event_ = control_event_ = -1;
   connected_.store(false);
 }

@@ -399,7 +399,11 @@ void describe_record(const Record& r, Text& t) noexcept {
         t.hex(r.args[k]);
       }
       t.s(", ...)");
-      if (fd_syscall(r.nr)) t.s(": fd ").i(static_cast<int64_t>(r.args[0])).s(" is not a registered RT device");
+      if (r.nr == SYS_poll || r.nr == SYS_ppoll) {
+        t.s(": a descriptor in its pollfd array is not a registered RT device");  // args[0] is the array
+      } else if (fd_syscall(r.nr)) {
+        t.s(": fd ").i(static_cast<int64_t>(r.args[0])).s(" is not a registered RT device");
+      }
       else t.s(": not on the real-time allow-list");
       return;
     }

@@ -225,6 +225,21 @@ class TrustedScope {
   char saved_;
 };
 
+// A driver opening or closing its device from on()/off() (a serial port, a CAN
+// socket): open(), termios and socket set-up block in the kernel and are not
+// real-time, but a driver must (re)open its device when it is switched on, and on()
+// runs in the component's command task. This scope says "deliberate set-up": its
+// system calls are not reported. Use it around the open/close code only, never in
+// loop() or command() paths; the command task is blocked for as long as it takes,
+// which is why ON is answered only when on() has finished. RT-safe to construct.
+class DeviceSetupScope {
+ public:
+  DeviceSetupScope() noexcept : trusted_(true) {}
+
+ private:
+  TrustedScope trusted_;
+};
+
 // File descriptors that RT tasks may read, write, ioctl, poll, send and receive on
 // (CAN sockets, serial ports). Process-wide. RT-safe (an atomic bit). fd < 4096.
 bool register_rt_device(int fd) noexcept;
