@@ -11,11 +11,10 @@
 //                           primitives a TiMS mailbox is built from, without TiMS.
 //   diagnostic "pi-condvar-timed": the same with the reader's wait bounded by a
 //                           deadline 1 s ahead, as Endpoint::call() waits.
-//   diagnostic "pi-futex":  the same channels, but the reader sleeps on a plain futex
-//                           word instead of a glibc condvar (what a mailbox could do:
-//                           glibc re-acquires a PI mutex after a condvar wait with
-//                           FUTEX_WAITERS forced on, so the next unlock is always a
-//                           FUTEX_UNLOCK_PI system call).
+//   diagnostic "pi-futex":  the same channels, but the reader sleeps on a bare futex
+//                           word (rt::PiCondVar is such a word since it replaced
+//                           glibc's condvar, whose PI re-lock made every next unlock a
+//                           FUTEX_UNLOCK_PI system call): the two should now match.
 //   "rack-rpc":             tims::Endpoint::call(GET_STATUS) from a client thread to a
 //                           Generator's command task in a rack::Executor (lcm: false),
 //                           reply back into the client's own Mailbox.

@@ -191,9 +191,8 @@ def main():
       "SCHED_FIFO threads of the same priority in the same binary handing a ball back and forth "
       "through one **futex** word (`FUTEX_WAIT/FUTEX_WAKE_PRIVATE`, no spinning). Two diagnostic "
       "ping-pongs show where the difference comes from: `PI mutex+condvar` (two channels of "
-      "PI mutex + condvar + flag: the primitives a TiMS mailbox is built from, without TiMS) and "
-      "`PI mutex+futex` (the same channels, the reader sleeping on a futex word instead of a "
-      "glibc condvar). The mechanisms run in alternating blocks; between round trips the "
+      "PI mutex + `rt::PiCondVar` + flag: the primitives a TiMS mailbox is built from, without TiMS) and "
+      "`PI mutex+futex` (the same channels, the reader sleeping on a bare futex word). The mechanisms run in alternating blocks; between round trips the "
       f"client sleeps {rpc['gap_us']} us (so the CPU is never 100% busy with RT threads, which "
       "would trigger RT throttling); each block starts with "
       f"{rpc['warmup']} untimed round trips. SCHED_FIFO priority {rpc['priority']}; "
@@ -311,24 +310,22 @@ def main():
         line = (f"- RPC, {m['mode']} CPU: RACK-RT's median is {us2(r50 - f50)} us "
                 f"({100.0 * (r50 / f50 - 1.0):+.0f}%) from the raw futex ping-pong")
         if c50 is not None and p50 is not None:
-            line += (f"; the bare mailbox primitives (PI mutex + glibc condvar) account for "
+            line += (f"; the bare mailbox primitives (PI mutex + rt::PiCondVar) account for "
                      f"{us2(c50 - f50)} us of it, TiMS itself (router look-up, header, two lock/unlock "
                      f"pairs per send, copies, deadline clock reads) for {us2(r50 - c50)} us; the same channels "
                      f"with a futex word instead of the condvar take {us2(p50)} us ({p50 / f50:.2f}x futex)")
         w(line + ".")
-    w("- **glibc's condvar and PI mutexes**: after `pthread_cond_wait`/`timedwait` returns, glibc "
-      "re-acquires a PI mutex with `FUTEX_WAITERS` forced on (`__pthread_mutex_cond_lock`, a leftover of "
-      "requeue-PI), so the very next unlock of that mailbox's mutex is a `FUTEX_UNLOCK_PI` system call "
-      "through the kernel's rt-mutex code, even with nobody waiting. Every mailbox hand-off pays it"
+    w("- **Condition variable**: a TiMS mailbox is a PI mutex plus `rt::PiCondVar`. That condvar was "
+      "glibc's `pthread_cond_t` until 2026-11-22; after `pthread_cond_wait` glibc re-acquires a PI mutex "
+      "with `FUTEX_WAITERS` forced on (`__pthread_mutex_cond_lock`), so the next unlock of every mailbox "
+      "was a `FUTEX_UNLOCK_PI` system call even with nobody waiting, and the same-CPU median was 1.71x "
+      "the raw ping-pong on this machine. `rt::PiCondVar` is now a futex sequence word (waiters counted, "
+      "no system call for a notify nobody waits for); the `PI mutex + condvar` row measures it"
       + (f": strace counted {calls['rack'].get('futex', 0) / 2000.0:.1f} futex calls per RACK-RT round trip "
          f"({calls['rack'].get('futex:FUTEX_UNLOCK_PI', 0) / 2000.0:.1f} of them FUTEX_UNLOCK_PI) against "
-         f"{calls['futex'].get('futex', 0) / 2000.0:.1f} for the raw ping-pong and "
-         f"{calls['pi_futex'].get('futex', 0) / 2000.0:.1f} for PI mutex + futex word"
-         if calls.get("rack") and calls.get("futex") and calls.get("pi_futex") else "")
-      + ". A mailbox that sleeps on a futex "
-      "word (sequence counter bumped after the critical section) instead of `pthread_cond_t` would drop "
-      "those calls and keep priority inheritance on the mutex; not changed here (a design change in "
-      "tims/, not a bug).")
+         f"{calls['futex'].get('futex', 0) / 2000.0:.1f} for the raw ping-pong"
+         if calls.get("rack") and calls.get("futex") else "")
+      + ".")
     w("- Every `Endpoint::call` waits with a deadline (`pthread_cond_timedwait`, an hrtimer armed and "
       "cancelled per call) and reads CLOCK_MONOTONIC three more times; the raw ping-pong waits without "
       "a timeout. Small next to the system calls.")

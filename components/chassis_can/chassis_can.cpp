@@ -43,6 +43,19 @@ ChassisCan::ChassisCan()
 
 HookResult ChassisCan::fail(Fault f) noexcept {
   fault_.store(static_cast<uint8_t>(f), std::memory_order_relaxed);
+  const char* what = "unknown fault";
+  switch (f) {
+    case Fault::kNone: what = "no fault"; break;
+    case Fault::kOpen: what = "cannot open the CAN interface or set its filters"; break;
+    case Fault::kSdo: what = "a drive did not answer its SDO configuration"; break;
+    case Fault::kPowerUp: what = "a drive did not reach OPERATION ENABLED"; break;
+    case Fault::kHeartbeat: what = "a drive's heartbeat stopped: the other drive was stopped"; break;
+    case Fault::kNmtState: what = "a drive left the NMT state OPERATIONAL"; break;
+    case Fault::kDriveFault: what = "a drive reports a fault (statusword)"; break;
+    case Fault::kBus: what = "CAN bus error (bus-off or the interface is gone)"; break;
+    case Fault::kNoPdo: what = "no TPDO from a drive within half a period"; break;
+  }
+  log_error("chassis fault: %s (%s); retrying after the back-off", what, static_cast<const char*>(spec_));
   return HookResult::kError;
 }
 

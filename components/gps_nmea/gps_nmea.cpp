@@ -22,7 +22,10 @@ HookResult GpsNmea::on() {
   device_.copy_string(path_, sizeof path_);
   // The port registered its descriptor(s) as RT devices when it opened: mode-switch
   // detection allows their I/O in this component's RT tasks.
-  if (!port_.open(path_, static_cast<int>(baud_.get_int()), error_, sizeof error_)) return HookResult::kError;
+  if (!port_.open(path_, static_cast<int>(baud_.get_int()), error_, sizeof error_)) {
+    log_error("cannot open the GPS receiver: %s (retrying)", static_cast<const char*>(error_));
+    return HookResult::kError;
+  }
   parser_.reset();  // a partial sentence from before is not this session's; counters keep counting
   last_position_ns_ = rt::monotonic_ns();
   have_origin_ = false;
@@ -85,7 +88,10 @@ HookResult GpsNmea::loop() {
   for (int i = 0; i < 16; ++i) {
     const devices::IoResult r = port_.read(buffer_, 0);
     if (r.status == IoStatus::kTimeout) break;
-    if (r.status != IoStatus::kOk) return HookResult::kError;  // unplugged or I/O error: reopen in on()
+    if (r.status != IoStatus::kOk) {  // unplugged or I/O error: reopen in on()
+      log_error("%s: the device is gone (unplugged or an I/O error); reopening", static_cast<const char*>(path_));
+      return HookResult::kError;
+    }
     struct Seen {
       bool position = false;
     } seen;
@@ -109,7 +115,10 @@ HookResult GpsNmea::loop() {
     publish(d, stamp);
     return HookResult::kOk;
   }
-  if (static_cast<double>(now - last_position_ns_) > timeout_ms_.get_float() * 1e6) return HookResult::kError;
+  if (static_cast<double>(now - last_position_ns_) > timeout_ms_.get_float() * 1e6) {
+    log_error("%s: no position sentence for %.0f ms; reopening", static_cast<const char*>(path_), timeout_ms_.get_float());
+    return HookResult::kError;
+  }
   return HookResult::kOk;
 }
 

@@ -64,7 +64,10 @@ HookResult Joystick::on() {
     const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
     fd_ = ::open(path_, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
   }
-  if (fd_ < 0) return HookResult::kError;
+  if (fd_ < 0) {
+    log_error("cannot open the joystick %s (errno %d); retrying", static_cast<const char*>(path_), errno);
+    return HookResult::kError;
+  }
   (void)rt::modeswitch::register_rt_device(fd_);  // loop() reads it every cycle
   state_ = interfaces::JoystickData{};
   pending_ = 0;
@@ -153,7 +156,10 @@ HookResult Joystick::loop() {
   for (int i = 0; i < 8; ++i) {
     const ssize_t n = ::read(fd_, buffer_.data() + pending_, buffer_.size() - pending_);
     if (n < 0 && (errno == EAGAIN || errno == EINTR)) break;
-    if (n <= 0) return HookResult::kError;  // unplugged (ENODEV) or the FIFO's writer left
+    if (n <= 0) {  // unplugged (ENODEV) or the FIFO's writer left
+      log_error("%s: the joystick is gone; the robot stops, reopening", static_cast<const char*>(path_));
+      return HookResult::kError;
+    }
     std::size_t have = pending_ + static_cast<std::size_t>(n);
     std::size_t at = 0;
     for (; at + sizeof(js_event) <= have; at += sizeof(js_event)) {

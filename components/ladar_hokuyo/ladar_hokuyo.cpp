@@ -54,7 +54,10 @@ bool LadarHokuyo::transact(const char* command, scip::Parser::Event until) noexc
 
 HookResult LadarHokuyo::on() {
   device_.copy_string(path_, sizeof path_);
-  if (!port_.open(path_, static_cast<int>(baud_.get_int()), error_, sizeof error_)) return HookResult::kError;
+  if (!port_.open(path_, static_cast<int>(baud_.get_int()), error_, sizeof error_)) {
+    log_error("cannot open the scanner: %s (retrying)", static_cast<const char*>(error_));
+    return HookResult::kError;
+  }
   // The port registered its descriptor(s) as RT devices when it opened: mode-switch
   // detection allows their I/O in this component's RT tasks.
   parser_->reset();
@@ -112,7 +115,10 @@ HookResult LadarHokuyo::loop() {
   for (int i = 0; i < 16; ++i) {
     const devices::IoResult r = port_.read(buffer_, 0);
     if (r.status == IoStatus::kTimeout) break;
-    if (r.status != IoStatus::kOk) return HookResult::kError;  // unplugged: reopen in on()
+    if (r.status != IoStatus::kOk) {  // unplugged: reopen in on()
+      log_error("%s: the scanner is gone (unplugged or an I/O error); reopening", static_cast<const char*>(path_));
+      return HookResult::kError;
+    }
     struct Seen {
       LadarHokuyo* self;
       int64_t stamp;
@@ -129,6 +135,7 @@ HookResult LadarHokuyo::loop() {
     if (seen.scan) last_scan_ns_ = rt::monotonic_ns();
   }
   if (static_cast<double>(rt::monotonic_ns() - last_scan_ns_) > timeout_ms_.get_float() * 1e6) {
+    log_error("%s: no scan for %.0f ms; reopening", static_cast<const char*>(path_), timeout_ms_.get_float());
     return HookResult::kError;
   }
   return HookResult::kOk;

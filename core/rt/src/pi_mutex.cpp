@@ -1,6 +1,11 @@
 #include "rack/rt/pi_mutex.h"
 
+#include <linux/futex.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 #include <cerrno>
+#include <cstdint>
 #include <cstdlib>
 
 #include "rack/rt/clock.h"
@@ -31,33 +36,35 @@ void PiMutex::unlock() noexcept {
 }
 bool PiMutex::try_lock() noexcept { return pthread_mutex_trylock(&mutex_) == 0; }
 
-PiCondVar::PiCondVar() {
-  pthread_condattr_t attr;
-  pthread_condattr_init(&attr);
-  pthread_condattr_setclock(&attr, CLOCK_MONOTONIC);
-  if (pthread_cond_init(&cond_, &attr) != 0) std::abort();
-  pthread_condattr_destroy(&attr);
-}
-
-PiCondVar::~PiCondVar() { pthread_cond_destroy(&cond_); }
-
 bool PiCondVar::wait_until(PiMutex& mutex, int64_t deadline_ns) noexcept {
   modeswitch::TrustedScope trusted(true);
-  if (deadline_ns < 0) {
-    pthread_cond_wait(&cond_, mutex.native());
-    return true;
+  waiters_.fetch_add(1, std::memory_order_seq_cst);
+  const uint32_t seen = seq_.load(std::memory_order_seq_cst);
+  mutex.unlock();
+  timespec ts{};
+  const timespec* timeout = nullptr;
+  if (deadline_ns >= 0) {
+    ts = to_timespec(deadline_ns);
+    timeout = &ts;
   }
-  const timespec ts = to_timespec(deadline_ns);
-  return pthread_cond_timedwait(&cond_, mutex.native(), &ts) != ETIMEDOUT;
+  // FUTEX_WAIT_BITSET takes an absolute timeout on CLOCK_MONOTONIC (without
+  // FUTEX_CLOCK_REALTIME). EAGAIN: seq_ moved since we sampled it (a notify came).
+  const long r = ::syscall(SYS_futex, &seq_, FUTEX_WAIT_BITSET_PRIVATE, seen, timeout, nullptr,
+                           FUTEX_BITSET_MATCH_ANY);
+  const bool timed_out = r != 0 && errno == ETIMEDOUT;
+  waiters_.fetch_sub(1, std::memory_order_relaxed);
+  mutex.lock();
+  return !timed_out;
 }
 
-void PiCondVar::notify_one() noexcept {
+void PiCondVar::wake(int count) noexcept {
+  seq_.fetch_add(1, std::memory_order_seq_cst);
+  if (waiters_.load(std::memory_order_seq_cst) == 0) return;  // nobody asleep: no system call
   modeswitch::TrustedScope trusted;
-  pthread_cond_signal(&cond_);
+  ::syscall(SYS_futex, &seq_, FUTEX_WAKE_PRIVATE, count, nullptr, nullptr, 0);
 }
-void PiCondVar::notify_all() noexcept {
-  modeswitch::TrustedScope trusted;
-  pthread_cond_broadcast(&cond_);
-}
+
+void PiCondVar::notify_one() noexcept { wake(1); }
+void PiCondVar::notify_all() noexcept { wake(INT32_MAX); }
 
 }  // namespace rack::rt

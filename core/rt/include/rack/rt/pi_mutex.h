@@ -4,11 +4,19 @@
 // a low-priority holder is boosted while a high-priority task waits, so the wait is
 // bounded by the critical section. Keep critical sections short and bounded.
 //
+// The condition variable is a futex sequence word, not pthread_cond_t: after a
+// pthread_cond_wait glibc re-acquires a PI mutex with FUTEX_WAITERS forced on, so the
+// next unlock of that mutex is a FUTEX_UNLOCK_PI system call even when nobody waits
+// (bench/RESULTS.md, "System calls per round trip"). Here the mutex is re-locked
+// normally (a user-space CAS when uncontended) and a notify with no waiter makes no
+// system call. The kernel wakes futex waiters in priority order.
+//
 // Real-time contract: lock/unlock/wait/notify are RT-safe. Construction is not.
 #pragma once
 
 #include <pthread.h>
 
+#include <atomic>
 #include <cstdint>
 
 namespace rack::rt {
@@ -31,8 +39,8 @@ class PiMutex {
 
 class PiCondVar {
  public:
-  PiCondVar();
-  ~PiCondVar();
+  PiCondVar() = default;
+  ~PiCondVar() = default;
   PiCondVar(const PiCondVar&) = delete;
   PiCondVar& operator=(const PiCondVar&) = delete;
 
@@ -40,11 +48,21 @@ class PiCondVar {
   // deadline (ns); deadline < 0 waits without limit. Returns false on timeout.
   // Spurious wake-ups happen: callers re-check their predicate. RT-safe.
   bool wait_until(PiMutex& mutex, int64_t deadline_ns) noexcept;
-  void notify_one() noexcept;  // RT-safe
-  void notify_all() noexcept;  // RT-safe
+  // Wake one or all waiters. The state they wait for must have been changed under
+  // the same mutex (before or after this call); the call itself may be made with or
+  // without the mutex held. RT-safe.
+  void notify_one() noexcept;
+  void notify_all() noexcept;
 
  private:
-  pthread_cond_t cond_{};
+  void wake(int count) noexcept;
+  // SYNC POINT: a waiter registers in waiters_ and samples seq_ while it holds the
+  // mutex, then sleeps only while seq_ is unchanged; a notifier bumps seq_ then reads
+  // waiters_ (both seq_cst). A notifier that changed the state under the mutex after
+  // the waiter released it therefore sees the waiter registered, and the waiter's
+  // futex wait returns at once if the bump came first: no lost wake-up.
+  std::atomic<uint32_t> seq_{0};
+  std::atomic<uint32_t> waiters_{0};
 };
 
 // RAII lock for PiMutex. RT-safe.
