@@ -329,6 +329,11 @@ def main():
     w("- Every `Endpoint::call` waits with a deadline (`pthread_cond_timedwait`, an hrtimer armed and "
       "cancelled per call) and reads CLOCK_MONOTONIC three more times; the raw ping-pong waits without "
       "a timeout. Small next to the system calls.")
+    w("- **Idle jitter** is the least repeatable figure on this VM: on 2026-11-22 the same build measured "
+      "idle p99 ratios from 0.71x to 2.56x in 10-15 s runs (cyclictest's own idle p99 moved between 22 and "
+      "31 us, and rare wake-ups of 0.5-1 ms land on either side). The runs under stress-ng and beside MCL, "
+      "where the vCPU never enters its haltpoll idle loop, are steadier. For a figure to rely on, run the "
+      "full `bench/run` (60 s per side in 2 alternating rounds) on a quiet machine.")
     w("- **Across CPUs** the figures are dominated by waking a halted virtual CPU (an IPI through the "
       "hypervisor, then the guest's haltpoll exit): every mechanism pays it twice per round trip, "
       "so ratios there are close to 1 and the spread (p99, max) follows the other load on the "
