@@ -1,7 +1,7 @@
 // No allocation on the drivers' real-time I/O paths: CanPort send/receive, SerialPort
 // read/write, TcpSensorLink read, and the NMEA, SCIP and CoLa-A parsers.
 //
-// The same counting allocator as tests/unit/no_alloc_test.cpp, but it counts only on
+// The counting allocator of tests/unit/counting_allocator.h, counting only on
 // the thread that switched counting on (thread_local): the simulators and the link
 // thread on the other side allocate freely, as non-RT code may. Each test opens and
 // warms up its path, then counts around the measured loop only: the count must stay 0.
@@ -24,84 +24,14 @@ namespace {
 // Per thread: only the measured (RT-like) thread counts.
 thread_local bool g_counting = false;
 thread_local uint64_t g_allocations = 0;
-void note_allocation() noexcept {
+}  // namespace
+
+void rack_test_note_allocation(rack::rt::modeswitch::detail::HeapCall, std::size_t) noexcept {
   if (g_counting) ++g_allocations;
 }
-}  // namespace
+void rack_test_note_free() noexcept {}
 
-extern "C" {
-void* __libc_malloc(std::size_t size);
-void* __libc_calloc(std::size_t count, std::size_t size);
-void* __libc_realloc(void* ptr, std::size_t size);
-void* __libc_memalign(std::size_t alignment, std::size_t size);
-void __libc_free(void* ptr);
-
-void* malloc(std::size_t size) noexcept {
-  note_allocation();
-  return __libc_malloc(size);
-}
-void* calloc(std::size_t count, std::size_t size) noexcept {
-  note_allocation();
-  return __libc_calloc(count, size);
-}
-void* realloc(void* ptr, std::size_t size) noexcept {
-  note_allocation();
-  return __libc_realloc(ptr, size);
-}
-void* aligned_alloc(std::size_t alignment, std::size_t size) noexcept {
-  note_allocation();
-  return __libc_memalign(alignment, size);
-}
-void* memalign(std::size_t alignment, std::size_t size) noexcept {
-  note_allocation();
-  return __libc_memalign(alignment, size);
-}
-int posix_memalign(void** out, std::size_t alignment, std::size_t size) noexcept {
-  note_allocation();
-  if (alignment < sizeof(void*) || (alignment & (alignment - 1)) != 0) return EINVAL;
-  void* p = __libc_memalign(alignment, size);
-  if (p == nullptr) return ENOMEM;
-  *out = p;
-  return 0;
-}
-void free(void* ptr) noexcept { __libc_free(ptr); }
-}  // extern "C"
-
-namespace {
-void* counted_new(std::size_t size) {
-  note_allocation();
-  if (void* p = __libc_malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void* counted_new_aligned(std::size_t size, std::align_val_t align) {
-  note_allocation();
-  if (void* p = __libc_memalign(static_cast<std::size_t>(align), size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-}  // namespace
-
-void* operator new(std::size_t size) { return counted_new(size); }
-void* operator new[](std::size_t size) { return counted_new(size); }
-void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
-  note_allocation();
-  return __libc_malloc(size == 0 ? 1 : size);
-}
-void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {
-  note_allocation();
-  return __libc_malloc(size == 0 ? 1 : size);
-}
-void* operator new(std::size_t size, std::align_val_t align) { return counted_new_aligned(size, align); }
-void* operator new[](std::size_t size, std::align_val_t align) { return counted_new_aligned(size, align); }
-void operator delete(void* p) noexcept { __libc_free(p); }
-void operator delete[](void* p) noexcept { __libc_free(p); }
-void operator delete(void* p, std::size_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::size_t) noexcept { __libc_free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { __libc_free(p); }
-void operator delete[](void* p, const std::nothrow_t&) noexcept { __libc_free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
+#include "../unit/counting_allocator.h"
 
 // ---- tests ---------------------------------------------------------------------
 

@@ -31,89 +31,17 @@ namespace {
 // the count is read after the threads involved have synchronised through mailboxes.
 std::atomic<bool> g_counting{false};
 std::atomic<uint64_t> g_allocations{0};
-using rack::rt::modeswitch::detail::HeapCall;
-void note_allocation(HeapCall call, std::size_t size) noexcept {
+}  // namespace
+
+void rack_test_note_allocation(rack::rt::modeswitch::detail::HeapCall call, std::size_t size) noexcept {
   rack::rt::modeswitch::detail::on_heap_call(call, size);
   if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
 }
-}  // namespace
+void rack_test_note_free() noexcept {
+  rack::rt::modeswitch::detail::on_heap_call(rack::rt::modeswitch::detail::HeapCall::kFree, 0);
+}
 
-extern "C" {
-void* __libc_malloc(std::size_t size);
-void* __libc_calloc(std::size_t count, std::size_t size);
-void* __libc_realloc(void* ptr, std::size_t size);
-void* __libc_memalign(std::size_t alignment, std::size_t size);
-void __libc_free(void* ptr);
-
-void* malloc(std::size_t size) noexcept {
-  note_allocation(HeapCall::kMalloc, size);
-  return __libc_malloc(size);
-}
-void* calloc(std::size_t count, std::size_t size) noexcept {
-  note_allocation(HeapCall::kCalloc, count * size);
-  return __libc_calloc(count, size);
-}
-void* realloc(void* ptr, std::size_t size) noexcept {
-  note_allocation(HeapCall::kRealloc, size);
-  return __libc_realloc(ptr, size);
-}
-void* aligned_alloc(std::size_t alignment, std::size_t size) noexcept {
-  note_allocation(HeapCall::kAlignedAlloc, size);
-  return __libc_memalign(alignment, size);
-}
-void* memalign(std::size_t alignment, std::size_t size) noexcept {
-  note_allocation(HeapCall::kAlignedAlloc, size);
-  return __libc_memalign(alignment, size);
-}
-int posix_memalign(void** out, std::size_t alignment, std::size_t size) noexcept {
-  note_allocation(HeapCall::kAlignedAlloc, size);
-  if (alignment < sizeof(void*) || (alignment & (alignment - 1)) != 0) return EINVAL;
-  void* p = __libc_memalign(alignment, size);
-  if (p == nullptr) return ENOMEM;
-  *out = p;
-  return 0;
-}
-void free(void* ptr) noexcept {
-  if (ptr != nullptr) rack::rt::modeswitch::detail::on_heap_call(HeapCall::kFree, 0);
-  __libc_free(ptr);
-}
-}  // extern "C"
-
-namespace {
-void* counted_new(std::size_t size) {
-  note_allocation(HeapCall::kNew, size);
-  if (void* p = __libc_malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void* counted_new_aligned(std::size_t size, std::align_val_t align) {
-  note_allocation(HeapCall::kNew, size);
-  if (void* p = __libc_memalign(static_cast<std::size_t>(align), size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-}  // namespace
-
-void* operator new(std::size_t size) { return counted_new(size); }
-void* operator new[](std::size_t size) { return counted_new(size); }
-void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
-  note_allocation(HeapCall::kNew, size);
-  return __libc_malloc(size == 0 ? 1 : size);
-}
-void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {
-  note_allocation(HeapCall::kNew, size);
-  return __libc_malloc(size == 0 ? 1 : size);
-}
-void* operator new(std::size_t size, std::align_val_t align) { return counted_new_aligned(size, align); }
-void* operator new[](std::size_t size, std::align_val_t align) { return counted_new_aligned(size, align); }
-void operator delete(void* p) noexcept { __libc_free(p); }
-void operator delete[](void* p) noexcept { __libc_free(p); }
-void operator delete(void* p, std::size_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::size_t) noexcept { __libc_free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { __libc_free(p); }
-void operator delete[](void* p, const std::nothrow_t&) noexcept { __libc_free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
+#include "counting_allocator.h"
 
 // ---- tests ---------------------------------------------------------------------
 
