@@ -69,14 +69,7 @@ bool CanPort::open_socketcan(const char* ifname, std::string& error) {
     ::close(fd);
     return false;
   }
-  fd_ = fd;
-  (void)rt::modeswitch::register_rt_device(fd_);  // RT tasks send, receive and poll on it
-  kind_ = CanKind::kSocketCan;
-  if (!configure_common(error)) {
-    close();
-    return false;
-  }
-  return true;
+  return take(fd, CanKind::kSocketCan, error, /*close_on_failure=*/true);
 }
 
 bool CanPort::open_unix(const char* path, std::string& error) {
@@ -98,14 +91,7 @@ bool CanPort::open_unix(const char* path, std::string& error) {
     ::close(fd);
     return false;
   }
-  fd_ = fd;
-  (void)rt::modeswitch::register_rt_device(fd_);  // RT tasks send, receive and poll on it
-  kind_ = CanKind::kOther;
-  if (!configure_common(error)) {
-    close();
-    return false;
-  }
-  return true;
+  return take(fd, CanKind::kOther, error, /*close_on_failure=*/true);
 }
 
 bool CanPort::open(const char* spec, std::string& error) {
@@ -117,11 +103,17 @@ bool CanPort::open(const char* spec, std::string& error) {
 void CanPort::adopt(int fd) {
   const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
   close();
-  fd_ = fd;
-  (void)rt::modeswitch::register_rt_device(fd_);  // RT tasks send, receive and poll on it
-  kind_ = CanKind::kOther;
   std::string ignored;
-  (void)configure_common(ignored);  // best effort: a socketpair supports both
+  (void)take(fd, CanKind::kOther, ignored, /*close_on_failure=*/false);  // best effort: a socketpair supports both
+}
+
+bool CanPort::take(int fd, CanKind kind, std::string& error, bool close_on_failure) {
+  fd_ = fd;
+  kind_ = kind;
+  (void)rt::modeswitch::register_rt_device(fd_);  // RT tasks send, receive and poll on it
+  if (configure_common(error)) return true;
+  if (close_on_failure) close();
+  return false;
 }
 
 void CanPort::close() noexcept {

@@ -97,6 +97,9 @@ class CanPort {
   [[nodiscard]] bool accepted(canid_t id) const noexcept;
   void handle_error_frame(const can_frame& f) noexcept;
   bool configure_common(std::string& error);
+  // Makes `fd` this port's descriptor (registered as an RT device for mode-switch
+  // detection) and applies the common options; on failure `error` says why.
+  bool take(int fd, CanKind kind, std::string& error, bool close_on_failure);
 
   int fd_ = -1;
   CanKind kind_ = CanKind::kNone;
