@@ -1,8 +1,15 @@
 #include "rack/core/payload_json.h"
 
+#include <cctype>
+#include <cerrno>
+#include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <limits>
+#include <type_traits>
 #include <vector>
 
 namespace rack {
@@ -99,6 +106,123 @@ std::string payload_to_json(std::span<const tims::FieldDesc> fields, std::span<c
     }
   }
   return out + "}";
+}
+
+namespace {
+
+template <typename T>
+void store(std::byte* p, T v) {
+  std::memcpy(p, &v, sizeof v);
+}
+
+template <typename T>
+std::string store_integer(std::byte* p, const std::string& text) {
+  // Integers of every width go through int64/uint64 so that the range check names
+  // the field's own range.
+  if constexpr (std::is_signed_v<T>) {
+    int64_t v = 0;
+    const char* first = text.data();
+    if (!text.empty() && text[0] == '+') ++first;
+    const auto [ptr, ec] = std::from_chars(first, text.data() + text.size(), v);
+    if (ec != std::errc() || ptr != text.data() + text.size() || first == text.data() + text.size()) {
+      return "'" + text + "' is not an integer";
+    }
+    if (v < std::numeric_limits<T>::min() || v > std::numeric_limits<T>::max()) {
+      return "'" + text + "' is outside " + std::to_string(std::numeric_limits<T>::min()) + ".." +
+             std::to_string(std::numeric_limits<T>::max());
+    }
+    store(p, static_cast<T>(v));
+  } else {
+    // Unsigned fields take hex too (0x…): TiMS addresses are read that way.
+    uint64_t v = 0;
+    const bool hex = text.size() > 2 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X');
+    const char* first = text.data() + (hex ? 2 : (!text.empty() && text[0] == '+' ? 1 : 0));
+    const char* last = text.data() + text.size();
+    const auto [ptr, ec] = std::from_chars(first, last, v, hex ? 16 : 10);
+    if (ec != std::errc() || ptr != last || first == last) return "'" + text + "' is not an unsigned integer";
+    if (v > std::numeric_limits<T>::max()) {
+      return "'" + text + "' is outside 0.." + std::to_string(std::numeric_limits<T>::max());
+    }
+    store(p, static_cast<T>(v));
+  }
+  return {};
+}
+
+std::string store_element(const tims::FieldDesc& f, std::byte* p, const std::string& text) {
+  using K = tims::FieldKind;
+  switch (f.kind) {
+    case K::kBool:
+      if (text == "true" || text == "1") store(p, uint8_t{1});
+      else if (text == "false" || text == "0") store(p, uint8_t{0});
+      else return "'" + text + "' is not a bool (true, false, 1 or 0)";
+      return {};
+    case K::kChar: return store_integer<int8_t>(p, text);
+    case K::kI8: return store_integer<int8_t>(p, text);
+    case K::kU8: return store_integer<uint8_t>(p, text);
+    case K::kI16: return store_integer<int16_t>(p, text);
+    case K::kU16: return store_integer<uint16_t>(p, text);
+    case K::kI32: return store_integer<int32_t>(p, text);
+    case K::kU32: return store_integer<uint32_t>(p, text);
+    case K::kI64: return store_integer<int64_t>(p, text);
+    case K::kU64: return store_integer<uint64_t>(p, text);
+    case K::kF32:
+    case K::kF64: {
+      if (text.empty() || std::isspace(static_cast<unsigned char>(text[0])) != 0) {
+        return "'" + text + "' is not a number";
+      }
+      errno = 0;
+      char* end = nullptr;
+      const double v = std::strtod(text.c_str(), &end);
+      if (end != text.c_str() + text.size() || errno == ERANGE || !std::isfinite(v)) {
+        return "'" + text + "' is not a finite number";
+      }
+      if (f.kind == K::kF32) {
+        if (std::fabs(v) > std::numeric_limits<float>::max()) return "'" + text + "' does not fit a float";
+        store(p, static_cast<float>(v));
+      } else {
+        store(p, v);
+      }
+      return {};
+    }
+  }
+  return "unknown field kind";
+}
+
+}  // namespace
+
+std::string set_field_from_text(const tims::FieldDesc& field, std::span<std::byte> payload,
+                                const std::string& text) {
+  const uint32_t w = tims::field_kind_size(field.kind);
+  if (field.offset + std::size_t{w} * field.count > payload.size()) return "the field lies beyond the payload";
+  std::byte* base = payload.data() + field.offset;
+  if (field.kind == tims::FieldKind::kChar && field.count > 1) {
+    if (text.size() >= field.count) {
+      return "a text of at most " + std::to_string(field.count - 1) + " characters is needed, got " +
+             std::to_string(text.size());
+    }
+    std::memset(base, 0, field.count);
+    std::memcpy(base, text.data(), text.size());
+    return {};
+  }
+  // Elements are parsed into a scratch copy first: a bad element leaves the payload as it was.
+  std::vector<std::byte> scratch(base, base + std::size_t{w} * field.count);
+  std::size_t start = 0;
+  uint32_t index = 0;
+  while (true) {
+    const std::size_t comma = field.count > 1 ? text.find(',', start) : std::string::npos;
+    const std::string element = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    if (index >= field.count) {
+      return "at most " + std::to_string(field.count) + " elements fit, got more";
+    }
+    if (std::string why = store_element(field, scratch.data() + std::size_t{index} * w, element); !why.empty()) {
+      return field.count > 1 ? "element " + std::to_string(index) + ": " + why : why;
+    }
+    ++index;
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  std::memcpy(base, scratch.data(), scratch.size());
+  return {};
 }
 
 }  // namespace rack

@@ -594,5 +594,60 @@ TEST_F(RackdProbeTest, FailedInitLeavesTheOtherComponentsRunning) {
   EXPECT_TRUE(contains(d->err(), "stopped cleanly")) << d->err();
 }
 
+// rackctl send by command name, with the body built from FIELD=VALUE arguments; a
+// value that does not fit, an unknown field or command is a usage error that sends
+// nothing.
+TEST_F(RackdProbeTest, SendByNameBuildsTheBodyFromFields) {
+  const std::string host = "host: send-host\n"
+                           "system: 0\n"
+                           "lcm: true\n"
+                           "lcm_url: \"" + bus_.url() + "\"\n"
+                           "heap_prefault_mib: 8\n"
+                           "components:\n"
+                           "  - name: generator\n"
+                           "    class: Generator\n"
+                           "    instance: 0\n"
+                           "    autostart: true\n"
+                           "    data_task: {priority: 60, period_ms: 10}\n"
+                           "  - name: probe\n"
+                           "    class: Probe\n"
+                           "    instance: 0\n"
+                           "    autostart: true\n"
+                           "    data_task: {priority: 50, period_ms: 10}\n";
+  auto d = start_rackd(dir_.write("send.yaml", host).string());
+  ASSERT_NE(d, nullptr);
+  ASSERT_TRUE(eventually([&] { return state_of("probe") == "ENABLED"; }));
+
+  // ECHO returns its body: value=77 went out as 8 little-endian bytes (x86 host order).
+  RunResult r = ctl({"send", "probe", "echo", "value=77"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(contains(r.out, "OK")) << r.out;
+  EXPECT_TRUE(contains(r.out, "body 4d00000000000000")) << r.out;
+  EXPECT_TRUE(contains(r.err, "\"value\": 77")) << "the body sent is shown: " << r.err;
+  // The same by number and --i64.
+  r = ctl({"send", "probe", "21", "--i64", "-2"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(contains(r.out, "body feffffffffffffff")) << r.out;
+  EXPECT_EQ(ctl({"send", "generator", "RESET"}).exit_code, 0);
+
+  const auto usage = [&](std::vector<std::string> args, const std::string& why) {
+    const RunResult u = ctl(std::move(args));
+    EXPECT_EQ(u.exit_code, 2) << u.describe();
+    EXPECT_TRUE(contains(u.err, why)) << u.describe();
+  };
+  usage({"send", "probe", "ECHO", "value=seven"}, "field 'value': 'seven' is not an integer");
+  usage({"send", "probe", "ECHO", "speed=1"}, "no field 'speed' (fields: value)");
+  usage({"send", "probe", "ECHO", "value"}, "'value' is not FIELD=VALUE");
+  usage({"send", "probe", "ECHO", "value=1", "--i64", "1"}, "either --i64 or FIELD=VALUE");
+  usage({"send", "probe", "NOPE"}, "known: ECHO, THROW");
+  usage({"send", "generator", "RESET", "x=1"}, "takes no fields");
+  usage({"send", "probe", "200"}, "21..127");
+  // Nothing of the refused sends reached the probe: it is still ENABLED (THROW would not be).
+  EXPECT_EQ(state_of("probe"), "ENABLED");
+
+  d->signal(SIGTERM);
+  EXPECT_EQ(d->wait_exit(kSettleLimit), std::optional<int>(0)) << d->err();
+}
+
 }  // namespace
 }  // namespace rack::test

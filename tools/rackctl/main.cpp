@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <cstdarg>
 #include <charconv>
@@ -82,7 +83,9 @@ commands:
   get-data NAME [--time T]      one sample as a JSON line
   watch NAME [--period MS] [--count N]
                                 continuous data, one JSON line per sample
-  send NAME CMD [--i64 N]       a class command (number 21..127) and its reply
+  send NAME CMD [FIELD=VALUE ...] [--i64 N]
+                                a class command (number 21..127 or its name, e.g.
+                                INIT) with its body, and the reply
   help [COMMAND]                this text, or a command's
 
 NAME is a component's name from its host file (found by discovery), or an address
@@ -726,20 +729,79 @@ int cmd_watch(Session& s, const Options& o) {
   return kExitOk;
 }
 
-// A class command: any request type from 21 to 127, an optional 8-byte integer
-// body (host byte order, as class commands of this repository read it).
+// A class command, by number (21..127) or by the name the class gives it
+// (rackctl help send lists them), with its body built from FIELD=VALUE arguments
+// through the body's field table, or an 8-byte integer body (--i64).
 int cmd_send(Session& s, const Options& o) {
-  const auto type = parse_int(o.args[1]);
-  if (!type || *type < msg::kFirstClassCommand || *type > 127) {
+  // A bad number is a usage error before anything goes on the network.
+  const auto number = parse_int(o.args[1]);
+  if (number && (*number < msg::kFirstClassCommand || *number > 127)) {
     fail(kExitUsage, "CMD must be a class command number " + std::to_string(msg::kFirstClassCommand) +
                          "..127 (generic commands have their own rackctl commands), got '" + o.args[1] + "'");
   }
   const Target t = s.resolve(o.args[0]);
-  const auto cmd = static_cast<int8_t>(*type);
-  CallResult r;
-  if (o.i64) r = s.call(t, cmd, *o.i64);
-  else r = s.call(t, cmd);
-  if (r.reply.type == msg::kError) fail(kExitError, t.label() + ": command " + o.args[1] + ": " + error_reason(r.body));
+  const auto known = rack::interfaces::commands_for_class(t.address.class_id());
+  const rack::interfaces::CommandInfo* info = nullptr;
+  int8_t cmd = 0;
+  if (number) {
+    cmd = static_cast<int8_t>(*number);
+    for (const auto& c : known) {
+      if (c.type == cmd) info = &c;
+    }
+  } else {
+    std::string upper = o.args[1];
+    for (char& ch : upper) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+    std::string names;
+    for (const auto& c : known) {
+      if (upper == c.name) info = &c;
+      names += names.empty() ? c.name : std::string(", ") + c.name;
+    }
+    if (info == nullptr) {
+      fail(kExitUsage, format("%s: class %s has no command '%s' (%s)", t.label().c_str(),
+                              tims::class_name(t.address.class_id()), o.args[1].c_str(),
+                              names.empty() ? "rackctl knows none of its commands: give the number"
+                                            : ("known: " + names).c_str()));
+    }
+    cmd = info->type;
+  }
+  const auto fields_given = std::span<const std::string>(o.args).subspan(2);
+  if (o.i64 && !fields_given.empty()) fail(kExitUsage, "send: give either --i64 or FIELD=VALUE arguments, not both");
+  std::vector<std::byte> body;
+  if (!fields_given.empty()) {
+    if (info == nullptr || info->body == nullptr) {
+      fail(kExitUsage, format("%s: command %s takes no fields%s", t.label().c_str(), o.args[1].c_str(),
+                              info == nullptr ? " that rackctl knows (use --i64 or a named command)" : ""));
+    }
+    body.assign(info->body->size, std::byte{0});
+    for (const std::string& arg : fields_given) {
+      const auto eq = arg.find('=');
+      if (eq == std::string::npos || eq == 0) fail(kExitUsage, "send: '" + arg + "' is not FIELD=VALUE");
+      const std::string key = arg.substr(0, eq);
+      const tims::FieldDesc* field = nullptr;
+      std::string names;
+      for (const auto& f : info->body->fields) {
+        if (key == f.name) field = &f;
+        names += names.empty() ? f.name : std::string(", ") + f.name;
+      }
+      if (field == nullptr) {
+        fail(kExitUsage, format("send %s: %s has no field '%s' (fields: %s)", info->name, info->body->type_name,
+                                key.c_str(), names.c_str()));
+      }
+      if (const std::string why = rack::set_field_from_text(*field, body, arg.substr(eq + 1)); !why.empty()) {
+        fail(kExitUsage, format("send %s: field '%s': %s", info->name, key.c_str(), why.c_str()));
+      }
+    }
+    // Fields not given are 0: say what goes out, so that nothing is a silent default.
+    std::fprintf(stderr, "rackctl: %s %s %s\n", t.label().c_str(), info->name,
+                 rack::payload_to_json(info->body->fields, body, true).c_str());
+  } else if (o.i64) {
+    body.resize(sizeof(int64_t));
+    std::memcpy(body.data(), &*o.i64, sizeof(int64_t));
+  }
+  const ConstBuffer part{body.data(), body.size()};
+  const CallResult r = body.empty() ? s.call(t, cmd) : s.call(t, cmd, std::span<const ConstBuffer>(&part, 1));
+  const std::string what = info != nullptr ? info->name : o.args[1];
+  if (r.reply.type == msg::kError) fail(kExitError, t.label() + ": command " + what + ": " + error_reason(r.body));
   std::string hex;
   for (std::size_t k = 0; k < r.body.size() && k < 256; ++k) hex += format("%02x", static_cast<unsigned>(r.body[k]));
   std::printf("%s: %s (%d)%s%s\n", t.label().c_str(), reply_name(r.reply.type), r.reply.type,
@@ -799,11 +861,16 @@ const std::vector<Command>& commands() {
        "N samples. SIGINT/SIGTERM stop it too (exit 0). The producer going off: exit 1.\n"
        "No sample for 5 s: exit 3.",
        cmd_watch},
-      {"send", "send NAME CMD [--i64 N]", 2, 2, {"--i64"},
-       "Sends class command CMD (a number from 21 to 127; each class documents its\n"
-       "own, e.g. configs/modeswitch_demo.yaml) and prints the reply type and body\n"
-       "(hex). --i64 N: an 8-byte integer body. ERROR: its reason, exit 1; no reply\n"
-       "within --timeout: exit 3.",
+      {"send", "send NAME CMD [FIELD=VALUE ...] [--i64 N]", 2, 66, {"--i64"},
+       "Sends class command CMD, a number from 21 to 127 or the command's name (below;\n"
+       "each class documents its commands in components/interfaces), and prints the\n"
+       "reply type and body (hex). FIELD=VALUE arguments fill the command's body:\n"
+       "numbers, true|false, arrays as comma lists (x=1,2.5,4), addresses as 0x...;\n"
+       "fields not given are 0 (the body sent is printed on stderr). A value that does\n"
+       "not fit its field is a usage error (exit 2). --i64 N: an 8-byte integer body.\n"
+       "ERROR: its reason, exit 1; no reply within --timeout: exit 3.\n"
+       "  rackctl send mcl INIT x=2 y=1.5 phi=0 sigma_xy=0.3 sigma_phi=0.2\n"
+       "  rackctl send pilot SET_DESTINATION x=4 y=2",
        cmd_send},
       {"help", "help [COMMAND]", 0, 1, {}, "Prints the usage, or a command's help.", cmd_help},
   };
@@ -818,8 +885,21 @@ const Command* find_command(const std::string& name) {
 }
 
 void print_command_help(const Command& c, FILE* out) {
-  std::fprintf(out, "usage: rackctl [options] %s\n\n%s\n\n(rackctl --help for the common options)\n", c.synopsis,
-               c.help);
+  std::fprintf(out, "usage: rackctl [options] %s\n\n%s\n", c.synopsis, c.help);
+  if (std::string(c.name) == "send") {
+    std::fprintf(out, "\nCommands rackctl knows by name (CLASS: NAME number fields - what it does):\n");
+    for (unsigned id = 0; id < 256; ++id) {
+      for (const auto& cmd : rack::interfaces::commands_for_class(static_cast<uint8_t>(id))) {
+        std::string fields;
+        if (cmd.body != nullptr) {
+          for (const auto& f : cmd.body->fields) fields += (fields.empty() ? "" : ",") + std::string(f.name);
+        }
+        std::fprintf(out, "  %s: %s %d %s - %s\n", tims::class_name(static_cast<uint8_t>(id)), cmd.name, cmd.type,
+                     fields.empty() ? "(no body)" : fields.c_str(), cmd.summary);
+      }
+    }
+  }
+  std::fprintf(out, "\n(rackctl --help for the common options)\n");
 }
 
 int cmd_help(Session&, const Options&) { return kExitOk; }

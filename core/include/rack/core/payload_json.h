@@ -17,4 +17,13 @@ namespace rack {
                                           std::span<const std::byte> body, bool native);
 [[nodiscard]] std::string json_escape(const std::string& text);
 
+// Sets one field of a payload in host byte order from its text: integers and bools
+// (true, false, 1, 0) as such, floats as finite numbers, arrays as comma-separated
+// elements (at most the field's count; the rest keep their value), char arrays as a
+// string shorter than the array. Range-checked for the field's kind. Returns the
+// reason when the text does not fit the field (the payload is then unchanged), an
+// empty string on success. `payload` must be at least the field's end.
+[[nodiscard]] std::string set_field_from_text(const tims::FieldDesc& field, std::span<std::byte> payload,
+                                              const std::string& text);
+
 }  // namespace rack
