@@ -14,7 +14,7 @@ using devices::IoStatus;
 using interfaces::ChassisData;
 
 ChassisCan::ChassisCan()
-    : DataComponent(DataTaskMode::kPeriodic),
+    : ChassisBase(DataTaskMode::kPeriodic),
       can_(declare_string("can", "", {.doc = "CAN interface (can0, vcan0) or unix:/path of a drive simulator",
                                       .required = true})),
       left_node_(declare_int("left_node", 1, {.doc = "CANopen node id of the left drive", .min = 1, .max = 127})),
@@ -111,7 +111,7 @@ HookResult ChassisCan::on() {
   }
   target_vx_.store(0.0, std::memory_order_relaxed);
   target_omega_.store(0.0, std::memory_order_relaxed);
-  last_move_ns_.store(rt::monotonic_ns(), std::memory_order_relaxed);
+  reset_pilot();  // a chassis switched on has no driver until one sets itself active
   watchdog_stops_.store(0, std::memory_order_relaxed);
   watchdog_tripped_ = true;  // stopped until the first MOVE
   missed_syncs_ = 0;
@@ -163,7 +163,7 @@ HookResult ChassisCan::loop() {
   double vx = target_vx_.load(std::memory_order_relaxed);
   double omega = target_omega_.load(std::memory_order_relaxed);
   const auto watchdog_ns = static_cast<int64_t>(watchdog_ms_.get_float() * 1e6);
-  if (now - last_move_ns_.load(std::memory_order_relaxed) > watchdog_ns) {
+  if (now - last_move_ns() > watchdog_ns) {
     if (!watchdog_tripped_ && (vx != 0.0 || omega != 0.0)) {
       watchdog_stops_.fetch_add(1, std::memory_order_relaxed);
     }
@@ -250,7 +250,7 @@ HookResult ChassisCan::loop() {
   const double vl = sl * left.velocity / cpm, vr = sr * right.velocity / cpm;
   out.vx = 0.5 * (vl + vr);
   out.omega = (vr - vl) / track_.get_float();
-  out.active_pilot = active_pilot_.load(std::memory_order_relaxed);
+  out.active_pilot = active_pilot();
   out.watchdog_stops = watchdog_stops_.load(std::memory_order_relaxed);
   publish(out, rt::host_time_ns());
   return HookResult::kOk;
@@ -272,59 +272,9 @@ interfaces::ChassisParams ChassisCan::chassis_params() const noexcept {
   return p;
 }
 
-CommandResult ChassisCan::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
-  switch (request.type) {
-    case interfaces::kChassisMove: {
-      interfaces::ChassisMove m;
-      if (body.size() != sizeof m) {
-        reject_malformed(request, "MOVE: body must be a ChassisMove (24 bytes)");
-        return CommandResult::kHandled;
-      }
-      std::memcpy(&m, body.data(), sizeof m);
-      if (!tims::body_is_native(request)) {
-        tims::swap_fields(tims::fields_of<interfaces::ChassisMove>, reinterpret_cast<std::byte*>(&m), sizeof m);
-      }
-      const uint32_t pilot = active_pilot_.load(std::memory_order_relaxed);
-      if (pilot == 0 || tims::Address(pilot).component() != request.source().component()) {
-        reply_error(request, "MOVE refused: the sender is not the active pilot (SET_ACTIVE_PILOT first)");
-        return CommandResult::kHandled;
-      }
-      if (!std::isfinite(m.vx) || !std::isfinite(m.omega)) {
-        reject_malformed(request, "MOVE: velocities must be finite");
-        return CommandResult::kHandled;
-      }
-      if (state() != ComponentState::kEnabled) {
-        reply_error(request, "MOVE refused: the chassis is not ENABLED");
-        return CommandResult::kHandled;
-      }
-      const double vmax = vx_max_.get_float(), wmax = omega_max_.get_float();
-      target_vx_.store(std::clamp(m.vx, -vmax, vmax), std::memory_order_relaxed);
-      target_omega_.store(std::clamp(m.omega, -wmax, wmax), std::memory_order_relaxed);
-      last_move_ns_.store(rt::monotonic_ns(), std::memory_order_relaxed);
-      reply(request, tims::msg::kOk);
-      return CommandResult::kHandled;
-    }
-    case interfaces::kChassisSetActivePilot: {
-      interfaces::ChassisSetActivePilot p;
-      if (body.size() != sizeof p) {
-        reject_malformed(request, "SET_ACTIVE_PILOT: body must be a ChassisSetActivePilot (4 bytes)");
-        return CommandResult::kHandled;
-      }
-      std::memcpy(&p, body.data(), sizeof p);
-      if (!tims::body_is_native(request)) p.pilot = __builtin_bswap32(p.pilot);  // one u32 field
-      // The robot stops when the pilot changes.
-      target_vx_.store(0.0, std::memory_order_relaxed);
-      target_omega_.store(0.0, std::memory_order_relaxed);
-      active_pilot_.store(p.pilot, std::memory_order_relaxed);
-      reply(request, tims::msg::kOk);
-      return CommandResult::kHandled;
-    }
-    case interfaces::kChassisGetParams: {
-      reply_with(request, interfaces::kChassisParamsReply, chassis_params());
-      return CommandResult::kHandled;
-    }
-    default: return CommandResult::kUnknown;
-  }
+void ChassisCan::command_velocity(const Velocity& v) noexcept {
+  target_vx_.store(v.vx, std::memory_order_relaxed);
+  target_omega_.store(v.omega, std::memory_order_relaxed);
 }
 
 }  // namespace rack::components

@@ -27,13 +27,14 @@
 
 #include <atomic>
 
+#include "common/chassis_base.h"
 #include "rack/core/data_component.h"
 #include "rack/devices/can_port.h"
 #include "rack/interfaces/robot.h"
 
 namespace rack::components {
 
-class ChassisCan final : public DataComponent<interfaces::ChassisData> {
+class ChassisCan final : public ChassisBase {
  public:
   ChassisCan();
 
@@ -41,7 +42,9 @@ class ChassisCan final : public DataComponent<interfaces::ChassisData> {
   HookResult on() override;
   void off() override;
   HookResult loop() override;  // RT
-  CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override;
+  // MOVE, SET_ACTIVE_PILOT, GET_PARAMS: ChassisBase (vy is always 0 here).
+  [[nodiscard]] interfaces::ChassisParams chassis_params() const noexcept override;
+  void command_velocity(const Velocity& v) noexcept override;
 
  private:
   struct Drive {
@@ -62,7 +65,6 @@ class ChassisCan final : public DataComponent<interfaces::ChassisData> {
   void stop_drive(const Drive& d) noexcept;
   [[nodiscard]] HookResult fail(Fault f) noexcept;
   [[nodiscard]] int32_t to_counts(double wheel_mps, bool inverted) const noexcept;
-  [[nodiscard]] interfaces::ChassisParams chassis_params() const noexcept;
 
   Parameter& can_;
   Parameter& left_node_;
@@ -94,8 +96,6 @@ class ChassisCan final : public DataComponent<interfaces::ChassisData> {
   // each is a value on its own; a MOVE torn between vx and omega lasts one cycle.
   std::atomic<double> target_vx_{0.0};
   std::atomic<double> target_omega_{0.0};
-  std::atomic<int64_t> last_move_ns_{0};
-  std::atomic<uint32_t> active_pilot_{0};
   std::atomic<uint32_t> watchdog_stops_{0};
   bool watchdog_tripped_ = false;  // loop() only
   std::atomic<uint8_t> fault_{0};  // the last Fault (for status and tests)

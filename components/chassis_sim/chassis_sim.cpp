@@ -9,12 +9,10 @@
 namespace rack::components {
 
 using interfaces::ChassisData;
-using interfaces::ChassisMove;
 using interfaces::ChassisParams;
-using interfaces::ChassisSetActivePilot;
 
 ChassisSim::ChassisSim()
-    : DataComponent(DataTaskMode::kPeriodic),
+    : ChassisBase(DataTaskMode::kPeriodic),
       vx_max_(declare_float("vx_max", 1.0, {.doc = "m/s, fastest forward/backward speed", .min = 0.0, .max = 20.0})),
       vx_min_(declare_float("vx_min", 0.05, {.doc = "m/s, slowest useful speed (told to pilots)", .min = 0.0, .max = 5.0})),
       vy_max_(declare_float("vy_max", 0.0, {.doc = "m/s, sideways limit (0: differential drive)", .min = 0.0, .max = 20.0})),
@@ -59,17 +57,16 @@ double ChassisSim::ramp(double current, double target, double acc, double dec, d
 
 double ChassisSim::gauss(double sigma) noexcept { return sigma > 0.0 ? sigma * normal_(rng_) : 0.0; }
 
-void ChassisSim::set_command(const Velocity& v) noexcept {
+void ChassisSim::command_velocity(const Velocity& v) noexcept {
   rt::PiLock lock(command_mutex_);
   command_ = v;
 }
 
 HookResult ChassisSim::on() {
   // The pose is the world's: it survives OFF/ON (only init() places the robot).
-  set_command(Velocity{});
+  command_velocity(Velocity{});
   measured_ = Velocity{};
-  active_pilot_.store(0, std::memory_order_relaxed);
-  last_move_ns_.store(rt::monotonic_ns(), std::memory_order_relaxed);
+  reset_pilot();
   last_loop_ns_ = 0;
   watchdog_stops_ = 0;
   collisions_ = 0;
@@ -78,7 +75,7 @@ HookResult ChassisSim::on() {
 
 void ChassisSim::off() {
   // A switched-off drive stands: no ramp-down is simulated.
-  set_command(Velocity{});
+  command_velocity(Velocity{});
   measured_ = Velocity{};
 }
 
@@ -94,7 +91,7 @@ HookResult ChassisSim::loop() {
   {
     rt::PiLock lock(command_mutex_);
     const bool moving = command_.vx != 0.0 || command_.vy != 0.0 || command_.omega != 0.0;
-    if (moving && now - last_move_ns_.load(std::memory_order_relaxed) > watchdog_ms_.get_int() * rt::kNsPerMs) {
+    if (moving && now - last_move_ns() > watchdog_ms_.get_int() * rt::kNsPerMs) {
       command_ = Velocity{};
       ++watchdog_stops_;
     }
@@ -136,7 +133,7 @@ HookResult ChassisSim::loop() {
   d.vy = measured_.vy;
   d.omega = measured_.omega;
   d.battery = battery_.get_float();
-  d.active_pilot = active_pilot_.load(std::memory_order_relaxed);
+  d.active_pilot = active_pilot();
   d.watchdog_stops = watchdog_stops_;
   d.truth_valid = 1;
   d.truth_x = truth_.x;
@@ -174,7 +171,9 @@ bool ChassisSim::collides(const Pose2d& pose) const noexcept {
   return edge(b, r, f, r) || edge(f, r, f, l) || edge(f, l, b, l) || edge(b, l, b, r);
 }
 
-ChassisParams ChassisSim::limits() const noexcept {
+double ChassisSim::vy_max() const noexcept { return vy_max_.get_float(); }
+
+ChassisParams ChassisSim::chassis_params() const noexcept {
   ChassisParams p;
   p.vx_max = vx_max_.get_float();
   p.vx_min = vx_min_.get_float();
@@ -188,66 +187,6 @@ ChassisParams ChassisSim::limits() const noexcept {
   p.safety_margin = safety_margin_.get_float();
   p.watchdog_ns = watchdog_ms_.get_int() * rt::kNsPerMs;
   return p;
-}
-
-CommandResult ChassisSim::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
-  const bool native = tims::body_is_native(request);
-  switch (request.type) {
-    case interfaces::kChassisMove: {
-      ChassisMove m;
-      if (!wire::read_payload(body, native, m)) {
-        reject_malformed(request, "MOVE: body must be vx, vy, omega (3 doubles)");
-        return CommandResult::kHandled;
-      }
-      if (!std::isfinite(m.vx) || !std::isfinite(m.vy) || !std::isfinite(m.omega)) {
-        reject_malformed(request, "MOVE: velocities must be finite");
-        return CommandResult::kHandled;
-      }
-      const uint32_t active = active_pilot_.load(std::memory_order_relaxed);
-      if (active == 0 || request.source().component().raw() != active) {
-        reply_error(request, active == 0 ? "MOVE refused: no active pilot (SET_ACTIVE_PILOT first)"
-                                         : "MOVE refused: not the active pilot");
-        return CommandResult::kHandled;
-      }
-      if (state() != ComponentState::kEnabled) {
-        reply_error(request, "MOVE refused: chassis not enabled");
-        return CommandResult::kHandled;
-      }
-      const double vx = vx_max_.get_float();
-      const double vy = vy_max_.get_float();
-      const double w = omega_max_.get_float();
-      set_command(Velocity{std::clamp(m.vx, -vx, vx), std::clamp(m.vy, -vy, vy), std::clamp(m.omega, -w, w)});
-      last_move_ns_.store(rt::monotonic_ns(), std::memory_order_relaxed);
-      reply(request, tims::msg::kOk);
-      return CommandResult::kHandled;
-    }
-    case interfaces::kChassisSetActivePilot: {
-      // Decoded by hand: a 4-byte body trips GCC 12's -Warray-bounds in swap_fields.
-      uint32_t raw = 0;
-      if (body.size() != sizeof(ChassisSetActivePilot)) {
-        reject_malformed(request, "SET_ACTIVE_PILOT: body must be one 32-bit address");
-        return CommandResult::kHandled;
-      }
-      std::memcpy(&raw, body.data(), sizeof raw);
-      if (!native) raw = tims::bswap(raw);
-      const uint32_t pilot = tims::Address(raw).component().raw();
-      if (pilot != active_pilot_.load(std::memory_order_relaxed)) {
-        set_command(Velocity{});  // a new driver starts from standstill
-        active_pilot_.store(pilot, std::memory_order_relaxed);
-      }
-      reply(request, tims::msg::kOk);
-      return CommandResult::kHandled;
-    }
-    case interfaces::kChassisGetParams: {
-      if (!body.empty()) {
-        reject_malformed(request, "GET_PARAMS takes no body");
-        return CommandResult::kHandled;
-      }
-      reply_with(request, interfaces::kChassisParamsReply, limits());
-      return CommandResult::kHandled;
-    }
-    default: return CommandResult::kUnknown;
-  }
 }
 
 }  // namespace rack::components

@@ -22,6 +22,7 @@
 #include <optional>
 #include <random>
 
+#include "common/chassis_base.h"
 #include "common/pose2d.h"
 #include "rack/core/data_component.h"
 #include "rack/interfaces/robot.h"
@@ -30,7 +31,7 @@
 
 namespace rack::components {
 
-class ChassisSim final : public DataComponent<interfaces::ChassisData> {
+class ChassisSim final : public ChassisBase {
  public:
   ChassisSim();
 
@@ -43,16 +44,12 @@ class ChassisSim final : public DataComponent<interfaces::ChassisData> {
   HookResult on() override;
   void off() override;
   HookResult loop() override;  // RT
-  CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override;
+  // MOVE, SET_ACTIVE_PILOT, GET_PARAMS: ChassisBase.
+  [[nodiscard]] interfaces::ChassisParams chassis_params() const noexcept override;
+  [[nodiscard]] double vy_max() const noexcept override;
+  void command_velocity(const Velocity& v) noexcept override;
 
  private:
-  struct Velocity {
-    double vx = 0.0;
-    double vy = 0.0;
-    double omega = 0.0;
-  };
-  void set_command(const Velocity& v) noexcept;
-  [[nodiscard]] interfaces::ChassisParams limits() const noexcept;
   [[nodiscard]] double gauss(double sigma) noexcept;
   // True when the outline at `pose` covers an occupied map cell. RT-safe.
   [[nodiscard]] bool collides(const Pose2d& pose) const noexcept;
@@ -85,12 +82,6 @@ class ChassisSim final : public DataComponent<interfaces::ChassisData> {
 
   rt::PiMutex command_mutex_;  // guards command_ (command task writes, data task reads)
   Velocity command_;
-  // Written by the command task on MOVE, read by the data task's watchdog. Relaxed:
-  // a stale value only delays the watchdog by one cycle.
-  std::atomic<int64_t> last_move_ns_{0};
-  // The active pilot (raw component address, 0: none). Written by the command task
-  // only; relaxed: the data task only copies it into the published sample.
-  std::atomic<uint32_t> active_pilot_{0};
 
   // Data task state.
   std::mt19937_64 rng_;
