@@ -110,44 +110,47 @@ void Evaluator::evaluate(ErrorStats& stats, int64_t time_ns, double x, double y,
   stats.add(std::hypot(x - t->x, y - t->y), std::abs(normalize_angle(phi - t->phi)));
 }
 
+// One DATA message of the input: the chassis' true pose, Position's or MCL's estimate.
+// false when a known source's body does not decode (counted by next_input).
+bool Evaluator::take(const tims::MessageHeader& h, std::span<const std::byte> body, uint8_t chassis_class,
+                     bool& got) noexcept {
+  wire::SampleHeader sh;
+  const uint8_t source_class = h.source().class_id();
+  if (source_class == chassis_class) {
+    ChassisData c;
+    if (!read_sample(h, body, sh, c)) return false;
+    if (c.truth_valid == 0) return true;
+    got = true;
+    if (have_last_truth_) data_.distance += std::hypot(c.truth_x - last_truth_.x, c.truth_y - last_truth_.y);
+    last_truth_ = Truth{sh.time_ns, c.truth_x, c.truth_y, c.truth_phi};
+    have_last_truth_ = true;
+    truth_[truth_next_] = last_truth_;
+    truth_next_ = (truth_next_ + 1) % kTruthSlots;
+    if (truth_count_ < kTruthSlots) ++truth_count_;
+  } else if (source_class == tims::classes::kPosition) {
+    PositionData d;
+    if (!read_sample(h, body, sh, d)) return false;
+    got = true;
+    evaluate(position_stats_, sh.time_ns, d.x, d.y, d.phi);
+  } else if (source_class == tims::classes::kMcl) {
+    MclData d;
+    if (!read_sample(h, body, sh, d)) return false;
+    got = true;
+    evaluate(mcl_stats_, d.scan_time_ns != 0 ? d.scan_time_ns : sh.time_ns, d.x, d.y, d.phi);
+  }
+  return true;
+}
+
 HookResult Evaluator::loop() {
   bool got = false;
   const uint8_t chassis_class = resolved(chassis_).class_id();
   for (;;) {
-    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
-    if (p.status != tims::RecvStatus::kOk) break;
-    const tims::MessageHeader h = *p.header;
-    if (h.type == tims::msg::kError) {  // a stream's producer left ENABLED: re-subscribe on retry
-      input_mailbox().peek_end();
-      return HookResult::kError;
-    }
-    wire::SampleHeader sh;
-    const uint8_t source_class = h.source().class_id();
-    if (h.type == tims::msg::kData && source_class == chassis_class) {
-      ChassisData c;
-      if (read_sample(h, p.body, sh, c) && c.truth_valid != 0) {
-        got = true;
-        if (have_last_truth_) data_.distance += std::hypot(c.truth_x - last_truth_.x, c.truth_y - last_truth_.y);
-        last_truth_ = Truth{sh.time_ns, c.truth_x, c.truth_y, c.truth_phi};
-        have_last_truth_ = true;
-        truth_[truth_next_] = last_truth_;
-        truth_next_ = (truth_next_ + 1) % kTruthSlots;
-        if (truth_count_ < kTruthSlots) ++truth_count_;
-      }
-    } else if (h.type == tims::msg::kData && source_class == tims::classes::kPosition) {
-      PositionData d;
-      if (read_sample(h, p.body, sh, d)) {
-        got = true;
-        evaluate(position_stats_, sh.time_ns, d.x, d.y, d.phi);
-      }
-    } else if (h.type == tims::msg::kData && source_class == tims::classes::kMcl) {
-      MclData d;
-      if (read_sample(h, p.body, sh, d)) {
-        got = true;
-        evaluate(mcl_stats_, d.scan_time_ns != 0 ? d.scan_time_ns : sh.time_ns, d.x, d.y, d.phi);
-      }
-    }
-    input_mailbox().peek_end();
+    tims::MessageHeader header;
+    const Input in = next_input(header, [&](const tims::MessageHeader& h, std::span<const std::byte> body) {
+      return take(h, body, chassis_class, got);
+    });
+    if (in == Input::kNone) break;
+    if (in == Input::kError) return HookResult::kError;  // a stream's producer left ENABLED: re-subscribe on retry
   }
   if (!got) return HookResult::kError;  // data_timeout without a sample: the chassis is silent
   data_.position_samples = position_stats_.n;

@@ -50,6 +50,7 @@ class Evaluator final : public DataComponent<interfaces::EvaluatorData> {
   };
   const Truth* truth_at(int64_t time_ns) const noexcept;
   void evaluate(ErrorStats& stats, int64_t time_ns, double x, double y, double phi) noexcept;
+  bool take(const tims::MessageHeader& h, std::span<const std::byte> body, uint8_t chassis_class, bool& got) noexcept;
 
   Parameter& chassis_;
   Parameter& position_;

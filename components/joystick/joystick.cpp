@@ -106,20 +106,21 @@ void Joystick::take_obstacles() noexcept {
   const double front = limits_.boundary_front + limits_.safety_margin;
   const double half = std::fmax(limits_.boundary_left, limits_.boundary_right) + limits_.safety_margin;
   for (;;) {
-    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
-    if (p.status != tims::RecvStatus::kOk) break;
-    const tims::MessageHeader h = *p.header;
-    wire::SampleHeader sh;
-    if (h.type == tims::msg::kError) {
-      obstacles_lost_ = true;  // the source left ENABLED
-    } else if (h.type == tims::msg::kData && read_sample(h, p.body, sh, *scan2d_)) {
-      free_ahead_ = obstacle::free_ahead(*scan2d_, front, half);
+    tims::MessageHeader header;
+    const Input in = next_input(header, [&](const tims::MessageHeader& h, std::span<const std::byte> body) {
+      wire::SampleHeader sh;
+      if (read_sample(h, body, sh, *scan2d_)) {
+        free_ahead_ = obstacle::free_ahead(*scan2d_, front, half);
+      } else if (read_sample(h, body, sh, *ladar_)) {
+        free_ahead_ = obstacle::free_ahead(*ladar_, front, half);
+      } else {
+        return false;  // neither a Scan2D nor a Ladar sample
+      }
       last_obstacles_ns_ = rt::monotonic_ns();
-    } else if (h.type == tims::msg::kData && read_sample(h, p.body, sh, *ladar_)) {
-      free_ahead_ = obstacle::free_ahead(*ladar_, front, half);
-      last_obstacles_ns_ = rt::monotonic_ns();
-    }
-    input_mailbox().peek_end();
+      return true;
+    });
+    if (in == Input::kNone) break;
+    if (in == Input::kError) obstacles_lost_ = true;  // the source left ENABLED
   }
 }
 

@@ -48,18 +48,12 @@ void LadarSim::off() { unsubscribe(resolved(chassis_)); }
 HookResult LadarSim::loop() {
   const int64_t now = rt::monotonic_ns();
   for (;;) {  // keep the newest true pose
-    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
-    if (p.status != tims::RecvStatus::kOk) break;
-    const tims::MessageHeader h = *p.header;
-    if (h.type == tims::msg::kError) {
-      input_mailbox().peek_end();
-      return HookResult::kError;  // the chassis left ENABLED
-    }
     wire::SampleHeader sh;
     ChassisData c;
-    const bool ok = h.type == tims::msg::kData && read_sample(h, p.body, sh, c);
-    input_mailbox().peek_end();
-    if (!ok || c.truth_valid == 0) continue;
+    const Input in = next_sample(sh, c);
+    if (in == Input::kNone) break;
+    if (in == Input::kError) return HookResult::kError;  // the chassis left ENABLED
+    if (c.truth_valid == 0) continue;
     truth_ = Pose2d{c.truth_x, c.truth_y, c.truth_phi};
     truth_time_ns_ = sh.time_ns;
     last_truth_mono_ns_ = now;

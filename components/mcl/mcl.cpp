@@ -185,19 +185,12 @@ HookResult Mcl::loop() {
   bool got = false;
   wire::SampleHeader sh{};
   for (;;) {
-    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
-    if (p.status != tims::RecvStatus::kOk) break;
-    const tims::MessageHeader h = *p.header;
-    if (h.type == tims::msg::kError) {  // Scan2D left ENABLED: ERROR now, re-subscribe on retry
-      input_mailbox().peek_end();
-      return HookResult::kError;
-    }
     // Only the newest scan counts: the odometry in each scan is absolute, so skipping
     // older ones loses nothing but keeps MCL from lagging behind.
     wire::SampleHeader this_sh{};
-    const bool ok = h.type == tims::msg::kData && read_sample(h, p.body, this_sh, *scan_);
-    input_mailbox().peek_end();
-    if (!ok) continue;
+    const Input in = next_sample(this_sh, *scan_);
+    if (in == Input::kNone) break;
+    if (in == Input::kError) return HookResult::kError;  // Scan2D left ENABLED: re-subscribe on retry
     sh = this_sh;
     got = true;
   }

@@ -27,18 +27,11 @@ void Monitor::off() { unsubscribe(resolved(source_)); }
 HookResult Monitor::loop() {
   bool got = false;
   for (;;) {
-    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
-    if (p.status != tims::RecvStatus::kOk) break;
-    const tims::MessageHeader h = *p.header;
-    if (h.type == tims::msg::kError) {  // the source left ENABLED: go to ERROR, re-subscribe later
-      input_mailbox().peek_end();
-      return HookResult::kError;
-    }
     wire::SampleHeader sh;
     GeneratorData d;
-    const bool ok = h.type == tims::msg::kData && read_sample(h, p.body, sh, d);
-    input_mailbox().peek_end();
-    if (!ok) continue;  // not a Generator sample: ignore it
+    const Input in = next_sample(sh, d);  // not a Generator sample: counted, skipped
+    if (in == Input::kNone) break;
+    if (in == Input::kError) return HookResult::kError;  // the source left ENABLED: re-subscribe later
     got = true;
     ++stats_.received;
     if (have_last_ && sh.sequence > last_sequence_) {

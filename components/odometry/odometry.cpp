@@ -24,18 +24,11 @@ void Odometry::off() { unsubscribe(resolved(chassis_)); }
 HookResult Odometry::loop() {
   bool got = false;
   for (;;) {
-    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
-    if (p.status != tims::RecvStatus::kOk) break;
-    const tims::MessageHeader h = *p.header;
-    if (h.type == tims::msg::kError) {  // the chassis left ENABLED: ERROR, re-subscribe on retry
-      input_mailbox().peek_end();
-      return HookResult::kError;
-    }
     wire::SampleHeader sh;
     ChassisData c;
-    const bool ok = h.type == tims::msg::kData && read_sample(h, p.body, sh, c);
-    input_mailbox().peek_end();
-    if (!ok) continue;
+    const Input in = next_sample(sh, c);
+    if (in == Input::kNone) break;
+    if (in == Input::kError) return HookResult::kError;  // the chassis left ENABLED: re-subscribe on retry
     got = true;
     const uint32_t requested = reset_requests_.load(std::memory_order_relaxed);
     if (requested != resets_applied_) {

@@ -168,28 +168,32 @@ void Pilot::handle_input(int64_t now) noexcept {
   const tims::Address scan = resolved(scan2d_);
   const tims::Address path = resolved(path_);
   for (;;) {
-    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
-    if (p.status != tims::RecvStatus::kOk) break;
-    const tims::MessageHeader h = *p.header;
-    const tims::Address src = h.source().component();
-    wire::SampleHeader sh;
-    if (h.type == tims::msg::kError) {
-      // A source left ENABLED: its data stops; the timeouts below make the robot stand.
-      // (The subscription is gone: the pilot goes to ERROR and re-subscribes on retry.)
-      if (src == position) position_mono_ns_ = -1;
-      if (src == scan) scan_mono_ns_ = -1;
-    } else if (h.type == tims::msg::kData) {
-      if (src == position && read_sample(h, p.body, sh, position_data_)) {
+    tims::MessageHeader header;
+    const Input in = next_input(header, [&](const tims::MessageHeader& h, std::span<const std::byte> body) {
+      const tims::Address src = h.source().component();
+      wire::SampleHeader sh;
+      if (src == position) {
+        if (!read_sample(h, body, sh, position_data_)) return false;
         position_mono_ns_ = now;
-      } else if (src == scan && read_sample(h, p.body, sh, scan_)) {
+      } else if (src == scan) {
+        if (!read_sample(h, body, sh, scan_)) return false;
         scan_mono_ns_ = now;
         have_scan_ = true;
-      } else if (path.raw() != 0 && src == path && read_sample(h, p.body, sh, path_data_)) {
+      } else if (path.raw() != 0 && src == path) {
+        if (!read_sample(h, body, sh, path_data_)) return false;
         have_path_ = path_data_.point_count >= 2;
         path_fresh_ = true;
       }
+      return true;  // a late sample of a former source: not malformed, just not ours now
+    });
+    if (in == Input::kNone) break;
+    if (in == Input::kError) {
+      // A source left ENABLED: its data stops; the timeouts below make the robot stand.
+      // (The subscription is gone: the pilot goes to ERROR and re-subscribes on retry.)
+      const tims::Address src = header.source().component();
+      if (src == position) position_mono_ns_ = -1;
+      if (src == scan) scan_mono_ns_ = -1;
     }
-    input_mailbox().peek_end();
   }
 }
 

@@ -48,18 +48,11 @@ void Position::off() { unsubscribe(resolved(odometry_)); }
 HookResult Position::loop() {
   bool got = false;
   for (;;) {
-    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
-    if (p.status != tims::RecvStatus::kOk) break;
-    const tims::MessageHeader h = *p.header;
-    if (h.type == tims::msg::kError) {
-      input_mailbox().peek_end();
-      return HookResult::kError;
-    }
     wire::SampleHeader sh;
     OdometryData o;
-    const bool ok = h.type == tims::msg::kData && read_sample(h, p.body, sh, o);
-    input_mailbox().peek_end();
-    if (!ok) continue;
+    const Input in = next_sample(sh, o);
+    if (in == Input::kNone) break;
+    if (in == Input::kError) return HookResult::kError;  // the odometry left ENABLED
     got = true;
     odometry_resets_.store(o.resets, std::memory_order_relaxed);
     const Pose2d odo{o.x, o.y, o.phi};

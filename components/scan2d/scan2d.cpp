@@ -113,17 +113,10 @@ void Scan2d::fill_odometry(int64_t time_ns) noexcept {
 HookResult Scan2d::loop() {
   bool got = false;
   for (;;) {
-    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
-    if (p.status != tims::RecvStatus::kOk) break;
-    const tims::MessageHeader h = *p.header;
-    if (h.type == tims::msg::kError) {
-      input_mailbox().peek_end();
-      return HookResult::kError;
-    }
     wire::SampleHeader sh;
-    const bool ok = h.type == tims::msg::kData && read_sample(h, p.body, sh, ladar_data_);
-    input_mailbox().peek_end();
-    if (!ok) continue;
+    const Input in = next_sample(sh, ladar_data_);
+    if (in == Input::kNone) break;
+    if (in == Input::kError) return HookResult::kError;  // the ladar left ENABLED
     got = true;
     Geometry g;
     g.mount_x = mount_x_.get_float();

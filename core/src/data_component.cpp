@@ -278,6 +278,20 @@ void DataComponentBase::drain_input() noexcept {
   }
 }
 
+void DataComponentBase::input_malformed(const tims::MessageHeader& header, std::size_t size) noexcept {
+  malformed_.fetch_add(1, std::memory_order_relaxed);
+  const int64_t now = rt::monotonic_ns();
+  if (input_malformed_logged_ns_ != 0 && now - input_malformed_logged_ns_ < rt::kNsPerSec) {
+    ++input_malformed_suppressed_;
+    return;
+  }
+  log_warning("input: dropped a DATA message of %u bytes from %s that is not the sample expected (%u more since the "
+              "last report)",
+              static_cast<unsigned>(size), header.source(), static_cast<unsigned>(input_malformed_suppressed_));
+  input_malformed_logged_ns_ = now;
+  input_malformed_suppressed_ = 0;
+}
+
 void DataComponentBase::run_data_task() noexcept {
   if (mode_ == DataTaskMode::kPeriodic) {
     const int64_t period = settings().period_ns;

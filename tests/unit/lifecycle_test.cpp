@@ -459,6 +459,25 @@ TEST_F(LifecycleTest, ConsumerRecoversWhenItsProducerGoesOff) {
   EXPECT_EQ(host().status(gen_), msg::kEnabled);
 }
 
+// A DATA message in a consumer's input mailbox that is not the sample it takes (wrong
+// size: another class, a corrupt sender) is skipped and counted as malformed (and
+// logged through GDOS, at most once a second); the consumer stays ENABLED and keeps taking the good samples.
+TEST_F(LifecycleTest, ConsumerCountsAndSkipsAMalformedSample) {
+  Watchdog dog;
+  start("", 100, /*monitor=*/true, /*monitor_autostart=*/true);
+  ASSERT_EQ(host().status(mon_), msg::kEnabled);
+  const uint64_t before = host().stats(mon_).malformed;
+  const uint8_t junk[5] = {1, 2, 3, 4, 5};
+  const tims::ConstBuffer part{junk, sizeof junk};
+  ASSERT_EQ(host().endpoint().send(mon_.with_mailbox(DataComponentBase::kInputMailbox), msg::kData,
+                                   std::span<const tims::ConstBuffer>(&part, 1)),
+            tims::SendStatus::kOk);
+  EXPECT_TRUE(test::eventually([&] { return host().stats(mon_).malformed == before + 1; }));
+  const uint64_t cycles = host().stats(mon_).data.cycles;
+  EXPECT_TRUE(test::eventually([&] { return host().stats(mon_).data.cycles > cycles + 3; })) << "still consuming";
+  EXPECT_EQ(host().status(mon_), msg::kEnabled);
+}
+
 TEST_F(LifecycleTest, GetAndSetParam) {
   Watchdog dog;
   start("label: first");

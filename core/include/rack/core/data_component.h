@@ -56,6 +56,24 @@ class DataComponentBase : public Component {
   [[nodiscard]] tims::Endpoint& data_endpoint() noexcept { return *data_endpoint_; }
   [[nodiscard]] int64_t period_ns() const noexcept { return settings().period_ns; }
 
+  // What next_input()/next_sample() found in the input mailbox.
+  enum class Input : uint8_t {
+    kNone,   // the mailbox is empty
+    kData,   // a DATA message (next_sample: a sample that decoded)
+    kError,  // a producer sent ERROR: it left ENABLED and dropped this subscription
+  };
+  // Takes the next message of the input mailbox without blocking. A DATA body goes to
+  // `take(header, body)`, which decodes what it wants (read_sample) and returns false
+  // only when the body does not fit (wrong size for its source's type): that message
+  // is counted as malformed (GET_STATS) and logged at most once a second. Other
+  // message types are dropped. `header` is the message's. RT-safe when `take` is.
+  template <typename Take>
+  [[nodiscard]] Input next_input(tims::MessageHeader& header, Take&& take) noexcept;
+  // For a consumer of one sample type: skips (and counts) DATA that does not decode
+  // as T; kData with `sh` and `out` filled. RT-safe.
+  template <tims::Payload T>
+  [[nodiscard]] Input next_sample(wire::SampleHeader& sh, T& out) noexcept;
+
   // From on(): GET_CONT_DATA to `producer` for this component's input mailbox.
   HookResult subscribe(tims::Address producer, int64_t period_ns, int64_t* real_period_ns = nullptr) noexcept;
   // From off(): STOP_CONT_DATA (best effort: the producer may be gone).
@@ -72,6 +90,10 @@ class DataComponentBase : public Component {
   void run_data_task() noexcept;
   void run_one_cycle() noexcept;
   void drain_input() noexcept;
+  // A DATA message of `size` bytes from `header`'s source did not decode: count, log.
+  void input_malformed(const tims::MessageHeader& header, std::size_t size) noexcept;
+  int64_t input_malformed_logged_ns_ = 0;   // data task only
+  uint64_t input_malformed_suppressed_ = 0;  // data task only
 
   struct Listener {
     uint32_t mailbox = 0;
@@ -134,6 +156,41 @@ template <tims::Payload T>
     tims::swap_fields(tims::fields_of<T>, reinterpret_cast<std::byte*>(&out), sizeof(T));
   }
   return true;
+}
+
+template <typename Take>
+DataComponentBase::Input DataComponentBase::next_input(tims::MessageHeader& header, Take&& take) noexcept {
+  for (;;) {
+    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
+    if (p.status != tims::RecvStatus::kOk) return Input::kNone;
+    header = *p.header;
+    if (header.type == tims::msg::kError) {
+      input_mailbox().peek_end();
+      return Input::kError;
+    }
+    if (header.type != tims::msg::kData) {  // a stray reply: nothing to take
+      input_mailbox().peek_end();
+      continue;
+    }
+    const std::size_t size = p.body.size();
+    const bool ok = take(static_cast<const tims::MessageHeader&>(header), p.body);
+    input_mailbox().peek_end();
+    if (!ok) input_malformed(header, size);
+    return Input::kData;
+  }
+}
+
+template <tims::Payload T>
+DataComponentBase::Input DataComponentBase::next_sample(wire::SampleHeader& sh, T& out) noexcept {
+  for (;;) {
+    tims::MessageHeader h;
+    bool decoded = false;
+    const Input in = next_input(h, [&](const tims::MessageHeader& mh, std::span<const std::byte> body) {
+      decoded = read_sample(mh, body, sh, out);
+      return decoded;
+    });
+    if (in != Input::kData || decoded) return in;
+  }
 }
 
 }  // namespace rack
