@@ -15,17 +15,23 @@
 //
 // Needs root (namespaces). Not RT code; no SCHED_FIFO for the measuring threads (both
 // mechanisms run their LCM threads at normal priority alike).
+#include <dirent.h>
 #include <poll.h>
+#include <pthread.h>
 #include <sched.h>
 #include <unistd.h>
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <functional>
+#include <iomanip>
+#include <map>
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
 #include <random>
@@ -69,6 +75,9 @@ struct Options {
   int cpu_a = 0;  // -1: not pinned
   int cpu_b = 1;
   std::string json;
+  bool rpc = true;
+  bool cpu_report = false;
+  std::string bulk = "lcm,tims,zstd";  // which bulk mechanisms run (diagnosis: one at a time)
 };
 
 int sh(const std::string& cmd) { return std::system((cmd + " >/dev/null 2>&1").c_str()); }
@@ -123,6 +132,8 @@ void in_ns(const std::string& ns, int cpu, const std::function<void()>& fn) {
   std::exception_ptr err;
   std::thread t([&] {
     try {
+      // Threads made here (LCM's own) inherit the name: "A"/"B" + what follows.
+      pthread_setname_np(pthread_self(), (ns.substr(ns.size() - 1) == "a" ? "A-lcm" : "B-lcm"));
       if (cpu >= 0) pin(cpu);
       enter(ns);
       fn();
@@ -132,6 +143,69 @@ void in_ns(const std::string& ns, int cpu, const std::function<void()>& fn) {
   });
   t.join();
   if (err) std::rethrow_exception(err);
+}
+
+// ---------------------------------------------------------------- CPU accounting
+// Where the CPU time of a bulk phase went (--cpu-report): per thread name, from
+// /proc/self/task/*/schedstat (ns on a CPU), and per CPU from /proc/stat (busy and
+// softirq jiffies: the veth's receive path runs in the sender CPU's softirq).
+struct CpuSnapshot {
+  std::map<std::string, int64_t> thread_ns;  // by thread name (threads of one name summed)
+  std::vector<std::array<uint64_t, 3>> cpu;  // per CPU: busy, softirq, total jiffies
+  static CpuSnapshot take() {
+    CpuSnapshot s;
+    if (DIR* d = opendir("/proc/self/task")) {
+      while (const dirent* e = readdir(d)) {
+        if (e->d_name[0] == '.') continue;
+        const std::string base = std::string("/proc/self/task/") + e->d_name;
+        std::ifstream comm(base + "/comm"), sched(base + "/schedstat"), st(base + "/stat");
+        std::string name, stat_line;
+        int64_t ns = 0;
+        if (!std::getline(comm, name) || !(sched >> ns)) continue;
+        // The CPU it last ran on (field 39 of stat; our threads are pinned, so this
+        // tells host A's from host B's), after the parenthesised name.
+        if (std::getline(st, stat_line)) {
+          std::istringstream in(stat_line.substr(stat_line.rfind(')') + 2));
+          std::string field;
+          for (int f = 3; f <= 39 && (in >> field); ++f) {
+            if (f == 39) name += "@" + field;
+          }
+        }
+        s.thread_ns[name] += ns;
+      }
+      closedir(d);
+    }
+    std::ifstream stat("/proc/stat");
+    std::string line;
+    while (std::getline(stat, line)) {
+      if (line.rfind("cpu", 0) != 0 || line.size() < 4 || line[3] == ' ') continue;
+      std::istringstream in(line.substr(line.find(' ')));
+      uint64_t v[8] = {};
+      for (auto& x : v) in >> x;  // user nice system idle iowait irq softirq steal
+      const uint64_t total = v[0] + v[1] + v[2] + v[3] + v[4] + v[5] + v[6] + v[7];
+      s.cpu.push_back({total - v[3] - v[4], v[6], total});
+    }
+    return s;
+  }
+};
+
+std::string cpu_report(const CpuSnapshot& a, const CpuSnapshot& b, double megabytes) {
+  std::ostringstream o;
+  o << std::fixed << std::setprecision(1);
+  for (std::size_t c = 0; c < std::min(a.cpu.size(), b.cpu.size()); ++c) {
+    const double total = static_cast<double>(b.cpu[c][2] - a.cpu[c][2]);
+    if (total <= 0) continue;
+    o << "    CPU " << c << ": busy " << 100.0 * static_cast<double>(b.cpu[c][0] - a.cpu[c][0]) / total
+      << "% (softirq " << 100.0 * static_cast<double>(b.cpu[c][1] - a.cpu[c][1]) / total << "%, all processes)\n";
+  }
+  o << "    this process, ms of CPU per MB received:";
+  for (const auto& [name, ns] : b.thread_ns) {
+    const auto it = a.thread_ns.find(name);
+    const int64_t d = ns - (it == a.thread_ns.end() ? 0 : it->second);
+    if (d > 1000000) o << ' ' << name << '=' << std::setprecision(2) << static_cast<double>(d) / 1e6 / megabytes;
+  }
+  o << '\n';
+  return o.str();
 }
 
 // ---------------------------------------------------------------- raw LCM references
@@ -270,12 +344,14 @@ BulkResult bulk_lcm(LcmEcho& echo, lcm::LCM& tx, std::size_t size, int count) {
   return r;
 }
 
-BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, const char* name) {
+BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, const char* name, int reader_cpu) {
   const auto payload = bulk_payload(size);
   std::atomic<uint64_t> received{0}, bytes{0};
   std::atomic<int64_t> last{0};
   std::atomic<bool> stop{false};
   std::thread reader([&] {
+    pthread_setname_np(pthread_self(), "B-tims-reader");
+    if (reader_cpu >= 0) pin(reader_cpu);  // host B's, as the raw LCM handler
     // Zero-copy, as a component reads large messages (peek/peek_end); the raw LCM
     // handler does not copy either.
     while (!stop.load()) {
@@ -295,11 +371,10 @@ BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, co
     const tims::ConstBuffer part{payload.data(), payload.size()};
     (void)tx.router.send(h, std::span<const tims::ConstBuffer>(&part, 1));
     // Back-pressure like a blocking publish(): never more queued than the large uplink
-    // holds (when full, it drops its oldest). Polled every 100 us: not a spin, which
-    // would take the CPU from the sender thread.
-    while (tx.transport->counters().messages_out - before.messages_out + (kLargeSlots - 2) <
-           static_cast<uint64_t>(i + 1)) {
-      rt::sleep_for(100 * rt::kNsPerUs);
+    // holds (when full, it drops its oldest). Refilled in batches: wait until only two
+    // are left, then queue up to six (one wake-up per four messages).
+    if (tx.transport->counters().messages_out - before.messages_out + (kLargeSlots - 2) < static_cast<uint64_t>(i + 1)) {
+      (void)tx.transport->wait_uplink(2, rt::kNsPerSec);
     }
   }
   rt::sleep_for(700 * rt::kNsPerMs);
@@ -343,6 +418,9 @@ int main(int argc, char** argv) {
     else if (a == "--bulk-count") o.bulk_count = std::atoi(next().c_str());
     else if (a == "--port") o.port = std::atoi(next().c_str());
     else if (a == "--json") o.json = next();
+    else if (a == "--no-rpc") o.rpc = false;
+    else if (a == "--cpu-report") o.cpu_report = true;
+    else if (a == "--bulk") o.bulk = next();
     else if (a == "--cpus") {
       const std::string v = next();
       if (v == "any") { o.cpu_a = o.cpu_b = -1; }
@@ -382,6 +460,7 @@ int main(int argc, char** argv) {
       rx_plain = std::make_unique<TimsHost>(1, url, tims::Compression::kNone, 1100 * 1000);
     });
     echo_thread = std::thread([&] {
+      pthread_setname_np(pthread_self(), "B-lcm-handler");
       if (o.cpu_b >= 0) pin(o.cpu_b);
       echo->run();
     });
@@ -397,6 +476,7 @@ int main(int argc, char** argv) {
       tx_plain = std::make_unique<TimsHost>(2, url, tims::Compression::kNone, 64 * 1024);
       tx_zstd = std::make_unique<TimsHost>(3, url, tims::Compression::kZstd, 64 * 1024);
     });
+    pthread_setname_np(pthread_self(), "A-main");
     if (o.cpu_a >= 0) pin(o.cpu_a);  // the measuring (client) thread belongs to host A
     rt::sleep_for(1500 * rt::kNsPerMs);  // discovery warm-up on every side
 
@@ -408,7 +488,7 @@ int main(int argc, char** argv) {
     std::vector<int64_t> rack_rt, lcm_rt;
     uint64_t rack_fail = 0, lcm_fail = 0;
     const int per_block = std::max(1, o.iterations / o.rounds);
-    for (int round = 0; round < o.rounds; ++round) {
+    for (int round = 0; round < (o.rpc ? o.rounds : 0); ++round) {
       for (int w = 0; w < 50; ++w) (void)ep.call(gen, tims::msg::kGetStatus, buf, rt::kNsPerSec);
       for (int i = 0; i < per_block; ++i) {
         const int64_t t0 = rt::monotonic_ns();
@@ -437,9 +517,18 @@ int main(int argc, char** argv) {
     std::vector<BulkResult> bulk;
     for (const std::size_t size : {std::size_t{100 * 1000}, std::size_t{1000 * 1000}}) {
       const int count = size > 500000 ? std::max(10, o.bulk_count / 4) : o.bulk_count;
-      bulk.push_back(bulk_lcm(*echo, *bulk_tx, size, count));
-      bulk.push_back(bulk_tims(*tx_plain, *rx_plain, size, count, "TiMS"));
-      bulk.push_back(bulk_tims(*tx_zstd, *rx_plain, size, count, "TiMS+zstd"));
+      const auto run = [&](const std::function<BulkResult()>& fn) {
+        const auto c0 = CpuSnapshot::take();
+        bulk.push_back(fn());
+        if (o.cpu_report) {
+          const auto& b = bulk.back();
+          std::printf("  %s %zu B: %.1f MB/s\n%s", b.mechanism.c_str(), b.size, b.mb_per_s,
+                      cpu_report(c0, CpuSnapshot::take(), static_cast<double>(b.received * b.size) / 1e6).c_str());
+        }
+      };
+      if (o.bulk.find("lcm") != std::string::npos) run([&] { return bulk_lcm(*echo, *bulk_tx, size, count); });
+      if (o.bulk.find("tims") != std::string::npos) run([&] { return bulk_tims(*tx_plain, *rx_plain, size, count, "TiMS", o.cpu_b); });
+      if (o.bulk.find("zstd") != std::string::npos) run([&] { return bulk_tims(*tx_zstd, *rx_plain, size, count, "TiMS+zstd", o.cpu_b); });
     }
     std::printf("Bulk A -> B (sender as fast as it may):\n");
     for (const auto& b : bulk) {
