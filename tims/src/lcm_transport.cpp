@@ -524,11 +524,18 @@ struct LcmTransport::Impl {
     uint32_t encoded = len;
     int8_t encoding = 0;
     if (n.cctx != nullptr && len >= n.config.compress_min_bytes) {
-      const std::size_t c = ZSTD_compressCCtx(n.cctx, n.compressed.data(), n.compressed.size(), msg, len, 1);
-      if (ZSTD_isError(c) == 0 && c < len) {
+      // Encoding 2: the 16-byte header as it is, then the body as one zstd frame. Every
+      // host reads the destination from the first chunk and drops the rest of a message
+      // for another host unread (encoding 1, the whole message compressed, made every
+      // host on the network reassemble and decompress every compressed message).
+      constexpr std::size_t kHead = sizeof(MessageHeader);
+      const std::size_t c = ZSTD_compressCCtx(n.cctx, n.compressed.data() + kHead, n.compressed.size() - kHead,
+                                              msg + kHead, len - kHead, 1);
+      if (ZSTD_isError(c) == 0 && kHead + c < len) {
+        std::memcpy(n.compressed.data(), msg, kHead);
         stream = n.compressed.data();
-        encoded = static_cast<uint32_t>(c);
-        encoding = 1;
+        encoded = static_cast<uint32_t>(kHead + c);
+        encoding = 2;
         writable = true;  // our own buffer
         bump(compressed_out);
       }
@@ -715,7 +722,7 @@ struct LcmTransport::Impl {
   void report_lost(Network& n, Reassembly& s, const char* why) {
     bump(lost_messages);
     std::string what = "message " + std::to_string(s.message_seq) + " of origin " + origin_text(s.origin);
-    if (s.have[0] != 0 && s.encoding == 0 && s.total >= sizeof(MessageHeader)) {
+    if (s.have[0] != 0 && s.encoding != 1 && s.total >= sizeof(MessageHeader)) {
       MessageHeader h;
       if (decode_header(std::span<const std::byte>(s.data.data(), s.total), h) != MessageError::kOk) {
         // decode_header checks the length too, which is the full one here: read raw.
@@ -801,7 +808,8 @@ struct LcmTransport::Impl {
         encoded < 0 || static_cast<uint32_t>(encoded) > max_encoded || offset < 0 || static_cast<uint32_t>(offset) % kChunk != 0 ||
         static_cast<int64_t>(offset) + chunk > encoded ||
         (static_cast<int64_t>(offset) + chunk != encoded && static_cast<uint32_t>(chunk) != kChunk) ||
-        (encoding != 0 && encoding != 1) || (encoding == 0 && encoded != total) || hops < 0 || hops > kMaxHops) {
+        encoding < 0 || encoding > 2 || (encoding == 0 && encoded != total) ||
+        (encoding == 2 && encoded <= static_cast<int32_t>(sizeof(MessageHeader))) || hops < 0 || hops > kMaxHops) {
       return rejected(n, "fields", [&] {
         return "bad chunk fields (total " + std::to_string(total) + ", encoded " + std::to_string(encoded) +
                ", offset " + std::to_string(offset) + ", size " + std::to_string(chunk) + ", encoding " +
@@ -820,7 +828,7 @@ struct LcmTransport::Impl {
     for (auto& s : n.slots) {
       if (s.used && s.origin == pkt_origin && s.message_seq == mseq) slot = &s;
     }
-    if (offset == 0 && encoding == 0 && !wants(data, static_cast<std::size_t>(chunk))) {
+    if (offset == 0 && encoding != 1 && !wants(data, static_cast<std::size_t>(chunk))) {
       bump(not_for_us);
       n.skipped[n.next_skipped] = {pkt_origin, mseq};
       n.next_skipped = (n.next_skipped + 1) % n.skipped.size();
@@ -915,6 +923,26 @@ struct LcmTransport::Impl {
       if (ZSTD_isError(got) != 0 || got != total) {
         return reject(n, "zstd", [&] {
           return std::string("compressed message does not decompress: ") +
+                 (ZSTD_isError(got) != 0 ? ZSTD_getErrorName(got) : "wrong size");
+        });
+      }
+    } else if (encoding == 2) {
+      // The header as it is, then the body's frame (encoded > 16: checked on receipt).
+      constexpr std::size_t kHead = sizeof(MessageHeader);
+      if (!wants(stream, encoded)) {  // a one-chunk message for another host: not decompressed
+        bump(not_for_us);
+        return;
+      }
+      const std::size_t body = total - kHead;
+      const unsigned long long size = ZSTD_getFrameContentSize(stream + kHead, encoded - kHead);
+      if (total < kHead || size != body) {
+        return reject(n, "zstd", [&] { return std::string("compressed body whose frame size differs from its total"); });
+      }
+      std::memcpy(n.message.data(), stream, kHead);
+      const std::size_t got = ZSTD_decompressDCtx(n.dctx, n.message.data() + kHead, body, stream + kHead, encoded - kHead);
+      if (ZSTD_isError(got) != 0 || got != body) {
+        return reject(n, "zstd", [&] {
+          return std::string("compressed body does not decompress: ") +
                  (ZSTD_isError(got) != 0 ? ZSTD_getErrorName(got) : "wrong size");
         });
       }
