@@ -15,19 +15,28 @@
 //
 // Needs root (namespaces). Not RT code; no SCHED_FIFO for the measuring threads (both
 // mechanisms run their LCM threads at normal priority alike).
+#include <dirent.h>
 #include <poll.h>
+#include <pthread.h>
 #include <sched.h>
 #include <unistd.h>
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <functional>
+#include <iomanip>
+#include <map>
+#include <zstd.h>
+
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
+#include <mutex>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -51,24 +60,36 @@ namespace rt = rack::rt;
 namespace tims = rack::tims;
 
 constexpr const char* kUsage =
-    "usage: bench_lcm [--iterations N] [--rounds R] [--bulk-count N] [--port P] [--json FILE] [--quick]\n"
-    "  --iterations N  timed round trips per mechanism (default 4000)\n"
-    "  --rounds R      alternate the two RPC mechanisms in R blocks (default 4)\n"
-    "  --bulk-count N  messages per size and mechanism in the bulk test (default 200; 1 MB: N/4)\n"
-    "  --port P        LCM port (default 7790); URL udpm://239.255.76.67:P?ttl=1&recv_buf_size=4194304\n"
-    "  --cpus A,B      CPU of host A's and of host B's threads (default 0,1: one CPU per\n"
-    "                  computer); any: not pinned\n"
-    "  --json FILE     machine-readable results\n"
-    "  --quick         1000 round trips, 2 rounds, 60 bulk messages\n";
+    "usage: bench_lcm [--iterations N] [--rounds R] [--bulk-count N] [--bulk-rounds R] [--port P]\n"
+    "                 [--cpus A,B|any] [--json FILE] [--quick] [--no-rpc] [--bulk LIST] [--cpu-report]\n"
+    "  --iterations N   timed round trips per mechanism (default 4000)\n"
+    "  --rounds R       alternate the two RPC mechanisms in R blocks (default 4)\n"
+    "  --bulk-count N   bulk messages per size, mechanism and round (default 400 of 100 KB;\n"
+    "                   1 MB: N/4)\n"
+    "  --bulk-rounds R  alternate the bulk mechanisms in R rounds (default 3)\n"
+    "  --port P         LCM port (default 7790); URL udpm://239.255.76.67:P?ttl=1&recv_buf_size=4194304\n"
+    "  --cpus A,B       CPU of host A's and of host B's threads (default 0,1: one CPU per\n"
+    "                   computer); any: not pinned\n"
+    "  --json FILE      machine-readable results\n"
+    "  --quick          1000 round trips, 2 rounds; 100 bulk messages, 2 bulk rounds\n"
+    "  --no-rpc         bulk only\n"
+    "  --bulk LIST      bulk mechanisms, comma-separated: lcm, tims, lcm+zstd, tims+zstd,\n"
+    "                   zstd (both compressed ones); default lcm,tims,zstd (all four)\n"
+    "  --cpu-report     per bulk run: CPU busy per CPU and this process's CPU time per\n"
+    "                   thread and MB (where the time goes)\n";
 
 struct Options {
   int iterations = 4000;
   int rounds = 4;
-  int bulk_count = 200;
+  int bulk_count = 400;
+  int bulk_rounds = 3;
   int port = 7790;
   int cpu_a = 0;  // -1: not pinned
   int cpu_b = 1;
   std::string json;
+  bool rpc = true;
+  bool cpu_report = false;
+  std::string bulk = "lcm,tims,zstd";  // which bulk mechanisms run (diagnosis: one at a time)
 };
 
 int sh(const std::string& cmd) { return std::system((cmd + " >/dev/null 2>&1").c_str()); }
@@ -123,6 +144,8 @@ void in_ns(const std::string& ns, int cpu, const std::function<void()>& fn) {
   std::exception_ptr err;
   std::thread t([&] {
     try {
+      // Threads made here (LCM's own) inherit the name: "A"/"B" + what follows.
+      pthread_setname_np(pthread_self(), (ns.substr(ns.size() - 1) == "a" ? "A-lcm" : "B-lcm"));
       if (cpu >= 0) pin(cpu);
       enter(ns);
       fn();
@@ -134,20 +157,119 @@ void in_ns(const std::string& ns, int cpu, const std::function<void()>& fn) {
   if (err) std::rethrow_exception(err);
 }
 
+// ---------------------------------------------------------------- CPU accounting
+// Where the CPU time of a bulk phase went (--cpu-report): per thread name, from
+// /proc/self/task/*/schedstat (ns on a CPU), and per CPU from /proc/stat (busy and
+// softirq jiffies: the veth's receive path runs in the sender CPU's softirq).
+struct CpuSnapshot {
+  std::map<std::string, int64_t> thread_ns;  // by thread name (threads of one name summed)
+  std::vector<std::array<uint64_t, 3>> cpu;  // per CPU: busy, softirq, total jiffies
+  static CpuSnapshot take() {
+    CpuSnapshot s;
+    if (DIR* d = opendir("/proc/self/task")) {
+      while (const dirent* e = readdir(d)) {
+        if (e->d_name[0] == '.') continue;
+        const std::string base = std::string("/proc/self/task/") + e->d_name;
+        std::ifstream comm(base + "/comm"), sched(base + "/schedstat"), st(base + "/stat");
+        std::string name, stat_line;
+        int64_t ns = 0;
+        if (!std::getline(comm, name) || !(sched >> ns)) continue;
+        // The CPU it last ran on (field 39 of stat; our threads are pinned, so this
+        // tells host A's from host B's), after the parenthesised name.
+        if (std::getline(st, stat_line)) {
+          std::istringstream in(stat_line.substr(stat_line.rfind(')') + 2));
+          std::string field;
+          for (int f = 3; f <= 39 && (in >> field); ++f) {
+            if (f == 39) name += "@" + field;
+          }
+        }
+        s.thread_ns[name] += ns;
+      }
+      closedir(d);
+    }
+    std::ifstream stat("/proc/stat");
+    std::string line;
+    while (std::getline(stat, line)) {
+      if (line.rfind("cpu", 0) != 0 || line.size() < 4 || line[3] == ' ') continue;
+      std::istringstream in(line.substr(line.find(' ')));
+      uint64_t v[8] = {};
+      for (auto& x : v) in >> x;  // user nice system idle iowait irq softirq steal
+      const uint64_t total = v[0] + v[1] + v[2] + v[3] + v[4] + v[5] + v[6] + v[7];
+      s.cpu.push_back({total - v[3] - v[4], v[6], total});
+    }
+    return s;
+  }
+};
+
+std::string cpu_report(const CpuSnapshot& a, const CpuSnapshot& b, double megabytes) {
+  std::ostringstream o;
+  o << std::fixed << std::setprecision(1);
+  for (std::size_t c = 0; c < std::min(a.cpu.size(), b.cpu.size()); ++c) {
+    const double total = static_cast<double>(b.cpu[c][2] - a.cpu[c][2]);
+    if (total <= 0) continue;
+    o << "    CPU " << c << ": busy " << 100.0 * static_cast<double>(b.cpu[c][0] - a.cpu[c][0]) / total
+      << "% (softirq " << 100.0 * static_cast<double>(b.cpu[c][1] - a.cpu[c][1]) / total << "%, all processes)\n";
+  }
+  o << "    this process, ms of CPU per MB received:";
+  for (const auto& [name, ns] : b.thread_ns) {
+    const auto it = a.thread_ns.find(name);
+    const int64_t d = ns - (it == a.thread_ns.end() ? 0 : it->second);
+    if (d > 1000000) o << ' ' << name << '=' << std::setprecision(2) << static_cast<double>(d) / 1e6 / megabytes;
+  }
+  o << '\n';
+  return o.str();
+}
+
 // ---------------------------------------------------------------- raw LCM references
 
 // Echoes BENCH_PING as BENCH_PONG, and counts BENCH_BULK messages (in host B).
+// Bytes 0-7 of every bulk message: CLOCK_MONOTONIC at the send call (both hosts share
+// the clock), for the one-way latency.
+int64_t stamp_of(const void* p) {
+  int64_t t = 0;
+  std::memcpy(&t, p, sizeof t);
+  return t;
+}
+
+// What a bulk receiver saw; filled by its thread, read after the tail.
+struct BulkSink {
+  std::mutex mutex;
+  uint64_t count = 0, bytes = 0;
+  int64_t last_ns = 0;
+  std::vector<int64_t> latency_ns;
+  void reset() {
+    std::lock_guard lock(mutex);
+    count = bytes = 0;
+    last_ns = 0;
+    latency_ns.clear();
+  }
+  void add(std::size_t size, int64_t stamp) {
+    const int64_t now = rt::monotonic_ns();
+    std::lock_guard lock(mutex);
+    ++count;
+    bytes += size;
+    last_ns = now;
+    latency_ns.push_back(now - stamp);
+  }
+};
+
+// Echoes BENCH_PING as BENCH_PONG, and counts BENCH_BULK messages (in host B);
+// BENCH_BULKZ carries zstd frames, decompressed here as the TiMS receiver does.
 struct LcmEcho {
-  explicit LcmEcho(const std::string& url) : lcm(url) {
+  explicit LcmEcho(const std::string& url) : lcm(url), dctx(ZSTD_createDCtx()), plain(kMaxBulk) {
     if (!lcm.good()) throw std::runtime_error("LCM " + url);
     lcm.subscribe("BENCH_PING", &LcmEcho::on_ping, this);
     lcm.subscribe("BENCH_BULK", &LcmEcho::on_bulk, this)->setQueueCapacity(1000);
+    lcm.subscribe("BENCH_BULKZ", &LcmEcho::on_bulkz, this)->setQueueCapacity(1000);
   }
+  ~LcmEcho() { ZSTD_freeDCtx(dctx); }
   void on_ping(const lcm::ReceiveBuffer* r, const std::string&) { lcm.publish("BENCH_PONG", r->data, r->data_size); }
   void on_bulk(const lcm::ReceiveBuffer* r, const std::string&) {
-    bulk_count.fetch_add(1);
-    bulk_bytes.fetch_add(r->data_size);
-    last_ns.store(rt::monotonic_ns());
+    if (r->data_size >= 8) sink.add(r->data_size, stamp_of(r->data));
+  }
+  void on_bulkz(const lcm::ReceiveBuffer* r, const std::string&) {
+    const std::size_t n = ZSTD_decompressDCtx(dctx, plain.data(), plain.size(), r->data, r->data_size);
+    if (ZSTD_isError(n) == 0 && n >= 8) sink.add(n, stamp_of(plain.data()));
   }
   void run() {
     pollfd p{lcm.getFileno(), POLLIN, 0};
@@ -155,10 +277,12 @@ struct LcmEcho {
       if (poll(&p, 1, 50) > 0) lcm.handle();
     }
   }
+  static constexpr std::size_t kMaxBulk = 1100 * 1000;
   lcm::LCM lcm;
+  ZSTD_DCtx* dctx;
+  std::vector<uint8_t> plain;
   std::atomic<bool> stop{false};
-  std::atomic<uint64_t> bulk_count{0}, bulk_bytes{0};
-  std::atomic<int64_t> last_ns{0};
+  BulkSink sink;
 };
 
 struct LcmPinger {
@@ -234,6 +358,7 @@ struct BulkResult {
   double mb_per_s = 0;
   double loss = 0;
   uint64_t wire_bytes = 0;
+  std::vector<int64_t> latency_ns;  // one-way, send call to receipt, per message
 };
 
 std::vector<uint8_t> bulk_payload(std::size_t n) {
@@ -251,40 +376,72 @@ std::vector<uint8_t> bulk_payload(std::size_t n) {
   return v;
 }
 
-BulkResult bulk_lcm(LcmEcho& echo, lcm::LCM& tx, std::size_t size, int count) {
-  const auto payload = bulk_payload(size);
-  echo.bulk_count = 0;
-  echo.bulk_bytes = 0;
-  const int64_t t0 = rt::monotonic_ns();
-  for (int i = 0; i < count; ++i) tx.publish("BENCH_BULK", payload.data(), static_cast<unsigned>(payload.size()));
-  rt::sleep_for(700 * rt::kNsPerMs);  // let the tail arrive
+// The tail: until every message arrived, or nothing arrived for 500 ms after the last
+// send (the rest is lost).
+void wait_tail(BulkSink& sink, int count) {
+  const int64_t sent_ns = rt::monotonic_ns();
+  for (;;) {
+    rt::sleep_for(5 * rt::kNsPerMs);
+    std::lock_guard lock(sink.mutex);
+    if (sink.count >= static_cast<uint64_t>(count)) return;
+    if (rt::monotonic_ns() - std::max(sink.last_ns, sent_ns) > 500 * rt::kNsPerMs) return;
+  }
+}
+
+BulkResult finish(const char* name, BulkSink& sink, std::size_t size, int count, int64_t t0, uint64_t wire) {
   BulkResult r;
-  r.mechanism = "raw LCM";
+  std::lock_guard lock(sink.mutex);
+  r.mechanism = name;
   r.size = size;
   r.sent = static_cast<uint64_t>(count);
-  r.received = echo.bulk_count.load();
-  r.seconds = static_cast<double>(echo.last_ns.load() - t0) / 1e9;
-  r.mb_per_s = r.seconds > 0 ? static_cast<double>(echo.bulk_bytes.load()) / r.seconds / 1e6 : 0;
+  r.received = sink.count;
+  r.seconds = static_cast<double>(sink.last_ns - t0) / 1e9;
+  r.mb_per_s = r.seconds > 0 ? static_cast<double>(sink.bytes) / r.seconds / 1e6 : 0;
   r.loss = 1.0 - static_cast<double>(r.received) / static_cast<double>(r.sent);
-  r.wire_bytes = static_cast<uint64_t>(count) * size;
+  r.wire_bytes = wire;
+  r.latency_ns = sink.latency_ns;
   return r;
 }
 
-BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, const char* name) {
+// Raw LCM: publish() back to back (it blocks while the socket's send buffer is full);
+// `cctx`: compress each message first (zstd level 1, as the TiMS link does).
+BulkResult bulk_lcm(LcmEcho& echo, lcm::LCM& tx, std::size_t size, int count, ZSTD_CCtx* cctx) {
+  auto payload = bulk_payload(size);
+  std::vector<uint8_t> frame(cctx != nullptr ? ZSTD_compressBound(size) : 0);
+  echo.sink.reset();
+  uint64_t wire = 0;
+  const int64_t t0 = rt::monotonic_ns();
+  for (int i = 0; i < count; ++i) {
+    const int64_t now = rt::monotonic_ns();
+    std::memcpy(payload.data(), &now, sizeof now);
+    if (cctx != nullptr) {
+      const std::size_t n = ZSTD_compressCCtx(cctx, frame.data(), frame.size(), payload.data(), payload.size(), 1);
+      if (ZSTD_isError(n) != 0) throw std::runtime_error("zstd compression failed");
+      tx.publish("BENCH_BULKZ", frame.data(), static_cast<unsigned>(n));
+      wire += n;
+    } else {
+      tx.publish("BENCH_BULK", payload.data(), static_cast<unsigned>(payload.size()));
+      wire += size;
+    }
+  }
+  wait_tail(echo.sink, count);
+  return finish(cctx != nullptr ? "raw LCM+zstd" : "raw LCM", echo.sink, size, count, t0, wire);
+}
+
+BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, const char* name, int reader_cpu) {
   const auto payload = bulk_payload(size);
-  std::atomic<uint64_t> received{0}, bytes{0};
-  std::atomic<int64_t> last{0};
+  BulkSink sink;
   std::atomic<bool> stop{false};
   std::thread reader([&] {
+    pthread_setname_np(pthread_self(), "B-tims-reader");
+    if (reader_cpu >= 0) pin(reader_cpu);  // host B's, as the raw LCM handler
     // Zero-copy, as a component reads large messages (peek/peek_end); the raw LCM
     // handler does not copy either.
     while (!stop.load()) {
       const auto r = rx.inbox.peek(50 * rt::kNsPerMs);
       if (r.status != tims::RecvStatus::kOk) continue;
-      received.fetch_add(1);
-      bytes.fetch_add(r.body.size());
+      if (r.body.size() >= 8) sink.add(r.body.size(), stamp_of(r.body.data()));
       rx.inbox.peek_end();
-      last.store(rt::monotonic_ns());
     }
   });
   const auto before = tx.transport->counters();
@@ -292,30 +449,21 @@ BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, co
   for (int i = 0; i < count; ++i) {
     const tims::MessageHeader h =
         tims::make_header(rx.inbox.address(), tx.reply.address(), tims::msg::kData, 1, static_cast<uint8_t>(i), size);
-    const tims::ConstBuffer part{payload.data(), payload.size()};
-    (void)tx.router.send(h, std::span<const tims::ConstBuffer>(&part, 1));
+    const int64_t now = rt::monotonic_ns();
+    const tims::ConstBuffer parts[2] = {{&now, sizeof now}, {payload.data() + sizeof now, payload.size() - sizeof now}};
+    (void)tx.router.send(h, std::span<const tims::ConstBuffer>(parts, 2));
     // Back-pressure like a blocking publish(): never more queued than the large uplink
-    // holds (when full, it drops its oldest). Polled every 100 us: not a spin, which
-    // would take the CPU from the sender thread.
-    while (tx.transport->counters().messages_out - before.messages_out + (kLargeSlots - 2) <
-           static_cast<uint64_t>(i + 1)) {
-      rt::sleep_for(100 * rt::kNsPerUs);
+    // holds (when full, it drops its oldest). Refilled in batches: wait until only two
+    // are left, then queue up to six (one wake-up per four messages).
+    if (tx.transport->counters().messages_out - before.messages_out + (kLargeSlots - 2) < static_cast<uint64_t>(i + 1)) {
+      (void)tx.transport->wait_uplink(2, rt::kNsPerSec);
     }
   }
-  rt::sleep_for(700 * rt::kNsPerMs);
+  wait_tail(sink, count);
   stop = true;
   reader.join();
   const auto after = tx.transport->counters();
-  BulkResult r;
-  r.mechanism = name;
-  r.size = size;
-  r.sent = static_cast<uint64_t>(count);
-  r.received = received.load();
-  r.seconds = static_cast<double>(last.load() - t0) / 1e9;
-  r.mb_per_s = r.seconds > 0 ? static_cast<double>(bytes.load()) / r.seconds / 1e6 : 0;
-  r.loss = 1.0 - static_cast<double>(r.received) / static_cast<double>(r.sent);
-  r.wire_bytes = after.wire_bytes_out - before.wire_bytes_out;
-  return r;
+  return finish(name, sink, size, count, t0, after.wire_bytes_out - before.wire_bytes_out);
 }
 
 void print(const char* name, const Percentiles& p) {
@@ -343,12 +491,16 @@ int main(int argc, char** argv) {
     else if (a == "--bulk-count") o.bulk_count = std::atoi(next().c_str());
     else if (a == "--port") o.port = std::atoi(next().c_str());
     else if (a == "--json") o.json = next();
+    else if (a == "--no-rpc") o.rpc = false;
+    else if (a == "--cpu-report") o.cpu_report = true;
+    else if (a == "--bulk") o.bulk = next();
+    else if (a == "--bulk-rounds") o.bulk_rounds = std::max(1, std::atoi(next().c_str()));
     else if (a == "--cpus") {
       const std::string v = next();
       if (v == "any") { o.cpu_a = o.cpu_b = -1; }
       else if (std::sscanf(v.c_str(), "%d,%d", &o.cpu_a, &o.cpu_b) != 2) { std::fputs(kUsage, stderr); return 2; }
     }
-    else if (a == "--quick") { o.iterations = 1000; o.rounds = 2; o.bulk_count = 60; }
+    else if (a == "--quick") { o.iterations = 1000; o.rounds = 2; o.bulk_count = 100; o.bulk_rounds = 2; }
     else { std::fputs(kUsage, a == "-h" || a == "--help" ? stdout : stderr); return a == "-h" || a == "--help" ? 0 : 2; }
   }
   if (geteuid() != 0) {
@@ -382,6 +534,7 @@ int main(int argc, char** argv) {
       rx_plain = std::make_unique<TimsHost>(1, url, tims::Compression::kNone, 1100 * 1000);
     });
     echo_thread = std::thread([&] {
+      pthread_setname_np(pthread_self(), "B-lcm-handler");
       if (o.cpu_b >= 0) pin(o.cpu_b);
       echo->run();
     });
@@ -397,6 +550,7 @@ int main(int argc, char** argv) {
       tx_plain = std::make_unique<TimsHost>(2, url, tims::Compression::kNone, 64 * 1024);
       tx_zstd = std::make_unique<TimsHost>(3, url, tims::Compression::kZstd, 64 * 1024);
     });
+    pthread_setname_np(pthread_self(), "A-main");
     if (o.cpu_a >= 0) pin(o.cpu_a);  // the measuring (client) thread belongs to host A
     rt::sleep_for(1500 * rt::kNsPerMs);  // discovery warm-up on every side
 
@@ -408,7 +562,7 @@ int main(int argc, char** argv) {
     std::vector<int64_t> rack_rt, lcm_rt;
     uint64_t rack_fail = 0, lcm_fail = 0;
     const int per_block = std::max(1, o.iterations / o.rounds);
-    for (int round = 0; round < o.rounds; ++round) {
+    for (int round = 0; round < (o.rpc ? o.rounds : 0); ++round) {
       for (int w = 0; w < 50; ++w) (void)ep.call(gen, tims::msg::kGetStatus, buf, rt::kNsPerSec);
       for (int i = 0; i < per_block; ++i) {
         const int64_t t0 = rt::monotonic_ns();
@@ -434,19 +588,109 @@ int main(int argc, char** argv) {
                 static_cast<unsigned long long>(rack_fail), static_cast<unsigned long long>(lcm_fail));
 
     // ------------------------------------------------------------ bulk
-    std::vector<BulkResult> bulk;
+    // Per size, the mechanisms alternate in --bulk-rounds rounds (the order flips every
+    // round), so that both see the same load; each round's TiMS/raw ratio is kept.
+    const auto wanted = [&](const std::string& mech) {
+      const std::string list = "," + o.bulk + ",";
+      const bool zstd = mech.find("+zstd") != std::string::npos;
+      const std::string token = std::string(mech.rfind("TiMS", 0) == 0 ? "tims" : "lcm") + (zstd ? "+zstd" : "");
+      return list.find("," + token + ",") != std::string::npos || (zstd && list.find(",zstd,") != std::string::npos);
+    };
+    struct Pair {
+      const char* tims;
+      const char* lcm;
+    };
+    const Pair pairs[2] = {{"TiMS", "raw LCM"}, {"TiMS+zstd", "raw LCM+zstd"}};
+    ZSTD_CCtx* ref_cctx = ZSTD_createCCtx();
+    std::vector<std::vector<BulkResult>> runs;  // per (size, mechanism): one per round
+    std::vector<BulkResult> bulk;                // aggregated over the rounds
+    std::vector<std::string> ratio_lines;
+    std::ostringstream ratios_json;
     for (const std::size_t size : {std::size_t{100 * 1000}, std::size_t{1000 * 1000}}) {
       const int count = size > 500000 ? std::max(10, o.bulk_count / 4) : o.bulk_count;
-      bulk.push_back(bulk_lcm(*echo, *bulk_tx, size, count));
-      bulk.push_back(bulk_tims(*tx_plain, *rx_plain, size, count, "TiMS"));
-      bulk.push_back(bulk_tims(*tx_zstd, *rx_plain, size, count, "TiMS+zstd"));
+      std::map<std::string, std::vector<BulkResult>> by_mech;
+      const auto run = [&](const std::string& mech) {
+        if (!wanted(mech)) return;
+        const auto c0 = CpuSnapshot::take();
+        BulkResult r;
+        if (mech == "raw LCM") r = bulk_lcm(*echo, *bulk_tx, size, count, nullptr);
+        else if (mech == "raw LCM+zstd") r = bulk_lcm(*echo, *bulk_tx, size, count, ref_cctx);
+        else if (mech == "TiMS") r = bulk_tims(*tx_plain, *rx_plain, size, count, "TiMS", o.cpu_b);
+        else r = bulk_tims(*tx_zstd, *rx_plain, size, count, "TiMS+zstd", o.cpu_b);
+        if (o.cpu_report) {
+          std::printf("  %s %zu B: %.1f MB/s\n%s", r.mechanism.c_str(), r.size, r.mb_per_s,
+                      cpu_report(c0, CpuSnapshot::take(), static_cast<double>(r.received * r.size) / 1e6).c_str());
+        }
+        by_mech[mech].push_back(std::move(r));
+      };
+      for (int round = 0; round < o.bulk_rounds; ++round) {
+        for (const auto& pr2 : pairs) {
+          if (round % 2 == 0) { run(pr2.lcm); run(pr2.tims); }
+          else { run(pr2.tims); run(pr2.lcm); }
+        }
+      }
+      for (const char* mech : {"raw LCM", "TiMS", "raw LCM+zstd", "TiMS+zstd"}) {
+        const auto& rs = by_mech[mech];
+        if (rs.empty()) continue;
+        BulkResult agg;
+        agg.mechanism = mech;
+        agg.size = size;
+        std::vector<double> rates;
+        for (const auto& r : rs) {
+          agg.sent += r.sent;
+          agg.received += r.received;
+          agg.wire_bytes += r.wire_bytes;
+          agg.latency_ns.insert(agg.latency_ns.end(), r.latency_ns.begin(), r.latency_ns.end());
+          rates.push_back(r.mb_per_s);
+        }
+        std::sort(rates.begin(), rates.end());
+        agg.mb_per_s = rates[(rates.size() - 1) / 2];  // median round (lower median)
+        agg.loss = 1.0 - static_cast<double>(agg.received) / static_cast<double>(agg.sent);
+        bulk.push_back(agg);
+        runs.push_back(rs);
+      }
+      for (const auto& pr2 : pairs) {
+        const auto& t = by_mech[pr2.tims];
+        const auto& l = by_mech[pr2.lcm];
+        if (t.empty() || t.size() != l.size()) continue;
+        std::vector<double> q;
+        for (std::size_t i = 0; i < t.size(); ++i) q.push_back(l[i].mb_per_s > 0 ? t[i].mb_per_s / l[i].mb_per_s : 0);
+        std::sort(q.begin(), q.end());
+        const double med = q.size() % 2 != 0 ? q[q.size() / 2] : (q[q.size() / 2 - 1] + q[q.size() / 2]) / 2;
+        char line[200];
+        std::snprintf(line, sizeof line, "  %-9s / %-12s %7zu B: ratio per round p50 %.2fx, min %.2fx, max %.2fx (%zu rounds)",
+                      pr2.tims, pr2.lcm, size, med, q.front(), q.back(), q.size());
+        ratio_lines.emplace_back(line);
+        ratios_json << (ratios_json.tellp() > 0 ? ", " : "") << "{\"tims\": \"" << pr2.tims << "\", \"reference\": \""
+                    << pr2.lcm << "\", \"size\": " << size << ", \"p50\": " << rack::bench::json_number(med)
+                    << ", \"min\": " << rack::bench::json_number(q.front())
+                    << ", \"max\": " << rack::bench::json_number(q.back()) << ", \"rounds\": " << q.size() << "}";
+      }
     }
-    std::printf("Bulk A -> B (sender as fast as it may):\n");
-    for (const auto& b : bulk) {
-      std::printf("  %-10s %7zu B x %4llu: received %4llu (loss %5.1f%%), %7.1f MB/s, wire %.1f MB\n",
+    ZSTD_freeCCtx(ref_cctx);
+    std::printf("Bulk A -> B (sender as fast as it may), %d rounds alternating; MB/s of the median round:\n",
+                o.bulk_rounds);
+    for (std::size_t i = 0; i < bulk.size(); ++i) {
+      auto& b = bulk[i];
+      std::string rounds;
+      for (const auto& r : runs[i]) {
+        if (!rounds.empty()) rounds += ' ';
+        rounds += std::to_string(static_cast<int>(r.mb_per_s));
+      }
+      std::printf("  %-12s %7zu B x %4llu: received %4llu (loss %5.1f%%), %7.1f MB/s (rounds: %s), wire %.1f MB\n",
                   b.mechanism.c_str(), b.size, static_cast<unsigned long long>(b.sent),
-                  static_cast<unsigned long long>(b.received), 100 * b.loss, b.mb_per_s,
+                  static_cast<unsigned long long>(b.received), 100 * b.loss, b.mb_per_s, rounds.c_str(),
                   static_cast<double>(b.wire_bytes) / 1e6);
+    }
+    std::printf("Throughput TiMS / raw LCM (target >= 0.90x, loss no higher):\n");
+    for (const auto& l : ratio_lines) std::printf("%s\n", l.c_str());
+    std::printf("One-way latency per message, send call to receipt (ms; includes the queue in front of a\n"
+                "saturated link, which differs: 6 messages in the TiMS uplink, the socket buffers for LCM):\n");
+    for (auto& b : bulk) {
+      std::vector<int64_t> v = b.latency_ns;
+      const Percentiles p = rack::bench::percentiles_of(v);
+      std::printf("  %-12s %7zu B: p50 %7.2f  p90 %7.2f  p99 %7.2f  max %7.2f\n", b.mechanism.c_str(), b.size,
+                  p.p50_ns / 1e6, p.p90_ns / 1e6, p.p99_ns / 1e6, p.max_ns / 1e6);
     }
 
     if (!o.json.empty()) {
@@ -454,15 +698,18 @@ int main(int argc, char** argv) {
       j << "{\"machine\": " << rack::bench::json_machine() << ", \"url\": \"" << rack::bench::json_escape(url)
         << "\", \"rpc\": {\"tims\": " << rack::bench::json_percentiles(pr)
         << ", \"lcm\": " << rack::bench::json_percentiles(pl) << ", \"tims_failures\": " << rack_fail
-        << ", \"lcm_failures\": " << lcm_fail << "}, \"bulk\": [";
+        << ", \"lcm_failures\": " << lcm_fail << "}, \"bulk_rounds\": " << o.bulk_rounds << ", \"bulk\": [";
       for (std::size_t i = 0; i < bulk.size(); ++i) {
-        const auto& b = bulk[i];
+        auto& b = bulk[i];
+        std::vector<int64_t> v = b.latency_ns;
         j << (i ? ", " : "") << "{\"mechanism\": \"" << b.mechanism << "\", \"size\": " << b.size
           << ", \"sent\": " << b.sent << ", \"received\": " << b.received << ", \"mb_per_s\": "
           << rack::bench::json_number(b.mb_per_s) << ", \"loss\": " << rack::bench::json_number(b.loss)
-          << ", \"wire_bytes\": " << b.wire_bytes << "}";
+          << ", \"wire_bytes\": " << b.wire_bytes << ", \"rounds_mb_per_s\": [";
+        for (std::size_t k = 0; k < runs[i].size(); ++k) j << (k ? ", " : "") << rack::bench::json_number(runs[i][k].mb_per_s);
+        j << "], \"latency\": " << rack::bench::json_percentiles(rack::bench::percentiles_of(v)) << "}";
       }
-      j << "]}\n";
+      j << "], \"bulk_ratios\": [" << ratios_json.str() << "]}\n";
       rack::bench::write_file(o.json, j.str());
     }
 

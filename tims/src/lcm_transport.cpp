@@ -3,7 +3,9 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <poll.h>
+#include <pthread.h>
 #include <sys/socket.h>
+#include <sys/uio.h>
 #include <sys/random.h>
 #include <unistd.h>
 #include <zstd.h>
@@ -11,6 +13,8 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <cstring>
 #include <iostream>
 #include <lcm/lcm-cpp.hpp>
@@ -226,6 +230,7 @@ struct LcmTransport::Impl {
     // less per message; LCM 1.3 has no other way). -1: receive through LCM.
     int raw_fd = -1;
     std::vector<uint8_t> datagram;
+    bool peek_next = false;  // look at the next datagram's head first (read_datagram)
 
     void on_packet(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
       impl->on_packet(*this, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, channel);
@@ -280,6 +285,11 @@ struct LcmTransport::Impl {
   RateLimitedWarn warn;
   std::vector<std::unique_ptr<Network>> networks;
   std::thread sender, large_sender, maintenance;
+  // wait_uplink(): the sender threads wake a waiter only when the uplinks have drained
+  // to its threshold (one wake-up per batch, not per message).
+  std::mutex drain_mutex;
+  std::condition_variable drained;
+  std::atomic<int64_t> drain_threshold{-1};  // -1: nobody waits
   std::atomic<bool> running{false};
   int64_t started_ns = 0;
   std::atomic<int32_t> message_seq{0};
@@ -381,6 +391,103 @@ struct LcmTransport::Impl {
     n.datagram.resize(65536);
   }
 
+  // Reads one datagram from our own socket; false when there is none. A datagram
+  // above kPeekBytes is looked at first (its LCM framing, tims_packet prefix and
+  // message header): what this host does not need (LCM fragments, other channels, our
+  // own packets echoed by multicast, chunks of messages for other hosts, duplicates)
+  // is dropped without copying it out of the kernel, and a chunk of a message being
+  // reassembled is read straight into its reassembly slot. On a shared network every
+  // host hears every 4 MB scan; only its receiver pays for more than the peek.
+  // The peek costs a system call: it is made only while large datagrams come (the one
+  // before was large), so small ones (RPC) are read in one call as before.
+  bool read_datagram(Network& n) {
+    constexpr std::size_t kPeekBytes = 256;
+    if (!n.peek_next) {
+      const ssize_t got = recv(n.raw_fd, n.datagram.data(), n.datagram.size(), MSG_DONTWAIT | MSG_TRUNC);
+      if (got < 0) return false;
+      n.peek_next = static_cast<std::size_t>(got) > kPeekBytes;
+      if (static_cast<std::size_t>(got) > n.datagram.size()) {
+        reject(n, "lcm", [&] { return "datagram of " + std::to_string(got) + " bytes truncated"; });
+      } else {
+        on_datagram(n, n.datagram.data(), static_cast<std::size_t>(got));
+      }
+      return true;
+    }
+    const ssize_t full = recv(n.raw_fd, n.datagram.data(), kPeekBytes, MSG_DONTWAIT | MSG_PEEK | MSG_TRUNC);
+    if (full < 0) return false;
+    const auto size = static_cast<std::size_t>(full);
+    n.peek_next = size > kPeekBytes;
+    const auto discard = [&] { (void)recv(n.raw_fd, nullptr, 0, MSG_DONTWAIT); };
+    if (size > n.datagram.size()) {
+      discard();
+      reject(n, "lcm", [&] { return "datagram of " + std::to_string(size) + " bytes truncated"; });
+      return true;
+    }
+    const uint8_t* d = n.datagram.data();
+    const auto read_whole = [&] {
+      const ssize_t got = recv(n.raw_fd, n.datagram.data(), n.datagram.size(), MSG_DONTWAIT);
+      if (got >= 0) on_datagram(n, n.datagram.data(), static_cast<std::size_t>(got));
+    };
+    if (size <= kPeekBytes || size < 8) {
+      read_whole();
+      return true;
+    }
+    const auto magic = static_cast<uint32_t>(get_be(d, 4));
+    if (magic == kLcmFragmentMagic) {  // someone else's large LCM message
+      discard();
+      return true;
+    }
+    const auto* name = reinterpret_cast<const char*>(d + 8);
+    const std::size_t len = strnlen(name, 64);
+    if (magic != kLcmShortMagic || len == 64) {  // on_datagram says what is wrong
+      read_whole();
+      return true;
+    }
+    const std::string_view channel(name, len);
+    if (channel != kTimsChannel) {
+      // Large announcements are read whole; other channels (GDOS, tools) are not ours.
+      if (channel == kAnnounceChannel || channel == kDiscoverChannel) {
+        read_whole();
+      } else {
+        discard();
+      }
+      return true;
+    }
+    const std::size_t at = 8 + len + 1;  // the tims_packet
+    const ChunkPlan plan = plan_chunk(n, d + at, size - at, kTimsChannel);
+    if (plan.kind == ChunkPlan::kSingle) {
+      read_whole_packet(n, at, size);
+      return true;
+    }
+    if (plan.kind != ChunkPlan::kSlot) {
+      discard();
+      return true;
+    }
+    // LCM framing and prefix into the datagram buffer, the chunk into its slot.
+    iovec iov[2] = {{n.datagram.data(), at + kPacketPrefix}, {plan.slot->data.data() + plan.offset, plan.size}};
+    msghdr mh{};
+    mh.msg_iov = iov;
+    mh.msg_iovlen = 2;
+    const ssize_t got = recvmsg(n.raw_fd, &mh, MSG_DONTWAIT);
+    if (got != static_cast<ssize_t>(size)) {
+      unplan_chunk(*plan.slot, plan.offset);  // cannot happen (one reader per socket)
+      return got >= 0;
+    }
+    finish_chunk(n, *plan.slot);
+    return true;
+  }
+
+  // A single-chunk message whose prefix was planned already: read it, take it.
+  void read_whole_packet(Network& n, std::size_t at, std::size_t size) {
+    const ssize_t got = recv(n.raw_fd, n.datagram.data(), n.datagram.size(), MSG_DONTWAIT);
+    if (got != static_cast<ssize_t>(size)) return;
+    const uint8_t* d = n.datagram.data() + at;
+    take_stream(n, reinterpret_cast<const std::byte*>(d + kPacketPrefix), false,
+                static_cast<uint32_t>(size - at - kPacketPrefix), static_cast<uint32_t>(get_i32(d + kOffTotal)),
+                static_cast<int8_t>(d[kOffEncoding]), get_i64(d + kOffOrigin), get_i32(d + kOffMessageSeq),
+                static_cast<int8_t>(d[kOffHops]));
+  }
+
   // One datagram from our own socket: LCM's framing, then our channels.
   void on_datagram(Network& n, const uint8_t* d, std::size_t size) {
     if (size < 8) {
@@ -417,11 +524,18 @@ struct LcmTransport::Impl {
     uint32_t encoded = len;
     int8_t encoding = 0;
     if (n.cctx != nullptr && len >= n.config.compress_min_bytes) {
-      const std::size_t c = ZSTD_compressCCtx(n.cctx, n.compressed.data(), n.compressed.size(), msg, len, 1);
-      if (ZSTD_isError(c) == 0 && c < len) {
+      // Encoding 2: the 16-byte header as it is, then the body as one zstd frame. Every
+      // host reads the destination from the first chunk and drops the rest of a message
+      // for another host unread (encoding 1, the whole message compressed, made every
+      // host on the network reassemble and decompress every compressed message).
+      constexpr std::size_t kHead = sizeof(MessageHeader);
+      const std::size_t c = ZSTD_compressCCtx(n.cctx, n.compressed.data() + kHead, n.compressed.size() - kHead,
+                                              msg + kHead, len - kHead, 1);
+      if (ZSTD_isError(c) == 0 && kHead + c < len) {
+        std::memcpy(n.compressed.data(), msg, kHead);
         stream = n.compressed.data();
-        encoded = static_cast<uint32_t>(c);
-        encoding = 1;
+        encoded = static_cast<uint32_t>(kHead + c);
+        encoding = 2;
         writable = true;  // our own buffer
         bump(compressed_out);
       }
@@ -608,7 +722,7 @@ struct LcmTransport::Impl {
   void report_lost(Network& n, Reassembly& s, const char* why) {
     bump(lost_messages);
     std::string what = "message " + std::to_string(s.message_seq) + " of origin " + origin_text(s.origin);
-    if (s.have[0] != 0 && s.encoding == 0 && s.total >= sizeof(MessageHeader)) {
+    if (s.have[0] != 0 && s.encoding != 1 && s.total >= sizeof(MessageHeader)) {
       MessageHeader h;
       if (decode_header(std::span<const std::byte>(s.data.data(), s.total), h) != MessageError::kOk) {
         // decode_header checks the length too, which is the full one here: read raw.
@@ -634,15 +748,42 @@ struct LcmTransport::Impl {
     }
   }
 
+  // Where a chunk's bytes go: nowhere (dropped, counted as the checks say), a
+  // single-chunk message (handled from the datagram), or a reassembly slot at `offset`.
+  struct ChunkPlan {
+    enum Kind : uint8_t { kDrop, kSingle, kSlot } kind = kDrop;
+    Reassembly* slot = nullptr;
+    uint32_t offset = 0;
+    uint32_t size = 0;
+  };
+
+  // A whole datagram's tims_packet (from LCM, or read whole from our socket).
   void on_packet(Network& n, const uint8_t* d, std::size_t size, const std::string& channel) {
+    const ChunkPlan plan = plan_chunk(n, d, size, channel);
+    if (plan.kind == ChunkPlan::kSingle) {
+      const int32_t total = get_i32(d + kOffTotal);
+      return take_stream(n, reinterpret_cast<const std::byte*>(d + kPacketPrefix), false, plan.size,
+                         static_cast<uint32_t>(total), static_cast<int8_t>(d[kOffEncoding]), get_i64(d + kOffOrigin),
+                         get_i32(d + kOffMessageSeq), static_cast<int8_t>(d[kOffHops]));
+    }
+    if (plan.kind != ChunkPlan::kSlot) return;
+    std::memcpy(plan.slot->data.data() + plan.offset, d + kPacketPrefix, plan.size);
+    finish_chunk(n, *plan.slot);
+  }
+
+  // Validates a tims_packet of `size` bytes of which the prefix and, for a first chunk,
+  // the message header are at `d` (the rest of the chunk may still be in the socket),
+  // and says where its bytes go. A chunk planned into a slot is marked received there:
+  // the caller copies it and calls finish_chunk().
+  ChunkPlan plan_chunk(Network& n, const uint8_t* d, std::size_t size, const std::string& channel) {
     bump(packets_in);
     if (size < kPacketPrefix) {
-      return reject(n, "short", [&] {
+      return rejected(n, "short", [&] {
         return "'" + channel + "': " + std::to_string(size) + " bytes, shorter than a tims_packet";
       });
     }
     if (get_be(d, 8) != static_cast<uint64_t>(rack_lcm::tims_packet::getHash())) {
-      return reject(n, "type", [&] { return "'" + channel + "': not a rack_lcm.tims_packet (fingerprint differs)"; });
+      return rejected(n, "type", [&] { return "'" + channel + "': not a rack_lcm.tims_packet (fingerprint differs)"; });
     }
     const int64_t pkt_origin = get_i64(d + kOffOrigin);
     const int64_t relay = get_i64(d + kOffRelay);
@@ -655,20 +796,21 @@ struct LcmTransport::Impl {
     const auto hops = static_cast<int8_t>(d[kOffHops]);
     const int32_t chunk = get_i32(d + kOffSize);
     if (static_cast<int64_t>(chunk) != static_cast<int64_t>(size - kPacketPrefix)) {
-      return reject(n, "size", [&] {
+      return rejected(n, "size", [&] {
         return "size field " + std::to_string(chunk) + " but " + std::to_string(size - kPacketPrefix) +
                " bytes follow";
       });
     }
-    if (pkt_origin == origin || relay == origin) return;  // our own packet, back over multicast
+    if (pkt_origin == origin || relay == origin) return {};  // our own packet, back over multicast
     count_gap(n, relay != 0 ? relay : pkt_origin, pseq);
     const uint32_t max_encoded = static_cast<uint32_t>(n.slots[0].data.size());
     if (total < static_cast<int32_t>(sizeof(MessageHeader)) || static_cast<uint32_t>(total) > config.max_message_bytes ||
         encoded < 0 || static_cast<uint32_t>(encoded) > max_encoded || offset < 0 || static_cast<uint32_t>(offset) % kChunk != 0 ||
         static_cast<int64_t>(offset) + chunk > encoded ||
         (static_cast<int64_t>(offset) + chunk != encoded && static_cast<uint32_t>(chunk) != kChunk) ||
-        (encoding != 0 && encoding != 1) || (encoding == 0 && encoded != total) || hops < 0 || hops > kMaxHops) {
-      return reject(n, "fields", [&] {
+        encoding < 0 || encoding > 2 || (encoding == 0 && encoded != total) ||
+        (encoding == 2 && encoded <= static_cast<int32_t>(sizeof(MessageHeader))) || hops < 0 || hops > kMaxHops) {
+      return rejected(n, "fields", [&] {
         return "bad chunk fields (total " + std::to_string(total) + ", encoded " + std::to_string(encoded) +
                ", offset " + std::to_string(offset) + ", size " + std::to_string(chunk) + ", encoding " +
                std::to_string(encoding) + ", hops " + std::to_string(hops) + ", limit " +
@@ -677,22 +819,21 @@ struct LcmTransport::Impl {
     }
     const auto* data = reinterpret_cast<const std::byte*>(d + kPacketPrefix);
     if (offset == 0 && chunk == encoded) {  // one chunk: the common case
-      return take_stream(n, data, false, static_cast<uint32_t>(encoded), static_cast<uint32_t>(total), encoding, pkt_origin,
-                         mseq, hops);
+      return {ChunkPlan::kSingle, nullptr, 0, static_cast<uint32_t>(chunk)};
     }
     for (const auto& k : n.skipped) {
-      if (k.first == pkt_origin && k.second == mseq && pkt_origin != 0) return;
+      if (k.first == pkt_origin && k.second == mseq && pkt_origin != 0) return {};
     }
     Reassembly* slot = nullptr;
     for (auto& s : n.slots) {
       if (s.used && s.origin == pkt_origin && s.message_seq == mseq) slot = &s;
     }
-    if (offset == 0 && encoding == 0 && !wants(data, static_cast<std::size_t>(chunk))) {
+    if (offset == 0 && encoding != 1 && !wants(data, static_cast<std::size_t>(chunk))) {
       bump(not_for_us);
       n.skipped[n.next_skipped] = {pkt_origin, mseq};
       n.next_skipped = (n.next_skipped + 1) % n.skipped.size();
       if (slot != nullptr) slot->used = false;  // chunks that came before the first
-      return;
+      return {};
     }
     if (slot == nullptr) {
       for (auto& s : n.slots) {
@@ -718,21 +859,38 @@ struct LcmTransport::Impl {
       std::fill(slot->have.begin(), slot->have.end(), 0);
     } else if (slot->total != static_cast<uint32_t>(total) || slot->encoded != static_cast<uint32_t>(encoded) ||
                slot->encoding != encoding) {
-      return reject(n, "chunk", [&] { return std::string("a chunk disagrees with its message's first chunk"); });
+      reject(n, "chunk", [&] { return std::string("a chunk disagrees with its message's first chunk"); });
+      return {};
     }
     const uint32_t index = static_cast<uint32_t>(offset) / kChunk;
     if (index >= slot->have.size()) {  // cannot happen after the checks above; belt and braces
-      return reject(n, "chunk", [&] { return "chunk index " + std::to_string(index) + " out of range"; });
+      reject(n, "chunk", [&] { return "chunk index " + std::to_string(index) + " out of range"; });
+      return {};
     }
-    if (slot->have[index] != 0) return;  // duplicate
+    if (slot->have[index] != 0) return {};  // duplicate
     slot->have[index] = 1;
     ++slot->received;
-    std::memcpy(slot->data.data() + offset, data, static_cast<std::size_t>(chunk));
-    if (slot->received == slot->chunks) {
-      slot->used = false;
-      take_stream(n, slot->data.data(), true, slot->encoded, slot->total, slot->encoding, slot->origin, slot->message_seq,
-                  slot->hops);
-    }
+    return {ChunkPlan::kSlot, slot, static_cast<uint32_t>(offset), static_cast<uint32_t>(chunk)};
+  }
+
+  ChunkPlan rejected(Network& n, const std::string& kind, const std::function<std::string()>& why) {
+    reject(n, kind, why);
+    return {};
+  }
+
+  // A chunk's bytes are in its slot: hands the message on when it is complete.
+  void finish_chunk(Network& n, Reassembly& slot) {
+    if (slot.received != slot.chunks) return;
+    slot.used = false;
+    take_stream(n, slot.data.data(), true, slot.encoded, slot.total, slot.encoding, slot.origin, slot.message_seq,
+                slot.hops);
+  }
+
+  // A planned chunk that did not arrive after all (the socket read failed): the slot
+  // waits for it again, as for a lost datagram.
+  void unplan_chunk(Reassembly& slot, uint32_t offset) {
+    slot.have[offset / kChunk] = 0;
+    --slot.received;
   }
 
   // Whether a message whose first bytes (its header, any byte order) are `head` is worth
@@ -765,6 +923,26 @@ struct LcmTransport::Impl {
       if (ZSTD_isError(got) != 0 || got != total) {
         return reject(n, "zstd", [&] {
           return std::string("compressed message does not decompress: ") +
+                 (ZSTD_isError(got) != 0 ? ZSTD_getErrorName(got) : "wrong size");
+        });
+      }
+    } else if (encoding == 2) {
+      // The header as it is, then the body's frame (encoded > 16: checked on receipt).
+      constexpr std::size_t kHead = sizeof(MessageHeader);
+      if (!wants(stream, encoded)) {  // a one-chunk message for another host: not decompressed
+        bump(not_for_us);
+        return;
+      }
+      const std::size_t body = total - kHead;
+      const unsigned long long size = ZSTD_getFrameContentSize(stream + kHead, encoded - kHead);
+      if (total < kHead || size != body) {
+        return reject(n, "zstd", [&] { return std::string("compressed body whose frame size differs from its total"); });
+      }
+      std::memcpy(n.message.data(), stream, kHead);
+      const std::size_t got = ZSTD_decompressDCtx(n.dctx, n.message.data() + kHead, body, stream + kHead, encoded - kHead);
+      if (ZSTD_isError(got) != 0 || got != body) {
+        return reject(n, "zstd", [&] {
+          return std::string("compressed body does not decompress: ") +
                  (ZSTD_isError(got) != 0 ? ZSTD_getErrorName(got) : "wrong size");
         });
       }
@@ -1003,13 +1181,7 @@ struct LcmTransport::Impl {
         } else {
           // Drain what is there; a burst (a large message) is many datagrams.
           for (int i = 0; i < 256; ++i) {
-            const ssize_t got = recv(n.raw_fd, n.datagram.data(), n.datagram.size(), MSG_DONTWAIT | MSG_TRUNC);
-            if (got < 0) break;
-            if (static_cast<std::size_t>(got) > n.datagram.size()) {
-              reject(n, "lcm", [&] { return "datagram of " + std::to_string(got) + " bytes truncated"; });
-              continue;
-            }
-            on_datagram(n, n.datagram.data(), static_cast<std::size_t>(got));
+            if (!read_datagram(n)) break;
           }
         }
       }
@@ -1089,7 +1261,17 @@ struct LcmTransport::Impl {
       for_networks_to(h.destination(),
                       [&](Network& n) { (void)publish_message(n, bytes, h.length, origin, 0, 0, seq, true); });
       box.peek_end();
+      notify_drained();
     }
+  }
+
+  uint32_t uplink_queued() const { return uplink.queued() + large_uplink.queued(); }
+
+  void notify_drained() {
+    const int64_t threshold = drain_threshold.load(std::memory_order_acquire);
+    if (threshold < 0 || uplink_queued() > threshold) return;
+    std::lock_guard lock(drain_mutex);
+    drained.notify_all();
   }
 };
 
@@ -1108,11 +1290,24 @@ void LcmTransport::start() {
   m.router.add(m.control);
   for (auto& n : m.networks) {
     Impl::Network* net = n.get();
-    net->receiver = std::thread([&m, net] { m.receive_loop(*net); });
+    // Named for top/ps on a robot (and bench_lcm's CPU accounting).
+    net->receiver = std::thread([&m, net] {
+      pthread_setname_np(pthread_self(), "tims-rx");
+      m.receive_loop(*net);
+    });
   }
-  m.sender = std::thread([&m] { m.send_loop(m.uplink); });
-  m.large_sender = std::thread([&m] { m.send_loop(m.large_uplink); });
-  m.maintenance = std::thread([&m] { m.maintenance_loop(); });
+  m.sender = std::thread([&m] {
+    pthread_setname_np(pthread_self(), "tims-tx");
+    m.send_loop(m.uplink);
+  });
+  m.large_sender = std::thread([&m] {
+    pthread_setname_np(pthread_self(), "tims-tx-large");
+    m.send_loop(m.large_uplink);
+  });
+  m.maintenance = std::thread([&m] {
+    pthread_setname_np(pthread_self(), "tims-maint");
+    m.maintenance_loop();
+  });
   m.publish_announcement(nullptr);
   request_discovery();
 }
@@ -1179,6 +1374,28 @@ void LcmTransport::request_discovery() {
     std::lock_guard lock(n->publish_mutex);
     if (n->lcm->publish(kDiscoverChannel, &req) != 0) bump(m.publish_errors);
   }
+}
+
+bool LcmTransport::wait_uplink(uint32_t max_queued, int64_t timeout_ns) {
+  Impl& m = *impl_;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
+  std::unique_lock lock(m.drain_mutex);
+  // One waiter's threshold at a time is enough for the tools that use this; a second
+  // waiter with another threshold still wakes by the timeout's bounded re-checks.
+  m.drain_threshold.store(max_queued, std::memory_order_release);
+  bool ok = true;
+  while (m.running.load() && m.uplink_queued() > max_queued) {
+    // The sender reads the threshold after its mailbox changed and notifies under the
+    // mutex, so no wake-up is lost; the 10 ms re-check is a bound, not the mechanism.
+    if (m.drained.wait_until(lock, std::min(deadline, std::chrono::steady_clock::now() + std::chrono::milliseconds(10))) ==
+            std::cv_status::timeout &&
+        std::chrono::steady_clock::now() >= deadline) {
+      ok = m.uplink_queued() <= max_queued;
+      break;
+    }
+  }
+  m.drain_threshold.store(-1, std::memory_order_release);
+  return ok;
 }
 
 void LcmTransport::wait_until_warm() const {

@@ -46,7 +46,8 @@
 //
 // Real-time contract: nothing here is RT-safe; everything is set-up or runs in the
 // transport's own non-RT threads. Thread-safety: hosts(), counters(),
-// set_announcement() and request_discovery() may be called from any non-RT thread.
+// set_announcement(), request_discovery() and wait_uplink() may be called from any
+// non-RT thread.
 #pragma once
 
 #include <cstdint>
@@ -166,6 +167,11 @@ class LcmTransport {
   void request_discovery();
   // Blocks until the warm-up after start() has passed (the discovery table is full).
   void wait_until_warm() const;
+  // Blocks until the uplinks hold at most `max_queued` messages not yet handed to LCM,
+  // or `timeout_ns` passed (then false). Back-pressure for non-RT bulk senders (tools,
+  // log players, bench_lcm) that must not overrun the uplink, which drops its oldest
+  // message when full; RT tasks never wait here. Not RT-safe.
+  bool wait_uplink(uint32_t max_queued, int64_t timeout_ns);
   // Live hosts heard from (announcements), one entry per host.
   [[nodiscard]] std::vector<HostInfo> hosts() const;
 
