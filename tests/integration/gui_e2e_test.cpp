@@ -1,0 +1,111 @@
+// End to end: the dashboard in headless Chromium (Debian's chromium, driven by
+// Playwright's playwright-core from npm) against rack-gui and a real rackd running
+// the simulated robot of configs/sim_mcl.yaml, on a private LCM bus. The browser
+// part is tools/gui/web/e2e/e2e.mjs; screenshots of every view are kept in the build
+// directory (tests/integration/gui_e2e_artifacts/).
+//
+// Skips (with the reason) only when node or chromium is not installed; a missing
+// npm install or front-end build is a failure (scripts/setup.sh does both).
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "process.h"
+
+namespace rack::test {
+namespace {
+
+using namespace std::chrono_literals;
+
+const std::string kRackd = RACK_RACKD_PATH;
+const std::string kGui = RACK_GUI_PATH;
+const std::string kConfigs = RACK_CONFIGS_DIR;
+const std::string kWeb = RACK_GUI_WEB_DIR;
+const std::string kArtifacts = RACK_GUI_ARTIFACTS_DIR;
+
+std::optional<std::string> find_program(const std::string& name) {
+  const char* path = std::getenv("PATH");
+  std::string p = path != nullptr ? path : "/usr/bin:/bin";
+  std::size_t start = 0;
+  while (start <= p.size()) {
+    const auto end = p.find(':', start);
+    const std::string dir = p.substr(start, end == std::string::npos ? std::string::npos : end - start);
+    const std::string candidate = (dir.empty() ? "." : dir) + "/" + name;
+    if (access(candidate.c_str(), X_OK) == 0) return candidate;
+    if (end == std::string::npos) break;
+    start = end + 1;
+  }
+  return std::nullopt;
+}
+
+class GuiE2eTest : public ::testing::Test {
+ protected:
+  GuiE2eTest() : watchdog_(150s, "GuiE2eTest") {}
+
+  // configs/sim_mcl.yaml with absolute map paths (rackd and rack-gui then need no
+  // common working directory).
+  std::string host_file() {
+    std::string text = read_file(kConfigs + "/sim_mcl.yaml");
+    const std::string rel = "map: configs/maps/office.yaml";
+    const std::string abs = "map: " + kConfigs + "/maps/office.yaml";
+    int replaced = 0;
+    for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + abs.size())) {
+      text.replace(at, rel.size(), abs);
+      ++replaced;
+    }
+    EXPECT_EQ(replaced, 3) << "sim_mcl.yaml names the map for chassis, ladar and MCL";
+    return dir_.write("sim_mcl.yaml", text).string();
+  }
+
+  TempDir dir_;
+  LcmBus bus_;
+  Watchdog watchdog_;
+};
+
+TEST_F(GuiE2eTest, DashboardOperatesTheSimulatedRobotInChromium) {
+  const auto node = find_program("node");
+  const char* chromium_env = std::getenv("RACK_CHROMIUM");
+  const std::string chromium = chromium_env != nullptr ? chromium_env : "/usr/bin/chromium";
+  if (!node) GTEST_SKIP() << "node is not installed (Debian: apt-get install nodejs); scripts/setup.sh installs it";
+  if (access(chromium.c_str(), X_OK) != 0) {
+    GTEST_SKIP() << chromium << " is not installed (Debian: apt-get install chromium); scripts/setup.sh installs it";
+  }
+  ASSERT_TRUE(std::filesystem::exists(kWeb + "/node_modules/playwright-core"))
+      << "playwright-core is missing: run scripts/setup.sh (npm ci in " << kWeb << ")";
+  ASSERT_TRUE(std::filesystem::exists(kWeb + "/dist/index.html"))
+      << "the front end is not built: run scripts/setup.sh (npm run build in " << kWeb << ")";
+
+  Process rackd({kRackd, host_file(), "--lcm", bus_.url()}, dir_.path(), "rackd");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
+  Process gui({kGui, "--port", "0", "--lcm", bus_.url(), "--web", kWeb + "/dist"}, dir_.path(), "rack-gui");
+  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
+  const std::string err = gui.err();
+  const auto at = err.find("http://");
+  const std::string url = err.substr(at, err.find(' ', at) - at);
+
+  std::filesystem::create_directories(kArtifacts);
+  const RunResult r = run({*node, kWeb + "/e2e/e2e.mjs", "--url", url, "--chromium", chromium, "--shots", kArtifacts,
+                           "--rackd-pid", std::to_string(rackd.pid())},
+                          120s);
+  std::printf("%s", r.out.c_str());
+  EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui.err();
+  for (const char* shot : {"components.png", "map.png", "gdos.png", "details-pilot.png", "details-chassis.png",
+                           "details-ladar.png", "reports.png", "destination.png", "joystick.png", "no-reply.png"}) {
+    EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(kArtifacts) / shot)) << shot;
+  }
+  // The browser's malformed messages were refused and counted by rack-gui.
+  gui.signal(SIGTERM);
+  EXPECT_EQ(gui.wait_exit(10s), std::optional<int>(0)) << gui.err();
+  EXPECT_NE(gui.err().find("malformed client message"), std::string::npos) << gui.err();
+}
+
+}  // namespace
+}  // namespace rack::test
