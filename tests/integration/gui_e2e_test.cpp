@@ -27,6 +27,7 @@ using namespace std::chrono_literals;
 
 const std::string kRackd = RACK_RACKD_PATH;
 const std::string kGui = RACK_GUI_PATH;
+const std::string kRackctl = RACK_RACKCTL_PATH;
 const std::string kConfigs = RACK_CONFIGS_DIR;
 const std::string kWeb = RACK_GUI_WEB_DIR;
 const std::string kArtifacts = RACK_GUI_ARTIFACTS_DIR;
@@ -65,6 +66,24 @@ class GuiE2eTest : public ::testing::Test {
     return dir_.write("sim_mcl.yaml", text).string();
   }
 
+  // A second robot (system 1): the mode-switch demo, its reports in `crash_dir`.
+  std::string second_robot(const std::string& crash_dir) {
+    return dir_
+        .write("robot1.yaml",
+               "host: robot1-demo\n"
+               "system: 1\n"
+               "lcm: true\n"
+               "modeswitch: {crash_dir: " + crash_dir + ", stderr: false}\n"
+               "components:\n"
+               "  - name: demo\n"
+               "    class: ModeSwitchDemo\n"
+               "    instance: 0\n"
+               "    autostart: true\n"
+               "    command_task: {priority: 30}\n"
+               "    data_task: {priority: 40, period_ms: 20}\n")
+        .string();
+  }
+
   TempDir dir_;
   LcmBus bus_;
   Watchdog watchdog_;
@@ -85,7 +104,15 @@ TEST_F(GuiE2eTest, DashboardOperatesTheSimulatedRobotInChromium) {
 
   Process rackd({kRackd, host_file(), "--lcm", bus_.url()}, dir_.path(), "rackd");
   ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
-  Process gui({kGui, "--port", "0", "--lcm", bus_.url(), "--web", kWeb + "/dist"}, dir_.path(), "rack-gui");
+  const std::string crash_dir = (dir_.path() / "reports").string();
+  std::filesystem::create_directories(crash_dir);
+  Process robot1({kRackd, second_robot(crash_dir), "--lcm", bus_.url()}, dir_.path(), "rackd-robot1");
+  ASSERT_TRUE(robot1.wait_for_stderr("rackd: running", 30s)) << robot1.err();
+  // The demo calls write() in a command handler: one SYSCALL report in the file.
+  const RunResult sent = run({kRackctl, "--lcm", bus_.url(), "--discover-ms", "3000", "send", "demo", "21"}, 30s);
+  ASSERT_EQ(sent.exit_code, 0) << sent.describe();
+  Process gui({kGui, "--port", "0", "--lcm", bus_.url(), "--web", kWeb + "/dist", "--reports", crash_dir}, dir_.path(),
+              "rack-gui");
   ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
   const std::string err = gui.err();
   const auto at = err.find("http://");
@@ -97,7 +124,7 @@ TEST_F(GuiE2eTest, DashboardOperatesTheSimulatedRobotInChromium) {
                           120s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui.err();
-  for (const char* shot : {"components.png", "map.png", "gdos.png", "details-pilot.png", "details-chassis.png",
+  for (const char* shot : {"components.png", "all-off.png", "map.png", "gdos.png", "details-pilot.png", "details-chassis.png",
                            "details-ladar.png", "reports.png", "destination.png", "joystick.png", "no-reply.png"}) {
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(kArtifacts) / shot)) << shot;
   }

@@ -3,6 +3,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -199,11 +201,13 @@ struct Backend::Impl {
     running = true;
     worker = std::thread([this] { run_worker(); });
     gdos_thread = std::thread([this] { run_gdos(); });
+    if (!config.reports_dir.empty()) reports_thread = std::thread([this] { run_reports(); });
   }
   void stop() {
     if (!running.exchange(false)) return;
     if (worker.joinable()) worker.join();
     if (gdos_thread.joinable()) gdos_thread.join();
+    if (reports_thread.joinable()) reports_thread.join();
     transport.stop();
   }
 
@@ -420,13 +424,40 @@ struct Backend::Impl {
             robots[comp.system].claimed = cd.active_pilot == reply_mailbox.address().raw();
           }
         }
-        std::string m = "{\"type\":\"data\",\"component\":\"" + address_text(a) + "\",\"name\":\"" +
-                        rack::json_escape(comp.info.name) + "\",\"class\":\"" + class_text(a) +
-                        "\",\"system\":" + std::to_string(comp.system) + ",\"time_ns\":" + std::to_string(sh.time_ns) +
-                        ",\"sequence\":" + std::to_string(sh.sequence) +
-                        ",\"data\":" + rack::payload_to_json(type->fields, sample, r->native()) + "}";
-        broadcast(std::move(m));
+        json data = json::parse(rack::payload_to_json(type->fields, sample, r->native()), nullptr, false);
+        if (data.is_discarded()) return;
+        trim_arrays(a.class_id(), data);
+        broadcast(dump(json{{"type", "data"},
+                            {"component", address_text(a)},
+                            {"name", comp.info.name},
+                            {"class", class_text(a)},
+                            {"system", comp.system},
+                            {"time_ns", sh.time_ns},
+                            {"sequence", sh.sequence},
+                            {"data", std::move(data)}}));
       });
+    }
+  }
+
+  // Fixed-capacity arrays are sent only up to their count (a scan of 541 beams, not
+  // 1081 slots): a fifth of the bytes on a robot's Wi-Fi or SSH tunnel.
+  static void trim_arrays(uint8_t cls, json& d) {
+    const auto cut = [&d](const char* count, std::initializer_list<const char*> arrays) {
+      if (!d.contains(count) || !d[count].is_number_unsigned()) return;
+      const auto n = d[count].get<std::size_t>();
+      for (const char* a : arrays) {
+        if (d.contains(a) && d[a].is_array() && d[a].size() > n) d[a].erase(d[a].begin() + static_cast<std::ptrdiff_t>(n), d[a].end());
+      }
+    };
+    switch (cls) {
+      case classes::kLadar: cut("beam_count", {"range", "intensity"}); break;
+      case classes::kScan2d: cut("point_count", {"x", "y", "range", "bearing", "type"}); break;
+      case classes::kPath:
+        cut("point_count", {"x", "y"});
+        cut("waypoint_count", {"waypoint_x", "waypoint_y"});
+        break;
+      case classes::kMcl: cut("shown", {"particle_x", "particle_y", "particle_phi", "particle_weight"}); break;
+      default: break;
     }
   }
 
@@ -949,6 +980,82 @@ struct Backend::Impl {
     }
   }
 
+  // Every 2 s: report files that are new or changed are symbolized again.
+  void run_reports() {
+    struct Seen {
+      std::uintmax_t size = 0;
+      std::filesystem::file_time_type mtime;
+    };
+    std::map<std::string, Seen> seen;
+    bool warned = false;
+    while (running.load()) {
+      std::error_code ec;
+      std::vector<std::filesystem::path> files;
+      for (std::filesystem::directory_iterator it(config.reports_dir, ec), end; !ec && it != end; it.increment(ec)) {
+        const auto name = it->path().filename().string();
+        if (name.rfind("rackd-", 0) == 0 && it->path().extension() == ".report") files.push_back(it->path());
+      }
+      if (ec && !warned && ec != std::errc::no_such_file_or_directory) {
+        std::fprintf(stderr, "rack-gui: reports: %s: %s\n", config.reports_dir.c_str(), ec.message().c_str());
+        warned = true;
+      }
+      bool changed = false;
+      for (const auto& f : files) {
+        std::error_code e1, e2;
+        const Seen now{std::filesystem::file_size(f, e1), std::filesystem::last_write_time(f, e2)};
+        if (e1 || e2) continue;
+        auto& old = seen[f.string()];
+        if (old.size == now.size && old.mtime == now.mtime) continue;
+        old = now;
+        const std::string text = symbolize(f.string());
+        const std::lock_guard lock(greet_mutex);
+        report_texts[f.string()] = text;
+        changed = true;
+      }
+      if (changed) broadcast(reports_message());
+      for (int i = 0; i < 20 && running.load(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  }
+
+  std::string backtrace_program() const {
+    if (!config.backtrace_path.empty()) return config.backtrace_path;
+    std::error_code ec;
+    const auto self = std::filesystem::read_symlink("/proc/self/exe", ec).parent_path();
+    // Installed: beside rack-gui; in a build tree: tools/rack-backtrace next to tools/gui/.
+    for (const auto& candidate : {self / "rack-backtrace", self.parent_path() / "rack-backtrace"}) {
+      if (!ec && access(candidate.c_str(), X_OK) == 0) return candidate.string();
+    }
+    return "rack-backtrace";  // on PATH
+  }
+
+  // rack-backtrace FILE, its output (and errors), at most 256 KiB.
+  std::string symbolize(const std::string& file) const {
+    const auto quote = [](const std::string& s) {
+      std::string q = "'";
+      for (const char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+      return q + "'";
+    };
+    const std::string cmd = quote(backtrace_program()) + " " + quote(file) + " 2>&1";
+    FILE* p = popen(cmd.c_str(), "r");
+    if (p == nullptr) return "cannot run rack-backtrace: " + std::string(std::strerror(errno));
+    std::string out;
+    char buf[4096];
+    std::size_t n = 0;
+    while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) {
+      if (out.size() < 256 * 1024) out.append(buf, n);
+    }
+    const int status = pclose(p);
+    if (status != 0 && out.empty()) out = "rack-backtrace failed (status " + std::to_string(status) + ")";
+    return out;
+  }
+
+  std::string reports_message() {
+    json list = json::array();
+    const std::lock_guard lock(greet_mutex);
+    for (const auto& [file, text] : report_texts) list.push_back({{"file", file}, {"text", text}});
+    return dump(json{{"type", "reports"}, {"dir", config.reports_dir}, {"reports", list}});
+  }
+
   template <typename It>
   static std::string gdos_message(It first, It last) {
     std::string m = "{\"type\":\"gdos\",\"records\":[";
@@ -965,6 +1072,11 @@ struct Backend::Impl {
     if (!last_components.empty()) send_to(client, last_components);
     for (const auto& [s, m] : map_messages) send_to(client, m);
     if (!recent_log.empty()) send_to(client, gdos_message(recent_log.begin(), recent_log.end()));
+    if (!report_texts.empty()) {
+      json list = json::array();
+      for (const auto& [file, text] : report_texts) list.push_back({{"file", file}, {"text", text}});
+      send_to(client, dump(json{{"type", "reports"}, {"dir", config.reports_dir}, {"reports", list}}));
+    }
   }
 
   BackendConfig config;
@@ -975,7 +1087,7 @@ struct Backend::Impl {
   tims::LcmTransport transport;
   std::vector<std::byte> buffer;
   std::atomic<bool> running{false};
-  std::thread worker, gdos_thread;
+  std::thread worker, gdos_thread, reports_thread;
 
   // Worker thread only.
   std::vector<Pending> pending;
@@ -991,6 +1103,7 @@ struct Backend::Impl {
   std::string last_components;
   std::map<uint8_t, std::string> map_messages;
   std::deque<std::string> recent_log;
+  std::map<std::string, std::string> report_texts;  // report file -> rack-backtrace's output
 
   mutable std::mutex counters_mutex;
   Counters counters;

@@ -10,6 +10,9 @@
 //               discovery: it is kept in the list, never shown with its last state);
 //   "not_available": the network answered NOT_AVAILABLE for it.
 //
+// A reports thread symbolizes the report files in `reports_dir` with rack-backtrace
+// (a separate process, so libdw's work never delays the robots' state).
+//
 // A GDOS thread receives the log of every host (tims::GdosSubscriber) and passes it
 // on in batches; the last records are kept for browsers that connect later.
 //
@@ -38,6 +41,10 @@ struct BackendConfig {
   std::string gdos_channel;    // "" = RACK_GDOS
   std::vector<std::string> maps;  // --map SYSTEM=FILE or FILE (every robot)
   std::string map_root = ".";  // where relative `map` parameters are looked up
+  // Mode-switch and crash report files (rackd-*.report) of the hosts on this machine,
+  // symbolized with rack-backtrace whenever one changes. "" disables it.
+  std::string reports_dir = "/var/tmp/rack";
+  std::string backtrace_path;  // rack-backtrace; "" = beside rack-gui, else on PATH
   int poll_ms = 200;           // state and data poll period
   int timeout_ms = 1000;       // a request not answered in this time fails
 };

@@ -44,6 +44,11 @@ options:
                      --map-root
   --map-root DIR     where relative map paths of the robots are found (default:
                      the working directory; rackd reads them relative to its own)
+  --reports DIR      mode-switch and crash report files of the rackd processes on
+                     this machine (their crash_dir; default /var/tmp/rack),
+                     symbolized with rack-backtrace for the "Mode switches" view;
+                     --reports '' turns it off
+  --backtrace PATH   the rack-backtrace program (default: beside rack-gui, else PATH)
   --web DIR          the built front end (default: the build's tools/gui/web/dist)
   --poll-ms MS       state and data poll period (default 200)
   --timeout-ms MS    a robot that does not answer within this is shown as
@@ -101,6 +106,10 @@ int main(int argc, char** argv) {
       config.maps.push_back(value("[SYS=]FILE"));
     } else if (a == "--map-root") {
       config.map_root = value("a directory");
+    } else if (a == "--reports") {
+      config.reports_dir = value("a directory");
+    } else if (a == "--backtrace") {
+      config.backtrace_path = value("a program");
     } else if (a == "--web") {
       web = value("a directory");
     } else if (a == "--poll-ms") {

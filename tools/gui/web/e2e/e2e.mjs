@@ -114,7 +114,13 @@ try {
   await page.locator('[data-testid="comp-ladar"] .name').click();
   await page.locator('[data-testid="polar"]').waitFor({ timeout: 5000 });
   await shot('details-ladar.png');
+  // 4b. Several robots: robot 1 (the mode-switch demo) in its own group, and its
+  // report symbolized by rack-backtrace down to the demo's source line.
+  await page.locator('.robot[data-system="1"] [data-testid="comp-demo"]').waitFor({ timeout: 5000 });
+  log('robot 1 listed in its own group');
   await page.locator('#tabs button[data-view="reports"]').click();
+  await page.locator('[data-testid="report-file"]', { hasText: 'modeswitch_demo.cpp' }).first().waitFor({ timeout: 15000 });
+  log('mode-switch report symbolized: modeswitch_demo.cpp line shown');
   await shot('reports.png');
 
   // 5. Map: a click sets the pilot's destination; the robot drives there.
@@ -181,18 +187,31 @@ try {
   log('position set by a click: Position updated, MCL re-initialised');
 
   // Drawing speed with many particles (reported, not asserted: timing is for bench/).
-  const bench = await page.evaluate(() => window.__rack.benchmarkParticles(50000, 20));
-  log(`map frame with ${bench.n} particles: p50 ${bench.p50.toFixed(1)} ms, max ${bench.max.toFixed(1)} ms (${bench.frames} frames)`);
+  const bench = await page.evaluate(() => window.__rack.benchmarkParticles(50000, 30));
+  const f = (r) => `p50 ${r.p50.toFixed(1)} ms, p90 ${r.p90.toFixed(1)} ms, max ${r.max.toFixed(1)} ms`;
+  log(`map frame draw time: without extra particles ${f(bench.base)}; with ${bench.n} particles ${f(bench.withParticles)}; ` +
+      `p50 ratio ${(bench.withParticles.p50 / bench.base.p50).toFixed(1)}x (${bench.withParticles.frames} frames each)`);
 
-  // 8. A robot that stops answering is shown as such.
+  // 8. "all off": every component of robot 0 off (grey), in reverse order.
+  await page.locator('[data-testid="all-off-0"]').click();
+  await until('every component of robot 0 to be off', () => page.evaluate(() =>
+    [...document.querySelectorAll('.robot[data-system="0"] .comp')].every((e) => e.dataset.state === 'disabled')), 10000);
+  if (await toggleColour('chassis') !== GREY) throw new Error('chassis is not grey after all off');
+  log('all off: every component of robot 0 grey');
+  await shot('all-off.png');
+
+  // 9. A robot that stops answering is shown as such.
   if (args['rackd-pid']) {
     process.kill(Number(args['rackd-pid']), 'SIGKILL');
     await page.locator('[data-testid="comp-pilot"][data-state="no_reply"]').waitFor({ timeout: 8000 });
     const colour = await toggleColour('pilot');
     if (colour !== ORANGE) throw new Error(`a component of a dead host is ${colour}, not orange`);
-    const states = await page.locator('[data-testid^="comp-"]').evaluateAll((els) => els.map((e) => e.dataset.state));
+    await page.waitForTimeout(300);
+    const states = await page.evaluate(() => [...document.querySelectorAll('.robot[data-system="0"] .comp')].map((e) => e.dataset.state));
     if (states.some((s) => s !== 'no_reply')) throw new Error(`components of a dead host shown as ${states.join(', ')}`);
-    log('rackd killed: every component shown as "no reply"');
+    const other = await page.evaluate(() => document.querySelector('.robot[data-system="1"] .comp')?.dataset.state);
+    if (other !== 'enabled') throw new Error(`robot 1 (still running) shown as ${other}`);
+    log('rackd of robot 0 killed: its components shown as "no reply"; robot 1 still ON');
     await shot('no-reply.png');
   }
 } catch (e) {
