@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
@@ -66,8 +67,24 @@ class GuiE2eTest : public ::testing::Test {
     return dir_.write("sim_mcl.yaml", text).string();
   }
 
-  // A second robot (system 1): the mode-switch demo, its reports in `crash_dir`.
+  // A second robot (system 1): the mode-switch demo, its reports in `crash_dir`, and
+  // a camera playing an image sequence (64x48 PPM frames, looped).
   std::string second_robot(const std::string& crash_dir) {
+    const auto frames = dir_.path() / "frames";
+    std::filesystem::create_directories(frames);
+    for (int i = 0; i < 5; ++i) {
+      std::string ppm = "P6\n64 48\n255\n";
+      for (int y = 0; y < 48; ++y) {
+        for (int x = 0; x < 64; ++x) {
+          ppm += static_cast<char>(x * 4);
+          ppm += static_cast<char>(y * 5);
+          ppm += static_cast<char>(i * 50);
+        }
+      }
+      char name[32];
+      std::snprintf(name, sizeof name, "img_%03d.ppm", i);
+      (void)dir_.write("frames/" + std::string(name), ppm);
+    }
     return dir_
         .write("robot1.yaml",
                "host: robot1-demo\n"
@@ -80,7 +97,13 @@ class GuiE2eTest : public ::testing::Test {
                "    instance: 0\n"
                "    autostart: true\n"
                "    command_task: {priority: 30}\n"
-               "    data_task: {priority: 40, period_ms: 20}\n")
+               "    data_task: {priority: 40, period_ms: 20}\n"
+               "  - name: camera\n"
+               "    class: Camera\n"
+               "    instance: 0\n"
+               "    autostart: true\n"
+               "    data_task: {period_ms: 100, ring: 4}\n"
+               "    params: {source: " + (frames / "img_%03d.ppm").string() + ", loop: true, fps: 10}\n")
         .string();
   }
 
@@ -111,7 +134,9 @@ TEST_F(GuiE2eTest, DashboardOperatesTheSimulatedRobotInChromium) {
   // The demo calls write() in a command handler: one SYSCALL report in the file.
   const RunResult sent = run({kRackctl, "--lcm", bus_.url(), "--discover-ms", "3000", "send", "demo", "21"}, 30s);
   ASSERT_EQ(sent.exit_code, 0) << sent.describe();
-  Process gui({kGui, "--port", "0", "--lcm", bus_.url(), "--web", kWeb + "/dist", "--reports", crash_dir}, dir_.path(),
+  // A camera image is one 0.9 MB message of 16 datagrams: a large socket buffer, as
+  // the README says for large messages, or the kernel drops some of them.
+  Process gui({kGui, "--port", "0", "--lcm", bus_.url() + "&recv_buf_size=4194304", "--web", kWeb + "/dist", "--reports", crash_dir}, dir_.path(),
               "rack-gui");
   ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
   const std::string err = gui.err();
@@ -125,7 +150,7 @@ TEST_F(GuiE2eTest, DashboardOperatesTheSimulatedRobotInChromium) {
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui.err();
   for (const char* shot : {"components.png", "all-off.png", "map.png", "gdos.png", "details-pilot.png", "details-chassis.png",
-                           "details-ladar.png", "reports.png", "destination.png", "joystick.png", "no-reply.png"}) {
+                           "details-ladar.png", "details-camera.png", "reports.png", "destination.png", "joystick.png", "no-reply.png"}) {
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(kArtifacts) / shot)) << shot;
   }
   // The browser's malformed messages were refused and counted by rack-gui.

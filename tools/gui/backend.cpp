@@ -18,6 +18,7 @@
 #include "rack/core/payload_json.h"
 #include "rack/core/wire.h"
 #include "rack/interfaces/data_types.h"
+#include "rack/interfaces/devices.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
 #include "rack/maps/occupancy_map.h"
@@ -41,6 +42,10 @@ namespace ifc = rack::interfaces;
 
 constexpr uint32_t kSlotSize = 64 * 1024;  // the largest polled sample (Path) is ~17 KiB
 constexpr uint32_t kReplySlots = 256;       // a poll round asks every component at once
+// Camera images (0.9 MB): their replies go to a mailbox of their own with large slots.
+constexpr uint32_t kImageSlotSize =
+    static_cast<uint32_t>(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(rack::interfaces::CameraData));
+constexpr uint32_t kImageSlots = 2;
 constexpr int64_t kStaleNs = 1500 * rt::kNsPerMs;     // no status reply for this long: "no_reply"
 constexpr int64_t kDeadManNs = 400 * rt::kNsPerMs;    // joystick silent this long: MOVE 0
 constexpr int64_t kOnTimeoutNs = 6 * rt::kNsPerSec;   // ON is answered when on() has finished
@@ -164,14 +169,18 @@ struct Backend::Impl {
       : config(std::move(c)),
         sink(std::move(s)),
         reply_mailbox(own_address(0), kReplySlots, kSlotSize),
+        image_mailbox(own_address(1), kImageSlots, kImageSlotSize),
         endpoint(router, reply_mailbox, kPriority),
         transport(router, transport_config(config)),
-        buffer(kSlotSize) {
+        buffer(kSlotSize),
+        image_buffer(kImageSlotSize) {
     router.add(reply_mailbox);
+    router.add(image_mailbox);
   }
   ~Impl() {
     stop();
     router.remove(reply_mailbox.address());
+    router.remove(image_mailbox.address());
   }
 
   static constexpr uint8_t kPriority = 10;
@@ -189,8 +198,8 @@ struct Backend::Impl {
     t.uplink_slots = 256;
     t.announce_period_ns = 0;  // a tool announces nothing
     t.role = tims::NodeRole::kTool;
-    t.max_message_bytes = kSlotSize;
-    t.reassembly_slots = 8;
+    t.max_message_bytes = kImageSlotSize;  // camera images
+    t.reassembly_slots = 4;
     t.large_slots = 2;
     t.warn = [](const std::string& s) { std::fprintf(stderr, "rack-gui: %s\n", s.c_str()); };
     return t;
@@ -220,9 +229,9 @@ struct Backend::Impl {
 
   // ------------------------------------------------------------ requests
   void request(Address dest, int8_t type, std::span<const tims::ConstBuffer> body, int64_t timeout_ns,
-               ReplyHandler done) {
+               ReplyHandler done, Address reply_to = Address()) {
     uint8_t seq = 0;
-    const auto st = endpoint.send(dest, type, body, Address(), &seq);
+    const auto st = endpoint.send(dest, type, body, reply_to, &seq);
     {
       const std::lock_guard lock(counters_mutex);
       ++counters.requests;
@@ -250,23 +259,30 @@ struct Backend::Impl {
   }
   [[nodiscard]] int64_t default_timeout() const { return int64_t{config.timeout_ms} * rt::kNsPerMs; }
 
+  // Hands a received reply to the request it answers (by source and sequence number).
+  void dispatch(const tims::Mailbox::Received& got, std::span<const std::byte> buf) {
+    const Address from = got.header.source().component();
+    const auto it = std::find_if(pending.begin(), pending.end(), [&](const Pending& p) {
+      return p.dest.component() == from && p.seq == got.header.seq;
+    });
+    if (it == pending.end()) return;  // late: its request timed out
+    ReplyHandler done = std::move(it->done);
+    pending.erase(it);
+    Reply r;
+    r.header = got.header;
+    r.body = buf.subspan(sizeof(tims::MessageHeader), got.length - sizeof(tims::MessageHeader));
+    done(&r);
+  }
+
   void receive_replies(int64_t wait_ns) {
     auto got = reply_mailbox.receive(buffer, wait_ns);
     while (got.status == tims::RecvStatus::kOk) {
-      const Address from = got.header.source().component();
-      const auto it = std::find_if(pending.begin(), pending.end(), [&](const Pending& p) {
-        return p.dest.component() == from && p.seq == got.header.seq;
-      });
-      if (it != pending.end()) {
-        ReplyHandler done = std::move(it->done);
-        pending.erase(it);
-        Reply r;
-        r.header = got.header;
-        r.body = std::span<const std::byte>(buffer).subspan(sizeof(tims::MessageHeader),
-                                                            got.length - sizeof(tims::MessageHeader));
-        done(&r);
-      }
+      dispatch(got, buffer);
       got = reply_mailbox.receive(buffer, tims::Mailbox::kNonBlocking);
+    }
+    for (auto img = image_mailbox.receive(image_buffer, tims::Mailbox::kNonBlocking);
+         img.status == tims::RecvStatus::kOk; img = image_mailbox.receive(image_buffer, tims::Mailbox::kNonBlocking)) {
+      dispatch(img, image_buffer);
     }
     const int64_t now = rt::monotonic_ns();
     std::vector<ReplyHandler> expired;
@@ -400,7 +416,10 @@ struct Backend::Impl {
       if (type == nullptr) continue;
       const bool fast = cls == classes::kChassis || cls == classes::kPosition || cls == classes::kMcl ||
                         cls == classes::kScan2d || cls == classes::kPilot || cls == classes::kLadar;
-      if (cls == classes::kCamera) continue;  // images are large: not polled (see README)
+      if (cls == classes::kCamera) {
+        if (round % 5 == 0) poll_image(raw);  // once a second: 0.9 MB each
+        continue;
+      }
       if (!fast && round % 5 != 0) continue;
       c.data_pending = true;
       wire::GetDataRequest req;
@@ -437,6 +456,45 @@ struct Backend::Impl {
                             {"data", std::move(data)}}));
       });
     }
+  }
+
+  // A camera's newest image, as {"type":"image",...} with the pixels (or JPEG) in base64.
+  void poll_image(uint32_t raw) {
+    Component& c = components[raw];
+    c.data_pending = true;
+    wire::GetDataRequest req;
+    const tims::ConstBuffer part = tims::buffer_of(req);
+    request(Address(raw), msg::kGetData, std::span<const tims::ConstBuffer>(&part, 1), default_timeout(),
+            [this, raw](const Reply* r) {
+              auto it = components.find(raw);
+              if (it == components.end()) return;
+              Component& comp = it->second;
+              comp.data_pending = false;
+              wire::SampleHeader sh;
+              auto img = std::make_unique<ifc::CameraData>();
+              if (r == nullptr || r->header.type != msg::kData || r->body.size() != sizeof sh + sizeof *img ||
+                  !wire::read_payload(r->body.first(sizeof sh), r->native(), sh) ||
+                  !wire::read_payload(r->body.subspan(sizeof sh), r->native(), *img)) {
+                return;
+              }
+              const std::size_t bytes = std::min<std::size_t>(img->bytes, sizeof img->data);
+              const char* format = img->format == ifc::kCameraRgb8    ? "rgb"
+                                   : img->format == ifc::kCameraMono8 ? "mono"
+                                   : img->format == ifc::kCameraJpeg  ? "jpeg"
+                                                                      : "unknown";
+              broadcast(dump(json{{"type", "image"},
+                                  {"component", address_text(Address(raw))},
+                                  {"system", comp.system},
+                                  {"time_ns", sh.time_ns},
+                                  {"width", img->width},
+                                  {"height", img->height},
+                                  {"frame", img->frame},
+                                  {"dropped", img->dropped},
+                                  {"bad_frames", img->bad_frames},
+                                  {"format", format},
+                                  {"data", base64(std::vector<uint8_t>(img->data, img->data + bytes))}}));
+            },
+            image_mailbox.address());
   }
 
   // Fixed-capacity arrays are sent only up to their count (a scan of 541 beams, not
@@ -1083,9 +1141,11 @@ struct Backend::Impl {
   Sink sink;
   tims::Router router{tims::kToolSystem};
   tims::Mailbox reply_mailbox;
+  tims::Mailbox image_mailbox;
   tims::Endpoint endpoint;
   tims::LcmTransport transport;
   std::vector<std::byte> buffer;
+  std::vector<std::byte> image_buffer;
   std::atomic<bool> running{false};
   std::thread worker, gdos_thread, reports_thread;
 

@@ -118,6 +118,10 @@ try {
   // report symbolized by rack-backtrace down to the demo's source line.
   await page.locator('.robot[data-system="1"] [data-testid="comp-demo"]').waitFor({ timeout: 5000 });
   log('robot 1 listed in its own group');
+  await page.locator('.robot[data-system="1"] [data-testid="comp-camera"] .name').click();
+  await until('a camera image drawn', () => page.evaluate(() => (window.__rack.cameraFramesShown ?? 0) > 0), 15000);
+  log(`camera image shown: ${await page.locator('#camera-info').textContent()}`);
+  await shot('details-camera.png');
   await page.locator('#tabs button[data-view="reports"]').click();
   await page.locator('[data-testid="report-file"]', { hasText: 'modeswitch_demo.cpp' }).first().waitFor({ timeout: 15000 });
   log('mode-switch report symbolized: modeswitch_demo.cpp line shown');

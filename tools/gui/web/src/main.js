@@ -17,6 +17,7 @@ const st = {
   data: new Map(),       // address -> latest data message
   maps: new Map(),       // system -> {meta, canvas}
   params: new Map(),     // address -> params list
+  images: new Map(),     // camera address -> latest "image" message
   selected: null,        // address shown in the details view
   log: [],               // GDOS records
   reports: [],           // mode-switch / crash reports from GDOS
@@ -78,6 +79,10 @@ function handle(m) {
     case 'components': onComponents(m); break;
     case 'data': onData(m); break;
     case 'map': onMap(m); break;
+    case 'image':
+      st.images.set(m.component, m);
+      if (st.selected === m.component && document.querySelector('#view-details.active')) drawCamera();
+      break;
     case 'gdos': onGdos(m.records); break;
     case 'params': st.params.set(m.component, m.params); if (st.selected === m.component) renderDetails(); break;
     case 'result':
@@ -190,6 +195,10 @@ function renderDetails() {
     parts.push(`<h3>Timing</h3><table class="kv"><tr><th>period</th><td>${s.period_ns ? (s.period_ns / 1e6).toFixed(1) + ' ms' : 'triggered/none'}</td><th>cycles</th><td>${s.cycles}</td><th>overruns</th><td data-testid="overruns">${s.overruns}</td><th>published</th><td>${s.published}</td><th>listeners</th><td>${s.listeners}</td><th>errors</th><td>${s.errors}</td></tr></table>
       <canvas id="latency-plot" class="plot" width="520" height="160" data-testid="latency"></canvas>`);
   }
+  if (c.class === 'Camera') {
+    const img = st.images.get(c.address);
+    parts.push(`<h3>Image</h3><p class="hint" id="camera-info">${img ? '' : 'no image yet (polled once a second while the camera is ON)'}</p><canvas id="camera" class="plot" data-testid="camera" width="${img ? img.width : 320}" height="${img ? img.height : 240}"></canvas>`);
+  }
   const d = st.data.get(c.address);
   if (d) {
     if (c.class === 'Ladar' || c.class === 'Scan2D') parts.push('<h3>Scan (polar)</h3><canvas id="polar" class="plot" width="360" height="360" data-testid="polar"></canvas>');
@@ -256,7 +265,34 @@ function dataTable(obj) {
 }
 function fmt(v) { return typeof v === 'number' && !Number.isInteger(v) ? v.toFixed(4) : String(v); }
 
+// A camera image: raw RGB or mono pixels into ImageData, JPEG through an <img>.
+function drawCamera() {
+  const cv = document.getElementById('camera');
+  const img = st.images.get(st.selected);
+  if (!cv || !img) return;
+  const info = document.getElementById('camera-info');
+  if (info) info.textContent = `${img.width}x${img.height} ${img.format}, frame ${img.frame}, dropped ${img.dropped}, bad ${img.bad_frames}`;
+  if (cv.width !== img.width || cv.height !== img.height) { cv.width = img.width; cv.height = img.height; }
+  const g = cv.getContext('2d');
+  if (img.format === 'jpeg') {
+    const el = new Image();
+    el.onload = () => g.drawImage(el, 0, 0);
+    el.src = `data:image/jpeg;base64,${img.data}`;
+    return;
+  }
+  const bytes = Uint8Array.from(atob(img.data), (ch) => ch.charCodeAt(0));
+  const out = g.createImageData(img.width, img.height);
+  const n = img.width * img.height;
+  for (let i = 0; i < n; i++) {
+    const [r, gr, b] = img.format === 'mono' ? [bytes[i], bytes[i], bytes[i]] : [bytes[3 * i], bytes[3 * i + 1], bytes[3 * i + 2]];
+    out.data[4 * i] = r; out.data[4 * i + 1] = gr; out.data[4 * i + 2] = b; out.data[4 * i + 3] = 255;
+  }
+  g.putImageData(out, 0, 0);
+  st.cameraFramesShown = (st.cameraFramesShown ?? 0) + 1;
+}
+
 function drawDetailPlots(c, d) {
+  if (c.class === 'Camera') drawCamera();
   const lat = document.getElementById('latency-plot');
   if (lat && c.stats) drawLatency(lat, c.stats);
   const polar = document.getElementById('polar');
