@@ -107,6 +107,13 @@ try {
   await page.evaluate(() => window.__rack.ws.send(JSON.stringify({ op: 'set_param', component: 'Pilot(0/0)', name: 'vx_max', value: 'fast' })));
   await until('rack-gui refusing a string for a float parameter', async () => (await lastNotice()).includes('expected a number, got string; nothing was sent'));
   log('parameter type checks: refused in the page and in rack-gui');
+  // A valid value is set, and the component's log level changes from the GDOS panel.
+  await page.locator('[data-testid="params"] input[data-p="vx_max"]').fill('0.7');
+  await page.locator('[data-testid="params"] button[data-set="vx_max"]').click();
+  await until('vx_max set to 0.7', async () => (await lastNotice()).includes('Pilot(0/0): vx_max = 0.7'), 5000);
+  await page.evaluate(() => window.__rack.ws.send(JSON.stringify({ op: 'set_param', component: 'Evaluator(0/0)', name: 'gdosLevel', value: 'warning' })));
+  await until('the evaluator\'s GDOS level set', async () => (await lastNotice()).includes('gdosLevel = "warning"'), 5000);
+  log('parameters set: pilot vx_max 0.7, evaluator gdosLevel warning');
   await shot('details-pilot.png');
   await page.locator('[data-testid="comp-chassis"] .name').click();
   await page.locator('[data-testid="latency"]').waitFor({ timeout: 5000 });
@@ -174,6 +181,18 @@ try {
   const creep = Math.hypot(still.truth_x - after.truth_x, still.truth_y - after.truth_y);
   if (creep > 0.02) throw new Error(`the robot kept moving ${creep.toFixed(3)} m after the release`);
   log(`joystick drove ${driven.toFixed(2)} m and the robot stopped on release`);
+  // Dead-man in rack-gui: commands that stop coming without a release (a frozen tab,
+  // a lost network) stop the robot too.
+  await page.evaluate(async () => {
+    for (let i = 0; i < 10; i++) {
+      window.__rack.ws.send(JSON.stringify({ op: 'joystick', system: 0, vx: 0.4, omega: 0 }));
+      await new Promise((r) => setTimeout(r, 100));
+    }
+  });
+  if (!((await chassis()).vx > 0.1)) throw new Error('raw joystick commands did not drive the robot');
+  await until('rack-gui to stop the robot when the joystick commands stop', async () => Math.abs((await chassis()).vx) < 0.02, 3000);
+  await until('the dead-man notice', async () => (await lastNotice()).includes('joystick silent for 400 ms'), 3000);
+  log('joystick commands stopped without a release: rack-gui stopped the robot (dead-man)');
   // Keyboard: the up arrow on the map drives, letting go stops.
   await page.locator('[data-testid="map"]').hover();
   await page.keyboard.down('ArrowUp');
