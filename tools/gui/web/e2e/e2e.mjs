@@ -232,10 +232,22 @@ try {
     await page.waitForTimeout(300);
     const states = await page.evaluate(() => [...document.querySelectorAll('.robot[data-system="0"] .comp')].map((e) => e.dataset.state));
     if (states.some((s) => s !== 'no_reply')) throw new Error(`components of a dead host shown as ${states.join(', ')}`);
+    await until('the map to mark the dead robot\'s data as stale', () => page.evaluate(() => window.__rack.mapStale === true), 5000);
+    const box = await page.locator('[data-testid="chassis-box"]').textContent();
+    if (!box.includes('no data')) throw new Error(`the chassis box still shows ${box}`);
     const other = await page.evaluate(() => document.querySelector('.robot[data-system="1"] .comp')?.dataset.state);
     if (other !== 'enabled') throw new Error(`robot 1 (still running) shown as ${other}`);
     log('rackd of robot 0 killed: its components shown as "no reply"; robot 1 still ON');
     await shot('no-reply.png');
+  }
+  // 10. rack-gui itself gone: the page shows it, and no component keeps a state.
+  if (args['gui-pid']) {
+    process.kill(Number(args['gui-pid']), 'SIGTERM');
+    await page.locator('[data-testid="connection"]', { hasText: 'disconnected' }).waitFor({ timeout: 5000 });
+    const states = await page.evaluate(() => [...document.querySelectorAll('.comp')].map((e) => e.dataset.state));
+    if (states.length === 0 || states.some((s) => s !== 'no_reply')) throw new Error(`without rack-gui the page shows ${states.join(', ')}`);
+    log('rack-gui stopped: the page says disconnected and shows every component as "no reply"');
+    await shot('disconnected.png');
   }
 } catch (e) {
   console.log(`FAILED: ${e.message}`);

@@ -452,8 +452,12 @@ function findData(system, cls) {
   for (const d of st.data.values()) if (d.system === system && d.class === cls && (!best || d.component < best.component)) best = d;
   return best;
 }
+const isStale = (d, now) => !st.connected || now - d.received > STALE_MS;
 
+// Data older than this is not the robot's present: drawn faded, with a warning.
+const STALE_MS = 1500;
 function onData(m) {
+  m.received = performance.now();
   st.data.set(m.component, m);
   if (m.class === 'Chassis' && m.system === st.view.system) {
     const c = m.data;
@@ -461,6 +465,10 @@ function onData(m) {
   }
   if (st.selected === m.component && document.querySelector('#view-details.active')) renderDetails();
 }
+setInterval(() => {
+  const c = st.view.system !== null ? findData(st.view.system, 'Chassis') : null;
+  if (c && isStale(c, performance.now())) $('chassis-box').textContent = 'chassis: no data (not answering)';
+}, 500);
 function pilotName(raw) {
   if (!raw) return 'none';
   const sys = raw >>> 24, cls = (raw >>> 16) & 255, inst = (raw >>> 8) & 255;
@@ -522,8 +530,18 @@ function draw(now) {
     ctx.font = '14px sans-serif';
     ctx.fillText('no map (yet): rack-gui loads the map named by the robot\'s MCL (or --map)', 20, 30);
   }
+  // Anything of the robot that has not been refreshed lately is drawn faded, and the
+  // view says so: a robot that stopped answering is never shown as if it were there.
+  const tnow = performance.now();
+  let staleSince = null;
+  const fade = (d) => {
+    const stale = isStale(d, tnow);
+    if (stale) staleSince = Math.max(staleSince ?? 0, tnow - d.received);
+    ctx.globalAlpha = stale ? 0.25 : 1;
+  };
   const path = findData(s, 'Path');
   if (path) {
+    fade(path);
     const p = path.data;
     ctx.strokeStyle = '#1e88e5';
     ctx.lineWidth = 2;
@@ -536,12 +554,17 @@ function draw(now) {
     ctx.stroke();
   }
   const mcl = findData(s, 'MCL');
-  if (mcl) drawParticles(mcl.data.particle_x, mcl.data.particle_y, mcl.data.shown);
+  if (mcl) {
+    fade(mcl);
+    drawParticles(mcl.data.particle_x, mcl.data.particle_y, mcl.data.shown);
+  }
+  ctx.globalAlpha = 1;
   if (st.benchParticles) drawParticles(st.benchParticles.x, st.benchParticles.y, st.benchParticles.n);
   const pos = findData(s, 'Position');
   const pose = pos ? pos.data : mcl ? mcl.data : null;
   const scan = findData(s, 'Scan2D');
   if (scan && pose) {
+    fade(scan);
     const d = scan.data;
     const c = Math.cos(pose.phi), sn = Math.sin(pose.phi);
     ctx.fillStyle = '#e53935';
@@ -554,6 +577,7 @@ function draw(now) {
   }
   const pilot = findData(s, 'Pilot');
   if (pilot && pilot.data.mode === 2) {
+    fade(pilot);
     const [px, py] = toPx(pilot.data.target_x, pilot.data.target_y);
     ctx.strokeStyle = '#6a1b9a';
     ctx.lineWidth = 3;
@@ -562,12 +586,26 @@ function draw(now) {
     ctx.stroke();
   }
   if (pose) {
+    fade(pos ?? mcl);
     const cov = mcl ? [mcl.data.covariance[0], mcl.data.covariance[1], mcl.data.covariance[4]] : [pose.var_x, 0, pose.var_y];
     drawEllipse(pose.x, pose.y, cov);
     drawRobot(pose.x, pose.y, pose.phi, '#00897b');
   }
   const chassis = findData(s, 'Chassis');
-  if (chassis && chassis.data.truth_valid) drawRobot(chassis.data.truth_x, chassis.data.truth_y, chassis.data.truth_phi, 'rgba(0,0,0,0.35)');
+  if (chassis && chassis.data.truth_valid) {
+    fade(chassis);
+    drawRobot(chassis.data.truth_x, chassis.data.truth_y, chassis.data.truth_phi, 'rgba(0,0,0,0.35)');
+  }
+  ctx.globalAlpha = 1;
+  st.mapStale = staleSince !== null;
+  if (staleSince !== null) {
+    ctx.fillStyle = 'rgba(239,108,0,0.9)';
+    ctx.fillRect(0, 0, canvas.width, 34);
+    ctx.fillStyle = '#fff';
+    ctx.font = 'bold 16px sans-serif';
+    ctx.fillText(st.connected ? `robot ${s}: no data for ${(staleSince / 1000).toFixed(0)} s: not answering (faded: its last known state)`
+      : 'rack-gui not connected: faded: the last known state', 12, 23);
+  }
   if (drag && drag.mode === 'pose') {
     const [ax, ay] = toPx(drag.wx, drag.wy);
     ctx.strokeStyle = '#d81b60'; ctx.lineWidth = 3;
@@ -578,10 +616,13 @@ function draw(now) {
   if (st.frameMs.length > 120) st.frameMs.shift();
   if (now - lastFrame > 500) {
     lastFrame = now;
-    const info = pose ? `pose ${pose.x.toFixed(2)}, ${pose.y.toFixed(2)}, ${(pose.phi * 180 / Math.PI).toFixed(0)}°` : 'no pose';
-    $('map-info').textContent = `${info}${mcl ? ` | MCL ${mcl.data.particle_count} particles, fit ${mcl.data.fit.toFixed(2)}` : ''}${pilot ? ` | pilot status ${pilot.data.status}` : ''} | draw ${dt.toFixed(1)} ms`;
+    const fresh = (d) => d && !isStale(d, tnow);
+    const info = fresh(pos ?? mcl) ? `pose ${pose.x.toFixed(2)}, ${pose.y.toFixed(2)}, ${(pose.phi * 180 / Math.PI).toFixed(0)}°` : 'no current pose';
+    $('map-info').textContent = `${info}${fresh(mcl) ? ` | MCL ${mcl.data.particle_count} particles, fit ${mcl.data.fit.toFixed(2)}` : ''}${fresh(pilot) ? ` | pilot status ${PILOT_STATUS[pilot.data.status] ?? pilot.data.status}` : ''} | draw ${dt.toFixed(1)} ms`;
   }
 }
+
+const PILOT_STATUS = ['idle', 'driving', 'reached', 'blocked', 'no path', 'preempted', 'no input'];
 
 // All particles in one path and one fill: tens of thousands stay smooth.
 function drawParticles(xs, ys, n) {
