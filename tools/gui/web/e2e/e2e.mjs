@@ -9,6 +9,7 @@
 // components as "no reply" (never their last state). Exit 0 when every step passed.
 import { chromium } from 'playwright-core';
 import { mkdirSync } from 'node:fs';
+import http from 'node:http';
 import { join } from 'node:path';
 
 const args = Object.fromEntries(process.argv.slice(2).reduce((acc, a, i, all) => {
@@ -60,7 +61,20 @@ async function until(what, fn, ms = 15000) {
 }
 const lastNotice = () => page.evaluate(() => window.__rack.notices.map((n) => `${n.ok ? 'ok' : 'BAD'} ${n.text}`).slice(-5).join('\n'));
 
+// A raw HTTP GET (no URL normalisation, unlike a browser): the status code.
+const rawGet = (path) => new Promise((resolve, reject) => {
+  const u = new URL(url);
+  http.get({ host: u.hostname, port: u.port, path }, (res) => { res.resume(); resolve(res.statusCode); }).on('error', reject);
+});
+
 try {
+  // 0. The server: files below its web root only.
+  for (const [path, want] of [['/', 200], ['/index.html', 200], ['/../../etc/passwd', 400], ['/assets/../../x', 400],
+    ['/nothing-here.js', 404]]) {
+    const got = await rawGet(path);
+    if (got !== want) throw new Error(`GET ${path}: ${got}, expected ${want}`);
+  }
+  log('HTTP: the page is served, paths outside the web root refused (400), missing files 404');
   await page.goto(url);
   // 1. Every component of the host, grouped under robot 0, with RACK's colours.
   const names = ['chassis', 'ladar', 'odometry', 'scan2d', 'position', 'path', 'mcl', 'pilot', 'evaluator'];
