@@ -125,10 +125,14 @@ try {
   await page.locator('[data-testid="params"] input[data-p="vx_max"]').fill('0.7');
   await page.locator('[data-testid="params"] button[data-set="vx_max"]').click();
   await until('vx_max set to 0.7', async () => (await lastNotice()).includes('Pilot(0/0): vx_max = 0.7'), 5000);
-  await page.evaluate(() => window.__rack.ws.send(JSON.stringify({ op: 'set_param', component: 'Evaluator(0/0)', name: 'gdosLevel', value: 'warning' })));
+  await shot('details-pilot.png');
+  // The GDOS panel's per-component level.
+  await page.locator('#tabs button[data-view="gdos"]').click();
+  await page.locator('#g-target').selectOption('Evaluator(0/0)');
+  await page.locator('#g-newlevel').selectOption('warning');
+  await page.locator('#g-setlevel').click();
   await until('the evaluator\'s GDOS level set', async () => (await lastNotice()).includes('gdosLevel = "warning"'), 5000);
   log('parameters set: pilot vx_max 0.7, evaluator gdosLevel warning');
-  await shot('details-pilot.png');
   await page.locator('[data-testid="comp-chassis"] .name').click();
   await page.locator('[data-testid="latency"]').waitFor({ timeout: 5000 });
   await shot('details-chassis.png');
