@@ -49,7 +49,8 @@ options:
                      symbolized with rack-backtrace for the "Mode switches" view;
                      --reports '' turns it off
   --backtrace PATH   the rack-backtrace program (default: beside rack-gui, else PATH)
-  --web DIR          the built front end (default: the build's tools/gui/web/dist)
+  --web DIR          the built front end (default: tools/gui/web/dist of the source
+                     tree it was built from, else <prefix>/share/rack-gui/web)
   --poll-ms MS       state and data poll period (default 200)
   --timeout-ms MS    a robot that does not answer within this is shown as
                      "no reply" (default 1000)
@@ -83,6 +84,7 @@ int main(int argc, char** argv) {
   std::string address = "127.0.0.1";
   long port = 8080;
   std::string web = RACK_GUI_WEB_ROOT;
+  bool web_given = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](const char* what) -> std::string {
@@ -112,6 +114,7 @@ int main(int argc, char** argv) {
       config.backtrace_path = value("a program");
     } else if (a == "--web") {
       web = value("a directory");
+      web_given = true;
     } else if (a == "--poll-ms") {
       config.poll_ms = static_cast<int>(number(a, value("milliseconds"), 20, 10000));
     } else if (a == "--timeout-ms") {
@@ -121,6 +124,11 @@ int main(int argc, char** argv) {
     }
   }
   std::error_code ec;
+  if (!web_given && !std::filesystem::is_regular_file(std::filesystem::path(web) / "index.html", ec)) {
+    // An installed rack-gui: <prefix>/bin/rack-gui serves <prefix>/share/rack-gui/web.
+    const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
+    if (!ec) web = (self.parent_path().parent_path() / "share" / "rack-gui" / "web").string();
+  }
   if (web.empty() || !std::filesystem::is_regular_file(std::filesystem::path(web) / "index.html", ec)) {
     std::fprintf(stderr,
                  "rack-gui: no built front end in '%s' (index.html missing): run scripts/setup.sh, or "
