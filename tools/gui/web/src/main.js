@@ -37,6 +37,7 @@ function connect() {
     setConn();
     // Never show a last state as if it were current: without the server, nothing is known.
     for (const c of st.comps.values()) c.state = 'no_reply';
+    st.componentsKey = null;
     renderComponents();
     setTimeout(connect, 1000);
   };
@@ -108,7 +109,13 @@ function onComponents(m) {
       for (const c of h.components) st.comps.set(c.address, { ...c, system: r.system, host: h.host });
     }
   }
-  renderComponents();
+  // Redrawn only when something shown changed: a redraw between mouse-down and
+  // mouse-up would swallow the click.
+  const key = JSON.stringify(m.robots.map((r) => [r.system, r.joystick, r.hosts.map((h) => [h.key, h.alive, h.pid, h.components.map((c) => [c.address, c.name, c.state])])]));
+  if (key !== st.componentsKey || !st.connected) {
+    st.componentsKey = key;
+    renderComponents();
+  }
   updateRobotSelect();
   updateGdosTargets();
   if (st.selected && document.querySelector('#view-details.active')) renderDetails();
@@ -184,45 +191,46 @@ function selectComponent(address) {
   showView('details');
 }
 
+// The component view is built once per component (and again when its parameters
+// arrive); the live parts (state, timing, data, plots) are refreshed in place, so a
+// click on a "set" button or typing in a field is never lost to a redraw.
 function renderDetails() {
   const root = $('details');
   const c = st.comps.get(st.selected);
   if (!c) return;
-  const parts = [`<h2>${esc(c.name)} <span class="cls">${esc(c.class)}(${esc(c.impl)}) ${esc(c.address)} on ${esc(c.host ?? '?')}: ${esc(STATE_TEXT[c.state] ?? c.state)}</span></h2>`];
+  const params = st.params.get(c.address);
+  const key = `${c.address}|${JSON.stringify(params ?? null)}`;
+  if (root.dataset.key !== key) {
+    root.dataset.key = key;
+    const parts = ['<h2 id="d-head"></h2><div id="d-timing"></div>'];
+    if (c.class === 'Camera') parts.push('<h3>Image</h3><p class="hint" id="camera-info">no image yet (polled once a second while the camera is ON)</p><canvas id="camera" class="plot" data-testid="camera" width="320" height="240"></canvas>');
+    if (c.class === 'Ladar' || c.class === 'Scan2D') parts.push('<h3>Scan (polar)</h3><canvas id="polar" class="plot" width="360" height="360" data-testid="polar"></canvas>');
+    parts.push('<div id="d-data"></div>');
+    if (params) {
+      parts.push('<h3>Parameters</h3><table class="kv" data-testid="params"><tr><th>name</th><th>kind</th><th>value</th><th></th></tr>');
+      for (const p of params) {
+        const input = p.kind === 'bool'
+          ? `<input type="checkbox" ${p.value ? 'checked' : ''} data-p="${esc(p.name)}">`
+          : `<input ${p.kind === 'string' ? 'type="text"' : 'type="text" inputmode="decimal"'} value="${esc(p.value ?? '')}" data-p="${esc(p.name)}" size="24">`;
+        parts.push(`<tr><td>${esc(p.name)}</td><td>${p.kind}</td><td>${input}</td><td><button data-set="${esc(p.name)}" data-kind="${p.kind}">set</button></td></tr>`);
+      }
+      parts.push('</table>');
+    }
+    root.innerHTML = parts.join('');
+    for (const b of root.querySelectorAll('button[data-set]')) b.onclick = () => setParam(c.address, b.dataset.set, b.dataset.kind);
+  }
+  $('d-head').innerHTML = `${esc(c.name)} <span class="cls">${esc(c.class)}(${esc(c.impl)}) ${esc(c.address)} on ${esc(c.host ?? '?')}: ${esc(STATE_TEXT[c.state] ?? c.state)}</span>`;
   // Timing: the data task's wake-up latency percentiles and overruns.
+  const timing = $('d-timing');
   if (c.stats) {
     const s = c.stats;
-    parts.push(`<h3>Timing</h3><table class="kv"><tr><th>period</th><td>${s.period_ns ? (s.period_ns / 1e6).toFixed(1) + ' ms' : 'triggered/none'}</td><th>cycles</th><td>${s.cycles}</td><th>overruns</th><td data-testid="overruns">${s.overruns}</td><th>published</th><td>${s.published}</td><th>listeners</th><td>${s.listeners}</td><th>errors</th><td>${s.errors}</td></tr></table>
-      <canvas id="latency-plot" class="plot" width="520" height="160" data-testid="latency"></canvas>`);
-  }
-  if (c.class === 'Camera') {
-    const img = st.images.get(c.address);
-    parts.push(`<h3>Image</h3><p class="hint" id="camera-info">${img ? '' : 'no image yet (polled once a second while the camera is ON)'}</p><canvas id="camera" class="plot" data-testid="camera" width="${img ? img.width : 320}" height="${img ? img.height : 240}"></canvas>`);
+    if (!document.getElementById('latency-plot')) {
+      timing.innerHTML = '<h3>Timing</h3><div id="d-tstats"></div><canvas id="latency-plot" class="plot" width="520" height="160" data-testid="latency"></canvas>';
+    }
+    $('d-tstats').innerHTML = `<table class="kv"><tr><th>period</th><td>${s.period_ns ? (s.period_ns / 1e6).toFixed(1) + ' ms' : 'triggered/none'}</td><th>cycles</th><td>${s.cycles}</td><th>overruns</th><td data-testid="overruns">${s.overruns}</td><th>published</th><td>${s.published}</td><th>listeners</th><td>${s.listeners}</td><th>errors</th><td>${s.errors}</td></tr></table>`;
   }
   const d = st.data.get(c.address);
-  if (d) {
-    if (c.class === 'Ladar' || c.class === 'Scan2D') parts.push('<h3>Scan (polar)</h3><canvas id="polar" class="plot" width="360" height="360" data-testid="polar"></canvas>');
-    parts.push(`<h3>Latest data</h3>${dataTable(d.data)}`);
-  }
-  const params = st.params.get(c.address);
-  if (params) {
-    parts.push('<h3>Parameters</h3><table class="kv" data-testid="params"><tr><th>name</th><th>kind</th><th>value</th><th></th></tr>');
-    for (const p of params) {
-      const input = p.kind === 'bool'
-        ? `<input type="checkbox" ${p.value ? 'checked' : ''} data-p="${esc(p.name)}">`
-        : `<input ${p.kind === 'string' ? 'type="text"' : 'type="text" inputmode="decimal"'} value="${esc(p.value ?? '')}" data-p="${esc(p.name)}" size="24">`;
-      parts.push(`<tr><td>${esc(p.name)}</td><td>${p.kind}</td><td>${input}</td><td><button data-set="${esc(p.name)}" data-kind="${p.kind}">set</button></td></tr>`);
-    }
-    parts.push('</table>');
-  }
-  // Keep what the user is typing: only redraw the parameter table when it changed.
-  const focused = document.activeElement?.dataset?.p;
-  if (focused && root.contains(document.activeElement)) {
-    drawDetailPlots(c, d);
-    return;
-  }
-  root.innerHTML = parts.join('');
-  for (const b of root.querySelectorAll('button[data-set]')) b.onclick = () => setParam(c.address, b.dataset.set, b.dataset.kind);
+  if (d) $('d-data').innerHTML = `<h3>Latest data${isStale(d, performance.now()) ? ' (OLD: no new sample)' : ''}</h3>${dataTable(d.data)}`;
   drawDetailPlots(c, d);
 }
 
