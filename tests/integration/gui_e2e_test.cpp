@@ -149,7 +149,7 @@ TEST_F(GuiE2eTest, DashboardOperatesTheSimulatedRobotInChromium) {
                           120s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui.err();
-  for (const char* shot : {"components.png", "all-off.png", "disconnected.png", "map.png", "gdos.png", "details-pilot.png", "details-chassis.png",
+  for (const char* shot : {"components.png", "all-off.png", "disconnected.png", "map-zoomed.png", "map.png", "gdos.png", "details-pilot.png", "details-chassis.png",
                            "details-ladar.png", "details-camera.png", "reports.png", "destination.png", "joystick.png", "no-reply.png"}) {
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(kArtifacts) / shot)) << shot;
   }

@@ -152,8 +152,25 @@ try {
   log('mode-switch report symbolized: modeswitch_demo.cpp line shown');
   await shot('reports.png');
 
-  // 5. Map: a click sets the pilot's destination; the robot drives there.
+  // 5. Map: wheel zooms about the cursor, dragging pans, Fit restores; then a click
+  // sets the pilot's destination and the robot drives there.
   await page.locator('#tabs button[data-view="map"]').click();
+  const mapBox = await page.locator('[data-testid="map"]').boundingBox();
+  const view = () => page.evaluate(() => ({ ...window.__rack.view }));
+  const v0 = await view();
+  await page.mouse.move(mapBox.x + mapBox.width / 2, mapBox.y + mapBox.height / 2);
+  await page.mouse.wheel(0, -400);
+  await until('the wheel to zoom in', async () => (await view()).scale > v0.scale * 1.3, 3000);
+  const v1 = await view();
+  await page.mouse.down();
+  await page.mouse.move(mapBox.x + mapBox.width / 2 + 120, mapBox.y + mapBox.height / 2 + 40, { steps: 5 });
+  await page.mouse.up();
+  const v2 = await view();
+  if (Math.abs(v2.ox - v1.ox - 120) > 2 || Math.abs(v2.oy - v1.oy - 40) > 2) throw new Error(`drag did not pan: ${JSON.stringify([v1, v2])}`);
+  log(`map zoomed ${(v1.scale / v0.scale).toFixed(2)}x by the wheel and panned by a drag`);
+  await shot('map-zoomed.png');
+  await page.locator('#fit').click();
+  await until('Fit to restore the view', async () => Math.abs((await view()).scale - v0.scale) < 1e-6, 3000);
   await page.locator('[data-testid="mode-destination"]').check();
   const start = await chassis();
   // In the corridor (y 6..10), 3 m from where the robot is, towards the middle.

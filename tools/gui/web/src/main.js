@@ -562,10 +562,6 @@ function draw(now) {
     ctx.stroke();
   }
   const mcl = findData(s, 'MCL');
-  if (mcl) {
-    fade(mcl);
-    drawParticles(mcl.data.particle_x, mcl.data.particle_y, mcl.data.shown);
-  }
   ctx.globalAlpha = 1;
   if (st.benchParticles) drawParticles(st.benchParticles.x, st.benchParticles.y, st.benchParticles.n);
   const pos = findData(s, 'Position');
@@ -595,9 +591,18 @@ function draw(now) {
   }
   if (pose) {
     fade(pos ?? mcl);
+    drawRobot(pose.x, pose.y, pose.phi, 'rgba(0,137,123,0.55)');
+  }
+  // Particles and the covariance ellipse on top of the robot: when MCL has converged
+  // they lie within its outline.
+  if (mcl) {
+    fade(mcl);
+    drawParticles(mcl.data.particle_x, mcl.data.particle_y, mcl.data.shown);
+  }
+  if (pose) {
+    fade(pos ?? mcl);
     const cov = mcl ? [mcl.data.covariance[0], mcl.data.covariance[1], mcl.data.covariance[4]] : [pose.var_x, 0, pose.var_y];
     drawEllipse(pose.x, pose.y, cov);
-    drawRobot(pose.x, pose.y, pose.phi, '#00897b');
   }
   const chassis = findData(s, 'Chassis');
   if (chassis && chassis.data.truth_valid) {
@@ -634,7 +639,7 @@ const PILOT_STATUS = ['idle', 'driving', 'reached', 'blocked', 'no path', 'preem
 
 // All particles in one path and one fill: tens of thousands stay smooth.
 function drawParticles(xs, ys, n) {
-  ctx.fillStyle = 'rgba(255,160,0,0.8)';
+  ctx.fillStyle = 'rgba(230,81,0,0.9)';
   ctx.beginPath();
   const k = st.view.scale, ox = st.view.ox, oy = st.view.oy;
   for (let i = 0; i < n; i++) ctx.rect(ox + xs[i] * k - 1, oy - ys[i] * k - 1, 2, 2);
@@ -649,8 +654,8 @@ function drawEllipse(x, y, [sxx, sxy, syy]) {
   const l1 = tr / 2 + disc, l2 = Math.max(0, tr / 2 - disc);
   const ang = Math.atan2(l1 - sxx, sxy || 1e-12);
   const [px, py] = toPx(x, y);
-  ctx.strokeStyle = '#00897b';
-  ctx.lineWidth = 1.5;
+  ctx.strokeStyle = '#1a237e';
+  ctx.lineWidth = 2;
   ctx.beginPath();
   ctx.ellipse(px, py, Math.max(2, 2 * Math.sqrt(l1) * st.view.scale), Math.max(2, 2 * Math.sqrt(l2) * st.view.scale), -(sxy === 0 ? 0 : ang), 0, 2 * Math.PI);
   ctx.stroke();
