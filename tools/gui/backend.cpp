@@ -313,10 +313,6 @@ struct Backend::Impl {
   void refresh_hosts() {
     for (auto& [key, h] : hosts) h.alive = false;
     for (const auto& h : transport.hosts()) {
-      if (h.role != tims::NodeRole::kExecutor) {
-        // Routers announce the components of the hosts behind them as well; the
-        // executors' own announcements place each component on its host.
-      }
       const std::string key = h.host + "#" + std::to_string(h.system) + "/" + std::to_string(h.host_id);
       Host& host = hosts[key];
       host.name = h.host;
