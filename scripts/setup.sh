@@ -21,7 +21,13 @@ packages=(
   mrpt-common                            # MCL and rawlog replay (MRPT 2.5); datasets for bench
   libopencv-dev                          # Camera component (OpenCV VideoCapture), linked PRIVATE there only
   can-utils                              # cansend/candump: vcan tests and CAN debugging on robots
+  libboost-dev libboost-system-dev       # rack-gui: HTTP/WebSocket server (Boost.Beast)
+  nlohmann-json3-dev                     # rack-gui: its WebSocket protocol (JSON)
+  chromium                               # rack-gui's end-to-end test (headless, driven by Playwright)
 )
+# rack-gui's front end is built with node/npm: Debian's, unless a node is installed already.
+command -v node >/dev/null 2>&1 || packages+=(nodejs)
+command -v npm >/dev/null 2>&1 || packages+=(npm)
 
 missing=()
 for p in "${packages[@]}"; do
@@ -54,4 +60,7 @@ fi
 build=${RACK_BUILD_DIR:-build}
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$build" -j"$(nproc)"
+# rack-gui's front end (tools/gui/web): packages pinned by package-lock.json, built into
+# tools/gui/web/dist, which rack-gui serves (nothing is loaded from the internet at run time).
+(cd tools/gui/web && npm ci --no-audit --no-fund && npm run build)
 echo "setup: built in $build/"

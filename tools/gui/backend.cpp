@@ -1,0 +1,1199 @@
+#include "backend.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <set>
+#include <span>
+
+#include "gdos_view.h"
+#include "rack/core/parameters.h"
+#include "rack/core/payload_json.h"
+#include "rack/core/wire.h"
+#include "rack/interfaces/data_types.h"
+#include "rack/interfaces/devices.h"
+#include "rack/interfaces/navigation.h"
+#include "rack/interfaces/robot.h"
+#include "rack/maps/occupancy_map.h"
+#include "rack/rt/clock.h"
+#include "rack/tims/endpoint.h"
+#include "rack/tims/gdos_lcm.h"
+#include "rack/tims/lcm_transport.h"
+#include "rack/tims/mailbox.h"
+#include "rack/tims/message.h"
+#include "rack/tims/router.h"
+
+namespace rack::gui {
+
+namespace {
+
+using nlohmann::json;
+using tims::Address;
+namespace msg = tims::msg;
+namespace classes = tims::classes;
+namespace ifc = rack::interfaces;
+
+constexpr uint32_t kSlotSize = 64 * 1024;  // the largest polled sample (Path) is ~17 KiB
+constexpr uint32_t kReplySlots = 256;       // a poll round asks every component at once
+// Camera images (0.9 MB): their replies go to a mailbox of their own with large slots.
+constexpr uint32_t kImageSlotSize =
+    static_cast<uint32_t>(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(rack::interfaces::CameraData));
+constexpr uint32_t kImageSlots = 2;
+constexpr int64_t kStaleNs = 1500 * rt::kNsPerMs;     // no status reply for this long: "no_reply"
+constexpr int64_t kDeadManNs = 400 * rt::kNsPerMs;    // joystick silent this long: MOVE 0
+constexpr int64_t kOnTimeoutNs = 6 * rt::kNsPerSec;   // ON is answered when on() has finished
+constexpr std::size_t kRecentLog = 500;               // GDOS records kept for new clients
+constexpr int kMapRetryRounds = 50;                   // a map that failed to load: try again later
+
+std::string address_text(Address a) { return a.str(); }
+
+std::string class_text(Address a) {
+  const char* c = tims::class_name(a.class_id());
+  if (c != nullptr) return c;
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "Class0x%02x", a.class_id());
+  return buf;
+}
+
+std::string base64(const std::vector<uint8_t>& in) {
+  static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((in.size() + 2) / 3 * 4);
+  std::size_t i = 0;
+  for (; i + 2 < in.size(); i += 3) {
+    const uint32_t v = (uint32_t{in[i]} << 16) | (uint32_t{in[i + 1]} << 8) | in[i + 2];
+    out += kAlphabet[(v >> 18) & 63u];
+    out += kAlphabet[(v >> 12) & 63u];
+    out += kAlphabet[(v >> 6) & 63u];
+    out += kAlphabet[v & 63u];
+  }
+  if (i < in.size()) {
+    uint32_t v = uint32_t{in[i]} << 16;
+    if (i + 1 < in.size()) v |= uint32_t{in[i + 1]} << 8;
+    out += kAlphabet[(v >> 18) & 63u];
+    out += kAlphabet[(v >> 12) & 63u];
+    out += i + 1 < in.size() ? kAlphabet[(v >> 6) & 63u] : '=';
+    out += '=';
+  }
+  return out;
+}
+
+std::string error_reason(std::span<const std::byte> body) {
+  if (body.empty()) return "no reason given";
+  const auto* text = reinterpret_cast<const char*>(body.data());
+  std::string reason(text, strnlen(text, body.size()));
+  return reason.empty() ? "no reason given" : reason;
+}
+
+std::string param_text(const char* s, std::size_t n) { return std::string(s, strnlen(s, n)); }
+
+json param_json(const wire::ParamRecord& p) {
+  json j = {{"name", param_text(p.name, sizeof p.name)},
+            {"kind", rack::describe(static_cast<wire::ParamKind>(p.kind))},
+            {"component_ref", (p.flags & 1u) != 0}};
+  switch (static_cast<wire::ParamKind>(p.kind)) {
+    case wire::ParamKind::kInt: j["value"] = p.int_value; break;
+    case wire::ParamKind::kFloat: j["value"] = std::isfinite(p.float_value) ? json(p.float_value) : json(nullptr); break;
+    case wire::ParamKind::kBool: j["value"] = p.int_value != 0; break;
+    case wire::ParamKind::kString: j["value"] = param_text(p.string_value, sizeof p.string_value); break;
+  }
+  return j;
+}
+
+std::string dump(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
+
+struct Reply {
+  tims::MessageHeader header{};
+  std::span<const std::byte> body;
+  [[nodiscard]] bool native() const { return tims::body_is_native(header); }
+};
+// nullptr: no reply in time (or not sent).
+using ReplyHandler = std::function<void(const Reply*)>;
+
+struct Pending {
+  Address dest;
+  uint8_t seq = 0;
+  int64_t deadline_ns = 0;
+  ReplyHandler done;
+};
+
+struct Component {
+  tims::ComponentInfo info;
+  uint8_t system = 0;
+  std::string host_key;     // host name + host id: the group it is shown in
+  std::size_t order = 0;    // position in its host's announcement (host-file order)
+  std::string state = "no_reply";
+  int64_t last_reply_ns = 0;   // monotonic time of the last status reply
+  bool status_pending = false;
+  bool data_pending = false;
+  bool stats_pending = false;
+  json stats;               // the last GET_STATS, or null
+};
+
+struct Host {
+  std::string name;
+  uint8_t system = 0;
+  uint8_t host_id = 0;
+  int32_t pid = 0;
+  bool alive = false;        // still announced by the network
+  std::string network;
+};
+
+struct Robot {
+  // Joystick: who holds it and whether this tool is the chassis' active pilot.
+  uint64_t joystick_owner = 0;
+  int64_t joystick_last_ns = 0;
+  bool joystick_moving = false;
+  bool claimed = false;
+  bool claim_pending = false;
+  double want_vx = 0.0, want_omega = 0.0;
+  int64_t position_time_ns = 0;    // host time of the newest Position sample
+  // Map: loaded once (or from --map), retried while it fails.
+  bool map_sent = false;
+  bool map_pending = false;
+  int map_retry = 0;
+  std::string map_message;         // the map as a "map" message, for new clients
+};
+
+}  // namespace
+
+struct Backend::Impl {
+  Impl(BackendConfig c, Sink s)
+      : config(std::move(c)),
+        sink(std::move(s)),
+        reply_mailbox(own_address(0), kReplySlots, kSlotSize),
+        image_mailbox(own_address(1), kImageSlots, kImageSlotSize),
+        endpoint(router, reply_mailbox, kPriority),
+        transport(router, transport_config(config)),
+        buffer(kSlotSize),
+        image_buffer(kImageSlotSize) {
+    router.add(reply_mailbox);
+    router.add(image_mailbox);
+  }
+  ~Impl() {
+    stop();
+    router.remove(reply_mailbox.address());
+    router.remove(image_mailbox.address());
+  }
+
+  static constexpr uint8_t kPriority = 10;
+
+  static Address own_address(uint8_t mbx) {
+    // Instance from the pid, as rackctl does, so two tools rarely collide; mailbox
+    // 0x80+ keeps rack-gui's apart from rackctl's (which uses the pid's low byte).
+    const auto pid = static_cast<uint32_t>(getpid());
+    return Address::make(tims::kToolSystem, classes::kTool, static_cast<uint8_t>(pid >> 8 ^ pid),
+                         static_cast<uint8_t>(0x80u | mbx));
+  }
+  static tims::LcmTransportConfig transport_config(const BackendConfig& c) {
+    tims::LcmTransportConfig t;
+    t.url = c.lcm_url;
+    t.uplink_slots = 256;
+    t.announce_period_ns = 0;  // a tool announces nothing
+    t.role = tims::NodeRole::kTool;
+    t.max_message_bytes = kImageSlotSize;  // camera images
+    t.reassembly_slots = 4;
+    t.large_slots = 2;
+    t.warn = [](const std::string& s) { std::fprintf(stderr, "rack-gui: %s\n", s.c_str()); };
+    return t;
+  }
+
+  void start() {
+    transport.start();
+    running = true;
+    worker = std::thread([this] { run_worker(); });
+    gdos_thread = std::thread([this] { run_gdos(); });
+    if (!config.reports_dir.empty()) reports_thread = std::thread([this] { run_reports(); });
+  }
+  void stop() {
+    if (!running.exchange(false)) return;
+    if (worker.joinable()) worker.join();
+    if (gdos_thread.joinable()) gdos_thread.join();
+    if (reports_thread.joinable()) reports_thread.join();
+    transport.stop();
+  }
+
+  // ------------------------------------------------------------ output
+  void send_to(uint64_t client, std::string m) { sink(client, std::move(m)); }
+  void broadcast(std::string m) { sink(0, std::move(m)); }
+  void result(uint64_t client, const Request& r, bool ok, const std::string& text) {
+    send_to(client, result_message(r.id, r.op, ok, text));
+  }
+
+  // ------------------------------------------------------------ requests
+  void request(Address dest, int8_t type, std::span<const tims::ConstBuffer> body, int64_t timeout_ns,
+               ReplyHandler done, Address reply_to = Address()) {
+    uint8_t seq = 0;
+    const auto st = endpoint.send(dest, type, body, reply_to, &seq);
+    {
+      const std::lock_guard lock(counters_mutex);
+      ++counters.requests;
+    }
+    if (!tims::delivered(st)) {
+      done(nullptr);
+      return;
+    }
+    // An older request to the same mailbox with the same sequence number (after 256
+    // sends) would take this reply: it has long timed out, drop it.
+    pending.erase(std::remove_if(pending.begin(), pending.end(),
+                                 [&](const Pending& p) { return p.dest == dest && p.seq == seq; }),
+                  pending.end());
+    pending.push_back(Pending{dest, seq, rt::monotonic_ns() + timeout_ns, std::move(done)});
+  }
+  void request(Address dest, int8_t type, ReplyHandler done, int64_t timeout_ns = 0) {
+    request(dest, type, {}, timeout_ns > 0 ? timeout_ns : default_timeout(), std::move(done));
+  }
+  template <typename T>
+  void request(Address dest, int8_t type, const T& body, ReplyHandler done, int64_t timeout_ns = 0) {
+    // The body is copied into the mailbox by send(): a local is fine.
+    const tims::ConstBuffer part = tims::buffer_of(body);
+    request(dest, type, std::span<const tims::ConstBuffer>(&part, 1),
+            timeout_ns > 0 ? timeout_ns : default_timeout(), std::move(done));
+  }
+  [[nodiscard]] int64_t default_timeout() const { return int64_t{config.timeout_ms} * rt::kNsPerMs; }
+
+  // Hands a received reply to the request it answers (by source and sequence number).
+  void dispatch(const tims::Mailbox::Received& got, std::span<const std::byte> buf) {
+    const Address from = got.header.source().component();
+    const auto it = std::find_if(pending.begin(), pending.end(), [&](const Pending& p) {
+      return p.dest.component() == from && p.seq == got.header.seq;
+    });
+    if (it == pending.end()) return;  // late: its request timed out
+    ReplyHandler done = std::move(it->done);
+    pending.erase(it);
+    Reply r;
+    r.header = got.header;
+    r.body = buf.subspan(sizeof(tims::MessageHeader), got.length - sizeof(tims::MessageHeader));
+    done(&r);
+  }
+
+  void receive_replies(int64_t wait_ns) {
+    auto got = reply_mailbox.receive(buffer, wait_ns);
+    while (got.status == tims::RecvStatus::kOk) {
+      dispatch(got, buffer);
+      got = reply_mailbox.receive(buffer, tims::Mailbox::kNonBlocking);
+    }
+    for (auto img = image_mailbox.receive(image_buffer, tims::Mailbox::kNonBlocking);
+         img.status == tims::RecvStatus::kOk; img = image_mailbox.receive(image_buffer, tims::Mailbox::kNonBlocking)) {
+      dispatch(img, image_buffer);
+    }
+    const int64_t now = rt::monotonic_ns();
+    std::vector<ReplyHandler> expired;
+    for (auto it = pending.begin(); it != pending.end();) {
+      if (now >= it->deadline_ns) {
+        expired.push_back(std::move(it->done));
+        it = pending.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    if (!expired.empty()) {
+      const std::lock_guard lock(counters_mutex);
+      counters.timeouts += expired.size();
+    }
+    for (auto& done : expired) done(nullptr);
+  }
+
+  // Describes a failed or refused reply for the user.
+  static std::string failure(const Reply* r, const std::string& what, Address dest) {
+    if (r == nullptr) return address_text(dest) + ": no reply to " + what + " in time (host gone or busy?)";
+    if (r->header.type == msg::kNotAvailable) return address_text(dest) + ": not available (no such component running)";
+    if (r->header.type == msg::kError) return address_text(dest) + ": " + what + " refused: " + error_reason(r->body);
+    return address_text(dest) + ": " + what + ": unexpected reply " + std::to_string(r->header.type);
+  }
+
+  // ------------------------------------------------------------ discovery and state
+  void refresh_hosts() {
+    for (auto& [key, h] : hosts) h.alive = false;
+    for (const auto& h : transport.hosts()) {
+      const std::string key = h.host + "#" + std::to_string(h.system) + "/" + std::to_string(h.host_id);
+      Host& host = hosts[key];
+      host.name = h.host;
+      host.system = h.system;
+      host.host_id = h.host_id;
+      host.pid = h.pid;
+      host.alive = true;
+      host.network = h.network;
+      for (std::size_t i = 0; i < h.components.size(); ++i) {
+        const auto& c = h.components[i];
+        const uint32_t raw = c.address.component().raw();
+        auto [it, fresh] = components.try_emplace(raw);
+        Component& comp = it->second;
+        if (fresh || comp.host_key != key) {
+          // A component is shown on the host that announced it last (it moved, or
+          // a router re-announced it before its executor did).
+          if (!fresh && h.role != tims::NodeRole::kExecutor && hosts[comp.host_key].alive) continue;
+          comp.host_key = key;
+        }
+        comp.info = c;
+        comp.info.address = c.address.component();
+        comp.system = c.address.system();
+        comp.order = i;
+      }
+    }
+  }
+
+  [[nodiscard]] std::string shown_state(const Component& c, int64_t now) const {
+    if (c.state == "not_available") return c.state;
+    if (c.last_reply_ns == 0 || now - c.last_reply_ns > kStaleNs) return "no_reply";
+    return c.state;
+  }
+
+  void poll_status() {
+    for (auto& [raw, c] : components) {
+      if (c.status_pending) continue;
+      c.status_pending = true;
+      const Address a(raw);
+      request(a, msg::kGetStatus, [this, raw](const Reply* r) {
+        auto it = components.find(raw);
+        if (it == components.end()) return;
+        Component& comp = it->second;
+        comp.status_pending = false;
+        if (r == nullptr) return;  // stays until kStaleNs passes: then "no_reply"
+        switch (r->header.type) {
+          case msg::kEnabled: comp.state = "enabled"; break;
+          case msg::kDisabled: comp.state = "disabled"; break;
+          case msg::kError: comp.state = "error"; break;
+          case msg::kNotAvailable: comp.state = "not_available"; break;
+          default: return;
+        }
+        comp.last_reply_ns = rt::monotonic_ns();
+      });
+    }
+  }
+
+  void poll_stats() {
+    for (auto& [raw, c] : components) {
+      if (c.stats_pending || shown_state(c, rt::monotonic_ns()) == "no_reply") continue;
+      c.stats_pending = true;
+      request(Address(raw), msg::kGetStats, [this, raw](const Reply* r) {
+        auto it = components.find(raw);
+        if (it == components.end()) return;
+        it->second.stats_pending = false;
+        wire::StatsReply st;
+        if (r == nullptr || r->header.type != msg::kStats || !wire::read_payload(r->body, r->native(), st)) return;
+        it->second.stats = {{"period_ns", st.period_ns},
+                            {"data_task", st.data_task},
+                            {"cycles", st.data.cycles},
+                            {"overruns", st.data.overruns},
+                            {"samples", st.data.samples},
+                            {"latency_ns",
+                             {{"min", st.data.latency_min_ns},
+                              {"p50", st.data.latency_p50_ns},
+                              {"p99", st.data.latency_p99_ns},
+                              {"p999", st.data.latency_p999_ns},
+                              {"max", st.data.latency_max_ns},
+                              {"mean", st.data.latency_mean_ns}}},
+                            {"published", st.published},
+                            {"listeners", st.listeners},
+                            {"commands", st.commands},
+                            {"errors", st.errors},
+                            {"malformed", st.malformed},
+                            {"command_drops", st.command_drops}};
+      });
+    }
+  }
+
+  // Data the dashboard draws: the navigation classes every round, other classes with
+  // a known data type every `slow` rounds.
+  void poll_data(uint64_t round) {
+    const int64_t now = rt::monotonic_ns();
+    for (auto& [raw, c] : components) {
+      if (c.data_pending || shown_state(c, now) != "enabled") continue;
+      const uint8_t cls = Address(raw).class_id();
+      const auto* type = ifc::data_type_for_class(cls);
+      if (type == nullptr) continue;
+      const bool fast = cls == classes::kChassis || cls == classes::kPosition || cls == classes::kMcl ||
+                        cls == classes::kScan2d || cls == classes::kPilot || cls == classes::kLadar;
+      if (cls == classes::kCamera) {
+        if (round % 5 == 0) poll_image(raw);  // once a second: 0.9 MB each
+        continue;
+      }
+      if (!fast && round % 5 != 0) continue;
+      c.data_pending = true;
+      wire::GetDataRequest req;
+      request(Address(raw), msg::kGetData, req, [this, raw, type](const Reply* r) {
+        auto it = components.find(raw);
+        if (it == components.end()) return;
+        Component& comp = it->second;
+        comp.data_pending = false;
+        wire::SampleHeader sh;
+        if (r == nullptr || r->header.type != msg::kData || r->body.size() < sizeof sh ||
+            !wire::read_payload(r->body.first(sizeof sh), r->native(), sh)) {
+          return;
+        }
+        const auto sample = r->body.subspan(sizeof sh);
+        if (sample.size() != type->size) return;
+        const Address a(raw);
+        if (a.class_id() == classes::kPosition) robots[comp.system].position_time_ns = sh.time_ns;
+        if (a.class_id() == classes::kChassis) {
+          ifc::ChassisData cd;
+          if (wire::read_payload(sample, r->native(), cd)) {
+            robots[comp.system].claimed = cd.active_pilot == reply_mailbox.address().raw();
+          }
+        }
+        json data = json::parse(rack::payload_to_json(type->fields, sample, r->native()), nullptr, false);
+        if (data.is_discarded()) return;
+        trim_arrays(a.class_id(), data);
+        broadcast(dump(json{{"type", "data"},
+                            {"component", address_text(a)},
+                            {"name", comp.info.name},
+                            {"class", class_text(a)},
+                            {"system", comp.system},
+                            {"time_ns", sh.time_ns},
+                            {"sequence", sh.sequence},
+                            {"data", std::move(data)}}));
+      });
+    }
+  }
+
+  // A camera's newest image, as {"type":"image",...} with the pixels (or JPEG) in base64.
+  void poll_image(uint32_t raw) {
+    Component& c = components[raw];
+    c.data_pending = true;
+    wire::GetDataRequest req;
+    const tims::ConstBuffer part = tims::buffer_of(req);
+    request(Address(raw), msg::kGetData, std::span<const tims::ConstBuffer>(&part, 1), default_timeout(),
+            [this, raw](const Reply* r) {
+              auto it = components.find(raw);
+              if (it == components.end()) return;
+              Component& comp = it->second;
+              comp.data_pending = false;
+              wire::SampleHeader sh;
+              auto img = std::make_unique<ifc::CameraData>();
+              if (r == nullptr || r->header.type != msg::kData || r->body.size() != sizeof sh + sizeof *img ||
+                  !wire::read_payload(r->body.first(sizeof sh), r->native(), sh) ||
+                  !wire::read_payload(r->body.subspan(sizeof sh), r->native(), *img)) {
+                return;
+              }
+              const std::size_t bytes = std::min<std::size_t>(img->bytes, sizeof img->data);
+              const char* format = img->format == ifc::kCameraRgb8    ? "rgb"
+                                   : img->format == ifc::kCameraMono8 ? "mono"
+                                   : img->format == ifc::kCameraJpeg  ? "jpeg"
+                                                                      : "unknown";
+              broadcast(dump(json{{"type", "image"},
+                                  {"component", address_text(Address(raw))},
+                                  {"system", comp.system},
+                                  {"time_ns", sh.time_ns},
+                                  {"width", img->width},
+                                  {"height", img->height},
+                                  {"frame", img->frame},
+                                  {"dropped", img->dropped},
+                                  {"bad_frames", img->bad_frames},
+                                  {"format", format},
+                                  {"data", base64(std::vector<uint8_t>(img->data, img->data + bytes))}}));
+            },
+            image_mailbox.address());
+  }
+
+  // Fixed-capacity arrays are sent only up to their count (a scan of 541 beams, not
+  // 1081 slots): a fifth of the bytes on a robot's Wi-Fi or SSH tunnel.
+  static void trim_arrays(uint8_t cls, json& d) {
+    const auto cut = [&d](const char* count, std::initializer_list<const char*> arrays) {
+      if (!d.contains(count) || !d[count].is_number_unsigned()) return;
+      const auto n = d[count].get<std::size_t>();
+      for (const char* a : arrays) {
+        if (d.contains(a) && d[a].is_array() && d[a].size() > n) d[a].erase(d[a].begin() + static_cast<std::ptrdiff_t>(n), d[a].end());
+      }
+    };
+    switch (cls) {
+      case classes::kLadar: cut("beam_count", {"range", "intensity"}); break;
+      case classes::kScan2d: cut("point_count", {"x", "y", "range", "bearing", "type"}); break;
+      case classes::kPath:
+        cut("point_count", {"x", "y"});
+        cut("waypoint_count", {"waypoint_x", "waypoint_y"});
+        break;
+      case classes::kMcl: cut("shown", {"particle_x", "particle_y", "particle_phi", "particle_weight"}); break;
+      default: break;
+    }
+  }
+
+  std::string components_message() const {
+    const int64_t now = rt::monotonic_ns();
+    std::map<uint8_t, std::map<std::string, std::vector<const Component*>>> by_robot;
+    for (const auto& [raw, c] : components) by_robot[c.system][c.host_key].push_back(&c);
+    json robots_j = json::array();
+    for (auto& [system, by_host] : by_robot) {
+      json hosts_j = json::array();
+      for (auto& [key, list] : by_host) {
+        std::sort(list.begin(), list.end(), [](const Component* a, const Component* b) { return a->order < b->order; });
+        const auto h = hosts.find(key);
+        json comps = json::array();
+        for (const Component* c : list) {
+          comps.push_back({{"address", address_text(c->info.address)},
+                           {"name", c->info.name},
+                           {"class", class_text(c->info.address)},
+                           {"impl", c->info.impl},
+                           {"state", shown_state(*c, now)},
+                           {"stats", c->stats}});
+        }
+        json hj = {{"key", key}, {"components", comps}};
+        if (h != hosts.end()) {
+          hj["host"] = h->second.name;
+          hj["host_id"] = h->second.host_id;
+          hj["pid"] = h->second.pid;
+          hj["alive"] = h->second.alive;
+          hj["network"] = h->second.network;
+        }
+        hosts_j.push_back(hj);
+      }
+      const auto r = robots.find(system);
+      robots_j.push_back({{"system", system},
+                          {"hosts", hosts_j},
+                          {"joystick", r != robots.end() && r->second.claimed}});
+    }
+    return dump(json{{"type", "components"}, {"robots", robots_j}});
+  }
+
+  // The first component of a class in a robot (lowest instance), preferring one that
+  // answers.
+  std::optional<Address> find(uint8_t system, uint8_t cls) const {
+    std::optional<Address> best;
+    bool best_alive = false;
+    const int64_t now = rt::monotonic_ns();
+    for (const auto& [raw, c] : components) {
+      const Address a(raw);
+      if (a.system() != system || a.class_id() != cls) continue;
+      const bool alive = shown_state(c, now) == "enabled";
+      if (!best || (alive && !best_alive)) {
+        best = a;
+        best_alive = alive;
+      }
+    }
+    return best;
+  }
+
+  // ------------------------------------------------------------ maps
+  void poll_maps() {
+    std::set<uint8_t> systems;
+    for (const auto& [raw, c] : components) systems.insert(c.system);
+    for (const uint8_t s : systems) {
+      Robot& robot = robots[s];
+      if (robot.map_sent || robot.map_pending) continue;
+      if (robot.map_retry > 0) {
+        --robot.map_retry;
+        continue;
+      }
+      if (const auto file = configured_map(s)) {
+        load_and_send_map(s, *file, "--map");
+        continue;
+      }
+      // The map the robot localises on: MCL's, else the simulators' `map` parameter.
+      std::optional<Address> holder;
+      for (const uint8_t cls : {classes::kMcl, classes::kLadar, classes::kChassis}) {
+        if ((holder = find(s, cls))) break;
+      }
+      if (!holder) {
+        robot.map_retry = kMapRetryRounds;
+        continue;
+      }
+      robot.map_pending = true;
+      wire::ParamName name;
+      wire::copy_text(name.name, "map");
+      const Address a = *holder;
+      request(a, msg::kGetParam, name, [this, s, a](const Reply* r) {
+        Robot& rb = robots[s];
+        rb.map_pending = false;
+        wire::ParamRecord p;
+        if (r == nullptr || r->header.type != msg::kParam || !wire::read_payload(r->body, r->native(), p) ||
+            static_cast<wire::ParamKind>(p.kind) != wire::ParamKind::kString) {
+          rb.map_retry = kMapRetryRounds;  // no `map` parameter (a real robot): try the next time
+          return;
+        }
+        const std::string file = param_text(p.string_value, sizeof p.string_value);
+        if (file.empty()) {
+          rb.map_retry = kMapRetryRounds;
+          return;
+        }
+        load_and_send_map(s, file, address_text(a) + " parameter 'map'");
+      });
+    }
+  }
+
+  std::optional<std::string> configured_map(uint8_t system) const {
+    std::optional<std::string> any;
+    for (const auto& m : config.maps) {
+      const auto eq = m.find('=');
+      if (eq == std::string::npos) {
+        any = m;
+      } else if (m.substr(0, eq) == std::to_string(system)) {
+        return m.substr(eq + 1);
+      }
+    }
+    return any;
+  }
+
+  void load_and_send_map(uint8_t system, const std::string& file, const std::string& from) {
+    Robot& robot = robots[system];
+    std::filesystem::path path(file);
+    if (path.is_relative()) path = std::filesystem::path(config.map_root) / path;
+    const auto loaded = maps::load_map(path.string());
+    if (!loaded.ok()) {
+      robot.map_retry = kMapRetryRounds * 5;
+      broadcast(dump(json{{"type", "notice"},
+                          {"level", "error"},
+                          {"text", "map of robot " + std::to_string(system) + " (" + from + "): " + loaded.error_text()}}));
+      return;
+    }
+    const auto& m = *loaded.map;
+    std::vector<uint8_t> cells(static_cast<std::size_t>(m.width()) * static_cast<std::size_t>(m.height()));
+    for (int iy = 0; iy < m.height(); ++iy) {
+      for (int ix = 0; ix < m.width(); ++ix) {
+        cells[static_cast<std::size_t>(iy) * static_cast<std::size_t>(m.width()) + static_cast<std::size_t>(ix)] =
+            static_cast<uint8_t>(m.cell_state(ix, iy));
+      }
+    }
+    robot.map_message = dump(json{{"type", "map"},
+                                  {"system", system},
+                                  {"source", path.string()},
+                                  {"width", m.width()},
+                                  {"height", m.height()},
+                                  {"resolution", m.resolution()},
+                                  {"origin_x", m.origin_x()},
+                                  {"origin_y", m.origin_y()},
+                                  {"origin_yaw", m.origin_yaw()},
+                                  {"cells", base64(cells)}});
+    robot.map_sent = true;
+    {
+      const std::lock_guard lock(greet_mutex);
+      map_messages[system] = robot.map_message;
+    }
+    broadcast(robot.map_message);
+  }
+
+  // ------------------------------------------------------------ client requests
+  void handle(uint64_t client, const Request& r) {
+    switch (r.op) {
+      case Op::kSwitch: {
+        const Address a = r.component;
+        request(a, r.on ? msg::kOn : msg::kOff, [this, client, r, a](const Reply* rep) {
+          const bool ok = rep != nullptr && rep->header.type == msg::kOk;
+          result(client, r, ok, ok ? address_text(a) + (r.on ? " on" : " off") : failure(rep, r.on ? "ON" : "OFF", a));
+          poll_status();
+        }, r.on ? kOnTimeoutNs : 0);
+        break;
+      }
+      case Op::kAllOff: {
+        // Reverse order: hosts in reverse, each host's components against its host
+        // file's order, so consumers go off before their producers (as rackd does).
+        std::vector<const Component*> list;
+        for (const auto& [raw, c] : components) {
+          if (c.system == r.system) list.push_back(&c);
+        }
+        std::sort(list.begin(), list.end(), [](const Component* a, const Component* b) {
+          return a->host_key != b->host_key ? a->host_key > b->host_key : a->order > b->order;
+        });
+        auto order = std::make_shared<std::vector<Address>>();
+        for (const Component* c : list) order->push_back(c->info.address);
+        if (order->empty()) {
+          result(client, r, false, "robot " + std::to_string(r.system) + " has no components");
+          break;
+        }
+        all_off_step(client, r, order, 0, std::make_shared<std::vector<std::string>>());
+        break;
+      }
+      case Op::kGetParams: {
+        const Address a = r.component;
+        request(a, msg::kGetParam, [this, client, r, a](const Reply* rep) {
+          if (rep == nullptr || rep->header.type != msg::kParam || rep->body.size() % sizeof(wire::ParamRecord) != 0) {
+            result(client, r, false, failure(rep, "GET_PARAM", a));
+            return;
+          }
+          json list = json::array();
+          for (std::size_t i = 0; i < rep->body.size() / sizeof(wire::ParamRecord); ++i) {
+            wire::ParamRecord p;
+            if (wire::read_payload(rep->body.subspan(i * sizeof p, sizeof p), rep->native(), p)) {
+              list.push_back(param_json(p));
+            }
+          }
+          send_to(client, dump(json{{"type", "params"}, {"component", address_text(a)}, {"params", list}}));
+          result(client, r, true, address_text(a) + ": " + std::to_string(list.size()) + " parameters");
+        });
+        break;
+      }
+      case Op::kSetParam: {
+        // The kind first (the component's), then the checked value.
+        const Address a = r.component;
+        wire::ParamName name;
+        wire::copy_text(name.name, r.param_name.c_str());
+        request(a, msg::kGetParam, name, [this, client, r, a](const Reply* rep) {
+          wire::ParamRecord p;
+          if (rep == nullptr || rep->header.type != msg::kParam || !wire::read_payload(rep->body, rep->native(), p)) {
+            result(client, r, false, failure(rep, "GET_PARAM " + r.param_name, a));
+            return;
+          }
+          const std::string bad = check_param_value(r.param_value, p);
+          if (!bad.empty()) {
+            {
+              const std::lock_guard lock(counters_mutex);
+              ++counters.malformed;
+            }
+            result(client, r, false,
+                   address_text(a) + " parameter '" + r.param_name + "' (" +
+                       rack::describe(static_cast<wire::ParamKind>(p.kind)) + "): " + bad + "; nothing was sent");
+            return;
+          }
+          request(a, msg::kSetParam, p, [this, client, r, a, p](const Reply* rep2) {
+            const bool ok = rep2 != nullptr && rep2->header.type == msg::kOk;
+            result(client, r, ok, ok ? address_text(a) + ": " + r.param_name + " = " + dump(param_json(p)["value"])
+                                     : failure(rep2, "SET_PARAM " + r.param_name, a));
+          });
+        });
+        break;
+      }
+      case Op::kSetDestination: {
+        const auto pilot = find(r.system, classes::kPilot);
+        if (!pilot) {
+          result(client, r, false, "robot " + std::to_string(r.system) + " has no Pilot");
+          break;
+        }
+        ifc::PilotDestination d;
+        d.x = r.x;
+        d.y = r.y;
+        const Address a = *pilot;
+        request(a, ifc::kPilotSetDestination, d, [this, client, r, a](const Reply* rep) {
+          const bool ok = rep != nullptr && rep->header.type == msg::kOk;
+          if (ok) release_joystick(r.system);  // the Pilot takes the chassis back
+          result(client, r, ok, ok ? address_text(a) + ": destination set" : failure(rep, "SET_DESTINATION", a));
+        });
+        break;
+      }
+      case Op::kFollowPath: {
+        const auto pilot = find(r.system, classes::kPilot);
+        if (!pilot) {
+          result(client, r, false, "robot " + std::to_string(r.system) + " has no Pilot");
+          break;
+        }
+        const Address a = *pilot;
+        request(a, ifc::kPilotFollowPath, [this, client, r, a](const Reply* rep) {
+          const bool ok = rep != nullptr && rep->header.type == msg::kOk;
+          if (ok) release_joystick(r.system);
+          result(client, r, ok, ok ? address_text(a) + ": following the path" : failure(rep, "FOLLOW_PATH", a));
+        });
+        break;
+      }
+      case Op::kSetPose: set_pose(client, r); break;
+      case Op::kJoystick: joystick(client, r); break;
+      case Op::kJoystickRelease: {
+        Robot& robot = robots[r.system];
+        if (robot.joystick_owner == client || robot.joystick_owner == 0) stop_joystick(r.system);
+        result(client, r, true, "joystick released: robot stopped");
+        break;
+      }
+    }
+  }
+
+  void all_off_step(uint64_t client, const Request& r, std::shared_ptr<std::vector<Address>> order, std::size_t i,
+                    std::shared_ptr<std::vector<std::string>> failures) {
+    if (i >= order->size()) {
+      const bool ok = failures->empty();
+      std::string text = ok ? "robot " + std::to_string(r.system) + ": all " + std::to_string(order->size()) + " off" : "";
+      for (const auto& f : *failures) text += (text.empty() ? "" : "; ") + f;
+      result(client, r, ok, text);
+      poll_status();
+      return;
+    }
+    const Address a = (*order)[i];
+    request(a, msg::kOff, [this, client, r, order, i, failures, a](const Reply* rep) {
+      if (rep == nullptr || rep->header.type != msg::kOk) failures->push_back(failure(rep, "OFF", a));
+      all_off_step(client, r, order, i + 1, failures);
+    });
+  }
+
+  void set_pose(uint64_t client, const Request& r) {
+    const auto position = find(r.system, classes::kPosition);
+    const auto mcl = find(r.system, classes::kMcl);
+    if (!position && !mcl) {
+      result(client, r, false, "robot " + std::to_string(r.system) + " has neither Position nor MCL");
+      return;
+    }
+    const auto init_mcl = [this, client, r, mcl](std::string done) {
+      if (!mcl) {
+        result(client, r, true, done);
+        return;
+      }
+      ifc::MclInit init;
+      init.x = r.x;
+      init.y = r.y;
+      init.phi = r.phi;
+      init.sigma_xy = 0.3;
+      init.sigma_phi = 0.2;
+      const Address a = *mcl;
+      request(a, ifc::kMclInit, init, [this, client, r, a, done](const Reply* rep) {
+        const bool ok = rep != nullptr && rep->header.type == msg::kOk;
+        result(client, r, ok, ok ? done + (done.empty() ? "" : "; ") + address_text(a) + " re-initialised"
+                                 : failure(rep, "INIT", a));
+      });
+    };
+    if (!position) {
+      init_mcl("");
+      return;
+    }
+    const int64_t t = robots[r.system].position_time_ns;
+    if (t == 0) {
+      result(client, r, false, address_text(*position) + ": no sample yet (is it on?): its time is needed for UPDATE");
+      return;
+    }
+    // UPDATE refers to a time: the newest Position sample's, which the robot's
+    // odometry certainly holds (this tool's clock need not be the robot's).
+    ifc::PositionUpdate u;
+    u.time_ns = t;
+    u.x = r.x;
+    u.y = r.y;
+    u.phi = r.phi;
+    u.var_x = u.var_y = 0.3 * 0.3;
+    u.var_phi = 0.2 * 0.2;
+    const Address a = *position;
+    request(a, ifc::kPositionUpdate, u, [this, client, r, a, init_mcl](const Reply* rep) {
+      if (rep == nullptr || rep->header.type != msg::kOk) {
+        result(client, r, false, failure(rep, "UPDATE", a));
+        return;
+      }
+      init_mcl(address_text(a) + " updated");
+    });
+  }
+
+  void joystick(uint64_t client, const Request& r) {
+    Robot& robot = robots[r.system];
+    const auto chassis = find(r.system, classes::kChassis);
+    if (!chassis) {
+      result(client, r, false, "robot " + std::to_string(r.system) + " has no Chassis");
+      return;
+    }
+    if (robot.joystick_owner != 0 && robot.joystick_owner != client &&
+        rt::monotonic_ns() - robot.joystick_last_ns < kDeadManNs) {
+      result(client, r, false, "another browser drives robot " + std::to_string(r.system));
+      return;
+    }
+    robot.joystick_owner = client;
+    robot.joystick_last_ns = rt::monotonic_ns();
+    robot.want_vx = r.vx;
+    robot.want_omega = r.omega;
+    robot.joystick_moving = r.vx != 0.0 || r.omega != 0.0;
+    if (robot.claim_pending) return;  // the MOVE follows the claim
+    if (!robot.claimed) {
+      // Become the chassis' active pilot (the Pilot, if any, is preempted and stands).
+      robot.claim_pending = true;
+      ifc::ChassisSetActivePilot claim;
+      claim.pilot = reply_mailbox.address().raw();
+      const Address a = *chassis;
+      const uint8_t s = r.system;
+      request(a, ifc::kChassisSetActivePilot, claim, [this, client, r, a, s](const Reply* rep) {
+        Robot& rb = robots[s];
+        rb.claim_pending = false;
+        if (rep == nullptr || rep->header.type != msg::kOk) {
+          result(client, r, false, failure(rep, "SET_ACTIVE_PILOT", a));
+          return;
+        }
+        rb.claimed = true;
+        result(client, r, true, address_text(a) + ": the joystick is the active pilot");
+        send_move(s, rb.want_vx, rb.want_omega);
+      });
+      return;
+    }
+    send_move(r.system, r.vx, r.omega);
+  }
+
+  void send_move(uint8_t system, double vx, double omega) {
+    const auto chassis = find(system, classes::kChassis);
+    if (!chassis) return;
+    ifc::ChassisMove m;
+    m.vx = vx;
+    m.omega = omega;
+    const Address a = *chassis;
+    request(a, ifc::kChassisMove, m, [this, system, a](const Reply* rep) {
+      if (rep != nullptr && rep->header.type == msg::kOk) return;
+      Robot& robot = robots[system];
+      robot.claimed = false;  // taken over by another pilot: claim again on the next command
+      if (robot.joystick_owner != 0) {
+        send_to(robot.joystick_owner,
+                dump(json{{"type", "notice"}, {"level", "warning"}, {"text", failure(rep, "MOVE", a)}}));
+      }
+    });
+  }
+
+  void stop_joystick(uint8_t system) {
+    Robot& robot = robots[system];
+    if (robot.claimed || robot.claim_pending) send_move(system, 0.0, 0.0);
+    robot.joystick_moving = false;
+    robot.want_vx = robot.want_omega = 0.0;
+    robot.joystick_owner = 0;
+  }
+  void release_joystick(uint8_t system) {
+    Robot& robot = robots[system];
+    robot.joystick_owner = 0;
+    robot.joystick_moving = false;
+    robot.claimed = false;
+  }
+
+  // Dead-man: the browser sends joystick commands ten times a second while the stick
+  // is held; silence (a frozen tab, a lost network) stops the robot. The chassis
+  // watchdog stops it as well should this tool die.
+  void check_dead_man() {
+    const int64_t now = rt::monotonic_ns();
+    for (auto& [s, robot] : robots) {
+      if (robot.joystick_owner != 0 && now - robot.joystick_last_ns > kDeadManNs) {
+        const uint64_t owner = robot.joystick_owner;
+        const bool was_moving = robot.joystick_moving;
+        stop_joystick(s);
+        if (was_moving) {
+          send_to(owner, dump(json{{"type", "notice"},
+                                   {"level", "warning"},
+                                   {"text", "joystick silent for 400 ms: robot " + std::to_string(s) + " stopped"}}));
+        }
+      }
+    }
+  }
+
+  // ------------------------------------------------------------ threads
+  void run_worker() {
+    int64_t next_round = rt::monotonic_ns();
+    int64_t next_discovery = next_round;
+    uint64_t round = 0;
+    while (running.load()) {
+      // Client requests and closed clients, handed over by the server's thread.
+      std::deque<std::pair<uint64_t, Request>> work;
+      std::vector<uint64_t> closed;
+      {
+        const std::lock_guard lock(queue_mutex);
+        work.swap(queue);
+        closed.swap(closed_clients);
+      }
+      for (const uint64_t c : closed) {
+        for (auto& [s, robot] : robots) {
+          if (robot.joystick_owner == c) stop_joystick(s);
+        }
+      }
+      for (auto& [client, req] : work) handle(client, req);
+      check_dead_man();
+
+      const int64_t now = rt::monotonic_ns();
+      if (now >= next_discovery) {
+        transport.request_discovery();
+        next_discovery = now + rt::kNsPerSec;
+      }
+      if (now >= next_round) {
+        next_round = now + int64_t{config.poll_ms} * rt::kNsPerMs;
+        refresh_hosts();
+        poll_status();
+        if (round % 5 == 0) poll_stats();
+        poll_data(round);
+        poll_maps();
+        std::string snapshot = components_message();
+        {
+          const std::lock_guard lock(greet_mutex);
+          last_components = snapshot;
+        }
+        broadcast(std::move(snapshot));
+        ++round;
+      }
+      receive_replies(10 * rt::kNsPerMs);
+    }
+  }
+
+  void run_gdos() {
+    std::unique_ptr<tims::GdosSubscriber> sub;
+    const std::string url = config.gdos_url.empty() ? config.lcm_url : config.gdos_url;
+    const std::string channel = config.gdos_channel.empty() ? tims::kGdosChannel : config.gdos_channel;
+    try {
+      sub = std::make_unique<tims::GdosSubscriber>(url, channel, true, "rack-gui");
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "rack-gui: GDOS: %s\n", e.what());
+      broadcast(dump(json{{"type", "notice"}, {"level", "error"}, {"text", std::string("GDOS: ") + e.what()}}));
+      return;
+    }
+    while (running.load()) {
+      std::vector<std::string> lines;
+      try {
+        sub->poll(100, [&](const tims::GdosRecord& r) {
+          std::string name = r.name;
+          if (name.empty()) name = sub->announced_name(r.source);
+          lines.push_back(gdos_view::json_line(r, name));
+        });
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "rack-gui: GDOS: %s\n", e.what());
+      }
+      const std::string w = sub->take_warnings();
+      if (!w.empty()) broadcast(dump(json{{"type", "notice"}, {"level", "warning"}, {"text", "GDOS: " + w}}));
+      if (lines.empty()) continue;
+      {
+        const std::lock_guard lock(greet_mutex);
+        for (const auto& l : lines) {
+          recent_log.push_back(l);
+          if (recent_log.size() > kRecentLog) recent_log.pop_front();
+        }
+      }
+      broadcast(gdos_message(lines.begin(), lines.end()));
+    }
+  }
+
+  // Every 2 s: report files that are new or changed are symbolized again.
+  void run_reports() {
+    struct Seen {
+      std::uintmax_t size = 0;
+      std::filesystem::file_time_type mtime;
+    };
+    std::map<std::string, Seen> seen;
+    bool warned = false;
+    while (running.load()) {
+      std::error_code ec;
+      std::vector<std::filesystem::path> files;
+      for (std::filesystem::directory_iterator it(config.reports_dir, ec), end; !ec && it != end; it.increment(ec)) {
+        const auto name = it->path().filename().string();
+        if (name.rfind("rackd-", 0) == 0 && it->path().extension() == ".report") files.push_back(it->path());
+      }
+      if (ec && !warned && ec != std::errc::no_such_file_or_directory) {
+        std::fprintf(stderr, "rack-gui: reports: %s: %s\n", config.reports_dir.c_str(), ec.message().c_str());
+        warned = true;
+      }
+      bool changed = false;
+      for (const auto& f : files) {
+        std::error_code e1, e2;
+        const Seen now{std::filesystem::file_size(f, e1), std::filesystem::last_write_time(f, e2)};
+        if (e1 || e2) continue;
+        auto& old = seen[f.string()];
+        if (old.size == now.size && old.mtime == now.mtime) continue;
+        old = now;
+        const std::string text = symbolize(f.string());
+        const std::lock_guard lock(greet_mutex);
+        report_texts[f.string()] = text;
+        changed = true;
+      }
+      if (changed) broadcast(reports_message());
+      for (int i = 0; i < 20 && running.load(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  }
+
+  std::string backtrace_program() const {
+    if (!config.backtrace_path.empty()) return config.backtrace_path;
+    std::error_code ec;
+    const auto self = std::filesystem::read_symlink("/proc/self/exe", ec).parent_path();
+    // Installed: beside rack-gui; in a build tree: tools/rack-backtrace next to tools/gui/.
+    for (const auto& candidate : {self / "rack-backtrace", self.parent_path() / "rack-backtrace"}) {
+      if (!ec && access(candidate.c_str(), X_OK) == 0) return candidate.string();
+    }
+    return "rack-backtrace";  // on PATH
+  }
+
+  // rack-backtrace FILE, its output (and errors), at most 256 KiB.
+  std::string symbolize(const std::string& file) const {
+    const auto quote = [](const std::string& s) {
+      std::string q = "'";
+      for (const char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+      return q + "'";
+    };
+    const std::string cmd = quote(backtrace_program()) + " " + quote(file) + " 2>&1";
+    FILE* p = popen(cmd.c_str(), "r");
+    if (p == nullptr) return "cannot run rack-backtrace: " + std::string(std::strerror(errno));
+    std::string out;
+    char buf[4096];
+    std::size_t n = 0;
+    while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) {
+      if (out.size() < 256 * 1024) out.append(buf, n);
+    }
+    const int status = pclose(p);
+    if (status != 0 && out.empty()) out = "rack-backtrace failed (status " + std::to_string(status) + ")";
+    return out;
+  }
+
+  std::string reports_message() {
+    json list = json::array();
+    const std::lock_guard lock(greet_mutex);
+    for (const auto& [file, text] : report_texts) list.push_back({{"file", file}, {"text", text}});
+    return dump(json{{"type", "reports"}, {"dir", config.reports_dir}, {"reports", list}});
+  }
+
+  template <typename It>
+  static std::string gdos_message(It first, It last) {
+    std::string m = "{\"type\":\"gdos\",\"records\":[";
+    for (It it = first; it != last; ++it) {
+      if (it != first) m += ',';
+      m += *it;
+    }
+    return m + "]}";
+  }
+
+  void greet(uint64_t client) {
+    send_to(client, dump(json{{"type", "hello"}, {"version", 1}, {"lcm", config.lcm_url}}));
+    const std::lock_guard lock(greet_mutex);
+    if (!last_components.empty()) send_to(client, last_components);
+    for (const auto& [s, m] : map_messages) send_to(client, m);
+    if (!recent_log.empty()) send_to(client, gdos_message(recent_log.begin(), recent_log.end()));
+    if (!report_texts.empty()) {
+      json list = json::array();
+      for (const auto& [file, text] : report_texts) list.push_back({{"file", file}, {"text", text}});
+      send_to(client, dump(json{{"type", "reports"}, {"dir", config.reports_dir}, {"reports", list}}));
+    }
+  }
+
+  BackendConfig config;
+  Sink sink;
+  tims::Router router{tims::kToolSystem};
+  tims::Mailbox reply_mailbox;
+  tims::Mailbox image_mailbox;
+  tims::Endpoint endpoint;
+  tims::LcmTransport transport;
+  std::vector<std::byte> buffer;
+  std::vector<std::byte> image_buffer;
+  std::atomic<bool> running{false};
+  std::thread worker, gdos_thread, reports_thread;
+
+  // Worker thread only.
+  std::vector<Pending> pending;
+  std::map<uint32_t, Component> components;
+  std::map<std::string, Host> hosts;
+  std::map<uint8_t, Robot> robots;
+
+  std::mutex queue_mutex;  // server thread -> worker
+  std::deque<std::pair<uint64_t, Request>> queue;
+  std::vector<uint64_t> closed_clients;
+
+  std::mutex greet_mutex;  // worker and GDOS thread -> server thread (new clients)
+  std::string last_components;
+  std::map<uint8_t, std::string> map_messages;
+  std::deque<std::string> recent_log;
+  std::map<std::string, std::string> report_texts;  // report file -> rack-backtrace's output
+
+  mutable std::mutex counters_mutex;
+  Counters counters;
+};
+
+Backend::Backend(BackendConfig config, Sink sink) : impl_(std::make_unique<Impl>(std::move(config), std::move(sink))) {}
+Backend::~Backend() = default;
+void Backend::start() { impl_->start(); }
+void Backend::stop() { impl_->stop(); }
+
+void Backend::submit(uint64_t client, const std::string& text) {
+  auto parsed = parse_request(text);
+  if (auto* e = std::get_if<ParseError>(&parsed)) {
+    {
+      const std::lock_guard lock(impl_->counters_mutex);
+      ++impl_->counters.malformed;
+    }
+    impl_->send_to(client, error_message(*e));
+    return;
+  }
+  const std::lock_guard lock(impl_->queue_mutex);
+  impl_->queue.emplace_back(client, std::get<Request>(std::move(parsed)));
+}
+
+void Backend::client_closed(uint64_t client) {
+  const std::lock_guard lock(impl_->queue_mutex);
+  impl_->closed_clients.push_back(client);
+}
+
+void Backend::greet(uint64_t client) { impl_->greet(client); }
+
+Backend::Counters Backend::counters() const {
+  const std::lock_guard lock(impl_->counters_mutex);
+  return impl_->counters;
+}
+
+}  // namespace rack::gui

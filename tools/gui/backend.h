@@ -1,0 +1,86 @@
+// rack-gui's link to the robots: one non-RT thread that joins the TiMS/LCM network
+// as a tool (as rackctl does), keeps the list of every component of every host with
+// its state, polls the data the dashboard draws, and carries out the browser's
+// requests (parsed by gui_protocol.h) as asynchronous TiMS requests, so one robot
+// that does not answer never delays the others.
+//
+// What the browser sees of a component's state:
+//   "enabled", "disabled", "error": its last GET_STATUS reply, at most kStaleNs old;
+//   "no_reply": no reply for kStaleNs (the host stopped answering, or vanished from
+//               discovery: it is kept in the list, never shown with its last state);
+//   "not_available": the network answered NOT_AVAILABLE for it.
+//
+// A reports thread symbolizes the report files in `reports_dir` with rack-backtrace
+// (a separate process, so libdw's work never delays the robots' state).
+//
+// A GDOS thread receives the log of every host (tims::GdosSubscriber) and passes it
+// on in batches; the last records are kept for browsers that connect later.
+//
+// Not RT code (a tool). Thread-safety: submit(), client_closed() and
+// snapshot_for_new_client() may be called from any thread; the sink is called from
+// the backend's threads.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "gui_protocol.h"
+
+namespace rack::gui {
+
+struct BackendConfig {
+  std::string lcm_url;         // TiMS network
+  std::string gdos_url;        // "" = lcm_url
+  std::string gdos_channel;    // "" = RACK_GDOS
+  std::vector<std::string> maps;  // --map SYSTEM=FILE or FILE (every robot)
+  std::string map_root = ".";  // where relative `map` parameters are looked up
+  // Mode-switch and crash report files (rackd-*.report) of the hosts on this machine,
+  // symbolized with rack-backtrace whenever one changes. "" disables it.
+  std::string reports_dir = "/var/tmp/rack";
+  std::string backtrace_path;  // rack-backtrace; "" = beside rack-gui, else on PATH
+  int poll_ms = 200;           // state and data poll period
+  int timeout_ms = 1000;       // a request not answered in this time fails
+};
+
+class Backend {
+ public:
+  // Messages for one client (client id) or every client (id 0).
+  using Sink = std::function<void(uint64_t client, std::string message)>;
+
+  // Joins the network; throws std::runtime_error naming the URL on failure.
+  Backend(BackendConfig config, Sink sink);
+  ~Backend();
+  Backend(const Backend&) = delete;
+  Backend& operator=(const Backend&) = delete;
+
+  void start();
+  void stop();
+
+  // A message from client `client`: parsed here; a malformed one is answered with an
+  // error at once and sends nothing to any robot.
+  void submit(uint64_t client, const std::string& text);
+  // The client went away: a joystick it held stops the robot.
+  void client_closed(uint64_t client);
+  // What a client that just connected needs (hello, components, maps, recent log).
+  void greet(uint64_t client);
+
+  struct Counters {
+    uint64_t malformed = 0;   // client messages refused
+    uint64_t requests = 0;    // TiMS requests sent
+    uint64_t timeouts = 0;    // TiMS requests not answered in time
+  };
+  [[nodiscard]] Counters counters() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rack::gui

@@ -1,0 +1,88 @@
+// rack-gui's WebSocket protocol: what the browser may ask for, parsed and checked
+// strictly before anything is sent to a robot.
+//
+// Client -> server: one JSON object per WebSocket text message, with "op" and an
+// optional integer "id" that the server echoes in its "result" message:
+//
+//   {"op":"switch","component":"Chassis(0/0)","on":true}
+//   {"op":"all_off","system":0}                       every component of robot 0, reverse order
+//   {"op":"get_params","component":"Pilot(0/0)"}
+//   {"op":"set_param","component":"Pilot(0/0)","name":"vx_max","value":0.5}
+//   {"op":"set_destination","system":0,"x":10.0,"y":8.0}      Pilot SET_DESTINATION
+//   {"op":"set_pose","system":0,"x":4.0,"y":7.2,"phi":0.0}   Position UPDATE + MCL INIT
+//   {"op":"joystick","system":0,"vx":0.3,"omega":0.0}        become the active pilot, MOVE
+//   {"op":"joystick_release","system":0}                     MOVE 0 (dead-man released)
+//   {"op":"follow_path","system":0}                          hand the chassis back to the Pilot
+//
+// Anything else (not JSON, not an object, unknown op or key, a missing key, a value of
+// the wrong JSON type, a number out of range or not finite, a text that is not a
+// component address) is refused with a ParseError saying what and where; the caller
+// answers {"type":"error",...} and sends nothing to any robot.
+//
+// Whether a parameter VALUE has the right type for the parameter's kind is checked
+// against the kind the component reports (check_param_value), since only the component
+// knows it.
+//
+// Not RT code (a tool). Thread-safety: free functions, no shared state.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <variant>
+
+#include <nlohmann/json.hpp>
+
+#include "rack/core/wire.h"
+#include "rack/tims/address.h"
+
+namespace rack::gui {
+
+enum class Op {
+  kSwitch,
+  kAllOff,
+  kGetParams,
+  kSetParam,
+  kSetDestination,
+  kSetPose,
+  kJoystick,
+  kJoystickRelease,
+  kFollowPath,
+};
+[[nodiscard]] const char* op_name(Op op) noexcept;
+
+// Limits a browser may ask for; the chassis clamps to its own limits as well.
+inline constexpr double kMaxJoystickSpeed = 5.0;   // m/s
+inline constexpr double kMaxJoystickOmega = 10.0;  // rad/s
+inline constexpr double kMaxCoordinate = 1.0e6;    // m: anything larger is a mistake
+
+struct Request {
+  Op op = Op::kSwitch;
+  std::optional<int64_t> id;   // echoed in the result
+  tims::Address component;     // switch, get_params, set_param (command mailbox)
+  uint8_t system = 0;          // robot-wide ops
+  bool on = false;             // switch
+  std::string param_name;      // set_param
+  nlohmann::json param_value;  // set_param: checked against the kind later
+  double x = 0.0, y = 0.0, phi = 0.0;  // set_destination, set_pose
+  double vx = 0.0, omega = 0.0;        // joystick
+};
+
+struct ParseError {
+  std::optional<int64_t> id;  // when the message had a readable id
+  std::string message;        // what and where ("key 'x': expected a number, got string")
+};
+
+// Parses and validates one client message.
+[[nodiscard]] std::variant<Request, ParseError> parse_request(const std::string& text);
+
+// Fills `record`'s value from a JSON value when it has the type of the record's kind
+// (int: an integer; float: a finite number; bool: true/false; string: a string shorter
+// than wire::kParamStringLen). Returns the problem, or "" when it was set.
+[[nodiscard]] std::string check_param_value(const nlohmann::json& value, wire::ParamRecord& record);
+
+// Server -> client helpers.
+[[nodiscard]] std::string error_message(const ParseError& e);
+[[nodiscard]] std::string result_message(const std::optional<int64_t>& id, Op op, bool ok, const std::string& text);
+
+}  // namespace rack::gui

@@ -1,0 +1,277 @@
+#include "http_server.h"
+
+#include <optional>
+#include <utility>
+
+#include <boost/asio.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <map>
+#include <stdexcept>
+
+namespace rack::gui {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+namespace net = boost::asio;
+using tcp = net::ip::tcp;
+
+namespace {
+
+std::string mime_type(const std::string& path) {
+  const auto ext = std::filesystem::path(path).extension().string();
+  if (ext == ".html") return "text/html; charset=utf-8";
+  if (ext == ".js" || ext == ".mjs") return "text/javascript; charset=utf-8";
+  if (ext == ".css") return "text/css; charset=utf-8";
+  if (ext == ".json") return "application/json";
+  if (ext == ".svg") return "image/svg+xml";
+  if (ext == ".png") return "image/png";
+  if (ext == ".ico") return "image/x-icon";
+  if (ext == ".woff2") return "font/woff2";
+  return "application/octet-stream";
+}
+
+}  // namespace
+
+struct HttpServer::Impl : std::enable_shared_from_this<HttpServer::Impl> {
+  class WsSession;
+
+  Impl(const std::string& address, uint16_t port, std::string root, ServerHandlers h)
+      : web_root(std::move(root)), handlers(std::move(h)), acceptor(ioc) {
+    beast::error_code ec;
+    const auto addr = net::ip::make_address(address, ec);
+    if (ec) throw std::runtime_error("'" + address + "' is not an IP address: " + ec.message());
+    const tcp::endpoint ep(addr, port);
+    acceptor.open(ep.protocol(), ec);
+    if (!ec) acceptor.set_option(net::socket_base::reuse_address(true), ec);
+    if (!ec) acceptor.bind(ep, ec);
+    if (!ec) acceptor.listen(net::socket_base::max_listen_connections, ec);
+    if (ec) {
+      throw std::runtime_error("cannot listen on " + address + ":" + std::to_string(port) + ": " + ec.message());
+    }
+  }
+
+  void accept() {
+    acceptor.async_accept(net::make_strand(ioc), [self = shared_from_this()](beast::error_code ec, tcp::socket s) {
+      if (!ec) std::make_shared<HttpSession>(self, std::move(s))->start();
+      if (self->acceptor.is_open()) self->accept();
+    });
+  }
+
+  // One HTTP connection; hands itself to a WsSession on an upgrade to /ws.
+  class HttpSession : public std::enable_shared_from_this<HttpSession> {
+   public:
+    HttpSession(std::shared_ptr<Impl> server, tcp::socket socket) : server_(std::move(server)), stream_(std::move(socket)) {}
+    void start() { read(); }
+
+   private:
+    void read() {
+      parser_.emplace();
+      parser_->body_limit(16 * 1024);  // the dashboard only GETs
+      stream_.expires_after(std::chrono::seconds(30));
+      http::async_read(stream_, buffer_, *parser_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+        if (ec) return;
+        self->on_request(self->parser_->release());
+      });
+    }
+
+    void on_request(http::request<http::string_body> req) {
+      if (websocket::is_upgrade(req)) {
+        if (req.target() != "/ws") {
+          reply(req, http::status::not_found, "no WebSocket at this path; the dashboard's is /ws\n", "text/plain");
+          return;
+        }
+        stream_.expires_never();
+        std::make_shared<WsSession>(server_, stream_.release_socket())->start(std::move(req));
+        return;
+      }
+      if (req.method() != http::verb::get && req.method() != http::verb::head) {
+        reply(req, http::status::method_not_allowed, "only GET\n", "text/plain");
+        return;
+      }
+      std::string target(req.target());
+      if (const auto q = target.find('?'); q != std::string::npos) target.resize(q);
+      if (target.empty() || target[0] != '/' || target.find("..") != std::string::npos ||
+          target.find('\\') != std::string::npos || target.find('\0') != std::string::npos) {
+        reply(req, http::status::bad_request, "bad path\n", "text/plain");
+        return;
+      }
+      if (target.back() == '/') target += "index.html";
+      const std::string path = server_->web_root + target;
+      std::error_code fec;
+      if (!std::filesystem::is_regular_file(path, fec)) {
+        reply(req, http::status::not_found, "not found: " + target + "\n", "text/plain");
+        return;
+      }
+      http::file_body::value_type body;
+      beast::error_code ec;
+      body.open(path.c_str(), beast::file_mode::scan, ec);
+      if (ec) {
+        reply(req, http::status::internal_server_error, "cannot read " + target + ": " + ec.message() + "\n",
+              "text/plain");
+        return;
+      }
+      auto res = std::make_shared<http::response<http::file_body>>(
+          std::piecewise_construct, std::make_tuple(std::move(body)), std::make_tuple(http::status::ok, req.version()));
+      res->set(http::field::server, "rack-gui");
+      res->set(http::field::content_type, mime_type(path));
+      res->set(http::field::cache_control, "no-cache");
+      res->keep_alive(req.keep_alive());
+      res->prepare_payload();
+      http::async_write(stream_, *res, [self = shared_from_this(), res](beast::error_code wec, std::size_t) {
+        if (!wec && res->keep_alive()) self->read();
+      });
+    }
+
+    void reply(const http::request<http::string_body>& req, http::status status, const std::string& text,
+               const char* type) {
+      auto res = std::make_shared<http::response<http::string_body>>(status, req.version());
+      res->set(http::field::server, "rack-gui");
+      res->set(http::field::content_type, type);
+      res->keep_alive(req.keep_alive());
+      res->body() = text;
+      res->prepare_payload();
+      http::async_write(stream_, *res, [self = shared_from_this(), res](beast::error_code ec, std::size_t) {
+        if (!ec && res->keep_alive()) self->read();
+      });
+    }
+
+    std::shared_ptr<Impl> server_;
+    beast::tcp_stream stream_;
+    beast::flat_buffer buffer_;
+    std::optional<http::request_parser<http::string_body>> parser_;
+  };
+
+  class WsSession : public std::enable_shared_from_this<WsSession> {
+   public:
+    WsSession(std::shared_ptr<Impl> server, tcp::socket socket) : server_(std::move(server)), ws_(std::move(socket)) {}
+
+    void start(http::request<http::string_body> req) {
+      ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+      ws_.read_message_max(kMaxMessage);
+      ws_.async_accept(req, [self = shared_from_this()](beast::error_code ec) {
+        if (ec) return;
+        self->id_ = ++self->server_->next_client;
+        self->server_->sessions[self->id_] = self;
+        if (self->server_->handlers.opened) self->server_->handlers.opened(self->id_);
+        self->read();
+      });
+    }
+
+    // I/O thread only.
+    void send(std::shared_ptr<const std::string> m) {
+      if (closed_) return;
+      if (queue_.size() >= kMaxQueue) {
+        queue_.pop_front();  // never the one being written: writing_ keeps it at front
+        ++dropped_;
+      }
+      queue_.push_back(std::move(m));
+      if (!writing_) write();
+    }
+
+   private:
+    void read() {
+      ws_.async_read(buffer_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+        if (ec) {
+          self->close();
+          return;
+        }
+        if (!self->ws_.got_text()) {
+          self->ws_.async_close(websocket::close_reason(websocket::close_code::unknown_data, "text messages only"),
+                                [self](beast::error_code) {});
+          self->close();
+          return;
+        }
+        const std::string text = beast::buffers_to_string(self->buffer_.data());
+        self->buffer_.consume(self->buffer_.size());
+        if (self->server_->handlers.message) self->server_->handlers.message(self->id_, text);
+        self->read();
+      });
+    }
+
+    void write() {
+      if (queue_.empty() || closed_) {
+        writing_ = false;
+        return;
+      }
+      writing_ = true;
+      // The message being written stays alive in `current_` (the queue may drop it).
+      current_ = queue_.front();
+      queue_.pop_front();
+      ws_.text(true);
+      ws_.async_write(net::buffer(*current_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+        if (ec) {
+          self->close();
+          return;
+        }
+        self->write();
+      });
+    }
+
+    void close() {
+      if (closed_) return;
+      closed_ = true;
+      server_->sessions.erase(id_);
+      if (id_ != 0 && server_->handlers.closed) server_->handlers.closed(id_);
+      if (dropped_ > 0) {
+        std::fprintf(stderr, "rack-gui: client %llu: %llu message(s) dropped (browser too slow)\n",
+                     static_cast<unsigned long long>(id_), static_cast<unsigned long long>(dropped_));
+      }
+    }
+
+    std::shared_ptr<Impl> server_;
+    websocket::stream<beast::tcp_stream> ws_;
+    beast::flat_buffer buffer_;
+    std::deque<std::shared_ptr<const std::string>> queue_;
+    std::shared_ptr<const std::string> current_;
+    bool writing_ = false;
+    bool closed_ = false;
+    uint64_t id_ = 0;
+    uint64_t dropped_ = 0;
+  };
+
+  net::io_context ioc{1};
+  std::string web_root;
+  ServerHandlers handlers;
+  tcp::acceptor acceptor;
+  uint64_t next_client = 0;
+  std::map<uint64_t, std::weak_ptr<WsSession>> sessions;  // I/O thread only
+};
+
+HttpServer::HttpServer(const std::string& address, uint16_t port, std::string web_root, ServerHandlers handlers)
+    : impl_(std::make_shared<Impl>(address, port, std::move(web_root), std::move(handlers))) {}
+
+HttpServer::~HttpServer() { stop(); }
+
+uint16_t HttpServer::port() const { return impl_->acceptor.local_endpoint().port(); }
+
+void HttpServer::run() {
+  impl_->accept();
+  impl_->ioc.run();
+}
+
+void HttpServer::stop() { impl_->ioc.stop(); }
+
+void HttpServer::send(uint64_t client, std::string message) {
+  auto m = std::make_shared<const std::string>(std::move(message));
+  net::post(impl_->ioc, [impl = impl_, client, m] {
+    if (client != 0) {
+      const auto it = impl->sessions.find(client);
+      if (it != impl->sessions.end()) {
+        if (auto s = it->second.lock()) s->send(m);
+      }
+      return;
+    }
+    for (auto& [id, weak] : impl->sessions) {
+      if (auto s = weak.lock()) s->send(m);
+    }
+  });
+}
+
+}  // namespace rack::gui

@@ -1,0 +1,54 @@
+// rack-gui's HTTP and WebSocket server (Boost.Beast, one I/O thread): serves the
+// built dashboard from a directory and speaks the JSON protocol on /ws.
+//
+// Static files: only regular files below the web root; paths with "..", NUL or
+// backslashes are refused (400), anything else missing is 404. The dashboard loads
+// nothing from elsewhere.
+//
+// WebSocket: text messages only, at most kMaxMessage bytes (a larger or binary
+// message closes the connection with a reason). Outgoing messages queue per client;
+// a client that does not keep up loses the oldest queued messages beyond kMaxQueue
+// (counted), so a slow browser never stalls the others or grows memory.
+//
+// Not RT code (a tool). Thread-safety: send() may be called from any thread (it
+// posts to the I/O thread); everything else runs on the I/O thread.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+namespace rack::gui {
+
+struct ServerHandlers {
+  std::function<void(uint64_t client)> opened;
+  std::function<void(uint64_t client, const std::string& text)> message;
+  std::function<void(uint64_t client)> closed;
+};
+
+class HttpServer {
+ public:
+  static constexpr std::size_t kMaxMessage = 64 * 1024;
+  static constexpr std::size_t kMaxQueue = 256;
+
+  // Binds address:port (port 0: any free port). Throws std::runtime_error with the
+  // address on failure (in use, not an address of this machine).
+  HttpServer(const std::string& address, uint16_t port, std::string web_root, ServerHandlers handlers);
+  ~HttpServer();
+  HttpServer(const HttpServer&) = delete;
+  HttpServer& operator=(const HttpServer&) = delete;
+
+  [[nodiscard]] uint16_t port() const;
+  // Runs the I/O loop until stop() (from any thread, or a signal handler's thread).
+  void run();
+  void stop();
+  // To one client, or to every client when `client` is 0. Any thread.
+  void send(uint64_t client, std::string message);
+
+ private:
+  struct Impl;
+  std::shared_ptr<Impl> impl_;
+};
+
+}  // namespace rack::gui

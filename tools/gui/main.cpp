@@ -1,0 +1,181 @@
+// rack-gui: the dashboard of every robot on a TiMS/LCM network, in the browser.
+// Joins the network as a tool (like rackctl and gdos) and serves the built web
+// front end (tools/gui/web, built by scripts/setup.sh) with a WebSocket for live data
+// and commands. Not RT code.
+#include <signal.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <thread>
+
+#include "backend.h"
+#include "http_server.h"
+#include "rack/tims/lcm_transport.h"
+
+#ifndef RACK_GUI_WEB_ROOT
+#define RACK_GUI_WEB_ROOT ""
+#endif
+
+namespace {
+
+constexpr const char* kUsage = R"(usage: rack-gui [options]
+
+Serves RACK-RT's web dashboard: every component of every robot on the TiMS/LCM
+network with its state (click: ON/OFF, "all off" per robot), parameters, the GDOS
+log, a map with the robot's pose, particles, laser scan, path and destination
+(click: set a destination or the robot's position), a software joystick, and
+per-component timing. Open the printed address in a browser.
+
+options:
+  --address ADDR     listen address (default 127.0.0.1: this machine only; 0.0.0.0
+                     for every interface: anyone who reaches the port can drive
+                     the robots, so prefer an SSH tunnel, see the README)
+  --port PORT        TCP port (default 8080; 0: any free port, printed at start)
+  --lcm URL          TiMS/LCM network (default: $LCM_DEFAULT_URL, else
+                     udpm://239.255.76.67:7667?ttl=0)
+  --gdos-lcm URL     the network of the GDOS log (default: the TiMS network)
+  --gdos-channel CH  the GDOS channel (default RACK_GDOS)
+  --map [SYS=]FILE   the map (map_server YAML) to draw for robot SYS, or for every
+                     robot without SYS= (repeatable). Default: the `map` parameter
+                     of the robot's MCL (else its simulators), read relative to
+                     --map-root
+  --map-root DIR     where relative map paths of the robots are found (default:
+                     the working directory; rackd reads them relative to its own)
+  --reports DIR      mode-switch and crash report files of the rackd processes on
+                     this machine (their crash_dir; default /var/tmp/rack),
+                     symbolized with rack-backtrace for the "Mode switches" view;
+                     --reports '' turns it off
+  --backtrace PATH   the rack-backtrace program (default: beside rack-gui, else PATH)
+  --web DIR          the built front end (default: tools/gui/web/dist of the source
+                     tree it was built from, else <prefix>/share/rack-gui/web)
+  --poll-ms MS       state and data poll period (default 200)
+  --timeout-ms MS    a robot that does not answer within this is shown as
+                     "no reply" (default 1000)
+  -h, --help         this text
+
+exit codes: 0 stopped by SIGINT/SIGTERM, 1 cannot listen or join the network,
+2 usage error.
+)";
+
+[[noreturn]] void usage_error(const std::string& what) {
+  std::fprintf(stderr, "rack-gui: %s\n(rack-gui --help for the options)\n", what.c_str());
+  std::exit(2);
+}
+
+long number(const std::string& opt, const std::string& v, long lo, long hi) {
+  char* end = nullptr;
+  errno = 0;
+  const long n = std::strtol(v.c_str(), &end, 10);
+  if (v.empty() || *end != '\0' || errno != 0 || n < lo || n > hi) {
+    usage_error(opt + " needs a number " + std::to_string(lo) + ".." + std::to_string(hi) + ", got '" + v + "'");
+  }
+  return n;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  rack::gui::BackendConfig config;
+  const char* env = std::getenv("LCM_DEFAULT_URL");
+  config.lcm_url = env != nullptr && *env != '\0' ? env : rack::tims::kDefaultLcmUrl;
+  std::string address = "127.0.0.1";
+  long port = 8080;
+  std::string web = RACK_GUI_WEB_ROOT;
+  bool web_given = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const char* what) -> std::string {
+      if (i + 1 >= argc) usage_error(a + " needs " + what);
+      return argv[++i];
+    };
+    if (a == "-h" || a == "--help") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    } else if (a == "--address") {
+      address = value("an IP address");
+    } else if (a == "--port") {
+      port = number(a, value("a port"), 0, 65535);
+    } else if (a == "--lcm") {
+      config.lcm_url = value("an LCM URL");
+    } else if (a == "--gdos-lcm") {
+      config.gdos_url = value("an LCM URL");
+    } else if (a == "--gdos-channel") {
+      config.gdos_channel = value("a channel");
+    } else if (a == "--map") {
+      config.maps.push_back(value("[SYS=]FILE"));
+    } else if (a == "--map-root") {
+      config.map_root = value("a directory");
+    } else if (a == "--reports") {
+      config.reports_dir = value("a directory");
+    } else if (a == "--backtrace") {
+      config.backtrace_path = value("a program");
+    } else if (a == "--web") {
+      web = value("a directory");
+      web_given = true;
+    } else if (a == "--poll-ms") {
+      config.poll_ms = static_cast<int>(number(a, value("milliseconds"), 20, 10000));
+    } else if (a == "--timeout-ms") {
+      config.timeout_ms = static_cast<int>(number(a, value("milliseconds"), 50, 60000));
+    } else {
+      usage_error("unknown argument '" + a + "'");
+    }
+  }
+  std::error_code ec;
+  if (!web_given && !std::filesystem::is_regular_file(std::filesystem::path(web) / "index.html", ec)) {
+    // An installed rack-gui: <prefix>/bin/rack-gui serves <prefix>/share/rack-gui/web.
+    const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
+    if (!ec) web = (self.parent_path().parent_path() / "share" / "rack-gui" / "web").string();
+  }
+  if (web.empty() || !std::filesystem::is_regular_file(std::filesystem::path(web) / "index.html", ec)) {
+    std::fprintf(stderr,
+                 "rack-gui: no built front end in '%s' (index.html missing): run scripts/setup.sh, or "
+                 "'npm ci && npm run build' in tools/gui/web, or give --web DIR\n",
+                 web.c_str());
+    return 1;
+  }
+
+  // SIGINT/SIGTERM: handled on a thread of their own (sigwait), which stops the loop.
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+
+  try {
+    rack::gui::HttpServer* server_ptr = nullptr;
+    rack::gui::Backend backend(config, [&server_ptr](uint64_t client, std::string m) {
+      if (server_ptr != nullptr) server_ptr->send(client, std::move(m));
+    });
+    rack::gui::ServerHandlers handlers;
+    handlers.opened = [&backend](uint64_t c) { backend.greet(c); };
+    handlers.message = [&backend](uint64_t c, const std::string& text) { backend.submit(c, text); };
+    handlers.closed = [&backend](uint64_t c) { backend.client_closed(c); };
+    rack::gui::HttpServer server(address, static_cast<uint16_t>(port), web, handlers);
+    server_ptr = &server;
+    backend.start();
+    std::thread signals([&server, set] {
+      int sig = 0;
+      sigwait(&set, &sig);
+      server.stop();
+    });
+    signals.detach();
+    std::fprintf(stderr, "rack-gui: serving http://%s:%u/ (TiMS on %s)\n", address.c_str(), server.port(),
+                 config.lcm_url.c_str());
+    std::fflush(stderr);
+    server.run();
+    backend.stop();
+    server_ptr = nullptr;
+    const auto c = backend.counters();
+    std::fprintf(stderr, "rack-gui: stopped; %llu request(s) sent, %llu not answered in time, %llu malformed client message(s)\n",
+                 static_cast<unsigned long long>(c.requests), static_cast<unsigned long long>(c.timeouts),
+                 static_cast<unsigned long long>(c.malformed));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rack-gui: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
