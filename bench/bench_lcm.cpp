@@ -67,6 +67,9 @@ constexpr const char* kUsage =
     "  --bulk-count N   bulk messages per size, mechanism and round (default 400 of 100 KB;\n"
     "                   1 MB: N/4)\n"
     "  --bulk-rounds R  alternate the bulk mechanisms in R rounds (default 3)\n"
+    "  --bulk-queue Q   TiMS bulk sender keeps at most Q messages queued in the uplink,\n"
+    "                   refilled when Q/3 are left (1-7, default 6); raw LCM's publish()\n"
+    "                   blocks in the kernel instead\n"
     "  --port P         LCM port (default 7790); URL udpm://239.255.76.67:P?ttl=1&recv_buf_size=4194304\n"
     "  --cpus A,B       CPU of host A's and of host B's threads (default 0,1: one CPU per\n"
     "                   computer); any: not pinned\n"
@@ -83,6 +86,7 @@ struct Options {
   int rounds = 4;
   int bulk_count = 400;
   int bulk_rounds = 3;
+  int bulk_queue = 6;  // TiMS bulk sender: most messages queued in the uplink
   int port = 7790;
   int cpu_a = 0;  // -1: not pinned
   int cpu_b = 1;
@@ -428,7 +432,8 @@ BulkResult bulk_lcm(LcmEcho& echo, lcm::LCM& tx, std::size_t size, int count, ZS
   return finish(cctx != nullptr ? "raw LCM+zstd" : "raw LCM", echo.sink, size, count, t0, wire);
 }
 
-BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, const char* name, int reader_cpu) {
+BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, const char* name, int reader_cpu,
+                     int queue) {
   const auto payload = bulk_payload(size);
   BulkSink sink;
   std::atomic<bool> stop{false};
@@ -453,10 +458,12 @@ BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, co
     const tims::ConstBuffer parts[2] = {{&now, sizeof now}, {payload.data() + sizeof now, payload.size() - sizeof now}};
     (void)tx.router.send(h, std::span<const tims::ConstBuffer>(parts, 2));
     // Back-pressure like a blocking publish(): never more queued than the large uplink
-    // holds (when full, it drops its oldest). Refilled in batches: wait until only two
-    // are left, then queue up to six (one wake-up per four messages).
-    if (tx.transport->counters().messages_out - before.messages_out + (kLargeSlots - 2) < static_cast<uint64_t>(i + 1)) {
-      (void)tx.transport->wait_uplink(2, rt::kNsPerSec);
+    // holds (when full, it drops its oldest). Refilled in batches: at `queue` messages
+    // not yet sent, wait until a third of them are left (default 6 and 2: one wake-up
+    // per four messages). A deeper queue adds its length to the one-way latency.
+    if (tx.transport->counters().messages_out - before.messages_out + static_cast<uint64_t>(queue) <
+        static_cast<uint64_t>(i + 1)) {
+      (void)tx.transport->wait_uplink(static_cast<uint32_t>(queue / 3), rt::kNsPerSec);
     }
   }
   wait_tail(sink, count);
@@ -495,6 +502,7 @@ int main(int argc, char** argv) {
     else if (a == "--cpu-report") o.cpu_report = true;
     else if (a == "--bulk") o.bulk = next();
     else if (a == "--bulk-rounds") o.bulk_rounds = std::max(1, std::atoi(next().c_str()));
+    else if (a == "--bulk-queue") o.bulk_queue = std::clamp(std::atoi(next().c_str()), 1, static_cast<int>(kLargeSlots) - 1);
     else if (a == "--cpus") {
       const std::string v = next();
       if (v == "any") { o.cpu_a = o.cpu_b = -1; }
@@ -615,8 +623,8 @@ int main(int argc, char** argv) {
         BulkResult r;
         if (mech == "raw LCM") r = bulk_lcm(*echo, *bulk_tx, size, count, nullptr);
         else if (mech == "raw LCM+zstd") r = bulk_lcm(*echo, *bulk_tx, size, count, ref_cctx);
-        else if (mech == "TiMS") r = bulk_tims(*tx_plain, *rx_plain, size, count, "TiMS", o.cpu_b);
-        else r = bulk_tims(*tx_zstd, *rx_plain, size, count, "TiMS+zstd", o.cpu_b);
+        else if (mech == "TiMS") r = bulk_tims(*tx_plain, *rx_plain, size, count, "TiMS", o.cpu_b, o.bulk_queue);
+        else r = bulk_tims(*tx_zstd, *rx_plain, size, count, "TiMS+zstd", o.cpu_b, o.bulk_queue);
         if (o.cpu_report) {
           std::printf("  %s %zu B: %.1f MB/s\n%s", r.mechanism.c_str(), r.size, r.mb_per_s,
                       cpu_report(c0, CpuSnapshot::take(), static_cast<double>(r.received * r.size) / 1e6).c_str());
@@ -685,7 +693,8 @@ int main(int argc, char** argv) {
     std::printf("Throughput TiMS / raw LCM (target >= 0.90x, loss no higher):\n");
     for (const auto& l : ratio_lines) std::printf("%s\n", l.c_str());
     std::printf("One-way latency per message, send call to receipt (ms; includes the queue in front of a\n"
-                "saturated link, which differs: 6 messages in the TiMS uplink, the socket buffers for LCM):\n");
+                "saturated link, which differs: up to %d messages in the TiMS uplink, the socket buffers for LCM):\n",
+                o.bulk_queue);
     for (auto& b : bulk) {
       std::vector<int64_t> v = b.latency_ns;
       const Percentiles p = rack::bench::percentiles_of(v);
