@@ -61,12 +61,16 @@ namespace tims = rack::tims;
 
 constexpr const char* kUsage =
     "usage: bench_lcm [--iterations N] [--rounds R] [--bulk-count N] [--bulk-rounds R] [--port P]\n"
-    "                 [--cpus A,B|any] [--json FILE] [--quick] [--no-rpc] [--bulk LIST] [--cpu-report]\n"
+    "                 [--cpus A,B|any] [--json FILE] [--quick] [--no-rpc] [--bulk LIST] [--bulk-queue Q]\n"
+    "                 [--cpu-report]\n"
     "  --iterations N   timed round trips per mechanism (default 4000)\n"
     "  --rounds R       alternate the two RPC mechanisms in R blocks (default 4)\n"
     "  --bulk-count N   bulk messages per size, mechanism and round (default 400 of 100 KB;\n"
     "                   1 MB: N/4)\n"
     "  --bulk-rounds R  alternate the bulk mechanisms in R rounds (default 3)\n"
+    "  --bulk-queue Q   TiMS bulk sender keeps at most Q messages queued in the uplink,\n"
+    "                   refilled when Q/3 are left (1-7, default 6); raw LCM's publish()\n"
+    "                   blocks in the kernel instead\n"
     "  --port P         LCM port (default 7790); URL udpm://239.255.76.67:P?ttl=1&recv_buf_size=4194304\n"
     "  --cpus A,B       CPU of host A's and of host B's threads (default 0,1: one CPU per\n"
     "                   computer); any: not pinned\n"
@@ -83,6 +87,7 @@ struct Options {
   int rounds = 4;
   int bulk_count = 400;
   int bulk_rounds = 3;
+  int bulk_queue = 6;  // TiMS bulk sender: most messages queued in the uplink
   int port = 7790;
   int cpu_a = 0;  // -1: not pinned
   int cpu_b = 1;
@@ -223,6 +228,10 @@ std::string cpu_report(const CpuSnapshot& a, const CpuSnapshot& b, double megaby
 // ---------------------------------------------------------------- raw LCM references
 
 // Echoes BENCH_PING as BENCH_PONG, and counts BENCH_BULK messages (in host B).
+// Whole messages queued for the bulk receiver on either side (TiMS inbox slots, LCM
+// subscription queue).
+constexpr int kReceiverQueue = 16;
+
 // Bytes 0-7 of every bulk message: CLOCK_MONOTONIC at the send call (both hosts share
 // the clock), for the one-way latency.
 int64_t stamp_of(const void* p) {
@@ -259,8 +268,10 @@ struct LcmEcho {
   explicit LcmEcho(const std::string& url) : lcm(url), dctx(ZSTD_createDCtx()), plain(kMaxBulk) {
     if (!lcm.good()) throw std::runtime_error("LCM " + url);
     lcm.subscribe("BENCH_PING", &LcmEcho::on_ping, this);
-    lcm.subscribe("BENCH_BULK", &LcmEcho::on_bulk, this)->setQueueCapacity(1000);
-    lcm.subscribe("BENCH_BULKZ", &LcmEcho::on_bulkz, this)->setQueueCapacity(1000);
+    // As many whole messages wait for the handler as for the TiMS reader (its inbox's
+    // slots): the same buffering behind the socket on both sides.
+    lcm.subscribe("BENCH_BULK", &LcmEcho::on_bulk, this)->setQueueCapacity(kReceiverQueue);
+    lcm.subscribe("BENCH_BULKZ", &LcmEcho::on_bulkz, this)->setQueueCapacity(kReceiverQueue);
   }
   ~LcmEcho() { ZSTD_freeDCtx(dctx); }
   void on_ping(const lcm::ReceiveBuffer* r, const std::string&) { lcm.publish("BENCH_PONG", r->data, r->data_size); }
@@ -324,7 +335,7 @@ constexpr uint32_t kLargeSlots = 8;
 struct TimsHost {
   TimsHost(uint8_t system, const std::string& url, tims::Compression c, uint32_t inbox_slot)
       : router(system),
-        inbox(tims::Address::make(system, tims::classes::kScan3d, 0, 3), 8, inbox_slot),
+        inbox(tims::Address::make(system, tims::classes::kScan3d, 0, 3), kReceiverQueue, inbox_slot),
         reply(tims::Address::make(system, tims::classes::kTool, 1, 1), 8, 64 * 1024) {
     tims::LcmTransportConfig cfg;
     tims::NetworkConfig n;
@@ -428,7 +439,8 @@ BulkResult bulk_lcm(LcmEcho& echo, lcm::LCM& tx, std::size_t size, int count, ZS
   return finish(cctx != nullptr ? "raw LCM+zstd" : "raw LCM", echo.sink, size, count, t0, wire);
 }
 
-BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, const char* name, int reader_cpu) {
+BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, const char* name, int reader_cpu,
+                     int queue) {
   const auto payload = bulk_payload(size);
   BulkSink sink;
   std::atomic<bool> stop{false};
@@ -453,16 +465,33 @@ BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, co
     const tims::ConstBuffer parts[2] = {{&now, sizeof now}, {payload.data() + sizeof now, payload.size() - sizeof now}};
     (void)tx.router.send(h, std::span<const tims::ConstBuffer>(parts, 2));
     // Back-pressure like a blocking publish(): never more queued than the large uplink
-    // holds (when full, it drops its oldest). Refilled in batches: wait until only two
-    // are left, then queue up to six (one wake-up per four messages).
-    if (tx.transport->counters().messages_out - before.messages_out + (kLargeSlots - 2) < static_cast<uint64_t>(i + 1)) {
-      (void)tx.transport->wait_uplink(2, rt::kNsPerSec);
+    // holds (when full, it drops its oldest). Refilled in batches: at `queue` messages
+    // not yet sent, wait until a third of them are left (default 6 and 2: one wake-up
+    // per four messages). A deeper queue adds its length to the one-way latency.
+    if (tx.transport->counters().messages_out - before.messages_out + static_cast<uint64_t>(queue) <
+        static_cast<uint64_t>(i + 1)) {
+      (void)tx.transport->wait_uplink(static_cast<uint32_t>(queue / 3), rt::kNsPerSec);
     }
   }
   wait_tail(sink, count);
   stop = true;
   reader.join();
   const auto after = tx.transport->counters();
+  {
+    // Where missing messages went (TiMS reports every loss; raw LCM cannot say).
+    std::lock_guard lock(sink.mutex);
+    if (sink.count < static_cast<uint64_t>(count)) {
+      const auto rc = rx.transport->counters();
+      std::fprintf(stderr,
+                   "  [%s %zu B] %llu of %d missing: sent by the transport %llu, receiver totals: lost %llu, "
+                   "sequence gaps %llu, delivery failed %llu, inbox dropped %llu\n",
+                   name, size, static_cast<unsigned long long>(static_cast<uint64_t>(count) - sink.count), count,
+                   static_cast<unsigned long long>(after.messages_out - before.messages_out),
+                   static_cast<unsigned long long>(rc.lost_messages), static_cast<unsigned long long>(rc.sequence_gaps),
+                   static_cast<unsigned long long>(rc.delivery_failed),
+                   static_cast<unsigned long long>(rx.inbox.counters().dropped));
+    }
+  }
   return finish(name, sink, size, count, t0, after.wire_bytes_out - before.wire_bytes_out);
 }
 
@@ -495,6 +524,7 @@ int main(int argc, char** argv) {
     else if (a == "--cpu-report") o.cpu_report = true;
     else if (a == "--bulk") o.bulk = next();
     else if (a == "--bulk-rounds") o.bulk_rounds = std::max(1, std::atoi(next().c_str()));
+    else if (a == "--bulk-queue") o.bulk_queue = std::clamp(std::atoi(next().c_str()), 1, static_cast<int>(kLargeSlots) - 1);
     else if (a == "--cpus") {
       const std::string v = next();
       if (v == "any") { o.cpu_a = o.cpu_b = -1; }
@@ -580,12 +610,14 @@ int main(int argc, char** argv) {
     }
     const Percentiles pr = rack::bench::percentiles_of(rack_rt);
     const Percentiles pl = rack::bench::percentiles_of(lcm_rt);
-    std::printf("RPC round trip between two namespaces (us), %d rounds alternating:\n", o.rounds);
-    print("TiMS RPC", pr);
-    print("raw LCM ping", pl);
-    std::printf("  ratio TiMS/LCM: p50 %.2fx, p90 %.2fx, p99 %.2fx (target p50 <= 1.15x); failures %llu / %llu\n",
-                pr.p50_ns / pl.p50_ns, pr.p90_ns / pl.p90_ns, pr.p99_ns / pl.p99_ns,
-                static_cast<unsigned long long>(rack_fail), static_cast<unsigned long long>(lcm_fail));
+    if (o.rpc) {
+      std::printf("RPC round trip between two namespaces (us), %d rounds alternating:\n", o.rounds);
+      print("TiMS RPC", pr);
+      print("raw LCM ping", pl);
+      std::printf("  ratio TiMS/LCM: p50 %.2fx, p90 %.2fx, p99 %.2fx (target p50 <= 1.15x); failures %llu / %llu\n",
+                  pr.p50_ns / pl.p50_ns, pr.p90_ns / pl.p90_ns, pr.p99_ns / pl.p99_ns,
+                  static_cast<unsigned long long>(rack_fail), static_cast<unsigned long long>(lcm_fail));
+    }
 
     // ------------------------------------------------------------ bulk
     // Per size, the mechanisms alternate in --bulk-rounds rounds (the order flips every
@@ -615,8 +647,8 @@ int main(int argc, char** argv) {
         BulkResult r;
         if (mech == "raw LCM") r = bulk_lcm(*echo, *bulk_tx, size, count, nullptr);
         else if (mech == "raw LCM+zstd") r = bulk_lcm(*echo, *bulk_tx, size, count, ref_cctx);
-        else if (mech == "TiMS") r = bulk_tims(*tx_plain, *rx_plain, size, count, "TiMS", o.cpu_b);
-        else r = bulk_tims(*tx_zstd, *rx_plain, size, count, "TiMS+zstd", o.cpu_b);
+        else if (mech == "TiMS") r = bulk_tims(*tx_plain, *rx_plain, size, count, "TiMS", o.cpu_b, o.bulk_queue);
+        else r = bulk_tims(*tx_zstd, *rx_plain, size, count, "TiMS+zstd", o.cpu_b, o.bulk_queue);
         if (o.cpu_report) {
           std::printf("  %s %zu B: %.1f MB/s\n%s", r.mechanism.c_str(), r.size, r.mb_per_s,
                       cpu_report(c0, CpuSnapshot::take(), static_cast<double>(r.received * r.size) / 1e6).c_str());
@@ -685,7 +717,8 @@ int main(int argc, char** argv) {
     std::printf("Throughput TiMS / raw LCM (target >= 0.90x, loss no higher):\n");
     for (const auto& l : ratio_lines) std::printf("%s\n", l.c_str());
     std::printf("One-way latency per message, send call to receipt (ms; includes the queue in front of a\n"
-                "saturated link, which differs: 6 messages in the TiMS uplink, the socket buffers for LCM):\n");
+                "saturated link, which differs: up to %d messages in the TiMS uplink, the socket buffers for LCM):\n",
+                o.bulk_queue);
     for (auto& b : bulk) {
       std::vector<int64_t> v = b.latency_ns;
       const Percentiles p = rack::bench::percentiles_of(v);

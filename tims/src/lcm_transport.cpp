@@ -1384,7 +1384,11 @@ bool LcmTransport::wait_uplink(uint32_t max_queued, int64_t timeout_ns) {
   // waiter with another threshold still wakes by the timeout's bounded re-checks.
   m.drain_threshold.store(max_queued, std::memory_order_release);
   bool ok = true;
-  while (m.running.load() && m.uplink_queued() > max_queued) {
+  while (m.uplink_queued() > max_queued) {
+    if (!m.running.load()) {  // stopped with messages queued: they will not drain
+      ok = false;
+      break;
+    }
     // The sender reads the threshold after its mailbox changed and notifies under the
     // mutex, so no wake-up is lost; the 10 ms re-check is a bound, not the mechanism.
     if (m.drained.wait_until(lock, std::min(deadline, std::chrono::steady_clock::now() + std::chrono::milliseconds(10))) ==

@@ -7,7 +7,9 @@
 // own, in LCM's framing, instead of through LCM 1.3's receive thread and notify pipe:
 // two thread hand-offs less per message (bench_lcm), and LCM's fragment reassembly,
 // which trusts its input, never sees our network (our chunks are single datagrams;
-// LCM fragments of others are ignored). LCM still publishes, so lcm-logger and
+// LCM fragments of others are ignored). While large datagrams arrive it peeks at each
+// one's head first: what is not for this host is dropped unread, a chunk of a message
+// being reassembled is read straight into its slot. LCM still publishes, so lcm-logger and
 // lcm-logplayer see and replay the same datagrams. Other URLs (memq://, file://)
 // receive through LCM. Two non-RT sender threads drain the
 // router's uplink mailboxes (one with many small slots, one with a few large ones)
