@@ -4,6 +4,7 @@
 #include "rack/interfaces/evaluation.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/devices.h"
+#include "rack/interfaces/perception.h"
 #include "rack/interfaces/robot.h"
 #include "rack/tims/address.h"
 
@@ -31,6 +32,8 @@ constexpr DataTypeInfo kGps = info<GpsData>("GpsData");
 constexpr DataTypeInfo kJoystick = info<JoystickData>("JoystickData");
 constexpr DataTypeInfo kServoDrive = info<ServoDriveData>("ServoDriveData");
 constexpr DataTypeInfo kCamera = info<CameraData>("CameraData");
+constexpr DataTypeInfo kScan3d = info<Scan3dData>("Scan3dData");
+constexpr DataTypeInfo kObjRecog = info<ObjRecogData>("ObjRecogData");
 }  // namespace
 
 const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
@@ -52,6 +55,8 @@ const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
     case tims::classes::kJoystick: return &kJoystick;
     case tims::classes::kServoDrive: return &kServoDrive;
     case tims::classes::kCamera: return &kCamera;
+    case tims::classes::kScan3d: return &kScan3d;
+    case tims::classes::kObjRecog: return &kObjRecog;
     default: return nullptr;
   }
 }
