@@ -62,8 +62,22 @@ class Scan3dSimTest : public ::testing::Test {
   std::unique_ptr<Process> rackd_;
 };
 
-TEST_F(Scan3dSimTest, TheShippedHostFileIsValid) {
-  const auto r = run({kRackd, "--check", host_file()}, 30s);
+TEST_F(Scan3dSimTest, TheShippedHostFilesAreValid) {
+  auto r = run({kRackd, "--check", host_file()}, 30s);
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+  // configs/objrecog.yaml (camera and laser object recognition), when OpenCV's
+  // contrib modules gave this rackd the ObjRecogCamera class.
+  const auto classes = run({kRackd, "--list-classes"}, 30s);
+  ASSERT_EQ(classes.exit_code, 0) << classes.describe();
+  if (classes.out.find("ObjRecogCamera  (class ") == std::string::npos) {
+    GTEST_SKIP() << "ObjRecogCamera is not built into this rackd (libopencv-contrib-dev missing)";
+  }
+  std::string text = read_file(kConfigs + "/objrecog.yaml");
+  const std::string rel = "map: configs/maps/office.yaml";
+  for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1)) {
+    text.replace(at, rel.size(), "map: " + kConfigs + "/maps/office.yaml");
+  }
+  r = run({kRackd, "--check", dir_.write("objrecog.yaml", text).string()}, 30s);
   EXPECT_EQ(r.exit_code, 0) << r.describe();
 }
 
