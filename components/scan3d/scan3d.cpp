@@ -148,6 +148,10 @@ bool Scan3d::move_drive(double target) noexcept {
 }
 
 HookResult Scan3d::on() {
+  {
+    rt::PiLock lock(requests_mutex_);
+    request_count_ = 0;  // requests left from before an OFF: their callers gave up
+  }
   pending_head_ = pending_count_ = 0;
   have_drive_ = false;
   phase_ = Phase::kToStart;
@@ -201,6 +205,11 @@ void Scan3d::off() {
 CommandResult Scan3d::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
   if (request.type != interfaces::kScan3dGetRangeImage && request.type != interfaces::kScan3dStoreData) {
     return CommandResult::kUnknown;
+  }
+  // Only the data task serves these, and it runs only while ENABLED.
+  if (state() != ComponentState::kEnabled) {
+    reply_error(request, "Scan3D is not ENABLED (switch it on first)");
+    return CommandResult::kHandled;
   }
   Request r;
   r.header = request;

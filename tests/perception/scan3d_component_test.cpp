@@ -220,6 +220,10 @@ components:
   const auto r = host.call(scan3d, tims::msg::kOn);
   EXPECT_EQ(r.type, tims::msg::kError);
   EXPECT_NE(r.error_text().find("pcd"), std::string::npos) << r.error_text();
+  // Its commands are answered at once, not queued for a data task that does not run.
+  const auto image = host.call(scan3d, interfaces::kScan3dGetRangeImage);
+  EXPECT_EQ(image.type, tims::msg::kError);
+  EXPECT_NE(image.error_text().find("not ENABLED"), std::string::npos) << image.error_text();
   EXPECT_EQ(host.status(host.address_of("gen")), tims::msg::kEnabled);
 }
 
