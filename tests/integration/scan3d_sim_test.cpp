@@ -52,7 +52,9 @@ class Scan3dSimTest : public ::testing::Test {
     return dir_.write("sim_scan3d.yaml", text).string();
   }
   RunResult ctl(std::vector<std::string> args) {
-    args.insert(args.begin(), {kRackctl, "--lcm", bus_.url(), "--discover-ms", "3000"});
+    // A scan is 12 datagrams of 60 KB at once: a larger socket buffer for rackctl, as
+    // the README says for large messages (the kernel caps it at net.core.rmem_max).
+    args.insert(args.begin(), {kRackctl, "--lcm", bus_.url() + "&recv_buf_size=4194304", "--discover-ms", "3000"});
     return run(args, 30s);
   }
 

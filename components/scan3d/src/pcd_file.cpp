@@ -66,7 +66,11 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
   std::size_t pos = 0;
   int line_no = 0;
   const auto fail = [&](int line, const std::string& what) {
-    error = name + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + what;
+    // Appended piece by piece: GCC 12 warns falsely (-Wrestrict, its bug 105329) about
+    // a temporary ":" + std::to_string(...).
+    error = name;
+    if (line > 0) error.append(":").append(std::to_string(line));
+    error.append(": ").append(what);
     return false;
   };
   // Header: one keyword per line, up to DATA.

@@ -37,6 +37,7 @@ inline constexpr uint8_t kScan3dModeRoll = 0;
 inline constexpr uint8_t kScan3dModePitch = 1;
 inline constexpr uint8_t kScan3dModeYaw = 2;
 inline constexpr uint8_t kScan3dModeFile = 3;  // played from PCD files
+// The sample's time is the sweep's first 2-D scan (a file's: when it was read).
 struct Scan3dData {
   int64_t duration_ns = 0;    // the sweep: first to last 2-D scan (0 for a file)
   uint32_t scan_number = 0;   // scans published since ON
