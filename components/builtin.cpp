@@ -24,6 +24,12 @@
 #include "probe/probe.h"
 #include "replay/replay_components.h"
 #include "scan2d/scan2d.h"
+#include "obj_recog/obj_recog_laser.h"
+#if RACK_HAVE_OBJRECOG_CAMERA
+#include "obj_recog/obj_recog_camera.h"
+#endif
+#include "scan3d/scan3d.h"
+#include "servo_drive_sim/servo_drive_sim.h"
 #include "rack/tims/address.h"
 
 namespace rack::components {
@@ -76,6 +82,21 @@ void register_builtin(ComponentRegistry& registry) {
   registry.add({"ServoDriveCan", cls::kServoDrive,
                 "ServoDrive: one axis on a CiA 402 drive over SocketCAN (profile position; HOME, MOVE_POS, MOVE_VEL)",
                 [] { return std::make_unique<ServoDriveCan>(); }});
+  // Perception (issue 9): README "Perception: 3-D scans and object recognition".
+  registry.add({"ServoDriveSim", cls::kServoDrive,
+                "simulated servo axis (HOME, MOVE_POS, MOVE_VEL; trapezoidal profile), e.g. to turn LadarSim for Scan3D",
+                [] { return std::make_unique<ServoDriveSim>(); }});
+  registry.add({"Scan3D", cls::kScan3d,
+                "3-D scans from a Ladar on a ServoDrive (roll/pitch/yaw) or PCD files; PCL voxel grid, outliers, ground plane",
+                [] { return std::make_unique<Scan3d>(); }});
+  registry.add({"ObjRecogLaser", cls::kObjRecog,
+                "objects from Scan2D: clusters tracked with position and velocity (nearest neighbour + Kalman)",
+                [] { return std::make_unique<ObjRecogLaser>(); }});
+#if RACK_HAVE_OBJRECOG_CAMERA
+  registry.add({"ObjRecogCamera", cls::kObjRecog,
+                "objects in Camera images: ArUco fiducials with 3-D pose, people (HOG); OpenCV",
+                [] { return std::make_unique<ObjRecogCamera>(); }});
+#endif
 #if RACK_HAVE_CAMERA
   registry.add({"Camera", cls::kCamera, "Camera: OpenCV VideoCapture (V4L2 device, video file, image sequence)",
                 [] { return std::make_unique<Camera>(); }});

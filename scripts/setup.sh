@@ -20,6 +20,8 @@ packages=(
   libmrpt-slam-dev libmrpt-maps-dev libmrpt-obs-dev libmrpt-poses-dev libmrpt-bayes-dev
   mrpt-common                            # MCL and rawlog replay (MRPT 2.5); datasets for bench
   libopencv-dev                          # Camera component (OpenCV VideoCapture), linked PRIVATE there only
+  libopencv-contrib-dev                  # ObjRecogCamera: ArUco (cv::aruco is in contrib in OpenCV 4.6)
+  libpcl-dev                             # Scan3D: voxel grid, outlier removal, RANSAC, range image (PRIVATE there)
   can-utils                              # cansend/candump: vcan tests and CAN debugging on robots
   libboost-dev libboost-system-dev       # rack-gui: HTTP/WebSocket server (Boost.Beast)
   nlohmann-json3-dev                     # rack-gui: its WebSocket protocol (JSON)

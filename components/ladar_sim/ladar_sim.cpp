@@ -4,6 +4,9 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "common/scan3d_geometry.h"
+#include "rack/interfaces/devices.h"
+
 namespace rack::components {
 
 using interfaces::ChassisData;
@@ -22,7 +25,11 @@ LadarSim::LadarSim()
       range_max_(declare_float("range_max", 20.0, {.doc = "m, no echo beyond", .min = 0.1, .max = 1000.0})),
       noise_sigma_(declare_float("noise_sigma", 0.01, {.doc = "m, std-dev of gaussian range noise", .min = 0.0, .max = 10.0})),
       seed_(declare_int("seed", 2, {.doc = "seed of the noise generator", .min = 0, .max = 1e15})),
-      silence_ms_(declare_int("silence_ms", 1000, {.doc = "ERROR when the chassis sent no pose for this long", .min = 10, .max = 60000})) {
+      silence_ms_(declare_int("silence_ms", 1000, {.doc = "ERROR when the chassis sent no pose for this long", .min = 10, .max = 60000})),
+      servo_(declare_string("servo", "", {.doc = "3-D: the ServoDrive that turns the ladar (empty: a fixed 2-D ladar)", .component_ref = true})),
+      scan_mode_(declare_string("scan_mode", "pitch", {.doc = "3-D: how the drive turns the scan plane (as Scan3D's mode)", .choices = {"roll", "pitch", "yaw"}})),
+      mount_z_(declare_float("mount_z", 0.5, {.doc = "3-D: m, the ladar's centre above the floor", .min = 0.0, .max = 100.0})),
+      ceiling_height_(declare_float("ceiling_height", 2.5, {.doc = "3-D: m, the ceiling (0: none); walls reach up to it", .min = 0.0, .max = 1000.0})) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(ChassisData) + 64);
 }
 
@@ -32,36 +39,87 @@ void LadarSim::init() {
   if (!loaded.ok()) throw std::runtime_error("map: " + loaded.error_text());
   map_data_ = std::move(loaded.map);
   rng_.seed(static_cast<uint64_t>(seed_.get_int()));
+  three_d_ = !servo_.get_string().empty();
+  const std::string mode = scan_mode_.get_string();
+  mode_id_ = mode == "roll" ? interfaces::kScan3dModeRoll
+             : mode == "yaw" ? interfaces::kScan3dModeYaw
+                             : interfaces::kScan3dModePitch;
+}
+
+double LadarSim::cast_3d(const Pose2d& robot, double theta, double bearing, double range_max) const noexcept {
+  const Vec3 d = scan3d_direction(mode_id_, theta, bearing);  // robot frame
+  const double c = std::cos(robot.phi), s = std::sin(robot.phi);
+  const double dx = c * d.x - s * d.y, dy = s * d.x + c * d.y, dz = d.z;
+  const double mx = mount_x_.get_float(), my = mount_y_.get_float();
+  const double x0 = robot.x + c * mx - s * my, y0 = robot.y + s * mx + c * my, z0 = mount_z_.get_float();
+  const double ceiling = ceiling_height_.get_float();
+  double limit = range_max;
+  if (dz < -1e-12) limit = std::min(limit, -z0 / dz);                             // the floor
+  if (ceiling > 0.0 && dz > 1e-12) limit = std::min(limit, (ceiling - z0) / dz);  // the ceiling
+  const double h = std::hypot(dx, dy);
+  if (h > 1e-9) {  // walls: the map's occupied cells, floor to ceiling
+    const maps::RayHit hit = map_data_->cast_ray(x0, y0, std::atan2(dy, dx), limit * h);
+    if (hit.hit && static_cast<double>(hit.range) / h < limit) return static_cast<double>(hit.range) / h;
+  }
+  return limit < range_max ? limit : 0.0;
 }
 
 HookResult LadarSim::on() {
   have_truth_ = false;
   published_time_ns_ = 0;
   last_truth_mono_ns_ = rt::monotonic_ns();
+  servo_angle_.clear();
   const tims::Address chassis = resolved(chassis_);
   if (switch_on(chassis) != HookResult::kOk) return HookResult::kError;
+  if (three_d_) {
+    const tims::Address servo = resolved(servo_);
+    if (switch_on(servo) != HookResult::kOk || subscribe(servo, 0) != HookResult::kOk) return HookResult::kError;
+  }
   return subscribe(chassis, 0);
 }
 
-void LadarSim::off() { unsubscribe(resolved(chassis_)); }
+void LadarSim::off() {
+  unsubscribe(resolved(chassis_));
+  if (three_d_) unsubscribe(resolved(servo_));
+}
 
 HookResult LadarSim::loop() {
   const int64_t now = rt::monotonic_ns();
-  for (;;) {  // keep the newest true pose
-    wire::SampleHeader sh;
-    ChassisData c;
-    const Input in = next_sample(sh, c);
+  const tims::Address servo = three_d_ ? resolved(servo_).with_mailbox(0) : tims::Address();
+  for (;;) {  // keep the newest true pose (and, in 3-D, every drive angle)
+    tims::MessageHeader header;
+    const Input in = next_input(header, [&](const tims::MessageHeader& h, std::span<const std::byte> body) {
+      wire::SampleHeader sh;
+      if (three_d_ && h.source().with_mailbox(0) == servo) {
+        interfaces::ServoDriveData d;
+        if (!read_sample(h, body, sh, d)) return false;
+        if (std::isfinite(d.position)) servo_angle_.push(sh.time_ns, d.position);
+        return true;
+      }
+      ChassisData c;
+      if (!read_sample(h, body, sh, c)) return false;
+      if (c.truth_valid != 0) {
+        truth_ = Pose2d{c.truth_x, c.truth_y, c.truth_phi};
+        truth_time_ns_ = sh.time_ns;
+        last_truth_mono_ns_ = now;
+        have_truth_ = true;
+      }
+      return true;
+    });
     if (in == Input::kNone) break;
-    if (in == Input::kError) return HookResult::kError;  // the chassis left ENABLED
-    if (c.truth_valid == 0) continue;
-    truth_ = Pose2d{c.truth_x, c.truth_y, c.truth_phi};
-    truth_time_ns_ = sh.time_ns;
-    last_truth_mono_ns_ = now;
-    have_truth_ = true;
+    if (in == Input::kError) return HookResult::kError;  // the chassis (or the drive) left ENABLED
   }
   if (now - last_truth_mono_ns_ > silence_ms_.get_int() * rt::kNsPerMs) return HookResult::kError;
   // Nothing to render from yet, or no new pose since the last scan (one scan per pose).
   if (!have_truth_ || truth_time_ns_ == published_time_ns_) return HookResult::kOk;
+  double theta = 0.0;
+  if (three_d_) {
+    // The drive's angle at the pose's time; a pose newer than the drive's last sample
+    // waits for the next cycle (a short hold covers a drive that stands still).
+    const SeriesLookup l = servo_angle_.value_at(truth_time_ns_, 20 * rt::kNsPerMs, theta);
+    if (l == SeriesLookup::kTooNew || l == SeriesLookup::kEmpty) return HookResult::kOk;
+    if (l == SeriesLookup::kTooOld) theta = servo_angle_.newest_value();
+  }
 
   const Pose2d sensor = compose(truth_, Pose2d{mount_x_.get_float(), mount_y_.get_float(), mount_phi_.get_float()});
   const auto n = static_cast<uint32_t>(beams_.get_int());
@@ -79,16 +137,22 @@ HookResult LadarSim::loop() {
   scan_.angle_step = static_cast<float>(step);
   scan_.beam_count = n;
   for (uint32_t i = 0; i < n; ++i) {
-    const double a = sensor.phi + start + static_cast<double>(i) * step;
-    const maps::RayHit hit = map_data_->cast_ray(sensor.x, sensor.y, a, range_max);
     double r = 0.0;  // no echo
-    if (hit.hit) {
-      r = static_cast<double>(hit.range) + (sigma > 0.0 ? sigma * normal_(rng_) : 0.0);
+    if (three_d_) {
+      r = cast_3d(truth_, theta, start + static_cast<double>(i) * step, range_max);
+    } else {
+      const double a = sensor.phi + start + static_cast<double>(i) * step;
+      const maps::RayHit hit = map_data_->cast_ray(sensor.x, sensor.y, a, range_max);
+      r = hit.hit ? static_cast<double>(hit.range) : 0.0;
+    }
+    const bool echo = r > 0.0;
+    if (echo) {
+      r += sigma > 0.0 ? sigma * normal_(rng_) : 0.0;
       if (r < range_min) r = range_min;
       if (r > range_max) r = 0.0;
     }
     scan_.range[i] = static_cast<float>(r);
-    scan_.intensity[i] = hit.hit ? 1.0F : 0.0F;
+    scan_.intensity[i] = echo ? 1.0F : 0.0F;
   }
   publish(scan_, truth_time_ns_);
   published_time_ns_ = truth_time_ns_;

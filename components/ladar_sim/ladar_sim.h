@@ -10,6 +10,14 @@
 // for good with the loader's message (file and line or byte offset); the rest of the
 // executor keeps running.
 //
+// 3-D (for Scan3D): with a `servo` (a ServoDrive component), the ladar turns on that
+// drive in `scan_mode` (roll, pitch, yaw: components/common/scan3d_geometry.h), its
+// centre `mount_z` above the floor, and the world is 2.5-D: a floor at z = 0, the
+// map's occupied cells as walls up to the ceiling, a ceiling at `ceiling_height` (0:
+// none). Each scan is rendered at the drive's angle at the chassis sample's time,
+// interpolated in the drive's position stream (a scan waits for the drive's next
+// sample). mount_phi is not used in 3-D (Scan3D's geometry has no heading offset).
+//
 // Real-time contract: on(), off() and loop() are RT-safe (the map is immutable after
 // init(); ray casting does not allocate).
 #pragma once
@@ -18,6 +26,7 @@
 #include <random>
 
 #include "common/pose2d.h"
+#include "common/time_series.h"
 #include "rack/core/data_component.h"
 #include "rack/interfaces/robot.h"
 #include "rack/maps/occupancy_map.h"
@@ -47,6 +56,16 @@ class LadarSim final : public DataComponent<interfaces::LadarData> {
   Parameter& noise_sigma_;
   Parameter& seed_;
   Parameter& silence_ms_;
+  Parameter& servo_;
+  Parameter& scan_mode_;
+  Parameter& mount_z_;
+  Parameter& ceiling_height_;
+
+  // 3-D: the range of one beam in the 2.5-D world (0: no echo).
+  [[nodiscard]] double cast_3d(const Pose2d& robot, double theta, double bearing, double range_max) const noexcept;
+  bool three_d_ = false;
+  uint8_t mode_id_ = 0;
+  TimeSeries<256> servo_angle_;
 
   std::optional<maps::OccupancyMap> map_data_;
   std::mt19937_64 rng_;

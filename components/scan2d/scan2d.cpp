@@ -21,7 +21,11 @@ Scan2d::Scan2d()
       range_min_(declare_float("range_min", 0.05, {.doc = "m, shorter ranges are dropped (the robot's own body)", .min = 0.0, .max = 1000.0})),
       range_max_(declare_float("range_max", 0.0, {.doc = "m, longer ranges count as no echo (0: the ladar's max)", .min = 0.0, .max = 1000.0})),
       median_(declare_int("median", 1, {.doc = "median filter window over neighbouring beams (odd; 1: off)", .min = 1, .max = 9})),
-      keep_max_range_(declare_bool("keep_max_range", true, {.doc = "beams without echo become max-range points (else left out)"})) {
+      keep_max_range_(declare_bool("keep_max_range", true, {.doc = "beams without echo become max-range points (else left out)"})),
+      dynamic_objects_(declare_bool("dynamic_objects", false, {.doc = "track small clusters; mark moving ones DYN_OBSTACLE (type 2)"})),
+      dynamic_min_speed_(declare_float("dynamic_min_speed", 0.25, {.doc = "m/s, a tracked cluster faster than this is dynamic", .min = 0.0, .max = 100.0})),
+      cluster_gap_(declare_float("cluster_gap", 0.25, {.doc = "m, neighbouring points closer than this form one cluster", .min = 0.01, .max = 10.0})),
+      cluster_max_size_(declare_float("cluster_max_size", 1.0, {.doc = "m, larger clusters (walls) are not tracked", .min = 0.01, .max = 100.0})) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(LadarData) + 64);
 }
 
@@ -79,6 +83,7 @@ void Scan2d::convert(const LadarData& ladar, const Geometry& g, Scan2dData& out)
 
 HookResult Scan2d::on() {
   odometry_misses_ = 0;
+  tracker_.reset();
   const tims::Address ladar = resolved(ladar_);
   const tims::Address odo = resolved(odometry_);
   if (odo.raw() != 0 && switch_on(odo) != HookResult::kOk) return HookResult::kError;
@@ -128,6 +133,16 @@ HookResult Scan2d::loop() {
     g.keep_max_range = keep_max_range_.get_bool();
     convert(ladar_data_, g, scan_);
     fill_odometry(sh.time_ns);
+    if (dynamic_objects_.get_bool()) {
+      TrackerOptions o = tracker_.options();
+      o.dynamic_min_speed = dynamic_min_speed_.get_float();
+      o.cluster_gap = cluster_gap_.get_float();
+      o.cluster_max_size = cluster_max_size_.get_float();
+      tracker_.set_options(o);
+      const Pose2d robot = scan_.odometry_valid != 0 ? Pose2d{scan_.odometry_x, scan_.odometry_y, scan_.odometry_phi} : Pose2d{};
+      tracker_.update(scan_, robot, sh.time_ns);
+      (void)tracker_.mark_dynamic(scan_);
+    }
     publish(scan_, sh.time_ns);
   }
   return got ? HookResult::kOk : HookResult::kError;  // the ladar fell silent

@@ -9,11 +9,19 @@
 // scan's time (GET_DATA by time, carried to the exact time with the sample's
 // velocities), so localisation need not look it up.
 //
+// With `dynamic_objects`, Scan2D tracks small clusters of points over time
+// (obj_recog/laser_tracker.h: nearest neighbour and a constant-velocity Kalman filter
+// in the odometry frame) and marks the points of clusters that move faster than
+// dynamic_min_speed as kScanPointDynObstacle, so the pilot sees them in the same
+// scan. (ObjRecogLaser publishes the same tracks as an object list; the tracker runs
+// here rather than there so that Scan2D does not depend on its own consumer.)
+//
 // Real-time contract: on(), off() and loop() are RT-safe; the scan is built in place.
 #pragma once
 
 #include <cstdint>
 
+#include "obj_recog/laser_tracker.h"
 #include "rack/core/data_component.h"
 #include "rack/interfaces/robot.h"
 
@@ -51,6 +59,11 @@ class Scan2d final : public DataComponent<interfaces::Scan2dData> {
   Parameter& range_max_;
   Parameter& median_;
   Parameter& keep_max_range_;
+  Parameter& dynamic_objects_;
+  Parameter& dynamic_min_speed_;
+  Parameter& cluster_gap_;
+  Parameter& cluster_max_size_;
+  LaserTracker tracker_;  // data task
   interfaces::LadarData ladar_data_{};  // data task
   interfaces::Scan2dData scan_{};       // data task
   uint64_t odometry_misses_ = 0;

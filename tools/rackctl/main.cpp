@@ -205,8 +205,8 @@ class Session {
  public:
   explicit Session(const Options& o)
       : options_(o),
-        reply_mailbox_(own_address(0), 16, kSlotSize),
-        data_mailbox_(own_address(1), 64, kSlotSize),
+        reply_mailbox_(own_address(0), 4, kSlotSize),
+        data_mailbox_(own_address(1), 16, kDataSlotSize),
         endpoint_(router_, reply_mailbox_, kPriority),
         transport_(router_, transport_config(o)),
         buffer_(kSlotSize) {
@@ -309,7 +309,10 @@ class Session {
   }
 
  private:
-  static constexpr uint32_t kSlotSize = 64 * 1024;
+  // Replies up to rackd's default max_message_kib (a Scan3D scan is 0.7 MB, a camera
+  // frame 0.9 MB, a range image 0.26 MB); a watch stream keeps up to 16 samples of 1 MiB.
+  static constexpr uint32_t kSlotSize = 4 * 1024 * 1024;
+  static constexpr uint32_t kDataSlotSize = 1024 * 1024;
   static constexpr uint8_t kPriority = 10;
 
   // Tool mailboxes: instance and mailbox from the low 16 bits of the pid, the
@@ -326,7 +329,6 @@ class Session {
     c.uplink_slots = 32;
     c.announce_period_ns = 0;  // a tool announces nothing
     c.role = tims::NodeRole::kTool;
-    // Its mailboxes take 64 KiB messages: no need for 4 MiB reassembly buffers.
     c.max_message_bytes = kSlotSize;
     c.reassembly_slots = 2;
     c.large_slots = 1;

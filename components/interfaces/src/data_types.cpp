@@ -4,6 +4,7 @@
 #include "rack/interfaces/evaluation.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/devices.h"
+#include "rack/interfaces/perception.h"
 #include "rack/interfaces/robot.h"
 #include "rack/tims/address.h"
 
@@ -87,6 +88,14 @@ constexpr CommandInfo kServoDriveCommands[] = {
     {"HOME", kServoDriveHome, nullptr, "the current position becomes home"},
     {"MOVE_POS", kServoDriveMovePos, &kServoDriveMovePosBody, "move to position at velocity (0: max)"},
     {"MOVE_VEL", kServoDriveMoveVel, &kServoDriveMoveVelBody, "move at velocity until a limit"}};
+constexpr DataTypeInfo kScan3d = info<Scan3dData>("Scan3dData");
+constexpr DataTypeInfo kObjRecog = info<ObjRecogData>("ObjRecogData");
+constexpr DataTypeInfo kScan3dRangeImageRequestBody = info<Scan3dRangeImageRequest>("Scan3dRangeImageRequest");
+constexpr DataTypeInfo kScan3dStoreDataBody = info<Scan3dStoreData>("Scan3dStoreData");
+constexpr CommandInfo kScan3dCommands[] = {
+    {"GET_RANGE_IMAGE", kScan3dGetRangeImage, &kScan3dRangeImageRequestBody,
+     "range image of the newest scan (angular_resolution_deg; none: the parameter)"},
+    {"STORE_DATA", kScan3dStoreData, &kScan3dStoreDataBody, "write the newest scan as a PCD file (path; none: store_dir)"}};
 }  // namespace
 
 const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
@@ -108,6 +117,8 @@ const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept {
     case tims::classes::kJoystick: return &kJoystick;
     case tims::classes::kServoDrive: return &kServoDrive;
     case tims::classes::kCamera: return &kCamera;
+    case tims::classes::kScan3d: return &kScan3d;
+    case tims::classes::kObjRecog: return &kObjRecog;
     default: return nullptr;
   }
 }
@@ -124,6 +135,7 @@ std::span<const CommandInfo> commands_for_class(uint8_t class_id) noexcept {
     case tims::classes::kPath: return kPathCommands;
     case tims::classes::kPilot: return kPilotCommands;
     case tims::classes::kServoDrive: return kServoDriveCommands;
+    case tims::classes::kScan3d: return kScan3dCommands;
     default: return {};
   }
 }

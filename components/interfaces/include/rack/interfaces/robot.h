@@ -197,6 +197,10 @@ inline constexpr uint8_t kScanPointNormal = 0;
 inline constexpr uint8_t kScanPointObstacle = 1;
 inline constexpr uint8_t kScanPointDynObstacle = 2;
 inline constexpr uint8_t kScanPointMaxRange = 3;  // no echo within max_range (x/y at max range)
+// Scan3D (rack/interfaces/perception.h) types its points against the ground plane:
+// ground, ceiling, and kScanPointObstacle for everything in between (objects).
+inline constexpr uint8_t kScanPointGround = 4;
+inline constexpr uint8_t kScanPointCeiling = 5;
 struct Scan2dData {
   int64_t duration_ns = 0;
   float max_range = 0.0F;       // m

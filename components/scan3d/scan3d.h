@@ -1,0 +1,164 @@
+// Scan3D (class Scan3D): 3-D scans from a 2-D Ladar turned by a ServoDrive (RACK's
+// roll, pitch and yaw scan modes), or played from PCD files; processed with PCL
+// (voxel grid, statistical outlier removal, RANSAC ground plane, point types) and
+// published as Scan3dData (rack/interfaces/perception.h).
+//
+// Ladar + ServoDrive: on() switches both on (cascading ON), subscribes to both, and
+// sends the drive to angle_min. Then it sweeps: MOVE_POS to angle_max, and every
+// ladar scan taken during the sweep is placed in 3-D with the drive's angle at each
+// beam's time, interpolated in the drive's position stream (a scan waits in a small
+// queue until the drive has reported a position after its end). When the drive
+// reports the target reached, the sweep is one 3-D scan: the drive is sent back the
+// other way (the next sweep) and the scan is processed and published. The robot
+// should stand still during a sweep (points are in the robot frame).
+//
+// PCD files (`pcd`: a file or a directory of *.pcd, played in name order every
+// pcd_period_ms, looping if pcd_loop): each file is one scan.
+//
+// Commands: GET_RANGE_IMAGE (kScan3dGetRangeImage) and STORE_DATA (kScan3dStoreData)
+// for the newest scan; the command task queues them and the data task serves them
+// (PCL and file I/O never run in the command task).
+//
+// Bad input, each counted in Scan3dData.bad_input and logged (the first of each kind,
+// then every 100th with the count), and SKIPPED, because one bad scan or file says
+// nothing about the next: a malformed PCD file (file:line: reason), an empty ladar
+// scan (no echo), a malformed ladar scan, a scan older than the drive's history. A
+// ladar or drive that falls silent for silence_ms, or a drive that does not finish a
+// sweep within sweep_timeout_s, puts the component in ERROR (on() retries).
+//
+// Scheduling: PCL allocates, so the DATA task must run at priority 0 (normal
+// scheduling) or a low SCHED_FIFO priority below every control task, as MCL's; its
+// loop() is NOT RT-safe. The command task stays real-time: on(), off() and command()
+// only exchange messages and copy into preallocated slots.
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "rack/core/data_component.h"
+#include "rack/interfaces/devices.h"
+#include "rack/interfaces/perception.h"
+#include "rack/interfaces/robot.h"
+#include "rack/rt/pi_mutex.h"
+
+namespace rack::scan3d {
+class Scan3dAssembler;
+class Scan3dPipeline;
+struct PipelineOptions;
+}  // namespace rack::scan3d
+
+namespace rack::components {
+
+class Scan3d final : public DataComponent<interfaces::Scan3dData> {
+ public:
+  Scan3d();
+  ~Scan3d() override;
+
+  // Counters (any thread).
+  [[nodiscard]] uint64_t scans_published() const noexcept { return published_scans_.load(std::memory_order_relaxed); }
+  [[nodiscard]] uint64_t bad_input() const noexcept { return bad_input_.load(std::memory_order_relaxed); }
+  void describe_status(std::string& out) const override;
+
+ protected:
+  void init() override;  // reads the parameters, lists the PCD files, allocates (non-RT)
+  HookResult on() override;
+  void off() override;
+  HookResult loop() override;  // NOT RT-safe: PCL and file I/O
+  CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override;
+
+ private:
+  enum class Phase : uint8_t { kToStart, kSweeping };
+  struct Request {
+    tims::MessageHeader header{};
+    interfaces::Scan3dRangeImageRequest range{};
+    interfaces::Scan3dStoreData store{};
+  };
+  static constexpr std::size_t kMaxRequests = 4;
+  static constexpr std::size_t kPendingScans = 16;
+  // A notification the command task sends to the input mailbox to wake the data task.
+  static constexpr int8_t kWake = -30;
+
+  [[nodiscard]] scan3d::PipelineOptions read_options() const;
+  enum class BadKind : uint8_t { kPcdFile, kLadarScan, kSweep };
+  void count_bad(BadKind kind, const char* detail) noexcept;
+  HookResult loop_ladar(int64_t now);
+  HookResult loop_files(int64_t now);
+  bool move_drive(double target) noexcept;
+  void finish_scan(int64_t time_ns, int64_t duration_ns, uint8_t mode, uint32_t ladar_scans, const float* x,
+                   const float* y, const float* z, const float* intensity, std::size_t n);
+  void serve_requests();
+  void reply_error_from_data(const tims::MessageHeader& request, const std::string& reason) noexcept;
+
+  Parameter& ladar_;
+  Parameter& servo_;
+  Parameter& pcd_;
+  Parameter& mode_;
+  Parameter& mount_x_;
+  Parameter& mount_y_;
+  Parameter& mount_z_;
+  Parameter& angle_min_;
+  Parameter& angle_max_;
+  Parameter& sweep_velocity_;
+  Parameter& angle_tolerance_;
+  Parameter& servo_period_ms_;
+  Parameter& range_min_;
+  Parameter& range_max_;
+  Parameter& voxel_size_;
+  Parameter& outlier_neighbours_;
+  Parameter& outlier_std_;
+  Parameter& ground_tolerance_;
+  Parameter& ground_max_tilt_;
+  Parameter& ground_max_height_;
+  Parameter& ceiling_height_;
+  Parameter& max_points_;
+  Parameter& range_image_res_deg_;
+  Parameter& store_dir_;
+  Parameter& pcd_period_ms_;
+  Parameter& pcd_loop_;
+  Parameter& silence_ms_;
+  Parameter& sweep_timeout_s_;
+
+  uint8_t mode_id_ = interfaces::kScan3dModePitch;
+  bool file_source_ = false;
+  std::vector<std::string> files_;
+  std::unique_ptr<scan3d::Scan3dAssembler> assembler_;
+  std::unique_ptr<scan3d::Scan3dPipeline> pipeline_;
+  std::unique_ptr<interfaces::Scan3dData> out_;
+  std::unique_ptr<interfaces::Scan3dRangeImage> image_;
+  std::unique_ptr<interfaces::LadarData[]> pending_;  // ladar scans waiting for the drive
+  int64_t pending_time_[kPendingScans] = {};
+  std::size_t pending_head_ = 0, pending_count_ = 0;
+  std::unique_ptr<interfaces::LadarData> ladar_in_;
+
+  // Data task state.
+  Phase phase_ = Phase::kToStart;
+  double sweep_from_ = 0.0, sweep_to_ = 0.0;
+  int64_t sweep_start_ns_ = 0;      // host time the current sweep started (drive left its start)
+  int64_t sweep_end_ns_ = 0;        // drive sample time that reached the target (0: not yet)
+  int64_t sweep_started_mono_ = 0;
+  int64_t newest_ladar_ns_ = 0;
+  int64_t last_ladar_mono_ = 0, last_drive_mono_ = 0;
+  interfaces::ServoDriveData drive_{};
+  int64_t drive_time_ns_ = 0;
+  bool have_drive_ = false;
+  bool have_scan_ = false;          // out_ holds a published scan
+  int64_t scan_time_ns_ = 0;        // its time
+  std::size_t next_file_ = 0;
+  int64_t next_file_mono_ = 0;
+  uint32_t scan_number_ = 0;
+  uint64_t bad_kinds_[3] = {};      // per BadKind, for rate-limited logging
+
+  // Command task -> data task: GET_RANGE_IMAGE / STORE_DATA requests.
+  rt::PiMutex requests_mutex_;
+  Request requests_[kMaxRequests];
+  std::size_t request_count_ = 0;  // guarded by requests_mutex_
+
+  // Status for other threads (relaxed: counters and readings).
+  std::atomic<uint64_t> published_scans_{0}, bad_input_{0}, dropped_scans_{0};
+  std::atomic<uint32_t> last_points_{0};
+  std::atomic<float> last_ms_{0.0F};
+};
+
+}  // namespace rack::components
