@@ -85,6 +85,7 @@ void Executor::gdos_pass() {
 void Executor::gdos_loop() {
   pthread_setname_np(pthread_self(), "rackd:gdos");  // for top and ps (not RT: SCHED_OTHER)
   const auto period = std::chrono::nanoseconds(host_->settings.gdos.drain_ns);
+  int64_t next_fault_sample = 0;
   for (;;) {
     {
       std::unique_lock lock(gdos_mutex_);
@@ -92,6 +93,12 @@ void Executor::gdos_loop() {
       if (!gdos_running_) break;
     }
     pass_guarded();
+    // The RT tasks' page faults since start-up, for GET_STATS (rackctl status): read
+    // from /proc here, by a non-RT thread, so that the tasks make no system call for it.
+    if (const int64_t now = rt::monotonic_ns(); now >= next_fault_sample) {
+      for (const auto& v : views_) v.component->sample_faults();
+      next_fault_sample = now + rt::kNsPerSec;
+    }
   }
   pass_guarded();  // what the last moments left behind
 }
@@ -196,6 +203,7 @@ void Executor::start() {
                                   [&c, cmd_ring, info = watch(s.command_task, ":cmd")] {
                                     gdos::bind_thread_ring(cmd_ring);
                                     rt::modeswitch::TaskAttachment attach(info);
+                                    c.command_faults_.mark_started();  // start-up ends here
                                     c.run_command_task();
                                   },
                                   options_.allow_rt_fallback);
@@ -210,6 +218,7 @@ void Executor::start() {
                                       [dc, data_ring, info = watch(s.data_task, ":data")] {
                                         gdos::bind_thread_ring(data_ring);
                                         rt::modeswitch::TaskAttachment attach(info);
+                                        static_cast<Component*>(dc)->data_faults_.mark_started();  // start-up ends here
                                         dc->run_data_task();
                                       },
                                       options_.allow_rt_fallback);
@@ -313,6 +322,7 @@ std::string Executor::status_report() const {
   std::string out;
   for (const auto& v : views_) {
     const Component& c = *v.component;
+    c.sample_faults();
     wire::StatsReply s;
     c.fill_stats(s);
     char line[512];
@@ -335,6 +345,24 @@ std::string Executor::status_report() const {
                     c.address().str().c_str(), describe(c.state()), static_cast<unsigned long long>(s.commands));
     }
     out += line;
+    // Page faults since each task's start-up (target 0 for an RT task); "-" when not
+    // measured (the task has not started). Parsed by bench/run: keep the format.
+    {
+      const auto faults = [](const rt::TaskFaults& f, int priority) {
+        const rt::FaultCount n = f.last();
+        char part[96];
+        if (!n.measured) return std::string("-");
+        std::snprintf(part, sizeof part, "%llu minor %llu major (%s)", static_cast<unsigned long long>(n.minor),
+                      static_cast<unsigned long long>(n.major), priority > 0 ? "RT" : "not RT");
+        return std::string(part);
+      };
+      std::string fl = "      page faults after start-up: command task " +
+                       faults(c.command_task_faults(), c.settings().command_task.priority);
+      if (c.data_task_mode() != DataTaskMode::kNone) {
+        fl += ", data task " + faults(c.data_task_faults(), c.settings().data_task.priority);
+      }
+      out += fl + "\n";
+    }
     std::string extra;
     c.describe_status(extra);
     if (!extra.empty()) out += "      " + extra + "\n";
