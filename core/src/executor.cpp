@@ -1,6 +1,7 @@
 #include "rack/core/executor.h"
 
 #include <pthread.h>
+#include <sched.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -12,6 +13,53 @@ namespace rack {
 
 using tims::Address;
 namespace msg = tims::msg;
+
+namespace {
+
+// Keeps the executor's own non-RT threads (the GDOS thread, the TiMS/LCM transport's
+// threads) off the CPUs that the host file pins RT tasks to. On a kernel that is not
+// PREEMPT_RT a normal thread inside a system call (a /proc read, a socket send, a log
+// write) delays the wake-up of an RT task on its CPU until it reaches a preemption
+// point; a pinned control task should share its CPU with nothing of rackd's own that
+// it does not need. Threads inherit their creator's affinity, so the creating (main)
+// thread holds the reduced set while it starts them and gets its own back after.
+// Nothing changes when no RT task is pinned or the pinned tasks take every CPU
+// rackd may use. Tasks themselves are created outside this scope (unpinned RT tasks
+// keep every CPU).
+class HousekeepingAffinity {
+ public:
+  explicit HousekeepingAffinity(const std::vector<ComponentView>& views) noexcept {
+    CPU_ZERO(&saved_);
+    if (pthread_getaffinity_np(pthread_self(), sizeof saved_, &saved_) != 0) return;
+    cpu_set_t set = saved_;
+    bool removed = false;
+    const auto drop = [&](const TaskSettings& t) {
+      if (t.priority > 0 && t.cpu >= 0 && t.cpu < CPU_SETSIZE && CPU_ISSET(t.cpu, &set)) {
+        CPU_CLR(t.cpu, &set);
+        removed = true;
+      }
+    };
+    for (const auto& v : views) {
+      const ComponentSettings& s = v.component->settings();
+      drop(s.command_task);
+      if (v.component->data_task_mode() != DataTaskMode::kNone) drop(s.data_task);
+    }
+    if (!removed || CPU_COUNT(&set) == 0) return;
+    active_ = pthread_setaffinity_np(pthread_self(), sizeof set, &set) == 0;
+  }
+  ~HousekeepingAffinity() {
+    if (active_) (void)pthread_setaffinity_np(pthread_self(), sizeof saved_, &saved_);
+  }
+  HousekeepingAffinity(const HousekeepingAffinity&) = delete;
+  HousekeepingAffinity& operator=(const HousekeepingAffinity&) = delete;
+  [[nodiscard]] bool active() const noexcept { return active_; }
+
+ private:
+  cpu_set_t saved_;
+  bool active_ = false;
+};
+
+}  // namespace
 
 Executor::Executor(std::unique_ptr<LoadedHost> host, ExecutorOptions options)
     : host_(std::move(host)), options_(std::move(options)), router_(host_->settings.system) {
@@ -174,7 +222,10 @@ void Executor::start() {
     }
   }
   gdos_running_ = true;
-  gdos_thread_ = std::thread([this] { gdos_loop(); });
+  {
+    const HousekeepingAffinity housekeeping(views_);
+    gdos_thread_ = std::thread([this] { gdos_loop(); });
+  }
 
   for (auto& v : views_) v.component->attach(router_);
   for (auto& v : views_) {
@@ -238,6 +289,7 @@ void Executor::start() {
       tc.max_message_bytes = hs.max_message_bytes;
       tc.large_slots = hs.large_slots;
       tc.warn = [this](const std::string& s) { log(gdos::Level::kWarning, s); };
+      const HousekeepingAffinity housekeeping(views_);  // the transport's threads
       transport_ = std::make_unique<tims::LcmTransport>(router_, tc);
       // Other hosts of this robot own the rest of its addresses: let the transport
       // decide (discovery) instead of answering NOT_AVAILABLE here.

@@ -1,10 +1,16 @@
 // Page faults of RT tasks after their start-up (rack/rt/page_faults.h): the counter
 // counts (a probe thread that touches fresh pages after its mark), and a simple
-// periodic component in an executor with rackd's memory policy takes none.
+// periodic component in an executor with rackd's memory policy takes none. And the
+// executor keeps its own non-RT threads off the CPUs its RT tasks are pinned to.
 #include <sys/mman.h>
 #include <unistd.h>
 
+#include <sched.h>
+
 #include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <string>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -111,6 +117,60 @@ components:
                                                  "data task 0 minor 0 major (RT)"),
             std::string::npos)
       << host.executor().status_report();
+}
+
+}  // namespace
+}  // namespace rack
+
+namespace rack {
+namespace {
+
+// The CPUs thread `tid` of this process may run on (sched_getaffinity).
+cpu_set_t affinity_of(pid_t tid) {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  EXPECT_EQ(sched_getaffinity(tid, sizeof set, &set), 0);
+  return set;
+}
+
+// The executor's own non-RT threads (here: the GDOS thread) stay off a CPU that an RT
+// task is pinned to; the thread that started the executor gets its full set back.
+TEST(HousekeepingAffinityTest, GdosThreadStaysOffTheCpuOfAPinnedRtTask) {
+  Watchdog watchdog;
+  const cpu_set_t before = affinity_of(0);
+  if (CPU_COUNT(&before) < 2) GTEST_SKIP() << "needs 2 CPUs in this process's affinity";
+  int pinned = -1;
+  for (int cpu = CPU_SETSIZE - 1; cpu >= 0 && pinned < 0; --cpu) {
+    if (CPU_ISSET(cpu, &before)) pinned = cpu;  // the highest allowed CPU
+  }
+  test::HostUnderTest host(R"(system: 0
+lcm: false
+components:
+  - name: gen
+    class: Generator
+    instance: 1
+    command_task: {priority: 30, cpu: )" + std::to_string(pinned) + R"(}
+    data_task: {priority: 60, cpu: )" + std::to_string(pinned) + R"(, period_ms: 10}
+)");
+  const cpu_set_t after = affinity_of(0);
+  EXPECT_TRUE(CPU_EQUAL(&before, &after)) << "the starting thread's affinity was not restored";
+  // Find the GDOS thread by name among this process's threads.
+  pid_t gdos = 0;
+  ASSERT_TRUE(test::eventually([&] {
+    for (const auto& entry : std::filesystem::directory_iterator("/proc/self/task")) {
+      std::ifstream comm(entry.path() / "comm");
+      std::string name;
+      std::getline(comm, name);
+      if (name == "rackd:gdos") {
+        gdos = static_cast<pid_t>(std::stoi(entry.path().filename().string()));
+        return true;
+      }
+    }
+    return false;
+  }));
+  const cpu_set_t g = affinity_of(gdos);
+  EXPECT_FALSE(CPU_ISSET(pinned, &g)) << "GDOS thread may run on CPU " << pinned << ", where RT tasks are pinned";
+  EXPECT_GE(CPU_COUNT(&g), 1);
 }
 
 }  // namespace
