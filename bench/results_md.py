@@ -41,6 +41,10 @@ def ratio(a, b):
     return None if a is None or not b else a / b
 
 
+def size_text(n):
+    return f"{n / 1e6:g} MB" if n >= 1000000 else f"{n / 1000:g} KB"
+
+
 def fx(r):
     return "–" if r is None else f"{r:.2f}x"
 
@@ -291,7 +295,8 @@ def plot_jitter(c, key, label, j):
     ax.set_xscale("log")
     ax.set_xlabel("wake-up latency (us)")
     ax.set_ylabel("cycles")
-    ax.set_title(f"1 kHz periodic task, SCHED_FIFO {j['priority']}, CPU {j['cpu']}: {label}", fontsize=9)
+    short = {"idle": "idle", "stress": "under stress-ng", "mcl": "beside rackd sim_mcl.yaml (MCL)"}.get(key, label)
+    ax.set_title(f"1 kHz periodic task, SCHED_FIFO {j['priority']}, CPU {j['cpu']}: {short}", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()
@@ -377,7 +382,7 @@ def section_jitter(c, keys):
                 "stress": "stress-ng's memory and I/O stressors make kernel work on the measured CPU; "
                           "both sides see it, but in different seconds",
                 "mcl": "no systematic cause found: the measured loop is cyclictest's, and the same build gave "
-                       "1.00x-1.31x beside MCL in runs minutes apart on this shared VM; the simulation's RT tasks "
+                       "0.74x-1.52x beside MCL in runs minutes apart on a shared 2-CPU VM; the simulation's RT tasks "
                        "(chassis SCHED_FIFO 80, its command task 82) are not pinned and share the measured CPU, and "
                        "their phase against the 1 kHz task differs from segment to segment (see \"Jitter beside "
                        "MCL\" at the end of this file)",
@@ -556,7 +561,7 @@ def section_lcm(c, keys):
             for b in (b for b in bulk if b["size"] == size):
                 lost = b.get("sent", 0) - b.get("received", 0)
                 wire = b.get("wire_bytes")
-                c.w(f"| {size // 1000} KB | {b['mechanism']} | {b.get('sent', '–')} | {b.get('received', '–')} | {lost} "
+                c.w(f"| {size_text(size)} | {b['mechanism']} | {b.get('sent', '–')} | {b.get('received', '–')} | {lost} "
                     f"({100 * b.get('loss', 0):.1f}%) | {b.get('mb_per_s', 0):.1f} | "
                     f"{'–' if wire is None else f'{wire / 1e6:.1f} MB'} | "
                     f"{fx(ratio(b.get('mb_per_s'), ref.get('mb_per_s'))) if ref and b is not ref else '1.00x' if b is ref else '–'} |")
@@ -565,13 +570,13 @@ def section_lcm(c, keys):
                 if tb:
                     rt = ratio(tb.get("mb_per_s"), ref.get("mb_per_s"))
                     loss_ok = tb.get("loss", 0) <= ref.get("loss", 0)
-                    c.summary.append((f"bulk throughput, {size // 1000} KB messages", "2 namespaces",
+                    c.summary.append((f"bulk throughput, {size_text(size)} messages", "2 namespaces",
                                       f"{tb.get('mb_per_s', 0):.0f} MB/s, {100 * tb.get('loss', 0):.1f}% lost",
                                       f"{ref.get('mb_per_s', 0):.0f} MB/s, {100 * ref.get('loss', 0):.1f}% lost (raw LCM)",
                                       fx(rt), verdict(rt, 0.9, lower_is_better=False)
                                       + ("; loss **met**" if loss_ok else "; loss **MISSED**")))
                     if rt is not None and rt < 0.9:
-                        c.notes.append(f"Bulk {size // 1000} KB: TiMS {fx(rt)} the raw LCM throughput (target 0.9x): "
+                        c.notes.append(f"Bulk {size_text(size)}: TiMS {fx(rt)} the raw LCM throughput (target 0.9x): "
                                        "each message is handed producer -> uplink mailbox -> sender thread and receive "
                                        "thread -> destination mailbox (the hand-overs that keep RT tasks off the "
                                        "network) and copied twice more than LCM does; see the bench_lcm section below "
@@ -866,8 +871,8 @@ def main():
       f"{env.get('date', '?')}, commit {env.get('commit', '?')}, in {env.get('seconds_total', '?')} s. Each benchmark runs "
       "its reference in the same run (same binary or the same invocation, same placement and priority) and "
       "reports the ratio; the sections below give the figures, percentiles, target, the exact command and the "
-      "load during it. Regenerate with `bench/run --quick` (about 2.5 minutes) or `bench/run` (full, about 13 "
-      "minutes); raw JSON and logs: `<build-dir>/bench/results/`.")
+      "load during it. Regenerate with `bench/run --quick` (about 2 minutes) or `bench/run` (full, about 10.5 "
+      "minutes on a 2-CPU machine); raw JSON and logs: `<build-dir>/bench/results/`.")
     w("")
     if mode == "quick":
         w("**These are `--quick` figures: short runs (seconds per side), indicative only.** Outliers move the "
