@@ -398,9 +398,19 @@ int main(int argc, char** argv) {
     std::string j = "{\"machine\":" + json_machine() + ",\"cost\":[";
     for (std::size_t i = 0; i < costs.size(); ++i) {
       j += (i ? "," : "") + std::string("{\"label\":\"") + json_escape(costs[i].label) +
-           "\",\"gdos\":" + json_percentiles(costs[i].gdos) + ",\"snprintf\":" + json_percentiles(costs[i].ref) + "}";
+           "\",\"format\":\"" + json_escape(costs[i].format) + "\",\"gdos\":" + json_percentiles(costs[i].gdos) +
+           ",\"snprintf\":" + json_percentiles(costs[i].ref) + "}";
     }
-    j += "],\"sustained_records_per_s\":" + json_number(sustained) + ",\"direct_records_per_s\":" + json_number(direct_rate) + "}";
+    j += "],\"rates\":[";
+    for (std::size_t i = 0; i < rates.size(); ++i) {
+      const auto& r = rates[i];
+      j += (i ? "," : "") + std::string("{\"rate\":") + std::to_string(r.rate) + ",\"offered\":" + std::to_string(r.offered) +
+           ",\"drained\":" + std::to_string(r.drained) + ",\"dropped\":" + std::to_string(r.dropped) +
+           ",\"received\":" + std::to_string(r.received) + ",\"lost\":" + std::to_string(r.lost) +
+           ",\"seconds\":" + json_number(r.seconds) + "}";
+    }
+    j += "],\"priority\":" + std::to_string(o.priority) + ",\"cpu\":" + std::to_string(o.cpu) +
+         ",\"sustained_records_per_s\":" + json_number(sustained) + ",\"direct_records_per_s\":" + json_number(direct_rate) + "}";
     write_file(o.json, j);
   }
   return 0;

@@ -10,7 +10,11 @@
 // mrpt-common ships no laser rawlog with ground truth (see bench/RESULTS.md), so the
 // accuracy figures come from this simulated run.
 //
-//   bench_mcl [--quick] [--no-latency] [--latency-seconds S]
+//   bench_mcl [--quick] [--no-latency] [--latency-seconds S] [--parts LIST]
+//             [--particles N,N,...] [--scans N] [--json FILE]
+//     --parts: any of update,accuracy,recovery,latency (default all); --particles and
+//     --scans set the update-time part (default 250..4000, 400 scans per round);
+//     --json writes the update-time figures for bench/run (bench/results_md.py).
 //   bench_mcl --write-carmen FILE [--steps N] [--beams B]   (the example log in configs/logs/)
 //
 // Not RT code. The latency part needs root (SCHED_FIFO); without it that part is skipped.
@@ -208,8 +212,16 @@ Dist dist_of(std::vector<int64_t> v) {
 }
 
 // ---- 1. update time against particle count, rack vs MRPT ------------------------
-void bench_update_time(const rack::maps::OccupancyMap& map, const std::vector<Step>& steps, bool quick) {
-  const std::size_t n_steps = std::min<std::size_t>(steps.size(), quick ? 150 : 400);
+struct UpdateResult {
+  uint32_t particles = 0, points = 0, decimation = 1;  // points 0: every echo
+  Percentiles rack, mrpt;
+  double median_pair_ratio = 0;
+};
+
+std::vector<UpdateResult> bench_update_time(const rack::maps::OccupancyMap& map, const std::vector<Step>& steps,
+                                            bool quick, std::vector<uint32_t> particles, std::size_t scans) {
+  std::vector<UpdateResult> results;
+  const std::size_t n_steps = std::min<std::size_t>(steps.size(), scans > 0 ? scans : (quick ? 150 : 400));
   std::printf("\n### Update time per scan\n\n");
   std::printf("Every scan updates (no gating), %zu scans per round, 2 rounds; fixed particle count (KLD min = max). "
               "Both filters run in lockstep, one after the other on each scan (order alternating per scan), so that "
@@ -224,7 +236,10 @@ void bench_update_time(const rack::maps::OccupancyMap& map, const std::vector<St
     uint32_t n, beams, decimation;
   };
   std::vector<Config> configs;
-  for (uint32_t n : quick ? std::vector<uint32_t>{250, 1000, 4000} : std::vector<uint32_t>{250, 500, 1000, 2000, 4000}) {
+  if (particles.empty()) {
+    particles = quick ? std::vector<uint32_t>{250, 1000, 4000} : std::vector<uint32_t>{250, 500, 1000, 2000, 4000};
+  }
+  for (uint32_t n : particles) {
     configs.push_back({n, 0, 1});  // every echo on both sides (MRPT: LF_decimation 1)
   }
   // MCL's default: 60 points per scan; MRPT: every 3rd of the 181 beams.
@@ -269,6 +284,17 @@ void bench_update_time(const rack::maps::OccupancyMap& map, const std::vector<St
     }
     std::sort(pair_ratio.begin(), pair_ratio.end());
     const double median_pair = pair_ratio[pair_ratio.size() / 2];
+    UpdateResult res;
+    res.particles = n;
+    res.points = c.beams;
+    res.decimation = c.decimation;
+    res.median_pair_ratio = median_pair;
+    {
+      auto ra = rack_t, rb = ref_t;
+      res.rack = rack::bench::percentiles_of(ra);
+      res.mrpt = rack::bench::percentiles_of(rb);
+    }
+    results.push_back(res);
     const Dist a = dist_of(rack_t), b = dist_of(ref_t);
     char label[64];
     if (c.beams == 0) std::snprintf(label, sizeof label, "%u", n);
@@ -279,6 +305,7 @@ void bench_update_time(const rack::maps::OccupancyMap& map, const std::vector<St
                 b.n, b.p50, b.p95, b.p99, b.max);
     std::fflush(stdout);
   }
+  return results;
 }
 
 // ---- 2. accuracy against ground truth ---------------------------------------------
@@ -590,8 +617,11 @@ int write_carmen(const rack::maps::OccupancyMap& map, const std::string& path, s
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false, latency = true;
+  bool quick = false, latency = true, update = true, accuracy = true, recovery = true;
   int latency_seconds = 20;
+  std::vector<uint32_t> particles;
+  std::size_t scans = 0;
+  std::string json;
   std::string carmen;
   std::size_t carmen_steps = 400;
   int carmen_beams = 91;
@@ -603,8 +633,33 @@ int main(int argc, char** argv) {
     else if (a == "--write-carmen" && i + 1 < argc) carmen = argv[++i];
     else if (a == "--steps" && i + 1 < argc) carmen_steps = static_cast<std::size_t>(std::atol(argv[++i]));
     else if (a == "--beams" && i + 1 < argc) carmen_beams = std::atoi(argv[++i]);
-    else if (a == "-h" || a == "--help") {
-      std::printf("bench_mcl [--quick] [--no-latency] [--latency-seconds S]\n"
+    else if (a == "--scans" && i + 1 < argc) scans = static_cast<std::size_t>(std::atol(argv[++i]));
+    else if (a == "--json" && i + 1 < argc) json = argv[++i];
+    else if (a == "--particles" && i + 1 < argc) {
+      for (const char* p = argv[++i]; *p != '\0';) {
+        char* end = nullptr;
+        const unsigned long v = std::strtoul(p, &end, 10);
+        if (end == p || v == 0) {
+          std::fprintf(stderr, "bench_mcl: --particles: expected N,N,... (positive counts)\n");
+          return 2;
+        }
+        particles.push_back(static_cast<uint32_t>(v));
+        p = *end == ',' ? end + 1 : end;
+      }
+    } else if (a == "--parts" && i + 1 < argc) {
+      const std::string parts = std::string(",") + argv[++i] + ",";
+      const auto has = [&](const char* name) { return parts.find(std::string(",") + name + ",") != std::string::npos; };
+      update = has("update");
+      accuracy = has("accuracy");
+      recovery = has("recovery");
+      latency = has("latency");
+      if (!update && !accuracy && !recovery && !latency) {
+        std::fprintf(stderr, "bench_mcl: --parts: any of update,accuracy,recovery,latency\n");
+        return 2;
+      }
+    } else if (a == "-h" || a == "--help") {
+      std::printf("bench_mcl [--quick] [--no-latency] [--latency-seconds S] [--parts update,accuracy,recovery,latency]\n"
+                  "          [--particles N,N,...] [--scans N] [--json FILE]\n"
                   "bench_mcl --write-carmen FILE [--steps N] [--beams B]   write the simulated tour as a CARMEN log\n");
       return 0;
     } else {
@@ -625,10 +680,29 @@ int main(int argc, char** argv) {
               sysconf(_SC_NPROCESSORS_ONLN), rack::bench::read_first_line("/proc/loadavg").c_str());
   const auto steps = record(map, 1);
   std::printf("bench_mcl: map %s, tour of %zu scans\n", map_path.c_str(), steps.size());
-  bench_update_time(map, steps, quick);
-  bench_accuracy(map, quick);
-  bench_recovery(map, quick);
+  std::vector<UpdateResult> updates;
+  if (update) updates = bench_update_time(map, steps, quick, particles, scans);
+  if (accuracy) bench_accuracy(map, quick);
+  if (recovery) bench_recovery(map, quick);
   if (latency) bench_latency(map, steps, quick ? 5 : latency_seconds);
+  if (!json.empty()) {
+    std::string j = "{\"machine\": " + rack::bench::json_machine() + ", \"scans_per_round\": " +
+                    std::to_string(std::min<std::size_t>(steps.size(), scans > 0 ? scans : (quick ? 150 : 400))) +
+                    ", \"rounds\": 2, \"target_ratio\": 1.1, \"update\": [";
+    for (std::size_t i = 0; i < updates.size(); ++i) {
+      const auto& u = updates[i];
+      j += std::string(i ? ", " : "") + "{\"particles\": " + std::to_string(u.particles) +
+           ", \"points\": " + std::to_string(u.points) + ", \"mrpt_decimation\": " + std::to_string(u.decimation) +
+           ", \"rack\": " + rack::bench::json_percentiles(u.rack) + ", \"mrpt\": " +
+           rack::bench::json_percentiles(u.mrpt) + ", \"median_pair_ratio\": " +
+           rack::bench::json_number(u.median_pair_ratio) + "}";
+    }
+    j += "]}\n";
+    if (!rack::bench::write_file(json, j)) {
+      std::fprintf(stderr, "bench_mcl: cannot write %s\n", json.c_str());
+      return 1;
+    }
+  }
   std::printf("\nbench_mcl: loadavg after: %s\n", rack::bench::read_first_line("/proc/loadavg").c_str());
   return 0;
 }

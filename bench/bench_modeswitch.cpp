@@ -17,9 +17,10 @@
 // With --rusage the detector runs with per-cycle getrusage (two system calls).
 //
 //   bench_modeswitch [--cycles N] [--rounds R] [--cpu C] [--priority P] [--rusage]
+//                    [--json FILE]
 //
-// Needs root (SCHED_FIFO, mlockall). Prints a table; figures go to bench/RESULTS.md
-// by hand (see its mode-switch section).
+// Needs root (SCHED_FIFO, mlockall). Prints a table; --json writes the same for
+// bench/run (bench/results_md.py turns it into the mode-switch section of RESULTS.md).
 #include <sys/syscall.h>
 #include <unistd.h>
 
@@ -93,6 +94,7 @@ void run_variant(Variant& v, Shared& shared, int cycles, int cpu, int priority) 
 int main(int argc, char** argv) {
   int cycles = 20000, rounds = 10, cpu = 1, priority = 80;
   bool rusage = false;
+  std::string json;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&] {
@@ -104,8 +106,9 @@ int main(int argc, char** argv) {
     else if (a == "--cpu") cpu = next();
     else if (a == "--priority") priority = next();
     else if (a == "--rusage") rusage = true;
+    else if (a == "--json" && i + 1 < argc) json = argv[++i];
     else if (a == "-h" || a == "--help") {
-      std::puts("bench_modeswitch [--cycles N] [--rounds R] [--cpu C] [--priority P] [--rusage]");
+      std::puts("bench_modeswitch [--cycles N] [--rounds R] [--cpu C] [--priority P] [--rusage] [--json FILE]");
       return 0;
     } else {
       std::fprintf(stderr, "unknown option %s\n", a.c_str());
@@ -142,8 +145,16 @@ int main(int argc, char** argv) {
   std::printf("%-14s %9s %9s %9s %9s   %-22s %s\n", "variant", "p50 ns", "p99 ns", "p99.9 ns", "max ns",
               "minus ref p50 / p99", "ratio to ref p50 / p99");
   Percentiles ref{}, ref_sys{};
+  std::string j = "{\"machine\": " + rack::bench::json_machine() + ", \"cycles\": " + std::to_string(cycles) +
+                  ", \"rounds\": " + std::to_string(rounds) + ", \"cpu\": " + std::to_string(cpu) +
+                  ", \"priority\": " + std::to_string(priority) + ", \"rusage\": " + (rusage ? "true" : "false") +
+                  ", \"variants\": [";
+  bool first = true;
   for (auto& v : variants) {
     const Percentiles p = percentiles_of(v.samples);
+    j += std::string(first ? "" : ", ") + "{\"name\": \"" + v.name + "\", \"reference\": \"" +
+         (v.syscall ? "+syscall ref" : "reference") + "\", \"latency\": " + rack::bench::json_percentiles(p) + "}";
+    first = false;
     const bool sys = v.syscall;
     if (std::string(v.name) == "reference") ref = p;
     if (std::string(v.name) == "+syscall ref") ref_sys = p;
@@ -155,5 +166,12 @@ int main(int argc, char** argv) {
   }
   std::printf("reports recorded during the run: %llu (expected 0: getpid is on the allow-list, trapped but not reported)\n",
               static_cast<unsigned long long>(counts.reports));
+  j += "], \"reports\": " + std::to_string(counts.reports) + ", \"memory\": \"" +
+       rack::bench::json_escape(mem.describe()) + "\", \"detector\": \"" + rack::bench::json_escape(started.describe()) +
+       "\"}\n";
+  if (!json.empty() && !rack::bench::write_file(json, j)) {
+    std::fprintf(stderr, "bench_modeswitch: cannot write %s\n", json.c_str());
+    return 1;
+  }
   return 0;
 }

@@ -13,7 +13,7 @@ packages=(
   libzstd-dev                            # TiMS/LCM: optional compression of large messages per link
   libyaml-cpp-dev                        # host files
   libgtest-dev libgmock-dev              # tests
-  libbenchmark-dev rt-tests stress-ng    # benchmarks and their references (cyclictest)
+  libbenchmark-dev rt-tests stress-ng strace  # benchmarks and their references (cyclictest); strace: RPC system calls
   libdw-dev libelf-dev                   # backtrace symbolisation (elfutils)
   iproute2                               # network namespaces in the integration tests
   python3 python3-matplotlib             # bench/run writes RESULTS.md and its plots

@@ -231,6 +231,18 @@ void Component::fill_stats(wire::StatsReply& out) const noexcept {
     out.command_drops = c.dropped + c.refused + c.too_large + c.truncated;
   }
   if (command_endpoint_) out.stale_replies = command_endpoint_->stale_replies();
+  const rt::FaultCount cf = command_faults_.last();
+  const rt::FaultCount df = data_faults_.last();
+  out.faults_measured = static_cast<uint8_t>((cf.measured ? 1 : 0) | (df.measured ? 2 : 0));
+  out.command_minor_faults = cf.minor;
+  out.command_major_faults = cf.major;
+  out.data_minor_faults = df.minor;
+  out.data_major_faults = df.major;
+}
+
+void Component::sample_faults() const noexcept {
+  (void)command_faults_.sample();
+  (void)data_faults_.sample();
 }
 
 void Component::handle_get_param(const MessageHeader& h, std::span<const std::byte> body) noexcept {

@@ -1,6 +1,7 @@
 #include "rack/core/executor.h"
 
 #include <pthread.h>
+#include <sched.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -12,6 +13,53 @@ namespace rack {
 
 using tims::Address;
 namespace msg = tims::msg;
+
+namespace {
+
+// Keeps the executor's own non-RT threads (the GDOS thread, the TiMS/LCM transport's
+// threads) off the CPUs that the host file pins RT tasks to. On a kernel that is not
+// PREEMPT_RT a normal thread inside a system call (a /proc read, a socket send, a log
+// write) delays the wake-up of an RT task on its CPU until it reaches a preemption
+// point; a pinned control task should share its CPU with nothing of rackd's own that
+// it does not need. Threads inherit their creator's affinity, so the creating (main)
+// thread holds the reduced set while it starts them and gets its own back after.
+// Nothing changes when no RT task is pinned or the pinned tasks take every CPU
+// rackd may use. Tasks themselves are created outside this scope (unpinned RT tasks
+// keep every CPU).
+class HousekeepingAffinity {
+ public:
+  explicit HousekeepingAffinity(const std::vector<ComponentView>& views) noexcept {
+    CPU_ZERO(&saved_);
+    if (pthread_getaffinity_np(pthread_self(), sizeof saved_, &saved_) != 0) return;
+    cpu_set_t set = saved_;
+    bool removed = false;
+    const auto drop = [&](const TaskSettings& t) {
+      if (t.priority > 0 && t.cpu >= 0 && t.cpu < CPU_SETSIZE && CPU_ISSET(t.cpu, &set)) {
+        CPU_CLR(t.cpu, &set);
+        removed = true;
+      }
+    };
+    for (const auto& v : views) {
+      const ComponentSettings& s = v.component->settings();
+      drop(s.command_task);
+      if (v.component->data_task_mode() != DataTaskMode::kNone) drop(s.data_task);
+    }
+    if (!removed || CPU_COUNT(&set) == 0) return;
+    active_ = pthread_setaffinity_np(pthread_self(), sizeof set, &set) == 0;
+  }
+  ~HousekeepingAffinity() {
+    if (active_) (void)pthread_setaffinity_np(pthread_self(), sizeof saved_, &saved_);
+  }
+  HousekeepingAffinity(const HousekeepingAffinity&) = delete;
+  HousekeepingAffinity& operator=(const HousekeepingAffinity&) = delete;
+  [[nodiscard]] bool active() const noexcept { return active_; }
+
+ private:
+  cpu_set_t saved_;
+  bool active_ = false;
+};
+
+}  // namespace
 
 Executor::Executor(std::unique_ptr<LoadedHost> host, ExecutorOptions options)
     : host_(std::move(host)), options_(std::move(options)), router_(host_->settings.system) {
@@ -85,6 +133,7 @@ void Executor::gdos_pass() {
 void Executor::gdos_loop() {
   pthread_setname_np(pthread_self(), "rackd:gdos");  // for top and ps (not RT: SCHED_OTHER)
   const auto period = std::chrono::nanoseconds(host_->settings.gdos.drain_ns);
+  int64_t next_fault_sample = 0;
   for (;;) {
     {
       std::unique_lock lock(gdos_mutex_);
@@ -92,6 +141,12 @@ void Executor::gdos_loop() {
       if (!gdos_running_) break;
     }
     pass_guarded();
+    // The RT tasks' page faults since start-up, for GET_STATS (rackctl status): read
+    // from /proc here, by a non-RT thread, so that the tasks make no system call for it.
+    if (const int64_t now = rt::monotonic_ns(); now >= next_fault_sample) {
+      for (const auto& v : views_) v.component->sample_faults();
+      next_fault_sample = now + rt::kNsPerSec;
+    }
   }
   pass_guarded();  // what the last moments left behind
 }
@@ -167,7 +222,10 @@ void Executor::start() {
     }
   }
   gdos_running_ = true;
-  gdos_thread_ = std::thread([this] { gdos_loop(); });
+  {
+    const HousekeepingAffinity housekeeping(views_);
+    gdos_thread_ = std::thread([this] { gdos_loop(); });
+  }
 
   for (auto& v : views_) v.component->attach(router_);
   for (auto& v : views_) {
@@ -196,6 +254,7 @@ void Executor::start() {
                                   [&c, cmd_ring, info = watch(s.command_task, ":cmd")] {
                                     gdos::bind_thread_ring(cmd_ring);
                                     rt::modeswitch::TaskAttachment attach(info);
+                                    c.command_faults_.mark_started();  // start-up ends here
                                     c.run_command_task();
                                   },
                                   options_.allow_rt_fallback);
@@ -210,6 +269,7 @@ void Executor::start() {
                                       [dc, data_ring, info = watch(s.data_task, ":data")] {
                                         gdos::bind_thread_ring(data_ring);
                                         rt::modeswitch::TaskAttachment attach(info);
+                                        static_cast<Component*>(dc)->data_faults_.mark_started();  // start-up ends here
                                         dc->run_data_task();
                                       },
                                       options_.allow_rt_fallback);
@@ -229,6 +289,7 @@ void Executor::start() {
       tc.max_message_bytes = hs.max_message_bytes;
       tc.large_slots = hs.large_slots;
       tc.warn = [this](const std::string& s) { log(gdos::Level::kWarning, s); };
+      const HousekeepingAffinity housekeeping(views_);  // the transport's threads
       transport_ = std::make_unique<tims::LcmTransport>(router_, tc);
       // Other hosts of this robot own the rest of its addresses: let the transport
       // decide (discovery) instead of answering NOT_AVAILABLE here.
@@ -313,6 +374,7 @@ std::string Executor::status_report() const {
   std::string out;
   for (const auto& v : views_) {
     const Component& c = *v.component;
+    c.sample_faults();
     wire::StatsReply s;
     c.fill_stats(s);
     char line[512];
@@ -335,6 +397,24 @@ std::string Executor::status_report() const {
                     c.address().str().c_str(), describe(c.state()), static_cast<unsigned long long>(s.commands));
     }
     out += line;
+    // Page faults since each task's start-up (target 0 for an RT task); "-" when not
+    // measured (the task has not started). Parsed by bench/run: keep the format.
+    {
+      const auto faults = [](const rt::TaskFaults& f, int priority) {
+        const rt::FaultCount n = f.last();
+        char part[96];
+        if (!n.measured) return std::string("-");
+        std::snprintf(part, sizeof part, "%llu minor %llu major (%s)", static_cast<unsigned long long>(n.minor),
+                      static_cast<unsigned long long>(n.major), priority > 0 ? "RT" : "not RT");
+        return std::string(part);
+      };
+      std::string fl = "      page faults after start-up: command task " +
+                       faults(c.command_task_faults(), c.settings().command_task.priority);
+      if (c.data_task_mode() != DataTaskMode::kNone) {
+        fl += ", data task " + faults(c.data_task_faults(), c.settings().data_task.priority);
+      }
+      out += fl + "\n";
+    }
     std::string extra;
     c.describe_status(extra);
     if (!extra.empty()) out += "      " + extra + "\n";

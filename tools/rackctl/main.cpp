@@ -497,7 +497,16 @@ int cmd_status(Session& s, const Options& o) {
                     ",\"listener_drops\":" + std::to_string(st.listener_drops) +
                     ",\"malformed\":" + std::to_string(st.malformed) +
                     ",\"commands\":" + std::to_string(st.commands) + ",\"errors\":" + std::to_string(st.errors) +
-                    ",\"command_drops\":" + std::to_string(st.command_drops) + "}";
+                    ",\"command_drops\":" + std::to_string(st.command_drops) +
+                    ",\"page_faults_after_startup\":{\"command_task\":" +
+                    ((st.faults_measured & 1) != 0 ? "{\"minor\":" + std::to_string(st.command_minor_faults) +
+                                                         ",\"major\":" + std::to_string(st.command_major_faults) + "}"
+                                                   : std::string("null")) +
+                    ",\"data_task\":" +
+                    ((st.faults_measured & 2) != 0 ? "{\"minor\":" + std::to_string(st.data_minor_faults) +
+                                                         ",\"major\":" + std::to_string(st.data_major_faults) + "}"
+                                                   : std::string("null")) +
+                    "}}";
     std::printf("%s\n", j.c_str());
     return kExitOk;
   }
@@ -527,6 +536,13 @@ int cmd_status(Session& s, const Options& o) {
   std::printf("  %-16s %llu\n", "commands", u(st.commands));
   std::printf("  %-16s %llu\n", "errors", u(st.errors));
   std::printf("  %-16s %llu\n", "command drops", u(st.command_drops));
+  // Since each task's start-up; 0 is the target for an RT task (sampled once a second).
+  const auto faults = [&](bool measured, uint64_t minor, uint64_t major) {
+    return measured ? format("%llu minor, %llu major", u(minor), u(major)) : std::string("not measured");
+  };
+  std::printf("  %-16s command task %s; data task %s\n", "page faults",
+              faults((st.faults_measured & 1) != 0, st.command_minor_faults, st.command_major_faults).c_str(),
+              faults((st.faults_measured & 2) != 0, st.data_minor_faults, st.data_major_faults).c_str());
   return kExitOk;
 }
 
@@ -838,7 +854,9 @@ const std::vector<Command>& commands() {
       {"status", "status NAME [--json]", 1, 1, {"--json"},
        "Prints the state and the timing statistics: data task mode and period,\n"
        "cycles, overruns, wake-up latency (min, p50, p99, p99.9, max in us),\n"
-       "samples published, listeners, listener drops, malformed requests, commands.\n"
+       "samples published, listeners, listener drops, malformed requests, commands,\n"
+       "and the page faults of the command and data task since their start-up (0 is\n"
+       "the target for an RT task; counted once a second by the executor).\n"
        "--json prints the same as one JSON object.",
        cmd_status},
       {"params", "params NAME [--json]", 1, 1, {"--json"},

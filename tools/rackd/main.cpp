@@ -31,7 +31,8 @@ options:
   --check            validate the host file and exit (nothing is started)
   --duration SEC     shut down by itself after SEC seconds (as on SIGTERM)
   --status SEC       print each component's state and timing every SEC seconds
-                     (default 0: only at shutdown)
+                     (default 0: only at shutdown), and each task's page faults
+                     since its start-up (0 is the target for an RT task)
   --lcm URL          TiMS/LCM network, instead of the host file's lcm_url (or of
                      the first network under 'tims: networks:')
   --crash-dir DIR    where mode-switch and crash reports go, instead of the host

@@ -37,6 +37,7 @@
 #include "rack/core/wire.h"
 #include "rack/rt/clock.h"
 #include "rack/rt/modeswitch.h"
+#include "rack/rt/page_faults.h"
 #include "rack/tims/endpoint.h"
 
 namespace rack {
@@ -100,6 +101,13 @@ class Component {
   // `out` as one short line. Called from rackd's main thread while the tasks run, so
   // it reads only atomics or other thread-safe state. Not RT-safe (it may allocate).
   virtual void describe_status(std::string& out) const { (void)out; }
+  // Page faults of the command task and the data task since the end of their
+  // start-up (rack/rt/page_faults.h). sample_faults() reads them from /proc: not
+  // RT-safe, a non-RT thread (the executor's GDOS thread does it once a second, rackd's
+  // status lines before printing). The accessors' last() is RT-safe (fill_stats uses it).
+  void sample_faults() const noexcept;
+  [[nodiscard]] const rt::TaskFaults& command_task_faults() const noexcept { return command_faults_; }
+  [[nodiscard]] const rt::TaskFaults& data_task_faults() const noexcept { return data_faults_; }
   // This component as a GDOS log source (address, name, level). Any thread.
   [[nodiscard]] const gdos::LogSource& log_source() const noexcept { return log_source_; }
   // The standard parameter that holds the log level (every component has it).
@@ -234,6 +242,9 @@ class Component {
   int64_t retry_at_ns_ = 0;
   // Statistics (written by the command task, relaxed: counters).
   std::atomic<uint64_t> commands_{0}, malformed_{0}, errors_{0};
+  // Marked by each task at the end of its start-up (the executor's task bodies);
+  // mutable: sampling from a const status path updates the figures only.
+  mutable rt::TaskFaults command_faults_, data_faults_;
 };
 
 }  // namespace rack

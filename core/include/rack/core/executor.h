@@ -14,6 +14,11 @@
 // (gdos.lcm_url, channel gdos.channel). Executor events (start, init failures, ON,
 // OFF, ERROR, overruns, autostart failures) go the same way.
 //
+// CPUs: the executor's own non-RT threads (GDOS, the TiMS/LCM transport) are kept off
+// the CPUs that RT tasks are pinned to (`cpu:`), when another CPU is left.
+// Page faults: each task marks the end of its start-up; the GDOS thread samples every
+// task's faults since then once a second (Component::sample_faults, GET_STATS).
+//
 // Real-time contract: not RT-safe; call from the main (non-RT) thread.
 // Thread-safety: start/stop from one thread; status() from any non-RT thread.
 #pragma once

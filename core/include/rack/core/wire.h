@@ -113,7 +113,8 @@ struct TaskStats {
 struct StatsReply {
   uint8_t state = 0;           // ComponentState
   uint8_t data_task = 0;       // 0 none, 1 periodic, 2 triggered
-  uint8_t reserved[6] = {};
+  uint8_t faults_measured = 0; // bit 0: command task's page faults measured, bit 1: data task's
+  uint8_t reserved[5] = {};
   int64_t period_ns = 0;
   TaskStats data;
   uint64_t commands = 0;       // requests handled by the command task
@@ -124,9 +125,15 @@ struct StatsReply {
   uint64_t listener_drops = 0; // samples a listener's mailbox refused
   uint64_t command_drops = 0;  // command mailbox drops + refusals
   uint64_t stale_replies = 0;
+  // Page faults of each task since the end of its start-up (rack/rt/page_faults.h):
+  // 0 is the target for an RT task; counted by a non-RT thread once a second.
+  uint64_t command_minor_faults = 0;
+  uint64_t command_major_faults = 0;
+  uint64_t data_minor_faults = 0;
+  uint64_t data_major_faults = 0;
   static constexpr auto fields() noexcept {
     return std::array{
-      RACK_FIELD(StatsReply, state), RACK_FIELD(StatsReply, data_task),
+      RACK_FIELD(StatsReply, state), RACK_FIELD(StatsReply, data_task), RACK_FIELD(StatsReply, faults_measured),
       RACK_FIELD(StatsReply, period_ns), RACK_FIELD(StatsReply, data.cycles),
       RACK_FIELD(StatsReply, data.overruns), RACK_FIELD(StatsReply, data.samples),
       RACK_FIELD(StatsReply, data.latency_min_ns), RACK_FIELD(StatsReply, data.latency_max_ns),
@@ -135,7 +142,9 @@ struct StatsReply {
       RACK_FIELD(StatsReply, commands), RACK_FIELD(StatsReply, malformed),
       RACK_FIELD(StatsReply, errors), RACK_FIELD(StatsReply, listeners),
       RACK_FIELD(StatsReply, published), RACK_FIELD(StatsReply, listener_drops),
-      RACK_FIELD(StatsReply, command_drops), RACK_FIELD(StatsReply, stale_replies)};
+      RACK_FIELD(StatsReply, command_drops), RACK_FIELD(StatsReply, stale_replies),
+      RACK_FIELD(StatsReply, command_minor_faults), RACK_FIELD(StatsReply, command_major_faults),
+      RACK_FIELD(StatsReply, data_minor_faults), RACK_FIELD(StatsReply, data_major_faults)};
   }
 };
 

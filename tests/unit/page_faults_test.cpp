@@ -1,0 +1,177 @@
+// Page faults of RT tasks after their start-up (rack/rt/page_faults.h): the counter
+// counts (a probe thread that touches fresh pages after its mark), and a simple
+// periodic component in an executor with rackd's memory policy takes none. And the
+// executor keeps its own non-RT threads off the CPUs its RT tasks are pinned to.
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <sched.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "rack/rt/memory.h"
+#include "rack/rt/page_faults.h"
+#include "test_support.h"
+
+namespace rack {
+namespace {
+
+using test::Watchdog;
+
+TEST(PageFaultsTest, CountsTheFaultsAThreadTakesAfterItsStartUpMark) {
+  Watchdog watchdog;
+  constexpr std::size_t kPages = 64;
+  const auto page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
+  void* mem = mmap(nullptr, kPages * page, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  ASSERT_NE(mem, MAP_FAILED);
+  // Not resident, whatever the process's memory policy (MCL_FUTURE populates new
+  // mappings): the probe's first touch of each page is a minor fault.
+  (void)munlock(mem, kPages * page);
+  ASSERT_EQ(madvise(mem, kPages * page, MADV_DONTNEED), 0);
+
+  rt::TaskFaults faults;
+  EXPECT_FALSE(faults.sample().measured);  // not started yet
+  std::atomic<int> phase{0};
+  std::thread probe([&] {
+    faults.mark_started();
+    phase.store(1);
+    while (phase.load() != 2) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    auto* bytes = static_cast<volatile char*>(mem);
+    for (std::size_t i = 0; i < kPages; ++i) bytes[i * page] = 1;  // the deliberate faults
+    phase.store(3);
+    while (phase.load() != 4) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  });
+  while (phase.load() != 1) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  const rt::FaultCount before = faults.sample();  // from this (other) thread, as the executor does
+  ASSERT_TRUE(before.measured);
+  EXPECT_EQ(before.major, 0u);
+  phase.store(2);
+  while (phase.load() != 3) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  const rt::FaultCount after = faults.sample();
+  phase.store(4);
+  probe.join();
+  ASSERT_TRUE(after.measured);
+  EXPECT_GE(after.minor - before.minor, kPages);
+  EXPECT_EQ(faults.last().minor, after.minor);  // last() is what the sample left
+  munmap(mem, kPages * page);
+}
+
+TEST(PageFaultsTest, ReadingAThreadThatDoesNotExistIsNotAMeasurement) {
+  EXPECT_FALSE(rt::read_thread_faults(0).measured);
+  EXPECT_TRUE(rt::read_thread_faults(static_cast<pid_t>(gettid())).measured);
+}
+
+// A 1 kHz Generator in an executor with rackd's memory policy (memory locked before
+// the tasks start, heap pre-faulted, stacks pre-faulted): once running, neither its
+// data task nor its command task (answering GET_STATS) takes a page fault.
+TEST(PageFaultsTest, PeriodicComponentTakesNoPageFaultAfterStartUp) {
+  Watchdog watchdog;
+  const auto mem = rt::apply_memory_policy(64u << 20);
+  if (!mem.locked) GTEST_SKIP() << "mlockall refused (needs root or RLIMIT_MEMLOCK): " << mem.describe();
+  test::HostUnderTest host(R"(system: 0
+lcm: false
+components:
+  - name: gen
+    class: Generator
+    instance: 1
+    autostart: true
+    command_task: {priority: 30}
+    data_task: {priority: 60, period_ms: 1, ring: 100}
+)");
+  const tims::Address gen = host.address_of("gen");
+  Component* c = host.executor().find("gen");
+  ASSERT_NE(c, nullptr);
+  ASSERT_TRUE(host.wait_status(gen, tims::msg::kEnabled));
+  // Run for a while, the command task answering requests meanwhile.
+  wire::StatsReply st;
+  ASSERT_TRUE(test::eventually([&] {
+    const auto r = host.call(gen, tims::msg::kGetStats);
+    if (r.status != tims::CallStatus::kOk || r.body.size() != sizeof st) return false;
+    std::memcpy(&st, r.body.data(), sizeof st);
+    return st.data.cycles >= 400;
+  }));
+  c->sample_faults();
+  const rt::FaultCount cmd = c->command_task_faults().last();
+  const rt::FaultCount data = c->data_task_faults().last();
+  ASSERT_TRUE(cmd.measured);
+  ASSERT_TRUE(data.measured);
+  EXPECT_EQ(data.minor, 0u) << "data task faulted after start-up";
+  EXPECT_EQ(data.major, 0u);
+  EXPECT_EQ(cmd.minor, 0u) << "command task faulted after start-up";
+  EXPECT_EQ(cmd.major, 0u);
+  // GET_STATS carries the same figures (rackctl status).
+  const auto r = host.call(gen, tims::msg::kGetStats);
+  ASSERT_EQ(r.body.size(), sizeof st);
+  std::memcpy(&st, r.body.data(), sizeof st);
+  EXPECT_EQ(st.faults_measured, 3);
+  EXPECT_EQ(st.data_minor_faults, 0u);
+  EXPECT_EQ(st.command_minor_faults, 0u);
+  // And rackd's status lines show them.
+  EXPECT_NE(host.executor().status_report().find("page faults after start-up: command task 0 minor 0 major (RT), "
+                                                 "data task 0 minor 0 major (RT)"),
+            std::string::npos)
+      << host.executor().status_report();
+}
+
+}  // namespace
+}  // namespace rack
+
+namespace rack {
+namespace {
+
+// The CPUs thread `tid` of this process may run on (sched_getaffinity).
+cpu_set_t affinity_of(pid_t tid) {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  EXPECT_EQ(sched_getaffinity(tid, sizeof set, &set), 0);
+  return set;
+}
+
+// The executor's own non-RT threads (here: the GDOS thread) stay off a CPU that an RT
+// task is pinned to; the thread that started the executor gets its full set back.
+TEST(HousekeepingAffinityTest, GdosThreadStaysOffTheCpuOfAPinnedRtTask) {
+  Watchdog watchdog;
+  const cpu_set_t before = affinity_of(0);
+  if (CPU_COUNT(&before) < 2) GTEST_SKIP() << "needs 2 CPUs in this process's affinity";
+  int pinned = -1;
+  for (int cpu = CPU_SETSIZE - 1; cpu >= 0 && pinned < 0; --cpu) {
+    if (CPU_ISSET(cpu, &before)) pinned = cpu;  // the highest allowed CPU
+  }
+  test::HostUnderTest host(R"(system: 0
+lcm: false
+components:
+  - name: gen
+    class: Generator
+    instance: 1
+    command_task: {priority: 30, cpu: )" + std::to_string(pinned) + R"(}
+    data_task: {priority: 60, cpu: )" + std::to_string(pinned) + R"(, period_ms: 10}
+)");
+  const cpu_set_t after = affinity_of(0);
+  EXPECT_TRUE(CPU_EQUAL(&before, &after)) << "the starting thread's affinity was not restored";
+  // Find the GDOS thread by name among this process's threads.
+  pid_t gdos = 0;
+  ASSERT_TRUE(test::eventually([&] {
+    for (const auto& entry : std::filesystem::directory_iterator("/proc/self/task")) {
+      std::ifstream comm(entry.path() / "comm");
+      std::string name;
+      std::getline(comm, name);
+      if (name == "rackd:gdos") {
+        gdos = static_cast<pid_t>(std::stoi(entry.path().filename().string()));
+        return true;
+      }
+    }
+    return false;
+  }));
+  const cpu_set_t g = affinity_of(gdos);
+  EXPECT_FALSE(CPU_ISSET(pinned, &g)) << "GDOS thread may run on CPU " << pinned << ", where RT tasks are pinned";
+  EXPECT_GE(CPU_COUNT(&g), 1);
+}
+
+}  // namespace
+}  // namespace rack
