@@ -37,6 +37,7 @@
 #include "rack/tims/address.h"
 #include "rack/tims/endpoint.h"
 #include "rack/tims/lcm_transport.h"
+#include "rack/tims/link_auth.h"
 #include "rack/tims/mailbox.h"
 #include "rack/tims/message.h"
 #include "rack/tims/router.h"
@@ -83,6 +84,7 @@ commands:
   watch NAME [--period MS] [--count N]
                                 continuous data, one JSON line per sample
   send NAME CMD [--i64 N]       a class command (number 21..127) and its reply
+  keygen FILE                   write a new TiMS link key file (mode 0600) for key_file
   help [COMMAND]                this text, or a command's
 
 NAME is a component's name from its host file (found by discovery), or an address
@@ -95,6 +97,10 @@ options:
   --retries N        ask again this often when no reply came in time (default 1;
                      a datagram on a network link can be lost)
   --discover-ms MS   how long to wait for announcements (default 300)
+  --key-file FILE    the network's key file (authenticated links: the file that
+                     the host files name as key_file; default: $RACK_KEY_FILE);
+                     without it, hosts whose network has a key drop what rackctl
+                     sends
   -h, --help         this text; after a command: the command's help
 
 exit codes: 0 ok, 1 the component answered ERROR, 2 usage error, 3 not available
@@ -103,6 +109,7 @@ exit codes: 0 ok, 1 the component answered ERROR, 2 usage error, 3 not available
 
 struct Options {
   std::string lcm_url;
+  std::string key_file;  // --key-file, else $RACK_KEY_FILE
   int64_t timeout_ms = 2000;
   int64_t discover_ms = 300;
   int64_t retries = 1;
@@ -320,6 +327,15 @@ class Session {
   static tims::LcmTransportConfig transport_config(const Options& o) {
     tims::LcmTransportConfig c;
     c.url = o.lcm_url.empty() ? default_lcm_url() : o.lcm_url;
+    if (!o.key_file.empty()) {
+      // The same NetworkConfig::key_file as a host file's network: signs what this
+      // tool sends and verifies what it hears (rack/tims/link_auth.h).
+      tims::NetworkConfig n;
+      n.name = "rackctl";
+      n.url = c.url;
+      n.key_file = o.key_file;
+      c.networks.push_back(n);
+    }
     c.uplink_slots = 32;
     c.announce_period_ns = 0;  // a tool announces nothing
     c.role = tims::NodeRole::kTool;
@@ -492,7 +508,8 @@ int cmd_status(Session& s, const Options& o) {
                     ",\"listener_drops\":" + std::to_string(st.listener_drops) +
                     ",\"malformed\":" + std::to_string(st.malformed) +
                     ",\"commands\":" + std::to_string(st.commands) + ",\"errors\":" + std::to_string(st.errors) +
-                    ",\"command_drops\":" + std::to_string(st.command_drops) + "}";
+                    ",\"command_drops\":" + std::to_string(st.command_drops) +
+                    ",\"access_denied\":" + std::to_string(st.access_denied) + "}";
     std::printf("%s\n", j.c_str());
     return kExitOk;
   }
@@ -518,6 +535,7 @@ int cmd_status(Session& s, const Options& o) {
   std::printf("  %-16s %llu\n", "published", u(st.published));
   std::printf("  %-16s %llu\n", "listeners", u(st.listeners));
   std::printf("  %-16s %llu\n", "listener drops", u(st.listener_drops));
+  std::printf("  %-16s %llu\n", "access denied", u(st.access_denied));
   std::printf("  %-16s %llu\n", "malformed", u(st.malformed));
   std::printf("  %-16s %llu\n", "commands", u(st.commands));
   std::printf("  %-16s %llu\n", "errors", u(st.errors));
@@ -805,6 +823,14 @@ const std::vector<Command>& commands() {
        "(hex). --i64 N: an 8-byte integer body. ERROR: its reason, exit 1; no reply\n"
        "within --timeout: exit 3.",
        cmd_send},
+      {"keygen", "keygen FILE", 1, 1, {},
+       "Writes a new key file for authenticated TiMS links: one random 32-byte key as\n"
+       "64 hex digits, mode 0600; an existing file is never overwritten. Copy it to\n"
+       "every host of the network (keeping mode 0600) and name it in the host files\n"
+       "(tims: networks: - key_file: PATH); tools take it with --key-file. Rotation:\n"
+       "a file may hold two keys (two lines): the first signs, both are accepted;\n"
+       "hosts re-read a changed file within a second. See the README.",
+       cmd_help},
       {"help", "help [COMMAND]", 0, 1, {}, "Prints the usage, or a command's help.", cmd_help},
   };
   return kCommands;
@@ -834,6 +860,7 @@ bool looks_like_option(const std::string& a) {
 
 Options parse_arguments(int argc, char** argv) {
   Options o;
+  if (const char* env = std::getenv("RACK_KEY_FILE"); env != nullptr) o.key_file = env;
   bool only_positional = false;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
@@ -862,6 +889,7 @@ Options parse_arguments(int argc, char** argv) {
     if (a == "-h" || a == "--help") o.help = true;
     else if (a == "--json") { o.json = true; o.given.insert(a); }
     else if (a == "--lcm") o.lcm_url = value("an LCM URL");
+    else if (a == "--key-file") o.key_file = value("a key file");
     else if (a == "--timeout") {
       o.timeout_ms = non_negative("a number of milliseconds");
       if (o.timeout_ms == 0) fail(kExitUsage, "--timeout needs at least 1 ms");
@@ -937,6 +965,15 @@ int main(int argc, char** argv) {
       print_command_help(*cmd, stderr);
       return kExitUsage;
     }
+  }
+  if (std::string(cmd->name) == "keygen") {
+    const std::string err = tims::generate_key_file(o.args[0]);
+    if (!err.empty()) {
+      std::fprintf(stderr, "rackctl: keygen: %s\n", err.c_str());
+      return kExitError;
+    }
+    std::printf("%s: new key written (mode 0600)\n", o.args[0].c_str());
+    return kExitOk;
   }
   try {
     Session session(o);

@@ -124,6 +124,7 @@ struct StatsReply {
   uint64_t listener_drops = 0; // samples a listener's mailbox refused
   uint64_t command_drops = 0;  // command mailbox drops + refusals
   uint64_t stale_replies = 0;
+  uint64_t access_denied = 0;  // messages to it that access control refused
   static constexpr auto fields() noexcept {
     return std::array{
       RACK_FIELD(StatsReply, state), RACK_FIELD(StatsReply, data_task),
@@ -135,7 +136,8 @@ struct StatsReply {
       RACK_FIELD(StatsReply, commands), RACK_FIELD(StatsReply, malformed),
       RACK_FIELD(StatsReply, errors), RACK_FIELD(StatsReply, listeners),
       RACK_FIELD(StatsReply, published), RACK_FIELD(StatsReply, listener_drops),
-      RACK_FIELD(StatsReply, command_drops), RACK_FIELD(StatsReply, stale_replies)};
+      RACK_FIELD(StatsReply, command_drops), RACK_FIELD(StatsReply, stale_replies),
+      RACK_FIELD(StatsReply, access_denied)};
   }
 };
 
