@@ -165,6 +165,9 @@ void Executor::start() {
     pc.channel = hs.gdos.channel;
     pc.host = hs.host;
     pc.pid = static_cast<int32_t>(getpid());
+    // On a keyed host the log is signed with the first network's key (the gdos viewer
+    // verifies it with --key-file).
+    if (!hs.networks.empty()) pc.key_file = hs.networks.front().key_file;
     try {
       gdos_publisher_ = std::make_unique<tims::GdosPublisher>(pc);
     } catch (...) {

@@ -26,6 +26,7 @@ using namespace std::chrono_literals;
 
 const std::string kRackd = RACK_RACKD_PATH;
 const std::string kRackctl = RACK_RACKCTL_PATH;
+const std::string kGdos = RACK_GDOS_PATH;
 const std::string kConfigs = RACK_CONFIGS_DIR;
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
@@ -196,6 +197,18 @@ TEST_F(AccessTest, KeyFileReadableByOthersIsRefusedWithPathAndMode) {
   r = ctl(open_key, {"list"});
   EXPECT_NE(r.exit_code, 0) << r.describe();
   EXPECT_TRUE(contains(r.err, "has mode 0644")) << r.describe();
+  // rackctl keygen makes a file rackd accepts, and never overwrites one.
+  const std::string made = (dir_.path() / "made.key").string();
+  r = run({kRackctl, "keygen", made}, 10s);
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  struct stat st{};
+  ASSERT_EQ(stat(made.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  r = run({kRackctl, "keygen", made}, 10s);
+  EXPECT_EQ(r.exit_code, 1) << r.describe();
+  EXPECT_TRUE(contains(r.err, "not overwritten")) << r.describe();
+  r = run({kRackd, "--check", dir_.write("host2.yaml", keyed_host(url_, made)).string()}, 30s);
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
 }
 
 TEST_F(AccessTest, ToolWithoutTheKeyCannotCommandAKeyedHost) {
@@ -312,6 +325,26 @@ TEST_F(AccessTest, KeyRotationKeepsTheSystemRunning) {
   EXPECT_TRUE(contains(r.out, "\"state\":\"ENABLED\"")) << r.out;
   EXPECT_TRUE(rackd_->running());
   stop();
+}
+
+TEST_F(AccessTest, GdosViewerVerifiesTheLogWithTheKeyFile) {
+  const std::string key = key_file("robot.key", key_line('e'));
+  const std::string wrong = key_file("wrong.key", key_line('f'));
+  start(keyed_host(url_, key));
+  Process good({kGdos, "--lcm", url_, "--key-file", key, "--json", "--duration", "8"}, dir_.path(), "gdos-good");
+  Process bad({kGdos, "--lcm", url_, "--key-file", wrong, "--json", "--duration", "8"}, dir_.path(), "gdos-bad");
+  std::this_thread::sleep_for(1s);  // both viewers have joined
+  // Each SET_PARAM of gdosLevel logs a print record ("log level now ...").
+  for (const char* level : {"warning", "info", "warning"}) {
+    ASSERT_EQ(ctl(key, {"set-param", "Generator(0/0)", "gdosLevel", level}).exit_code, 0);
+  }
+  ASSERT_EQ(good.wait_exit(20s), std::optional<int>(0)) << good.err();
+  ASSERT_EQ(bad.wait_exit(20s), std::optional<int>(0)) << bad.err();
+  EXPECT_TRUE(contains(good.out(), "log level now")) << good.out() << good.err();
+  EXPECT_TRUE(contains(good.err(), ", 0 failed authentication")) << good.err();
+  EXPECT_EQ(bad.out(), "") << "nothing shown that did not verify";
+  EXPECT_TRUE(contains(bad.err(), "signed with a key this host does not have")) << bad.err();
+  EXPECT_FALSE(contains(bad.err(), ", 0 failed authentication")) << bad.err();
 }
 
 }  // namespace

@@ -189,6 +189,22 @@ TEST(AccessControlTest, ManySourcesShareTheOverflowBucketNotTheEstablishedOnes) 
   EXPECT_TRUE(ac.check(header(kChassis, kPilot, kMove), MessageOrigin::kLocal, t0 + kSec).allowed());
 }
 
+TEST(AccessControlTest, RefusedRequestsAreAnsweredAtABoundedRate) {
+  AccessConfig c;
+  AccessRuleConfig r = rule("none", kChassis);
+  r.any_type = false;
+  c.rules = {r};
+  AccessControl ac(c);
+  const int64_t t0 = 20 * kSec;
+  int answered = 0;
+  for (int i = 0; i < 200; ++i) answered += ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kNetwork, t0).answer ? 1 : 0;
+  EXPECT_EQ(answered, AccessControl::kRepliesPerSecond) << "a flood is not echoed";
+  EXPECT_EQ(ac.counters()[0].denied_type, 200u) << "but every refusal is counted";
+  EXPECT_TRUE(ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kNetwork, t0 + kSec).answer);
+  EXPECT_FALSE(ac.check(header(kChassis, kJoystick, msg::kData), MessageOrigin::kNetwork, t0 + 2 * kSec).answer)
+      << "never a reply to a reply";
+}
+
 TEST(AccessControlTest, ParsesAddressPatternsAndTypes) {
   const auto all = parse_address_mask("*");
   ASSERT_TRUE(all);

@@ -26,6 +26,7 @@ const char* describe(AccessVerdict v) noexcept {
 
 namespace {
 
+constexpr int64_t kSecond = 1'000'000'000;
 constexpr std::size_t type_index(int8_t t) noexcept { return static_cast<std::size_t>(static_cast<int>(t) + 128); }
 
 // Appends `src` to the NUL-terminated `out` of `size` bytes, cut at the end. RT-safe.
@@ -207,15 +208,20 @@ AccessDecision AccessControl::check(const MessageHeader& h, MessageOrigin origin
       case AccessVerdict::kDeniedBandwidth: r.denied_bandwidth.fetch_add(1, std::memory_order_relaxed); break;
       case AccessVerdict::kDeniedDefault: break;
     }
-    if (v != AccessVerdict::kAllowed) remember(r, h, v);
-    return AccessDecision{v, static_cast<int>(i)};
+    AccessDecision d{v, static_cast<int>(i), false};
+    if (v != AccessVerdict::kAllowed) {
+      remember(r, h, v);
+      d.answer = h.is_request() && take(r.reply_tat, kSecond / kRepliesPerSecond, kSecond, now_ns);
+    }
+    return d;
   }
   if (default_ == AccessDefault::kClosed && h.is_request()) {
     denied_default_.fetch_add(1, std::memory_order_relaxed);
     default_last_src_dst_.store((uint64_t{h.src} << 32) | h.dest, std::memory_order_relaxed);
     default_last_type_.store((uint32_t{static_cast<uint8_t>(h.type)} << 16) | (uint32_t{h.priority} << 8),
                              std::memory_order_relaxed);
-    return AccessDecision{AccessVerdict::kDeniedDefault, -1};
+    return AccessDecision{AccessVerdict::kDeniedDefault, -1,
+                          take(default_reply_tat_, kSecond / kRepliesPerSecond, kSecond, now_ns)};
   }
   return AccessDecision{AccessVerdict::kAllowed, -1};
 }

@@ -84,7 +84,7 @@ bool Router::admit(const MessageHeader& header, Mailbox& local, MessageOrigin or
   if (d.allowed()) return true;
   bump(denied_);
   local.count_denied();
-  if (header.is_request()) {
+  if (header.is_request() && d.answer) {
     // The ERROR reply says why (wire::ErrorText's layout: a NUL-terminated text). A
     // reply is never a request, so this recursion ends here.
     char text[120];

@@ -51,6 +51,10 @@ options:
   --duration SEC     exit after SEC seconds
   --silent           do not announce this viewer (hosts with gdos.stderr: auto
                      keep writing their log to stderr)
+  --key-file FILE    the network's key file (authenticated links; default
+                     $RACK_KEY_FILE): records and announcements that do not
+                     verify are dropped and counted; without it, signed records
+                     are shown unverified
   -h, --help         this text
 
 Losses are reported on stderr: records a host's ring dropped (its next record
@@ -77,6 +81,7 @@ int main(int argc, char** argv) {
   std::string url = std::getenv("LCM_DEFAULT_URL") != nullptr ? std::getenv("LCM_DEFAULT_URL") : tims::kDefaultLcmUrl;
   std::string channel = tims::kGdosChannel;
   std::string record_path, replay_path;
+  std::string key_file = std::getenv("RACK_KEY_FILE") != nullptr ? std::getenv("RACK_KEY_FILE") : "";
   bool json = false, silent = false;
   std::optional<bool> colour_opt;
   long long count = -1;
@@ -116,6 +121,8 @@ int main(int argc, char** argv) {
       colour_opt = true;
     } else if (a == "--no-color" || a == "--no-colour") {
       colour_opt = false;
+    } else if (a == "--key-file") {
+      key_file = value("a key file");
     } else if (a == "--silent") {
       silent = true;
     } else if (a == "--count") {
@@ -167,7 +174,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<tims::GdosSubscriber> sub;
   std::unique_ptr<gdos_view::RecordWriter> writer;
   try {
-    sub = std::make_unique<tims::GdosSubscriber>(url, channel, !silent, "gdos");
+    sub = std::make_unique<tims::GdosSubscriber>(url, channel, !silent, "gdos", key_file);
     if (!record_path.empty()) writer = std::make_unique<gdos_view::RecordWriter>(record_path, url + " " + channel);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "gdos: %s\n", e.what());
@@ -198,9 +205,13 @@ int main(int argc, char** argv) {
   }
   std::fflush(stdout);
   const auto c = sub->counters();
-  std::fprintf(stderr, "gdos: %llu record(s) received, %lld shown, %llu lost on the network, %llu malformed batch(es)\n",
+  std::fprintf(stderr, "gdos: %llu record(s) received, %lld shown, %llu lost on the network, %llu malformed batch(es)%s\n",
                static_cast<unsigned long long>(c.records), shown, static_cast<unsigned long long>(c.lost),
-               static_cast<unsigned long long>(c.malformed));
+               static_cast<unsigned long long>(c.malformed),
+               key_file.empty() ? ""
+                                : (", " + std::to_string(c.auth_failed) + " failed authentication, " +
+                                   std::to_string(c.replayed) + " replayed")
+                                      .c_str());
   if (writer) {
     writer->flush();
     std::fprintf(stderr, "gdos: %llu record(s) written to %s\n", static_cast<unsigned long long>(writer->records()),

@@ -103,6 +103,10 @@ struct AccessRuleCounters {
 struct AccessDecision {
   AccessVerdict verdict = AccessVerdict::kAllowed;
   int rule = -1;  // index of the deciding rule; -1: the default policy
+  // A refused request is answered ERROR, at most kRepliesPerSecond times per rule (a
+  // flood of refused requests must not become a flood of replies on the uplink);
+  // false: refused silently (still counted).
+  bool answer = false;
   [[nodiscard]] bool allowed() const noexcept { return verdict == AccessVerdict::kAllowed; }
 };
 
@@ -112,6 +116,7 @@ class AccessControl {
   static constexpr std::size_t kMaxMasks = 16;   // per `to` and per `from`
   static constexpr std::size_t kProbe = 8;       // bucket table probes per look-up
   static constexpr std::size_t kNameLen = 32;
+  static constexpr int64_t kRepliesPerSecond = 50;  // ERROR answers per rule (burst as many)
 
   // Resolves the configuration into fixed tables. Throws std::invalid_argument naming
   // the rule when it exceeds a limit. Not RT-safe.
@@ -171,6 +176,7 @@ class AccessControl {
     uint64_t reported = 0;  // denials already reported (reporting thread only)
     // Shared bucket of sources without an entry of their own.
     std::atomic<int64_t> overflow_msg_tat{0}, overflow_byte_tat{0};
+    std::atomic<int64_t> reply_tat{0};  // ERROR answers of this rule (GCRA)
   };
   // A source's buckets in one rule: GCRA ("virtual scheduling"): tat is the time at
   // which the bucket is full again; a message is let through when tat stays within
@@ -193,6 +199,7 @@ class AccessControl {
   std::atomic<uint64_t> denied_default_{0}, overflow_uses_{0};
   std::atomic<uint64_t> default_last_src_dst_{0};
   std::atomic<uint32_t> default_last_type_{0};
+  std::atomic<int64_t> default_reply_tat_{0};
   uint64_t default_reported_ = 0;
 };
 

@@ -13,7 +13,8 @@
 //    NOT_AVAILABLE to its source, a reply or notification is dropped and counted.
 // With access control (set_access), every message for a local mailbox, sent here or
 // arrived from the network, is checked first (rack/tims/access.h): a refused request
-// is answered ERROR with the reason, a refused reply or notification is dropped;
+// is answered ERROR with the reason (at most AccessControl::kRepliesPerSecond per
+// rule: a flood is not echoed), a refused reply or notification is dropped;
 // both are counted (per rule, and on the mailbox: MailboxCounters::denied).
 //
 // Real-time contract: find() and send() are RT-safe and lock-free on the look-up
