@@ -725,6 +725,46 @@ LoadResult load_host_text(const std::string& text, const std::string& file, Comp
   return loader.load(text);
 }
 
+ToolNetwork read_tool_network(const std::string& path) {
+  ToolNetwork out;
+  out.url = "udpm://239.255.76.67:7667?ttl=0";
+  const auto fail = [&](const YAML::Mark& m, const std::string& why) {
+    out.errors.push_back({path, m.line + 1, m.column + 1, why});
+    return out;
+  };
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    out.errors.push_back({path, 0, 0, std::string("cannot read the host file: ") + std::strerror(errno)});
+    return out;
+  } catch (const YAML::ParserException& e) {
+    return fail(e.mark, "YAML syntax: " + e.msg);
+  }
+  if (!root.IsMap()) return fail(root.Mark(), "a host file is a map (host, system, components, ...)");
+  const auto scalar = [&](const YAML::Node& n, const char* key, std::string& value) {
+    if (!n[key]) return;
+    if (!n[key].IsScalar()) {
+      fail(n[key].Mark(), std::string("'") + key + "' must be a string");
+      return;
+    }
+    value = n[key].Scalar();
+  };
+  scalar(root, "lcm_url", out.url);
+  const YAML::Node t = root["tims"];
+  if (t && t.IsMap() && t["networks"]) {
+    const YAML::Node nets = t["networks"];
+    if (!nets.IsSequence() || nets.size() == 0 || !nets[0].IsMap()) {
+      return fail(nets.Mark(), "'networks' must be a non-empty list of {name, url, scope, key_file}");
+    }
+    out.url.clear();
+    scalar(nets[0], "url", out.url);
+    scalar(nets[0], "key_file", out.key_file);
+    if (out.url.empty()) return fail(nets[0].Mark(), "the first network has no 'url'");
+  }
+  return out;
+}
+
 LoadResult load_host_file(const std::string& path, ComponentRegistry& registry, const rt::RtCapabilities& caps) {
   std::ifstream in(path);
   if (!in) {

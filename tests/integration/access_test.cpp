@@ -216,7 +216,17 @@ TEST_F(AccessTest, ToolWithoutTheKeyCannotCommandAKeyedHost) {
   const std::string wrong = key_file("wrong.key", key_line('b'));
   start(keyed_host(url_, key), {"--status", "1"});
   ASSERT_EQ(ctl(key, {"status", "Generator(0/0)"}).exit_code, 0);
-  RunResult r = ctl("", {"off", "Generator(0/0)"}, "500");
+  // A tool pointed at the host file takes its network and key file.
+  const std::string host_file = (dir_.path() / "host0.yaml").string();
+  RunResult r = run({kRackctl, "--host-file", host_file, "status", "generator"}, 30s);
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+  r = run({kGdos, "--host-file", host_file, "--duration", "1"}, 30s);
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(contains(r.err, "listening on " + url_)) << r.describe();
+  EXPECT_TRUE(contains(r.err, ", 0 failed authentication")) << r.describe();
+  r = run({kRackctl, "--host-file", (dir_.path() / "nosuch.yaml").string(), "list"}, 30s);
+  EXPECT_EQ(r.exit_code, 2) << r.describe();
+  r = ctl("", {"off", "Generator(0/0)"}, "500");
   EXPECT_EQ(r.exit_code, 3) << r.describe();
   r = ctl(wrong, {"off", "Generator(0/0)"}, "500");
   EXPECT_EQ(r.exit_code, 3) << r.describe();

@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "rack/core/data_component.h"
+#include "rack/core/host_config.h"
 #include "rack/core/parameters.h"
 #include "rack/core/payload_json.h"
 #include "rack/core/wire.h"
@@ -97,6 +98,9 @@ options:
   --retries N        ask again this often when no reply came in time (default 1;
                      a datagram on a network link can be lost)
   --discover-ms MS   how long to wait for announcements (default 300)
+  --host-file FILE   join the network of this host file (the first of its
+                     'tims: networks:', else its lcm_url) with that network's
+                     key_file; --lcm and --key-file override either
   --key-file FILE    the network's key file (authenticated links: the file that
                      the host files name as key_file; default: $RACK_KEY_FILE);
                      without it, hosts whose network has a key drop what rackctl
@@ -861,6 +865,8 @@ bool looks_like_option(const std::string& a) {
 Options parse_arguments(int argc, char** argv) {
   Options o;
   if (const char* env = std::getenv("RACK_KEY_FILE"); env != nullptr) o.key_file = env;
+  std::string host_file;
+  bool key_given = false;
   bool only_positional = false;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
@@ -889,7 +895,8 @@ Options parse_arguments(int argc, char** argv) {
     if (a == "-h" || a == "--help") o.help = true;
     else if (a == "--json") { o.json = true; o.given.insert(a); }
     else if (a == "--lcm") o.lcm_url = value("an LCM URL");
-    else if (a == "--key-file") o.key_file = value("a key file");
+    else if (a == "--key-file") { o.key_file = value("a key file"); key_given = true; }
+    else if (a == "--host-file") host_file = value("a host file");
     else if (a == "--timeout") {
       o.timeout_ms = non_negative("a number of milliseconds");
       if (o.timeout_ms == 0) fail(kExitUsage, "--timeout needs at least 1 ms");
@@ -919,6 +926,14 @@ Options parse_arguments(int argc, char** argv) {
     } else {
       fail(kExitUsage, "unknown option '" + a + "' (rackctl --help lists them)");
     }
+  }
+  if (!host_file.empty()) {
+    // The same network and key as the host whose file this is (a GUI does the same
+    // with rack::read_tool_network and tims::NetworkConfig::key_file).
+    const rack::ToolNetwork net = rack::read_tool_network(host_file);
+    if (!net.errors.empty()) fail(kExitUsage, net.errors.front().str());
+    if (o.lcm_url.empty()) o.lcm_url = net.url;
+    if (!key_given) o.key_file = net.key_file;
   }
   return o;
 }

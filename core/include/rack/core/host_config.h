@@ -91,6 +91,16 @@ struct LoadResult {
 // Reads and validates a host file. `caps` gives the online CPUs.
 [[nodiscard]] LoadResult load_host_file(const std::string& path, ComponentRegistry& registry,
                                         const rt::RtCapabilities& caps);
+// What a tool (rackctl, gdos, a GUI) needs from a host file to join that host's first
+// TiMS network: its URL and key file (`tims: networks:`' first entry, else lcm_url).
+// Reads only those keys (the components are not built). Not RT-safe.
+struct ToolNetwork {
+  std::string url;
+  std::string key_file;             // "" when the network has none
+  std::vector<ConfigError> errors;  // non-empty: unusable (file:line:col)
+};
+[[nodiscard]] ToolNetwork read_tool_network(const std::string& path);
+
 // The same from text (tests, tools); `file` names it in error messages.
 [[nodiscard]] LoadResult load_host_text(const std::string& text, const std::string& file,
                                         ComponentRegistry& registry, const rt::RtCapabilities& caps);
