@@ -11,6 +11,7 @@ packages=(
   build-essential cmake pkg-config git
   liblcm-dev liblcm-bin libglib2.0-dev   # TiMS between hosts (LCM 1.3 has no CMake config)
   libzstd-dev                            # TiMS/LCM: optional compression of large messages per link
+  libsodium-dev                          # TiMS/LCM: authenticated links (keyed BLAKE2b MAC per packet)
   libyaml-cpp-dev                        # host files
   libgtest-dev libgmock-dev              # tests
   libbenchmark-dev rt-tests stress-ng strace  # benchmarks and their references (cyclictest); strace: RPC system calls

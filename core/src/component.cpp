@@ -229,6 +229,7 @@ void Component::fill_stats(wire::StatsReply& out) const noexcept {
   if (command_mailbox_) {
     const auto c = command_mailbox_->counters();
     out.command_drops = c.dropped + c.refused + c.too_large + c.truncated;
+    out.access_denied = c.denied;
   }
   if (command_endpoint_) out.stale_replies = command_endpoint_->stale_replies();
   const rt::FaultCount cf = command_faults_.last();

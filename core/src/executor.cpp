@@ -91,6 +91,14 @@ void Executor::gdos_pass() {
   }
   std::string& out = gdos_out_;  // reused: steady-state passes do not allocate for stderr
   out.clear();
+  // Access denials: one line per rule with new denials, at most every access.log_ms
+  // (the check itself, in RT tasks and receive threads, only counts).
+  if (access_ && access_->denied_total() > 0 && rt::monotonic_ns() >= next_access_report_ns_) {
+    next_access_report_ns_ = rt::monotonic_ns() + host_->settings.access_log_ns;
+    for (const auto& line : access_->report()) {
+      hub_.publish_text(gdos::Level::kWarning, log_source_.address(), log_source_.name(), line);
+    }
+  }
   if (g.to_stderr == GdosSettings::Stderr::kAuto && to_stderr != gdos_to_stderr_) {
     // Say why the log appears on or vanishes from stderr.
     out += to_stderr ? "rackd: GDOS: no gdos viewer listens: the log goes to stderr too\n"
@@ -212,6 +220,9 @@ void Executor::start() {
     pc.channel = hs.gdos.channel;
     pc.host = hs.host;
     pc.pid = static_cast<int32_t>(getpid());
+    // On a keyed host the log is signed with the first network's key (the gdos viewer
+    // verifies it with --key-file).
+    if (!hs.networks.empty()) pc.key_file = hs.networks.front().key_file;
     try {
       gdos_publisher_ = std::make_unique<tims::GdosPublisher>(pc);
     } catch (...) {
@@ -227,6 +238,27 @@ void Executor::start() {
     gdos_thread_ = std::thread([this] { gdos_loop(); });
   }
 
+  if (hs.access_configured) {
+    // Before any component is attached: no message slips past the rules.
+    // rackd itself (its endpoint: autostart ON, OFF at shutdown; the transport's
+    // STOP_CONT_DATA for lost hosts) is always allowed: a rule of its own, first,
+    // matching only messages sent inside this process.
+    tims::AccessConfig ac = hs.access;
+    tims::AccessRuleConfig own;
+    own.name = "rackd";
+    own.to.push_back({0, 0});
+    own.from.push_back({self.raw(), 0xFFFFFFFFu});
+    own.from.push_back({tims::kTransportControlAddress.raw(), 0xFFFFFFFFu});
+    own.only_local = true;
+    ac.rules.insert(ac.rules.begin(), own);
+    access_ = std::make_unique<tims::AccessControl>(ac);
+    router_.set_access(access_.get());
+    log(gdos::Level::kInfo, "access control: " + std::to_string(access_->rule_count()) + " rule(s), default " +
+                                (access_->default_policy() == tims::AccessDefault::kClosed ? "closed" : "open"));
+  } else {
+    log(gdos::Level::kWarning, "access control: the host file has no 'access:' section: every source may send "
+                               "every message to every component here (see configs/access_control.yaml)");
+  }
   for (auto& v : views_) v.component->attach(router_);
   for (auto& v : views_) {
     if (!v.component->run_init(v.init_error)) {
@@ -290,6 +322,7 @@ void Executor::start() {
       tc.large_slots = hs.large_slots;
       tc.warn = [this](const std::string& s) { log(gdos::Level::kWarning, s); };
       const HousekeepingAffinity housekeeping(views_);  // the transport's threads
+      tc.replay_window_ns = hs.replay_window_ns;
       transport_ = std::make_unique<tims::LcmTransport>(router_, tc);
       // Other hosts of this robot own the rest of its addresses: let the transport
       // decide (discovery) instead of answering NOT_AVAILABLE here.
@@ -355,6 +388,7 @@ void Executor::stop() {
   for (auto it = views_.rbegin(); it != views_.rend(); ++it) it->component->run_cleanup();
   for (auto& v : views_) v.component->detach();
   if (mailbox_) router_.remove(mailbox_->address());
+  router_.set_access(nullptr);
   const auto c = hub_.counters();
   if (c.dropped > 0) {
     log(gdos::Level::kWarning, "GDOS: " + std::to_string(c.dropped) + " log record(s) were dropped in full rings");
@@ -439,14 +473,16 @@ std::string Executor::status_report() const {
     char line[512];
     const auto u = [](uint64_t x) { return static_cast<unsigned long long>(x); };
     std::snprintf(line, sizeof line,
-                  "  TiMS/LCM: packets in %llu out %llu, malformed %llu, forged %llu, undeliverable %llu, "
-                  "sequence gaps %llu, lost %llu, forwarded %llu, not available %llu, hosts %zu, expired %llu, "
-                  "subscriptions failed %llu\n",
-                  u(t.packets_in), u(t.packets_out), u(t.malformed), u(t.forged), u(t.delivery_failed),
+                  "  TiMS/LCM: packets in %llu out %llu, malformed %llu, forged %llu, auth failed %llu, replayed %llu, "
+                  "undeliverable %llu, sequence gaps %llu, lost %llu, forwarded %llu, not available %llu, hosts %zu, "
+                  "expired %llu, subscriptions failed %llu\n",
+                  u(t.packets_in), u(t.packets_out), u(t.malformed), u(t.forged), u(t.auth_failed), u(t.replayed),
+                  u(t.delivery_failed),
                   u(t.sequence_gaps), u(t.lost_messages), u(t.forwarded), u(t.not_available),
                   transport_->hosts().size(), u(t.hosts_expired), u(t.subscriptions_failed));
     out += line;
   }
+  if (access_) out += access_->status_text();
   return out;
 }
 

@@ -170,6 +170,53 @@ TEST_F(NoAllocationTest, RouterSend) {
   router.remove(kB);
 }
 
+TEST_F(NoAllocationTest, RouterSendThroughAccessControl) {
+  // The access check in the send path, allowed and refused (rate, type), with the
+  // ERROR reply of a refused request: no allocation.
+  tims::AccessConfig config;
+  tims::AccessRuleConfig r;
+  r.name = "limited";
+  r.to.push_back({kB.component().raw(), 0xFFFFFF00u});
+  r.any_type = false;
+  r.types.set(static_cast<std::size_t>(msg::kOn + 128));
+  r.rate = 1;
+  r.burst = 1;
+  config.rules.push_back(r);
+  tims::AccessControl access(config);
+  tims::Router router(0);
+  Mailbox a(kA, 8, 256), b(kB, 8, 256);
+  router.add(a);
+  router.add(b);
+  router.set_access(&access);
+  alignas(8) std::array<std::byte, 256> buf{};
+  int answers = 0;
+  auto round = [&] {
+    // ON: the first per second passes, the rest hit the rate limit; OFF: wrong type.
+    for (const int8_t type : {msg::kOn, msg::kOff}) {
+      const auto h = tims::make_header(kB, kA, type, 1, 1, 0);
+      (void)router.send(h, std::span<const ConstBuffer>{});
+    }
+    while (b.receive(buf, Mailbox::kNonBlocking).status == RecvStatus::kOk) {
+    }
+    // ERROR answers (at most AccessControl::kRepliesPerSecond per second).
+    while (a.receive(buf, Mailbox::kNonBlocking).status == RecvStatus::kOk) ++answers;
+    return true;
+  };
+  for (int i = 0; i < kWarmUp; ++i) ASSERT_TRUE(round());
+  int failures = 0;
+  AllocationCounter counter;
+  for (int i = 0; i < kRounds; ++i) failures += round() ? 0 : 1;
+  const uint64_t allocations = counter.stop();
+  EXPECT_EQ(failures, 0);
+  EXPECT_EQ(allocations, 0u);
+  EXPECT_GT(access.counters()[0].denied_rate, 0u);
+  EXPECT_EQ(access.counters()[0].denied_type, static_cast<uint64_t>(kWarmUp + kRounds));
+  EXPECT_GT(answers, 0);
+  router.set_access(nullptr);
+  router.remove(kA);
+  router.remove(kB);
+}
+
 TEST_F(NoAllocationTest, EndpointCallRoundTrip) {
   test::Watchdog dog;
   tims::Router router(0);

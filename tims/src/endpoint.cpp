@@ -39,11 +39,12 @@ CallResult Endpoint::call(Address dest, int8_t type, std::span<const ConstBuffer
   CallResult result;
   uint8_t seq = 0;
   const SendStatus sent = send(dest, type, body, Address(), &seq);
-  if (!delivered(sent) && sent != SendStatus::kNotAvailable) {
+  if (!delivered(sent) && sent != SendStatus::kNotAvailable && sent != SendStatus::kDenied) {
     result.status = CallStatus::kSendFailed;
     return result;
   }
-  // kNotAvailable: the router already queued a NOT_AVAILABLE reply for us; read it.
+  // kNotAvailable, kDenied: the router already queued a NOT_AVAILABLE or ERROR reply
+  // for us; read it.
   const int64_t deadline = rt::monotonic_ns() + timeout_ns;
   for (;;) {
     const int64_t left = deadline - rt::monotonic_ns();

@@ -7,8 +7,10 @@
 #include <atomic>
 #include <mutex>
 #include <stdexcept>
+#include <vector>
 
 #include "rack/rt/clock.h"
+#include "rack/tims/link_auth.h"
 #include "rack_lcm/gdos_batch.hpp"
 #include "rack_lcm/gdos_listener.hpp"
 #include "rack_lcm/host_announce.hpp"
@@ -32,9 +34,25 @@ constexpr std::size_t kRecordOverhead = 8 + 8 + 4 + 4 + 1 + 4 + 4 + 2;
 // ---- publisher ----
 
 struct GdosPublisher::Impl {
-  explicit Impl(GdosPublisherConfig c) : config(std::move(c)), lcm(config.url) {}
+  explicit Impl(GdosPublisherConfig c) : config(std::move(c)), lcm(config.url) {
+    if (!config.key_file.empty()) {
+      keys = std::make_unique<KeyRing>(config.key_file);
+      int64_t sender = 0;
+      randombytes(sender);
+      signer = std::make_unique<LinkSigner>(*keys, sender);
+    }
+  }
+  static void randombytes(int64_t& v) {
+    // Any distinct value per process will do (the MAC makes it unforgeable).
+    v = rt::monotonic_ns() ^ (static_cast<int64_t>(getpid()) << 40) ^ rt::host_time_ns();
+    if (v == 0) v = 1;
+  }
   GdosPublisherConfig config;
   lcm::LCM lcm;
+  std::unique_ptr<KeyRing> keys;
+  std::unique_ptr<LinkSigner> signer;
+  std::vector<uint8_t> scratch;
+  int64_t next_key_check_ns = 0;
   rack_lcm::gdos_batch batch;
   std::size_t batch_bytes = 0;
   int64_t last_listener_ns = INT64_MIN / 2;
@@ -76,7 +94,25 @@ void GdosPublisher::flush() {
   if (b.records.empty()) return;
   b.count = static_cast<int32_t>(b.records.size());
   b.time_ns = rt::host_time_ns();
-  if (impl_->lcm.publish(impl_->config.channel, &b) != 0) {
+  int rc = 0;
+  if (impl_->signer) {
+    Impl& m = *impl_;
+    if (rt::monotonic_ns() >= m.next_key_check_ns) {  // rotation: the TiMS transport says so in the log
+      (void)m.keys->check_reload();
+      m.next_key_check_ns = rt::monotonic_ns() + rt::kNsPerSec;
+    }
+    const int size = b.getEncodedSize();
+    m.scratch.resize(static_cast<std::size_t>(size) + kAuthTrailerBytes);
+    rc = b.encode(m.scratch.data(), 0, size) == size ? 0 : -1;
+    if (rc == 0) {
+      m.signer->sign(m.config.channel, m.scratch.data(), static_cast<std::size_t>(size),
+                     m.scratch.data() + size, rt::host_time_ns());
+      rc = m.lcm.publish(m.config.channel, m.scratch.data(), static_cast<unsigned>(m.scratch.size()));
+    }
+  } else {
+    rc = impl_->lcm.publish(impl_->config.channel, &b);
+  }
+  if (rc != 0) {
     impl_->publish_errors.fetch_add(1, std::memory_order_relaxed);
   } else {
     impl_->batches.fetch_add(1, std::memory_order_relaxed);
@@ -108,8 +144,41 @@ const std::string& GdosPublisher::url() const noexcept { return impl_->config.ur
 // ---- subscriber ----
 
 struct GdosSubscriber::Impl {
-  Impl(const std::string& u, std::string c, bool a, std::string n)
-      : url(u), channel(std::move(c)), announce(a), name(std::move(n)), lcm(u) {}
+  Impl(const std::string& u, std::string c, bool a, std::string n, const std::string& key_file)
+      : url(u), channel(std::move(c)), announce(a), name(std::move(n)), lcm(u) {
+    if (!key_file.empty()) {
+      keys = std::make_unique<KeyRing>(key_file);
+      verifier = std::make_unique<LinkVerifier>(*keys, kDefaultReplayWindowNs);
+    }
+  }
+  std::unique_ptr<KeyRing> keys;
+  std::unique_ptr<LinkVerifier> verifier;
+  int64_t next_auth_warning_ns = 0;
+  int64_t next_key_check_ns = 0;
+  bool warned_unverified = false;
+
+  // With a key: verifies and strips the trailer (false: dropped, counted, warned at
+  // most once a second). Without: passes everything on.
+  bool authentic(const std::string& ch, const uint8_t* d, std::size_t& size) {
+    if (!verifier) return true;
+    const int64_t now = rt::monotonic_ns();
+    if (now >= next_key_check_ns) {
+      const std::string m = keys->check_reload();
+      if (!m.empty()) warnings += "gdos: " + m + "\n";
+      next_key_check_ns = now + rt::kNsPerSec;
+    }
+    const AuthResult r = verifier->verify(ch, d, size, rt::host_time_ns(), now);
+    if (r == AuthResult::kOk) {
+      size -= kAuthTrailerBytes;
+      return true;
+    }
+    ++(is_replay(r) ? counters.replayed : counters.auth_failed);
+    if (now >= next_auth_warning_ns) {
+      warnings += "gdos: dropped a message on '" + ch + "' (" + url + "): " + describe(r) + "\n";
+      next_auth_warning_ns = now + rt::kNsPerSec;
+    }
+    return false;
+  }
   std::string url;
   std::string channel;
   bool announce;
@@ -124,8 +193,17 @@ struct GdosSubscriber::Impl {
   std::size_t handled = 0;
 
   void on_batch(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
+    std::size_t size = rbuf->data_size;
+    if (!authentic(ch, static_cast<const uint8_t*>(rbuf->data), size)) return;
     rack_lcm::gdos_batch b;
-    if (b.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0 || b.count < 0 ||
+    const int used = b.decode(rbuf->data, 0, static_cast<int>(size));
+    if (!verifier && !warned_unverified && used > 0 &&
+        looks_signed(static_cast<const uint8_t*>(rbuf->data), size) &&
+        static_cast<std::size_t>(used) + kAuthTrailerBytes == size) {
+      warned_unverified = true;
+      warnings += "gdos: the records on '" + ch + "' are signed: give --key-file to verify them (shown unverified)\n";
+    }
+    if (used < 0 || b.count < 0 ||
         static_cast<std::size_t>(b.count) != b.records.size()) {
       ++counters.malformed;
       warnings += "gdos: dropped a malformed batch of " + std::to_string(rbuf->data_size) + " bytes on '" + ch +
@@ -160,11 +238,13 @@ struct GdosSubscriber::Impl {
     }
   }
 
-  void on_announce(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+  void on_announce(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
+    std::size_t size = rbuf->data_size;
+    if (!authentic(ch, static_cast<const uint8_t*>(rbuf->data), size)) return;
     rack_lcm::host_announce a;
     // Another version of the announcement (a newer rackd) is not an error here:
     // names are a convenience; the records carry them too.
-    if (a.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0) return;
+    if (a.decode(rbuf->data, 0, static_cast<int>(size)) < 0) return;
     for (const auto& c : a.components) names[static_cast<uint32_t>(c.address)] = c.name;
   }
 
@@ -177,8 +257,9 @@ struct GdosSubscriber::Impl {
   }
 };
 
-GdosSubscriber::GdosSubscriber(const std::string& url, const std::string& channel, bool announce, std::string name)
-    : impl_(std::make_unique<Impl>(url, channel, announce, std::move(name))) {
+GdosSubscriber::GdosSubscriber(const std::string& url, const std::string& channel, bool announce, std::string name,
+                               const std::string& key_file)
+    : impl_(std::make_unique<Impl>(url, channel, announce, std::move(name), key_file)) {
   if (!impl_->lcm.good()) throw std::runtime_error(join_error(url));
   // Raw handlers: a batch that does not decode is counted, not thrown.
   impl_->lcm.subscribe(channel, &Impl::on_batch, impl_.get())->setQueueCapacity(4096);

@@ -27,6 +27,7 @@
 #include <unordered_map>
 
 #include "rack/rt/clock.h"
+#include "rack/tims/link_auth.h"
 #include "rack_lcm/discover_request.hpp"
 #include "rack_lcm/host_announce.hpp"
 #include "rack_lcm/tims_packet.hpp"
@@ -231,15 +232,27 @@ struct LcmTransport::Impl {
     int raw_fd = -1;
     std::vector<uint8_t> datagram;
     bool peek_next = false;  // look at the next datagram's head first (read_datagram)
+    // Authenticated link (key_file): the keys, the signer (under publish_mutex) and
+    // the verifier (receive thread). Null on a network without a key.
+    std::unique_ptr<KeyRing> keys;
+    std::unique_ptr<LinkSigner> signer;
+    std::unique_ptr<LinkVerifier> verifier;
+    std::vector<uint8_t> scratch;  // encoded typed messages + trailer (under publish_mutex)
 
     void on_packet(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-      impl->on_packet(*this, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, channel);
+      std::size_t size = rbuf->data_size;
+      const auto* d = static_cast<const uint8_t*>(rbuf->data);
+      if (impl->authentic(*this, channel, d, size)) impl->on_packet(*this, d, size, channel);
     }
     void on_announce(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-      impl->on_announce(*this, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, channel);
+      std::size_t size = rbuf->data_size;
+      const auto* d = static_cast<const uint8_t*>(rbuf->data);
+      if (impl->authentic(*this, channel, d, size)) impl->on_announce(*this, d, size, channel);
     }
     void on_discover(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-      impl->on_discover(*this, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, channel);
+      std::size_t size = rbuf->data_size;
+      const auto* d = static_cast<const uint8_t*>(rbuf->data);
+      if (impl->authentic(*this, channel, d, size)) impl->on_discover(*this, d, size, channel);
     }
   };
 
@@ -259,7 +272,7 @@ struct LcmTransport::Impl {
         uplink(Address::make(kToolSystem, classes::kTool, 0xFF, 0xFF), config.uplink_slots, config.uplink_slot_size),
         large_uplink(Address::make(kToolSystem, classes::kTool, 0xFF, 0xFE), std::max<uint32_t>(config.large_slots, 1),
                      std::max(config.max_message_bytes, config.uplink_slot_size)),
-        control(Address::make(kToolSystem, classes::kTool, 0xFF, 0xFD), 16, 512),
+        control(kTransportControlAddress, 16, 512),
         warn(config.warn ? config.warn : [](const std::string& s) { std::cerr << s << std::endl; }) {
     if (config.networks.empty()) {
       NetworkConfig n;
@@ -315,7 +328,7 @@ struct LcmTransport::Impl {
   std::atomic<uint64_t> packets_in{0}, packets_out{0}, messages_in{0}, messages_out{0}, malformed{0}, forged{0},
       not_for_us{0}, forwarded{0}, not_available{0}, sequence_gaps{0}, lost_messages{0}, publish_errors{0},
       delivery_failed{0}, hosts_expired{0}, subscriptions_failed{0}, streams_stopped{0}, compressed_out{0}, bytes_out{0},
-      wire_bytes_out{0};
+      wire_bytes_out{0}, auth_failed{0}, replayed{0};
 
   // ------------------------------------------------------------------ set-up
   void join() {
@@ -330,7 +343,17 @@ struct LcmTransport::Impl {
                                  "' (a network namespace needs 'ip link set lo up' and a multicast "
                                  "route: ip route add 224.0.0.0/4 dev IFACE)");
       }
-      n->packet.assign(kPacketPrefix + kChunk, 0);
+      if (!n->config.key_file.empty()) {
+        try {
+          n->keys = std::make_unique<KeyRing>(n->config.key_file);
+        } catch (const std::exception& e) {
+          throw std::runtime_error("network '" + n->config.name + "': " + e.what());
+        }
+        n->signer = std::make_unique<LinkSigner>(*n->keys, origin);
+        n->verifier = std::make_unique<LinkVerifier>(*n->keys, config.replay_window_ns);
+        n->scratch.reserve(4096);
+      }
+      n->packet.assign(kPacketPrefix + kChunk + kAuthTrailerBytes, 0);
       put_be(n->packet.data(), static_cast<uint64_t>(rack_lcm::tims_packet::getHash()), 8);
       if (n->config.compression == Compression::kZstd) {
         n->compressed.resize(ZSTD_compressBound(config.max_message_bytes));
@@ -504,11 +527,96 @@ struct LcmTransport::Impl {
     if (len == max_name) return reject(n, "lcm", [&] { return std::string("LCM channel name not terminated"); });
     const std::string_view channel(name, len);
     const uint8_t* payload = d + 8 + len + 1;
-    const std::size_t payload_size = size - 8 - len - 1;
+    std::size_t payload_size = size - 8 - len - 1;
+    if (channel != kTimsChannel && channel != kAnnounceChannel && channel != kDiscoverChannel) return;
+    if (!authentic(n, channel, payload, payload_size)) return;
     if (channel == kTimsChannel) return on_packet(n, payload, payload_size, kTimsChannel);
     if (channel == kAnnounceChannel) return on_announce(n, payload, payload_size, kAnnounceChannel);
     if (channel == kDiscoverChannel) return on_discover(n, payload, payload_size, kDiscoverChannel);
     // Other channels on the same network (GDOS, tools): not ours.
+  }
+
+  // ------------------------------------------------------------------ authentication
+  // A payload on one of our channels: on a keyed network, verifies and strips its
+  // trailer (false: dropped, counted, logged); elsewhere, passes it on. Receive threads.
+  bool authentic(Network& n, std::string_view channel, const uint8_t* d, std::size_t& size) {
+    if (!n.verifier) {
+      // A signed packet on a network without a key here: this host lacks the key
+      // (refused, with a message that says so, instead of half-working on what LCM's
+      // decoders would accept). Recognised by a trailer right after the packet's end.
+      const auto signed_after = [&](std::size_t end) {
+        return looks_signed(d, size) && end + kAuthTrailerBytes == size;
+      };
+      bool is_signed = false;
+      if (channel == kTimsChannel) {
+        is_signed = size >= kPacketPrefix + kAuthTrailerBytes && signed_after(get_be(d + kOffSize, 4) + kPacketPrefix);
+      } else if (channel == kAnnounceChannel) {
+        // The component count bounded before lcm-gen's decoder allocates (as on_announce).
+        const int32_t count = size >= 12 ? get_i32(d + 8) : -1;
+        const bool bounded = count >= 0 && static_cast<std::size_t>(count) <= (size - 12) / kMinComponentBytes;
+        rack_lcm::host_announce a;
+        const int used = bounded && looks_signed(d, size) ? a.decode(d, 0, static_cast<int>(size)) : -1;
+        is_signed = used > 0 && signed_after(static_cast<std::size_t>(used));
+      } else if (channel == kDiscoverChannel) {
+        rack_lcm::discover_request r;
+        const int used = looks_signed(d, size) ? r.decode(d, 0, static_cast<int>(size)) : -1;
+        is_signed = used > 0 && signed_after(static_cast<std::size_t>(used));
+      }
+      if (is_signed) {
+        bump(malformed);
+        warn("unkeyed " + n.config.name, [&] {
+          return "TiMS/LCM: dropped a signed packet on network '" + n.config.name + "' (" + n.config.url +
+                 "), which has no key_file here: give this host the network's key file";
+        });
+        return false;
+      }
+      return true;
+    }
+    const AuthResult r = n.verifier->verify(channel, d, size, rt::host_time_ns(), rt::monotonic_ns());
+    if (r == AuthResult::kOk) {
+      size -= kAuthTrailerBytes;
+      return true;
+    }
+    const bool replay = is_replay(r);
+    bump(replay ? replayed : auth_failed);
+    const int64_t from = n.verifier->last_sender();
+    warn((replay ? "replayed " : "auth ") + n.config.name, [&] {
+      return "TiMS/LCM: dropped a packet on network '" + n.config.name + "' (" + n.config.url + ", key file " +
+             n.keys->path() + ") channel " + std::string(channel) + (from != 0 ? " from origin " + origin_text(from) : "") +
+             ": " + describe(r);
+    });
+    return false;
+  }
+
+  // Publishes raw bytes on `n`, signed on a keyed network: `buf` must have
+  // kAuthTrailerBytes of room after `len`. Caller holds n.publish_mutex.
+  int publish_raw(Network& n, const char* channel, uint8_t* buf, std::size_t len) {
+    if (n.signer) {
+      n.signer->sign(channel, buf, len, buf + len, rt::host_time_ns());
+      len += kAuthTrailerBytes;
+    }
+    return n.lcm->publish(channel, buf, static_cast<unsigned>(len));
+  }
+
+  // Publishes an lcm-gen message on `n`, signed on a keyed network. Caller holds
+  // n.publish_mutex (or owns the network alone).
+  template <typename T>
+  int publish_typed(Network& n, const char* channel, const T& m) {
+    if (!n.signer) return n.lcm->publish(channel, &m);
+    const int size = m.getEncodedSize();
+    if (size < 0) return -1;
+    n.scratch.resize(static_cast<std::size_t>(size) + kAuthTrailerBytes);
+    if (m.encode(n.scratch.data(), 0, size) != size) return -1;
+    return publish_raw(n, channel, n.scratch.data(), static_cast<std::size_t>(size));
+  }
+
+  // Maintenance thread: re-reads changed key files.
+  void reload_keys() {
+    for (auto& n : networks) {
+      if (!n->keys) continue;
+      const std::string m = n->keys->check_reload();
+      if (!m.empty()) warn("keys " + m, [&] { return "TiMS/LCM: network '" + n->config.name + "': " + m; });
+    }
   }
 
   // ------------------------------------------------------------------ publishing
@@ -543,7 +651,8 @@ struct LcmTransport::Impl {
     bool ok = true;
     for (uint32_t off = 0; off < encoded; off += kChunk) {
       const uint32_t size = std::min(kChunk, encoded - off);
-      const bool in_place = writable && off >= kPacketPrefix;
+      // Signed packets get a trailer after the chunk: built in the packet buffer.
+      const bool in_place = writable && off >= kPacketPrefix && !n.signer;
       std::array<uint8_t, kPacketPrefix> saved{};
       uint8_t* p = nullptr;
       if (in_place) {
@@ -565,7 +674,7 @@ struct LcmTransport::Impl {
       p[kOffEncoding] = static_cast<uint8_t>(encoding);
       p[kOffHops] = static_cast<uint8_t>(hops);
       put_be(p + kOffSize, size, 4);
-      const int rc = n.lcm->publish(kTimsChannel, p, static_cast<unsigned>(kPacketPrefix + size));
+      const int rc = publish_raw(n, kTimsChannel, p, kPacketPrefix + size);
       if (in_place) std::memcpy(p, saved.data(), kPacketPrefix);
       if (rc != 0) {
         bump(publish_errors);
@@ -997,7 +1106,8 @@ struct LcmTransport::Impl {
     std::memcpy(msg, &h, sizeof h);  // header in host byte order
     if (router.find(h.destination()) != nullptr) {
       const SendStatus s = router.deliver_local(bytes);
-      if (!delivered(s)) {
+      // kDenied: access control refused it, counted and logged there (per rule).
+      if (!delivered(s) && s != SendStatus::kDenied) {
         bump(delivery_failed);
         warn("delivery", [&] {
           return "TiMS/LCM: message from " + h.source().str() + " to " + h.destination().str() + " (" +
@@ -1133,7 +1243,7 @@ struct LcmTransport::Impl {
         f.relay = origin;
         f.hops = static_cast<int8_t>(a.hops + 1);
         std::lock_guard lock(out->publish_mutex);
-        if (out->lcm->publish(kAnnounceChannel, &f) != 0) bump(publish_errors);
+        if (publish_typed(*out, kAnnounceChannel, f) != 0) bump(publish_errors);
       }
     }
   }
@@ -1152,7 +1262,7 @@ struct LcmTransport::Impl {
         f.relay = origin;
         f.hops = static_cast<int8_t>(r.hops + 1);
         std::lock_guard lock(out->publish_mutex);
-        if (out->lcm->publish(kDiscoverChannel, &f) != 0) bump(publish_errors);
+        if (publish_typed(*out, kDiscoverChannel, f) != 0) bump(publish_errors);
       }
     }
   }
@@ -1165,7 +1275,7 @@ struct LcmTransport::Impl {
     for (auto& n : networks) {
       if (only != nullptr && n.get() != only) continue;
       std::lock_guard plock(n->publish_mutex);
-      if (n->lcm->publish(kAnnounceChannel, &announcement) != 0) bump(publish_errors);
+      if (publish_typed(*n, kAnnounceChannel, announcement) != 0) bump(publish_errors);
     }
   }
 
@@ -1191,8 +1301,13 @@ struct LcmTransport::Impl {
 
   void maintenance_loop() {
     int64_t next_announce = rt::monotonic_ns() + config.announce_period_ns;
+    int64_t next_key_check = rt::monotonic_ns() + rt::kNsPerSec;
     while (running.load(std::memory_order_acquire)) {
       rt::sleep_for(50 * rt::kNsPerMs);
+      if (rt::monotonic_ns() >= next_key_check) {
+        reload_keys();
+        next_key_check = rt::monotonic_ns() + rt::kNsPerSec;
+      }
       if (config.announce_period_ns > 0 && rt::monotonic_ns() >= next_announce) {
         publish_announcement(nullptr);
         next_announce = rt::monotonic_ns() + config.announce_period_ns;
@@ -1372,7 +1487,7 @@ void LcmTransport::request_discovery() {
   req.requester = "pid " + std::to_string(getpid());
   for (auto& n : m.networks) {
     std::lock_guard lock(n->publish_mutex);
-    if (n->lcm->publish(kDiscoverChannel, &req) != 0) bump(m.publish_errors);
+    if (m.publish_typed(*n, kDiscoverChannel, req) != 0) bump(m.publish_errors);
   }
 }
 
@@ -1436,6 +1551,8 @@ TransportCounters LcmTransport::counters() const noexcept {
   c.compressed_out = r(m.compressed_out);
   c.bytes_out = r(m.bytes_out);
   c.wire_bytes_out = r(m.wire_bytes_out);
+  c.auth_failed = r(m.auth_failed);
+  c.replayed = r(m.replayed);
   return c;
 }
 

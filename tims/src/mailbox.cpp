@@ -22,6 +22,7 @@ const char* describe(SendStatus s) noexcept {
     case SendStatus::kTooLarge: return "message larger than a mailbox slot";
     case SendStatus::kClosed: return "mailbox closed";
     case SendStatus::kNotAvailable: return "no such mailbox";
+    case SendStatus::kDenied: return "refused by access control";
   }
   return "unknown";
 }
@@ -249,6 +250,7 @@ MailboxCounters Mailbox::counters() const noexcept {
   c.refused = refused_.load(std::memory_order_relaxed);
   c.too_large = too_large_.load(std::memory_order_relaxed);
   c.truncated = truncated_.load(std::memory_order_relaxed);
+  c.denied = denied_.load(std::memory_order_relaxed);
   return c;
 }
 

@@ -48,6 +48,8 @@ void Router::set_uplink(Mailbox* uplink, Mailbox* large_uplink) noexcept {
 
 void Router::set_system_shared(bool shared) noexcept { system_shared_.store(shared, std::memory_order_relaxed); }
 
+void Router::set_access(AccessControl* access) noexcept { access_.store(access, std::memory_order_release); }
+
 Mailbox* Router::find(Address address) const noexcept {
   const uint32_t key = address.raw();
   std::size_t i = slot_of(key);
@@ -75,6 +77,25 @@ SendStatus Router::answer_not_available(const MessageHeader& request) noexcept {
   return SendStatus::kNotAvailable;
 }
 
+bool Router::admit(const MessageHeader& header, Mailbox& local, MessageOrigin origin) noexcept {
+  AccessControl* access = access_.load(std::memory_order_acquire);
+  if (access == nullptr) return true;
+  const AccessDecision d = access->check(header, origin);
+  if (d.allowed()) return true;
+  bump(denied_);
+  local.count_denied();
+  if (header.is_request() && d.answer) {
+    // The ERROR reply says why (wire::ErrorText's layout: a NUL-terminated text). A
+    // reply is never a request, so this recursion ends here.
+    char text[120];
+    access->denial_text(d, text, sizeof text);
+    const MessageHeader reply = make_reply_header(header, msg::kError, sizeof text);
+    const ConstBuffer part{text, sizeof text};
+    (void)send(reply, std::span<const ConstBuffer>(&part, 1));
+  }
+  return false;
+}
+
 SendStatus Router::route_unknown(const MessageHeader& header) noexcept {
   if (header.is_request()) return answer_not_available(header);
   bump(unroutable_);
@@ -88,6 +109,7 @@ SendStatus Router::send(const MessageHeader& header, std::initializer_list<Const
 SendStatus Router::send(const MessageHeader& header, std::span<const ConstBuffer> body) noexcept {
   const Address dest = header.destination();
   if (Mailbox* local = find(dest)) {
+    if (!admit(header, *local, MessageOrigin::kLocal)) return SendStatus::kDenied;
     const SendStatus s = local->try_send(header, body);
     bump(delivered(s) ? delivered_local_ : failed_);
     return s;
@@ -116,6 +138,7 @@ SendStatus Router::deliver_local(std::span<const std::byte> message) noexcept {
   MessageHeader header;
   std::memcpy(&header, message.data(), sizeof header);
   if (Mailbox* local = find(header.destination())) {
+    if (!admit(header, *local, MessageOrigin::kNetwork)) return SendStatus::kDenied;
     const SendStatus s = local->try_send_bytes(message);
     bump(delivered(s) ? delivered_local_ : failed_);
     return s;
@@ -134,6 +157,7 @@ RouterCounters Router::counters() const noexcept {
   c.not_available = not_available_.load(std::memory_order_relaxed);
   c.unroutable = unroutable_.load(std::memory_order_relaxed);
   c.failed = failed_.load(std::memory_order_relaxed);
+  c.denied = denied_.load(std::memory_order_relaxed);
   return c;
 }
 

@@ -14,6 +14,7 @@
 
 #include "gdos_view.h"
 #include "rack/rt/clock.h"
+#include "rack/core/host_config.h"
 #include "rack/tims/gdos_lcm.h"
 #include "rack/tims/lcm_transport.h"
 
@@ -51,6 +52,13 @@ options:
   --duration SEC     exit after SEC seconds
   --silent           do not announce this viewer (hosts with gdos.stderr: auto
                      keep writing their log to stderr)
+  --host-file FILE   the network and key file of this host file (the first of
+                     its 'tims: networks:', else its lcm_url); --lcm and
+                     --key-file override either
+  --key-file FILE    the network's key file (authenticated links; default
+                     $RACK_KEY_FILE): records and announcements that do not
+                     verify are dropped and counted; without it, signed records
+                     are shown unverified
   -h, --help         this text
 
 Losses are reported on stderr: records a host's ring dropped (its next record
@@ -77,6 +85,9 @@ int main(int argc, char** argv) {
   std::string url = std::getenv("LCM_DEFAULT_URL") != nullptr ? std::getenv("LCM_DEFAULT_URL") : tims::kDefaultLcmUrl;
   std::string channel = tims::kGdosChannel;
   std::string record_path, replay_path;
+  std::string key_file = std::getenv("RACK_KEY_FILE") != nullptr ? std::getenv("RACK_KEY_FILE") : "";
+  std::string host_file;
+  bool key_given = false, url_given = false;
   bool json = false, silent = false;
   std::optional<bool> colour_opt;
   long long count = -1;
@@ -92,6 +103,7 @@ int main(int argc, char** argv) {
       return 0;
     } else if (a == "--lcm") {
       url = value("an LCM URL");
+      url_given = true;
     } else if (a == "--channel") {
       channel = value("a channel name");
       if (channel.empty()) usage_error("--channel needs a non-empty name");
@@ -116,6 +128,11 @@ int main(int argc, char** argv) {
       colour_opt = true;
     } else if (a == "--no-color" || a == "--no-colour") {
       colour_opt = false;
+    } else if (a == "--key-file") {
+      key_file = value("a key file");
+      key_given = true;
+    } else if (a == "--host-file") {
+      host_file = value("a host file");
     } else if (a == "--silent") {
       silent = true;
     } else if (a == "--count") {
@@ -158,6 +175,12 @@ int main(int argc, char** argv) {
     return 0;
   }
 
+  if (!host_file.empty()) {
+    const rack::ToolNetwork net = rack::read_tool_network(host_file);
+    if (!net.errors.empty()) usage_error(net.errors.front().str());
+    if (!url_given) url = net.url;
+    if (!key_given) key_file = net.key_file;
+  }
   struct sigaction sa {};
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
@@ -167,7 +190,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<tims::GdosSubscriber> sub;
   std::unique_ptr<gdos_view::RecordWriter> writer;
   try {
-    sub = std::make_unique<tims::GdosSubscriber>(url, channel, !silent, "gdos");
+    sub = std::make_unique<tims::GdosSubscriber>(url, channel, !silent, "gdos", key_file);
     if (!record_path.empty()) writer = std::make_unique<gdos_view::RecordWriter>(record_path, url + " " + channel);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "gdos: %s\n", e.what());
@@ -198,9 +221,13 @@ int main(int argc, char** argv) {
   }
   std::fflush(stdout);
   const auto c = sub->counters();
-  std::fprintf(stderr, "gdos: %llu record(s) received, %lld shown, %llu lost on the network, %llu malformed batch(es)\n",
+  std::fprintf(stderr, "gdos: %llu record(s) received, %lld shown, %llu lost on the network, %llu malformed batch(es)%s\n",
                static_cast<unsigned long long>(c.records), shown, static_cast<unsigned long long>(c.lost),
-               static_cast<unsigned long long>(c.malformed));
+               static_cast<unsigned long long>(c.malformed),
+               key_file.empty() ? ""
+                                : (", " + std::to_string(c.auth_failed) + " failed authentication, " +
+                                   std::to_string(c.replayed) + " replayed")
+                                      .c_str());
   if (writer) {
     writer->flush();
     std::fprintf(stderr, "gdos: %llu record(s) written to %s\n", static_cast<unsigned long long>(writer->records()),

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "rack/core/data_component.h"
+#include "rack/core/host_config.h"
 #include "rack/core/parameters.h"
 #include "rack/core/payload_json.h"
 #include "rack/core/wire.h"
@@ -38,6 +39,7 @@
 #include "rack/tims/address.h"
 #include "rack/tims/endpoint.h"
 #include "rack/tims/lcm_transport.h"
+#include "rack/tims/link_auth.h"
 #include "rack/tims/mailbox.h"
 #include "rack/tims/message.h"
 #include "rack/tims/router.h"
@@ -86,6 +88,7 @@ commands:
   send NAME CMD [FIELD=VALUE ...] [--i64 N]
                                 a class command (number 21..127 or its name, e.g.
                                 INIT) with its body, and the reply
+  keygen FILE                   write a new TiMS link key file (mode 0600) for key_file
   help [COMMAND]                this text, or a command's
 
 NAME is a component's name from its host file (found by discovery), or an address
@@ -98,6 +101,13 @@ options:
   --retries N        ask again this often when no reply came in time (default 1;
                      a datagram on a network link can be lost)
   --discover-ms MS   how long to wait for announcements (default 300)
+  --host-file FILE   join the network of this host file (the first of its
+                     'tims: networks:', else its lcm_url) with that network's
+                     key_file; --lcm and --key-file override either
+  --key-file FILE    the network's key file (authenticated links: the file that
+                     the host files name as key_file; default: $RACK_KEY_FILE);
+                     without it, hosts whose network has a key drop what rackctl
+                     sends
   -h, --help         this text; after a command: the command's help
 
 exit codes: 0 ok, 1 the component answered ERROR, 2 usage error, 3 not available
@@ -106,6 +116,7 @@ exit codes: 0 ok, 1 the component answered ERROR, 2 usage error, 3 not available
 
 struct Options {
   std::string lcm_url;
+  std::string key_file;  // --key-file, else $RACK_KEY_FILE
   int64_t timeout_ms = 2000;
   int64_t discover_ms = 300;
   int64_t retries = 1;
@@ -326,6 +337,15 @@ class Session {
   static tims::LcmTransportConfig transport_config(const Options& o) {
     tims::LcmTransportConfig c;
     c.url = o.lcm_url.empty() ? default_lcm_url() : o.lcm_url;
+    if (!o.key_file.empty()) {
+      // The same NetworkConfig::key_file as a host file's network: signs what this
+      // tool sends and verifies what it hears (rack/tims/link_auth.h).
+      tims::NetworkConfig n;
+      n.name = "rackctl";
+      n.url = c.url;
+      n.key_file = o.key_file;
+      c.networks.push_back(n);
+    }
     c.uplink_slots = 32;
     c.announce_period_ns = 0;  // a tool announces nothing
     c.role = tims::NodeRole::kTool;
@@ -506,7 +526,8 @@ int cmd_status(Session& s, const Options& o) {
                     ((st.faults_measured & 2) != 0 ? "{\"minor\":" + std::to_string(st.data_minor_faults) +
                                                          ",\"major\":" + std::to_string(st.data_major_faults) + "}"
                                                    : std::string("null")) +
-                    "}}";
+                    "}" +
+                    ",\"access_denied\":" + std::to_string(st.access_denied) + "}";
     std::printf("%s\n", j.c_str());
     return kExitOk;
   }
@@ -532,6 +553,7 @@ int cmd_status(Session& s, const Options& o) {
   std::printf("  %-16s %llu\n", "published", u(st.published));
   std::printf("  %-16s %llu\n", "listeners", u(st.listeners));
   std::printf("  %-16s %llu\n", "listener drops", u(st.listener_drops));
+  std::printf("  %-16s %llu\n", "access denied", u(st.access_denied));
   std::printf("  %-16s %llu\n", "malformed", u(st.malformed));
   std::printf("  %-16s %llu\n", "commands", u(st.commands));
   std::printf("  %-16s %llu\n", "errors", u(st.errors));
@@ -892,6 +914,14 @@ const std::vector<Command>& commands() {
        "  rackctl send mcl INIT x=2 y=1.5 phi=0 sigma_xy=0.3 sigma_phi=0.2\n"
        "  rackctl send pilot SET_DESTINATION x=4 y=2",
        cmd_send},
+      {"keygen", "keygen FILE", 1, 1, {},
+       "Writes a new key file for authenticated TiMS links: one random 32-byte key as\n"
+       "64 hex digits, mode 0600; an existing file is never overwritten. Copy it to\n"
+       "every host of the network (keeping mode 0600) and name it in the host files\n"
+       "(tims: networks: - key_file: PATH); tools take it with --key-file. Rotation:\n"
+       "a file may hold two keys (two lines): the first signs, both are accepted;\n"
+       "hosts re-read a changed file within a second. See the README.",
+       cmd_help},
       {"help", "help [COMMAND]", 0, 1, {}, "Prints the usage, or a command's help.", cmd_help},
   };
   return kCommands;
@@ -934,6 +964,9 @@ bool looks_like_option(const std::string& a) {
 
 Options parse_arguments(int argc, char** argv) {
   Options o;
+  if (const char* env = std::getenv("RACK_KEY_FILE"); env != nullptr) o.key_file = env;
+  std::string host_file;
+  bool key_given = false;
   bool only_positional = false;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
@@ -962,6 +995,8 @@ Options parse_arguments(int argc, char** argv) {
     if (a == "-h" || a == "--help") o.help = true;
     else if (a == "--json") { o.json = true; o.given.insert(a); }
     else if (a == "--lcm") o.lcm_url = value("an LCM URL");
+    else if (a == "--key-file") { o.key_file = value("a key file"); key_given = true; }
+    else if (a == "--host-file") host_file = value("a host file");
     else if (a == "--timeout") {
       o.timeout_ms = non_negative("a number of milliseconds");
       if (o.timeout_ms == 0) fail(kExitUsage, "--timeout needs at least 1 ms");
@@ -991,6 +1026,14 @@ Options parse_arguments(int argc, char** argv) {
     } else {
       fail(kExitUsage, "unknown option '" + a + "' (rackctl --help lists them)");
     }
+  }
+  if (!host_file.empty()) {
+    // The same network and key as the host whose file this is (a GUI does the same
+    // with rack::read_tool_network and tims::NetworkConfig::key_file).
+    const rack::ToolNetwork net = rack::read_tool_network(host_file);
+    if (!net.errors.empty()) fail(kExitUsage, net.errors.front().str());
+    if (o.lcm_url.empty()) o.lcm_url = net.url;
+    if (!key_given) o.key_file = net.key_file;
   }
   return o;
 }
@@ -1037,6 +1080,15 @@ int main(int argc, char** argv) {
       print_command_help(*cmd, stderr);
       return kExitUsage;
     }
+  }
+  if (std::string(cmd->name) == "keygen") {
+    const std::string err = tims::generate_key_file(o.args[0]);
+    if (!err.empty()) {
+      std::fprintf(stderr, "rackctl: keygen: %s\n", err.c_str());
+      return kExitError;
+    }
+    std::printf("%s: new key written (mode 0600)\n", o.args[0].c_str());
+    return kExitOk;
   }
   try {
     Session session(o);

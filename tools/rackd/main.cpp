@@ -47,6 +47,15 @@ line per record, and to LCM for the gdos viewer; the host file's gdos: map sets
 levels and outputs (configs/demo.yaml), `rackctl set-param NAME gdosLevel LEVEL`
 changes a component's level at run time.
 
+Access control (the host file's access: section, configs/access_control.yaml):
+which sources may send which messages to which component, at what priority and
+rate; refusals are answered ERROR, counted per rule (--status) and logged.
+Without the section every source may send everything (rackd warns at start).
+Authenticated links: a network under 'tims: networks:' with key_file: PATH signs
+and verifies every TiMS packet; the file (rackctl keygen PATH) must be readable
+by its owner only, or rackd refuses it (exit 2, with its path and mode). rackd
+re-reads a changed key file within a second (key rotation without a restart).
+
 exit codes: 0 clean shutdown or valid host file, 1 could not start (real-time
 required but missing, a task or the network could not start), 2 usage error or
 invalid host file (each problem printed as file:line:col: message).

@@ -77,6 +77,8 @@ class Executor {
   [[nodiscard]] tims::Endpoint& endpoint() noexcept { return *endpoint_; }
   [[nodiscard]] tims::LcmTransport* transport() noexcept { return transport_.get(); }
   [[nodiscard]] bool any_fallback() const noexcept { return fallback_; }
+  // Access control of this host (the host file's `access:`), or nullptr without it.
+  [[nodiscard]] tims::AccessControl* access() noexcept { return access_.get(); }
 
   // One line per component: state, data task cycles/overruns/latency (for rackd).
   [[nodiscard]] std::string status_report() const;
@@ -105,6 +107,8 @@ class Executor {
   std::unique_ptr<tims::Mailbox> mailbox_;
   std::unique_ptr<tims::Endpoint> endpoint_;
   std::unique_ptr<tims::LcmTransport> transport_;
+  std::unique_ptr<tims::AccessControl> access_;
+  int64_t next_access_report_ns_ = 0;  // GDOS thread: denials are logged at most this often
   std::vector<ComponentView> views_;
   std::vector<std::unique_ptr<rt::Thread>> threads_;
   bool started_ = false;

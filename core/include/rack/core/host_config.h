@@ -19,6 +19,7 @@
 #include "rack/core/registry.h"
 #include "rack/rt/capabilities.h"
 #include "rack/rt/modeswitch.h"
+#include "rack/tims/access.h"
 #include "rack/tims/lcm_transport.h"
 
 namespace rack {
@@ -65,6 +66,13 @@ struct HostSettings {
   // Mode-switch detection (the `modeswitch:` block); rackd starts the detector.
   rt::modeswitch::Config modeswitch;
   GdosSettings gdos;
+  // Keyed networks (`tims: replay_window_ms`): see rack/tims/link_auth.h.
+  int64_t replay_window_ns = 5'000'000'000;
+  // Access control (the `access:` section; configs/access_control.yaml explains it).
+  // Without the section: no checks at all (open, and rackd warns at start).
+  bool access_configured = false;
+  tims::AccessConfig access;
+  int64_t access_log_ns = 1'000'000'000;  // denials reach GDOS at most once per rule per this
 };
 
 // A validated host: the settings, and every component constructed with its
@@ -83,6 +91,16 @@ struct LoadResult {
 // Reads and validates a host file. `caps` gives the online CPUs.
 [[nodiscard]] LoadResult load_host_file(const std::string& path, ComponentRegistry& registry,
                                         const rt::RtCapabilities& caps);
+// What a tool (rackctl, gdos, a GUI) needs from a host file to join that host's first
+// TiMS network: its URL and key file (`tims: networks:`' first entry, else lcm_url).
+// Reads only those keys (the components are not built). Not RT-safe.
+struct ToolNetwork {
+  std::string url;
+  std::string key_file;             // "" when the network has none
+  std::vector<ConfigError> errors;  // non-empty: unusable (file:line:col)
+};
+[[nodiscard]] ToolNetwork read_tool_network(const std::string& path);
+
 // The same from text (tests, tools); `file` names it in error messages.
 [[nodiscard]] LoadResult load_host_text(const std::string& text, const std::string& file,
                                         ComponentRegistry& registry, const rt::RtCapabilities& caps);

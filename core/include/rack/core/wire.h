@@ -131,6 +131,7 @@ struct StatsReply {
   uint64_t command_major_faults = 0;
   uint64_t data_minor_faults = 0;
   uint64_t data_major_faults = 0;
+  uint64_t access_denied = 0;  // messages to it that access control refused
   static constexpr auto fields() noexcept {
     return std::array{
       RACK_FIELD(StatsReply, state), RACK_FIELD(StatsReply, data_task), RACK_FIELD(StatsReply, faults_measured),
@@ -144,7 +145,8 @@ struct StatsReply {
       RACK_FIELD(StatsReply, published), RACK_FIELD(StatsReply, listener_drops),
       RACK_FIELD(StatsReply, command_drops), RACK_FIELD(StatsReply, stale_replies),
       RACK_FIELD(StatsReply, command_minor_faults), RACK_FIELD(StatsReply, command_major_faults),
-      RACK_FIELD(StatsReply, data_minor_faults), RACK_FIELD(StatsReply, data_major_faults)};
+      RACK_FIELD(StatsReply, data_minor_faults), RACK_FIELD(StatsReply, data_major_faults),
+      RACK_FIELD(StatsReply, access_denied)};
   }
 };
 

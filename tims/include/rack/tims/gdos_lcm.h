@@ -8,6 +8,13 @@
 // "RACK_GDOS_LISTENER" once a second, so a host can stop copying its log to stderr
 // while somebody listens (gdos.stderr: auto).
 //
+// Authenticated: with a key file (the host's keyed network's, rack/tims/link_auth.h)
+// every batch carries the same MAC trailer as TiMS packets; a subscriber with the key
+// drops and counts batches and announcements that do not verify (auth_failed,
+// replayed). A subscriber without a key still shows signed batches (the text is not
+// secret), unverified, and says so once. Listener announcements are not signed (they
+// only switch a host's stderr copy).
+//
 // Real-time contract: nothing here is RT-safe; the publisher runs in the host's
 // GDOS thread, the subscriber in a tool. Thread-safety: one thread per object,
 // except GdosPublisher::counters() (any thread).
@@ -44,6 +51,7 @@ struct GdosPublisherConfig {
   std::string host;                    // host name in every batch
   int32_t pid = 0;
   std::size_t max_batch_bytes = 16 * 1024;  // well below LCM's fragmentation size
+  std::string key_file;                // "": batches unsigned
 };
 
 struct GdosPublisherCounters {
@@ -80,6 +88,8 @@ struct GdosSubscriberCounters {
   uint64_t records = 0;
   uint64_t malformed = 0;   // undecodable batches on the channel
   uint64_t lost = 0;        // sequence gaps (records lost between a host and us)
+  uint64_t auth_failed = 0; // with a key: batches/announcements unsigned, unknown key, bad MAC
+  uint64_t replayed = 0;    // with a key: seen before, or outside the time window
 };
 
 class GdosSubscriber {
@@ -87,7 +97,10 @@ class GdosSubscriber {
   // Joins the LCM network and subscribes to `channel` and to the TiMS announcements
   // (names of components). With `announce`, says once a second that it listens.
   // Throws std::runtime_error naming the URL on failure.
-  GdosSubscriber(const std::string& url, const std::string& channel, bool announce, std::string name);
+  // `key_file`: verify batches and announcements with it (throws std::runtime_error
+  // with the reason when the file is refused).
+  GdosSubscriber(const std::string& url, const std::string& channel, bool announce, std::string name,
+                 const std::string& key_file = "");
   ~GdosSubscriber();
   GdosSubscriber(const GdosSubscriber&) = delete;
   GdosSubscriber& operator=(const GdosSubscriber&) = delete;

@@ -46,6 +46,12 @@
 // source, own echo with a foreign origin) is dropped, counted and logged at most once
 // per second per kind.
 //
+// Authenticated links: a network with a key file (NetworkConfig::key_file) signs every
+// packet it publishes on its channels and drops, counts (auth_failed, replayed) and
+// logs every packet that does not verify (rack/tims/link_auth.h). Signing and
+// verifying happen in the sender, receive and maintenance threads (never in RT
+// tasks). The maintenance thread re-reads a changed key file once a second.
+//
 // Real-time contract: nothing here is RT-safe; everything is set-up or runs in the
 // transport's own non-RT threads. Thread-safety: hosts(), counters(),
 // set_announcement(), request_discovery() and wait_uplink() may be called from any
@@ -64,6 +70,8 @@
 namespace rack::tims {
 
 inline constexpr const char* kDefaultLcmUrl = "udpm://239.255.76.67:7667?ttl=0";
+// The transport's own mailbox (replies to its STOP_CONT_DATA for lost hosts).
+inline constexpr Address kTransportControlAddress = Address::make(kToolSystem, classes::kTool, 0xFF, 0xFD);
 
 enum class NetworkScope : uint8_t {
   kRobot,  // one robot's internal bus: its own system's traffic
@@ -86,6 +94,9 @@ struct NetworkConfig {
   NetworkScope scope = NetworkScope::kRobot;
   Compression compression = Compression::kNone;
   uint32_t compress_min_bytes = 16 * 1024;  // smaller messages are sent as they are
+  // Authenticated link (rack/tims/link_auth.h): every TiMS packet on this network is
+  // signed with, and must carry a valid MAC of, the keys in this file. "": none.
+  std::string key_file;
 };
 
 struct ComponentInfo {
@@ -127,6 +138,8 @@ struct TransportCounters {
   uint64_t compressed_out = 0;
   uint64_t bytes_out = 0;        // TiMS bytes published (before compression)
   uint64_t wire_bytes_out = 0;   // payload bytes on the wire (after compression)
+  uint64_t auth_failed = 0;      // dropped on a keyed network: unsigned, unknown key, bad MAC
+  uint64_t replayed = 0;         // dropped on a keyed network: sequence seen, or outside the time window
 };
 
 struct LcmTransportConfig {
@@ -146,6 +159,10 @@ struct LcmTransportConfig {
   // After start (which asks every host to announce itself) the discovery table needs
   // this long to fill before this host may answer NOT_AVAILABLE for others.
   int64_t warmup_ns = 500'000'000;
+  // Keyed networks: how far a packet's time may be from ours (clocks synchronised by
+  // PTP or chrony across hosts), and so how long a captured packet can be replayed
+  // to a receiver that has not seen its sender.
+  int64_t replay_window_ns = 5'000'000'000;
   // Where warnings go (malformed packets, publish errors, expired hosts), rate-limited
   // by the transport. Default: stderr.
   std::function<void(const std::string&)> warn;

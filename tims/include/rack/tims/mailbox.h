@@ -45,6 +45,7 @@ enum class SendStatus : uint8_t {
   kTooLarge,        // the message does not fit a slot
   kClosed,          // the mailbox is shutting down
   kNotAvailable,    // (router) no such mailbox; a request was answered NOT_AVAILABLE
+  kDenied,          // (router) refused by access control; a request was answered ERROR
 };
 [[nodiscard]] const char* describe(SendStatus s) noexcept;
 [[nodiscard]] constexpr bool delivered(SendStatus s) noexcept {
@@ -66,6 +67,7 @@ struct MailboxCounters {
   uint64_t refused = 0;      // sends refused because full
   uint64_t too_large = 0;    // sends refused because larger than a slot
   uint64_t truncated = 0;    // receives whose buffer was too small
+  uint64_t denied = 0;       // messages for it that access control refused (rack/tims/access.h)
 };
 
 class Mailbox {
@@ -122,6 +124,9 @@ class Mailbox {
 
   [[nodiscard]] uint32_t queued() const noexcept;
   [[nodiscard]] MailboxCounters counters() const noexcept;
+  // Counts a message for this mailbox that access control refused (the router calls
+  // it). RT-safe, lock-free.
+  void count_denied() noexcept { denied_.fetch_add(1, std::memory_order_relaxed); }
 
  private:
   enum class SlotState : uint8_t { kFree, kWriting, kReady, kReading };
@@ -156,6 +161,7 @@ class Mailbox {
   // Counters: written under the mutex, read lock-free by tools (relaxed: statistics).
   std::atomic<uint64_t> sent_{0}, received_{0}, dropped_{0}, refused_{0}, too_large_{0},
       truncated_{0};
+  std::atomic<uint64_t> denied_{0};  // relaxed: a statistic, outside the mutex
 };
 
 }  // namespace rack::tims

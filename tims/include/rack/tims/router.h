@@ -11,6 +11,11 @@
 //    NOT_AVAILABLE);
 //  - otherwise the address is unknown: a request (type > 0) is answered
 //    NOT_AVAILABLE to its source, a reply or notification is dropped and counted.
+// With access control (set_access), every message for a local mailbox, sent here or
+// arrived from the network, is checked first (rack/tims/access.h): a refused request
+// is answered ERROR with the reason (at most AccessControl::kRepliesPerSecond per
+// rule: a flood is not echoed), a refused reply or notification is dropped;
+// both are counted (per rule, and on the mailbox: MailboxCounters::denied).
 //
 // Real-time contract: find() and send() are RT-safe and lock-free on the look-up
 // (a PI-locked mailbox send follows). add()/remove()/set_uplink() are not RT-safe
@@ -23,6 +28,7 @@
 #include <initializer_list>
 #include <span>
 
+#include "rack/tims/access.h"
 #include "rack/tims/mailbox.h"
 
 namespace rack::tims {
@@ -36,6 +42,7 @@ struct RouterCounters {
   uint64_t not_available = 0;  // requests to unknown mailboxes (answered NOT_AVAILABLE)
   uint64_t unroutable = 0;     // replies/notifications to unknown mailboxes (dropped)
   uint64_t failed = 0;         // local or uplink send refused (full, too large, closed)
+  uint64_t denied = 0;         // refused by access control
 };
 
 class Router {
@@ -58,6 +65,10 @@ class Router {
   // true: other hosts share this system, so a non-local address of it goes to the
   // uplink and deliver_local() leaves unknown addresses to the transport. Not RT-safe.
   void set_system_shared(bool shared) noexcept;
+  // Checks every local delivery against `access` (nullptr: none, everything passes).
+  // Set before traffic flows; `access` outlives the router's use. Not RT-safe.
+  void set_access(AccessControl* access) noexcept;
+  [[nodiscard]] AccessControl* access() const noexcept { return access_.load(std::memory_order_acquire); }
 
   [[nodiscard]] Mailbox* find(Address address) const noexcept;  // RT-safe, lock-free
   [[nodiscard]] bool is_remote(Address address) const noexcept;
@@ -87,15 +98,18 @@ class Router {
   }
   SendStatus answer_not_available(const MessageHeader& request) noexcept;
   SendStatus route_unknown(const MessageHeader& header) noexcept;
+  // true: may be delivered to `local`; false: refused (answered and counted here).
+  bool admit(const MessageHeader& header, Mailbox& local, MessageOrigin origin) noexcept;
 
   uint8_t system_;
   std::array<Entry, kCapacity> table_{};
   std::atomic<Mailbox*> uplink_{nullptr};
   std::atomic<Mailbox*> large_uplink_{nullptr};
   std::atomic<bool> system_shared_{false};  // relaxed: set before traffic flows
+  std::atomic<AccessControl*> access_{nullptr};  // release/acquire: the table is built before
   // Statistics, relaxed: independent counters read by tools.
   std::atomic<uint64_t> delivered_local_{0}, sent_uplink_{0}, not_available_{0}, unroutable_{0},
-      failed_{0};
+      failed_{0}, denied_{0};
 };
 
 }  // namespace rack::tims
