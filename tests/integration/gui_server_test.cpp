@@ -189,5 +189,61 @@ TEST(RackGuiServerTest, RefusesMalformedMessagesAndReportsUnansweredRequests) {
       << gui.err();
 }
 
+// Authenticated links (issue 11): rack-gui takes the host file's network and key file
+// (--host-file) and sees the keyed host's components; without the key it sees nothing.
+TEST(RackGuiServerTest, SeesAKeyedHostOnlyWithItsKeyFile) {
+  Watchdog watchdog(90s, "RackGuiServerTest.Keyed");
+  TempDir dir;
+  LcmBus bus;
+  std::filesystem::create_directories(dir.path() / "web");
+  dir.write("web/index.html", "<html></html>");
+  const auto key = dir.write("link.key", std::string(64, 'b') + "\n");
+  std::filesystem::permissions(key, std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  const auto host = dir.write("keyed.yaml",
+                              "host: keyed\nsystem: 0\nheap_prefault_mib: 0\ntims:\n  announce_ms: 300\n"
+                              "  networks:\n    - {name: robot, url: \"" + bus.url() +
+                                  "\", scope: robot, key_file: \"" + key.string() + "\"}\n"
+                              "components:\n  - name: generator\n    class: Generator\n    instance: 0\n"
+                              "    autostart: true\n    data_task: {priority: 60, period_ms: 10}\n");
+  Process rackd({RACK_RACKD_PATH, host.string()}, dir.path(), "rackd");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
+
+  // The components rack-gui reports within `limit` (names), from one rack-gui run.
+  const auto components_seen = [&](std::vector<std::string> args, std::chrono::seconds limit) {
+    std::vector<std::string> cmd{RACK_GUI_PATH, "--port", "0", "--web", (dir.path() / "web").string(), "--reports",
+                                 "", "--poll-ms", "100"};
+    cmd.insert(cmd.end(), args.begin(), args.end());
+    Process gui(cmd, dir.path(), "rack-gui");
+    std::vector<std::string> names;
+    if (!gui.wait_for_stderr("rack-gui: serving http://", 15s)) {
+      ADD_FAILURE() << gui.err();
+      return names;
+    }
+    const std::string err = gui.err();
+    const auto colon = err.find(':', err.find("http://127.0.0.1") + 10);
+    WsClient c(static_cast<uint16_t>(std::stoi(err.substr(colon + 1))));
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    while (names.empty() && std::chrono::steady_clock::now() < deadline) {
+      const auto j = c.read_type("components");
+      if (!j.is_object()) break;
+      for (const auto& robot : j["robots"]) {
+        for (const auto& h : robot["hosts"]) {
+          for (const auto& comp : h["components"]) names.push_back(comp.value("name", ""));
+        }
+      }
+    }
+    gui.signal(SIGTERM);
+    EXPECT_EQ(gui.wait_exit(10s), std::optional<int>(0)) << gui.err();
+    return names;
+  };
+  const auto with_key = components_seen({"--host-file", host.string()}, 20s);
+  ASSERT_EQ(with_key.size(), 1u);
+  EXPECT_EQ(with_key[0], "generator");
+  EXPECT_TRUE(components_seen({"--lcm", bus.url()}, 4s).empty()) << "without the key the keyed host is invisible";
+
+  rackd.signal(SIGTERM);
+  EXPECT_EQ(rackd.wait_exit(20s), std::optional<int>(0)) << rackd.err();
+}
+
 }  // namespace
 }  // namespace rack::test

@@ -195,6 +195,15 @@ struct Backend::Impl {
   static tims::LcmTransportConfig transport_config(const BackendConfig& c) {
     tims::LcmTransportConfig t;
     t.url = c.lcm_url;
+    if (!c.key_file.empty()) {
+      // The same NetworkConfig::key_file as a host file's network and rackctl's
+      // --key-file: signs what rack-gui sends, verifies what it hears.
+      tims::NetworkConfig n;
+      n.name = "rack-gui";
+      n.url = t.url;
+      n.key_file = c.key_file;
+      t.networks.push_back(n);
+    }
     t.uplink_slots = 256;
     t.announce_period_ns = 0;  // a tool announces nothing
     t.role = tims::NodeRole::kTool;
@@ -1003,7 +1012,9 @@ struct Backend::Impl {
     const std::string url = config.gdos_url.empty() ? config.lcm_url : config.gdos_url;
     const std::string channel = config.gdos_channel.empty() ? tims::kGdosChannel : config.gdos_channel;
     try {
-      sub = std::make_unique<tims::GdosSubscriber>(url, channel, true, "rack-gui");
+      // A keyed network's log is signed: the same key file verifies it (as `gdos --key-file`).
+      sub = std::make_unique<tims::GdosSubscriber>(url, channel, true, "rack-gui",
+                                                   url == config.lcm_url ? config.key_file : std::string());
     } catch (const std::exception& e) {
       std::fprintf(stderr, "rack-gui: GDOS: %s\n", e.what());
       broadcast(dump(json{{"type", "notice"}, {"level", "error"}, {"text", std::string("GDOS: ") + e.what()}}));

@@ -37,6 +37,7 @@ namespace rack::gui {
 
 struct BackendConfig {
   std::string lcm_url;         // TiMS network
+  std::string key_file;        // the network's link key (authenticated links); "" = none
   std::string gdos_url;        // "" = lcm_url
   std::string gdos_channel;    // "" = RACK_GDOS
   std::vector<std::string> maps;  // --map SYSTEM=FILE or FILE (every robot)

@@ -13,6 +13,7 @@
 
 #include "backend.h"
 #include "http_server.h"
+#include "rack/core/host_config.h"
 #include "rack/tims/lcm_transport.h"
 
 #ifndef RACK_GUI_WEB_ROOT
@@ -36,6 +37,11 @@ options:
   --port PORT        TCP port (default 8080; 0: any free port, printed at start)
   --lcm URL          TiMS/LCM network (default: $LCM_DEFAULT_URL, else
                      udpm://239.255.76.67:7667?ttl=0)
+  --key-file FILE    the network's key file (authenticated links: the file the
+                     host files name as key_file; default: $RACK_KEY_FILE); the
+                     GDOS log on the same network is verified with it too
+  --host-file FILE   take the network and its key file from a host file (its
+                     first network); --lcm and --key-file override either
   --gdos-lcm URL     the network of the GDOS log (default: the TiMS network)
   --gdos-channel CH  the GDOS channel (default RACK_GDOS)
   --map [SYS=]FILE   the map (map_server YAML) to draw for robot SYS, or for every
@@ -81,6 +87,9 @@ int main(int argc, char** argv) {
   rack::gui::BackendConfig config;
   const char* env = std::getenv("LCM_DEFAULT_URL");
   config.lcm_url = env != nullptr && *env != '\0' ? env : rack::tims::kDefaultLcmUrl;
+  if (const char* k = std::getenv("RACK_KEY_FILE"); k != nullptr) config.key_file = k;
+  std::string host_file;
+  bool lcm_given = false, key_given = false;
   std::string address = "127.0.0.1";
   long port = 8080;
   std::string web = RACK_GUI_WEB_ROOT;
@@ -100,6 +109,12 @@ int main(int argc, char** argv) {
       port = number(a, value("a port"), 0, 65535);
     } else if (a == "--lcm") {
       config.lcm_url = value("an LCM URL");
+      lcm_given = true;
+    } else if (a == "--key-file") {
+      config.key_file = value("a key file");
+      key_given = true;
+    } else if (a == "--host-file") {
+      host_file = value("a host file");
     } else if (a == "--gdos-lcm") {
       config.gdos_url = value("an LCM URL");
     } else if (a == "--gdos-channel") {
@@ -122,6 +137,13 @@ int main(int argc, char** argv) {
     } else {
       usage_error("unknown argument '" + a + "'");
     }
+  }
+  if (!host_file.empty()) {
+    // The network and key of the host whose file this is, as rackctl --host-file.
+    const rack::ToolNetwork net = rack::read_tool_network(host_file);
+    if (!net.errors.empty()) usage_error(net.errors.front().str());
+    if (!lcm_given) config.lcm_url = net.url;
+    if (!key_given) config.key_file = net.key_file;
   }
   std::error_code ec;
   if (!web_given && !std::filesystem::is_regular_file(std::filesystem::path(web) / "index.html", ec)) {
