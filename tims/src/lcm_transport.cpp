@@ -423,9 +423,12 @@ struct LcmTransport::Impl {
   // host hears every 4 MB scan; only its receiver pays for more than the peek.
   // The peek costs a system call: it is made only while large datagrams come (the one
   // before was large), so small ones (RPC) are read in one call as before.
+  // On a keyed network every datagram is read whole: its MAC covers all of it and is
+  // checked (authentic) before anything of it is used, so no chunk goes into a
+  // reassembly slot unverified.
   bool read_datagram(Network& n) {
     constexpr std::size_t kPeekBytes = 256;
-    if (!n.peek_next) {
+    if (!n.peek_next || n.verifier) {
       const ssize_t got = recv(n.raw_fd, n.datagram.data(), n.datagram.size(), MSG_DONTWAIT | MSG_TRUNC);
       if (got < 0) return false;
       n.peek_next = static_cast<std::size_t>(got) > kPeekBytes;
