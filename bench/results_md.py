@@ -837,6 +837,95 @@ def section_generic(c, keys):
         c.command_block([c.cmd(k)])
 
 
+# ---- scan3d -----------------------------------------------------------------------------------
+def section_scan3d(c, keys):
+    d = c.data("scan3d")
+    c.w("## bench_scan3d: Scan3D processing per 3-D scan vs the same PCL pipeline called directly")
+    c.w("")
+    if d is None:
+        c.w(f"Not run: {c.skipped('scan3d') or 'no results'}.")
+        c.w("")
+        return
+    c.w(f"{d.get('scans', '?')} synthetic scans of {d.get('points_per_scan', '?')} points (a room with boxes), "
+        f"{d.get('points_after_processing', '?')} points after processing (voxel {d.get('voxel_m', '?')} m): "
+        "Scan3D's pipeline (voxel grid, statistical outlier removal, cap, RANSAC ground plane, point typing) and "
+        "the same PCL calls made directly, interleaved on the same clouds; the two results are compared "
+        f"(differing: {d.get('results_differ', '?')}). CPU time of the calling thread is the figure that counts "
+        "on a shared machine. No target in the issue; the ratio is reported.")
+    c.w("")
+    c.w(PCT_HEAD)
+    c.w(pct_row("**Scan3D pipeline** (CPU time)", d["ours_cpu"]))
+    c.w(pct_row("PCL directly (CPU time, reference)", d["reference_cpu"]))
+    c.w(pct_row("Scan3D pipeline (wall)", d["ours"]))
+    c.w(pct_row("PCL directly (wall)", d["reference"]))
+    c.w("")
+    r = ratio(d["ours_cpu"]["p50_ns"], d["reference_cpu"]["p50_ns"])
+    c.w(f"All figures in us. CPU-time ratio p50 **{fx(r)}**, p90 "
+        f"{fx(ratio(d['ours_cpu']['p90_ns'], d['reference_cpu']['p90_ns']))}.")
+    c.w("")
+    c.summary.append(("Scan3D processing per scan, CPU p50", "", f"{ms3(d['ours_cpu']['p50_ns'])} ms",
+                      f"{ms3(d['reference_cpu']['p50_ns'])} ms (PCL directly)", fx(r), "no target (informative)"))
+    c.conditions("scan3d")
+    c.command_block([c.cmd("scan3d")])
+
+
+# ---- access -----------------------------------------------------------------------------------
+def section_access(c, keys):
+    d = c.data("access")
+    c.w("## bench_access: access control and authenticated links vs none")
+    c.w("")
+    if d is None:
+        c.w(f"Not run: {c.skipped('access') or 'no results'}.")
+        c.w("")
+        return
+    c.w("Per message: `Router::send` with 16 access rules (the matching one last) against no access section; "
+        "MAC signing and verification (keyed BLAKE2b with sequence and time window, libsodium) against a memcpy of "
+        "the payload; a TiMS RPC between two transports on a keyed and an unkeyed link; and a 1 kHz SCHED_FIFO "
+        "task's wake-up latency while a flood of refused messages is checked, against the same task idle.")
+    c.w("")
+    c.w("| what | size | with | without (reference) | ratio p50 |")
+    c.w("|---|---|---|---|---|")
+    for row in d.get("check", []):
+        w, wo = row["with"], row["without"]
+        c.w(f"| policy check per send, p50 us | {row['label']} | {us2(w['p50_ns'])} | {us2(wo['p50_ns'])} | "
+            f"{fx(ratio(w['p50_ns'], wo['p50_ns']))} |")
+        c.summary.append((f"access check per send ({row['label']}), p50", "", f"{us2(w['p50_ns'])} us",
+                          f"{us2(wo['p50_ns'])} us (no rules)", fx(ratio(w['p50_ns'], wo['p50_ns'])),
+                          "no target (informative)"))
+    for row in d.get("mac", []):
+        for side in ("sign", "verify"):
+            p, ref = row[side], row["memcpy"]
+            c.w(f"| MAC {side}, p50 us | {row['label']} | {us2(p['p50_ns'])} | {us2(ref['p50_ns'])} (memcpy) | "
+                f"{fx(ratio(p['p50_ns'], ref['p50_ns']))} |")
+    for row in d.get("rpc", []):
+        k, u = row["keyed"], row["unkeyed"]
+        if k.get("samples", 0) == 0:
+            c.w(f"| RPC round trip, p50 us | {row['label']} | no reply (lost) | {us2(u['p50_ns'])} | - |")
+            continue
+        c.w(f"| RPC round trip keyed vs unkeyed, p50 us | {row['label']} | {us2(k['p50_ns'])} | {us2(u['p50_ns'])} | "
+            f"{fx(ratio(k['p50_ns'], u['p50_ns']))} |")
+        c.summary.append((f"keyed TiMS RPC ({row['label']}), p50", "", f"{us2(k['p50_ns'])} us",
+                          f"{us2(u['p50_ns'])} us (unkeyed)", fx(ratio(k['p50_ns'], u['p50_ns'])),
+                          "no target (informative)"))
+    c.w("")
+    f = d.get("flood")
+    if f:
+        c.w(f"RT task under a refused flood ({f.get('checked', 0)} messages checked, {f.get('denied', 0)} refused):")
+        c.w("")
+        c.w(PCT_HEAD)
+        c.w(pct_row("**1 kHz task, flood**", f["flood"]))
+        c.w(pct_row("1 kHz task, idle (reference)", f["idle"]))
+        c.w("")
+        r = ratio(f["flood"]["p99_ns"], f["idle"]["p99_ns"])
+        v = verdict(r, 1.2)
+        c.w(f"All figures in us. Ratio at p99: **{fx(r)}** ({v}; target 1.2x of idle).")
+        c.w("")
+        c.summary.append(("RT wake-up p99 under a refused flood", "", f"{us(f['flood']['p99_ns'])} us",
+                          f"{us(f['idle']['p99_ns'])} us (idle)", fx(r), v))
+    c.conditions("access")
+    c.command_block([c.cmd("access")])
+
+
 # Key (or prefix before '-') -> section function, in report order.
 SECTIONS = [
     ("rpc", section_rpc),
@@ -846,6 +935,8 @@ SECTIONS = [
     ("lcm", section_lcm),
     ("mcl", section_mcl),
     ("can", section_can),
+    ("scan3d", section_scan3d),
+    ("access", section_access),
     ("faults", section_faults),
 ]
 
