@@ -542,27 +542,32 @@ TEST_F(RackdDemoTest, SigtermStopsCleanly) {
 
 // ------------------------------------------------------------------ failing init
 
-using RackdProbeTest = IntegrationTest;
+class RackdProbeTest : public IntegrationTest {
+ protected:
+  // A Generator and a Probe (both autostart) on this test's bus; `probe_extra` ends
+  // the probe's entry (e.g. its params).
+  std::string probe_host(const std::string& name, const std::string& probe_extra = "") {
+    return "host: " + name + "\n"
+           "system: 0\n"
+           "lcm: true\n"
+           "lcm_url: \"" + bus_.url() + "\"\n"
+           "heap_prefault_mib: 8\n"
+           "components:\n"
+           "  - name: generator\n"
+           "    class: Generator\n"
+           "    instance: 0\n"
+           "    autostart: true\n"
+           "    data_task: {priority: 60, period_ms: 10}\n"
+           "  - name: probe\n"
+           "    class: Probe\n"
+           "    instance: 0\n"
+           "    autostart: true\n"
+           "    data_task: {priority: 50, period_ms: 10}\n" + probe_extra;
+  }
+};
 
 TEST_F(RackdProbeTest, FailedInitLeavesTheOtherComponentsRunning) {
-  const std::string host = "host: probe-host\n"
-                           "system: 0\n"
-                           "lcm: true\n"
-                           "lcm_url: \"" + bus_.url() + "\"\n"
-                           "heap_prefault_mib: 8\n"
-                           "components:\n"
-                           "  - name: generator\n"
-                           "    class: Generator\n"
-                           "    instance: 0\n"
-                           "    autostart: true\n"
-                           "    data_task: {priority: 60, period_ms: 10}\n"
-                           "  - name: probe\n"
-                           "    class: Probe\n"
-                           "    instance: 0\n"
-                           "    autostart: true\n"
-                           "    data_task: {priority: 50, period_ms: 10}\n"
-                           "    params:\n"
-                           "      fail_init: true\n";
+  const std::string host = probe_host("probe-host", "    params:\n      fail_init: true\n");
   auto d = start_rackd(dir_.write("probe.yaml", host).string());
   ASSERT_NE(d, nullptr);
   EXPECT_TRUE(contains(d->err(), "fail_init is set")) << d->err();
@@ -598,22 +603,7 @@ TEST_F(RackdProbeTest, FailedInitLeavesTheOtherComponentsRunning) {
 // value that does not fit, an unknown field or command is a usage error that sends
 // nothing.
 TEST_F(RackdProbeTest, SendByNameBuildsTheBodyFromFields) {
-  const std::string host = "host: send-host\n"
-                           "system: 0\n"
-                           "lcm: true\n"
-                           "lcm_url: \"" + bus_.url() + "\"\n"
-                           "heap_prefault_mib: 8\n"
-                           "components:\n"
-                           "  - name: generator\n"
-                           "    class: Generator\n"
-                           "    instance: 0\n"
-                           "    autostart: true\n"
-                           "    data_task: {priority: 60, period_ms: 10}\n"
-                           "  - name: probe\n"
-                           "    class: Probe\n"
-                           "    instance: 0\n"
-                           "    autostart: true\n"
-                           "    data_task: {priority: 50, period_ms: 10}\n";
+  const std::string host = probe_host("send-host");
   auto d = start_rackd(dir_.write("send.yaml", host).string());
   ASSERT_NE(d, nullptr);
   ASSERT_TRUE(eventually([&] { return state_of("probe") == "ENABLED"; }));

@@ -195,15 +195,7 @@ struct Backend::Impl {
   static tims::LcmTransportConfig transport_config(const BackendConfig& c) {
     tims::LcmTransportConfig t;
     t.url = c.lcm_url;
-    if (!c.key_file.empty()) {
-      // The same NetworkConfig::key_file as a host file's network and rackctl's
-      // --key-file: signs what rack-gui sends, verifies what it hears.
-      tims::NetworkConfig n;
-      n.name = "rack-gui";
-      n.url = t.url;
-      n.key_file = c.key_file;
-      t.networks.push_back(n);
-    }
+    tims::use_key_file(t, "rack-gui", c.key_file);  // as rackctl --key-file
     t.uplink_slots = 256;
     t.announce_period_ns = 0;  // a tool announces nothing
     t.role = tims::NodeRole::kTool;

@@ -337,15 +337,8 @@ class Session {
   static tims::LcmTransportConfig transport_config(const Options& o) {
     tims::LcmTransportConfig c;
     c.url = o.lcm_url.empty() ? default_lcm_url() : o.lcm_url;
-    if (!o.key_file.empty()) {
-      // The same NetworkConfig::key_file as a host file's network: signs what this
-      // tool sends and verifies what it hears (rack/tims/link_auth.h).
-      tims::NetworkConfig n;
-      n.name = "rackctl";
-      n.url = c.url;
-      n.key_file = o.key_file;
-      c.networks.push_back(n);
-    }
+    // Signs what this tool sends and verifies what it hears (rack/tims/link_auth.h).
+    tims::use_key_file(c, "rackctl", o.key_file);
     c.uplink_slots = 32;
     c.announce_period_ns = 0;  // a tool announces nothing
     c.role = tims::NodeRole::kTool;

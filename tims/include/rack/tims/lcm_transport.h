@@ -168,6 +168,18 @@ struct LcmTransportConfig {
   std::function<void(const std::string&)> warn;
 };
 
+// For tools (rackctl, rack-gui): join `c.url` as one network signed and verified with
+// `key_file` (the file a host file names as a network's key_file); an empty key file
+// leaves the config unkeyed. Not RT (set-up).
+inline void use_key_file(LcmTransportConfig& c, const std::string& tool_name, const std::string& key_file) {
+  if (key_file.empty()) return;
+  NetworkConfig n;
+  n.name = tool_name;
+  n.url = c.url;
+  n.key_file = key_file;
+  c.networks.push_back(n);
+}
+
 class LcmTransport {
  public:
   // Joins every network and makes the uplink mailboxes (their addresses are on the
