@@ -152,7 +152,9 @@ HookResult Evaluator::loop() {
     if (in == Input::kNone) break;
     if (in == Input::kError) return HookResult::kError;  // a stream's producer left ENABLED: re-subscribe on retry
   }
-  if (!got) return HookResult::kError;  // data_timeout without a sample: the chassis is silent
+  if (!got) {  // nothing usable: an error once the chassis has been silent for data_timeout
+    return input_silent() ? HookResult::kError : HookResult::kOk;
+  }
   data_.position_samples = position_stats_.n;
   data_.position_error = position_stats_.last;
   data_.position_rms = position_stats_.rms();

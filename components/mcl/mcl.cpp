@@ -194,7 +194,9 @@ HookResult Mcl::loop() {
     sh = this_sh;
     got = true;
   }
-  if (!got) return HookResult::kError;  // data_timeout without a scan: the source is silent
+  if (!got) {  // nothing usable: an error once the source has been silent for data_timeout
+    return input_silent() ? HookResult::kError : HookResult::kOk;
+  }
   scans_.fetch_add(1, std::memory_order_relaxed);
   try {
     if (!apply_init()) return HookResult::kError;

@@ -46,7 +46,9 @@ HookResult Monitor::loop() {
     stats_.latency_ns = rt::host_time_ns() - sh.time_ns;
     if (stats_.latency_ns > stats_.latency_max_ns) stats_.latency_max_ns = stats_.latency_ns;
   }
-  if (!got) return HookResult::kError;  // data_timeout without a sample: the source is silent
+  if (!got) {  // nothing usable: an error once the source has been silent for data_timeout
+    return input_silent() ? HookResult::kError : HookResult::kOk;
+  }
   publish(stats_, rt::host_time_ns());
   return HookResult::kOk;
 }

@@ -102,24 +102,25 @@ HookResult ObjRecogCamera::loop() {
   bool got = false;
   wire::SampleHeader sh{};
   for (;;) {  // only the newest image counts: recognition must not lag behind the camera
-    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
-    if (p.status != tims::RecvStatus::kOk) break;
-    const tims::MessageHeader h = *p.header;
-    if (h.type == tims::msg::kError) {
-      input_mailbox().peek_end();
-      return HookResult::kError;  // the camera left ENABLED: re-subscribe on retry
-    }
+    tims::MessageHeader h;
     wire::SampleHeader this_sh{};
-    const bool ok = h.type == tims::msg::kData && read_sample(h, p.body, this_sh, *frame_);
-    input_mailbox().peek_end();
-    if (!ok) {
-      if (h.type == tims::msg::kData) count_bad("a DATA message of the wrong size for CameraData");
+    bool decoded = false;
+    const Input in = next_input(h, [&](const tims::MessageHeader& mh, std::span<const std::byte> body) {
+      decoded = read_sample(mh, body, this_sh, *frame_);
+      return decoded;  // false: logged and counted (GET_STATS malformed) by next_input
+    });
+    if (in == Input::kNone) break;
+    if (in == Input::kError) return HookResult::kError;  // the camera left ENABLED: re-subscribe on retry
+    if (!decoded) {
+      ++bad_;  // a DATA message of the wrong size for CameraData
       continue;
     }
     sh = this_sh;
     got = true;
   }
-  if (!got) return HookResult::kError;  // data_timeout without an image: the camera is silent
+  if (!got) {  // nothing usable: an error once the camera has been silent for data_timeout
+    return input_silent() ? HookResult::kError : HookResult::kOk;
+  }
   const auto start = std::chrono::steady_clock::now();
   const CameraData& f = *frame_;
   const int64_t want_w = width_.get_int(), want_h = height_.get_int();

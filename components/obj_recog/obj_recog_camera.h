@@ -11,8 +11,9 @@
 // objects are still found (ids, image areas) but have no position.
 //
 // Bad input, skipped and counted (ObjRecogData.bad_input) with a logged reason (the
-// first, then every 100th), because the next frame may be fine: a frame of the wrong
-// format, a size that does not match its byte count, a size other than `width` x
+// first, then every 100th), because the next frame may be fine: a DATA message that
+// is not a CameraData (also counted as malformed in GET_STATS, logged once a second
+// by the input path), a frame of the wrong format, a size that does not match its byte count, a size other than `width` x
 // `height` (when given), a JPEG that does not decode, a size with another aspect
 // ratio than the calibration. A calibration file that cannot be read is a
 // configuration error: init() fails and the component stays in ERROR with the file

@@ -47,7 +47,8 @@ HookResult Odometry::loop() {
     odo_.omega = c.omega;
     publish(odo_, sh.time_ns);
   }
-  return got ? HookResult::kOk : HookResult::kError;  // data_timeout without a sample: the chassis is silent
+  // Nothing usable: an error once the chassis has been silent for data_timeout.
+  return got || !input_silent() ? HookResult::kOk : HookResult::kError;
 }
 
 CommandResult Odometry::command(const tims::MessageHeader& request, std::span<const std::byte> body) {

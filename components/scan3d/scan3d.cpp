@@ -6,6 +6,7 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <iterator>
 #include <stdexcept>
 
 #include "rack/scan3d/pcd_file.h"
@@ -290,12 +291,13 @@ void Scan3d::serve_requests() {
 }
 
 void Scan3d::count_bad(BadKind kind, const char* detail) noexcept {
-  static constexpr const char* kWhat[] = {"a PCD file", "a ladar scan", "a sweep"};
+  static constexpr const char* kWhat[] = {"a PCD file", "a ladar scan", "a sweep", "a drive position"};
+  static_assert(std::size(kWhat) == kBadKinds);
   const auto i = static_cast<std::size_t>(kind);
   out_->bad_input++;
   bad_input_.fetch_add(1, std::memory_order_relaxed);
   const uint64_t k = ++bad_kinds_[i];
-  if (k % 100 == 1) log_warning("skipped %s: %s (%llu of this kind so far)", kWhat[i], detail, static_cast<unsigned long long>(k));
+  if (detail != nullptr && k % 100 == 1) log_warning("skipped %s: %s (%llu of this kind so far)", kWhat[i], detail, static_cast<unsigned long long>(k));
 }
 
 void Scan3d::finish_scan(int64_t time_ns, int64_t duration_ns, uint8_t mode, uint32_t ladar_scans, const float* x,
@@ -361,51 +363,55 @@ HookResult Scan3d::loop_ladar(int64_t now) {
   const tims::Address servo = resolved(servo_);
   const tims::Address ladar = resolved(ladar_);
   for (;;) {
-    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
-    if (p.status != tims::RecvStatus::kOk) break;
-    const tims::MessageHeader h = *p.header;
-    if (h.type == tims::msg::kError) {
-      input_mailbox().peek_end();
+    tims::MessageHeader h;
+    wire::SampleHeader sh;
+    ServoDriveData d;
+    enum class From : uint8_t { kOther, kDrive, kLadar } from = From::kOther;
+    bool decoded = true;
+    const Input in = next_input(h, [&](const tims::MessageHeader& mh, std::span<const std::byte> body) {
+      if (same_component(mh.source(), servo)) {
+        from = From::kDrive;
+        decoded = read_sample(mh, body, sh, d);
+      } else if (same_component(mh.source(), ladar)) {
+        from = From::kLadar;
+        decoded = read_sample(mh, body, sh, *ladar_in_);
+      }
+      return decoded;  // false: logged and counted (GET_STATS malformed) by next_input
+    });
+    if (in == Input::kNone) break;
+    if (in == Input::kError) {
       log_error("%s left ENABLED", h.source());
       return HookResult::kError;
     }
-    if (h.type != tims::msg::kData) {
-      input_mailbox().peek_end();
+    if (from == From::kOther) continue;
+    if (!decoded) {
+      count_bad(from == From::kDrive ? BadKind::kDrive : BadKind::kLadarScan, nullptr);
       continue;
     }
-    wire::SampleHeader sh;
-    if (same_component(h.source(), servo)) {
-      ServoDriveData d;
-      const bool ok = read_sample(h, p.body, sh, d);
-      input_mailbox().peek_end();
-      if (!ok || !std::isfinite(d.position)) continue;
+    if (from == From::kDrive) {
+      if (!std::isfinite(d.position)) {
+        count_bad(BadKind::kDrive, "position is not a finite number");
+        continue;
+      }
       assembler_->add_drive_sample(sh.time_ns, d.position);
       drive_ = d;
       drive_time_ns_ = sh.time_ns;
       have_drive_ = true;
       last_drive_mono_ = now;
-    } else if (same_component(h.source(), ladar)) {
-      const bool ok = read_sample(h, p.body, sh, *ladar_in_);
-      input_mailbox().peek_end();
-      if (!ok) {
-        count_bad(BadKind::kLadarScan, "wrong size for LadarData");
-        continue;
-      }
-      last_ladar_mono_ = now;
-      newest_ladar_ns_ = std::max(newest_ladar_ns_, sh.time_ns);
-      if (phase_ != Phase::kSweeping || sh.time_ns < sweep_start_ns_) continue;  // between sweeps
-      if (pending_count_ == kPendingScans) {  // the drive lags far behind: drop the oldest
-        pending_head_ = (pending_head_ + 1) % kPendingScans;
-        --pending_count_;
-        dropped_scans_.fetch_add(1, std::memory_order_relaxed);
-      }
-      const std::size_t slot = (pending_head_ + pending_count_) % kPendingScans;
-      pending_[slot] = *ladar_in_;
-      pending_time_[slot] = sh.time_ns;
-      ++pending_count_;
-    } else {
-      input_mailbox().peek_end();
+      continue;
     }
+    last_ladar_mono_ = now;
+    newest_ladar_ns_ = std::max(newest_ladar_ns_, sh.time_ns);
+    if (phase_ != Phase::kSweeping || sh.time_ns < sweep_start_ns_) continue;  // between sweeps
+    if (pending_count_ == kPendingScans) {  // the drive lags far behind: drop the oldest
+      pending_head_ = (pending_head_ + 1) % kPendingScans;
+      --pending_count_;
+      dropped_scans_.fetch_add(1, std::memory_order_relaxed);
+    }
+    const std::size_t slot = (pending_head_ + pending_count_) % kPendingScans;
+    pending_[slot] = *ladar_in_;
+    pending_time_[slot] = sh.time_ns;
+    ++pending_count_;
   }
   const int64_t silence = silence_ms_.get_int() * rt::kNsPerMs;
   if (now - last_ladar_mono_ > silence) {

@@ -22,7 +22,10 @@
 // Bad input, each counted in Scan3dData.bad_input and logged (the first of each kind,
 // then every 100th with the count), and SKIPPED, because one bad scan or file says
 // nothing about the next: a malformed PCD file (file:line: reason), an empty ladar
-// scan (no echo), a malformed ladar scan, a scan older than the drive's history. A
+// scan (no echo), a malformed ladar scan, a scan older than the drive's history, a
+// drive position that is not finite. A DATA message that does not decode (wrong size
+// for its producer's type) is also counted as malformed in GET_STATS and logged by
+// the data task's input path (DataComponentBase::next_input). A
 // ladar or drive that falls silent for silence_ms, or a drive that does not finish a
 // sweep within sweep_timeout_s, puts the component in ERROR (on() retries).
 //
@@ -81,7 +84,10 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
   static constexpr int8_t kWake = -30;
 
   [[nodiscard]] scan3d::PipelineOptions read_options() const;
-  enum class BadKind : uint8_t { kPcdFile, kLadarScan, kSweep };
+  enum class BadKind : uint8_t { kPcdFile, kLadarScan, kSweep, kDrive };
+  static constexpr std::size_t kBadKinds = 4;
+  // Counts one bad input of `kind`; logs `detail` (rate-limited) unless it is null
+  // (a DATA message that did not decode: next_input has logged it).
   void count_bad(BadKind kind, const char* detail) noexcept;
   HookResult loop_ladar(int64_t now);
   HookResult loop_files(int64_t now);
@@ -148,7 +154,7 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
   std::size_t next_file_ = 0;
   int64_t next_file_mono_ = 0;
   uint32_t scan_number_ = 0;
-  uint64_t bad_kinds_[3] = {};      // per BadKind, for rate-limited logging
+  uint64_t bad_kinds_[kBadKinds] = {};  // per BadKind, for rate-limited logging
 
   // Command task -> data task: GET_RANGE_IMAGE / STORE_DATA requests.
   rt::PiMutex requests_mutex_;

@@ -278,6 +278,10 @@ void DataComponentBase::drain_input() noexcept {
   }
 }
 
+bool DataComponentBase::input_silent() const noexcept {
+  return rt::monotonic_ns() - last_good_input_ns_ >= settings().data_timeout_ns;
+}
+
 void DataComponentBase::input_malformed(const tims::MessageHeader& header, std::size_t size) noexcept {
   malformed_.fetch_add(1, std::memory_order_relaxed);
   const int64_t now = rt::monotonic_ns();
@@ -345,6 +349,7 @@ void DataComponentBase::run_data_task() noexcept {
     if (!was_enabled) {  // just enabled: the timeout starts now
       was_enabled = true;
       deadline = rt::monotonic_ns() + timeout;
+      last_good_input_ns_ = rt::monotonic_ns();
     }
     const int64_t left = deadline - rt::monotonic_ns();
     const bool got = left > 0 && input_mailbox_->wait(left);

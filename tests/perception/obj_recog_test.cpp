@@ -315,6 +315,52 @@ components:
   EXPECT_EQ(host.status(host.address_of("camera")), tims::msg::kEnabled);
 }
 
+// A "camera" that publishes another class's samples (ServoDriveData where CameraData
+// is expected): each is dropped, counted as malformed input (GET_STATS) and as bad
+// input of the object list, and logged with its source; the component stays ENABLED.
+// Test code: runs at priority 0.
+class WrongTypeCamera final : public DataComponent<interfaces::ServoDriveData> {
+ public:
+  WrongTypeCamera() : DataComponent(DataTaskMode::kPeriodic) {}
+
+ protected:
+  HookResult loop() override {
+    interfaces::ServoDriveData d{};
+    publish(d, rt::host_time_ns());
+    return HookResult::kOk;
+  }
+};
+
+TEST(ObjRecogCameraComponentTest, SamplesOfTheWrongTypeAreCountedAsMalformedAndSkipped) {
+  Watchdog watchdog(std::chrono::seconds(60));
+  HostUnderTest host(R"(lcm: false
+components:
+  - name: camera
+    class: WrongTypeCamera
+    data_task: {priority: 0, period_ms: 20}
+  - name: objects
+    class: ObjRecogCamera
+    autostart: true
+    data_task: {priority: 0, timeout_ms: 30000, ring: 8, input_slots: 4}
+    params: {camera: camera}
+)",
+                     [](ComponentRegistry& r) {
+                       r.add({"WrongTypeCamera", tims::classes::kCamera, "test: publishes ServoDriveData",
+                              [] { return std::make_unique<WrongTypeCamera>(); }});
+                     },
+                     /*capture_gdos=*/true);
+  const tims::Address objects = host.address_of("objects");
+  ASSERT_TRUE(host.wait_status(objects, tims::msg::kEnabled)) << host.log();
+  // Each wrong sample wakes the data task with nothing usable: skipped and counted; the
+  // camera counts as silent only after timeout_ms without a frame.
+  ASSERT_TRUE(eventually([&] { return host.stats(objects).malformed >= 5; })) << host.log();
+  ASSERT_TRUE(eventually([&] { return host.gdos_log().find("input: dropped a DATA message of ") != std::string::npos; }))
+      << host.gdos_log();
+  EXPECT_EQ(host.status(objects), tims::msg::kEnabled) << host.log();
+  EXPECT_EQ(host.stats(objects).errors, 0U) << host.log();
+  EXPECT_EQ(host.status(host.address_of("camera")), tims::msg::kEnabled);
+}
+
 // ---------------------------------------------------------------------------
 // Laser tracker.
 

@@ -11,6 +11,7 @@
 #include <fstream>
 
 #include "../unit/test_support.h"
+#include "rack/interfaces/devices.h"
 #include "rack/interfaces/perception.h"
 #include "rack/interfaces/robot.h"
 #include "rack/scan3d/pcd_file.h"
@@ -200,6 +201,56 @@ components:
   EXPECT_EQ(host.status(scan3d), tims::msg::kEnabled) << "a malformed file is skipped, not fatal";
   EXPECT_EQ(host.status(host.address_of("gen")), tims::msg::kEnabled);
   std::filesystem::remove_all(dir);
+}
+
+// A "ladar" that publishes another class's samples (a ServoDriveData
+// where a LadarData is expected): every one is dropped, counted as malformed input
+// (GET_STATS) and as bad input of the scan, and logged with its source; Scan3D stays
+// ENABLED until the ladar has been silent (no usable scan) for silence_ms.
+// Test code: runs at priority 0.
+class WrongTypeLadar final : public DataComponent<interfaces::ServoDriveData> {
+ public:
+  WrongTypeLadar() : DataComponent(DataTaskMode::kPeriodic) {}
+
+ protected:
+  HookResult loop() override {
+    interfaces::ServoDriveData d{};
+    publish(d, rt::host_time_ns());
+    return HookResult::kOk;
+  }
+};
+
+TEST(Scan3dComponentTest, SamplesOfTheWrongTypeAreCountedAsMalformedAndSkipped) {
+  Watchdog watchdog(std::chrono::seconds(60));
+  HostUnderTest host(R"(lcm: false
+components:
+  - name: servo
+    class: ServoDriveSim
+    data_task: {priority: 0, period_ms: 10}
+  - name: ladar
+    class: WrongTypeLadar
+    data_task: {priority: 0, period_ms: 20}
+  - name: scan3d
+    class: Scan3D
+    autostart: true
+    data_task: {priority: 0, timeout_ms: 200, ring: 4, input_slots: 16}
+    params: {ladar: ladar, servo: servo, mode: pitch, silence_ms: 30000}
+)",
+                     [](ComponentRegistry& r) {
+                       r.add({"WrongTypeLadar", tims::classes::kLadar, "test: publishes ServoDriveData",
+                              [] { return std::make_unique<WrongTypeLadar>(); }});
+                     },
+                     /*capture_gdos=*/true);
+  const tims::Address scan3d = host.address_of("scan3d");
+  ASSERT_TRUE(host.wait_status(scan3d, tims::msg::kEnabled)) << host.log();
+  auto* component = dynamic_cast<components::Scan3d*>(host.executor().find("scan3d"));
+  ASSERT_NE(component, nullptr);
+  ASSERT_TRUE(eventually([&] { return component->bad_input() >= 5 && host.stats(scan3d).malformed >= 5; })) << host.log();
+  EXPECT_EQ(component->scans_published(), 0U);
+  ASSERT_TRUE(eventually([&] { return host.gdos_log().find("input: dropped a DATA message of ") != std::string::npos; }))
+      << host.gdos_log();
+  EXPECT_EQ(host.status(scan3d), tims::msg::kEnabled) << "a bad sample is skipped, not fatal";
+  EXPECT_EQ(host.status(host.address_of("servo")), tims::msg::kEnabled);
 }
 
 TEST(Scan3dComponentTest, WithoutASourceOnlyScan3dIsInError) {

@@ -467,6 +467,7 @@ TEST_F(LifecycleTest, ConsumerCountsAndSkipsAMalformedSample) {
   start("", 100, /*monitor=*/true, /*monitor_autostart=*/true);
   ASSERT_EQ(host().status(mon_), msg::kEnabled);
   const uint64_t before = host().stats(mon_).malformed;
+  const uint64_t errors = host().stats(mon_).errors;
   const uint8_t junk[5] = {1, 2, 3, 4, 5};
   const tims::ConstBuffer part{junk, sizeof junk};
   ASSERT_EQ(host().endpoint().send(mon_.with_mailbox(DataComponentBase::kInputMailbox), msg::kData,
@@ -476,6 +477,9 @@ TEST_F(LifecycleTest, ConsumerCountsAndSkipsAMalformedSample) {
   const uint64_t cycles = host().stats(mon_).data.cycles;
   EXPECT_TRUE(test::eventually([&] { return host().stats(mon_).data.cycles > cycles + 3; })) << "still consuming";
   EXPECT_EQ(host().status(mon_), msg::kEnabled);
+  // The junk woke the data task with nothing usable: skipped, not taken for a silent
+  // source (that is an error only after data_timeout without a good sample).
+  EXPECT_EQ(host().stats(mon_).errors, errors);
 }
 
 TEST_F(LifecycleTest, GetAndSetParam) {

@@ -101,7 +101,10 @@ class HostUnderTest {
   static constexpr uint32_t kReplySlotSize = 64 * 1024;
 
   // `extra` registers test-only component classes beside the built-in ones.
-  explicit HostUnderTest(const std::string& yaml, const std::function<void(ComponentRegistry&)>& extra = {}) {
+  // `capture_gdos`: the components' GDOS lines go to gdos_log() as well (the sink
+  // allocates in the GDOS thread: not for the no-allocation tests).
+  explicit HostUnderTest(const std::string& yaml, const std::function<void(ComponentRegistry&)>& extra = {},
+                         bool capture_gdos = false) {
     components::register_builtin(registry_);
     if (extra) extra(registry_);
     auto loaded = load_host_text(yaml, "test.yaml", registry_, rt::probe_capabilities());
@@ -115,6 +118,12 @@ class HostUnderTest {
       std::lock_guard lock(log_mutex_);
       log_ += line + "\n";
     };
+    if (capture_gdos) {
+      options.gdos_sink = [this](const gdos::Record& r) {
+        std::lock_guard lock(log_mutex_);
+        gdos::append_line(r, gdos_log_);
+      };
+    }
     executor_ = std::make_unique<Executor>(std::move(loaded.host), std::move(options));
     const uint8_t sys = executor_->settings().system;
     reply_mailbox_ = std::make_unique<tims::Mailbox>(tims::Address::make(sys, tims::classes::kTool, 1, 1),
@@ -141,6 +150,11 @@ class HostUnderTest {
   std::string log() {
     std::lock_guard lock(log_mutex_);
     return log_;
+  }
+  // The components' GDOS lines (only with capture_gdos).
+  std::string gdos_log() {
+    std::lock_guard lock(log_mutex_);
+    return gdos_log_;
   }
 
   tims::Address address_of(const std::string& name) {
@@ -233,7 +247,7 @@ class HostUnderTest {
   std::unique_ptr<tims::Endpoint> endpoint_;
   std::unique_ptr<std::byte[]> buffer_{new std::byte[kReplySlotSize]};
   std::mutex log_mutex_;
-  std::string log_;
+  std::string log_, gdos_log_;
 };
 
 }  // namespace rack::test

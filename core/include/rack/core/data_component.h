@@ -73,6 +73,13 @@ class DataComponentBase : public Component {
   // as T; kData with `sh` and `out` filled. RT-safe.
   template <tims::Payload T>
   [[nodiscard]] Input next_sample(wire::SampleHeader& sh, T& out) noexcept;
+  // For a triggered loop() that found no usable input (only messages that did not
+  // decode, or none at all): true once data_timeout has passed since the last DATA
+  // that next_input's `take` accepted (or since the component was enabled): the
+  // source is silent, or sends nothing usable, and loop() should return kError. A
+  // wake-up by one malformed message alone is skipped, not an error. Data task;
+  // RT-safe.
+  [[nodiscard]] bool input_silent() const noexcept;
 
   // From on(): GET_CONT_DATA to `producer` for this component's input mailbox.
   HookResult subscribe(tims::Address producer, int64_t period_ns, int64_t* real_period_ns = nullptr) noexcept;
@@ -93,6 +100,7 @@ class DataComponentBase : public Component {
   // A DATA message of `size` bytes from `header`'s source did not decode: count, log.
   void input_malformed(const tims::MessageHeader& header, std::size_t size) noexcept;
   int64_t input_malformed_logged_ns_ = 0;   // data task only
+  int64_t last_good_input_ns_ = 0;          // data task only: input_silent()
   uint64_t input_malformed_suppressed_ = 0;  // data task only
 
   struct Listener {
@@ -175,7 +183,11 @@ DataComponentBase::Input DataComponentBase::next_input(tims::MessageHeader& head
     const std::size_t size = p.body.size();
     const bool ok = take(static_cast<const tims::MessageHeader&>(header), p.body);
     input_mailbox().peek_end();
-    if (!ok) input_malformed(header, size);
+    if (ok) {
+      last_good_input_ns_ = rt::monotonic_ns();
+    } else {
+      input_malformed(header, size);
+    }
     return Input::kData;
   }
 }
