@@ -320,6 +320,7 @@ void Executor::start() {
       tc.expiry_ns = hs.expiry_ns;
       tc.max_message_bytes = hs.max_message_bytes;
       tc.large_slots = hs.large_slots;
+      tc.receive_priority = hs.receive_priority;
       tc.warn = [this](const std::string& s) { log(gdos::Level::kWarning, s); };
       const HousekeepingAffinity housekeeping(views_);  // the transport's threads
       tc.replay_window_ns = hs.replay_window_ns;

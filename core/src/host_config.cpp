@@ -265,6 +265,7 @@ struct HostLoader {
       load_components(comps, *host);
     }
     if (const YAML::Node a = root["access"]) read_access(a, *host);
+    check_receive_priority(root, *host);
     if (!errors.empty()) {
       result.errors = errors;
       return result;
@@ -300,6 +301,27 @@ struct HostLoader {
     }
   }
 
+  // The network's receive threads must never preempt a real-time task of a component
+  // (DESIGN: RT tasks never wait for the network): tims.receive_priority stays below
+  // every SCHED_FIFO task's priority.
+  void check_receive_priority(const YAML::Node& root, const LoadedHost& host) {
+    const int rx = host.settings.receive_priority;
+    if (rx == 0) return;
+    for (const auto& c : host.components) {
+      const ComponentSettings& s = c->settings();
+      const bool has_data_task = c->data_task_mode() != DataTaskMode::kNone;
+      for (const auto& [task, prio] : {std::pair{"command_task", s.command_task.priority},
+                                       std::pair{"data_task", has_data_task ? s.data_task.priority : 0}}) {
+        if (prio > 0 && prio <= rx) {
+          error(root["tims"]["receive_priority"].Mark(),
+                "'receive_priority' = " + std::to_string(rx) + " must be below every real-time task's priority; " +
+                    s.name + "'s " + task + " runs at " + std::to_string(prio));
+          return;
+        }
+      }
+    }
+  }
+
   static std::string tims_default_url() { return "udpm://239.255.76.67:7667?ttl=0"; }
 
   // The `tims:` section: role, discovery timing, message limits, networks.
@@ -308,7 +330,9 @@ struct HostLoader {
       error(t.Mark(), "'tims' must be a map (role, announce_ms, expiry_ms, max_message_kib, large_slots, networks)");
       return;
     }
-    check_keys(t, {"role", "announce_ms", "expiry_ms", "max_message_kib", "large_slots", "networks", "replay_window_ms"},
+    check_keys(t,
+               {"role", "announce_ms", "expiry_ms", "max_message_kib", "large_slots", "networks", "replay_window_ms",
+                "receive_priority"},
                "'tims'");
     if (int64_t w = 0; get_positive_ms(t, "replay_window_ms", w)) hs.replay_window_ns = w;
     std::string role;
@@ -331,6 +355,9 @@ struct HostLoader {
       hs.max_message_bytes = static_cast<uint32_t>(v * 1024 + 4096);
     }
     if (get_int_range(t, "large_slots", 1, 64, v, "a number of slots")) hs.large_slots = static_cast<uint32_t>(v);
+    if (get_int_range(t, "receive_priority", 0, 98, v, "0 (normal scheduling) or a SCHED_FIFO priority 1..98")) {
+      hs.receive_priority = static_cast<int>(v);
+    }
     const YAML::Node nets = t["networks"];
     if (!nets) return;
     if (!nets.IsSequence() || nets.size() == 0) {

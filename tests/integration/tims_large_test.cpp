@@ -3,12 +3,14 @@
 // transport, reassembled into preallocated buffers; with and without zstd on the link.
 // Every message either arrives whole (byte for byte) or is counted lost: never in part.
 #include <gtest/gtest.h>
+#include <sched.h>
 
 #include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <random>
 #include <string>
 #include <thread>
@@ -41,6 +43,7 @@ class TimsLargeTest : public ::testing::Test {
     const std::string url = "udpm://239.255.76.67:" + std::to_string(bus_.port()) + "?ttl=0&recv_buf_size=4194304";
     tims::LcmTransportConfig rc;
     rc.url = url;
+    rc.receive_priority = receive_priority_;
     rc.warn = [this](const std::string& s) { warnings_ += s + "\n"; };
     if (!key_file.empty()) {
       tims::NetworkConfig k;
@@ -88,6 +91,7 @@ class TimsLargeTest : public ::testing::Test {
   std::vector<std::byte> buffer_ = std::vector<std::byte>(kMax + 64);
   std::unique_ptr<tims::LcmTransport> receiver_, sender_;
   std::string warnings_;
+  int receive_priority_ = 0;  // LcmTransportConfig::receive_priority of both ends
 };
 
 std::vector<std::byte> random_body(std::size_t n, uint32_t seed) {
@@ -196,6 +200,42 @@ TEST_F(TimsLargeTest, CompressedLargeMessagesForOtherHostsAreNotReassembled) {
   EXPECT_GE(c.not_for_us, 1u);
   EXPECT_EQ(c.lost_messages, 0u) << warnings_;
   EXPECT_EQ(c.malformed, 0u) << warnings_;
+}
+
+// The scheduling of this process's threads named `name`: (policy, priority) each.
+std::vector<std::pair<int, int>> threads_named(const std::string& name) {
+  std::vector<std::pair<int, int>> out;
+  for (const auto& e : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(e.path() / "comm");
+    std::string n;
+    std::getline(comm, n);
+    if (n != name) continue;
+    const pid_t tid = static_cast<pid_t>(std::stol(e.path().filename().string()));
+    sched_param p{};
+    const int policy = sched_getscheduler(tid);
+    (void)sched_getparam(tid, &p);
+    out.emplace_back(policy, p.sched_priority);
+  }
+  return out;
+}
+
+// tims.receive_priority: the receive threads (one per network and transport) run
+// SCHED_FIFO at that priority, the other transport threads stay at normal scheduling,
+// and large messages still arrive whole.
+TEST_F(TimsLargeTest, ReceiveThreadsRunAtTheConfiguredPriority) {
+  receive_priority_ = 7;
+  start(tims::Compression::kNone);
+  const auto rx = threads_named("tims-rx");
+  ASSERT_EQ(rx.size(), 2u) << "one per transport";
+  for (const auto& [policy, prio] : rx) {
+    EXPECT_EQ(policy, SCHED_FIFO);
+    EXPECT_EQ(prio, 7);
+  }
+  const auto tx = threads_named("tims-tx");
+  ASSERT_FALSE(tx.empty());
+  for (const auto& [policy, prio] : tx) EXPECT_EQ(policy, SCHED_OTHER);
+  EXPECT_TRUE(send_and_receive(random_body(1 << 20, 21), 1)) << warnings_;
+  EXPECT_EQ(warnings_.find("cannot run at SCHED_FIFO"), std::string::npos) << warnings_;
 }
 
 TEST_F(TimsLargeTest, BurstOfMegabyteMessagesArrivesWholeOrCountedLostAndInOrder) {

@@ -428,6 +428,38 @@ TEST_F(HostConfigTest, MissingComponentsIsAWholeFileError) {
   EXPECT_EQ(r.errors[0].str(), "host.yaml: " + r.errors[0].message);
 }
 
+// The network's receive threads may run SCHED_FIFO, but never at or above a
+// component's real-time task: the file is refused with the task that would wait.
+TEST_F(HostConfigTest, ReceivePriorityMustStayBelowEveryRealTimeTask) {
+  const LoadResult r = load(R"(tims:
+  receive_priority: 45
+components:
+  - name: gen
+    class: Generator
+    command_task: {priority: 60}
+    data_task: {priority: 45, period_ms: 10}
+)");
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_EQ(r.errors[0].line, 2);
+  EXPECT_EQ(r.errors[0].message,
+            "'receive_priority' = 45 must be below every real-time task's priority; gen's data_task runs at 45");
+  const LoadResult range = load("tims:\n  receive_priority: 99\ncomponents: []\n");
+  ASSERT_EQ(range.errors.size(), 1u);
+  EXPECT_NE(range.errors[0].message.find("'receive_priority' = 99 is outside 0..98"), std::string::npos)
+      << range.errors[0].message;
+  // Priority-0 tasks (normal scheduling, as MCL's) do not count.
+  const LoadResult ok = load(R"(tims:
+  receive_priority: 20
+components:
+  - name: gen
+    class: Generator
+    command_task: {priority: 30}
+    data_task: {priority: 0, period_ms: 10}
+)");
+  ASSERT_NE(ok.host, nullptr) << (ok.errors.empty() ? "" : ok.errors.front().str());
+  EXPECT_EQ(ok.host->settings.receive_priority, 20);
+}
+
 TEST_F(HostConfigTest, TimsSectionIsReadWithEveryKey) {
   const LoadResult r = load(R"(system: 3
 host_id: 2
@@ -437,6 +469,7 @@ tims:
   expiry_ms: 2000
   max_message_kib: 1024
   large_slots: 2
+  receive_priority: 5
   networks:
     - {name: robot3, url: "udpm://239.255.76.67:7713?ttl=1", scope: robot}
     - {name: fleet, url: "udpm://239.255.76.68:7700?ttl=1", scope: fleet, compress: zstd, compress_min_kib: 8}
@@ -449,6 +482,7 @@ components: []
   EXPECT_EQ(hs.expiry_ns, 2000 * rt::kNsPerMs);
   EXPECT_EQ(hs.max_message_bytes, 1024u * 1024u + 4096u);
   EXPECT_EQ(hs.large_slots, 2u);
+  EXPECT_EQ(hs.receive_priority, 5);
   ASSERT_EQ(hs.networks.size(), 2u);
   EXPECT_EQ(hs.networks[0].name, "robot3");
   EXPECT_EQ(hs.networks[0].scope, tims::NetworkScope::kRobot);

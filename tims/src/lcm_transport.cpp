@@ -27,6 +27,7 @@
 #include <unordered_map>
 
 #include "rack/rt/clock.h"
+#include "rack/rt/thread.h"
 #include "rack/tims/link_auth.h"
 #include "rack_lcm/discover_request.hpp"
 #include "rack_lcm/host_announce.hpp"
@@ -1411,6 +1412,15 @@ void LcmTransport::start() {
     // Named for top/ps on a robot (and bench_lcm's CPU accounting).
     net->receiver = std::thread([&m, net] {
       pthread_setname_np(pthread_self(), "tims-rx");
+      if (const int prio = m.config.receive_priority; prio > 0) {
+        if (const int err = rt::set_current_thread_priority(prio); err != 0) {
+          m.warn("rx priority " + net->config.name, [&] {
+            return "TiMS/LCM: the receive thread of network '" + net->config.name +
+                   "' cannot run at SCHED_FIFO priority " + std::to_string(prio) + " (" + std::strerror(err) +
+                   "): it stays at normal scheduling";
+          });
+        }
+      }
       m.receive_loop(*net);
     });
   }

@@ -60,6 +60,7 @@ struct HostSettings {
   int64_t expiry_ns = 3'000'000'000;
   uint32_t max_message_bytes = 4 * 1024 * 1024 + 4096;
   uint32_t large_slots = 4;
+  int receive_priority = 0;       // TiMS/LCM receive threads: 0 normal, else SCHED_FIFO (below control tasks)
   std::size_t heap_prefault_bytes = 64u << 20;
   int cpu_dma_latency_us = 0;     // PM QoS bound held while running; -1: leave to the system
   std::vector<std::string> plugins;

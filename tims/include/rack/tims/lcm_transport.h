@@ -163,6 +163,12 @@ struct LcmTransportConfig {
   // PTP or chrony across hosts), and so how long a captured packet can be replayed
   // to a receiver that has not seen its sender.
   int64_t replay_window_ns = 5'000'000'000;
+  // Scheduling of the receive threads (one per network): 0 normal scheduling (as
+  // every other transport thread); 1..98 SCHED_FIFO at that priority, BELOW every
+  // control task, so that a busy CPU (MCL, PCL, a build) cannot starve a large
+  // message's datagrams out of the socket buffer. Refused (no RT scheduling): a
+  // warning, and the thread stays at normal scheduling.
+  int receive_priority = 0;
   // Where warnings go (malformed packets, publish errors, expired hosts), rate-limited
   // by the transport. Default: stderr.
   std::function<void(const std::string&)> warn;
