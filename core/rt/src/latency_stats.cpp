@@ -40,6 +40,23 @@ void LatencyStats::copy_histogram(std::array<uint64_t, kBuckets>& out) const noe
   for (std::size_t i = 0; i < kBuckets; ++i) out[i] = buckets_[i].load(std::memory_order_relaxed);
 }
 
+uint64_t LatencyStats::compress(std::span<const int64_t> lower_ns, std::span<uint64_t> counts) const noexcept {
+  for (auto& c : counts) c = 0;
+  if (lower_ns.empty() || lower_ns.size() != counts.size()) return 0;
+  // Both tables increase: one pass over the fine buckets, advancing the coarse index
+  // while the next coarse bucket starts at or below this fine bucket's lower edge.
+  std::size_t j = 0;
+  uint64_t total = 0;
+  for (std::size_t i = 0; i < kBuckets; ++i) {
+    const int64_t fine_lower = static_cast<int64_t>(i) * kBucketNs;
+    while (j + 1 < lower_ns.size() && lower_ns[j + 1] <= fine_lower) ++j;
+    const uint64_t n = buckets_[i].load(std::memory_order_relaxed);
+    counts[j] += n;
+    total += n;
+  }
+  return total;
+}
+
 LatencySummary LatencyStats::summary() const noexcept {
   LatencySummary s;
   s.cycles = cycles_.load(std::memory_order_relaxed);
