@@ -136,6 +136,8 @@ struct Component {
   bool stats_pending = false;
   json stats;               // the last GET_STATS, or null
   bool latency_pending = false;
+  bool latency_refused = false;    // answered ERROR (a rackd from before GET_LATENCY): not asked again
+  bool latency_bad_logged = false; // a malformed reply was logged (once per component)
   json latency;             // the last GET_LATENCY (gui_protocol.h: latency_json), or null
 };
 
@@ -408,14 +410,18 @@ struct Backend::Impl {
   // say they have no data task (their histogram is empty by definition).
   void poll_latency() {
     for (auto& [raw, c] : components) {
-      if (c.latency_pending || shown_state(c, rt::monotonic_ns()) == "no_reply") continue;
+      if (c.latency_pending || c.latency_refused || shown_state(c, rt::monotonic_ns()) == "no_reply") continue;
       if (c.stats.is_object() && c.stats.value("data_task", 0) == 0) continue;
       c.latency_pending = true;
       request(Address(raw), msg::kGetLatency, [this, raw](const Reply* r) {
         auto it = components.find(raw);
         if (it == components.end()) return;
         it->second.latency_pending = false;
-        if (r == nullptr || r->header.type != msg::kLatency) return;  // an old rackd answers ERROR
+        if (r == nullptr) return;
+        // A rackd from before GET_LATENCY answers ERROR (and counts it as malformed):
+        // asking it again every second would only raise its count.
+        if (r->header.type == msg::kError) it->second.latency_refused = true;
+        if (r->header.type != msg::kLatency) return;
         wire::LatencyHistogram h;
         std::string why;
         if (!wire::read_payload(r->body, r->native(), h)) {
@@ -433,8 +439,11 @@ struct Backend::Impl {
           const std::lock_guard lock(counters_mutex);
           ++counters.bad_replies;
         }
-        std::fprintf(stderr, "rack-gui: %s: GET_LATENCY: malformed reply: %s\n",
-                     address_text(Address(raw)).c_str(), why.c_str());
+        if (!it->second.latency_bad_logged) {
+          it->second.latency_bad_logged = true;
+          std::fprintf(stderr, "rack-gui: %s: GET_LATENCY: malformed reply: %s (counted; logged once)\n",
+                       address_text(Address(raw)).c_str(), why.c_str());
+        }
       });
     }
   }

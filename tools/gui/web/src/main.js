@@ -361,17 +361,18 @@ function drawLatency(cv, c) {
     const bh = Math.max(1, ly(k));
     g.fillRect(L + j * bw + 1, T + ph - bh, Math.max(1, bw - 2), bh);
   }
-  // Bucket edges under the axis: every decade (1u, 10u, 100u, 1m, 10m) and the first.
+  // Bucket edges under the axis, at each bucket's left end: every decade (1u, 10u,
+  // 100u, 1m, >=10m).
   g.fillStyle = '#000';
   g.textAlign = 'center';
   g.strokeStyle = '#000';
   g.beginPath(); g.moveTo(L, T + ph); g.lineTo(W - R, T + ph); g.stroke();
   for (let j = 0; j < n; j++) {
     const e = h.lower_ns[j];
-    if (j === 0 || (e > 0 && Number.isInteger(Math.log10(e)))) g.fillText(j === n - 1 ? `>=${edgeText(e)}` : edgeText(e), L + j * bw, T + ph + 14);
+    if (e > 0 && Number.isInteger(Math.log10(e))) g.fillText(j === n - 1 ? `>=${edgeText(e)}` : edgeText(e), L + j * bw, T + ph + 14);
   }
   g.textAlign = 'left';
-  g.fillText('wake-up latency (s), log count', L, H - 4);
+  g.fillText('wake-up latency (bucket edges), count on a log axis', L, H - 4);
   const p = h.latency_ns;
   g.fillText(`${h.samples} samples, overruns ${h.overruns}, p50 ${(p.p50 / 1000).toFixed(1)} us, p99 ${(p.p99 / 1000).toFixed(1)} us, max ${(p.max / 1000).toFixed(1)} us`, L, 13);
   cv.dataset.samples = String(h.samples);
