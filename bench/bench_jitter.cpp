@@ -69,7 +69,7 @@ constexpr const char* kUsage =
     "                   'stress-ng --cpu 2 --vm 1 --vm-bytes 128M --io 1' (stopped at the end)\n"
     "  --load-name NAME the load's label in the output (default: idle, or the command)\n";
 
-constexpr std::size_t kBuckets = rt::LatencyStats::kBuckets;  // 10000 x 1 us, like -h 10000
+constexpr std::size_t kBuckets = rt::LatencyStats::kBuckets;  // 10000 x 1 us + ">= 10 ms", like -h 10001
 
 struct Options {
   int seconds = 30;

@@ -241,6 +241,14 @@ void Component::fill_stats(wire::StatsReply& out) const noexcept {
   out.data_major_faults = df.major;
 }
 
+void Component::fill_latency(wire::LatencyHistogram& out) const noexcept {
+  out = wire::LatencyHistogram{};
+  out.data_task = static_cast<uint8_t>(data_task_mode());
+  out.period_ns = settings_.period_ns;
+  out.bucket_count = static_cast<uint32_t>(wire::kLatencyBuckets);
+  for (std::size_t j = 0; j < wire::kLatencyBuckets; ++j) out.lower_ns[j] = wire::kLatencyLowerNs[j];
+}
+
 void Component::sample_faults() const noexcept {
   (void)command_faults_.sample();
   (void)data_faults_.sample();
@@ -334,6 +342,12 @@ void Component::handle(const MessageHeader& h, std::span<const std::byte> body) 
       wire::StatsReply stats;
       fill_stats(stats);
       return reply_with(h, msg::kStats, stats);
+    }
+    case msg::kGetLatency: {
+      if (!body.empty()) return reject_malformed(h, "GET_LATENCY takes no body");
+      wire::LatencyHistogram hist;  // 728 bytes on the command task's stack
+      fill_latency(hist);
+      return reply_with(h, msg::kLatency, hist);
     }
     default: break;
   }

@@ -252,6 +252,27 @@ void DataComponentBase::fill_stats(wire::StatsReply& out) const noexcept {
   out.listeners = n;
 }
 
+// GET_LATENCY's open bucket (>= 10 ms) is the 1-us histogram's last one.
+static_assert(wire::kLatencyLowerNs.back() ==
+              static_cast<int64_t>(rt::LatencyStats::kBuckets - 1) * rt::LatencyStats::kBucketNs);
+
+void DataComponentBase::fill_latency(wire::LatencyHistogram& out) const noexcept {
+  Component::fill_latency(out);
+  const rt::LatencySummary s = stats_.summary();
+  out.cycles = s.cycles;
+  out.overruns = s.overruns;
+  out.min_ns = s.min_ns;
+  out.max_ns = s.max_ns;
+  out.mean_ns = s.mean_ns;
+  out.p50_ns = s.p50_ns;
+  out.p99_ns = s.p99_ns;
+  out.p999_ns = s.p999_ns;
+  // samples: the sum of this pass's counts, so that the reply adds up even while the
+  // data task records (the summary's pass may have seen a few samples fewer).
+  out.samples = stats_.compress(std::span<const int64_t>(out.lower_ns, out.bucket_count),
+                                std::span<uint64_t>(out.counts, out.bucket_count));
+}
+
 void DataComponentBase::run_one_cycle() noexcept {
   in_loop_.store(true, std::memory_order_seq_cst);
   if (loop_enabled_.load(std::memory_order_seq_cst)) {

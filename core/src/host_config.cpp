@@ -518,7 +518,7 @@ struct HostLoader {
           if (!i.IsScalar() || !tims::parse_message_type(i.Scalar(), type)) {
             error(i.Mark(), "'" + (i.IsScalar() ? i.Scalar() : std::string("?")) +
                                 "' is not a message type (on, off, get_status, get_data, get_cont_data, "
-                                "stop_cont_data, get_next_data, get_param, set_param, get_stats, a reply name "
+                                "stop_cont_data, get_next_data, get_param, set_param, get_stats, get_latency, a reply name "
                                 "such as data, or a number -128..127)");
             continue;
           }

@@ -149,6 +149,17 @@ TEST_F(GuiE2eTest, DashboardOperatesTheSimulatedRobotInChromium) {
                           120s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui.err();
+  // The Timing panel drew the chassis' (periodic, 10 ms) latency histogram from
+  // GET_LATENCY: at least one non-empty bucket and some samples.
+  const auto hist_at = r.out.find("latency histogram: ");
+  ASSERT_NE(hist_at, std::string::npos) << r.out;
+  const std::string hist_line = r.out.substr(hist_at, r.out.find('\n', hist_at) - hist_at);
+  int nonzero = 0;
+  unsigned long long samples = 0;
+  ASSERT_EQ(std::sscanf(hist_line.c_str(), "latency histogram: %d non-empty buckets, %llu samples", &nonzero, &samples), 2)
+      << hist_line;
+  EXPECT_GT(nonzero, 0) << hist_line;
+  EXPECT_GT(samples, 0u) << hist_line;
   for (const char* shot : {"components.png", "all-off.png", "disconnected.png", "map-zoomed.png", "map.png", "gdos.png", "details-pilot.png", "details-chassis.png",
                            "details-ladar.png", "details-camera.png", "reports.png", "destination.png", "joystick.png", "no-reply.png"}) {
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(kArtifacts) / shot)) << shot;

@@ -343,6 +343,59 @@ TEST_F(RackdDemoTest, StatusShowsCycles) {
   EXPECT_GE(j->at("listeners").number, 1.0);  // the monitor
 }
 
+// GET_LATENCY through rackd and rackctl: the running generator's (periodic, 10 ms)
+// histogram. Sandwiched between two GET_STATS, its sample count lies between theirs
+// (all three count the same monotonic 1-us histogram), and its buckets add up to it.
+TEST_F(RackdDemoTest, LatencyHistogramMatchesTheStatsOfARunningGenerator) {
+  ASSERT_TRUE(eventually([&] {
+    const auto j = status_json("generator");
+    return j && j->at("latency_us").at("samples").number >= 10;
+  }));
+  const auto before = status_json("generator");
+  const RunResult r = ctl({"latency", "generator", "--json"});
+  const auto after = status_json("generator");
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  ASSERT_TRUE(before && after);
+  const auto j = parse_json(r.out);
+  ASSERT_TRUE(j.has_value()) << r.out;
+  EXPECT_EQ(j->at("component").string, "Generator(0/0)");
+  EXPECT_EQ(j->at("data_task").string, "periodic");
+  EXPECT_EQ(j->at("period_ns").number, 10e6);
+  const double samples = j->at("samples").number;
+  EXPECT_GE(samples, before->at("latency_us").at("samples").number);
+  EXPECT_LE(samples, after->at("latency_us").at("samples").number);
+  const auto& buckets = j->at("buckets").array;
+  ASSERT_EQ(buckets.size(), 40u) << r.out;
+  double sum = 0;
+  int nonzero = 0;
+  for (std::size_t i = 0; i < buckets.size(); ++i) {
+    sum += buckets[i].at("count").number;
+    nonzero += buckets[i].at("count").number > 0 ? 1 : 0;
+    if (i + 1 < buckets.size()) {
+      EXPECT_EQ(buckets[i].at("upper_ns").number, buckets[i + 1].at("lower_ns").number) << i;
+    }
+  }
+  EXPECT_EQ(buckets.front().at("lower_ns").number, 0.0);
+  EXPECT_TRUE(buckets.back().at("upper_ns").is_null()) << "the last bucket is open";
+  EXPECT_EQ(buckets.back().at("lower_ns").number, 10e6);
+  EXPECT_EQ(sum, samples);
+  EXPECT_GT(nonzero, 0);
+
+  // The text form: the header, the percentiles and at least one bar.
+  const RunResult t = ctl({"latency", "generator"});
+  ASSERT_EQ(t.exit_code, 0) << t.describe();
+  EXPECT_TRUE(contains(t.out, "generator Generator(0/0): wake-up latency of the data task (periodic, period 10 ms)"))
+      << t.out;
+  EXPECT_TRUE(contains(t.out, "overruns")) << t.out;
+  EXPECT_TRUE(contains(t.out, "p99.9")) << t.out;
+  EXPECT_TRUE(contains(t.out, "LATENCY") && contains(t.out, "COUNT")) << t.out;
+  EXPECT_TRUE(contains(t.out, "#")) << t.out;  // a bar
+  const RunResult help = ctl({"help", "latency"});
+  EXPECT_EQ(help.exit_code, 0) << help.describe();
+  EXPECT_TRUE(contains(help.out, "latency NAME [--json]")) << help.out;
+  EXPECT_EQ(ctl({"latency"}).exit_code, 2);
+}
+
 TEST_F(RackdDemoTest, OffGeneratorSendsMonitorToErrorAndItRecovers) {
   ASSERT_TRUE(eventually([&] { return state_of("Monitor(0/0)") == "ENABLED"; }));
   const auto before = status_json("Monitor(0/0)");

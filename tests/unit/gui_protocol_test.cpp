@@ -157,5 +157,42 @@ TEST(GuiProtocolTest, ParamValuesMustHaveTheParametersKind) {
   EXPECT_NE(check_param_value(json(5), p).find("unknown kind"), std::string::npos);
 }
 
+// The components message's "latency": the LATENCY reply's buckets as two arrays of
+// bucket_count entries; a reply that does not add up is refused with the reason.
+TEST(GuiProtocolTest, LatencyHistogramBecomesJsonOnlyWhenItAddsUp) {
+  wire::LatencyHistogram h;
+  h.data_task = 1;
+  h.bucket_count = static_cast<uint32_t>(wire::kLatencyBuckets);
+  h.period_ns = 10'000'000;
+  h.overruns = 2;
+  for (std::size_t j = 0; j < wire::kLatencyBuckets; ++j) h.lower_ns[j] = wire::kLatencyLowerNs[j];
+  h.counts[3] = 100;
+  h.counts[36] = 2;  // two 5 ms wake-ups
+  h.samples = 102;
+  h.p99_ns = 4'000;
+  auto v = latency_json(h);
+  ASSERT_TRUE(std::holds_alternative<nlohmann::json>(v)) << std::get<std::string>(v);
+  const auto& j = std::get<nlohmann::json>(v);
+  EXPECT_EQ(j["samples"], 102);
+  EXPECT_EQ(j["overruns"], 2);
+  EXPECT_EQ(j["period_ns"], 10'000'000);
+  EXPECT_EQ(j["latency_ns"]["p99"], 4'000);
+  ASSERT_EQ(j["lower_ns"].size(), wire::kLatencyBuckets);
+  ASSERT_EQ(j["counts"].size(), wire::kLatencyBuckets);
+  EXPECT_EQ(j["lower_ns"][36], 5'000'000);
+  EXPECT_EQ(j["counts"][36], 2);
+  EXPECT_EQ(j["lower_ns"][39], 10'000'000);
+
+  h.samples = 103;
+  v = latency_json(h);
+  ASSERT_TRUE(std::holds_alternative<std::string>(v));
+  EXPECT_EQ(std::get<std::string>(v), "bucket counts do not add up to samples");
+  h.samples = 102;
+  h.bucket_count = 99;
+  v = latency_json(h);
+  ASSERT_TRUE(std::holds_alternative<std::string>(v));
+  EXPECT_EQ(std::get<std::string>(v), "bucket_count is not 1..40");
+}
+
 }  // namespace
 }  // namespace rack::gui

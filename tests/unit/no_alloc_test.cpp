@@ -318,6 +318,9 @@ components:
     bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kParam ? 0 : 1;
     r = ep.call(probe, msg::kGetStats, buf, test::kCallTimeoutNs);
     bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kStats ? 0 : 1;
+    // The periodic generator's histogram, added up into GET_LATENCY's buckets.
+    r = ep.call(gen, msg::kGetLatency, buf, test::kCallTimeoutNs);
+    bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kLatency ? 0 : 1;
     r = ep.call(Address::make(0, tims::classes::kLadar, 7), msg::kGetStatus, buf, test::kCallTimeoutNs);
     bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kNotAvailable ? 0 : 1;
     while (host.data_mailbox().receive(data, Mailbox::kNonBlocking).status == RecvStatus::kOk) ++streamed;

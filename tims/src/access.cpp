@@ -330,6 +330,7 @@ bool parse_message_type(const std::string& text, int8_t& out) noexcept {
       {"get_cont_data", msg::kGetContData}, {"stop_cont_data", msg::kStopContData},
       {"get_next_data", msg::kGetNextData}, {"get_param", msg::kGetParam},
       {"set_param", msg::kSetParam}, {"get_stats", msg::kGetStats},
+      {"get_latency", msg::kGetLatency}, {"latency", msg::kLatency},
       {"ok", msg::kOk},           {"error", msg::kError},
       {"timeout", msg::kTimeout}, {"not_available", msg::kNotAvailable},
       {"enabled", msg::kEnabled}, {"disabled", msg::kDisabled},

@@ -20,6 +20,7 @@ const char* msg::name(int8_t type) noexcept {
     case kGetParam: return "GET_PARAM";
     case kSetParam: return "SET_PARAM";
     case kGetStats: return "GET_STATS";
+    case kGetLatency: return "GET_LATENCY";
     case kOk: return "OK";
     case kError: return "ERROR";
     case kTimeout: return "TIMEOUT";
@@ -30,6 +31,7 @@ const char* msg::name(int8_t type) noexcept {
     case kContData: return "CONT_DATA";
     case kParam: return "PARAM";
     case kStats: return "STATS";
+    case kLatency: return "LATENCY";
     default: return nullptr;
   }
 }

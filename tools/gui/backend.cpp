@@ -135,6 +135,10 @@ struct Component {
   bool data_pending = false;
   bool stats_pending = false;
   json stats;               // the last GET_STATS, or null
+  bool latency_pending = false;
+  bool latency_refused = false;    // answered ERROR (a rackd from before GET_LATENCY): not asked again
+  bool latency_bad_logged = false; // a malformed reply was logged (once per component)
+  json latency;             // the last GET_LATENCY (gui_protocol.h: latency_json), or null
 };
 
 struct Host {
@@ -402,6 +406,48 @@ struct Backend::Impl {
     }
   }
 
+  // The data task's latency histogram, with the stats: not for components whose stats
+  // say they have no data task (their histogram is empty by definition).
+  void poll_latency() {
+    for (auto& [raw, c] : components) {
+      if (c.latency_pending || c.latency_refused || shown_state(c, rt::monotonic_ns()) == "no_reply") continue;
+      if (c.stats.is_object() && c.stats.value("data_task", 0) == 0) continue;
+      c.latency_pending = true;
+      request(Address(raw), msg::kGetLatency, [this, raw](const Reply* r) {
+        auto it = components.find(raw);
+        if (it == components.end()) return;
+        it->second.latency_pending = false;
+        if (r == nullptr) return;
+        // A rackd from before GET_LATENCY answers ERROR (and counts it as malformed):
+        // asking it again every second would only raise its count.
+        if (r->header.type == msg::kError) it->second.latency_refused = true;
+        if (r->header.type != msg::kLatency) return;
+        wire::LatencyHistogram h;
+        std::string why;
+        if (!wire::read_payload(r->body, r->native(), h)) {
+          why = "reply of " + std::to_string(r->body.size()) + " bytes, expected " + std::to_string(sizeof h);
+        } else {
+          auto j = latency_json(h);
+          if (auto* ok = std::get_if<json>(&j)) {
+            it->second.latency = std::move(*ok);
+            return;
+          }
+          why = std::get<std::string>(j);
+        }
+        it->second.latency = nullptr;  // never a stale histogram beside new stats
+        {
+          const std::lock_guard lock(counters_mutex);
+          ++counters.bad_replies;
+        }
+        if (!it->second.latency_bad_logged) {
+          it->second.latency_bad_logged = true;
+          std::fprintf(stderr, "rack-gui: %s: GET_LATENCY: malformed reply: %s (counted; logged once)\n",
+                       address_text(Address(raw)).c_str(), why.c_str());
+        }
+      });
+    }
+  }
+
   // Data the dashboard draws: the navigation classes every round, other classes with
   // a known data type every `slow` rounds.
   void poll_data(uint64_t round) {
@@ -533,7 +579,8 @@ struct Backend::Impl {
                            {"class", class_text(c->info.address)},
                            {"impl", c->info.impl},
                            {"state", shown_state(*c, now)},
-                           {"stats", c->stats}});
+                           {"stats", c->stats},
+                           {"latency", c->latency}});
         }
         json hj = {{"key", key}, {"components", comps}};
         if (h != hosts.end()) {
@@ -984,7 +1031,10 @@ struct Backend::Impl {
         next_round = now + int64_t{config.poll_ms} * rt::kNsPerMs;
         refresh_hosts();
         poll_status();
-        if (round % 5 == 0) poll_stats();
+        if (round % 5 == 0) {
+          poll_stats();
+          poll_latency();
+        }
         poll_data(round);
         poll_maps();
         std::string snapshot = components_message();

@@ -76,6 +76,7 @@ class Backend {
     uint64_t malformed = 0;   // client messages refused
     uint64_t requests = 0;    // TiMS requests sent
     uint64_t timeouts = 0;    // TiMS requests not answered in time
+    uint64_t bad_replies = 0; // replies that did not decode (GET_LATENCY), not passed on
   };
   [[nodiscard]] Counters counters() const;
 

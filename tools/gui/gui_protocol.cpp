@@ -190,6 +190,29 @@ std::string check_param_value(const json& value, wire::ParamRecord& record) {
   return "the parameter has an unknown kind " + std::to_string(record.kind);
 }
 
+std::variant<nlohmann::json, std::string> latency_json(const wire::LatencyHistogram& h) {
+  if (const char* bad = wire::check_latency_histogram(h)) return std::string(bad);
+  nlohmann::json lower = nlohmann::json::array(), counts = nlohmann::json::array();
+  for (std::size_t j = 0; j < h.bucket_count; ++j) {
+    lower.push_back(h.lower_ns[j]);
+    counts.push_back(h.counts[j]);
+  }
+  return nlohmann::json{{"data_task", h.data_task},
+                        {"period_ns", h.period_ns},
+                        {"cycles", h.cycles},
+                        {"overruns", h.overruns},
+                        {"samples", h.samples},
+                        {"latency_ns",
+                         {{"min", h.min_ns},
+                          {"p50", h.p50_ns},
+                          {"p99", h.p99_ns},
+                          {"p999", h.p999_ns},
+                          {"max", h.max_ns},
+                          {"mean", h.mean_ns}}},
+                        {"lower_ns", std::move(lower)},
+                        {"counts", std::move(counts)}};
+}
+
 std::string error_message(const ParseError& e) {
   json j = {{"type", "error"}, {"error", e.message}};
   if (e.id) j["id"] = *e.id;

@@ -82,6 +82,20 @@ struct ParseError {
 [[nodiscard]] std::string check_param_value(const nlohmann::json& value, wire::ParamRecord& record);
 
 // Server -> client helpers.
+//
+// A component's wake-up latency histogram, from its LATENCY reply (GET_LATENCY, polled
+// with GET_STATS), as the "latency" key of the component in the "components" message:
+//
+//   {"data_task":1,"period_ns":10000000,"cycles":500,"overruns":0,"samples":499,
+//    "latency_ns":{"min":..,"p50":..,"p99":..,"p999":..,"max":..,"mean":..},
+//    "lower_ns":[0,1000,...,10000000],"counts":[0,12,...,0]}
+//
+// lower_ns[j] is bucket j's lower edge; bucket j ends where j+1 starts, the last is
+// open; both arrays have the reply's bucket_count entries and the counts add up to
+// samples. A reply that breaks this (wire::check_latency_histogram) gives the reason
+// instead, and the server passes nothing on.
+[[nodiscard]] std::variant<nlohmann::json, std::string> latency_json(const wire::LatencyHistogram& h);
+
 [[nodiscard]] std::string error_message(const ParseError& e);
 [[nodiscard]] std::string result_message(const std::optional<int64_t>& id, Op op, bool ok, const std::string& text);
 

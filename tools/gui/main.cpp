@@ -192,9 +192,10 @@ int main(int argc, char** argv) {
     backend.stop();
     server_ptr = nullptr;
     const auto c = backend.counters();
-    std::fprintf(stderr, "rack-gui: stopped; %llu request(s) sent, %llu not answered in time, %llu malformed client message(s)\n",
+    std::fprintf(stderr, "rack-gui: stopped; %llu request(s) sent, %llu not answered in time, %llu malformed client message(s), "
+                 "%llu malformed reply(ies)\n",
                  static_cast<unsigned long long>(c.requests), static_cast<unsigned long long>(c.timeouts),
-                 static_cast<unsigned long long>(c.malformed));
+                 static_cast<unsigned long long>(c.malformed), static_cast<unsigned long long>(c.bad_replies));
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rack-gui: %s\n", e.what());
     return 1;

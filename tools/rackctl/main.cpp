@@ -1,7 +1,7 @@
 // rackctl: controls the components of running rackd executors over TiMS/LCM, as any
 // other host would: it joins the LCM network as a tool (system kToolSystem), finds
 // components by announcement (discovery) or by address, and sends RACK's generic
-// messages (ON, OFF, GET_STATUS, GET_STATS, GET_PARAM, SET_PARAM, GET_DATA,
+// messages (ON, OFF, GET_STATUS, GET_STATS, GET_LATENCY, GET_PARAM, SET_PARAM, GET_DATA,
 // GET_CONT_DATA, STOP_CONT_DATA).
 //
 // A normal (non-RT) tool. It never hangs: every wait has a timeout.
@@ -80,6 +80,7 @@ commands:
   on NAME                       switch a component on (answered when its on() finished)
   off NAME                      switch a component off
   status NAME                   state and timing statistics (--json: one JSON object)
+  latency NAME                  the data task's wake-up latency histogram, overruns
   params NAME                   the component's runtime parameters
   set-param NAME KEY VALUE      set one parameter (VALUE is parsed as the parameter's kind)
   get-data NAME [--time T]      one sample as a JSON line
@@ -561,6 +562,76 @@ int cmd_status(Session& s, const Options& o) {
   return kExitOk;
 }
 
+// A latency for a bucket label: "800 us", "1.2 ms", "10 ms".
+std::string latency_text(int64_t ns) {
+  if (ns < rt::kNsPerMs) return double_text(static_cast<double>(ns) / 1e3) + " us";
+  return double_text(static_cast<double>(ns) / 1e6) + " ms";
+}
+
+int cmd_latency(Session& s, const Options& o) {
+  const Target t = s.resolve(o.args[0]);
+  const CallResult r = s.call(t, msg::kGetLatency);
+  Session::expect(t, r, msg::kLatency, "GET_LATENCY");
+  wire::LatencyHistogram h;
+  if (!wire::read_payload(r.body, tims::body_is_native(r.reply), h)) {
+    fail(kExitError, format("%s: GET_LATENCY: reply of %zu bytes, expected %zu", t.label().c_str(), r.body.size(),
+                            sizeof h));
+  }
+  if (const char* bad = wire::check_latency_histogram(h)) {
+    fail(kExitError, format("%s: GET_LATENCY: malformed reply: %s", t.label().c_str(), bad));
+  }
+  const char* mode = rack::describe(static_cast<rack::DataTaskMode>(h.data_task));
+  const std::size_t n = h.bucket_count;
+  const auto u = [](uint64_t v) { return static_cast<unsigned long long>(v); };
+  if (o.json) {
+    std::string j = "{\"component\":" + quoted(t.address.str()) + ",\"name\":" +
+                    (t.name.empty() ? std::string("null") : quoted(t.name)) + ",\"data_task\":" + quoted(mode) +
+                    ",\"period_ns\":" + std::to_string(h.period_ns) + ",\"cycles\":" + std::to_string(h.cycles) +
+                    ",\"overruns\":" + std::to_string(h.overruns) + ",\"samples\":" + std::to_string(h.samples) +
+                    ",\"latency_us\":{\"min\":" + us(h.min_ns) + ",\"p50\":" + us(h.p50_ns) +
+                    ",\"p99\":" + us(h.p99_ns) + ",\"p99.9\":" + us(h.p999_ns) + ",\"max\":" + us(h.max_ns) +
+                    ",\"mean\":" + us(h.mean_ns) + "},\"buckets\":[";
+    for (std::size_t i = 0; i < n; ++i) {
+      j += (i == 0 ? "" : ",") + std::string("{\"lower_ns\":") + std::to_string(h.lower_ns[i]) + ",\"upper_ns\":" +
+           (i + 1 < n ? std::to_string(h.lower_ns[i + 1]) : std::string("null")) +
+           ",\"count\":" + std::to_string(h.counts[i]) + "}";
+    }
+    std::printf("%s]}\n", j.c_str());
+    return kExitOk;
+  }
+  std::printf("%s: wake-up latency of the data task (%s", t.label().c_str(), mode);
+  if (h.period_ns > 0) std::printf(", period %s ms", double_text(static_cast<double>(h.period_ns) / 1e6).c_str());
+  std::printf(")\n  %llu samples, %llu cycles, %llu overruns\n", u(h.samples), u(h.cycles), u(h.overruns));
+  if (h.samples == 0) {
+    std::printf("  none measured%s\n", h.data_task == 0 ? " (no data task)" : "");
+    return kExitOk;
+  }
+  std::printf("  min %s us, p50 %s us, p99 %s us, p99.9 %s us, max %s us, mean %s us\n", us(h.min_ns).c_str(),
+              us(h.p50_ns).c_str(), us(h.p99_ns).c_str(), us(h.p999_ns).c_str(), us(h.max_ns).c_str(),
+              us(h.mean_ns).c_str());
+  // The rows from the first to the last non-empty bucket; bars linear in the count
+  // (a non-empty bucket gets at least one '#', so that a single overrun shows).
+  std::size_t first = n, last = 0;
+  uint64_t most = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (h.counts[i] == 0) continue;
+    first = std::min(first, i);
+    last = i;
+    most = std::max(most, h.counts[i]);
+  }
+  constexpr int kBarWidth = 40;
+  std::printf("  %-19s %12s %7s\n", "LATENCY", "COUNT", "%");
+  for (std::size_t i = first; i <= last; ++i) {
+    const std::string range = i + 1 < n ? latency_text(h.lower_ns[i]) + " - " + latency_text(h.lower_ns[i + 1])
+                                        : ">= " + latency_text(h.lower_ns[i]);
+    int bar = static_cast<int>(static_cast<double>(h.counts[i]) / static_cast<double>(most) * kBarWidth + 0.5);
+    if (h.counts[i] > 0 && bar == 0) bar = 1;
+    std::printf("  %-19s %12llu %7.3f %s\n", range.c_str(), u(h.counts[i]),
+                100.0 * static_cast<double>(h.counts[i]) / static_cast<double>(h.samples), std::string(static_cast<std::size_t>(bar), '#').c_str());
+  }
+  return kExitOk;
+}
+
 std::string param_value(const wire::ParamRecord& p) {
   switch (static_cast<wire::ParamKind>(p.kind)) {
     case wire::ParamKind::kInt: return std::to_string(p.int_value);
@@ -874,6 +945,17 @@ const std::vector<Command>& commands() {
        "the target for an RT task; counted once a second by the executor).\n"
        "--json prints the same as one JSON object.",
        cmd_status},
+      {"latency", "latency NAME [--json]", 1, 1, {"--json"},
+       "Prints the data task's wake-up latency histogram (GET_LATENCY): samples,\n"
+       "cycles, overruns, min/p50/p99/p99.9/max/mean, then one row per bucket from\n"
+       "the first to the last non-empty one: its range, count, share of the samples\n"
+       "and a bar (linear; at least one '#' for a non-empty bucket). Buckets: 1 us\n"
+       "wide below 8 us, then 10 a decade (1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 8) up to\n"
+       "the last, open one (>= 10 ms); the edges come with the reply. A component\n"
+       "without a data task prints \"none measured\". --json prints one JSON object with\n"
+       "every bucket as {\"lower_ns\",\"upper_ns\" (null: open),\"count\"}.\n"
+       "  rackctl latency generator",
+       cmd_latency},
       {"params", "params NAME [--json]", 1, 1, {"--json"},
        "Prints the component's runtime parameters, one per line: name kind value.",
        cmd_params},

@@ -97,6 +97,10 @@ class Component {
   [[nodiscard]] virtual DataTaskMode data_task_mode() const noexcept { return DataTaskMode::kNone; }
   // Statistics for GET_STATS and rackd's status lines. Any thread, RT-safe.
   virtual void fill_stats(wire::StatsReply& out) const noexcept;
+  // The data task's wake-up latency histogram for GET_LATENCY (wire::LatencyHistogram:
+  // the fixed edges, counts all 0 without a data task). Any thread, RT-safe: no
+  // allocation, O(rt::LatencyStats::kBuckets).
+  virtual void fill_latency(wire::LatencyHistogram& out) const noexcept;
   // Class-specific progress for rackd's --status lines ("" for none): appended to
   // `out` as one short line. Called from rackd's main thread while the tasks run, so
   // it reads only atomics or other thread-safe state. Not RT-safe (it may allocate).

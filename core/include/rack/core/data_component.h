@@ -32,6 +32,7 @@ class DataComponentBase : public Component {
  public:
   [[nodiscard]] DataTaskMode data_task_mode() const noexcept override { return mode_; }
   void fill_stats(wire::StatsReply& out) const noexcept override;
+  void fill_latency(wire::LatencyHistogram& out) const noexcept override;
   [[nodiscard]] const SampleRing* ring() const noexcept { return ring_.get(); }
   [[nodiscard]] std::span<const tims::FieldDesc> payload_fields() const noexcept { return fields_; }
   [[nodiscard]] uint32_t payload_size() const noexcept { return payload_size_; }

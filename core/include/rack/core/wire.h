@@ -150,6 +150,73 @@ struct StatsReply {
   }
 };
 
+// GET_LATENCY's reply (LATENCY): the data task's wake-up latency histogram, coarse
+// enough for one message and a terminal, fine enough for a 20 us jitter and a 5 ms
+// overrun alike. The component adds its 1-us histogram (rack/rt/latency_stats.h) up
+// into these buckets in the command task (no allocation).
+//
+// Bucket j holds the wake-up latencies in [lower_ns[j], lower_ns[j+1]); the last one
+// is open (>= 10 ms). Edges: 1-us steps up to 8 us (where a PREEMPT_RT host's jitter
+// lives), then 10 a decade (1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 8 x 10^n us) up to 10 ms.
+// Every edge is a whole microsecond, so the sums are exact.
+//
+// The reply carries its edges (lower_ns) although they are this fixed table: a client
+// (rackctl, rack-gui, a tool in another language) draws what the component measured
+// without a copy of the table, and a later version may change the edges without
+// breaking old clients. 320 bytes more per reply, which is asked for once a second
+// at most. A different bucket count changes the size, which read_payload refuses.
+inline constexpr std::size_t kLatencyBuckets = 40;
+inline constexpr std::array<int64_t, kLatencyBuckets> kLatencyLowerNs = {
+    0,         1'000,     2'000,     3'000,     4'000,     5'000,     6'000,     7'000,
+    8'000,     10'000,    12'000,    15'000,    20'000,    25'000,    30'000,    40'000,
+    50'000,    60'000,    80'000,    100'000,   120'000,   150'000,   200'000,   250'000,
+    300'000,   400'000,   500'000,   600'000,   800'000,   1'000'000, 1'200'000, 1'500'000,
+    2'000'000, 2'500'000, 3'000'000, 4'000'000, 5'000'000, 6'000'000, 8'000'000, 10'000'000};
+
+struct LatencyHistogram {
+  uint8_t data_task = 0;       // as StatsReply: 0 none (all counts 0), 1 periodic, 2 triggered
+  uint8_t reserved[3] = {};
+  uint32_t bucket_count = 0;   // buckets in use (kLatencyBuckets); a client reads only these
+  int64_t period_ns = 0;
+  uint64_t cycles = 0;
+  uint64_t overruns = 0;       // periods missed (skipped, never caught up)
+  uint64_t samples = 0;        // the sum of counts (one snapshot of the histogram)
+  int64_t min_ns = 0;
+  int64_t max_ns = 0;
+  int64_t mean_ns = 0;
+  int64_t p50_ns = 0;          // percentiles from the 1-us histogram (as GET_STATS)
+  int64_t p99_ns = 0;
+  int64_t p999_ns = 0;
+  int64_t lower_ns[kLatencyBuckets] = {};
+  uint64_t counts[kLatencyBuckets] = {};
+  static constexpr auto fields() noexcept {
+    return std::array{
+      RACK_FIELD(LatencyHistogram, data_task), RACK_FIELD(LatencyHistogram, bucket_count),
+      RACK_FIELD(LatencyHistogram, period_ns), RACK_FIELD(LatencyHistogram, cycles),
+      RACK_FIELD(LatencyHistogram, overruns), RACK_FIELD(LatencyHistogram, samples),
+      RACK_FIELD(LatencyHistogram, min_ns), RACK_FIELD(LatencyHistogram, max_ns),
+      RACK_FIELD(LatencyHistogram, mean_ns), RACK_FIELD(LatencyHistogram, p50_ns),
+      RACK_FIELD(LatencyHistogram, p99_ns), RACK_FIELD(LatencyHistogram, p999_ns),
+      RACK_FIELD(LatencyHistogram, lower_ns), RACK_FIELD(LatencyHistogram, counts)};
+  }
+};
+
+// What is wrong with a LATENCY reply a client received, or nullptr when it is usable:
+// bucket_count 1..kLatencyBuckets, lower_ns[0] == 0 and increasing, counts summing
+// to samples. RT-safe.
+[[nodiscard]] inline const char* check_latency_histogram(const LatencyHistogram& h) noexcept {
+  if (h.bucket_count == 0 || h.bucket_count > kLatencyBuckets) return "bucket_count is not 1..40";
+  if (h.lower_ns[0] != 0) return "the first bucket does not start at 0";
+  uint64_t sum = 0;
+  for (std::size_t j = 0; j < h.bucket_count; ++j) {
+    if (j > 0 && h.lower_ns[j] <= h.lower_ns[j - 1]) return "bucket edges do not increase";
+    if (h.counts[j] > UINT64_MAX - sum) return "bucket counts overflow";
+    sum += h.counts[j];
+  }
+  if (sum != h.samples) return "bucket counts do not add up to samples";
+  return nullptr;
+}
+
 // Reads a payload from a body: exact size required, byte order converted when the
 // sender's differs. false: wrong size. RT-safe.
 template <tims::Payload T>

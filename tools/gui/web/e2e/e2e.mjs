@@ -135,6 +135,19 @@ try {
   log('parameters set: pilot vx_max 0.7, evaluator gdosLevel warning');
   await page.locator('[data-testid="comp-chassis"] .name').click();
   await page.locator('[data-testid="latency"]').waitFor({ timeout: 5000 });
+  // The chassis' data task runs every 10 ms: its histogram (GET_LATENCY through
+  // rack-gui) has samples in non-empty buckets that add up, and the canvas drew them.
+  const hist = await until('the chassis\' latency histogram drawn with non-empty buckets', () => page.evaluate(() => {
+    const cv = document.querySelector('[data-testid="latency"]');
+    let c = null;
+    for (const x of window.__rack.comps.values()) if (x.class === 'Chassis' && x.system === 0) c = x;
+    if (!cv || !c || !c.latency || Number(cv.dataset.nonzero) === 0) return null;
+    const sum = c.latency.counts.reduce((a, b) => a + b, 0);
+    return { nonzero: Number(cv.dataset.nonzero), drawn: Number(cv.dataset.samples), samples: c.latency.samples, sum,
+      buckets: c.latency.counts.length, overruns: c.latency.overruns };
+  }), 10000);
+  if (hist.sum !== hist.samples || hist.buckets !== 40) throw new Error(`latency histogram inconsistent: ${JSON.stringify(hist)}`);
+  log(`latency histogram: ${hist.nonzero} non-empty buckets, ${hist.samples} samples, ${hist.overruns} overruns`);
   await shot('details-chassis.png');
   await page.locator('[data-testid="comp-ladar"] .name').click();
   await page.locator('[data-testid="polar"]').waitFor({ timeout: 5000 });

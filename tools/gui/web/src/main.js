@@ -220,14 +220,14 @@ function renderDetails() {
     for (const b of root.querySelectorAll('button[data-set]')) b.onclick = () => setParam(c.address, b.dataset.set, b.dataset.kind);
   }
   $('d-head').innerHTML = `${esc(c.name)} <span class="cls">${esc(c.class)}(${esc(c.impl)}) ${esc(c.address)} on ${esc(c.host ?? '?')}: ${esc(STATE_TEXT[c.state] ?? c.state)}</span>`;
-  // Timing: the data task's wake-up latency percentiles and overruns.
+  // Timing: the data task's wake-up latency histogram, percentiles and overruns.
   const timing = $('d-timing');
   if (c.stats) {
     const s = c.stats;
     if (!document.getElementById('latency-plot')) {
-      timing.innerHTML = '<h3>Timing</h3><div id="d-tstats"></div><canvas id="latency-plot" class="plot" width="520" height="160" data-testid="latency"></canvas>';
+      timing.innerHTML = '<h3>Timing</h3><div id="d-tstats"></div><canvas id="latency-plot" class="plot" width="560" height="200" data-testid="latency"></canvas>';
     }
-    $('d-tstats').innerHTML = `<table class="kv"><tr><th>period</th><td>${s.period_ns ? (s.period_ns / 1e6).toFixed(1) + ' ms' : 'triggered/none'}</td><th>cycles</th><td>${s.cycles}</td><th>overruns</th><td data-testid="overruns">${s.overruns}</td><th>published</th><td>${s.published}</td><th>listeners</th><td>${s.listeners}</td><th>errors</th><td>${s.errors}</td></tr></table>`;
+    $('d-tstats').innerHTML = `<table class="kv"><tr><th>period</th><td>${s.period_ns ? (s.period_ns / 1e6).toFixed(1) + ' ms' : 'triggered/none'}</td><th>cycles</th><td>${s.cycles}</td><th>overruns</th><td data-testid="overruns">${s.overruns}</td><th>published</th><td>${s.published}</td><th>listeners</th><td>${s.listeners}</td><th>errors</th><td>${s.errors}</td></tr>${latencyRow(c.latency ?? null, s)}</table>`;
   }
   const d = st.data.get(c.address);
   if (d) $('d-data').innerHTML = `<h3>Latest data${isStale(d, performance.now()) ? ' (OLD: no new sample)' : ''}</h3>${dataTable(d.data)}`;
@@ -302,31 +302,81 @@ function drawCamera() {
 function drawDetailPlots(c, d) {
   if (c.class === 'Camera') drawCamera();
   const lat = document.getElementById('latency-plot');
-  if (lat && c.stats) drawLatency(lat, c.stats);
+  if (lat && c.stats) drawLatency(lat, c);
   const polar = document.getElementById('polar');
   if (polar && d) drawPolar(polar, c.class, d.data);
 }
 
-// Wake-up latency: the percentiles the component measures (min .. max), as bars on a
-// logarithmic scale, with the overrun count.
-function drawLatency(cv, s) {
+// The percentiles as text under the counters (from the histogram's reply when there is one).
+function latencyRow(h, s) {
+  const l = (h ?? s).latency_ns;
+  const n = (h ?? s).samples;
+  if (!l || !n) return '<tr><th>wake-up</th><td colspan="11">none measured</td></tr>';
+  const us = (v) => `${(v / 1000).toFixed(1)} us`;
+  return `<tr><th>wake-up</th><td colspan="11" data-testid="latency-text">min ${us(l.min)}, p50 ${us(l.p50)}, p99 ${us(l.p99)}, p99.9 ${us(l.p999)}, max ${us(l.max)}, mean ${us(l.mean)} (${n} samples)</td></tr>`;
+}
+
+// A bucket edge as a short label: 800u, 1.2m, 10m.
+function edgeText(ns) { return ns >= 1e6 ? `${+(ns / 1e6).toFixed(1)}m` : `${+(ns / 1e3).toFixed(1)}u`; }
+
+// Wake-up latency histogram (rack-gui's "latency", gui_protocol.h): every bucket the
+// component reports, on a log-count axis (a single 5 ms overrun among 100 000 samples
+// stays visible). Buckets at or beyond the period are red (the task woke a period or
+// more late), those at or beyond p99 orange. The canvas carries data-samples and
+// data-nonzero (non-empty buckets) for the end-to-end test.
+function drawLatency(cv, c) {
   const g = cv.getContext('2d');
-  g.clearRect(0, 0, cv.width, cv.height);
-  const l = s.latency_ns;
-  const keys = [['min', l.min], ['p50', l.p50], ['mean', l.mean], ['p99', l.p99], ['p99.9', l.p999], ['max', l.max]];
-  const maxv = Math.max(1000, ...keys.map((k) => k[1]));
-  const logmax = Math.log10(maxv / 1000 + 1);
-  const bw = (cv.width - 40) / keys.length;
+  const W = cv.width, H = cv.height;
+  g.clearRect(0, 0, W, H);
   g.font = '11px sans-serif';
-  keys.forEach(([name, v], i) => {
-    const h = (Math.log10(v / 1000 + 1) / logmax) * (cv.height - 40);
-    g.fillStyle = name.startsWith('p99') || name === 'max' ? '#ef6c00' : '#1565c0';
-    g.fillRect(30 + i * bw, cv.height - 20 - h, bw - 8, h);
-    g.fillStyle = '#000';
-    g.fillText(name, 30 + i * bw, cv.height - 6);
-    g.fillText(`${(v / 1000).toFixed(1)} us`, 30 + i * bw, cv.height - 24 - h);
-  });
-  g.fillText(`wake-up latency (${s.samples} samples), overruns ${s.overruns}`, 30, 12);
+  g.fillStyle = '#000';
+  const h = c.latency;
+  if (!h || !Array.isArray(h.counts) || h.counts.length === 0) {
+    cv.dataset.samples = '0';
+    cv.dataset.nonzero = '0';
+    g.fillText(c.stats && c.stats.data_task === 0 ? 'no data task: no wake-up latency' : 'no latency histogram yet', 10, 20);
+    return;
+  }
+  const n = h.counts.length;
+  const L = 44, R = 8, T = 22, B = 30;
+  const pw = W - L - R, ph = H - T - B;
+  const most = Math.max(1, ...h.counts);
+  const ly = (v) => Math.log10(v + 1) / Math.log10(most + 1) * ph;
+  const bw = pw / n;
+  let nonzero = 0;
+  // Log-count grid: 1, 10, 100, ...
+  g.strokeStyle = '#e0e0e0';
+  g.textAlign = 'right';
+  for (let d = 1; d <= most; d *= 10) {
+    const y = T + ph - ly(d);
+    g.beginPath(); g.moveTo(L, y); g.lineTo(W - R, y); g.stroke();
+    g.fillText(d >= 1e6 ? `${d / 1e6}M` : d >= 1e3 ? `${d / 1e3}k` : `${d}`, L - 4, y + 4);
+  }
+  for (let j = 0; j < n; j++) {
+    const k = h.counts[j];
+    if (k === 0) continue;
+    nonzero++;
+    const lower = h.lower_ns[j];
+    g.fillStyle = h.period_ns > 0 && lower >= h.period_ns ? '#c62828' : lower >= h.latency_ns.p99 ? '#ef6c00' : '#1565c0';
+    const bh = Math.max(1, ly(k));
+    g.fillRect(L + j * bw + 1, T + ph - bh, Math.max(1, bw - 2), bh);
+  }
+  // Bucket edges under the axis, at each bucket's left end: every decade (1u, 10u,
+  // 100u, 1m, >=10m).
+  g.fillStyle = '#000';
+  g.textAlign = 'center';
+  g.strokeStyle = '#000';
+  g.beginPath(); g.moveTo(L, T + ph); g.lineTo(W - R, T + ph); g.stroke();
+  for (let j = 0; j < n; j++) {
+    const e = h.lower_ns[j];
+    if (e > 0 && Number.isInteger(Math.log10(e))) g.fillText(j === n - 1 ? `>=${edgeText(e)}` : edgeText(e), L + j * bw, T + ph + 14);
+  }
+  g.textAlign = 'left';
+  g.fillText('wake-up latency (bucket edges), count on a log axis', L, H - 4);
+  const p = h.latency_ns;
+  g.fillText(`${h.samples} samples, overruns ${h.overruns}, p50 ${(p.p50 / 1000).toFixed(1)} us, p99 ${(p.p99 / 1000).toFixed(1)} us, max ${(p.max / 1000).toFixed(1)} us`, L, 13);
+  cv.dataset.samples = String(h.samples);
+  cv.dataset.nonzero = String(nonzero);
 }
 
 function drawPolar(cv, cls, d) {

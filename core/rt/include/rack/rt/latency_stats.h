@@ -9,6 +9,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <span>
 
 namespace rack::rt {
 
@@ -27,7 +28,9 @@ struct LatencySummary {
 class LatencyStats {
  public:
   static constexpr int64_t kBucketNs = 1'000;     // 1 us resolution
-  static constexpr std::size_t kBuckets = 10'000;  // up to 10 ms; beyond goes to the last bucket
+  // Buckets 0..9999: [i, i+1) us; bucket 10000: >= 10 ms (everything later), so that a
+  // coarse view with an edge at 10 ms (GET_LATENCY) is exact.
+  static constexpr std::size_t kBuckets = 10'001;
 
   void record_latency(int64_t ns) noexcept;     // RT-safe, writer only
   void record_cycle() noexcept;                 // RT-safe, writer only
@@ -37,6 +40,14 @@ class LatencyStats {
   [[nodiscard]] LatencySummary summary() const noexcept;  // any thread; O(kBuckets)
   // Copies the bucket counts (index i: latency in [i, i+1) us; last: >= kBuckets-1 us).
   void copy_histogram(std::array<uint64_t, kBuckets>& out) const noexcept;
+  // Adds the buckets up into a coarse histogram: `counts[j]` (set, not added to) is the
+  // number of samples in [lower_ns[j], lower_ns[j+1]), the last one open. `lower_ns`
+  // must start at 0 and increase strictly, with the same size as `counts`; an edge that
+  // is not a multiple of kBucketNs counts a 1-us bucket where it starts, and edges
+  // above 10 ms stay empty (the last bucket here is ">= 10 ms"). Returns the sum of
+  // `counts` (0 and all counts 0 when the spans are empty or differ in size). Any
+  // thread; RT-safe: no allocation, no lock, O(kBuckets) relaxed loads.
+  uint64_t compress(std::span<const int64_t> lower_ns, std::span<uint64_t> counts) const noexcept;
 
  private:
   // Relaxed everywhere: each counter is independent; readers want eventual values.
