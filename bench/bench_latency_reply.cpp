@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -48,6 +49,7 @@ struct Options {
   int priority = 80;
   int cpu = 0;
   int64_t gap_us = 50;          // the client sleeps between calls (not 100% RT load)
+  std::string json;             // bench/run's generic form (bench/run's header)
 };
 
 void usage_exit(int code) {
@@ -57,7 +59,8 @@ void usage_exit(int code) {
                "  --rounds R      alternate GET_LATENCY and GET_STATS in R blocks (default 4)\n"
                "  --priority P    SCHED_FIFO priority of the client and the command task (default 80; 0: normal)\n"
                "  --cpu C         CPU of the client, the command task and the data task (default 0)\n"
-               "  --gap-us G      the client sleeps G us between calls (default 50)\n");
+               "  --gap-us G      the client sleeps G us between calls (default 50)\n"
+               "  --json FILE     also write the figures as JSON (bench/run's generic form)\n");
   std::exit(code);
 }
 
@@ -75,6 +78,7 @@ Options parse(int argc, char** argv) {
       else if (a == "--priority") o.priority = std::stoi(next());
       else if (a == "--cpu") o.cpu = std::stoi(next());
       else if (a == "--gap-us") o.gap_us = std::stoll(next());
+      else if (a == "--json") o.json = next();
       else if (a == "-h" || a == "--help") usage_exit(0);
       else usage_exit(2);
     } catch (const std::exception&) {
@@ -193,6 +197,30 @@ int main(int argc, char** argv) {
                 static_cast<unsigned long long>(final_stats.data.samples),
                 static_cast<unsigned long long>(final_stats.data.overruns),
                 static_cast<double>(final_stats.data.latency_p99_ns) / 1e3);
+    if (!o.json.empty()) {
+      using rack::bench::json_escape;
+      using rack::bench::json_percentiles;
+      const auto comparison = [](const char* name, std::vector<int64_t>& a, std::vector<int64_t>& b) {
+        return std::string("{\"name\": \"") + name +
+               "\", \"rack_label\": \"GET_LATENCY\", \"reference_label\": \"GET_STATS\", \"rack\": " +
+               json_percentiles(percentiles_of(a)) + ", \"reference\": " + json_percentiles(percentiles_of(b)) +
+               ", \"metric\": \"p50_ns\"}";
+      };
+      std::ofstream f(o.json);
+      f << "{\"benchmark\": \"latency_reply\", \"machine\": " << rack::bench::json_machine()
+        << ", \"title\": \"bench_latency_reply: GET_LATENCY (the wake-up histogram, 40 buckets) vs GET_STATS\""
+        << ", \"about\": \"" << json_escape(
+               "What asking a running component for its data task's wake-up latency histogram costs, beside "
+               "GET_STATS in the same run: the command task's work per request (fill), and the round trip from a "
+               "SCHED_FIFO client (rpc), in alternating blocks. A Generator's data task runs at 1 kHz meanwhile.")
+        << "\", \"comparisons\": [" << comparison("fill: the command task's work per request", fill_latency, fill_stats)
+        << ", " << comparison("rpc: round trip to the command task", rpc_latency, rpc_stats) << "], \"notes\": [\""
+        << json_escape("The generator's data task meanwhile: " + std::to_string(final_stats.data.samples) +
+                       " samples, " + std::to_string(final_stats.data.overruns) + " overruns; " +
+                       std::to_string(failures) + " failed calls.")
+        << "\"]}\n";
+      if (!f) throw std::runtime_error("cannot write " + o.json);
+    }
     executor.router().remove(mailbox.address());
     executor.stop();
     return failures == 0 ? 0 : 1;

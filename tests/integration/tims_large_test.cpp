@@ -225,7 +225,13 @@ std::vector<std::pair<int, int>> threads_named(const std::string& name) {
 TEST_F(TimsLargeTest, ReceiveThreadsRunAtTheConfiguredPriority) {
   receive_priority_ = 7;
   start(tims::Compression::kNone);
-  const auto rx = threads_named("tims-rx");
+  // The threads name themselves and set their priority once they run.
+  std::vector<std::pair<int, int>> rx;
+  const int64_t until = rt::monotonic_ns() + 5 * rt::kNsPerSec;
+  do {
+    rt::sleep_for(10 * rt::kNsPerMs);
+    rx = threads_named("tims-rx");
+  } while ((rx.size() < 2 || rx[0].first != SCHED_FIFO || rx[1].first != SCHED_FIFO) && rt::monotonic_ns() < until);
   ASSERT_EQ(rx.size(), 2u) << "one per transport";
   for (const auto& [policy, prio] : rx) {
     EXPECT_EQ(policy, SCHED_FIFO);
