@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -256,6 +257,15 @@ struct BadPcd {
   const char* expect;  // in the error message
 };
 
+const std::string kCompressedHeader = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nDATA binary_compressed\n";
+// binary_compressed's two sizes (compressed, raw), little-endian.
+std::string sizes(uint32_t packed, uint32_t raw) {
+  std::string s(8, '\0');
+  std::memcpy(s.data(), &packed, 4);
+  std::memcpy(s.data() + 4, &raw, 4);
+  return s;
+}
+
 TEST(PcdFileTest, RejectsMalformedFilesWithLineAndReason) {
   const std::string h(kHeader);
   const std::vector<BadPcd> cases = {
@@ -272,7 +282,21 @@ TEST(PcdFileTest, RejectsMalformedFilesWithLineAndReason) {
       {"binary short",
        "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 10\nDATA binary\n" + std::string(20, '\0'),
        "binary data holds 20 bytes, the header needs 10 points x 12 bytes = 120"},
-      {"compressed", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nDATA binary_compressed\n", "binary_compressed is not supported"},
+      {"compressed, no sizes", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nDATA binary_compressed\n",
+       "binary_compressed data: 0 bytes, no size header"},
+      {"compressed, raw size", kCompressedHeader + sizes(4, 24) + std::string(4, '\0'),
+       "raw size 24, the header needs 1 points x 12 bytes = 12"},
+      {"compressed, truncated", kCompressedHeader + sizes(40, 12) + std::string(4, '\0'),
+       "4 bytes after the sizes, 40 declared"},
+      // A back reference (control byte 0x20: 3 bytes, 1 behind) before any output.
+      {"compressed, bad reference", kCompressedHeader + sizes(2, 12) + std::string("\x20\x00", 2),
+       "a back reference points before the start of the data"},
+      // A literal run of 32 bytes (control 31) into a 12-byte cloud.
+      {"compressed, overflow", kCompressedHeader + sizes(33, 12) + std::string(1, '\x1f') + std::string(32, 'a'),
+       "decompresses to more than the declared size"},
+      {"compressed, lie", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 100000\nDATA binary_compressed\n" +
+                              sizes(2, 1200000) + std::string(2, '\0'),
+       "more than LZF can expand"},
       {"float size", "FIELDS x y z\nSIZE 4 2 4\nTYPE F F F\nWIDTH 1\nDATA ascii\n1 2 3\n", "field 'y': TYPE F with SIZE 2"},
   };
   for (const auto& c : cases) {

@@ -1,5 +1,6 @@
 #include "rack/scan3d/pcd_file.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -52,6 +53,42 @@ double decode(const unsigned char* p, const Field& f) {
       if (f.size == 2) { int16_t v; std::memcpy(&v, p, 2); return v; }
       { int32_t v; std::memcpy(&v, p, 4); return v; }
   }
+}
+
+// LZF (the compressor of PCL's binary_compressed PCD data), decoded with every
+// reference and length checked against both buffers. A stream is a sequence of
+// control bytes: below 32, a run of (ctrl + 1) literal bytes follows; otherwise a
+// back reference: length (ctrl >> 5) + 2 (an extra length byte when that field is 7),
+// offset ((ctrl & 31) << 8) + next byte + 1 behind the output position. Returns the
+// bytes written, or an empty error on success.
+std::string lzf_decompress(const unsigned char* in, std::size_t in_len, unsigned char* out, std::size_t out_len,
+                           std::size_t& written) {
+  std::size_t ip = 0, op = 0;
+  while (ip < in_len) {
+    const unsigned ctrl = in[ip++];
+    if (ctrl < 32) {
+      const std::size_t len = ctrl + 1;
+      if (ip + len > in_len) return "a literal run of " + std::to_string(len) + " bytes runs past the compressed data";
+      if (op + len > out_len) return "the data decompresses to more than the declared size";
+      std::memcpy(out + op, in + ip, len);
+      ip += len;
+      op += len;
+      continue;
+    }
+    std::size_t len = ctrl >> 5;
+    if (len == 7) {
+      if (ip >= in_len) return "a back reference is cut off";
+      len += in[ip++];
+    }
+    len += 2;
+    if (ip >= in_len) return "a back reference is cut off";
+    const std::size_t back = ((static_cast<std::size_t>(ctrl & 31) << 8) | in[ip++]) + 1;
+    if (back > op) return "a back reference points before the start of the data";
+    if (op + len > out_len) return "the data decompresses to more than the declared size";
+    for (std::size_t k = 0; k < len; ++k, ++op) out[op] = out[op - back];  // may overlap: byte by byte
+  }
+  written = op;
+  return {};
 }
 
 }  // namespace
@@ -168,15 +205,13 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
     else if (f.name == "intensity" || f.name == "i") ii = static_cast<int>(i);
   }
   if (ix < 0 || iy < 0 || iz < 0) return fail(data_line, "FIELDS must include x, y and z");
-  if (data == "binary_compressed") {
-    return fail(data_line, "DATA binary_compressed is not supported; convert the file to binary "
-                           "(pcl_convert_pcd_ascii_binary in.pcd out.pcd 1)");
-  }
   out.declared_points = static_cast<uint32_t>(points);
-  out.x.reserve(points);
-  out.y.reserve(points);
-  out.z.reserve(points);
-  out.intensity.reserve(points);
+  // A hint only, bounded by the file's size: POINTS comes from the file and may lie.
+  const std::size_t expect = static_cast<std::size_t>(std::min<uint64_t>(points, contents.size()));
+  out.x.reserve(expect);
+  out.y.reserve(expect);
+  out.z.reserve(expect);
+  out.intensity.reserve(expect);
   const auto keep = [&](double x, double y, double z, double in) {
     if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) {
       ++out.non_finite;
@@ -187,6 +222,54 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
     out.z.push_back(static_cast<float>(z));
     out.intensity.push_back(std::isfinite(in) ? static_cast<float>(in) : 0.0F);
   };
+  if (data == "binary_compressed") {
+    // Two uint32 (compressed and raw size), then LZF data that holds the fields one
+    // after another (all x, then all y, ...), not point by point.
+    const std::size_t have = contents.size() >= pos ? contents.size() - pos : 0;
+    if (have < 8) return fail(0, "binary_compressed data: " + std::to_string(have) + " bytes, no size header (truncated file?)");
+    uint32_t packed = 0, raw = 0;
+    std::memcpy(&packed, contents.data() + pos, 4);
+    std::memcpy(&raw, contents.data() + pos + 4, 4);
+    const std::size_t need = static_cast<std::size_t>(points) * offset;
+    if (raw != need) {
+      return fail(0, "binary_compressed data: raw size " + std::to_string(raw) + ", the header needs " +
+                         std::to_string(points) + " points x " + std::to_string(offset) + " bytes = " + std::to_string(need));
+    }
+    // LZF expands at most about 90 times (3 bytes for a 264-byte reference): a raw
+    // size beyond that is a lie, refused before anything is allocated for it.
+    if (static_cast<uint64_t>(raw) > static_cast<uint64_t>(packed) * 100 + 64) {
+      return fail(0, "binary_compressed data: raw size " + std::to_string(raw) + " from " + std::to_string(packed) +
+                         " compressed bytes is more than LZF can expand (corrupt file?)");
+    }
+    if (have - 8 < packed) {
+      return fail(0, "binary_compressed data: " + std::to_string(have - 8) + " bytes after the sizes, " +
+                         std::to_string(packed) + " declared (truncated file?)");
+    }
+    std::vector<unsigned char> buf(need);
+    std::size_t written = 0;
+    const std::string why = lzf_decompress(reinterpret_cast<const unsigned char*>(contents.data() + pos + 8), packed,
+                                           buf.data(), buf.size(), written);
+    if (!why.empty()) return fail(0, "binary_compressed data: " + why + " (corrupt file?)");
+    if (written != need) {
+      return fail(0, "binary_compressed data: decompresses to " + std::to_string(written) + " bytes, the header needs " +
+                         std::to_string(need));
+    }
+    // Field f of point p: at points * (the bytes of the fields before f) + p * its own size.
+    const auto column_of = [&](int index) -> const unsigned char* {
+      return buf.data() + static_cast<std::size_t>(points) * fields[static_cast<std::size_t>(index)].offset;
+    };
+    const Field& fx = fields[static_cast<std::size_t>(ix)];
+    const Field& fy = fields[static_cast<std::size_t>(iy)];
+    const Field& fz = fields[static_cast<std::size_t>(iz)];
+    const Field* fi = ii >= 0 ? &fields[static_cast<std::size_t>(ii)] : nullptr;
+    const unsigned char *cx = column_of(ix), *cy = column_of(iy), *cz = column_of(iz);
+    const unsigned char* ci = fi != nullptr ? column_of(ii) : nullptr;
+    for (uint64_t q = 0; q < points; ++q) {
+      keep(decode(cx + q * fx.size * fx.count, fx), decode(cy + q * fy.size * fy.count, fy),
+           decode(cz + q * fz.size * fz.count, fz), fi != nullptr ? decode(ci + q * fi->size * fi->count, *fi) : 0.0);
+    }
+    return true;
+  }
   if (data == "binary") {
     const std::size_t need = static_cast<std::size_t>(points) * offset;
     const std::size_t have = contents.size() >= pos ? contents.size() - pos : 0;

@@ -3,8 +3,9 @@
 // PCL's: PCL's reader warns and carries on past a malformed line (and its io library
 // drags VTK into every process that links it); this one rejects a file with
 // `file:line: what` for the header and for every ASCII point, or the byte counts for
-// binary data. DATA ascii and binary are read; binary_compressed is refused with a
-// clear message (convert it with `pcl_convert_pcd_ascii_binary in.pcd out.pcd 1`).
+// binary data. DATA ascii, binary and binary_compressed (LZF, as PCL writes it with
+// savePCDFileBinaryCompressed) are read; corrupt compressed data is refused with
+// what is wrong, never read past its buffers.
 // Fields x, y, z are required; intensity (or i) is used when present; every other
 // field is read past. Points with a non-finite coordinate (organised clouds' holes)
 // are left out.
