@@ -76,7 +76,10 @@ void Camera::init() {
     capture_->calibrated = true;
   }
   quit_ = false;
-  thread_ = std::thread([this] { run(); });
+  thread_ = std::thread([this] {
+    pthread_setname_np(pthread_self(), "camera-capture");
+    run();
+  });
 }
 
 void Camera::cleanup() {

@@ -260,10 +260,15 @@ void Executor::start() {
                                "every message to every component here (see configs/access_control.yaml)");
   }
   for (auto& v : views_) v.component->attach(router_);
-  for (auto& v : views_) {
-    if (!v.component->run_init(v.init_error)) {
-      log(gdos::Level::kError, "component '" + v.component->name() + "' " + v.component->address().str() +
-                                   " is in ERROR: init() failed: " + v.init_error);
+  {
+    // Threads a component starts in init() (a driver's device I/O: TcpSensorLink, the
+    // camera's capture) are not real-time: they inherit the housekeeping CPUs.
+    const HousekeepingAffinity housekeeping(views_);
+    for (auto& v : views_) {
+      if (!v.component->run_init(v.init_error)) {
+        log(gdos::Level::kError, "component '" + v.component->name() + "' " + v.component->address().str() +
+                                     " is in ERROR: init() failed: " + v.init_error);
+      }
     }
   }
   try {

@@ -125,6 +125,40 @@ components:
 namespace rack {
 namespace {
 
+// A component that starts a non-RT thread in init(), as drivers do for device I/O.
+// Test code (not RT: it makes a thread).
+class ThreadInInit final : public Component {
+ public:
+  ~ThreadInInit() override { cleanup(); }
+
+ protected:
+  void init() override {
+    thread_ = std::thread([this] {
+      pthread_setname_np(pthread_self(), "test-io");
+      while (!quit_.load()) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    });
+  }
+  void cleanup() override {
+    quit_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+
+ private:
+  std::atomic<bool> quit_{false};
+  std::thread thread_;
+};
+
+// The id of this process's thread named `name`, 0 when there is none.
+pid_t thread_named(const std::string& wanted) {
+  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(entry.path() / "comm");
+    std::string name;
+    std::getline(comm, name);
+    if (name == wanted) return static_cast<pid_t>(std::stoi(entry.path().filename().string()));
+  }
+  return 0;
+}
+
 // The CPUs thread `tid` of this process may run on (sched_getaffinity).
 cpu_set_t affinity_of(pid_t tid) {
   cpu_set_t set;
@@ -133,9 +167,10 @@ cpu_set_t affinity_of(pid_t tid) {
   return set;
 }
 
-// The executor's own non-RT threads (here: the GDOS thread) stay off a CPU that an RT
+// The executor's own non-RT threads (here: the GDOS thread) and threads a component
+// starts in init() (device I/O) stay off a CPU that an RT
 // task is pinned to; the thread that started the executor gets its full set back.
-TEST(HousekeepingAffinityTest, GdosThreadStaysOffTheCpuOfAPinnedRtTask) {
+TEST(HousekeepingAffinityTest, GdosAndInitThreadsStayOffTheCpuOfAPinnedRtTask) {
   Watchdog watchdog;
   const cpu_set_t before = affinity_of(0);
   if (CPU_COUNT(&before) < 2) GTEST_SKIP() << "needs 2 CPUs in this process's affinity";
@@ -151,7 +186,13 @@ components:
     instance: 1
     command_task: {priority: 30, cpu: )" + std::to_string(pinned) + R"(}
     data_task: {priority: 60, cpu: )" + std::to_string(pinned) + R"(, period_ms: 10}
-)");
+  - name: io
+    class: ThreadInInit
+)",
+                           [](ComponentRegistry& r) {
+                             r.add({"ThreadInInit", tims::classes::kFirstUser, "test: starts a thread in init()",
+                                    [] { return std::make_unique<ThreadInInit>(); }});
+                           });
   const cpu_set_t after = affinity_of(0);
   EXPECT_TRUE(CPU_EQUAL(&before, &after)) << "the starting thread's affinity was not restored";
   // Find the GDOS thread by name among this process's threads.
@@ -171,6 +212,14 @@ components:
   const cpu_set_t g = affinity_of(gdos);
   EXPECT_FALSE(CPU_ISSET(pinned, &g)) << "GDOS thread may run on CPU " << pinned << ", where RT tasks are pinned";
   EXPECT_GE(CPU_COUNT(&g), 1);
+  // A thread the component started in init() (as a driver's device I/O thread).
+  pid_t io = 0;
+  ASSERT_TRUE(test::eventually([&] {
+    io = thread_named("test-io");
+    return io != 0;
+  }));
+  const cpu_set_t t = affinity_of(io);
+  EXPECT_FALSE(CPU_ISSET(pinned, &t)) << "init()'s thread may run on CPU " << pinned << ", where RT tasks are pinned";
 }
 
 }  // namespace

@@ -44,7 +44,10 @@ void TcpSensorLink::start(TcpSensorConfig config) {
   (void)rt::modeswitch::register_rt_device(data_event_);
   (void)rt::modeswitch::register_rt_device(control_event_);
   stop_.store(false);
-  thread_ = std::thread([this] { run(); });
+  thread_ = std::thread([this] {
+    pthread_setname_np(pthread_self(), "tcp-sensor");
+    run();
+  });
 }
 
 void TcpSensorLink::stop() noexcept {
