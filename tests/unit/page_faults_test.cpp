@@ -176,7 +176,7 @@ TEST(HousekeepingAffinityTest, GdosAndInitThreadsStayOffTheCpuOfAPinnedRtTask) {
   if (CPU_COUNT(&before) < 2) GTEST_SKIP() << "needs 2 CPUs in this process's affinity";
   int pinned = -1;
   for (int cpu = CPU_SETSIZE - 1; cpu >= 0 && pinned < 0; --cpu) {
-    if (CPU_ISSET(cpu, &before)) pinned = cpu;  // the highest allowed CPU
+    if (CPU_ISSET(static_cast<std::size_t>(cpu), &before)) pinned = cpu;  // the highest allowed CPU
   }
   test::HostUnderTest host(R"(system: 0
 lcm: false
@@ -210,7 +210,7 @@ components:
     return false;
   }));
   const cpu_set_t g = affinity_of(gdos);
-  EXPECT_FALSE(CPU_ISSET(pinned, &g)) << "GDOS thread may run on CPU " << pinned << ", where RT tasks are pinned";
+  EXPECT_FALSE(CPU_ISSET(static_cast<std::size_t>(pinned), &g)) << "GDOS thread may run on CPU " << pinned << ", where RT tasks are pinned";
   EXPECT_GE(CPU_COUNT(&g), 1);
   // A thread the component started in init() (as a driver's device I/O thread).
   pid_t io = 0;
@@ -219,7 +219,7 @@ components:
     return io != 0;
   }));
   const cpu_set_t t = affinity_of(io);
-  EXPECT_FALSE(CPU_ISSET(pinned, &t)) << "init()'s thread may run on CPU " << pinned << ", where RT tasks are pinned";
+  EXPECT_FALSE(CPU_ISSET(static_cast<std::size_t>(pinned), &t)) << "init()'s thread may run on CPU " << pinned << ", where RT tasks are pinned";
 }
 
 }  // namespace
