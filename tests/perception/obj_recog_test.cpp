@@ -23,6 +23,7 @@
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/perception.h"
 #include "../unit/test_support.h"
+#include "wrong_type_producer.h"
 
 namespace rack::test {
 namespace {
@@ -315,22 +316,9 @@ components:
   EXPECT_EQ(host.status(host.address_of("camera")), tims::msg::kEnabled);
 }
 
-// A "camera" that publishes another class's samples (ServoDriveData where CameraData
+// A "camera" that publishes another class's samples (WrongTypeProducer: ServoDriveData where CameraData
 // is expected): each is dropped, counted as malformed input (GET_STATS) and as bad
 // input of the object list, and logged with its source; the component stays ENABLED.
-// Test code: runs at priority 0.
-class WrongTypeCamera final : public DataComponent<interfaces::ServoDriveData> {
- public:
-  WrongTypeCamera() : DataComponent(DataTaskMode::kPeriodic) {}
-
- protected:
-  HookResult loop() override {
-    interfaces::ServoDriveData d{};
-    publish(d, rt::host_time_ns());
-    return HookResult::kOk;
-  }
-};
-
 TEST(ObjRecogCameraComponentTest, SamplesOfTheWrongTypeAreCountedAsMalformedAndSkipped) {
   Watchdog watchdog(std::chrono::seconds(60));
   HostUnderTest host(R"(lcm: false
@@ -346,7 +334,7 @@ components:
 )",
                      [](ComponentRegistry& r) {
                        r.add({"WrongTypeCamera", tims::classes::kCamera, "test: publishes ServoDriveData",
-                              [] { return std::make_unique<WrongTypeCamera>(); }});
+                              [] { return std::make_unique<WrongTypeProducer>(); }});
                      },
                      /*capture_gdos=*/true);
   const tims::Address objects = host.address_of("objects");

@@ -11,6 +11,7 @@
 #include <fstream>
 
 #include "../unit/test_support.h"
+#include "wrong_type_producer.h"
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/perception.h"
 #include "rack/interfaces/robot.h"
@@ -203,23 +204,10 @@ components:
   std::filesystem::remove_all(dir);
 }
 
-// A "ladar" that publishes another class's samples (a ServoDriveData
+// A "ladar" that publishes another class's samples (WrongTypeProducer: ServoDriveData
 // where a LadarData is expected): every one is dropped, counted as malformed input
 // (GET_STATS) and as bad input of the scan, and logged with its source; Scan3D stays
 // ENABLED until the ladar has been silent (no usable scan) for silence_ms.
-// Test code: runs at priority 0.
-class WrongTypeLadar final : public DataComponent<interfaces::ServoDriveData> {
- public:
-  WrongTypeLadar() : DataComponent(DataTaskMode::kPeriodic) {}
-
- protected:
-  HookResult loop() override {
-    interfaces::ServoDriveData d{};
-    publish(d, rt::host_time_ns());
-    return HookResult::kOk;
-  }
-};
-
 TEST(Scan3dComponentTest, SamplesOfTheWrongTypeAreCountedAsMalformedAndSkipped) {
   Watchdog watchdog(std::chrono::seconds(60));
   HostUnderTest host(R"(lcm: false
@@ -238,7 +226,7 @@ components:
 )",
                      [](ComponentRegistry& r) {
                        r.add({"WrongTypeLadar", tims::classes::kLadar, "test: publishes ServoDriveData",
-                              [] { return std::make_unique<WrongTypeLadar>(); }});
+                              [] { return std::make_unique<WrongTypeProducer>(); }});
                      },
                      /*capture_gdos=*/true);
   const tims::Address scan3d = host.address_of("scan3d");
