@@ -54,6 +54,7 @@ HookResult ChassisCan::fail(Fault f) noexcept {
     case Fault::kDriveFault: what = "a drive reports a fault (statusword)"; break;
     case Fault::kBus: what = "CAN bus error (bus-off or the interface is gone)"; break;
     case Fault::kNoPdo: what = "no TPDO from a drive within half a period"; break;
+    case Fault::kNotOperational: what = "a drive did not report the NMT state OPERATIONAL within heartbeat_timeout_ms of the start"; break;
   }
   log_error("chassis fault: %s (%s); retrying after the back-off", what, static_cast<const char*>(spec_));
   return HookResult::kError;
@@ -108,6 +109,8 @@ HookResult ChassisCan::on() {
   for (Drive& d : drives_) {
     if (port_.send(co::nmt(co::kNmtStart, d.node)).status != IoStatus::kOk) return fail(Fault::kBus);
     d.last_heartbeat_ns = rt::monotonic_ns();
+    d.started_ns = d.last_heartbeat_ns;
+    d.operational = false;
   }
   target_vx_.store(0.0, std::memory_order_relaxed);
   target_omega_.store(0.0, std::memory_order_relaxed);
@@ -145,7 +148,13 @@ void ChassisCan::handle_frame(const can_frame& f, int64_t now) noexcept {
   for (Drive& d : drives_) {
     if (id == co::kHeartbeat + d.node && f.len >= 1) {
       d.last_heartbeat_ns = now;
-      if (f.data[0] != co::kStateOperational) fault_.store(static_cast<uint8_t>(Fault::kNmtState));
+      // A heartbeat sent before the drive took the NMT start may still be on its way
+      // (or queued in the socket): only leaving OPERATIONAL once reached is a fault.
+      if (f.data[0] == co::kStateOperational) {
+        d.operational = true;
+      } else if (d.operational) {
+        fault_.store(static_cast<uint8_t>(Fault::kNmtState));
+      }
     } else if (id == co::kTpdo1 + d.node && f.len == 8) {
       d.velocity = static_cast<int32_t>(co::get_u32(&f.data[0]));
       d.position = static_cast<int32_t>(co::get_u32(&f.data[4]));
@@ -213,10 +222,14 @@ HookResult ChassisCan::loop() {
     const bool faulted = d.got_tpdo2 && ((d.statusword & co::kSwFault) != 0 ||
                                          (d.statusword & co::kSwStateMask) != co::kSwOperationEnabled);
     const bool left_operational = fault_.load(std::memory_order_relaxed) == static_cast<uint8_t>(Fault::kNmtState);
-    if (silent || faulted || left_operational) {
+    const bool never_operational = !d.operational && t - d.started_ns > hb_timeout;
+    if (silent || faulted || left_operational || never_operational) {
       stop_drive(drives_[1 - i]);  // the other drive must not keep turning the robot
       stop_drive(d);
-      return fail(silent ? Fault::kHeartbeat : faulted ? Fault::kDriveFault : Fault::kNmtState);
+      return fail(silent              ? Fault::kHeartbeat
+                  : faulted           ? Fault::kDriveFault
+                  : left_operational  ? Fault::kNmtState
+                                      : Fault::kNotOperational);
     }
   }
   const bool complete = left.got_tpdo1 && right.got_tpdo1;

@@ -34,8 +34,8 @@ class HousekeepingAffinity {
     cpu_set_t set = saved_;
     bool removed = false;
     const auto drop = [&](const TaskSettings& t) {
-      if (t.priority > 0 && t.cpu >= 0 && t.cpu < CPU_SETSIZE && CPU_ISSET(t.cpu, &set)) {
-        CPU_CLR(t.cpu, &set);
+      if (t.priority > 0 && t.cpu >= 0 && t.cpu < CPU_SETSIZE && CPU_ISSET(static_cast<std::size_t>(t.cpu), &set)) {
+        CPU_CLR(static_cast<std::size_t>(t.cpu), &set);
         removed = true;
       }
     };

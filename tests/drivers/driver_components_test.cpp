@@ -22,6 +22,7 @@
 
 #include "../unit/test_support.h"
 #include "joystick/obstacle.h"
+#include "rack/devices/canopen.h"
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/robot.h"
 #include "rack/sims/cia402_sim.h"
@@ -192,7 +193,8 @@ components:
       sdo_timeout_ms: 200
       max_missed_syncs: 50
       watchdog_ms: 300
-)" + extra);
+)" + extra,
+                                           std::function<void(ComponentRegistry&)>{}, /*capture_gdos=*/true);
     chassis_ = host_->address_of("chassis");
   }
   void TearDown() override {
@@ -332,6 +334,34 @@ TEST_F(ChassisCanTest, ASilentDriveIsAnErrorStopsTheOtherAndRecovery) {
   sim_->set_silent(2, false);
   ASSERT_TRUE(host_->wait_status(chassis_, msg::kEnabled)) << "on() retried and reconfigured both drives";
   EXPECT_EQ(sim_->state(2).statusword & 0x6F, 0x27);
+}
+
+// A drive that drops out of NMT OPERATIONAL (local control, an internal reset) stops
+// the robot like a silent one; while it ignores the master's NMT start, every retry
+// ends in ERROR again (it never reports OPERATIONAL); once it obeys, the chassis runs.
+TEST_F(ChassisCanTest, ADriveOutOfNmtOperationalIsAnErrorUntilItTakesTheStart) {
+  Watchdog w;
+  start_host();
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kEnabled));
+  ASSERT_EQ(set_pilot(me()).type, msg::kOk);
+  ASSERT_TRUE(test::eventually([&] {
+    (void)move(0.2, 0.0);
+    return sim_->state(1).velocity > 1000;
+  }));
+  sim_->hold_nmt(2, devices::canopen::kStatePreOperational);
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kError, std::chrono::milliseconds(3000)));
+  EXPECT_EQ(sim_->state(1).target_velocity, 0) << "the left drive was stopped";
+  EXPECT_TRUE(test::eventually([&] {
+    return host_->gdos_log().find("a drive left the NMT state OPERATIONAL") != std::string::npos;
+  })) << host_->gdos_log();
+  // Held: the retries' NMT start is ignored, and each ON ends in ERROR again.
+  EXPECT_TRUE(test::eventually([&] {
+    return host_->gdos_log().find("did not report the NMT state OPERATIONAL") != std::string::npos;
+  }, std::chrono::milliseconds(5000))) << host_->gdos_log();
+  EXPECT_NE(move(0.2, 0.0).type, msg::kOk) << "no MOVE while in ERROR";
+  sim_->release_nmt(2);
+  ASSERT_TRUE(host_->wait_status(chassis_, msg::kEnabled, std::chrono::milliseconds(5000))) << host_->gdos_log();
+  EXPECT_TRUE(test::eventually([&] { return sim_->state(2).nmt == devices::canopen::kStateOperational; }));
 }
 
 TEST_F(ChassisCanTest, GarbageOnTheBusIsIgnoredAndALostConnectionRecovers) {

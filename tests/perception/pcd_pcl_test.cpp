@@ -10,10 +10,10 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <limits>
 #include <memory>
 #include <random>
+#include <sstream>
 #include <string>
 
 #include "rack/interfaces/perception.h"
@@ -80,8 +80,8 @@ TEST_P(PcdPclTest, FilesPclWritesReadBackPointForPoint) {
 
 INSTANTIATE_TEST_SUITE_P(Encodings, PcdPclTest,
                          ::testing::Values(Encoding::kAscii, Encoding::kBinary, Encoding::kBinaryCompressed),
-                         [](const auto& info) {
-                           switch (info.param) {
+                         [](const auto& p) {
+                           switch (p.param) {
                              case Encoding::kAscii: return std::string("ascii");
                              case Encoding::kBinary: return std::string("binary");
                              default: return std::string("binary_compressed");
@@ -94,11 +94,9 @@ TEST(PcdPclDamageTest, DamagedCompressedFilesAreRefused) {
   const auto cloud = make_cloud(5000);
   const std::string path = temp_path("damaged");
   ASSERT_EQ(pcl::PCDWriter().writeBinaryCompressed(path, cloud), 0);
-  std::string contents;
-  {
-    std::ifstream in(path, std::ios::binary);
-    contents.assign(std::istreambuf_iterator<char>(in), {});
-  }
+  std::ostringstream raw;
+  raw << std::ifstream(path, std::ios::binary).rdbuf();
+  const std::string contents = raw.str();
   std::filesystem::remove(path);
   const std::size_t data = contents.find("DATA binary_compressed\n") + 23;
   scan3d::PcdCloud read;

@@ -75,6 +75,19 @@ void Cia402DriveSim::set_silent(uint8_t node, bool silent) {
   if (Drive* d = find(node)) d->silent = silent;
 }
 
+void Cia402DriveSim::hold_nmt(uint8_t node, uint8_t state) {
+  std::lock_guard lock(mutex_);
+  if (Drive* d = find(node)) {
+    d->nmt_held = true;
+    d->s.nmt = state;
+  }
+}
+
+void Cia402DriveSim::release_nmt(uint8_t node) {
+  std::lock_guard lock(mutex_);
+  if (Drive* d = find(node)) d->nmt_held = false;
+}
+
 void Cia402DriveSim::drop_client() { drop_ = true; }
 
 bool Cia402DriveSim::has_client() const {
@@ -227,7 +240,7 @@ void Cia402DriveSim::handle(const uint8_t* data, std::size_t len) {
   if (id == co::kNmt && f.len == 2) {
     for (Drive& d : drives_) {
       if (f.data[1] != 0 && f.data[1] != d.id) continue;
-      if (d.silent) continue;
+      if (d.silent || d.nmt_held) continue;
       switch (f.data[0]) {
         case co::kNmtStart: d.s.nmt = co::kStateOperational; break;
         case co::kNmtStop: d.s.nmt = co::kStateStopped; break;

@@ -451,6 +451,14 @@ class Writer {
     std::memcpy(out_ + used_ + 1, &v, sizeof v);
     used_ += 1 + sizeof v;
   }
+// GCC 12 inlines put_string into log calls whose string argument is one of several
+// literals and then warns that the copy may read past the shortest of them
+// (-Warray-bounds, -Wstringop-overread): false, n is that string's own length.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Warray-bounds"
+#pragma GCC diagnostic ignored "-Wstringop-overread"
+#endif
   void put_string(const char* s, std::size_t n) noexcept {
     // Kind, 2-byte length, bytes; what does not fit is cut (and flagged).
     std::size_t room = capacity_ - used_ - 3 - reserve_after_;  // never negative: fixed parts were reserved
@@ -462,6 +470,9 @@ class Writer {
     std::memcpy(out_ + used_ + 3, s, n);
     used_ += 3 + n;
   }
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
  public:
   // Fixed bytes still needed by the arguments after the next one (strings must

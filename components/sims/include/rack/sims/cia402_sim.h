@@ -60,6 +60,11 @@ class Cia402DriveSim {
   void stop();
 
   void set_silent(uint8_t node, bool silent);
+  // Holds the drive in NMT `state` (canopen::kState*; its heartbeats say so) and makes
+  // it ignore NMT commands, as a drive in local control or after an internal reset;
+  // release() gives NMT back to the master (the state stays until it sends one).
+  void hold_nmt(uint8_t node, uint8_t state);
+  void release_nmt(uint8_t node);
   // Sends `count` malformed packets (short packets, oversized dlc) and frames with
   // ids nobody uses, interleaved with the normal traffic.
   void inject_garbage(int count) { garbage_.fetch_add(count); }
@@ -76,6 +81,7 @@ class Cia402DriveSim {
     uint8_t id = 0;
     DriveState s;
     bool silent = false;
+    bool nmt_held = false;
     int64_t next_heartbeat_ns = 0;
     uint32_t acceleration = 10000;  // counts/s^2
     uint32_t deceleration = 10000;
