@@ -77,7 +77,12 @@ std::string range_text(const Parameter::Spec& s) {
     if (!t.empty() && t.back() == '.') t.pop_back();
     return t;
   };
-  return "[" + fmt(s.min) + ", " + fmt(s.max) + "]";
+  std::string out = "[";
+  out += fmt(s.min);
+  out += ", ";
+  out += fmt(s.max);
+  out += ']';
+  return out;
 }
 }  // namespace
 

@@ -90,10 +90,14 @@ std::string payload_to_json(std::span<const tims::FieldDesc> fields, std::span<c
     const std::byte* p = copy.data() + f.offset;
     if (!first) out += ", ";
     first = false;
-    out += "\"" + json_escape(f.name) + "\": ";
+    out += '"';
+    out += json_escape(f.name);
+    out += "\": ";
     if (f.kind == tims::FieldKind::kChar && f.count > 1) {
       const auto* s = reinterpret_cast<const char*>(p);
-      out += "\"" + json_escape(std::string(s, strnlen(s, f.count))) + "\"";
+      out += '"';
+      out += json_escape(std::string(s, strnlen(s, f.count)));
+      out += '"';
     } else if (f.count == 1) {
       out += number(f, p);
     } else {

@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -377,7 +378,7 @@ TEST_F(LinkAuthTest, OldSequenceAndTimeWindow) {
   LinkVerifier verifier(ring, 5 * kSec);
   const int64_t now = 1'700'000'000 * kSec;
   std::vector<Packet> p;
-  for (int i = 0; i < 70; ++i) p.push_back(sign(signer, "m" + std::to_string(i), now));
+  for (int i = 0; i < 70; ++i) p.push_back(sign(signer, std::string("m").append(std::to_string(i)), now));
   // Reordering within the window of 64 is fine; each number once.
   EXPECT_EQ(verifier.verify("TIMS", p[10].bytes.data(), p[10].bytes.size(), now, 1), AuthResult::kOk);
   EXPECT_EQ(verifier.verify("TIMS", p[5].bytes.data(), p[5].bytes.size(), now, 1), AuthResult::kOk);
@@ -528,7 +529,9 @@ TEST_F(AccessHostFileTest, KeyFileIsCheckedAtLoad) {
 
 TEST_F(AccessHostFileTest, ShippedExampleLoads) {
   std::ifstream in(std::string(RACK_SOURCE_DIR) + "/configs/access_control.yaml");
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::ostringstream whole;
+  whole << in.rdbuf();
+  std::string text = whole.str();
   ASSERT_FALSE(text.empty());
   const std::string key = write("robot.key", key_line('f'));
   const std::string line = "key_file: /etc/rack/robot.key";

@@ -128,7 +128,8 @@ TEST_F(MessageHeaderTest, RejectsUnknownFlags) {
   const MessageHeader h = make_header(kDest, kSrc, msg::kOn, 0, 0, 0);
   for (const uint8_t bad : {uint8_t{0x04}, uint8_t{0x80}}) {
     auto bytes = encoded(h, true);
-    bytes[0] |= std::byte{bad};
+    ASSERT_FALSE(bytes.empty());
+    bytes.front() = static_cast<std::byte>(std::to_integer<uint8_t>(bytes.front()) | bad);
     MessageHeader out;
     EXPECT_EQ(decode_header(bytes, out), MessageError::kUnknownFlags);
   }

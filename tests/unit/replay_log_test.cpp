@@ -251,7 +251,9 @@ TEST(RawlogTest, TruncatedRawlogIsAnErrorWithTheOffset) {
   const auto path = std::filesystem::temp_directory_path() / "rack_truncated_test.rawlog";
   {
     std::ifstream in(src, std::ios::binary);
-    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ostringstream whole;
+    whole << in.rdbuf();
+    std::string bytes = whole.str();
     std::ofstream out(path, std::ios::binary);
     out.write(bytes.data(), static_cast<std::streamsize>(bytes.size() / 2));
   }

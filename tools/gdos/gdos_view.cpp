@@ -73,7 +73,9 @@ std::string text_line(const tims::GdosRecord& r, const std::string& display_name
   std::string line = on;
   line += head;
   if (r.dropped_before > 0 && r.text.find("dropped") == std::string::npos) {
-    line += "[" + std::to_string(r.dropped_before) + " dropped before] ";
+    line += '[';
+    line += std::to_string(r.dropped_before);
+    line += " dropped before] ";
   }
   line += r.text;
   if (colour && on[0] != '\0') line += "\x1b[0m";

@@ -1017,7 +1017,10 @@ void print_command_help(const Command& c, FILE* out) {
       for (const auto& cmd : rack::interfaces::commands_for_class(static_cast<uint8_t>(id))) {
         std::string fields;
         if (cmd.body != nullptr) {
-          for (const auto& f : cmd.body->fields) fields += (fields.empty() ? "" : ",") + std::string(f.name);
+          for (const auto& f : cmd.body->fields) {
+            if (!fields.empty()) fields += ',';
+            fields += f.name;
+          }
         }
         std::fprintf(out, "  %s: %s %d %s - %s\n", tims::class_name(static_cast<uint8_t>(id)), cmd.name, cmd.type,
                      fields.empty() ? "(no body)" : fields.c_str(), cmd.summary);

@@ -194,7 +194,9 @@ std::optional<PgmImage> read_pgm(const std::string& path, std::vector<MapError>&
     errors.push_back({path, 0, -1, std::string("cannot open the map image: ") + std::strerror(errno)});
     return std::nullopt;
   }
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::ostringstream whole;
+  whole << in.rdbuf();
+  const std::string bytes = std::move(whole).str();
   PgmReader r{path, bytes, errors};
   if (bytes.size() < 2 || bytes[0] != 'P' || (bytes[1] != '5' && bytes[1] != '2')) {
     r.fail(0, "not a PGM image (expected the magic number P5 or P2)");
