@@ -581,18 +581,28 @@ def section_lcm(c, keys):
                 c.w(f"| {size_text(size)} | {b['mechanism']} | {b.get('sent', '–')} | {b.get('received', '–')} | {lost} "
                     f"({100 * b.get('loss', 0):.1f}%) | {b.get('mb_per_s', 0):.1f} | "
                     f"{'–' if wire is None else f'{wire / 1e6:.1f} MB'} | {rel} |")
-            tb = next((b for b in bulk if b["size"] == size and b["mechanism"] == "TiMS"), None)
-            ref = ref_of(tb) if tb else None
-            if tb and ref:
+            # Every TiMS mechanism in the summary, the compressed one too (the target holds
+            # with and without compression).
+            for tb in (b for b in bulk if b["size"] == size and b["mechanism"].startswith("TiMS")):
+                ref = ref_of(tb)
+                if ref is None:
+                    continue
                 rt, how = ratio_of(tb, ref)
                 loss_ok = tb.get("loss", 0) <= ref.get("loss", 0)
-                c.summary.append((f"bulk throughput, {size_text(size)} messages", f"2 namespaces ({how})",
+                zstd = tb["mechanism"] != "TiMS"
+                label = f"bulk throughput, {size_text(size)} messages" + (", zstd" if zstd else "")
+                c.summary.append((label, f"2 namespaces ({how})",
                                   f"{tb.get('mb_per_s', 0):.0f} MB/s, {100 * tb.get('loss', 0):.1f}% lost",
-                                  f"{ref.get('mb_per_s', 0):.0f} MB/s, {100 * ref.get('loss', 0):.1f}% lost (raw LCM)",
+                                  f"{ref.get('mb_per_s', 0):.0f} MB/s, {100 * ref.get('loss', 0):.1f}% lost "
+                                  f"({ref['mechanism']})",
                                   fx(rt), verdict(rt, 0.9, lower_is_better=False)
                                   + ("; loss **met**" if loss_ok else "; loss **MISSED**")))
                 if rt is not None and rt < 0.9:
-                    c.notes.append(f"Bulk {size_text(size)}: TiMS {fx(rt)} the raw LCM throughput (target 0.9x): "
+                    why = ("both sides spend most of the time in zstd level 1 (100-250 MB/s here) and the "
+                           "per-round ratio moves by more than the gap between runs of the same code "
+                           "(0.84x-1.07x in the earlier runs recorded below the marker); beyond that, " if zstd else "")
+                    c.notes.append(f"Bulk {size_text(size)}{' with zstd' if zstd else ''}: {tb['mechanism']} "
+                                   f"{fx(rt)} the {ref['mechanism']} throughput (target 0.9x): " + why +
                                    "each message is handed producer -> uplink mailbox -> sender thread and receive "
                                    "thread -> destination mailbox (the hand-overs that keep RT tasks off the "
                                    "network) and copied twice more than LCM does; see the bench_lcm section below "
