@@ -181,6 +181,7 @@ HookResult Scan3d::on() {
   last_ladar_mono_ = last_drive_mono_ = last_pose_mono_ = sweep_started_mono_ = now;
   if (file_source_) return HookResult::kOk;
   assembler_->reset();
+  assembler_->clear_poses();  // after an ERROR or OFF: no interpolation across the gap
   scan3d::AssemblerConfig c;
   c.mount = Scan3dMount{mode_id_, mount_x_.get_float(), mount_y_.get_float(), mount_z_.get_float()};
   c.range_min = range_min_.get_float();
@@ -489,7 +490,7 @@ HookResult Scan3d::loop_ladar(int64_t now) {
       // Poses arrive, but none covers this scan: the odometry's clock or stream lags
       // (or its poses are not newer than the ones before).
       const int64_t lag = pending_time_[slot] - assembler_->pose_newest_time();
-      if (lag > silence) {
+      if (assembler_->poses() > 0 && lag > silence) {
         log_error("the odometry %s has no pose for the ladar scan at %lld ns: its newest pose is %lld ms older (silence_ms %lld)",
                   odometry, static_cast<long long>(pending_time_[slot]), static_cast<long long>(lag / rt::kNsPerMs),
                   static_cast<long long>(silence_ms_.get_int()));

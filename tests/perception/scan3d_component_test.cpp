@@ -396,12 +396,14 @@ TEST(Scan3dComponentTest, OdometryKeepsTheWallAheadThinWhileTheRobotDrives) {
 
 // An Odometry for the failure paths: publishes a standing robot every cycle, stamped
 // now; `pause` silences it (it stays ENABLED), `poison_every` makes every n-th pose
-// NaN. Test code: priority 0.
+// NaN, `lag_ns` stamps the poses that much in the past (a clock behind the ladar's).
+// Test code: priority 0.
 class ControlledOdometry final : public DataComponent<interfaces::OdometryData> {
  public:
   ControlledOdometry() : DataComponent(DataTaskMode::kPeriodic) {}
   std::atomic<bool> pause{false};
   std::atomic<uint32_t> poison_every{0};
+  std::atomic<int64_t> lag_ns{0};
 
  protected:
   HookResult loop() override {
@@ -409,7 +411,7 @@ class ControlledOdometry final : public DataComponent<interfaces::OdometryData> 
     interfaces::OdometryData d{};
     const uint32_t every = poison_every.load(std::memory_order_relaxed);
     if (every != 0 && ++cycles_ % every == 0) d.x = std::nan("");
-    publish(d, rt::host_time_ns());
+    publish(d, rt::host_time_ns() - lag_ns.load(std::memory_order_relaxed));
     return HookResult::kOk;
   }
 
@@ -419,7 +421,8 @@ class ControlledOdometry final : public DataComponent<interfaces::OdometryData> 
 
 // A pose that is not finite is counted and skipped; an odometry that falls silent
 // puts Scan3D in ERROR with a message naming it, and Scan3D recovers (on() retries)
-// once the poses come back.
+// once the poses come back; poses that keep coming but lag the scans by more than
+// silence_ms (none covers a scan) are an ERROR too.
 TEST(Scan3dComponentTest, BadOrSilentOdometryIsCountedOrAnError) {
   Watchdog watchdog(std::chrono::seconds(90));
   HostUnderTest host(R"(lcm: false
@@ -485,6 +488,13 @@ components:
   ASSERT_TRUE(eventually([&] { return component->scans_published() >= again + 2; }, std::chrono::milliseconds(30000)))
       << host.log();
   EXPECT_EQ(host.status(scan3d), tims::msg::kEnabled);
+
+  // Poses 2 s behind the scans: they arrive, but cover none of them.
+  odo->lag_ns.store(2'000'000'000);
+  ASSERT_TRUE(eventually([&] { return host.gdos_log().find("has no pose for the ladar scan at") != std::string::npos; }))
+      << host.gdos_log();
+  EXPECT_NE(host.gdos_log().find("ms older (silence_ms 500)"), std::string::npos) << host.gdos_log();
+  odo->lag_ns.store(0);
 }
 
 // `odometry` must name an Odometry or a Position: anything else is a setup error

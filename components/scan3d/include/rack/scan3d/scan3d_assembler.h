@@ -66,6 +66,8 @@ class Scan3dAssembler {
   // The robot's pose stream (odometry or map frame), in time order; the caller skips
   // poses that are not finite. false: not newer than the newest (ignored).
   bool add_pose(int64_t time_ns, const components::Pose2d& pose) noexcept { return poses_.push(time_ns, pose); }
+  // Forgets the poses (after a silence: no interpolation across the gap).
+  void clear_poses() noexcept { poses_.clear(); }
   [[nodiscard]] std::size_t poses() const noexcept { return poses_.size(); }
   [[nodiscard]] int64_t pose_oldest_time() const noexcept { return poses_.oldest_time(); }
   [[nodiscard]] int64_t pose_newest_time() const noexcept { return poses_.newest_time(); }
