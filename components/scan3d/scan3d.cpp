@@ -16,6 +16,8 @@
 namespace rack::components {
 
 using interfaces::LadarData;
+using interfaces::OdometryData;
+using interfaces::PositionData;
 using interfaces::Scan3dData;
 using interfaces::ServoDriveData;
 
@@ -28,6 +30,8 @@ Scan3d::Scan3d()
     : DataComponent(DataTaskMode::kTriggered),
       ladar_(declare_string("ladar", "", {.doc = "the Ladar whose 2-D scans are assembled (with servo; empty: pcd)", .component_ref = true})),
       servo_(declare_string("servo", "", {.doc = "the ServoDrive that turns the ladar (with ladar)", .component_ref = true})),
+      odometry_(declare_string("odometry", "", {.doc = "optional, with ladar+servo: an Odometry or Position component; its poses undo the robot's motion during a sweep (points in the robot frame at the sweep's end, the scan stamped with that time)", .component_ref = true})),
+      odometry_period_ms_(declare_float("odometry_period_ms", 0.0, {.doc = "requested period of the odometry's pose stream (0: every pose); the last 256 poses must cover a sweep's processing time", .min = 0.0, .max = 1000.0})),
       pcd_(declare_string("pcd", "", {.doc = "instead of ladar+servo: a PCD file, or a directory whose *.pcd files are played in name order"})),
       mode_(declare_string("mode", "pitch", {.doc = "scan mode: the drive turns the scan plane about x (roll), y (pitch) or z (yaw)", .choices = {"roll", "pitch", "yaw"}})),
       mount_x_(declare_float("mount_x", 0.0, {.doc = "m, the ladar's centre (on the drive axis) in the robot frame, forward", .min = -10.0, .max = 10.0})),
@@ -52,7 +56,7 @@ Scan3d::Scan3d()
       store_dir_(declare_string("store_dir", ".", {.doc = "STORE_DATA without a path writes <store_dir>/scan3d_<number>.pcd"})),
       pcd_period_ms_(declare_float("pcd_period_ms", 1000.0, {.doc = "PCD source: one file every this long (the data task's timeout_ms must not be longer)", .min = 1.0, .max = 3.6e6})),
       pcd_loop_(declare_bool("pcd_loop", true, {.doc = "PCD source: start again after the last file"})),
-      silence_ms_(declare_int("silence_ms", 2000, {.doc = "ERROR when the ladar or the drive sent nothing for this long", .min = 10, .max = 600000})),
+      silence_ms_(declare_int("silence_ms", 2000, {.doc = "ERROR when the ladar, the drive or the odometry sent nothing for this long", .min = 10, .max = 600000})),
       sweep_timeout_s_(declare_float("sweep_timeout_s", 30.0, {.doc = "ERROR when the drive does not reach a sweep's end within this", .min = 0.1, .max = 3600.0})) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(LadarData) + 64);
   set_command_slot_size(sizeof(tims::MessageHeader) + sizeof(interfaces::Scan3dStoreData) + 64);
@@ -84,6 +88,15 @@ void Scan3d::init() {
     throw std::runtime_error("give either 'pcd' (files) or both 'ladar' and 'servo' (a ladar on a drive)");
   }
   file_source_ = !pcd.empty();
+  compensate_ = !odometry_.get_string().empty();
+  if (file_source_ && compensate_) throw std::runtime_error("'odometry' compensates a ladar on a drive: it needs 'ladar' and 'servo', not 'pcd'");
+  if (compensate_) {
+    const uint8_t c = resolved(odometry_).class_id();
+    if (c != tims::classes::kOdometry && c != tims::classes::kPosition) {
+      throw std::runtime_error("odometry '" + odometry_.get_string() + "' is " + resolved(odometry_).str() +
+                               ", neither an Odometry nor a Position component");
+    }
+  }
   const std::string mode = mode_.get_string();
   mode_id_ = mode == "roll" ? interfaces::kScan3dModeRoll
              : mode == "yaw" ? interfaces::kScan3dModeYaw
@@ -165,19 +178,28 @@ HookResult Scan3d::on() {
   next_file_ = 0;
   const int64_t now = rt::monotonic_ns();
   next_file_mono_ = now;
-  last_ladar_mono_ = last_drive_mono_ = sweep_started_mono_ = now;
+  last_ladar_mono_ = last_drive_mono_ = last_pose_mono_ = sweep_started_mono_ = now;
   if (file_source_) return HookResult::kOk;
   assembler_->reset();
+  assembler_->clear_poses();  // after an ERROR or OFF: no interpolation across the gap
   scan3d::AssemblerConfig c;
   c.mount = Scan3dMount{mode_id_, mount_x_.get_float(), mount_y_.get_float(), mount_z_.get_float()};
   c.range_min = range_min_.get_float();
   c.range_max = range_max_.get_float();
+  c.compensate_motion = compensate_;
   assembler_->set_config(c);
   const tims::Address servo = resolved(servo_);
   const tims::Address ladar = resolved(ladar_);
+  const tims::Address odometry = compensate_ ? resolved(odometry_) : tims::Address();
   if (switch_on(servo) != HookResult::kOk || switch_on(ladar) != HookResult::kOk) return HookResult::kError;
+  if (compensate_ && switch_on(odometry) != HookResult::kOk) return HookResult::kError;
   if (subscribe(servo, static_cast<int64_t>(servo_period_ms_.get_float() * 1e6)) != HookResult::kOk) return HookResult::kError;
   if (subscribe(ladar, 0) != HookResult::kOk) {
+    unsubscribe(servo);
+    return HookResult::kError;
+  }
+  if (compensate_ && subscribe(odometry, static_cast<int64_t>(odometry_period_ms_.get_float() * 1e6)) != HookResult::kOk) {
+    unsubscribe(ladar);
     unsubscribe(servo);
     return HookResult::kError;
   }
@@ -190,6 +212,7 @@ HookResult Scan3d::on() {
                                          settings().rpc_timeout_ns);
   if (!r.ok()) {
     log_error("the drive %s refused MOVE_POS to %.3f rad (not homed, or outside its limits?)", servo, sweep_from_);
+    if (compensate_) unsubscribe(odometry);
     unsubscribe(ladar);
     unsubscribe(servo);
     return HookResult::kError;
@@ -201,6 +224,7 @@ void Scan3d::off() {
   if (file_source_) return;
   unsubscribe(resolved(ladar_));
   unsubscribe(resolved(servo_));
+  if (compensate_) unsubscribe(resolved(odometry_));
 }
 
 CommandResult Scan3d::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
@@ -291,7 +315,7 @@ void Scan3d::serve_requests() {
 }
 
 void Scan3d::count_bad(BadKind kind, const char* detail) noexcept {
-  static constexpr const char* kWhat[] = {"a PCD file", "a ladar scan", "a sweep", "a drive position"};
+  static constexpr const char* kWhat[] = {"a PCD file", "a ladar scan", "a sweep", "a drive position", "an odometry pose"};
   static_assert(std::size(kWhat) == kBadKinds);
   const auto i = static_cast<std::size_t>(kind);
   out_->bad_input++;
@@ -362,11 +386,13 @@ HookResult Scan3d::loop_files(int64_t now) {
 HookResult Scan3d::loop_ladar(int64_t now) {
   const tims::Address servo = resolved(servo_);
   const tims::Address ladar = resolved(ladar_);
+  const tims::Address odometry = compensate_ ? resolved(odometry_) : tims::Address();
   for (;;) {
     tims::MessageHeader h;
     wire::SampleHeader sh;
     ServoDriveData d;
-    enum class From : uint8_t { kOther, kDrive, kLadar } from = From::kOther;
+    components::Pose2d pose;
+    enum class From : uint8_t { kOther, kDrive, kLadar, kOdometry } from = From::kOther;
     bool decoded = true;
     const Input in = next_input(h, [&](const tims::MessageHeader& mh, std::span<const std::byte> body) {
       if (same_component(mh.source(), servo)) {
@@ -375,6 +401,17 @@ HookResult Scan3d::loop_ladar(int64_t now) {
       } else if (same_component(mh.source(), ladar)) {
         from = From::kLadar;
         decoded = read_sample(mh, body, sh, *ladar_in_);
+      } else if (compensate_ && same_component(mh.source(), odometry)) {
+        from = From::kOdometry;
+        if (odometry.class_id() == tims::classes::kPosition) {
+          PositionData p;
+          decoded = read_sample(mh, body, sh, p);
+          pose = components::Pose2d{p.x, p.y, p.phi};
+        } else {
+          OdometryData o;
+          decoded = read_sample(mh, body, sh, o);
+          pose = components::Pose2d{o.x, o.y, o.phi};
+        }
       }
       return decoded;  // false: logged and counted (GET_STATS malformed) by next_input
     });
@@ -385,7 +422,16 @@ HookResult Scan3d::loop_ladar(int64_t now) {
     }
     if (from == From::kOther) continue;
     if (!decoded) {
-      count_bad(from == From::kDrive ? BadKind::kDrive : BadKind::kLadarScan, nullptr);
+      count_bad(from == From::kDrive ? BadKind::kDrive : from == From::kOdometry ? BadKind::kPose : BadKind::kLadarScan, nullptr);
+      continue;
+    }
+    if (from == From::kOdometry) {
+      if (!std::isfinite(pose.x) || !std::isfinite(pose.y) || !std::isfinite(pose.phi)) {
+        count_bad(BadKind::kPose, "x, y or phi is not a finite number");
+        continue;
+      }
+      (void)assembler_->add_pose(sh.time_ns, pose);  // an older or repeated pose is ignored
+      last_pose_mono_ = now;
       continue;
     }
     if (from == From::kDrive) {
@@ -422,6 +468,10 @@ HookResult Scan3d::loop_ladar(int64_t now) {
     log_error("the drive %s sent no position for %lld ms", servo, static_cast<long long>(silence_ms_.get_int()));
     return HookResult::kError;
   }
+  if (compensate_ && now - last_pose_mono_ > silence) {
+    log_error("the odometry %s sent no pose for %lld ms", odometry, static_cast<long long>(silence_ms_.get_int()));
+    return HookResult::kError;
+  }
   if (!have_drive_) return HookResult::kOk;
   const double tol = angle_tolerance_.get_float();
   const bool at_target = drive_.target_reached != 0 && std::fabs(drive_.target - sweep_to_) < tol &&
@@ -436,15 +486,28 @@ HookResult Scan3d::loop_ladar(int64_t now) {
     if (sweep_end_ns_ != 0 && pending_time_[slot] > sweep_end_ns_) break;
     const scan3d::AddStatus s = assembler_->add_scan(pending_[slot], pending_time_[slot]);
     if (s == scan3d::AddStatus::kWaitForDrive) break;
+    if (s == scan3d::AddStatus::kWaitForPose) {
+      // Poses arrive, but none covers this scan: the odometry's clock or stream lags
+      // (or its poses are not newer than the ones before).
+      const int64_t lag = pending_time_[slot] - assembler_->pose_newest_time();
+      if (assembler_->poses() > 0 && lag > silence) {
+        log_error("the odometry %s has no pose for the ladar scan at %lld ns: its newest pose is %lld ms older (silence_ms %lld)",
+                  odometry, static_cast<long long>(pending_time_[slot]), static_cast<long long>(lag / rt::kNsPerMs),
+                  static_cast<long long>(silence_ms_.get_int()));
+        return HookResult::kError;
+      }
+      break;
+    }
     if (s != scan3d::AddStatus::kAdded) count_bad(BadKind::kLadarScan, scan3d::describe(s));
     pending_head_ = (pending_head_ + 1) % kPendingScans;
     --pending_count_;
   }
   if (phase_ == Phase::kToStart) {
     const bool at_start = drive_.target_reached != 0 && std::fabs(drive_.position - sweep_from_) < tol;
-    if (at_start) {
+    // With odometry, a sweep starts once there is a pose (its scans must be covered).
+    if (at_start && (!compensate_ || assembler_->poses() > 0)) {
       phase_ = Phase::kSweeping;
-      sweep_start_ns_ = drive_time_ns_;
+      sweep_start_ns_ = compensate_ ? std::max(drive_time_ns_, assembler_->pose_oldest_time()) : drive_time_ns_;
       sweep_end_ns_ = 0;
       sweep_started_mono_ = now;
       assembler_->reset();
@@ -470,7 +533,10 @@ HookResult Scan3d::loop_ladar(int64_t now) {
   if (newest_ladar_ns_ < sweep_end_ns_ || waiting) return HookResult::kOk;
   // Turn the drive round first (the next sweep runs while this one is processed).
   const int64_t start_ns = assembler_->first_time_ns();
-  const int64_t duration = assembler_->last_time_ns() - start_ns;
+  const int64_t end_ns = assembler_->last_time_ns();
+  const int64_t duration = end_ns - start_ns;
+  // With odometry: the points into the robot frame at the sweep's end, stamped with it.
+  const bool end_frame = compensate_ && assembler_->to_end_frame();
   const uint32_t scans = assembler_->scans();
   const uint32_t n = assembler_->size();
   if (assembler_->dropped_points() > 0) {
@@ -484,7 +550,7 @@ HookResult Scan3d::loop_ladar(int64_t now) {
   // The new sweep's scans stay in the mailbox until the next loop(): the assembler's
   // points are this sweep's until finish_scan() has copied them.
   if (n > 0) {
-    finish_scan(start_ns, duration, mode_id_, scans, assembler_->x(), assembler_->y(), assembler_->z(),
+    finish_scan(end_frame ? end_ns : start_ns, duration, mode_id_, scans, assembler_->x(), assembler_->y(), assembler_->z(),
                 assembler_->intensity(), n);
   } else {
     count_bad(BadKind::kSweep, "no ladar point in a whole sweep");

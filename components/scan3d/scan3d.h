@@ -9,8 +9,22 @@
 // beam's time, interpolated in the drive's position stream (a scan waits in a small
 // queue until the drive has reported a position after its end). When the drive
 // reports the target reached, the sweep is one 3-D scan: the drive is sent back the
-// other way (the next sweep) and the scan is processed and published. The robot
-// should stand still during a sweep (points are in the robot frame).
+// other way (the next sweep) and the scan is processed and published. Without
+// `odometry` the robot should stand still during a sweep (points are in the robot
+// frame, each where the robot was at its beam's time), and a scan carries the time of
+// its first 2-D scan.
+//
+// Motion compensation (`odometry`: an Odometry or Position component, subscribed
+// like the ladar and the drive, every sample): its poses go into a ring of 256 in the
+// assembler (allocated in init()), each beam is placed with the robot's pose at the
+// beam's time, and the finished sweep is expressed in the robot frame at its END: the
+// published scan then carries the end time (the end of its last 2-D scan; duration_ns
+// before it is the first). A 2-D scan waits until a pose at or after its end has
+// arrived. The ring holds 256 poses: with a fast odometry (1 kHz) ask for a longer
+// odometry_period_ms, so that they cover the time a scan's processing keeps the data
+// task away (older 2-D scans are skipped as bad input). Odometry is the better
+// source: Position jumps at an UPDATE, and an odometry RESET during a sweep smears
+// that one sweep.
 //
 // PCD files (`pcd`: a file or a directory of *.pcd, played in name order every
 // pcd_period_ms, looping if pcd_loop): each file is one scan.
@@ -23,11 +37,14 @@
 // then every 100th with the count), and SKIPPED, because one bad scan or file says
 // nothing about the next: a malformed PCD file (file:line: reason), an empty ladar
 // scan (no echo), a malformed ladar scan, a scan older than the drive's history, a
-// drive position that is not finite. A DATA message that does not decode (wrong size
+// drive position or odometry pose that is not finite, a scan older than the odometry's
+// 256 poses. A DATA message that does not decode (wrong size
 // for its producer's type) is also counted as malformed in GET_STATS and logged by
 // the data task's input path (DataComponentBase::next_input). A
-// ladar or drive that falls silent for silence_ms, or a drive that does not finish a
-// sweep within sweep_timeout_s, puts the component in ERROR (on() retries).
+// ladar, drive or odometry that falls silent for silence_ms (for the odometry also:
+// whose newest pose is more than silence_ms older than a waiting 2-D scan, so that no
+// pose covers its beams), or a drive that does not finish a sweep within
+// sweep_timeout_s, puts the component in ERROR (on() retries).
 //
 // Scheduling: PCL allocates, so the DATA task must run at priority 0 (normal
 // scheduling) or a low SCHED_FIFO priority below every control task, as MCL's; its
@@ -84,8 +101,8 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
   static constexpr int8_t kWake = -30;
 
   [[nodiscard]] scan3d::PipelineOptions read_options() const;
-  enum class BadKind : uint8_t { kPcdFile, kLadarScan, kSweep, kDrive };
-  static constexpr std::size_t kBadKinds = 4;
+  enum class BadKind : uint8_t { kPcdFile, kLadarScan, kSweep, kDrive, kPose };
+  static constexpr std::size_t kBadKinds = 5;
   // Counts one bad input of `kind`; logs `detail` (rate-limited) unless it is null
   // (a DATA message that did not decode: next_input has logged it).
   void count_bad(BadKind kind, const char* detail) noexcept;
@@ -99,6 +116,8 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
 
   Parameter& ladar_;
   Parameter& servo_;
+  Parameter& odometry_;
+  Parameter& odometry_period_ms_;
   Parameter& pcd_;
   Parameter& mode_;
   Parameter& mount_x_;
@@ -128,6 +147,7 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
 
   uint8_t mode_id_ = interfaces::kScan3dModePitch;
   bool file_source_ = false;
+  bool compensate_ = false;  // odometry given
   std::vector<std::string> files_;
   std::unique_ptr<scan3d::Scan3dAssembler> assembler_;
   std::unique_ptr<scan3d::Scan3dPipeline> pipeline_;
@@ -145,7 +165,7 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
   int64_t sweep_end_ns_ = 0;        // drive sample time that reached the target (0: not yet)
   int64_t sweep_started_mono_ = 0;
   int64_t newest_ladar_ns_ = 0;
-  int64_t last_ladar_mono_ = 0, last_drive_mono_ = 0;
+  int64_t last_ladar_mono_ = 0, last_drive_mono_ = 0, last_pose_mono_ = 0;
   interfaces::ServoDriveData drive_{};
   int64_t drive_time_ns_ = 0;
   bool have_drive_ = false;

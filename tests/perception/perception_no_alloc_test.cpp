@@ -1,6 +1,7 @@
 // No allocation on the perception code that runs in real-time tasks: the laser
 // tracker (Scan2D's data task with dynamic_objects, ObjRecogLaser's) and the 3-D
-// assembly (Scan3dAssembler: drive samples and ladar scans). The counting allocator
+// assembly (Scan3dAssembler: drive samples and ladar scans, with and without motion
+// compensation from odometry poses). The counting allocator
 // of tests/unit/counting_allocator.h counts on this thread only, around the measured
 // calls, after the objects were built (their constructors may allocate: init()).
 // Alone in its binary because the replacement is global.
@@ -23,6 +24,7 @@ void rack_test_note_free() noexcept {}
 
 #include "../unit/counting_allocator.h"
 
+#include "common/pose2d.h"
 #include "obj_recog/laser_tracker.h"
 #include "obj_recog/obj_recog_laser.h"
 #include "rack/interfaces/perception.h"
@@ -95,6 +97,35 @@ TEST(PerceptionNoAllocTest, Scan3dAssembly) {
   for (int k = 0; k < 40; ++k) added += a->add_scan(*scan, k * 40'000'000LL) == scan3d::AddStatus::kAdded;
   EXPECT_EQ(c.stop(), 0U);
   EXPECT_EQ(added, 40U);
+  EXPECT_EQ(a->size(), 40U * 361U);
+}
+
+// The same with motion compensation: poses into the ring (more than it holds, so it
+// wraps), each beam moved by its interpolated pose, the sweep into the end frame.
+TEST(PerceptionNoAllocTest, Scan3dAssemblyWithMotionCompensation) {
+  auto a = std::make_unique<scan3d::Scan3dAssembler>(100000);
+  scan3d::AssemblerConfig cfg;
+  cfg.compensate_motion = true;
+  a->set_config(cfg);
+  auto scan = std::make_unique<interfaces::LadarData>();
+  scan->beam_count = 361;
+  scan->start_angle = -1.5F;
+  scan->angle_step = 0.01F;
+  scan->max_range = 10.0F;
+  scan->duration_ns = 20'000'000;
+  for (uint32_t b = 0; b < scan->beam_count; ++b) scan->range[b] = 2.0F + 0.001F * static_cast<float>(b);
+  Counting c;
+  a->reset();
+  for (int k = 0; k < 600; ++k) {
+    a->add_drive_sample(k * 10'000'000LL, -0.5 + 0.002 * k);
+    if (k % 2 == 0) (void)a->add_pose(k * 10'000'000LL, components::Pose2d{0.005 * k, 0.001 * k, 0.0005 * k});
+  }
+  uint32_t added = 0;
+  for (int k = 100; k < 140; ++k) added += a->add_scan(*scan, k * 40'000'000LL) == scan3d::AddStatus::kAdded;
+  const bool moved = a->to_end_frame();
+  EXPECT_EQ(c.stop(), 0U);
+  EXPECT_EQ(added, 40U);
+  EXPECT_TRUE(moved);
   EXPECT_EQ(a->size(), 40U * 361U);
 }
 

@@ -2,10 +2,15 @@
 // ServoDriveSim nodding LadarSim in the office map's 2.5-D world) yields typed scans
 // with the floor as ground plane; STORE_DATA writes a PCD file that reads back;
 // GET_RANGE_IMAGE answers; PCD playback skips a malformed file (counted) and keeps
-// running; a host file without a source leaves only Scan3D in ERROR.
+// running; with `odometry` a wall ahead of the driving robot stays thin, a NaN pose
+// is counted and skipped, a silent odometry is an ERROR that recovers, one of the
+// wrong class is refused by name; a host file without a source leaves only Scan3D in
+// ERROR.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -15,6 +20,7 @@
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/perception.h"
 #include "rack/interfaces/robot.h"
+#include "rack/rt/clock.h"
 #include "rack/scan3d/pcd_file.h"
 #include "scan3d/scan3d.h"
 
@@ -239,6 +245,286 @@ components:
       << host.gdos_log();
   EXPECT_EQ(host.status(scan3d), tims::msg::kEnabled) << "a bad sample is skipped, not fatal";
   EXPECT_EQ(host.status(host.address_of("servo")), tims::msg::kEnabled);
+}
+
+// ---------------------------------------------------------------------------
+// Motion compensation in a real executor: the simulated robot drives at 0.5 m/s
+// towards the far wall of a 10 m x 6 m room (its face at x = 9.8 m, 4.6 m ahead of
+// the ladar at the start) while Scan3D
+// sweeps with `odometry` (an Odometry on the chassis; no noise, so any thickness
+// is the compensation's).
+
+constexpr double kRoomWallX = 9.8;
+
+// A room of 10 m x 6 m (5 cm cells), closed by 20 cm walls; the map's YAML path.
+std::string write_room(const std::filesystem::path& dir) {
+  std::filesystem::create_directories(dir);
+  constexpr int kW = 200, kH = 120, kWall = 4;
+  std::string pgm = "P5\n" + std::to_string(kW) + " " + std::to_string(kH) + "\n255\n";
+  for (int row = 0; row < kH; ++row) {
+    for (int col = 0; col < kW; ++col) {
+      const bool wall = row < kWall || row >= kH - kWall || col < kWall || col >= kW - kWall;
+      pgm += static_cast<char>(wall ? 0 : 254);
+    }
+  }
+  std::ofstream(dir / "room.pgm", std::ios::binary) << pgm;
+  std::ofstream(dir / "room.yaml") << "image: room.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\n"
+                                      "occupied_thresh: 0.65\nfree_thresh: 0.196\n";
+  return (dir / "room.yaml").string();
+}
+
+std::string driving_yaml(const std::string& map) {
+  return R"(lcm: false
+components:
+  - name: chassis
+    class: ChassisSim
+    data_task: {priority: 0, period_ms: 20, ring: 500}
+    params: {map: )" + map + R"(, initial_x: 5.0, initial_y: 3.0, initial_phi: 0.0, noise_xy: 0.0, noise_phi: 0.0,
+             noise_phi_per_m: 0.0, watchdog_ms: 1000}
+  - name: odometry
+    class: Odometry
+    data_task: {priority: 0, ring: 500}
+    params: {chassis: chassis}
+  - name: servo
+    class: ServoDriveSim
+    data_task: {priority: 0, period_ms: 10}
+    params: {max_velocity: 2.0, acceleration: 8.0, position_min: -0.8, position_max: 0.8}
+  - name: ladar
+    class: LadarSim
+    data_task: {priority: 0, period_ms: 40}
+    params: {map: )" + map + R"(, chassis: chassis, servo: servo, scan_mode: pitch, mount_x: 0.2, mount_z: 0.5,
+             ceiling_height: 2.5, beams: 181, fov_deg: 180, range_max: 12.0, noise_sigma: 0.0}
+  - name: scan3d
+    class: Scan3D
+    autostart: true
+    data_task: {priority: 0, timeout_ms: 200, ring: 4, input_slots: 256}
+    params: {ladar: ladar, servo: servo, odometry: odometry, mode: pitch, mount_x: 0.2, mount_z: 0.5,
+             angle_min: -0.5, angle_max: 0.5, sweep_velocity: 1.0, voxel_size: 0.0, outlier_neighbours: 0}
+)";
+}
+
+struct WallBand {
+  uint32_t n = 0;
+  double min = 1e9, max = -1e9, sum = 0.0;
+  [[nodiscard]] double thickness() const { return max - min; }
+  [[nodiscard]] double mean() const { return n ? sum / n : 0.0; }
+};
+// The wall ahead in a scan: points within 1 m of the robot's axis, between floor and
+// ceiling, farther than 2 m (the side walls are 2.8 m to either side).
+WallBand wall_ahead(const Scan3dData& s) {
+  WallBand b;
+  for (uint32_t i = 0; i < s.point_count; ++i) {
+    if (std::fabs(s.y[i]) > 1.0F || s.z[i] < 0.2F || s.z[i] > 2.3F || s.x[i] < 2.0F) continue;
+    const double x = s.x[i];
+    ++b.n;
+    b.min = std::min(b.min, x);
+    b.max = std::max(b.max, x);
+    b.sum += x;
+  }
+  return b;
+}
+
+TEST(Scan3dComponentTest, OdometryKeepsTheWallAheadThinWhileTheRobotDrives) {
+  Watchdog watchdog(std::chrono::seconds(90));
+  const auto dir = std::filesystem::temp_directory_path() / ("rack_scan3d_room_" + std::to_string(::getpid()));
+  HostUnderTest host(driving_yaml(write_room(dir)));
+  BigCaller big(host);
+  const tims::Address scan3d = host.address_of("scan3d");
+  const tims::Address chassis = host.address_of("chassis");
+  const tims::Address odometry = host.address_of("odometry");
+  ASSERT_TRUE(host.wait_status(scan3d, tims::msg::kEnabled)) << host.log();
+  auto* component = dynamic_cast<components::Scan3d*>(host.executor().find("scan3d"));
+  ASSERT_NE(component, nullptr);
+  ASSERT_TRUE(eventually([&] { return component->scans_published() >= 1; }, std::chrono::milliseconds(20000)))
+      << host.log();
+
+  // Drive straight ahead at 0.5 m/s (MOVE keeps the chassis' watchdog fed).
+  interfaces::ChassisSetActivePilot pilot;
+  pilot.pilot = host.endpoint().address().raw();
+  ASSERT_EQ(host.call_with(chassis, interfaces::kChassisSetActivePilot, pilot).type, tims::msg::kOk);
+  interfaces::ChassisMove move;
+  move.vx = 0.5;
+  const uint64_t before = component->scans_published();
+  // Two sweeps after the start: the second lies wholly in the motion at full speed.
+  ASSERT_TRUE(eventually(
+      [&] {
+        (void)host.call_with(chassis, interfaces::kChassisMove, move);
+        return component->scans_published() >= before + 2;
+      },
+      std::chrono::milliseconds(20000)))
+      << host.log();
+  auto scan = std::make_unique<Scan3dData>();
+  wire::SampleHeader sh;
+  {
+    const auto r = big.call(scan3d, tims::msg::kGetData);
+    ASSERT_EQ(r.type, tims::msg::kData);
+    ASSERT_EQ(r.body.size(), sizeof(wire::SampleHeader) + sizeof *scan);
+    std::memcpy(&sh, r.body.data(), sizeof sh);
+    std::memcpy(scan.get(), r.body.data() + sizeof sh, sizeof *scan);
+  }
+  // The robot at the scan's time (its END with odometry) and at its start.
+  interfaces::ChassisData at_end, at_start;
+  wire::SampleHeader csh;
+  ASSERT_TRUE(host.get_data(chassis, csh, at_end, sh.time_ns));
+  EXPECT_EQ(csh.time_ns, sh.time_ns) << "the scan's time is a chassis sample's (its last 2-D scan's)";
+  ASSERT_TRUE(host.get_data(chassis, csh, at_start, sh.time_ns - scan->duration_ns));
+  const double travelled = at_end.truth_x - at_start.truth_x;
+  interfaces::OdometryData odo;
+  ASSERT_TRUE(host.get_data(odometry, csh, odo, sh.time_ns));
+  // Stop before judging (the room's wall is close enough to be reached in a few seconds).
+  move.vx = 0.0;
+  (void)host.call_with(chassis, interfaces::kChassisMove, move);
+
+  EXPECT_EQ(scan->bad_input, 0U);
+  const WallBand wall = wall_ahead(*scan);
+  std::printf("driving scan: %.2f s, robot travelled %.3f m during it; wall ahead %u points, %.4f m thick at x %.3f "
+              "(expected %.3f)\n",
+              static_cast<double>(scan->duration_ns) * 1e-9, travelled, wall.n, wall.thickness(), wall.mean(),
+              kRoomWallX - at_end.truth_x);
+  // Without compensation the wall's points spread over what the robot drove while the
+  // beams swept the wall (about half the sweep here: 0.24 m thick, 0.38 m off, when
+  // this test was run with compensation switched off in the component).
+  ASSERT_GT(travelled, 0.25) << "the robot must drive during the sweep for this test to mean anything";
+  ASSERT_GT(wall.n, 100U);
+  EXPECT_LT(wall.thickness(), 0.03);
+  // Where the wall is from the robot at the scan's end (the cell edge at 9.8 m).
+  EXPECT_NEAR(wall.mean(), kRoomWallX - at_end.truth_x, 0.03);
+  EXPECT_NEAR(odo.x, at_end.truth_x - 5.0, 0.01) << "noise-free odometry follows the truth";
+  EXPECT_EQ(host.status(scan3d), tims::msg::kEnabled);
+  std::filesystem::remove_all(dir);
+}
+
+// An Odometry for the failure paths: publishes a standing robot every cycle, stamped
+// now; `pause` silences it (it stays ENABLED), `poison_every` makes every n-th pose
+// NaN, `lag_ns` stamps the poses that much in the past (a clock behind the ladar's).
+// Test code: priority 0.
+class ControlledOdometry final : public DataComponent<interfaces::OdometryData> {
+ public:
+  ControlledOdometry() : DataComponent(DataTaskMode::kPeriodic) {}
+  std::atomic<bool> pause{false};
+  std::atomic<uint32_t> poison_every{0};
+  std::atomic<int64_t> lag_ns{0};
+
+ protected:
+  HookResult loop() override {
+    if (pause.load(std::memory_order_relaxed)) return HookResult::kOk;
+    interfaces::OdometryData d{};
+    const uint32_t every = poison_every.load(std::memory_order_relaxed);
+    if (every != 0 && ++cycles_ % every == 0) d.x = std::nan("");
+    publish(d, rt::host_time_ns() - lag_ns.load(std::memory_order_relaxed));
+    return HookResult::kOk;
+  }
+
+ private:
+  uint32_t cycles_ = 0;
+};
+
+// A pose that is not finite is counted and skipped; an odometry that falls silent
+// puts Scan3D in ERROR with a message naming it, and Scan3D recovers (on() retries)
+// once the poses come back; poses that keep coming but lag the scans by more than
+// silence_ms (none covers a scan) are an ERROR too.
+TEST(Scan3dComponentTest, BadOrSilentOdometryIsCountedOrAnError) {
+  Watchdog watchdog(std::chrono::seconds(90));
+  HostUnderTest host(R"(lcm: false
+components:
+  - name: chassis
+    class: ChassisSim
+    data_task: {priority: 0, period_ms: 20}
+    params: {map: )" + kOffice + R"(, initial_x: 4.0, initial_y: 7.2, initial_phi: 0.0}
+  - name: servo
+    class: ServoDriveSim
+    data_task: {priority: 0, period_ms: 10}
+    params: {max_velocity: 2.0, acceleration: 8.0, position_min: -0.8, position_max: 0.8}
+  - name: ladar
+    class: LadarSim
+    data_task: {priority: 0, period_ms: 40}
+    params: {map: )" + kOffice + R"(, chassis: chassis, servo: servo, scan_mode: pitch, mount_x: 0.2, mount_z: 0.5,
+             ceiling_height: 2.5, beams: 91, fov_deg: 180, range_max: 12.0}
+  - name: odo
+    class: ControlledOdometry
+    data_task: {priority: 0, period_ms: 10}
+  - name: scan3d
+    class: Scan3D
+    autostart: true
+    data_task: {priority: 0, timeout_ms: 100, ring: 4, input_slots: 256}
+    params: {ladar: ladar, servo: servo, odometry: odo, mode: pitch, mount_x: 0.2, mount_z: 0.5, angle_min: -0.4,
+             angle_max: 0.4, sweep_velocity: 1.0, silence_ms: 500}
+)",
+                     [](ComponentRegistry& r) {
+                       r.add({"ControlledOdometry", tims::classes::kOdometry, "test: an odometry that can fall silent",
+                              [] { return std::make_unique<ControlledOdometry>(); }});
+                     },
+                     /*capture_gdos=*/true);
+  const tims::Address scan3d = host.address_of("scan3d");
+  ASSERT_TRUE(host.wait_status(scan3d, tims::msg::kEnabled)) << host.log();
+  auto* component = dynamic_cast<components::Scan3d*>(host.executor().find("scan3d"));
+  auto* odo = dynamic_cast<ControlledOdometry*>(host.executor().find("odo"));
+  ASSERT_NE(component, nullptr);
+  ASSERT_NE(odo, nullptr);
+
+  // Every 25th pose NaN: counted, logged, skipped; the scans go on.
+  odo->poison_every.store(25);
+  const uint64_t scans = component->scans_published();
+  ASSERT_TRUE(eventually([&] { return component->bad_input() >= 5 && component->scans_published() >= scans + 2; },
+                         std::chrono::milliseconds(20000)))
+      << host.log();
+  ASSERT_TRUE(eventually([&] {
+    return host.gdos_log().find("skipped an odometry pose: x, y or phi is not a finite number") != std::string::npos;
+  })) << host.gdos_log();
+  EXPECT_EQ(host.status(scan3d), tims::msg::kEnabled) << "a bad pose is skipped, not fatal";
+  odo->poison_every.store(0);
+
+  // Silent (still ENABLED, sending nothing): ERROR, with the odometry named.
+  odo->pause.store(true);
+  ASSERT_TRUE(host.wait_status(scan3d, tims::msg::kError)) << host.log();
+  ASSERT_TRUE(eventually([&] { return host.gdos_log().find("sent no pose for 500 ms") != std::string::npos; }))
+      << host.gdos_log();
+  EXPECT_NE(host.gdos_log().find("the odometry Odometry("), std::string::npos) << host.gdos_log();
+  EXPECT_EQ(host.status(host.address_of("odo")), tims::msg::kEnabled);
+
+  // Back: Scan3D retries on() and sweeps again.
+  odo->pause.store(false);
+  const uint64_t again = component->scans_published();
+  ASSERT_TRUE(eventually([&] { return component->scans_published() >= again + 2; }, std::chrono::milliseconds(30000)))
+      << host.log();
+  EXPECT_EQ(host.status(scan3d), tims::msg::kEnabled);
+
+  // Poses 2 s behind the scans: they arrive, but cover none of them.
+  odo->lag_ns.store(2'000'000'000);
+  ASSERT_TRUE(eventually([&] { return host.gdos_log().find("has no pose for the ladar scan at") != std::string::npos; }))
+      << host.gdos_log();
+  EXPECT_NE(host.gdos_log().find("ms older (silence_ms 500)"), std::string::npos) << host.gdos_log();
+  odo->lag_ns.store(0);
+}
+
+// `odometry` must name an Odometry or a Position: anything else is a setup error
+// that names it.
+TEST(Scan3dComponentTest, OdometryOfTheWrongClassIsAnErrorNamingIt) {
+  Watchdog watchdog(std::chrono::seconds(30));
+  HostUnderTest host(R"(lcm: false
+components:
+  - name: servo
+    class: ServoDriveSim
+    data_task: {priority: 0, period_ms: 10}
+  - name: ladar
+    class: WrongTypeLadar
+    data_task: {priority: 0, period_ms: 20}
+  - name: scan3d
+    class: Scan3D
+    autostart: true
+    data_task: {priority: 0}
+    params: {ladar: ladar, servo: servo, odometry: servo}
+)",
+                     [](ComponentRegistry& r) {
+                       r.add({"WrongTypeLadar", tims::classes::kLadar, "test: publishes ServoDriveData",
+                              [] { return std::make_unique<WrongTypeProducer>(); }});
+                     });
+  const tims::Address scan3d = host.address_of("scan3d");
+  ASSERT_TRUE(host.wait_status(scan3d, tims::msg::kError));
+  const auto r = host.call(scan3d, tims::msg::kOn);
+  EXPECT_EQ(r.type, tims::msg::kError);
+  EXPECT_NE(r.error_text().find("odometry 'servo' is ServoDrive("), std::string::npos) << r.error_text();
+  EXPECT_NE(r.error_text().find("neither an Odometry nor a Position"), std::string::npos) << r.error_text();
 }
 
 TEST(Scan3dComponentTest, WithoutASourceOnlyScan3dIsInError) {

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -15,6 +16,8 @@
 #include <vector>
 
 #include "../unit/test_support.h"
+#include "common/pose2d.h"
+#include "common/pose_series.h"
 #include "common/scan3d_geometry.h"
 #include "rack/interfaces/perception.h"
 #include "rack/interfaces/robot.h"
@@ -408,6 +411,160 @@ TEST(Scan3dAssemblerTest, WaitsForTheDriveAndSkipsWhatItCannotPlace) {
   scan->beam_count = interfaces::kLadarMaxBeams + 1;
   EXPECT_EQ(a.add_scan(*scan, 1'005'000'000), scan3d::AddStatus::kMalformed);
   EXPECT_EQ(a.size(), 3U);
+}
+
+// ---------------------------------------------------------------------------
+// Motion compensation: the robot drives straight at 0.5 m/s towards a flat wall 4 m
+// ahead of where it starts while the drive pitches the ladar from -0.6 to 0.6 rad at
+// 1 rad/s (a 1.2 s sweep: 0.6 m of travel). Each beam is rendered from where the
+// robot is at its time. The odometry frame is deliberately not the robot's start
+// frame (offset and turned), so the rotation is exercised too.
+
+struct DrivingSweep {
+  static constexpr double kSpeed = 0.5;     // m/s along the robot's x
+  static constexpr double kWallAhead = 4.0; // m from the start pose's origin
+  static constexpr int64_t kT0 = 2'000'000'000'000;
+  components::Scan3dMount mount{interfaces::kScan3dModePitch, 0.2, 0.0, 0.5};
+  components::Pose2d start{10.0, -5.0, 0.7};  // in the odometry frame
+
+  static double travelled(int64_t t) { return kSpeed * static_cast<double>(t - kT0) * 1e-9; }
+  static double angle(int64_t t) { return -0.6 + 1.0 * static_cast<double>(t - kT0) * 1e-9; }
+  components::Pose2d pose(int64_t t) const {
+    return components::compose(start, components::Pose2d{travelled(t), 0.0, 0.0});
+  }
+  // Range from the ladar's centre to the wall (perpendicular to the robot's x) or the floor.
+  double range(int64_t t, double bearing) const {
+    const components::Vec3 d = components::scan3d_direction(mount.mode, angle(t), bearing);
+    double r = 1e9;
+    if (d.x > 1e-6) r = std::min(r, (kWallAhead - travelled(t) - mount.x) / d.x);
+    if (d.z < -1e-6) r = std::min(r, -mount.z / d.z);
+    return r < 20.0 ? r : 0.0;
+  }
+  // Feeds drive samples (every 10 ms), poses (every 20 ms) and 2-D scans (every 40 ms,
+  // 25 ms each) of one sweep; the time of the last scan's end.
+  int64_t run(scan3d::Scan3dAssembler& a) const {
+    for (int64_t t = kT0; t <= kT0 + 1'300'000'000; t += 10'000'000) a.add_drive_sample(t, angle(t));
+    for (int64_t t = kT0 - 100'000'000; t <= kT0 + 1'300'000'000; t += 20'000'000) (void)a.add_pose(t, pose(t));
+    auto scan = std::make_unique<interfaces::LadarData>();
+    scan->beam_count = 181;
+    scan->start_angle = static_cast<float>(-M_PI / 2);
+    scan->angle_step = static_cast<float>(M_PI / 180.0);
+    scan->max_range = 20.0F;
+    scan->duration_ns = 25'000'000;
+    int64_t end = 0;
+    for (int64_t t = kT0 + 5'000'000; t + scan->duration_ns <= kT0 + 1'200'000'000; t += 40'000'000) {
+      for (uint32_t b = 0; b < scan->beam_count; ++b) {
+        const int64_t tb = t + scan->duration_ns * b / (scan->beam_count - 1);
+        scan->range[b] = static_cast<float>(range(tb, scan->start_angle + b * static_cast<double>(scan->angle_step)));
+      }
+      EXPECT_EQ(a.add_scan(*scan, t), scan3d::AddStatus::kAdded);
+      end = t + scan->duration_ns;
+    }
+    return end;
+  }
+};
+
+struct Band {
+  uint32_t n = 0;
+  double min = 1e9, max = -1e9, sum = 0.0;
+  [[nodiscard]] double thickness() const { return max - min; }
+  [[nodiscard]] double mean() const { return sum / n; }
+};
+// The wall's points (above the floor): their spread along x.
+Band wall_band(const scan3d::Scan3dAssembler& a) {
+  Band b;
+  for (uint32_t i = 0; i < a.size(); ++i) {
+    if (a.z()[i] < 0.05F) continue;  // the floor
+    const double x = a.x()[i];
+    ++b.n;
+    b.min = std::min(b.min, x);
+    b.max = std::max(b.max, x);
+    b.sum += x;
+  }
+  return b;
+}
+
+TEST(Scan3dMotionTest, OdometryKeepsAWallAheadThinWhileTheRobotDrives) {
+  const DrivingSweep s;
+  scan3d::AssemblerConfig cfg;
+  cfg.mount = s.mount;
+
+  scan3d::Scan3dAssembler plain(200000);
+  plain.set_config(cfg);
+  plain.reset();
+  (void)s.run(plain);
+  EXPECT_FALSE(plain.to_end_frame()) << "without compensation the points stay where they are";
+  const Band smeared = wall_band(plain);
+
+  cfg.compensate_motion = true;
+  scan3d::Scan3dAssembler a(200000);
+  a.set_config(cfg);
+  a.reset();
+  const int64_t end = s.run(a);
+  EXPECT_EQ(a.last_time_ns(), end);
+  ASSERT_TRUE(a.to_end_frame());
+  EXPECT_FALSE(a.to_end_frame()) << "only once per sweep";
+  const Band thin = wall_band(a);
+
+  ASSERT_GT(smeared.n, 300U);
+  ASSERT_EQ(thin.n, smeared.n);
+  // Without: each beam where the robot was at its time, spread over the 0.6 m driven.
+  EXPECT_GT(smeared.thickness(), 0.20) << "the scenario must smear without compensation";
+  // With: the wall where it is from the robot at the sweep's end.
+  EXPECT_LT(thin.thickness(), 0.03);
+  EXPECT_NEAR(thin.mean(), DrivingSweep::kWallAhead - DrivingSweep::travelled(end), 0.01);
+  std::printf("wall thickness: %.3f m without odometry, %.4f m with (%u points)\n", smeared.thickness(),
+              thin.thickness(), thin.n);
+  // Every point is on the wall (as seen from the end pose) or on the floor.
+  const double wall_x = DrivingSweep::kWallAhead - DrivingSweep::travelled(end);
+  for (uint32_t i = 0; i < a.size(); ++i) {
+    ASSERT_TRUE(std::fabs(a.x()[i] - wall_x) < 0.01 || std::fabs(a.z()[i]) < 0.01)
+        << "point " << i << " at (" << a.x()[i] << ", " << a.y()[i] << ", " << a.z()[i] << ")";
+  }
+}
+
+TEST(Scan3dMotionTest, WaitsForAPoseAfterTheScanAndSkipsScansOlderThanThePoses) {
+  scan3d::Scan3dAssembler a(1000);
+  scan3d::AssemblerConfig cfg;
+  cfg.compensate_motion = true;
+  a.set_config(cfg);
+  auto scan = std::make_unique<interfaces::LadarData>();
+  scan->beam_count = 3;
+  scan->angle_step = 0.1F;
+  scan->max_range = 10.0F;
+  scan->range[0] = scan->range[1] = scan->range[2] = 2.0F;
+  scan->duration_ns = 10'000'000;
+  a.add_drive_sample(1'000'000'000, 0.1);
+  a.add_drive_sample(1'100'000'000, 0.2);
+  EXPECT_EQ(a.add_scan(*scan, 1'005'000'000), scan3d::AddStatus::kWaitForPose);  // no pose yet
+  EXPECT_TRUE(a.add_pose(1'010'000'000, components::Pose2d{1.0, 0.0, 0.0}));
+  EXPECT_FALSE(a.add_pose(1'010'000'000, components::Pose2d{2.0, 0.0, 0.0})) << "not newer: ignored";
+  EXPECT_TRUE(a.add_pose(1'030'000'000, components::Pose2d{1.2, 0.0, 0.0}));
+  EXPECT_EQ(a.add_scan(*scan, 1'005'000'000), scan3d::AddStatus::kNoPose);        // starts before the poses
+  EXPECT_EQ(a.add_scan(*scan, 1'025'000'000), scan3d::AddStatus::kWaitForPose);   // ends after the newest
+  EXPECT_EQ(a.add_scan(*scan, 1'015'000'000), scan3d::AddStatus::kAdded);
+  EXPECT_EQ(a.size(), 3U);
+  EXPECT_TRUE(a.to_end_frame());
+  a.reset();
+  EXPECT_FALSE(a.to_end_frame()) << "nothing assembled";
+}
+
+TEST(Scan3dMotionTest, PosesAreInterpolatedTheShortWayRound) {
+  components::PoseSeries<4> p;
+  components::Pose2d out;
+  EXPECT_EQ(p.pose_at(0, out), components::SeriesLookup::kEmpty);
+  EXPECT_TRUE(p.push(100, components::Pose2d{0.0, 0.0, 3.0}));
+  EXPECT_TRUE(p.push(200, components::Pose2d{1.0, 2.0, -3.0}));  // across +-pi
+  ASSERT_EQ(p.pose_at(150, out), components::SeriesLookup::kOk);
+  EXPECT_NEAR(out.x, 0.5, 1e-12);
+  EXPECT_NEAR(out.y, 1.0, 1e-12);
+  EXPECT_NEAR(std::fabs(out.phi), M_PI, 1e-9);
+  EXPECT_EQ(p.pose_at(99, out), components::SeriesLookup::kTooOld);
+  EXPECT_EQ(p.pose_at(201, out), components::SeriesLookup::kTooNew) << "no extrapolation";
+  for (int64_t t = 300; t <= 600; t += 100) EXPECT_TRUE(p.push(t, components::Pose2d{}));
+  EXPECT_EQ(p.size(), 4U);  // a ring: the oldest went
+  EXPECT_EQ(p.oldest_time(), 300);
+  EXPECT_EQ(p.pose_at(250, out), components::SeriesLookup::kTooOld);
 }
 
 }  // namespace

@@ -12,6 +12,8 @@ const char* describe(AddStatus s) noexcept {
     case AddStatus::kNoDriveAngle: return "scan older than the drive's position history";
     case AddStatus::kEmpty: return "no beam with an echo";
     case AddStatus::kMalformed: return "malformed ladar scan (beam count or angles)";
+    case AddStatus::kWaitForPose: return "waiting for the robot's pose at the scan's end";
+    case AddStatus::kNoPose: return "scan older than the robot's pose history (odometry)";
   }
   return "?";
 }
@@ -29,6 +31,8 @@ void Scan3dAssembler::reset() noexcept {
   dropped_ = 0;
   first_ns_ = 0;
   last_ns_ = 0;
+  anchor_ = components::Pose2d{};
+  in_end_frame_ = false;
 }
 
 AddStatus Scan3dAssembler::add_scan(const interfaces::LadarData& scan, int64_t time_ns) noexcept {
@@ -42,6 +46,13 @@ AddStatus Scan3dAssembler::add_scan(const interfaces::LadarData& scan, int64_t t
   if (first == components::SeriesLookup::kTooOld) return AddStatus::kNoDriveAngle;
   // The whole scan must lie inside the drive's history (interpolation, not guessing).
   if (drive_.size() == 0 || drive_.newest_time() < end_ns) return AddStatus::kWaitForDrive;
+  const bool compensate = config_.compensate_motion;
+  if (compensate) {
+    if (poses_.size() == 0 || poses_.newest_time() < end_ns) return AddStatus::kWaitForPose;
+    if (time_ns < poses_.oldest_time()) return AddStatus::kNoPose;
+    // The first scan of a sweep fixes the frame the points are kept in.
+    if (scans_ == 0 && count_ == 0 && dropped_ == 0) (void)poses_.pose_at(time_ns, anchor_);
+  }
 
   const double max_range = config_.range_max > 0.0 ? std::min(config_.range_max, static_cast<double>(scan.max_range))
                                                    : static_cast<double>(scan.max_range);
@@ -59,7 +70,14 @@ AddStatus Scan3dAssembler::add_scan(const interfaces::LadarData& scan, int64_t t
       continue;
     }
     const double bearing = static_cast<double>(scan.start_angle) + static_cast<double>(b) * static_cast<double>(scan.angle_step);
-    const components::Vec3 p = components::scan3d_point(config_.mount, theta, bearing, r);
+    components::Vec3 p = components::scan3d_point(config_.mount, theta, bearing, r);
+    if (compensate) {
+      components::Pose2d pose;  // covered: checked above for the whole scan
+      if (poses_.pose_at(t, pose) != components::SeriesLookup::kOk) continue;
+      const components::Pose2d rel = components::between(anchor_, pose);
+      const double c = std::cos(rel.phi), s = std::sin(rel.phi);
+      p = components::Vec3{rel.x + c * p.x - s * p.y, rel.y + s * p.x + c * p.y, p.z};
+    }
     x_[count_] = static_cast<float>(p.x);
     y_[count_] = static_cast<float>(p.y);
     z_[count_] = static_cast<float>(p.z);
@@ -72,6 +90,23 @@ AddStatus Scan3dAssembler::add_scan(const interfaces::LadarData& scan, int64_t t
   last_ns_ = end_ns;
   ++scans_;
   return AddStatus::kAdded;
+}
+
+bool Scan3dAssembler::to_end_frame() noexcept {
+  if (!config_.compensate_motion || scans_ == 0 || in_end_frame_) return false;
+  components::Pose2d end;
+  if (poses_.pose_at(last_ns_, end) != components::SeriesLookup::kOk) return false;  // add_scan checked it
+  // A point q in the anchor's frame is anchor (+) q in the odometry frame, and
+  // end^-1 (+) anchor (+) q in the robot frame at the end.
+  const components::Pose2d t = components::between(end, anchor_);
+  const double c = std::cos(t.phi), s = std::sin(t.phi);
+  for (uint32_t i = 0; i < count_; ++i) {
+    const double px = static_cast<double>(x_[i]), py = static_cast<double>(y_[i]);
+    x_[i] = static_cast<float>(t.x + c * px - s * py);
+    y_[i] = static_cast<float>(t.y + s * px + c * py);
+  }
+  in_end_frame_ = true;
+  return true;
 }
 
 }  // namespace rack::scan3d
