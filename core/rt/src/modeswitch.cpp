@@ -32,6 +32,7 @@
 #include <thread>
 
 #include "rack/rt/clock.h"
+#include "rack/rt/memory.h"
 
 #ifndef PR_SET_SYSCALL_USER_DISPATCH
 #define PR_SET_SYSCALL_USER_DISPATCH 59
@@ -1094,7 +1095,11 @@ StartResult start(const Config& config) {
   (void)capture(warm, 8, 0, nullptr);
 
   // SYSCALL: Syscall User Dispatch.
-  if (config.syscalls) {
+  if (config.syscalls && kThreadSanitizer) {
+    // TSan's runtime makes raw system calls of its own inside a cycle (around every
+    // signal it delivers, in its interceptors): they would be reported as the task's.
+    result.notes.push_back("SYSCALL: skipped: ThreadSanitizer build (its runtime makes system calls of its own)");
+  } else if (config.syscalls) {
 #if defined(__x86_64__)
     install(SIGSYS, &on_sigsys, SA_NODEFER, &g_old_sigsys);
     g_sud_region = find_restorer(SIGSYS);
@@ -1117,7 +1122,11 @@ StartResult start(const Config& config) {
 #endif
   }
   // FAULT: perf page-fault events with sigtrap.
-  if (config.faults) {
+  if (config.faults && kThreadSanitizer) {
+    // Every first touch of memory also faults in TSan's shadow of it, and stacks are
+    // not pre-faulted there (memory.h): faults inside a cycle are TSan's.
+    result.notes.push_back("FAULT: skipped: ThreadSanitizer build (its shadow memory faults in on first touch)");
+  } else if (config.faults) {
     const int fd = open_page_fault_event();
     if (fd < 0) {
       const int e = errno;
