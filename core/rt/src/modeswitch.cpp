@@ -1144,6 +1144,9 @@ StartResult start(const Config& config) {
   g_alloc_on = config.allocations;
   g_locks_on = config.locks;
   g_rusage = config.rusage;
+  if (config.rusage && kThreadSanitizer) {
+    result.notes.push_back("RUSAGE: minor faults not counted: ThreadSanitizer build (its shadow memory faults in)");
+  }
   // The interposers are linked into the program (rack::rt_hooks); without them
   // (a sanitizer build, a program that did not link them) nothing calls the hooks.
   const bool hooks = &rack_rt_hooks_linked != nullptr;
@@ -1311,7 +1314,9 @@ Verdict leave_cycle() noexcept {
                            static_cast<uint64_t>(now.ru_nvcsw - s->ru_start.ru_nvcsw), 0, 0, 0};
     // A voluntary switch is expected when the cycle waited through the framework (an
     // RPC from on(), a contended PI lock); without such a wait something else blocked.
-    if (d[0] != 0 || d[1] != 0 || (d[2] != 0 && s->framework_waits == 0)) {
+    // In a ThreadSanitizer build minor faults are its shadow memory's: not counted.
+    const bool minor = d[0] != 0 && !kThreadSanitizer;
+    if (minor || d[1] != 0 || (d[2] != 0 && s->framework_waits == 0)) {
       record(Reason::kRusage, nullptr, 1, -1, d, 0, 0);
     }
   }
