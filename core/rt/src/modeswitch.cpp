@@ -1144,6 +1144,9 @@ StartResult start(const Config& config) {
   g_alloc_on = config.allocations;
   g_locks_on = config.locks;
   g_rusage = config.rusage;
+  if (kThreadSanitizer) {
+    result.notes.push_back("NOMLOCK: skipped: ThreadSanitizer build (memory is not locked there by design)");
+  }
   if (config.rusage && kThreadSanitizer) {
     result.notes.push_back("RUSAGE: minor faults not counted: ThreadSanitizer build (its shadow memory faults in)");
   }
@@ -1266,7 +1269,8 @@ void attach_current_thread(const TaskInfo& info) {
   if (g_fault_ok) s->perf_fd = open_page_fault_event();
   t_slot = s;
   const int64_t locked = vm_locked_kib();
-  if (locked == 0) record(Reason::kNoMlock, nullptr, 1, -1, nullptr, 0, locked);
+  // ThreadSanitizer build: memory is never locked there (memory.h), nothing to report.
+  if (locked == 0 && !kThreadSanitizer) record(Reason::kNoMlock, nullptr, 1, -1, nullptr, 0, locked);
 }
 
 void detach_current_thread() noexcept {
