@@ -48,13 +48,13 @@ void ModeSwitchDemo::cleanup() {
 // Each deed is one marked line; noinline keeps it a frame of its own in backtraces.
 __attribute__((noinline)) void ModeSwitchDemo::do_syscall() noexcept {
   const ssize_t n = ::write(null_fd_, "mode switch\n", 12);  // DEMO-LINE: SYSCALL
-  deeds_ += n > 0 ? 1 : 0;
+  deeds_.fetch_add(n > 0 ? 1 : 0, std::memory_order_relaxed);
 }
 
 __attribute__((noinline)) void ModeSwitchDemo::do_fault() noexcept {
   char* page = fresh_ + (next_page_++ % fresh_pages_) * page_;
   *static_cast<volatile char*>(page) = 1;  // DEMO-LINE: FAULT
-  ++deeds_;
+  deeds_.fetch_add(1, std::memory_order_relaxed);
 }
 
 namespace {
@@ -65,31 +65,31 @@ char* volatile g_escape = nullptr;
 __attribute__((noinline)) void ModeSwitchDemo::do_alloc() {
   auto* block = new char[256];  // DEMO-LINE: ALLOC
   g_escape = block;
-  ++deeds_;
+  deeds_.fetch_add(1, std::memory_order_relaxed);
   delete[] g_escape;
 }
 
 __attribute__((noinline)) void ModeSwitchDemo::do_prioinv() noexcept {
   std::lock_guard lock(plain_mutex_);  // DEMO-LINE: PRIOINV
-  ++deeds_;
+  deeds_.fetch_add(1, std::memory_order_relaxed);
 }
 
 __attribute__((noinline)) void ModeSwitchDemo::do_spin(int64_t ms) noexcept {
   const int64_t until = rt::monotonic_ns() + ms * rt::kNsPerMs;
   while (rt::monotonic_ns() < until) {  // DEMO-LINE: SPIN
   }
-  ++deeds_;
+  deeds_.fetch_add(1, std::memory_order_relaxed);
 }
 
 __attribute__((noinline)) void ModeSwitchDemo::do_device() noexcept {
   char byte = 1;
-  if (::write(device_[1], &byte, 1) == 1) ++deeds_;  // registered: allowed
+  if (::write(device_[1], &byte, 1) == 1) deeds_.fetch_add(1, std::memory_order_relaxed);  // registered: allowed
   (void)!::read(device_[0], &byte, 1);
 }
 
 __attribute__((noinline)) void ModeSwitchDemo::do_crash() noexcept {
   *null_ = 42;  // DEMO-LINE: CRASH
-  ++deeds_;
+  deeds_.fetch_add(1, std::memory_order_relaxed);
 }
 
 __attribute__((noinline)) void ModeSwitchDemo::do_abort() noexcept {
@@ -98,7 +98,7 @@ __attribute__((noinline)) void ModeSwitchDemo::do_abort() noexcept {
 
 __attribute__((noinline)) void ModeSwitchDemo::do_loop_syscall() noexcept {
   const ssize_t n = ::write(null_fd_, "loop\n", 5);  // DEMO-LINE: LOOP_SYSCALL
-  deeds_ += n > 0 ? 1 : 0;
+  deeds_.fetch_add(n > 0 ? 1 : 0, std::memory_order_relaxed);
 }
 
 __attribute__((noinline)) void ModeSwitchDemo::do_overrun() noexcept {
@@ -109,7 +109,7 @@ __attribute__((noinline)) void ModeSwitchDemo::do_overrun() noexcept {
 // a voluntary context switch without a framework wait: RUSAGE sees it.
 __attribute__((noinline)) void ModeSwitchDemo::do_sleep() noexcept {
   ::usleep(2000);  // DEMO-LINE: SLEEP
-  ++deeds_;
+  deeds_.fetch_add(1, std::memory_order_relaxed);
 }
 
 HookResult ModeSwitchDemo::loop() {
@@ -118,7 +118,7 @@ HookResult ModeSwitchDemo::loop() {
   if (overrun_.exchange(false, std::memory_order_relaxed)) do_overrun();
   interfaces::ModeSwitchDemoData d;
   d.cycles = cycles_;
-  d.deeds = deeds_;
+  d.deeds = deeds_.load(std::memory_order_relaxed);
   publish(d, rt::host_time_ns());
   return HookResult::kOk;
 }

@@ -50,7 +50,7 @@ class ModeSwitchDemo final : public DataComponent<interfaces::ModeSwitchDemoData
   int* volatile null_ = nullptr;
   std::atomic<bool> loop_syscall_{false}, overrun_{false};
   int64_t cycles_ = 0;
-  int64_t deeds_ = 0;
+  std::atomic<int64_t> deeds_{0};  // both tasks do deeds (commands, LOOP_SYSCALL); loop() publishes the count
 };
 
 }  // namespace rack::components

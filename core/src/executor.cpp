@@ -251,7 +251,12 @@ void Executor::start() {
     own.from.push_back({tims::kTransportControlAddress.raw(), 0xFFFFFFFFu});
     own.only_local = true;
     ac.rules.insert(ac.rules.begin(), own);
-    access_ = std::make_unique<tims::AccessControl>(ac);
+    {
+      // The GDOS thread already runs and reads access_ in gdos_pass(), under this mutex.
+      auto access = std::make_unique<tims::AccessControl>(ac);
+      std::lock_guard lock(gdos_mutex_);
+      access_ = std::move(access);
+    }
     router_.set_access(access_.get());
     log(gdos::Level::kInfo, "access control: " + std::to_string(access_->rule_count()) + " rule(s), default " +
                                 (access_->default_policy() == tims::AccessDefault::kClosed ? "closed" : "open"));

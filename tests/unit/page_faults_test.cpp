@@ -73,6 +73,7 @@ TEST(PageFaultsTest, ReadingAThreadThatDoesNotExistIsNotAMeasurement) {
 TEST(PageFaultsTest, PeriodicComponentTakesNoPageFaultAfterStartUp) {
   Watchdog watchdog;
   const auto mem = rt::apply_memory_policy(64u << 20);
+  if (mem.skipped_for_sanitizer) GTEST_SKIP() << mem.describe();
   if (!mem.locked) GTEST_SKIP() << "mlockall refused (needs root or RLIMIT_MEMLOCK): " << mem.describe();
   test::HostUnderTest host(R"(system: 0
 lcm: false

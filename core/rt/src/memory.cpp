@@ -1,17 +1,23 @@
 #include "rack/rt/memory.h"
 
 #include <alloca.h>
+#include <link.h>
 #include <malloc.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 
 namespace rack::rt {
 
 std::string MemoryPolicyResult::describe() const {
+  if (skipped_for_sanitizer) {
+    return "memory NOT locked: ThreadSanitizer build: mlockall and heap/stack pre-faulting are skipped";
+  }
   if (locked) {
     return "memory locked (mlockall), heap pre-faulted " +
            std::to_string(prefaulted_heap_bytes / 1024) + " KiB";
@@ -19,8 +25,50 @@ std::string MemoryPolicyResult::describe() const {
   return std::string("memory NOT locked: mlockall failed: ") + std::strerror(lock_errno);
 }
 
+void note_sanitizer_memory_policy() noexcept {
+  if constexpr (kThreadSanitizer) {
+    static std::atomic<bool> said{false};
+    if (said.exchange(true, std::memory_order_relaxed)) return;
+    std::fprintf(stderr,
+                 "rack: ThreadSanitizer build: memory is not locked (mlockall would try to make TSan's TiBs of "
+                 "shadow memory resident), heap and task stacks are not pre-faulted, task stacks get %zu KiB more "
+                 "for TSan's thread state; timing is not real-time\n",
+                 sanitizer_stack_extra_bytes() / 1024);
+  }
+}
+
+std::size_t sanitizer_stack_extra_bytes() noexcept {
+  if constexpr (!kThreadSanitizer) {
+    return 0;
+  } else {
+    // Computed once: the loaded objects' PT_TLS segments (static TLS), plus room for
+    // glibc's thread descriptor and TLS surplus.
+    static const std::size_t extra = [] {
+      std::size_t tls = 0;
+      dl_iterate_phdr(
+          [](dl_phdr_info* info, std::size_t, void* data) {
+            for (int i = 0; i < info->dlpi_phnum; ++i) {
+              const auto& ph = info->dlpi_phdr[i];
+              if (ph.p_type == PT_TLS) {
+                *static_cast<std::size_t*>(data) += static_cast<std::size_t>(ph.p_memsz + ph.p_align);
+              }
+            }
+            return 0;
+          },
+          &tls);
+      return tls + 64 * 1024;
+    }();
+    return extra;
+  }
+}
+
 MemoryPolicyResult apply_memory_policy(std::size_t heap_prefault_bytes) noexcept {
   MemoryPolicyResult result;
+  if constexpr (kThreadSanitizer) {
+    note_sanitizer_memory_policy();
+    result.skipped_for_sanitizer = true;
+    return result;
+  }
   // Never give heap back to the kernel, never serve malloc from fresh mmaps: both
   // would be system calls and page faults inside whatever RT task frees or allocates.
   mallopt(M_TRIM_THRESHOLD, -1);
@@ -46,6 +94,7 @@ MemoryPolicyResult apply_memory_policy(std::size_t heap_prefault_bytes) noexcept
 }
 
 void prefault_stack(std::size_t bytes) noexcept {
+  if constexpr (kThreadSanitizer) return;  // the stack is mostly TSan's TLS: see memory.h
   // Touch `bytes` below the current frame. alloca keeps it on this thread's stack;
   // the empty asm keeps the compiler from dropping the writes.
   auto* area = static_cast<char*>(alloca(bytes));

@@ -32,6 +32,7 @@
 #include <thread>
 
 #include "rack/rt/clock.h"
+#include "rack/rt/memory.h"
 
 #ifndef PR_SET_SYSCALL_USER_DISPATCH
 #define PR_SET_SYSCALL_USER_DISPATCH 59
@@ -1094,7 +1095,11 @@ StartResult start(const Config& config) {
   (void)capture(warm, 8, 0, nullptr);
 
   // SYSCALL: Syscall User Dispatch.
-  if (config.syscalls) {
+  if (config.syscalls && kThreadSanitizer) {
+    // TSan's runtime makes raw system calls of its own inside a cycle (around every
+    // signal it delivers, in its interceptors): they would be reported as the task's.
+    result.notes.push_back("SYSCALL: skipped: ThreadSanitizer build (its runtime makes system calls of its own)");
+  } else if (config.syscalls) {
 #if defined(__x86_64__)
     install(SIGSYS, &on_sigsys, SA_NODEFER, &g_old_sigsys);
     g_sud_region = find_restorer(SIGSYS);
@@ -1117,7 +1122,11 @@ StartResult start(const Config& config) {
 #endif
   }
   // FAULT: perf page-fault events with sigtrap.
-  if (config.faults) {
+  if (config.faults && kThreadSanitizer) {
+    // Every first touch of memory also faults in TSan's shadow of it, and stacks are
+    // not pre-faulted there (memory.h): faults inside a cycle are TSan's.
+    result.notes.push_back("FAULT: skipped: ThreadSanitizer build (its shadow memory faults in on first touch)");
+  } else if (config.faults) {
     const int fd = open_page_fault_event();
     if (fd < 0) {
       const int e = errno;
@@ -1135,6 +1144,12 @@ StartResult start(const Config& config) {
   g_alloc_on = config.allocations;
   g_locks_on = config.locks;
   g_rusage = config.rusage;
+  if (kThreadSanitizer) {
+    result.notes.push_back("NOMLOCK: skipped: ThreadSanitizer build (memory is not locked there by design)");
+  }
+  if (config.rusage && kThreadSanitizer) {
+    result.notes.push_back("RUSAGE: minor faults not counted: ThreadSanitizer build (its shadow memory faults in)");
+  }
   // The interposers are linked into the program (rack::rt_hooks); without them
   // (a sanitizer build, a program that did not link them) nothing calls the hooks.
   const bool hooks = &rack_rt_hooks_linked != nullptr;
@@ -1254,7 +1269,8 @@ void attach_current_thread(const TaskInfo& info) {
   if (g_fault_ok) s->perf_fd = open_page_fault_event();
   t_slot = s;
   const int64_t locked = vm_locked_kib();
-  if (locked == 0) record(Reason::kNoMlock, nullptr, 1, -1, nullptr, 0, locked);
+  // ThreadSanitizer build: memory is never locked there (memory.h), nothing to report.
+  if (locked == 0 && !kThreadSanitizer) record(Reason::kNoMlock, nullptr, 1, -1, nullptr, 0, locked);
 }
 
 void detach_current_thread() noexcept {
@@ -1302,7 +1318,9 @@ Verdict leave_cycle() noexcept {
                            static_cast<uint64_t>(now.ru_nvcsw - s->ru_start.ru_nvcsw), 0, 0, 0};
     // A voluntary switch is expected when the cycle waited through the framework (an
     // RPC from on(), a contended PI lock); without such a wait something else blocked.
-    if (d[0] != 0 || d[1] != 0 || (d[2] != 0 && s->framework_waits == 0)) {
+    // In a ThreadSanitizer build minor faults are its shadow memory's: not counted.
+    const bool minor = d[0] != 0 && !kThreadSanitizer;
+    if (minor || d[1] != 0 || (d[2] != 0 && s->framework_waits == 0)) {
       record(Reason::kRusage, nullptr, 1, -1, d, 0, 0);
     }
   }

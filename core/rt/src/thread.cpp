@@ -16,7 +16,9 @@ int create(pthread_t* handle, const ThreadConfig& config, bool realtime, void* (
   pthread_attr_t attr;
   pthread_attr_init(&attr);
   const auto min_stack = static_cast<std::size_t>(PTHREAD_STACK_MIN);
-  pthread_attr_setstacksize(&attr, config.stack_bytes < min_stack ? min_stack : config.stack_bytes);
+  // ThreadSanitizer build: glibc takes TSan's large static TLS from the stack.
+  const std::size_t stack = config.stack_bytes + sanitizer_stack_extra_bytes();
+  pthread_attr_setstacksize(&attr, stack < min_stack ? min_stack : stack);
   if (realtime) {
     // Explicit: without it the new thread inherits the creator's policy and the
     // attributes below are silently ignored.
@@ -61,6 +63,7 @@ ThreadStart Thread::start(const ThreadConfig& config, std::function<void()> body
                           bool allow_fallback) {
   config_ = config;
   body_ = std::move(body);
+  note_sanitizer_memory_policy();
   const bool want_rt = config.priority > 0;
   int rc = create(&handle_, config_, want_rt, &Thread::trampoline, this);
   ThreadStart how = want_rt ? ThreadStart::kRealTime : ThreadStart::kNormal;

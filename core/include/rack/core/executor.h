@@ -107,7 +107,7 @@ class Executor {
   std::unique_ptr<tims::Mailbox> mailbox_;
   std::unique_ptr<tims::Endpoint> endpoint_;
   std::unique_ptr<tims::LcmTransport> transport_;
-  std::unique_ptr<tims::AccessControl> access_;
+  std::unique_ptr<tims::AccessControl> access_;  // set in start() under gdos_mutex_ (gdos_pass reads it)
   int64_t next_access_report_ns_ = 0;  // GDOS thread: denials are logged at most this often
   std::vector<ComponentView> views_;
   std::vector<std::unique_ptr<rt::Thread>> threads_;
