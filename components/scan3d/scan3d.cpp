@@ -212,9 +212,7 @@ HookResult Scan3d::on() {
                                          settings().rpc_timeout_ns);
   if (!r.ok()) {
     log_error("the drive %s refused MOVE_POS to %.3f rad (not homed, or outside its limits?)", servo, sweep_from_);
-    if (compensate_) unsubscribe(odometry);
-    unsubscribe(ladar);
-    unsubscribe(servo);
+    off();  // every subscription made above
     return HookResult::kError;
   }
   return HookResult::kOk;

@@ -81,8 +81,8 @@ TEST(PerceptionNoAllocTest, LaserTrackerAndObjectList) {
   EXPECT_EQ(out->object_count, 3U);
 }
 
-TEST(PerceptionNoAllocTest, Scan3dAssembly) {
-  auto a = std::make_unique<scan3d::Scan3dAssembler>(100000);
+// A 2-D scan of 361 beams, every one with an echo (made before counting starts).
+std::unique_ptr<interfaces::LadarData> wall_scan() {
   auto scan = std::make_unique<interfaces::LadarData>();
   scan->beam_count = 361;
   scan->start_angle = -1.5F;
@@ -90,6 +90,12 @@ TEST(PerceptionNoAllocTest, Scan3dAssembly) {
   scan->max_range = 10.0F;
   scan->duration_ns = 20'000'000;
   for (uint32_t b = 0; b < scan->beam_count; ++b) scan->range[b] = 2.0F + 0.001F * static_cast<float>(b);
+  return scan;
+}
+
+TEST(PerceptionNoAllocTest, Scan3dAssembly) {
+  auto a = std::make_unique<scan3d::Scan3dAssembler>(100000);
+  auto scan = wall_scan();
   Counting c;
   a->reset();
   for (int k = 0; k < 200; ++k) a->add_drive_sample(k * 10'000'000LL, -0.5 + 0.005 * k);
@@ -107,13 +113,7 @@ TEST(PerceptionNoAllocTest, Scan3dAssemblyWithMotionCompensation) {
   scan3d::AssemblerConfig cfg;
   cfg.compensate_motion = true;
   a->set_config(cfg);
-  auto scan = std::make_unique<interfaces::LadarData>();
-  scan->beam_count = 361;
-  scan->start_angle = -1.5F;
-  scan->angle_step = 0.01F;
-  scan->max_range = 10.0F;
-  scan->duration_ns = 20'000'000;
-  for (uint32_t b = 0; b < scan->beam_count; ++b) scan->range[b] = 2.0F + 0.001F * static_cast<float>(b);
+  auto scan = wall_scan();
   Counting c;
   a->reset();
   for (int k = 0; k < 600; ++k) {

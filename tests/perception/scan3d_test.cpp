@@ -330,6 +330,18 @@ double room_range(const components::Scan3dMount& m, double theta, double bearing
   return t < 20.0 ? t : 0.0;
 }
 
+// An empty 2-D scan of 181 beams over the half circle ahead, 1 degree apart, up to
+// 20 m, taking 25 ms (as a real scanner's mirror turns); the tests fill in the ranges.
+std::unique_ptr<interfaces::LadarData> half_circle_scan() {
+  auto scan = std::make_unique<interfaces::LadarData>();
+  scan->beam_count = 181;
+  scan->start_angle = static_cast<float>(-M_PI / 2);
+  scan->angle_step = static_cast<float>(M_PI / 180.0);
+  scan->max_range = 20.0F;
+  scan->duration_ns = 25'000'000;
+  return scan;
+}
+
 class Scan3dAssemblyTest : public ::testing::TestWithParam<uint8_t> {};
 
 TEST_P(Scan3dAssemblyTest, AKnownWallAndFloorEndUpWhereTheyAre) {
@@ -349,12 +361,7 @@ TEST_P(Scan3dAssemblyTest, AKnownWallAndFloorEndUpWhereTheyAre) {
     a.add_drive_sample(ts, angle(ts));
   }
   // 2-D scans every 40 ms, each taking 25 ms (as a real scanner's mirror turns).
-  auto scan = std::make_unique<interfaces::LadarData>();
-  scan->beam_count = 181;
-  scan->start_angle = static_cast<float>(-M_PI / 2);
-  scan->angle_step = static_cast<float>(M_PI / 180.0);
-  scan->max_range = 20.0F;
-  scan->duration_ns = 25'000'000;
+  auto scan = half_circle_scan();
   uint32_t scans = 0;
   for (int64_t t = t0 + 5'000'000; t + scan->duration_ns <= t0 + 1'200'000'000; t += 40'000'000) {
     for (uint32_t b = 0; b < scan->beam_count; ++b) {
@@ -445,12 +452,7 @@ struct DrivingSweep {
   int64_t run(scan3d::Scan3dAssembler& a) const {
     for (int64_t t = kT0; t <= kT0 + 1'300'000'000; t += 10'000'000) a.add_drive_sample(t, angle(t));
     for (int64_t t = kT0 - 100'000'000; t <= kT0 + 1'300'000'000; t += 20'000'000) (void)a.add_pose(t, pose(t));
-    auto scan = std::make_unique<interfaces::LadarData>();
-    scan->beam_count = 181;
-    scan->start_angle = static_cast<float>(-M_PI / 2);
-    scan->angle_step = static_cast<float>(M_PI / 180.0);
-    scan->max_range = 20.0F;
-    scan->duration_ns = 25'000'000;
+    auto scan = half_circle_scan();
     int64_t end = 0;
     for (int64_t t = kT0 + 5'000'000; t + scan->duration_ns <= kT0 + 1'200'000'000; t += 40'000'000) {
       for (uint32_t b = 0; b < scan->beam_count; ++b) {
