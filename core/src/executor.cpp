@@ -472,9 +472,9 @@ std::string Executor::status_report() const {
     out += line;
     if (gdos_publisher_) {
       const auto p = gdos_publisher_->counters();
-      std::snprintf(line, sizeof line, ", published %llu in %llu batches, publish errors %llu",
+      std::snprintf(line, sizeof line, ", published %llu in %llu batches, publish errors %llu, listener messages refused %llu",
                     static_cast<unsigned long long>(p.records), static_cast<unsigned long long>(p.batches),
-                    static_cast<unsigned long long>(p.publish_errors));
+                    static_cast<unsigned long long>(p.publish_errors), static_cast<unsigned long long>(p.refused));
       out += line;
     }
     out += '\n';
@@ -491,6 +491,13 @@ std::string Executor::status_report() const {
                   u(t.delivery_failed),
                   u(t.sequence_gaps), u(t.lost_messages), u(t.forwarded), u(t.not_available),
                   transport_->hosts().size(), u(t.hosts_expired), u(t.subscriptions_failed));
+    out += line;
+    // What was refused, by kind (README: "What the network may not do"); parsed by tests.
+    std::snprintf(line, sizeof line,
+                  "  TiMS/LCM refused: lcm framing %llu, lcm fragments %llu, tims packets %llu, announcements %llu, "
+                  "discovers %llu, hosts over the limit %llu; discovers answered %llu, coalesced %llu\n",
+                  u(t.malformed_lcm), u(t.lcm_fragments), u(t.malformed_packet), u(t.malformed_announce),
+                  u(t.malformed_discover), u(t.hosts_refused), u(t.discovers_answered), u(t.discovers_suppressed));
     out += line;
   }
   if (access_) out += access_->status_text();

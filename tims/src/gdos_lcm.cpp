@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "lcm_receive.h"
+#include "lcm_wire.h"
 #include "rack/rt/clock.h"
 #include "rack/tims/link_auth.h"
 #include "rack_lcm/gdos_batch.hpp"
@@ -57,16 +59,39 @@ struct GdosPublisher::Impl {
   std::size_t batch_bytes = 0;
   int64_t last_listener_ns = INT64_MIN / 2;
   // Written by the publishing thread, read by any (relaxed: statistics).
-  std::atomic<uint64_t> records{0}, batches{0}, publish_errors{0};
+  std::atomic<uint64_t> records{0}, batches{0}, publish_errors{0}, refused{0}, socket_refused{0};
+  // Listener announcements: on a udpm network read from an own socket (lcm_receive.h),
+  // opened at the first listener_present(); elsewhere (memq://) through LCM. Either
+  // way decoded by lcm_wire.h: LCM's reassembly and lcm-gen's decoder never see them.
+  std::unique_ptr<lcm_rx::LcmSocketReader> reader;
+  bool subscribed = false;
 
-  void on_listener(const lcm::ReceiveBuffer*, const std::string&, const rack_lcm::gdos_listener*) {
+  void on_listener_bytes(const uint8_t* d, std::size_t size) {
+    rack_lcm::gdos_listener l;
+    std::string why;
+    if (wire_lcm::decode(d, size, l, why) < 0) {
+      refused.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
     last_listener_ns = rt::monotonic_ns();
+  }
+  void on_listener(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    on_listener_bytes(static_cast<const uint8_t*>(rbuf->data), rbuf->data_size);
+  }
+  void listen() {
+    if (reader || subscribed) return;
+    if (const auto u = lcm_rx::parse_udpm(config.url)) {
+      // A listener announcement is a few dozen bytes: 1 KB of each datagram is read.
+      reader = std::make_unique<lcm_rx::LcmSocketReader>(config.url, *u, 1024);
+    } else {
+      lcm.subscribe(kGdosListenerChannel, &Impl::on_listener, this);
+      subscribed = true;
+    }
   }
 };
 
 GdosPublisher::GdosPublisher(GdosPublisherConfig config) : impl_(std::make_unique<Impl>(std::move(config))) {
   if (!impl_->lcm.good()) throw std::runtime_error(join_error(impl_->config.url));
-  impl_->lcm.subscribe(kGdosListenerChannel, &Impl::on_listener, impl_.get());
   impl_->batch.host = impl_->config.host;
   impl_->batch.pid = impl_->config.pid;
 }
@@ -123,13 +148,37 @@ void GdosPublisher::flush() {
 }
 
 bool GdosPublisher::listener_present(int64_t within_ns) {
-  pollfd pfd{impl_->lcm.getFileno(), POLLIN, 0};
-  // Non-blocking: only what has arrived. handle() reads one datagram.
-  for (int i = 0; i < 64 && poll(&pfd, 1, 0) > 0 && (pfd.revents & POLLIN) != 0; ++i) {
-    impl_->lcm.handle();
-    pfd.revents = 0;
+  Impl& m = *impl_;
+  try {
+    m.listen();
+  } catch (const std::exception&) {
+    // Cannot open the socket (descriptors exhausted): no listener is seen, the log
+    // goes to stderr; counted, tried again next time.
+    m.refused.fetch_add(1, std::memory_order_relaxed);
+    return false;
   }
-  return rt::monotonic_ns() - impl_->last_listener_ns <= within_ns;
+  if (m.reader) {
+    // Non-blocking: what has arrived, bounded per call (the bus may carry TiMS traffic).
+    lcm_rx::ReadDatagram rd;
+    for (int i = 0; i < 1024 && m.reader->read(rd, {}, 64); ++i) {
+      if (rd.datagram.channel != kGdosListenerChannel) continue;
+      if (rd.truncated) {
+        m.refused.fetch_add(1, std::memory_order_relaxed);
+        continue;
+      }
+      m.on_listener_bytes(rd.datagram.payload, rd.datagram.payload_size);
+    }
+    const auto& rc = m.reader->counters();
+    m.socket_refused.store(rc.fragments + rc.bad_framing, std::memory_order_relaxed);
+  } else {
+    pollfd pfd{m.lcm.getFileno(), POLLIN, 0};
+    // Non-blocking: only what has arrived. handle() reads one datagram.
+    for (int i = 0; i < 64 && poll(&pfd, 1, 0) > 0 && (pfd.revents & POLLIN) != 0; ++i) {
+      m.lcm.handle();
+      pfd.revents = 0;
+    }
+  }
+  return rt::monotonic_ns() - m.last_listener_ns <= within_ns;
 }
 
 GdosPublisherCounters GdosPublisher::counters() const noexcept {
@@ -137,6 +186,7 @@ GdosPublisherCounters GdosPublisher::counters() const noexcept {
   c.records = impl_->records.load(std::memory_order_relaxed);
   c.batches = impl_->batches.load(std::memory_order_relaxed);
   c.publish_errors = impl_->publish_errors.load(std::memory_order_relaxed);
+  c.refused = impl_->refused.load(std::memory_order_relaxed) + impl_->socket_refused.load(std::memory_order_relaxed);
   return c;
 }
 const std::string& GdosPublisher::url() const noexcept { return impl_->config.url; }
@@ -145,7 +195,8 @@ const std::string& GdosPublisher::url() const noexcept { return impl_->config.ur
 
 struct GdosSubscriber::Impl {
   Impl(const std::string& u, std::string c, bool a, std::string n, const std::string& key_file)
-      : url(u), channel(std::move(c)), announce(a), name(std::move(n)), lcm(u) {
+      : url(u), channel(std::move(c)), announce(a), name(std::move(n)), lcm(u),
+        warn([this](const std::string& line) { warnings += line + "\n"; }) {
     if (!key_file.empty()) {
       keys = std::make_unique<KeyRing>(key_file);
       verifier = std::make_unique<LinkVerifier>(*keys, kDefaultReplayWindowNs);
@@ -153,13 +204,12 @@ struct GdosSubscriber::Impl {
   }
   std::unique_ptr<KeyRing> keys;
   std::unique_ptr<LinkVerifier> verifier;
-  int64_t next_auth_warning_ns = 0;
   int64_t next_key_check_ns = 0;
   bool warned_unverified = false;
 
   // With a key: verifies and strips the trailer (false: dropped, counted, warned at
   // most once a second). Without: passes everything on.
-  bool authentic(const std::string& ch, const uint8_t* d, std::size_t& size) {
+  bool authentic(std::string_view ch, const uint8_t* d, std::size_t& size) {
     if (!verifier) return true;
     const int64_t now = rt::monotonic_ns();
     if (now >= next_key_check_ns) {
@@ -173,53 +223,85 @@ struct GdosSubscriber::Impl {
       return true;
     }
     ++(is_replay(r) ? counters.replayed : counters.auth_failed);
-    if (now >= next_auth_warning_ns) {
-      warnings += "gdos: dropped a message on '" + ch + "' (" + url + "): " + describe(r) + "\n";
-      next_auth_warning_ns = now + rt::kNsPerSec;
-    }
+    warn("auth", [&] { return "gdos: dropped a message on '" + std::string(ch) + "' (" + url + "): " + describe(r); });
     return false;
   }
   std::string url;
   std::string channel;
   bool announce;
   std::string name;
-  lcm::LCM lcm;
+  lcm::LCM lcm;  // publishes the listener announcements; receives only on memq:// and the like
+  // udpm networks: our own bounds-checked reader (lcm_receive.h); LCM's receive path
+  // (its fragment reassembly) never sees the network.
+  std::unique_ptr<lcm_rx::LcmSocketReader> reader;
   int64_t next_announce_ns = 0;
   std::map<uint32_t, std::string> names;  // from TIMS_ANNOUNCE
   std::map<std::string, uint64_t> last_sequence;  // per host/pid
   GdosSubscriberCounters counters;
   std::string warnings;
+  lcm_rx::RateLimitedWarn warn;  // at most one line per kind per second into `warnings`
   const std::function<void(const GdosRecord&)>* sink = nullptr;
   std::size_t handled = 0;
 
-  void on_batch(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
-    std::size_t size = rbuf->data_size;
-    if (!authentic(ch, static_cast<const uint8_t*>(rbuf->data), size)) return;
+  // Bounds on what hostile traffic could grow (far above a real fleet).
+  static constexpr std::size_t kMaxNames = 65536;
+  static constexpr std::size_t kMaxSenders = 4096;
+
+  // One LCM message (after the framing), from either path.
+  void on_message(std::string_view ch, const uint8_t* d, std::size_t size) {
+    if (ch == channel) return on_batch(ch, d, size);
+    if (ch == kAnnounceChannel) on_announce(ch, d, size);
+  }
+
+  // One datagram in LCM's framing (own socket, or handle_datagram()).
+  void on_datagram(const uint8_t* d, std::size_t size) {
+    const wire_lcm::LcmDatagram g = wire_lcm::parse_datagram(d, size);
+    if (g.kind == wire_lcm::LcmDatagram::kFragment) {
+      ++counters.lcm_fragments;
+      return refused("fragment", "LCM fragment of " + std::to_string(size) + " bytes refused");
+    }
+    if (g.kind != wire_lcm::LcmDatagram::kMessage) {
+      ++counters.bad_datagrams;
+      return refused("framing", std::to_string(size) + "-byte datagram: " + g.why);
+    }
+    on_message(g.channel, g.payload, g.payload_size);
+  }
+  void refused(const char* kind, const std::string& why) {
+    warn(kind, [&] { return "gdos: dropped on " + url + ": " + why; });
+  }
+
+  void on_batch(std::string_view ch, const uint8_t* data, std::size_t full_size) {
+    std::size_t size = full_size;
+    if (!authentic(ch, data, size)) return;
     rack_lcm::gdos_batch b;
-    const int used = b.decode(rbuf->data, 0, static_cast<int>(size));
-    if (!verifier && !warned_unverified && used > 0 &&
-        looks_signed(static_cast<const uint8_t*>(rbuf->data), size) &&
+    std::string why;
+    const int used = wire_lcm::decode(data, size, b, why);
+    if (!verifier && !warned_unverified && used > 0 && looks_signed(data, size) &&
         static_cast<std::size_t>(used) + kAuthTrailerBytes == size) {
       warned_unverified = true;
-      warnings += "gdos: the records on '" + ch + "' are signed: give --key-file to verify them (shown unverified)\n";
+      warnings += "gdos: the records on '" + std::string(ch) +
+                  "' are signed: give --key-file to verify them (shown unverified)\n";
     }
-    if (used < 0 || b.count < 0 ||
-        static_cast<std::size_t>(b.count) != b.records.size()) {
+    if (used < 0 || b.count < 0 || static_cast<std::size_t>(b.count) != b.records.size()) {
       ++counters.malformed;
-      warnings += "gdos: dropped a malformed batch of " + std::to_string(rbuf->data_size) + " bytes on '" + ch +
-                  "' (" + url + ")\n";
-      return;
+      return warn("malformed", [&] {
+        return "gdos: dropped a malformed batch of " + std::to_string(full_size) + " bytes on '" + std::string(ch) +
+               "' (" + url + "): " + why;
+      });
     }
     ++counters.batches;
     const std::string key = b.host + "/" + std::to_string(b.pid);
+    if (last_sequence.size() >= kMaxSenders && last_sequence.count(key) == 0) last_sequence.clear();
     for (const auto& r : b.records) {
       const auto seq = static_cast<uint64_t>(r.sequence);
       auto it = last_sequence.find(key);
       if (it != last_sequence.end() && seq > it->second + 1) {
         const uint64_t lost = seq - it->second - 1;
         counters.lost += lost;
-        warnings += "gdos: " + std::to_string(lost) + " record(s) of " + b.host + " (pid " + std::to_string(b.pid) +
-                    ") lost on the network\n";
+        warn("lost " + key, [&] {
+          return "gdos: " + std::to_string(lost) + " record(s) of " + b.host + " (pid " + std::to_string(b.pid) +
+                 ") lost on the network";
+        });
       }
       last_sequence[key] = seq;
       GdosRecord out;
@@ -238,13 +320,18 @@ struct GdosSubscriber::Impl {
     }
   }
 
-  void on_announce(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
-    std::size_t size = rbuf->data_size;
-    if (!authentic(ch, static_cast<const uint8_t*>(rbuf->data), size)) return;
+  void on_announce(std::string_view ch, const uint8_t* data, std::size_t full_size) {
+    std::size_t size = full_size;
+    if (!authentic(ch, data, size)) return;
     rack_lcm::host_announce a;
-    // Another version of the announcement (a newer rackd) is not an error here:
-    // names are a convenience; the records carry them too.
-    if (a.decode(rbuf->data, 0, static_cast<int>(size)) < 0) return;
+    std::string why;
+    // Counted, not warned: another version of the announcement (a newer rackd) is not
+    // an error here; names are a convenience, the records carry them too.
+    if (wire_lcm::decode(data, size, a, why) < 0) {
+      ++counters.bad_announcements;
+      return;
+    }
+    if (names.size() + a.components.size() > kMaxNames) names.clear();
     for (const auto& c : a.components) names[static_cast<uint32_t>(c.address)] = c.name;
   }
 
@@ -255,15 +342,42 @@ struct GdosSubscriber::Impl {
     l.pid = static_cast<int32_t>(getpid());
     (void)lcm.publish(kGdosListenerChannel, &l);
   }
+
+  // Handles what is waiting on the socket (or in LCM's queue), bounded per call.
+  void drain() {
+    if (reader) {
+      lcm_rx::ReadDatagram rd;
+      const auto on_refused = [&](const char* kind, const std::string& why) { refused(kind, why); };
+      for (int i = 0; i < 4096 && reader->read(rd, on_refused); ++i) {
+        if (rd.truncated) continue;  // cannot happen: the buffer holds any UDP datagram
+        on_message(rd.datagram.channel, rd.datagram.payload, rd.datagram.payload_size);
+      }
+      counters.lcm_fragments = reader->counters().fragments;
+      counters.bad_datagrams = reader->counters().bad_framing;
+      return;
+    }
+    pollfd pfd{lcm.getFileno(), POLLIN, 0};
+    for (int i = 0; i < 4096 && ::poll(&pfd, 1, 0) > 0 && (pfd.revents & POLLIN) != 0; ++i) {
+      pfd.revents = 0;
+      lcm.handle();
+    }
+  }
+  void on_lcm(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
+    on_message(ch, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size);
+  }
 };
 
 GdosSubscriber::GdosSubscriber(const std::string& url, const std::string& channel, bool announce, std::string name,
                                const std::string& key_file)
     : impl_(std::make_unique<Impl>(url, channel, announce, std::move(name), key_file)) {
   if (!impl_->lcm.good()) throw std::runtime_error(join_error(url));
-  // Raw handlers: a batch that does not decode is counted, not thrown.
-  impl_->lcm.subscribe(channel, &Impl::on_batch, impl_.get())->setQueueCapacity(4096);
-  impl_->lcm.subscribe(kAnnounceChannel, &Impl::on_announce, impl_.get())->setQueueCapacity(256);
+  if (const auto u = lcm_rx::parse_udpm(url)) {
+    impl_->reader = std::make_unique<lcm_rx::LcmSocketReader>(url, *u, 65536);
+  } else {
+    // Raw handlers: decoded by lcm_wire.h, a batch that does not decode is counted.
+    impl_->lcm.subscribe(channel, &Impl::on_lcm, impl_.get())->setQueueCapacity(4096);
+    impl_->lcm.subscribe(kAnnounceChannel, &Impl::on_lcm, impl_.get())->setQueueCapacity(256);
+  }
 }
 
 GdosSubscriber::~GdosSubscriber() = default;
@@ -272,7 +386,7 @@ std::size_t GdosSubscriber::poll(int timeout_ms, const std::function<void(const 
   impl_->sink = &sink;
   impl_->handled = 0;
   const int64_t end = rt::monotonic_ns() + static_cast<int64_t>(timeout_ms) * rt::kNsPerMs;
-  pollfd pfd{impl_->lcm.getFileno(), POLLIN, 0};
+  pollfd pfd{impl_->reader ? impl_->reader->fd() : impl_->lcm.getFileno(), POLLIN, 0};
   for (;;) {
     const int64_t now = rt::monotonic_ns();
     if (impl_->announce && now >= impl_->next_announce_ns) {
@@ -283,20 +397,20 @@ std::size_t GdosSubscriber::poll(int timeout_ms, const std::function<void(const 
     if (left_ms < 0) left_ms = 0;
     if (impl_->announce && left_ms > 1000) left_ms = 1000;
     pfd.revents = 0;
-    // poll() on LCM's descriptor, not handleTimeout() (select() aborts above fd 1023).
+    // poll(), not LCM's handleTimeout() (select() aborts above fd 1023).
     const int rc = ::poll(&pfd, 1, static_cast<int>(left_ms));
-    if (rc > 0 && (pfd.revents & POLLIN) != 0) {
-      impl_->lcm.handle();
-      // Drain what else is queued without waiting.
-      while (::poll(&pfd, 1, 0) > 0 && (pfd.revents & POLLIN) != 0) {
-        pfd.revents = 0;
-        impl_->lcm.handle();
-      }
-    }
+    if (rc > 0 && (pfd.revents & POLLIN) != 0) impl_->drain();
     if (impl_->handled > 0 || rt::monotonic_ns() >= end) break;
   }
   impl_->sink = nullptr;
   return impl_->handled;
+}
+
+void GdosSubscriber::handle_datagram(const uint8_t* data, std::size_t size,
+                                     const std::function<void(const GdosRecord&)>& sink) {
+  impl_->sink = &sink;
+  impl_->on_datagram(data, size);
+  impl_->sink = nullptr;
 }
 
 std::string GdosSubscriber::announced_name(uint32_t address) const {

@@ -29,6 +29,8 @@
 #include "rack/rt/clock.h"
 #include "rack/rt/thread.h"
 #include "rack/tims/link_auth.h"
+#include "lcm_receive.h"
+#include "lcm_wire.h"
 #include "rack_lcm/discover_request.hpp"
 #include "rack_lcm/host_announce.hpp"
 #include "rack_lcm/tims_packet.hpp"
@@ -75,8 +77,6 @@ constexpr std::size_t kPacketPrefix = 50;
 constexpr uint32_t kChunk = 60000;
 // Routers passed before a packet is dropped (a mis-wired fleet must not loop forever).
 constexpr int8_t kMaxHops = 4;
-// Smallest encoded component_info (address, two empty strings with their NULs).
-constexpr std::size_t kMinComponentBytes = 4 + 5 + 5;
 
 void put_be(uint8_t* p, uint64_t v, int bytes) {
   if (bytes == 8) {
@@ -105,78 +105,16 @@ int64_t random_origin() {
   return v;
 }
 
-// At most one line per second per kind; the rest are counted and summarised.
-class RateLimitedWarn {
- public:
-  explicit RateLimitedWarn(std::function<void(const std::string&)> sink) : sink_(std::move(sink)) {}
-  template <typename MakeText>
-  void operator()(const std::string& kind, MakeText make_text) {
-    std::lock_guard lock(mutex_);
-    const int64_t now = rt::monotonic_ns();
-    auto& s = state_[kind];
-    if (now - s.last_ns < rt::kNsPerSec) {
-      ++s.suppressed;
-      return;
-    }
-    std::string line = make_text();
-    if (s.suppressed > 0) line += " (" + std::to_string(s.suppressed) + " more like it suppressed)";
-    s.suppressed = 0;
-    s.last_ns = now;
-    sink_(line);
-  }
-
- private:
-  struct State {
-    int64_t last_ns = INT64_MIN / 2;
-    uint64_t suppressed = 0;
-  };
-  std::function<void(const std::string&)> sink_;
-  std::mutex mutex_;
-  std::map<std::string, State> state_;
-};
+using lcm_rx::RateLimitedWarn;
 
 void bump(std::atomic<uint64_t>& c, uint64_t n = 1) { c.fetch_add(n, std::memory_order_relaxed); }
 
-// An LCM udpm URL: udpm://GROUP:PORT?ttl=N&recv_buf_size=BYTES (LCM's defaults).
-struct UdpmUrl {
-  in_addr group{};
-  uint16_t port = 7667;
-  int recv_buf_size = 0;
-};
-std::optional<UdpmUrl> parse_udpm(const std::string& url) {
-  const std::string prefix = "udpm://";
-  if (url.rfind(prefix, 0) != 0) return std::nullopt;
-  std::string rest = url.substr(prefix.size());
-  std::string params;
-  if (const auto q = rest.find('?'); q != std::string::npos) {
-    params = rest.substr(q + 1);
-    rest = rest.substr(0, q);
-  }
-  UdpmUrl u;
-  std::string host = rest.empty() ? "239.255.76.67" : rest;
-  if (const auto c = rest.find(':'); c != std::string::npos) {
-    host = rest.substr(0, c);
-    char* end = nullptr;
-    const long port = std::strtol(rest.c_str() + c + 1, &end, 10);
-    if (*end != '\0' || port <= 0 || port > 65535) return std::nullopt;
-    u.port = static_cast<uint16_t>(port);
-  }
-  if (inet_pton(AF_INET, host.c_str(), &u.group) != 1) return std::nullopt;
-  for (std::size_t at = 0; at < params.size();) {
-    auto amp = params.find('&', at);
-    if (amp == std::string::npos) amp = params.size();
-    const std::string kv = params.substr(at, amp - at);
-    if (kv.rfind("recv_buf_size=", 0) == 0) u.recv_buf_size = std::atoi(kv.c_str() + 14);
-    at = amp + 1;
-  }
-  return u;
-}
-
-// LCM's framing of a datagram (lcm_udpm.c): a short message is "LC02", a 32-bit
-// sequence number, the channel NUL-terminated, the payload; "LC03" marks a fragment
-// of a message above about 64 KB (never ours: our chunks are smaller).
-constexpr uint32_t kLcmShortMagic = 0x4c433032;
-constexpr uint32_t kLcmFragmentMagic = 0x4c433033;
+using wire_lcm::kLcmFragmentMagic;
+using wire_lcm::kLcmShortMagic;
+// Hosts kept in the discovery table at once: a flood of announcements with made-up
+// origins is refused (counted: hosts_refused) instead of growing the table (and the
+// work of every announcement) without bound. Far above a fleet's size.
+constexpr std::size_t kMaxHosts = 256;
 
 std::string origin_text(int64_t origin) {
   char buf[24];
@@ -239,6 +177,10 @@ struct LcmTransport::Impl {
     std::unique_ptr<LinkSigner> signer;
     std::unique_ptr<LinkVerifier> verifier;
     std::vector<uint8_t> scratch;  // encoded typed messages + trailer (under publish_mutex)
+    // Discover answers (under Impl::announce_mutex): when this host last announced on
+    // this network, and whether a coalesced request waits for its answer.
+    int64_t last_announce_ns = INT64_MIN / 2;
+    bool answer_pending = false;
 
     void on_packet(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
       std::size_t size = rbuf->data_size;
@@ -329,7 +271,8 @@ struct LcmTransport::Impl {
   std::atomic<uint64_t> packets_in{0}, packets_out{0}, messages_in{0}, messages_out{0}, malformed{0}, forged{0},
       not_for_us{0}, forwarded{0}, not_available{0}, sequence_gaps{0}, lost_messages{0}, publish_errors{0},
       delivery_failed{0}, hosts_expired{0}, subscriptions_failed{0}, streams_stopped{0}, compressed_out{0}, bytes_out{0},
-      wire_bytes_out{0}, auth_failed{0}, replayed{0};
+      wire_bytes_out{0}, auth_failed{0}, replayed{0}, malformed_lcm{0}, malformed_packet{0}, malformed_announce{0},
+      malformed_discover{0}, lcm_fragments{0}, hosts_refused{0}, discovers_answered{0}, discovers_suppressed{0};
 
   // ------------------------------------------------------------------ set-up
   void join() {
@@ -370,10 +313,11 @@ struct LcmTransport::Impl {
         s.data.resize(max_encoded);
         s.have.resize(max_chunks + 1);
       }
-      if (const auto u = parse_udpm(n->config.url)) {
+      if (const auto u = lcm_rx::parse_udpm(n->config.url)) {
         // LCM then only publishes: it opens its receive socket and thread on the first
         // subscription, and there is none.
-        open_raw(*n, *u);
+        n->raw_fd = lcm_rx::open_udpm_socket(n->config.url, *u);
+        n->datagram.resize(65536);
       } else {
         auto* sub = n->lcm->subscribe(kTimsChannel, &Network::on_packet, n.get());
         sub->setQueueCapacity(1024);  // LCM's default (~30) silently drops bursts
@@ -382,37 +326,6 @@ struct LcmTransport::Impl {
       }
       networks.push_back(std::move(n));
     }
-  }
-
-  // The receive side of a udpm network, as LCM sets it up: any address, the port,
-  // shared with every other member on this machine, the group joined.
-  void open_raw(Network& n, const UdpmUrl& u) {
-    const auto fail = [&](const char* what) {
-      const std::string why = std::string(what) + ": " + std::strerror(errno);
-      if (n.raw_fd >= 0) close(n.raw_fd);
-      n.raw_fd = -1;
-      throw std::runtime_error("cannot join the LCM network '" + n.config.url + "' (" + why +
-                               "; a network namespace needs 'ip link set lo up' and a multicast route: "
-                               "ip route add 224.0.0.0/4 dev IFACE)");
-    };
-    n.raw_fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
-    if (n.raw_fd < 0) fail("socket");
-    const int one = 1;
-    if (setsockopt(n.raw_fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) != 0) fail("SO_REUSEADDR");
-    sockaddr_in addr{};
-    addr.sin_family = AF_INET;
-    addr.sin_addr.s_addr = htonl(INADDR_ANY);
-    addr.sin_port = htons(u.port);
-    if (bind(n.raw_fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) fail("bind");
-    ip_mreq mreq{};
-    mreq.imr_multiaddr = u.group;
-    mreq.imr_interface.s_addr = htonl(INADDR_ANY);
-    if (setsockopt(n.raw_fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &mreq, sizeof mreq) != 0) fail("IP_ADD_MEMBERSHIP");
-    if (u.recv_buf_size > 0) {
-      // Capped by net.core.rmem_max, as for LCM (README: socket buffers).
-      (void)setsockopt(n.raw_fd, SOL_SOCKET, SO_RCVBUF, &u.recv_buf_size, sizeof u.recv_buf_size);
-    }
-    n.datagram.resize(65536);
   }
 
   // Reads one datagram from our own socket; false when there is none. A datagram
@@ -460,8 +373,9 @@ struct LcmTransport::Impl {
       return true;
     }
     const auto magic = static_cast<uint32_t>(get_be(d, 4));
-    if (magic == kLcmFragmentMagic) {  // someone else's large LCM message
+    if (magic == kLcmFragmentMagic) {  // refused, as on_datagram does
       discard();
+      refuse_fragment(n, size);
       return true;
     }
     const auto* name = reinterpret_cast<const char*>(d + 8);
@@ -515,29 +429,31 @@ struct LcmTransport::Impl {
                 static_cast<int8_t>(d[kOffHops]));
   }
 
-  // One datagram from our own socket: LCM's framing, then our channels.
+  // One datagram from our own socket: LCM's framing (lcm_wire.h), then our channels.
+  // LCM fragments are refused and counted: ours never are (chunks stay below LCM's
+  // fragmentation size), and LCM 1.3's own reassembly of them trusts its input.
   void on_datagram(Network& n, const uint8_t* d, std::size_t size) {
-    if (size < 8) {
-      return reject(n, "lcm", [&] { return std::to_string(size) + " bytes: not an LCM datagram"; });
+    const wire_lcm::LcmDatagram g = wire_lcm::parse_datagram(d, size);
+    if (g.kind == wire_lcm::LcmDatagram::kFragment) return refuse_fragment(n, size);
+    if (g.kind != wire_lcm::LcmDatagram::kMessage) {
+      return reject(n, "lcm", [&] { return std::to_string(size) + "-byte datagram: " + g.why; });
     }
-    const auto magic = static_cast<uint32_t>(get_be(d, 4));
-    if (magic == kLcmFragmentMagic) return;  // someone else's large LCM message
-    if (magic != kLcmShortMagic) {
-      return reject(n, "lcm", [&] { return std::string("not an LCM datagram (magic differs)"); });
-    }
-    const auto* name = reinterpret_cast<const char*>(d + 8);
-    const std::size_t max_name = std::min<std::size_t>(size - 8, 64);
-    const std::size_t len = strnlen(name, max_name);
-    if (len == max_name) return reject(n, "lcm", [&] { return std::string("LCM channel name not terminated"); });
-    const std::string_view channel(name, len);
-    const uint8_t* payload = d + 8 + len + 1;
-    std::size_t payload_size = size - 8 - len - 1;
-    if (channel != kTimsChannel && channel != kAnnounceChannel && channel != kDiscoverChannel) return;
-    if (!authentic(n, channel, payload, payload_size)) return;
-    if (channel == kTimsChannel) return on_packet(n, payload, payload_size, kTimsChannel);
-    if (channel == kAnnounceChannel) return on_announce(n, payload, payload_size, kAnnounceChannel);
-    if (channel == kDiscoverChannel) return on_discover(n, payload, payload_size, kDiscoverChannel);
+    const std::string_view channel = g.channel;
+    std::size_t payload_size = g.payload_size;
     // Other channels on the same network (GDOS, tools): not ours.
+    if (channel != kTimsChannel && channel != kAnnounceChannel && channel != kDiscoverChannel) return;
+    if (!authentic(n, channel, g.payload, payload_size)) return;
+    if (channel == kTimsChannel) return on_packet(n, g.payload, payload_size, kTimsChannel);
+    if (channel == kAnnounceChannel) return on_announce(n, g.payload, payload_size, kAnnounceChannel);
+    on_discover(n, g.payload, payload_size, kDiscoverChannel);
+  }
+
+  void refuse_fragment(Network& n, std::size_t size) {
+    bump(lcm_fragments);
+    warn("fragment " + n.config.name, [&] {
+      return "TiMS/LCM: refused an LCM fragment (" + std::to_string(size) + " bytes) on network '" + n.config.name +
+             "' (" + n.config.url + "): RACK-RT never sends messages above LCM's 64 KB fragmentation size";
+    });
   }
 
   // ------------------------------------------------------------------ authentication
@@ -555,19 +471,20 @@ struct LcmTransport::Impl {
       if (channel == kTimsChannel) {
         is_signed = size >= kPacketPrefix + kAuthTrailerBytes && signed_after(get_be(d + kOffSize, 4) + kPacketPrefix);
       } else if (channel == kAnnounceChannel) {
-        // The component count bounded before lcm-gen's decoder allocates (as on_announce).
-        const int32_t count = size >= 12 ? get_i32(d + 8) : -1;
-        const bool bounded = count >= 0 && static_cast<std::size_t>(count) <= (size - 12) / kMinComponentBytes;
         rack_lcm::host_announce a;
-        const int used = bounded && looks_signed(d, size) ? a.decode(d, 0, static_cast<int>(size)) : -1;
+        std::string why;
+        const int used = looks_signed(d, size) ? wire_lcm::decode(d, size, a, why) : -1;
         is_signed = used > 0 && signed_after(static_cast<std::size_t>(used));
       } else if (channel == kDiscoverChannel) {
         rack_lcm::discover_request r;
-        const int used = looks_signed(d, size) ? r.decode(d, 0, static_cast<int>(size)) : -1;
+        std::string why;
+        const int used = looks_signed(d, size) ? wire_lcm::decode(d, size, r, why) : -1;
         is_signed = used > 0 && signed_after(static_cast<std::size_t>(used));
       }
       if (is_signed) {
         bump(malformed);
+        bump(channel == kAnnounceChannel ? malformed_announce
+                                         : channel == kDiscoverChannel ? malformed_discover : malformed_packet);
         warn("unkeyed " + n.config.name, [&] {
           return "TiMS/LCM: dropped a signed packet on network '" + n.config.name + "' (" + n.config.url +
                  "), which has no key_file here: give this host the network's key file";
@@ -815,8 +732,13 @@ struct LcmTransport::Impl {
   }
 
   // ------------------------------------------------------------------ receiving
+  // Every refusal of malformed input: counted in `malformed` and in the counter of its
+  // kind (LCM framing, announcement, discover request, TiMS packet or message), and
+  // logged at most once a second per kind with the reason.
   void reject(Network& n, const std::string& kind, const std::function<std::string()>& why) {
     bump(malformed);
+    bump(kind == "lcm" ? malformed_lcm
+                       : kind == "announce" ? malformed_announce : kind == "discover" ? malformed_discover : malformed_packet);
     warn("malformed " + kind, [&] {
       return "TiMS/LCM: dropped a malformed packet on network '" + n.config.name + "' (" + n.config.url + "): " + why();
     });
@@ -1160,18 +1082,19 @@ struct LcmTransport::Impl {
 
   // ------------------------------------------------------------------ announcements
   void on_announce(Network& n, const uint8_t* d, std::size_t size, const std::string&) {
-    // Bound the component count by the datagram before lcm-gen's decoder allocates it.
-    if (size < 12) return reject(n, "announce", [&] { return std::string("announcement shorter than its header"); });
-    const int32_t count = get_i32(d + 8);
-    if (count < 0 || static_cast<std::size_t>(count) > (size - 12) / kMinComponentBytes) {
-      return reject(n, "announce", [&] {
-        return "announcement claims " + std::to_string(count) + " components in " + std::to_string(size) + " bytes";
-      });
-    }
+    // lcm_wire.h: every string and the component count checked before anything is
+    // allocated (lcm-gen's decoder throws on a string length of 0).
     rack_lcm::host_announce a;
-    if (a.decode(d, 0, static_cast<int>(size)) < 0 || a.system < 0 || a.system > 254 || a.host_id < 0 ||
-        a.host_id > 255 || a.role < 0 || a.role > 2 || a.hops < 0 || a.hops > kMaxHops) {
-      return reject(n, "announce", [&] { return std::string("announcement does not decode or has bad fields"); });
+    std::string why;
+    if (wire_lcm::decode(d, size, a, why) < 0) {
+      return reject(n, "announce", [&] { return "announcement of " + std::to_string(size) + " bytes: " + why; });
+    }
+    if (a.system < 0 || a.system > 254 || a.host_id < 0 || a.host_id > 255 || a.role < 0 || a.role > 2 || a.hops < 0 ||
+        a.hops > kMaxHops) {
+      return reject(n, "announce", [&] {
+        return "announcement with fields out of range (system " + std::to_string(a.system) + ", host_id " +
+               std::to_string(a.host_id) + ", role " + std::to_string(a.role) + ", hops " + std::to_string(a.hops) + ")";
+      });
     }
     if (a.origin == origin || a.relay == origin) return;  // our own
     HostInfo info;
@@ -1188,6 +1111,7 @@ struct LcmTransport::Impl {
       info.components.push_back({Address(static_cast<uint32_t>(c.address)), c.name, c.impl});
     }
     std::string replaced, conflict;
+    bool full = false;
     {
       std::lock_guard lock(table_mutex);
       const auto same_id = [&](const HostInfo& h) {
@@ -1226,10 +1150,22 @@ struct LcmTransport::Impl {
         bump(hosts_expired);
         it = hosts.erase(it);
       }
-      auto& e = hosts[a.origin];
-      e.info = std::move(info);
+      if (hosts.size() >= kMaxHosts && hosts.count(a.origin) == 0) {
+        bump(hosts_refused);
+        full = true;
+      } else {
+        auto& e = hosts[a.origin];
+        e.info = std::move(info);
+      }
       // Every time: an announcement may change a host's components (few hosts, cheap).
       rebuild_owners_locked();
+    }
+    if (full) {
+      return warn("hosts full " + n.config.name, [&] {
+        return "TiMS/LCM: refused an announcement of host '" + a.host + "' (origin " + origin_text(a.origin) +
+               ") on network '" + n.config.name + "': " + std::to_string(kMaxHosts) +
+               " hosts known already (a flood of made-up hosts?)";
+      });
     }
     if (!replaced.empty()) warn("restart " + replaced, [&] { return replaced; });
     if (!conflict.empty()) {
@@ -1252,13 +1188,39 @@ struct LcmTransport::Impl {
     }
   }
 
+  // A discover request is answered with this host's announcement on the network it
+  // came from, at most once per discover_answer_interval_ns there: requests that come
+  // while an answer is due or was just sent share it (coalesced, counted as
+  // suppressed), so a flood of requests costs one announcement per interval, not one
+  // each. A periodic announcement answers them too. Routers pass on only requests
+  // that were not coalesced.
   void on_discover(Network& n, const uint8_t* d, std::size_t size, const std::string&) {
     rack_lcm::discover_request r;
-    if (r.decode(d, 0, static_cast<int>(size)) < 0 || r.hops < 0 || r.hops > kMaxHops) {
-      return reject(n, "discover", [&] { return std::string("discover request does not decode"); });
+    std::string why;
+    if (wire_lcm::decode(d, size, r, why) < 0) {
+      return reject(n, "discover", [&] { return "discover request of " + std::to_string(size) + " bytes: " + why; });
+    }
+    if (r.hops < 0 || r.hops > kMaxHops) {
+      return reject(n, "discover", [&] { return "discover request with " + std::to_string(r.hops) + " hops"; });
     }
     if (r.origin == origin || r.relay == origin) return;
-    publish_announcement(&n);
+    bool answer_now = false;
+    {
+      std::lock_guard lock(announce_mutex);
+      if (have_announcement) {
+        if (n.answer_pending || rt::monotonic_ns() - n.last_announce_ns < config.discover_answer_interval_ns) {
+          if (n.answer_pending) {
+            bump(discovers_suppressed);
+            return;
+          }
+          n.answer_pending = true;  // the maintenance thread answers when the interval has passed
+        } else {
+          answer_now = true;
+        }
+        bump(discovers_answered);
+      }
+    }
+    if (answer_now) publish_announcement(&n);
     if ((role() == NodeRole::kSystemRouter || role() == NodeRole::kTopRouter) && r.hops < kMaxHops) {
       for (auto& out : networks) {
         if (out.get() == &n) continue;
@@ -1271,33 +1233,66 @@ struct LcmTransport::Impl {
     }
   }
 
+  // The maintenance thread: answers the coalesced discover requests whose interval has
+  // passed.
+  void answer_pending_discovers() {
+    for (auto& n : networks) {
+      bool due = false;
+      {
+        std::lock_guard lock(announce_mutex);
+        due = n->answer_pending && rt::monotonic_ns() - n->last_announce_ns >= config.discover_answer_interval_ns;
+      }
+      if (due) publish_announcement(n.get());
+    }
+  }
+
   // On one network, or on all (nullptr).
   void publish_announcement(Network* only) {
     std::lock_guard lock(announce_mutex);
     if (!have_announcement) return;
     announcement.time_ns = rt::host_time_ns();
+    const int64_t now = rt::monotonic_ns();
     for (auto& n : networks) {
       if (only != nullptr && n.get() != only) continue;
+      n->last_announce_ns = now;  // answers every discover request heard so far
+      n->answer_pending = false;
       std::lock_guard plock(n->publish_mutex);
       if (publish_typed(*n, kAnnounceChannel, announcement) != 0) bump(publish_errors);
     }
   }
 
   // ------------------------------------------------------------------ threads
+  // The last line of defence of a receive thread: the decoders are total (lcm_wire.h)
+  // and every field is checked, but whatever still throws while one datagram is handled
+  // (an allocation failure) ends that datagram, counted and logged, not the process.
+  template <typename Fn>
+  void guarded(Network& n, Fn fn) noexcept {
+    try {
+      fn();
+    } catch (const std::exception& e) {
+      const std::string what = e.what();
+      reject(n, "exception", [&] { return "handling a datagram failed: " + what; });
+    } catch (...) {
+      reject(n, "exception", [&] { return std::string("handling a datagram failed"); });
+    }
+  }
+
   void receive_loop(Network& n) {
     pollfd pfd{n.raw_fd >= 0 ? n.raw_fd : n.lcm->getFileno(), POLLIN, 0};
     while (running.load(std::memory_order_acquire)) {
       pfd.revents = 0;
       const int rc = poll(&pfd, 1, 50);
       if (rc > 0 && (pfd.revents & POLLIN) != 0) {
-        if (n.raw_fd < 0) {
-          n.lcm->handle();
-        } else {
-          // Drain what is there; a burst (a large message) is many datagrams.
-          for (int i = 0; i < 256; ++i) {
-            if (!read_datagram(n)) break;
+        guarded(n, [&] {
+          if (n.raw_fd < 0) {
+            n.lcm->handle();
+          } else {
+            // Drain what is there; a burst (a large message) is many datagrams.
+            for (int i = 0; i < 256; ++i) {
+              if (!read_datagram(n)) break;
+            }
           }
-        }
+        });
       }
       expire_reassembly(n);
     }
@@ -1316,6 +1311,7 @@ struct LcmTransport::Impl {
         publish_announcement(nullptr);
         next_announce = rt::monotonic_ns() + config.announce_period_ns;
       }
+      answer_pending_discovers();
       expire_hosts();
       while (control.peek(Mailbox::kNonBlocking).status == RecvStatus::kOk) control.peek_end();
     }
@@ -1566,7 +1562,21 @@ TransportCounters LcmTransport::counters() const noexcept {
   c.wire_bytes_out = r(m.wire_bytes_out);
   c.auth_failed = r(m.auth_failed);
   c.replayed = r(m.replayed);
+  c.malformed_lcm = r(m.malformed_lcm);
+  c.malformed_packet = r(m.malformed_packet);
+  c.malformed_announce = r(m.malformed_announce);
+  c.malformed_discover = r(m.malformed_discover);
+  c.lcm_fragments = r(m.lcm_fragments);
+  c.hosts_refused = r(m.hosts_refused);
+  c.discovers_answered = r(m.discovers_answered);
+  c.discovers_suppressed = r(m.discovers_suppressed);
   return c;
+}
+
+void LcmTransport::handle_datagram(const uint8_t* data, std::size_t size, std::size_t network) {
+  Impl& m = *impl_;
+  if (network >= m.networks.size()) return;
+  m.guarded(*m.networks[network], [&] { m.on_datagram(*m.networks[network], data, size); });
 }
 
 const std::string& LcmTransport::url() const noexcept { return impl_->config.networks.front().url; }

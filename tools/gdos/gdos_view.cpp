@@ -54,6 +54,28 @@ bool Filter::matches(const tims::GdosRecord& r, const std::string& display_name)
   return true;
 }
 
+// Text from the network shown on a terminal: C0 control characters (but tab), DEL
+// and C1 controls (U+0080..U+009F, which some terminals take for CSI) are written as
+// \xNN, so a record cannot move the cursor, retitle the window or change colours.
+std::string printable(const std::string& s) {
+  std::string out;
+  out.reserve(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    const bool c1 = c == 0xC2 && i + 1 < s.size() && static_cast<unsigned char>(s[i + 1]) >= 0x80 &&
+                    static_cast<unsigned char>(s[i + 1]) <= 0x9F;
+    if ((c < 0x20 && c != '\t') || c == 0x7F || c1) {
+      const unsigned code = c1 ? static_cast<unsigned char>(s[++i]) : c;
+      char esc[8];
+      std::snprintf(esc, sizeof esc, "\\x%02x", code);
+      out += esc;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  return out;
+}
+
 std::string text_line(const tims::GdosRecord& r, const std::string& display_name, bool colour) {
   const gdos::Level l = level_of(r.level);
   const char* on = "";
@@ -66,9 +88,10 @@ std::string text_line(const tims::GdosRecord& r, const std::string& display_name
       case gdos::Level::kDetail: on = "\x1b[2m"; break;        // dim
     }
   }
-  const std::string who = display_name.empty() ? address_text(r.source) : display_name;
+  const std::string who = printable(display_name.empty() ? address_text(r.source) : display_name);
+  const std::string host = printable(r.host);
   char head[160];
-  std::snprintf(head, sizeof head, "%s %-10s %c %-14s ", time_text(r.time_ns, ' ', false).c_str(), r.host.c_str(),
+  std::snprintf(head, sizeof head, "%s %-10s %c %-14s ", time_text(r.time_ns, ' ', false).c_str(), host.c_str(),
                 gdos::letter(l), who.c_str());
   std::string line = on;
   line += head;
@@ -77,7 +100,7 @@ std::string text_line(const tims::GdosRecord& r, const std::string& display_name
     line += std::to_string(r.dropped_before);
     line += " dropped before] ";
   }
-  line += r.text;
+  line += printable(r.text);
   if (colour && on[0] != '\0') line += "\x1b[0m";
   return line;
 }

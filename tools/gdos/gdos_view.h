@@ -38,6 +38,8 @@ struct Filter {
 
 // "2026-11-21 23:41:02.123456 host     W name        : text" with ANSI colours by
 // level when `colour` (no colours in a pipe). Ends without a newline.
+// `s` with control characters (C0 but tab, DEL, C1) written as \xNN: network text on a terminal.
+[[nodiscard]] std::string printable(const std::string& s);
 [[nodiscard]] std::string text_line(const tims::GdosRecord& r, const std::string& display_name, bool colour);
 // One JSON object: host, pid, time_ns, time (ISO 8601 UTC), sequence, level, source
 // (address text), source_raw, name, dropped_before, text.

@@ -63,6 +63,10 @@ options:
 
 Losses are reported on stderr: records a host's ring dropped (its next record
 says how many) and records lost on the network (gaps in a host's sequence).
+What the network sends that is not a GDOS batch or announcement (not LCM, LCM
+fragments, batches that do not decode) is dropped, counted and warned about at
+most once a second per kind; the counts are printed at exit. Control
+characters in records are shown escaped (\x1b), never sent to the terminal.
 
 exit codes: 0 ok (Ctrl-C, --count or --duration reached, end of a replay),
 1 cannot join the network or read/write a file (malformed file included),
@@ -221,9 +225,12 @@ int main(int argc, char** argv) {
   }
   std::fflush(stdout);
   const auto c = sub->counters();
-  std::fprintf(stderr, "gdos: %llu record(s) received, %lld shown, %llu lost on the network, %llu malformed batch(es)%s\n",
+  std::fprintf(stderr,
+               "gdos: %llu record(s) received, %lld shown, %llu lost on the network, %llu malformed batch(es), "
+               "refused: %llu announcement(s) that did not decode, %llu datagram(s) not LCM, %llu LCM fragment(s)%s\n",
                static_cast<unsigned long long>(c.records), shown, static_cast<unsigned long long>(c.lost),
-               static_cast<unsigned long long>(c.malformed),
+               static_cast<unsigned long long>(c.malformed), static_cast<unsigned long long>(c.bad_announcements),
+               static_cast<unsigned long long>(c.bad_datagrams), static_cast<unsigned long long>(c.lcm_fragments),
                key_file.empty() ? ""
                                 : (", " + std::to_string(c.auth_failed) + " failed authentication, " +
                                    std::to_string(c.replayed) + " replayed")

@@ -1,6 +1,13 @@
 // GDOS on LCM: how a host publishes its formatted log records and how tools (the
 // `gdos` viewer) receive them. The LCM types are in tims/lcm/rack_gdos.lcm.
 //
+// Receiving (the subscriber, and the publisher's check for listeners): on a udpm://
+// network from a socket of its own, LCM's framing parsed by bounds-checked code and
+// LCM fragments refused (LCM 1.3's reassembly trusts its input), every message decoded
+// by total decoders (lcm-gen's throw on a string length of 0). What is refused is
+// counted (GdosSubscriberCounters, GdosPublisherCounters::refused) and, in the
+// subscriber, warned at most once a second per kind.
+//
 // A host publishes batches (rack_lcm.gdos_batch) on its own LCM instance, by
 // default on the TiMS URL, channel "RACK_GDOS". Each record carries the host, the
 // component's address and name, the level, the host time and a sequence number per
@@ -58,6 +65,7 @@ struct GdosPublisherCounters {
   uint64_t records = 0;
   uint64_t batches = 0;
   uint64_t publish_errors = 0;
+  uint64_t refused = 0;  // received on the listener channel and refused: not LCM, LCM fragments, does not decode
 };
 
 class GdosPublisher {
@@ -86,7 +94,10 @@ class GdosPublisher {
 struct GdosSubscriberCounters {
   uint64_t batches = 0;
   uint64_t records = 0;
-  uint64_t malformed = 0;   // undecodable batches on the channel
+  uint64_t malformed = 0;   // undecodable batches on the channel (string lengths, counts, truncation)
+  uint64_t bad_announcements = 0;  // TIMS_ANNOUNCE that do not decode (names are then not learnt)
+  uint64_t bad_datagrams = 0;      // not LCM: short, wrong magic, channel name unterminated or too long
+  uint64_t lcm_fragments = 0;      // LCM fragments (messages above 64 KB), refused: never sent by rackd
   uint64_t lost = 0;        // sequence gaps (records lost between a host and us)
   uint64_t auth_failed = 0; // with a key: batches/announcements unsigned, unknown key, bad MAC
   uint64_t replayed = 0;    // with a key: seen before, or outside the time window
@@ -108,6 +119,10 @@ class GdosSubscriber {
   // Waits up to `timeout_ms` for traffic and hands every record received to `sink`
   // (in arrival order; a host's records in its order). Returns the records handled.
   std::size_t poll(int timeout_ms, const std::function<void(const GdosRecord&)>& sink);
+  // Handles one datagram in LCM's framing as if it had arrived on the socket (the
+  // receive path without the socket: fuzz harnesses). Never throws; refusals are
+  // counted and warned as on the socket.
+  void handle_datagram(const uint8_t* data, std::size_t size, const std::function<void(const GdosRecord&)>& sink);
   // The name of a component address from the hosts' TiMS announcements, or "".
   [[nodiscard]] std::string announced_name(uint32_t address) const;
   [[nodiscard]] GdosSubscriberCounters counters() const noexcept;

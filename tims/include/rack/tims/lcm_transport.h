@@ -7,7 +7,7 @@
 // own, in LCM's framing, instead of through LCM 1.3's receive thread and notify pipe:
 // two thread hand-offs less per message (bench_lcm), and LCM's fragment reassembly,
 // which trusts its input, never sees our network (our chunks are single datagrams;
-// LCM fragments of others are ignored). While large datagrams arrive it peeks at each
+// LCM fragments are refused and counted: lcm_fragments). While large datagrams arrive it peeks at each
 // one's head first: what is not for this host is dropped unread, a chunk of a message
 // being reassembled is read straight into its slot. LCM still publishes, so lcm-logger and
 // lcm-logplayer see and replay the same datagrams. Other URLs (memq://, file://)
@@ -42,9 +42,13 @@
 // other direction, every local producer that streams to a mailbox of that host gets a
 // STOP_CONT_DATA for it, so it does not stream into the void.
 //
-// Bad input (not a tims_packet, wrong lengths, bad chunk fields, bad header, forged
-// source, own echo with a foreign origin) is dropped, counted and logged at most once
-// per second per kind.
+// Bad input (not LCM, an LCM fragment, not a tims_packet, wrong lengths, bad chunk
+// fields, bad header, forged source, own echo with a foreign origin, an announcement or
+// discover request that does not decode) is dropped, counted by kind
+// (TransportCounters) and logged at most once per second per kind with the reason.
+// Announcements and discover requests are decoded by total decoders (tims/src/
+// lcm_wire.h), never by lcm-gen's, which throw on a string length of 0. Discover
+// requests are answered at most once per discover_answer_interval_ns per network.
 //
 // Authenticated links: a network with a key file (NetworkConfig::key_file) signs every
 // packet it publishes on its channels and drops, counts (auth_failed, replayed) and
@@ -123,7 +127,15 @@ struct TransportCounters {
   uint64_t packets_out = 0;
   uint64_t messages_in = 0;      // whole TiMS messages received (after reassembly)
   uint64_t messages_out = 0;
-  uint64_t malformed = 0;        // dropped: not a TiMS packet, bad fields, bad header, bad length
+  uint64_t malformed = 0;        // dropped: the sum of the four malformed_* kinds below
+  uint64_t malformed_lcm = 0;       // not LCM: short, wrong magic, channel name unterminated or > 63 bytes
+  uint64_t malformed_packet = 0;    // TIMS: not a tims_packet, bad chunk fields, bad header or length, zstd
+  uint64_t malformed_announce = 0;  // TIMS_ANNOUNCE: does not decode (string length, count), fields out of range
+  uint64_t malformed_discover = 0;  // TIMS_DISCOVER: does not decode, hops out of range
+  uint64_t lcm_fragments = 0;       // LCM fragments (messages above 64 KB), refused: never RACK-RT's
+  uint64_t hosts_refused = 0;       // announcements of new hosts refused: the table is full (256)
+  uint64_t discovers_answered = 0;  // discover requests answered (at once, or after the interval)
+  uint64_t discovers_suppressed = 0;  // discover requests that shared an answer due anyway (rate limit)
   uint64_t forged = 0;           // dropped: source address not owned by the sending host
   uint64_t not_for_us = 0;       // valid, for a mailbox not on this host
   uint64_t forwarded = 0;        // relayed to another network (routers)
@@ -159,6 +171,10 @@ struct LcmTransportConfig {
   // After start (which asks every host to announce itself) the discovery table needs
   // this long to fill before this host may answer NOT_AVAILABLE for others.
   int64_t warmup_ns = 500'000'000;
+  // Discover requests are answered with an announcement at most once per this
+  // interval per network; requests within it share the next answer (counted:
+  // discovers_answered, discovers_suppressed).
+  int64_t discover_answer_interval_ns = 100'000'000;
   // Keyed networks: how far a packet's time may be from ours (clocks synchronised by
   // PTP or chrony across hosts), and so how long a captured packet can be replayed
   // to a receiver that has not seen its sender.
@@ -213,6 +229,11 @@ class LcmTransport {
   [[nodiscard]] std::vector<HostInfo> hosts() const;
 
   [[nodiscard]] TransportCounters counters() const noexcept;
+  // Handles one datagram in LCM's framing as if it had arrived on network `network`
+  // (the receive path without the socket: fuzz harnesses drive it on a transport that
+  // was never start()ed). Never throws; what it refuses is counted as on the socket.
+  // Not RT-safe; not concurrently with a running receive thread of that network.
+  void handle_datagram(const uint8_t* data, std::size_t size, std::size_t network = 0);
   // URL of the first network (tools print it).
   [[nodiscard]] const std::string& url() const noexcept;
   [[nodiscard]] int64_t origin() const noexcept;
