@@ -42,7 +42,7 @@ class Reader {
   }
   // lcm-gen's decoder takes length - 1 bytes for any length it finds, 0 and negative
   // included (std::length_error): here a length is at least 1 (the NUL), fits in what
-  // is left, and its last byte is the NUL.
+  // is left, its last byte is the NUL and it holds no other.
   bool str(std::string& v, const char* field) {
     const std::size_t at = pos_;
     int32_t len = 0;
@@ -54,6 +54,9 @@ class Reader {
     }
     const auto n = static_cast<std::size_t>(len);
     if (d_[pos_ + n - 1] != 0) return fail(field, "string not NUL-terminated", at);
+    // LCM strings are C strings: lcm-gen encodes up to the first NUL (strlen), so a
+    // string with a NUL inside would not survive a relay (and its length would lie).
+    if (std::memchr(d_ + pos_, 0, n - 1) != nullptr) return fail(field, "string with a NUL before its end", at);
     v.assign(reinterpret_cast<const char*>(d_ + pos_), n - 1);
     pos_ += n;
     return true;

@@ -5,7 +5,7 @@
 // aborted rackd), and an array count is resized before anything bounds it. Every
 // receiver of RACK-RT (the TiMS transport, the GDOS publisher and subscriber, and so
 // the tools) decodes these types here instead: each function checks the fingerprint,
-// every string (length >= 1, within the buffer, NUL-terminated) and every count
+// every string (length >= 1, within the buffer, NUL-terminated, no NUL inside) and every count
 // (>= 0, and no more elements than the bytes left could hold) before it allocates, and
 // fills the same lcm-gen struct as lcm-gen's decoder would. On refusal it returns -1
 // and says what and where ("string 'host' at byte 45: length 0"). Never throws.
