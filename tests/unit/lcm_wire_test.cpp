@@ -221,6 +221,15 @@ TEST_F(TransportDatagramTest, DiscoverRequestsShareOneAnswerPerInterval) {
   EXPECT_EQ(c.malformed, 0u);
 }
 
+TEST_F(TransportDatagramTest, AnnouncementsWithControlCharactersInNamesAreRefused) {
+  auto a = an_announce();
+  a.components[0].name = "gen\x1b[2J";
+  feed(datagram("TIMS_ANNOUNCE", encode(a)));
+  EXPECT_TRUE(transport->hosts().empty());
+  EXPECT_EQ(transport->counters().malformed_announce, 1u);
+  EXPECT_NE(warnings.find("control character"), std::string::npos) << warnings;
+}
+
 TEST_F(TransportDatagramTest, AValidAnnouncementFillsTheTable) {
   feed(datagram("TIMS_ANNOUNCE", encode(an_announce())));
   const auto hosts = transport->hosts();

@@ -1096,6 +1096,15 @@ struct LcmTransport::Impl {
                std::to_string(a.host_id) + ", role " + std::to_string(a.role) + ", hops " + std::to_string(a.hops) + ")";
       });
     }
+    // Names go to terminals (rackctl list, hosts) and browsers (rack-gui): a host file
+    // cannot hold control characters, so an announcement that does is refused.
+    bool has_control = wire_lcm::has_control(a.host);
+    for (const auto& c : a.components) {
+      has_control = has_control || wire_lcm::has_control(c.name) || wire_lcm::has_control(c.impl);
+    }
+    if (has_control) {
+      return reject(n, "announce", [&] { return std::string("announcement with a control character in a name"); });
+    }
     if (a.origin == origin || a.relay == origin) return;  // our own
     HostInfo info;
     info.host = a.host;

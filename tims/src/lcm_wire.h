@@ -40,6 +40,16 @@ inline constexpr std::size_t kMinGdosRecordBytes = 8 + 8 + 4 + 5 + 1 + 4 + 5;
 [[nodiscard]] int decode(const uint8_t* d, std::size_t size, rack_lcm::gdos_batch& out, std::string& why) noexcept;
 [[nodiscard]] int decode(const uint8_t* d, std::size_t size, rack_lcm::gdos_listener& out, std::string& why) noexcept;
 
+// Whether `s` holds a C0 control character or DEL (names from the network are shown on
+// terminals; a host file cannot hold them).
+[[nodiscard]] inline bool has_control(std::string_view s) noexcept {
+  for (const char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c < 0x20 || c == 0x7F) return true;
+  }
+  return false;
+}
+
 // LCM's framing of one UDP datagram: "LC02" (a whole message: magic, sequence number,
 // channel NUL-terminated, payload) or "LC03" (a fragment of a message above about
 // 64 KB: magic, sequence number, message size, fragment offset, fragment number,
