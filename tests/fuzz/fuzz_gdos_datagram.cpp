@@ -3,6 +3,8 @@
 // host_announce decoded, records handed on). GdosSubscriber::handle_datagram, no
 // socket (the subscriber is made on an LCM log file written to /dev/null). One input
 // is a sequence of datagrams (2-byte big-endian length, then the bytes).
+// Build: this file linked with rack::tims (public headers only).
+// Seeds: tests/fuzz/corpus/gdos_datagram/.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>

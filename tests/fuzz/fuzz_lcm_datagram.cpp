@@ -5,6 +5,9 @@
 // is never start()ed and publishes into an LCM log file written to /dev/null, so no
 // socket is involved. One input is a sequence of datagrams (2-byte big-endian length,
 // then that many bytes) so that reassembly and the discovery table see several.
+// Build: this file linked with rack::tims (public headers only; rack_tims links LCM,
+// zstd and libsodium). Seeds: tests/fuzz/corpus/lcm_datagram/ (one is a 60 KB chunk:
+// -max_len=65536 or more).
 #include <cstddef>
 #include <cstdint>
 #include <memory>

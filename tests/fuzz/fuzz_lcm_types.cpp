@@ -5,6 +5,9 @@
 // bytes (so the two cannot disagree on what a message says). Our decoder must never
 // throw (noexcept: a throw ends the fuzzer) and must refuse what lcm-gen's would throw
 // on. The first byte picks the decoder; the rest is the payload.
+// Build: this file + tims/src/lcm_wire.cpp; include dirs tims/src and the lcm-gen
+// headers (${PROJECT_BINARY_DIR}/tims/lcm_gen, target rack_lcm_types); no library.
+// Seeds: tests/fuzz/corpus/lcm_types/.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
