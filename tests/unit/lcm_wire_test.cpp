@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "gdos_view.h"
 #include "lcm_wire.h"
 #include "rack/tims/gdos_lcm.h"
 #include "rack/tims/lcm_transport.h"
@@ -282,6 +283,18 @@ TEST(GdosDatagramTest, BadBatchesAndFragmentsAreCountedAndGoodRecordsPass) {
   for (auto at = w.find("malformed batch"); at != std::string::npos; at = w.find("malformed batch", at + 1)) ++lines;
   EXPECT_EQ(lines, 1u) << w;
   EXPECT_NE(w.find("host at byte 16: string length 0"), std::string::npos) << w;
+}
+
+TEST(GdosDatagramTest, NetworkTextReachesTheTerminalWithoutControlCharacters) {
+  GdosRecord r;
+  r.host = "h\x1b]0;owned\x07";
+  r.name = "gen";
+  r.text = "a\x1b[2Jb\tc\xc2\x9b" "31m\x7f \xc3\xa9";  // ESC, tab, C1 CSI, DEL, an e-acute
+  const std::string line = gdos_view::text_line(r, r.name, false);
+  EXPECT_EQ(line.find('\x1b'), std::string::npos) << line;
+  EXPECT_EQ(line.find('\x07'), std::string::npos) << line;
+  EXPECT_NE(line.find("a\\x1b[2Jb\tc\\x9b31m\\x7f \xc3\xa9"), std::string::npos) << line;
+  EXPECT_NE(line.find("h\\x1b]0;owned\\x07"), std::string::npos) << line;
 }
 
 }  // namespace
