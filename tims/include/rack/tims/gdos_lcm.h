@@ -65,7 +65,7 @@ struct GdosPublisherCounters {
   uint64_t records = 0;
   uint64_t batches = 0;
   uint64_t publish_errors = 0;
-  uint64_t refused = 0;  // received on the listener channel and refused: not LCM, LCM fragments, does not decode
+  uint64_t refused = 0;  // datagrams the listener check refused: not LCM, LCM fragments, listener messages that do not decode
 };
 
 class GdosPublisher {
