@@ -29,6 +29,7 @@
 #include "rack/tims/mailbox.h"
 #include "rack/tims/message.h"
 #include "rack/tims/router.h"
+#include "rack/tims/tool_address.h"
 
 namespace rack::gui {
 
@@ -172,12 +173,14 @@ struct Backend::Impl {
   Impl(BackendConfig c, Sink s)
       : config(std::move(c)),
         sink(std::move(s)),
-        reply_mailbox(own_address(0), kReplySlots, kSlotSize),
-        image_mailbox(own_address(1), kImageSlots, kImageSlotSize),
+        claim(tims::ToolAddressClaim::claim()),
+        reply_mailbox(claim.mailbox(0), kReplySlots, kSlotSize),
+        image_mailbox(claim.mailbox(1), kImageSlots, kImageSlotSize),
         endpoint(router, reply_mailbox, kPriority),
         transport(router, transport_config(config)),
         buffer(kSlotSize),
         image_buffer(kImageSlotSize) {
+    if (!claim.warning().empty()) std::fprintf(stderr, "rack-gui: %s\n", claim.warning().c_str());
     router.add(reply_mailbox);
     router.add(image_mailbox);
   }
@@ -189,13 +192,6 @@ struct Backend::Impl {
 
   static constexpr uint8_t kPriority = 10;
 
-  static Address own_address(uint8_t mbx) {
-    // Instance from the pid, as rackctl does, so two tools rarely collide; mailbox
-    // 0x80+ keeps rack-gui's apart from rackctl's (which uses the pid's low byte).
-    const auto pid = static_cast<uint32_t>(getpid());
-    return Address::make(tims::kToolSystem, classes::kTool, static_cast<uint8_t>(pid >> 8 ^ pid),
-                         static_cast<uint8_t>(0x80u | mbx));
-  }
   static tims::LcmTransportConfig transport_config(const BackendConfig& c) {
     tims::LcmTransportConfig t;
     t.url = c.lcm_url;
@@ -1189,6 +1185,9 @@ struct Backend::Impl {
   BackendConfig config;
   Sink sink;
   tims::Router router{tims::kToolSystem};
+  // rack-gui's mailbox addresses (0 replies, 1 images), held by no other tool while it
+  // runs (rack/tims/tool_address.h).
+  tims::ToolAddressClaim claim;
   tims::Mailbox reply_mailbox;
   tims::Mailbox image_mailbox;
   tims::Endpoint endpoint;
