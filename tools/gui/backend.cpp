@@ -173,14 +173,14 @@ struct Backend::Impl {
   Impl(BackendConfig c, Sink s)
       : config(std::move(c)),
         sink(std::move(s)),
-        claim(tims::ToolAddressClaim::claim()),
-        reply_mailbox(claim.mailbox(0), kReplySlots, kSlotSize),
-        image_mailbox(claim.mailbox(1), kImageSlots, kImageSlotSize),
+        address_claim(tims::ToolAddressClaim::claim()),
+        reply_mailbox(address_claim.mailbox(0), kReplySlots, kSlotSize),
+        image_mailbox(address_claim.mailbox(1), kImageSlots, kImageSlotSize),
         endpoint(router, reply_mailbox, kPriority),
         transport(router, transport_config(config)),
         buffer(kSlotSize),
         image_buffer(kImageSlotSize) {
-    if (!claim.warning().empty()) std::fprintf(stderr, "rack-gui: %s\n", claim.warning().c_str());
+    if (!address_claim.warning().empty()) std::fprintf(stderr, "rack-gui: %s\n", address_claim.warning().c_str());
     router.add(reply_mailbox);
     router.add(image_mailbox);
   }
@@ -778,6 +778,7 @@ struct Backend::Impl {
             {
               const std::lock_guard lock(counters_mutex);
               ++counters.malformed;
+              ++counters.refused[static_cast<std::size_t>(Refusal::kBadValue)];
             }
             result(client, r, false,
                    address_text(a) + " parameter '" + r.param_name + "' (" +
@@ -1187,7 +1188,7 @@ struct Backend::Impl {
   tims::Router router{tims::kToolSystem};
   // rack-gui's mailbox addresses (0 replies, 1 images), held by no other tool while it
   // runs (rack/tims/tool_address.h).
-  tims::ToolAddressClaim claim;
+  tims::ToolAddressClaim address_claim;
   tims::Mailbox reply_mailbox;
   tims::Mailbox image_mailbox;
   tims::Endpoint endpoint;
@@ -1215,6 +1216,30 @@ struct Backend::Impl {
 
   mutable std::mutex counters_mutex;
   Counters counters;
+  int64_t last_refusal_log_ns = 0;  // under counters_mutex
+  uint64_t refusals_not_logged = 0;
+
+  // Counts a refused client message by reason, answers it with the reason, and logs
+  // it on stderr at most once a second (with how many were not logged since).
+  void refuse(uint64_t client, const ParseError& e) {
+    std::string line;
+    {
+      const std::lock_guard lock(counters_mutex);
+      ++counters.malformed;
+      ++counters.refused[static_cast<std::size_t>(e.reason)];
+      const int64_t now = rt::monotonic_ns();
+      if (now - last_refusal_log_ns >= rt::kNsPerSec) {
+        last_refusal_log_ns = now;
+        line = "rack-gui: client " + std::to_string(client) + ": refused (" + describe(e.reason) + "): " + e.message;
+        if (refusals_not_logged > 0) line += " (and " + std::to_string(refusals_not_logged) + " more not logged)";
+        refusals_not_logged = 0;
+      } else {
+        ++refusals_not_logged;
+      }
+    }
+    if (!line.empty()) std::fprintf(stderr, "%s\n", line.c_str());
+    send_to(client, error_message(e));
+  }
 };
 
 Backend::Backend(BackendConfig config, Sink sink) : impl_(std::make_unique<Impl>(std::move(config), std::move(sink))) {}
@@ -1222,18 +1247,37 @@ Backend::~Backend() = default;
 void Backend::start() { impl_->start(); }
 void Backend::stop() { impl_->stop(); }
 
-void Backend::submit(uint64_t client, const std::string& text) {
-  auto parsed = parse_request(text);
-  if (auto* e = std::get_if<ParseError>(&parsed)) {
-    {
-      const std::lock_guard lock(impl_->counters_mutex);
-      ++impl_->counters.malformed;
+void Backend::submit(uint64_t client, std::string_view text) noexcept {
+  try {
+    auto parsed = parse_request(text);
+    if (auto* e = std::get_if<ParseError>(&parsed)) {
+      impl_->refuse(client, *e);
+      return;
     }
-    impl_->send_to(client, error_message(*e));
-    return;
+    {
+      const std::lock_guard lock(impl_->queue_mutex);
+      if (impl_->queue.size() < kMaxQueuedRequests) {
+        impl_->queue.emplace_back(client, std::get<Request>(std::move(parsed)));
+        return;
+      }
+    }
+    // A client sending faster than the robots answer: refused, not queued without end.
+    const auto& r = std::get<Request>(parsed);
+    impl_->refuse(client, ParseError{r.id,
+                                     std::string(op_name(r.op)) + ": " + std::to_string(kMaxQueuedRequests) +
+                                         " requests are waiting already; send fewer",
+                                     Refusal::kBusy});
+  } catch (const std::exception& e) {  // out of memory: the message is lost, rack-gui goes on
+    std::fprintf(stderr, "rack-gui: client %llu: message of %zu bytes dropped: %s\n",
+                 static_cast<unsigned long long>(client), text.size(), e.what());
   }
-  const std::lock_guard lock(impl_->queue_mutex);
-  impl_->queue.emplace_back(client, std::get<Request>(std::move(parsed)));
+}
+
+void Backend::refused(uint64_t client, Refusal reason, const std::string& message) noexcept {
+  try {
+    impl_->refuse(client, ParseError{std::nullopt, message, reason});
+  } catch (const std::exception&) {  // out of memory: only the answer is lost
+  }
 }
 
 void Backend::client_closed(uint64_t client) {
