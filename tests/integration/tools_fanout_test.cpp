@@ -189,7 +189,7 @@ class Flood {
 
 class ToolsFanoutTest : public ::testing::Test {
  protected:
-  ToolsFanoutTest() : watchdog_(115s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
+  ToolsFanoutTest() : watchdog_(230s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
   void SetUp() override {
     for (int h = 0; h < kHosts; ++h) {
       const auto path = dir_.write("host" + std::to_string(h) + ".yaml", host_file(h));
