@@ -15,8 +15,8 @@
 #include <array>
 #include <atomic>
 #include <cctype>
-#include <climits>
 #include <cerrno>
+#include <climits>
 #include <cstdarg>
 #include <charconv>
 #include <cmath>
