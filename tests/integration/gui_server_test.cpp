@@ -9,6 +9,7 @@
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <mutex>
@@ -88,6 +89,11 @@ class HttpServerTest : public ::testing::Test {
       server_->send(c, "echo:" + text);
     };
     h.closed = [this](uint64_t) { ++closed_; };
+    h.refused = [this](uint64_t c, gui::FrameRefusal why, std::size_t bytes) {
+      const std::lock_guard lock(mutex_);
+      refused_.emplace_back(why, bytes);
+      if (why == gui::FrameRefusal::kBinary) server_->send(c, "refused binary");
+    };
     server_ = std::make_unique<gui::HttpServer>("127.0.0.1", 0, (dir_.path() / "web").string(), h);
     thread_ = std::thread([this] { server_->run(); });
   }
@@ -101,6 +107,7 @@ class HttpServerTest : public ::testing::Test {
   std::thread thread_;
   std::mutex mutex_;
   std::vector<std::string> received_;
+  std::vector<std::pair<gui::FrameRefusal, std::size_t>> refused_;
   std::atomic<int> closed_{0};
 };
 
@@ -115,7 +122,7 @@ TEST_F(HttpServerTest, ServesFilesBelowItsRootOnly) {
   EXPECT_EQ(get(port, "/assets").first, 404) << "a directory is not a file";
 }
 
-TEST_F(HttpServerTest, WebSocketCarriesTextAndClosesOnBinaryOrOversizedMessages) {
+TEST_F(HttpServerTest, WebSocketCarriesTextRefusesBinaryAndClosesOnOversizedMessages) {
   {
     WsClient c(server_->port());
     EXPECT_EQ(c.read(), "welcome");
@@ -130,7 +137,10 @@ TEST_F(HttpServerTest, WebSocketCarriesTextAndClosesOnBinaryOrOversizedMessages)
     EXPECT_EQ(c.read(), "welcome");
     c.ws.binary(true);
     c.ws.write(net::buffer(std::string("\x01\x02", 2)));
-    EXPECT_EQ(c.read(), "") << "a binary message closes the connection";
+    EXPECT_EQ(c.read(), "refused binary") << "a binary message is refused, the connection stays";
+    c.ws.text(true);
+    c.ws.write(net::buffer(std::string("after")));
+    EXPECT_EQ(c.read(), "echo:after");
   }
   {
     WsClient c(server_->port());
@@ -138,9 +148,17 @@ TEST_F(HttpServerTest, WebSocketCarriesTextAndClosesOnBinaryOrOversizedMessages)
     c.ws.text(true);
     c.ws.write(net::buffer(std::string(gui::HttpServer::kMaxMessage + 1, 'x')));
     EXPECT_EQ(c.read(), "") << "an oversized message closes the connection";
+    EXPECT_EQ(c.ws.reason().code, static_cast<uint16_t>(websocket::close_code::too_big));
   }
+  // The server goes on serving the others.
+  WsClient c(server_->port());
+  EXPECT_EQ(c.read(), "welcome");
   const std::lock_guard lock(mutex_);
-  ASSERT_EQ(received_.size(), 1u) << "only the valid text message reached the handler";
+  ASSERT_EQ(received_.size(), 2u) << "only the valid text messages reached the message handler";
+  ASSERT_EQ(refused_.size(), 2u);
+  EXPECT_EQ(refused_[0], std::make_pair(gui::FrameRefusal::kBinary, std::size_t{2}));
+  EXPECT_EQ(refused_[1].first, gui::FrameRefusal::kTooLarge);
+  EXPECT_GT(refused_[1].second, gui::HttpServer::kMaxMessage);
 }
 
 // The real rack-gui (no robot on its bus): malformed messages get an error naming the
@@ -187,6 +205,93 @@ TEST(RackGuiServerTest, RefusesMalformedMessagesAndReportsUnansweredRequests) {
   EXPECT_NE(gui.err().find("stopped; 1 request(s) sent, 1 not answered in time, 4 malformed client message(s)"),
             std::string::npos)
       << gui.err();
+}
+
+// Hostile browser input against the real rack-gui: each kind of bad message is
+// refused with its reason, a flood of them neither ends nor stalls rack-gui (a valid
+// request is still answered after it), and the counts by reason are in its final line.
+TEST(RackGuiServerTest, HostileMessagesAreRefusedWithAReasonCountedAndNeverStallIt) {
+  Watchdog watchdog(90s, "RackGuiServerTest.Hostile");
+  TempDir dir;
+  LcmBus bus;
+  std::filesystem::create_directories(dir.path() / "web");
+  dir.write("web/index.html", "<html></html>");
+  Process gui({RACK_GUI_PATH, "--port", "0", "--lcm", bus.url(), "--web", (dir.path() / "web").string(), "--reports",
+               "", "--timeout-ms", "300"},
+              dir.path(), "rack-gui");
+  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
+  const std::string err = gui.err();
+  const auto colon = err.find(':', err.find("http://127.0.0.1") + 10);
+  const auto port = static_cast<uint16_t>(std::stoi(err.substr(colon + 1)));
+
+  WsClient c(port);
+  EXPECT_EQ(c.read_type("hello")["version"], 1);
+  const auto refused = [&](const std::string& text, const std::string& reason, const std::string& expected) {
+    c.ws.text(true);
+    c.ws.write(net::buffer(text));
+    const auto j = c.read_type("error");
+    ASSERT_TRUE(j.is_object()) << text.substr(0, 100);
+    EXPECT_EQ(j.value("reason", ""), reason) << j.dump();
+    EXPECT_NE(j["error"].get<std::string>().find(expected), std::string::npos) << j.dump();
+    EXPECT_LT(j.dump().size(), 1200u) << "a refusal quotes the client's text cut short";
+  };
+  refused("{\"op\":\"all_off\",\"system\":0,\"system\":1}", "duplicate_key", "key 'system' given twice");
+  refused(std::string(5000, '[') + std::string(5000, ']'), "too_deep", "nested deeper than 8");
+  refused(R"j({"op":"all_off","system":18446744073709551615})j", "bad_value", "not a robot's system number");
+  refused(R"j({"op":"all_off","system":0,"id":18446744073709551615})j", "bad_value", "key 'id'");
+  refused(R"j({"op":"set_pose","system":0,"x":1e400,"y":0,"phi":0})j", "not_json", "number overflow");
+  refused("{\"op\":\"" + std::string(40000, 'A') + "\"}", "bad_op", "unknown op 'AAAA");
+  refused(R"j({"op":"joystick","system":0,"vx":0.1})j", "bad_key", "missing key 'omega'");
+  c.ws.binary(true);
+  c.ws.write(net::buffer(std::string("\x00\x01\x02", 3)));
+  EXPECT_EQ(c.read_type("error").value("reason", ""), "binary");
+
+  // A flood: 2000 malformed messages, 100 at a time (as fast as the socket takes
+  // them; the answers are read after each 100, since a client that does not read loses
+  // its oldest answers beyond HttpServer::kMaxQueue).
+  c.ws.text(true);
+  for (int batch = 0; batch < 20; ++batch) {
+    for (int i = 0; i < 100; ++i) c.ws.write(net::buffer("{\"op\":" + std::to_string(i)));
+    for (int i = 0; i < 100; ++i) {
+      const auto j = c.read_type("error");
+      ASSERT_TRUE(j.is_object()) << "batch " << batch << ", answer " << i;
+    }
+  }
+  // Still serving: a valid request is answered (no robot: it fails with a reason).
+  c.ws.write(net::buffer(std::string(R"j({"op":"switch","component":"Chassis(7/0)","on":false,"id":3})j")));
+  const auto result = c.read_type("result");
+  ASSERT_TRUE(result.is_object());
+  EXPECT_EQ(result["id"], 3);
+  // An oversized message ends only that connection (1009); a new one is served.
+  {
+    WsClient big(port);
+    EXPECT_EQ(big.read_type("hello")["version"], 1);
+    big.ws.text(true);
+    big.ws.write(net::buffer(std::string(gui::HttpServer::kMaxMessage + 1, ' ')));
+    EXPECT_EQ(big.read_type("error"), nullptr);
+    EXPECT_EQ(big.ws.reason().code, static_cast<uint16_t>(websocket::close_code::too_big));
+  }
+  // Not UTF-8 in a text message: that connection ends (1007), as RFC 6455 says.
+  {
+    WsClient bad(port);
+    EXPECT_EQ(bad.read_type("hello")["version"], 1);
+    bad.ws.text(true);
+    bad.ws.write(net::buffer(std::string("{\"op\":\"all_off\",\"system\":0,\"x\":\"\xff\xfe\"}")));
+    EXPECT_EQ(bad.read_type("error"), nullptr);
+    EXPECT_EQ(bad.ws.reason().code, static_cast<uint16_t>(websocket::close_code::bad_payload));
+  }
+  WsClient after(port);
+  EXPECT_EQ(after.read_type("hello")["version"], 1);
+
+  gui.signal(SIGTERM);
+  EXPECT_EQ(gui.wait_exit(10s), std::optional<int>(0)) << gui.err();
+  const std::string out = gui.err();
+  EXPECT_NE(out.find("2010 malformed client message(s) (too_large 1, not_json 2002, too_deep 1, duplicate_key 1, "
+                     "bad_op 1, bad_key 1, bad_value 2, binary 1)"),
+            std::string::npos)
+      << out.substr(out.size() > 2000 ? out.size() - 2000 : 0);
+  EXPECT_NE(out.find("refused (duplicate_key)"), std::string::npos) << "logged with its reason";
+  EXPECT_LT(std::count(out.begin(), out.end(), '\n'), 100) << "the log of refusals is rate-limited";
 }
 
 // Authenticated links (issue 11): rack-gui takes the host file's network and key file

@@ -196,3 +196,116 @@ TEST(GuiProtocolTest, LatencyHistogramBecomesJsonOnlyWhenItAddsUp) {
 
 }  // namespace
 }  // namespace rack::gui
+
+namespace rack::gui {
+namespace {
+
+ParseError refusal(std::string_view text) {
+  auto r = parse_request(text);
+  if (!std::holds_alternative<ParseError>(r)) {
+    ADD_FAILURE() << std::string(text.substr(0, 200)) << " was accepted";
+    return {};
+  }
+  return std::get<ParseError>(r);
+}
+
+TEST(GuiProtocolTest, RefusesHostileMessagesWithTheirReason) {
+  // Too large: refused before parsing.
+  std::string big = R"j({"op":"all_off","system":0,"pad":")j" + std::string(kMaxRequestBytes, ' ') + "\"}";
+  auto e = refusal(big);
+  EXPECT_EQ(e.reason, Refusal::kTooLarge);
+  EXPECT_NE(e.message.find(std::to_string(big.size()) + " bytes"), std::string::npos) << e.message;
+  // Not JSON: where.
+  e = refusal(R"j({"op":"all_off",,"system":0})j");
+  EXPECT_EQ(e.reason, Refusal::kNotJson);
+  EXPECT_NE(e.message.find("at byte 17"), std::string::npos) << e.message;
+  e = refusal("{\"op\":\"all_off\",\"system\":0,\"x\":\"\xff\"}");
+  EXPECT_EQ(e.reason, Refusal::kNotJson) << "invalid UTF-8";
+  e = refusal(std::string_view("{\"op\":\"all\0off\"}", 16));
+  EXPECT_EQ(e.reason, Refusal::kNotJson) << "a raw NUL in a string";
+  e = refusal(R"j({"op":"set_pose","system":0,"x":1e400,"y":0,"phi":0})j");
+  EXPECT_EQ(e.reason, Refusal::kNotJson) << e.message;
+  // Nesting: bounded while parsing.
+  e = refusal(std::string(100000 / 2, '[') + std::string(100000 / 2, ']'));
+  EXPECT_EQ(e.reason, Refusal::kTooLarge);
+  EXPECT_EQ(refusal(std::string(30000, '[') + std::string(30000, ']')).reason, Refusal::kTooDeep);
+  e = refusal(std::string(9, '[') + std::string(9, ']'));
+  EXPECT_EQ(e.reason, Refusal::kTooDeep) << e.message;
+  EXPECT_EQ(refusal(R"j({"op":"all_off","system":0,"x":[[[[[[[[[1]]]]]]]]]})j").reason, Refusal::kTooDeep);
+  EXPECT_EQ(refusal(std::string(8, '[') + std::string(8, ']')).reason, Refusal::kNotObject) << "8 levels parse";
+  // A key twice: nlohmann would keep the last one silently.
+  e = refusal(R"j({"op":"all_off","system":0,"system":1})j");
+  EXPECT_EQ(e.reason, Refusal::kDuplicateKey);
+  EXPECT_NE(e.message.find("key 'system' given twice"), std::string::npos) << e.message;
+  EXPECT_EQ(refusal(R"j({"op":"all_off","op":"all_off","system":0})j").reason, Refusal::kDuplicateKey);
+  // The same key in two objects is fine (refused for another reason here).
+  EXPECT_EQ(refusal(R"j({"op":"set_param","component":"Pilot(0/0)","name":"x","value":{"op":1}})j").reason,
+            Refusal::kBadValue);
+  // Integers beyond int64: refused, never wrapped (2^64-1 was -1 before).
+  e = refusal(R"j({"op":"all_off","system":18446744073709551615})j");
+  EXPECT_EQ(e.reason, Refusal::kBadValue);
+  e = refusal(R"j({"op":"all_off","system":0,"id":18446744073709551615})j");
+  EXPECT_EQ(e.reason, Refusal::kBadValue);
+  EXPECT_FALSE(e.id.has_value());
+  EXPECT_EQ(refusal(R"j({"op":"set_param","component":"Pilot(0/0)","name":"n","value":9223372036854775808})j").reason,
+            Refusal::kBadValue);
+  EXPECT_TRUE(std::holds_alternative<Request>(
+      parse_request(R"j({"op":"all_off","system":0,"id":9223372036854775807})j")));
+  // Integers JSON writes as numbers beyond uint64 become doubles: not an integer.
+  EXPECT_EQ(refusal(R"j({"op":"all_off","system":100000000000000000000})j").reason, Refusal::kBadValue);
+  // Ops and keys.
+  EXPECT_EQ(refusal("{}").reason, Refusal::kBadOp);
+  EXPECT_EQ(refusal(R"j({"op":"all_off"})j").reason, Refusal::kBadKey);
+  EXPECT_EQ(refusal(R"j({"op":"all_off","system":0,"force":1})j").reason, Refusal::kBadKey);
+  EXPECT_EQ(refusal("[]").reason, Refusal::kNotObject);
+  EXPECT_EQ(refusal(R"j({"op":"set_param","component":"Pilot(0/0)","name":"a\u0000b","value":1})j").reason,
+            Refusal::kBadValue);
+}
+
+TEST(GuiProtocolTest, RefusalsQuoteTheClientsTextCutShortAndPrintable) {
+  const std::string op(50000, 'A');
+  auto e = refusal(R"j({"op":")j" + op + "\"}");
+  EXPECT_EQ(e.reason, Refusal::kBadOp);
+  EXPECT_LT(e.message.size(), 200u);
+  std::string quoted(kMaxQuoted, 'A');
+  quoted.append("...'");
+  EXPECT_NE(e.message.find(quoted), std::string::npos) << e.message;
+  // Control characters become '?'; a cut never splits a UTF-8 character.
+  e = refusal(R"j({"op":"a\nb"})j");
+  EXPECT_NE(e.message.find("unknown op 'a?b'"), std::string::npos) << e.message;
+  std::string wide;
+  for (int i = 0; i < 40; ++i) wide += "\xc3\xa4";  // 80 bytes of 'ä'
+  e = refusal(R"j({"op":")j" + wide + "\"}");
+  const std::string msg = error_message(e);  // invalid UTF-8 would show as U+FFFD here
+  EXPECT_EQ(msg.find("\xef\xbf\xbd"), std::string::npos) << "no character was cut in half: " << msg;
+  EXPECT_EQ(nlohmann::json::parse(error_message(e)).at("reason"), "bad_op");
+}
+
+TEST(GuiProtocolTest, ArbitraryBytesNeverThrowAndAlwaysGiveAnAnswer) {
+  // The fuzz harness (tests/fuzz/fuzz_gui_ws.cpp) does this at scale; here a fixed
+  // sample of random and mutated messages.
+  uint32_t x = 12345;
+  const auto next = [&] { return x = x * 1664525u + 1013904223u; };
+  const std::string seeds[] = {R"j({"op":"set_pose","system":0,"x":4.0,"y":7.2,"phi":0.0,"id":3})j",
+                               R"j({"op":"set_param","component":"Pilot(0/0)","name":"vx_max","value":0.5})j"};
+  for (int i = 0; i < 20000; ++i) {
+    std::string m = seeds[i % 2];
+    const int edits = 1 + static_cast<int>(next() % 8);
+    for (int k = 0; k < edits; ++k) {
+      const std::size_t at = next() % (m.size() + 1);
+      switch (next() % 3) {
+        case 0: if (at < m.size()) m[at] = static_cast<char>(next()); break;
+        case 1: m.insert(at, 1, "{}[]\",:0e-9\\u"[next() % 14]); break;
+        default: if (at < m.size()) m.erase(at, 1); break;
+      }
+    }
+    const auto r = parse_request(m);
+    if (const auto* e = std::get_if<ParseError>(&r)) {
+      ASSERT_FALSE(e->message.empty()) << m;
+      ASSERT_TRUE(nlohmann::json::accept(error_message(*e))) << m;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace rack::gui

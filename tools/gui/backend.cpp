@@ -29,6 +29,7 @@
 #include "rack/tims/mailbox.h"
 #include "rack/tims/message.h"
 #include "rack/tims/router.h"
+#include "rack/tims/tool_address.h"
 
 namespace rack::gui {
 
@@ -172,12 +173,14 @@ struct Backend::Impl {
   Impl(BackendConfig c, Sink s)
       : config(std::move(c)),
         sink(std::move(s)),
-        reply_mailbox(own_address(0), kReplySlots, kSlotSize),
-        image_mailbox(own_address(1), kImageSlots, kImageSlotSize),
+        address_claim(tims::ToolAddressClaim::claim()),
+        reply_mailbox(address_claim.mailbox(0), kReplySlots, kSlotSize),
+        image_mailbox(address_claim.mailbox(1), kImageSlots, kImageSlotSize),
         endpoint(router, reply_mailbox, kPriority),
         transport(router, transport_config(config)),
         buffer(kSlotSize),
         image_buffer(kImageSlotSize) {
+    if (!address_claim.warning().empty()) std::fprintf(stderr, "rack-gui: %s\n", address_claim.warning().c_str());
     router.add(reply_mailbox);
     router.add(image_mailbox);
   }
@@ -189,13 +192,6 @@ struct Backend::Impl {
 
   static constexpr uint8_t kPriority = 10;
 
-  static Address own_address(uint8_t mbx) {
-    // Instance from the pid, as rackctl does, so two tools rarely collide; mailbox
-    // 0x80+ keeps rack-gui's apart from rackctl's (which uses the pid's low byte).
-    const auto pid = static_cast<uint32_t>(getpid());
-    return Address::make(tims::kToolSystem, classes::kTool, static_cast<uint8_t>(pid >> 8 ^ pid),
-                         static_cast<uint8_t>(0x80u | mbx));
-  }
   static tims::LcmTransportConfig transport_config(const BackendConfig& c) {
     tims::LcmTransportConfig t;
     t.url = c.lcm_url;
@@ -782,6 +778,7 @@ struct Backend::Impl {
             {
               const std::lock_guard lock(counters_mutex);
               ++counters.malformed;
+              ++counters.refused[static_cast<std::size_t>(Refusal::kBadValue)];
             }
             result(client, r, false,
                    address_text(a) + " parameter '" + r.param_name + "' (" +
@@ -1189,6 +1186,9 @@ struct Backend::Impl {
   BackendConfig config;
   Sink sink;
   tims::Router router{tims::kToolSystem};
+  // rack-gui's mailbox addresses (0 replies, 1 images), held by no other tool while it
+  // runs (rack/tims/tool_address.h).
+  tims::ToolAddressClaim address_claim;
   tims::Mailbox reply_mailbox;
   tims::Mailbox image_mailbox;
   tims::Endpoint endpoint;
@@ -1216,6 +1216,30 @@ struct Backend::Impl {
 
   mutable std::mutex counters_mutex;
   Counters counters;
+  int64_t last_refusal_log_ns = 0;  // under counters_mutex
+  uint64_t refusals_not_logged = 0;
+
+  // Counts a refused client message by reason, answers it with the reason, and logs
+  // it on stderr at most once a second (with how many were not logged since).
+  void refuse(uint64_t client, const ParseError& e) {
+    std::string line;
+    {
+      const std::lock_guard lock(counters_mutex);
+      ++counters.malformed;
+      ++counters.refused[static_cast<std::size_t>(e.reason)];
+      const int64_t now = rt::monotonic_ns();
+      if (now - last_refusal_log_ns >= rt::kNsPerSec) {
+        last_refusal_log_ns = now;
+        line = "rack-gui: client " + std::to_string(client) + ": refused (" + describe(e.reason) + "): " + e.message;
+        if (refusals_not_logged > 0) line += " (and " + std::to_string(refusals_not_logged) + " more not logged)";
+        refusals_not_logged = 0;
+      } else {
+        ++refusals_not_logged;
+      }
+    }
+    if (!line.empty()) std::fprintf(stderr, "%s\n", line.c_str());
+    send_to(client, error_message(e));
+  }
 };
 
 Backend::Backend(BackendConfig config, Sink sink) : impl_(std::make_unique<Impl>(std::move(config), std::move(sink))) {}
@@ -1223,18 +1247,37 @@ Backend::~Backend() = default;
 void Backend::start() { impl_->start(); }
 void Backend::stop() { impl_->stop(); }
 
-void Backend::submit(uint64_t client, const std::string& text) {
-  auto parsed = parse_request(text);
-  if (auto* e = std::get_if<ParseError>(&parsed)) {
-    {
-      const std::lock_guard lock(impl_->counters_mutex);
-      ++impl_->counters.malformed;
+void Backend::submit(uint64_t client, std::string_view text) noexcept {
+  try {
+    auto parsed = parse_request(text);
+    if (auto* e = std::get_if<ParseError>(&parsed)) {
+      impl_->refuse(client, *e);
+      return;
     }
-    impl_->send_to(client, error_message(*e));
-    return;
+    {
+      const std::lock_guard lock(impl_->queue_mutex);
+      if (impl_->queue.size() < kMaxQueuedRequests) {
+        impl_->queue.emplace_back(client, std::get<Request>(std::move(parsed)));
+        return;
+      }
+    }
+    // A client sending faster than the robots answer: refused, not queued without end.
+    const auto& r = std::get<Request>(parsed);
+    impl_->refuse(client, ParseError{r.id,
+                                     std::string(op_name(r.op)) + ": " + std::to_string(kMaxQueuedRequests) +
+                                         " requests are waiting already; send fewer",
+                                     Refusal::kBusy});
+  } catch (const std::exception& e) {  // out of memory: the message is lost, rack-gui goes on
+    std::fprintf(stderr, "rack-gui: client %llu: message of %zu bytes dropped: %s\n",
+                 static_cast<unsigned long long>(client), text.size(), e.what());
   }
-  const std::lock_guard lock(impl_->queue_mutex);
-  impl_->queue.emplace_back(client, std::get<Request>(std::move(parsed)));
+}
+
+void Backend::refused(uint64_t client, Refusal reason, const std::string& message) noexcept {
+  try {
+    impl_->refuse(client, ParseError{std::nullopt, message, reason});
+  } catch (const std::exception&) {  // out of memory: only the answer is lost
+  }
 }
 
 void Backend::client_closed(uint64_t client) {

@@ -21,6 +21,7 @@
 // the backend's threads.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <deque>
@@ -28,6 +29,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -64,16 +66,23 @@ class Backend {
   void start();
   void stop();
 
-  // A message from client `client`: parsed here; a malformed one is answered with an
-  // error at once and sends nothing to any robot.
-  void submit(uint64_t client, const std::string& text);
+  // A message from client `client` (any bytes): parsed here; a malformed one is
+  // answered with an error and its reason at once, counted per reason, logged at most
+  // once a second, and sends nothing to any robot. At most kMaxQueuedRequests wait
+  // for the robots; beyond that a request is refused (Refusal::kBusy). Never throws.
+  static constexpr std::size_t kMaxQueuedRequests = 256;
+  void submit(uint64_t client, std::string_view text) noexcept;
+  // A message the server refused before parsing (binary, too large): counted, logged
+  // at most once a second, and answered when the client is still there.
+  void refused(uint64_t client, Refusal reason, const std::string& message) noexcept;
   // The client went away: a joystick it held stops the robot.
   void client_closed(uint64_t client);
   // What a client that just connected needs (hello, components, maps, recent log).
   void greet(uint64_t client);
 
   struct Counters {
-    uint64_t malformed = 0;   // client messages refused
+    uint64_t malformed = 0;   // client messages refused (every reason)
+    std::array<uint64_t, kRefusalKinds> refused{};  // by Refusal
     uint64_t requests = 0;    // TiMS requests sent
     uint64_t timeouts = 0;    // TiMS requests not answered in time
     uint64_t bad_replies = 0; // replies that did not decode (GET_LATENCY), not passed on

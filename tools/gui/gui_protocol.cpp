@@ -1,8 +1,11 @@
 #include "gui_protocol.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <set>
+#include <vector>
 
 namespace rack::gui {
 
@@ -38,16 +41,45 @@ std::string type_of(const json& v) {
   return v.type_name();
 }
 
+// A refusal on the way (thrown inside parse_request only, caught there).
 struct Bad {
   std::string message;
+  Refusal reason = Refusal::kBadValue;
 };
+
+// A client's text for a message: at most kMaxQuoted bytes (cut at a character
+// boundary), control characters as '?'.
+std::string quote(std::string_view t) {
+  std::size_t n = std::min(t.size(), kMaxQuoted);
+  while (n > 0 && n < t.size() && (static_cast<unsigned char>(t[n]) & 0xC0u) == 0x80u) --n;
+  std::string out;
+  out.reserve(n + 3);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto c = static_cast<unsigned char>(t[i]);
+    out += c < 0x20 || c == 0x7F ? '?' : t[i];
+  }
+  if (n < t.size()) out += "...";
+  return out;
+}
+
+// An integer that fits int64_t (JSON integers above it arrive as unsigned: refused,
+// never wrapped).
+std::optional<int64_t> as_int64(const json& v) {
+  if (v.is_number_unsigned()) {
+    const auto u = v.get<uint64_t>();
+    if (u > static_cast<uint64_t>(std::numeric_limits<int64_t>::max())) return std::nullopt;
+    return static_cast<int64_t>(u);
+  }
+  if (v.is_number_integer()) return v.get<int64_t>();
+  return std::nullopt;
+}
 
 double number(const json& msg, const char* key, double limit) {
   const json& v = msg.at(key);
   if (!v.is_number()) throw Bad{std::string("key '") + key + "': expected a number, got " + type_of(v)};
   const double d = v.get<double>();
   if (!std::isfinite(d) || std::fabs(d) > limit) {
-    throw Bad{std::string("key '") + key + "': " + v.dump() + " is outside -" + json(limit).dump() + ".." +
+    throw Bad{std::string("key '") + key + "': " + quote(v.dump()) + " is outside -" + json(limit).dump() + ".." +
               json(limit).dump()};
   }
   return d;
@@ -56,56 +88,105 @@ double number(const json& msg, const char* key, double limit) {
 uint8_t system_of(const json& msg) {
   const json& v = msg.at("system");
   if (!v.is_number_integer()) throw Bad{"key 'system': expected an integer 0..254, got " + type_of(v)};
-  const auto s = v.get<int64_t>();
-  if (s < 0 || s > 254) throw Bad{"key 'system': " + v.dump() + " is not a robot's system number 0..254"};
-  return static_cast<uint8_t>(s);
+  const auto s = as_int64(v);
+  if (!s || *s < 0 || *s > 254) throw Bad{"key 'system': " + quote(v.dump()) + " is not a robot's system number 0..254"};
+  return static_cast<uint8_t>(*s);
 }
 
 tims::Address component_of(const json& msg) {
   const json& v = msg.at("component");
   if (!v.is_string()) throw Bad{"key 'component': expected an address text such as Chassis(0/0), got " + type_of(v)};
-  const auto text = v.get<std::string>();
-  const auto a = tims::parse_address(text);
-  if (!a) throw Bad{"key 'component': '" + text + "' is not an address such as Chassis(0/0)"};
-  if (a->mailbox() != 0) throw Bad{"key 'component': '" + text + "' names a mailbox, not a component"};
+  const auto& text = v.get_ref<const std::string&>();
+  const auto a = text.size() <= kMaxQuoted ? tims::parse_address(text) : std::nullopt;
+  if (!a) throw Bad{"key 'component': '" + quote(text) + "' is not an address such as Chassis(0/0)"};
+  if (a->mailbox() != 0) throw Bad{"key 'component': '" + quote(text) + "' names a mailbox, not a component"};
   return *a;
 }
 
-}  // namespace
-
-const char* op_name(Op op) noexcept {
-  for (const auto& s : specs()) {
-    if (s.op == op) return s.name;
+// JSON text -> value, refusing what the protocol never needs: deep nesting (bounded
+// before it is built) and a key given twice (nlohmann would keep the last one
+// silently). Throws Bad.
+json parse_json(std::string_view text) {
+  std::vector<std::set<std::string>> keys;  // per open object
+  const json::parser_callback_t check = [&keys](int depth, json::parse_event_t event, json& parsed) {
+    switch (event) {
+      case json::parse_event_t::object_start:
+      case json::parse_event_t::array_start:
+        if (depth >= kMaxRequestDepth) {
+          throw Bad{"nested deeper than " + std::to_string(kMaxRequestDepth) + " levels", Refusal::kTooDeep};
+        }
+        if (event == json::parse_event_t::object_start) keys.emplace_back();
+        break;
+      case json::parse_event_t::key:
+        if (!keys.empty() && parsed.is_string() && !keys.back().insert(parsed.get<std::string>()).second) {
+          throw Bad{"key '" + quote(parsed.get_ref<const std::string&>()) + "' given twice", Refusal::kDuplicateKey};
+        }
+        break;
+      case json::parse_event_t::object_end:
+        if (!keys.empty()) keys.pop_back();
+        break;
+      default: break;
+    }
+    return true;
+  };
+  try {
+    return json::parse(text.begin(), text.end(), check, /*allow_exceptions=*/true);
+  } catch (const json::parse_error& e) {
+    // e.what(): "[json.exception.parse_error.101] parse error at line 1, column 5: ..."
+    std::string why = e.what();
+    if (const auto at = why.find("] "); at != std::string::npos) why.erase(0, at + 2);
+    throw Bad{"not JSON (" + std::to_string(text.size()) + " bytes): at byte " + std::to_string(e.byte) + ": " +
+                  quote(why.substr(0, 4 * kMaxQuoted)),
+              Refusal::kNotJson};
+  } catch (const json::exception& e) {  // a number JSON can hold but a double cannot (1e400)
+    std::string why = e.what();
+    if (const auto at = why.find("] "); at != std::string::npos) why.erase(0, at + 2);
+    throw Bad{"not JSON (" + std::to_string(text.size()) + " bytes): " + quote(why), Refusal::kNotJson};
   }
-  return "?";
 }
 
-std::variant<Request, ParseError> parse_request(const std::string& text) {
-  json msg = json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (msg.is_discarded()) return ParseError{std::nullopt, "not JSON (" + std::to_string(text.size()) + " bytes)"};
-  if (!msg.is_object()) return ParseError{std::nullopt, "expected a JSON object, got " + type_of(msg)};
+std::variant<Request, ParseError> parse_checked(std::string_view text) {
+  if (text.size() > kMaxRequestBytes) {
+    return ParseError{std::nullopt,
+                      "message of " + std::to_string(text.size()) + " bytes, at most " +
+                          std::to_string(kMaxRequestBytes),
+                      Refusal::kTooLarge};
+  }
+  json msg;
+  try {
+    msg = parse_json(text);
+  } catch (const Bad& b) {
+    return ParseError{std::nullopt, b.message, b.reason};
+  }
+  if (!msg.is_object()) return ParseError{std::nullopt, "expected a JSON object, got " + type_of(msg), Refusal::kNotObject};
   Request r;
   if (const auto it = msg.find("id"); it != msg.end()) {
-    if (!it->is_number_integer()) return ParseError{std::nullopt, "key 'id': expected an integer, got " + type_of(*it)};
-    r.id = it->get<int64_t>();
+    if (!it->is_number_integer()) {
+      return ParseError{std::nullopt, "key 'id': expected an integer, got " + type_of(*it), Refusal::kBadValue};
+    }
+    const auto id = as_int64(*it);
+    if (!id) return ParseError{std::nullopt, "key 'id': " + quote(it->dump()) + " is above 2^63-1", Refusal::kBadValue};
+    r.id = *id;
   }
   const auto op_it = msg.find("op");
-  if (op_it == msg.end()) return ParseError{r.id, "missing key 'op'"};
-  if (!op_it->is_string()) return ParseError{r.id, "key 'op': expected a string, got " + type_of(*op_it)};
-  const auto op_text = op_it->get<std::string>();
+  if (op_it == msg.end()) return ParseError{r.id, "missing key 'op'", Refusal::kBadOp};
+  if (!op_it->is_string()) return ParseError{r.id, "key 'op': expected a string, got " + type_of(*op_it), Refusal::kBadOp};
+  const auto& op_text = op_it->get_ref<const std::string&>();
   const OpSpec* spec = nullptr;
   for (const auto& s : specs()) {
     if (op_text == s.name) spec = &s;
   }
-  if (spec == nullptr) return ParseError{r.id, "unknown op '" + op_text + "'"};
+  if (spec == nullptr) return ParseError{r.id, "unknown op '" + quote(op_text) + "'", Refusal::kBadOp};
   r.op = spec->op;
   for (const auto& [key, value] : msg.items()) {
     if (key != "op" && key != "id" && spec->keys.count(key) == 0) {
-      return ParseError{r.id, op_text + ": unknown key '" + key + "'"};
+      return ParseError{r.id, std::string(spec->name) + ": unknown key '" + quote(key) + "'", Refusal::kBadKey};
     }
   }
   for (const auto& key : spec->keys) {
-    if (!msg.contains(key)) return ParseError{r.id, op_text + ": missing key '" + key + "'"};
+    if (!msg.contains(key)) {
+      return ParseError{r.id, std::string(spec->name) + ": missing key '" + key + "'", Refusal::kBadKey};
+    }
   }
   try {
     switch (r.op) {
@@ -122,12 +203,20 @@ std::variant<Request, ParseError> parse_request(const std::string& text) {
         const json& n = msg.at("name");
         if (!n.is_string()) throw Bad{"key 'name': expected a string, got " + type_of(n)};
         r.param_name = n.get<std::string>();
-        if (r.param_name.empty() || r.param_name.size() >= wire::kParamNameLen) {
-          throw Bad{"key 'name': a parameter name has 1.." + std::to_string(wire::kParamNameLen - 1) + " characters"};
+        if (r.param_name.empty() || r.param_name.size() >= wire::kParamNameLen ||
+            r.param_name.find('\0') != std::string::npos) {
+          throw Bad{"key 'name': a parameter name has 1.." + std::to_string(wire::kParamNameLen - 1) +
+                    " characters and no NUL"};
         }
         r.param_value = msg.at("value");
         if (!r.param_value.is_primitive() || r.param_value.is_null()) {
           throw Bad{"key 'value': expected a number, boolean or string, got " + type_of(r.param_value)};
+        }
+        if (r.param_value.is_number_integer() && !as_int64(r.param_value)) {
+          throw Bad{"key 'value': " + quote(r.param_value.dump()) + " is above 2^63-1"};
+        }
+        if (r.param_value.is_string() && r.param_value.get_ref<const std::string&>().size() >= wire::kParamStringLen) {
+          throw Bad{"key 'value': a string of at most " + std::to_string(wire::kParamStringLen - 1) + " bytes"};
         }
         break;
       }
@@ -152,9 +241,45 @@ std::variant<Request, ParseError> parse_request(const std::string& text) {
         break;
     }
   } catch (const Bad& b) {
-    return ParseError{r.id, op_text + ": " + b.message};
+    return ParseError{r.id, std::string(spec->name) + ": " + b.message, b.reason};
   }
   return r;
+}
+
+}  // namespace
+
+const char* op_name(Op op) noexcept {
+  for (const auto& s : specs()) {
+    if (s.op == op) return s.name;
+  }
+  return "?";
+}
+
+const char* describe(Refusal r) noexcept {
+  switch (r) {
+    case Refusal::kTooLarge: return "too_large";
+    case Refusal::kNotJson: return "not_json";
+    case Refusal::kTooDeep: return "too_deep";
+    case Refusal::kDuplicateKey: return "duplicate_key";
+    case Refusal::kNotObject: return "not_object";
+    case Refusal::kBadOp: return "bad_op";
+    case Refusal::kBadKey: return "bad_key";
+    case Refusal::kBadValue: return "bad_value";
+    case Refusal::kBusy: return "busy";
+    case Refusal::kBinary: return "binary";
+  }
+  return "?";
+}
+
+std::variant<Request, ParseError> parse_request(std::string_view text) noexcept {
+  try {
+    return parse_checked(text);
+  } catch (const std::bad_alloc&) {
+    return ParseError{std::nullopt, "message of " + std::to_string(text.size()) + " bytes: out of memory",
+                      Refusal::kTooLarge};
+  } catch (const std::exception& e) {  // a defect here, not the client's: still refused, never fatal
+    return ParseError{std::nullopt, std::string("message could not be decoded: ") + e.what(), Refusal::kNotJson};
+  }
 }
 
 std::string check_param_value(const json& value, wire::ParamRecord& record) {
@@ -162,8 +287,11 @@ std::string check_param_value(const json& value, wire::ParamRecord& record) {
   switch (kind) {
     case wire::ParamKind::kInt:
       if (!value.is_number_integer()) return "expected an integer, got " + type_of(value);
-      record.int_value = value.get<int64_t>();
-      return "";
+      if (const auto v = as_int64(value)) {
+        record.int_value = *v;
+        return "";
+      }
+      return quote(value.dump()) + " is above 2^63-1";
     case wire::ParamKind::kFloat: {
       if (!value.is_number()) return "expected a number, got " + type_of(value);
       const double d = value.get<double>();
@@ -214,7 +342,7 @@ std::variant<nlohmann::json, std::string> latency_json(const wire::LatencyHistog
 }
 
 std::string error_message(const ParseError& e) {
-  json j = {{"type", "error"}, {"error", e.message}};
+  json j = {{"type", "error"}, {"error", e.message}, {"reason", describe(e.reason)}};
   if (e.id) j["id"] = *e.id;
   return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }

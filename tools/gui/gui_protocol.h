@@ -14,10 +14,17 @@
 //   {"op":"joystick_release","system":0}                     MOVE 0 (dead-man released)
 //   {"op":"follow_path","system":0}                          hand the chassis back to the Pilot
 //
-// Anything else (not JSON, not an object, unknown op or key, a missing key, a value of
-// the wrong JSON type, a number out of range or not finite, a text that is not a
-// component address) is refused with a ParseError saying what and where; the caller
-// answers {"type":"error",...} and sends nothing to any robot.
+// Anything else is refused with a ParseError saying what and where (a byte offset for
+// JSON syntax, the key otherwise) and why (Refusal, which the server counts); the
+// caller answers {"type":"error",...} and sends nothing to any robot: a message over
+// kMaxRequestBytes, not JSON or not UTF-8, nested deeper than kMaxRequestDepth, a key
+// given twice in one object, not an object, an unknown op or key, a missing key, a
+// value of the wrong JSON type, an integer outside its range (never wrapped), a number
+// out of range or not finite, a text that is not a component address. Texts from the
+// message that a refusal quotes are cut to kMaxQuoted bytes.
+//
+// parse_request is total: it never throws and never ends the process, whatever the
+// bytes (tests/fuzz/fuzz_gui_ws.cpp drives it with arbitrary input).
 //
 // Whether a parameter VALUE has the right type for the parameter's kind is checked
 // against the kind the component reports (check_param_value), since only the component
@@ -29,6 +36,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <variant>
 
 #include <nlohmann/json.hpp>
@@ -51,6 +59,12 @@ enum class Op {
 };
 [[nodiscard]] const char* op_name(Op op) noexcept;
 
+// Limits of a client message (the server refuses a larger WebSocket message before
+// it is read: HttpServer::kMaxMessage is this).
+inline constexpr std::size_t kMaxRequestBytes = 64 * 1024;
+inline constexpr int kMaxRequestDepth = 8;     // objects and arrays inside each other
+inline constexpr std::size_t kMaxQuoted = 64;  // bytes of a client's text quoted back
+
 // Limits a browser may ask for; the chassis clamps to its own limits as well.
 inline constexpr double kMaxJoystickSpeed = 5.0;   // m/s
 inline constexpr double kMaxJoystickOmega = 10.0;  // rad/s
@@ -68,13 +82,30 @@ struct Request {
   double vx = 0.0, omega = 0.0;        // joystick
 };
 
+// Why a client message was refused (counted per reason by the server).
+enum class Refusal : uint8_t {
+  kTooLarge,      // over kMaxRequestBytes
+  kNotJson,       // JSON syntax, invalid UTF-8, a number JSON cannot hold
+  kTooDeep,       // nested deeper than kMaxRequestDepth
+  kDuplicateKey,  // a key twice in one object
+  kNotObject,     // valid JSON, but not an object
+  kBadOp,         // "op" missing, not a string, or unknown
+  kBadKey,        // a key the op does not take, or a required key missing
+  kBadValue,      // a value of the wrong type or out of range ("id" included)
+  kBusy,          // (server) too many requests waiting for the robots
+  kBinary,        // (server) a binary WebSocket message
+};
+inline constexpr std::size_t kRefusalKinds = 10;
+[[nodiscard]] const char* describe(Refusal r) noexcept;
+
 struct ParseError {
   std::optional<int64_t> id;  // when the message had a readable id
   std::string message;        // what and where ("key 'x': expected a number, got string")
+  Refusal reason = Refusal::kNotJson;
 };
 
-// Parses and validates one client message.
-[[nodiscard]] std::variant<Request, ParseError> parse_request(const std::string& text);
+// Parses and validates one client message (any bytes). Never throws.
+[[nodiscard]] std::variant<Request, ParseError> parse_request(std::string_view text) noexcept;
 
 // Fills `record`'s value from a JSON value when it has the type of the record's kind
 // (int: an integer; float: a finite number; bool: true/false; string: a string shorter

@@ -1,5 +1,6 @@
 #include "http_server.h"
 
+#include <algorithm>
 #include <optional>
 #include <utility>
 
@@ -177,22 +178,44 @@ struct HttpServer::Impl : std::enable_shared_from_this<HttpServer::Impl> {
 
    private:
     void read() {
-      ws_.async_read(buffer_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      ws_.async_read(buffer_, [self = shared_from_this()](beast::error_code ec, std::size_t bytes) {
+        const auto& h = self->server_->handlers;
         if (ec) {
+          // Beast has failed the connection already (1009 over read_message_max, 1007
+          // for a text message that is not UTF-8).
+          if (ec == websocket::error::message_too_big && h.refused) {
+            self->call([&] { h.refused(self->id_, FrameRefusal::kTooLarge, std::max(bytes, kMaxMessage + 1)); });
+          } else if (ec == websocket::error::bad_frame_payload && h.refused) {
+            self->call([&] { h.refused(self->id_, FrameRefusal::kNotUtf8, bytes); });
+          }
           self->close();
           return;
         }
         if (!self->ws_.got_text()) {
-          self->ws_.async_close(websocket::close_reason(websocket::close_code::unknown_data, "text messages only"),
-                                [self](beast::error_code) {});
-          self->close();
+          self->buffer_.consume(self->buffer_.size());
+          if (h.refused) self->call([&] { h.refused(self->id_, FrameRefusal::kBinary, bytes); });
+          self->read();
           return;
         }
         const std::string text = beast::buffers_to_string(self->buffer_.data());
         self->buffer_.consume(self->buffer_.size());
-        if (self->server_->handlers.message) self->server_->handlers.message(self->id_, text);
+        if (h.message) self->call([&] { h.message(self->id_, text); });
         self->read();
       });
+    }
+
+    // A handler's exception would end the I/O loop (and rack-gui): reported, and the
+    // server goes on.
+    template <typename Fn>
+    void call(Fn fn) noexcept {
+      try {
+        fn();
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "rack-gui: client %llu: message handler failed: %s\n",
+                     static_cast<unsigned long long>(id_), e.what());
+      } catch (...) {
+        std::fprintf(stderr, "rack-gui: client %llu: message handler failed\n", static_cast<unsigned long long>(id_));
+      }
     }
 
     void write() {

@@ -5,8 +5,12 @@
 // backslashes are refused (400), anything else missing is 404. The dashboard loads
 // nothing from elsewhere.
 //
-// WebSocket: text messages only, at most kMaxMessage bytes (a larger or binary
-// message closes the connection with a reason). Outgoing messages queue per client;
+// WebSocket: text messages only, at most kMaxMessage bytes. A binary message is
+// refused (handlers.refused, which answers it; the connection stays); a larger one ends
+// the connection with close code 1009 "message too big" (RFC 6455: the rest of it
+// cannot be skipped), a text message that is not UTF-8 with 1007 (RFC 6455 8.1), both
+// reported through handlers.refused too. Neither stalls the
+// server or the other clients. Outgoing messages queue per client;
 // a client that does not keep up loses the oldest queued messages beyond kMaxQueue
 // (counted), so a slow browser never stalls the others or grows memory.
 //
@@ -21,10 +25,18 @@
 
 namespace rack::gui {
 
+enum class FrameRefusal : uint8_t {
+  kBinary,    // a binary message (the protocol is JSON text); the client stays connected
+  kTooLarge,  // over kMaxMessage; the connection was closed (1009)
+  kNotUtf8,   // a text message that is not UTF-8; the connection was closed (1007)
+};
+
 struct ServerHandlers {
   std::function<void(uint64_t client)> opened;
   std::function<void(uint64_t client, const std::string& text)> message;
   std::function<void(uint64_t client)> closed;
+  // A message refused by the server itself; `bytes`: its size as far as known.
+  std::function<void(uint64_t client, FrameRefusal why, std::size_t bytes)> refused;
 };
 
 class HttpServer {

@@ -62,6 +62,18 @@ options:
                      "no reply" (default 1000)
   -h, --help         this text
 
+Browser messages (WebSocket, JSON text; tools/gui/gui_protocol.h) that break the
+protocol are refused with an error naming what, where and a reason (too_large,
+not_json, too_deep, duplicate_key, not_object, bad_op, bad_key, bad_value, busy,
+binary), logged at most once a second and counted by reason in the line printed at
+exit; nothing reaches a robot. Over 64 KiB or not UTF-8 also ends that connection
+(close code 1009 or 1007). At most 256 requests wait for the robots; more are
+refused as busy.
+
+environment:
+  RACK_TOOL_REGISTRY  where tools on this machine claim their TiMS address (default
+                      /tmp/rack-tool-addresses.lock; see rackctl --help)
+
 exit codes: 0 stopped by SIGINT/SIGTERM, 1 cannot listen or join the network,
 2 usage error.
 )";
@@ -176,6 +188,18 @@ int main(int argc, char** argv) {
     handlers.opened = [&backend](uint64_t c) { backend.greet(c); };
     handlers.message = [&backend](uint64_t c, const std::string& text) { backend.submit(c, text); };
     handlers.closed = [&backend](uint64_t c) { backend.client_closed(c); };
+    handlers.refused = [&backend](uint64_t c, rack::gui::FrameRefusal why, std::size_t bytes) {
+      if (why == rack::gui::FrameRefusal::kBinary) {
+        backend.refused(c, rack::gui::Refusal::kBinary,
+                        "binary WebSocket message of " + std::to_string(bytes) + " bytes; the protocol is JSON text");
+      } else if (why == rack::gui::FrameRefusal::kNotUtf8) {
+        backend.refused(c, rack::gui::Refusal::kNotJson, "WebSocket text message is not UTF-8; connection closed (1007)");
+      } else {
+        backend.refused(c, rack::gui::Refusal::kTooLarge,
+                        "WebSocket message over " + std::to_string(rack::gui::HttpServer::kMaxMessage) +
+                            " bytes; connection closed (1009)");
+      }
+    };
     rack::gui::HttpServer server(address, static_cast<uint16_t>(port), web, handlers);
     server_ptr = &server;
     backend.start();
@@ -192,10 +216,18 @@ int main(int argc, char** argv) {
     backend.stop();
     server_ptr = nullptr;
     const auto c = backend.counters();
-    std::fprintf(stderr, "rack-gui: stopped; %llu request(s) sent, %llu not answered in time, %llu malformed client message(s), "
+    std::string by_reason;
+    for (std::size_t k = 0; k < c.refused.size(); ++k) {
+      if (c.refused[k] == 0) continue;
+      by_reason += (by_reason.empty() ? " (" : ", ") + std::string(rack::gui::describe(static_cast<rack::gui::Refusal>(k))) +
+                   " " + std::to_string(c.refused[k]);
+    }
+    if (!by_reason.empty()) by_reason += ")";
+    std::fprintf(stderr, "rack-gui: stopped; %llu request(s) sent, %llu not answered in time, %llu malformed client message(s)%s, "
                  "%llu malformed reply(ies)\n",
                  static_cast<unsigned long long>(c.requests), static_cast<unsigned long long>(c.timeouts),
-                 static_cast<unsigned long long>(c.malformed), static_cast<unsigned long long>(c.bad_replies));
+                 static_cast<unsigned long long>(c.malformed), by_reason.c_str(),
+                 static_cast<unsigned long long>(c.bad_replies));
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rack-gui: %s\n", e.what());
     return 1;

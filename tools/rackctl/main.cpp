@@ -12,9 +12,11 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cctype>
 #include <cerrno>
+#include <climits>
 #include <cstdarg>
 #include <charconv>
 #include <cmath>
@@ -43,6 +45,7 @@
 #include "rack/tims/mailbox.h"
 #include "rack/tims/message.h"
 #include "rack/tims/router.h"
+#include "rack/tims/tool_address.h"
 
 namespace {
 
@@ -113,6 +116,11 @@ options:
 
 exit codes: 0 ok, 1 the component answered ERROR, 2 usage error, 3 not available
 (NOT_AVAILABLE, unknown name, or no reply within the timeout).
+
+environment:
+  RACK_TOOL_REGISTRY  the file where tools on this machine claim their TiMS address
+                      (default /tmp/rack-tool-addresses.lock): every running rackctl
+                      and rack-gui holds an address no other one holds
 )";
 
 struct Options {
@@ -217,19 +225,25 @@ class Session {
  public:
   explicit Session(const Options& o)
       : options_(o),
-        reply_mailbox_(own_address(0), 4, kSlotSize),
-        data_mailbox_(own_address(1), 16, kDataSlotSize),
+        claim_(tims::ToolAddressClaim::claim()),
+        reply_mailbox_(claim_.mailbox(0), 4, kSlotSize),
+        data_mailbox_(claim_.mailbox(1), 16, kDataSlotSize),
+        fanout_mailbox_(claim_.mailbox(2), kFanoutSlots, kFanoutSlotSize),
         endpoint_(router_, reply_mailbox_, kPriority),
+        fanout_endpoint_(router_, fanout_mailbox_, kPriority),
         transport_(router_, transport_config(o)),
         buffer_(kSlotSize) {
+    if (!claim_.warning().empty()) std::fprintf(stderr, "rackctl: %s\n", claim_.warning().c_str());
     router_.add(reply_mailbox_);
     router_.add(data_mailbox_);
+    router_.add(fanout_mailbox_);
     transport_.start();
   }
   ~Session() {
     transport_.stop();
     router_.remove(reply_mailbox_.address());
     router_.remove(data_mailbox_.address());
+    router_.remove(fanout_mailbox_.address());
   }
   Session(const Session&) = delete;
   Session& operator=(const Session&) = delete;
@@ -312,6 +326,81 @@ class Session {
     return call(t, type, std::span<const ConstBuffer>(&part, 1));
   }
 
+  // Sends `type` (no body) to every address of `dests` and calls answer(i, header)
+  // once for each that replied. Unlike call(), nothing ends the command: what got no
+  // reply after --retries + 1 attempts of --timeout each is simply not answered (the
+  // caller says so). At most kFanoutWindow requests are outstanding; a reply to any
+  // attempt of a request counts (an earlier attempt's reply may come late).
+  // Returns the number of retries made.
+  template <typename Answer>
+  uint64_t fan_out(const std::vector<Address>& dests, int8_t type, Answer answer) {
+    struct Pending {
+      std::vector<uint8_t> seqs;  // of every attempt so far
+      int64_t deadline = 0;
+      bool in_flight = false;
+      bool done = false;
+    };
+    std::vector<Pending> p(dests.size());
+    const auto attempts = static_cast<std::size_t>(options_.retries + 1);
+    uint64_t retries = 0;
+    std::size_t in_flight = 0;
+    std::array<std::byte, kFanoutSlotSize> buf{};
+    for (;;) {
+      int64_t now = rt::monotonic_ns();
+      int64_t earliest = INT64_MAX;
+      bool waiting = false;
+      for (std::size_t i = 0; i < p.size(); ++i) {
+        auto& r = p[i];
+        if (r.done) continue;
+        if (r.in_flight && now >= r.deadline) {  // this attempt timed out
+          r.in_flight = false;
+          --in_flight;
+          if (r.seqs.size() >= attempts) {
+            r.done = true;
+            continue;
+          }
+        }
+        if (!r.in_flight && in_flight < kFanoutWindow) {
+          // Back-pressure: the uplink drops its oldest message when full.
+          (void)transport_.wait_uplink(kUplinkSlots / 2, timeout_ns());
+          uint8_t seq = 0;
+          const auto st = fanout_endpoint_.send(dests[i], type, {}, Address(), &seq);
+          if (!r.seqs.empty()) ++retries;
+          r.seqs.push_back(seq);
+          now = rt::monotonic_ns();
+          r.deadline = now + timeout_ns();
+          if (!tims::delivered(st)) {  // not even queued: counts as an attempt
+            if (r.seqs.size() >= attempts) r.done = true;
+            continue;
+          }
+          r.in_flight = true;
+          ++in_flight;
+        }
+        if (r.in_flight) earliest = std::min(earliest, r.deadline);
+        waiting = true;
+      }
+      if (!waiting) return retries;
+      if (in_flight == 0) continue;  // everything left waits for a window slot: none busy
+      const int64_t left = std::max<int64_t>(earliest - now, 0);
+      const auto got = fanout_mailbox_.receive(buf, left);
+      if (got.status != tims::RecvStatus::kOk) continue;
+      for (std::size_t i = 0; i < p.size(); ++i) {
+        auto& r = p[i];
+        if (r.done || got.header.source() != dests[i] ||
+            std::find(r.seqs.begin(), r.seqs.end(), got.header.seq) == r.seqs.end()) {
+          continue;
+        }
+        if (r.in_flight) --in_flight;
+        r.in_flight = false;
+        r.done = true;
+        answer(i, got.header);
+        break;
+      }
+      // Anything else is a duplicate (a reply to a retried request that was answered
+      // already) or a stray message: dropped.
+    }
+  }
+
   // Ends the command when the reply is ERROR (exit 1, its reason) or not `expected`.
   static void expect(const Target& t, const CallResult& r, int8_t expected, const char* what) {
     if (r.reply.type == expected) return;
@@ -326,21 +415,21 @@ class Session {
   static constexpr uint32_t kSlotSize = 4 * 1024 * 1024;
   static constexpr uint32_t kDataSlotSize = 1024 * 1024;
   static constexpr uint8_t kPriority = 10;
+  // Fan-out (list): small replies (a state, an ERROR text), many at once. At most
+  // kFanoutWindow requests are outstanding, so the mailbox always has room for their
+  // replies plus late replies to attempts that timed out; the uplink (kUplinkSlots)
+  // is drained before it could drop a request.
+  static constexpr uint32_t kFanoutSlots = 64;
+  static constexpr uint32_t kFanoutSlotSize = 4096;
+  static constexpr std::size_t kFanoutWindow = 24;
+  static constexpr uint32_t kUplinkSlots = 32;
 
-  // Tool mailboxes: instance and mailbox from the low 16 bits of the pid, the
-  // mailbox even (replies) and odd (watch data), so two rackctl rarely collide.
-  static Address own_address(uint8_t which) {
-    const auto pid = static_cast<uint32_t>(getpid());
-    const auto inst = static_cast<uint8_t>(pid >> 8);
-    const auto mbx = static_cast<uint8_t>((pid & 0xFEu) | which);
-    return Address::make(tims::kToolSystem, tims::classes::kTool, inst, mbx);
-  }
   static tims::LcmTransportConfig transport_config(const Options& o) {
     tims::LcmTransportConfig c;
     c.url = o.lcm_url.empty() ? default_lcm_url() : o.lcm_url;
     // Signs what this tool sends and verifies what it hears (rack/tims/link_auth.h).
     tims::use_key_file(c, "rackctl", o.key_file);
-    c.uplink_slots = 32;
+    c.uplink_slots = kUplinkSlots;
     c.announce_period_ns = 0;  // a tool announces nothing
     c.role = tims::NodeRole::kTool;
     c.max_message_bytes = kSlotSize;
@@ -351,10 +440,15 @@ class Session {
   }
 
   const Options& options_;
+  // This tool's mailbox addresses (0 replies, 1 watch data, 2 fan-out replies), held
+  // by no other tool while it runs (rack/tims/tool_address.h).
+  tims::ToolAddressClaim claim_;
   tims::Router router_{tims::kToolSystem};
   tims::Mailbox reply_mailbox_;
   tims::Mailbox data_mailbox_;
+  tims::Mailbox fanout_mailbox_;
   tims::Endpoint endpoint_;
+  tims::Endpoint fanout_endpoint_;
   tims::LcmTransport transport_;
   std::vector<std::byte> buffer_;
 };
@@ -380,13 +474,12 @@ int cmd_list(Session& s, const Options& o) {
   struct Row {
     tims::ComponentInfo info;
     std::string host;
-    uint8_t seq = 0;
     std::string state = "no reply";
   };
   const auto hosts = s.discover([](const std::vector<tims::HostInfo>&) { return false; });
   std::vector<Row> rows;
   for (const auto& h : hosts) {
-    for (const auto& c : h.components) rows.push_back(Row{c, h.host + " (pid " + std::to_string(h.pid) + ")", 0, "no reply"});
+    for (const auto& c : h.components) rows.push_back(Row{c, h.host + " (pid " + std::to_string(h.pid) + ")", "no reply"});
   }
   std::sort(rows.begin(), rows.end(), [](const Row& a, const Row& b) {
     return a.info.address.raw() < b.info.address.raw();
@@ -395,25 +488,19 @@ int cmd_list(Session& s, const Options& o) {
     fail(kExitUnavailable, format("no rackd answered discovery within %lld ms on %s",
                                   static_cast<long long>(o.discover_ms), s.url().c_str()));
   }
-  // All GET_STATUS requests at once, then the replies within one timeout.
-  for (auto& r : rows) {
-    const auto st = s.endpoint().send(r.info.address.component(), msg::kGetStatus, {}, Address(), &r.seq);
-    if (!tims::delivered(st)) r.state = std::string("not sent: ") + tims::describe(st);
-  }
-  std::size_t pending = rows.size();
-  const int64_t deadline = rt::monotonic_ns() + s.timeout_ns();
-  while (pending > 0) {
-    const int64_t left = deadline - rt::monotonic_ns();
-    if (left <= 0) break;
-    const auto got = s.endpoint().mailbox().receive(s.buffer(), left);
-    if (got.status != tims::RecvStatus::kOk) continue;
-    for (auto& r : rows) {
-      if (r.state == "no reply" && got.header.source() == r.info.address.component() && got.header.seq == r.seq) {
-        r.state = got.header.type == msg::kNotAvailable ? "NOT_AVAILABLE" : state_name(got.header.type);
-        --pending;
-        break;
-      }
-    }
+  // GET_STATUS to every component, a window of them at a time, each retried when
+  // its reply did not come within --timeout (Session::fan_out).
+  std::vector<Address> dests;
+  for (const auto& r : rows) dests.push_back(r.info.address.component());
+  std::size_t answered = 0;
+  s.fan_out(dests, msg::kGetStatus, [&](std::size_t i, const MessageHeader& h) {
+    rows[i].state = h.type == msg::kNotAvailable ? "NOT_AVAILABLE" : state_name(h.type);
+    ++answered;
+  });
+  if (answered < rows.size()) {
+    std::fprintf(stderr, "rackctl: list: %zu of %zu component(s) did not answer GET_STATUS (%lld attempt(s) of %lld ms)\n",
+                 rows.size() - answered, rows.size(), static_cast<long long>(o.retries + 1),
+                 static_cast<long long>(o.timeout_ms));
   }
   if (o.json) {
     std::string out = "[";
@@ -920,8 +1007,10 @@ const std::vector<Command>& commands() {
       {"list", "list [--json]", 0, 0, {"--json"},
        "Discovers every rackd on the network (waits the full --discover-ms), asks each\n"
        "component for its state and prints ADDRESS NAME CLASS(IMPL) STATE HOST.\n"
-       "STATE is ENABLED, DISABLED, ERROR, or 'no reply' when none came within --timeout.\n"
-       "--json prints one JSON array instead.",
+       "The requests go out together, at most 24 outstanding; one not answered within\n"
+       "--timeout is sent again (--retries times). STATE is ENABLED, DISABLED, ERROR,\n"
+       "or 'no reply' when no attempt was answered (their number is printed on\n"
+       "stderr). --json prints one JSON array instead.",
        cmd_list},
       {"hosts", "hosts [--json]", 0, 0, {"--json"},
        "Discovers every host on the network (waits the full --discover-ms) and prints\n"
