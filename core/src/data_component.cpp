@@ -450,6 +450,15 @@ void DataComponentBase::run_data_task() noexcept {
     uint64_t unreported = 0;
     int64_t next_report = 0;
     while (!stopping()) {
+      // Renewals due before the next cycle (a period longer than a quarter lease): in
+      // between, so that a slow consumer keeps its subscriptions. Each renewal moves
+      // next_renewal_ns_ past now, so this ends.
+      for (int64_t r = next_renewal_ns_.load(std::memory_order_relaxed);
+           r < next && !stopping() && loop_enabled_.load(std::memory_order_seq_cst);
+           r = next_renewal_ns_.load(std::memory_order_relaxed)) {
+        rt::sleep_until_monotonic(r);
+        renew_gated();
+      }
       rt::sleep_until_monotonic(next);
       stats_.record_latency(rt::monotonic_ns() - next);
       const int64_t cycle_start = rt::monotonic_ns();

@@ -162,6 +162,28 @@ TEST(TrustedSourcesTest, TheRouterRefusesBeforeQueuing) {
   EXPECT_EQ(trusted.counters().requests, 1u);
 }
 
+// data_task.lease_ms: 100 ms .. 1 day; the default is 10 s.
+TEST(SubscriptionLeaseConfigTest, LeaseMsIsReadAndRangeChecked) {
+  ComponentRegistry registry;
+  components::register_builtin(registry);
+  const auto host = [](const std::string& lease) {
+    return "system: 0\nlcm: false\ncomponents:\n  - name: gen\n    class: Generator\n    instance: 1\n"
+           "    data_task: {period_ms: 10" + lease + "}\n";
+  };
+  auto loaded = load_host_text(host(""), "lease.yaml", registry, rt::probe_capabilities());
+  ASSERT_TRUE(loaded.errors.empty());
+  ASSERT_EQ(loaded.host->components.size(), 1u);
+  EXPECT_EQ(loaded.host->components[0]->settings().lease_ns, 10 * kSec);
+  loaded = load_host_text(host(", lease_ms: 2500"), "lease.yaml", registry, rt::probe_capabilities());
+  ASSERT_TRUE(loaded.errors.empty());
+  EXPECT_EQ(loaded.host->components[0]->settings().lease_ns, 2500 * rt::kNsPerMs);
+  for (const char* bad : {", lease_ms: 50", ", lease_ms: 0", ", lease_ms: -1", ", lease_ms: 86400001", ", lease_ms: x"}) {
+    loaded = load_host_text(host(bad), "lease.yaml", registry, rt::probe_capabilities());
+    ASSERT_EQ(loaded.errors.size(), 1u) << bad;
+    EXPECT_NE(loaded.errors[0].str().find("lease_ms"), std::string::npos) << loaded.errors[0].str();
+  }
+}
+
 class SubscriptionTest : public ::testing::Test {
  protected:
   static constexpr int64_t kLeaseMs = 300;

@@ -995,7 +995,8 @@ const std::vector<Command>& commands() {
        "--period MS: the wanted period (the producer sends every n-th sample; the real\n"
        "period is printed on stderr); default 0 = every sample. --count N: stop after\n"
        "N samples. SIGINT/SIGTERM stop it too (exit 0). The producer going off: exit 1.\n"
-       "No sample for 5 s: exit 3.",
+       "No sample for 5 s: exit 3. The subscription is a lease (the producer's\n"
+       "lease_ms): renewed every lease / 4, so a killed watch frees its slot in time.",
        cmd_watch},
       {"send", "send NAME CMD [FIELD=VALUE ...] [--i64 N]", 2, 66, {"--i64"},
        "Sends class command CMD, a number from 21 to 127 or the command's name (below;\n"
