@@ -8,15 +8,18 @@
 //    ENABLED without one ERROR;
 //  - 100 `rackctl watch` subscribers killed with SIGKILL leave no slot behind: after
 //    one lease (1 s in this host file) a new subscriber gets data, while a consumer in
-//    rackd and a `rackctl watch` that stay alive keep theirs by renewing.
+//    rackd and a `rackctl watch` that stay alive keep theirs by renewing;
+//  - a consumer on another rackd keeps its subscription over many short leases.
 #include <gtest/gtest.h>
 #include <signal.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -242,6 +245,9 @@ components:
 
   constexpr int kBatches = 10, kPerBatch = 10;
   int subscribed = 0;
+  // rackctl's address comes from its pid with bit 0 cleared (tools/rackctl): two
+  // watchers whose pids differ only there share a mailbox, and so one listener.
+  std::set<int> addresses;
   for (int b = 0; b < kBatches; ++b) {
     // Room for a batch: the slots of the batch before are freed once their lease ran out.
     ASSERT_TRUE(eventually([&] { return stat("generator", "listeners") <= 16 - kPerBatch; }, 20s))
@@ -255,6 +261,7 @@ components:
       ASSERT_TRUE(p->wait_for_stderr("watching", 20s)) << p->err();
       ++subscribed;
     }
+    for (auto& p : batch) addresses.insert((p->pid() & ~1) + b * (1 << 24));
     for (auto& p : batch) p->signal(SIGKILL);
     for (auto& p : batch) (void)p->wait_exit(10s);
   }
@@ -272,7 +279,11 @@ components:
   // Every dead listener expired (more than the slots could ever hold at once); the
   // monitor and the keeper are the two left, and neither lost its subscription.
   EXPECT_TRUE(eventually([&] { return stat("generator", "listeners") == 2; }, std::chrono::milliseconds(kLeaseMs + 3000)));
-  EXPECT_GT(stat("generator", "listeners_expired"), 16);
+  const double expired = stat("generator", "listeners_expired");
+  EXPECT_GE(expired, static_cast<double>(addresses.size())) << "one expiry per dead mailbox";
+  EXPECT_GT(expired, 16) << "more than the slots could hold at once";
+  std::printf("leak test: %d watchers subscribed and killed (%zu distinct mailboxes), %.0f listeners expired, 2 left\n",
+              subscribed, addresses.size(), expired);
   EXPECT_EQ(stat("monitor", "errors"), monitor_errors);
   EXPECT_EQ(state("monitor"), "ENABLED");
   ASSERT_TRUE(keeper.running()) << keeper.err();
@@ -280,6 +291,53 @@ components:
   EXPECT_TRUE(eventually([&] { return keeper.out().size() > lines; }, 5s)) << "the keeper still gets samples";
   keeper.signal(SIGTERM);
   EXPECT_EQ(keeper.wait_exit(10s), std::optional<int>(0)) << keeper.err();
+}
+
+// Two rackd on one bus (one robot, two computers): the monitor on host b renews its
+// subscription to the generator on host a over LCM every lease / 4 (here 100 ms), so
+// over many leases it never loses it, and the generator never expires it.
+TEST_F(TrustTest, AConsumerOnAnotherHostKeepsItsLeaseByRenewing) {
+  const auto host = [&](int id, const std::string& components) {
+    return "host: trust-" + std::to_string(id) + "\nsystem: 0\nhost_id: " + std::to_string(id) +
+           "\nlcm: true\nlcm_url: \"" + bus_.url() + "\"\ntims: {announce_ms: 300, expiry_ms: 1500}\ncomponents:\n" +
+           components;
+  };
+  Process a({kRackd, dir_.write("a.yaml", host(0, R"(  - name: generator
+    class: Generator
+    instance: 0
+    autostart: true
+    data_task: {period_ms: 10, lease_ms: 400}
+)")).string()},
+            dir_.path(), "rackd-a");
+  ASSERT_TRUE(a.wait_for_stderr("rackd: running", 30s)) << a.err();
+  rackd_ = std::make_unique<Process>(std::vector<std::string>{kRackd, dir_.write("b.yaml", host(1, R"(  - name: monitor
+    class: Monitor
+    instance: 0
+    autostart: true
+    data_task: {timeout_ms: 1000}
+    params: {source: Generator(0/0), period_ms: 10}
+)")).string()},
+                                     dir_.path(), "rackd-b");
+  ASSERT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
+  ASSERT_TRUE(eventually([&] { return state("monitor") == "ENABLED"; }, 30s)) << rackd_->err();
+  const double errors = stat("monitor", "errors");
+  const double received = [&] {
+    const RunResult r = ctl({"get-data", "monitor"});
+    const auto j = parse_json(r.out);
+    return j ? j->at("data").at("received").number : -1.0;
+  }();
+  std::this_thread::sleep_for(3s);  // 7 leases
+  EXPECT_EQ(state("monitor"), "ENABLED") << rackd_->err();
+  EXPECT_EQ(stat("monitor", "errors"), errors) << rackd_->err();
+  EXPECT_EQ(stat("generator", "listeners"), 1) << a.err();
+  EXPECT_EQ(stat("generator", "listeners_expired"), 0) << a.err();
+  EXPECT_EQ(stat("monitor", "input_forged"), 0);
+  const RunResult r = ctl({"get-data", "monitor"});
+  const auto j = parse_json(r.out);
+  ASSERT_TRUE(j.has_value()) << r.describe();
+  EXPECT_GT(j->at("data").at("received").number, received + 100) << "samples kept flowing";
+  a.signal(SIGTERM);
+  EXPECT_EQ(a.wait_exit(30s), std::optional<int>(0)) << a.err();
 }
 
 }  // namespace
