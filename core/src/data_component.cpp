@@ -26,6 +26,7 @@ void DataComponentBase::attach(tims::Router& router) {
   ring_ = std::make_unique<SampleRing>(settings.ring_size, payload_size_);
   data_reply_mailbox_ = std::make_unique<tims::Mailbox>(address().with_mailbox(kDataReplyMailbox), 8,
                                                         64 * 1024);
+  data_reply_mailbox_->set_replies_only(true);  // a request here is refused by the router
   data_endpoint_ = std::make_unique<tims::Endpoint>(router, *data_reply_mailbox_,
                                                     message_priority(settings.data_task.priority));
   router.add(*data_reply_mailbox_);
@@ -361,10 +362,11 @@ void DataComponentBase::fill_stats(wire::StatsReply& out) const noexcept {
   out.published = published_.load(std::memory_order_relaxed);
   out.listener_drops = listener_drops_.load(std::memory_order_relaxed);
   out.listeners_expired = listeners_expired_.load(std::memory_order_relaxed);
+  if (data_reply_mailbox_) out.input_requests += data_reply_mailbox_->refused_requests();
   if (trusted_) {
     const tims::TrustedSources::Counters c = trusted_->counters();
     out.input_forged = c.forged;
-    out.input_requests = c.requests;
+    out.input_requests += c.requests;
     out.input_late = c.late;
   }
   const int64_t now = rt::monotonic_ns();

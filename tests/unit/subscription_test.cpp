@@ -296,6 +296,24 @@ TEST_F(SubscriptionTest, ARequestIntoTheDataMailboxIsAnsweredNotAvailable) {
   EXPECT_TRUE(test::eventually([&] { return monitor_received() > received + 5; })) << "still taking samples";
 }
 
+// A request into a reply mailbox (the command task's #1, the data task's #2) is
+// refused silently (counted with input_requests): it cannot take the slot of a reply.
+TEST_F(SubscriptionTest, ARequestIntoAReplyMailboxIsRefused) {
+  Watchdog dog;
+  const wire::StatsReply before = host().stats(mon_);
+  for (const uint8_t mbx : {uint8_t{1}, uint8_t{2}}) {
+    for (int i = 0; i < 5; ++i) {
+      EXPECT_EQ(host().endpoint().send(mon_.with_mailbox(mbx), msg::kGetStatus, {}), tims::SendStatus::kDenied);
+    }
+  }
+  // A reply there is still delivered (and dropped as stale by its endpoint).
+  EXPECT_EQ(host().endpoint().send(mon_.with_mailbox(1), msg::kOk, {}), tims::SendStatus::kOk);
+  const wire::StatsReply after = host().stats(mon_);
+  EXPECT_EQ(after.input_requests - before.input_requests, 10u);
+  EXPECT_EQ(after.errors, before.errors);
+  EXPECT_EQ(host().status(mon_), msg::kEnabled);
+}
+
 // A listener that does not renew is dropped with an ERROR after its lease; the
 // monitor, which the framework renews from its data task, stays subscribed across
 // many leases without a single ERROR.

@@ -100,6 +100,11 @@ bool Router::admit(const MessageHeader& header, Mailbox& local, MessageOrigin or
 }
 
 bool Router::trusted(const MessageHeader& header, Mailbox& local) noexcept {
+  if (header.is_request() && local.replies_only()) {
+    bump(untrusted_);
+    local.count_refused_request();
+    return false;
+  }
   TrustedSources* t = local.trusted_sources();
   if (t == nullptr) return true;
   const int64_t now = rt::monotonic_ns();

@@ -22,6 +22,8 @@
 // changes the component's state. The counts are in GET_STATS (input_forged,
 // input_requests, input_late) and the data task logs them (warning) at most once a
 // second. The table holds tims::TrustedSources::kCapacity producers: no allocation.
+// The reply mailboxes (#1 of the command task, #2 of the data task) take no request
+// either: refused silently, counted with input_requests.
 //
 // Leases: a listener (GET_CONT_DATA) holds its slot for ComponentSettings::lease_ns
 // (host file: data_task.lease_ms, default 10 s) after its last GET_CONT_DATA. A

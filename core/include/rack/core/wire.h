@@ -138,6 +138,7 @@ struct StatsReply {
   // Its data (input) mailbox (rack/tims/trusted_sources.h), refused before queuing:
   uint64_t input_forged = 0;    // replies/notifications not from a subscribed producer
   uint64_t input_requests = 0;  // requests sent into it (answered NOT_AVAILABLE, rate-limited)
+                                // or into its reply mailboxes #1, #2 (dropped)
   uint64_t input_late = 0;      // messages of a producer unsubscribed just before (in flight)
   uint64_t listeners_expired = 0;  // listeners dropped because their lease ran out
   static constexpr auto fields() noexcept {

@@ -136,6 +136,13 @@ class Mailbox {
   // mailbox's registration. Not RT-safe to set; trusted_sources() is (lock-free).
   void set_trusted_sources(TrustedSources* trusted) noexcept { trusted_.store(trusted, std::memory_order_release); }
   [[nodiscard]] TrustedSources* trusted_sources() const noexcept { return trusted_.load(std::memory_order_acquire); }
+  // A reply mailbox (an endpoint's): the router refuses every request for it, silently
+  // (a reply mailbox answers nothing, and an answer would let a flood reflect), and
+  // counts it here. Set before traffic flows. RT-safe, lock-free.
+  void set_replies_only(bool on) noexcept { replies_only_.store(on, std::memory_order_relaxed); }
+  [[nodiscard]] bool replies_only() const noexcept { return replies_only_.load(std::memory_order_relaxed); }
+  void count_refused_request() noexcept { refused_requests_.fetch_add(1, std::memory_order_relaxed); }
+  [[nodiscard]] uint64_t refused_requests() const noexcept { return refused_requests_.load(std::memory_order_relaxed); }
 
  private:
   enum class SlotState : uint8_t { kFree, kWriting, kReady, kReading };
@@ -172,6 +179,8 @@ class Mailbox {
       truncated_{0};
   std::atomic<uint64_t> denied_{0};  // relaxed: a statistic, outside the mutex
   std::atomic<TrustedSources*> trusted_{nullptr};  // release/acquire: the table is built before
+  std::atomic<bool> replies_only_{false};            // relaxed: set before traffic flows
+  std::atomic<uint64_t> refused_requests_{0};        // relaxed: a statistic
 };
 
 }  // namespace rack::tims

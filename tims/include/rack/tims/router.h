@@ -19,7 +19,8 @@
 // A mailbox with TrustedSources (a consumer's data mailbox, rack/tims/trusted_sources.h)
 // is checked next: a request is refused and answered NOT_AVAILABLE (rate-limited), a
 // reply or notification not from a trusted producer is refused; both are counted by
-// the TrustedSources (and in RouterCounters::untrusted), never queued.
+// the TrustedSources (and in RouterCounters::untrusted), never queued. A request for a
+// reply mailbox (Mailbox::set_replies_only) is refused silently and counted there.
 //
 // Real-time contract: find() and send() are RT-safe and lock-free on the look-up
 // (a PI-locked mailbox send follows). add()/remove()/set_uplink() are not RT-safe
@@ -47,7 +48,8 @@ struct RouterCounters {
   uint64_t unroutable = 0;     // replies/notifications to unknown mailboxes (dropped)
   uint64_t failed = 0;         // local or uplink send refused (full, too large, closed)
   uint64_t denied = 0;         // refused by access control
-  uint64_t untrusted = 0;      // refused by a data mailbox's TrustedSources
+  uint64_t untrusted = 0;      // refused by a data mailbox's TrustedSources, or a request
+                               // for a reply mailbox
 };
 
 class Router {
