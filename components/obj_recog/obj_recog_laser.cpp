@@ -98,7 +98,8 @@ HookResult ObjRecogLaser::loop() {
     out_.process_ms = static_cast<float>(rt::monotonic_ns() - t0) * 1e-6F;
     publish(out_, sh.time_ns);
   }
-  return got ? HookResult::kOk : HookResult::kError;  // the Scan2D fell silent
+  // Nothing usable (a renewal's reply, a refused wake-up): an error only once silent.
+  return got || !input_silent() ? HookResult::kOk : HookResult::kError;  // else the Scan2D fell silent
 }
 
 }  // namespace rack::components

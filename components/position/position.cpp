@@ -90,7 +90,8 @@ HookResult Position::loop() {
     publish(last_, sh.time_ns);
     published_ = true;
   }
-  return got ? HookResult::kOk : HookResult::kError;  // the odometry fell silent
+  // Nothing usable (a renewal's reply, a refused wake-up): an error only once silent.
+  return got || !input_silent() ? HookResult::kOk : HookResult::kError;  // else the odometry fell silent
 }
 
 void Position::handle_update(const tims::MessageHeader& request, std::span<const std::byte> body) noexcept {

@@ -145,7 +145,8 @@ HookResult Scan2d::loop() {
     }
     publish(scan_, sh.time_ns);
   }
-  return got ? HookResult::kOk : HookResult::kError;  // the ladar fell silent
+  // Nothing usable (a renewal's reply, a refused wake-up): an error only once silent.
+  return got || !input_silent() ? HookResult::kOk : HookResult::kError;  // else the ladar fell silent
 }
 
 }  // namespace rack::components

@@ -76,6 +76,7 @@ void Component::attach(tims::Router& router) {
                                                      settings_.command_slots, command_slot_size_);
   // Replies to calls made from hooks: GET_DATA replies can be as large as a slot.
   command_reply_mailbox_ = std::make_unique<tims::Mailbox>(settings_.address.with_mailbox(1), 8, 64 * 1024);
+  command_reply_mailbox_->set_replies_only(true);  // a request here is refused by the router
   command_endpoint_ = std::make_unique<tims::Endpoint>(
       router, *command_reply_mailbox_, message_priority(settings_.command_task.priority));
   command_buffer_.assign(command_slot_size_ + 8, std::byte{0});
@@ -231,6 +232,7 @@ void Component::fill_stats(wire::StatsReply& out) const noexcept {
     out.command_drops = c.dropped + c.refused + c.too_large + c.truncated;
     out.access_denied = c.denied;
   }
+  if (command_reply_mailbox_) out.input_requests += command_reply_mailbox_->refused_requests();
   if (command_endpoint_) out.stale_replies = command_endpoint_->stale_replies();
   const rt::FaultCount cf = command_faults_.last();
   const rt::FaultCount df = data_faults_.last();

@@ -1,5 +1,7 @@
 #include "rack/core/data_component.h"
 
+#include <algorithm>
+#include <climits>
 #include <cmath>
 
 namespace rack {
@@ -24,11 +26,14 @@ void DataComponentBase::attach(tims::Router& router) {
   ring_ = std::make_unique<SampleRing>(settings.ring_size, payload_size_);
   data_reply_mailbox_ = std::make_unique<tims::Mailbox>(address().with_mailbox(kDataReplyMailbox), 8,
                                                         64 * 1024);
+  data_reply_mailbox_->set_replies_only(true);  // a request here is refused by the router
   data_endpoint_ = std::make_unique<tims::Endpoint>(router, *data_reply_mailbox_,
                                                     message_priority(settings.data_task.priority));
   router.add(*data_reply_mailbox_);
   if (input_slot_size_ > 0) {
     input_mailbox_ = std::make_unique<tims::Mailbox>(input_address(), settings.input_slots, input_slot_size_);
+    trusted_ = std::make_unique<tims::TrustedSources>(address());
+    input_mailbox_->set_trusted_sources(trusted_.get());
     router.add(*input_mailbox_);
   }
   scratch_.assign(sizeof(wire::SampleHeader) + payload_size_ + 8, std::byte{0});
@@ -51,9 +56,15 @@ uint64_t DataComponentBase::publish_bytes(const void* sample, int64_t time_ns) n
   if (prev != 0 && time_ns > prev) last_interval_ns_.store(time_ns - prev, std::memory_order_relaxed);
   bump(published_);
   const wire::SampleHeader sh{time_ns, seq};
+  const int64_t now = rt::monotonic_ns();
   rt::PiLock lock(listeners_mutex_);
   for (auto& l : listeners_) {
     if (!l.active) continue;
+    if (!l.oneshot && lease_expired(l, now)) {
+      drop_listener_locked(l, "subscription lease expired (no GET_CONT_DATA renewal in time)");
+      bump(listeners_expired_);
+      continue;
+    }
     if (l.oneshot) {
       send_sample(l, sh, sample);
       l.active = false;
@@ -75,17 +86,20 @@ void DataComponentBase::send_sample(const Listener& l, const wire::SampleHeader&
   if (!tims::delivered(router().send(h, std::span<const ConstBuffer>(parts)))) bump(listener_drops_);
 }
 
-void DataComponentBase::drop_listeners() noexcept {
+void DataComponentBase::drop_listener_locked(Listener& l, const char* why) noexcept {
   wire::ErrorText text;
-  wire::copy_text(text.text, "producer left ENABLED");
+  wire::copy_text(text.text, why);
+  const MessageHeader h = tims::make_header(Address(l.mailbox), address(), msg::kError, l.priority, l.seq,
+                                            sizeof text);
+  const ConstBuffer part = tims::buffer_of(text);
+  (void)router().send(h, std::span<const ConstBuffer>(&part, 1));
+  l.active = false;
+}
+
+void DataComponentBase::drop_listeners() noexcept {
   rt::PiLock lock(listeners_mutex_);
   for (auto& l : listeners_) {
-    if (!l.active) continue;
-    const MessageHeader h = tims::make_header(Address(l.mailbox), address(), msg::kError, l.priority,
-                                              l.seq, sizeof text);
-    const ConstBuffer part = tims::buffer_of(text);
-    (void)router().send(h, std::span<const ConstBuffer>(&part, 1));
-    l.active = false;
+    if (l.active) drop_listener_locked(l, "producer left ENABLED");
   }
 }
 
@@ -102,28 +116,110 @@ void DataComponentBase::entered_enabled() noexcept {
 }
 
 HookResult DataComponentBase::subscribe(Address producer, int64_t period_ns, int64_t* real_period_ns) noexcept {
+  if (!trusted_) {
+    log_error("subscribe to %s: this class has no input mailbox (use_input_mailbox)", producer);
+    return HookResult::kError;
+  }
+  const Address source = producer.component();
+  Subscription* sub = nullptr;
+  for (auto& s : subscriptions_) {
+    if (s.active && s.producer == source) { sub = &s; break; }
+  }
+  if (sub == nullptr) {
+    for (auto& s : subscriptions_) {
+      if (!s.active) { sub = &s; break; }
+    }
+  }
+  // Trusted before the request goes out: the first samples may overtake the reply.
+  if (sub == nullptr || !trusted_->trust(source, rt::monotonic_ns())) {
+    log_error("subscribe to %s: more than %u producers (or just unsubscribed ones) for one input mailbox", producer,
+              static_cast<unsigned>(kMaxSubscriptions));
+    return HookResult::kError;
+  }
   wire::ContDataRequest req;
   req.period_ns = period_ns;
   req.mailbox = input_address().raw();
   alignas(8) std::byte buf[256];
   const tims::ConstBuffer part = tims::buffer_of(req);
-  const auto r = command_endpoint().call_with_retry(producer.component(), msg::kGetContData,
+  const auto r = command_endpoint().call_with_retry(source, msg::kGetContData,
                                                     std::span<const tims::ConstBuffer>(&part, 1),
                                                     std::span<std::byte>(buf),
                                                     {settings().rpc_timeout_ns, settings().rpc_retries + 1});
-  if (r.status != tims::CallStatus::kOk || r.reply.type != msg::kContData) return HookResult::kError;
   wire::ContDataReply reply;
-  if (!wire::read_payload(r.body, tims::body_is_native(r.reply), reply)) return HookResult::kError;
+  if (r.status != tims::CallStatus::kOk || r.reply.type != msg::kContData ||
+      !wire::read_payload(r.body, tims::body_is_native(r.reply), reply)) {
+    // The producer may have placed us all the same (a lost reply): what it still
+    // sends is late, then forged, and its lease runs out.
+    trusted_->retire(source, rt::monotonic_ns());
+    sub->active = false;
+    return HookResult::kError;
+  }
   if (real_period_ns != nullptr) *real_period_ns = reply.period_ns;
+  sub->producer = source;
+  sub->period_ns = period_ns;
+  sub->renew_every_ns = reply.lease_ns > 0 ? reply.lease_ns / 4 : 0;
+  sub->renew_at_ns = sub->renew_every_ns > 0 ? rt::monotonic_ns() + sub->renew_every_ns : INT64_MAX;
+  sub->active = true;
+  if (sub->renew_at_ns < next_renewal_ns_.load(std::memory_order_relaxed)) {
+    next_renewal_ns_.store(sub->renew_at_ns, std::memory_order_relaxed);
+  }
   return HookResult::kOk;
 }
 
 void DataComponentBase::unsubscribe(Address producer) noexcept {
+  const Address source = producer.component();
+  for (auto& s : subscriptions_) {
+    if (s.active && s.producer == source) s.active = false;
+  }
+  if (trusted_) trusted_->retire(source, rt::monotonic_ns());
   wire::StopContDataRequest req;
   req.mailbox = input_address().raw();
   alignas(8) std::byte buf[256];
-  (void)command_endpoint().call(producer.component(), msg::kStopContData, req, std::span<std::byte>(buf),
+  (void)command_endpoint().call(source, msg::kStopContData, req, std::span<std::byte>(buf),
                                 settings().rpc_timeout_ns);
+}
+
+void DataComponentBase::renew_due_subscriptions(int64_t now_ns) noexcept {
+  if (next_renewal_ns_.load(std::memory_order_relaxed) > now_ns) return;
+  int64_t next = INT64_MAX;
+  for (auto& s : subscriptions_) {
+    if (!s.active || s.renew_every_ns == 0) continue;
+    if (s.renew_at_ns <= now_ns) {
+      // Fire and forget from the data task: the reply goes to the input mailbox, where
+      // a CONT_DATA is skipped and an ERROR or NOT_AVAILABLE ends the subscription
+      // (next_input: kError). A renewal lost on the way is one of four per lease.
+      wire::ContDataRequest req;
+      req.period_ns = s.period_ns;
+      req.mailbox = input_address().raw();
+      const ConstBuffer part = tims::buffer_of(req);
+      (void)data_endpoint().send(s.producer, msg::kGetContData, std::span<const ConstBuffer>(&part, 1),
+                                 input_address());
+      s.renew_at_ns = now_ns + s.renew_every_ns;
+    }
+    next = std::min(next, s.renew_at_ns);
+  }
+  next_renewal_ns_.store(next, std::memory_order_relaxed);
+}
+
+void DataComponentBase::renew_gated() noexcept {
+  in_loop_.store(true, std::memory_order_seq_cst);
+  if (loop_enabled_.load(std::memory_order_seq_cst)) renew_due_subscriptions(rt::monotonic_ns());
+  in_loop_.store(false, std::memory_order_seq_cst);
+}
+
+void DataComponentBase::report_refused_input() noexcept {
+  if (!trusted_) return;
+  const tims::TrustedSources::Counters c = trusted_->counters();
+  if (c.forged == refused_reported_.forged && c.requests == refused_reported_.requests) return;
+  const int64_t now = rt::monotonic_ns();
+  if (refused_logged_ns_ != 0 && now - refused_logged_ns_ < rt::kNsPerSec) return;
+  log_warning("input: refused %llu message(s) not from a subscribed producer and %llu request(s) sent into the data "
+              "mailbox since the last report (the last: type %d from %s)",
+              static_cast<unsigned long long>(c.forged - refused_reported_.forged),
+              static_cast<unsigned long long>(c.requests - refused_reported_.requests), static_cast<int>(c.last_type),
+              Address(c.last_source));
+  refused_reported_ = c;
+  refused_logged_ns_ = now;
 }
 
 bool DataComponentBase::handle_data_request(const MessageHeader& h, std::span<const std::byte> body) noexcept {
@@ -165,19 +261,38 @@ bool DataComponentBase::handle_data_request(const MessageHeader& h, std::span<co
       }
       bool placed = false;
       {
+        const int64_t now = rt::monotonic_ns();
         rt::PiLock lock(listeners_mutex_);
         Listener* slot = nullptr;
         for (auto& l : listeners_) {
           if (l.active && !l.oneshot && l.mailbox == req.mailbox) { slot = &l; break; }
         }
-        if (slot == nullptr) {
+        if (slot != nullptr) {
+          // A renewal or a new period from the same mailbox: the same listener, never a
+          // second one. The same period keeps its place in the reduction.
+          if (slot->factor != factor) slot->countdown = factor;
+          slot->factor = factor;
+          slot->priority = h.priority;
+          slot->renewed_ns = now;
+          placed = true;
+        } else {
           for (auto& l : listeners_) {
             if (!l.active) { slot = &l; break; }
           }
-        }
-        if (slot != nullptr) {
-          *slot = Listener{req.mailbox, factor, factor, 0, h.priority, false, true};
-          placed = true;
+          if (slot == nullptr) {  // full: a listener whose lease ran out gives way
+            for (auto& l : listeners_) {
+              if (l.active && lease_expired(l, now)) {
+                drop_listener_locked(l, l.oneshot ? "no new sample within the lease"
+                                                  : "subscription lease expired (no GET_CONT_DATA renewal in time)");
+                bump(listeners_expired_);
+                if (slot == nullptr) slot = &l;
+              }
+            }
+          }
+          if (slot != nullptr) {
+            *slot = Listener{req.mailbox, factor, factor, 0, h.priority, false, true, now};
+            placed = true;
+          }
         }
       }
       if (!placed) {
@@ -186,6 +301,7 @@ bool DataComponentBase::handle_data_request(const MessageHeader& h, std::span<co
       }
       wire::ContDataReply rep;
       rep.period_ns = own > 0 ? own * factor : 0;
+      rep.lease_ns = settings().lease_ns;
       reply_with(h, msg::kContData, rep);
       return true;
     }
@@ -218,7 +334,7 @@ bool DataComponentBase::handle_data_request(const MessageHeader& h, std::span<co
         rt::PiLock lock(listeners_mutex_);
         for (auto& l : listeners_) {
           if (!l.active) {
-            l = Listener{h.src, 1, 1, h.seq, h.priority, true, true};
+            l = Listener{h.src, 1, 1, h.seq, h.priority, true, true, rt::monotonic_ns()};
             placed = true;
             break;
           }
@@ -245,10 +361,19 @@ void DataComponentBase::fill_stats(wire::StatsReply& out) const noexcept {
   out.data.latency_mean_ns = s.mean_ns;
   out.published = published_.load(std::memory_order_relaxed);
   out.listener_drops = listener_drops_.load(std::memory_order_relaxed);
+  out.listeners_expired = listeners_expired_.load(std::memory_order_relaxed);
+  if (data_reply_mailbox_) out.input_requests += data_reply_mailbox_->refused_requests();
+  if (trusted_) {
+    const tims::TrustedSources::Counters c = trusted_->counters();
+    out.input_forged = c.forged;
+    out.input_requests += c.requests;
+    out.input_late = c.late;
+  }
+  const int64_t now = rt::monotonic_ns();
   auto* self = const_cast<DataComponentBase*>(this);
   rt::PiLock lock(self->listeners_mutex_);
   uint64_t n = 0;
-  for (const auto& l : listeners_) n += l.active && !l.oneshot ? 1 : 0;
+  for (const auto& l : listeners_) n += l.active && !l.oneshot && !lease_expired(l, now) ? 1u : 0u;
   out.listeners = n;
 }
 
@@ -276,6 +401,7 @@ void DataComponentBase::fill_latency(wire::LatencyHistogram& out) const noexcept
 void DataComponentBase::run_one_cycle() noexcept {
   in_loop_.store(true, std::memory_order_seq_cst);
   if (loop_enabled_.load(std::memory_order_seq_cst)) {
+    renew_due_subscriptions(rt::monotonic_ns());
     HookResult r = HookResult::kError;
     rt::modeswitch::enter_cycle();  // primary mode: loop() and nothing else
     try {
@@ -326,10 +452,20 @@ void DataComponentBase::run_data_task() noexcept {
     uint64_t unreported = 0;
     int64_t next_report = 0;
     while (!stopping()) {
+      // Renewals due before the next cycle (a period longer than a quarter lease): in
+      // between, so that a slow consumer keeps its subscriptions. Each renewal moves
+      // next_renewal_ns_ past now, so this ends.
+      for (int64_t r = next_renewal_ns_.load(std::memory_order_relaxed);
+           r < next && !stopping() && loop_enabled_.load(std::memory_order_seq_cst);
+           r = next_renewal_ns_.load(std::memory_order_relaxed)) {
+        rt::sleep_until_monotonic(r);
+        renew_gated();
+      }
       rt::sleep_until_monotonic(next);
       stats_.record_latency(rt::monotonic_ns() - next);
       const int64_t cycle_start = rt::monotonic_ns();
       run_one_cycle();
+      report_refused_input();
       stats_.record_cycle();
       next += period;
       const int64_t now = rt::monotonic_ns();
@@ -361,6 +497,7 @@ void DataComponentBase::run_data_task() noexcept {
       stats_.record_cycle();
       continue;
     }
+    report_refused_input();
     if (!loop_enabled_.load(std::memory_order_seq_cst)) {
       was_enabled = false;
       drain_input();
@@ -372,10 +509,15 @@ void DataComponentBase::run_data_task() noexcept {
       deadline = rt::monotonic_ns() + timeout;
       last_good_input_ns_ = rt::monotonic_ns();
     }
-    const int64_t left = deadline - rt::monotonic_ns();
+    // Wake up for the next renewal too (a silent producer must not let the lease lapse).
+    const int64_t wake = std::min(deadline, next_renewal_ns_.load(std::memory_order_relaxed));
+    const int64_t left = wake - rt::monotonic_ns();
     const bool got = left > 0 && input_mailbox_->wait(left);
     if (stopping()) break;
-    if (!got && rt::monotonic_ns() < deadline) continue;  // woken without input
+    if (!got && rt::monotonic_ns() < deadline) {  // woken without input: renewal due, or a wake()
+      renew_gated();
+      continue;
+    }
     run_one_cycle();
     stats_.record_cycle();
     deadline = rt::monotonic_ns() + timeout;

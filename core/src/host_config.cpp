@@ -617,13 +617,16 @@ struct HostLoader {
       } else if (!dt.IsMap()) {
         error(dt.Mark(), "'data_task' must be a map");
       } else {
-        std::set<std::string> extra{"ring", "max_listeners"};
+        std::set<std::string> extra{"ring", "max_listeners", "lease_ms"};
         if (mode == DataTaskMode::kPeriodic) extra.insert("period_ms");
         else extra.insert({"timeout_ms", "input_slots"});
         read_task(dt, s.data_task, "data_task of a " + std::string(describe(mode)) + " class", extra, 0);
         int64_t n = 0;
         if (get_int_range(dt, "ring", 2, 1'000'000, n, "a sample count")) s.ring_size = static_cast<uint32_t>(n);
         if (get_int_range(dt, "max_listeners", 1, 1024, n, "a listener count")) s.max_listeners = static_cast<uint32_t>(n);
+        if (get_int_range(dt, "lease_ms", 100, 86'400'000, n, "a lease of 100..86400000 ms")) {
+          s.lease_ns = n * rt::kNsPerMs;
+        }
         if (get_int_range(dt, "input_slots", 1, 4096, n, "a slot count")) s.input_slots = static_cast<uint32_t>(n);
         if (mode == DataTaskMode::kPeriodic) {
           if (!dt["period_ms"]) error(dt.Mark(), "periodic data task without 'period_ms'");

@@ -462,6 +462,8 @@ TEST_F(LifecycleTest, ConsumerRecoversWhenItsProducerGoesOff) {
 // A DATA message in a consumer's input mailbox that is not the sample it takes (wrong
 // size: another class, a corrupt sender) is skipped and counted as malformed (and
 // logged through GDOS, at most once a second); the consumer stays ENABLED and keeps taking the good samples.
+// It comes in the producer's name: from any other source the input mailbox refuses it
+// (subscription_test.cpp).
 TEST_F(LifecycleTest, ConsumerCountsAndSkipsAMalformedSample) {
   Watchdog dog;
   start("", 100, /*monitor=*/true, /*monitor_autostart=*/true);
@@ -471,7 +473,7 @@ TEST_F(LifecycleTest, ConsumerCountsAndSkipsAMalformedSample) {
   const uint8_t junk[5] = {1, 2, 3, 4, 5};
   const tims::ConstBuffer part{junk, sizeof junk};
   ASSERT_EQ(host().endpoint().send(mon_.with_mailbox(DataComponentBase::kInputMailbox), msg::kData,
-                                   std::span<const tims::ConstBuffer>(&part, 1)),
+                                   std::span<const tims::ConstBuffer>(&part, 1), /*reply_to=*/gen_),
             tims::SendStatus::kOk);
   EXPECT_TRUE(test::eventually([&] { return host().stats(mon_).malformed == before + 1; }));
   const uint64_t cycles = host().stats(mon_).data.cycles;

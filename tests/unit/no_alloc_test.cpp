@@ -22,6 +22,7 @@
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
 #include "rack/rt/modeswitch.h"
+#include "rack/tims/trusted_sources.h"
 #include "test_support.h"
 
 // ---- the counting allocator ----------------------------------------------------
@@ -215,6 +216,83 @@ TEST_F(NoAllocationTest, RouterSendThroughAccessControl) {
   router.set_access(nullptr);
   router.remove(kA);
   router.remove(kB);
+}
+
+TEST_F(NoAllocationTest, RouterRefusesWhatADataMailboxDoesNotTrust) {
+  // A consumer's data mailbox (TrustedSources): a trusted sample passes, a forged one
+  // and a request are refused, the request answered NOT_AVAILABLE: no allocation.
+  tims::Router router(0);
+  Mailbox a(kA, 8, 256);
+  const Address producer = Address::make(0, tims::classes::kLadar, 1);
+  Mailbox input(kB.with_mailbox(3), 8, 256);
+  tims::TrustedSources trusted(kB);
+  input.set_trusted_sources(&trusted);
+  router.add(a);
+  router.add(input);
+  ASSERT_TRUE(trusted.trust(producer, rt::monotonic_ns()));
+  alignas(8) std::array<std::byte, 256> buf{};
+  const test::Tag tag{3, 0};
+  auto round = [&] {
+    if (router.send(test::tag_header(input.address(), producer, 1), {tims::buffer_of(tag)}) != SendStatus::kOk) {
+      return false;
+    }
+    if (router.send(test::tag_header(input.address(), kA, 1), {tims::buffer_of(tag)}) != SendStatus::kDenied) {
+      return false;
+    }
+    const auto req = tims::make_header(input.address(), kA, msg::kGetStatus, 1, 1, 0);
+    if (router.send(req, std::span<const ConstBuffer>{}) != SendStatus::kDenied) return false;
+    while (a.receive(buf, Mailbox::kNonBlocking).status == RecvStatus::kOk) {
+    }
+    return input.receive(buf, Mailbox::kNonBlocking).status == RecvStatus::kOk;
+  };
+  for (int i = 0; i < kWarmUp; ++i) ASSERT_TRUE(round());
+  int failures = 0;
+  AllocationCounter counter;
+  for (int i = 0; i < kRounds; ++i) failures += round() ? 0 : 1;
+  const uint64_t allocations = counter.stop();
+  EXPECT_EQ(failures, 0);
+  EXPECT_EQ(allocations, 0u);
+  EXPECT_EQ(trusted.counters().forged, static_cast<uint64_t>(kWarmUp + kRounds));
+  router.remove(kA);
+  router.remove(input.address());
+}
+
+TEST_F(NoAllocationTest, SubscriptionLeasesRenewAndExpire) {
+  // A consumer renewing its lease from its data task (every 50 ms) and a listener
+  // that never renews, dropped with an ERROR when its lease runs out: no allocation.
+  test::Watchdog dog;
+  test::HostUnderTest host(R"(system: 0
+lcm: false
+components:
+  - name: gen
+    class: Generator
+    instance: 1
+    data_task: {period_ms: 5, lease_ms: 200}
+  - name: mon
+    class: Monitor
+    instance: 1
+    autostart: true
+    params: {source: gen, period_ms: 5}
+)");
+  const Address gen = host.address_of("gen");
+  const Address mon = host.address_of("mon");
+  ASSERT_TRUE(host.wait_status(mon, msg::kEnabled));
+  wire::ContDataRequest cont;
+  cont.mailbox = host.data_mailbox().address().raw();
+  ASSERT_EQ(host.call_with(gen, msg::kGetContData, cont).type, msg::kContData);
+  const uint64_t mon_errors = host.stats(mon).errors;
+  const uint64_t expired = host.stats(gen).listeners_expired;
+  host.executor().flush_log();
+  uint64_t allocations = 0;
+  {
+    AllocationCounter counter;
+    std::this_thread::sleep_for(std::chrono::milliseconds(600));  // 3 leases, 12 renewals
+    allocations = counter.stop();
+  }
+  EXPECT_EQ(allocations, 0u);
+  EXPECT_GT(host.stats(gen).listeners_expired, expired) << "the tool's listener expired meanwhile";
+  EXPECT_EQ(host.stats(mon).errors, mon_errors) << "the monitor renewed in time";
+  EXPECT_EQ(host.stats(gen).listeners, 1u);
 }
 
 TEST_F(NoAllocationTest, EndpointCallRoundTrip) {

@@ -22,7 +22,7 @@ const char* describe(SendStatus s) noexcept {
     case SendStatus::kTooLarge: return "message larger than a mailbox slot";
     case SendStatus::kClosed: return "mailbox closed";
     case SendStatus::kNotAvailable: return "no such mailbox";
-    case SendStatus::kDenied: return "refused by access control";
+    case SendStatus::kDenied: return "refused by access control or by a data mailbox";
   }
   return "unknown";
 }

@@ -3,6 +3,9 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "rack/rt/clock.h"
+#include "rack/tims/trusted_sources.h"
+
 namespace rack::tims {
 
 void Router::add(Mailbox& mailbox) {
@@ -96,6 +99,24 @@ bool Router::admit(const MessageHeader& header, Mailbox& local, MessageOrigin or
   return false;
 }
 
+bool Router::trusted(const MessageHeader& header, Mailbox& local) noexcept {
+  if (header.is_request() && local.replies_only()) {
+    bump(untrusted_);
+    local.count_refused_request();
+    return false;
+  }
+  TrustedSources* t = local.trusted_sources();
+  if (t == nullptr) return true;
+  const int64_t now = rt::monotonic_ns();
+  const TrustedSources::Verdict v = t->check(header, now);
+  if (v == TrustedSources::Verdict::kAccept) return true;
+  bump(untrusted_);
+  // A request for a data mailbox: RACK answers NOT_AVAILABLE to a request for a
+  // mailbox that serves none (a reply never comes back here: it is not a request).
+  if (v == TrustedSources::Verdict::kRequest && t->may_answer(now)) (void)answer_not_available(header);
+  return false;
+}
+
 SendStatus Router::route_unknown(const MessageHeader& header) noexcept {
   if (header.is_request()) return answer_not_available(header);
   bump(unroutable_);
@@ -110,6 +131,7 @@ SendStatus Router::send(const MessageHeader& header, std::span<const ConstBuffer
   const Address dest = header.destination();
   if (Mailbox* local = find(dest)) {
     if (!admit(header, *local, MessageOrigin::kLocal)) return SendStatus::kDenied;
+    if (!trusted(header, *local)) return SendStatus::kDenied;
     const SendStatus s = local->try_send(header, body);
     bump(delivered(s) ? delivered_local_ : failed_);
     return s;
@@ -139,6 +161,7 @@ SendStatus Router::deliver_local(std::span<const std::byte> message) noexcept {
   std::memcpy(&header, message.data(), sizeof header);
   if (Mailbox* local = find(header.destination())) {
     if (!admit(header, *local, MessageOrigin::kNetwork)) return SendStatus::kDenied;
+    if (!trusted(header, *local)) return SendStatus::kDenied;
     const SendStatus s = local->try_send_bytes(message);
     bump(delivered(s) ? delivered_local_ : failed_);
     return s;
@@ -158,6 +181,7 @@ RouterCounters Router::counters() const noexcept {
   c.unroutable = unroutable_.load(std::memory_order_relaxed);
   c.failed = failed_.load(std::memory_order_relaxed);
   c.denied = denied_.load(std::memory_order_relaxed);
+  c.untrusted = untrusted_.load(std::memory_order_relaxed);
   return c;
 }
 

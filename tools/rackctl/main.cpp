@@ -608,7 +608,11 @@ int cmd_status(Session& s, const Options& o) {
                                                          ",\"major\":" + std::to_string(st.data_major_faults) + "}"
                                                    : std::string("null")) +
                     "}" +
-                    ",\"access_denied\":" + std::to_string(st.access_denied) + "}";
+                    ",\"access_denied\":" + std::to_string(st.access_denied) +
+                    ",\"input_forged\":" + std::to_string(st.input_forged) +
+                    ",\"input_requests\":" + std::to_string(st.input_requests) +
+                    ",\"input_late\":" + std::to_string(st.input_late) +
+                    ",\"listeners_expired\":" + std::to_string(st.listeners_expired) + "}";
     std::printf("%s\n", j.c_str());
     return kExitOk;
   }
@@ -634,7 +638,11 @@ int cmd_status(Session& s, const Options& o) {
   std::printf("  %-16s %llu\n", "published", u(st.published));
   std::printf("  %-16s %llu\n", "listeners", u(st.listeners));
   std::printf("  %-16s %llu\n", "listener drops", u(st.listener_drops));
+  std::printf("  %-16s %llu\n", "leases expired", u(st.listeners_expired));
   std::printf("  %-16s %llu\n", "access denied", u(st.access_denied));
+  // Refused by the data mailbox (not from a subscribed producer; requests sent into it).
+  std::printf("  %-16s %llu forged, %llu requests, %llu late\n", "input refused", u(st.input_forged),
+              u(st.input_requests), u(st.input_late));
   std::printf("  %-16s %llu\n", "malformed", u(st.malformed));
   std::printf("  %-16s %llu\n", "commands", u(st.commands));
   std::printf("  %-16s %llu\n", "errors", u(st.errors));
@@ -892,17 +900,28 @@ int cmd_watch(Session& s, const Options& o) {
   };
   // No sample for this long: the producer is gone (or silent).
   const int64_t silence_ns = std::max<int64_t>(5 * rt::kNsPerSec, 2 * rep.period_ns + s.timeout_ns());
+  // The subscription is a lease: renewed (GET_CONT_DATA again, answered into the data
+  // mailbox) every lease / 4, so that a killed watch frees its slot within one lease.
+  const int64_t renew_every = rep.lease_ns > 0 ? rep.lease_ns / 4 : 0;
+  int64_t renew_at = rt::monotonic_ns() + renew_every;
   std::vector<std::byte> buf(data.slot_size());
   int64_t last_sample = rt::monotonic_ns();
   int64_t received = 0;
   while (!g_stop.load(std::memory_order_relaxed)) {
     const int64_t now = rt::monotonic_ns();
+    if (renew_every > 0 && now >= renew_at) {
+      const ConstBuffer part = tims::buffer_of(req);
+      (void)s.endpoint().send(t.address, msg::kGetContData, std::span<const ConstBuffer>(&part, 1), data.address());
+      renew_at = now + renew_every;
+    }
     if (now - last_sample >= silence_ns) {
       stop_cont_data();
       fail(kExitUnavailable, format("%s: no sample for %lld s", t.label().c_str(),
                                     static_cast<long long>(silence_ns / rt::kNsPerSec)));
     }
-    const auto got = data.receive(buf, std::min<int64_t>(100 * rt::kNsPerMs, silence_ns - (now - last_sample)));
+    int64_t wait = std::min<int64_t>(100 * rt::kNsPerMs, silence_ns - (now - last_sample));
+    if (renew_every > 0) wait = std::max<int64_t>(0, std::min(wait, renew_at - now));
+    const auto got = data.receive(buf, wait);
     if (got.status != tims::RecvStatus::kOk) continue;
     if (got.header.source().component() != t.address) continue;  // a late message of someone else
     const auto body = std::span<const std::byte>(buf).subspan(sizeof(MessageHeader), got.length - sizeof(MessageHeader));
@@ -1065,7 +1084,8 @@ const std::vector<Command>& commands() {
        "--period MS: the wanted period (the producer sends every n-th sample; the real\n"
        "period is printed on stderr); default 0 = every sample. --count N: stop after\n"
        "N samples. SIGINT/SIGTERM stop it too (exit 0). The producer going off: exit 1.\n"
-       "No sample for 5 s: exit 3.",
+       "No sample for 5 s: exit 3. The subscription is a lease (the producer's\n"
+       "lease_ms): renewed every lease / 4, so a killed watch frees its slot in time.",
        cmd_watch},
       {"send", "send NAME CMD [FIELD=VALUE ...] [--i64 N]", 2, 66, {"--i64"},
        "Sends class command CMD, a number from 21 to 127 or the command's name (below;\n"

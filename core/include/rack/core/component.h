@@ -76,6 +76,9 @@ struct ComponentSettings {
   uint32_t command_slots = 16;
   uint32_t input_slots = 32;
   uint32_t max_listeners = 16;
+  // A listener (GET_CONT_DATA) that does not renew within this long is dropped with an
+  // ERROR (DataComponentBase: leases). Consumers renew every lease / 4.
+  int64_t lease_ns = 10 * rt::kNsPerSec;
   bool autostart = false;
 };
 

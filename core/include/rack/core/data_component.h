@@ -7,8 +7,36 @@
 //
 // Served by the framework from the command task: GET_DATA (ring lookup), GET_CONT_DATA
 // (listener with reduction factor n = round(requested period / own period); the reply
-// carries the real period), STOP_CONT_DATA, GET_NEXT_DATA (one-shot). When the
-// component leaves ENABLED, every listener gets an ERROR message and is dropped.
+// carries the real period and the lease), STOP_CONT_DATA, GET_NEXT_DATA (one-shot).
+// When the component leaves ENABLED, every listener gets an ERROR message and is
+// dropped.
+//
+// Trust (the input mailbox, #3): a consumer's input mailbox accepts replies and
+// notifications (DATA, ERROR, ...) only from the producers it subscribed to with
+// subscribe() and has not unsubscribed from, and from the component itself. The
+// router refuses everything else before it takes a slot (rack/tims/trusted_sources.h):
+// a sample or ERROR from any other address is counted as forged, one from a producer
+// unsubscribed less than 2 s ago as late; a request (GET_STATUS, ...) sent into a data
+// mailbox is counted and answered NOT_AVAILABLE (at most 10 a second), as RACK answers
+// a request to a mailbox that serves none. Nothing refused wakes the data task or
+// changes the component's state. The counts are in GET_STATS (input_forged,
+// input_requests, input_late) and the data task logs them (warning) at most once a
+// second. The table holds tims::TrustedSources::kCapacity producers: no allocation.
+// The reply mailboxes (#1 of the command task, #2 of the data task) take no request
+// either: refused silently, counted with input_requests.
+//
+// Leases: a listener (GET_CONT_DATA) holds its slot for ComponentSettings::lease_ns
+// (host file: data_task.lease_ms, default 10 s) after its last GET_CONT_DATA. A
+// GET_CONT_DATA from the same mailbox renews and replaces it (new period, same slot,
+// no duplicate). A listener not renewed in time gets an ERROR ("subscription lease
+// expired") and is dropped, at the next sample or when a new listener needs its slot;
+// so a subscriber that died (a killed `rackctl watch`) frees its slot within one
+// lease. subscribe() learns the lease from the CONT_DATA reply and the data task
+// renews every lease / 4 without waiting for the answer: the renewal's reply goes to
+// the input mailbox (CONT_DATA is skipped there; an ERROR or NOT_AVAILABLE answer
+// comes out of next_input() as kError: the subscription is gone). Listeners on a host
+// that expires are dropped sooner, by the transport's STOP_CONT_DATA
+// (rack/tims/lcm_transport.h).
 //
 // Real-time contract: loop() runs in the data task (RT): no allocation, no non-PI
 // locks, no printing, no blocking system calls. publish(), input_mailbox(),
@@ -16,7 +44,9 @@
 // RT-safe and meant for on()/off() (command task).
 #pragma once
 
+#include <array>
 #include <atomic>
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <vector>
@@ -25,6 +55,7 @@
 #include "rack/core/sample_ring.h"
 #include "rack/rt/latency_stats.h"
 #include "rack/rt/pi_mutex.h"
+#include "rack/tims/trusted_sources.h"
 
 namespace rack {
 
@@ -61,13 +92,16 @@ class DataComponentBase : public Component {
   enum class Input : uint8_t {
     kNone,   // the mailbox is empty
     kData,   // a DATA message (next_sample: a sample that decoded)
-    kError,  // a producer sent ERROR: it left ENABLED and dropped this subscription
+    kError,  // a producer sent ERROR (it left ENABLED, or refused a renewal) or its
+             // mailbox is gone (NOT_AVAILABLE to a renewal): this subscription is over
   };
-  // Takes the next message of the input mailbox without blocking. A DATA body goes to
-  // `take(header, body)`, which decodes what it wants (read_sample) and returns false
-  // only when the body does not fit (wrong size for its source's type): that message
-  // is counted as malformed (GET_STATS) and logged at most once a second. Other
-  // message types are dropped. `header` is the message's. RT-safe when `take` is.
+  // Takes the next message of the input mailbox without blocking. Only messages of
+  // trusted producers (and of this component) get there (see "Trust" above). A DATA
+  // body goes to `take(header, body)`, which decodes what it wants (read_sample) and
+  // returns false only when the body does not fit (wrong size for its source's type):
+  // that message is counted as malformed (GET_STATS) and logged at most once a
+  // second. Other replies (CONT_DATA of a renewal, a component's own wake-ups) are
+  // skipped. `header` is the message's. RT-safe when `take` is.
   template <typename Take>
   [[nodiscard]] Input next_input(tims::MessageHeader& header, Take&& take) noexcept;
   // For a consumer of one sample type: skips (and counts) DATA that does not decode
@@ -82,10 +116,16 @@ class DataComponentBase : public Component {
   // RT-safe.
   [[nodiscard]] bool input_silent() const noexcept;
 
-  // From on(): GET_CONT_DATA to `producer` for this component's input mailbox.
+  // From on(): trusts `producer` in the input mailbox, then GET_CONT_DATA to it for
+  // this component's input mailbox; the data task renews it every lease / 4 while
+  // ENABLED. kError (logged) without an input mailbox, with kMaxSubscriptions
+  // producers already, or when the producer refuses or does not answer.
   HookResult subscribe(tims::Address producer, int64_t period_ns, int64_t* real_period_ns = nullptr) noexcept;
-  // From off(): STOP_CONT_DATA (best effort: the producer may be gone).
+  // From off(): STOP_CONT_DATA (best effort: the producer may be gone); no more
+  // renewals, and the producer's messages are no longer trusted (late ones are
+  // dropped quietly for a grace period).
   void unsubscribe(tims::Address producer) noexcept;
+  static constexpr std::size_t kMaxSubscriptions = tims::TrustedSources::kCapacity;
 
  private:
   friend class Executor;
@@ -112,9 +152,40 @@ class DataComponentBase : public Component {
     uint8_t priority = 0;
     bool oneshot = false;
     bool active = false;
+    int64_t renewed_ns = 0;  // its last GET_CONT_DATA (GET_NEXT_DATA): the lease starts here
   };
   void send_sample(const Listener& l, const wire::SampleHeader& sh, const void* payload) noexcept;
+  // Sends `l` an ERROR with `why` (its seq: a one-shot's request is answered) and frees
+  // it. listeners_mutex_ held.
+  void drop_listener_locked(Listener& l, const char* why) noexcept;
+  [[nodiscard]] bool lease_expired(const Listener& l, int64_t now_ns) const noexcept {
+    return now_ns - l.renewed_ns > settings().lease_ns;
+  }
   void drop_listeners() noexcept;
+
+  // A subscription of this component (consumer side). Written by the command task in
+  // on()/off() while loop() is gated off, read and renewed by the data task while it
+  // is gated on (the loop gate below), so never both at once.
+  struct Subscription {
+    tims::Address producer;
+    int64_t period_ns = 0;
+    int64_t renew_every_ns = 0;  // lease / 4; 0: the producer grants no lease
+    int64_t renew_at_ns = 0;
+    bool active = false;
+  };
+  // Data task, loop gate held: GET_CONT_DATA to every producer whose renewal is due.
+  void renew_due_subscriptions(int64_t now_ns) noexcept;
+  // Data task: takes the loop gate and renews (a triggered task woken for it alone).
+  void renew_gated() noexcept;
+  // Data task: logs refused input (forged, requests) at most once a second.
+  void report_refused_input() noexcept;
+  std::array<Subscription, kMaxSubscriptions> subscriptions_{};
+  std::unique_ptr<tims::TrustedSources> trusted_;  // with the input mailbox
+  // The earliest renewal due (relaxed: a wake-up hint for the triggered data task;
+  // the renewal itself re-checks every subscription). INT64_MAX: none.
+  std::atomic<int64_t> next_renewal_ns_{INT64_MAX};
+  tims::TrustedSources::Counters refused_reported_{};  // data task only
+  int64_t refused_logged_ns_ = 0;                      // data task only
   [[nodiscard]] int64_t effective_period_ns() const noexcept;
 
   DataTaskMode mode_;
@@ -137,7 +208,7 @@ class DataComponentBase : public Component {
   std::atomic<bool> in_loop_{false};
   std::atomic<int64_t> last_time_ns_{0};
   std::atomic<int64_t> last_interval_ns_{0};
-  std::atomic<uint64_t> published_{0}, listener_drops_{0};
+  std::atomic<uint64_t> published_{0}, listener_drops_{0}, listeners_expired_{0};
 };
 
 template <tims::Payload T>
@@ -173,11 +244,11 @@ DataComponentBase::Input DataComponentBase::next_input(tims::MessageHeader& head
     const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
     if (p.status != tims::RecvStatus::kOk) return Input::kNone;
     header = *p.header;
-    if (header.type == tims::msg::kError) {
+    if (header.type == tims::msg::kError || header.type == tims::msg::kNotAvailable) {
       input_mailbox().peek_end();
       return Input::kError;
     }
-    if (header.type != tims::msg::kData) {  // a stray reply: nothing to take
+    if (header.type != tims::msg::kData) {  // a renewal's CONT_DATA, a wake-up: nothing to take
       input_mailbox().peek_end();
       continue;
     }

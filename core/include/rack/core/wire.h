@@ -33,11 +33,14 @@ struct ContDataRequest {
   }
 };
 
-// CONT_DATA reply: the period the listener will really get.
+// CONT_DATA reply: the period the listener will really get, and its lease: the
+// subscription is dropped unless the same mailbox sends GET_CONT_DATA again within
+// lease_ns (a renewal: it keeps the slot and its place in the reduction). 0: no lease.
 struct ContDataReply {
   int64_t period_ns = 0;
+  int64_t lease_ns = 0;
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(ContDataReply, period_ns)};
+    return std::array{RACK_FIELD(ContDataReply, period_ns), RACK_FIELD(ContDataReply, lease_ns)};
   }
 };
 
@@ -132,6 +135,12 @@ struct StatsReply {
   uint64_t data_minor_faults = 0;
   uint64_t data_major_faults = 0;
   uint64_t access_denied = 0;  // messages to it that access control refused
+  // Its data (input) mailbox (rack/tims/trusted_sources.h), refused before queuing:
+  uint64_t input_forged = 0;    // replies/notifications not from a subscribed producer
+  uint64_t input_requests = 0;  // requests sent into it (answered NOT_AVAILABLE, rate-limited)
+                                // or into its reply mailboxes #1, #2 (dropped)
+  uint64_t input_late = 0;      // messages of a producer unsubscribed just before (in flight)
+  uint64_t listeners_expired = 0;  // listeners dropped because their lease ran out
   static constexpr auto fields() noexcept {
     return std::array{
       RACK_FIELD(StatsReply, state), RACK_FIELD(StatsReply, data_task), RACK_FIELD(StatsReply, faults_measured),
@@ -146,7 +155,9 @@ struct StatsReply {
       RACK_FIELD(StatsReply, command_drops), RACK_FIELD(StatsReply, stale_replies),
       RACK_FIELD(StatsReply, command_minor_faults), RACK_FIELD(StatsReply, command_major_faults),
       RACK_FIELD(StatsReply, data_minor_faults), RACK_FIELD(StatsReply, data_major_faults),
-      RACK_FIELD(StatsReply, access_denied)};
+      RACK_FIELD(StatsReply, access_denied), RACK_FIELD(StatsReply, input_forged),
+      RACK_FIELD(StatsReply, input_requests), RACK_FIELD(StatsReply, input_late),
+      RACK_FIELD(StatsReply, listeners_expired)};
   }
 };
 

@@ -28,6 +28,8 @@
 
 namespace rack::tims {
 
+class TrustedSources;
+
 struct ConstBuffer {
   const void* data = nullptr;
   std::size_t size = 0;
@@ -45,7 +47,8 @@ enum class SendStatus : uint8_t {
   kTooLarge,        // the message does not fit a slot
   kClosed,          // the mailbox is shutting down
   kNotAvailable,    // (router) no such mailbox; a request was answered NOT_AVAILABLE
-  kDenied,          // (router) refused by access control; a request was answered ERROR
+  kDenied,          // (router) refused by access control (a request was answered ERROR), or
+                    // by a data mailbox's TrustedSources (a request: NOT_AVAILABLE)
 };
 [[nodiscard]] const char* describe(SendStatus s) noexcept;
 [[nodiscard]] constexpr bool delivered(SendStatus s) noexcept {
@@ -127,6 +130,19 @@ class Mailbox {
   // Counts a message for this mailbox that access control refused (the router calls
   // it). RT-safe, lock-free.
   void count_denied() noexcept { denied_.fetch_add(1, std::memory_order_relaxed); }
+  // Whom this mailbox trusts (rack/tims/trusted_sources.h): the router refuses every
+  // message for it that `trusted` refuses, before it takes a slot. nullptr (default):
+  // the router delivers from anyone. Set before traffic flows; `trusted` outlives the
+  // mailbox's registration. Not RT-safe to set; trusted_sources() is (lock-free).
+  void set_trusted_sources(TrustedSources* trusted) noexcept { trusted_.store(trusted, std::memory_order_release); }
+  [[nodiscard]] TrustedSources* trusted_sources() const noexcept { return trusted_.load(std::memory_order_acquire); }
+  // A reply mailbox (an endpoint's): the router refuses every request for it, silently
+  // (a reply mailbox answers nothing, and an answer would let a flood reflect), and
+  // counts it here. Set before traffic flows. RT-safe, lock-free.
+  void set_replies_only(bool on) noexcept { replies_only_.store(on, std::memory_order_relaxed); }
+  [[nodiscard]] bool replies_only() const noexcept { return replies_only_.load(std::memory_order_relaxed); }
+  void count_refused_request() noexcept { refused_requests_.fetch_add(1, std::memory_order_relaxed); }
+  [[nodiscard]] uint64_t refused_requests() const noexcept { return refused_requests_.load(std::memory_order_relaxed); }
 
  private:
   enum class SlotState : uint8_t { kFree, kWriting, kReady, kReading };
@@ -162,6 +178,9 @@ class Mailbox {
   std::atomic<uint64_t> sent_{0}, received_{0}, dropped_{0}, refused_{0}, too_large_{0},
       truncated_{0};
   std::atomic<uint64_t> denied_{0};  // relaxed: a statistic, outside the mutex
+  std::atomic<TrustedSources*> trusted_{nullptr};  // release/acquire: the table is built before
+  std::atomic<bool> replies_only_{false};            // relaxed: set before traffic flows
+  std::atomic<uint64_t> refused_requests_{0};        // relaxed: a statistic
 };
 
 }  // namespace rack::tims

@@ -16,6 +16,11 @@
 // is answered ERROR with the reason (at most AccessControl::kRepliesPerSecond per
 // rule: a flood is not echoed), a refused reply or notification is dropped;
 // both are counted (per rule, and on the mailbox: MailboxCounters::denied).
+// A mailbox with TrustedSources (a consumer's data mailbox, rack/tims/trusted_sources.h)
+// is checked next: a request is refused and answered NOT_AVAILABLE (rate-limited), a
+// reply or notification not from a trusted producer is refused; both are counted by
+// the TrustedSources (and in RouterCounters::untrusted), never queued. A request for a
+// reply mailbox (Mailbox::set_replies_only) is refused silently and counted there.
 //
 // Real-time contract: find() and send() are RT-safe and lock-free on the look-up
 // (a PI-locked mailbox send follows). add()/remove()/set_uplink() are not RT-safe
@@ -43,6 +48,8 @@ struct RouterCounters {
   uint64_t unroutable = 0;     // replies/notifications to unknown mailboxes (dropped)
   uint64_t failed = 0;         // local or uplink send refused (full, too large, closed)
   uint64_t denied = 0;         // refused by access control
+  uint64_t untrusted = 0;      // refused by a data mailbox's TrustedSources, or a request
+                               // for a reply mailbox
 };
 
 class Router {
@@ -100,6 +107,9 @@ class Router {
   SendStatus route_unknown(const MessageHeader& header) noexcept;
   // true: may be delivered to `local`; false: refused (answered and counted here).
   bool admit(const MessageHeader& header, Mailbox& local, MessageOrigin origin) noexcept;
+  // true: `local` trusts the message's source (or has no TrustedSources); false:
+  // refused, counted, a request answered NOT_AVAILABLE when the rate allows.
+  bool trusted(const MessageHeader& header, Mailbox& local) noexcept;
 
   uint8_t system_;
   std::array<Entry, kCapacity> table_{};
@@ -109,7 +119,7 @@ class Router {
   std::atomic<AccessControl*> access_{nullptr};  // release/acquire: the table is built before
   // Statistics, relaxed: independent counters read by tools.
   std::atomic<uint64_t> delivered_local_{0}, sent_uplink_{0}, not_available_{0}, unroutable_{0},
-      failed_{0}, denied_{0};
+      failed_{0}, denied_{0}, untrusted_{0};
 };
 
 }  // namespace rack::tims
