@@ -132,6 +132,13 @@ struct StatsReply {
   uint64_t data_minor_faults = 0;
   uint64_t data_major_faults = 0;
   uint64_t access_denied = 0;  // messages to it that access control refused
+  // Execution time of the data task's cycles (how long loop() ran; periodic and
+  // triggered tasks alike), from a fixed log-linear histogram (rack/rt/exec_time_stats.h,
+  // within 3 %); exec_samples 0: none measured (no data task, or loop() never ran).
+  uint64_t exec_samples = 0;
+  int64_t exec_p50_ns = 0;
+  int64_t exec_p99_ns = 0;
+  int64_t exec_max_ns = 0;
   static constexpr auto fields() noexcept {
     return std::array{
       RACK_FIELD(StatsReply, state), RACK_FIELD(StatsReply, data_task), RACK_FIELD(StatsReply, faults_measured),
@@ -146,7 +153,8 @@ struct StatsReply {
       RACK_FIELD(StatsReply, command_drops), RACK_FIELD(StatsReply, stale_replies),
       RACK_FIELD(StatsReply, command_minor_faults), RACK_FIELD(StatsReply, command_major_faults),
       RACK_FIELD(StatsReply, data_minor_faults), RACK_FIELD(StatsReply, data_major_faults),
-      RACK_FIELD(StatsReply, access_denied)};
+      RACK_FIELD(StatsReply, access_denied), RACK_FIELD(StatsReply, exec_samples),
+      RACK_FIELD(StatsReply, exec_p50_ns), RACK_FIELD(StatsReply, exec_p99_ns), RACK_FIELD(StatsReply, exec_max_ns)};
   }
 };
 
