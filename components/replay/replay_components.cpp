@@ -297,7 +297,8 @@ void LadarReplay::describe_status(std::string& out) const {
                 shared_->speed() > 0.0 ? std::to_string(shared_->speed()).c_str() : "0 (as fast as paced)",
                 pace_.get_string().empty()
                     ? ""
-                    : (", paced by " + pace_.get_string() + ", " +
+                    : (", paced by " + pace_.get_string() +
+                       (shared_->ready() ? ", " : " (waiting for it to be ENABLED), ") +
                        std::to_string(progress_.pace_timeouts.load(std::memory_order_relaxed)) + " pace timeout(s)")
                           .c_str());
   out += line;
