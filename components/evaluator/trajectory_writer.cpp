@@ -60,25 +60,27 @@ TrajectoryError trajectory_error(const std::vector<TimedPose>& estimate, const s
   return e;
 }
 
-std::vector<TimedPose> read_trajectory_file(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path + ": cannot read: " + std::strerror(errno));
+std::vector<TimedPose> parse_trajectory_text(std::string_view text, const std::string& name) {
   std::vector<TimedPose> poses;
   int number = 0;
-  for (std::string line; std::getline(in, line);) {
+  while (!text.empty()) {
+    const auto eol = text.find('\n');
+    std::string line(text.substr(0, eol));
+    text = eol == std::string_view::npos ? std::string_view() : text.substr(eol + 1);
     ++number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();  // CRLF files
     const auto hash = line.find('#');
     if (hash != std::string::npos) line.resize(hash);
     std::istringstream ls(line);
-    std::string first;
-    if (!(ls >> first)) continue;  // blank
-    const std::string where = path + ":" + std::to_string(number) + ": ";
+    std::string word;
+    if (!(ls >> word)) continue;  // blank
+    const std::string where = name + ":" + std::to_string(number) + ": ";
     TimedPose p;
     double* fields[4] = {&p.t, &p.x, &p.y, &p.phi};
-    std::string word = first;
     for (int k = 0; k < 4; ++k) {
       if (k > 0 && !(ls >> word)) throw std::runtime_error(where + "expected 't x y theta', found " + std::to_string(k) + " field(s)");
       char* end = nullptr;
+      errno = 0;
       *fields[k] = std::strtod(word.c_str(), &end);
       if (end == word.c_str() || *end != '\0') throw std::runtime_error(where + "'" + word + "' is not a number");
       if (!std::isfinite(*fields[k])) throw std::runtime_error(where + "'" + word + "' is not finite");
@@ -89,6 +91,14 @@ std::vector<TimedPose> read_trajectory_file(const std::string& path) {
     poses.push_back(p);
   }
   return poses;
+}
+
+std::vector<TimedPose> read_trajectory_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path + ": cannot read: " + std::strerror(errno));
+  std::ostringstream all;
+  all << in.rdbuf();
+  return parse_trajectory_text(all.str(), path);
 }
 
 TrajectoryWriter::TrajectoryWriter()

@@ -32,6 +32,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "rack/core/data_component.h"
@@ -59,9 +60,12 @@ struct TrajectoryError {
 [[nodiscard]] TrajectoryError trajectory_error(const std::vector<TimedPose>& estimate,
                                                const std::vector<TimedPose>& reference, double lost_threshold,
                                                double max_gap);
-// Reads a `t x y theta` file ('#' comments and blank lines skipped; further columns
-// ignored). Throws std::runtime_error "file:line: reason" for a malformed line, a
-// non-finite value or times that go backwards, or when the file cannot be read.
+// Parses `t x y theta` lines ('#' comments and blank lines skipped; further columns
+// ignored) from memory; `name` is used in errors. Throws std::runtime_error
+// "name:line: reason" for a malformed line, a non-finite value or times that go
+// backwards (a plain function on a byte buffer, for the fuzz harnesses).
+[[nodiscard]] std::vector<TimedPose> parse_trajectory_text(std::string_view text, const std::string& name);
+// Reads and parses a file; also throws when it cannot be read.
 [[nodiscard]] std::vector<TimedPose> read_trajectory_file(const std::string& path);
 
 class TrajectoryWriter final : public DataComponent<interfaces::EvaluatorData> {

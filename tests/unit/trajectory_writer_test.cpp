@@ -76,6 +76,18 @@ TEST_F(TrajectoryFileTest, ReadsPosesSkippingCommentsAndBlankLines) {
   EXPECT_DOUBLE_EQ(poses[1].phi, 0.25);
 }
 
+TEST(TrajectoryTextTest, ParsesFromMemoryWithCrlfAndNamesTheSourceInErrors) {
+  const auto poses = components::parse_trajectory_text("1 0 0 0\r\n2 1 0 0\r\n", "mem");
+  ASSERT_EQ(poses.size(), 2U);
+  EXPECT_DOUBLE_EQ(poses[1].x, 1.0);
+  try {
+    (void)components::parse_trajectory_text("1 0 0 0\n2 1 0", "mem");
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("mem:2: expected 't x y theta', found 3 field(s)"), std::string::npos) << e.what();
+  }
+}
+
 TEST_F(TrajectoryFileTest, MalformedLinesAreRejectedWithFileAndLine) {
   EXPECT_NE(error_of("1 2 3 4\n2 2 3\n").find(":2: expected 't x y theta', found 3 field(s)"), std::string::npos);
   EXPECT_NE(error_of("1 2 x 4\n").find(":1: 'x' is not a number"), std::string::npos);
