@@ -20,6 +20,7 @@
 #include "pilot/pilot.h"
 #include "position/position.h"
 #include "evaluator/evaluator.h"
+#include "evaluator/trajectory_writer.h"
 #include "modeswitch_demo/modeswitch_demo.h"
 #include "probe/probe.h"
 #include "replay/replay_components.h"
@@ -66,6 +67,10 @@ void register_builtin(ComponentRegistry& registry) {
   registry.add({"Evaluator", cls::kEvaluator,
                 "simulation: localisation error of Position and MCL against ChassisSim's true pose",
                 [] { return std::make_unique<Evaluator>(); }});
+  registry.add({"TrajectoryWriter", cls::kEvaluator,
+                "evaluation: writes MCL's (or Position's) estimates as 't x y theta' lines; ATE, lost poses and "
+                "rotation error against a reference file at the end",
+                [] { return std::make_unique<TrajectoryWriter>(); }});
   registry.add({"ModeSwitchDemo", cls::kModeSwitchDemo,
                 "demo: class commands that trigger each mode-switch reason and a crash (configs/modeswitch_demo.yaml)",
                 [] { return std::make_unique<ModeSwitchDemo>(); }});

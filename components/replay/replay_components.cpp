@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
+#include <string>
 #include <numbers>
 #include <stdexcept>
 
@@ -36,8 +38,11 @@ Parameter::Spec log_spec() {
   return {.doc = "log file to play: CARMEN (.log/.clf/...) or MRPT rawlog (.rawlog)", .required = true};
 }
 Parameter::Spec speed_spec() {
-  return {.doc = "replay speed (1: as recorded; 2: twice as fast)", .min = 0.01, .max = 1000.0};
+  return {.doc = "replay speed (1: as recorded; 2: twice as fast; 0: as fast as LadarReplay's pace allows)",
+          .min = 0.0,
+          .max = 1000.0};
 }
+constexpr std::size_t kReplyBytes = 64 * 1024;  // a data component's reply slot
 Parameter::Spec strict_spec() {
   return {.doc = "a malformed line rejects the log (false: skip and report it)"};
 }
@@ -96,16 +101,28 @@ HookResult ChassisReplay::on() {
 
 HookResult ChassisReplay::loop() {
   const int64_t now = rt::host_time_ns();
+  const bool paced = shared_->paced();
+  if (paced && !shared_->ready()) return HookResult::kOk;  // the paced pipeline does not listen yet
   if (!joined_.exchange(true, std::memory_order_acq_rel)) {
     const int64_t anchor = shared_->start(now);
     // Joining a running clock: records that played more than a period ago are skipped;
     // the next increment then spans them, so the integrated odometry stays right.
-    next_ = join_index(*shared_, stream_, next_, now, anchor, period_ns());
+    // (Paced: nothing is skipped; the log waits for the pipeline.)
+    if (!paced) next_ = join_index(*shared_, stream_, next_, now, anchor, period_ns());
   }
+  // Paced: odometry up to the first record at or after the next scan to be released
+  // (Scan2D needs it to interpolate that scan's odometry), and no further.
+  double limit = std::numeric_limits<double>::infinity();
+  if (paced) {
+    const auto& scans = shared_->log().scans;
+    const std::size_t released = shared_->scans_released();
+    if (released < scans.size()) limit = scans[released].time;
+  }
+  const bool clocked = shared_->speed() > 0.0;
   for (std::size_t k = 0; k < kMaxPerCycle && next_ < stream_.size(); ++k) {
     const replay::OdometryRecord& r = stream_[next_];
-    const int64_t t = shared_->host_time(r.time);
-    if (t > now) break;
+    if (clocked && shared_->host_time(r.time) > now) break;
+    if (have_last_ && last_.time >= limit) break;
     ChassisData d;
     if (have_last_) {
       const double dx = r.x - last_.x, dy = r.y - last_.y;
@@ -122,7 +139,7 @@ HookResult ChassisReplay::loop() {
     last_ = r;
     have_last_ = true;
     ++next_;
-    publish(d, t);
+    publish(d, replay::SharedLog::sample_time(r.time));
   }
   return HookResult::kOk;
 }
@@ -154,7 +171,16 @@ LadarReplay::LadarReplay()
     : DataComponent(DataTaskMode::kPeriodic),
       log_(declare_string("log", "", log_spec())),
       speed_(declare_float("speed", 1.0, speed_spec())),
-      strict_(declare_bool("strict", true, strict_spec())) {}
+      strict_(declare_bool("strict", true, strict_spec())),
+      pace_(declare_string("pace", "",
+                           {.doc = "component at the end of the pipeline (MCL, TrajectoryWriter): a scan plays only "
+                                   "after it has output for the previous one (empty: the clock alone)",
+                            .component_ref = true,
+                            .weak_ref = true})),  // a consumer of the scans: not a dependency
+      pace_timeout_ms_(declare_float("pace_timeout_ms", 2000.0,
+                                     {.doc = "ms a scan waits for the paced component before it plays anyway (counted)",
+                                      .min = 1.0,
+                                      .max = 600000.0})) {}
 
 LadarReplay::~LadarReplay() = default;
 
@@ -170,6 +196,13 @@ void LadarReplay::init() {
     }
   }
   out_ = std::make_unique<LadarData>();
+  reply_ = std::make_unique<std::byte[]>(kReplyBytes);
+  paced_ = !pace_.get_string().empty();
+  if (paced_) {
+    shared_->set_paced();
+  } else if (!(speed_.get_float() > 0.0)) {
+    throw std::runtime_error("parameter 'speed': 0 (as fast as possible) needs 'pace' (the component to wait for)");
+  }
   const auto& s0 = log.scans.front();
   std::fprintf(stderr,
                "LadarReplay '%s': %zu scans from %s; %zu beams from %.3f rad step %.5f rad, max %.2f m; laser at "
@@ -183,17 +216,51 @@ HookResult LadarReplay::on() {
   return HookResult::kOk;
 }
 
+bool LadarReplay::pace_enabled() noexcept {
+  const auto r = data_endpoint().call(resolved(pace_), tims::msg::kGetStatus,
+                                      std::span<std::byte>(reply_.get(), kReplyBytes), settings().rpc_timeout_ns);
+  return r.status == tims::CallStatus::kOk && r.reply.type == tims::msg::kEnabled;
+}
+
+bool LadarReplay::pace_reached(int64_t time_ns) noexcept {
+  const wire::GetDataRequest newest{};  // time 0: the newest sample
+  const auto r = data_endpoint().call(resolved(pace_), tims::msg::kGetData, newest,
+                                      std::span<std::byte>(reply_.get(), kReplyBytes), settings().rpc_timeout_ns);
+  if (r.status != tims::CallStatus::kOk || r.reply.type != tims::msg::kData || r.body.size() < sizeof(wire::SampleHeader)) {
+    return false;
+  }
+  wire::SampleHeader sh;
+  if (!wire::read_payload(r.body.first(sizeof(wire::SampleHeader)), tims::body_is_native(r.reply), sh)) return false;
+  return sh.time_ns >= time_ns;
+}
+
 HookResult LadarReplay::loop() {
   const int64_t now = rt::host_time_ns();
   const auto& scans = shared_->log().scans;
+  const bool paced = paced_;
+  if (paced && !shared_->ready()) {
+    // Nothing plays before the paced component (and so everything it depends on) is
+    // ENABLED and subscribed: the first records reach every consumer.
+    if (!pace_enabled()) return HookResult::kOk;
+    shared_->set_ready();
+  }
   if (!joined_.exchange(true, std::memory_order_acq_rel)) {
     const int64_t anchor = shared_->start(now);
-    next_ = join_index(*shared_, scans, next_, now, anchor, period_ns());
+    if (!paced) next_ = join_index(*shared_, scans, next_, now, anchor, period_ns());
   }
+  const bool clocked = shared_->speed() > 0.0;
   for (std::size_t k = 0; k < kMaxPerCycle && next_ < scans.size(); ++k) {
     const replay::ScanRecord& s = scans[next_];
-    const int64_t t = shared_->host_time(s.time);
-    if (t > now) break;
+    if (clocked && shared_->host_time(s.time) > now) break;
+    if (paced && next_ > 0) {
+      // The paced component must have output for the previous scan first.
+      if (pace_wait_since_ == 0) pace_wait_since_ = now;
+      if (!pace_reached(replay::SharedLog::sample_time(scans[next_ - 1].time))) {
+        if (now - pace_wait_since_ < static_cast<int64_t>(pace_timeout_ms_.get_float() * 1e6)) break;
+        progress_.pace_timeouts.fetch_add(1, std::memory_order_relaxed);
+      }
+      pace_wait_since_ = 0;
+    }
     LadarData& d = *out_;
     d.duration_ns = 0;  // logs do not say how long a sweep took
     d.max_range = s.max_range;
@@ -207,9 +274,34 @@ HookResult LadarReplay::loop() {
       d.intensity[i] = i < s.intensities.size() ? s.intensities[i] : 0.0F;
     }
     ++next_;
+    const int64_t t = replay::SharedLog::sample_time(s.time);
     publish(d, t);
+    // Relaxed: status counters, each read on its own.
+    progress_.scans.store(next_, std::memory_order_relaxed);
+    progress_.last_time_ns.store(t, std::memory_order_relaxed);
+    shared_->set_scans_released(next_);
+    if (paced) break;  // one scan per pace check
   }
   return HookResult::kOk;
+}
+
+void LadarReplay::describe_status(std::string& out) const {
+  if (!shared_) return;
+  const std::size_t total = shared_->log().scans.size();
+  const uint64_t played = progress_.scans.load(std::memory_order_relaxed);
+  char line[256];
+  std::snprintf(line, sizeof line, "replay: %llu of %zu scans played (log time %.3f s)%s, speed %s%s",
+                static_cast<unsigned long long>(played), total,
+                static_cast<double>(progress_.last_time_ns.load(std::memory_order_relaxed)) * 1e-9,
+                played == total ? ", log finished" : "",
+                shared_->speed() > 0.0 ? std::to_string(shared_->speed()).c_str() : "0 (as fast as paced)",
+                pace_.get_string().empty()
+                    ? ""
+                    : (", paced by " + pace_.get_string() +
+                       (shared_->ready() ? ", " : " (waiting for it to be ENABLED), ") +
+                       std::to_string(progress_.pace_timeouts.load(std::memory_order_relaxed)) + " pace timeout(s)")
+                          .c_str());
+  out += line;
 }
 
 }  // namespace rack::components

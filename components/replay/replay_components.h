@@ -10,13 +10,28 @@
 // and Scan2D looks up the odometry at each scan's time. Publishing OdometryData
 // directly would bypass Odometry (its RESET, its history for Position UPDATE).
 //
+// Time base: every sample carries the log's own time (the record's time stamp in
+// seconds, as nanoseconds), at any speed. Downstream components (Odometry, Scan2D,
+// MCL, Position, TrajectoryWriter) work in that time base, so a replay at speed 20
+// produces the same samples as one at speed 1, and a trajectory comes out in the
+// log's time.
+//
 // Both components that name the same file share its replay clock (one per file and
 // process): log time t plays at host time anchor + (t - t_first) / speed, the anchor
 // being when the first of them was switched on, so scans and odometry stay in step.
 // A component switched on within 2 s of that plays from the log's beginning; one
 // switched on later (or again) joins the running clock and skips what has played.
-// At the end of the log both stop publishing. Sample times are the host times the
-// records play at.
+// At the end of the log both stop publishing.
+//
+// Pacing (LadarReplay 'pace': the component at the end of the pipeline, e.g. MCL or
+// a TrajectoryWriter): nothing plays until that component is ENABLED (so it and
+// everything before it listen from the first record on); scan k is released only
+// once the paced component has published a sample stamped at or after scan k-1's
+// time (or pace_timeout_ms passed: counted, shown in the status line); the
+// ChassisReplay publishes odometry only up to the first record at or after the next
+// scan to be released. With speed 0 there is no clock at all: the log plays as fast
+// as the pipeline takes it, and no consumer skips or loses a scan, so the estimates
+// are those of a replay at speed 1.
 //
 // Real-time contract: init() loads the file (not RT); on(), off(), loop() and command()
 // are RT-safe (the log is preloaded; no allocation).
@@ -62,10 +77,18 @@ class ChassisReplay final : public DataComponent<interfaces::ChassisData> {
   std::atomic<uint32_t> active_pilot_{0};
 };
 
+// LadarReplay's status: what has played, how the pace went (for describe_status).
+struct LadarReplayProgress {
+  std::atomic<uint64_t> scans{0};          // scans published
+  std::atomic<int64_t> last_time_ns{0};    // the last one's (log) time
+  std::atomic<uint64_t> pace_timeouts{0};  // scans released after pace_timeout_ms
+};
+
 class LadarReplay final : public DataComponent<interfaces::LadarData> {
  public:
   LadarReplay();
   ~LadarReplay() override;
+  void describe_status(std::string& out) const override;  // not RT (rackd's main thread)
 
  protected:
   void init() override;
@@ -73,13 +96,24 @@ class LadarReplay final : public DataComponent<interfaces::LadarData> {
   HookResult loop() override;  // RT
 
  private:
+  // Pacing, data task: the paced component is ENABLED / has output at or after
+  // `time_ns` (one GET_STATUS or GET_DATA each).
+  bool pace_enabled() noexcept;
+  bool pace_reached(int64_t time_ns) noexcept;
+
   Parameter& log_;
   Parameter& speed_;
   Parameter& strict_;
+  Parameter& pace_;
+  Parameter& pace_timeout_ms_;
   std::shared_ptr<replay::SharedLog> shared_;
   std::unique_ptr<interfaces::LadarData> out_;
+  std::unique_ptr<std::byte[]> reply_;  // GET_DATA replies of the paced component (64 KB)
   std::size_t next_ = 0;
+  bool paced_ = false;           // 'pace' names a component (set in init)
+  int64_t pace_wait_since_ = 0;  // host time the release of scan next_ began to wait (0: not waiting)
   std::atomic<bool> joined_{false};
+  LadarReplayProgress progress_;
 };
 
 }  // namespace rack::components

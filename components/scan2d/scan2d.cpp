@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "common/pose2d.h"
 
@@ -25,8 +26,27 @@ Scan2d::Scan2d()
       dynamic_objects_(declare_bool("dynamic_objects", false, {.doc = "track small clusters; mark moving ones DYN_OBSTACLE (type 2)"})),
       dynamic_min_speed_(declare_float("dynamic_min_speed", 0.25, {.doc = "m/s, a tracked cluster faster than this is dynamic", .min = 0.0, .max = 100.0})),
       cluster_gap_(declare_float("cluster_gap", 0.25, {.doc = "m, neighbouring points closer than this form one cluster", .min = 0.01, .max = 10.0})),
-      cluster_max_size_(declare_float("cluster_max_size", 1.0, {.doc = "m, larger clusters (walls) are not tracked", .min = 0.01, .max = 100.0})) {
+      cluster_max_size_(declare_float("cluster_max_size", 1.0, {.doc = "m, larger clusters (walls) are not tracked", .min = 0.01, .max = 100.0})),
+      odometry_wait_ms_(declare_float("odometry_wait_ms", 500.0, {.doc = "ms a scan waits for odometry at or after its time before it goes out without (counted)", .min = 0.0, .max = 600000.0})),
+      held_(std::make_unique<LadarData[]>(kHeld)) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(LadarData) + 64);
+}
+
+Scan2d::OdometryCounts Scan2d::odometry_counts() const noexcept {
+  OdometryCounts c;
+  c.interpolated = odometry_interpolated_.load(std::memory_order_relaxed);
+  c.missing = odometry_missing_.load(std::memory_order_relaxed);
+  return c;
+}
+
+void Scan2d::describe_status(std::string& out) const {
+  if (odometry_.get_string().empty()) return;
+  const OdometryCounts c = odometry_counts();
+  char line[200];
+  std::snprintf(line, sizeof line, "odometry per scan: %llu interpolated (never extrapolated), %llu missing",
+                static_cast<unsigned long long>(c.interpolated),
+                static_cast<unsigned long long>(c.missing));
+  out += line;
 }
 
 void Scan2d::convert(const LadarData& ladar, const Geometry& g, Scan2dData& out) noexcept {
@@ -82,71 +102,121 @@ void Scan2d::convert(const LadarData& ladar, const Geometry& g, Scan2dData& out)
 }
 
 HookResult Scan2d::on() {
-  odometry_misses_ = 0;
   tracker_.reset();
+  poses_.clear();
+  held_head_ = held_count_ = 0;
+  odometry_interpolated_.store(0, std::memory_order_relaxed);
+  odometry_missing_.store(0, std::memory_order_relaxed);
+  last_scan_rx_ns_ = rt::monotonic_ns();
   const tims::Address ladar = resolved(ladar_);
   const tims::Address odo = resolved(odometry_);
-  if (odo.raw() != 0 && switch_on(odo) != HookResult::kOk) return HookResult::kError;
+  use_odometry_ = odo.raw() != 0;
+  // Odometry first: every sample from before the first scan on.
+  if (use_odometry_ && (switch_on(odo) != HookResult::kOk || subscribe(odo, 0) != HookResult::kOk)) {
+    return HookResult::kError;
+  }
   if (switch_on(ladar) != HookResult::kOk) return HookResult::kError;
   return subscribe(ladar, 0);
 }
 
-void Scan2d::off() { unsubscribe(resolved(ladar_)); }
+void Scan2d::off() {
+  unsubscribe(resolved(ladar_));
+  if (use_odometry_) unsubscribe(resolved(odometry_));
+}
 
-void Scan2d::fill_odometry(int64_t time_ns) noexcept {
-  scan_.odometry_valid = 0;
-  const tims::Address odo = resolved(odometry_);
-  if (odo.raw() == 0) return;
-  wire::GetDataRequest get;
-  get.time_ns = time_ns;
-  alignas(8) std::byte buf[sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(OdometryData) + 160];
-  const auto r = data_endpoint().call(odo, tims::msg::kGetData, get, std::span<std::byte>(buf), settings().rpc_timeout_ns);
-  wire::SampleHeader sh;
-  OdometryData o;
-  if (r.status != tims::CallStatus::kOk || r.reply.type != tims::msg::kData || !read_sample(r.reply, r.body, sh, o)) {
-    ++odometry_misses_;  // published without odometry (odometry_valid 0)
-    return;
+void Scan2d::convert_and_publish(const LadarData& ladar, int64_t time_ns) noexcept {
+  Geometry g;
+  g.mount_x = mount_x_.get_float();
+  g.mount_y = mount_y_.get_float();
+  g.mount_phi = mount_phi_.get_float();
+  g.range_min = range_min_.get_float();
+  g.range_max = range_max_.get_float();
+  g.median = static_cast<int>(median_.get_int()) | 1;
+  g.keep_max_range = keep_max_range_.get_bool();
+  convert(ladar, g, scan_);
+  if (dynamic_objects_.get_bool()) {
+    TrackerOptions o = tracker_.options();
+    o.dynamic_min_speed = dynamic_min_speed_.get_float();
+    o.cluster_gap = cluster_gap_.get_float();
+    o.cluster_max_size = cluster_max_size_.get_float();
+    tracker_.set_options(o);
+    const Pose2d robot = scan_.odometry_valid != 0 ? Pose2d{scan_.odometry_x, scan_.odometry_y, scan_.odometry_phi} : Pose2d{};
+    tracker_.update(scan_, robot, time_ns);
+    (void)tracker_.mark_dynamic(scan_);
   }
-  const double dt = static_cast<double>(time_ns - sh.time_ns) * 1e-9;
-  const Pose2d p = compose(Pose2d{o.x, o.y, o.phi}, integrate_twist(o.vx, 0.0, o.omega, dt));
-  scan_.odometry_x = p.x;
-  scan_.odometry_y = p.y;
-  scan_.odometry_phi = p.phi;
-  scan_.odometry_valid = 1;
+  publish(scan_, time_ns);
+}
+
+void Scan2d::release(bool flush) noexcept {
+  const int64_t now = rt::monotonic_ns();
+  const auto wait_ns = static_cast<int64_t>(odometry_wait_ms_.get_float() * 1e6);
+  while (held_count_ > 0) {
+    const std::size_t i = held_head_;
+    const int64_t t = held_time_ns_[i];
+    Pose2d p;
+    SeriesLookup found = use_odometry_ ? poses_.pose_at(t, p) : SeriesLookup::kEmpty;
+    if (found == SeriesLookup::kTooNew || found == SeriesLookup::kEmpty) {
+      // Not there yet: wait, unless it has waited long enough or must make room.
+      const bool waited = now - held_arrival_ns_[i] >= wait_ns;
+      if (use_odometry_ && !flush && !waited && held_count_ < kHeld) return;
+    }
+    scan_.odometry_valid = 0;
+    if (found == SeriesLookup::kOk) {
+      scan_.odometry_x = p.x;
+      scan_.odometry_y = p.y;
+      scan_.odometry_phi = p.phi;
+      scan_.odometry_valid = 1;
+      odometry_interpolated_.fetch_add(1, std::memory_order_relaxed);
+    } else if (use_odometry_) {
+      odometry_missing_.fetch_add(1, std::memory_order_relaxed);
+    }
+    // convert() fills the points; the odometry fields above stay as set.
+    convert_and_publish(held_[i], t);
+    held_head_ = (held_head_ + 1) % kHeld;
+    --held_count_;
+  }
+}
+
+// One DATA message of the input: a scan (held) or an odometry sample (kept).
+bool Scan2d::take(const tims::MessageHeader& h, std::span<const std::byte> body, bool& got_scan) noexcept {
+  wire::SampleHeader sh;
+  if (h.source().class_id() == tims::classes::kOdometry && use_odometry_) {
+    OdometryData o;
+    if (!read_sample(h, body, sh, o)) return false;
+    if (std::isfinite(o.x) && std::isfinite(o.y) && std::isfinite(o.phi)) (void)poses_.push(sh.time_ns, Pose2d{o.x, o.y, o.phi});
+    return true;
+  }
+  if (held_count_ == kHeld) release(false);  // cannot happen (release() makes room), but never overwrite
+  const std::size_t slot = (held_head_ + held_count_) % kHeld;
+  if (!read_sample(h, body, sh, held_[slot])) return false;
+  held_time_ns_[slot] = sh.time_ns;
+  held_arrival_ns_[slot] = rt::monotonic_ns();
+  ++held_count_;
+  got_scan = true;
+  last_scan_rx_ns_ = held_arrival_ns_[slot];
+  release(false);  // makes room when full; the rest waits for the odometry below
+  return true;
 }
 
 HookResult Scan2d::loop() {
-  bool got = false;
+  bool got_scan = false;
   for (;;) {
-    wire::SampleHeader sh;
-    const Input in = next_sample(sh, ladar_data_);
+    tims::MessageHeader header;
+    const Input in = next_input(header, [&](const tims::MessageHeader& h, std::span<const std::byte> body) {
+      return take(h, body, got_scan);
+    });
     if (in == Input::kNone) break;
-    if (in == Input::kError) return HookResult::kError;  // the ladar left ENABLED
-    got = true;
-    Geometry g;
-    g.mount_x = mount_x_.get_float();
-    g.mount_y = mount_y_.get_float();
-    g.mount_phi = mount_phi_.get_float();
-    g.range_min = range_min_.get_float();
-    g.range_max = range_max_.get_float();
-    g.median = static_cast<int>(median_.get_int()) | 1;
-    g.keep_max_range = keep_max_range_.get_bool();
-    convert(ladar_data_, g, scan_);
-    fill_odometry(sh.time_ns);
-    if (dynamic_objects_.get_bool()) {
-      TrackerOptions o = tracker_.options();
-      o.dynamic_min_speed = dynamic_min_speed_.get_float();
-      o.cluster_gap = cluster_gap_.get_float();
-      o.cluster_max_size = cluster_max_size_.get_float();
-      tracker_.set_options(o);
-      const Pose2d robot = scan_.odometry_valid != 0 ? Pose2d{scan_.odometry_x, scan_.odometry_y, scan_.odometry_phi} : Pose2d{};
-      tracker_.update(scan_, robot, sh.time_ns);
-      (void)tracker_.mark_dynamic(scan_);
+    if (in == Input::kError) {  // the ladar or the odometry left ENABLED
+      release(true);
+      return HookResult::kError;
     }
-    publish(scan_, sh.time_ns);
   }
-  // Nothing usable (a renewal's reply, a refused wake-up): an error only once silent.
-  return got || !input_silent() ? HookResult::kOk : HookResult::kError;  // else the ladar fell silent
+  release(false);
+  if (!got_scan && rt::monotonic_ns() - last_scan_rx_ns_ >= settings().data_timeout_ns) {
+    release(true);
+    return HookResult::kError;  // the ladar fell silent
+  }
+  return HookResult::kOk;
 }
 
 }  // namespace rack::components

@@ -359,6 +359,11 @@ void DataComponentBase::fill_stats(wire::StatsReply& out) const noexcept {
   out.data.latency_p99_ns = s.p99_ns;
   out.data.latency_p999_ns = s.p999_ns;
   out.data.latency_mean_ns = s.mean_ns;
+  const rt::ExecTimeSummary e = exec_stats_.summary();
+  out.exec_samples = e.samples;
+  out.exec_p50_ns = e.p50_ns;
+  out.exec_p99_ns = e.p99_ns;
+  out.exec_max_ns = e.max_ns;
   out.published = published_.load(std::memory_order_relaxed);
   out.listener_drops = listener_drops_.load(std::memory_order_relaxed);
   out.listeners_expired = listeners_expired_.load(std::memory_order_relaxed);
@@ -404,11 +409,13 @@ void DataComponentBase::run_one_cycle() noexcept {
     renew_due_subscriptions(rt::monotonic_ns());
     HookResult r = HookResult::kError;
     rt::modeswitch::enter_cycle();  // primary mode: loop() and nothing else
+    const int64_t started = rt::monotonic_ns();
     try {
       r = loop();
     } catch (...) {
       r = HookResult::kError;
     }
+    exec_stats_.record(rt::monotonic_ns() - started);
     if (rt::modeswitch::leave_cycle().abort) r = HookResult::kError;  // abort mode: to ERROR
     if (r != HookResult::kOk) {
       loop_enabled_.store(false, std::memory_order_seq_cst);

@@ -442,6 +442,12 @@ std::string Executor::status_report() const {
                     c.address().str().c_str(), describe(c.state()), static_cast<unsigned long long>(s.commands));
     }
     out += line;
+    if (s.exec_samples > 0) {  // how long loop() ran, periodic and triggered alike
+      std::snprintf(line, sizeof line, "      execution time p50 %.1f us p99 %.1f us max %.1f us (%llu cycles)\n",
+                    static_cast<double>(s.exec_p50_ns) / 1e3, static_cast<double>(s.exec_p99_ns) / 1e3,
+                    static_cast<double>(s.exec_max_ns) / 1e3, static_cast<unsigned long long>(s.exec_samples));
+      out += line;
+    }
     // Page faults since each task's start-up (target 0 for an RT task); "-" when not
     // measured (the task has not started). Parsed by bench/run: keep the format.
     {

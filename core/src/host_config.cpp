@@ -704,10 +704,11 @@ struct HostLoader {
             error(vnode.Mark(), "component '" + pending[i].component->name() + "' depends on itself");
             continue;
           }
-          deps[i].push_back(it->second);
+          if (!param->spec().weak_ref) deps[i].push_back(it->second);
         } else if (const auto parsed = tims::parse_address(target)) {
           addr = *parsed;
-          if (const auto it2 = by_address.find(addr.component().raw()); it2 != by_address.end()) {
+          if (const auto it2 = by_address.find(addr.component().raw());
+              it2 != by_address.end() && !param->spec().weak_ref) {
             deps[i].push_back(it2->second);
           }
         } else {

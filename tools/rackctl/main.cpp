@@ -593,7 +593,9 @@ int cmd_status(Session& s, const Options& o) {
                     ",\"p50\":" + us(st.data.latency_p50_ns) + ",\"p99\":" + us(st.data.latency_p99_ns) +
                     ",\"p99.9\":" + us(st.data.latency_p999_ns) + ",\"max\":" + us(st.data.latency_max_ns) +
                     ",\"mean\":" + us(st.data.latency_mean_ns) + ",\"samples\":" +
-                    std::to_string(st.data.samples) + "}" + ",\"published\":" + std::to_string(st.published) +
+                    std::to_string(st.data.samples) + "}" + ",\"execution_us\":{\"p50\":" + us(st.exec_p50_ns) +
+                    ",\"p99\":" + us(st.exec_p99_ns) + ",\"max\":" + us(st.exec_max_ns) +
+                    ",\"samples\":" + std::to_string(st.exec_samples) + "}" + ",\"published\":" + std::to_string(st.published) +
                     ",\"listeners\":" + std::to_string(st.listeners) +
                     ",\"listener_drops\":" + std::to_string(st.listener_drops) +
                     ",\"malformed\":" + std::to_string(st.malformed) +
@@ -634,6 +636,12 @@ int cmd_status(Session& s, const Options& o) {
                 us(st.data.latency_max_ns).c_str(), u(st.data.samples));
   } else {
     std::printf("  %-16s none measured\n", "wake-up latency");
+  }
+  if (st.exec_samples > 0) {  // how long loop() ran: periodic and triggered tasks alike
+    std::printf("  %-16s p50 %s us, p99 %s us, max %s us (%llu cycles)\n", "execution time",
+                us(st.exec_p50_ns).c_str(), us(st.exec_p99_ns).c_str(), us(st.exec_max_ns).c_str(), u(st.exec_samples));
+  } else {
+    std::printf("  %-16s none measured\n", "execution time");
   }
   std::printf("  %-16s %llu\n", "published", u(st.published));
   std::printf("  %-16s %llu\n", "listeners", u(st.listeners));
@@ -1048,6 +1056,7 @@ const std::vector<Command>& commands() {
       {"status", "status NAME [--json]", 1, 1, {"--json"},
        "Prints the state and the timing statistics: data task mode and period,\n"
        "cycles, overruns, wake-up latency (min, p50, p99, p99.9, max in us),\n"
+       "execution time of loop() (p50, p99, max in us; triggered tasks too),\n"
        "samples published, listeners, listener drops, malformed requests, commands,\n"
        "and the page faults of the command and data task since their start-up (0 is\n"
        "the target for an RT task; counted once a second by the executor).\n"

@@ -22,8 +22,10 @@ namespace rack::replay {
 
 namespace {
 
-// Rawlogs written without time stamps (old datasets) are replayed at this spacing.
+// Rawlogs written without time stamps (old datasets) are replayed at this spacing,
+// from this time on (replayed samples carry the log's time, which must be positive).
 constexpr double kUntimedSpacing = 0.1;  // s
+constexpr double kUntimedStart = 1.0;    // s
 
 struct Builder {
   LoadLogResult& out;
@@ -37,7 +39,7 @@ struct Builder {
       last_time = mrpt::Clock::toDouble(t);
       have_time = true;
     } else {
-      last_time = have_time ? last_time + kUntimedSpacing : 0.0;
+      last_time = have_time ? last_time + kUntimedSpacing : kUntimedStart;
       have_time = true;
     }
     return last_time;

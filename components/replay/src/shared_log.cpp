@@ -18,8 +18,11 @@ int64_t SharedLog::start(int64_t now_ns) noexcept {
 }
 
 int64_t SharedLog::host_time(double t) const noexcept {
+  if (!(speed_ > 0.0)) return anchor_ns_.load(std::memory_order_acquire);
   return anchor_ns_.load(std::memory_order_acquire) + static_cast<int64_t>(std::llround((t - t0_) / speed_ * 1e9));
 }
+
+int64_t SharedLog::sample_time(double t) noexcept { return static_cast<int64_t>(std::llround(t * 1e9)); }
 
 std::shared_ptr<SharedLog> acquire_shared_log(const std::string& path, double speed, bool strict) {
   static std::mutex mutex;
@@ -35,6 +38,12 @@ std::shared_ptr<SharedLog> acquire_shared_log(const std::string& path, double sp
   LoadLogResult loaded = load_replay_log(path);
   const bool fatal = !loaded.errors.empty() && (strict || (loaded.log.scans.empty() && loaded.log.odometry.empty()));
   if (fatal) throw std::runtime_error(loaded.error_text(5));
+  // Samples carry the log's time: it must be positive and fit int64 nanoseconds.
+  const double first = loaded.log.first_time(), last = loaded.log.last_time();
+  if (!(first > 0.0) || !(last < 9.0e9)) {
+    throw std::runtime_error(path + ": record times must lie in (0, 9e9) s (they become the samples' times); found " +
+                             std::to_string(first) + " .. " + std::to_string(last));
+  }
   if (!loaded.errors.empty()) {
     std::fprintf(stderr, "replay: %zu malformed line(s) skipped (strict: false):\n%s\n", loaded.errors.size(),
                  loaded.error_text(5).c_str());

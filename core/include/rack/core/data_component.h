@@ -53,6 +53,7 @@
 
 #include "rack/core/component.h"
 #include "rack/core/sample_ring.h"
+#include "rack/rt/exec_time_stats.h"
 #include "rack/rt/latency_stats.h"
 #include "rack/rt/pi_mutex.h"
 #include "rack/tims/trusted_sources.h"
@@ -200,6 +201,7 @@ class DataComponentBase : public Component {
   rt::PiMutex listeners_mutex_;      // command task adds/removes, data task sends
   std::vector<Listener> listeners_;
   rt::LatencyStats stats_;
+  rt::ExecTimeStats exec_stats_;  // data task: how long each loop() ran (GET_STATS exec_*)
   // loop() gate. Dekker-style with seq_cst: the command task clears loop_enabled_
   // then waits for in_loop_ false; the data task sets in_loop_ then reads
   // loop_enabled_. One of them must see the other's write, so off() never runs

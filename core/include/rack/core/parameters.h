@@ -32,6 +32,10 @@ class Parameter {
     double min = -std::numeric_limits<double>::infinity();
     double max = std::numeric_limits<double>::infinity();
     bool component_ref = false;  // a string that names a component (dependency)
+    // With component_ref: the named component is not a dependency (no start or
+    // shutdown order), for a reference back up a pipeline that would otherwise be a
+    // cycle (LadarReplay's `pace` names a consumer of its own scans).
+    bool weak_ref = false;
     // A string parameter that takes only these values (e.g. gdosLevel); empty: any.
     std::vector<std::string> choices{};
   };

@@ -141,6 +141,13 @@ struct StatsReply {
                                 // or into its reply mailboxes #1, #2 (dropped)
   uint64_t input_late = 0;      // messages of a producer unsubscribed just before (in flight)
   uint64_t listeners_expired = 0;  // listeners dropped because their lease ran out
+  // Execution time of the data task's cycles (how long loop() ran; periodic and
+  // triggered tasks alike), from a fixed log-linear histogram (rack/rt/exec_time_stats.h,
+  // within 3 %); exec_samples 0: none measured (no data task, or loop() never ran).
+  uint64_t exec_samples = 0;
+  int64_t exec_p50_ns = 0;
+  int64_t exec_p99_ns = 0;
+  int64_t exec_max_ns = 0;
   static constexpr auto fields() noexcept {
     return std::array{
       RACK_FIELD(StatsReply, state), RACK_FIELD(StatsReply, data_task), RACK_FIELD(StatsReply, faults_measured),
@@ -157,7 +164,9 @@ struct StatsReply {
       RACK_FIELD(StatsReply, data_minor_faults), RACK_FIELD(StatsReply, data_major_faults),
       RACK_FIELD(StatsReply, access_denied), RACK_FIELD(StatsReply, input_forged),
       RACK_FIELD(StatsReply, input_requests), RACK_FIELD(StatsReply, input_late),
-      RACK_FIELD(StatsReply, listeners_expired)};
+      RACK_FIELD(StatsReply, listeners_expired),
+      RACK_FIELD(StatsReply, exec_samples), RACK_FIELD(StatsReply, exec_p50_ns),
+      RACK_FIELD(StatsReply, exec_p99_ns), RACK_FIELD(StatsReply, exec_max_ns)};
   }
 };
 

@@ -29,6 +29,9 @@ struct EvaluatorData {
   double mcl_max = 0.0;
   double mcl_heading_rms = 0.0;
   uint64_t unmatched = 0;       // estimates with no truth sample within 20 ms of their time
+                                // (TrajectoryWriter: reference poses without an estimate)
+  uint64_t lost = 0;            // TrajectoryWriter: reference poses estimated further off than
+                                // lost_threshold (the mcl_* fields: ATE against the reference)
   static constexpr auto fields() noexcept {
     return std::array{
         RACK_FIELD(EvaluatorData, distance),         RACK_FIELD(EvaluatorData, position_samples),
@@ -37,7 +40,8 @@ struct EvaluatorData {
         RACK_FIELD(EvaluatorData, position_heading_rms), RACK_FIELD(EvaluatorData, mcl_samples),
         RACK_FIELD(EvaluatorData, mcl_error),        RACK_FIELD(EvaluatorData, mcl_rms),
         RACK_FIELD(EvaluatorData, mcl_p95),          RACK_FIELD(EvaluatorData, mcl_max),
-        RACK_FIELD(EvaluatorData, mcl_heading_rms),  RACK_FIELD(EvaluatorData, unmatched)};
+        RACK_FIELD(EvaluatorData, mcl_heading_rms),  RACK_FIELD(EvaluatorData, unmatched),
+        RACK_FIELD(EvaluatorData, lost)};
   }
 };
 
