@@ -132,6 +132,15 @@ MclOptions bench_options(uint32_t particles, uint64_t seed) {
   o.particles_min = particles;
   o.particles_max = particles;
   o.seed = seed;
+  if (const char* v = std::getenv("MCL_INJECT")) o.inject_max_fraction = std::atof(v);  // experiments
+  if (const char* v = std::getenv("MCL_RATIO")) o.recovery_ratio = std::atof(v);
+  if (const char* v = std::getenv("MCL_LOW")) o.recovery_updates = static_cast<uint32_t>(std::atoi(v));
+  if (const char* v = std::getenv("MCL_OUTLIER")) o.odom_outlier_fraction = std::atof(v);
+  if (const char* v = std::getenv("MCL_OSCALE")) o.odom_outlier_scale = std::atof(v);
+  if (const char* v = std::getenv("MCL_A1")) o.odom_a1 = std::atof(v);
+  if (const char* v = std::getenv("MCL_A3")) o.odom_a3 = std::atof(v);
+  if (const char* v = std::getenv("MCL_SIGMA")) o.sigma_hit = std::atof(v);
+  if (const char* v = std::getenv("MCL_BEAMS")) o.beams = static_cast<uint32_t>(std::atoi(v));
   return o;
 }
 
@@ -151,6 +160,11 @@ Score run_rack(const Data& d, const std::vector<DatasetStep>& steps, const MclOp
     const auto e = f.estimate();
     if (ran && e.injected > 0) ++sc.injections;
     const SimPose ep{e.pose.x, e.pose.y, e.pose.phi};
+    if (std::getenv("MCL_TRACE") != nullptr) {
+      std::fprintf(stderr, "%zu err %.3f fit %.3f cons %.3f ratio %.3f low %u inj %u n %u odo_step %.2f\n", i,
+                   std::hypot(ep.x - s.truth.x, ep.y - s.truth.y), e.fit, e.consistency, e.w_fast / e.w_slow, e.low_updates, e.injected,
+                   e.particles, i > 0 ? std::hypot(s.odometry.x - steps[i - 1].odometry.x, s.odometry.y - steps[i - 1].odometry.y) : 0.0);
+    }
     sc.add(ep, s.truth);
     if (i > 0) sc.add_rel(prev_e, ep, prev_t, s.truth);
     prev_e = ep;
