@@ -18,6 +18,11 @@
 //   bench_mcl_real [--quick] [--seeds N] [--particles N] [--datasets a,b,...]
 //                  [--parts track,kidnap,global] [--json FILE] [--markdown FILE]
 //
+// Experiment knobs (environment, for choosing defaults; not used by bench/run):
+// MCL_TRACE=1 prints every scan of rack's filter to stderr (error, fit, consistency,
+// recovery state); MCL_INJECT, MCL_RATIO, MCL_LOW, MCL_OUTLIER, MCL_OSCALE, MCL_A1,
+// MCL_A3, MCL_SIGMA, MCL_BEAMS override the option of that name on both sides.
+//
 // Not RT code; needs no privileges.
 #include <algorithm>
 #include <chrono>
