@@ -11,7 +11,7 @@
 // accuracy figures come from this simulated run.
 //
 //   bench_mcl [--quick] [--no-latency] [--latency-seconds S] [--parts LIST]
-//             [--particles N,N,...] [--scans N] [--json FILE]
+//             [--particles N,N,...] [--scans N] [--threads 1|2] [--json FILE]
 //     --parts: any of update,accuracy,recovery,latency (default all); --particles and
 //     --scans set the update-time part (default 250..4000, 400 scans per round);
 //     --json writes the update-time figures for bench/run (bench/results_md.py).
@@ -89,6 +89,8 @@ std::vector<Step> record(const rack::maps::OccupancyMap& map, uint64_t seed,
 
 int64_t now_ns() { return rack::rt::monotonic_ns(); }
 
+uint32_t g_threads = 2;  // --threads: MclFilter's likelihood threads in the update-time part
+
 struct Dist {
   std::size_t n = 0;
   double p50 = 0, p95 = 0, p99 = 0, max = 0;  // ms
@@ -148,6 +150,7 @@ std::vector<UpdateResult> bench_update_time(const rack::maps::OccupancyMap& map,
     o.update_angle = 0.0;
     o.beams = c.beams;
     o.seed = 1;
+    o.threads = g_threads;
     std::vector<int64_t> rack_t, ref_t;
     std::vector<double> pair_ratio;
     for (int round = 0; round < 2; ++round) {
@@ -530,6 +533,7 @@ int main(int argc, char** argv) {
     else if (a == "--beams" && i + 1 < argc) carmen_beams = std::atoi(argv[++i]);
     else if (a == "--scans" && i + 1 < argc) scans = static_cast<std::size_t>(std::atol(argv[++i]));
     else if (a == "--json" && i + 1 < argc) json = argv[++i];
+    else if (a == "--threads" && i + 1 < argc) g_threads = static_cast<uint32_t>(std::clamp(std::atoi(argv[++i]), 1, 2));
     else if (a == "--particles" && i + 1 < argc) {
       for (const char* p = argv[++i]; *p != '\0';) {
         char* end = nullptr;
@@ -554,7 +558,7 @@ int main(int argc, char** argv) {
       }
     } else if (a == "-h" || a == "--help") {
       std::printf("bench_mcl [--quick] [--no-latency] [--latency-seconds S] [--parts update,accuracy,recovery,latency]\n"
-                  "          [--particles N,N,...] [--scans N] [--json FILE]\n"
+                  "          [--particles N,N,...] [--scans N] [--threads 1|2] [--json FILE]\n"
                   "bench_mcl --write-carmen FILE [--steps N] [--beams B]   write the simulated tour as a CARMEN log\n");
       return 0;
     } else {

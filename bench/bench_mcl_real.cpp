@@ -16,7 +16,9 @@
 // 0.5 m again and stays (rack with its recovery; MRPT alone has none).
 //
 //   bench_mcl_real [--quick] [--seeds N] [--particles N] [--datasets a,b,...]
-//                  [--parts track,kidnap,global] [--json FILE] [--markdown FILE]
+//                  [--parts track,kidnap,global] [--global-seeds N] [--global-particles N]
+//                  [--global-scans N] [--json FILE] [--markdown FILE] [--perfect-odometry]
+//   (default parts: track,kidnap; global: 10 seeds, 300..20000 particles, first 200 scans)
 //
 // Experiment knobs (environment, for choosing defaults; not used by bench/run):
 // MCL_TRACE=1 prints every scan of rack's filter to stderr (error, fit, consistency,
@@ -263,7 +265,7 @@ void part_track(const std::vector<Data>& sets, int seeds, uint32_t particles) {
     print_side(d.name, "MRPT alone", m);
   }
   out("\nTargets (default options, real data): 0 lost poses; ATE and rotation RMSE within 1.1x MRPT alone "
-      "(worst seed against worst seed):\n\n");
+      "(worst seed against worst seed; lost poses summed over the seeds):\n\n");
   for (std::size_t i = 0; i + 1 < g_rows.size(); i += 2) {
     const Row& a = g_rows[i];
     const Row& b = g_rows[i + 1];
@@ -352,10 +354,72 @@ void part_kidnap(const std::vector<Data>& sets, int seeds, uint32_t particles) {
   }
 }
 
+// Global localisation: uniform start over the free space; travel (reference) until the
+// estimate is within 0.5 m and stays so to the end of the first `scans` scans, and the
+// particle count (KLD) at the end. Both sides particles 300..max.
+void part_global(const std::vector<Data>& sets, int seeds, uint32_t particles_max, std::size_t scans) {
+  out("\n### Global localisation: uniform start, KLD 300..%u particles, first %zu scans, seeds 1..%d\n\n",
+      particles_max, scans, seeds);
+  out("Travel (reference, m) until the estimate is within %.1f m and stays so (never: not within the scans "
+      "used); particle count at the last scan in brackets. MRPT alone starts from MRPT's own uniform "
+      "initialisation over the free cells (resetUniformFreeSpace).\n\n", kLost);
+  out("| dataset | RACK-RT MCL | MRPT alone | converged (rack / MRPT) | rack within 2x MRPT's travel |\n|---|---|---|---|---|\n");
+  for (const auto& d : sets) {
+    if (!d.real) continue;
+    const std::vector<DatasetStep> steps(d.steps.begin(),
+                                         d.steps.begin() + static_cast<std::ptrdiff_t>(std::min(scans, d.steps.size())));
+    std::string rr, mm;
+    int conv_r = 0, conv_m = 0, within = 0;
+    for (int seed = 1; seed <= seeds; ++seed) {
+      MclOptions o = bench_options(particles_max, static_cast<uint64_t>(seed));
+      o.particles_min = 300;
+      std::vector<SimPose> er, em;
+      std::size_t nr = 0, nm = 0;
+      {
+        MclFilter f(*d.map, o);
+        f.init_global();
+        for (const auto& s : steps) {
+          (void)f.update({s.odometry.x, s.odometry.y, s.odometry.phi}, s.scan.xs, s.scan.ys);
+          const auto e = f.estimate();
+          er.push_back({e.pose.x, e.pose.y, e.pose.phi});
+          nr = e.particles;
+        }
+      }
+      {
+        mrpt::random::getRandomGenerator().randomize(static_cast<uint32_t>(seed));
+        MrptReference ref(*d.map, o);
+        ref.set_decimation(decimation_for(steps[0], o.beams));
+        ref.init_global();
+        for (const auto& s : steps) {
+          (void)ref.update(s.odometry, s.scan, true);
+          em.push_back(ref.estimate());
+        }
+        nm = ref.particles();
+      }
+      const double ar = recovered_after<int>(steps, 0, er), am = recovered_after<int>(steps, 0, em);
+      conv_r += ar >= 0 ? 1 : 0;
+      conv_m += am >= 0 ? 1 : 0;
+      within += (ar >= 0 && (am < 0 || ar <= 2.0 * std::max(am, 1.0))) ? 1 : 0;
+      char buf[96];
+      std::snprintf(buf, sizeof buf, "%s%s [%zu]", seed > 1 ? ", " : "",
+                    ar < 0 ? "never" : (std::to_string(static_cast<int>(std::lround(ar))) + " m").c_str(), nr);
+      rr += buf;
+      std::snprintf(buf, sizeof buf, "%s%s [%zu]", seed > 1 ? ", " : "",
+                    am < 0 ? "never" : (std::to_string(static_cast<int>(std::lround(am))) + " m").c_str(), nm);
+      mm += buf;
+    }
+    out("| %s | %s | %s | %d / %d of %d | %d of %d |\n", d.name.c_str(), rr.c_str(), mm.c_str(), conv_r, conv_m, seeds,
+        within, seeds);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   bool quick = false, perfect = false;
+  int global_seeds = 10;
+  uint32_t global_particles = 20000;
+  std::size_t global_scans = 200;
   int seeds = 3;
   uint32_t particles = 1000;
   std::string json, markdown, only;
@@ -370,9 +434,13 @@ int main(int argc, char** argv) {
     else if (a == "--json" && i + 1 < argc) json = argv[++i];
     else if (a == "--markdown" && i + 1 < argc) markdown = argv[++i];
     else if (a == "--perfect-odometry") perfect = true;
+    else if (a == "--global-seeds" && i + 1 < argc) global_seeds = std::max(1, std::atoi(argv[++i]));
+    else if (a == "--global-particles" && i + 1 < argc) global_particles = static_cast<uint32_t>(std::max(300, std::atoi(argv[++i])));
+    else if (a == "--global-scans" && i + 1 < argc) global_scans = static_cast<std::size_t>(std::max(10, std::atoi(argv[++i])));
     else if (a == "-h" || a == "--help") {
       std::printf("bench_mcl_real [--quick] [--seeds N] [--particles N] [--datasets intel,aces,fhw,seattle,sim]\n"
-                  "               [--parts track,kidnap] [--json FILE] [--markdown FILE]\n");
+                  "               [--parts track,kidnap,global] [--global-seeds N] [--global-particles N]\n"
+                  "               [--global-scans N] [--json FILE] [--markdown FILE] [--perfect-odometry]\n");
       return 0;
     } else {
       std::fprintf(stderr, "bench_mcl_real: unknown option %s\n", a.c_str());
@@ -421,6 +489,7 @@ int main(int argc, char** argv) {
   out("\n");
   if (parts.find(",track,") != std::string::npos) part_track(sets, seeds, particles);
   if (parts.find(",kidnap,") != std::string::npos) part_kidnap(sets, seeds, particles);
+  if (parts.find(",global,") != std::string::npos) part_global(sets, global_seeds, global_particles, global_scans);
   if (!markdown.empty()) {
     std::FILE* f = std::fopen(markdown.c_str(), "w");
     if (f != nullptr) {
