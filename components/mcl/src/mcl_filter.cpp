@@ -1,5 +1,8 @@
 #include "rack/mcl/mcl_filter.h"
 
+#include <pthread.h>
+#include <sched.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -86,6 +89,10 @@ class Worker {
 
  private:
   void run() {
+    // Normal scheduling whatever the creating thread had: this is bulk work and must
+    // never compete with the executor's SCHED_FIFO tasks.
+    const sched_param normal{};
+    (void)pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
     std::unique_lock lock(m_);
     for (;;) {
       cv_.wait(lock, [this] { return busy_ || quit_; });
