@@ -321,7 +321,7 @@ void bench_recovery(const rack::maps::OccupancyMap& map, bool quick) {
   const int seeds = quick ? 8 : 20;
   std::printf("\n### Global localisation and kidnapping (travel until the estimate is within 0.3 m and stays)\n\n");
   std::printf("Seeds 11..%d (global) and 21..%d (kidnap); particles 300..8000 (global) and 200..3000 (kidnap); "
-              "'no injection' is the same filter with inject_max_fraction 0, i.e. MRPT's filter as it is.\n\n",
+              "'no injection' is the same filter with inject_max_fraction 0 (no recovery, as MRPT's filter).\n\n",
               10 + seeds, 20 + seeds);
   std::printf("| case | side | within 5 m | within 15 m | within 40 m | never | median m |\n|---|---|---|---|---|---|---|\n");
   for (int kind = 0; kind < 2; ++kind) {
@@ -376,7 +376,7 @@ void bench_recovery(const rack::maps::OccupancyMap& map, bool quick) {
       if (med > 1e8) std::snprintf(medtxt, sizeof medtxt, "never");
       else std::snprintf(medtxt, sizeof medtxt, "%.1f", med);
       std::printf("| %s | %s | %d/%d | %d/%d | %d/%d | %d | %s |\n", kind == 0 ? "global" : "kidnap",
-                  inj ? "**rack (injection)**" : "no injection (MRPT as is)", w5, seeds, w15, seeds, w40, seeds, never,
+                  inj ? "**rack (injection)**" : "no injection (no recovery)", w5, seeds, w15, seeds, w40, seeds, never,
                   medtxt);
       std::fflush(stdout);
     }
