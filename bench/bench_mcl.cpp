@@ -11,7 +11,7 @@
 // accuracy figures come from this simulated run.
 //
 //   bench_mcl [--quick] [--no-latency] [--latency-seconds S] [--parts LIST]
-//             [--particles N,N,...] [--scans N] [--json FILE]
+//             [--particles N,N,...] [--scans N] [--threads 1|2] [--json FILE]
 //     --parts: any of update,accuracy,recovery,latency (default all); --particles and
 //     --scans set the update-time part (default 250..4000, 400 scans per round);
 //     --json writes the update-time figures for bench/run (bench/results_md.py).
@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "bench_common.h"
+#include "mcl_reference.h"
 #include "mcl_sim.h"
 #include "rack/components/builtin.h"
 #include "rack/core/data_component.h"
@@ -54,6 +55,7 @@
 
 namespace {
 
+using rack::bench::MrptReference;
 using rack::bench::Percentiles;
 using rack::mcl::MclFilter;
 using rack::mcl::MclOptions;
@@ -84,115 +86,10 @@ std::vector<Step> record(const rack::maps::OccupancyMap& map, uint64_t seed,
   return steps;
 }
 
-// MRPT's own filter, as its pf-localization application drives it: a grid map, a
-// CSensoryFrame holding a CObservation2DRangeScan, a CActionRobotMovement2D from the
-// odometry increment, CParticleFilter::executeOn. Same options as rack's filter.
-class MrptReference {
- public:
-  MrptReference(const rack::maps::OccupancyMap& map, const MclOptions& o) : opt_(o) {
-    grid_ = std::make_shared<mrpt::maps::COccupancyGridMap2D>();
-    ox_ = map.origin_x();
-    oy_ = map.origin_y();
-    grid_->setSize(0.0F, static_cast<float>(map.width() * map.resolution()), 0.0F,
-                   static_cast<float>(map.height() * map.resolution()), static_cast<float>(map.resolution()), 0.5F);
-    for (int iy = 0; iy < map.height(); ++iy) {
-      for (int ix = 0; ix < map.width(); ++ix) {
-        const auto s = map.cell_state(ix, iy);
-        grid_->setCell(ix, iy, s == rack::maps::CellState::kFree ? 1.0F : (s == rack::maps::CellState::kOccupied ? 0.0F : 0.5F));
-      }
-    }
-    auto& lf = grid_->likelihoodOptions;
-    lf.likelihoodMethod = mrpt::maps::COccupancyGridMap2D::lmLikelihoodField_Thrun;
-    lf.LF_stdHit = static_cast<float>(o.sigma_hit);
-    lf.LF_zHit = static_cast<float>(o.z_hit);
-    lf.LF_zRandom = static_cast<float>(o.z_random);
-    lf.LF_maxRange = static_cast<float>(o.max_range);
-    lf.LF_maxCorrsDistance = static_cast<float>(o.max_corr_distance);
-    lf.enableLikelihoodCache = true;
-    pf_.m_options.PF_algorithm = mrpt::bayes::CParticleFilter::pfStandardProposal;
-    pf_.m_options.resamplingMethod = mrpt::bayes::CParticleFilter::prMultinomial;
-    pf_.m_options.adaptiveSampleSize = true;
-    pf_.m_options.powFactor = o.likelihood_power;
-    auto& kld = pdf_.options.KLD_params;
-    kld.KLD_minSampleSize = o.particles_min;
-    kld.KLD_maxSampleSize = o.particles_max;
-    kld.KLD_binSize_XY = o.kld_bin_xy;
-    kld.KLD_binSize_PHI = o.kld_bin_phi;
-    kld.KLD_delta = o.kld_delta;
-    kld.KLD_epsilon = o.kld_epsilon;
-    pdf_.options.metricMap = grid_;
-  }
-  void set_decimation(uint32_t d) { grid_->likelihoodOptions.LF_decimation = d; }
-
-  void init_pose(const SimPose& p, double sxy, double sphi, uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::normal_distribution<double> nxy(0.0, sxy), nphi(0.0, sphi);
-    pdf_.m_particles.resize(opt_.particles_max);
-    for (auto& part : pdf_.m_particles) {
-      part.d = mrpt::math::TPose2D(p.x - ox_ + nxy(rng), p.y - oy_ + nxy(rng), p.phi + nphi(rng));
-      part.log_w = 0;
-    }
-    have_odo_ = false;
-  }
-
-  // One update from the odometry pose and the raw scan; false when gated.
-  bool update(const SimPose& odo_pose, const SimScan& s, bool gate) {
-    const mrpt::poses::CPose2D odo(odo_pose.x, odo_pose.y, odo_pose.phi);
-    if (!have_odo_) {
-      last_ = odo;
-      have_odo_ = true;
-    }
-    const mrpt::poses::CPose2D incr = odo - last_;
-    if (gate && std::hypot(incr.x(), incr.y()) < opt_.update_distance && std::fabs(incr.phi()) < opt_.update_angle &&
-        updates_ > 0) {
-      return false;
-    }
-    auto obs = mrpt::obs::CObservation2DRangeScan::Create();
-    obs->aperture = static_cast<float>(1.5 * std::numbers::pi);
-    obs->rightToLeft = true;
-    obs->maxRange = s.max_range;
-    obs->resizeScan(s.ranges.size());
-    for (std::size_t i = 0; i < s.ranges.size(); ++i) {
-      obs->setScanRange(i, s.ranges[i]);
-      obs->setScanRangeValidity(i, s.valid[i] != 0);
-    }
-    mrpt::obs::CSensoryFrame sf;
-    sf.insert(obs);
-    mrpt::obs::CActionRobotMovement2D move;
-    move.motionModelConfiguration.modelSelection = mrpt::obs::CActionRobotMovement2D::mmGaussian;
-    auto& g = move.motionModelConfiguration.gaussianModel;
-    g.a1 = opt_.odom_a1;
-    g.a2 = opt_.odom_a2;
-    g.a3 = opt_.odom_a3;
-    g.a4 = opt_.odom_a4;
-    g.minStdXY = opt_.odom_min_std_xy;
-    g.minStdPHI = opt_.odom_min_std_phi;
-    move.computeFromOdometry(incr, move.motionModelConfiguration);
-    mrpt::obs::CActionCollection actions;
-    actions.insert(move);
-    pf_.executeOn(pdf_, &actions, &sf);
-    last_ = odo;
-    ++updates_;
-    return true;
-  }
-  SimPose estimate() const {
-    mrpt::poses::CPose2D m;
-    pdf_.getMean(m);
-    return {m.x() + ox_, m.y() + oy_, m.phi()};
-  }
-
- private:
-  MclOptions opt_;
-  std::shared_ptr<mrpt::maps::COccupancyGridMap2D> grid_;
-  double ox_ = 0, oy_ = 0;
-  mrpt::slam::CMonteCarloLocalization2D pdf_{1};
-  mrpt::bayes::CParticleFilter pf_;
-  mrpt::poses::CPose2D last_;
-  bool have_odo_ = false;
-  uint64_t updates_ = 0;
-};
 
 int64_t now_ns() { return rack::rt::monotonic_ns(); }
+
+uint32_t g_threads = 2;  // --threads: MclFilter's likelihood threads in the update-time part
 
 struct Dist {
   std::size_t n = 0;
@@ -253,6 +150,7 @@ std::vector<UpdateResult> bench_update_time(const rack::maps::OccupancyMap& map,
     o.update_angle = 0.0;
     o.beams = c.beams;
     o.seed = 1;
+    o.threads = g_threads;
     std::vector<int64_t> rack_t, ref_t;
     std::vector<double> pair_ratio;
     for (int round = 0; round < 2; ++round) {
@@ -423,7 +321,7 @@ void bench_recovery(const rack::maps::OccupancyMap& map, bool quick) {
   const int seeds = quick ? 8 : 20;
   std::printf("\n### Global localisation and kidnapping (travel until the estimate is within 0.3 m and stays)\n\n");
   std::printf("Seeds 11..%d (global) and 21..%d (kidnap); particles 300..8000 (global) and 200..3000 (kidnap); "
-              "'no injection' is the same filter with inject_max_fraction 0, i.e. MRPT's filter as it is.\n\n",
+              "'no injection' is the same filter with inject_max_fraction 0 (no recovery, as MRPT's filter).\n\n",
               10 + seeds, 20 + seeds);
   std::printf("| case | side | within 5 m | within 15 m | within 40 m | never | median m |\n|---|---|---|---|---|---|---|\n");
   for (int kind = 0; kind < 2; ++kind) {
@@ -478,7 +376,7 @@ void bench_recovery(const rack::maps::OccupancyMap& map, bool quick) {
       if (med > 1e8) std::snprintf(medtxt, sizeof medtxt, "never");
       else std::snprintf(medtxt, sizeof medtxt, "%.1f", med);
       std::printf("| %s | %s | %d/%d | %d/%d | %d/%d | %d | %s |\n", kind == 0 ? "global" : "kidnap",
-                  inj ? "**rack (injection)**" : "no injection (MRPT as is)", w5, seeds, w15, seeds, w40, seeds, never,
+                  inj ? "**rack (injection)**" : "no injection (no recovery)", w5, seeds, w15, seeds, w40, seeds, never,
                   medtxt);
       std::fflush(stdout);
     }
@@ -635,6 +533,7 @@ int main(int argc, char** argv) {
     else if (a == "--beams" && i + 1 < argc) carmen_beams = std::atoi(argv[++i]);
     else if (a == "--scans" && i + 1 < argc) scans = static_cast<std::size_t>(std::atol(argv[++i]));
     else if (a == "--json" && i + 1 < argc) json = argv[++i];
+    else if (a == "--threads" && i + 1 < argc) g_threads = static_cast<uint32_t>(std::clamp(std::atoi(argv[++i]), 1, 2));
     else if (a == "--particles" && i + 1 < argc) {
       for (const char* p = argv[++i]; *p != '\0';) {
         char* end = nullptr;
@@ -659,7 +558,7 @@ int main(int argc, char** argv) {
       }
     } else if (a == "-h" || a == "--help") {
       std::printf("bench_mcl [--quick] [--no-latency] [--latency-seconds S] [--parts update,accuracy,recovery,latency]\n"
-                  "          [--particles N,N,...] [--scans N] [--json FILE]\n"
+                  "          [--particles N,N,...] [--scans N] [--threads 1|2] [--json FILE]\n"
                   "bench_mcl --write-carmen FILE [--steps N] [--beams B]   write the simulated tour as a CARMEN log\n");
       return 0;
     } else {

@@ -821,6 +821,9 @@ def section_generic(c, keys):
         if d.get("about"):
             c.w(d["about"])
             c.w("")
+        if d.get("markdown"):  # a benchmark that writes its own tables (bench_mcl_real)
+            c.w(d["markdown"].rstrip("\n"))
+            c.w("")
         for cmp in d.get("comparisons", []):
             rack, ref = cmp.get("rack", {}), cmp.get("reference", {})
             metric = cmp.get("metric", "p50_ns")

@@ -52,16 +52,27 @@ Mcl::Mcl()
       global_(declare_bool("global", false, {.doc = "start with global localisation over the map's free space"})),
       update_distance_(declare_float("update_distance", 0.10, {.doc = "run the filter after this much travel (m)", .min = 0.0, .max = 100.0})),
       update_angle_(declare_float("update_angle", 0.10, {.doc = "... or this much turn (rad)", .min = 0.0, .max = 10.0})),
-      odometry_jump_(declare_float("odometry_jump", 1.0, {.doc = "odometry moving more than this between two scans is a jump (RESET): re-anchor, do not move (m; 0: off)", .min = 0.0, .max = 1e3})),
+      odometry_jump_(declare_float("odometry_jump", 5.0, {.doc = "an odometry increment longer than this between two consecutive scans is a jump (RESET): that increment is dropped, the motion before it kept (m; 0: off)", .min = 0.0, .max = 1e3})),
       beams_(declare_int("beams", 60, {.doc = "scan points used per update, evenly chosen (0: all)", .min = 0, .max = 100000})),
-      sigma_hit_(declare_float("sigma_hit", 0.10, {.doc = "likelihood field: std dev of a point's distance to the nearest wall (m)", .min = 1e-3, .max = 10.0})),
-      max_range_(declare_float("max_range", 30.0, {.doc = "likelihood field: sensor range for the random-reading term (m)", .min = 0.1, .max = 1000.0})),
-      odom_noise_xy_(declare_float("odom_noise_xy", 0.05, {.doc = "motion model: translation std dev per metre travelled (m/m)", .min = 0.0, .max = 10.0})),
-      odom_noise_phi_(declare_float("odom_noise_phi", 0.05, {.doc = "motion model: rotation std dev per radian turned (rad/rad)", .min = 0.0, .max = 10.0})),
-      inject_max_fraction_(declare_float("inject_max_fraction", 0.10, {.doc = "recovery: most random particles added per update, as a fraction of particles_max", .min = 0.0, .max = 1.0})),
-      fit_min_(declare_float("fit_min", 0.6, {.doc = "recovery: inject while the scan fit (MclData.fit) stays below this (0: off)", .min = 0.0, .max = 0.99})),
-      alpha_slow_(declare_float("alpha_slow", 0.01, {.doc = "recovery: long-term scan-fit average rate", .min = 1e-6, .max = 1.0})),
-      alpha_fast_(declare_float("alpha_fast", 0.2, {.doc = "recovery: short-term scan-fit average rate (> alpha_slow)", .min = 1e-6, .max = 1.0})),
+      sigma_hit_(declare_float("sigma_hit", 0.10, {.doc = "likelihood field: std dev of a point's distance to the nearest wall (m): sensor noise plus map error", .min = 1e-3, .max = 10.0})),
+      max_range_(declare_float("max_range", 30.0, {.doc = "likelihood field: support of the random-reading term (m)", .min = 0.1, .max = 1000.0})),
+      max_corr_distance_(declare_float("max_corr_distance", 0.5, {.doc = "likelihood field: distances to a wall beyond this count as this far; also for points outside the map (m)", .min = 0.01, .max = 100.0})),
+      odom_a1_(declare_float("odom_a1", 0.20, {.doc = "motion model: translation std dev per metre travelled (m/m; MRPT's a1)", .min = 0.0, .max = 10.0})),
+      odom_a2_(declare_float("odom_a2", 0.001, {.doc = "motion model: translation std dev per radian turned (m/rad; MRPT's a2)", .min = 0.0, .max = 10.0})),
+      odom_a3_(declare_float("odom_a3", 0.05, {.doc = "motion model: heading std dev per metre travelled (rad/m; MRPT's a3)", .min = 0.0, .max = 10.0})),
+      odom_a4_(declare_float("odom_a4", 0.05, {.doc = "motion model: heading std dev per radian turned (rad/rad; MRPT's a4)", .min = 0.0, .max = 10.0})),
+      odom_min_std_xy_(declare_float("odom_min_std_xy", 0.01, {.doc = "motion model: least translation std dev per update (m)", .min = 0.0, .max = 10.0})),
+      odom_min_std_phi_(declare_float("odom_min_std_phi", 0.01, {.doc = "motion model: least heading std dev per update (rad)", .min = 0.0, .max = 10.0})),
+      odom_outlier_fraction_(declare_float("odom_outlier_fraction", 0.10, {.doc = "motion model: fraction of particles moved with odom_outlier_scale times the noise (odometry that stalls or slips; 0: off)", .min = 0.0, .max = 1.0})),
+      odom_outlier_scale_(declare_float("odom_outlier_scale", 3.0, {.doc = "motion model: noise factor for that fraction", .min = 1.0, .max = 1000.0})),
+      recovery_ratio_(declare_float("recovery_ratio", 0.5, {.doc = "recovery: lost when the short-term scan fit is below this times the long-term one ...", .min = 0.01, .max = 0.99})),
+      recovery_consistency_(declare_float("recovery_consistency", 0.9, {.doc = "... and the short-term share of beams not through a wall is below this times the long-term one ...", .min = 0.01, .max = 1.0})),
+      recovery_updates_(declare_int("recovery_updates", 5, {.doc = "... for this many updates in a row: then random particles are injected", .min = 1, .max = 1000})),
+      inject_max_fraction_(declare_float("inject_max_fraction", 0.50, {.doc = "recovery: most random particles added per update while lost, as a fraction of particles_max (0: no recovery)", .min = 0.0, .max = 1.0})),
+      fit_min_(declare_float("fit_min", 0.0, {.doc = "recovery: also lost while the short-term scan fit (MclData.fit) stays below this (0: off; clutter lowers the fit)", .min = 0.0, .max = 0.99})),
+      alpha_slow_(declare_float("alpha_slow", 0.01, {.doc = "recovery: long-term average rate", .min = 1e-6, .max = 1.0})),
+      alpha_fast_(declare_float("alpha_fast", 0.2, {.doc = "recovery: short-term average rate (> alpha_slow)", .min = 1e-6, .max = 1.0})),
+      threads_(declare_int("threads", 2, {.doc = "threads evaluating the scan likelihood (1 or 2: one helper thread, normal scheduling)", .min = 1, .max = 2})),
       seed_(declare_int("seed", 0, {.doc = "random seed (0: from the clock)", .min = 0, .max = 4294967295.0})),
       show_particles_(declare_int("show_particles", 100, {.doc = "particles published per sample (at most 256)", .min = 0, .max = interfaces::kMclMaxShownParticles})),
       position_max_std_(declare_float("position_max_std", 0.5, {.doc = "send Position UPDATE only when the position std dev is below this (m)", .min = 0.0, .max = 1e3})) {
@@ -81,13 +92,23 @@ mcl::MclOptions Mcl::read_options() const {
   o.odometry_jump = odometry_jump_.get_float();
   o.sigma_hit = sigma_hit_.get_float();
   o.max_range = max_range_.get_float();
-  o.odom_a1 = odom_noise_xy_.get_float();
-  o.odom_a3 = odom_noise_xy_.get_float() * 0.4;  // rad per metre: heading drift of a travelling robot
-  o.odom_a4 = odom_noise_phi_.get_float();
+  o.max_corr_distance = max_corr_distance_.get_float();
+  o.odom_a1 = odom_a1_.get_float();
+  o.odom_a2 = odom_a2_.get_float();
+  o.odom_a3 = odom_a3_.get_float();
+  o.odom_a4 = odom_a4_.get_float();
+  o.odom_min_std_xy = odom_min_std_xy_.get_float();
+  o.odom_min_std_phi = odom_min_std_phi_.get_float();
+  o.odom_outlier_fraction = odom_outlier_fraction_.get_float();
+  o.odom_outlier_scale = odom_outlier_scale_.get_float();
+  o.recovery_ratio = recovery_ratio_.get_float();
+  o.recovery_consistency = recovery_consistency_.get_float();
+  o.recovery_updates = static_cast<uint32_t>(recovery_updates_.get_int());
   o.inject_max_fraction = inject_max_fraction_.get_float();
   o.fit_min = fit_min_.get_float();
   o.alpha_slow = alpha_slow_.get_float();
   o.alpha_fast = alpha_fast_.get_float();
+  o.threads = static_cast<uint32_t>(threads_.get_int());
   o.seed = static_cast<uint64_t>(seed_.get_int());
   return o;
 }

@@ -216,7 +216,7 @@ TEST_F(MclFilterTest, OdometryJumpIsReanchoredNotApplied) {
   ScriptedRobot robot(*map_, SimConfig{}, 61);
   robot.place({2.0, 8.0, 0.0});
   f.init_pose({2.0, 8.0, 0.0}, 0.05, 0.02);
-  for (int i = 0; i < 60 && !robot.step_towards(8.0, 8.0); ++i) {
+  for (int i = 0; i < 200 && !robot.step_towards(8.0, 8.0); ++i) {  // 6 m: above odometry_jump (5 m)
     const test::SimScan s = robot.scan();
     const SimPose od = robot.odometry();
     (void)f.update({od.x, od.y, od.phi}, s.xs, s.ys);

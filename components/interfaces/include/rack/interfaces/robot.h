@@ -248,8 +248,8 @@ struct MclData {
   float particle_phi[kMclMaxShownParticles] = {};
   float particle_weight[kMclMaxShownParticles] = {};  // normalised over the shown ones
   // Added by the MCL component (fields at the end): how well the scan fits the map at
-  // the particles, per point (geometric mean of the likelihood field, in (0, 1]); MCL
-  // injects random particles while it stays below the `fit_min` parameter.
+  // the particles, per point (geometric mean of the likelihood field, in (0, 1]); one
+  // half of MCL's recovery evidence (the other: the beams' consistency with the map).
   float fit = 0.0F;
   uint32_t pad2_ = 0;
   static constexpr auto fields() noexcept {

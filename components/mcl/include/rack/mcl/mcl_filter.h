@@ -1,36 +1,42 @@
-// Monte Carlo localisation on an occupancy grid, built on MRPT's particle filter
-// (mrpt::slam::CMonteCarloLocalization2D; MRPT stays behind this header, linked
-// privately to the MCL target only).
+// Monte Carlo localisation on an occupancy grid (Thrun, Burgard, Fox, Probabilistic
+// Robotics, ch. 8), on MRPT's particle set (mrpt::slam::CMonteCarloLocalization2D; MRPT
+// stays behind this header, linked privately to the MCL target only).
 //
-// What MRPT gives: the particle set, the odometry motion model
-// (CActionRobotMovement2D, Gaussian model), KLD-sampling (adaptive particle count
-// between particles_min and particles_max) and Thrun's likelihood field on a
-// COccupancyGridMap2D. What this class adds:
+// One filter step (update()): KLD-sampling (Fox 2003) draws the new particles from the
+// weighted old ones, each moved by the odometry increment plus noise (the motion model
+// below), then weighs each by the scan (the likelihood field below), split over
+// `threads` threads, then the recovery test. What this class adds over MRPT's filter:
 // - the map conversion from rack::maps::OccupancyMap (free/occupied/unknown cells);
 // - robot-frame scan points as the observation (Scan2D output: any bearings, no
 //   regular beam layout needed), evenly subsampled to `beams` points;
 // - update gating: the filter runs only after `update_distance` or `update_angle` of
 //   odometry (the estimate in between is the last one composed with odometry);
-// - random particle injection for recovery (augmented MCL, Thrun et al.,
-//   Probabilistic Robotics, table 8.3): short- and long-term averages w_fast, w_slow
-//   of the scan fit; while w_fast < w_slow, p = 1 - w_fast / w_slow; also while
-//   w_fast < fit_min, p = 1 - w_fast / fit_min (a filter that converged to a wrong
-//   place never had a good fit to drop from). p * particles_max poses (p at most
-//   `inject_max_fraction`) drawn uniformly over the map's free cells are added,
-//   weighted by the current scan;
+// - a motion model with a heavy tail: MRPT's Gaussian model (a1..a4, minimum std devs),
+//   plus a fraction `odom_outlier_fraction` of the particles moved with
+//   `odom_outlier_scale` times that noise, so that one odometry read-out that stalled or
+//   slipped (real odometry does) does not leave the whole cloud behind;
+// - recovery that tells a kidnap from a bad scan (see the options): random particles
+//   only after the scan fit stayed low for several updates;
 // - initialisation around a pose with a spread, or globally over the free space.
 //
-// The scan fit w of a particle is the per-point geometric mean of the likelihood
-// field, exp(log-likelihood / points): unlike the product over points it does not
-// underflow, and it reads as "how well does an average point fit" (in (0, 1]).
+// Likelihood field (Thrun's, as MRPT's lmLikelihoodField_Thrun): a point at distance d
+// from the nearest occupied cell has p = z_hit * exp(-d^2 / (2 sigma_hit^2)) +
+// z_random / max_range, d capped at max_corr_distance; a point outside the map counts
+// as d = max_corr_distance. Precomputed per cell (a distance transform at
+// construction), so a scan costs one look-up per point and particle, read-only and
+// shared by the threads. The scan's log-likelihood is the sum over points times
+// likelihood_power.
+//
+// The scan fit w of a particle is the per-point geometric mean of the likelihood,
+// exp(log-likelihood / points), in (0, 1]: "how well does an average point fit".
 //
 // Coordinates: map frame of the OccupancyMap (origin applied); odometry poses are in
 // the odometry frame and only their increments are used.
 //
-// Real-time contract: nothing here is RT-safe (MRPT allocates in every update); run it
-// in a non-RT (priority 0) or low-priority task. Thread-safety: one thread per
-// instance. MRPT draws from one process-wide random generator; updates of all
-// instances in a process are serialised by a process-wide lock for that reason.
+// Real-time contract: nothing here is RT-safe (allocates; with threads > 1 hands work to
+// a helper thread made at construction, normal scheduling, and waits for it); run it in
+// a non-RT (priority 0) or low-priority task. Thread-safety: one thread per instance.
+// Draws come from the instance's own generator (seed), so instances are independent.
 #pragma once
 
 #include <cstdint>
@@ -59,26 +65,51 @@ struct MclOptions {
   double max_corr_distance = 0.5; // m: distances beyond count as this far
   uint32_t beams = 60;            // points used per scan (evenly chosen); 0: all
   double likelihood_power = 1.0;  // exponent on the scan likelihood (< 1 flattens)
-  // Odometry motion model (MRPT's Gaussian model).
-  double odom_a1 = 0.05;          // m/m: translation noise per metre
+  // Odometry motion model, MRPT's Gaussian model (CActionRobotMovement2D): for an
+  // increment of d metres and a radians, std dev of x and y (robot frame)
+  // max(odom_min_std_xy, a1 d + a2 a), of the heading max(odom_min_std_phi, a3 d + a4 a).
+  double odom_a1 = 0.20;          // m/m: translation noise per metre
   double odom_a2 = 0.001;         // m/rad: translation noise per radian turned
-  double odom_a3 = 0.02;          // rad/m: rotation noise per metre
+  double odom_a3 = 0.05;          // rad/m: rotation noise per metre (heading drift)
   double odom_a4 = 0.05;          // rad/rad: rotation noise per radian
   double odom_min_std_xy = 0.01;  // m
   double odom_min_std_phi = 0.01; // rad
-  // Odometry increments longer than this between two scans are a jump (an Odometry
-  // RESET): MCL re-anchors on the new odometry instead of moving the particles (0: off).
-  double odometry_jump = 1.0;     // m
+  // The heavy tail: this fraction of the particles moves with odom_outlier_scale times
+  // the noise above (0: MRPT's model alone).
+  double odom_outlier_fraction = 0.10;
+  double odom_outlier_scale = 3.0;
+  // An odometry increment longer than this between two consecutive scans is a jump (an
+  // Odometry RESET, a restarted driver): that one increment is dropped (the motion
+  // before it is kept) instead of moving the particles (0: off). Far above any real
+  // motion between two scans, an odometry catch-up after a stall included.
+  double odometry_jump = 5.0;     // m
   // Update gating.
   double update_distance = 0.10;  // m of odometry travel
   double update_angle = 0.10;     // rad of odometry turn
-  // Recovery (augmented MCL).
+  // Recovery that tells a kidnap from a bad scan. Two pieces of evidence, each with a
+  // short- and long-term average (AMCL's w_fast, w_slow; Thrun et al. table 8.3): the
+  // scan fit (below) and the scan's consistency with the map at the estimate (the
+  // fraction of beams that do not pass through an occupied cell before their end: a
+  // person or a crowd makes short readings, which are consistent; a robot that is
+  // elsewhere sees through the map's walls). The robot counts as lost only when both
+  // dropped, w_fast < recovery_ratio * w_slow and c_fast < recovery_consistency * c_slow,
+  // for recovery_updates consecutive updates; then, while it stays so, (1 - w_fast /
+  // w_slow) * particles_max random poses over the free space (at most
+  // inject_max_fraction of particles_max) are added per update, weighted by the scan
+  // like the others. After init_global() the long-term averages start at a perfect fit,
+  // so a cloud that converged to a wrong place counts as lost too.
   double alpha_slow = 0.01;
   double alpha_fast = 0.2;
-  double inject_max_fraction = 0.10;  // of particles_max, added per update at most
-  // Inject also while the short-term fit stays below this (0: only on a drop).
-  double fit_min = 0.6;
-  // Random seed for this filter's draws and MRPT's generator (0: from the clock).
+  double recovery_ratio = 0.5;
+  double recovery_consistency = 0.9;
+  uint32_t recovery_updates = 5;
+  double inject_max_fraction = 0.50;  // of particles_max, added per update at most (0: no recovery)
+  // Also count an update as "low" while w_fast stays below this absolute fit (0: off; a
+  // real scan's fit depends on clutter and the map, so off by default).
+  double fit_min = 0.0;
+  // Threads evaluating the likelihood (1: the caller's only; 2: one helper thread).
+  uint32_t threads = 2;
+  // Random seed for this filter's draws (0: from the clock).
   uint64_t seed = 0;
 };
 
@@ -98,7 +129,10 @@ struct MclEstimate {
   uint64_t updates = 0;         // filter updates since the last init
   double w_slow = 0.0, w_fast = 0.0;  // scan-fit averages (recovery)
   double fit = 0.0;             // mean scan fit at the last update
-  uint64_t odometry_jumps = 0;  // odometry discontinuities re-anchored on (since construction)
+  double consistency = 0.0;     // fraction of the last scan's beams not through a wall at the estimate
+  uint32_t low_updates = 0;     // consecutive updates with w_fast < recovery_ratio * w_slow
+  uint64_t recoveries = 0;      // updates that injected (since the last init)
+  uint64_t odometry_jumps = 0;  // odometry discontinuities dropped (since construction)
 };
 
 class MclFilter {
