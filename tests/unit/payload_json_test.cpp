@@ -38,6 +38,17 @@ const tims::FieldDesc& field(const char* name) {
 
 std::span<std::byte> bytes(Mixed& m) { return {reinterpret_cast<std::byte*>(&m), sizeof m}; }
 
+// JSON text is UTF-8: a char array's bytes that are not (a sender's garbage) become
+// U+FFFD; well-formed sequences pass (found by fuzz_payload: rack-gui dropped the sample).
+TEST(JsonEscape, KeepsWellFormedUtf8AndReplacesInvalidBytes) {
+  EXPECT_EQ(json_escape("gr\xc3\xbc\xc3\x9f \xe2\x82\xac \xf0\x9f\xa4\x96"), "gr\xc3\xbc\xc3\x9f \xe2\x82\xac \xf0\x9f\xa4\x96");
+  EXPECT_EQ(json_escape("the\xad*reason"), "the\\ufffd*reason");
+  EXPECT_EQ(json_escape("\xc3"), "\\ufffd");              // cut sequence
+  EXPECT_EQ(json_escape("\xc0\xaf"), "\\ufffd\\ufffd");   // overlong '/'
+  EXPECT_EQ(json_escape("\xed\xa0\x80"), "\\ufffd\\ufffd\\ufffd");  // a surrogate
+  EXPECT_EQ(json_escape("a\"b\\\x01"), "a\\\"b\\\\\\u0001");
+}
+
 TEST(SetFieldFromText, SetsEachKind) {
   Mixed m;
   EXPECT_EQ(set_field_from_text(field("small"), bytes(m), "-12"), "");
