@@ -14,9 +14,9 @@
 //      as it was;
 //   2  table: the class tables the tools use (data_type_for_class,
 //      commands_for_class; byte 0 is the class id) and payload_to_json() through them.
-// Types larger than 64 KiB (camera frames, 3-D scans, range images) are printed from
-// the bytes the input has rather than their whole size, which keeps a run fast; every
-// field kind and array form is in the smaller types.
+// Types larger than 16 KiB (camera frames, 3-D and 2-D scans, range images, paths) are
+// printed from the bytes the input has rather than their whole size, which keeps a run
+// fast; every field kind and array form is in the smaller types.
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -48,7 +48,7 @@ namespace tims = rack::tims;
 namespace wire = rack::wire;
 namespace ifc = rack::interfaces;
 
-constexpr std::size_t kWholeJsonLimit = 64 * 1024;
+constexpr std::size_t kWholeJsonLimit = 16 * 1024;
 
 // The input cut or zero-padded to `size` bytes.
 std::vector<std::byte> exact_body(std::span<const uint8_t> input, std::size_t size) {

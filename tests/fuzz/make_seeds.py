@@ -67,7 +67,7 @@ record = struct.pack(">qqi", 5, 1, 0x01400100) + lcm_string("gen") + struct.pack
 batch = struct.pack(">q", 5) + lcm_string("host-a") + struct.pack(">ii", 4242, 2) + record + record
 packet = struct.pack(">qqiiiiibbi", 1234, 0, 1, 1, 16, 16, 0, 0, 0, 16) + tims_header(False, 3, 0, 1, 1, 2, b"")
 listener = struct.pack(">q", 5) + lcm_string("gdos") + struct.pack(">i", 99)
-write("lcm_types", [bytes([0]) + packet, bytes([1]) + component, bytes([2]) + announce, bytes([3]) + discover,
+write("lcm_gen", [bytes([0]) + packet, bytes([1]) + component, bytes([2]) + announce, bytes([3]) + discover,
                     bytes([4]) + record, bytes([5]) + batch, bytes([6]) + listener])
 
 # NMEA: byte 0 piece size; the textbook sentences (gpsd's documentation).

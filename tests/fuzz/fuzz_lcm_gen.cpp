@@ -12,14 +12,14 @@
 //     std::length_error (one such TIMS_ANNOUNCE aborted rackd), and a length of
 //     INT32_MIN is worse: `len - 1` overflows (undefined behaviour; in practice
 //     INT32_MAX) and assign() reads 2 GiB past the datagram (found by this harness:
-//     regressions/lcm_types/);
+//     regressions/lcm_gen/);
 //   - an array count or byte count is allocated (vector::resize) before the buffer is
 //     checked to hold that many elements: a 2^31 count asks for tens of GB.
-// The project has no safe decode wrapper yet (README.md, "lcm-gen decoders"): this
-// harness checks every string length and count first (safe_to_decode below, which
-// walks the message as lcm-gen's decoder does), decodes only what passes, and then
-// requires that decode() neither throws nor fails on it for a reason other than the
-// end of the bytes. When the project has its wrapper, the harness calls that instead.
+// This branch has no safe decode wrapper (README.md, "lcm-gen decoders"): the harness
+// checks every string length and count first (safe_to_decode below, which walks the
+// message as lcm-gen's decoder does), decodes only what passes, and requires decode()
+// not to throw on it. The receivers' own total decoders are fuzzed against lcm-gen's
+// by fuzz_lcm_types (the network helper's).
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
