@@ -157,7 +157,8 @@ std::string store_integer(std::byte* p, const std::string& text) {
   if constexpr (std::is_signed_v<T>) {
     int64_t v = 0;
     const char* first = text.data();
-    if (!text.empty() && text[0] == '+') ++first;
+    // A '+' may stand where a '-' could; "+-5" is not a number (it read as -5).
+    if (!text.empty() && text[0] == '+' && (text.size() == 1 || text[1] != '-')) ++first;
     const auto [ptr, ec] = std::from_chars(first, text.data() + text.size(), v);
     if (ec != std::errc() || ptr != text.data() + text.size() || first == text.data() + text.size()) {
       return "'" + text + "' is not an integer";
@@ -235,6 +236,7 @@ std::string set_field_from_text(const tims::FieldDesc& field, std::span<std::byt
       return "a text of at most " + std::to_string(field.count - 1) + " characters is needed, got " +
              std::to_string(text.size());
     }
+    if (text.find('\0') != std::string::npos) return "a text with a NUL character would be cut there";
     std::memset(base, 0, field.count);
     std::memcpy(base, text.data(), text.size());
     return {};

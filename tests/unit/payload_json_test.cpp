@@ -5,6 +5,7 @@
 #include <array>
 #include <cstring>
 #include <span>
+#include <string>
 
 #include "rack/core/payload_json.h"
 #include "rack/interfaces/robot.h"
@@ -76,6 +77,9 @@ TEST(SetFieldFromText, RefusesWhatDoesNotFitAndLeavesThePayloadAlone) {
   EXPECT_EQ(set_field_from_text(field("small"), bytes(m), "200"), "'200' is outside -128..127");
   EXPECT_EQ(set_field_from_text(field("small"), bytes(m), "1.5"), "'1.5' is not an integer");
   EXPECT_EQ(set_field_from_text(field("small"), bytes(m), ""), "'' is not an integer");
+  EXPECT_EQ(set_field_from_text(field("small"), bytes(m), "+-5"), "'+-5' is not an integer");
+  EXPECT_EQ(set_field_from_text(field("label"), bytes(m), std::string("ab\0c", 4)),
+            "a text with a NUL character would be cut there");
   EXPECT_EQ(set_field_from_text(field("port"), bytes(m), "-1"), "'-1' is not an unsigned integer");
   EXPECT_EQ(set_field_from_text(field("port"), bytes(m), "70000"), "'70000' is outside 0..65535");
   EXPECT_EQ(set_field_from_text(field("ratio"), bytes(m), "nan"), "'nan' is not a finite number");
