@@ -14,10 +14,36 @@
 
 namespace rack {
 
+namespace {
+
+// Length of the well-formed UTF-8 sequence at text[i] (RFC 3629: no overlong forms,
+// no surrogates, nothing above U+10FFFF), or 0 when the bytes there are not one.
+std::size_t utf8_sequence(const std::string& text, std::size_t i) {
+  const auto b = [&](std::size_t k) { return static_cast<unsigned char>(text[i + k]); };
+  const auto cont = [&](std::size_t k, unsigned char lo = 0x80, unsigned char hi = 0xBF) {
+    return i + k < text.size() && b(k) >= lo && b(k) <= hi;
+  };
+  const unsigned char c = b(0);
+  if (c >= 0xC2 && c <= 0xDF) return cont(1) ? 2 : 0;
+  if (c == 0xE0) return cont(1, 0xA0) && cont(2) ? 3 : 0;
+  if ((c >= 0xE1 && c <= 0xEC) || c == 0xEE || c == 0xEF) return cont(1) && cont(2) ? 3 : 0;
+  if (c == 0xED) return cont(1, 0x80, 0x9F) && cont(2) ? 3 : 0;
+  if (c == 0xF0) return cont(1, 0x90) && cont(2) && cont(3) ? 4 : 0;
+  if (c >= 0xF1 && c <= 0xF3) return cont(1) && cont(2) && cont(3) ? 4 : 0;
+  if (c == 0xF4) return cont(1, 0x80, 0x8F) && cont(2) && cont(3) ? 4 : 0;
+  return 0;
+}
+
+}  // namespace
+
+// JSON text is UTF-8 (RFC 8259 8.1): a byte that does not start a well-formed sequence
+// (a payload's char array is whatever its sender wrote) becomes U+FFFD, as a UTF-8
+// decoder shows it; otherwise rack-gui's parser refused the whole sample (found by
+// fuzz_payload).
 std::string json_escape(const std::string& text) {
   std::string out;
-  for (const char ch : text) {
-    const auto c = static_cast<unsigned char>(ch);
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
     switch (c) {
       case '"': out += "\\\""; break;
       case '\\': out += "\\\\"; break;
@@ -29,8 +55,13 @@ std::string json_escape(const std::string& text) {
           char buf[8];
           std::snprintf(buf, sizeof buf, "\\u%04x", c);
           out += buf;
-        } else {
+        } else if (c < 0x80) {
           out += static_cast<char>(c);
+        } else if (const std::size_t n = utf8_sequence(text, i); n > 0) {
+          out.append(text, i, n);
+          i += n - 1;
+        } else {
+          out += "\\ufffd";
         }
     }
   }
@@ -126,7 +157,8 @@ std::string store_integer(std::byte* p, const std::string& text) {
   if constexpr (std::is_signed_v<T>) {
     int64_t v = 0;
     const char* first = text.data();
-    if (!text.empty() && text[0] == '+') ++first;
+    // A '+' may stand where a '-' could; "+-5" is not a number (it read as -5).
+    if (!text.empty() && text[0] == '+' && (text.size() == 1 || text[1] != '-')) ++first;
     const auto [ptr, ec] = std::from_chars(first, text.data() + text.size(), v);
     if (ec != std::errc() || ptr != text.data() + text.size() || first == text.data() + text.size()) {
       return "'" + text + "' is not an integer";
@@ -204,6 +236,7 @@ std::string set_field_from_text(const tims::FieldDesc& field, std::span<std::byt
       return "a text of at most " + std::to_string(field.count - 1) + " characters is needed, got " +
              std::to_string(text.size());
     }
+    if (text.find('\0') != std::string::npos) return "a text with a NUL character would be cut there";
     std::memset(base, 0, field.count);
     std::memcpy(base, text.data(), text.size());
     return {};

@@ -5,6 +5,7 @@
 #include <array>
 #include <cstring>
 #include <span>
+#include <string>
 
 #include "rack/core/payload_json.h"
 #include "rack/interfaces/robot.h"
@@ -38,6 +39,17 @@ const tims::FieldDesc& field(const char* name) {
 
 std::span<std::byte> bytes(Mixed& m) { return {reinterpret_cast<std::byte*>(&m), sizeof m}; }
 
+// JSON text is UTF-8: a char array's bytes that are not (a sender's garbage) become
+// U+FFFD; well-formed sequences pass (found by fuzz_payload: rack-gui dropped the sample).
+TEST(JsonEscape, KeepsWellFormedUtf8AndReplacesInvalidBytes) {
+  EXPECT_EQ(json_escape("gr\xc3\xbc\xc3\x9f \xe2\x82\xac \xf0\x9f\xa4\x96"), "gr\xc3\xbc\xc3\x9f \xe2\x82\xac \xf0\x9f\xa4\x96");
+  EXPECT_EQ(json_escape("the\xad*reason"), "the\\ufffd*reason");
+  EXPECT_EQ(json_escape("\xc3"), "\\ufffd");              // cut sequence
+  EXPECT_EQ(json_escape("\xc0\xaf"), "\\ufffd\\ufffd");   // overlong '/'
+  EXPECT_EQ(json_escape("\xed\xa0\x80"), "\\ufffd\\ufffd\\ufffd");  // a surrogate
+  EXPECT_EQ(json_escape("a\"b\\\x01"), "a\\\"b\\\\\\u0001");
+}
+
 TEST(SetFieldFromText, SetsEachKind) {
   Mixed m;
   EXPECT_EQ(set_field_from_text(field("small"), bytes(m), "-12"), "");
@@ -65,6 +77,9 @@ TEST(SetFieldFromText, RefusesWhatDoesNotFitAndLeavesThePayloadAlone) {
   EXPECT_EQ(set_field_from_text(field("small"), bytes(m), "200"), "'200' is outside -128..127");
   EXPECT_EQ(set_field_from_text(field("small"), bytes(m), "1.5"), "'1.5' is not an integer");
   EXPECT_EQ(set_field_from_text(field("small"), bytes(m), ""), "'' is not an integer");
+  EXPECT_EQ(set_field_from_text(field("small"), bytes(m), "+-5"), "'+-5' is not an integer");
+  EXPECT_EQ(set_field_from_text(field("label"), bytes(m), std::string("ab\0c", 4)),
+            "a text with a NUL character would be cut there");
   EXPECT_EQ(set_field_from_text(field("port"), bytes(m), "-1"), "'-1' is not an unsigned integer");
   EXPECT_EQ(set_field_from_text(field("port"), bytes(m), "70000"), "'70000' is outside 0..65535");
   EXPECT_EQ(set_field_from_text(field("ratio"), bytes(m), "nan"), "'nan' is not a finite number");

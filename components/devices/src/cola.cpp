@@ -1,6 +1,7 @@
 #include "rack/devices/cola.h"
 
 #include <bit>
+#include <cmath>
 #include <cstring>
 
 namespace rack::devices::cola {
@@ -140,6 +141,9 @@ bool Parser::parse_scan(const char* body, std::size_t len) noexcept {
     const float scale = std::bit_cast<float>(scale_bits);
     const float offset = std::bit_cast<float>(offset_bits);
     if (!(scale > 0.0F) || scale > 1000.0F) return bad();
+    // The offset is a float from the telegram too: NaN or infinity made every range of
+    // the scan NaN (found by fuzz_cola).
+    if (!std::isfinite(offset)) return bad();
     // Start angle: a signed 32-bit value in 1/10000 deg.
     const auto start_signed = static_cast<int32_t>(static_cast<uint32_t>(start));
     if (have_dist && static_cast<uint32_t>(count) != s.count) return bad();

@@ -70,7 +70,8 @@ bool parse_uint(const char* s, std::size_t len, unsigned& out) noexcept {
   return true;
 }
 
-// ddmm.mmmm (lat) / dddmm.mmmm (lon) + hemisphere.
+// ddmm.mmmm (lat) / dddmm.mmmm (lon) + hemisphere; at most max_deg (90 or 180):
+// "9614.038,N" has two valid digits of degrees but is no latitude (found by fuzz_nmea).
 bool parse_angle(const char* s, std::size_t len, const char* hemi, std::size_t hlen, int deg_digits,
                  char pos, char neg, double& out) noexcept {
   if (len < static_cast<std::size_t>(deg_digits) + 2 || hlen != 1) return false;
@@ -80,6 +81,7 @@ bool parse_angle(const char* s, std::size_t len, const char* hemi, std::size_t h
   if (!parse_double(s + deg_digits, len - static_cast<std::size_t>(deg_digits), minutes)) return false;
   if (minutes < 0.0 || minutes >= 60.0) return false;
   double v = deg + minutes / 60.0;
+  if (v > (deg_digits == 2 ? 90.0 : 180.0)) return false;
   if (hemi[0] == neg) v = -v;
   else if (hemi[0] != pos) return false;
   out = v;
