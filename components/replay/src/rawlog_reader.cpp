@@ -5,8 +5,11 @@
 // - observations only: CObservationOdometry carries the absolute odometry pose.
 // Planar scans (CObservation2DRangeScan) become ScanRecords; other observations are
 // counted as ignored. MRPT is linked privately to the replay target only.
+#include <zlib.h>
+
+#include <algorithm>
 #include <cmath>
-#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/io/CMemoryStream.h>
 #include <mrpt/obs/CActionCollection.h>
 #include <mrpt/obs/CActionRobotMovement2D.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
@@ -18,9 +21,19 @@
 
 #include "rawlog_reader.h"
 
+#include "rack/rt/input_file.h"
+
 namespace rack::replay {
 
 namespace {
+
+// MRPT's message is long (nested frames); its first line that names the cause is kept.
+std::string first_line(std::string what) {
+  if (const auto m = what.find("Message:"); m != std::string::npos) what = what.substr(m + 8);
+  if (const auto nl = what.find('\n'); nl != std::string::npos) what.resize(nl);
+  if (const auto start = what.find_first_not_of(' '); start != std::string::npos) what = what.substr(start);
+  return what.substr(0, 300);
+}
 
 // Rawlogs written without time stamps (old datasets) are replayed at this spacing.
 constexpr double kUntimedSpacing = 0.1;  // s
@@ -46,7 +59,7 @@ struct Builder {
   void add_scan(const mrpt::obs::CObservation2DRangeScan& o, double time, int index) {
     const std::size_t n = o.getScanSize();
     if (n < 2) {
-      out.errors.push_back({out.log.source, 0, "record " + std::to_string(index) + ": 2-D scan with " +
+      out.add_error({out.log.source, 0, "record " + std::to_string(index) + ": 2-D scan with " +
                                                    std::to_string(n) + " beams"});
       return;
     }
@@ -105,16 +118,18 @@ struct Builder {
              int index) {
     if (action) {
       if (auto mv = action->getBestMovementEstimation()) {
-        const mrpt::poses::CPose2D incr =
-            mv->estimationMethod == mrpt::obs::CActionRobotMovement2D::emOdometry
-                ? mv->rawOdometryIncrementReading
-                : mrpt::poses::CPose2D(mv->poseChange->getMeanVal());
-        odometry = odometry + incr;
+        // A deserialised action may lack its pose PDF: then only the raw reading counts.
+        if (mv->estimationMethod == mrpt::obs::CActionRobotMovement2D::emOdometry || !mv->poseChange) {
+          odometry = odometry + mv->rawOdometryIncrementReading;
+        } else {
+          odometry = odometry + mrpt::poses::CPose2D(mv->poseChange->getMeanVal());
+        }
         have_odometry = true;
       }
     }
     if (!sf || sf->size() == 0) return;
-    const double t = time_of(sf->getObservationByIndex(0)->timestamp);
+    const auto first = sf->getObservationByIndex(0);  // a file may hold a null entry
+    const double t = time_of(first ? first->timestamp : INVALID_TIMESTAMP);
     if (have_odometry) add_odometry(t, index);
     for (const auto& obs : *sf) {
       if (auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(obs)) {
@@ -126,23 +141,108 @@ struct Builder {
   }
 };
 
+LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string& bytes);
+
 }  // namespace
+
+bool gunzip_bounded(const std::string& in, uint64_t max_out, std::string& out, std::string& error) {
+  out.clear();
+  z_stream z{};
+  // 16 + MAX_WBITS: gzip wrapper only (a zlib or raw stream is not a rawlog).
+  if (inflateInit2(&z, 16 + MAX_WBITS) != Z_OK) {
+    error = "cannot start zlib";
+    return false;
+  }
+  std::size_t pos = 0;
+  char chunk[65536];
+  int rc = Z_OK;
+  for (;;) {
+    const std::size_t avail = std::min<std::size_t>(in.size() - pos, 1u << 30);
+    z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(in.data() + pos));
+    z.avail_in = static_cast<uInt>(avail);
+    z.next_out = reinterpret_cast<Bytef*>(chunk);
+    z.avail_out = sizeof chunk;
+    rc = inflate(&z, Z_NO_FLUSH);
+    pos += avail - z.avail_in;
+    const std::size_t produced = sizeof chunk - z.avail_out;
+    if (out.size() + produced > max_out) {
+      inflateEnd(&z);
+      error = "gzip data decompresses to more than the limit of " + std::to_string(max_out) +
+              " bytes (at byte offset " + std::to_string(pos) + " of the file)";
+      out.clear();
+      return false;
+    }
+    out.append(chunk, produced);
+    if (rc == Z_STREAM_END) {
+      // Another gzip member may follow (as gzip -c a b > c writes).
+      if (pos >= in.size()) break;
+      if (inflateReset(&z) != Z_OK) break;
+      continue;
+    }
+    if (rc == Z_BUF_ERROR && produced == 0 && z.avail_in == 0) {
+      inflateEnd(&z);
+      error = "gzip data is truncated: the file ends at byte offset " + std::to_string(pos) + " inside the stream";
+      out.clear();
+      return false;
+    }
+    if (rc != Z_OK && rc != Z_BUF_ERROR) {
+      error = std::string("gzip data is corrupt at byte offset ") + std::to_string(pos) + " of the file: " +
+              (z.msg != nullptr ? z.msg : "zlib error " + std::to_string(rc));
+      inflateEnd(&z);
+      out.clear();
+      return false;
+    }
+  }
+  inflateEnd(&z);
+  return true;
+}
 
 LoadLogResult load_rawlog(const std::string& path) {
   LoadLogResult result;
   result.log.source = path;
-  mrpt::io::CFileGZInputStream file;
-  bool opened = false;
   try {
-    opened = file.open(path);
-  } catch (const std::exception& e) {
-    result.errors.push_back({path, 0, std::string("cannot open the rawlog: ") + e.what()});
+    std::string bytes, error;
+    if (!rt::read_regular_file(path, kMaxLogFileBytes, "rawlog", bytes, error)) {
+      result.add_error(path_error(path, error));
+      return result;
+    }
+    return parse_rawlog(path, bytes);
+  } catch (const std::exception& e) {  // allocation within the limits failed: refused, never past here
+    result = LoadLogResult{};
+    result.log.source = path;
+    result.add_error({path, 0, std::string("cannot load the rawlog: ") + e.what()});
     return result;
   }
-  if (!opened) {
-    result.errors.push_back({path, 0, "cannot open the rawlog"});
+}
+
+LoadLogResult parse_rawlog(const std::string& path, const std::string& bytes) {
+  try {
+    return parse_rawlog_unchecked(path, bytes);
+  } catch (const std::exception& e) {  // MRPT may allocate what a record claims (bad_alloc): refused here
+    LoadLogResult result;
+    result.log.source = path;
+    result.add_error({path, 0, std::string("cannot load the rawlog: ") + first_line(e.what())});
     return result;
   }
+}
+
+namespace {
+
+LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string& bytes) {
+  LoadLogResult result;
+  result.log.source = path;
+  const std::string* data = &bytes;
+  std::string inflated;
+  if (bytes.size() >= 2 && static_cast<unsigned char>(bytes[0]) == 0x1f && static_cast<unsigned char>(bytes[1]) == 0x8b) {
+    std::string error;
+    if (!gunzip_bounded(bytes, kMaxRawlogBytes, inflated, error)) {
+      result.add_error({path, 0, error});
+      return result;
+    }
+    data = &inflated;
+  }
+  mrpt::io::CMemoryStream file;
+  file.assignMemoryNotOwn(data->data(), data->size());
   auto archive = mrpt::serialization::archiveFrom(file);
   Builder b{result, 0.0, false, mrpt::poses::CPose2D(), false};
   mrpt::obs::CActionCollection::Ptr pending_action;
@@ -157,36 +257,46 @@ LoadLogResult load_rawlog(const std::string& path) {
       object = archive.ReadObject();
     } catch (const mrpt::serialization::CExceptionEOF&) {
       if (file.getPosition() == offset) break;  // a clean end between two records
-      result.errors.push_back({path, 0, "record " + std::to_string(index) + " truncated at byte offset " +
+      result.add_error({path, 0, "record " + std::to_string(index) + " truncated at byte offset " +
                                             std::to_string(offset) + " (uncompressed)"});
       break;
     } catch (const std::exception& e) {
-      // MRPT's message is long (nested frames); its first line that names the cause is kept.
-      std::string what = e.what();
-      if (const auto m = what.find("Message:"); m != std::string::npos) what = what.substr(m + 8);
-      if (const auto nl = what.find('\n'); nl != std::string::npos) what.resize(nl);
-      if (const auto start = what.find_first_not_of(' '); start != std::string::npos) what = what.substr(start);
-      result.errors.push_back({path, 0, "record " + std::to_string(index) + " at byte offset " +
-                                            std::to_string(offset) + " (uncompressed) is unreadable: " + what});
+      // MRPT wraps an end of data inside a nested object in its own exception: the
+      // stream standing at the end says it was cut.
+      if (file.getPosition() >= data->size()) {
+        result.add_error({path, 0, "record " + std::to_string(index) + " truncated at byte offset " +
+                                       std::to_string(offset) + " (uncompressed): the data ends inside it"});
+      } else {
+        result.add_error({path, 0, "record " + std::to_string(index) + " at byte offset " + std::to_string(offset) +
+                                       " (uncompressed) is unreadable: " + first_line(e.what())});
+      }
       break;
     }
     ++result.lines;
-    if (auto sf = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(object)) {
-      b.frame(pending_action, sf, index);
-      pending_action.reset();
-    } else if (auto act = std::dynamic_pointer_cast<mrpt::obs::CActionCollection>(object)) {
-      pending_action = act;  // applies to the next sensory frame
-    } else if (auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(object)) {
-      b.observation(obs, index);
-    } else {
-      ++result.ignored;
+    try {
+      if (auto sf = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(object)) {
+        b.frame(pending_action, sf, index);
+        pending_action.reset();
+      } else if (auto act = std::dynamic_pointer_cast<mrpt::obs::CActionCollection>(object)) {
+        pending_action = act;  // applies to the next sensory frame
+      } else if (auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(object)) {
+        b.observation(obs, index);
+      } else {
+        ++result.ignored;
+      }
+    } catch (const std::exception& e) {  // MRPT accessors check their own invariants
+      result.add_error({path, 0, "record " + std::to_string(index) + " at byte offset " + std::to_string(offset) +
+                                     " (uncompressed) is inconsistent: " + first_line(e.what())});
+      break;
     }
     ++index;
   }
   if (result.errors.empty() && result.log.scans.empty()) {
-    result.errors.push_back({path, 0, "no 2-D laser scan in " + std::to_string(result.lines) + " rawlog entries"});
+    result.add_error({path, 0, "no 2-D laser scan in " + std::to_string(result.lines) + " rawlog entries"});
   }
   return result;
 }
+
+}  // namespace
 
 }  // namespace rack::replay
