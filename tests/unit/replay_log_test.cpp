@@ -361,5 +361,16 @@ TEST(HostileLogTest, GzipBombsGarbageAndTruncatedGzipAreRefused) {
   EXPECT_NE(cut.error_text().find("truncated at byte offset"), std::string::npos) << cut.error_text();
 }
 
+// Found by fuzz_rawlog: a corrupt JPEG in a CImage (here under its old name
+// CMRPTImage) made libjpeg call exit() inside MRPT's deserialisation: rackd ended.
+TEST(HostileLogTest, ImagesAreNotHandedToMrptsJpegDecoder) {
+  const std::string bytes("\x8a" "CMRPTImage\x03serN4mrpt21Excei:", 29);
+  const LoadLogResult r = parse_rawlog("image.rawlog", bytes);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error_text().find("image.rawlog: record 0 at byte offset 0 (uncompressed) holds an image"),
+            std::string::npos)
+      << r.error_text();
+}
+
 }  // namespace
 }  // namespace rack::replay

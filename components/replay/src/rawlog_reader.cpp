@@ -241,8 +241,21 @@ LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string&
     }
     data = &inflated;
   }
+  // MRPT decodes a JPEG image (CImage) with libjpeg's default error handler, which
+  // calls exit() on corrupt data (found by fuzz_rawlog): a rawlog is read only up to
+  // the first class name holding "Image" (CImage, its old alias CMRPTImage, and the
+  // observations that carry images), and what follows is refused with its offset.
+  const std::size_t image_at = data->find("Image");
+  const std::size_t usable = image_at == std::string::npos ? data->size() : image_at;
+  const auto image_error = [&](int index, uint64_t offset) {
+    result.add_error({path, 0, "record " + std::to_string(index) + " at byte offset " + std::to_string(offset) +
+                                   " (uncompressed) holds an image (a class named *Image* at byte offset " +
+                                   std::to_string(image_at) +
+                                   "): rawlogs are read up to their first image (MRPT's JPEG decoder ends the "
+                                   "process on a corrupt one); remove the images (rawlog-edit --remove-label)"});
+  };
   mrpt::io::CMemoryStream file;
-  file.assignMemoryNotOwn(data->data(), data->size());
+  file.assignMemoryNotOwn(data->data(), usable);
   auto archive = mrpt::serialization::archiveFrom(file);
   Builder b{result, 0.0, false, mrpt::poses::CPose2D(), false};
   mrpt::obs::CActionCollection::Ptr pending_action;
@@ -256,14 +269,20 @@ LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string&
     try {
       object = archive.ReadObject();
     } catch (const mrpt::serialization::CExceptionEOF&) {
-      if (file.getPosition() == offset) break;  // a clean end between two records
+      if (file.getPosition() == offset && usable == data->size()) break;  // a clean end between two records
+      if (usable != data->size()) {
+        image_error(index, offset);
+        break;
+      }
       result.add_error({path, 0, "record " + std::to_string(index) + " truncated at byte offset " +
                                             std::to_string(offset) + " (uncompressed)"});
       break;
     } catch (const std::exception& e) {
       // MRPT wraps an end of data inside a nested object in its own exception: the
       // stream standing at the end says it was cut.
-      if (file.getPosition() >= data->size()) {
+      if (usable != data->size() && file.getPosition() >= usable) {
+        image_error(index, offset);
+      } else if (file.getPosition() >= data->size()) {
         result.add_error({path, 0, "record " + std::to_string(index) + " truncated at byte offset " +
                                        std::to_string(offset) + " (uncompressed): the data ends inside it"});
       } else {
