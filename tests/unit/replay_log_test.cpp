@@ -372,5 +372,40 @@ TEST(HostileLogTest, ImagesAreNotHandedToMrptsJpegDecoder) {
       << r.error_text();
 }
 
+// Found by fuzz_rawlog: 150 bytes made MRPT dereference a null pointer inside
+// CActionRobotMovement2D::serializeFrom. load_rawlog() runs MRPT in a child process:
+// the crash is an error naming the record, and this process lives on.
+TEST(HostileLogTest, AnMrptCrashIsAnErrorOfTheRecordNotOfTheProcess) {
+  const std::string seed =
+      std::string(RACK_SOURCE_DIR) + "/tests/fuzz/corpus/rawlog/regression_mrpt_segv_movement2d.rawlog";
+  const LoadLogResult r = load_replay_log(seed);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error_text().find(seed + ": record 0 at byte offset 0 (uncompressed): MRPT's reader crashed on it"),
+            std::string::npos)
+      << r.error_text();
+  // Found by fuzz_rawlog (an OOM): a record claiming a string of gigabytes. MRPT takes
+  // the memory before it finds the data missing; in the child that is bounded by its
+  // address-space limit, and here an error.
+  const std::string claim = std::string(RACK_SOURCE_DIR) + "/tests/unit/data/rawlog_huge_claim.rawlog";
+  const LoadLogResult c = load_replay_log(claim);
+  ASSERT_FALSE(c.ok());
+  EXPECT_NE(c.error_text().find(claim + ": record "), std::string::npos) << c.error_text();
+  // The isolated reader returns what a good rawlog holds, as the in-process one does.
+  const std::string demo = "/usr/share/mrpt/datasets/localization_demo.rawlog";
+  std::string bytes, why;
+  ASSERT_TRUE(rt::read_regular_file(demo, 1u << 20, "rawlog", bytes, why)) << why;
+  const LoadLogResult isolated = load_replay_log(demo);
+  const LoadLogResult direct = parse_rawlog(demo, bytes);
+  ASSERT_TRUE(isolated.ok()) << isolated.error_text();
+  ASSERT_EQ(isolated.log.scans.size(), direct.log.scans.size());
+  ASSERT_EQ(isolated.log.odometry.size(), direct.log.odometry.size());
+  EXPECT_EQ(isolated.lines, direct.lines);
+  for (std::size_t i = 0; i < direct.log.scans.size(); ++i) {
+    EXPECT_EQ(isolated.log.scans[i].ranges, direct.log.scans[i].ranges);
+    EXPECT_EQ(isolated.log.scans[i].time, direct.log.scans[i].time);
+  }
+  for (std::size_t i = 0; i < direct.log.odometry.size(); ++i) EXPECT_EQ(isolated.log.odometry[i].x, direct.log.odometry[i].x);
+}
+
 }  // namespace
 }  // namespace rack::replay
