@@ -390,6 +390,13 @@ TEST(HostileLogTest, AnMrptCrashIsAnErrorOfTheRecordNotOfTheProcess) {
   const LoadLogResult c = load_replay_log(claim);
   ASSERT_FALSE(c.ok());
   EXPECT_NE(c.error_text().find(claim + ": record "), std::string::npos) << c.error_text();
+  // The corrupt JPEG whose decoder calls exit(): in the child, images are read, and the
+  // exit ends only the child.
+  const std::string jpeg = std::string(RACK_SOURCE_DIR) + "/tests/fuzz/corpus/rawlog/regression_corrupt_jpeg_exit.rawlog";
+  const LoadLogResult j = load_replay_log(jpeg);
+  ASSERT_FALSE(j.ok());
+  EXPECT_NE(j.error_text().find(jpeg + ": record 0 at byte offset 0 (uncompressed)"), std::string::npos)
+      << j.error_text();
   // The isolated reader returns what a good rawlog holds, as the in-process one does.
   const std::string demo = "/usr/share/mrpt/datasets/localization_demo.rawlog";
   std::string bytes, why;

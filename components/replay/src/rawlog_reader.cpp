@@ -292,7 +292,8 @@ bool decode(std::string_view b, const std::string& path, LoadLogResult& r) {
   return d.left() == 0;
 }
 
-LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string& bytes, int progress_fd);
+LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string& bytes, int progress_fd,
+                                     bool stop_at_images);
 LoadLogResult parse_rawlog_isolated(const std::string& path, const std::string& bytes);
 
 }  // namespace
@@ -369,7 +370,7 @@ LoadLogResult load_rawlog(const std::string& path) {
 
 LoadLogResult parse_rawlog(const std::string& path, const std::string& bytes) {
   try {
-    return parse_rawlog_unchecked(path, bytes, -1);
+    return parse_rawlog_unchecked(path, bytes, -1, /*stop_at_images=*/true);
   } catch (const std::exception& e) {  // MRPT may allocate what a record claims (bad_alloc): refused here
     LoadLogResult result;
     result.log.source = path;
@@ -380,7 +381,8 @@ LoadLogResult parse_rawlog(const std::string& path, const std::string& bytes) {
 
 namespace {
 
-LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string& bytes, int progress_fd) {
+LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string& bytes, int progress_fd,
+                                     bool stop_at_images) {
   LoadLogResult result;
   result.log.source = path;
   const std::string* data = &bytes;
@@ -394,10 +396,12 @@ LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string&
     data = &inflated;
   }
   // MRPT decodes a JPEG image (CImage) with libjpeg's default error handler, which
-  // calls exit() on corrupt data (found by fuzz_rawlog): a rawlog is read only up to
-  // the first class name holding "Image" (CImage, its old alias CMRPTImage, and the
-  // observations that carry images), and what follows is refused with its offset.
-  const std::size_t image_at = data->find("Image");
+  // calls exit() on corrupt data (found by fuzz_rawlog). In this process (parse_rawlog)
+  // a rawlog is read only up to the first class name holding "Image" (CImage, its old
+  // alias CMRPTImage, the observations that carry images), and what follows is refused
+  // with its offset; in load_rawlog's child, where an exit() ends only the child,
+  // images are read.
+  const std::size_t image_at = stop_at_images ? data->find("Image") : std::string::npos;
   const std::size_t usable = image_at == std::string::npos ? data->size() : image_at;
   const auto image_error = [&](int index, uint64_t offset) {
     result.add_error({path, 0, "record " + std::to_string(index) + " at byte offset " + std::to_string(offset) +
@@ -510,7 +514,7 @@ LoadLogResult parse_rawlog_isolated(const std::string& path, const std::string& 
     (void)::setrlimit(RLIMIT_CPU, &cpu);
     int status = 1;
     try {
-      const LoadLogResult r = parse_rawlog_unchecked(path, bytes, fds[1]);
+      const LoadLogResult r = parse_rawlog_unchecked(path, bytes, fds[1], /*stop_at_images=*/false);
       const std::string payload = encode(r);
       const uint64_t size = payload.size();
       const char tag = kFrameResult;
