@@ -2,6 +2,9 @@
 // load_carmen_log reads). Invariants: every error names the file and (for a line) a
 // line within the text; scans carry finite ranges only; the kept error list
 // stays within its limit.
+//
+// Build: clang++-14 -std=c++20 -g -O1 -fsanitize=fuzzer,address,undefined this file with
+//   components/replay/src/carmen_log.cpp core/rt/src/input_file.cpp; -Icomponents/replay/include -Icore/rt/include.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>

@@ -3,6 +3,11 @@
 // and the reader opens /proc/self/fd/N: a regular file, as a real one. Invariants: the
 // reader throws only FileError (naming the file and a byte offset within it), and
 // reads every record of a file or stops at the first bad one.
+//
+// Build: clang++-14 -std=c++20 -g -O1 -fsanitize=fuzzer,address,undefined this file with
+//   tools/gdos/gdos_view.cpp (instrumented); -Itools/gdos -Icore/include -Itims/include
+//   -Icore/rt/include; the normal build's librack_core.a librack_tims.a librack_rt.a; -lyaml-cpp -llcm
+//   -lzstd -lsodium -ldl.
 #include <sys/mman.h>
 #include <unistd.h>
 

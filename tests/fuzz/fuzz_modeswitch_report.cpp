@@ -1,6 +1,9 @@
 // libFuzzer harness: mode-switch report files (rack::backtrace::parse_report_text, what
 // rack-backtrace reads). Invariants: every complete report has exactly the frames its
 // header announced; the error list stays within its limit; errors name the file.
+//
+// Build: clang++-14 -std=c++20 -g -O1 -fsanitize=fuzzer,address,undefined this file with
+//   tools/backtrace/report_file.cpp core/rt/src/input_file.cpp; -Itools/backtrace -Icore/rt/include.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>

@@ -1,6 +1,10 @@
 // libFuzzer harness: PCD point clouds (rack::scan3d::parse_pcd, the bytes read_pcd
 // reads). Invariants: a cloud's four columns have one length, no more points than
 // declared, all coordinates finite; a refusal says why, naming the file.
+//
+// Build: clang++-14 -std=c++20 -g -O1 -fsanitize=fuzzer,address,undefined this file with
+//   components/scan3d/src/pcd_file.cpp core/rt/src/input_file.cpp; -Icomponents/scan3d/include
+//   -Icomponents/interfaces/include -Icore/include -Itims/include -Icore/rt/include.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>

@@ -1,6 +1,9 @@
 // libFuzzer harness: PGM map images (rack::maps::parse_pgm, the bytes load_map reads).
 // Invariant checked beyond "no crash, no leak, no UB": a decoded image holds exactly
 // width x height pixels, none above maxval, and errors name the file and a byte.
+//
+// Build: clang++-14 -std=c++20 -g -O1 -fsanitize=fuzzer,address,undefined this file with
+//   components/maps/src/occupancy_map.cpp core/rt/src/input_file.cpp; -Icomponents/maps/include -Icore/rt/include; -lyaml-cpp.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>

@@ -1,6 +1,9 @@
 // libFuzzer harness: ROS map_server YAML files (rack::maps::parse_map_yaml, the text
 // load_map reads before it opens the image). Invariant: either a complete MapYaml with
 // values load_map accepts, or at least one error naming the file.
+//
+// Build: clang++-14 -std=c++20 -g -O1 -fsanitize=fuzzer,address,undefined this file with
+//   components/maps/src/occupancy_map.cpp core/rt/src/input_file.cpp; -Icomponents/maps/include -Icore/rt/include; -lyaml-cpp.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>

@@ -377,7 +377,7 @@ TEST(HostileLogTest, ImagesAreNotHandedToMrptsJpegDecoder) {
 // the crash is an error naming the record, and this process lives on.
 TEST(HostileLogTest, AnMrptCrashIsAnErrorOfTheRecordNotOfTheProcess) {
   const std::string seed =
-      std::string(RACK_SOURCE_DIR) + "/tests/fuzz/corpus/rawlog/regression_mrpt_segv_movement2d.rawlog";
+      std::string(RACK_SOURCE_DIR) + "/tests/unit/data/rawlog_mrpt_segv_movement2d.rawlog";
   const LoadLogResult r = load_replay_log(seed);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error_text().find(seed + ": record 0 at byte offset 0 (uncompressed): MRPT's reader crashed on it"),
