@@ -21,7 +21,7 @@ packages=(
   python3 python3-matplotlib             # bench/run writes RESULTS.md and its plots
   libmrpt-slam-dev libmrpt-maps-dev libmrpt-obs-dev libmrpt-poses-dev libmrpt-bayes-dev
   mrpt-common                            # MCL and rawlog replay (MRPT 2.5); datasets for bench
-  zlib1g-dev                             # the gzip logs of bench/data/carmen (bench_mcl_real, MCL recovery tests)
+  zlib1g-dev                             # gzip: bench/data/carmen logs (bench_mcl_real, MCL recovery tests); rawlogs inflated with a size limit
   libopencv-dev                          # Camera component (OpenCV VideoCapture), linked PRIVATE there only
   libopencv-contrib-dev                  # ObjRecogCamera: ArUco (cv::aruco is in contrib in OpenCV 4.6)
   libpcl-dev                             # Scan3D: voxel grid, outlier removal, RANSAC, range image (PRIVATE there)

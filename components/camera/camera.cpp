@@ -1,5 +1,7 @@
 #include "camera.h"
 
+#include "rack/rt/input_file.h"
+
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -13,6 +15,18 @@
 #include <vector>
 
 namespace rack::components {
+
+namespace {
+
+// An OpenCV calibration file holds a few matrices: kilobytes.
+constexpr uint64_t kMaxCalibrationBytes = 16u << 20;
+
+// "frames/img_%04d.png" or "rtsp://...": not one file of that name.
+bool is_pattern_or_url(const std::string& src) {
+  return src.find('%') != std::string::npos || src.find("://") != std::string::npos;
+}
+
+}  // namespace
 
 using interfaces::CameraData;
 
@@ -51,6 +65,10 @@ void Camera::init() {
   const std::string calib = calibration_.get_string();
   if (!calib.empty()) {
     cv::FileStorage fs;
+    std::string refused;
+    if (!rt::check_regular_file(calib, kMaxCalibrationBytes, "calibration file", refused)) {
+      throw std::runtime_error("calibration: " + refused);
+    }
     try {
       fs.open(calib, cv::FileStorage::READ);
     } catch (const cv::Exception& e) {
@@ -141,7 +159,16 @@ void Camera::run() noexcept {
       if (!c.video.isOpened()) {
         const std::string src = source_.get_string();
         const bool index = !src.empty() && std::all_of(src.begin(), src.end(), ::isdigit);
-        const bool ok = index ? c.video.open(std::stoi(src)) : c.video.open(src);
+        // A path must be what it claims: a device under /dev, otherwise a regular file
+        // (OpenCV would wait for ever on a FIFO, and this thread with it). Image
+        // sequences (a printf pattern) and URLs are OpenCV's to open.
+        std::string refused;
+        if (!index && !is_pattern_or_url(src)) {
+          const bool ok = src.rfind("/dev/", 0) == 0 ? rt::check_char_device(src, "camera device", refused)
+                                                    : rt::check_regular_file(src, UINT64_MAX, "video file", refused);
+          if (!ok) log_error("%s", refused.c_str());
+        }
+        const bool ok = refused.empty() && (index ? c.video.open(std::stoi(src)) : c.video.open(src));
         if (!ok) {
           open_state_.store(-1, std::memory_order_release);
           capturing_.store(false, std::memory_order_release);

@@ -2,7 +2,10 @@
 
 #include "obstacle.h"
 
+#include "rack/rt/input_file.h"
+
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -59,10 +62,23 @@ void Joystick::close_device() noexcept {
 HookResult Joystick::on() {
   device_.copy_string(path_, sizeof path_);
   close_device();
+  // A joystick is a character device (/dev/input/jsN); a FIFO is accepted too (rack-devsim
+  // joystick --fifo plays one). A regular file or directory named by mistake is refused.
   // O_NONBLOCK: loop() reads what is there each cycle and never waits in read().
+  mode_t kind = 0;
   {
     const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
-    fd_ = ::open(path_, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    struct stat st {};
+    if (::stat(path_, &st) == 0 && !S_ISCHR(st.st_mode) && !S_ISFIFO(st.st_mode)) {
+      kind = st.st_mode;
+    } else {
+      fd_ = ::open(path_, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    }
+  }
+  if (kind != 0) {
+    log_error("the joystick %s is %s, not a character device; retrying", static_cast<const char*>(path_),
+              rt::file_kind_text(kind));
+    return HookResult::kError;
   }
   if (fd_ < 0) {
     log_error("cannot open the joystick %s (errno %d); retrying", static_cast<const char*>(path_), errno);

@@ -1,10 +1,16 @@
 #include "rack/core/registry.h"
 
+#include "rack/rt/input_file.h"
+
 #include <dlfcn.h>
 
 #include <stdexcept>
 
 namespace rack {
+
+namespace {
+constexpr uint64_t kMaxPluginBytes = uint64_t{1} << 30;  // 1 GiB: a shared library, with debug info
+}  // namespace
 
 void ComponentRegistry::add(ComponentClass cls) {
   if (cls.impl.empty() || !cls.make) throw std::invalid_argument("component class without name or factory");
@@ -32,6 +38,14 @@ std::string ComponentRegistry::names() const {
 }
 
 void ComponentRegistry::load_plugin(const std::string& path) {
+  // dlopen() would wait for ever on a FIFO and map whatever a device gives: a plug-in
+  // is a regular file (a path without '/' is dlopen's to search, as before).
+  if (path.find('/') != std::string::npos) {
+    std::string refused;
+    if (!rt::check_regular_file(path, kMaxPluginBytes, "plug-in", refused)) {
+      throw std::runtime_error("cannot load plug-in: " + refused);
+    }
+  }
   void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (handle == nullptr) throw std::runtime_error(std::string("cannot load plug-in: ") + dlerror());
   using RegisterFn = void (*)(ComponentRegistry&);

@@ -19,6 +19,7 @@
 #include <string>
 #include <thread>
 
+#include "../unit/hostile_files.h"
 #include "../unit/test_support.h"
 #include "rack/devices/can_port.h"
 #include "rack/devices/canopen.h"
@@ -128,6 +129,27 @@ TEST(SerialPortTest, OpenErrorsNameThePathAndTheReason) {
   EXPECT_FALSE(port.open("/dev/null", 9600, error)) << "not a tty";
   EXPECT_NE(error.find("not a tty"), std::string::npos) << error;
   EXPECT_FALSE(port.is_open());
+}
+
+// Issue 17: a device path must name a device. A regular file, FIFO or directory put
+// where the serial port should be is refused with what it is, without waiting on it.
+TEST(SerialPortTest, ARegularFileOrFifoWhereThePortShouldBeIsRefused) {
+  test::HostileDir d("serial");
+  const std::string file = d.write("ttyUSB0", "$GPGGA,not a port\r\n");
+  const std::string fifo = d.fifo("ttyS0");
+  test::HangGuard guard("SerialPort::open on a FIFO");
+  SerialPort port;
+  std::string error;
+  EXPECT_FALSE(port.open(file.c_str(), 9600, error));
+  EXPECT_EQ(error, file + ": the serial port is a regular file, not a character device (a tty)");
+  EXPECT_FALSE(port.open(fifo.c_str(), 9600, error));
+  EXPECT_EQ(error, fifo + ": the serial port is a FIFO, not a character device (a tty)");
+  EXPECT_FALSE(port.open(d.dir().c_str(), 9600, error));
+  EXPECT_NE(error.find("the serial port is a directory"), std::string::npos) << error;
+  EXPECT_FALSE(port.is_open());
+  CanPort can;
+  EXPECT_FALSE(can.open(("unix:" + file).c_str(), error));
+  EXPECT_EQ(error, file + ": the CAN bus socket is a regular file, not a socket");
 }
 
 // ---------------------------------------------------------------------------

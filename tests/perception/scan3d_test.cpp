@@ -10,6 +10,8 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <fstream>
 #include <random>
 #include <string>
@@ -312,6 +314,74 @@ TEST(PcdFileTest, RejectsMalformedFilesWithLineAndReason) {
   std::string error;
   EXPECT_FALSE(scan3d::read_pcd("/nonexistent.pcd", cloud, error));
   EXPECT_NE(error.find("/nonexistent.pcd: cannot open"), std::string::npos) << error;
+}
+
+// Issue 17: the point size (sum of SIZE x COUNT) wrapped to 0 in 32 bits, so the
+// data check passed with no data and x was read 4 GB past the buffer (SIGSEGV took
+// rackd down); WIDTH x HEIGHT without POINTS was unbounded. Now every size is 64-bit
+// and held to a documented limit before anything is allocated or read.
+TEST(PcdFileTest, OverflowingSizesAreRefusedBeforeTheyAreUsed) {
+  std::string names, sizes_line, types, counts;
+  for (int i = 0; i < 1074; ++i) {
+    names += " f" + std::to_string(i);
+    sizes_line += " 4";
+    types += " F";
+    counts += i < 1073 ? " 1000000" : " 741821";
+  }
+  const std::string wraps = "FIELDS" + names + " x y z\nSIZE" + sizes_line + " 4 4 4\nTYPE" + types + " F F F\nCOUNT" +
+                            counts + " 1 1 1\nWIDTH 1\nHEIGHT 1\nDATA binary\n";
+  std::string few_names, few_sizes, few_types, few_counts;
+  for (int i = 0; i < 10; ++i) {
+    few_names += " f" + std::to_string(i);
+    few_sizes += " 8";
+    few_types += " F";
+    few_counts += " 1000000";
+  }
+  const std::string wide = "FIELDS x y z" + few_names + "\nSIZE 4 4 4" + few_sizes + "\nTYPE F F F" + few_types +
+                           "\nCOUNT 1 1 1" + few_counts + "\nWIDTH 1\nDATA binary\n";
+  const std::vector<BadPcd> cases = {
+      {"point size wraps to 0", wraps, "a.pcd:1: FIELDS names 1077 fields, more than the limit of 1000"},
+      {"wide point", wide, "a.pcd:6: a point of these FIELDS, SIZE and COUNT takes 80000012 bytes, more than the limit"},
+      {"width x height", "FIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nWIDTH 1000000000\nHEIGHT 1000000000\nDATA binary\n",
+       "a.pcd:4: WIDTH 1000000000 is more than the limit of 10000000 points"},
+      {"product", "FIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nWIDTH 10000000\nHEIGHT 10000000\nDATA binary\n",
+       "a.pcd:6: WIDTH x HEIGHT = 100000000000000 points, more than the limit of 10000000"},
+      {"points", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nPOINTS 18446744073709551615\nDATA ascii\n",
+       "a.pcd:5: POINTS 18446744073709551615 is more than the limit"},
+      {"huge ascii claim", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 9000000\nDATA ascii\n1 2 3\n",
+       "file ends after 1 of 9000000 points"},
+  };
+  for (const auto& c : cases) {
+    scan3d::PcdCloud cloud;
+    std::string error;
+    EXPECT_FALSE(scan3d::parse_pcd("a.pcd", c.text, cloud, error)) << c.what;
+    EXPECT_NE(error.find(c.expect), std::string::npos) << c.what << ": got '" << error << "'";
+    EXPECT_LE(cloud.x.capacity(), 16u) << c.what << ": reserved for what the header claimed";
+  }
+}
+
+TEST(PcdFileTest, FifosDevicesDirectoriesAndHugeFilesAreRefusedWithoutWaiting) {
+  const std::string dir = temp_dir("hostile");
+  const std::string fifo = dir + "/fifo.pcd";
+  ::unlink(fifo.c_str());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string big = dir + "/big.pcd";
+  std::ofstream(big).close();
+  std::filesystem::resize_file(big, scan3d::kMaxPcdFileBytes + 1);
+  test::Watchdog watchdog(std::chrono::seconds(20));
+  const std::pair<std::string, std::string> cases[] = {
+      {fifo, fifo + ": the PCD file is a FIFO, not a regular file"},
+      {"/dev/zero", "/dev/zero: the PCD file is a character device"},
+      {dir, dir + ": the PCD file is a directory"},
+      {big, big + ": the PCD file has 256.0 MiB, more than the limit of 256 MiB"},
+  };
+  for (const auto& [path, expect] : cases) {
+    scan3d::PcdCloud cloud;
+    std::string error;
+    EXPECT_FALSE(scan3d::read_pcd(path, cloud, error)) << path;
+    EXPECT_NE(error.find(expect), std::string::npos) << error;
+  }
+  std::filesystem::remove_all(dir);
 }
 
 // ---------------------------------------------------------------------------

@@ -5,6 +5,7 @@
 #include "rack/components/builtin.h"
 
 #include <gtest/gtest.h>
+#include "hostile_files.h"
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -334,6 +335,20 @@ TEST_F(LinkAuthTest, KeyFileMustBePrivateAndWellFormed) {
   EXPECT_EQ(st.st_mode & 0777, 0600u);
   EXPECT_TRUE(load_key_file(gen).error.empty());
   EXPECT_NE(generate_key_file(gen), "") << "never overwrites";
+}
+
+// Issue 17: open() of a FIFO as key file waited for a writer for ever.
+TEST_F(LinkAuthTest, KeyFilesThatAreFifosOrDevicesAreRefusedWithoutWaiting) {
+  const std::string fifo = dir_ + "/fifo.key";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  test::HangGuard guard("load_key_file on a FIFO");
+  EXPECT_EQ(load_key_file(fifo).error, fifo + ": the key file is a FIFO, not a regular file");
+  EXPECT_EQ(load_key_file("/dev/zero").error, "/dev/zero: the key file is a character device, not a regular file");
+  const std::string big = write("big.key", std::string(70000, '#'));
+  EXPECT_NE(load_key_file(big).error.find(big + ": the key file has 68.4 KiB, more than the limit of 64 KiB"),
+            std::string::npos)
+      << load_key_file(big).error;
+  EXPECT_THROW(KeyRing ring(fifo), std::runtime_error);
 }
 
 struct Packet {

@@ -3,6 +3,8 @@
 // file and by SET_PARAM), a log flood beside a periodic task, the viewer's filters
 // and line formats, and the record file (round trip and rejection with offsets).
 #include <gtest/gtest.h>
+
+#include "hostile_files.h"
 #include <unistd.h>
 
 #include <atomic>
@@ -713,6 +715,30 @@ TEST_F(GdosRecordFileTest, RejectsOtherFilesAndVersions) {
   EXPECT_NE(what.find("version 9"), std::string::npos) << what;
   put_bytes("");
   EXPECT_EQ(read_all(nullptr, &what), 0);
+}
+
+// Issue 17: `gdos --replay` of a FIFO or device waited or read for ever; a record
+// length is checked against the file before its body is allocated.
+TEST_F(GdosRecordFileTest, FifosDevicesAndHugeLengthsAreRefusedWithTheirOffset) {
+  test::HostileDir d("gdos");
+  const std::string fifo = d.fifo("fifo.gdos");
+  test::HangGuard guard("RecordReader on a FIFO");
+  for (const auto& [path, expect] : {std::pair<std::string, std::string>{fifo, fifo + ": byte offset 0: the gdos record file is a FIFO"},
+                                     {"/dev/zero", "/dev/zero: byte offset 0: the gdos record file is a character device"},
+                                     {d.subdir("dir"), "dir: byte offset 0: the gdos record file is a directory"}}) {
+    try {
+      gdos_view::RecordReader reader(path);
+      ADD_FAILURE() << path << " was opened as a record file";
+    } catch (const gdos_view::FileError& e) {
+      EXPECT_NE(std::string(e.what()).find(expect), std::string::npos) << e.what();
+    }
+  }
+  write({});
+  const std::size_t header = bytes().size();
+  put_bytes(bytes() + std::string("\x00\x00\xf0\x00\x00\x00\x00\x00", 8) + "short");  // 15 MiB announced
+  std::string what;
+  EXPECT_EQ(read_all(nullptr, &what), static_cast<long long>(header));
+  EXPECT_NE(what.find("truncated record (15728640 bytes announced, 5 present)"), std::string::npos) << what;
 }
 
 TEST_F(GdosRecordFileTest, TruncatedOrCorruptRecordsNameTheirOffset) {

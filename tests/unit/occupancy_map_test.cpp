@@ -12,6 +12,8 @@
 #include <numbers>
 #include <string>
 
+#include "hostile_files.h"
+
 namespace rack::maps {
 namespace {
 
@@ -170,6 +172,46 @@ TEST_F(OccupancyMapTest, ImageErrorsNameTheByteOffset) {
   expect_error(load_map(yaml("text.pgm")), {"text.pgm: byte 13:", "expected the pixel value"});
   write("empty.pgm", "P5\n0 4\n255\n");
   expect_error(load_map(yaml("empty.pgm")), {"empty.pgm", "the image is empty"});
+}
+
+// Issue 17: a 22-byte PGM whose header claims 30000 x 30000 allocated 900 MB before
+// the truncation was seen; /dev/zero as image grew the process to gigabytes; a FIFO
+// hung loading. Each is now refused before anything is allocated, naming file and byte.
+TEST_F(OccupancyMapTest, HostileImagesAreRefusedBeforeAllocation) {
+  write("huge.pgm", "P5\n30000 30000\n255\n\xff\xff");  // 22 bytes
+  expect_error(load_map(yaml("huge.pgm")),
+               {"huge.pgm: byte 18:", "30000x30000 = 900000000 pixels, more than the limit of 67108864 map cells"});
+  write("liar.pgm", "P5\n8000 8000\n255\n\xff\xff");  // within the cell limit, 64 MB promised, 2 bytes given
+  expect_error(load_map(yaml("liar.pgm")), {"liar.pgm: byte", "truncated: the raster needs 64000000 bytes"});
+  write("text.pgm", "P2\n8000 8000\n255\n0 0 0\n");
+  expect_error(load_map(yaml("text.pgm")), {"text.pgm: byte 23:", "file ends where the pixel value should be"});
+  write("side.pgm", "P5\n99999999999 1\n255\n");
+  expect_error(load_map(yaml("side.pgm")), {"side.pgm: byte 3:", "width is larger than 100000"});
+  test::HostileDir d("map");
+  const std::string fifo = d.fifo("fifo.pgm");
+  test::HangGuard guard("load_map with a FIFO as image");
+  expect_error(load_map(yaml("/dev/zero")), {"/dev/zero: the map image is a character device, not a regular file"});
+  expect_error(load_map(yaml(fifo)), {fifo + ": the map image is a FIFO, not a regular file"});
+  expect_error(load_map(yaml(d.subdir("folder"))), {"folder: the map image is a directory"});
+  const std::string big = d.sparse("big.pgm", kMaxMapImageBytes + 1);
+  expect_error(load_map(yaml(big)), {"big.pgm: the map image has 256.0 MiB, more than the limit of 256 MiB"});
+}
+
+TEST_F(OccupancyMapTest, HostileYamlFilesAreRefused) {
+  test::HostileDir d("map");
+  const std::string fifo = d.fifo("fifo.yaml");
+  test::HangGuard guard("load_map on a FIFO");
+  expect_error(load_map(fifo), {fifo + ": the map file is a FIFO, not a regular file"});
+  expect_error(load_map("/dev/zero"), {"/dev/zero: the map file is a character device"});
+  expect_error(load_map(d.sparse("big.yaml", kMaxMapYamlBytes + 1)), {"big.yaml: the map file has", "limit of 1 MiB"});
+  write("map.pgm", "P2\n1 1\n255\n0\n");
+  expect_error(load_map(yaml("map.pgm", "resolution: 0.2\n")), {"map.yaml:7:", "key 'resolution' appears twice"});
+  expect_error(load_map(write("g.yaml", std::string(50000, '[') + "\n")), {"g.yaml"});
+  expect_error(load_map(write("n.yaml", "image: {a: b}\nresolution: [1]\norigin: [[1], 2, 3]\nnegate: [0]\n"
+                                        "occupied_thresh: 0.65\nfree_thresh: 0.196\nmode: [x]\n")),
+               {"n.yaml:1: 'image' must name the PGM file", "n.yaml:2: 'resolution' must be a finite number",
+                "n.yaml:3: 'origin' entries must be finite numbers", "n.yaml:4: 'negate' must be 0 or 1",
+                "n.yaml:7: 'mode' must be trinary"});
 }
 
 }  // namespace

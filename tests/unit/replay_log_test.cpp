@@ -20,6 +20,11 @@
 #include "rack/mcl/mcl_filter.h"
 #include "rack/replay/carmen_log.h"
 #include "rack/replay/replay_log.h"
+#include "hostile_files.h"
+#include "rawlog_reader.h"
+#include "rack/rt/input_file.h"
+
+#include <zlib.h>
 
 namespace rack::replay {
 namespace {
@@ -262,6 +267,151 @@ TEST(RawlogTest, TruncatedRawlogIsAnErrorWithTheOffset) {
   EXPECT_NE(r.error_text().find("byte offset"), std::string::npos) << r.error_text();
   EXPECT_NE(r.error_text().find(path.string()), std::string::npos) << r.error_text();
   std::filesystem::remove(path);
+}
+
+// Issue 17: log files from hostile places are refused without waiting or reading for
+// ever, each error naming the file.
+TEST(HostileLogTest, FifosDevicesDirectoriesAndHugeFilesAreRefused) {
+  test::HostileDir d("log");
+  const std::string fifo_log = d.fifo("fifo.log");
+  const std::string fifo_rawlog = d.fifo("fifo.rawlog");
+  const std::string huge = d.sparse("huge.log", kMaxLogFileBytes + 1);
+  test::HangGuard guard("load_replay_log on a FIFO");
+  const std::pair<std::string, std::string> cases[] = {
+      {fifo_log, fifo_log + ": the log file is a FIFO, not a regular file"},
+      {fifo_rawlog, fifo_rawlog + ": the rawlog is a FIFO, not a regular file"},
+      {"/dev/zero", "/dev/zero: the log file is a character device, not a regular file"},
+      {d.subdir("dir.rawlog"), "dir.rawlog: the rawlog is a directory"},
+      {huge, huge + ": the log file has 256.0 MiB, more than the limit of 256 MiB"},
+  };
+  for (const auto& [path, expect] : cases) {
+    const LoadLogResult r = load_replay_log(path);
+    EXPECT_FALSE(r.ok()) << path;
+    EXPECT_NE(r.error_text().find(expect), std::string::npos) << r.error_text();
+  }
+}
+
+TEST(HostileLogTest, AFloodOfBadLinesKeepsTheFirstErrorsAndCountsAll) {
+  std::string text;
+  for (int i = 0; i < 5000; ++i) text += "ODOM x\n";
+  const LoadLogResult r = parse_carmen_text(text, "flood.log");
+  EXPECT_EQ(r.errors.size(), kMaxLogErrors);
+  EXPECT_EQ(r.error_count, 5000u);
+  EXPECT_EQ(r.errors.front().str().rfind("flood.log:1: ODOM: x is not a number", 0), 0u) << r.errors.front().str();
+  EXPECT_NE(r.error_text(10).find("(4990 more)"), std::string::npos) << r.error_text(10);
+}
+
+TEST(HostileLogTest, HugeBeamCountsAreRefusedBeforeAllocation) {
+  const CarmenLine l = parse_carmen_line("FLASER 4294967296 1 2 3", 1);
+  const auto* e = std::get_if<CarmenMalformed>(&l);
+  ASSERT_NE(e, nullptr);
+  EXPECT_NE(e->reason.find("num_readings must be a count 0..100000"), std::string::npos) << e->reason;
+  const CarmenLine m = parse_carmen_line("FLASER 100000 1 2 3", 1);
+  const auto* f = std::get_if<CarmenMalformed>(&m);
+  ASSERT_NE(f, nullptr);
+  EXPECT_NE(f->reason.find("line ends inside the range readings: 3 fields left, 100000 needed"), std::string::npos)
+      << f->reason;
+}
+
+TEST(HostileLogTest, GzipBombsGarbageAndTruncatedGzipAreRefused) {
+  // 64 MiB of zeros compress to about 64 KiB: inflating stops at the limit.
+  std::string zeros(64u << 20, '\0');
+  std::string gz;
+  {
+    z_stream z{};
+    ASSERT_EQ(deflateInit2(&z, 9, Z_DEFLATED, 16 + MAX_WBITS, 9, Z_DEFAULT_STRATEGY), Z_OK);
+    gz.resize(deflateBound(&z, zeros.size()));
+    z.next_in = reinterpret_cast<Bytef*>(zeros.data());
+    z.avail_in = static_cast<uInt>(zeros.size());
+    z.next_out = reinterpret_cast<Bytef*>(gz.data());
+    z.avail_out = static_cast<uInt>(gz.size());
+    ASSERT_EQ(deflate(&z, Z_FINISH), Z_STREAM_END);
+    gz.resize(z.total_out);
+    deflateEnd(&z);
+  }
+  zeros.clear();
+  zeros.shrink_to_fit();
+  std::string out, error;
+  EXPECT_FALSE(gunzip_bounded(gz, 1u << 20, out, error));
+  EXPECT_NE(error.find("decompresses to more than the limit of 1048576 bytes"), std::string::npos) << error;
+  EXPECT_TRUE(out.empty());
+  EXPECT_FALSE(gunzip_bounded(gz.substr(0, gz.size() / 2), 128u << 20, out, error));
+  EXPECT_NE(error.find("gzip data is truncated"), std::string::npos) << error;
+  std::string corrupt = gz;
+  corrupt[12] = static_cast<char>(corrupt[12] ^ 0x55);
+  corrupt[13] = static_cast<char>(corrupt[13] ^ 0x55);
+  EXPECT_FALSE(gunzip_bounded(corrupt, 128u << 20, out, error));
+  EXPECT_NE(error.find("byte offset"), std::string::npos) << error;
+  // Garbage that MRPT cannot deserialise: an error naming the record and offset.
+  const LoadLogResult g = parse_rawlog("garbage.rawlog", std::string(4096, '\x7f'));
+  ASSERT_FALSE(g.ok());
+  EXPECT_NE(g.error_text().find("garbage.rawlog: record 0 at byte offset 0"), std::string::npos) << g.error_text();
+  // A cut record of a real rawlog (uncompressed, as MRPT reads it): the offset is named.
+  std::string plain, why;
+  {
+    std::string gz_file;
+    ASSERT_TRUE(rt::read_regular_file("/usr/share/mrpt/datasets/localization_demo.rawlog", 1u << 20, "rawlog", gz_file,
+                                      why))
+        << why << " (mrpt-common missing? run scripts/setup.sh)";
+    ASSERT_TRUE(gunzip_bounded(gz_file, 1u << 20, plain, why)) << why;
+  }
+  const LoadLogResult cut = parse_rawlog("cut.rawlog", plain.substr(0, 3000));
+  EXPECT_FALSE(cut.ok());
+  EXPECT_NE(cut.error_text().find("cut.rawlog: record "), std::string::npos) << cut.error_text();
+  EXPECT_NE(cut.error_text().find("truncated at byte offset"), std::string::npos) << cut.error_text();
+}
+
+// Found by fuzz_rawlog: a corrupt JPEG in a CImage (here under its old name
+// CMRPTImage) made libjpeg call exit() inside MRPT's deserialisation: rackd ended.
+TEST(HostileLogTest, ImagesAreNotHandedToMrptsJpegDecoder) {
+  const std::string bytes("\x8a" "CMRPTImage\x03serN4mrpt21Excei:", 29);
+  const LoadLogResult r = parse_rawlog("image.rawlog", bytes);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error_text().find("image.rawlog: record 0 at byte offset 0 (uncompressed) holds an image"),
+            std::string::npos)
+      << r.error_text();
+}
+
+// Found by fuzz_rawlog: 150 bytes made MRPT dereference a null pointer inside
+// CActionRobotMovement2D::serializeFrom. load_rawlog() runs MRPT in a child process:
+// the crash is an error naming the record, and this process lives on.
+TEST(HostileLogTest, AnMrptCrashIsAnErrorOfTheRecordNotOfTheProcess) {
+  const std::string seed =
+      std::string(RACK_SOURCE_DIR) + "/tests/unit/data/rawlog_mrpt_segv_movement2d.rawlog";
+  const LoadLogResult r = load_replay_log(seed);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error_text().find(seed + ": record 0 at byte offset 0 (uncompressed): MRPT's reader crashed on it"),
+            std::string::npos)
+      << r.error_text();
+  // Found by fuzz_rawlog (an OOM): a record claiming a string of gigabytes. MRPT takes
+  // the memory before it finds the data missing; in the child that is bounded by its
+  // address-space limit, and here an error.
+  const std::string claim = std::string(RACK_SOURCE_DIR) + "/tests/unit/data/rawlog_huge_claim.rawlog";
+  const LoadLogResult c = load_replay_log(claim);
+  ASSERT_FALSE(c.ok());
+  EXPECT_NE(c.error_text().find(claim + ": record "), std::string::npos) << c.error_text();
+  // The corrupt JPEG whose decoder calls exit(): in the child, images are read, and the
+  // exit ends only the child.
+  const std::string jpeg = std::string(RACK_SOURCE_DIR) + "/tests/fuzz/corpus/rawlog/regression_corrupt_jpeg_exit.rawlog";
+  const LoadLogResult j = load_replay_log(jpeg);
+  ASSERT_FALSE(j.ok());
+  EXPECT_NE(j.error_text().find(jpeg + ": record 0 at byte offset 0 (uncompressed)"), std::string::npos)
+      << j.error_text();
+  // The isolated reader returns what a good rawlog holds, as the in-process one does.
+  const std::string demo = "/usr/share/mrpt/datasets/localization_demo.rawlog";
+  std::string bytes, why;
+  ASSERT_TRUE(rt::read_regular_file(demo, 1u << 20, "rawlog", bytes, why)) << why;
+  const LoadLogResult isolated = load_replay_log(demo);
+  const LoadLogResult direct = parse_rawlog(demo, bytes);
+  ASSERT_TRUE(isolated.ok()) << isolated.error_text();
+  ASSERT_EQ(isolated.log.scans.size(), direct.log.scans.size());
+  ASSERT_EQ(isolated.log.odometry.size(), direct.log.odometry.size());
+  EXPECT_EQ(isolated.lines, direct.lines);
+  for (std::size_t i = 0; i < direct.log.scans.size(); ++i) {
+    EXPECT_EQ(isolated.log.scans[i].ranges, direct.log.scans[i].ranges);
+    EXPECT_EQ(isolated.log.scans[i].time, direct.log.scans[i].time);
+  }
+  for (std::size_t i = 0; i < direct.log.odometry.size(); ++i) EXPECT_EQ(isolated.log.odometry[i].x, direct.log.odometry[i].x);
 }
 
 }  // namespace

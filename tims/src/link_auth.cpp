@@ -1,5 +1,7 @@
 #include "rack/tims/link_auth.h"
 
+#include "rack/rt/input_file.h"
+
 #include <fcntl.h>
 #include <sodium.h>
 #include <sys/stat.h>
@@ -20,6 +22,7 @@ constexpr uint8_t kMagic[4] = {'R', 'K', 'A', '1'};
 constexpr std::size_t kMacBytes = 16;
 constexpr std::size_t kSignedTrailer = kAuthTrailerBytes - kMacBytes;  // bytes 0..31 are MAC'd
 constexpr std::size_t kHexLen = kLinkKeyBytes * 2;
+constexpr uint64_t kMaxKeyFileBytes = 64u << 10;  // two keys and comments fit many times over
 
 void init_sodium() {
   // sodium_init() is idempotent and thread-safe; < 0 only when no entropy source.
@@ -89,42 +92,26 @@ KeyFile load_key_file(const std::string& path) {
     return out;
   };
   // O_NOFOLLOW is not used: a symlink to a well-protected file is fine; the checks
-  // below are on the file itself (fstat of what was opened).
-  const int fd = open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return refuse(std::string("cannot open: ") + std::strerror(errno));
-  struct stat st{};
-  if (fstat(fd, &st) != 0) {
-    const int e = errno;
-    close(fd);
-    return refuse(std::string("cannot stat: ") + std::strerror(e));
+  // are on the file itself (fstat of what was opened). A FIFO or device is refused
+  // without waiting on it (rack/rt/input_file.h).
+  rt::InputFile file;
+  std::string error;
+  if (!file.open(path, kMaxKeyFileBytes, "key file", error)) {
+    out.keys.clear();
+    out.error = error;
+    return out;
   }
-  if (!S_ISREG(st.st_mode)) {
-    close(fd);
-    return refuse("not a regular file");
-  }
-  if ((st.st_mode & 077) != 0) {
-    close(fd);
-    return refuse("has mode " + mode_text(st.st_mode) +
+  if ((file.mode() & 077) != 0) {
+    return refuse("has mode " + mode_text(file.mode()) +
                   ": group or others may access it, so the key is not secret; refused (chmod 600 " + path + ")");
   }
   std::string text;
-  char buf[4096];
-  for (;;) {
-    const ssize_t n = read(fd, buf, sizeof buf);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      const int e = errno;
-      close(fd);
-      return refuse(std::string("cannot read: ") + std::strerror(e));
-    }
-    if (n == 0) break;
-    text.append(buf, static_cast<std::size_t>(n));
-    if (text.size() > 65536) {
-      close(fd);
-      return refuse("larger than 64 KiB: not a key file");
-    }
+  if (!file.read_all(text, error)) {
+    out.keys.clear();
+    out.error = error;
+    return out;
   }
-  close(fd);
+  file.close();
   std::istringstream in(text);
   std::string line;
   int number = 0;

@@ -246,18 +246,12 @@ int run(const Options& o) {
   std::vector<std::string> order;
   uint64_t shown = 0, total = 0;
   for (const auto& input : o.inputs) {
-    std::unique_ptr<std::istream> owned;
-    std::istream* in = &std::cin;
-    const std::string name = input == "-" ? "<stdin>" : input;
-    if (input != "-") {
-      owned = std::make_unique<std::ifstream>(input);
-      if (!*owned) {
-        std::fprintf(stderr, "rack-backtrace: cannot read %s: %s\n", input.c_str(), std::strerror(errno));
-        return 2;
-      }
-      in = owned.get();
+    // A regular file within the limit (a FIFO or device is refused, never waited on).
+    const ReportFile file = rack::backtrace::load_report_file(input);
+    if (file.unreadable) {
+      std::fprintf(stderr, "rack-backtrace: %s\n", file.errors.front().c_str());
+      return 2;
     }
-    const ReportFile file = rack::backtrace::parse_report_file(*in, name);
     std::vector<std::string> errors = file.errors;
     Symbolizer sym(file, o.root, errors);
     for (const auto& e : errors) std::fprintf(stderr, "rack-backtrace: %s\n", e.c_str());

@@ -2,7 +2,10 @@
 
 #include <cerrno>
 #include <cstdlib>
+#include <iostream>
 #include <sstream>
+
+#include "rack/rt/input_file.h"
 
 namespace rack::backtrace {
 
@@ -39,24 +42,97 @@ const ModuleLine* ReportFile::module_of(uint64_t pc) const {
   return nullptr;
 }
 
+namespace {
+
+// The errors list stays short: after kMaxReportErrors only a count is kept.
+class ErrorList {
+ public:
+  explicit ErrorList(std::vector<std::string>& out) : out_(out) {}
+  void push_back(std::string e) {
+    if (out_.size() < kMaxReportErrors) {
+      out_.push_back(std::move(e));
+    } else {
+      ++dropped_;
+    }
+  }
+  void finish(const std::string& name) {
+    if (dropped_ > 0) out_.push_back(name + ": " + std::to_string(dropped_) + " more errors not listed");
+  }
+
+ private:
+  std::vector<std::string>& out_;
+  uint64_t dropped_ = 0;
+};
+
+ReportFile parse(std::istream& in, const std::string& name);
+
+}  // namespace
+
 ReportFile parse_report_file(std::istream& in, const std::string& name) {
+  try {
+    return parse(in, name);
+  } catch (const std::exception& e) {  // allocation: refused, never past here
+    ReportFile f;
+    f.name = name;
+    f.errors.push_back(name + ": cannot read the report file: " + e.what());
+    return f;
+  }
+}
+
+ReportFile parse_report_text(const std::string& text, const std::string& name) {
+  std::istringstream in(text);
+  return parse_report_file(in, name);
+}
+
+ReportFile load_report_file(const std::string& path) {
+  std::string text, error;
+  if (path == "-") {
+    // Standard input is whatever the user piped: read with the same limit.
+    char chunk[65536];
+    while (std::cin.read(chunk, sizeof chunk) || std::cin.gcount() > 0) {
+      text.append(chunk, static_cast<std::size_t>(std::cin.gcount()));
+      if (text.size() > kMaxReportFileBytes) {
+        ReportFile f;
+        f.name = "<stdin>";
+        f.unreadable = true;
+        f.errors.push_back("<stdin>: more than the limit of " + rack::rt::byte_size_text(kMaxReportFileBytes) +
+                           " of a report file");
+        return f;
+      }
+    }
+    return parse_report_text(text, "<stdin>");
+  }
+  if (!rack::rt::read_regular_file(path, kMaxReportFileBytes, "report file", text, error)) {
+    ReportFile f;
+    f.name = path;
+    f.unreadable = true;
+    f.errors.push_back(error);
+    return f;
+  }
+  return parse_report_text(text, path);
+}
+
+namespace {
+
+ReportFile parse(std::istream& in, const std::string& name) {
   ReportFile f;
   f.name = name;
+  ErrorList errors(f.errors);
   std::string line;
   int n = 0;
   auto where = [&](int at) { return name + ":" + std::to_string(at); };
   if (!std::getline(in, line)) {
-    f.errors.push_back(name + ": empty (not a RACK mode-switch report)");
+    errors.push_back(name + ": empty (not a RACK mode-switch report)");
     return f;
   }
   n = 1;
   if (!starts_with(line, "RACK-MODESWITCH-REPORT ")) {
-    f.errors.push_back(where(1) + ": not a RACK mode-switch report (expected 'RACK-MODESWITCH-REPORT 1 ...', got '" +
+    errors.push_back(where(1) + ": not a RACK mode-switch report (expected 'RACK-MODESWITCH-REPORT 1 ...', got '" +
                        line.substr(0, 60) + "')");
     return f;
   }
   if (!starts_with(line, "RACK-MODESWITCH-REPORT 1 ")) {
-    f.errors.push_back(where(1) + ": report format version not understood (this tool reads version 1)");
+    errors.push_back(where(1) + ": report format version not understood (this tool reads version 1)");
     return f;
   }
   f.header = line;
@@ -65,7 +141,7 @@ ReportFile parse_report_file(std::istream& in, const std::string& name) {
   uint64_t expected_frames = 0;
   int open_line = 0;
   auto close_truncated = [&](const std::string& why) {
-    f.errors.push_back(where(open_line) + ": report " + std::to_string(current.sequence) + " is truncated: " +
+    errors.push_back(where(open_line) + ": report " + std::to_string(current.sequence) + " is truncated: " +
                        std::to_string(current.pcs.size()) + " of " + std::to_string(expected_frames) +
                        " frames and no 'end " + std::to_string(current.sequence) + "' line (" + why + ")");
     open = false;
@@ -81,7 +157,7 @@ ReportFile parse_report_file(std::istream& in, const std::string& name) {
       std::istringstream id(line.substr(7));
       if (path_at == std::string::npos || !(id >> m.id) || !kv.count("base") || !parse_u64(kv.at("base"), m.base) ||
           !kv.count("lo") || !parse_u64(kv.at("lo"), m.lo) || !kv.count("hi") || !parse_u64(kv.at("hi"), m.hi)) {
-        f.errors.push_back(where(n) + ": malformed module line");
+        errors.push_back(where(n) + ": malformed module line");
         continue;
       }
       m.build_id = kv.count("build_id") && kv.at("build_id") != "-" ? kv.at("build_id") : "";
@@ -95,22 +171,22 @@ ReportFile parse_report_file(std::istream& in, const std::string& name) {
       std::istringstream seq(line.substr(7));
       if (!(seq >> current.sequence) || !current.fields.count("reason") || !current.fields.count("frames") ||
           !parse_u64(current.fields.at("frames"), expected_frames)) {
-        f.errors.push_back(where(n) + ": malformed report line");
+        errors.push_back(where(n) + ": malformed report line");
         continue;
       }
       open = true;
       open_line = n;
     } else if (starts_with(line, "detail ")) {
-      if (!open) { f.errors.push_back(where(n) + ": 'detail' outside a report"); continue; }
+      if (!open) { errors.push_back(where(n) + ": 'detail' outside a report"); continue; }
       current.detail = line.substr(7);
     } else if (starts_with(line, "frame ")) {
-      if (!open) { f.errors.push_back(where(n) + ": 'frame' outside a report"); continue; }
+      if (!open) { errors.push_back(where(n) + ": 'frame' outside a report"); continue; }
       std::istringstream fr(line.substr(6));
       uint64_t index = 0;
       std::string pc_text;
       uint64_t pc = 0;
       if (!(fr >> index >> pc_text) || !parse_u64(pc_text, pc) || index != current.pcs.size()) {
-        f.errors.push_back(where(n) + ": malformed frame line (expected 'frame " +
+        errors.push_back(where(n) + ": malformed frame line (expected 'frame " +
                            std::to_string(current.pcs.size()) + " 0x...')");
         continue;
       }
@@ -118,12 +194,12 @@ ReportFile parse_report_file(std::istream& in, const std::string& name) {
     } else if (starts_with(line, "end ")) {
       uint64_t seq = 0;
       if (!open || !parse_u64(line.substr(4), seq) || seq != current.sequence) {
-        f.errors.push_back(where(n) + ": 'end' without its report");
+        errors.push_back(where(n) + ": 'end' without its report");
         open = false;
         continue;
       }
       if (current.pcs.size() != expected_frames) {
-        f.errors.push_back(where(open_line) + ": report " + std::to_string(seq) + " has " +
+        errors.push_back(where(open_line) + ": report " + std::to_string(seq) + " has " +
                            std::to_string(current.pcs.size()) + " frames, its header says " +
                            std::to_string(expected_frames));
       } else {
@@ -131,11 +207,14 @@ ReportFile parse_report_file(std::istream& in, const std::string& name) {
       }
       open = false;
     } else {
-      f.errors.push_back(where(n) + ": unknown line '" + line.substr(0, 40) + "'");
+      errors.push_back(where(n) + ": unknown line '" + line.substr(0, 40) + "'");
     }
   }
   if (open) close_truncated("the file ends: the process died while writing, or the file was cut");
+  errors.finish(name);
   return f;
 }
+
+}  // namespace
 
 }  // namespace rack::backtrace

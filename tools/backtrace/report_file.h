@@ -39,12 +39,24 @@ struct ReportFile {
   std::vector<ModuleLine> modules;   // in the order seen (ids index them)
   std::vector<Report> reports;       // complete reports only
   std::vector<std::string> errors;   // "file:line: ..." for truncated or malformed parts
+  bool unreadable = false;           // the file could not be read at all (errors says why)
   // The module holding `pc` (absolute), or nullptr.
   [[nodiscard]] const ModuleLine* module_of(uint64_t pc) const;
 };
 
+// Limits (tools/backtrace/README.md): a report file is a regular file (a FIFO or device
+// is refused without blocking) of at most kMaxReportFileBytes; at most kMaxReportErrors
+// errors are listed (one more line says how many were left out).
+inline constexpr uint64_t kMaxReportFileBytes = 64u << 20;  // 64 MiB
+inline constexpr std::size_t kMaxReportErrors = 100;
+
 // Parses a whole report file. Never throws for bad content: what cannot be read is
 // described in `errors` with file and line, and the complete reports are kept.
 ReportFile parse_report_file(std::istream& in, const std::string& name);
+// The same for the file's text in memory (what a fuzz harness drives).
+ReportFile parse_report_text(const std::string& text, const std::string& name);
+// Opens and parses `path` ("-": standard input, read up to the same limit). A file that
+// cannot be read is one error ("path: ...", with errno's text) and no report.
+ReportFile load_report_file(const std::string& path);
 
 }  // namespace rack::backtrace

@@ -1,5 +1,7 @@
 #include "gdos_view.h"
 
+#include <sys/stat.h>
+
 #include <array>
 #include <cerrno>
 #include <cstring>
@@ -227,11 +229,14 @@ void RecordWriter::write(const tims::GdosRecord& r) {
 
 void RecordWriter::flush() { out_.flush(); }
 
-RecordReader::RecordReader(const std::string& path) : path_(path), in_(path, std::ios::binary) {
-  if (!in_) throw FileError(path, 0, std::string("cannot open: ") + std::strerror(errno));
+RecordReader::RecordReader(const std::string& path) : path_(path) {
+  std::string error;
+  if (!in_.open(path, UINT64_MAX, "gdos record file", error)) {
+    // error starts with the path: the FileError adds it again with the offset.
+    throw FileError(path, 0, error.substr(std::min(error.size(), path.size() + 2)));
+  }
   char head[12];
-  in_.read(head, sizeof head);
-  const auto got = static_cast<std::size_t>(in_.gcount());
+  const auto got = static_cast<std::size_t>(read(head, sizeof head));
   if (got < sizeof kMagic || std::memcmp(head, kMagic, sizeof kMagic) != 0) {
     throw FileError(path, 0, "not a gdos record file (it does not start with RACKGDOS)");
   }
@@ -246,10 +251,10 @@ RecordReader::RecordReader(const std::string& path) : path_(path), in_(path, std
                                  std::to_string(kFileVersion) + ")");
   }
   std::string fields(n, '\0');
-  in_.read(fields.data(), n);
-  if (static_cast<std::size_t>(in_.gcount()) != n) {
-    throw FileError(path, 12 + static_cast<uint64_t>(in_.gcount()), "truncated header (" + std::to_string(n) +
-                                                                         " bytes of header fields announced)");
+  const auto fields_got = static_cast<std::size_t>(read(fields.data(), n));
+  if (fields_got != n) {
+    throw FileError(path, 12 + fields_got, "truncated header (" + std::to_string(n) +
+                                               " bytes of header fields announced)");
   }
   Cursor f(fields);
   if (!f.get(created_ns_) || !f.get_string<uint16_t>(description_)) {
@@ -260,8 +265,7 @@ RecordReader::RecordReader(const std::string& path) : path_(path), in_(path, std
 
 bool RecordReader::next(tims::GdosRecord& r) {
   char pre[8];
-  in_.read(pre, sizeof pre);
-  const auto got = static_cast<std::size_t>(in_.gcount());
+  const auto got = static_cast<std::size_t>(read(pre, sizeof pre));
   if (got == 0) return false;
   if (got < sizeof pre) throw FileError(path_, offset_, "truncated record (the file ends inside a record's length)");
   const std::string ps(pre, sizeof pre);
@@ -272,11 +276,22 @@ bool RecordReader::next(tims::GdosRecord& r) {
   if (length > kMaxRecordBytes) {
     throw FileError(path_, offset_, "record length " + std::to_string(length) + " is implausible (corrupt file)");
   }
+  // Checked against the file's size now (it may still be recorded) before the body is
+  // allocated; the read below decides in the end.
+  struct stat st {};
+  if (::fstat(in_.fd(), &st) == 0 && st.st_size >= 0) {
+    const uint64_t size = static_cast<uint64_t>(st.st_size);
+    const uint64_t present = size > in_.offset() ? size - in_.offset() : 0;
+    if (length > present) {
+      throw FileError(path_, offset_, "truncated record (" + std::to_string(length) + " bytes announced, " +
+                                          std::to_string(present) + " present)");
+    }
+  }
   std::string body(length, '\0');
-  in_.read(body.data(), length);
-  if (static_cast<uint32_t>(in_.gcount()) != length) {
+  const auto body_got = static_cast<std::size_t>(read(body.data(), length));
+  if (body_got != length) {
     throw FileError(path_, offset_, "truncated record (" + std::to_string(length) + " bytes announced, " +
-                                        std::to_string(in_.gcount()) + " present)");
+                                        std::to_string(body_got) + " present)");
   }
   if (crc32(body.data(), body.size()) != crc) throw FileError(path_, offset_, "record fails its CRC (corrupt file)");
   Cursor b(body);
@@ -288,6 +303,13 @@ bool RecordReader::next(tims::GdosRecord& r) {
   }
   offset_ += sizeof pre + length;
   return true;
+}
+
+long RecordReader::read(char* buffer, std::size_t n) {
+  std::string error;
+  const long got = in_.read(buffer, n, error);
+  if (got < 0) throw FileError(path_, in_.offset(), error.substr(std::min(error.size(), path_.size() + 2)));
+  return got;
 }
 
 }  // namespace rack::gdos_view

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "rack/core/gdos.h"
+#include "rack/rt/input_file.h"
 #include "rack/tims/gdos_lcm.h"
 
 namespace rack::gdos_view {
@@ -73,7 +74,8 @@ class RecordWriter {
 
 class RecordReader {
  public:
-  // Opens `path` and checks the header. Throws FileError.
+  // Opens `path` and checks the header. Throws FileError, also when `path` is not a
+  // regular file (a FIFO or device is refused without waiting on it).
   explicit RecordReader(const std::string& path);
   // The next record; false at the clean end of the file. Throws FileError.
   bool next(tims::GdosRecord& r);
@@ -81,8 +83,10 @@ class RecordReader {
   [[nodiscard]] int64_t created_ns() const noexcept { return created_ns_; }
 
  private:
+  // Read to its end, however long (records are streamed, one at a time).
+  long read(char* buffer, std::size_t n);
   std::string path_;
-  std::ifstream in_;
+  rt::InputFile in_;
   uint64_t offset_ = 0;
   std::string description_;
   int64_t created_ns_ = 0;

@@ -1,4 +1,5 @@
 #include "rack/devices/can_port.h"
+#include "rack/rt/input_file.h"
 #include "rack/rt/modeswitch.h"
 
 #include <fcntl.h>
@@ -6,6 +7,7 @@
 #include <net/if.h>
 #include <sys/ioctl.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/un.h>
 #include <unistd.h>
 
@@ -81,6 +83,13 @@ bool CanPort::open_unix(const char* path, std::string& error) {
     return false;
   }
   std::strncpy(addr.sun_path, path, sizeof addr.sun_path - 1);
+  // A simulated bus is a Unix socket; anything else there is named for what it is
+  // (connect() would only say "Connection refused"). When stat() fails, connect() says why.
+  struct stat st {};
+  if (::stat(path, &st) == 0 && !S_ISSOCK(st.st_mode)) {
+    error = std::string(path) + ": the CAN bus socket is " + rt::file_kind_text(st.st_mode) + ", not a socket";
+    return false;
+  }
   const int fd = ::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0);
   if (fd < 0) {
     error = errno_text("socket(AF_UNIX, SOCK_SEQPACKET)", path);

@@ -1,9 +1,11 @@
 #include "rack/devices/serial_port.h"
+#include "rack/rt/input_file.h"
 #include "rack/rt/modeswitch.h"
 
 #include <fcntl.h>
 #include <linux/serial.h>
 #include <sys/ioctl.h>
+#include <sys/stat.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -55,6 +57,15 @@ bool SerialPort::open(const char* path, int baud, char* error, std::size_t error
   const unsigned speed = speed_constant(baud);
   if (speed == 0) {
     std::snprintf(error, error_size, "%s: unsupported baud rate %d", path, baud);
+    return false;
+  }
+  // A serial port is a character device (a tty, a USB adapter, a pty of a simulator): a
+  // regular file or FIFO named by mistake is refused here with what it is. When stat()
+  // fails, open() below says why.
+  struct stat st {};
+  if (::stat(path, &st) == 0 && !S_ISCHR(st.st_mode)) {
+    std::snprintf(error, error_size, "%s: the serial port is %s, not a character device (a tty)", path,
+                  rt::file_kind_text(st.st_mode));
     return false;
   }
   // O_NOCTTY: a serial sensor must never become our controlling terminal;

@@ -2,17 +2,17 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "rack/rt/input_file.h"
+
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <iterator>
 #include <limits>
 #include <set>
-#include <sstream>
 
 namespace rack::maps {
 
@@ -188,15 +188,26 @@ struct PgmReader {
 
 }  // namespace
 
+namespace {
+
+// A facility error ("path: reason") as a MapError of that file.
+MapError file_error(const std::string& path, const std::string& error) {
+  const std::string prefix = path + ": ";
+  return {path, 0, -1, error.rfind(prefix, 0) == 0 ? error.substr(prefix.size()) : error};
+}
+
+}  // namespace
+
 std::optional<PgmImage> read_pgm(const std::string& path, std::vector<MapError>& errors) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    errors.push_back({path, 0, -1, std::string("cannot open the map image: ") + std::strerror(errno)});
+  std::string bytes, error;
+  if (!rt::read_regular_file(path, kMaxMapImageBytes, "map image", bytes, error)) {
+    errors.push_back(file_error(path, error));
     return std::nullopt;
   }
-  std::ostringstream whole;
-  whole << in.rdbuf();
-  const std::string bytes = std::move(whole).str();
+  return parse_pgm(path, bytes, errors);
+}
+
+std::optional<PgmImage> parse_pgm(const std::string& path, const std::string& bytes, std::vector<MapError>& errors) {
   PgmReader r{path, bytes, errors};
   if (bytes.size() < 2 || bytes[0] != 'P' || (bytes[1] != '5' && bytes[1] != '2')) {
     r.fail(0, "not a PGM image (expected the magic number P5 or P2)");
@@ -205,8 +216,7 @@ std::optional<PgmImage> read_pgm(const std::string& path, std::vector<MapError>&
   const bool binary = bytes[1] == '5';
   r.pos = 2;
   PgmImage img;
-  constexpr long kMaxSide = 100000;
-  if (!r.read_int("width", kMaxSide, img.width) || !r.read_int("height", kMaxSide, img.height) ||
+  if (!r.read_int("width", kMaxMapSide, img.width) || !r.read_int("height", kMaxMapSide, img.height) ||
       !r.read_int("maxval", 65535, img.maxval)) {
     return std::nullopt;
   }
@@ -218,8 +228,13 @@ std::optional<PgmImage> read_pgm(const std::string& path, std::vector<MapError>&
     r.fail(r.pos, "maxval " + std::to_string(img.maxval) + " is not supported (1..255: 8-bit grey levels)");
     return std::nullopt;
   }
+  // Both sides are at most kMaxMapSide: the product fits easily in 64 bits.
   const std::size_t n = static_cast<std::size_t>(img.width) * static_cast<std::size_t>(img.height);
-  img.pixels.resize(n);
+  if (n > kMaxMapCells) {
+    r.fail(r.pos, std::to_string(img.width) + "x" + std::to_string(img.height) + " = " + std::to_string(n) +
+                      " pixels, more than the limit of " + std::to_string(kMaxMapCells) + " map cells");
+    return std::nullopt;
+  }
   if (binary) {
     // Exactly one whitespace byte separates the header from the raster.
     if (r.pos >= bytes.size() || std::isspace(static_cast<unsigned char>(bytes[r.pos])) == 0) {
@@ -227,12 +242,14 @@ std::optional<PgmImage> read_pgm(const std::string& path, std::vector<MapError>&
       return std::nullopt;
     }
     ++r.pos;
+    // Checked before the raster is allocated: a header may promise anything.
     if (bytes.size() - r.pos < n) {
       r.fail(static_cast<std::size_t>(bytes.size()),
              "truncated: the raster needs " + std::to_string(n) + " bytes from byte " + std::to_string(r.pos) +
                  ", the file has " + std::to_string(bytes.size() - r.pos));
       return std::nullopt;
     }
+    img.pixels.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       const auto v = static_cast<uint8_t>(bytes[r.pos + i]);
       if (v > img.maxval) {
@@ -242,10 +259,13 @@ std::optional<PgmImage> read_pgm(const std::string& path, std::vector<MapError>&
       img.pixels[i] = v;
     }
   } else {
+    // A text pixel takes at least two bytes (a digit and a separator): the file's size
+    // bounds what is allocated, whatever the header says.
+    img.pixels.reserve(std::min<std::size_t>(n, (bytes.size() - r.pos) / 2 + 1));
     for (std::size_t i = 0; i < n; ++i) {
       int v = 0;
       if (!r.read_int("pixel value", img.maxval, v)) return std::nullopt;
-      img.pixels[i] = static_cast<uint8_t>(v);
+      img.pixels.push_back(static_cast<uint8_t>(v));
     }
   }
   return img;
@@ -253,11 +273,15 @@ std::optional<PgmImage> read_pgm(const std::string& path, std::vector<MapError>&
 
 // ---- YAML ---------------------------------------------------------------------
 
-struct MapLoader {
-  std::string file;
+namespace {
+
+struct YamlReader {
+  const std::string& file;
   std::vector<MapError>& errors;
 
-  void error(const YAML::Node& n, const std::string& message) { errors.push_back({file, n.Mark().line + 1, -1, message}); }
+  void error(const YAML::Node& n, const std::string& message) {
+    errors.push_back({file, n.Mark().line + 1, -1, message});
+  }
 
   std::optional<double> number(const YAML::Node& map, const char* key, bool required) {
     const YAML::Node n = map[key];
@@ -276,20 +300,13 @@ struct MapLoader {
     }
   }
 
-  std::optional<OccupancyMap> load() {
+  std::optional<MapYaml> parse(const std::string& text) {
     YAML::Node root;
-    {
-      std::ifstream in(file);
-      if (!in) {
-        errors.push_back({file, 0, -1, std::string("cannot open the map file: ") + std::strerror(errno)});
-        return std::nullopt;
-      }
-      try {
-        root = YAML::Load(in);
-      } catch (const YAML::ParserException& e) {
-        errors.push_back({file, e.mark.line + 1, -1, "YAML syntax: " + e.msg});
-        return std::nullopt;
-      }
+    try {
+      root = YAML::Load(text);
+    } catch (const YAML::ParserException& e) {
+      errors.push_back({file, e.mark.line + 1, -1, "YAML syntax: " + e.msg});
+      return std::nullopt;
     }
     if (!root.IsMap()) {
       errors.push_back({file, root ? root.Mark().line + 1 : 0, -1,
@@ -299,52 +316,54 @@ struct MapLoader {
     }
     static const std::set<std::string> kKnown = {"image",           "resolution", "origin", "negate",
                                                  "occupied_thresh", "free_thresh", "mode"};
+    std::set<std::string> seen;
     for (auto it = root.begin(); it != root.end(); ++it) {
-      const std::string key = it->first.as<std::string>("");
+      const std::string key = it->first.IsScalar() ? it->first.Scalar() : std::string();
       if (kKnown.count(key) == 0U) {
-        error(it->first, "unknown key '" + key +
+        error(it->first, "unknown key '" + key.substr(0, 60) +
                              "' (known: image, resolution, origin, negate, occupied_thresh, free_thresh, mode)");
+      } else if (!seen.insert(key).second) {
+        error(it->first, "key '" + key + "' appears twice");
       }
     }
-    std::string image;
+    MapYaml m;
     if (const YAML::Node n = root["image"]; !n) {
       errors.push_back({file, 0, -1, "missing key 'image'"});
     } else if (!n.IsScalar() || n.Scalar().empty()) {
       error(n, "'image' must name the PGM file");
+    } else if (n.Scalar().find('\0') != std::string::npos) {
+      error(n, "'image' holds a NUL byte");
     } else {
-      image = n.Scalar();
+      m.image = n.Scalar();
     }
     const auto resolution = number(root, "resolution", true);
     if (resolution && *resolution <= 0.0) error(root["resolution"], "'resolution' must be positive (metres per pixel)");
-    double origin[3] = {0, 0, 0};
-    bool origin_ok = false;
+    if (resolution) m.resolution = *resolution;
     if (const YAML::Node n = root["origin"]; !n) {
       errors.push_back({file, 0, -1, "missing key 'origin'"});
     } else if (!n.IsSequence() || n.size() != 3) {
       error(n, "'origin' must be [x, y, yaw]");
     } else {
-      origin_ok = true;
       for (std::size_t i = 0; i < 3; ++i) {
         try {
-          origin[i] = n[i].as<double>();
-          if (!std::isfinite(origin[i])) throw YAML::Exception(n[i].Mark(), "");
+          if (!n[i].IsScalar()) throw YAML::Exception(n[i].Mark(), "");
+          m.origin[i] = n[i].as<double>();
+          if (!std::isfinite(m.origin[i])) throw YAML::Exception(n[i].Mark(), "");
         } catch (const YAML::Exception&) {
           error(n[i], "'origin' entries must be finite numbers");
-          origin_ok = false;
         }
       }
     }
-    bool negate = false;
     if (const YAML::Node n = root["negate"]; !n) {
       errors.push_back({file, 0, -1, "missing key 'negate' (0 or 1)"});
     } else {
-      const std::string& s = n.Scalar();
+      const std::string s = n.IsScalar() ? n.Scalar() : std::string("(not a scalar)");
       if (s == "0" || s == "false") {
-        negate = false;
+        m.negate = false;
       } else if (s == "1" || s == "true") {
-        negate = true;
+        m.negate = true;
       } else {
-        error(n, "'negate' must be 0 or 1, got '" + s + "'");
+        error(n, "'negate' must be 0 or 1, got '" + s.substr(0, 60) + "'");
       }
     }
     const auto occ = number(root, "occupied_thresh", true);
@@ -352,17 +371,48 @@ struct MapLoader {
     if (occ && (*occ < 0.0 || *occ > 1.0)) error(root["occupied_thresh"], "'occupied_thresh' must be in [0, 1]");
     if (fre && (*fre < 0.0 || *fre > 1.0)) error(root["free_thresh"], "'free_thresh' must be in [0, 1]");
     if (occ && fre && *fre > *occ) error(root["free_thresh"], "'free_thresh' is above 'occupied_thresh'");
-    std::string mode = "trinary";
+    if (occ) m.occupied_thresh = *occ;
+    if (fre) m.free_thresh = *fre;
     if (const YAML::Node n = root["mode"]; n) {
-      mode = n.Scalar();
-      if (mode != "trinary" && mode != "scale" && mode != "raw") {
-        error(n, "'mode' must be trinary, scale or raw, got '" + mode + "'");
+      m.mode = n.IsScalar() ? n.Scalar() : std::string("(not a scalar)");
+      if (m.mode != "trinary" && m.mode != "scale" && m.mode != "raw") {
+        error(n, "'mode' must be trinary, scale or raw, got '" + m.mode.substr(0, 60) + "'");
       }
     }
     if (!errors.empty()) return std::nullopt;
+    return m;
+  }
+};
+
+}  // namespace
+
+std::optional<MapYaml> parse_map_yaml(const std::string& name, const std::string& text,
+                                      std::vector<MapError>& errors) {
+  const std::size_t before = errors.size();
+  std::vector<MapError> mine;
+  std::optional<MapYaml> m;
+  try {
+    m = YamlReader{name, mine}.parse(text);
+  } catch (const std::exception& e) {  // yaml-cpp (deep nesting, conversions) or allocation
+    mine.push_back({name, 0, -1, std::string("cannot read the map file: ") + e.what()});
+  }
+  errors.insert(errors.end(), mine.begin(), mine.end());
+  if (errors.size() != before) return std::nullopt;
+  return m;
+}
+
+struct MapLoader {
+  static std::optional<OccupancyMap> load(const std::string& file, std::vector<MapError>& errors) {
+    std::string text, error;
+    if (!rt::read_regular_file(file, kMaxMapYamlBytes, "map file", text, error)) {
+      errors.push_back(file_error(file, error));
+      return std::nullopt;
+    }
+    const std::optional<MapYaml> y = parse_map_yaml(file, text, errors);
+    if (!y) return std::nullopt;
 
     namespace fs = std::filesystem;
-    fs::path image_path(image);
+    fs::path image_path(y->image);
     if (image_path.is_relative()) image_path = fs::path(file).parent_path() / image_path;
     const auto img = read_pgm(image_path.string(), errors);
     if (!img) return std::nullopt;
@@ -375,19 +425,18 @@ struct MapLoader {
       for (std::size_t ix = 0; ix < w; ++ix) {
         const float v = img->pixels[row * w + ix];
         float p = 0.0F;
-        if (mode == "raw") {
+        if (y->mode == "raw") {
           p = v / 100.0F;  // raw: pixel values are occupancy percentages, >100 unknown
           if (v > 100.0F) p = -1.0F;
         } else {
-          p = negate ? v / maxval : (maxval - v) / maxval;
+          p = y->negate ? v / maxval : (maxval - v) / maxval;
         }
         occupancy[iy * w + ix] = p;
       }
     }
-    OccupancyMap map(img->width, img->height, *resolution, origin[0], origin[1], origin[2], std::move(occupancy),
-                     *occ, *fre);
+    OccupancyMap map(img->width, img->height, y->resolution, y->origin[0], y->origin[1], y->origin[2],
+                     std::move(occupancy), y->occupied_thresh, y->free_thresh);
     map.source_ = file;
-    (void)origin_ok;
     return map;
   }
 };
@@ -395,10 +444,9 @@ struct MapLoader {
 LoadMapResult load_map(const std::string& yaml_path) {
   LoadMapResult result;
   try {
-    MapLoader loader{yaml_path, result.errors};
-    auto map = loader.load();
+    auto map = MapLoader::load(yaml_path, result.errors);
     if (result.errors.empty()) result.map = std::move(map);
-  } catch (const std::exception& e) {  // yaml-cpp or allocation: report, never escape
+  } catch (const std::exception& e) {  // allocation: report, never escape
     result.errors.push_back({yaml_path, 0, -1, std::string("cannot load the map: ") + e.what()});
   }
   if (!result.errors.empty()) result.map.reset();

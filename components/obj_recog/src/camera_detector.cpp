@@ -1,6 +1,8 @@
 // The only translation unit of ObjRecog that includes OpenCV.
 #include "obj_recog/camera_detector.h"
 
+#include "rack/rt/input_file.h"
+
 #include <opencv2/aruco.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
@@ -214,6 +216,12 @@ bool CameraDetector::detect(const CameraData& f, const CameraIntrinsics& k0, Obj
 }
 
 CameraIntrinsics CameraDetector::load_calibration(const std::string& path) {
+  // A regular file of sane size: OpenCV would wait for ever on a FIFO.
+  constexpr uint64_t kMaxCalibrationBytes = 16u << 20;
+  std::string refused;
+  if (!rt::check_regular_file(path, kMaxCalibrationBytes, "calibration file", refused)) {
+    throw std::runtime_error("calibration: " + refused);
+  }
   cv::FileStorage fs;
   try {
     fs.open(path, cv::FileStorage::READ);

@@ -1,10 +1,12 @@
 #include "rack/replay/carmen_log.h"
 
+#include "rack/rt/input_file.h"
+
 #include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <cmath>
-#include <fstream>
+#include <limits>
 #include <numbers>
 #include <vector>
 
@@ -42,6 +44,19 @@ class Fields {
       return fail(std::string(what) + " is not finite: '" + std::string(t) + "' (field " + std::to_string(pos_ + 1) + ")");
     }
     ++pos_;
+    return true;
+  }
+  // A number stored as float: beyond float's range is refused (the conversion would
+  // be undefined, and the value inf).
+  bool real(float& out, const char* what) {
+    double v = 0;
+    if (!number(v, what)) return false;
+    if (std::fabs(v) > static_cast<double>(std::numeric_limits<float>::max())) {
+      --pos_;
+      return fail(std::string(what) + " is out of range: '" + std::string(f_[pos_]).substr(0, 40) + "' (field " +
+                  std::to_string(pos_ + 1) + ")");
+    }
+    out = static_cast<float>(v);
     return true;
   }
   bool count(std::size_t& out, const char* what, std::size_t max) {
@@ -116,9 +131,7 @@ CarmenLine parse_flaser(const std::vector<std::string_view>& f, int line, const 
   if (r.need(n, "the range readings")) {
     s.ranges.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
-      double v = 0;
-      if (!r.number(v, "range reading")) break;
-      s.ranges[i] = static_cast<float>(v);
+      if (!r.real(s.ranges[i], "range reading")) break;
     }
     double x = 0, y = 0, th = 0, logger = 0;
     r.number(x, "x") && r.number(y, "y") && r.number(th, "theta") && r.number(s.odom_x, "odom_x") &&
@@ -137,24 +150,21 @@ CarmenLine parse_robotlaser(const std::vector<std::string_view>& f, int line) {
   Fields r(f, "ROBOTLASER1");
   ScanRecord s;
   s.line = line;
-  double type = 0, start = 0, fov = 0, res = 0, maxr = 0, acc = 0, rem_mode = 0;
+  double type = 0, fov = 0, acc = 0, rem_mode = 0;
+  float start = 0, res = 0, maxr = 0;
   std::size_t n = 0, m = 0;
-  if (r.number(type, "laser_type") && r.number(start, "start_angle") && r.number(fov, "field_of_view") &&
-      r.number(res, "angular_resolution") && r.number(maxr, "maximum_range") && r.number(acc, "accuracy") &&
+  if (r.number(type, "laser_type") && r.real(start, "start_angle") && r.number(fov, "field_of_view") &&
+      r.real(res, "angular_resolution") && r.real(maxr, "maximum_range") && r.number(acc, "accuracy") &&
       r.number(rem_mode, "remission_mode") && r.count(n, "num_readings", kMaxBeams) &&
       r.need(n, "the range readings")) {
     s.ranges.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
-      double v = 0;
-      if (!r.number(v, "range reading")) break;
-      s.ranges[i] = static_cast<float>(v);
+      if (!r.real(s.ranges[i], "range reading")) break;
     }
     if (r.count(m, "num_remissions", kMaxBeams) && r.need(m, "the remission values")) {
       s.intensities.resize(m);
       for (std::size_t i = 0; i < m; ++i) {
-        double v = 0;
-        if (!r.number(v, "remission value")) break;
-        s.intensities[i] = static_cast<float>(v);
+        if (!r.real(s.intensities[i], "remission value")) break;
       }
     }
     double lx = 0, ly = 0, lth = 0, tv = 0, rv = 0, fs = 0, ss = 0, ta = 0, logger = 0;
@@ -181,9 +191,9 @@ CarmenLine parse_robotlaser(const std::vector<std::string_view>& f, int line) {
                            " range readings (must be 0 or equal)"};
   }
   s.has_odometry = true;
-  s.start_angle = static_cast<float>(start);
-  s.angle_step = static_cast<float>(res);
-  s.max_range = static_cast<float>(maxr);
+  s.start_angle = start;
+  s.angle_step = res;
+  s.max_range = maxr;
   return s;
 }
 
@@ -223,7 +233,7 @@ LoadLogResult parse_carmen_text(std::string_view text, const std::string& name, 
     } else if (auto* s = std::get_if<ScanRecord>(&parsed)) {
       result.log.scans.push_back(std::move(*s));
     } else if (auto* e = std::get_if<CarmenMalformed>(&parsed)) {
-      result.errors.push_back({name, line_number, e->reason});
+      result.add_error({name, line_number, e->reason});
     } else if (!split(line).empty() && !split(line)[0].starts_with("#")) {
       ++result.ignored;
     }
@@ -235,24 +245,38 @@ LoadLogResult parse_carmen_text(std::string_view text, const std::string& name, 
   std::stable_sort(result.log.scans.begin(), result.log.scans.end(),
                    [](const auto& a, const auto& b) { return a.time < b.time; });
   if (result.errors.empty() && result.log.odometry.empty() && result.log.scans.empty()) {
-    result.errors.push_back({name, 0, "no ODOM, FLASER or ROBOTLASER1 line in " + std::to_string(result.lines) +
+    result.add_error({name, 0, "no ODOM, FLASER or ROBOTLASER1 line in " + std::to_string(result.lines) +
                                           " lines: not a CARMEN log, or an empty one"});
   }
   return result;
 }
 
 LoadLogResult load_carmen_log(const std::string& path, const CarmenParseOptions& options) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    LoadLogResult r;
+  LoadLogResult r;
+  r.log.source = path;
+  try {
+    std::string text, error;
+    if (!rt::read_regular_file(path, kMaxLogFileBytes, "log file", text, error)) {
+      r.add_error(path_error(path, error));
+      return r;
+    }
+    return parse_carmen_text(text, path, options);
+  } catch (const std::exception& e) {  // allocation within the limits failed: refused, never past here
+    r = LoadLogResult{};
     r.log.source = path;
-    r.errors.push_back({path, 0, "cannot open the log file"});
+    r.add_error({path, 0, std::string("cannot load the log: ") + e.what()});
     return r;
   }
-  std::string text;
-  char chunk[65536];
-  while (in.read(chunk, sizeof chunk) || in.gcount() > 0) text.append(chunk, static_cast<std::size_t>(in.gcount()));
-  return parse_carmen_text(text, path, options);
+}
+
+LogError path_error(const std::string& path, const std::string& error) {
+  const std::string prefix = path + ": ";
+  return {path, 0, error.rfind(prefix, 0) == 0 ? error.substr(prefix.size()) : error};
+}
+
+void LoadLogResult::add_error(LogError e) {
+  ++error_count;
+  if (errors.size() < kMaxLogErrors) errors.push_back(std::move(e));
 }
 
 double ReplayLog::first_time() const noexcept {
@@ -281,7 +305,9 @@ std::string LoadLogResult::error_text(std::size_t max_errors) const {
     if (!out.empty()) out += "\n";
     out += errors[i].str();
   }
-  if (errors.size() > max_errors) out += "\n(" + std::to_string(errors.size() - max_errors) + " more)";
+  const uint64_t shown = std::min<uint64_t>(errors.size(), max_errors);
+  const uint64_t total = std::max<uint64_t>(error_count, errors.size());
+  if (total > shown) out += "\n(" + std::to_string(total - shown) + " more)";
   return out;
 }
 

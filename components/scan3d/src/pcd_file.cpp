@@ -1,12 +1,14 @@
 #include "rack/scan3d/pcd_file.h"
 
+#include "rack/rt/input_file.h"
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
+#include <limits>
 #include <sstream>
 
 namespace rack::scan3d {
@@ -18,8 +20,8 @@ struct Field {
   uint32_t size = 4;
   char type = 'F';
   uint32_t count = 1;
-  uint32_t offset = 0;  // bytes into a binary point
-  uint32_t column = 0;  // first token of an ASCII line
+  uint64_t offset = 0;  // bytes into a binary point
+  uint64_t column = 0;  // first token of an ASCII line
 };
 
 std::vector<std::string> split(const std::string& line) {
@@ -128,6 +130,10 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
     if (key == "VERSION") continue;
     if (key == "FIELDS" || key == "COLUMNS") {
       if (n == 0) return fail(line_no, "FIELDS names no field");
+      if (n > kMaxPcdFields) {
+        return fail(line_no, "FIELDS names " + std::to_string(n) + " fields, more than the limit of " +
+                                 std::to_string(kMaxPcdFields));
+      }
       fields.clear();
       for (std::size_t i = 1; i < t.size(); ++i) fields.push_back(Field{t[i]});
     } else if (key == "SIZE" || key == "TYPE" || key == "COUNT") {
@@ -160,8 +166,11 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
       (key == "SIZE" ? have_size : key == "TYPE" ? have_type : have_count) = true;
     } else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
       uint64_t u = 0;
-      if (n != 1 || !parse_uint(t[1], u) || u > 1'000'000'000ULL) {
-        return fail(line_no, key + " must be one non-negative integer, got '" + (n ? t[1] : std::string()) + "'");
+      if (n != 1 || !parse_uint(t[1], u)) {
+        return fail(line_no, key + " must be one non-negative integer, got '" + (n ? t[1].substr(0, 40) : std::string()) + "'");
+      }
+      if (u > kMaxPcdPoints) {
+        return fail(line_no, key + " " + t[1] + " is more than the limit of " + std::to_string(kMaxPcdPoints) + " points");
       }
       if (key == "WIDTH") { width = u; have_width = true; }
       else if (key == "HEIGHT") height = u;
@@ -183,12 +192,19 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
   if (!have_size || !have_type) return fail(data_line, "SIZE and TYPE lines are required before DATA");
   (void)have_count;  // COUNT defaults to 1 per field
   if (!have_width) return fail(data_line, "no WIDTH line before DATA");
+  // Each at most kMaxPcdPoints: the product fits in 64 bits.
+  if (width * height > kMaxPcdPoints) {
+    return fail(data_line, "WIDTH x HEIGHT = " + std::to_string(width * height) + " points, more than the limit of " +
+                               std::to_string(kMaxPcdPoints));
+  }
   if (!have_points) points = width * height;
   if (points != width * height) {
     return fail(data_line, "POINTS " + std::to_string(points) + " is not WIDTH x HEIGHT = " + std::to_string(width * height));
   }
   int ix = -1, iy = -1, iz = -1, ii = -1;
-  uint32_t offset = 0, column = 0;
+  // 64 bits, bounded per field (SIZE <= 8, COUNT <= 1e6, at most kMaxPcdFields): the
+  // sums cannot wrap; a point larger than kMaxPcdPointBytes is refused below.
+  uint64_t offset = 0, column = 0;
   for (std::size_t i = 0; i < fields.size(); ++i) {
     Field& f = fields[i];
     if ((f.type == 'F' && f.size != 4 && f.size != 8) || (f.type != 'F' && f.size == 8)) {
@@ -205,32 +221,49 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
     else if (f.name == "intensity" || f.name == "i") ii = static_cast<int>(i);
   }
   if (ix < 0 || iy < 0 || iz < 0) return fail(data_line, "FIELDS must include x, y and z");
+  if (offset > kMaxPcdPointBytes) {
+    return fail(data_line, "a point of these FIELDS, SIZE and COUNT takes " + std::to_string(offset) +
+                               " bytes, more than the limit of " + std::to_string(kMaxPcdPointBytes));
+  }
   out.declared_points = static_cast<uint32_t>(points);
-  // A hint only, bounded by the file's size: POINTS comes from the file and may lie.
-  const std::size_t expect = static_cast<std::size_t>(std::min<uint64_t>(points, contents.size()));
-  out.x.reserve(expect);
-  out.y.reserve(expect);
-  out.z.reserve(expect);
-  out.intensity.reserve(expect);
+  // points <= kMaxPcdPoints and offset <= kMaxPcdPointBytes: no wrap-around in 64 bits.
+  const uint64_t need = points * offset;
+  const std::size_t have = contents.size() >= pos ? contents.size() - pos : 0;
+  // A hint only, bounded by what the data can hold: POINTS comes from the file and may
+  // lie (an ASCII point takes at least two bytes per value).
+  const uint64_t fit = data == "ascii" ? have / (2 * column) + 1 : data == "binary" ? have / offset + 1 : points;
+  const std::size_t expect = static_cast<std::size_t>(std::min<uint64_t>(points, fit));
+  const auto reserve_points = [&](std::size_t n) {
+    out.x.reserve(n);
+    out.y.reserve(n);
+    out.z.reserve(n);
+    out.intensity.reserve(n);
+  };
+  // Beyond float's range is not finite either (a double field of 1e300 would become
+  // inf, and the conversion itself is undefined): such points are left out too.
+  const auto to_float = [](double v, float& f) {
+    if (!(std::fabs(v) <= static_cast<double>(std::numeric_limits<float>::max()))) return false;  // also NaN
+    f = static_cast<float>(v);
+    return true;
+  };
   const auto keep = [&](double x, double y, double z, double in) {
-    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) {
+    float fx = 0, fy = 0, fz = 0, fi = 0;
+    if (!to_float(x, fx) || !to_float(y, fy) || !to_float(z, fz)) {
       ++out.non_finite;
       return;
     }
-    out.x.push_back(static_cast<float>(x));
-    out.y.push_back(static_cast<float>(y));
-    out.z.push_back(static_cast<float>(z));
-    out.intensity.push_back(std::isfinite(in) ? static_cast<float>(in) : 0.0F);
+    out.x.push_back(fx);
+    out.y.push_back(fy);
+    out.z.push_back(fz);
+    out.intensity.push_back(to_float(in, fi) ? fi : 0.0F);
   };
   if (data == "binary_compressed") {
     // Two uint32 (compressed and raw size), then LZF data that holds the fields one
     // after another (all x, then all y, ...), not point by point.
-    const std::size_t have = contents.size() >= pos ? contents.size() - pos : 0;
     if (have < 8) return fail(0, "binary_compressed data: " + std::to_string(have) + " bytes, no size header (truncated file?)");
     uint32_t packed = 0, raw = 0;
     std::memcpy(&packed, contents.data() + pos, 4);
     std::memcpy(&raw, contents.data() + pos + 4, 4);
-    const std::size_t need = static_cast<std::size_t>(points) * offset;
     if (raw != need) {
       return fail(0, "binary_compressed data: raw size " + std::to_string(raw) + ", the header needs " +
                          std::to_string(points) + " points x " + std::to_string(offset) + " bytes = " + std::to_string(need));
@@ -241,11 +274,16 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
       return fail(0, "binary_compressed data: raw size " + std::to_string(raw) + " from " + std::to_string(packed) +
                          " compressed bytes is more than LZF can expand (corrupt file?)");
     }
+    if (raw > kMaxPcdRawBytes) {
+      return fail(0, "binary_compressed data: raw size " + std::to_string(raw) + " is more than the limit of " +
+                         std::to_string(kMaxPcdRawBytes) + " bytes");
+    }
     if (have - 8 < packed) {
       return fail(0, "binary_compressed data: " + std::to_string(have - 8) + " bytes after the sizes, " +
                          std::to_string(packed) + " declared (truncated file?)");
     }
-    std::vector<unsigned char> buf(need);
+    std::vector<unsigned char> buf(static_cast<std::size_t>(need));
+    reserve_points(expect);
     std::size_t written = 0;
     const std::string why = lzf_decompress(reinterpret_cast<const unsigned char*>(contents.data() + pos + 8), packed,
                                            buf.data(), buf.size(), written);
@@ -271,12 +309,11 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
     return true;
   }
   if (data == "binary") {
-    const std::size_t need = static_cast<std::size_t>(points) * offset;
-    const std::size_t have = contents.size() >= pos ? contents.size() - pos : 0;
     if (have < need) {
       return fail(0, "binary data holds " + std::to_string(have) + " bytes, the header needs " + std::to_string(points) +
                          " points x " + std::to_string(offset) + " bytes = " + std::to_string(need) + " (truncated file?)");
     }
+    reserve_points(expect);
     const auto* base = reinterpret_cast<const unsigned char*>(contents.data() + pos);
     const Field& fx = fields[static_cast<std::size_t>(ix)];
     const Field& fy = fields[static_cast<std::size_t>(iy)];
@@ -290,6 +327,7 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
     return true;
   }
   // ASCII: one point per line, every value checked.
+  reserve_points(expect);
   uint64_t p = 0;
   std::vector<std::string> t;
   while (pos < contents.size()) {
@@ -325,18 +363,16 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
 }
 
 bool read_pcd(const std::string& path, PcdCloud& out, std::string& error) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    error = path + ": cannot open: " + std::strerror(errno);
+  out = PcdCloud{};
+  std::string contents;
+  if (!rt::read_regular_file(path, kMaxPcdFileBytes, "PCD file", contents, error)) return false;
+  try {
+    return parse_pcd(path, contents, out, error);
+  } catch (const std::exception& e) {  // allocation within the limits failed: refused, never past here
+    out = PcdCloud{};
+    error = path + ": " + e.what();
     return false;
   }
-  std::ostringstream s;
-  s << in.rdbuf();
-  if (in.bad()) {
-    error = path + ": read error";
-    return false;
-  }
-  return parse_pcd(path, s.str(), out, error);
 }
 
 bool write_pcd(const std::string& path, const interfaces::Scan3dData& scan, std::string& error) {

@@ -16,7 +16,10 @@
 //
 // Loading validates everything: missing or unknown keys, wrong types, thresholds out
 // of order, an image that is missing, not PGM, truncated or of the wrong size; each
-// error names the file and the YAML line or the image's byte offset.
+// error names the file and the YAML line or the image's byte offset. Both files must
+// be regular files (a FIFO, a device such as /dev/zero or a directory is refused
+// before anything is read) within the limits below, which are checked before
+// anything is allocated for the image.
 //
 // Real-time contract: load_map() is not RT-safe (set-up: it reads files and
 // allocates). Every const member function of OccupancyMap is RT-safe.
@@ -28,6 +31,12 @@
 #include <vector>
 
 namespace rack::maps {
+
+// Limits of what load_map() reads (README "Maps").
+inline constexpr uint64_t kMaxMapYamlBytes = 1u << 20;      // the YAML file: 1 MiB
+inline constexpr uint64_t kMaxMapImageBytes = 256u << 20;   // the PGM file: 256 MiB
+inline constexpr long kMaxMapSide = 100000;                 // pixels per side
+inline constexpr uint64_t kMaxMapCells = uint64_t{1} << 26; // width x height: 64 Mi (e.g. 8192 x 8192)
 
 enum class CellState : uint8_t { kFree = 0, kOccupied = 1, kUnknown = 2 };
 
@@ -106,6 +115,20 @@ struct LoadMapResult {
 // Reads a map_server YAML file and its image. Never throws for bad input.
 [[nodiscard]] LoadMapResult load_map(const std::string& yaml_path);
 
+// What a map YAML file says (the image path as written, not yet resolved).
+struct MapYaml {
+  std::string image;
+  double resolution = 0.0;
+  double origin[3] = {0.0, 0.0, 0.0};
+  bool negate = false;
+  double occupied_thresh = 0.65, free_thresh = 0.196;
+  std::string mode = "trinary";
+};
+// Parses the YAML text of a map file (`name` for the messages). Never throws: every
+// problem is appended to `errors` with the line; empty when there is one.
+[[nodiscard]] std::optional<MapYaml> parse_map_yaml(const std::string& name, const std::string& text,
+                                                    std::vector<MapError>& errors);
+
 // Reads a PGM image (P5 binary with maxval <= 255, or P2 text). Row 0 of `pixels` is
 // the image's top row, as stored in the file. Errors name `path` and a byte offset.
 struct PgmImage {
@@ -115,5 +138,9 @@ struct PgmImage {
   std::vector<uint8_t> pixels;
 };
 [[nodiscard]] std::optional<PgmImage> read_pgm(const std::string& path, std::vector<MapError>& errors);
+// The same for a file's bytes in memory (`name` for the messages). Never throws for bad
+// input; allocates at most the pixels a file of this size can hold.
+[[nodiscard]] std::optional<PgmImage> parse_pgm(const std::string& name, const std::string& bytes,
+                                                std::vector<MapError>& errors);
 
 }  // namespace rack::maps

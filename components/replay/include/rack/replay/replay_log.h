@@ -54,13 +54,26 @@ struct LogError {
   std::string message;
   [[nodiscard]] std::string str() const;  // "file:line: message"
 };
+// An error of rack/rt/input_file.h ("path: ...") as a LogError of that file.
+[[nodiscard]] LogError path_error(const std::string& path, const std::string& error);
+
+// Limits of the log readers (README "Replay"): a log file is a regular file (a FIFO or
+// device is refused without blocking) of at most kMaxLogFileBytes; a gzip rawlog
+// decompresses to at most kMaxRawlogBytes; at most kMaxLogErrors errors are kept
+// (error_count counts them all).
+inline constexpr uint64_t kMaxLogFileBytes = 256u << 20;  // 256 MiB
+inline constexpr uint64_t kMaxRawlogBytes = 1u << 30;     // 1 GiB uncompressed
+inline constexpr std::size_t kMaxLogErrors = 100;
 
 struct LoadLogResult {
   ReplayLog log;
-  std::vector<LogError> errors;  // malformed lines, each with its line number
+  std::vector<LogError> errors;  // malformed lines, each with its line number (the first kMaxLogErrors)
+  uint64_t error_count = 0;      // every malformed line (errors holds the first ones)
   uint64_t lines = 0;            // lines (records) read
   uint64_t ignored = 0;          // well-formed lines of kinds that carry no odometry or laser
   [[nodiscard]] bool ok() const noexcept { return errors.empty(); }
+  // Records an error: kept while fewer than kMaxLogErrors are, always counted.
+  void add_error(LogError e);
   [[nodiscard]] std::string error_text(std::size_t max_errors = 10) const;
 };
 

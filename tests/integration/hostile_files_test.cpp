@@ -1,0 +1,111 @@
+// Issue 17: files named by a host file that are hostile (a FIFO, /dev/zero, a header
+// that promises gigabytes) must not take rackd down or stall it. The start-up regime
+// decides what follows: a component whose init() refuses its file goes to ERROR with
+// the reason (file and byte) while the others run; a plug-in path is part of the host
+// file, so a bad one is a host-file error (exit 2, file:line:col).
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/stat.h>
+
+#include <chrono>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "mini_json.h"
+#include "process.h"
+
+namespace rack::test {
+namespace {
+
+using namespace std::chrono_literals;
+
+const std::string kRackd = RACK_RACKD_PATH;
+const std::string kRackctl = RACK_RACKCTL_PATH;
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+class HostileFilesTest : public ::testing::Test {
+ protected:
+  HostileFilesTest() : watchdog_(100s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
+
+  std::string fifo(const std::string& name) {
+    const std::string p = (dir_.path() / name).string();
+    EXPECT_EQ(::mkfifo(p.c_str(), 0600), 0) << p;
+    return p;
+  }
+  std::string state_of(const std::string& name) {
+    const RunResult r = run({kRackctl, "--lcm", bus_.url(), "--discover-ms", "3000", "status", name, "--json"}, 30s);
+    if (r.exit_code != 0) return "";
+    const auto j = parse_json(r.out);
+    const Json* s = j ? j->get("state") : nullptr;
+    return s != nullptr && s->is_string() ? s->string : "";
+  }
+  template <typename Pred>
+  bool eventually(Pred pred, std::chrono::milliseconds bound = 20s) {
+    const auto deadline = std::chrono::steady_clock::now() + bound;
+    for (;;) {
+      if (pred()) return true;
+      if (std::chrono::steady_clock::now() >= deadline) return false;
+      std::this_thread::sleep_for(50ms);
+    }
+  }
+
+  Watchdog watchdog_;
+  TempDir dir_;
+  LcmBus bus_;
+};
+
+// Before issue 17 the FIFO map image hung rackd in loading (SIGTERM ignored), /dev/zero
+// grew it to gigabytes and the 22-byte PGM allocated 900 MB.
+TEST_F(HostileFilesTest, HostileMapsAndLogsPutTheirComponentInErrorAndTheRestRuns) {
+  const std::string fifo_pgm = fifo("fifo.pgm");
+  const std::string fifo_log = fifo("fifo.log");
+  const std::string map_tail = "resolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
+  const auto fifo_map = dir_.write("fifo_map.yaml", "image: " + fifo_pgm + "\n" + map_tail);
+  const auto zero_map = dir_.write("zero_map.yaml", "image: /dev/zero\n" + map_tail);
+  dir_.write("huge.pgm", "P5\n30000 30000\n255\n\xff\xff");
+  const auto huge_map = dir_.write("huge_map.yaml", "image: huge.pgm\n" + map_tail);
+  std::string host =
+      "host: hostile-files\nsystem: 0\nlcm: true\nlcm_url: \"" + bus_.url() + "\"\nheap_prefault_mib: 8\n"
+      "components:\n"
+      "  - name: generator\n    class: Generator\n    instance: 0\n    autostart: true\n"
+      "    data_task: {priority: 60, period_ms: 10}\n"
+      "  - name: chassis\n    class: ChassisReplay\n    instance: 0\n    autostart: false\n"
+      "    data_task: {priority: 61, period_ms: 10}\n    params:\n      log: " + fifo_log + "\n";
+  const std::pair<std::string, std::string> ladars[] = {
+      {"ladar_fifo", fifo_map.string()}, {"ladar_zero", zero_map.string()}, {"ladar_huge", huge_map.string()}};
+  int instance = 0;
+  for (const auto& [name, map] : ladars) {
+    host += "  - name: " + name + "\n    class: LadarSim\n    instance: " + std::to_string(instance++) +
+            "\n    autostart: false\n    data_task: {priority: 62, period_ms: 40}\n    params:\n      map: " + map +
+            "\n      chassis: chassis\n";
+  }
+  Process d({kRackd, dir_.write("hostile.yaml", host).string(), "--lcm", bus_.url()}, dir_.path(), "rackd");
+  ASSERT_TRUE(d.wait_for_stderr("rackd: running", 30s)) << d.err();
+  const std::string err = d.err();
+  EXPECT_TRUE(contains(err, fifo_log + ": the log file is a FIFO, not a regular file")) << err;
+  EXPECT_TRUE(contains(err, fifo_pgm + ": the map image is a FIFO, not a regular file")) << err;
+  EXPECT_TRUE(contains(err, "/dev/zero: the map image is a character device, not a regular file")) << err;
+  EXPECT_TRUE(contains(err, "huge.pgm: byte 18: 30000x30000 = 900000000 pixels, more than the limit")) << err;
+  for (const char* name : {"chassis", "ladar_fifo", "ladar_zero", "ladar_huge"}) EXPECT_EQ(state_of(name), "ERROR") << name;
+  EXPECT_TRUE(eventually([&] { return state_of("generator") == "ENABLED"; }));
+  d.signal(SIGTERM);
+  EXPECT_EQ(d.wait_exit(20s), std::optional<int>(0)) << d.err();
+}
+
+TEST_F(HostileFilesTest, APluginThatIsAFifoIsAHostFileErrorNotAHang) {
+  const std::string plugin = fifo("plugin.so");
+  const auto host = dir_.write("plugin.yaml", "host: p\nsystem: 0\nplugins:\n  - " + plugin +
+                                                  "\ncomponents:\n  - name: g\n    class: Generator\n    instance: 0\n");
+  const RunResult r = run({kRackd, "--check", host.string()}, 30s);
+  EXPECT_FALSE(r.timed_out) << r.describe();
+  EXPECT_EQ(r.exit_code, 2) << r.describe();
+  EXPECT_TRUE(contains(r.err, host.string() + ":4:")) << r.describe();
+  EXPECT_TRUE(contains(r.err, plugin + ": the plug-in is a FIFO, not a regular file")) << r.describe();
+}
+
+}  // namespace
+}  // namespace rack::test
