@@ -258,7 +258,14 @@ static int run_rackd(int argc, char** argv) {
   auto loaded = rack::load_host_file(file, registry, caps);
   if (watch.stop_requested()) return stopped_during_startup(watch);
   if (!loaded.errors.empty()) {
-    for (const auto& e : loaded.errors) std::fprintf(stderr, "%s\n", e.str().c_str());
+    // A hostile file can hold thousands: the first kMaxShown say enough.
+    constexpr std::size_t kMaxShown = 50;
+    for (std::size_t i = 0; i < loaded.errors.size() && i < kMaxShown; ++i) {
+      std::fprintf(stderr, "%s\n", loaded.errors[i].str().c_str());
+    }
+    if (loaded.errors.size() > kMaxShown) {
+      std::fprintf(stderr, "%s: ... and %zu more\n", file.c_str(), loaded.errors.size() - kMaxShown);
+    }
     std::fprintf(stderr, "rackd: %zu error(s) in %s; nothing started\n", loaded.errors.size(), file.c_str());
     return 2;
   }
