@@ -176,14 +176,37 @@ bool Path::make_from_parameters(PathData& out, char (&error)[96]) noexcept {
 }
 
 void Path::init() {
-  // A malformed waypoint text in the host file is a configuration error: say where.
-  char text[wire::kParamStringLen];
-  waypoints_.copy_string(text, sizeof text);
-  if (text[0] == '\0') return;  // no path until MAKE
+  // The waypoint text was checked (check_parameters, before init()).
   char error[96] = {};
-  if (!make_from_parameters(current_, error)) {
-    throw std::invalid_argument(std::string("parameter ") + error + " (text: \"" + text + "\")");
+  (void)make_from_parameters(current_, error);
+}
+
+bool Path::check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept {
+  // The same parse and spline as the data task's (make_from_parameters), on the
+  // values to check: a text the loop would reject is refused where it is set.
+  char text[wire::kParamStringLen];
+  values.copy_string(waypoints_, text, sizeof text);
+  if (text[0] == '\0') return true;  // no path until MAKE
+  PathMake w;
+  int item = 0;
+  const char* why = parse_waypoints(text, w, item);
+  if (why == nullptr) {
+    w.closed = values.get_bool(closed_) ? 1 : 0;
+    why = make_path(w, values.get_float(resolution_), check_);
+    item = 0;
   }
+  if (why == nullptr) return true;
+  char reason[sizeof problem.text] = {};
+  if (item > 0) {
+    char num[] = "item 00: ";
+    num[5] = static_cast<char>('0' + (item / 10) % 10);
+    num[6] = static_cast<char>('0' + item % 10);
+    wire::append_text(reason, item < 10 ? "item " : "");
+    wire::append_text(reason, item < 10 ? num + 6 : num);
+  }
+  wire::append_text(reason, why);
+  problem.set(waypoints_, reason);
+  return false;
 }
 
 HookResult Path::on() {

@@ -873,6 +873,7 @@ struct HostLoader {
       Pending p{node, std::move(component), {}};
       ParameterSet& params = p.component->parameters();
       std::set<std::string> given;
+      std::map<const Parameter*, YAML::Mark> given_marks;
       if (const YAML::Node pn = node["params"]) {
         if (!pn.IsMap()) {
           error(pn.Mark(), "'params' must be a map of parameter: value");
@@ -894,6 +895,7 @@ struct HostLoader {
               continue;
             }
             given.insert(key);
+            given_marks[param] = it->second.Mark();
             if (param->spec().component_ref) p.refs.emplace_back(param, it->second);
           }
         }
@@ -908,6 +910,13 @@ struct HostLoader {
           error(node.Mark(), "component '" + name + "': missing required parameter '" + prm.name() +
                                  "' (" + prm.spec().doc + ")");
         }
+      }
+      // The class's own rules for its values (what init() and SET_PARAM check too).
+      if (ParameterProblem problem; !p.component->check_parameters(ParameterValues(), problem)) {
+        const auto at = problem.parameter != nullptr ? given_marks.find(problem.parameter) : given_marks.end();
+        error(at != given_marks.end() ? at->second : node.Mark(),
+              "component '" + name + "': parameter '" +
+                  (problem.parameter != nullptr ? problem.parameter->name() : std::string("?")) + "': " + problem.text);
       }
       if (by_name.count(name) != 0) {
         error(node["name"].Mark(), "duplicate component name '" + name + "'");

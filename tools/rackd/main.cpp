@@ -60,9 +60,22 @@ and verifies every TiMS packet; the file (rackctl keygen PATH) must be readable
 by its owner only, or rackd refuses it (exit 2, with its path and mode). rackd
 re-reads a changed key file within a second (key rotation without a restart).
 
+Host files are read strictly (README "Running a host"): a regular file of at most
+1 MiB (FIFOs and devices are refused), UTF-8 without NUL or control characters, one
+YAML document, no key twice in a map, at most 32 levels deep and 4096 bytes per
+value, integers in range (no wrap-around), times in ms at most a day, valid LCM
+URLs, tims expiry_ms at least twice announce_ms, host names 1..63 and component and
+network names 1..31 characters, and each class's parameter rules (the same that
+`rackctl set-param` and init() apply).
+
+Start-up: SIGINT or SIGTERM while loading or starting ends rackd within a second:
+it stops between steps and undoes them, or, if a step does not return (a slow
+init()), exits after 700 ms; it says what it was doing. Exit 1 either way.
+
 exit codes: 0 clean shutdown or valid host file, 1 could not start (real-time
-required but missing, a task or the network could not start), 2 usage error or
-invalid host file (each problem printed as file:line:col: message).
+required but missing, a task or the network could not start, stopped by a signal
+during start-up), 2 usage error or invalid host file (each problem printed as
+file:line:col: message).
 )";
 
 void list_classes(const rack::ComponentRegistry& registry) {

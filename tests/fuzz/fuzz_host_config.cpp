@@ -1,0 +1,40 @@
+// libFuzzer harness for the host-file loader (rack/core/host_config.h), a decoder of
+// outside input: any bytes go to load_host_text(), as rackd --check would read them
+// from a file. The loader must never crash, hang, throw or allocate without bound,
+// and must answer either a host or at least one error naming the file.
+//
+// Plug-ins and key files named by the input are not opened (HostLoadOptions::
+// open_files = false): a fuzzer must not dlopen or read paths of its own choosing.
+// The component classes are the built-in ones, so each class's parameter checks
+// (Component::check_parameters) are fuzzed too.
+//
+// Seeds: tests/fuzz/corpus/host_config/ (small copies of configs/*.yaml).
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "rack/components/builtin.h"
+#include "rack/core/host_config.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  static rack::ComponentRegistry* registry = [] {
+    auto* r = new rack::ComponentRegistry;  // lives for the process (classes are registered once)
+    rack::components::register_builtin(*r);
+    return r;
+  }();
+  static const rack::rt::RtCapabilities caps = [] {
+    rack::rt::RtCapabilities c;
+    c.online_cpus = {0, 1};  // fixed: the result must not depend on the machine
+    return c;
+  }();
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  rack::HostLoadOptions options;
+  options.open_files = false;
+  const rack::LoadResult r = rack::load_host_text(text, "fuzz.yaml", *registry, caps, options);
+  // Exactly one of: a host, or errors; every error names the file.
+  if ((r.host == nullptr) == r.errors.empty()) __builtin_trap();
+  for (const auto& e : r.errors) {
+    if (e.file != "fuzz.yaml" || e.line < 0 || e.column < 0 || e.message.empty()) __builtin_trap();
+  }
+  return 0;
+}
