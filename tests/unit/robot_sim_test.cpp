@@ -693,16 +693,21 @@ TEST_F(RobotSimTest, PathPublishesOnMakeAndRejectsMalformedWaypoints) {
 }
 
 TEST(PathConfig, MalformedWaypointsInTheHostFileNameTheParameter) {
-  Watchdog dog;
-  HostUnderTest h(host(R"(  - name: path
+  // The Path's rule (check_parameters) runs in the loader: the host file is refused
+  // at the parameter's line, before anything starts (it was an ERROR at ON).
+  ComponentRegistry registry;
+  components::register_builtin(registry);
+  const auto r = load_host_text(host(R"(  - name: path
     class: Path
     instance: 0
     data_task: {period_ms: 20}
     params: {waypoints: "0,0; 2;0"}
-)"));
-  const auto r = h.call(h.address_of("path"), msg::kOn);
-  EXPECT_EQ(r.type, msg::kError);
-  EXPECT_NE(r.error_text().find("waypoints item 2"), std::string::npos) << r.error_text();
+)"),
+                                "test.yaml", registry, rt::probe_capabilities());
+  EXPECT_EQ(r.host, nullptr);
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_EQ(r.errors[0].line, 8);
+  EXPECT_NE(r.errors[0].message.find("parameter 'waypoints': item 2"), std::string::npos) << r.errors[0].str();
 }
 
 // ---------------------------------------------------------------- Pilot

@@ -70,7 +70,7 @@ network names 1..31 characters, and each class's parameter rules (the same that
 
 Start-up: SIGINT or SIGTERM while loading or starting ends rackd within a second:
 it stops between steps and undoes them, or, if a step does not return (a slow
-init()), exits after 700 ms; it says what it was doing. Exit 1 either way.
+init()), exits after 500 ms; it says what it was doing. Exit 1 either way.
 
 exit codes: 0 clean shutdown or valid host file, 1 could not start (real-time
 required but missing, a task or the network could not start, stopped by a signal
@@ -104,7 +104,7 @@ void list_classes(const rack::ComponentRegistry& registry) {
 // that rackd always ends within a second of the signal. A second signal ends it at once.
 class StartupWatch {
  public:
-  static constexpr int64_t kStopGraceMs = 700;
+  static constexpr int64_t kStopGraceMs = 500;
 
   explicit StartupWatch(const sigset_t& signals) : signals_(signals), thread_([this] { run(); }) {}
   ~StartupWatch() { finish(); }
