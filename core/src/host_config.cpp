@@ -74,6 +74,27 @@ std::string unclean_text(std::string_view text) {
   return {};
 }
 
+// A message as it may be printed: invalid UTF-8 and control characters (newline and
+// tab too) as '?',
+// at most kMaxMessage bytes.
+std::string clean_message(const std::string& message) {
+  constexpr std::size_t kMaxMessage = 1024;
+  std::string out;
+  for (std::size_t i = 0; i < message.size() && out.size() < kMaxMessage;) {
+    uint32_t cp = 0;
+    const std::size_t n = utf8_sequence(message, i, cp);
+    if (n == 0 || cp < 0x20 || is_control(cp)) {  // a newline too: one message, one line
+      out += '?';
+      i += n == 0 ? 1 : n;
+    } else {
+      out.append(message, i, n);
+      i += n;
+    }
+  }
+  if (out.size() >= kMaxMessage) out += "...";
+  return out;
+}
+
 // The event pass over a host file (before it is built into nodes): yaml-cpp keeps
 // every pair of a map with a repeated key and its look-up finds the first (the
 // loader's iteration the last), so a repeated key is found here, from the events,
@@ -997,14 +1018,18 @@ LoadResult load_host_text(const std::string& text, const std::string& file, Comp
   HostLoader loader{file, registry, caps, options, {}, {}};
   // Outside input: whatever escapes the checks (a yaml-cpp conversion that throws, an
   // allocation that fails) is one more error of this file, never an exception.
+  LoadResult r;
   try {
-    return loader.load(text);
+    r = loader.load(text);
   } catch (const std::exception& e) {
-    LoadResult r;
+    r.host.reset();
     r.errors = loader.errors;
     r.errors.push_back({file, 0, 0, std::string("cannot load the host file: ") + e.what()});
-    return r;
   }
+  // Messages quote the file's keys and values: they go to a terminal and a log as
+  // clean text of bounded length, whatever the file held.
+  for (auto& e : r.errors) e.message = clean_message(e.message);
+  return r;
 }
 
 std::optional<std::string> read_host_bytes(const std::string& path, std::string& error) {

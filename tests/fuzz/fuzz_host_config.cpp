@@ -44,6 +44,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if ((r.host == nullptr) == r.errors.empty()) __builtin_trap();
   for (const auto& e : r.errors) {
     if (e.file != "fuzz.yaml" || e.line < 0 || e.column < 0 || e.message.empty()) __builtin_trap();
+    // Messages are clean text (they quote the input): no control byte, bounded.
+    for (const char c : e.message) {
+      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) __builtin_trap();
+    }
+    if (e.message.size() > 1024 + 6) __builtin_trap();  // a last UTF-8 sequence and "..."
   }
   return 0;
 }

@@ -785,6 +785,17 @@ TEST_F(HostConfigTest, RawBytesMustBeUtf8TextWithoutNulOrControlCharacters) {
   EXPECT_NE(load(std::string("lcm: false  # Büro, 東京\n") + kOneComponent).host, nullptr);
 }
 
+TEST_F(HostConfigTest, MessagesQuotingTheFileAreCleanTextOfBoundedLength) {
+  // A key with an escape and a newline, given twice: the duplicate's message quotes it.
+  const LoadResult r = load(std::string("lcm: false\n\"k\\e[2J\\nhost.yaml:1:1: fake\": 1\n") +
+                            "\"k\\e[2J\\nhost.yaml:1:1: fake\": 2\n" + kOneComponent);
+  ASSERT_FALSE(r.errors.empty());
+  for (const auto& e : r.errors) {
+    for (const char c : e.message) EXPECT_GE(static_cast<unsigned char>(c), 0x20u) << e.message;
+    EXPECT_LE(e.message.size(), 1024u + 6u);
+  }
+}
+
 TEST_F(HostConfigTest, SizeAndNestingAreBounded) {
   const LoadResult big = load(std::string(kMaxHostFileBytes + 1, '#'));
   ASSERT_EQ(big.errors.size(), 1u);
