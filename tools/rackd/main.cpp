@@ -213,6 +213,13 @@ class GdosReportSink final : public rack::rt::modeswitch::ReportSink {
 };
 
 static int run_rackd(int argc, char** argv) {
+  // Block the shutdown signals first, in every thread to come: one that comes during
+  // start-up waits for the StartupWatch (below), later for main's loop.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
   std::string file, lcm_url, crash_dir;
   bool check = false, classes = false;
   double duration = -1, status_every = 0;
@@ -246,19 +253,14 @@ static int run_rackd(int argc, char** argv) {
     else if (file.empty()) file = a;
     else { std::fprintf(stderr, "rackd: one host file only ('%s' and '%s')\n", file.c_str(), a.c_str()); return 2; }
   }
+  if (file.empty() && !classes) { std::fprintf(stderr, "rackd: no host file given\n%s", kUsage); return 2; }
+  // From here on a signal stops start-up within a second (StartupWatch).
+  StartupWatch watch(stop_signals);
+  watch.phase("registering the component classes");
   rack::ComponentRegistry registry;
   rack::components::register_builtin(registry);
   if (classes) { list_classes(registry); return 0; }
-  if (file.empty()) { std::fprintf(stderr, "rackd: no host file given\n%s", kUsage); return 2; }
 
-  // Block the shutdown signals in every thread; main waits for them below.
-  sigset_t stop_signals;
-  sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
-  // From here on a signal stops start-up within a second (StartupWatch).
-  StartupWatch watch(stop_signals);
   if (!lcm_url.empty()) {
     if (const auto u = rack::tims::parse_lcm_url(lcm_url); !u.ok()) {
       std::fprintf(stderr, "rackd: --lcm: %s\n", u.error.c_str());
