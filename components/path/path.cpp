@@ -123,7 +123,13 @@ const char* Path::make_path(const PathMake& w, double resolution, PathData& out)
     const auto i = static_cast<int64_t>(s);
     const Pt p0 = at(i - 1), p1 = at(i), p2 = at(i + 1), p3 = at(i + 2);
     const double chord = std::hypot(p2.x - p1.x, p2.y - p1.y);
-    const auto steps = static_cast<uint32_t>(std::max(1.0, std::ceil(chord / resolution)));
+    // Checked as a double before it is narrowed: a chord of 1e35 m (or inf) is too long,
+    // not a wrapped step count (found by tests/fuzz/fuzz_host_config.cpp).
+    const double want = std::ceil(chord / resolution);
+    if (!(want <= static_cast<double>(interfaces::kPathMaxPoints))) {
+      return "path too long for 2048 points: raise 'resolution'";
+    }
+    const auto steps = static_cast<uint32_t>(std::max(1.0, want));
     for (uint32_t j = 0; j < steps; ++j) {
       if (k >= interfaces::kPathMaxPoints) return "path too long for 2048 points: raise 'resolution'";
       const Pt p = catmull_rom(p0, p1, p2, p3, static_cast<double>(j) / static_cast<double>(steps));

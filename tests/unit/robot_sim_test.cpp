@@ -654,6 +654,11 @@ TEST(PathMaking, TheSplinePassesThroughEveryWaypoint) {
   EXPECT_NE(components::Path::make_path(w, 0.1, open), nullptr);
   ASSERT_EQ(components::Path::parse_waypoints("0,0; 1000,0", w, item), nullptr);
   EXPECT_NE(components::Path::make_path(w, 0.1, open), nullptr);
+  // A chord far beyond any step count (it overflowed the count's conversion: UB).
+  ASSERT_EQ(components::Path::parse_waypoints("0,0; 1e35,0", w, item), nullptr);
+  EXPECT_NE(components::Path::make_path(w, 0.1, open), nullptr);
+  ASSERT_EQ(components::Path::parse_waypoints("0,0; 1e308,1e308", w, item), nullptr);
+  EXPECT_NE(components::Path::make_path(w, 0.1, open), nullptr);
 }
 
 TEST_F(RobotSimTest, PathPublishesOnMakeAndRejectsMalformedWaypoints) {
