@@ -47,19 +47,16 @@ Camera::Camera()
       width_(declare_int("width", 0, {.doc = "requested width (0: the source's)", .min = 0, .max = 8192})),
       height_(declare_int("height", 0, {.doc = "requested height (0: the source's)", .min = 0, .max = 8192})),
       fps_(declare_float("fps", 0.0, {.doc = "requested frame rate (0: the source's)", .min = 0.0, .max = 1000.0})),
-      format_(declare_string("format", "rgb", {.doc = "rgb, mono or jpeg (for remote viewing)"})),
+      format_(declare_string("format", "rgb", {.doc = "rgb, mono or jpeg (for remote viewing)", .choices = {"rgb", "mono", "jpeg"}})),
       jpeg_quality_(declare_int("jpeg_quality", 80, {.doc = "JPEG quality 1..100", .min = 1, .max = 100})),
       loop_file_(declare_bool("loop", false, {.doc = "start a video file or image sequence again at its end"})),
-      calibration_(declare_string("calibration", "", {.doc = "OpenCV calibration file (camera_matrix, distortion_coefficients)"})),
+      calibration_(declare_string("calibration", "", {.doc = "OpenCV calibration file (camera_matrix, distortion_coefficients)", .init_only = true})),
       timeout_ms_(declare_float("timeout_ms", 2000.0, {.doc = "ERROR when no frame came for this long (and on() waits this long for the source)", .min = 1.0})) {}
 
 Camera::~Camera() { cleanup(); }
 
 void Camera::init() {
-  const std::string f = format_.get_string();
-  if (f != "rgb" && f != "mono" && f != "jpeg") {
-    throw std::runtime_error("parameter 'format': '" + f + "' is not rgb, mono or jpeg");
-  }
+  // format: rgb, mono or jpeg (its Spec's choices, checked wherever it is set).
   capture_ = std::make_unique<Capture>();
   buffers_ = std::make_unique<CameraData[]>(3);  // 3 x 0.9 MB, allocated once
   const std::string calib = calibration_.get_string();

@@ -30,12 +30,12 @@ ChassisSim::ChassisSim()
       noise_phi_(declare_float("noise_phi", 0.02, {.doc = "odometry rotation noise, rad per sqrt(rad) turned (std-dev)", .min = 0.0, .max = 1.0})),
       noise_phi_per_m_(declare_float("noise_phi_per_m", 0.01, {.doc = "odometry rotation noise from driving, rad per sqrt(m) (std-dev)", .min = 0.0, .max = 1.0})),
       odometry_scale_(declare_float("odometry_scale", 1.0, {.doc = "systematic scale of the reported translation (1: none)", .min = 0.5, .max = 1.5})),
-      seed_(declare_int("seed", 1, {.doc = "seed of the noise generator (same seed, same noise)", .min = 0, .max = 1e15})),
-      initial_x_(declare_float("initial_x", 0.0, {.doc = "m, true start pose in the map frame"})),
-      initial_y_(declare_float("initial_y", 0.0, {.doc = "m, true start pose in the map frame"})),
-      initial_phi_(declare_float("initial_phi", 0.0, {.doc = "rad, true start heading", .min = -7.0, .max = 7.0})),
+      seed_(declare_int("seed", 1, {.doc = "seed of the noise generator (same seed, same noise)", .min = 0, .max = 1e15, .init_only = true})),
+      initial_x_(declare_float("initial_x", 0.0, {.doc = "m, true start pose in the map frame", .init_only = true})),
+      initial_y_(declare_float("initial_y", 0.0, {.doc = "m, true start pose in the map frame", .init_only = true})),
+      initial_phi_(declare_float("initial_phi", 0.0, {.doc = "rad, true start heading", .min = -7.0, .max = 7.0, .init_only = true})),
       battery_(declare_float("battery_v", 24.0, {.doc = "V, the battery voltage reported", .min = 0.0, .max = 1000.0})),
-      map_(declare_string("map", "", {.doc = "optional map_server YAML: the robot stops at occupied cells (\"\": no walls)"})) {}
+      map_(declare_string("map", "", {.doc = "optional map_server YAML: the robot stops at occupied cells (\"\": no walls)", .init_only = true})) {}
 
 void ChassisSim::init() {
   const std::string path = map_.get_string();

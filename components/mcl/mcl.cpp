@@ -38,7 +38,7 @@ bool parse_pose(const char* text, double& x, double& y, double& phi) noexcept {
 
 Mcl::Mcl()
     : DataComponent(DataTaskMode::kTriggered),
-      map_(declare_string("map", "", {.doc = "map_server YAML file of the map (e.g. configs/maps/office.yaml)", .required = true})),
+      map_(declare_string("map", "", {.doc = "map_server YAML file of the map (e.g. configs/maps/office.yaml)", .required = true, .init_only = true})),
       scan2d_(declare_component_ref("scan2d", "the Scan2D component whose scans (with odometry) MCL uses")),
       position_(declare_string("position", "",
                                {.doc = "Position component to send UPDATE to (optional; empty: none)",
@@ -82,53 +82,59 @@ Mcl::Mcl()
 
 Mcl::~Mcl() = default;
 
-mcl::MclOptions Mcl::read_options() const {
+mcl::MclOptions Mcl::read_options(const ParameterValues& v) const noexcept {
   mcl::MclOptions o;
-  o.particles_min = static_cast<uint32_t>(particles_min_.get_int());
-  o.particles_max = static_cast<uint32_t>(particles_max_.get_int());
-  o.update_distance = update_distance_.get_float();
-  o.update_angle = update_angle_.get_float();
-  o.beams = static_cast<uint32_t>(beams_.get_int());
-  o.odometry_jump = odometry_jump_.get_float();
-  o.sigma_hit = sigma_hit_.get_float();
-  o.max_range = max_range_.get_float();
-  o.max_corr_distance = max_corr_distance_.get_float();
-  o.odom_a1 = odom_a1_.get_float();
-  o.odom_a2 = odom_a2_.get_float();
-  o.odom_a3 = odom_a3_.get_float();
-  o.odom_a4 = odom_a4_.get_float();
-  o.odom_min_std_xy = odom_min_std_xy_.get_float();
-  o.odom_min_std_phi = odom_min_std_phi_.get_float();
-  o.odom_outlier_fraction = odom_outlier_fraction_.get_float();
-  o.odom_outlier_scale = odom_outlier_scale_.get_float();
-  o.recovery_ratio = recovery_ratio_.get_float();
-  o.recovery_consistency = recovery_consistency_.get_float();
-  o.recovery_updates = static_cast<uint32_t>(recovery_updates_.get_int());
-  o.inject_max_fraction = inject_max_fraction_.get_float();
-  o.fit_min = fit_min_.get_float();
-  o.alpha_slow = alpha_slow_.get_float();
-  o.alpha_fast = alpha_fast_.get_float();
-  o.threads = static_cast<uint32_t>(threads_.get_int());
-  o.seed = static_cast<uint64_t>(seed_.get_int());
+  o.particles_min = static_cast<uint32_t>(v.get_int(particles_min_));
+  o.particles_max = static_cast<uint32_t>(v.get_int(particles_max_));
+  o.update_distance = v.get_float(update_distance_);
+  o.update_angle = v.get_float(update_angle_);
+  o.beams = static_cast<uint32_t>(v.get_int(beams_));
+  o.odometry_jump = v.get_float(odometry_jump_);
+  o.sigma_hit = v.get_float(sigma_hit_);
+  o.max_range = v.get_float(max_range_);
+  o.max_corr_distance = v.get_float(max_corr_distance_);
+  o.odom_a1 = v.get_float(odom_a1_);
+  o.odom_a2 = v.get_float(odom_a2_);
+  o.odom_a3 = v.get_float(odom_a3_);
+  o.odom_a4 = v.get_float(odom_a4_);
+  o.odom_min_std_xy = v.get_float(odom_min_std_xy_);
+  o.odom_min_std_phi = v.get_float(odom_min_std_phi_);
+  o.odom_outlier_fraction = v.get_float(odom_outlier_fraction_);
+  o.odom_outlier_scale = v.get_float(odom_outlier_scale_);
+  o.recovery_ratio = v.get_float(recovery_ratio_);
+  o.recovery_consistency = v.get_float(recovery_consistency_);
+  o.recovery_updates = static_cast<uint32_t>(v.get_int(recovery_updates_));
+  o.inject_max_fraction = v.get_float(inject_max_fraction_);
+  o.fit_min = v.get_float(fit_min_);
+  o.alpha_slow = v.get_float(alpha_slow_);
+  o.alpha_fast = v.get_float(alpha_fast_);
+  o.threads = static_cast<uint32_t>(v.get_int(threads_));
+  o.seed = static_cast<uint64_t>(v.get_int(seed_));
   return o;
+}
+
+bool Mcl::check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept {
+  char pose[wire::kParamStringLen];
+  values.copy_string(initial_pose_, pose, sizeof pose);
+  double x = 0, y = 0, phi = 0;
+  if (!parse_pose(pose, x, y, phi)) {
+    problem.set(initial_pose_, "not 'x y phi' (three finite numbers: m, m, rad)");
+    return false;
+  }
+  if (const char* why = mcl::check_options(read_options(values))) {
+    // The rule names its parameters; the one being changed is the one at fault.
+    problem.set(values.changing() != nullptr ? *values.changing() : particles_max_, why);
+    return false;
+  }
+  return true;
 }
 
 void Mcl::init() {
   const std::string path = map_.get_string();
   maps::LoadMapResult loaded = maps::load_map(path);
   if (!loaded.ok()) throw std::runtime_error("map: " + loaded.error_text());
-  char pose[wire::kParamStringLen];
-  initial_pose_.copy_string(pose, sizeof pose);
-  double x = 0, y = 0, phi = 0;
-  if (!parse_pose(pose, x, y, phi)) {
-    throw std::runtime_error(std::string("parameter 'initial_pose': '") + pose + "' is not 'x y phi'");
-  }
-  mcl::MclOptions options = read_options();
-  try {
-    mcl::validate(options);
-  } catch (const std::invalid_argument& e) {
-    throw std::runtime_error(std::string("parameters: ") + e.what());
-  }
+  // initial_pose and the filter's options were checked (check_parameters, before init()).
+  const mcl::MclOptions options = read_options();
   filter_ = std::make_unique<mcl::MclFilter>(*loaded.map, options);
   scan_ = std::make_unique<Scan2dData>();
   out_ = std::make_unique<MclData>();

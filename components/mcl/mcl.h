@@ -44,13 +44,15 @@ class Mcl final : public DataComponent<interfaces::MclData> {
 
  protected:
   void init() override;    // loads the map, builds the filter (non-RT)
+  [[nodiscard]] bool check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept override;
   HookResult on() override;
   void off() override;
   HookResult loop() override;  // NOT RT-safe: the filter allocates (MRPT)
   CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override;
 
  private:
-  [[nodiscard]] mcl::MclOptions read_options() const;
+  // The filter's options from the parameters (`v`: the values to check). RT-safe.
+  [[nodiscard]] mcl::MclOptions read_options(const ParameterValues& v = {}) const noexcept;
   bool apply_init();  // data task: pending INIT or ON re-initialisation
   void send_position_update(int64_t time_ns) noexcept;
 

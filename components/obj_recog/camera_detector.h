@@ -14,6 +14,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/perception.h"
@@ -41,6 +42,8 @@ struct DetectorOptions {
 
 class CameraDetector {
  public:
+  // The dictionary names the options take (OpenCV's predefined ArUco dictionaries).
+  [[nodiscard]] static std::vector<std::string> dictionary_names();
   // Throws std::invalid_argument for an unknown dictionary or a bad option.
   explicit CameraDetector(const DetectorOptions& options);
   ~CameraDetector();

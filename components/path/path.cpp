@@ -123,7 +123,13 @@ const char* Path::make_path(const PathMake& w, double resolution, PathData& out)
     const auto i = static_cast<int64_t>(s);
     const Pt p0 = at(i - 1), p1 = at(i), p2 = at(i + 1), p3 = at(i + 2);
     const double chord = std::hypot(p2.x - p1.x, p2.y - p1.y);
-    const auto steps = static_cast<uint32_t>(std::max(1.0, std::ceil(chord / resolution)));
+    // Checked as a double before it is narrowed: a chord of 1e35 m (or inf) is too long,
+    // not a wrapped step count (found by tests/fuzz/fuzz_host_config.cpp).
+    const double want = std::ceil(chord / resolution);
+    if (!(want <= static_cast<double>(interfaces::kPathMaxPoints))) {
+      return "path too long for 2048 points: raise 'resolution'";
+    }
+    const auto steps = static_cast<uint32_t>(std::max(1.0, want));
     for (uint32_t j = 0; j < steps; ++j) {
       if (k >= interfaces::kPathMaxPoints) return "path too long for 2048 points: raise 'resolution'";
       const Pt p = catmull_rom(p0, p1, p2, p3, static_cast<double>(j) / static_cast<double>(steps));
@@ -176,14 +182,37 @@ bool Path::make_from_parameters(PathData& out, char (&error)[96]) noexcept {
 }
 
 void Path::init() {
-  // A malformed waypoint text in the host file is a configuration error: say where.
-  char text[wire::kParamStringLen];
-  waypoints_.copy_string(text, sizeof text);
-  if (text[0] == '\0') return;  // no path until MAKE
+  // The waypoint text was checked (check_parameters, before init()).
   char error[96] = {};
-  if (!make_from_parameters(current_, error)) {
-    throw std::invalid_argument(std::string("parameter ") + error + " (text: \"" + text + "\")");
+  (void)make_from_parameters(current_, error);
+}
+
+bool Path::check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept {
+  // The same parse and spline as the data task's (make_from_parameters), on the
+  // values to check: a text the loop would reject is refused where it is set.
+  char text[wire::kParamStringLen];
+  values.copy_string(waypoints_, text, sizeof text);
+  if (text[0] == '\0') return true;  // no path until MAKE
+  PathMake w;
+  int item = 0;
+  const char* why = parse_waypoints(text, w, item);
+  if (why == nullptr) {
+    w.closed = values.get_bool(closed_) ? 1 : 0;
+    why = make_path(w, values.get_float(resolution_), check_);
+    item = 0;
   }
+  if (why == nullptr) return true;
+  char reason[sizeof problem.text] = {};
+  if (item > 0) {
+    char num[] = "item 00: ";
+    num[5] = static_cast<char>('0' + (item / 10) % 10);
+    num[6] = static_cast<char>('0' + item % 10);
+    wire::append_text(reason, item < 10 ? "item " : "");
+    wire::append_text(reason, item < 10 ? num + 6 : num);
+  }
+  wire::append_text(reason, why);
+  problem.set(waypoints_, reason);
+  return false;
 }
 
 HookResult Path::on() {

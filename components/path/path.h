@@ -36,6 +36,7 @@ class Path final : public DataComponent<interfaces::PathData> {
 
  protected:
   void init() override;
+  [[nodiscard]] bool check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept override;
   HookResult on() override;
   HookResult loop() override;  // RT
   CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override;
@@ -52,6 +53,7 @@ class Path final : public DataComponent<interfaces::PathData> {
   interfaces::PathData pending_{};    // made by MAKE, published by the data task
   bool has_pending_ = false;
   interfaces::PathData scratch_{};    // command task: MAKE builds here first
+  mutable interfaces::PathData check_{};  // check_parameters (command task, or set-up before it runs)
 
   // Data task.
   interfaces::PathData current_{};

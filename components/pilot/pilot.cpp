@@ -32,7 +32,7 @@ Pilot::Pilot()
       position_(declare_component_ref("position", "the Position estimate to steer on")),
       scan2d_(declare_component_ref("scan2d", "the Scan2D whose points limit the speed")),
       path_(declare_string("path", "", {.doc = "optional Path to follow", .component_ref = true})),
-      mode_(declare_string("mode", "path", {.doc = "at ON: 'path' (follow the Path) or 'hold' (stand)"})),
+      mode_(declare_string("mode", "path", {.doc = "at ON: 'path' (follow the Path) or 'hold' (stand)", .choices = {"path", "hold"}})),
       destination_(declare_string("destination", "", {.doc = "\"x,y\": drive there (map frame); \"\": back to the mode"})),
       vx_max_(declare_float("vx_max", 0.6, {.doc = "m/s, cruising speed (also capped by the chassis)", .min = 0.0, .max = 20.0})),
       omega_max_(declare_float("omega_max", 1.0, {.doc = "rad/s, fastest turn (also capped by the chassis)", .min = 0.0, .max = 20.0})),
@@ -45,16 +45,19 @@ Pilot::Pilot()
 }
 
 void Pilot::init() {
-  const std::string mode = mode_.get_string();
-  if (mode != "path" && mode != "hold") {
-    throw std::invalid_argument("parameter mode: '" + mode + "' is neither 'path' nor 'hold'");
-  }
-  const std::string dest = destination_.get_string();
-  double x = 0.0, y = 0.0;
-  if (!dest.empty() && !parse_destination(dest.c_str(), x, y)) {
-    throw std::invalid_argument("parameter destination: '" + dest + "' is not \"x,y\"");
-  }
+  // mode (its Spec's choices) and destination (check_parameters) are checked before.
   rpc_buffer_.assign(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(PathData) + 256, std::byte{0});
+}
+
+bool Pilot::check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept {
+  char dest[wire::kParamStringLen];
+  values.copy_string(destination_, dest, sizeof dest);
+  double x = 0.0, y = 0.0;
+  if (dest[0] != '\0' && !parse_destination(dest, x, y)) {
+    problem.set(destination_, "not \"x,y\" (two finite numbers in metres, map frame) or \"\"");
+    return false;
+  }
+  return true;
 }
 
 bool Pilot::parse_destination(const char* text, double& x, double& y) const noexcept {

@@ -51,6 +51,7 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
 
  protected:
   void init() override;
+  [[nodiscard]] bool check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept override;
   HookResult on() override;
   void off() override;
   HookResult loop() override;  // RT, periodic

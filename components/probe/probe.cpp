@@ -6,7 +6,8 @@ namespace rack::components {
 
 Probe::Probe()
     : DataComponent(DataTaskMode::kPeriodic),
-      fail_init_(declare_bool("fail_init", false, {.doc = "init() throws"})),
+      fail_init_(declare_bool("fail_init", false, {.doc = "init() throws", .init_only = true})),
+      init_delay_ms_(declare_int("init_delay_ms", 0, {.doc = "init() takes this long (a slow start-up: a large map, a device)", .min = 0, .max = 600000, .init_only = true})),
       fail_on_(declare_bool("fail_on", false, {.doc = "on() returns an error"})),
       throw_on_(declare_bool("throw_on", false, {.doc = "on() throws"})),
       fail_loop_(declare_bool("fail_loop", false, {.doc = "loop() returns an error"})),
@@ -15,6 +16,8 @@ Probe::Probe()
       label_(declare_string("label", "probe", {.doc = "free text (string parameter tests)"})) {}
 
 void Probe::init() {
+  // One uninterruptible wait, as a library call that does not return soon would be.
+  rt::sleep_for(init_delay_ms_.get_int() * rt::kNsPerMs);
   if (fail_init_.get_bool()) throw std::runtime_error("fail_init is set");
 }
 

@@ -21,6 +21,7 @@ class Probe final : public DataComponent<interfaces::ProbeData> {
 
  private:
   Parameter& fail_init_;
+  Parameter& init_delay_ms_;
   Parameter& fail_on_;
   Parameter& throw_on_;
   Parameter& fail_loop_;

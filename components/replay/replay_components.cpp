@@ -35,16 +35,17 @@ std::size_t join_index(const replay::SharedLog& log, const Records& records, std
 double wrap(double a) noexcept { return std::remainder(a, 2.0 * std::numbers::pi); }
 
 Parameter::Spec log_spec() {
-  return {.doc = "log file to play: CARMEN (.log/.clf/...) or MRPT rawlog (.rawlog)", .required = true};
+  return {.doc = "log file to play: CARMEN (.log/.clf/...) or MRPT rawlog (.rawlog)", .required = true, .init_only = true};
 }
 Parameter::Spec speed_spec() {
   return {.doc = "replay speed (1: as recorded; 2: twice as fast; 0: as fast as LadarReplay's pace allows)",
           .min = 0.0,
-          .max = 1000.0};
+          .max = 1000.0,
+          .init_only = true};
 }
 constexpr std::size_t kReplyBytes = 64 * 1024;  // a data component's reply slot
 Parameter::Spec strict_spec() {
-  return {.doc = "a malformed line rejects the log (false: skip and report it)"};
+  return {.doc = "a malformed line rejects the log (false: skip and report it)", .init_only = true};
 }
 }  // namespace
 
@@ -56,17 +57,15 @@ ChassisReplay::ChassisReplay()
       strict_(declare_bool("strict", true, strict_spec())),
       source_(declare_string("odometry", "auto",
                              {.doc = "odometry from 'odom' lines (CARMEN ODOM, rawlog odometry), 'laser' (poses on "
-                                     "FLASER/ROBOTLASER1 lines, rawlog frames) or 'auto' (odom if any)"})) {}
+                                     "FLASER/ROBOTLASER1 lines, rawlog frames) or 'auto' (odom if any)",
+                              .choices = {"auto", "odom", "laser"}, .init_only = true})) {}
 
 ChassisReplay::~ChassisReplay() = default;
 
 void ChassisReplay::init() {
   shared_ = replay::acquire_shared_log(log_.get_string(), speed_.get_float(), strict_.get_bool());
   const replay::ReplayLog& log = shared_->log();
-  const std::string source = source_.get_string();
-  if (source != "auto" && source != "odom" && source != "laser") {
-    throw std::runtime_error("parameter 'odometry': '" + source + "' is not auto, odom or laser");
-  }
+  const std::string source = source_.get_string();  // auto, odom or laser (its Spec's choices)
   const bool use_odom = source == "odom" || (source == "auto" && !log.odometry.empty());
   if (use_odom) {
     stream_ = log.odometry;

@@ -32,8 +32,8 @@ Scan3d::Scan3d()
       servo_(declare_string("servo", "", {.doc = "the ServoDrive that turns the ladar (with ladar)", .component_ref = true})),
       odometry_(declare_string("odometry", "", {.doc = "optional, with ladar+servo: an Odometry or Position component; its poses undo the robot's motion during a sweep (points in the robot frame at the sweep's end, the scan stamped with that time)", .component_ref = true})),
       odometry_period_ms_(declare_float("odometry_period_ms", 0.0, {.doc = "requested period of the odometry's pose stream (0: every pose); the last 256 poses must cover a sweep's processing time", .min = 0.0, .max = 1000.0})),
-      pcd_(declare_string("pcd", "", {.doc = "instead of ladar+servo: a PCD file, or a directory whose *.pcd files are played in name order"})),
-      mode_(declare_string("mode", "pitch", {.doc = "scan mode: the drive turns the scan plane about x (roll), y (pitch) or z (yaw)", .choices = {"roll", "pitch", "yaw"}})),
+      pcd_(declare_string("pcd", "", {.doc = "instead of ladar+servo: a PCD file, or a directory whose *.pcd files are played in name order", .init_only = true})),
+      mode_(declare_string("mode", "pitch", {.doc = "scan mode: the drive turns the scan plane about x (roll), y (pitch) or z (yaw)", .choices = {"roll", "pitch", "yaw"}, .init_only = true})),
       mount_x_(declare_float("mount_x", 0.0, {.doc = "m, the ladar's centre (on the drive axis) in the robot frame, forward", .min = -10.0, .max = 10.0})),
       mount_y_(declare_float("mount_y", 0.0, {.doc = "m, ... left", .min = -10.0, .max = 10.0})),
       mount_z_(declare_float("mount_z", 0.5, {.doc = "m, ... above the floor", .min = -10.0, .max = 10.0})),
@@ -64,17 +64,29 @@ Scan3d::Scan3d()
 
 Scan3d::~Scan3d() = default;
 
-scan3d::PipelineOptions Scan3d::read_options() const {
+scan3d::PipelineOptions Scan3d::read_options(const ParameterValues& v) const noexcept {
   scan3d::PipelineOptions o;
-  o.voxel_size = voxel_size_.get_float();
-  o.outlier_neighbours = static_cast<int>(outlier_neighbours_.get_int());
-  o.outlier_std = outlier_std_.get_float();
-  o.ground_tolerance = ground_tolerance_.get_float();
-  o.ground_max_tilt = ground_max_tilt_.get_float();
-  o.ground_max_height = ground_max_height_.get_float();
-  o.ceiling_height = ceiling_height_.get_float();
-  o.max_points = static_cast<uint32_t>(max_points_.get_int());
+  o.voxel_size = v.get_float(voxel_size_);
+  o.outlier_neighbours = static_cast<int>(v.get_int(outlier_neighbours_));
+  o.outlier_std = v.get_float(outlier_std_);
+  o.ground_tolerance = v.get_float(ground_tolerance_);
+  o.ground_max_tilt = v.get_float(ground_max_tilt_);
+  o.ground_max_height = v.get_float(ground_max_height_);
+  o.ceiling_height = v.get_float(ceiling_height_);
+  o.max_points = static_cast<uint32_t>(v.get_int(max_points_));
   return o;
+}
+
+bool Scan3d::check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept {
+  if (const char* why = scan3d::check_options(read_options(values))) {
+    problem.set(values.changing() != nullptr ? *values.changing() : voxel_size_, why);
+    return false;
+  }
+  if (!(values.get_float(angle_max_) > values.get_float(angle_min_))) {
+    problem.set(values.changing() == &angle_min_ ? angle_min_ : angle_max_, "angle_max must be above angle_min");
+    return false;
+  }
+  return true;
 }
 
 void Scan3d::init() {
@@ -101,12 +113,7 @@ void Scan3d::init() {
   mode_id_ = mode == "roll" ? interfaces::kScan3dModeRoll
              : mode == "yaw" ? interfaces::kScan3dModeYaw
                              : interfaces::kScan3dModePitch;
-  try {
-    scan3d::validate(read_options());
-  } catch (const std::invalid_argument& e) {
-    throw std::runtime_error(std::string("parameters: ") + e.what());
-  }
-  if (!(angle_max_.get_float() > angle_min_.get_float())) throw std::runtime_error("angle_max must be above angle_min");
+  // The pipeline's options and the sweep's angles were checked (check_parameters, before init()).
   files_.clear();
   if (file_source_) {
     namespace fs = std::filesystem;

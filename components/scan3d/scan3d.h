@@ -83,6 +83,7 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
 
  protected:
   void init() override;  // reads the parameters, lists the PCD files, allocates (non-RT)
+  [[nodiscard]] bool check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept override;
   HookResult on() override;
   void off() override;
   HookResult loop() override;  // NOT RT-safe: PCL and file I/O
@@ -100,7 +101,8 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
   // A notification the command task sends to the input mailbox to wake the data task.
   static constexpr int8_t kWake = -30;
 
-  [[nodiscard]] scan3d::PipelineOptions read_options() const;
+  // The pipeline's options from the parameters (`v`: the values to check). RT-safe.
+  [[nodiscard]] scan3d::PipelineOptions read_options(const ParameterValues& v = {}) const noexcept;
   enum class BadKind : uint8_t { kPcdFile, kLadarScan, kSweep, kDrive, kPose };
   static constexpr std::size_t kBadKinds = 5;
   // Counts one bad input of `kind`; logs `detail` (rate-limited) unless it is null

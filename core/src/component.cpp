@@ -93,8 +93,13 @@ void Component::detach() noexcept {
 
 bool Component::run_init(std::string& error) {
   try {
-    init();
-    return true;
+    if (ParameterProblem problem; !check_parameters(ParameterValues(), problem)) {
+      error = "parameter '" + (problem.parameter != nullptr ? problem.parameter->name() : std::string("?")) +
+              "': " + problem.text;
+    } else {
+      init();
+      return true;
+    }
   } catch (const std::exception& e) {
     error = e.what();
   } catch (...) {
@@ -304,7 +309,16 @@ void Component::handle_set_param(const MessageHeader& h, std::span<const std::by
     reply_with(h, msg::kError, text);
     return;
   }
-  if (const char* why = p->set_from_wire(record)) {
+  // The same rules as the host file and init(): the Spec's (kind, range, choices),
+  // then the class's (check_parameters) with the candidate in place; the old value
+  // stays unless both accept.
+  wire::ParamRecord value;
+  const char* why = p->spec().init_only ? "read at start only: change it in the host file and restart rackd"
+                                        : p->check_wire(record, value);
+  ParameterProblem problem;
+  if (why == nullptr && !check_parameters(ParameterValues(*p, value), problem)) why = problem.text;
+  if (why == nullptr) why = p->set_from_wire(value);
+  if (why != nullptr) {
     wire::copy_text(text.text, record.name);
     wire::append_text(text.text, ": ");
     wire::append_text(text.text, why);

@@ -1,5 +1,7 @@
 #include "rack/core/executor.h"
 
+#include "rack/tims/lcm_url.h"
+
 #include <pthread.h>
 #include <sched.h>
 #include <unistd.h>
@@ -63,7 +65,7 @@ class HousekeepingAffinity {
 
 Executor::Executor(std::unique_ptr<LoadedHost> host, ExecutorOptions options)
     : host_(std::move(host)), options_(std::move(options)), router_(host_->settings.system) {
-  for (auto& c : host_->components) views_.push_back(ComponentView{c.get(), false, {}});
+  for (auto& c : host_->components) views_.push_back(ComponentView{c.get(), false, {}, false, false, false});
 }
 
 Executor::~Executor() { stop(); }
@@ -198,9 +200,38 @@ bool Executor::send_command(Component& c, int8_t type, int64_t timeout_ns, std::
   return true;
 }
 
+void Executor::step(const std::string& what) {
+  if (options_.stop_requested && options_.stop_requested()) throw StartStopped();
+  if (options_.phase) options_.phase(what);
+}
+
 void Executor::start() {
   if (started_) return;
+  const HostSettings& hs = host_->settings;
+  // The host's (first) TiMS network: --lcm, else the first of `tims: networks:`, else lcm_url.
+  const std::string url = !options_.lcm_url_override.empty() ? options_.lcm_url_override
+                          : !hs.networks.empty()             ? hs.networks.front().url
+                                                             : hs.lcm_url;
+  // Checked before anything opens them (the host file loader checked its own; this
+  // catches --lcm and hosts built in code): LCM itself only prints "invalid URL".
+  if (hs.lcm) {
+    if (const auto u = tims::parse_lcm_url(url); !url.empty() && !u.ok()) {
+      throw std::runtime_error("the TiMS network: " + u.error);
+    }
+    if (const auto u = tims::parse_lcm_url(hs.gdos.lcm_url); hs.gdos.lcm && !hs.gdos.lcm_url.empty() && !u.ok()) {
+      throw std::runtime_error("gdos.lcm_url: " + u.error);
+    }
+  }
   started_ = true;
+  try {
+    start_steps(url);
+  } catch (...) {
+    stop();
+    throw;
+  }
+}
+
+void Executor::start_steps(const std::string& url) {
   const HostSettings& hs = host_->settings;
   const Address self = Address::make(hs.system, tims::classes::kExecutor, hs.host_id, 1);
   mailbox_ = std::make_unique<tims::Mailbox>(self, 16, 64 * 1024);
@@ -210,11 +241,8 @@ void Executor::start() {
   // GDOS first, so that everything from here on is logged.
   log_source_.set_identity(self.component(), "rackd");
   gdos::Hub::set_process_hub(&hub_);
-  // The host's (first) TiMS network: --lcm, else the first of `tims: networks:`, else lcm_url.
-  const std::string url = !options_.lcm_url_override.empty() ? options_.lcm_url_override
-                          : !hs.networks.empty()             ? hs.networks.front().url
-                                                             : hs.lcm_url;
   if (hs.lcm && hs.gdos.lcm && !url.empty()) {
+    step("joining the GDOS network");
     tims::GdosPublisherConfig pc;
     pc.url = hs.gdos.lcm_url.empty() ? url : hs.gdos.lcm_url;
     pc.channel = hs.gdos.channel;
@@ -223,14 +251,7 @@ void Executor::start() {
     // On a keyed host the log is signed with the first network's key (the gdos viewer
     // verifies it with --key-file).
     if (!hs.networks.empty()) pc.key_file = hs.networks.front().key_file;
-    try {
-      gdos_publisher_ = std::make_unique<tims::GdosPublisher>(pc);
-    } catch (...) {
-      started_ = false;
-      router_.remove(mailbox_->address());
-      gdos::Hub::set_process_hub(nullptr);
-      throw;
-    }
+    gdos_publisher_ = std::make_unique<tims::GdosPublisher>(pc);
   }
   gdos_running_ = true;
   {
@@ -264,19 +285,25 @@ void Executor::start() {
     log(gdos::Level::kWarning, "access control: the host file has no 'access:' section: every source may send "
                                "every message to every component here (see configs/access_control.yaml)");
   }
-  for (auto& v : views_) v.component->attach(router_);
+  for (auto& v : views_) {
+    v.component->attach(router_);
+    v.attached = true;
+  }
   {
     // Threads a component starts in init() (a driver's device I/O: TcpSensorLink, the
     // camera's capture) are not real-time: they inherit the housekeeping CPUs.
     const HousekeepingAffinity housekeeping(views_);
     for (auto& v : views_) {
+      step("init() of component '" + v.component->name() + "'");
+      v.init_called = true;
       if (!v.component->run_init(v.init_error)) {
         log(gdos::Level::kError, "component '" + v.component->name() + "' " + v.component->address().str() +
                                      " is in ERROR: init() failed: " + v.init_error);
       }
     }
   }
-  try {
+  step("starting the tasks");
+  {
     for (auto& v : views_) {
       Component& c = *v.component;
       const ComponentSettings& s = c.settings();
@@ -301,6 +328,7 @@ void Executor::start() {
                                   },
                                   options_.allow_rt_fallback);
       v.realtime = how == rt::ThreadStart::kRealTime;
+      v.tasks_started = true;
       fallback_ = fallback_ || how == rt::ThreadStart::kFallback;
       threads_.push_back(std::move(cmd));
       if (auto* dc = dynamic_cast<DataComponentBase*>(&c); dc != nullptr && c.data_task_mode() != DataTaskMode::kNone) {
@@ -320,6 +348,7 @@ void Executor::start() {
       }
     }
     if (hs.lcm && (!url.empty() || !hs.networks.empty())) {
+      step("joining the TiMS network " + url);
       tims::LcmTransportConfig tc;
       tc.url = url;
       tc.networks = hs.networks;
@@ -350,12 +379,14 @@ void Executor::start() {
       }
       transport_->set_announcement(std::move(info));
       transport_->start();
-      // Autostarted components subscribe to other hosts: let discovery fill first.
+      // Autostarted components subscribe to other hosts: let discovery fill first
+      // (in steps, so that a stop request is not kept waiting).
+      for (const int64_t warm_at = rt::monotonic_ns() + tc.warmup_ns; rt::monotonic_ns() < warm_at;) {
+        step("waiting for the other hosts' announcements");
+        rt::sleep_for(10 * rt::kNsPerMs);
+      }
       transport_->wait_until_warm();
     }
-  } catch (...) {
-    stop();
-    throw;
   }
   std::size_t realtime = 0;
   for (const auto& v : views_) realtime += v.realtime ? 1 : 0;
@@ -367,6 +398,7 @@ void Executor::start() {
   for (auto& v : views_) {
     Component& c = *v.component;
     if (!c.settings().autostart) continue;
+    step("switching on component '" + c.name() + "' (autostart)");
     std::string why;
     if (!send_command(c, msg::kOn, c.settings().rpc_timeout_ns * 4, why)) {
       log(gdos::Level::kWarning, "autostart of '" + c.name() + "' " + c.address().str() + " failed: " + why +
@@ -385,7 +417,7 @@ void Executor::stop() {
   if (endpoint_) {
     for (auto it = views_.rbegin(); it != views_.rend(); ++it) {
       Component& c = *it->component;
-      if (c.state() == ComponentState::kDisabled) continue;
+      if (!it->tasks_started || c.state() == ComponentState::kDisabled) continue;
       std::string why;
       if (!send_command(c, msg::kOff, c.settings().rpc_timeout_ns, why)) {
         log(gdos::Level::kError, "OFF of '" + c.name() + "' failed: " + why);
@@ -396,8 +428,12 @@ void Executor::stop() {
   for (auto& t : threads_) t->join();
   threads_.clear();
   if (transport_) transport_->stop();
-  for (auto it = views_.rbegin(); it != views_.rend(); ++it) it->component->run_cleanup();
-  for (auto& v : views_) v.component->detach();
+  for (auto it = views_.rbegin(); it != views_.rend(); ++it) {
+    if (it->init_called) it->component->run_cleanup();
+  }
+  for (auto& v : views_) {
+    if (v.attached) v.component->detach();
+  }
   if (mailbox_) router_.remove(mailbox_->address());
   router_.set_access(nullptr);
   const auto c = hub_.counters();

@@ -1,20 +1,179 @@
 #include "rack/core/host_config.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
+#include "rack/tims/lcm_url.h"
 #include "rack/tims/link_auth.h"
 
 #include <cerrno>
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <functional>
 #include <map>
 #include <set>
 #include <sstream>
 
 namespace rack {
+
+namespace {
+
+// Length in bytes of the UTF-8 sequence at text[i] and its code point; 0 when the
+// bytes there are not well-formed UTF-8 (overlong, surrogate, above U+10FFFF, cut).
+std::size_t utf8_sequence(std::string_view text, std::size_t i, uint32_t& cp) {
+  const auto b = [&](std::size_t k) { return static_cast<unsigned char>(text[i + k]); };
+  const unsigned char c = b(0);
+  std::size_t n = 0;
+  if (c < 0x80) { cp = c; return 1; }
+  if (c >= 0xC2 && c <= 0xDF) { n = 2; cp = c & 0x1Fu; }
+  else if (c >= 0xE0 && c <= 0xEF) { n = 3; cp = c & 0x0Fu; }
+  else if (c >= 0xF0 && c <= 0xF4) { n = 4; cp = c & 0x07u; }
+  else return 0;
+  if (i + n > text.size()) return 0;
+  for (std::size_t k = 1; k < n; ++k) {
+    if ((b(k) & 0xC0u) != 0x80u) return 0;
+    cp = (cp << 6) | (b(k) & 0x3Fu);
+  }
+  if ((n == 3 && cp < 0x800) || (n == 4 && cp < 0x10000) || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return 0;
+  return n;
+}
+
+// A control character (C0 but tab and newline, DEL, C1) or a line/paragraph
+// separator: nothing a name or value in a host file needs, all of it something that
+// garbles a log line or a terminal.
+bool is_control(uint32_t cp) {
+  return (cp < 0x20 && cp != '\t' && cp != '\n') || (cp >= 0x7F && cp <= 0x9F) || cp == 0x2028 || cp == 0x2029;
+}
+
+std::string byte_text(unsigned char c) {
+  char buf[8];
+  std::snprintf(buf, sizeof buf, "0x%02x", c);
+  return buf;
+}
+
+std::string code_point_text(uint32_t cp) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "U+%04X", cp);
+  return buf;
+}
+
+// The first reason a string is not clean text (NUL, a control character, invalid
+// UTF-8), or "" when it is.
+std::string unclean_text(std::string_view text) {
+  for (std::size_t i = 0; i < text.size();) {
+    uint32_t cp = 0;
+    const std::size_t n = utf8_sequence(text, i, cp);
+    if (n == 0) return "invalid UTF-8 (byte " + byte_text(static_cast<unsigned char>(text[i])) + " at offset " + std::to_string(i) + ")";
+    if (cp == 0) return "a NUL byte at offset " + std::to_string(i);
+    if (is_control(cp)) return "a control character (" + code_point_text(cp) + ") at offset " + std::to_string(i);
+    i += n;
+  }
+  return {};
+}
+
+// A message as it may be printed: invalid UTF-8 and control characters (newline and
+// tab too) as '?',
+// at most kMaxMessage bytes.
+std::string clean_message(const std::string& message) {
+  constexpr std::size_t kMaxMessage = 1024;
+  std::string out;
+  for (std::size_t i = 0; i < message.size() && out.size() < kMaxMessage;) {
+    uint32_t cp = 0;
+    const std::size_t n = utf8_sequence(message, i, cp);
+    if (n == 0 || cp < 0x20 || is_control(cp)) {  // a newline too: one message, one line
+      out += '?';
+      i += n == 0 ? 1 : n;
+    } else {
+      out.append(message, i, n);
+      i += n;
+    }
+  }
+  if (out.size() >= kMaxMessage) out += "...";
+  return out;
+}
+
+// The event pass over a host file (before it is built into nodes): yaml-cpp keeps
+// every pair of a map with a repeated key and its look-up finds the first (the
+// loader's iteration the last), so a repeated key is found here, from the events,
+// with both places. Also: nesting depth, and every scalar (key or value, after
+// escapes) is clean text of at most kMaxHostScalarBytes.
+class HostFileEvents final : public YAML::EventHandler {
+ public:
+  HostFileEvents(const std::string& file, std::vector<ConfigError>& errors) : file_(file), errors_(errors) {}
+
+  int documents = 0;
+  YAML::Mark second_document;
+
+  void OnDocumentStart(const YAML::Mark& mark) override {
+    if (++documents == 2) second_document = mark;
+  }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark& mark, YAML::anchor_t) override { node(mark, nullptr); }
+  void OnAlias(const YAML::Mark& mark, YAML::anchor_t) override { node(mark, nullptr); }
+  void OnScalar(const YAML::Mark& mark, const std::string&, YAML::anchor_t, const std::string& value) override {
+    if (documents > 1) return;
+    if (value.size() > kMaxHostScalarBytes) {
+      error(mark, "a value of " + std::to_string(value.size()) + " bytes: at most " +
+                      std::to_string(kMaxHostScalarBytes) + " bytes per key or value");
+    } else if (const std::string why = unclean_text(value); !why.empty()) {
+      error(mark, "this value holds " + why + ": keys and values are UTF-8 text without control characters");
+    }
+    node(mark, &value);
+  }
+  void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    node(mark, nullptr);
+    push(mark, false);
+  }
+  void OnSequenceEnd() override { pop(); }
+  void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    node(mark, nullptr);
+    push(mark, true);
+  }
+  void OnMapEnd() override { pop(); }
+
+ private:
+  struct Frame {
+    bool map = false;
+    bool want_key = true;
+    std::map<std::string, YAML::Mark> keys;
+  };
+  void error(const YAML::Mark& m, const std::string& message) {
+    errors_.push_back({file_, m.line + 1, m.column + 1, message});
+  }
+  void node(const YAML::Mark& mark, const std::string* scalar) {
+    if (documents > 1 || stack_.empty() || !stack_.back().map) return;
+    Frame& f = stack_.back();
+    if (f.want_key && scalar != nullptr) {
+      const auto [it, fresh] = f.keys.emplace(*scalar, mark);
+      if (!fresh) {
+        error(mark, "duplicate key '" + *scalar + "' (first at line " + std::to_string(it->second.line + 1) +
+                        "): a key may appear once in a map");
+      }
+    }
+    f.want_key = !f.want_key;
+  }
+  void push(const YAML::Mark& mark, bool map) {
+    if (documents > 1) return;
+    if (stack_.size() == kMaxHostNesting && !deep_reported_) {
+      error(mark, "nested deeper than " + std::to_string(kMaxHostNesting) + " levels");
+      deep_reported_ = true;
+    }
+    stack_.push_back(Frame{map, true, {}});
+  }
+  void pop() {
+    if (!stack_.empty() && documents <= 1) stack_.pop_back();
+  }
+
+  const std::string& file_;
+  std::vector<ConfigError>& errors_;
+  std::vector<Frame> stack_;
+  bool deep_reported_ = false;
+};
+
+}  // namespace
 
 std::string ConfigError::str() const {
   if (line <= 0) return file + ": " + message;
@@ -26,6 +185,7 @@ struct HostLoader {
   std::string file;
   ComponentRegistry& registry;
   const rt::RtCapabilities& caps;
+  HostLoadOptions options;
   std::vector<ConfigError> errors;
   // Every component's address by name (filled while loading them, even when another
   // component has errors, so that the access rules resolve names regardless).
@@ -84,6 +244,11 @@ struct HostLoader {
       error(map[key].Mark(), std::string("'") + key + "' must be positive, got " + map[key].Scalar());
       return false;
     }
+    if (ms > kMaxHostMilliseconds) {
+      error(map[key].Mark(), std::string("'") + key + "' = " + map[key].Scalar() + " is above " +
+                                 std::to_string(static_cast<int64_t>(kMaxHostMilliseconds)) + " ms (a day)");
+      return false;
+    }
     out_ns = static_cast<int64_t>(std::llround(ms * 1e6));
     if (out_ns <= 0) {
       error(map[key].Mark(), std::string("'") + key + "' is below one nanosecond");
@@ -108,7 +273,7 @@ struct HostLoader {
     }
     if (node["cpu"]) {
       if (get(node, "cpu", v, "a CPU number")) {
-        if (v < 0 || !caps.cpu_online(static_cast<int>(v))) {
+        if (v < 0 || v >= CPU_SETSIZE || !caps.cpu_online(static_cast<int>(v))) {
           std::string online;
           for (int c : caps.online_cpus) online += (online.empty() ? "" : ",") + std::to_string(c);
           error(node["cpu"].Mark(), "CPU " + std::to_string(v) + " is not online (online: " + online + ")");
@@ -186,10 +351,81 @@ struct HostLoader {
     }
   }
 
-  static bool valid_name(const std::string& n) {
-    if (n.empty() || n.size() > 31) return false;
+  // A name: 1..max ASCII letters, digits, '_', '-' (and '.' where `dots`).
+  static bool valid_name(const std::string& n, std::size_t max = kMaxNameLength, bool dots = false) {
+    if (n.empty() || n.size() > max) return false;
     for (char c : n) {
-      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '-') return false;
+      const bool letter = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9');
+      if (!letter && c != '_' && c != '-' && !(dots && c == '.')) return false;
+    }
+    return true;
+  }
+
+  // A name as it may be shown in a message: cut to 40 characters, non-ASCII and
+  // control bytes as '?' (the message itself must stay clean text).
+  static std::string printable(const std::string& n) {
+    std::string out;
+    for (char c : n.substr(0, 40)) out += (c >= 0x20 && c < 0x7f) ? c : '?';
+    if (n.size() > 40) out += "...(" + std::to_string(n.size()) + " bytes)";
+    return out;
+  }
+
+  void check_url(const YAML::Node& map, const char* key, const std::string& url) {
+    if (const auto u = tims::parse_lcm_url(url); !u.ok()) error(map[key].Mark(), std::string("'") + key + "': " + u.error);
+  }
+
+  // The raw bytes, before YAML sees them: size, NUL bytes, UTF-8, control characters
+  // (tab, newline and carriage return aside). False: not parsed at all.
+  bool check_text(std::string_view text) {
+    if (text.size() > kMaxHostFileBytes) {
+      errors.push_back({file, 0, 0, "the host file has " + std::to_string(text.size()) + " bytes: at most " +
+                                        std::to_string(kMaxHostFileBytes) + " are read"});
+      return false;
+    }
+    int line = 1, column = 1;
+    for (std::size_t i = 0; i < text.size();) {
+      uint32_t cp = 0;
+      const std::size_t n = utf8_sequence(text, i, cp);
+      std::string why;
+      if (n == 0) why = "invalid UTF-8 (byte " + byte_text(static_cast<unsigned char>(text[i])) + ")";
+      else if (cp == 0) why = "a NUL byte";
+      else if (is_control(cp) && cp != '\r') why = "a control character (" + code_point_text(cp) + ")";
+      if (!why.empty()) {
+        errors.push_back({file, line, column, why + ": a host file is UTF-8 text without control characters"});
+        return false;
+      }
+      if (cp == '\n') {
+        ++line;
+        column = 1;
+      } else {
+        ++column;
+      }
+      i += n;
+    }
+    return true;
+  }
+
+  // The event pass (HostFileEvents) and the rule of one document. False: the first
+  // document is not YAML.
+  bool check_events(const std::string& text) {
+    std::istringstream in(text);
+    YAML::Parser parser(in);
+    HostFileEvents events(file, errors);
+    try {
+      parser.HandleNextDocument(events);
+    } catch (const YAML::Exception& e) {
+      error(e.mark, "YAML syntax: " + e.msg);
+      return false;
+    }
+    // Whatever follows the first document (after '---' or '...') is refused, not
+    // ignored: yaml-cpp's Load would read the first and drop the rest unseen.
+    try {
+      if (parser.HandleNextDocument(events)) {
+        error(events.second_document, "a second YAML document: a host file is one document (remove the '---' and "
+                                      "what follows)");
+      }
+    } catch (const YAML::Exception& e) {
+      error(e.mark, "after the host file's document: a host file is one document (YAML syntax: " + e.msg + ")");
     }
     return true;
   }
@@ -197,9 +433,13 @@ struct HostLoader {
   LoadResult load(const std::string& text) {
     LoadResult result;
     YAML::Node root;
+    if (!check_text(text) || !check_events(text)) {
+      result.errors = errors;
+      return result;
+    }
     try {
       root = YAML::Load(text);
-    } catch (const YAML::ParserException& e) {
+    } catch (const YAML::Exception& e) {
       error(e.mark, "YAML syntax: " + e.msg);
       result.errors = errors;
       return result;
@@ -223,14 +463,19 @@ struct HostLoader {
     char hostname[256] = {};
     gethostname(hostname, sizeof hostname - 1);
     hs.host = hostname;
-    get(root, "host", hs.host, "a host name");
+    if (get(root, "host", hs.host, "a host name") && !valid_name(hs.host, kMaxHostNameLength, true)) {
+      error(root["host"].Mark(), "host name '" + printable(hs.host) + "' must be 1.." +
+                                     std::to_string(kMaxHostNameLength) + " letters, digits, '.', '_' or '-'");
+    }
     int64_t v = 0;
     if (get_int_range(root, "system", 0, 254, v, "a system (robot) id 0..254")) hs.system = static_cast<uint8_t>(v);
     if (get_int_range(root, "host_id", 0, 255, v, "a host id 0..255")) hs.host_id = static_cast<uint8_t>(v);
     get(root, "require_rt", hs.require_rt, "true or false");
     get(root, "lcm", hs.lcm, "true or false");
     hs.lcm_url = tims_default_url();
-    get(root, "lcm_url", hs.lcm_url, "an LCM URL such as udpm://239.255.76.67:7667?ttl=0");
+    if (get(root, "lcm_url", hs.lcm_url, "an LCM URL such as udpm://239.255.76.67:7667?ttl=0")) {
+      check_url(root, "lcm_url", hs.lcm_url);
+    }
     if (get_int_range(root, "heap_prefault_mib", 0, 16384, v, "a size in MiB")) {
       hs.heap_prefault_bytes = static_cast<std::size_t>(v) << 20;
     }
@@ -246,6 +491,8 @@ struct HostLoader {
       } else {
         for (const auto& p : plugins) {
           if (!p.IsScalar()) { error(p.Mark(), "a plug-in is a path"); continue; }
+          if (p.Scalar().empty()) { error(p.Mark(), "a plug-in path must not be empty"); continue; }
+          if (!options.open_files) continue;
           try {
             registry.load_plugin(p.Scalar());
             hs.plugins.push_back(p.Scalar());
@@ -295,9 +542,10 @@ struct HostLoader {
     if (get_int_range(g, "ring", 2, 65536, v, "a record count 2..65536")) out.ring = static_cast<uint32_t>(v);
     get_positive_ms(g, "drain_ms", out.drain_ns);
     get(g, "lcm", out.lcm, "true or false");
-    get(g, "lcm_url", out.lcm_url, "an LCM URL");
-    if (get(g, "channel", out.channel, "an LCM channel name") && out.channel.empty()) {
-      error(g["channel"].Mark(), "'channel' must not be empty");
+    if (get(g, "lcm_url", out.lcm_url, "an LCM URL")) check_url(g, "lcm_url", out.lcm_url);
+    if (get(g, "channel", out.channel, "an LCM channel name") && !valid_name(out.channel, kMaxChannelLength, true)) {
+      error(g["channel"].Mark(), "'channel' '" + printable(out.channel) + "' must be 1.." +
+                                     std::to_string(kMaxChannelLength) + " letters, digits, '.', '_' or '-'");
     }
   }
 
@@ -345,10 +593,13 @@ struct HostLoader {
     int64_t ns = 0;
     if (get_positive_ms(t, "announce_ms", ns)) hs.announce_period_ns = ns;
     if (get_positive_ms(t, "expiry_ms", ns)) hs.expiry_ns = ns;
-    if (t["expiry_ms"] && hs.expiry_ns <= hs.announce_period_ns) {
-      error(t["expiry_ms"].Mark(), "'expiry_ms' must be longer than 'announce_ms' (" +
-                                       std::to_string(hs.announce_period_ns / 1'000'000) +
-                                       " ms), or every host expires between two announcements");
+    // Another host counts this one gone after expiry_ms without an announcement: one
+    // lost announcement (a datagram) must not expire it, so at least two periods.
+    if ((t["expiry_ms"] || t["announce_ms"]) && hs.expiry_ns < 2 * hs.announce_period_ns) {
+      error(t[t["expiry_ms"] ? "expiry_ms" : "announce_ms"].Mark(),
+            "'expiry_ms' (" + std::to_string(hs.expiry_ns / 1'000'000) + " ms) must be at least twice 'announce_ms' (" +
+                std::to_string(hs.announce_period_ns / 1'000'000) +
+                " ms): longer than 'announce_ms' by one lost announcement, or hosts expire between announcements");
     }
     int64_t v = 0;
     if (get_int_range(t, "max_message_kib", 64, 256 * 1024, v, "a size in KiB")) {
@@ -375,7 +626,11 @@ struct HostLoader {
       tims::NetworkConfig nc;
       get(n, "name", nc.name, "a name");
       if (!n["url"]) error(n.Mark(), "network '" + nc.name + "' has no 'url'");
-      get(n, "url", nc.url, "an LCM URL such as udpm://239.255.76.67:7667?ttl=1");
+      if (get(n, "url", nc.url, "an LCM URL such as udpm://239.255.76.67:7667?ttl=1")) check_url(n, "url", nc.url);
+      if (n["name"] && !valid_name(nc.name, kMaxNameLength, false)) {
+        error(n["name"].Mark(), "network name '" + printable(nc.name) + "' must be 1.." +
+                                    std::to_string(kMaxNameLength) + " letters, digits, '_' or '-'");
+      }
       if (!names.insert(nc.name).second) error(n.Mark(), "two networks named '" + nc.name + "'");
       std::string scope = "robot";
       if (get(n, "scope", scope, "robot or fleet")) {
@@ -397,6 +652,8 @@ struct HostLoader {
       if (get(n, "key_file", nc.key_file, "the path of a key file")) {
         if (nc.key_file.empty()) {
           error(n["key_file"].Mark(), "'key_file' must not be empty (leave it out for an unauthenticated network)");
+        } else if (!options.open_files) {
+          // the path only
         } else if (const auto kf = tims::load_key_file(nc.key_file); !kf.error.empty()) {
           error(n["key_file"].Mark(), kf.error);
         }
@@ -567,7 +824,8 @@ struct HostLoader {
       if (!node["name"]) { error(node.Mark(), "component without 'name'"); continue; }
       if (!get(node, "name", name, "a name")) continue;
       if (!valid_name(name)) {
-        error(node["name"].Mark(), "component name '" + name + "' must be 1..31 letters, digits, '_' or '-'");
+        error(node["name"].Mark(), "component name '" + printable(name) + "' must be 1.." +
+                                       std::to_string(kMaxNameLength) + " letters, digits, '_' or '-'");
         continue;
       }
       if (!node["class"]) { error(node.Mark(), "component '" + name + "' has no 'class'"); continue; }
@@ -639,6 +897,7 @@ struct HostLoader {
       Pending p{node, std::move(component), {}};
       ParameterSet& params = p.component->parameters();
       std::set<std::string> given;
+      std::map<const Parameter*, YAML::Mark> given_marks;
       if (const YAML::Node pn = node["params"]) {
         if (!pn.IsMap()) {
           error(pn.Mark(), "'params' must be a map of parameter: value");
@@ -660,6 +919,7 @@ struct HostLoader {
               continue;
             }
             given.insert(key);
+            given_marks[param] = it->second.Mark();
             if (param->spec().component_ref) p.refs.emplace_back(param, it->second);
           }
         }
@@ -674,6 +934,13 @@ struct HostLoader {
           error(node.Mark(), "component '" + name + "': missing required parameter '" + prm.name() +
                                  "' (" + prm.spec().doc + ")");
         }
+      }
+      // The class's own rules for its values (what init() and SET_PARAM check too).
+      if (ParameterProblem problem; !p.component->check_parameters(ParameterValues(), problem)) {
+        const auto at = problem.parameter != nullptr ? given_marks.find(problem.parameter) : given_marks.end();
+        error(at != given_marks.end() ? at->second : node.Mark(),
+              "component '" + name + "': parameter '" +
+                  (problem.parameter != nullptr ? problem.parameter->name() : std::string("?")) + "': " + problem.text);
       }
       if (by_name.count(name) != 0) {
         error(node["name"].Mark(), "duplicate component name '" + name + "'");
@@ -751,9 +1018,72 @@ struct HostLoader {
 };
 
 LoadResult load_host_text(const std::string& text, const std::string& file, ComponentRegistry& registry,
-                          const rt::RtCapabilities& caps) {
-  HostLoader loader{file, registry, caps, {}, {}};
-  return loader.load(text);
+                          const rt::RtCapabilities& caps, const HostLoadOptions& options) {
+  HostLoader loader{file, registry, caps, options, {}, {}};
+  // Outside input: whatever escapes the checks (a yaml-cpp conversion that throws, an
+  // allocation that fails) is one more error of this file, never an exception.
+  LoadResult r;
+  try {
+    r = loader.load(text);
+  } catch (const std::exception& e) {
+    r.host.reset();
+    r.errors = loader.errors;
+    r.errors.push_back({file, 0, 0, std::string("cannot load the host file: ") + e.what()});
+  }
+  // Messages quote the file's keys and values: they go to a terminal and a log as
+  // clean text of bounded length, whatever the file held.
+  for (auto& e : r.errors) e.message = clean_message(e.message);
+  return r;
+}
+
+std::optional<std::string> read_host_bytes(const std::string& path, std::string& error) {
+  // O_NONBLOCK: opening a FIFO with no writer returns at once (then refused below).
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
+  if (fd < 0) {
+    error = std::string("cannot read the host file: ") + std::strerror(errno);
+    return std::nullopt;
+  }
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (fstat(fd, &st) != 0) {
+    error = std::string("cannot read the host file: ") + std::strerror(errno);
+    return std::nullopt;
+  }
+  if (!S_ISREG(st.st_mode)) {
+    error = std::string("the host file is ") + (S_ISFIFO(st.st_mode) ? "a FIFO" : S_ISDIR(st.st_mode) ? "a directory"
+                                                  : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "a device"
+                                                  : S_ISSOCK(st.st_mode)                       ? "a socket"
+                                                                                               : "not a regular file") +
+            ": a host file must be a regular file";
+    return std::nullopt;
+  }
+  if (static_cast<uint64_t>(st.st_size) > kMaxHostFileBytes) {
+    error = "the host file has " + std::to_string(st.st_size) + " bytes: at most " + std::to_string(kMaxHostFileBytes) +
+            " are read";
+    return std::nullopt;
+  }
+  // One byte more than the limit: a file that grew after fstat is refused too.
+  std::string text(static_cast<std::size_t>(st.st_size) + 1, '\0');
+  std::size_t have = 0;
+  while (have < text.size()) {
+    const ssize_t n = ::read(fd, text.data() + have, text.size() - have);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      error = std::string("cannot read the host file: ") + std::strerror(errno);
+      return std::nullopt;
+    }
+    if (n == 0) break;
+    have += static_cast<std::size_t>(n);
+    if (have > kMaxHostFileBytes) {
+      error = "the host file grew past " + std::to_string(kMaxHostFileBytes) + " bytes while being read";
+      return std::nullopt;
+    }
+  }
+  text.resize(have);
+  return text;
 }
 
 ToolNetwork read_tool_network(const std::string& path) {
@@ -763,13 +1093,16 @@ ToolNetwork read_tool_network(const std::string& path) {
     out.errors.push_back({path, m.line + 1, m.column + 1, why});
     return out;
   };
+  std::string why;
+  const auto text = read_host_bytes(path, why);
+  if (!text) {
+    out.errors.push_back({path, 0, 0, why});
+    return out;
+  }
   YAML::Node root;
   try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    out.errors.push_back({path, 0, 0, std::string("cannot read the host file: ") + std::strerror(errno)});
-    return out;
-  } catch (const YAML::ParserException& e) {
+    root = YAML::Load(*text);
+  } catch (const YAML::Exception& e) {
     return fail(e.mark, "YAML syntax: " + e.msg);
   }
   if (!root.IsMap()) return fail(root.Mark(), "a host file is a map (host, system, components, ...)");
@@ -797,15 +1130,14 @@ ToolNetwork read_tool_network(const std::string& path) {
 }
 
 LoadResult load_host_file(const std::string& path, ComponentRegistry& registry, const rt::RtCapabilities& caps) {
-  std::ifstream in(path);
-  if (!in) {
+  std::string why;
+  const auto text = read_host_bytes(path, why);
+  if (!text) {
     LoadResult r;
-    r.errors.push_back({path, 0, 0, std::string("cannot read the host file: ") + std::strerror(errno)});
+    r.errors.push_back({path, 0, 0, why});
     return r;
   }
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return load_host_text(ss.str(), path, registry, caps);
+  return load_host_text(*text, path, registry, caps);
 }
 
 }  // namespace rack

@@ -141,13 +141,16 @@ std::optional<std::string> Parameter::set_from_text(const std::string& text) {
   return std::nullopt;
 }
 
-const char* Parameter::set_from_wire(const wire::ParamRecord& r) noexcept {
+const char* Parameter::check_wire(const wire::ParamRecord& r, wire::ParamRecord& value) const noexcept {
   const auto kind = static_cast<ParamKind>(r.kind);
+  value = wire::ParamRecord{};
+  std::memcpy(value.name, r.name, sizeof value.name);
+  value.kind = static_cast<uint8_t>(kind_);
   switch (kind_) {
     case ParamKind::kInt:
       if (kind != ParamKind::kInt) return "type mismatch: parameter is an int";
       if (!in_range(static_cast<double>(r.int_value), spec_)) return "value out of range";
-      int_.store(r.int_value, std::memory_order_relaxed);
+      value.int_value = r.int_value;
       break;
     case ParamKind::kFloat: {
       double v = 0;
@@ -155,13 +158,13 @@ const char* Parameter::set_from_wire(const wire::ParamRecord& r) noexcept {
       else if (kind == ParamKind::kInt) v = static_cast<double>(r.int_value);
       else return "type mismatch: parameter is a float";
       if (!std::isfinite(v) || !in_range(v, spec_)) return "value out of range";
-      float_.store(v, std::memory_order_relaxed);
+      value.float_value = v;
       break;
     }
     case ParamKind::kBool:
       if (kind != ParamKind::kBool) return "type mismatch: parameter is a bool";
       if (r.int_value != 0 && r.int_value != 1) return "a bool is 0 or 1";
-      int_.store(r.int_value, std::memory_order_relaxed);
+      value.int_value = r.int_value;
       break;
     case ParamKind::kString: {
       if (kind != ParamKind::kString) return "type mismatch: parameter is a string";
@@ -169,9 +172,21 @@ const char* Parameter::set_from_wire(const wire::ParamRecord& r) noexcept {
       const std::size_t len = strnlen(r.string_value, sizeof r.string_value);
       if (len == sizeof r.string_value) return "string not terminated";
       if (!spec_.choices.empty() && !is_choice(r.string_value)) return "not one of the allowed values";
-      store_string(r.string_value, len);
+      std::memcpy(value.string_value, r.string_value, len);
       break;
     }
+  }
+  return nullptr;
+}
+
+const char* Parameter::set_from_wire(const wire::ParamRecord& r) noexcept {
+  wire::ParamRecord v;
+  if (const char* why = check_wire(r, v)) return why;
+  switch (kind_) {
+    case ParamKind::kInt:
+    case ParamKind::kBool: int_.store(v.int_value, std::memory_order_relaxed); break;
+    case ParamKind::kFloat: float_.store(v.float_value, std::memory_order_relaxed); break;
+    case ParamKind::kString: store_string(v.string_value, strnlen(v.string_value, sizeof v.string_value)); break;
   }
   set_.store(true, std::memory_order_relaxed);
   return nullptr;
@@ -210,6 +225,35 @@ std::string Parameter::value_text() const {
     case ParamKind::kString: return get_string();
   }
   return "";
+}
+
+int64_t ParameterValues::get_int(const Parameter& p) const noexcept {
+  if (&p != changing_) return p.get_int();
+  return p.kind() == ParamKind::kFloat ? static_cast<int64_t>(candidate_->float_value) : candidate_->int_value;
+}
+
+double ParameterValues::get_float(const Parameter& p) const noexcept {
+  if (&p != changing_) return p.get_float();
+  return p.kind() == ParamKind::kFloat ? candidate_->float_value : static_cast<double>(candidate_->int_value);
+}
+
+bool ParameterValues::get_bool(const Parameter& p) const noexcept {
+  if (&p != changing_) return p.get_bool();
+  return candidate_->int_value != 0;
+}
+
+void ParameterValues::copy_string(const Parameter& p, char* out, std::size_t size) const noexcept {
+  if (&p != changing_) return p.copy_string(out, size);
+  if (size == 0) return;
+  const std::size_t len = strnlen(candidate_->string_value, sizeof candidate_->string_value);
+  const std::size_t n = len < size - 1 ? len : size - 1;
+  std::memcpy(out, candidate_->string_value, n);
+  out[n] = '\0';
+}
+
+void ParameterProblem::set(const Parameter& p, const char* reason) noexcept {
+  parameter = &p;
+  wire::copy_text(text, reason);
 }
 
 Parameter& ParameterSet::add(const std::string& name, ParamKind kind, Parameter::Spec spec) {

@@ -131,11 +131,16 @@ TEST_F(SimNavTest, TheRobotFollowsThePathAndTakesADestinationFromRackctl) {
   }, 60s)) << ctl({"get-data", "pilot"}).out;
   EXPECT_NEAR(number("chassis", "truth_x"), 6.5, 0.4);
   EXPECT_NEAR(number("chassis", "truth_y"), 8.0, 0.4);
-  // A malformed destination is counted and ignored.
+  // A malformed destination is refused where it is set (the pilot's rule, the same
+  // the host file and init() apply), and the pilot keeps its destination.
   r = ctl({"set-param", "pilot", "destination", "six,eight"});
-  ASSERT_EQ(r.exit_code, 0) << r.describe();
-  ASSERT_TRUE(eventually([&] { return number("pilot", "bad_destinations") == 1; }));
+  EXPECT_EQ(r.exit_code, 1) << r.describe();
+  EXPECT_NE(r.err.find("not \"x,y\""), std::string::npos) << r.describe();
+  EXPECT_EQ(number("pilot", "bad_destinations"), 0);
   EXPECT_EQ(number("pilot", "mode"), 2);
+  EXPECT_EQ(number("pilot", "target_x"), 6.5);
+  r = ctl({"set-param", "pilot", "mode", "fly"});
+  EXPECT_EQ(r.exit_code, 1) << r.describe();
   // Back to the path.
   r = ctl({"set-param", "pilot", "destination", ""});
   ASSERT_EQ(r.exit_code, 0) << r.describe();

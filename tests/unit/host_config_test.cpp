@@ -4,12 +4,18 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
 #include <map>
 #include <string>
 #include <vector>
 
 #include "rack/components/builtin.h"
 #include "rack/rt/clock.h"
+#include "rack/tims/lcm_url.h"
 
 namespace rack {
 namespace {
@@ -648,6 +654,227 @@ TEST_F(HostConfigTest, CpuDmaLatencyIsReadAndRangeChecked) {
   EXPECT_EQ(r.host->settings.cpu_dma_latency_us, 0) << "the default holds the shallowest idle state";
   expect_error("lcm: false\ncpu_dma_latency_us: -2\ncomponents: []\n", 2, {"'cpu_dma_latency_us'", "-1..100000"});
   expect_error("lcm: false\ncpu_dma_latency_us: low\ncomponents: []\n", 2, {"cpu_dma_latency_us"});
+}
+
+// ---- strict reading (issue 17): each rule, with file:line:col ----
+
+const char* const kOneComponent = R"(components:
+  - name: g
+    class: Generator
+    data_task: {period_ms: 10}
+)";
+
+TEST_F(HostConfigTest, DuplicateKeysAreRefusedAtEveryLevel) {
+  expect_error(std::string("system: 0\nlcm: false\nsystem: 1\n") + kOneComponent, 3,
+               {"duplicate key 'system'", "first at line 1"});
+  expect_error(R"(lcm: false
+components:
+  - name: g
+    class: Generator
+    data_task: {period_ms: 10, period_ms: 20}
+)",
+               5, {"duplicate key 'period_ms'"});
+  expect_error(R"(lcm: false
+components:
+  - name: g
+    class: Generator
+    data_task: {period_ms: 10}
+    params:
+      amplitude: 1
+      amplitude: 2
+)",
+               8, {"duplicate key 'amplitude'", "first at line 7"});
+  expect_error(R"(lcm: false
+tims:
+  announce_ms: 500
+  announce_ms: 600
+components: []
+)",
+               4, {"duplicate key 'announce_ms'"});
+}
+
+TEST_F(HostConfigTest, IntegersOutOfRangeNeverWrapAround) {
+  expect_error(R"(lcm: false
+components:
+  - name: g
+    class: Generator
+    data_task: {period_ms: 10, cpu: 4294967297}
+)",
+               5, {"CPU 4294967297 is not online"});
+  expect_error(R"(lcm: false
+components:
+  - name: g
+    class: Generator
+    data_task: {period_ms: 10, priority: 18446744073709551617}
+)",
+               5, {"'priority' must be"});
+  expect_error(std::string("lcm: false\nsystem: 256\n") + kOneComponent, 2, {"'system' = 256 is outside 0..254"});
+  expect_error(R"(lcm: false
+components:
+  - name: g
+    class: Generator
+    instance: -1
+    data_task: {period_ms: 10}
+)",
+               5, {"'instance' = -1 is outside 0..255"});
+  expect_error(R"(lcm: false
+components:
+  - name: g
+    class: Generator
+    data_task: {period_ms: 1e300}
+)",
+               5, {"'period_ms'", "above 86400000"});
+}
+
+TEST_F(HostConfigTest, MalformedUrlsAreRefusedWithTheTransportsParser) {
+  expect_error(std::string("lcm_url: garbage\n") + kOneComponent, 1, {"'lcm_url'", "not an LCM URL"});
+  expect_error(std::string("lcm_url: \"udpm://239.255.76.67:99999\"\n") + kOneComponent, 1, {"not a number 1..65535"});
+  expect_error(std::string("lcm_url: \"udpm://10.0.0.1:7667\"\n") + kOneComponent, 1, {"not a multicast address"});
+  expect_error(std::string("lcm_url: \"udpm://239.255.76.67:7667?tll=1\"\n") + kOneComponent, 1,
+               {"unknown option 'tll'"});
+  expect_error(std::string("gdos: {lcm_url: \"udpm://239.255.76.67:7667?ttl=300\"}\n") + kOneComponent, 1,
+               {"'lcm_url'", "ttl '300'"});
+  expect_error(std::string("tims:\n  networks:\n    - {name: robot, url: \"bogus://x\"}\n") + kOneComponent, 3,
+               {"'url'", "unknown LCM provider 'bogus'"});
+}
+
+TEST_F(HostConfigTest, ASecondDocumentIsRefusedEvenWhenItIsBroken) {
+  expect_error(std::string("lcm: false\n") + kOneComponent + "---\nlcm: true\n", 6, {"a second YAML document"});
+  expect_error(std::string("lcm: false\n") + kOneComponent + "---\n{[ broken\n", 8,
+               {"after the host file's document", "YAML syntax"});
+  expect_error(std::string("lcm: false\n") + kOneComponent + "...\n---\nx: 1\n", 7, {"a second YAML document"});
+  // One document with a leading '---' is fine.
+  EXPECT_NE(load(std::string("---\nlcm: false\n") + kOneComponent).host, nullptr);
+}
+
+TEST_F(HostConfigTest, ExpiryMustBeAtLeastTwiceTheAnnouncePeriod) {
+  expect_error(std::string("tims:\n  announce_ms: 5000\n") + kOneComponent, 2,
+               {"at least twice 'announce_ms'", "5000 ms"});
+  expect_error(std::string("tims:\n  announce_ms: 1000\n  expiry_ms: 1500\n") + kOneComponent, 3,
+               {"'expiry_ms' (1500 ms)", "at least twice"});
+  EXPECT_NE(load(std::string("lcm: false\ntims:\n  announce_ms: 1000\n  expiry_ms: 2000\n") + kOneComponent).host,
+            nullptr);
+}
+
+TEST_F(HostConfigTest, NamesAreCheckedForLengthAndCharacters) {
+  expect_error(std::string("host: ") + std::string(100000, 'a') + "\n" + kOneComponent, 1,
+               {"a value of 100000 bytes", "at most 4096"});
+  expect_error(std::string("host: ") + std::string(64, 'a') + "\n" + kOneComponent, 1, {"host name", "1..63"});
+  expect_error(std::string("host: \"robot\\x1b[2J\"\n") + kOneComponent, 1, {"control character (U+001B)"});
+  expect_error(std::string("host: \"a\\0b\"\n") + kOneComponent, 1, {"a NUL byte"});
+  expect_error(std::string("host: \"a\\u2028b\"\n") + kOneComponent, 1, {"control character (U+2028)"});
+  expect_error(R"(lcm: false
+components:
+  - name: "g\tx"
+    class: Generator
+    data_task: {period_ms: 10}
+)",
+               3, {"component name"});
+  expect_error(std::string("gdos: {channel: \"RACK GDOS\"}\n") + kOneComponent, 1, {"'channel'"});
+  expect_error(std::string("tims:\n  networks:\n    - {name: \"robot net\", url: \"udpm://239.255.76.67:7667\"}\n") +
+                   kOneComponent,
+               3, {"network name"});
+}
+
+TEST_F(HostConfigTest, RawBytesMustBeUtf8TextWithoutNulOrControlCharacters) {
+  expect_error(std::string("lcm: false\nhost: a") + std::string(1, '\0') + "b\n" + kOneComponent, 2, {"a NUL byte"});
+  expect_error(std::string("lcm: false\nhost: a\xff\n") + kOneComponent, 2, {"invalid UTF-8 (byte 0xff)"});
+  expect_error(std::string("lcm: false\nhost: a\xc0\xaf" "b\n") + kOneComponent, 2, {"invalid UTF-8"});  // overlong
+  expect_error(std::string("lcm: false\nhost: a\x07\n") + kOneComponent, 2, {"control character (U+0007)"});
+  // UTF-8 in a comment or a free-text value is fine.
+  EXPECT_NE(load(std::string("lcm: false  # Büro, 東京\n") + kOneComponent).host, nullptr);
+}
+
+TEST_F(HostConfigTest, MessagesQuotingTheFileAreCleanTextOfBoundedLength) {
+  // A key with an escape and a newline, given twice: the duplicate's message quotes it.
+  const LoadResult r = load(std::string("lcm: false\n\"k\\e[2J\\nhost.yaml:1:1: fake\": 1\n") +
+                            "\"k\\e[2J\\nhost.yaml:1:1: fake\": 2\n" + kOneComponent);
+  ASSERT_FALSE(r.errors.empty());
+  for (const auto& e : r.errors) {
+    for (const char c : e.message) EXPECT_GE(static_cast<unsigned char>(c), 0x20u) << e.message;
+    EXPECT_LE(e.message.size(), 1024u + 6u);
+  }
+}
+
+TEST_F(HostConfigTest, SizeAndNestingAreBounded) {
+  const LoadResult big = load(std::string(kMaxHostFileBytes + 1, '#'));
+  ASSERT_EQ(big.errors.size(), 1u);
+  EXPECT_NE(big.errors[0].message.find("at most 1048576"), std::string::npos) << big.errors[0].str();
+  std::string deep = "lcm: false\nx: ";
+  for (int i = 0; i < 40; ++i) deep += "[";
+  for (int i = 0; i < 40; ++i) deep += "]";
+  expect_error(deep + "\n" + kOneComponent, 2, {"nested deeper than 32"});
+  // yaml-cpp's own recursion guard, far deeper: an error, not a stack overflow.
+  const LoadResult deeper = load("x: " + std::string(100000, '['));
+  EXPECT_EQ(deeper.host, nullptr);
+  EXPECT_FALSE(deeper.errors.empty());
+}
+
+class HostFileReadTest : public HostConfigTest {
+ protected:
+  std::string path(const char* name) { return std::string(dir_) + "/" + name; }
+  HostFileReadTest() {
+    char tmpl[] = "/tmp/rack_host_read_XXXXXX";
+    dir_ = mkdtemp(tmpl);
+  }
+  ~HostFileReadTest() override { std::filesystem::remove_all(dir_); }
+  std::string dir_;
+};
+
+TEST_F(HostFileReadTest, OnlyRegularFilesWithinTheSizeLimitAreRead) {
+  const std::string fifo = path("fifo.yaml");
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  auto r = load_host_file(fifo, registry_, caps_);  // must not block (opened non-blocking)
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_NE(r.errors[0].message.find("is a FIFO"), std::string::npos) << r.errors[0].str();
+  r = load_host_file("/dev/zero", registry_, caps_);
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_NE(r.errors[0].message.find("is a device"), std::string::npos) << r.errors[0].str();
+  r = load_host_file(dir_, registry_, caps_);
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_NE(r.errors[0].message.find("is a directory"), std::string::npos) << r.errors[0].str();
+  const std::string big = path("big.yaml");
+  {
+    std::FILE* f = std::fopen(big.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    ASSERT_EQ(ftruncate(fileno(f), 50 << 20), 0);  // 50 MiB, sparse: refused by fstat, never read
+    std::fclose(f);
+  }
+  r = load_host_file(big, registry_, caps_);
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_NE(r.errors[0].message.find("52428800 bytes: at most 1048576"), std::string::npos) << r.errors[0].str();
+  const std::string ok = path("ok.yaml");
+  {
+    std::FILE* f = std::fopen(ok.c_str(), "w");
+    std::fputs((std::string("lcm: false\n") + kOneComponent).c_str(), f);
+    std::fclose(f);
+  }
+  r = load_host_file(ok, registry_, caps_);
+  EXPECT_TRUE(r.errors.empty());
+  EXPECT_NE(r.host, nullptr);
+}
+
+TEST(LcmUrlTest, ParsesWhatLcmTakesAndRefusesTheRest) {
+  auto u = tims::parse_lcm_url("udpm://239.255.76.67:7667?ttl=1&recv_buf_size=4194304");
+  ASSERT_TRUE(u.ok()) << u.error;
+  EXPECT_EQ(u.url.provider, "udpm");
+  EXPECT_EQ(u.url.port, 7667);
+  EXPECT_EQ(u.url.ttl, 1);
+  EXPECT_EQ(u.url.recv_buf_size, 4194304);
+  EXPECT_EQ(u.url.group, 0xEFFF4C43u);
+  EXPECT_TRUE(tims::parse_lcm_url("udpm://").ok());
+  EXPECT_TRUE(tims::parse_lcm_url("memq://").ok());
+  EXPECT_TRUE(tims::parse_lcm_url("file:///tmp/x.lcm?mode=w").ok());
+  for (const char* bad : {"", "garbage", "udpm:/239.255.76.67", "udpm://239.255.76.67:0", "udpm://239.255.76.67:65536",
+                          "udpm://239.255.76.67:-1", "udpm://239.255.76.67:76a", "udpm://1.2.3.4:7667",
+                          "udpm://239.255.76.67:7667?ttl=256", "udpm://239.255.76.67:7667?ttl=-1",
+                          "udpm://239.255.76.67:7667?ttl=1&ttl=2", "udpm://239.255.76.67:7667?",
+                          "udpm://239.255.76.67:7667?ttl=1&", "udpm://239.255.76.67:7667?recv_buf_size=0",
+                          "udpm://239.255.76.67:7667?recv_buf_size=99999999999999999999", "udpm://239.255.76.67 :7667",
+                          "memq://x", "tcpq://", "file://", "file:///x?mode=q", "bogus://x"}) {
+    EXPECT_FALSE(tims::parse_lcm_url(bad).ok()) << "accepted '" << bad << "'";
+  }
+  EXPECT_FALSE(tims::parse_lcm_url(std::string(300, 'u')).ok());
 }
 
 }  // namespace

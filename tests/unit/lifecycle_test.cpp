@@ -257,8 +257,11 @@ TEST_F(LifecycleTest, FailedInitIsErrorForGoodAndOthersKeepWorking) {
   EXPECT_EQ(on.type, msg::kError);
   EXPECT_NE(on.error_text().find("init() failed"), std::string::npos) << on.error_text();
   EXPECT_NE(on.error_text().find("fail_init is set"), std::string::npos) << on.error_text();
-  // No retries: init() is not run again, on() is never tried.
-  EXPECT_EQ(host().set_bool(probe_, "fail_init", false).type, msg::kOk);
+  // fail_init is read by init() only: SET_PARAM refuses it (Spec::init_only), and
+  // init() is not run again: no retries, on() is never tried.
+  const auto set = host().set_bool(probe_, "fail_init", false);
+  EXPECT_EQ(set.type, msg::kError);
+  EXPECT_NE(set.error_text().find("read at start only"), std::string::npos) << set.error_text();
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   EXPECT_EQ(host().status(probe_), msg::kError);
   EXPECT_EQ(host().call(probe_, msg::kOn).type, msg::kError);
@@ -507,7 +510,7 @@ TEST_F(LifecycleTest, GetAndSetParam) {
   r = host().call(probe_, msg::kGetParam);
   ASSERT_EQ(r.type, msg::kParam);
   ASSERT_EQ(r.body.size() % sizeof rec, 0u);
-  EXPECT_EQ(r.body.size() / sizeof rec, 8u);  // Probe's 7 and the standard gdosLevel (first)
+  EXPECT_EQ(r.body.size() / sizeof rec, 9u);  // Probe's 8 and the standard gdosLevel (first)
   std::memcpy(&rec, r.body.data(), sizeof rec);
   EXPECT_STREQ(rec.name, "gdosLevel");
   std::memcpy(&rec, r.body.data() + sizeof rec, sizeof rec);

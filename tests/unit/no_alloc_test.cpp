@@ -422,6 +422,70 @@ components:
   EXPECT_EQ(allocations, 0u);
 }
 
+// SET_PARAM with the class's rules (Component::check_parameters) and the Spec's:
+// accepted and refused values, a start-only parameter, all in the command task
+// without one allocation.
+TEST_F(NoAllocationTest, SetParamChecksTheClassRules) {
+  test::Watchdog dog;
+  test::HostUnderTest host(R"y(system: 0
+lcm: false
+heap_prefault_mib: 0
+components:
+  - name: pilot
+    class: Pilot
+    data_task: {period_ms: 50}
+    params: {chassis: "Chassis(0/9)", position: "Position(0/9)", scan2d: "Scan2D(0/9)"}
+  - name: path
+    class: Path
+    data_task: {period_ms: 200}
+    params: {waypoints: "0,0; 4,0; 4,3"}
+)y");
+  const Address pilot = host.address_of("pilot");
+  const Address path = host.address_of("path");
+  tims::Endpoint& ep = host.endpoint();
+  alignas(8) std::array<std::byte, 4096> buf{};
+  const auto record = [](const char* name, const char* text) {
+    wire::ParamRecord r;
+    wire::copy_text(r.name, name);
+    r.kind = static_cast<uint8_t>(wire::ParamKind::kString);
+    wire::copy_text(r.string_value, text);
+    return r;
+  };
+  const std::array<std::pair<wire::ParamRecord, int8_t>, 4> pilot_sets{{
+      {record("destination", "2.5,1"), msg::kOk},
+      {record("destination", "two,one"), msg::kError},
+      {record("mode", "fly"), msg::kError},
+      {record("destination", ""), msg::kOk},
+  }};
+  const std::array<std::pair<wire::ParamRecord, int8_t>, 3> path_sets{{
+      {record("waypoints", "0,0; 2,0; 2,2"), msg::kOk},
+      {record("waypoints", "0,0; x"), msg::kError},
+      {record("waypoints", "0,0; 4,0; 4,3"), msg::kOk},
+  }};
+  uint64_t bad = 0;
+  auto round = [&] {
+    for (const auto& [r, expected] : pilot_sets) {
+      const auto a = ep.call(pilot, msg::kSetParam, r, buf, test::kCallTimeoutNs);
+      bad += a.status == tims::CallStatus::kOk && a.reply.type == expected ? 0 : 1;
+    }
+    for (const auto& [r, expected] : path_sets) {
+      const auto a = ep.call(path, msg::kSetParam, r, buf, test::kCallTimeoutNs);
+      bad += a.status == tims::CallStatus::kOk && a.reply.type == expected ? 0 : 1;
+    }
+  };
+  for (int i = 0; i < kWarmUp; ++i) round();
+  ASSERT_EQ(bad, 0u);
+  host.executor().flush_log();
+  uint64_t allocations = 0;
+  {
+    AllocationCounter counter;
+    for (int i = 0; i < 100; ++i) round();
+    allocations = counter.stop();
+  }
+  EXPECT_EQ(bad, 0u);
+  EXPECT_EQ(allocations, 0u);
+}
+
 // The simulated robot and navigation stack (issue 6) in steady state: every task of
 // ChassisSim, LadarSim (ray casting), Odometry, Scan2D (with odometry look-ups by
 // time), Position, Path and Pilot (MOVEs every cycle), plus UPDATE, SET_DESTINATION,

@@ -654,6 +654,11 @@ TEST(PathMaking, TheSplinePassesThroughEveryWaypoint) {
   EXPECT_NE(components::Path::make_path(w, 0.1, open), nullptr);
   ASSERT_EQ(components::Path::parse_waypoints("0,0; 1000,0", w, item), nullptr);
   EXPECT_NE(components::Path::make_path(w, 0.1, open), nullptr);
+  // A chord far beyond any step count (it overflowed the count's conversion: UB).
+  ASSERT_EQ(components::Path::parse_waypoints("0,0; 1e35,0", w, item), nullptr);
+  EXPECT_NE(components::Path::make_path(w, 0.1, open), nullptr);
+  ASSERT_EQ(components::Path::parse_waypoints("0,0; 1e308,1e308", w, item), nullptr);
+  EXPECT_NE(components::Path::make_path(w, 0.1, open), nullptr);
 }
 
 TEST_F(RobotSimTest, PathPublishesOnMakeAndRejectsMalformedWaypoints) {
@@ -684,25 +689,32 @@ TEST_F(RobotSimTest, PathPublishesOnMakeAndRejectsMalformedWaypoints) {
   EXPECT_EQ(r.type, msg::kError);
   EXPECT_NE(r.error_text().find("at least 2"), std::string::npos) << r.error_text();
 
-  // A malformed parameter text: counted, reason published, the previous path kept.
-  ASSERT_EQ(h().set_param(path, "waypoints", wire::ParamKind::kString, 0, 0.0, "1,1; oops").type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] { return newest<interfaces::PathData>(path).rejected == 2; }));
+  // A malformed parameter text is refused where it is set (the Path's rule, the same
+  // the host file and init() apply): the reason in the answer, the previous path kept.
+  const auto bad = h().set_param(path, "waypoints", wire::ParamKind::kString, 0, 0.0, "1,1; oops");
+  EXPECT_EQ(bad.type, msg::kError);
+  EXPECT_NE(bad.error_text().find("waypoints: item 2"), std::string::npos) << bad.error_text();
   p = newest<interfaces::PathData>(path);
-  EXPECT_NE(std::string(p.last_error).find("item 2"), std::string::npos) << p.last_error;
+  EXPECT_EQ(p.makes, 2u);
   EXPECT_EQ(p.waypoint_count, 2u);
 }
 
 TEST(PathConfig, MalformedWaypointsInTheHostFileNameTheParameter) {
-  Watchdog dog;
-  HostUnderTest h(host(R"(  - name: path
+  // The Path's rule (check_parameters) runs in the loader: the host file is refused
+  // at the parameter's line, before anything starts (it was an ERROR at ON).
+  ComponentRegistry registry;
+  components::register_builtin(registry);
+  const auto r = load_host_text(host(R"(  - name: path
     class: Path
     instance: 0
     data_task: {period_ms: 20}
     params: {waypoints: "0,0; 2;0"}
-)"));
-  const auto r = h.call(h.address_of("path"), msg::kOn);
-  EXPECT_EQ(r.type, msg::kError);
-  EXPECT_NE(r.error_text().find("waypoints item 2"), std::string::npos) << r.error_text();
+)"),
+                                "test.yaml", registry, rt::probe_capabilities());
+  EXPECT_EQ(r.host, nullptr);
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_EQ(r.errors[0].line, 8);
+  EXPECT_NE(r.errors[0].message.find("parameter 'waypoints': item 2"), std::string::npos) << r.errors[0].str();
 }
 
 // ---------------------------------------------------------------- Pilot
@@ -746,8 +758,9 @@ std::string robot_yaml(double x, double y, double phi, const std::string& pilot_
     class: Pilot
     instance: 0
     data_task: {priority: 40, period_ms: 50}
-    params: {chassis: chassis, position: position, scan2d: scan2d, mode: hold, vx_max: 1.0)" +
-              pilot_params + "}\n");
+    params: {chassis: chassis, position: position, scan2d: scan2d, vx_max: 1.0)" +
+              // mode: hold unless the caller gives one (a key twice in a map is refused)
+              (pilot_params.find("mode:") == std::string::npos ? ", mode: hold" : "") + pilot_params + "}\n");
 }
 
 // Smallest distance from the outline at the true pose to an occupied cell (negative

@@ -1,5 +1,7 @@
 #include "lcm_receive.h"
 
+#include "rack/tims/lcm_url.h"
+
 #include <arpa/inet.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -13,31 +15,13 @@
 namespace rack::tims::lcm_rx {
 
 std::optional<UdpmUrl> parse_udpm(const std::string& url) {
-  const std::string prefix = "udpm://";
-  if (url.rfind(prefix, 0) != 0) return std::nullopt;
-  std::string rest = url.substr(prefix.size());
-  std::string params;
-  if (const auto q = rest.find('?'); q != std::string::npos) {
-    params = rest.substr(q + 1);
-    rest = rest.substr(0, q);
-  }
+  // The one LCM URL parser (rack/tims/lcm_url.h), the same the host-file loader uses.
+  const LcmUrlResult r = parse_lcm_url(url);
+  if (!r.ok() || r.url.provider != "udpm") return std::nullopt;
   UdpmUrl u;
-  std::string host = rest.empty() ? "239.255.76.67" : rest;
-  if (const auto c = rest.find(':'); c != std::string::npos) {
-    host = rest.substr(0, c);
-    char* end = nullptr;
-    const long port = std::strtol(rest.c_str() + c + 1, &end, 10);
-    if (*end != '\0' || port <= 0 || port > 65535) return std::nullopt;
-    u.port = static_cast<uint16_t>(port);
-  }
-  if (inet_pton(AF_INET, host.c_str(), &u.group) != 1) return std::nullopt;
-  for (std::size_t at = 0; at < params.size();) {
-    auto amp = params.find('&', at);
-    if (amp == std::string::npos) amp = params.size();
-    const std::string kv = params.substr(at, amp - at);
-    if (kv.rfind("recv_buf_size=", 0) == 0) u.recv_buf_size = std::atoi(kv.c_str() + 14);
-    at = amp + 1;
-  }
+  u.group.s_addr = htonl(r.url.group);
+  u.port = r.url.port;
+  u.recv_buf_size = static_cast<int>(r.url.recv_buf_size);
   return u;
 }
 

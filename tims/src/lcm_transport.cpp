@@ -1,4 +1,5 @@
 #include "rack/tims/lcm_transport.h"
+#include "rack/tims/lcm_url.h"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -281,6 +282,9 @@ struct LcmTransport::Impl {
       n->impl = this;
       n->index = i;
       n->config = config.networks[i];
+      if (const LcmUrlResult u = parse_lcm_url(n->config.url); !u.ok()) {
+        throw std::runtime_error("cannot join the LCM network '" + n->config.name + "': " + u.error);
+      }
       n->lcm = std::make_unique<lcm::LCM>(n->config.url);
       if (!n->lcm->good()) {
         throw std::runtime_error("cannot join the LCM network '" + n->config.url +

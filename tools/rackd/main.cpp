@@ -4,12 +4,15 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
 #include <mutex>
 #include <string>
+#include <thread>
 
 #include "rack/components/builtin.h"
 #include "rack/core/executor.h"
@@ -19,6 +22,7 @@
 #include "rack/rt/memory.h"
 #include "rack/rt/pm_qos.h"
 #include "rack/rt/modeswitch.h"
+#include "rack/tims/lcm_url.h"
 
 namespace {
 
@@ -56,9 +60,22 @@ and verifies every TiMS packet; the file (rackctl keygen PATH) must be readable
 by its owner only, or rackd refuses it (exit 2, with its path and mode). rackd
 re-reads a changed key file within a second (key rotation without a restart).
 
+Host files are read strictly (README "Running a host"): a regular file of at most
+1 MiB (FIFOs and devices are refused), UTF-8 without NUL or control characters, one
+YAML document, no key twice in a map, at most 32 levels deep and 4096 bytes per
+value, integers in range (no wrap-around), times in ms at most a day, valid LCM
+URLs, tims expiry_ms at least twice announce_ms, host names 1..63 and component and
+network names 1..31 characters, and each class's parameter rules (the same that
+`rackctl set-param` and init() apply).
+
+Start-up: SIGINT or SIGTERM while loading or starting ends rackd within a second:
+it stops between steps and undoes them, or, if a step does not return (a slow
+init()), exits after 500 ms; it says what it was doing. Exit 1 either way.
+
 exit codes: 0 clean shutdown or valid host file, 1 could not start (real-time
-required but missing, a task or the network could not start), 2 usage error or
-invalid host file (each problem printed as file:line:col: message).
+required but missing, a task or the network could not start, stopped by a signal
+during start-up), 2 usage error or invalid host file (each problem printed as
+file:line:col: message).
 )";
 
 void list_classes(const rack::ComponentRegistry& registry) {
@@ -75,6 +92,96 @@ void list_classes(const rack::ComponentRegistry& registry) {
                   p.spec().doc.c_str(), p.spec().component_ref ? " [component]" : "");
     }
   }
+}
+
+
+// SIGINT/SIGTERM during loading and starting (they are blocked in every thread; the
+// main thread waits for them only once the host runs). A watcher thread takes them
+// meanwhile: it says what start-up was doing, asks it to stop (the executor checks
+// between its steps and undoes what it started), and if start-up has not returned
+// within kStopGraceMs (a read or a library call that does not return: a map on a slow
+// disk, a device that does not answer) it ends the process itself with exit 1, so
+// that rackd always ends within a second of the signal. A second signal ends it at once.
+class StartupWatch {
+ public:
+  static constexpr int64_t kStopGraceMs = 500;
+
+  explicit StartupWatch(const sigset_t& signals) : signals_(signals), thread_([this] { run(); }) {}
+  ~StartupWatch() { finish(); }
+  StartupWatch(const StartupWatch&) = delete;
+  StartupWatch& operator=(const StartupWatch&) = delete;
+
+  // What start-up does now, for the message when a signal comes.
+  void phase(const std::string& what) {
+    const std::lock_guard lock(mutex_);
+    phase_ = what;
+  }
+  [[nodiscard]] bool stop_requested() const noexcept { return signal_.load(std::memory_order_acquire) != 0; }
+  [[nodiscard]] int signal() const noexcept { return signal_.load(std::memory_order_acquire); }
+  // Start-up is over (the host runs, or rackd exits): the watcher ends; a signal it
+  // took meanwhile stays readable through signal().
+  void finish() {
+    {
+      const std::lock_guard lock(mutex_);
+      finished_ = true;
+    }
+    if (thread_.joinable()) thread_.join();
+  }
+
+ private:
+  bool finished() {
+    const std::lock_guard lock(mutex_);
+    return finished_;
+  }
+  std::string current_phase() {
+    const std::lock_guard lock(mutex_);
+    return phase_;
+  }
+  void run() {
+    pthread_setname_np(pthread_self(), "rackd:start");
+    int sig = 0;
+    while (sig <= 0) {
+      if (finished()) return;
+      timespec ts{0, 20'000'000};
+      sig = sigtimedwait(&signals_, nullptr, &ts);
+    }
+    signal_.store(sig, std::memory_order_release);
+    if (finished()) return;  // the host runs: main shuts it down as on any signal
+    std::fprintf(stderr, "rackd: %s during start-up (%s): stopping\n", strsignal(sig), current_phase().c_str());
+    const int64_t deadline = rack::rt::monotonic_ns() + kStopGraceMs * rack::rt::kNsPerMs;
+    while (!finished()) {
+      const int64_t left = deadline - rack::rt::monotonic_ns();
+      if (left <= 0) break;
+      timespec ts = rack::rt::to_timespec(std::min<int64_t>(left, 10 * rack::rt::kNsPerMs));
+      if (sigtimedwait(&signals_, nullptr, &ts) > 0) break;  // a second signal: now
+    }
+    if (finished()) return;
+    std::fprintf(stderr, "rackd: start-up did not stop within %lld ms (still %s): exiting now (exit 1)\n",
+                 static_cast<long long>(kStopGraceMs), current_phase().c_str());
+    std::fflush(stdout);
+    _exit(1);
+  }
+
+  sigset_t signals_;
+  std::mutex mutex_;
+  std::string phase_ = "starting";
+  bool finished_ = false;
+  std::atomic<int> signal_{0};  // release/acquire: the phase text written before is visible with it
+  std::thread thread_;
+};
+
+// Stops the mode-switch detector (its reporter thread) on every way out of main: a
+// thread left running at exit would end in std::terminate and a false crash report.
+struct DetectorStop {
+  bool active = false;
+  ~DetectorStop() {
+    if (active) rack::rt::modeswitch::stop();
+  }
+};
+
+int stopped_during_startup(const StartupWatch& watch) {
+  std::fprintf(stderr, "rackd: stopped during start-up by %s; nothing runs (exit 1)\n", strsignal(watch.signal()));
+  return 1;
 }
 
 }  // namespace
@@ -105,7 +212,14 @@ class GdosReportSink final : public rack::rt::modeswitch::ReportSink {
   rack::Executor* executor_;
 };
 
-int main(int argc, char** argv) {
+static int run_rackd(int argc, char** argv) {
+  // Block the shutdown signals first, in every thread to come: one that comes during
+  // start-up waits for the StartupWatch (below), later for main's loop.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
   std::string file, lcm_url, crash_dir;
   bool check = false, classes = false;
   double duration = -1, status_every = 0;
@@ -139,22 +253,34 @@ int main(int argc, char** argv) {
     else if (file.empty()) file = a;
     else { std::fprintf(stderr, "rackd: one host file only ('%s' and '%s')\n", file.c_str(), a.c_str()); return 2; }
   }
+  if (file.empty() && !classes) { std::fprintf(stderr, "rackd: no host file given\n%s", kUsage); return 2; }
+  // From here on a signal stops start-up within a second (StartupWatch).
+  StartupWatch watch(stop_signals);
+  watch.phase("registering the component classes");
   rack::ComponentRegistry registry;
   rack::components::register_builtin(registry);
   if (classes) { list_classes(registry); return 0; }
-  if (file.empty()) { std::fprintf(stderr, "rackd: no host file given\n%s", kUsage); return 2; }
 
-  // Block the shutdown signals in every thread; main waits for them below.
-  sigset_t stop_signals;
-  sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  if (!lcm_url.empty()) {
+    if (const auto u = rack::tims::parse_lcm_url(lcm_url); !u.ok()) {
+      std::fprintf(stderr, "rackd: --lcm: %s\n", u.error.c_str());
+      return 2;
+    }
+  }
 
+  watch.phase("reading " + file);
   const rack::rt::RtCapabilities caps = rack::rt::probe_capabilities();
   auto loaded = rack::load_host_file(file, registry, caps);
+  if (watch.stop_requested()) return stopped_during_startup(watch);
   if (!loaded.errors.empty()) {
-    for (const auto& e : loaded.errors) std::fprintf(stderr, "%s\n", e.str().c_str());
+    // A hostile file can hold thousands: the first kMaxShown say enough.
+    constexpr std::size_t kMaxShown = 50;
+    for (std::size_t i = 0; i < loaded.errors.size() && i < kMaxShown; ++i) {
+      std::fprintf(stderr, "%s\n", loaded.errors[i].str().c_str());
+    }
+    if (loaded.errors.size() > kMaxShown) {
+      std::fprintf(stderr, "%s: ... and %zu more\n", file.c_str(), loaded.errors.size() - kMaxShown);
+    }
     std::fprintf(stderr, "rackd: %zu error(s) in %s; nothing started\n", loaded.errors.size(), file.c_str());
     return 2;
   }
@@ -162,6 +288,7 @@ int main(int argc, char** argv) {
     std::printf("%s: valid (%zu component(s))\n", file.c_str(), loaded.host->components.size());
     return 0;
   }
+  DetectorStop detector_stop;
   const rack::HostSettings settings = loaded.host->settings;
   std::fprintf(stderr, "rackd: host '%s' system %u, %zu components from %s\n", settings.host.c_str(),
                settings.system, loaded.host->components.size(), file.c_str());
@@ -188,7 +315,9 @@ int main(int argc, char** argv) {
   if (!caps.preempt_rt) {
     std::fprintf(stderr, "rackd: note: the kernel is not PREEMPT_RT; latencies are those of a stock kernel.\n");
   }
+  watch.phase("locking memory and pre-faulting " + std::to_string(settings.heap_prefault_bytes >> 20) + " MiB of heap");
   const auto mem = rack::rt::apply_memory_policy(settings.heap_prefault_bytes);
+  if (watch.stop_requested()) return stopped_during_startup(watch);
   std::fprintf(stderr, "rackd: %s\n", mem.describe().c_str());
   if (settings.require_rt && !mem.locked) {
     std::fprintf(stderr, "rackd: require_rt is set and memory could not be locked: refusing to start.\n");
@@ -203,19 +332,26 @@ int main(int argc, char** argv) {
   rack::rt::modeswitch::Config detection = settings.modeswitch;
   detection.program = "rackd";
   if (!crash_dir.empty()) detection.crash_dir = crash_dir;
+  watch.phase("starting mode-switch detection");
   const auto detector = rack::rt::modeswitch::start(detection);
+  detector_stop.active = true;
   std::fprintf(stderr, "rackd: %s\n", detector.describe().c_str());
 
   rack::ExecutorOptions options;
   options.allow_rt_fallback = !settings.require_rt;
   options.lcm_url_override = lcm_url;
+  options.stop_requested = [&watch] { return watch.stop_requested(); };
+  options.phase = [&watch](const std::string& what) { watch.phase(what); };
   rack::Executor executor(std::move(loaded.host), options);
   try {
     executor.start();
+  } catch (const rack::StartStopped&) {
+    return stopped_during_startup(watch);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rackd: cannot start: %s\n", e.what());
     return 1;
   }
+  watch.finish();
   // Mode-switch reports also go to GDOS, as a warning of the component that caused
   // them (Xenomai printed SIGDEBUG reports on the console; a robot's operator reads
   // GDOS). The reporter thread calls the sink; it is detached before the executor stops.
@@ -231,8 +367,8 @@ int main(int argc, char** argv) {
   const int64_t start = rack::rt::monotonic_ns();
   int64_t next_status = status_every > 0 ? start + static_cast<int64_t>(status_every * 1e9) : INT64_MAX;
   const int64_t end = duration >= 0 ? start + static_cast<int64_t>(duration * 1e9) : INT64_MAX;
-  int signal_number = 0;
-  for (;;) {
+  int signal_number = watch.signal();  // one that came as start-up ended
+  while (signal_number == 0) {
     const int64_t now = rack::rt::monotonic_ns();
     if (now >= end) break;
     if (now >= next_status) {
@@ -248,7 +384,7 @@ int main(int argc, char** argv) {
     const int64_t wait = std::min({end, next_status, now + rack::rt::kNsPerSec}) - now;
     timespec ts = rack::rt::to_timespec(wait > 0 ? wait : 0);
     const int sig = sigtimedwait(&stop_signals, nullptr, &ts);
-    if (sig > 0) { signal_number = sig; break; }
+    if (sig > 0) signal_number = sig;
   }
   std::fprintf(stderr, "rackd: %s: switching components off\n",
                signal_number != 0 ? strsignal(signal_number) : "duration elapsed");
@@ -273,4 +409,18 @@ int main(int argc, char** argv) {
   }
   std::fprintf(stderr, "rackd: stopped cleanly\n");
   return 0;
+}
+
+int main(int argc, char** argv) {
+  // Whatever escapes (an allocation that fails while loading, a library that throws)
+  // is a start-up that failed: said as such, exit 1, never std::terminate's abort
+  // (which the crash handler would report as a crash).
+  try {
+    return run_rackd(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rackd: cannot start: %s\n", e.what());
+  } catch (...) {
+    std::fprintf(stderr, "rackd: cannot start: unknown exception\n");
+  }
+  return 1;
 }

@@ -113,33 +113,37 @@ class Worker {
 
 }  // namespace
 
-void validate(const MclOptions& o) {
-  auto bad = [](const std::string& what) { throw std::invalid_argument(what); };
-  if (o.particles_min < 1) bad("particles_min must be at least 1");
-  if (o.particles_max < o.particles_min) bad("particles_max must be at least particles_min");
-  if (o.particles_max > 1'000'000) bad("particles_max must be at most 1000000");
-  if (!(o.kld_bin_xy > 0) || !(o.kld_bin_phi > 0)) bad("kld_bin_xy and kld_bin_phi must be positive");
-  if (!(o.kld_delta > 0 && o.kld_delta < 1)) bad("kld_delta must be in (0, 1)");
-  if (!(o.kld_epsilon > 0)) bad("kld_epsilon must be positive");
-  if (!(o.sigma_hit > 0)) bad("sigma_hit must be positive");
-  if (!(o.z_hit >= 0 && o.z_random > 0)) bad("z_hit must be >= 0 and z_random > 0");
-  if (!(o.max_range > 0) || !(o.max_corr_distance > 0)) bad("max_range and max_corr_distance must be positive");
-  if (!(o.likelihood_power > 0 && o.likelihood_power <= 1)) bad("likelihood_power must be in (0, 1]");
-  if (!(o.odom_a1 >= 0 && o.odom_a2 >= 0 && o.odom_a3 >= 0 && o.odom_a4 >= 0)) bad("odom_a1..odom_a4 must be >= 0");
-  if (!(o.odom_min_std_xy >= 0 && o.odom_min_std_phi >= 0)) bad("odom_min_std_xy and odom_min_std_phi must be >= 0");
-  if (!(o.odom_outlier_fraction >= 0 && o.odom_outlier_fraction <= 1)) bad("odom_outlier_fraction must be in [0, 1]");
-  if (!(o.odom_outlier_scale >= 1 && o.odom_outlier_scale <= 1000)) bad("odom_outlier_scale must be in [1, 1000]");
-  if (!(o.odometry_jump >= 0)) bad("odometry_jump must be >= 0");
-  if (!(o.update_distance >= 0 && o.update_angle >= 0)) bad("update_distance and update_angle must be >= 0");
+const char* check_options(const MclOptions& o) noexcept {
+  if (o.particles_min < 1) return "particles_min must be at least 1";
+  if (o.particles_max < o.particles_min) return "particles_max must be at least particles_min";
+  if (o.particles_max > 1'000'000) return "particles_max must be at most 1000000";
+  if (!(o.kld_bin_xy > 0) || !(o.kld_bin_phi > 0)) return "kld_bin_xy and kld_bin_phi must be positive";
+  if (!(o.kld_delta > 0 && o.kld_delta < 1)) return "kld_delta must be in (0, 1)";
+  if (!(o.kld_epsilon > 0)) return "kld_epsilon must be positive";
+  if (!(o.sigma_hit > 0)) return "sigma_hit must be positive";
+  if (!(o.z_hit >= 0 && o.z_random > 0)) return "z_hit must be >= 0 and z_random > 0";
+  if (!(o.max_range > 0) || !(o.max_corr_distance > 0)) return "max_range and max_corr_distance must be positive";
+  if (!(o.likelihood_power > 0 && o.likelihood_power <= 1)) return "likelihood_power must be in (0, 1]";
+  if (!(o.odom_a1 >= 0 && o.odom_a2 >= 0 && o.odom_a3 >= 0 && o.odom_a4 >= 0)) return "odom_a1..odom_a4 must be >= 0";
+  if (!(o.odom_min_std_xy >= 0 && o.odom_min_std_phi >= 0)) return "odom_min_std_xy and odom_min_std_phi must be >= 0";
+  if (!(o.odom_outlier_fraction >= 0 && o.odom_outlier_fraction <= 1)) return "odom_outlier_fraction must be in [0, 1]";
+  if (!(o.odom_outlier_scale >= 1 && o.odom_outlier_scale <= 1000)) return "odom_outlier_scale must be in [1, 1000]";
+  if (!(o.odometry_jump >= 0)) return "odometry_jump must be >= 0";
+  if (!(o.update_distance >= 0 && o.update_angle >= 0)) return "update_distance and update_angle must be >= 0";
   if (!(o.alpha_slow > 0 && o.alpha_slow < o.alpha_fast && o.alpha_fast <= 1)) {
-    bad("0 < alpha_slow < alpha_fast <= 1 is required");
+    return "0 < alpha_slow < alpha_fast <= 1 is required";
   }
-  if (!(o.recovery_ratio > 0 && o.recovery_ratio < 1)) bad("recovery_ratio must be in (0, 1)");
-  if (!(o.recovery_consistency > 0 && o.recovery_consistency <= 1)) bad("recovery_consistency must be in (0, 1]");
-  if (o.recovery_updates < 1 || o.recovery_updates > 1000) bad("recovery_updates must be in 1..1000");
-  if (!(o.inject_max_fraction >= 0 && o.inject_max_fraction <= 1)) bad("inject_max_fraction must be in [0, 1]");
-  if (!(o.fit_min >= 0 && o.fit_min < 1)) bad("fit_min must be in [0, 1)");
-  if (o.threads < 1 || o.threads > 2) bad("threads must be 1 or 2");
+  if (!(o.recovery_ratio > 0 && o.recovery_ratio < 1)) return "recovery_ratio must be in (0, 1)";
+  if (!(o.recovery_consistency > 0 && o.recovery_consistency <= 1)) return "recovery_consistency must be in (0, 1]";
+  if (o.recovery_updates < 1 || o.recovery_updates > 1000) return "recovery_updates must be in 1..1000";
+  if (!(o.inject_max_fraction >= 0 && o.inject_max_fraction <= 1)) return "inject_max_fraction must be in [0, 1]";
+  if (!(o.fit_min >= 0 && o.fit_min < 1)) return "fit_min must be in [0, 1)";
+  if (o.threads < 1 || o.threads > 2) return "threads must be 1 or 2";
+  return nullptr;
+}
+
+void validate(const MclOptions& o) {
+  if (const char* why = check_options(o)) throw std::invalid_argument(why);
 }
 
 struct MclFilter::Impl {

@@ -42,6 +42,12 @@ constexpr NamedDictionary kDictionaries[] = {
 
 }  // namespace
 
+std::vector<std::string> CameraDetector::dictionary_names() {
+  std::vector<std::string> names;
+  for (const auto& d : kDictionaries) names.emplace_back(d.name);
+  return names;
+}
+
 struct CameraDetector::Impl {
   DetectorOptions options;
   cv::Ptr<cv::aruco::Dictionary> dictionary;

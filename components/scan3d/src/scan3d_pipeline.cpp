@@ -24,18 +24,22 @@ constexpr double kMinRangeImageResolution = 0.2 * M_PI / 180.0;
 
 using Cloud = pcl::PointCloud<pcl::PointXYZI>;
 
+const char* check_options(const PipelineOptions& o) noexcept {
+  if (!(o.voxel_size >= 0.0)) return "voxel_size must be >= 0";
+  if (o.voxel_size > 0.0 && o.voxel_size < 1e-3) return "voxel_size below 1 mm overflows PCL's voxel grid index";
+  if (o.outlier_neighbours < 0) return "outlier_neighbours must be >= 0";
+  if (!(o.outlier_std > 0.0)) return "outlier_std must be > 0";
+  if (!(o.ground_tolerance > 0.0)) return "ground_tolerance must be > 0";
+  if (!(o.ground_max_tilt > 0.0 && o.ground_max_tilt < 1.5)) return "ground_max_tilt must be in (0, 1.5) rad";
+  if (!(o.ground_max_height > 0.0)) return "ground_max_height must be > 0";
+  if (o.ransac_iterations < 1) return "ransac_iterations must be >= 1";
+  if (!(o.ceiling_height >= 0.0)) return "ceiling_height must be >= 0";
+  if (o.max_points == 0 || o.max_points > interfaces::kScan3dMaxPoints) return "max_points must be in 1..kScan3dMaxPoints";
+  return nullptr;
+}
+
 void validate(const PipelineOptions& o) {
-  const auto bad = [](const char* what) { throw std::invalid_argument(what); };
-  if (!(o.voxel_size >= 0.0)) bad("voxel_size must be >= 0");
-  if (o.voxel_size > 0.0 && o.voxel_size < 1e-3) bad("voxel_size below 1 mm overflows PCL's voxel grid index");
-  if (o.outlier_neighbours < 0) bad("outlier_neighbours must be >= 0");
-  if (!(o.outlier_std > 0.0)) bad("outlier_std must be > 0");
-  if (!(o.ground_tolerance > 0.0)) bad("ground_tolerance must be > 0");
-  if (!(o.ground_max_tilt > 0.0 && o.ground_max_tilt < 1.5)) bad("ground_max_tilt must be in (0, 1.5) rad");
-  if (!(o.ground_max_height > 0.0)) bad("ground_max_height must be > 0");
-  if (o.ransac_iterations < 1) bad("ransac_iterations must be >= 1");
-  if (!(o.ceiling_height >= 0.0)) bad("ceiling_height must be >= 0");
-  if (o.max_points == 0 || o.max_points > interfaces::kScan3dMaxPoints) bad("max_points must be in 1..kScan3dMaxPoints");
+  if (const char* why = check_options(o)) throw std::invalid_argument(why);
 }
 
 struct Scan3dPipeline::Impl {

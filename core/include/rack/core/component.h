@@ -153,6 +153,20 @@ class Component {
     return CommandResult::kUnknown;
   }
   virtual void cleanup() {}                                // non-RT
+  // The class's rules for its parameter values, in one place: what init() relies on
+  // and SET_PARAM must keep (a mode of a fixed set, "x,y" text, min below max, ...).
+  // Called by the host file loader once the file's values are in (a refusal is an
+  // error at that parameter's line: rackd --check reports it, exit 2), before init(),
+  // and by SET_PARAM with the candidate value in `values` (a refusal answers ERROR
+  // with the reason and keeps the old value). Single parameters' ranges and choices
+  // belong in their Parameter::Spec; this is for what a Spec cannot say. Return false
+  // and fill `problem`. RT-safe (runs in the command task): no allocation, no file or
+  // device access; read the values through `values` only.
+  [[nodiscard]] virtual bool check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept {
+    (void)values;
+    (void)problem;
+    return true;
+  }
 
   // ---- declaration (constructor only) ----
   Parameter& declare_int(const std::string& n, int64_t v, Parameter::Spec s = {}) { return params_.declare_int(n, v, std::move(s)); }

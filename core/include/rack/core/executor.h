@@ -27,6 +27,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <stdexcept>
 #include <thread>
 #include <string>
 #include <vector>
@@ -40,6 +41,13 @@
 
 namespace rack {
 
+// start() was asked to stop (ExecutorOptions::stop_requested) and undid what it had
+// started. Not a failure: rackd says it stopped during start-up.
+class StartStopped : public std::runtime_error {
+ public:
+  StartStopped() : std::runtime_error("start-up stopped on request") {}
+};
+
 struct ExecutorOptions {
   bool allow_rt_fallback = true;   // run SCHED_OTHER when SCHED_FIFO is refused
   std::string lcm_url_override;    // replaces the host file's lcm_url when not empty
@@ -49,12 +57,22 @@ struct ExecutorOptions {
   // Every GDOS record of this host, as the GDOS thread hands it to stderr and LCM
   // (tests, embedders). Called on the GDOS thread (not RT).
   std::function<void(const gdos::Record&)> gdos_sink;
+  // Checked by start() between its steps (each component's init(), the tasks, the
+  // network, its warm-up, each autostart ON): true makes start() undo what it
+  // started and throw StartStopped. rackd sets it on SIGINT/SIGTERM. Main thread.
+  std::function<bool()> stop_requested;
+  // Told what start() does next ("init() of component 'mcl'"), for rackd's message
+  // when a signal comes during start-up. Main thread.
+  std::function<void(const std::string&)> phase;
 };
 
 struct ComponentView {
   Component* component = nullptr;
   bool realtime = false;           // tasks run SCHED_FIFO
   std::string init_error;
+  bool attached = false;           // its mailboxes are in the router
+  bool init_called = false;        // start() ran its init() (cleanup() runs only then)
+  bool tasks_started = false;      // its command task runs (it can answer OFF)
 };
 
 class Executor {
@@ -65,7 +83,8 @@ class Executor {
   Executor& operator=(const Executor&) = delete;
 
   // Throws std::runtime_error when a task cannot start or the network cannot be
-  // joined; what was started is stopped again.
+  // joined (the message says which and why), StartStopped when stop_requested said
+  // so; what was started is stopped again in both cases.
   void start();
   void stop();  // idempotent
 
@@ -100,6 +119,8 @@ class Executor {
   void pass_guarded() noexcept;
   void gdos_loop();
   bool send_command(Component& c, int8_t type, int64_t timeout_ns, std::string& why);
+  void start_steps(const std::string& url);
+  void step(const std::string& what);  // phase + stop_requested check (start-up)
 
   std::unique_ptr<LoadedHost> host_;
   ExecutorOptions options_;

@@ -7,11 +7,22 @@
 // CPUs that are not online, non-positive periods, dependency cycles. Each problem is
 // reported as `file:line:col: message`.
 //
+// The file is outside input and read strictly (README "Running a host" lists the
+// rules): a regular file of at most kMaxHostFileBytes (checked with fstat before
+// reading; FIFOs and devices are refused), UTF-8 text without NUL bytes or control
+// characters (also after YAML escapes), one YAML document, no key twice in a map, at
+// most kMaxHostNesting levels and kMaxHostScalarBytes per key or value, every integer
+// in its key's range (no wrap-around), every time in milliseconds positive and at
+// most kMaxHostMilliseconds, LCM URLs valid (rack/tims/lcm_url.h), expiry_ms at least
+// twice announce_ms, names within their lengths and characters, and each component's
+// parameters as its class checks them (Component::check_parameters).
+//
 // Real-time contract: not RT-safe (set-up only).
 #pragma once
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,6 +34,15 @@
 #include "rack/tims/lcm_transport.h"
 
 namespace rack {
+
+// Limits of a host file (README "Running a host"; configs/demo.yaml).
+inline constexpr std::size_t kMaxHostFileBytes = 1u << 20;  // larger files are refused unread
+inline constexpr std::size_t kMaxHostScalarBytes = 4096;    // one key or value (a path fits)
+inline constexpr std::size_t kMaxHostNesting = 32;          // maps and lists inside each other
+inline constexpr std::size_t kMaxHostNameLength = 63;       // host: letters, digits, . _ -
+inline constexpr std::size_t kMaxNameLength = 31;           // component and network names: letters, digits, _ -
+inline constexpr std::size_t kMaxChannelLength = 63;        // gdos.channel (LCM's channel name limit)
+inline constexpr double kMaxHostMilliseconds = 86'400'000;  // every *_ms key: at most a day
 
 struct ConfigError {
   std::string file;
@@ -89,9 +109,21 @@ struct LoadResult {
   std::vector<ConfigError> errors;
 };
 
-// Reads and validates a host file. `caps` gives the online CPUs.
+struct HostLoadOptions {
+  // Plug-ins are loaded (dlopen) and key files read while loading, so that --check
+  // reports them. False: only their paths are checked, no file named by the input is
+  // opened (the fuzz harness, tests/fuzz/fuzz_host_config.cpp).
+  bool open_files = true;
+};
+
+// Reads and validates a host file. `caps` gives the online CPUs. The file must be a
+// regular file of at most kMaxHostFileBytes (fstat before anything is read; opened
+// non-blocking, so a FIFO never stalls the caller).
 [[nodiscard]] LoadResult load_host_file(const std::string& path, ComponentRegistry& registry,
                                         const rt::RtCapabilities& caps);
+// The bytes of a host file under the same rules (tools read theirs with it):
+// nullopt and `error` set when it is not a regular file, too large or unreadable.
+[[nodiscard]] std::optional<std::string> read_host_bytes(const std::string& path, std::string& error);
 // What a tool (rackctl, gdos, a GUI) needs from a host file to join that host's first
 // TiMS network: its URL and key file (`tims: networks:`' first entry, else lcm_url).
 // Reads only those keys (the components are not built). Not RT-safe.
@@ -103,7 +135,9 @@ struct ToolNetwork {
 [[nodiscard]] ToolNetwork read_tool_network(const std::string& path);
 
 // The same from text (tests, tools); `file` names it in error messages.
+// Decodes outside input: never throws for any text (every problem is an error).
 [[nodiscard]] LoadResult load_host_text(const std::string& text, const std::string& file,
-                                        ComponentRegistry& registry, const rt::RtCapabilities& caps);
+                                        ComponentRegistry& registry, const rt::RtCapabilities& caps,
+                                        const HostLoadOptions& options = {});
 
 }  // namespace rack

@@ -38,6 +38,9 @@ class Parameter {
     bool weak_ref = false;
     // A string parameter that takes only these values (e.g. gdosLevel); empty: any.
     std::vector<std::string> choices{};
+    // Read only by init() (a file to load, a device to open): SET_PARAM refuses to
+    // change it (the running component would not see the new value; restart rackd).
+    bool init_only = false;
   };
 
   Parameter(std::string name, ParamKind kind, Spec spec);
@@ -62,6 +65,10 @@ class Parameter {
   // From a SET_PARAM record (kinds must match; an int is accepted for a float).
   // Returns nullptr on success, otherwise a static reason. RT-safe.
   const char* set_from_wire(const wire::ParamRecord& record) noexcept;
+  // The checks of set_from_wire without the store: nullptr when `record` is a valid
+  // value of this parameter, then `value` holds it as this parameter's kind (an int
+  // given for a float converted). RT-safe.
+  const char* check_wire(const wire::ParamRecord& record, wire::ParamRecord& value) const noexcept;
   void to_record(wire::ParamRecord& out) const noexcept;  // RT-safe
   [[nodiscard]] std::string value_text() const;             // not RT-safe
 
@@ -83,6 +90,36 @@ class Parameter {
   // sequence with the bytes (the bytes themselves are accessed through atomic_ref).
   std::atomic<uint32_t> string_seq_{0};
   alignas(8) char string_[wire::kParamStringLen] = {};
+};
+
+// The parameter values a component's check sees (Component::check_parameters):
+// every parameter's current value, except one whose candidate value is being checked
+// (a SET_PARAM not yet applied), which shows that. RT-safe reads, no allocation.
+class ParameterValues {
+ public:
+  ParameterValues() noexcept = default;  // the current values
+  // `candidate` as checked by Parameter::check_wire (of `changing`'s kind).
+  ParameterValues(const Parameter& changing, const wire::ParamRecord& candidate) noexcept
+      : changing_(&changing), candidate_(&candidate) {}
+
+  [[nodiscard]] int64_t get_int(const Parameter& p) const noexcept;
+  [[nodiscard]] double get_float(const Parameter& p) const noexcept;
+  [[nodiscard]] bool get_bool(const Parameter& p) const noexcept;
+  void copy_string(const Parameter& p, char* out, std::size_t size) const noexcept;
+  [[nodiscard]] const Parameter* changing() const noexcept { return changing_; }
+
+ private:
+  const Parameter* changing_ = nullptr;
+  const wire::ParamRecord* candidate_ = nullptr;
+};
+
+// Why a component refused its parameter values: the parameter at fault (the host
+// file reports the error at its line) and the reason. Filled by RT code: fixed size.
+struct ParameterProblem {
+  const Parameter* parameter = nullptr;
+  char text[100] = {};
+  // Sets both; `reason` is cut to fit. RT-safe.
+  void set(const Parameter& p, const char* reason) noexcept;
 };
 
 class ParameterSet {

@@ -115,6 +115,8 @@ struct MclOptions {
 
 // Throws std::invalid_argument naming the option when one is out of range.
 void validate(const MclOptions& options);
+// The same checks without throwing: nullptr, or the (static) reason. RT-safe.
+[[nodiscard]] const char* check_options(const MclOptions& options) noexcept;
 
 struct MclPose {
   double x = 0.0, y = 0.0, phi = 0.0;

@@ -34,6 +34,8 @@ struct PipelineOptions {
 };
 // Throws std::invalid_argument naming the bad option.
 void validate(const PipelineOptions& o);
+// The same checks without throwing: nullptr, or the (static) reason. RT-safe.
+[[nodiscard]] const char* check_options(const PipelineOptions& o) noexcept;
 
 class Scan3dPipeline {
  public:
