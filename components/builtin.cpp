@@ -31,12 +31,30 @@
 #endif
 #include "scan3d/scan3d.h"
 #include "servo_drive_sim/servo_drive_sim.h"
+#include "rack/interfaces/data_types.h"
 #include "rack/tims/address.h"
 
 namespace rack::components {
 
-void register_builtin(ComponentRegistry& registry) {
+namespace {
+// Adds a class with the sample type and class commands of its TiMS class.
+class Adder {
+ public:
+  explicit Adder(ComponentRegistry& registry) : registry_(registry) {}
+  void add(ComponentClass cls) {
+    cls.data = interfaces::data_type_for_class(cls.class_id);
+    cls.commands = interfaces::commands_for_class(cls.class_id);
+    registry_.add(std::move(cls));
+  }
+
+ private:
+  ComponentRegistry& registry_;
+};
+}  // namespace
+
+void register_builtin(ComponentRegistry& target) {
   namespace cls = tims::classes;
+  Adder registry(target);
   registry.add({"Generator", cls::kGenerator, "demo: periodic sine producer",
                 [] { return std::make_unique<Generator>(); }});
   registry.add({"Monitor", cls::kMonitor, "demo: subscribes to a Generator and reports what it received",

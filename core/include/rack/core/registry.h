@@ -9,9 +9,11 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
+#include "rack/core/class_types.h"
 #include "rack/core/component.h"
 
 namespace rack {
@@ -21,6 +23,10 @@ struct ComponentClass {
   uint8_t class_id = 0;     // TiMS class of its addresses (rack::tims::classes)
   std::string description;  // one line for --list-classes
   std::function<std::unique_ptr<Component>()> make;
+  // What the class declares about its messages (served to tools by the executor):
+  // the sample type it publishes (nullptr: none) and its class commands.
+  const DataTypeInfo* data = nullptr;
+  std::span<const CommandInfo> commands{};
 };
 
 class ComponentRegistry {

@@ -8,26 +8,15 @@
 #include <cstdint>
 #include <span>
 
-#include "rack/tims/payload.h"
+#include "rack/core/class_types.h"
 
 namespace rack::interfaces {
 
-struct DataTypeInfo {
-  const char* type_name;
-  uint32_t size;
-  std::span<const tims::FieldDesc> fields;
-};
+using rack::DataTypeInfo;
+using rack::CommandInfo;
 
 // nullptr when the class publishes no data or is unknown here.
 [[nodiscard]] const DataTypeInfo* data_type_for_class(uint8_t class_id) noexcept;
-
-// A class command (request types 21..127) as rackctl send names it.
-struct CommandInfo {
-  const char* name;          // RACK's name, upper case: "INIT", "SET_DESTINATION"
-  int8_t type;               // the request type
-  const DataTypeInfo* body;  // its body; nullptr: the command takes no body
-  const char* summary;       // one line for rackctl's help
-};
 
 // The class commands of a class; empty when it has none or is unknown here.
 [[nodiscard]] std::span<const CommandInfo> commands_for_class(uint8_t class_id) noexcept;
