@@ -13,6 +13,7 @@ packages=(
   libzstd-dev                            # TiMS/LCM: optional compression of large messages per link
   libsodium-dev                          # TiMS/LCM: authenticated links (keyed BLAKE2b MAC per packet)
   libyaml-cpp-dev                        # host files
+  libyaml-dev                            # tools (rack_client): the network a host file names, without yaml-cpp
   libgtest-dev libgmock-dev              # tests
   clang-14 libclang-rt-14-dev llvm-14    # fuzzing: libFuzzer, ASan/UBSan runtimes, llvm-symbolizer (tests/fuzz/run)
   libbenchmark-dev rt-tests stress-ng strace  # benchmarks and their references (cyclictest); strace: RPC system calls

@@ -10,24 +10,6 @@ using tims::ConstBuffer;
 using tims::MessageHeader;
 namespace msg = tims::msg;
 
-const char* describe(ComponentState s) noexcept {
-  switch (s) {
-    case ComponentState::kDisabled: return "DISABLED";
-    case ComponentState::kEnabled: return "ENABLED";
-    case ComponentState::kError: return "ERROR";
-  }
-  return "UNKNOWN";
-}
-
-const char* describe(DataTaskMode m) noexcept {
-  switch (m) {
-    case DataTaskMode::kNone: return "none";
-    case DataTaskMode::kPeriodic: return "periodic";
-    case DataTaskMode::kTriggered: return "triggered";
-  }
-  return "unknown";
-}
-
 namespace {
 void bump(std::atomic<uint64_t>& c) noexcept {
   // Single writer (the command task).

@@ -6,37 +6,6 @@
 
 namespace rack::gdos {
 
-const char* describe(Level level) noexcept {
-  switch (level) {
-    case Level::kPrint: return "print";
-    case Level::kError: return "error";
-    case Level::kWarning: return "warning";
-    case Level::kInfo: return "info";
-    case Level::kDetail: return "detail";
-  }
-  return "unknown";
-}
-
-char letter(Level level) noexcept {
-  switch (level) {
-    case Level::kPrint: return 'P';
-    case Level::kError: return 'E';
-    case Level::kWarning: return 'W';
-    case Level::kInfo: return 'I';
-    case Level::kDetail: return 'D';
-  }
-  return '?';
-}
-
-std::optional<Level> parse_level(std::string_view t) noexcept {
-  if (t == "print") return Level::kPrint;
-  if (t == "error") return Level::kError;
-  if (t == "warning") return Level::kWarning;
-  if (t == "info") return Level::kInfo;
-  if (t == "detail") return Level::kDetail;
-  return std::nullopt;
-}
-
 LogRing::LogRing(uint32_t slots, std::string owner) : owner_(std::move(owner)) {
   uint64_t cap = 2;
   while (cap < slots) cap <<= 1;

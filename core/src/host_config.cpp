@@ -175,11 +175,6 @@ class HostFileEvents final : public YAML::EventHandler {
 
 }  // namespace
 
-std::string ConfigError::str() const {
-  if (line <= 0) return file + ": " + message;
-  return file + ":" + std::to_string(line) + ":" + std::to_string(column) + ": " + message;
-}
-
 // Friend of Component: sets settings and resolved references.
 struct HostLoader {
   std::string file;
@@ -1034,99 +1029,6 @@ LoadResult load_host_text(const std::string& text, const std::string& file, Comp
   // clean text of bounded length, whatever the file held.
   for (auto& e : r.errors) e.message = clean_message(e.message);
   return r;
-}
-
-std::optional<std::string> read_host_bytes(const std::string& path, std::string& error) {
-  // O_NONBLOCK: opening a FIFO with no writer returns at once (then refused below).
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
-  if (fd < 0) {
-    error = std::string("cannot read the host file: ") + std::strerror(errno);
-    return std::nullopt;
-  }
-  struct Closer {
-    int fd;
-    ~Closer() { ::close(fd); }
-  } closer{fd};
-  struct stat st {};
-  if (fstat(fd, &st) != 0) {
-    error = std::string("cannot read the host file: ") + std::strerror(errno);
-    return std::nullopt;
-  }
-  if (!S_ISREG(st.st_mode)) {
-    error = std::string("the host file is ") + (S_ISFIFO(st.st_mode) ? "a FIFO" : S_ISDIR(st.st_mode) ? "a directory"
-                                                  : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "a device"
-                                                  : S_ISSOCK(st.st_mode)                       ? "a socket"
-                                                                                               : "not a regular file") +
-            ": a host file must be a regular file";
-    return std::nullopt;
-  }
-  if (static_cast<uint64_t>(st.st_size) > kMaxHostFileBytes) {
-    error = "the host file has " + std::to_string(st.st_size) + " bytes: at most " + std::to_string(kMaxHostFileBytes) +
-            " are read";
-    return std::nullopt;
-  }
-  // One byte more than the limit: a file that grew after fstat is refused too.
-  std::string text(static_cast<std::size_t>(st.st_size) + 1, '\0');
-  std::size_t have = 0;
-  while (have < text.size()) {
-    const ssize_t n = ::read(fd, text.data() + have, text.size() - have);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      error = std::string("cannot read the host file: ") + std::strerror(errno);
-      return std::nullopt;
-    }
-    if (n == 0) break;
-    have += static_cast<std::size_t>(n);
-    if (have > kMaxHostFileBytes) {
-      error = "the host file grew past " + std::to_string(kMaxHostFileBytes) + " bytes while being read";
-      return std::nullopt;
-    }
-  }
-  text.resize(have);
-  return text;
-}
-
-ToolNetwork read_tool_network(const std::string& path) {
-  ToolNetwork out;
-  out.url = "udpm://239.255.76.67:7667?ttl=0";
-  const auto fail = [&](const YAML::Mark& m, const std::string& why) {
-    out.errors.push_back({path, m.line + 1, m.column + 1, why});
-    return out;
-  };
-  std::string why;
-  const auto text = read_host_bytes(path, why);
-  if (!text) {
-    out.errors.push_back({path, 0, 0, why});
-    return out;
-  }
-  YAML::Node root;
-  try {
-    root = YAML::Load(*text);
-  } catch (const YAML::Exception& e) {
-    return fail(e.mark, "YAML syntax: " + e.msg);
-  }
-  if (!root.IsMap()) return fail(root.Mark(), "a host file is a map (host, system, components, ...)");
-  const auto scalar = [&](const YAML::Node& n, const char* key, std::string& value) {
-    if (!n[key]) return;
-    if (!n[key].IsScalar()) {
-      fail(n[key].Mark(), std::string("'") + key + "' must be a string");
-      return;
-    }
-    value = n[key].Scalar();
-  };
-  scalar(root, "lcm_url", out.url);
-  const YAML::Node t = root["tims"];
-  if (t && t.IsMap() && t["networks"]) {
-    const YAML::Node nets = t["networks"];
-    if (!nets.IsSequence() || nets.size() == 0 || !nets[0].IsMap()) {
-      return fail(nets.Mark(), "'networks' must be a non-empty list of {name, url, scope, key_file}");
-    }
-    out.url.clear();
-    scalar(nets[0], "url", out.url);
-    scalar(nets[0], "key_file", out.key_file);
-    if (out.url.empty()) return fail(nets[0].Mark(), "the first network has no 'url'");
-  }
-  return out;
 }
 
 LoadResult load_host_file(const std::string& path, ComponentRegistry& registry, const rt::RtCapabilities& caps) {

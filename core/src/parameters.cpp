@@ -8,16 +8,6 @@
 
 namespace rack {
 
-const char* describe(ParamKind kind) noexcept {
-  switch (kind) {
-    case ParamKind::kInt: return "int";
-    case ParamKind::kFloat: return "float";
-    case ParamKind::kBool: return "bool";
-    case ParamKind::kString: return "string";
-  }
-  return "unknown";
-}
-
 Parameter::Parameter(std::string name, ParamKind kind, Spec spec)
     : name_(std::move(name)), kind_(kind), spec_(std::move(spec)) {}
 

@@ -28,6 +28,8 @@
 
 #include "rack/core/component.h"
 #include "rack/core/registry.h"
+// ConfigError, kMaxHostFileBytes, read_host_bytes, read_tool_network (rack_client).
+#include "rack/client/host_file.h"
 #include "rack/rt/capabilities.h"
 #include "rack/rt/modeswitch.h"
 #include "rack/tims/access.h"
@@ -36,21 +38,12 @@
 namespace rack {
 
 // Limits of a host file (README "Running a host"; configs/demo.yaml).
-inline constexpr std::size_t kMaxHostFileBytes = 1u << 20;  // larger files are refused unread
 inline constexpr std::size_t kMaxHostScalarBytes = 4096;    // one key or value (a path fits)
-inline constexpr std::size_t kMaxHostNesting = 32;          // maps and lists inside each other
 inline constexpr std::size_t kMaxHostNameLength = 63;       // host: letters, digits, . _ -
 inline constexpr std::size_t kMaxNameLength = 31;           // component and network names: letters, digits, _ -
 inline constexpr std::size_t kMaxChannelLength = 63;        // gdos.channel (LCM's channel name limit)
 inline constexpr double kMaxHostMilliseconds = 86'400'000;  // every *_ms key: at most a day
 
-struct ConfigError {
-  std::string file;
-  int line = 0;     // 1-based; 0 when the error is about the whole file
-  int column = 0;   // 1-based
-  std::string message;
-  [[nodiscard]] std::string str() const;  // "file:line:col: message"
-};
 
 // GDOS on this host (the `gdos:` map of a host file; configs/demo.yaml explains it).
 struct GdosSettings {
@@ -121,20 +114,9 @@ struct HostLoadOptions {
 // non-blocking, so a FIFO never stalls the caller).
 [[nodiscard]] LoadResult load_host_file(const std::string& path, ComponentRegistry& registry,
                                         const rt::RtCapabilities& caps);
-// The bytes of a host file under the same rules (tools read theirs with it):
-// nullopt and `error` set when it is not a regular file, too large or unreadable.
-[[nodiscard]] std::optional<std::string> read_host_bytes(const std::string& path, std::string& error);
-// What a tool (rackctl, gdos, a GUI) needs from a host file to join that host's first
-// TiMS network: its URL and key file (`tims: networks:`' first entry, else lcm_url).
-// Reads only those keys (the components are not built). Not RT-safe.
-struct ToolNetwork {
-  std::string url;
-  std::string key_file;             // "" when the network has none
-  std::vector<ConfigError> errors;  // non-empty: unusable (file:line:col)
-};
-[[nodiscard]] ToolNetwork read_tool_network(const std::string& path);
+// read_host_bytes and read_tool_network: rack/client/host_file.h.
 
-// The same from text (tests, tools); `file` names it in error messages.
+// load_host_file from text (tests, tools); `file` names it in error messages.
 // Decodes outside input: never throws for any text (every problem is an error).
 [[nodiscard]] LoadResult load_host_text(const std::string& text, const std::string& file,
                                         ComponentRegistry& registry, const rt::RtCapabilities& caps,
