@@ -14,6 +14,7 @@ packages=(
   libsodium-dev                          # TiMS/LCM: authenticated links (keyed BLAKE2b MAC per packet)
   libyaml-cpp-dev                        # host files
   libyaml-dev                            # tools (rack_client): the network a host file names, without yaml-cpp
+  dpkg-dev                               # cpack -G DEB: dpkg-shlibdeps finds the package dependencies
   libgtest-dev libgmock-dev              # tests
   clang-14 libclang-rt-14-dev llvm-14    # fuzzing: libFuzzer, ASan/UBSan runtimes, llvm-symbolizer (tests/fuzz/run)
   libbenchmark-dev rt-tests stress-ng strace  # benchmarks and their references (cyclictest); strace: RPC system calls
