@@ -498,6 +498,9 @@ struct Backend::Impl {
   }
 
   // The name of a's class: TiMS' name, else its description's, else Class0xNN.
+  // Addresses stay in TiMS' form (Class0x91(2/0) for a class TiMS does not name): the
+  // dashboard sends them back in its requests, which gui_protocol parses without the
+  // descriptions; "class" carries the described name beside them.
   std::string class_of(Address a) const {
     if (tims::class_name(a.class_id()) == nullptr) {
       const auto it = class_infos.find(a.raw() & 0xFFFF0000u);
@@ -505,14 +508,6 @@ struct Backend::Impl {
     }
     return class_text(a);
   }
-  std::string named_address(Address a) const {
-    if (tims::class_name(a.class_id()) != nullptr) return address_text(a);
-    const std::string cls = class_of(a);
-    std::string out = cls + "(" + std::to_string(a.system()) + "/" + std::to_string(a.instance()) + ")";
-    if (a.mailbox() != 0) out += "#" + std::to_string(a.mailbox());
-    return out;
-  }
-
   // Data the dashboard draws: the navigation classes every round, other classes with
   // a data type every `slow` rounds.
   void poll_data(uint64_t round) {
@@ -557,7 +552,7 @@ struct Backend::Impl {
         if (data.is_discarded()) return;
         trim_arrays(a.class_id(), data);
         broadcast(dump(json{{"type", "data"},
-                            {"component", named_address(a)},
+                            {"component", address_text(a)},
                             {"name", comp.info.name},
                             {"class", class_of(a)},
                             {"system", comp.system},
@@ -641,7 +636,7 @@ struct Backend::Impl {
         const auto h = hosts.find(key);
         json comps = json::array();
         for (const Component* c : list) {
-          comps.push_back({{"address", named_address(c->info.address)},
+          comps.push_back({{"address", address_text(c->info.address)},
                            {"name", c->info.name},
                            {"class", class_of(c->info.address)},
                            {"impl", c->info.impl},
