@@ -51,7 +51,7 @@ Camera::Camera()
       jpeg_quality_(declare_int("jpeg_quality", 80, {.doc = "JPEG quality 1..100", .min = 1, .max = 100})),
       loop_file_(declare_bool("loop", false, {.doc = "start a video file or image sequence again at its end"})),
       calibration_(declare_string("calibration", "", {.doc = "OpenCV calibration file (camera_matrix, distortion_coefficients)", .init_only = true})),
-      timeout_ms_(declare_float("timeout_ms", 2000.0, {.doc = "ERROR when no frame came for this long (and on() waits this long for the source)", .min = 1.0})) {}
+      timeout_ms_(declare_float("timeout_ms", 2000.0, {.doc = "ERROR when no frame came for this long (and on() waits this long for the source)", .min = 1.0, .unit = "ms"})) {}
 
 Camera::~Camera() { cleanup(); }
 

@@ -25,7 +25,7 @@ ChassisSim::ChassisSim()
       boundary_left_(declare_float("boundary_left", 0.25, {.doc = "m, outline to the left", .min = 0.0, .max = 10.0})),
       boundary_right_(declare_float("boundary_right", 0.25, {.doc = "m, outline to the right", .min = 0.0, .max = 10.0})),
       safety_margin_(declare_float("safety_margin", 0.10, {.doc = "m, kept free around the outline (told to pilots)", .min = 0.0, .max = 5.0})),
-      watchdog_ms_(declare_int("watchdog_ms", 500, {.doc = "stop when no MOVE came for this long", .min = 10, .max = 60000})),
+      watchdog_ms_(declare_int("watchdog_ms", 500, {.doc = "stop when no MOVE came for this long", .min = 10, .max = 60000, .unit = "ms"})),
       noise_xy_(declare_float("noise_xy", 0.02, {.doc = "odometry translation noise, m per sqrt(m) travelled (std-dev)", .min = 0.0, .max = 1.0})),
       noise_phi_(declare_float("noise_phi", 0.02, {.doc = "odometry rotation noise, rad per sqrt(rad) turned (std-dev)", .min = 0.0, .max = 1.0})),
       noise_phi_per_m_(declare_float("noise_phi_per_m", 0.01, {.doc = "odometry rotation noise from driving, rad per sqrt(m) (std-dev)", .min = 0.0, .max = 1.0})),
@@ -34,7 +34,7 @@ ChassisSim::ChassisSim()
       initial_x_(declare_float("initial_x", 0.0, {.doc = "m, true start pose in the map frame", .init_only = true})),
       initial_y_(declare_float("initial_y", 0.0, {.doc = "m, true start pose in the map frame", .init_only = true})),
       initial_phi_(declare_float("initial_phi", 0.0, {.doc = "rad, true start heading", .min = -7.0, .max = 7.0, .init_only = true})),
-      battery_(declare_float("battery_v", 24.0, {.doc = "V, the battery voltage reported", .min = 0.0, .max = 1000.0})),
+      battery_(declare_float("battery_v", 24.0, {.doc = "V, the battery voltage reported", .min = 0.0, .max = 1000.0, .unit = "V"})),
       map_(declare_string("map", "", {.doc = "optional map_server YAML: the robot stops at occupied cells (\"\": no walls)", .init_only = true})) {}
 
 void ChassisSim::init() {

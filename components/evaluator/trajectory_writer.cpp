@@ -107,7 +107,7 @@ TrajectoryWriter::TrajectoryWriter()
       file_(declare_string("file", "", {.doc = "output file: one 't x y theta' line per estimate", .required = true})),
       reference_(declare_string("reference", "", {.doc = "reference 't x y theta' file to compare with at the end (empty: none)"})),
       lost_threshold_(declare_float("lost_threshold", 0.5, {.doc = "m, a reference pose estimated further off than this is lost", .min = 0.0, .max = 1000.0})),
-      max_gap_ms_(declare_float("max_gap_ms", 1000.0, {.doc = "ms, longest gap between two estimates interpolated at a reference time", .min = 0.0, .max = 600000.0})),
+      max_gap_ms_(declare_float("max_gap_ms", 1000.0, {.doc = "ms, longest gap between two estimates interpolated at a reference time", .min = 0.0, .max = 600000.0, .unit = "ms"})),
       exit_when_done_(declare_bool("exit_when_done", false, {.doc = "stop rackd (SIGTERM to its process) when the input has ended and the error is printed"})) {
   use_input_mailbox(static_cast<uint32_t>(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + kMaxPayload + 64));
 }

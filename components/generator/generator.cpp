@@ -8,7 +8,7 @@ namespace rack::components {
 Generator::Generator()
     : DataComponent(DataTaskMode::kPeriodic),
       amplitude_(declare_float("amplitude", 1.0, {.doc = "peak value of the sine"})),
-      frequency_(declare_float("frequency_hz", 0.5, {.doc = "sine frequency", .min = 0.0, .max = 1e4})),
+      frequency_(declare_float("frequency_hz", 0.5, {.doc = "sine frequency", .min = 0.0, .max = 1e4, .unit = "Hz"})),
       offset_(declare_float("offset", 0.0, {.doc = "added to every value"})) {}
 
 HookResult Generator::on() {

@@ -11,7 +11,7 @@ LadarSick::LadarSick()
     : DataComponent(DataTaskMode::kPeriodic),
       host_(declare_string("host", "", {.doc = "scanner IPv4 address (factory default 192.168.0.1)", .required = true, .init_only = true})),
       port_(declare_int("port", 2111, {.doc = "CoLa-A TCP port", .min = 1, .max = 65535, .init_only = true})),
-      timeout_ms_(declare_float("timeout_ms", 500.0, {.doc = "ERROR when no valid scan came for this long", .min = 1.0})),
+      timeout_ms_(declare_float("timeout_ms", 500.0, {.doc = "ERROR when no valid scan came for this long", .min = 1.0, .unit = "ms"})),
       max_range_(declare_float("max_range", 20.0, {.doc = "m, the model's range (LMS111: 20, LMS151: 50)", .min = 0.1})) {}
 
 void LadarSick::init() {

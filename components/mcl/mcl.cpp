@@ -43,7 +43,7 @@ Mcl::Mcl()
       position_(declare_string("position", "",
                                {.doc = "Position component to send UPDATE to (optional; empty: none)",
                                 .component_ref = true})),
-      period_ms_(declare_float("period_ms", 0.0, {.doc = "requested scan period (0: every scan)", .min = 0.0, .max = 60000.0})),
+      period_ms_(declare_float("period_ms", 0.0, {.doc = "requested scan period (0: every scan)", .min = 0.0, .max = 60000.0, .unit = "ms"})),
       particles_min_(declare_int("particles_min", 100, {.doc = "KLD-sampling: fewest particles", .min = 1, .max = 1e6})),
       particles_max_(declare_int("particles_max", 2000, {.doc = "KLD-sampling: most particles (also the count after an init)", .min = 1, .max = 1e6})),
       initial_pose_(declare_string("initial_pose", "0 0 0", {.doc = "start pose 'x y phi' (m, m, rad) in the map frame, used when global is false"})),

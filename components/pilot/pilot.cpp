@@ -38,9 +38,9 @@ Pilot::Pilot()
       omega_max_(declare_float("omega_max", 1.0, {.doc = "rad/s, fastest turn (also capped by the chassis)", .min = 0.0, .max = 20.0})),
       lookahead_(declare_float("lookahead", 0.6, {.doc = "m, pure-pursuit look-ahead distance", .min = 0.05, .max = 20.0})),
       goal_tolerance_(declare_float("goal_tolerance", 0.15, {.doc = "m, a destination this close counts as reached", .min = 0.01, .max = 10.0})),
-      turn_in_place_deg_(declare_float("turn_in_place_deg", 45.0, {.doc = "turn on the spot when the goal is further off the heading", .min = 5.0, .max = 180.0})),
+      turn_in_place_deg_(declare_float("turn_in_place_deg", 45.0, {.doc = "turn on the spot when the goal is further off the heading", .min = 5.0, .max = 180.0, .unit = "deg"})),
       brake_fraction_(declare_float("brake_fraction", 0.5, {.doc = "plan braking with this fraction of the chassis' dec_max", .min = 0.05, .max = 1.0})),
-      input_timeout_ms_(declare_int("input_timeout_ms", 500, {.doc = "stand when Position or Scan2D data is older than this", .min = 10, .max = 60000})) {
+      input_timeout_ms_(declare_int("input_timeout_ms", 500, {.doc = "stand when Position or Scan2D data is older than this", .min = 10, .max = 60000, .unit = "ms"})) {
   use_input_mailbox(kInputSlot);
 }
 

@@ -27,7 +27,7 @@ Scan2d::Scan2d()
       dynamic_min_speed_(declare_float("dynamic_min_speed", 0.25, {.doc = "m/s, a tracked cluster faster than this is dynamic", .min = 0.0, .max = 100.0})),
       cluster_gap_(declare_float("cluster_gap", 0.25, {.doc = "m, neighbouring points closer than this form one cluster", .min = 0.01, .max = 10.0})),
       cluster_max_size_(declare_float("cluster_max_size", 1.0, {.doc = "m, larger clusters (walls) are not tracked", .min = 0.01, .max = 100.0})),
-      odometry_wait_ms_(declare_float("odometry_wait_ms", 500.0, {.doc = "ms a scan waits for odometry at or after its time before it goes out without (counted)", .min = 0.0, .max = 600000.0})),
+      odometry_wait_ms_(declare_float("odometry_wait_ms", 500.0, {.doc = "ms a scan waits for odometry at or after its time before it goes out without (counted)", .min = 0.0, .max = 600000.0, .unit = "ms"})),
       held_(std::make_unique<LadarData[]>(kHeld)) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(LadarData) + 64);
 }

@@ -31,7 +31,7 @@ Scan3d::Scan3d()
       ladar_(declare_string("ladar", "", {.doc = "the Ladar whose 2-D scans are assembled (with servo; empty: pcd)", .component_ref = true})),
       servo_(declare_string("servo", "", {.doc = "the ServoDrive that turns the ladar (with ladar)", .component_ref = true})),
       odometry_(declare_string("odometry", "", {.doc = "optional, with ladar+servo: an Odometry or Position component; its poses undo the robot's motion during a sweep (points in the robot frame at the sweep's end, the scan stamped with that time)", .component_ref = true})),
-      odometry_period_ms_(declare_float("odometry_period_ms", 0.0, {.doc = "requested period of the odometry's pose stream (0: every pose); the last 256 poses must cover a sweep's processing time", .min = 0.0, .max = 1000.0})),
+      odometry_period_ms_(declare_float("odometry_period_ms", 0.0, {.doc = "requested period of the odometry's pose stream (0: every pose); the last 256 poses must cover a sweep's processing time", .min = 0.0, .max = 1000.0, .unit = "ms"})),
       pcd_(declare_string("pcd", "", {.doc = "instead of ladar+servo: a PCD file, or a directory whose *.pcd files are played in name order", .init_only = true})),
       mode_(declare_string("mode", "pitch", {.doc = "scan mode: the drive turns the scan plane about x (roll), y (pitch) or z (yaw)", .choices = {"roll", "pitch", "yaw"}, .init_only = true})),
       mount_x_(declare_float("mount_x", 0.0, {.doc = "m, the ladar's centre (on the drive axis) in the robot frame, forward", .min = -10.0, .max = 10.0})),
@@ -41,7 +41,7 @@ Scan3d::Scan3d()
       angle_max_(declare_float("angle_max", 0.5, {.doc = "rad, the other end (> angle_min)", .min = -10.0, .max = 10.0})),
       sweep_velocity_(declare_float("sweep_velocity", 0.5, {.doc = "rad/s, drive speed during a sweep (0: the drive's default)", .min = 0.0, .max = 100.0})),
       angle_tolerance_(declare_float("angle_tolerance", 0.01, {.doc = "rad, the drive is at a sweep's end when this close", .min = 1e-5, .max = 1.0})),
-      servo_period_ms_(declare_float("servo_period_ms", 0.0, {.doc = "requested period of the drive's position stream (0: every sample)", .min = 0.0, .max = 1000.0})),
+      servo_period_ms_(declare_float("servo_period_ms", 0.0, {.doc = "requested period of the drive's position stream (0: every sample)", .min = 0.0, .max = 1000.0, .unit = "ms"})),
       range_min_(declare_float("range_min", 0.05, {.doc = "m, closer echoes are dropped (the robot, the drive)", .min = 0.0, .max = 1000.0})),
       range_max_(declare_float("range_max", 0.0, {.doc = "m, farther echoes are dropped (0: the ladar's max)", .min = 0.0, .max = 1000.0})),
       voxel_size_(declare_float("voxel_size", 0.05, {.doc = "m, voxel-grid leaf (0: no downsampling)", .min = 0.0, .max = 10.0})),
@@ -52,12 +52,12 @@ Scan3d::Scan3d()
       ground_max_height_(declare_float("ground_max_height", 0.3, {.doc = "m, ground candidates have |z| below this", .min = 1e-3, .max = 100.0})),
       ceiling_height_(declare_float("ceiling_height", 0.0, {.doc = "m above the ground: higher points are ceiling (0: none)", .min = 0.0, .max = 1000.0})),
       max_points_(declare_int("max_points", interfaces::kScan3dMaxPoints, {.doc = "points per published scan (evenly thinned above)", .min = 1, .max = interfaces::kScan3dMaxPoints})),
-      range_image_res_deg_(declare_float("range_image_res_deg", 1.0, {.doc = "GET_RANGE_IMAGE: degrees per pixel when the request gives none (at least 0.2)", .min = 0.2, .max = 45.0})),
+      range_image_res_deg_(declare_float("range_image_res_deg", 1.0, {.doc = "GET_RANGE_IMAGE: degrees per pixel when the request gives none (at least 0.2)", .min = 0.2, .max = 45.0, .unit = "deg"})),
       store_dir_(declare_string("store_dir", ".", {.doc = "STORE_DATA without a path writes <store_dir>/scan3d_<number>.pcd"})),
-      pcd_period_ms_(declare_float("pcd_period_ms", 1000.0, {.doc = "PCD source: one file every this long (the data task's timeout_ms must not be longer)", .min = 1.0, .max = 3.6e6})),
+      pcd_period_ms_(declare_float("pcd_period_ms", 1000.0, {.doc = "PCD source: one file every this long (the data task's timeout_ms must not be longer)", .min = 1.0, .max = 3.6e6, .unit = "ms"})),
       pcd_loop_(declare_bool("pcd_loop", true, {.doc = "PCD source: start again after the last file"})),
-      silence_ms_(declare_int("silence_ms", 2000, {.doc = "ERROR when the ladar, the drive or the odometry sent nothing for this long", .min = 10, .max = 600000})),
-      sweep_timeout_s_(declare_float("sweep_timeout_s", 30.0, {.doc = "ERROR when the drive does not reach a sweep's end within this", .min = 0.1, .max = 3600.0})) {
+      silence_ms_(declare_int("silence_ms", 2000, {.doc = "ERROR when the ladar, the drive or the odometry sent nothing for this long", .min = 10, .max = 600000, .unit = "ms"})),
+      sweep_timeout_s_(declare_float("sweep_timeout_s", 30.0, {.doc = "ERROR when the drive does not reach a sweep's end within this", .min = 0.1, .max = 3600.0, .unit = "s"})) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(LadarData) + 64);
   set_command_slot_size(sizeof(tims::MessageHeader) + sizeof(interfaces::Scan3dStoreData) + 64);
 }

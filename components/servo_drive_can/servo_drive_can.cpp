@@ -23,9 +23,9 @@ ServoDriveCan::ServoDriveCan()
       position_min_(declare_float("position_min", -1.0, {.doc = "unit, lower soft limit (from home)"})),
       position_max_(declare_float("position_max", 1.0, {.doc = "unit, upper soft limit (from home)"})),
       home_position_(declare_float("home_position", 0.0, {.doc = "unit, the position HOME assigns to where the axis is"})),
-      heartbeat_ms_(declare_int("heartbeat_ms", 100, {.doc = "drive heartbeat producer time", .min = 1, .max = 65535})),
-      heartbeat_timeout_ms_(declare_float("heartbeat_timeout_ms", 350.0, {.doc = "drive silent this long: ERROR", .min = 1.0})),
-      sdo_timeout_ms_(declare_float("sdo_timeout_ms", 100.0, {.doc = "wait for each SDO answer in on()", .min = 1.0})) {}
+      heartbeat_ms_(declare_int("heartbeat_ms", 100, {.doc = "drive heartbeat producer time", .min = 1, .max = 65535, .unit = "ms"})),
+      heartbeat_timeout_ms_(declare_float("heartbeat_timeout_ms", 350.0, {.doc = "drive silent this long: ERROR", .min = 1.0, .unit = "ms"})),
+      sdo_timeout_ms_(declare_float("sdo_timeout_ms", 100.0, {.doc = "wait for each SDO answer in on()", .min = 1.0, .unit = "ms"})) {}
 
 double ServoDriveCan::to_unit(int32_t counts) const noexcept {
   return static_cast<double>(counts - home_offset_.load(std::memory_order_relaxed)) / counts_per_unit_.get_float() +

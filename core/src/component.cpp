@@ -1,5 +1,9 @@
 #include "rack/core/component.h"
 
+#include <array>
+
+#include "rack/core/class_description.h"
+
 #include <cstring>
 #include <exception>
 
@@ -314,6 +318,17 @@ void Component::handle_set_param(const MessageHeader& h, std::span<const std::by
   reply(h, msg::kOk);
 }
 
+void Component::handle_get_class(const MessageHeader& h, std::span<const std::byte> body) noexcept {
+  ClassPageHeader header;
+  std::span<const std::byte> page;
+  if (const char* why = class_page(class_description_, body, tims::body_is_native(h), header, page)) {
+    if (class_description_.empty()) return reply_error(h, why);
+    return reject_malformed(h, why);
+  }
+  const std::array<ConstBuffer, 2> parts{tims::buffer_of(header), ConstBuffer{page.data(), page.size()}};
+  reply(h, msg::kClass, parts);
+}
+
 void Component::handle(const MessageHeader& h, std::span<const std::byte> body) noexcept {
   bump(commands_);
   if (!h.is_request()) return;  // a late reply or notification: nothing to answer
@@ -335,6 +350,7 @@ void Component::handle(const MessageHeader& h, std::span<const std::byte> body) 
     }
     case msg::kGetParam: return handle_get_param(h, body);
     case msg::kSetParam: return handle_set_param(h, body);
+    case msg::kGetClass: return handle_get_class(h, body);
     case msg::kGetStats: {
       if (!body.empty()) return reject_malformed(h, "GET_STATS takes no body");
       wire::StatsReply stats;

@@ -850,6 +850,14 @@ struct HostLoader {
         error(node["class"].Mark(), "cannot construct '" + impl + "': " + e.what());
         continue;
       }
+      // What GET_CLASS serves (tools learn the class from it), with the declared values
+      // as defaults: before the host file's values are set below.
+      try {
+        component->class_description_ = encode_class_description(describe_class(*cls, component->parameters()));
+      } catch (const std::exception& e) {
+        error(node["class"].Mark(), "class '" + impl + "' cannot be described to tools: " + e.what());
+        continue;
+      }
       const DataTaskMode mode = component->data_task_mode();
       if (const YAML::Node ct = node["command_task"]) {
         if (!ct.IsMap()) error(ct.Mark(), "'command_task' must be a map (priority, cpu, stack_kib, slots)");

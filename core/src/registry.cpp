@@ -1,6 +1,7 @@
 #include "rack/core/registry.h"
 
 #include "rack/rt/input_file.h"
+#include "rack/tims/address.h"
 
 #include <dlfcn.h>
 
@@ -56,6 +57,52 @@ void ComponentRegistry::load_plugin(const std::string& path) {
   }
   fn(*this);
   plugins_.push_back(handle);
+}
+
+namespace {
+TypeDescription describe_type(const DataTypeInfo& t) {
+  TypeDescription out;
+  out.name = t.type_name != nullptr ? t.type_name : "";
+  out.size = t.size;
+  for (const tims::FieldDesc& f : t.fields) out.fields.push_back({f.name, f.kind, f.offset, f.count});
+  return out;
+}
+}  // namespace
+
+ClassDescription describe_class(const ComponentClass& cls, const ParameterSet& params) {
+  ClassDescription d;
+  d.impl = cls.impl;
+  const char* tims_name = tims::class_name(cls.class_id);
+  d.class_name = tims_name != nullptr ? tims_name : cls.impl;
+  d.class_id = cls.class_id;
+  d.summary = cls.description;
+  if (cls.data != nullptr) d.data = describe_type(*cls.data);
+  for (const CommandInfo& c : cls.commands) {
+    CommandDescription cd;
+    cd.name = c.name != nullptr ? c.name : "";
+    cd.type = c.type;
+    cd.summary = c.summary != nullptr ? c.summary : "";
+    if (c.body != nullptr) cd.body = describe_type(*c.body);
+    d.commands.push_back(std::move(cd));
+  }
+  for (std::size_t i = 0; i < params.size(); ++i) {
+    const Parameter& p = params.at(i);
+    const Parameter::Spec& s = p.spec();
+    ParameterDescription pd;
+    pd.name = p.name();
+    pd.kind = p.kind();
+    pd.flags = static_cast<uint8_t>((s.required ? ParameterDescription::kRequired : 0) |
+                                    (s.init_only ? ParameterDescription::kInitOnly : 0) |
+                                    (s.component_ref ? ParameterDescription::kComponentRef : 0));
+    pd.unit = s.unit;
+    pd.min = s.min;
+    pd.max = s.max;
+    pd.default_value = p.value_text();
+    pd.doc = s.doc;
+    pd.choices = s.choices;
+    d.parameters.push_back(std::move(pd));
+  }
+  return d;
 }
 
 }  // namespace rack

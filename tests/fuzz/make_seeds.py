@@ -140,3 +140,49 @@ write("link_auth", [b"\0\0# a key\n" + key + b"\n",
                     b"\0\0" + key + b"\n" + key[::-1] + b"\n\n",
                     b"\1\0" + bytes(40) + b"RKA1" + bytes(44),
                     b"\2\1" + b"".join(bytes([1]) + struct.pack("<H", s) + bytes([0, 8]) + b"payload!" for s in (1, 2, 2, 70))])
+
+# Class description (rack/core/class_description.h): byte 0 even: one encoded
+# description; odd: CLASS reply bodies, each a 2-byte length and the body.
+def cd_str(s):
+    b = s.encode()
+    return struct.pack("<H", len(b)) + b
+
+
+def cd_type(name, size, fields):
+    out = cd_str(name) + struct.pack("<IH", size, len(fields))
+    for fname, kind, offset, count in fields:
+        out += cd_str(fname) + struct.pack("<BII", kind, offset, count)
+    return out
+
+
+def cd_param(name, kind, flags, unit, lo, hi, default, doc, choices=()):
+    out = cd_str(name) + struct.pack("<BB", kind, flags) + cd_str(unit) + struct.pack("<dd", lo, hi)
+    out += cd_str(default) + cd_str(doc) + bytes([len(choices)]) + b"".join(cd_str(c) for c in choices)
+    return out
+
+
+inf = float("inf")
+counter = (b"RKCD" + bytes([1, 0x91, 0, 0]) + cd_str("Counter") + cd_str("Counter") + cd_str("test: counts")
+           + b"\1" + cd_type("CounterData", 24, [("count", 8, 0, 1), ("rate", 11, 8, 1), ("label", 3, 16, 8)])
+           + struct.pack("<H", 2)
+           + cd_str("RESET") + bytes([21]) + cd_str("count again from start") + b"\1"
+           + cd_type("CounterReset", 8, [("start", 8, 0, 1)])
+           + cd_str("FREEZE") + bytes([22]) + cd_str("stop") + b"\0"
+           + struct.pack("<H", 2)
+           + cd_param("step", 1, 0, "1/s", 0.0, inf, "1", "growth per cycle")
+           + cd_param("mode", 3, 3, "", -inf, inf, "up", "direction", ("up", "down")))
+empty = (b"RKCD" + bytes([1, 0x40, 0, 0]) + cd_str("Gen") + cd_str("Generator") + cd_str("") + b"\0"
+         + struct.pack("<HH", 0, 0))
+
+
+def cd_pages(desc, size):
+    out = b""
+    for off in range(0, len(desc), size):
+        body = struct.pack("<II", len(desc), off) + desc[off:off + size]
+        out += struct.pack("<H", len(body)) + body
+    return out
+
+
+write("class_description", [b"\0" + counter, b"\0" + empty, b"\1" + cd_pages(counter, 8192),
+                            b"\1" + cd_pages(empty, 8192), b"\1" + cd_pages(counter, 100),
+                            b"\1" + struct.pack("<HII", 8, 4, 0)])

@@ -134,7 +134,7 @@ access:
     - name: chassis-others
       to: chassis
       types: [on, off, get_status, get_data, get_cont_data, stop_cont_data, get_next_data, get_param,
-              set_param, get_stats, 22, 23]
+              set_param, get_stats, get_class, 22, 23]
 )";
 }
 

@@ -352,3 +352,50 @@ TEST(RackGuiServerTest, SeesAKeyedHostOnlyWithItsKeyFile) {
 
 }  // namespace
 }  // namespace rack::test
+
+namespace rack::test {
+namespace {
+
+// Classes describe themselves (issue 19): rack-gui, built with no plug-in class,
+// sends the data of one (the Counter plug-in, class 0x91) with its field names and
+// its class name, from the class's description (GET_CLASS).
+TEST(RackGuiServerTest, PluginClassDataHasItsFieldNames) {
+  Watchdog watchdog(60s, "RackGuiServerTest.PluginClass");
+  TempDir dir;
+  LcmBus bus;
+  std::filesystem::create_directories(dir.path() / "web");
+  dir.write("web/index.html", "<html></html>");
+  const auto host = dir.write("counter.yaml", std::string("host: gui-describe\nsystem: 2\nheap_prefault_mib: 0\n") +
+                                                  "plugins: [" + RACK_COUNTER_PLUGIN_PATH + "]\ncomponents:\n"
+                                                  "  - name: counter\n    class: Counter\n    instance: 0\n"
+                                                  "    autostart: true\n    data_task: {period_ms: 20}\n"
+                                                  "    params: {label: hello}\n");
+  Process rackd({RACK_RACKD_PATH, host.string(), "--lcm", bus.url()}, dir.path(), "rackd");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
+  Process gui({RACK_GUI_PATH, "--port", "0", "--lcm", bus.url(), "--web", (dir.path() / "web").string(), "--reports",
+               "", "--poll-ms", "100"},
+              dir.path(), "rack-gui");
+  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
+  const std::string err = gui.err();
+  const auto colon = err.find(':', err.find("http://127.0.0.1") + 10);
+  WsClient c(static_cast<uint16_t>(std::stoi(err.substr(colon + 1))));
+  nlohmann::json data;
+  for (int i = 0; i < 50 && !data.is_object(); ++i) {
+    const auto j = c.read_type("data");
+    ASSERT_TRUE(j.is_object()) << "no data message: " << gui.err();
+    // Its address in TiMS' form (the dashboard sends it back in requests), its class
+    // by the described name.
+    if (j.value("component", "") == "Class0x91(2/0)") data = j;
+  }
+  ASSERT_TRUE(data.is_object()) << gui.err();
+  EXPECT_EQ(data["class"], "Counter") << data.dump();
+  ASSERT_TRUE(data["data"].is_object()) << data.dump();
+  EXPECT_EQ(data["data"]["label"], "hello") << data.dump();
+  EXPECT_TRUE(data["data"]["count"].is_number()) << data.dump();
+  EXPECT_TRUE(data["data"]["rate"].is_number()) << data.dump();
+  gui.signal(SIGTERM);
+  EXPECT_EQ(gui.wait_exit(10s), std::optional<int>(0)) << gui.err();
+}
+
+}  // namespace
+}  // namespace rack::test

@@ -17,6 +17,7 @@
 #include <string>
 #include <thread>
 
+#include "rack/core/class_description.h"
 #include "rack/core/gdos.h"
 #include "rack/interfaces/demo.h"
 #include "rack/interfaces/navigation.h"
@@ -385,6 +386,7 @@ components:
   wire::ParamName pname;
   wire::copy_text(pname.name, "label");
   uint64_t bad = 0, streamed = 0;
+  const ClassPageRequest class_page{};
   auto round = [&] {
     auto r = ep.call(probe, msg::kGetStatus, buf, test::kCallTimeoutNs);
     bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kEnabled ? 0 : 1;
@@ -399,6 +401,9 @@ components:
     // The periodic generator's histogram, added up into GET_LATENCY's buckets.
     r = ep.call(gen, msg::kGetLatency, buf, test::kCallTimeoutNs);
     bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kLatency ? 0 : 1;
+    // The class description's first page (encoded before the tasks started).
+    r = ep.call(gen, msg::kGetClass, class_page, buf, test::kCallTimeoutNs);
+    bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kClass ? 0 : 1;
     r = ep.call(Address::make(0, tims::classes::kLadar, 7), msg::kGetStatus, buf, test::kCallTimeoutNs);
     bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kNotAvailable ? 0 : 1;
     while (host.data_mailbox().receive(data, Mailbox::kNonBlocking).status == RecvStatus::kOk) ++streamed;

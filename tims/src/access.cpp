@@ -331,6 +331,7 @@ bool parse_message_type(const std::string& text, int8_t& out) noexcept {
       {"get_next_data", msg::kGetNextData}, {"get_param", msg::kGetParam},
       {"set_param", msg::kSetParam}, {"get_stats", msg::kGetStats},
       {"get_latency", msg::kGetLatency}, {"latency", msg::kLatency},
+      {"get_class", msg::kGetClass}, {"class", msg::kClass},
       {"ok", msg::kOk},           {"error", msg::kError},
       {"timeout", msg::kTimeout}, {"not_available", msg::kNotAvailable},
       {"enabled", msg::kEnabled}, {"disabled", msg::kDisabled},

@@ -21,6 +21,7 @@ const char* msg::name(int8_t type) noexcept {
     case kSetParam: return "SET_PARAM";
     case kGetStats: return "GET_STATS";
     case kGetLatency: return "GET_LATENCY";
+    case kGetClass: return "GET_CLASS";
     case kOk: return "OK";
     case kError: return "ERROR";
     case kTimeout: return "TIMEOUT";
@@ -32,6 +33,7 @@ const char* msg::name(int8_t type) noexcept {
     case kParam: return "PARAM";
     case kStats: return "STATS";
     case kLatency: return "LATENCY";
+    case kClass: return "CLASS";
     default: return nullptr;
   }
 }

@@ -14,6 +14,7 @@
 #include <span>
 
 #include "gdos_view.h"
+#include "rack/core/class_description.h"
 #include "rack/core/parameters.h"
 #include "rack/core/payload_json.h"
 #include "rack/core/wire.h"
@@ -140,6 +141,15 @@ struct Component {
   bool latency_refused = false;    // answered ERROR (a rackd from before GET_LATENCY): not asked again
   bool latency_bad_logged = false; // a malformed reply was logged (once per component)
   json latency;             // the last GET_LATENCY (gui_protocol.h: latency_json), or null
+};
+
+// What a class described of itself (GET_CLASS), per system and class id.
+struct ClassInfo {
+  std::optional<rack::ClassDescription> desc;
+  std::vector<tims::FieldDesc> data_fields;  // desc->data's field table (names point into desc)
+  rack::ClassPageAssembler pages;
+  bool pending = false;  // a page request is out
+  bool failed = false;   // refused or malformed: not asked again
 };
 
 struct Host {
@@ -444,15 +454,70 @@ struct Backend::Impl {
     }
   }
 
+  // The description of a component's class (GET_CLASS: its pages one request at a
+  // time, then decoded), per system and class id: every class's data view comes from
+  // it, so a class rack-gui was not built with (a plug-in) shows its fields too.
+  // nullptr until it is known; a component that refuses it is not asked again.
+  const ClassInfo* described(Address a) {
+    const uint32_t key = a.raw() & 0xFFFF0000u;
+    ClassInfo& ci = class_infos[key];
+    if (ci.desc) return &ci;
+    if (ci.pending || ci.failed) return nullptr;
+    ci.pending = true;
+    rack::ClassPageRequest q;
+    q.offset = ci.pages.next_offset();
+    request(a.component(), msg::kGetClass, q, [this, key, a](const Reply* r) {
+      ClassInfo& info = class_infos[key];
+      info.pending = false;
+      if (r == nullptr) return;  // asked again in a later round
+      std::string error;
+      if (r->header.type != msg::kClass) {
+        error = r->header.type == msg::kError ? "refused: " + error_reason(r->body)
+                                              : "reply " + std::to_string(r->header.type);
+      } else if (info.pages.add(r->body, r->native(), error) && !info.pages.complete()) {
+        (void)described(a);  // the next page
+        return;
+      }
+      rack::ClassDescription d;
+      if (error.empty() && !rack::decode_class_description(info.pages.bytes(), d, error)) error = "description: " + error;
+      if (error.empty() && d.class_id != a.class_id()) error = "describes another class id";
+      if (!error.empty()) {
+        info.failed = true;
+        {
+          const std::lock_guard lock(counters_mutex);
+          ++counters.bad_replies;
+        }
+        std::fprintf(stderr, "rack-gui: %s: GET_CLASS: %s (its data is not shown)\n", address_text(a).c_str(),
+                     error.c_str());
+        return;
+      }
+      info.desc = std::move(d);
+      if (info.desc->data) info.data_fields = info.desc->data->field_table();
+    });
+    return nullptr;
+  }
+
+  // The name of a's class: TiMS' name, else its description's, else Class0xNN.
+  // Addresses stay in TiMS' form (Class0x91(2/0) for a class TiMS does not name): the
+  // dashboard sends them back in its requests, which gui_protocol parses without the
+  // descriptions; "class" carries the described name beside them.
+  std::string class_of(Address a) const {
+    if (tims::class_name(a.class_id()) == nullptr) {
+      const auto it = class_infos.find(a.raw() & 0xFFFF0000u);
+      if (it != class_infos.end() && it->second.desc) return it->second.desc->class_name;
+    }
+    return class_text(a);
+  }
   // Data the dashboard draws: the navigation classes every round, other classes with
-  // a known data type every `slow` rounds.
+  // a data type every `slow` rounds.
   void poll_data(uint64_t round) {
     const int64_t now = rt::monotonic_ns();
     for (auto& [raw, c] : components) {
       if (c.data_pending || shown_state(c, now) != "enabled") continue;
       const uint8_t cls = Address(raw).class_id();
-      const auto* type = ifc::data_type_for_class(cls);
-      if (type == nullptr) continue;
+      const ClassInfo* info = described(Address(raw));
+      if (info == nullptr || !info->desc->data) continue;
+      const uint32_t class_key = raw & 0xFFFF0000u;
       const bool fast = cls == classes::kChassis || cls == classes::kPosition || cls == classes::kMcl ||
                         cls == classes::kScan2d || cls == classes::kPilot || cls == classes::kLadar;
       if (cls == classes::kCamera) {
@@ -462,18 +527,19 @@ struct Backend::Impl {
       if (!fast && round % 5 != 0) continue;
       c.data_pending = true;
       wire::GetDataRequest req;
-      request(Address(raw), msg::kGetData, req, [this, raw, type](const Reply* r) {
+      request(Address(raw), msg::kGetData, req, [this, raw, class_key](const Reply* r) {
         auto it = components.find(raw);
         if (it == components.end()) return;
         Component& comp = it->second;
         comp.data_pending = false;
+        const ClassInfo& type = class_infos[class_key];
         wire::SampleHeader sh;
         if (r == nullptr || r->header.type != msg::kData || r->body.size() < sizeof sh ||
             !wire::read_payload(r->body.first(sizeof sh), r->native(), sh)) {
           return;
         }
         const auto sample = r->body.subspan(sizeof sh);
-        if (sample.size() != type->size) return;
+        if (sample.size() != type.desc->data->size) return;
         const Address a(raw);
         if (a.class_id() == classes::kPosition) robots[comp.system].position_time_ns = sh.time_ns;
         if (a.class_id() == classes::kChassis) {
@@ -482,13 +548,13 @@ struct Backend::Impl {
             robots[comp.system].claimed = cd.active_pilot == reply_mailbox.address().raw();
           }
         }
-        json data = json::parse(rack::payload_to_json(type->fields, sample, r->native()), nullptr, false);
+        json data = json::parse(rack::payload_to_json(type.data_fields, sample, r->native()), nullptr, false);
         if (data.is_discarded()) return;
         trim_arrays(a.class_id(), data);
         broadcast(dump(json{{"type", "data"},
                             {"component", address_text(a)},
                             {"name", comp.info.name},
-                            {"class", class_text(a)},
+                            {"class", class_of(a)},
                             {"system", comp.system},
                             {"time_ns", sh.time_ns},
                             {"sequence", sh.sequence},
@@ -572,7 +638,7 @@ struct Backend::Impl {
         for (const Component* c : list) {
           comps.push_back({{"address", address_text(c->info.address)},
                            {"name", c->info.name},
-                           {"class", class_text(c->info.address)},
+                           {"class", class_of(c->info.address)},
                            {"impl", c->info.impl},
                            {"state", shown_state(*c, now)},
                            {"stats", c->stats},
@@ -1201,6 +1267,7 @@ struct Backend::Impl {
   // Worker thread only.
   std::vector<Pending> pending;
   std::map<uint32_t, Component> components;
+  std::map<uint32_t, ClassInfo> class_infos;  // system << 24 | class id << 16 (described())
   std::map<std::string, Host> hosts;
   std::map<uint8_t, Robot> robots;
 

@@ -31,12 +31,12 @@
 #include <thread>
 #include <vector>
 
+#include "rack/core/class_description.h"
 #include "rack/core/data_component.h"
 #include "rack/core/host_config.h"
 #include "rack/core/parameters.h"
 #include "rack/core/payload_json.h"
 #include "rack/core/wire.h"
-#include "rack/interfaces/data_types.h"
 #include "rack/rt/clock.h"
 #include "rack/tims/address.h"
 #include "rack/tims/endpoint.h"
@@ -79,6 +79,8 @@ Controls the components of running rackd executors over TiMS/LCM.
 
 commands:
   list                          every component that answers discovery, with its state
+  classes [HOST]                the component classes running (on HOST) as they
+                                describe themselves: data fields, commands, parameters
   hosts                         every host that answers discovery: system, role, network
   on NAME                       switch a component on (answered when its on() finished)
   off NAME                      switch a component off
@@ -96,7 +98,8 @@ commands:
   help [COMMAND]                this text, or a command's
 
 NAME is a component's name from its host file (found by discovery), or an address
-like Generator(0/0) (class, system/instance).
+like Generator(0/0) (class, system/instance); the class may be any class a running
+component describes (a plug-in's too: Counter(2/0)).
 
 options:
   --lcm URL          TiMS/LCM network (default: $LCM_DEFAULT_URL, else
@@ -208,11 +211,55 @@ const char* reply_name(int8_t type) {
 
 // ---------------------------------------------------------------- the TiMS session
 
+// An address with its class named as the class describes itself (GET_CLASS), so
+// that a class rackctl was not built with prints as `Counter(2/0)` too.
+std::string address_text(Address a, const std::string& class_name) {
+  if (class_name.empty()) return a.str();
+  std::string out = class_name + "(" + std::to_string(a.system()) + "/" + std::to_string(a.instance()) + ")";
+  if (a.mailbox() != 0) out += "#" + std::to_string(a.mailbox());
+  return out;
+}
+
+// `Name(sys/inst)` or `Name(sys/inst)#mbx` with a class name TiMS does not know
+// (a class learnt from its description): the name and the numeric address.
+std::optional<std::pair<std::string, Address>> parse_named_address(const std::string& text) {
+  const auto open = text.find('(');
+  const auto slash = text.find('/', open);
+  const auto close = text.find(')', slash);
+  if (open == std::string::npos || open == 0 || slash == std::string::npos || close == std::string::npos) {
+    return std::nullopt;
+  }
+  const std::string name = text.substr(0, open);
+  for (const char c : name) {
+    if (std::isalnum(static_cast<unsigned char>(c)) == 0 && c != '_') return std::nullopt;
+  }
+  const auto number = [](const std::string& t) -> std::optional<uint8_t> {
+    if (t.empty() || t.size() > 3 || !std::all_of(t.begin(), t.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+      return std::nullopt;
+    }
+    const int v = std::stoi(t);
+    return v <= 255 ? std::optional<uint8_t>(static_cast<uint8_t>(v)) : std::nullopt;
+  };
+  const auto sys = number(text.substr(open + 1, slash - open - 1));
+  const auto inst = number(text.substr(slash + 1, close - slash - 1));
+  uint8_t mbx = 0;
+  const std::string tail = text.substr(close + 1);
+  if (!tail.empty()) {
+    const auto m = tail[0] == '#' ? number(tail.substr(1)) : std::nullopt;
+    if (!m) return std::nullopt;
+    mbx = *m;
+  }
+  if (!sys || !inst) return std::nullopt;
+  return std::make_pair(name, Address::make(*sys, 0, *inst, mbx));
+}
+
 struct Target {
   Address address;
   std::string name;  // from the host file; empty when given as an address
+  std::string class_name;  // from its class description; empty: TiMS' name
+  [[nodiscard]] std::string address_text() const { return ::address_text(address, class_name); }
   [[nodiscard]] std::string label() const {
-    return name.empty() ? address.str() : name + " " + address.str();
+    return name.empty() ? address_text() : name + " " + address_text();
   }
 };
 
@@ -274,9 +321,88 @@ class Session {
     }
   }
 
+  // The description of the class of the component at `component` (GET_CLASS, its
+  // pages assembled and decoded), cached per system and class id: every component of
+  // a class describes it alike. nullptr when the component does not answer it (an
+  // older rackd) or its description is refused (the reason on stderr, once).
+  const rack::ClassDescription* describe(Address component) {
+    const uint32_t key = component.raw() & 0xFFFF0000u;
+    if (const auto it = classes_.find(key); it != classes_.end()) return it->second ? &*it->second : nullptr;
+    std::optional<rack::ClassDescription>& slot = classes_[key];
+    rack::ClassPageAssembler pages;
+    std::string error;
+    while (!pages.complete()) {
+      rack::ClassPageRequest q;
+      q.offset = pages.next_offset();
+      const ConstBuffer part = tims::buffer_of(q);
+      const CallResult r = endpoint_.call_with_retry(component.component(), msg::kGetClass,
+                                                     std::span<const ConstBuffer>(&part, 1), buffer_,
+                                                     {timeout_ns(), static_cast<uint32_t>(options_.retries + 1)});
+      if (r.status != CallStatus::kOk) {
+        error = std::string("no reply to GET_CLASS: ") + tims::describe(r.status);
+      } else if (r.reply.type != msg::kClass) {
+        error = std::string("GET_CLASS answered ") + reply_name(r.reply.type) +
+                (r.reply.type == msg::kError ? ": " + error_reason(r.body) : std::string());
+      } else if (pages.add(r.body, tims::body_is_native(r.reply), error)) {
+        continue;
+      }
+      break;
+    }
+    rack::ClassDescription d;
+    if (error.empty() && !rack::decode_class_description(pages.bytes(), d, error)) error = "class description: " + error;
+    if (!error.empty()) {
+      std::fprintf(stderr, "rackctl: %s: %s\n", component.component().str().c_str(), error.c_str());
+      return nullptr;
+    }
+    if (d.class_id != component.class_id()) {
+      std::fprintf(stderr, "rackctl: %s: describes class id 0x%02x, not its own\n", component.component().str().c_str(),
+                   d.class_id);
+      return nullptr;
+    }
+    slot = std::move(d);
+    return &*slot;
+  }
+
+  // The class name of `t`'s addresses from its description, when TiMS has no name
+  // for its class id (a class rackctl was not built with).
+  void name_class(Target& t) {
+    if (!t.class_name.empty() || tims::class_name(t.address.class_id()) != nullptr) return;
+    if (const rack::ClassDescription* d = describe(t.address)) t.class_name = d->class_name;
+  }
+
   // NAME (host-file name) or address -> the component's command mailbox.
   Target resolve(const std::string& text) {
-    if (const auto a = tims::parse_address(text)) return Target{a->component(), ""};
+    if (const auto a = tims::parse_address(text)) {
+      Target t{a->component(), "", ""};
+      name_class(t);
+      return t;
+    }
+    if (const auto named = parse_named_address(text)) {
+      // A class name TiMS does not know: the class whose description gives it, among
+      // the components discovered at that system and instance.
+      const auto& [cls, numeric] = *named;
+      std::optional<Target> found;
+      discover([&](const std::vector<tims::HostInfo>& hosts) {
+        for (const auto& h : hosts) {
+          for (const auto& c : h.components) {
+            if (c.address.system() != numeric.system() || c.address.instance() != numeric.instance()) continue;
+            const rack::ClassDescription* d = describe(c.address);
+            if (d != nullptr && (d->class_name == cls || d->impl == cls)) {
+              found = Target{c.address.component(), "", d->class_name};
+              return true;
+            }
+          }
+        }
+        return false;
+      });
+      if (!found) {
+        fail(kExitUnavailable, format("no component of a class named '%s' at system %u, instance %u answered "
+                                      "discovery within %lld ms on %s",
+                                      cls.c_str(), numeric.system(), numeric.instance(),
+                                      static_cast<long long>(options_.discover_ms), url().c_str()));
+      }
+      return *found;
+    }
     if (text.find('(') != std::string::npos) {
       fail(kExitUsage, "'" + text + "' is not an address (expected Class(system/instance), e.g. Generator(0/0))");
     }
@@ -285,13 +411,14 @@ class Session {
       for (const auto& h : hosts) {
         for (const auto& c : h.components) {
           if (c.name == text) {
-            found = Target{c.address.component(), c.name};
+            found = Target{c.address.component(), c.name, ""};
             return true;
           }
         }
       }
       return false;
     });
+    if (found) name_class(*found);
     if (!found) {
       fail(kExitUnavailable, format("no component named '%s' answered discovery within %lld ms on %s",
                                     text.c_str(), static_cast<long long>(options_.discover_ms),
@@ -451,6 +578,7 @@ class Session {
   tims::Endpoint fanout_endpoint_;
   tims::LcmTransport transport_;
   std::vector<std::byte> buffer_;
+  std::map<uint32_t, std::optional<rack::ClassDescription>> classes_;  // system | class id << 16
 };
 
 // ---------------------------------------------------------------- commands
@@ -464,10 +592,15 @@ const char* state_name(int8_t reply_type) {
   }
 }
 
-std::string class_label(Address a, const std::string& impl) {
-  const char* cls = tims::class_name(a.class_id());
-  const std::string c = cls != nullptr ? cls : format("Class0x%02x", a.class_id());
-  return impl.empty() ? c : c + "(" + impl + ")";
+// The class name of `a`: TiMS' name, else the one its class describes (GET_CLASS,
+// cached), else Class0xNN.
+std::string class_of(Session& s, Address a) {
+  if (const char* cls = tims::class_name(a.class_id())) return cls;
+  if (const rack::ClassDescription* d = s.describe(a)) return d->class_name;
+  return format("Class0x%02x", a.class_id());
+}
+std::string class_label(const std::string& cls, const std::string& impl) {
+  return impl.empty() ? cls : cls + "(" + impl + ")";
 }
 
 int cmd_list(Session& s, const Options& o) {
@@ -475,6 +608,7 @@ int cmd_list(Session& s, const Options& o) {
     tims::ComponentInfo info;
     std::string host;
     std::string state = "no reply";
+    std::string cls{};
   };
   const auto hosts = s.discover([](const std::vector<tims::HostInfo>&) { return false; });
   std::vector<Row> rows;
@@ -502,13 +636,14 @@ int cmd_list(Session& s, const Options& o) {
                  rows.size() - answered, rows.size(), static_cast<long long>(o.retries + 1),
                  static_cast<long long>(o.timeout_ms));
   }
+  for (auto& r : rows) r.cls = class_of(s, r.info.address);
   if (o.json) {
     std::string out = "[";
     for (std::size_t i = 0; i < rows.size(); ++i) {
       const auto& r = rows[i];
-      out += (i == 0 ? "" : ",") + std::string("{\"address\":") + quoted(r.info.address.str()) +
+      out += (i == 0 ? "" : ",") + std::string("{\"address\":") + quoted(address_text(r.info.address, r.cls)) +
              ",\"name\":" + quoted(r.info.name) + ",\"class\":" +
-             quoted(class_label(r.info.address, "")) + ",\"impl\":" + quoted(r.info.impl) +
+             quoted(r.cls) + ",\"impl\":" + quoted(r.info.impl) +
              ",\"state\":" + quoted(r.state) + ",\"host\":" + quoted(r.host) + "}";
     }
     std::printf("%s]\n", out.c_str());
@@ -516,8 +651,8 @@ int cmd_list(Session& s, const Options& o) {
   }
   std::printf("%-18s %-16s %-24s %-9s %s\n", "ADDRESS", "NAME", "CLASS(IMPL)", "STATE", "HOST");
   for (const auto& r : rows) {
-    std::printf("%-18s %-16s %-24s %-9s %s\n", r.info.address.str().c_str(), r.info.name.c_str(),
-                class_label(r.info.address, r.info.impl).c_str(), r.state.c_str(), r.host.c_str());
+    std::printf("%-18s %-16s %-24s %-9s %s\n", address_text(r.info.address, r.cls).c_str(), r.info.name.c_str(),
+                class_label(r.cls, r.info.impl).c_str(), r.state.c_str(), r.host.c_str());
   }
   return kExitOk;
 }
@@ -584,7 +719,7 @@ int cmd_status(Session& s, const Options& o) {
   }
   const char* mode = rack::describe(static_cast<rack::DataTaskMode>(st.data_task));
   if (o.json) {
-    std::string j = "{\"component\":" + quoted(t.address.str()) + ",\"name\":" +
+    std::string j = "{\"component\":" + quoted(t.address_text()) + ",\"name\":" +
                     (t.name.empty() ? std::string("null") : quoted(t.name)) + ",\"state\":" + quoted(state) +
                     ",\"data_task\":" + quoted(mode) + ",\"period_ns\":" + std::to_string(st.period_ns) +
                     ",\"cycles\":" + std::to_string(st.data.cycles) +
@@ -687,7 +822,7 @@ int cmd_latency(Session& s, const Options& o) {
   const std::size_t n = h.bucket_count;
   const auto u = [](uint64_t v) { return static_cast<unsigned long long>(v); };
   if (o.json) {
-    std::string j = "{\"component\":" + quoted(t.address.str()) + ",\"name\":" +
+    std::string j = "{\"component\":" + quoted(t.address_text()) + ",\"name\":" +
                     (t.name.empty() ? std::string("null") : quoted(t.name)) + ",\"data_task\":" + quoted(mode) +
                     ",\"period_ns\":" + std::to_string(h.period_ns) + ",\"cycles\":" + std::to_string(h.cycles) +
                     ",\"overruns\":" + std::to_string(h.overruns) + ",\"samples\":" + std::to_string(h.samples) +
@@ -746,6 +881,115 @@ std::string param_value(const wire::ParamRecord& p) {
 }
 std::string param_name(const wire::ParamRecord& p) { return std::string(p.name, strnlen(p.name, sizeof p.name)); }
 
+std::string limit_text(double v) { return std::isfinite(v) ? double_text(v) : (v > 0 ? "inf" : "-inf"); }
+
+// A parameter's declaration in one line: its doc, then [range unit, choices, flags].
+std::string parameter_spec_text(const rack::ParameterDescription& d) {
+  std::string extra;
+  const auto add = [&](const std::string& x) {
+    if (!extra.empty()) extra += ", ";
+    extra += x;
+  };
+  if (std::isfinite(d.min) || std::isfinite(d.max)) {
+    add(limit_text(d.min) + ".." + limit_text(d.max) + (d.unit.empty() ? "" : " " + d.unit));
+  }
+  if (!d.choices.empty()) {
+    std::string c;
+    for (const auto& x : d.choices) {
+      if (!c.empty()) c += '|';
+      c += x;
+    }
+    add(c);
+  }
+  if (!d.default_value.empty()) add("default " + d.default_value);
+  if ((d.flags & rack::ParameterDescription::kRequired) != 0) add("required");
+  if ((d.flags & rack::ParameterDescription::kInitOnly) != 0) add("read at start only");
+  return d.doc + (extra.empty() ? "" : " [" + extra + "]");
+}
+
+std::string parameter_spec_json(const rack::ParameterDescription& d) {
+  std::string choices = "[";
+  for (std::size_t i = 0; i < d.choices.size(); ++i) {
+    if (i > 0) choices += ',';
+    choices += quoted(d.choices[i]);
+  }
+  // Infinite limits are null (JSON has no infinity): unbounded.
+  return "{\"doc\":" + quoted(d.doc) + ",\"unit\":" + quoted(d.unit) + ",\"min\":" + double_text(d.min) +
+         ",\"max\":" + double_text(d.max) + ",\"default\":" + quoted(d.default_value) + ",\"choices\":" + choices +
+         "],\"required\":" + ((d.flags & rack::ParameterDescription::kRequired) != 0 ? "true" : "false") +
+         ",\"init_only\":" + ((d.flags & rack::ParameterDescription::kInitOnly) != 0 ? "true" : "false") + "}";
+}
+
+std::string type_text(const rack::TypeDescription& t) {
+  std::string out = t.name + " (" + std::to_string(t.size) + " bytes):";
+  for (const auto& f : t.fields) {
+    out += " " + f.name + ":" + rack::describe(f.kind);
+    if (f.count > 1) out += "[" + std::to_string(f.count) + "]";
+  }
+  return out;
+}
+
+// Every class running on the hosts discovered (or on HOST): what it describes.
+int cmd_classes(Session& s, const Options& o) {
+  const std::string only = o.args.empty() ? std::string() : o.args[0];
+  const auto hosts = s.discover([](const std::vector<tims::HostInfo>&) { return false; });
+  std::map<uint32_t, std::pair<Address, std::string>> seen;  // system | class -> a component, its host
+  for (const auto& h : hosts) {
+    if (!only.empty() && h.host != only) continue;
+    for (const auto& c : h.components) seen.try_emplace(c.address.raw() & 0xFFFF0000u, c.address.component(), h.host);
+  }
+  if (seen.empty()) {
+    fail(kExitUnavailable, only.empty() ? format("no rackd answered discovery within %lld ms on %s",
+                                                 static_cast<long long>(o.discover_ms), s.url().c_str())
+                                        : format("no host '%s' with components answered discovery within %lld ms on %s",
+                                                 only.c_str(), static_cast<long long>(o.discover_ms), s.url().c_str()));
+  }
+  std::string json = "[";
+  std::size_t undescribed = 0;
+  for (const auto& [key, where] : seen) {
+    const rack::ClassDescription* d = s.describe(where.first);
+    if (d == nullptr) {
+      ++undescribed;
+      continue;
+    }
+    if (o.json) {
+      std::string cmds = "[", params = "[";
+      for (const auto& c : d->commands) {
+        cmds += (cmds.size() > 1 ? "," : "") + std::string("{\"name\":") + quoted(c.name) +
+                ",\"type\":" + std::to_string(c.type) + ",\"summary\":" + quoted(c.summary) + ",\"body\":" +
+                (c.body ? quoted(type_text(*c.body)) : std::string("null")) + "}";
+      }
+      for (const auto& p : d->parameters) {
+        params += (params.size() > 1 ? "," : "") + std::string("{\"name\":") + quoted(p.name) +
+                  ",\"kind\":" + quoted(rack::describe(p.kind)) + ",\"spec\":" + parameter_spec_json(p) + "}";
+      }
+      json += (json.size() > 1 ? "," : "") + std::string("{\"host\":") + quoted(where.second) +
+              ",\"system\":" + std::to_string(where.first.system()) + ",\"class\":" + quoted(d->class_name) +
+              ",\"impl\":" + quoted(d->impl) + ",\"class_id\":" + std::to_string(d->class_id) +
+              ",\"summary\":" + quoted(d->summary) + ",\"data\":" +
+              (d->data ? quoted(type_text(*d->data)) : std::string("null")) + ",\"commands\":" + cmds +
+              "],\"parameters\":" + params + "]}";
+      continue;
+    }
+    std::printf("%s(%s) class 0x%02x on %s (system %u): %s\n", d->class_name.c_str(), d->impl.c_str(), d->class_id,
+                where.second.c_str(), where.first.system(), d->summary.c_str());
+    std::printf("  data      %s\n", d->data ? type_text(*d->data).c_str() : "(none)");
+    for (const auto& c : d->commands) {
+      std::printf("  command   %s %d %s - %s\n", c.name.c_str(), c.type, c.body ? type_text(*c.body).c_str() : "(no body)",
+                  c.summary.c_str());
+    }
+    for (const auto& p : d->parameters) {
+      std::printf("  param     %-20s %-6s %s\n", p.name.c_str(), rack::describe(p.kind), parameter_spec_text(p).c_str());
+    }
+  }
+  if (o.json) std::printf("%s]\n", json.c_str());
+  if (undescribed > 0) {
+    std::fprintf(stderr, "rackctl: classes: %zu class(es) gave no description (see above)\n", undescribed);
+    return kExitUnavailable;
+  }
+  return kExitOk;
+}
+
 int cmd_params(Session& s, const Options& o) {
   const Target t = s.resolve(o.args[0]);
   const CallResult r = s.call(t, msg::kGetParam);
@@ -760,21 +1004,35 @@ int cmd_params(Session& s, const Options& o) {
     (void)wire::read_payload(r.body.subspan(i * sizeof(wire::ParamRecord), sizeof(wire::ParamRecord)), native,
                              records[i]);
   }
+  // Docs, units and ranges from the class's description (GET_CLASS reuses the buffer
+  // the records were read from: they are copies by now).
+  const rack::ClassDescription* described = s.describe(t.address);
+  const auto spec_of = [&](const wire::ParamRecord& p) -> const rack::ParameterDescription* {
+    return described != nullptr ? described->find_parameter(param_name(p)) : nullptr;
+  };
   if (o.json) {
     std::string j = "[";
     for (std::size_t i = 0; i < records.size(); ++i) {
       const auto& p = records[i];
       const auto kind = static_cast<wire::ParamKind>(p.kind);
       const std::string v = kind == wire::ParamKind::kString ? quoted(param_value(p)) : param_value(p);
-      j += (i == 0 ? "" : ",") + std::string("{\"name\":") + quoted(param_name(p)) + ",\"kind\":" +
-           quoted(rack::describe(kind)) + ",\"value\":" + v + "}";
+      // "spec" (what the class declares) first: name, kind and value stay the
+      // object's end, as before descriptions.
+      j += i == 0 ? "{" : ",{";
+      if (const rack::ParameterDescription* d = spec_of(p)) j += "\"spec\":" + parameter_spec_json(*d) + ",";
+      j += "\"name\":" + quoted(param_name(p)) + ",\"kind\":" + quoted(rack::describe(kind)) + ",\"value\":" + v +
+           "}";
     }
     std::printf("%s]\n", j.c_str());
     return kExitOk;
   }
   for (const auto& p : records) {
-    std::printf("%-20s %-6s %s%s\n", param_name(p).c_str(), rack::describe(static_cast<wire::ParamKind>(p.kind)),
-                param_value(p).c_str(), (p.flags & 1u) != 0 ? "   (component)" : "");
+    std::string value = param_value(p);
+    const rack::ParameterDescription* d = spec_of(p);
+    if (d != nullptr && !d->unit.empty()) value += " " + d->unit;
+    std::printf("%-20s %-6s %-20s%s%s\n", param_name(p).c_str(), rack::describe(static_cast<wire::ParamKind>(p.kind)),
+                value.c_str(), (p.flags & 1u) != 0 ? " (component)" : "",
+                d != nullptr ? ("  " + parameter_spec_text(*d)).c_str() : "");
   }
   return kExitOk;
 }
@@ -837,19 +1095,20 @@ int cmd_set_param(Session& s, const Options& o) {
 }
 
 // One DATA body (SampleHeader + sample) as a JSON line.
-std::string sample_json(const Target& t, const MessageHeader& h, std::span<const std::byte> body) {
+// `type`: the class's data type from its description (nullptr: unknown, printed as hex).
+std::string sample_json(const Target& t, const rack::TypeDescription* type, const MessageHeader& h,
+                        std::span<const std::byte> body) {
   wire::SampleHeader sh;
   if (body.size() < sizeof sh ||
       !wire::read_payload(body.first(sizeof sh), tims::body_is_native(h), sh)) {
     fail(kExitError, format("%s: DATA of %zu bytes is shorter than a sample header", t.label().c_str(), body.size()));
   }
   const auto sample = body.subspan(sizeof sh);
-  std::string j = "{\"component\":" + quoted(t.address.str()) + ",\"name\":" +
+  std::string j = "{\"component\":" + quoted(t.address_text()) + ",\"name\":" +
                   (t.name.empty() ? std::string("null") : quoted(t.name)) + ",\"time_ns\":" +
                   std::to_string(sh.time_ns) + ",\"sequence\":" + std::to_string(sh.sequence);
-  const auto* type = rack::interfaces::data_type_for_class(t.address.class_id());
   if (type != nullptr && type->size == sample.size()) {
-    j += ",\"data\":" + rack::payload_to_json(type->fields, sample, tims::body_is_native(h));
+    j += ",\"data\":" + rack::payload_to_json(type->field_table(), sample, tims::body_is_native(h));
   } else {
     std::string hex;
     static constexpr char kDigits[] = "0123456789abcdef";
@@ -868,7 +1127,11 @@ int cmd_get_data(Session& s, const Options& o) {
   req.time_ns = o.time_ns;
   const CallResult r = s.call(t, msg::kGetData, req);
   Session::expect(t, r, msg::kData, "GET_DATA");
-  std::printf("%s\n", sample_json(t, r.reply, r.body).c_str());
+  // The reply's body lives in the session's buffer, which GET_CLASS reuses: a copy.
+  const MessageHeader reply = r.reply;
+  const std::vector<std::byte> body(r.body.begin(), r.body.end());
+  const rack::ClassDescription* d = s.describe(t.address);
+  std::printf("%s\n", sample_json(t, d != nullptr && d->data ? &*d->data : nullptr, reply, body).c_str());
   return kExitOk;
 }
 
@@ -878,6 +1141,8 @@ extern "C" void on_stop_signal(int) { g_stop.store(true, std::memory_order_relax
 
 int cmd_watch(Session& s, const Options& o) {
   const Target t = s.resolve(o.args[0]);
+  const rack::ClassDescription* described = s.describe(t.address);
+  const rack::TypeDescription* type = described != nullptr && described->data ? &*described->data : nullptr;
   struct sigaction sa {};
   sa.sa_handler = on_stop_signal;
   sigemptyset(&sa.sa_mask);
@@ -938,7 +1203,7 @@ int cmd_watch(Session& s, const Options& o) {
       fail(kExitError, t.label() + ": " + error_reason(body));
     }
     if (got.header.type != msg::kData) continue;
-    const std::string line = sample_json(t, got.header, body);
+    const std::string line = sample_json(t, type, got.header, body);
     if (std::printf("%s\n", line.c_str()) < 0 || std::fflush(stdout) != 0) break;  // stdout closed
     last_sample = rt::monotonic_ns();
     if (o.count > 0 && ++received >= o.count) break;
@@ -958,26 +1223,33 @@ int cmd_send(Session& s, const Options& o) {
                          "..127 (generic commands have their own rackctl commands), got '" + o.args[1] + "'");
   }
   const Target t = s.resolve(o.args[0]);
-  const auto known = rack::interfaces::commands_for_class(t.address.class_id());
-  const rack::interfaces::CommandInfo* info = nullptr;
+  // The class's commands as it describes them (GET_CLASS).
+  const rack::ClassDescription* described = s.describe(t.address);
+  const rack::CommandDescription* info = nullptr;
   int8_t cmd = 0;
   if (number) {
     cmd = static_cast<int8_t>(*number);
-    for (const auto& c : known) {
-      if (c.type == cmd) info = &c;
+    if (described != nullptr) {
+      for (const auto& c : described->commands) {
+        if (c.type == cmd) info = &c;
+      }
     }
   } else {
     std::string upper = o.args[1];
     for (char& ch : upper) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
     std::string names;
-    for (const auto& c : known) {
-      if (upper == c.name) info = &c;
-      names += names.empty() ? c.name : std::string(", ") + c.name;
+    if (described != nullptr) {
+      for (const auto& c : described->commands) {
+        if (upper == c.name) info = &c;
+        if (!names.empty()) names += ", ";
+        names += c.name;
+      }
     }
     if (info == nullptr) {
       fail(kExitUsage, format("%s: class %s has no command '%s' (%s)", t.label().c_str(),
-                              tims::class_name(t.address.class_id()), o.args[1].c_str(),
-                              names.empty() ? "rackctl knows none of its commands: give the number"
+                              described != nullptr ? described->class_name.c_str() : "(not described)",
+                              o.args[1].c_str(),
+                              names.empty() ? "no named commands known: give the number"
                                             : ("known: " + names).c_str()));
     }
     cmd = info->type;
@@ -986,10 +1258,11 @@ int cmd_send(Session& s, const Options& o) {
   if (o.i64 && !fields_given.empty()) fail(kExitUsage, "send: give either --i64 or FIELD=VALUE arguments, not both");
   std::vector<std::byte> body;
   if (!fields_given.empty()) {
-    if (info == nullptr || info->body == nullptr) {
+    if (info == nullptr || !info->body) {
       fail(kExitUsage, format("%s: command %s takes no fields%s", t.label().c_str(), o.args[1].c_str(),
-                              info == nullptr ? " that rackctl knows (use --i64 or a named command)" : ""));
+                              info == nullptr ? " that its class describes (use --i64 or a named command)" : ""));
     }
+    const std::vector<tims::FieldDesc> table = info->body->field_table();
     body.assign(info->body->size, std::byte{0});
     for (const std::string& arg : fields_given) {
       const auto eq = arg.find('=');
@@ -997,21 +1270,21 @@ int cmd_send(Session& s, const Options& o) {
       const std::string key = arg.substr(0, eq);
       const tims::FieldDesc* field = nullptr;
       std::string names;
-      for (const auto& f : info->body->fields) {
+      for (const auto& f : table) {
         if (key == f.name) field = &f;
         names += names.empty() ? f.name : std::string(", ") + f.name;
       }
       if (field == nullptr) {
-        fail(kExitUsage, format("send %s: %s has no field '%s' (fields: %s)", info->name, info->body->type_name,
-                                key.c_str(), names.c_str()));
+        fail(kExitUsage, format("send %s: %s has no field '%s' (fields: %s)", info->name.c_str(),
+                                info->body->name.c_str(), key.c_str(), names.c_str()));
       }
       if (const std::string why = rack::set_field_from_text(*field, body, arg.substr(eq + 1)); !why.empty()) {
-        fail(kExitUsage, format("send %s: field '%s': %s", info->name, key.c_str(), why.c_str()));
+        fail(kExitUsage, format("send %s: field '%s': %s", info->name.c_str(), key.c_str(), why.c_str()));
       }
     }
     // Fields not given are 0: say what goes out, so that nothing is a silent default.
-    std::fprintf(stderr, "rackctl: %s %s %s\n", t.label().c_str(), info->name,
-                 rack::payload_to_json(info->body->fields, body, true).c_str());
+    std::fprintf(stderr, "rackctl: %s %s %s\n", t.label().c_str(), info->name.c_str(),
+                 rack::payload_to_json(table, body, true).c_str());
   } else if (o.i64) {
     body.resize(sizeof(int64_t));
     std::memcpy(body.data(), &*o.i64, sizeof(int64_t));
@@ -1019,6 +1292,7 @@ int cmd_send(Session& s, const Options& o) {
   const ConstBuffer part{body.data(), body.size()};
   const CallResult r = body.empty() ? s.call(t, cmd) : s.call(t, cmd, std::span<const ConstBuffer>(&part, 1));
   const std::string what = info != nullptr ? info->name : o.args[1];
+
   if (r.reply.type == msg::kError) fail(kExitError, t.label() + ": command " + what + ": " + error_reason(r.body));
   std::string hex;
   for (std::size_t k = 0; k < r.body.size() && k < 256; ++k) hex += format("%02x", static_cast<unsigned>(r.body[k]));
@@ -1074,8 +1348,21 @@ const std::vector<Command>& commands() {
        "  rackctl latency generator",
        cmd_latency},
       {"params", "params NAME [--json]", 1, 1, {"--json"},
-       "Prints the component's runtime parameters, one per line: name kind value.",
+       "Prints the component's runtime parameters, one per line: name, kind, value\n"
+       "with its unit, then what its class declares: the one-line doc, [range and\n"
+       "unit, choices, default, required, read at start only]. --json: one array of\n"
+       "{spec: {doc, unit, min, max (null: unbounded), default, choices, required,\n"
+       "init_only}, name, kind, value} (no spec when the class gives no description).",
        cmd_params},
+      {"classes", "classes [HOST] [--json]", 0, 1, {"--json"},
+       "Lists the component classes running on every host discovered (or on HOST, by\n"
+       "its host name) as each class describes itself to tools (GET_CLASS): class\n"
+       "name (the one in addresses) and implementation, TiMS class id, summary, data\n"
+       "type with its fields, commands with their body fields, parameters with docs,\n"
+       "units and ranges. rackctl needs no class compiled in: a plug-in class is\n"
+       "listed, printed (get-data, watch), addressed (Counter(2/0)) and sent commands\n"
+       "by name like a built-in one. --json: one JSON array.",
+       cmd_classes},
       {"set-param", "set-param NAME KEY VALUE", 3, 3, {},
        "Sets one runtime parameter. VALUE is parsed as the parameter's kind (int,\n"
        "float, bool as true|false|1|0, string); a value that does not parse is a\n"
@@ -1086,7 +1373,8 @@ const std::vector<Command>& commands() {
        "Prints one sample as a JSON line:\n"
        "  {\"component\":...,\"name\":...,\"time_ns\":...,\"sequence\":...,\"data\":{...}}\n"
        "--time T: the sample nearest host time T (ns); default 0 = the newest.\n"
-       "Classes whose data type rackctl does not know print \"data_hex\" instead.",
+       "The field names come from the class's description (GET_CLASS); a component\n"
+       "that gives none (an older rackd) prints \"data_hex\" instead.",
        cmd_get_data},
       {"watch", "watch NAME [--period MS] [--count N]", 1, 1, {"--period", "--count"},
        "Subscribes (GET_CONT_DATA) and prints one JSON line per sample (as get-data).\n"
@@ -1097,8 +1385,8 @@ const std::vector<Command>& commands() {
        "lease_ms): renewed every lease / 4, so a killed watch frees its slot in time.",
        cmd_watch},
       {"send", "send NAME CMD [FIELD=VALUE ...] [--i64 N]", 2, 66, {"--i64"},
-       "Sends class command CMD, a number from 21 to 127 or the command's name (below;\n"
-       "each class documents its commands in components/interfaces), and prints the\n"
+       "Sends class command CMD, a number from 21 to 127 or the command's name (as the\n"
+       "class describes it: rackctl classes lists them), and prints the\n"
        "reply type and body (hex). FIELD=VALUE arguments fill the command's body:\n"
        "numbers, true|false, arrays as comma lists (x=1,2.5,4), addresses as 0x...;\n"
        "fields not given are 0 (the body sent is printed on stderr). A value that does\n"
@@ -1130,20 +1418,8 @@ const Command* find_command(const std::string& name) {
 void print_command_help(const Command& c, FILE* out) {
   std::fprintf(out, "usage: rackctl [options] %s\n\n%s\n", c.synopsis, c.help);
   if (std::string(c.name) == "send") {
-    std::fprintf(out, "\nCommands rackctl knows by name (CLASS: NAME number fields - what it does):\n");
-    for (unsigned id = 0; id < 256; ++id) {
-      for (const auto& cmd : rack::interfaces::commands_for_class(static_cast<uint8_t>(id))) {
-        std::string fields;
-        if (cmd.body != nullptr) {
-          for (const auto& f : cmd.body->fields) {
-            if (!fields.empty()) fields += ',';
-            fields += f.name;
-          }
-        }
-        std::fprintf(out, "  %s: %s %d %s - %s\n", tims::class_name(static_cast<uint8_t>(id)), cmd.name, cmd.type,
-                     fields.empty() ? "(no body)" : fields.c_str(), cmd.summary);
-      }
-    }
+    std::fprintf(out, "\nEach class describes its commands (names, numbers, body fields) to rackctl:\n"
+                      "'rackctl classes [HOST]' lists them for the classes running there.\n");
   }
   std::fprintf(out, "\n(rackctl --help for the common options)\n");
 }

@@ -230,6 +230,7 @@ class Component {
   void call_off() noexcept;
   void handle_get_param(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept;
   void handle_set_param(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept;
+  void handle_get_class(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept;
 
  protected:
   // For DataComponentBase: the data task reports a failed loop().
@@ -252,6 +253,9 @@ class Component {
   std::unique_ptr<tims::Endpoint> command_endpoint_;
   std::vector<std::byte> command_buffer_;
   std::vector<wire::ParamRecord> param_records_;
+  // Its class's description (rack/core/class_description.h), encoded by the host
+  // loader before the tasks start; GET_CLASS serves pages of it (empty: ERROR).
+  std::vector<std::byte> class_description_;
   // State: written by the command task, read by everyone (acquire/release so a
   // reader that sees ENABLED also sees what on() wrote).
   std::atomic<ComponentState> state_{ComponentState::kDisabled};

@@ -41,6 +41,9 @@ class Parameter {
     // Read only by init() (a file to load, a device to open): SET_PARAM refuses to
     // change it (the running component would not see the new value; restart rackd).
     bool init_only = false;
+    // Of a number, for tools (rackctl params, the class description): "m", "m/s",
+    // "rad", "ms", "Hz"; empty: none, or not a number.
+    std::string unit{};
   };
 
   Parameter(std::string name, ParamKind kind, Spec spec);

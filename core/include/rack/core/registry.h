@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "rack/core/class_description.h"
 #include "rack/core/class_types.h"
 #include "rack/core/component.h"
 
@@ -47,5 +48,11 @@ class ComponentRegistry {
   std::vector<void*> plugins_;  // kept open for the process lifetime
 };
 
+// The description of `cls` that its components serve (GET_CLASS), with the
+// parameters `params` declares (a freshly made component's: the defaults are the
+// declared values). The class name of its addresses is TiMS' name for its class id,
+// else its impl name. Throws std::invalid_argument when the class breaks a limit of
+// the description (rack/core/class_description.h). Not RT-safe.
+[[nodiscard]] ClassDescription describe_class(const ComponentClass& cls, const ParameterSet& params);
 
 }  // namespace rack

@@ -205,7 +205,7 @@ class AccessControl {
 
 // Parses a message type name (RACK's generic ones: on, off, get_status, get_data,
 // get_cont_data, stop_cont_data, get_next_data, get_param, set_param, get_stats,
-// get_latency, and
+// get_latency, get_class, and
 // the replies ok, error, data, ...) or a number -128..127. false: unknown. Not RT-safe.
 [[nodiscard]] bool parse_message_type(const std::string& text, int8_t& out) noexcept;
 

@@ -1,0 +1,330 @@
+// Class descriptions (rack/core/class_description.h): the codec round-trips and
+// refuses malformed input with its offset; pages assemble; a running component
+// answers GET_CLASS with its class; every built-in class is described as declared
+// and its data size is the payload its component publishes.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "rack/components/builtin.h"
+#include "rack/core/class_description.h"
+#include "rack/core/data_component.h"
+#include "rack/core/registry.h"
+#include "rack/tims/message.h"
+#include "test_support.h"
+
+namespace rack {
+namespace {
+
+template <typename T>
+std::span<const std::byte> bytes_of(const T& v) {
+  return {reinterpret_cast<const std::byte*>(&v), sizeof v};
+}
+
+ClassDescription sample_description() {
+  ClassDescription d;
+  d.impl = "Counter";
+  d.class_name = "Counter";
+  d.class_id = 0x91;
+  d.summary = "test: counts, with a reset command";
+  TypeDescription data{"CounterData", 24, {{"count", tims::FieldKind::kI64, 0, 1},
+                                           {"rate", tims::FieldKind::kF64, 8, 1},
+                                           {"label", tims::FieldKind::kChar, 16, 8}}};
+  d.data = data;
+  CommandDescription reset{"RESET", 21, "start counting again from `start`", TypeDescription{"CounterReset", 8, {{"start", tims::FieldKind::kI64, 0, 1}}}};
+  d.commands.push_back(reset);
+  d.commands.push_back({"FREEZE", 22, "stop counting", std::nullopt});
+  ParameterDescription step;
+  step.name = "step";
+  step.kind = wire::ParamKind::kFloat;
+  step.unit = "1/s";
+  step.min = 0.0;
+  step.max = std::numeric_limits<double>::infinity();
+  step.default_value = "1";
+  step.doc = "how much the count grows per cycle";
+  d.parameters.push_back(step);
+  ParameterDescription mode;
+  mode.name = "mode";
+  mode.kind = wire::ParamKind::kString;
+  mode.flags = ParameterDescription::kInitOnly | ParameterDescription::kRequired;
+  mode.min = -std::numeric_limits<double>::infinity();
+  mode.max = std::numeric_limits<double>::infinity();
+  mode.default_value = "up";
+  mode.doc = "direction";
+  mode.choices = {"up", "down"};
+  d.parameters.push_back(mode);
+  return d;
+}
+
+TEST(ClassDescriptionTest, RoundTripsEveryPart) {
+  const ClassDescription d = sample_description();
+  const std::vector<std::byte> bytes = encode_class_description(d);
+  ClassDescription back;
+  std::string error;
+  ASSERT_TRUE(decode_class_description(bytes, back, error)) << error;
+  EXPECT_EQ(back, d);
+  EXPECT_EQ(back.find_command("RESET")->body->fields.at(0).name, "start");
+  EXPECT_TRUE(std::isinf(back.find_parameter("step")->max));
+  EXPECT_EQ(back.find_parameter("step")->unit, "1/s");
+  const auto table = back.data->field_table();
+  ASSERT_EQ(table.size(), 3u);
+  EXPECT_STREQ(table[2].name, "label");
+  EXPECT_EQ(table[2].count, 8u);
+}
+
+TEST(ClassDescriptionTest, EveryTruncationIsRefusedWithItsOffset) {
+  const std::vector<std::byte> bytes = encode_class_description(sample_description());
+  for (std::size_t n = 0; n < bytes.size(); ++n) {
+    ClassDescription out;
+    std::string error;
+    EXPECT_FALSE(decode_class_description(std::span<const std::byte>(bytes).first(n), out, error)) << n;
+    EXPECT_EQ(error.rfind("byte ", 0), 0u) << error;
+  }
+  std::vector<std::byte> longer = bytes;
+  longer.push_back(std::byte{0});
+  ClassDescription out;
+  std::string error;
+  EXPECT_FALSE(decode_class_description(longer, out, error));
+  EXPECT_NE(error.find("1 bytes after the end"), std::string::npos) << error;
+}
+
+// Finds `text` (a length-prefixed string of the encoding) and returns the offset of its bytes.
+std::size_t find_text(const std::vector<std::byte>& bytes, const std::string& text) {
+  for (std::size_t i = 0; i + text.size() <= bytes.size(); ++i) {
+    if (std::memcmp(bytes.data() + i, text.data(), text.size()) == 0) return i;
+  }
+  ADD_FAILURE() << "no '" << text << "' in the encoding";
+  return 0;
+}
+
+TEST(ClassDescriptionTest, RefusesWhatToolsMustNotTrust) {
+  const std::vector<std::byte> good = encode_class_description(sample_description());
+  auto refused = [&](std::vector<std::byte> bytes, const std::string& expected) {
+    ClassDescription out;
+    std::string error;
+    EXPECT_FALSE(decode_class_description(bytes, out, error)) << expected;
+    EXPECT_NE(error.find(expected), std::string::npos) << error;
+  };
+  {  // A control character in a doc (an escape sequence for the terminal).
+    auto b = good;
+    b[find_text(b, "direction")] = std::byte{0x1B};
+    refused(b, "parameter 1 'mode': parameter doc has a control character");
+  }
+  {  // A field name that is not a name.
+    auto b = good;
+    b[find_text(b, "rate")] = std::byte{' '};
+    refused(b, "field name is not a name");
+  }
+  {  // A field past its type: label's count 8 -> 9 (offset 16 + 9 > 24).
+    auto b = good;
+    const std::size_t at = find_text(b, "label") + 5 + 1 + 4;  // name, kind, offset
+    b[at] = std::byte{9};
+    refused(b, "does not lie inside its 24 bytes");
+  }
+  {  // An unknown field kind.
+    auto b = good;
+    b[find_text(b, "label") + 5] = std::byte{200};
+    refused(b, "unknown kind 200");
+  }
+  {  // A command type that is a generic message.
+    auto b = good;
+    b[find_text(b, "FREEZE") + 6] = std::byte{4};
+    refused(b, "type 4 is not a class command");
+  }
+  {  // Another version.
+    auto b = good;
+    b[4] = std::byte{2};
+    refused(b, "version 2");
+  }
+  {  // Not a description at all.
+    auto b = good;
+    b[0] = std::byte{'X'};
+    refused(b, "not a class description");
+  }
+  {  // A string length beyond the limit.
+    auto b = good;
+    const std::size_t at = find_text(b, "Counter") - 2;
+    b[at] = std::byte{0xFF};
+    b[at + 1] = std::byte{0xFF};
+    refused(b, "at most 64");
+  }
+}
+
+TEST(ClassDescriptionTest, EncoderRefusesWhatTheDecoderWould) {
+  ClassDescription d = sample_description();
+  d.parameters[0].doc = "bell\a";
+  EXPECT_THROW((void)encode_class_description(d), std::invalid_argument);
+  d = sample_description();
+  d.data->fields[2].count = 9;
+  EXPECT_THROW((void)encode_class_description(d), std::invalid_argument);
+  d = sample_description();
+  d.commands[0].name = "two words";
+  EXPECT_THROW((void)encode_class_description(d), std::invalid_argument);
+}
+
+TEST(ClassDescriptionTest, PagesAssembleAndRefuseAnotherPage) {
+  ClassDescription d = sample_description();
+  for (int i = 0; i < 60; ++i) {  // about 20 KB: three pages
+    ParameterDescription p = d.parameters[0];
+    p.name = std::to_string(i);
+    p.name.insert(0, 1, 'p');
+    p.doc = std::string(300, 'd');
+    d.parameters.push_back(p);
+  }
+  const std::vector<std::byte> bytes = encode_class_description(d);
+  ASSERT_GT(bytes.size(), 2 * kClassPageBytes);
+  ClassPageAssembler assembler;
+  int pages = 0;
+  while (!assembler.complete()) {
+    ClassPageRequest q;
+    q.offset = assembler.next_offset();
+    ClassPageHeader h;
+    std::span<const std::byte> page;
+    ASSERT_EQ(class_page(bytes, bytes_of(q), true, h, page), nullptr);
+    std::vector<std::byte> body(sizeof h + page.size());
+    std::memcpy(body.data(), &h, sizeof h);
+    std::memcpy(body.data() + sizeof h, page.data(), page.size());
+    std::string error;
+    ASSERT_TRUE(assembler.add(body, true, error)) << error;
+    ASSERT_LT(++pages, 10);
+  }
+  EXPECT_EQ(pages, 3);
+  ClassDescription back;
+  std::string error;
+  ASSERT_TRUE(decode_class_description(assembler.bytes(), back, error)) << error;
+  EXPECT_EQ(back, d);
+
+  // A page at another offset, a changed total, an offset past the end.
+  ClassPageAssembler a2;
+  ClassPageHeader h{static_cast<uint32_t>(bytes.size()), 8192};
+  std::vector<std::byte> body(sizeof h + kClassPageBytes);
+  std::memcpy(body.data(), &h, sizeof h);
+  EXPECT_FALSE(a2.add(body, true, error));
+  EXPECT_NE(error.find("offset 8192, 0 asked"), std::string::npos) << error;
+  ClassPageRequest past;
+  past.offset = static_cast<uint32_t>(bytes.size());
+  std::span<const std::byte> page;
+  EXPECT_NE(class_page(bytes, bytes_of(past), true, h, page), nullptr);
+}
+
+// A running component answers GET_CLASS with its class's description.
+TEST(ClassDescriptionTest, ComponentAnswersGetClass) {
+  test::HostUnderTest host(R"(
+system: 0
+lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task: {period_ms: 10}
+)");
+  const tims::Address gen = host.address_of("gen");
+  ClassPageAssembler assembler;
+  while (!assembler.complete()) {
+    ClassPageRequest q;
+    q.offset = assembler.next_offset();
+    const auto r = host.call_with(gen, tims::msg::kGetClass, q);
+    ASSERT_EQ(r.status, tims::CallStatus::kOk);
+    ASSERT_EQ(r.type, tims::msg::kClass) << r.error_text();
+    std::string error;
+    ASSERT_TRUE(assembler.add(std::span(reinterpret_cast<const std::byte*>(r.body.data()), r.body.size()), true, error))
+        << error;
+  }
+  ClassDescription d;
+  std::string error;
+  ASSERT_TRUE(decode_class_description(assembler.bytes(), d, error)) << error;
+  EXPECT_EQ(d.impl, "Generator");
+  EXPECT_EQ(d.class_name, "Generator");
+  EXPECT_EQ(d.class_id, tims::classes::kGenerator);
+  ASSERT_TRUE(d.data.has_value());
+  EXPECT_NE(d.find_parameter(Component::kLogLevelParam), nullptr);
+  ASSERT_NE(d.find_parameter("frequency_hz"), nullptr);
+  EXPECT_EQ(d.find_parameter("frequency_hz")->unit, "Hz");
+  EXPECT_EQ(d.find_parameter("frequency_hz")->default_value, "0.5");
+
+  // A malformed request is refused with its reason, an offset past the end too.
+  const auto bad = host.call(gen, tims::msg::kGetClass, "abc", 3);
+  EXPECT_EQ(bad.type, tims::msg::kError);
+  EXPECT_NE(bad.error_text().find("GET_CLASS"), std::string::npos);
+  ClassPageRequest past;
+  past.offset = 1u << 30;
+  EXPECT_EQ(host.call_with(gen, tims::msg::kGetClass, past).type, tims::msg::kError);
+}
+
+// Issue 19's test of item 3: every built-in class is described as it is declared,
+// its description survives the GET_CLASS paging and the decoder, and its data size is
+// the payload its component publishes.
+TEST(ClassDescriptionTest, EveryBuiltinClassIsDescribedAsDeclared) {
+  ComponentRegistry registry;
+  components::register_builtin(registry);
+  const auto classes = registry.all();
+  ASSERT_GE(classes.size(), 20u);
+  for (const ComponentClass* cls : classes) {
+    SCOPED_TRACE(cls->impl);
+    const std::unique_ptr<Component> c = cls->make();
+    const ClassDescription d = describe_class(*cls, c->parameters());
+    std::vector<std::byte> bytes;
+    ASSERT_NO_THROW(bytes = encode_class_description(d));
+    // Through the pages the command task serves.
+    ClassPageAssembler assembler;
+    while (!assembler.complete()) {
+      ClassPageRequest q;
+      q.offset = assembler.next_offset();
+      ClassPageHeader h;
+      std::span<const std::byte> page;
+      ASSERT_EQ(class_page(bytes, bytes_of(q), true, h, page), nullptr);
+      std::vector<std::byte> body(sizeof h + page.size());
+      std::memcpy(body.data(), &h, sizeof h);
+      std::memcpy(body.data() + sizeof h, page.data(), page.size());
+      std::string error;
+      ASSERT_TRUE(assembler.add(body, true, error)) << error;
+    }
+    ClassDescription back;
+    std::string error;
+    ASSERT_TRUE(decode_class_description(assembler.bytes(), back, error)) << error;
+    EXPECT_EQ(back, d);
+
+    // As declared.
+    EXPECT_EQ(back.impl, cls->impl);
+    EXPECT_EQ(back.class_id, cls->class_id);
+    EXPECT_EQ(back.summary, cls->description);
+    ASSERT_EQ(back.parameters.size(), c->parameters().size());
+    for (std::size_t i = 0; i < back.parameters.size(); ++i) {
+      EXPECT_EQ(back.parameters[i].name, c->parameters().at(i).name());
+      EXPECT_EQ(back.parameters[i].doc, c->parameters().at(i).spec().doc);
+      EXPECT_EQ(back.parameters[i].kind, c->parameters().at(i).kind());
+    }
+    ASSERT_EQ(back.commands.size(), cls->commands.size());
+    for (std::size_t i = 0; i < back.commands.size(); ++i) {
+      EXPECT_EQ(back.commands[i].name, cls->commands[i].name);
+      EXPECT_EQ(back.commands[i].type, cls->commands[i].type);
+      ASSERT_EQ(back.commands[i].body.has_value(), cls->commands[i].body != nullptr);
+      if (back.commands[i].body) {
+        EXPECT_EQ(back.commands[i].body->size, cls->commands[i].body->size);
+      }
+    }
+
+    // The data type is what the component publishes: its sample size and field table.
+    const auto* producer = dynamic_cast<const DataComponentBase*>(c.get());
+    if (producer == nullptr) {
+      EXPECT_FALSE(back.data.has_value()) << "describes data but publishes none";
+      continue;
+    }
+    ASSERT_TRUE(back.data.has_value()) << "publishes " << producer->payload_size() << "-byte samples, describes none";
+    EXPECT_EQ(back.data->size, producer->payload_size());
+    const auto fields = producer->payload_fields();
+    ASSERT_EQ(back.data->fields.size(), fields.size());
+    for (std::size_t i = 0; i < fields.size(); ++i) {
+      EXPECT_EQ(back.data->fields[i].name, fields[i].name);
+      EXPECT_EQ(back.data->fields[i].kind, fields[i].kind);
+      EXPECT_EQ(back.data->fields[i].offset, fields[i].offset);
+      EXPECT_EQ(back.data->fields[i].count, fields[i].count);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace rack
