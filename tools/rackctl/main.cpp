@@ -46,6 +46,10 @@
 #include "rack/tims/message.h"
 #include "rack/tims/router.h"
 #include "rack/tims/tool_address.h"
+#include "rack/version.h"
+
+#include "doctor.h"
+#include "stream_stats.h"
 
 namespace {
 
@@ -92,6 +96,11 @@ commands:
   send NAME CMD [FIELD=VALUE ...] [--i64 N]
                                 a class command (number 21..127 or its name, e.g.
                                 INIT) with its body, and the reply
+  hz NAME [--window N]          rate of a data stream: min/max/mean/std of its period
+  bw NAME [--window N]          bandwidth of a data stream, message sizes
+  doctor [--json]               check this host for real time (RT limits, memlock,
+                                multicast route, rmem_max, PREEMPT_RT, ...), each
+                                with the fix
   keygen FILE                   write a new TiMS link key file (mode 0600) for key_file
   help [COMMAND]                this text, or a command's
 
@@ -113,6 +122,7 @@ options:
                      without it, hosts whose network has a key drop what rackctl
                      sends
   -h, --help         this text; after a command: the command's help
+  --version          the version (CMake project version, git describe)
 
 exit codes: 0 ok, 1 the component answered ERROR, 2 usage error, 3 not available
 (NOT_AVAILABLE, unknown name, or no reply within the timeout).
@@ -131,9 +141,11 @@ struct Options {
   int64_t retries = 1;
   bool json = false;
   bool help = false;
+  bool version = false;
   int64_t time_ns = 0;     // get-data --time
   double period_ms = 0.0;  // watch --period
-  int64_t count = 0;       // watch --count (0: until SIGINT/SIGTERM)
+  int64_t count = 0;       // watch --count (0: until SIGINT/SIGTERM); hz/bw: reports
+  int64_t window = 0;      // hz/bw --window (0: the command's default)
   std::optional<int64_t> i64;  // send --i64: an 8-byte body
   std::set<std::string> given;  // command-specific options seen (checked per command)
   std::string command;
@@ -1027,6 +1039,118 @@ int cmd_send(Session& s, const Options& o) {
   return kExitOk;
 }
 
+// ---------------------------------------------------------------- hz, bw, doctor
+
+// Subscribes to NAME's data (as watch does: GET_CONT_DATA, lease renewed) and calls
+// sample(arrival_ns, message_bytes) for each DATA, tick(now) every 100 ms at most,
+// until tick returns false or SIGINT/SIGTERM (0), ERROR (exit 1) or 5 s of silence (3).
+template <typename Sample, typename Tick>
+void stream_samples(Session& s, const Target& t, double period_ms, Sample sample, Tick tick) {
+  struct sigaction sa {};
+  sa.sa_handler = on_stop_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+  tims::Mailbox& data = s.data_mailbox();
+  wire::ContDataRequest req;
+  req.period_ns = static_cast<int64_t>(std::llround(period_ms * 1e6));
+  req.mailbox = data.address().raw();
+  const CallResult r = s.call(t, msg::kGetContData, req);
+  Session::expect(t, r, msg::kContData, "GET_CONT_DATA");
+  wire::ContDataReply rep;
+  if (!wire::read_payload(r.body, tims::body_is_native(r.reply), rep)) {
+    fail(kExitError, t.label() + ": GET_CONT_DATA: malformed CONT_DATA reply");
+  }
+  const auto stop_cont_data = [&] {
+    wire::StopContDataRequest stop;
+    stop.mailbox = data.address().raw();
+    const ConstBuffer part = tims::buffer_of(stop);
+    (void)s.endpoint().call(t.address, msg::kStopContData, std::span<const ConstBuffer>(&part, 1), s.buffer(),
+                            s.timeout_ns());
+  };
+  const int64_t silence_ns = std::max<int64_t>(5 * rt::kNsPerSec, 2 * rep.period_ns + s.timeout_ns());
+  const int64_t renew_every = rep.lease_ns > 0 ? rep.lease_ns / 4 : 0;
+  int64_t renew_at = rt::monotonic_ns() + renew_every;
+  std::vector<std::byte> buf(data.slot_size());
+  int64_t last_sample = rt::monotonic_ns();
+  while (!g_stop.load(std::memory_order_relaxed)) {
+    const int64_t now = rt::monotonic_ns();
+    if (!tick(now)) break;
+    if (renew_every > 0 && now >= renew_at) {
+      const ConstBuffer part = tims::buffer_of(req);
+      (void)s.endpoint().send(t.address, msg::kGetContData, std::span<const ConstBuffer>(&part, 1), data.address());
+      renew_at = now + renew_every;
+    }
+    if (now - last_sample >= silence_ns) {
+      stop_cont_data();
+      fail(kExitUnavailable, format("%s: no sample for %lld s", t.label().c_str(),
+                                    static_cast<long long>(silence_ns / rt::kNsPerSec)));
+    }
+    int64_t wait = std::min<int64_t>(100 * rt::kNsPerMs, silence_ns - (now - last_sample));
+    if (renew_every > 0) wait = std::max<int64_t>(0, std::min(wait, renew_at - now));
+    const auto got = data.receive(buf, wait);
+    if (got.status != tims::RecvStatus::kOk) continue;
+    if (got.header.source().component() != t.address) continue;
+    if (got.header.type == msg::kError) {
+      const auto body = std::span<const std::byte>(buf).subspan(sizeof(MessageHeader), got.length - sizeof(MessageHeader));
+      fail(kExitError, t.label() + ": " + error_reason(body));
+    }
+    if (got.header.type != msg::kData) continue;
+    last_sample = rt::monotonic_ns();
+    sample(last_sample, static_cast<std::size_t>(got.length));
+  }
+  stop_cont_data();
+}
+
+int rate_command(Session& s, const Options& o, bool bandwidth) {
+  const Target t = s.resolve(o.args[0]);
+  const auto window = static_cast<std::size_t>(o.window > 0 ? o.window : (bandwidth ? 100 : 1000));
+  rack::tools::StreamStats stats(window);
+  std::fprintf(stderr, "rackctl: %s of %s over the last %zu samples, a report a second (Ctrl-C ends)\n",
+               bandwidth ? "bandwidth" : "rate", t.label().c_str(), window);
+  int64_t reports = 0;
+  int64_t next_report = rt::monotonic_ns() + rt::kNsPerSec;
+  stream_samples(
+      s, t, o.period_ms, [&](int64_t at, std::size_t bytes) { stats.add(at, bytes); },
+      [&](int64_t now) {
+        if (now < next_report) return true;
+        next_report += rt::kNsPerSec;
+        if (next_report <= now) next_report = now + rt::kNsPerSec;  // after a stall
+        const auto r = stats.report();
+        const std::string line = !r ? std::string(o.json ? "{\"samples\":0}" : "no two samples yet")
+                                 : o.json ? rack::tools::stream_json(*r)
+                                 : bandwidth ? rack::tools::bw_line(*r) : rack::tools::hz_line(*r);
+        if (std::printf("%s\n", line.c_str()) < 0 || std::fflush(stdout) != 0) {
+          return false;  // stdout closed
+        }
+        return !(o.count > 0 && ++reports >= o.count);
+      });
+  return kExitOk;
+}
+int cmd_hz(Session& s, const Options& o) { return rate_command(s, o, false); }
+int cmd_bw(Session& s, const Options& o) { return rate_command(s, o, true); }
+
+// The multicast group of an LCM URL udpm://GROUP:PORT?...; empty when it has none.
+std::string lcm_group(const std::string& url) {
+  const std::string scheme = "udpm://";
+  if (url.rfind(scheme, 0) != 0) return "";
+  const std::string rest = url.substr(scheme.size());
+  return rest.substr(0, rest.find_first_of(":?"));
+}
+
+int run_doctor_command(const Options& o) {
+  rack::tools::DoctorInput in;
+  const std::string url = o.lcm_url.empty() ? default_lcm_url() : o.lcm_url;
+  if (const std::string g = lcm_group(url); !g.empty()) in.multicast_group = g;
+  const auto checks = rack::tools::run_doctor(in);
+  bool failed = false;
+  for (const auto& c : checks) failed = failed || c.verdict == rack::tools::Verdict::kFail;
+  if (o.json) std::printf("%s\n", rack::tools::doctor_json(checks).c_str());
+  else std::fputs(rack::tools::format_doctor(checks).c_str(), stdout);
+  return failed ? kExitError : kExitOk;
+}
+
 int cmd_help(Session&, const Options&);  // handled before a session exists
 
 const std::vector<Command>& commands() {
@@ -1107,6 +1231,41 @@ const std::vector<Command>& commands() {
        "  rackctl send mcl INIT x=2 y=1.5 phi=0 sigma_xy=0.3 sigma_phi=0.2\n"
        "  rackctl send pilot SET_DESTINATION x=4 y=2",
        cmd_send},
+      {"hz", "hz NAME [--window N] [--period MS] [--count N] [--json]", 1, 1,
+       {"--window", "--period", "--count", "--json"},
+       "Subscribes like watch and prints, once a second, the rate of the stream and\n"
+       "min/max/mean/std of the period between samples over the last N samples\n"
+       "(--window, default 1000), like ros2 topic hz. Times are rackctl's arrival\n"
+       "times, so network jitter counts. --period MS asks the producer for every n-th\n"
+       "sample (as watch). --count N: stop after N reports (default: until\n"
+       "SIGINT/SIGTERM, exit 0). --json: one JSON object per report (SI units).\n"
+       "No sample for 5 s: exit 3; the producer going off: exit 1.\n"
+       "  rackctl hz generator\n"
+       "  rate 100 Hz  period min 9.71 ms, max 10.3 ms, mean 10.0 ms, std 0.08 ms  (window 1000 samples)",
+       cmd_hz},
+      {"bw", "bw NAME [--window N] [--period MS] [--count N] [--json]", 1, 1,
+       {"--window", "--period", "--count", "--json"},
+       "Subscribes like watch and prints, once a second, the bandwidth of the stream\n"
+       "(bytes of its TiMS messages, header and sample, per second) and the mean, min\n"
+       "and max message size over the last N samples (--window, default 100), like\n"
+       "ros2 topic bw. Options as for hz.\n"
+       "  rackctl bw scan2d\n"
+       "  bandwidth 72.4 KiB/s  message mean 7.24 KiB, min 7.24 KiB, max 7.24 KiB  (window 100 samples)",
+       cmd_bw},
+      {"doctor", "doctor [--json]", 0, 0, {"--json"},
+       "Checks what this host needs to run rackd in real time and prints one line per\n"
+       "check (ok, WARN or FAIL), what it found, and for each problem the fix:\n"
+       "  rt-priority      ulimit -r (RLIMIT_RTPRIO) or CAP_SYS_NICE: SCHED_FIFO tasks\n"
+       "  memlock          ulimit -l unlimited or CAP_IPC_LOCK: mlockall\n"
+       "  multicast-route  a route for the LCM group (of --lcm) on an interface that is up\n"
+       "                   and multicast-capable\n"
+       "  rmem-max         net.core.rmem_max >= 2 MiB (LCM's advice; large samples)\n"
+       "  preempt-rt       a PREEMPT_RT kernel (/sys/kernel/realtime, /proc/version)\n"
+       "  cpu-dma-latency  /dev/cpu_dma_latency writable (rackd's cpu_dma_latency_us)\n"
+       "  clocksource      a clock read through the vDSO (tsc, kvm-clock, arch_sys_counter)\n"
+       "It reads /proc, /sys and /dev only and changes nothing. Exit 0 when nothing\n"
+       "FAILs (WARNs are allowed), 1 otherwise. --json: one JSON array.",
+       cmd_help},
       {"keygen", "keygen FILE", 1, 1, {},
        "Writes a new key file for authenticated TiMS links: one random 32-byte key as\n"
        "64 hex digits, mode 0600; an existing file is never overwritten. Copy it to\n"
@@ -1189,6 +1348,7 @@ Options parse_arguments(int argc, char** argv) {
       return *n;
     };
     if (a == "-h" || a == "--help") o.help = true;
+    else if (a == "--version") o.version = true;
     else if (a == "--json") { o.json = true; o.given.insert(a); }
     else if (a == "--lcm") o.lcm_url = value("an LCM URL");
     else if (a == "--key-file") { o.key_file = value("a key file"); key_given = true; }
@@ -1207,6 +1367,11 @@ Options parse_arguments(int argc, char** argv) {
     else if (a == "--retries") {
       o.retries = non_negative("a number of retries");
       if (o.retries > 10) fail(kExitUsage, "--retries takes 0..10");
+    }
+    else if (a == "--window") {
+      o.window = non_negative("a number of samples");
+      if (o.window < 2 || o.window > 1000000) fail(kExitUsage, "--window takes 2..1000000 samples");
+      o.given.insert(a);
     }
     else if (a == "--time") { o.time_ns = non_negative("a host time in ns (0: newest)"); o.given.insert(a); }
     else if (a == "--count") {
@@ -1244,6 +1409,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "rackctl: %s\n", f.message.c_str());
     return f.code;
   }
+  if (o.version) {
+    rack::print_version("rackctl");
+    return kExitOk;
+  }
   if (o.command.empty()) {
     if (o.help) { std::fputs(kUsage, stdout); return kExitOk; }
     std::fputs(kUsage, stderr);
@@ -1277,6 +1446,7 @@ int main(int argc, char** argv) {
       return kExitUsage;
     }
   }
+  if (std::string(cmd->name) == "doctor") return run_doctor_command(o);
   if (std::string(cmd->name) == "keygen") {
     const std::string err = tims::generate_key_file(o.args[0]);
     if (!err.empty()) {
