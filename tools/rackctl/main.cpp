@@ -38,6 +38,7 @@
 #include "rack/core/wire.h"
 #include "rack/interfaces/data_types.h"
 #include "rack/rt/clock.h"
+#include "rack/rt/latency_stats.h"
 #include "rack/tims/address.h"
 #include "rack/tims/endpoint.h"
 #include "rack/tims/lcm_transport.h"
@@ -49,6 +50,7 @@
 #include "rack/version.h"
 
 #include "doctor.h"
+#include "field_names.h"
 #include "stream_stats.h"
 
 namespace {
@@ -579,6 +581,27 @@ int cmd_off(Session& s, const Options& o) { return switch_command(s, o, msg::kOf
 
 std::string us(int64_t ns) { return double_text(static_cast<double>(ns) / 1000.0); }
 
+// The executor's latency statistics count everything from 10 ms on in one open bucket
+// (rack/rt/latency_stats.h), whose percentiles come back as its upper edge, 10.001 ms:
+// such a percentile is ">= 10 ms", not a measured 10001 us.
+constexpr int64_t kOpenLatencyNs =
+    static_cast<int64_t>(rt::LatencyStats::kBuckets - 1) * rt::LatencyStats::kBucketNs;
+bool in_open_bucket(int64_t p_ns, int64_t max_ns) { return p_ns > kOpenLatencyNs && p_ns < max_ns; }
+// A percentile for people: "12.5 us", or ">= 10 ms" in the open bucket.
+std::string percentile_text(int64_t p_ns, int64_t max_ns) {
+  if (in_open_bucket(p_ns, max_ns)) return ">= " + double_text(static_cast<double>(kOpenLatencyNs) / 1e6) + " ms";
+  return us(p_ns) + " us";
+}
+// JSON: the raw values stay; this names the percentiles that lie in the open bucket.
+std::string open_bucket_json(int64_t p50, int64_t p99, int64_t p999, int64_t max_ns) {
+  std::string list;
+  const std::pair<const char*, int64_t> ps[] = {{"p50", p50}, {"p99", p99}, {"p99.9", p999}};
+  for (const auto& [name, v] : ps) {
+    if (in_open_bucket(v, max_ns)) list += (list.empty() ? "\"" : ",\"") + std::string(name) + "\"";
+  }
+  return ",\"open_bucket_from_us\":" + us(kOpenLatencyNs) + ",\"in_open_bucket\":[" + list + "]";
+}
+
 int cmd_status(Session& s, const Options& o) {
   const Target t = s.resolve(o.args[0]);
   const CallResult status = s.call(t, msg::kGetStatus);
@@ -605,7 +628,10 @@ int cmd_status(Session& s, const Options& o) {
                     ",\"p50\":" + us(st.data.latency_p50_ns) + ",\"p99\":" + us(st.data.latency_p99_ns) +
                     ",\"p99.9\":" + us(st.data.latency_p999_ns) + ",\"max\":" + us(st.data.latency_max_ns) +
                     ",\"mean\":" + us(st.data.latency_mean_ns) + ",\"samples\":" +
-                    std::to_string(st.data.samples) + "}" + ",\"execution_us\":{\"p50\":" + us(st.exec_p50_ns) +
+                    std::to_string(st.data.samples) +
+                    open_bucket_json(st.data.latency_p50_ns, st.data.latency_p99_ns, st.data.latency_p999_ns,
+                                     st.data.latency_max_ns) +
+                    "}" + ",\"execution_us\":{\"p50\":" + us(st.exec_p50_ns) +
                     ",\"p99\":" + us(st.exec_p99_ns) + ",\"max\":" + us(st.exec_max_ns) +
                     ",\"samples\":" + std::to_string(st.exec_samples) + "}" + ",\"published\":" + std::to_string(st.published) +
                     ",\"listeners\":" + std::to_string(st.listeners) +
@@ -642,10 +668,12 @@ int cmd_status(Session& s, const Options& o) {
   std::printf("  %-16s %llu\n", "cycles", u(st.data.cycles));
   std::printf("  %-16s %llu\n", "overruns", u(st.data.overruns));
   if (st.data.samples > 0) {
-    std::printf("  %-16s min %s us, p50 %s us, p99 %s us, p99.9 %s us, max %s us (%llu samples)\n",
-                "wake-up latency", us(st.data.latency_min_ns).c_str(), us(st.data.latency_p50_ns).c_str(),
-                us(st.data.latency_p99_ns).c_str(), us(st.data.latency_p999_ns).c_str(),
-                us(st.data.latency_max_ns).c_str(), u(st.data.samples));
+    const int64_t max_ns = st.data.latency_max_ns;
+    std::printf("  %-16s min %s us, p50 %s, p99 %s, p99.9 %s, max %s us (%llu samples)\n",
+                "wake-up latency", us(st.data.latency_min_ns).c_str(),
+                percentile_text(st.data.latency_p50_ns, max_ns).c_str(),
+                percentile_text(st.data.latency_p99_ns, max_ns).c_str(),
+                percentile_text(st.data.latency_p999_ns, max_ns).c_str(), us(max_ns).c_str(), u(st.data.samples));
   } else {
     std::printf("  %-16s none measured\n", "wake-up latency");
   }
@@ -705,7 +733,8 @@ int cmd_latency(Session& s, const Options& o) {
                     ",\"overruns\":" + std::to_string(h.overruns) + ",\"samples\":" + std::to_string(h.samples) +
                     ",\"latency_us\":{\"min\":" + us(h.min_ns) + ",\"p50\":" + us(h.p50_ns) +
                     ",\"p99\":" + us(h.p99_ns) + ",\"p99.9\":" + us(h.p999_ns) + ",\"max\":" + us(h.max_ns) +
-                    ",\"mean\":" + us(h.mean_ns) + "},\"buckets\":[";
+                    ",\"mean\":" + us(h.mean_ns) + open_bucket_json(h.p50_ns, h.p99_ns, h.p999_ns, h.max_ns) +
+                    "},\"buckets\":[";
     for (std::size_t i = 0; i < n; ++i) {
       j += (i == 0 ? "" : ",") + std::string("{\"lower_ns\":") + std::to_string(h.lower_ns[i]) + ",\"upper_ns\":" +
            (i + 1 < n ? std::to_string(h.lower_ns[i + 1]) : std::string("null")) +
@@ -721,9 +750,9 @@ int cmd_latency(Session& s, const Options& o) {
     std::printf("  none measured%s\n", h.data_task == 0 ? " (no data task)" : "");
     return kExitOk;
   }
-  std::printf("  min %s us, p50 %s us, p99 %s us, p99.9 %s us, max %s us, mean %s us\n", us(h.min_ns).c_str(),
-              us(h.p50_ns).c_str(), us(h.p99_ns).c_str(), us(h.p999_ns).c_str(), us(h.max_ns).c_str(),
-              us(h.mean_ns).c_str());
+  std::printf("  min %s us, p50 %s, p99 %s, p99.9 %s, max %s us, mean %s us\n", us(h.min_ns).c_str(),
+              percentile_text(h.p50_ns, h.max_ns).c_str(), percentile_text(h.p99_ns, h.max_ns).c_str(),
+              percentile_text(h.p999_ns, h.max_ns).c_str(), us(h.max_ns).c_str(), us(h.mean_ns).c_str());
   // The rows from the first to the last non-empty bucket; bars linear in the count
   // (a non-empty bucket gets at least one '#', so that a single overrun shows).
   std::size_t first = n, last = 0;
@@ -862,6 +891,10 @@ std::string sample_json(const Target& t, const MessageHeader& h, std::span<const
   const auto* type = rack::interfaces::data_type_for_class(t.address.class_id());
   if (type != nullptr && type->size == sample.size()) {
     j += ",\"data\":" + rack::payload_to_json(type->fields, sample, tims::body_is_native(h));
+    // Enum and address fields by name beside their raw values (field_names.h).
+    const std::string names =
+        rack::tools::field_names_json(t.address.class_id(), type->fields, sample, tims::body_is_native(h));
+    if (!names.empty()) j += ",\"names\":" + names;
   } else {
     std::string hex;
     static constexpr char kDigits[] = "0123456789abcdef";

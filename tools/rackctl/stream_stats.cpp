@@ -58,7 +58,8 @@ namespace {
 std::string three_digits(double v, const char* unit) {
   char buf[48];
   const double a = std::fabs(v);
-  const int decimals = a >= 100.0 ? 0 : a >= 10.0 ? 1 : 2;
+  // Decided on the rounded value, so that 9.9997 prints as "10.0", not "10.00".
+  const int decimals = a >= 99.95 ? 0 : a >= 9.995 ? 1 : 2;
   std::snprintf(buf, sizeof buf, "%.*f %s", decimals, v, unit);
   return buf;
 }
@@ -66,22 +67,23 @@ std::string three_digits(double v, const char* unit) {
 
 std::string seconds_text(double s) {
   const double a = std::fabs(s);
-  if (a >= 1.0) return three_digits(s, "s");
-  if (a >= 1e-3) return three_digits(s * 1e3, "ms");
-  if (a >= 1e-6 || a == 0.0) return three_digits(s * 1e6, "us");
+  if (a >= 0.9995) return three_digits(s, "s");  // not "1000 ms"
+  if (a >= 0.9995e-3) return three_digits(s * 1e3, "ms");
+  if (a >= 0.9995e-6 || a == 0.0) return three_digits(s * 1e6, "us");
   return three_digits(s * 1e9, "ns");
 }
 
 std::string hertz_text(double hz) {
-  if (std::fabs(hz) >= 1e3) return three_digits(hz / 1e3, "kHz");
+  if (std::fabs(hz) >= 999.5) return three_digits(hz / 1e3, "kHz");
   return three_digits(hz, "Hz");
 }
 
 std::string bytes_text(double bytes) {
   const double a = std::fabs(bytes);
-  if (a >= 1024.0 * 1024.0 * 1024.0) return three_digits(bytes / (1024.0 * 1024.0 * 1024.0), "GiB");
-  if (a >= 1024.0 * 1024.0) return three_digits(bytes / (1024.0 * 1024.0), "MiB");
-  if (a >= 1024.0) return three_digits(bytes / 1024.0, "KiB");
+  constexpr double kKi = 1024.0;
+  if (a >= 999.5 * kKi * kKi) return three_digits(bytes / (kKi * kKi * kKi), "GiB");
+  if (a >= 999.5 * kKi) return three_digits(bytes / (kKi * kKi), "MiB");
+  if (a >= 999.5) return three_digits(bytes / kKi, "KiB");
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.0f B", bytes);
   return buf;
