@@ -587,10 +587,13 @@ std::string us(int64_t ns) { return double_text(static_cast<double>(ns) / 1000.0
 constexpr int64_t kOpenLatencyNs =
     static_cast<int64_t>(rt::LatencyStats::kBuckets - 1) * rt::LatencyStats::kBucketNs;
 bool in_open_bucket(int64_t p_ns, int64_t max_ns) { return p_ns > kOpenLatencyNs && p_ns < max_ns; }
-// A percentile for people: "12.5 us", or ">= 10 ms" in the open bucket.
+// A latency for people: 3 significant digits and its unit ("37.0 us", "1.25 ms"); the
+// JSON keeps the exact microseconds.
+std::string latency_for_people(int64_t ns) { return rack::tools::seconds_text(static_cast<double>(ns) * 1e-9); }
+// A percentile for people, or ">= 10 ms" in the open bucket.
 std::string percentile_text(int64_t p_ns, int64_t max_ns) {
   if (in_open_bucket(p_ns, max_ns)) return ">= " + double_text(static_cast<double>(kOpenLatencyNs) / 1e6) + " ms";
-  return us(p_ns) + " us";
+  return latency_for_people(p_ns);
 }
 // JSON: the raw values stay; this names the percentiles that lie in the open bucket.
 std::string open_bucket_json(int64_t p50, int64_t p99, int64_t p999, int64_t max_ns) {
@@ -669,11 +672,12 @@ int cmd_status(Session& s, const Options& o) {
   std::printf("  %-16s %llu\n", "overruns", u(st.data.overruns));
   if (st.data.samples > 0) {
     const int64_t max_ns = st.data.latency_max_ns;
-    std::printf("  %-16s min %s us, p50 %s, p99 %s, p99.9 %s, max %s us (%llu samples)\n",
-                "wake-up latency", us(st.data.latency_min_ns).c_str(),
+    std::printf("  %-16s min %s, p50 %s, p99 %s, p99.9 %s, max %s (%llu samples)\n",
+                "wake-up latency", latency_for_people(st.data.latency_min_ns).c_str(),
                 percentile_text(st.data.latency_p50_ns, max_ns).c_str(),
                 percentile_text(st.data.latency_p99_ns, max_ns).c_str(),
-                percentile_text(st.data.latency_p999_ns, max_ns).c_str(), us(max_ns).c_str(), u(st.data.samples));
+                percentile_text(st.data.latency_p999_ns, max_ns).c_str(), latency_for_people(max_ns).c_str(),
+                u(st.data.samples));
   } else {
     std::printf("  %-16s none measured\n", "wake-up latency");
   }
@@ -750,9 +754,10 @@ int cmd_latency(Session& s, const Options& o) {
     std::printf("  none measured%s\n", h.data_task == 0 ? " (no data task)" : "");
     return kExitOk;
   }
-  std::printf("  min %s us, p50 %s, p99 %s, p99.9 %s, max %s us, mean %s us\n", us(h.min_ns).c_str(),
+  std::printf("  min %s, p50 %s, p99 %s, p99.9 %s, max %s, mean %s\n", latency_for_people(h.min_ns).c_str(),
               percentile_text(h.p50_ns, h.max_ns).c_str(), percentile_text(h.p99_ns, h.max_ns).c_str(),
-              percentile_text(h.p999_ns, h.max_ns).c_str(), us(h.max_ns).c_str(), us(h.mean_ns).c_str());
+              percentile_text(h.p999_ns, h.max_ns).c_str(), latency_for_people(h.max_ns).c_str(),
+              latency_for_people(h.mean_ns).c_str());
   // The rows from the first to the last non-empty bucket; bars linear in the count
   // (a non-empty bucket gets at least one '#', so that a single overrun shows).
   std::size_t first = n, last = 0;
@@ -1212,12 +1217,14 @@ const std::vector<Command>& commands() {
        cmd_off},
       {"status", "status NAME [--json]", 1, 1, {"--json"},
        "Prints the state and the timing statistics: data task mode and period,\n"
-       "cycles, overruns, wake-up latency (min, p50, p99, p99.9, max in us),\n"
+       "cycles, overruns, wake-up latency (min, p50, p99, p99.9, max: 3 digits with\n"
+       "their unit; a percentile beyond the histogram's 10 ms as \">= 10 ms\"),\n"
        "execution time of loop() (p50, p99, max in us; triggered tasks too),\n"
        "samples published, listeners, listener drops, malformed requests, commands,\n"
        "and the page faults of the command and data task since their start-up (0 is\n"
        "the target for an RT task; counted once a second by the executor).\n"
-       "--json prints the same as one JSON object.",
+       "--json prints the same as one JSON object (exact values in us; the\n"
+       "percentiles in the open bucket listed in latency_us.in_open_bucket).",
        cmd_status},
       {"latency", "latency NAME [--json]", 1, 1, {"--json"},
        "Prints the data task's wake-up latency histogram (GET_LATENCY): samples,\n"
@@ -1225,9 +1232,10 @@ const std::vector<Command>& commands() {
        "the first to the last non-empty one: its range, count, share of the samples\n"
        "and a bar (linear; at least one '#' for a non-empty bucket). Buckets: 1 us\n"
        "wide below 8 us, then 10 a decade (1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 8) up to\n"
-       "the last, open one (>= 10 ms); the edges come with the reply. A component\n"
-       "without a data task prints \"none measured\". --json prints one JSON object with\n"
-       "every bucket as {\"lower_ns\",\"upper_ns\" (null: open),\"count\"}.\n"
+       "the last, open one (>= 10 ms; a percentile there prints as \">= 10 ms\"); the\n"
+       "edges come with the reply. A component without a data task prints \"none\n"
+       "measured\". --json prints one JSON object with every bucket as\n"
+       "{\"lower_ns\",\"upper_ns\" (null: open),\"count\"}.\n"
        "  rackctl latency generator",
        cmd_latency},
       {"params", "params NAME [--json]", 1, 1, {"--json"},
@@ -1274,7 +1282,7 @@ const std::vector<Command>& commands() {
        "SIGINT/SIGTERM, exit 0). --json: one JSON object per report (SI units).\n"
        "No sample for 5 s: exit 3; the producer going off: exit 1.\n"
        "  rackctl hz generator\n"
-       "  rate 100 Hz  period min 9.71 ms, max 10.3 ms, mean 10.0 ms, std 0.08 ms  (window 1000 samples)",
+       "  rate 100 Hz  period min 8.02 ms, max 11.0 ms, mean 10.0 ms, std 244 us  (window 101 samples)",
        cmd_hz},
       {"bw", "bw NAME [--window N] [--period MS] [--count N] [--json]", 1, 1,
        {"--window", "--period", "--count", "--json"},
@@ -1282,8 +1290,8 @@ const std::vector<Command>& commands() {
        "(bytes of its TiMS messages, header and sample, per second) and the mean, min\n"
        "and max message size over the last N samples (--window, default 100), like\n"
        "ros2 topic bw. Options as for hz.\n"
-       "  rackctl bw scan2d\n"
-       "  bandwidth 72.4 KiB/s  message mean 7.24 KiB, min 7.24 KiB, max 7.24 KiB  (window 100 samples)",
+       "  rackctl bw generator\n"
+       "  bandwidth 4.69 KiB/s  message mean 48 B, min 48 B, max 48 B  (window 100 samples)",
        cmd_bw},
       {"doctor", "doctor [--json]", 0, 0, {"--json"},
        "Checks what this host needs to run rackd in real time and prints one line per\n"
