@@ -97,5 +97,18 @@ TEST(StreamStatsTest, NumbersHaveUnitsAndThreeDigits) {
   EXPECT_EQ(hz_line(r), "rate 10.0 Hz  period min 99.0 ms, max 101 ms, mean 100 ms, std 1.00 ms  (window 3 samples)");
 }
 
+// The executor's latency histogram ends in an open bucket from 10 ms on; a percentile
+// there comes back as its upper edge (10.001 ms) and must not read as a measurement.
+TEST(StreamStatsTest, PercentileInTheOpenBucketReadsAsAtLeast) {
+  constexpr int64_t kOpen = 10'000'000;
+  EXPECT_EQ(percentile_text(10'001'000, 25'000'000, kOpen), ">= 10.0 ms");
+  EXPECT_TRUE(in_open_bucket(10'001'000, 25'000'000, kOpen));
+  EXPECT_EQ(percentile_text(37'000, 25'000'000, kOpen), "37.0 us");
+  EXPECT_EQ(percentile_text(9'999'000, 25'000'000, kOpen), "10.0 ms");  // a measured 9.999 ms, rounded
+  // Capped by an exact max inside the open bucket: the max itself, a real value.
+  EXPECT_FALSE(in_open_bucket(10'000'500, 10'000'500, kOpen));
+  EXPECT_EQ(percentile_text(10'000'500, 10'000'500, kOpen), "10.0 ms");
+}
+
 }  // namespace
 }  // namespace rack::tools

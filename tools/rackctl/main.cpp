@@ -586,14 +586,13 @@ std::string us(int64_t ns) { return double_text(static_cast<double>(ns) / 1000.0
 // such a percentile is ">= 10 ms", not a measured 10001 us.
 constexpr int64_t kOpenLatencyNs =
     static_cast<int64_t>(rt::LatencyStats::kBuckets - 1) * rt::LatencyStats::kBucketNs;
-bool in_open_bucket(int64_t p_ns, int64_t max_ns) { return p_ns > kOpenLatencyNs && p_ns < max_ns; }
+bool in_open_bucket(int64_t p_ns, int64_t max_ns) { return rack::tools::in_open_bucket(p_ns, max_ns, kOpenLatencyNs); }
 // A latency for people: 3 significant digits and its unit ("37.0 us", "1.25 ms"); the
 // JSON keeps the exact microseconds.
 std::string latency_for_people(int64_t ns) { return rack::tools::seconds_text(static_cast<double>(ns) * 1e-9); }
 // A percentile for people, or ">= 10 ms" in the open bucket.
 std::string percentile_text(int64_t p_ns, int64_t max_ns) {
-  if (in_open_bucket(p_ns, max_ns)) return ">= " + double_text(static_cast<double>(kOpenLatencyNs) / 1e6) + " ms";
-  return latency_for_people(p_ns);
+  return rack::tools::percentile_text(p_ns, max_ns, kOpenLatencyNs);
 }
 // JSON: the raw values stay; this names the percentiles that lie in the open bucket.
 std::string open_bucket_json(int64_t p50, int64_t p99, int64_t p999, int64_t max_ns) {
@@ -1218,7 +1217,7 @@ const std::vector<Command>& commands() {
       {"status", "status NAME [--json]", 1, 1, {"--json"},
        "Prints the state and the timing statistics: data task mode and period,\n"
        "cycles, overruns, wake-up latency (min, p50, p99, p99.9, max: 3 digits with\n"
-       "their unit; a percentile beyond the histogram's 10 ms as \">= 10 ms\"),\n"
+       "their unit; a percentile beyond the histogram's 10 ms as \">= 10.0 ms\"),\n"
        "execution time of loop() (p50, p99, max in us; triggered tasks too),\n"
        "samples published, listeners, listener drops, malformed requests, commands,\n"
        "and the page faults of the command and data task since their start-up (0 is\n"
@@ -1232,7 +1231,7 @@ const std::vector<Command>& commands() {
        "the first to the last non-empty one: its range, count, share of the samples\n"
        "and a bar (linear; at least one '#' for a non-empty bucket). Buckets: 1 us\n"
        "wide below 8 us, then 10 a decade (1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 8) up to\n"
-       "the last, open one (>= 10 ms; a percentile there prints as \">= 10 ms\"); the\n"
+       "the last, open one (>= 10 ms; a percentile there prints as \">= 10.0 ms\"); the\n"
        "edges come with the reply. A component without a data task prints \"none\n"
        "measured\". --json prints one JSON object with every bucket as\n"
        "{\"lower_ns\",\"upper_ns\" (null: open),\"count\"}.\n"

@@ -89,6 +89,17 @@ std::string bytes_text(double bytes) {
   return buf;
 }
 
+bool in_open_bucket(int64_t p_ns, int64_t max_ns, int64_t open_from_ns) {
+  return p_ns > open_from_ns && p_ns < max_ns;
+}
+
+std::string percentile_text(int64_t p_ns, int64_t max_ns, int64_t open_from_ns) {
+  if (in_open_bucket(p_ns, max_ns, open_from_ns)) {
+    return ">= " + seconds_text(static_cast<double>(open_from_ns) * 1e-9);
+  }
+  return seconds_text(static_cast<double>(p_ns) * 1e-9);
+}
+
 std::string hz_line(const StreamReport& r) {
   return "rate " + hertz_text(r.rate_hz) + "  period min " + seconds_text(r.period_min_s) + ", max " +
          seconds_text(r.period_max_s) + ", mean " + seconds_text(r.period_mean_s) + ", std " +

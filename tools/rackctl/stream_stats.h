@@ -47,6 +47,12 @@ class StreamStats {
 [[nodiscard]] std::string hertz_text(double hz);          // "10.0 Hz", "1.20 kHz"
 [[nodiscard]] std::string bytes_text(double bytes);       // "812 B", "1.25 KiB", "3.40 MiB"
 
+// A latency percentile of the executor's histogram for people: "37.0 us", or
+// ">= 10 ms" when it lies in the open last bucket that starts at `open_from_ns`
+// (such a percentile comes back as that bucket's upper edge, below the exact max).
+[[nodiscard]] bool in_open_bucket(int64_t p_ns, int64_t max_ns, int64_t open_from_ns);
+[[nodiscard]] std::string percentile_text(int64_t p_ns, int64_t max_ns, int64_t open_from_ns);
+
 // One line each, as rackctl hz and bw print them.
 [[nodiscard]] std::string hz_line(const StreamReport& r);
 [[nodiscard]] std::string bw_line(const StreamReport& r);
