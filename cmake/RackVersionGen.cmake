@@ -1,6 +1,6 @@
-# Writes rack/version.h (run at every build by the rack_version target, cmake -P):
+# Writes the version source (run at every build by rack_version_source, cmake -P):
 # the project version from CMake and `git describe` of the source tree when it is a
-# git checkout with git installed (else empty). configure_file rewrites the header only
+# git checkout with git installed (else empty). configure_file rewrites the file only
 # when its text changes, so an unchanged tree recompiles nothing.
 # Inputs: RACK_VERSION, RACK_SOURCE_DIR, RACK_VERSION_IN, RACK_VERSION_OUT.
 set(RACK_GIT_DESCRIBE "")
