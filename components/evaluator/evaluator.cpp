@@ -42,7 +42,9 @@ double Evaluator::ErrorStats::p95() const noexcept {
   uint64_t seen = 0;
   for (std::size_t i = 0; i < kBuckets; ++i) {
     seen += histogram[i];
-    if (seen >= target) return static_cast<double>(i + 1) / 1000.0;  // the bucket's upper edge
+    // The bucket's upper edge; the last bucket is open (10 m and more), whose honest
+    // upper bound is the largest error seen, not a silent 10 m.
+    if (seen >= target) return i + 1 < kBuckets ? static_cast<double>(i + 1) / 1000.0 : max;
   }
   return max;
 }
@@ -184,11 +186,16 @@ void Evaluator::describe_status(std::string& out) const {
   char line[256];
   std::snprintf(line, sizeof line,
                 "driven %.1f m; position error now %.3f m, RMS %.3f m, max %.3f m (%llu samples); "
-                "MCL error RMS %.3f m, p95 %.3f m, max %.3f m (%llu scans)",
+                "MCL error RMS %.3f m, p95 %s%.3f m, max %.3f m (%llu scans)",
                 shown_distance_.load(std::memory_order_relaxed), shown_position_error_.load(std::memory_order_relaxed),
                 shown_position_rms_.load(std::memory_order_relaxed), shown_position_max_.load(std::memory_order_relaxed),
                 static_cast<unsigned long long>(shown_position_samples_.load(std::memory_order_relaxed)),
-                shown_mcl_rms_.load(std::memory_order_relaxed), shown_mcl_p95_.load(std::memory_order_relaxed),
+                shown_mcl_rms_.load(std::memory_order_relaxed),
+                // Beyond the 10 m histogram p95 is the max: say it is a bound.
+                shown_mcl_p95_.load(std::memory_order_relaxed) >= static_cast<double>(ErrorStats::kBuckets) / 1000.0
+                    ? "at most "
+                    : "",
+                shown_mcl_p95_.load(std::memory_order_relaxed),
                 shown_mcl_max_.load(std::memory_order_relaxed),
                 static_cast<unsigned long long>(shown_mcl_samples_.load(std::memory_order_relaxed)));
   out += line;

@@ -37,7 +37,11 @@ class Evaluator final : public DataComponent<interfaces::EvaluatorData> {
     int64_t time_ns = 0;
     double x = 0.0, y = 0.0, phi = 0.0;
   };
-  // Error statistics of one estimate stream: sums and a 1-mm histogram up to 10 m.
+
+ public:
+  // Error statistics of one estimate stream: sums and a 1-mm histogram up to 10 m
+  // (its last bucket open: p95 there is the largest error, an upper bound).
+  // Public for its unit test; RT-safe (no allocation).
   struct ErrorStats {
     static constexpr std::size_t kBuckets = 10000;
     uint64_t n = 0;
@@ -48,6 +52,8 @@ class Evaluator final : public DataComponent<interfaces::EvaluatorData> {
     [[nodiscard]] double heading_rms() const noexcept;
     [[nodiscard]] double p95() const noexcept;
   };
+
+ private:
   const Truth* truth_at(int64_t time_ns) const noexcept;
   void evaluate(ErrorStats& stats, int64_t time_ns, double x, double y, double phi) noexcept;
   bool take(const tims::MessageHeader& h, std::span<const std::byte> body, uint8_t chassis_class, bool& got) noexcept;

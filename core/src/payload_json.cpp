@@ -94,13 +94,20 @@ std::string number(const tims::FieldDesc& f, const std::byte* p) {
     case FieldKind::kF32: {
       const float v = load<float>(p);
       if (!std::isfinite(v)) return "null";
-      std::snprintf(buf, sizeof buf, "%.9g", static_cast<double>(v));
+      // The shortest text that reads back as the same float: 0.1f is "0.1", not
+      // "0.100000001" (numbers for people; nothing of the value is lost).
+      const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+      if (ec != std::errc()) std::snprintf(buf, sizeof buf, "%.9g", static_cast<double>(v));
+      else *end = '\0';
       return buf;
     }
     case FieldKind::kF64: {
       const double v = load<double>(p);
       if (!std::isfinite(v)) return "null";
-      std::snprintf(buf, sizeof buf, "%.17g", v);
+      // Shortest round-trip text: 0.3 is "0.3", not "0.29999999999999999".
+      const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+      if (ec != std::errc()) std::snprintf(buf, sizeof buf, "%.17g", v);
+      else *end = '\0';
       return buf;
     }
   }

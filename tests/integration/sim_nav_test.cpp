@@ -92,6 +92,25 @@ TEST_F(SimNavTest, TheShippedHostFilesAreValid) {
   EXPECT_EQ(r.exit_code, 0) << r.describe();
 }
 
+// Numbers for people: the pilot's mode and status and the chassis' active pilot by
+// name in get-data's "names", beside the raw values in "data".
+TEST_F(SimNavTest, GetDataNamesEnumsAndAddresses) {
+  start(host_file());
+  std::optional<Json> pilot, chassis;
+  ASSERT_TRUE(eventually([&] {
+    const RunResult p = ctl({"get-data", "pilot"});
+    const RunResult c = ctl({"get-data", "chassis"});
+    pilot = p.exit_code == 0 ? parse_json(p.out) : std::nullopt;
+    chassis = c.exit_code == 0 ? parse_json(c.out) : std::nullopt;
+    return pilot && chassis && pilot->at("data").at("status").number == 1 &&
+           chassis->at("data").at("active_pilot").number != 0;
+  })) << "the pilot never drove";
+  EXPECT_EQ(pilot->at("names").at("status").string, "DRIVING");
+  EXPECT_EQ(pilot->at("names").at("mode").string, "FOLLOW_PATH");
+  EXPECT_EQ(chassis->at("names").at("active_pilot").string, "Pilot(0/0)");
+  EXPECT_EQ(chassis->at("data").at("active_pilot").number, 0x190000);  // the raw value stays
+}
+
 TEST_F(SimNavTest, TheMainJobsHostFileIsValidWhenMclIsBuiltIn) {
   // sim_mcl.yaml is sim_nav.yaml plus the MCL component, which another part of the
   // project provides; until it is built in, the host file cannot load.

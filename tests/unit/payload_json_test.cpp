@@ -111,3 +111,26 @@ TEST(SetFieldFromText, BuildsAnMclInitBody) {
 
 }  // namespace
 }  // namespace rack
+
+namespace rack {
+namespace {
+
+// Numbers for people: the shortest text that reads back as the same value, not 9 or
+// 17 significant digits of binary noise.
+TEST(PayloadToJson, FloatsAreShortestRoundTrip) {
+  struct Floats {
+    float f = 0.1f;
+    double d = 0.3;
+    double big = 1e300;
+    static constexpr auto fields() noexcept {
+      return std::array{RACK_FIELD(Floats, f), RACK_FIELD(Floats, d), RACK_FIELD(Floats, big)};
+    }
+  };
+  Floats v;
+  const std::string j = payload_to_json(tims::fields_of<Floats>,
+                                        std::span<const std::byte>(reinterpret_cast<const std::byte*>(&v), sizeof v), true);
+  EXPECT_EQ(j, "{\"f\": 0.1, \"d\": 0.3, \"big\": 1e+300}");
+}
+
+}  // namespace
+}  // namespace rack

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "report_file.h"
+#include "rack/version.h"
 
 namespace {
 
@@ -49,6 +50,7 @@ options:
                     most frequent first
   --root DIR        look for the binaries under DIR (reports copied from a robot)
   -h, --help        this text
+  --version         the version (CMake project version, git describe)
 
 exit codes: 0 every report read and symbolized, 1 a report was truncated or malformed
 or a binary is missing or does not match its build id (the rest is still printed),
@@ -323,6 +325,7 @@ int main(int argc, char** argv) {
       into.push_back(argv[++i]);
     };
     if (a == "-h" || a == "--help") { std::fputs(kUsage, stdout); return 0; }
+    if (a == "--version") { rack::print_version("rack-backtrace"); return 0; }
     if (a == "--summary") o.summary = true;
     else if (a == "--reason") {
       value(o.reasons);

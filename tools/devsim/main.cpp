@@ -34,6 +34,7 @@
 #include "rack/sims/hokuyo_scip_sim.h"
 #include "rack/sims/nmea_gps_sim.h"
 #include "rack/sims/sick_lms1xx_sim.h"
+#include "rack/version.h"
 
 namespace {
 
@@ -66,7 +67,7 @@ Simulated devices for RACK-RT's drivers. Runs until SIGINT/SIGTERM or --duration
               --deadman N       hold button N (default: none)
               --period-ms MS    repeat the state this often (default 100)
 
-Common: --duration SECONDS, --help.
+Common: --duration SECONDS, --help. rack-devsim --version prints the version.
 )";
 
 std::map<std::string, std::string> parse_options(int argc, char** argv, int first) {
@@ -116,6 +117,10 @@ void run_until_stopped(double duration_s, int64_t period_ms, F&& tick) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc >= 2 && std::string(argv[1]) == "--version") {
+    rack::print_version("rack-devsim");
+    return 0;
+  }
   if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
     std::fputs(kUsage, argc < 2 ? stderr : stdout);
     return argc < 2 ? 2 : 0;

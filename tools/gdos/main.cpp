@@ -17,6 +17,7 @@
 #include "rack/core/host_config.h"
 #include "rack/tims/gdos_lcm.h"
 #include "rack/tims/lcm_transport.h"
+#include "rack/version.h"
 
 namespace {
 
@@ -60,6 +61,7 @@ options:
                      verify are dropped and counted; without it, signed records
                      are shown unverified
   -h, --help         this text
+  --version          the version (CMake project version, git describe)
 
 Losses are reported on stderr: records a host's ring dropped (its next record
 says how many) and records lost on the network (gaps in a host's sequence).
@@ -104,6 +106,9 @@ int main(int argc, char** argv) {
     };
     if (a == "-h" || a == "--help") {
       std::fputs(kUsage, stdout);
+      return 0;
+    } else if (a == "--version") {
+      rack::print_version("gdos");
       return 0;
     } else if (a == "--lcm") {
       url = value("an LCM URL");

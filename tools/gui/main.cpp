@@ -15,6 +15,7 @@
 #include "http_server.h"
 #include "rack/core/host_config.h"
 #include "rack/tims/lcm_transport.h"
+#include "rack/version.h"
 
 #ifndef RACK_GUI_WEB_ROOT
 #define RACK_GUI_WEB_ROOT ""
@@ -61,6 +62,7 @@ options:
   --timeout-ms MS    a robot that does not answer within this is shown as
                      "no reply" (default 1000)
   -h, --help         this text
+  --version          the version (CMake project version, git describe)
 
 Browser messages (WebSocket, JSON text; tools/gui/gui_protocol.h) that break the
 protocol are refused with an error naming what, where and a reason (too_large,
@@ -114,6 +116,9 @@ int main(int argc, char** argv) {
     };
     if (a == "-h" || a == "--help") {
       std::fputs(kUsage, stdout);
+      return 0;
+    } else if (a == "--version") {
+      rack::print_version("rack-gui");
       return 0;
     } else if (a == "--address") {
       address = value("an IP address");

@@ -38,6 +38,7 @@
 #include "rack/core/payload_json.h"
 #include "rack/core/wire.h"
 #include "rack/rt/clock.h"
+#include "rack/rt/latency_stats.h"
 #include "rack/tims/address.h"
 #include "rack/tims/endpoint.h"
 #include "rack/tims/lcm_transport.h"
@@ -46,6 +47,11 @@
 #include "rack/tims/message.h"
 #include "rack/tims/router.h"
 #include "rack/tims/tool_address.h"
+#include "rack/version.h"
+
+#include "doctor.h"
+#include "field_names.h"
+#include "stream_stats.h"
 
 namespace {
 
@@ -94,6 +100,11 @@ commands:
   send NAME CMD [FIELD=VALUE ...] [--i64 N]
                                 a class command (number 21..127 or its name, e.g.
                                 INIT) with its body, and the reply
+  hz NAME [--window N]          rate of a data stream: min/max/mean/std of its period
+  bw NAME [--window N]          bandwidth of a data stream, message sizes
+  doctor [--json]               check this host for real time (RT limits, memlock,
+                                multicast route, rmem_max, PREEMPT_RT, ...), each
+                                with the fix
   keygen FILE                   write a new TiMS link key file (mode 0600) for key_file
   help [COMMAND]                this text, or a command's
 
@@ -116,6 +127,7 @@ options:
                      without it, hosts whose network has a key drop what rackctl
                      sends
   -h, --help         this text; after a command: the command's help
+  --version          the version (CMake project version, git describe)
 
 exit codes: 0 ok, 1 the component answered ERROR, 2 usage error, 3 not available
 (NOT_AVAILABLE, unknown name, or no reply within the timeout).
@@ -134,9 +146,11 @@ struct Options {
   int64_t retries = 1;
   bool json = false;
   bool help = false;
+  bool version = false;
   int64_t time_ns = 0;     // get-data --time
   double period_ms = 0.0;  // watch --period
-  int64_t count = 0;       // watch --count (0: until SIGINT/SIGTERM)
+  int64_t count = 0;       // watch --count (0: until SIGINT/SIGTERM); hz/bw: reports
+  int64_t window = 0;      // hz/bw --window (0: the command's default)
   std::optional<int64_t> i64;  // send --i64: an 8-byte body
   std::set<std::string> given;  // command-specific options seen (checked per command)
   std::string command;
@@ -702,6 +716,29 @@ int cmd_off(Session& s, const Options& o) { return switch_command(s, o, msg::kOf
 
 std::string us(int64_t ns) { return double_text(static_cast<double>(ns) / 1000.0); }
 
+// The executor's latency statistics count everything from 10 ms on in one open bucket
+// (rack/rt/latency_stats.h), whose percentiles come back as its upper edge, 10.001 ms:
+// such a percentile is ">= 10 ms", not a measured 10001 us.
+constexpr int64_t kOpenLatencyNs =
+    static_cast<int64_t>(rt::LatencyStats::kBuckets - 1) * rt::LatencyStats::kBucketNs;
+bool in_open_bucket(int64_t p_ns, int64_t max_ns) { return rack::tools::in_open_bucket(p_ns, max_ns, kOpenLatencyNs); }
+// A latency for people: 3 significant digits and its unit ("37.0 us", "1.25 ms"); the
+// JSON keeps the exact microseconds.
+std::string latency_for_people(int64_t ns) { return rack::tools::seconds_text(static_cast<double>(ns) * 1e-9); }
+// A percentile for people, or ">= 10 ms" in the open bucket.
+std::string percentile_text(int64_t p_ns, int64_t max_ns) {
+  return rack::tools::percentile_text(p_ns, max_ns, kOpenLatencyNs);
+}
+// JSON: the raw values stay; this names the percentiles that lie in the open bucket.
+std::string open_bucket_json(int64_t p50, int64_t p99, int64_t p999, int64_t max_ns) {
+  std::string list;
+  const std::pair<const char*, int64_t> ps[] = {{"p50", p50}, {"p99", p99}, {"p99.9", p999}};
+  for (const auto& [name, v] : ps) {
+    if (in_open_bucket(v, max_ns)) list += (list.empty() ? "\"" : ",\"") + std::string(name) + "\"";
+  }
+  return ",\"open_bucket_from_us\":" + us(kOpenLatencyNs) + ",\"in_open_bucket\":[" + list + "]";
+}
+
 int cmd_status(Session& s, const Options& o) {
   const Target t = s.resolve(o.args[0]);
   const CallResult status = s.call(t, msg::kGetStatus);
@@ -728,7 +765,10 @@ int cmd_status(Session& s, const Options& o) {
                     ",\"p50\":" + us(st.data.latency_p50_ns) + ",\"p99\":" + us(st.data.latency_p99_ns) +
                     ",\"p99.9\":" + us(st.data.latency_p999_ns) + ",\"max\":" + us(st.data.latency_max_ns) +
                     ",\"mean\":" + us(st.data.latency_mean_ns) + ",\"samples\":" +
-                    std::to_string(st.data.samples) + "}" + ",\"execution_us\":{\"p50\":" + us(st.exec_p50_ns) +
+                    std::to_string(st.data.samples) +
+                    open_bucket_json(st.data.latency_p50_ns, st.data.latency_p99_ns, st.data.latency_p999_ns,
+                                     st.data.latency_max_ns) +
+                    "}" + ",\"execution_us\":{\"p50\":" + us(st.exec_p50_ns) +
                     ",\"p99\":" + us(st.exec_p99_ns) + ",\"max\":" + us(st.exec_max_ns) +
                     ",\"samples\":" + std::to_string(st.exec_samples) + "}" + ",\"published\":" + std::to_string(st.published) +
                     ",\"listeners\":" + std::to_string(st.listeners) +
@@ -765,10 +805,13 @@ int cmd_status(Session& s, const Options& o) {
   std::printf("  %-16s %llu\n", "cycles", u(st.data.cycles));
   std::printf("  %-16s %llu\n", "overruns", u(st.data.overruns));
   if (st.data.samples > 0) {
-    std::printf("  %-16s min %s us, p50 %s us, p99 %s us, p99.9 %s us, max %s us (%llu samples)\n",
-                "wake-up latency", us(st.data.latency_min_ns).c_str(), us(st.data.latency_p50_ns).c_str(),
-                us(st.data.latency_p99_ns).c_str(), us(st.data.latency_p999_ns).c_str(),
-                us(st.data.latency_max_ns).c_str(), u(st.data.samples));
+    const int64_t max_ns = st.data.latency_max_ns;
+    std::printf("  %-16s min %s, p50 %s, p99 %s, p99.9 %s, max %s (%llu samples)\n",
+                "wake-up latency", latency_for_people(st.data.latency_min_ns).c_str(),
+                percentile_text(st.data.latency_p50_ns, max_ns).c_str(),
+                percentile_text(st.data.latency_p99_ns, max_ns).c_str(),
+                percentile_text(st.data.latency_p999_ns, max_ns).c_str(), latency_for_people(max_ns).c_str(),
+                u(st.data.samples));
   } else {
     std::printf("  %-16s none measured\n", "wake-up latency");
   }
@@ -828,7 +871,8 @@ int cmd_latency(Session& s, const Options& o) {
                     ",\"overruns\":" + std::to_string(h.overruns) + ",\"samples\":" + std::to_string(h.samples) +
                     ",\"latency_us\":{\"min\":" + us(h.min_ns) + ",\"p50\":" + us(h.p50_ns) +
                     ",\"p99\":" + us(h.p99_ns) + ",\"p99.9\":" + us(h.p999_ns) + ",\"max\":" + us(h.max_ns) +
-                    ",\"mean\":" + us(h.mean_ns) + "},\"buckets\":[";
+                    ",\"mean\":" + us(h.mean_ns) + open_bucket_json(h.p50_ns, h.p99_ns, h.p999_ns, h.max_ns) +
+                    "},\"buckets\":[";
     for (std::size_t i = 0; i < n; ++i) {
       j += (i == 0 ? "" : ",") + std::string("{\"lower_ns\":") + std::to_string(h.lower_ns[i]) + ",\"upper_ns\":" +
            (i + 1 < n ? std::to_string(h.lower_ns[i + 1]) : std::string("null")) +
@@ -844,9 +888,10 @@ int cmd_latency(Session& s, const Options& o) {
     std::printf("  none measured%s\n", h.data_task == 0 ? " (no data task)" : "");
     return kExitOk;
   }
-  std::printf("  min %s us, p50 %s us, p99 %s us, p99.9 %s us, max %s us, mean %s us\n", us(h.min_ns).c_str(),
-              us(h.p50_ns).c_str(), us(h.p99_ns).c_str(), us(h.p999_ns).c_str(), us(h.max_ns).c_str(),
-              us(h.mean_ns).c_str());
+  std::printf("  min %s, p50 %s, p99 %s, p99.9 %s, max %s, mean %s\n", latency_for_people(h.min_ns).c_str(),
+              percentile_text(h.p50_ns, h.max_ns).c_str(), percentile_text(h.p99_ns, h.max_ns).c_str(),
+              percentile_text(h.p999_ns, h.max_ns).c_str(), latency_for_people(h.max_ns).c_str(),
+              latency_for_people(h.mean_ns).c_str());
   // The rows from the first to the last non-empty bucket; bars linear in the count
   // (a non-empty bucket gets at least one '#', so that a single overrun shows).
   std::size_t first = n, last = 0;
@@ -1109,6 +1154,10 @@ std::string sample_json(const Target& t, const rack::TypeDescription* type, cons
                   std::to_string(sh.time_ns) + ",\"sequence\":" + std::to_string(sh.sequence);
   if (type != nullptr && type->size == sample.size()) {
     j += ",\"data\":" + rack::payload_to_json(type->field_table(), sample, tims::body_is_native(h));
+    // Enum and address fields by name beside their raw values (field_names.h).
+    const std::string names =
+        rack::tools::field_names_json(t.address.class_id(), type->field_table(), sample, tims::body_is_native(h));
+    if (!names.empty()) j += ",\"names\":" + names;
   } else {
     std::string hex;
     static constexpr char kDigits[] = "0123456789abcdef";
@@ -1301,6 +1350,118 @@ int cmd_send(Session& s, const Options& o) {
   return kExitOk;
 }
 
+// ---------------------------------------------------------------- hz, bw, doctor
+
+// Subscribes to NAME's data (as watch does: GET_CONT_DATA, lease renewed) and calls
+// sample(arrival_ns, message_bytes) for each DATA, tick(now) every 100 ms at most,
+// until tick returns false or SIGINT/SIGTERM (0), ERROR (exit 1) or 5 s of silence (3).
+template <typename Sample, typename Tick>
+void stream_samples(Session& s, const Target& t, double period_ms, Sample sample, Tick tick) {
+  struct sigaction sa {};
+  sa.sa_handler = on_stop_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+  tims::Mailbox& data = s.data_mailbox();
+  wire::ContDataRequest req;
+  req.period_ns = static_cast<int64_t>(std::llround(period_ms * 1e6));
+  req.mailbox = data.address().raw();
+  const CallResult r = s.call(t, msg::kGetContData, req);
+  Session::expect(t, r, msg::kContData, "GET_CONT_DATA");
+  wire::ContDataReply rep;
+  if (!wire::read_payload(r.body, tims::body_is_native(r.reply), rep)) {
+    fail(kExitError, t.label() + ": GET_CONT_DATA: malformed CONT_DATA reply");
+  }
+  const auto stop_cont_data = [&] {
+    wire::StopContDataRequest stop;
+    stop.mailbox = data.address().raw();
+    const ConstBuffer part = tims::buffer_of(stop);
+    (void)s.endpoint().call(t.address, msg::kStopContData, std::span<const ConstBuffer>(&part, 1), s.buffer(),
+                            s.timeout_ns());
+  };
+  const int64_t silence_ns = std::max<int64_t>(5 * rt::kNsPerSec, 2 * rep.period_ns + s.timeout_ns());
+  const int64_t renew_every = rep.lease_ns > 0 ? rep.lease_ns / 4 : 0;
+  int64_t renew_at = rt::monotonic_ns() + renew_every;
+  std::vector<std::byte> buf(data.slot_size());
+  int64_t last_sample = rt::monotonic_ns();
+  while (!g_stop.load(std::memory_order_relaxed)) {
+    const int64_t now = rt::monotonic_ns();
+    if (!tick(now)) break;
+    if (renew_every > 0 && now >= renew_at) {
+      const ConstBuffer part = tims::buffer_of(req);
+      (void)s.endpoint().send(t.address, msg::kGetContData, std::span<const ConstBuffer>(&part, 1), data.address());
+      renew_at = now + renew_every;
+    }
+    if (now - last_sample >= silence_ns) {
+      stop_cont_data();
+      fail(kExitUnavailable, format("%s: no sample for %lld s", t.label().c_str(),
+                                    static_cast<long long>(silence_ns / rt::kNsPerSec)));
+    }
+    int64_t wait = std::min<int64_t>(100 * rt::kNsPerMs, silence_ns - (now - last_sample));
+    if (renew_every > 0) wait = std::max<int64_t>(0, std::min(wait, renew_at - now));
+    const auto got = data.receive(buf, wait);
+    if (got.status != tims::RecvStatus::kOk) continue;
+    if (got.header.source().component() != t.address) continue;
+    if (got.header.type == msg::kError) {
+      const auto body = std::span<const std::byte>(buf).subspan(sizeof(MessageHeader), got.length - sizeof(MessageHeader));
+      fail(kExitError, t.label() + ": " + error_reason(body));
+    }
+    if (got.header.type != msg::kData) continue;
+    last_sample = rt::monotonic_ns();
+    sample(last_sample, static_cast<std::size_t>(got.length));
+  }
+  stop_cont_data();
+}
+
+int rate_command(Session& s, const Options& o, bool bandwidth) {
+  const Target t = s.resolve(o.args[0]);
+  const auto window = static_cast<std::size_t>(o.window > 0 ? o.window : (bandwidth ? 100 : 1000));
+  rack::tools::StreamStats stats(window);
+  std::fprintf(stderr, "rackctl: %s of %s over the last %zu samples, a report a second (Ctrl-C ends)\n",
+               bandwidth ? "bandwidth" : "rate", t.label().c_str(), window);
+  int64_t reports = 0;
+  int64_t next_report = rt::monotonic_ns() + rt::kNsPerSec;
+  stream_samples(
+      s, t, o.period_ms, [&](int64_t at, std::size_t bytes) { stats.add(at, bytes); },
+      [&](int64_t now) {
+        if (now < next_report) return true;
+        next_report += rt::kNsPerSec;
+        if (next_report <= now) next_report = now + rt::kNsPerSec;  // after a stall
+        const auto r = stats.report();
+        const std::string line = !r ? std::string(o.json ? "{\"samples\":0}" : "no two samples yet")
+                                 : o.json ? rack::tools::stream_json(*r)
+                                 : bandwidth ? rack::tools::bw_line(*r) : rack::tools::hz_line(*r);
+        if (std::printf("%s\n", line.c_str()) < 0 || std::fflush(stdout) != 0) {
+          return false;  // stdout closed
+        }
+        return !(o.count > 0 && ++reports >= o.count);
+      });
+  return kExitOk;
+}
+int cmd_hz(Session& s, const Options& o) { return rate_command(s, o, false); }
+int cmd_bw(Session& s, const Options& o) { return rate_command(s, o, true); }
+
+// The multicast group of an LCM URL udpm://GROUP:PORT?...; empty when it has none.
+std::string lcm_group(const std::string& url) {
+  const std::string scheme = "udpm://";
+  if (url.rfind(scheme, 0) != 0) return "";
+  const std::string rest = url.substr(scheme.size());
+  return rest.substr(0, rest.find_first_of(":?"));
+}
+
+int run_doctor_command(const Options& o) {
+  rack::tools::DoctorInput in;
+  const std::string url = o.lcm_url.empty() ? default_lcm_url() : o.lcm_url;
+  if (const std::string g = lcm_group(url); !g.empty()) in.multicast_group = g;
+  const auto checks = rack::tools::run_doctor(in);
+  bool failed = false;
+  for (const auto& c : checks) failed = failed || c.verdict == rack::tools::Verdict::kFail;
+  if (o.json) std::printf("%s\n", rack::tools::doctor_json(checks).c_str());
+  else std::fputs(rack::tools::format_doctor(checks).c_str(), stdout);
+  return failed ? kExitError : kExitOk;
+}
+
 int cmd_help(Session&, const Options&);  // handled before a session exists
 
 const std::vector<Command>& commands() {
@@ -1329,12 +1490,14 @@ const std::vector<Command>& commands() {
        cmd_off},
       {"status", "status NAME [--json]", 1, 1, {"--json"},
        "Prints the state and the timing statistics: data task mode and period,\n"
-       "cycles, overruns, wake-up latency (min, p50, p99, p99.9, max in us),\n"
+       "cycles, overruns, wake-up latency (min, p50, p99, p99.9, max: 3 digits with\n"
+       "their unit; a percentile beyond the histogram's 10 ms as \">= 10.0 ms\"),\n"
        "execution time of loop() (p50, p99, max in us; triggered tasks too),\n"
        "samples published, listeners, listener drops, malformed requests, commands,\n"
        "and the page faults of the command and data task since their start-up (0 is\n"
        "the target for an RT task; counted once a second by the executor).\n"
-       "--json prints the same as one JSON object.",
+       "--json prints the same as one JSON object (exact values in us; the\n"
+       "percentiles in the open bucket listed in latency_us.in_open_bucket).",
        cmd_status},
       {"latency", "latency NAME [--json]", 1, 1, {"--json"},
        "Prints the data task's wake-up latency histogram (GET_LATENCY): samples,\n"
@@ -1342,9 +1505,10 @@ const std::vector<Command>& commands() {
        "the first to the last non-empty one: its range, count, share of the samples\n"
        "and a bar (linear; at least one '#' for a non-empty bucket). Buckets: 1 us\n"
        "wide below 8 us, then 10 a decade (1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 8) up to\n"
-       "the last, open one (>= 10 ms); the edges come with the reply. A component\n"
-       "without a data task prints \"none measured\". --json prints one JSON object with\n"
-       "every bucket as {\"lower_ns\",\"upper_ns\" (null: open),\"count\"}.\n"
+       "the last, open one (>= 10 ms; a percentile there prints as \">= 10.0 ms\"); the\n"
+       "edges come with the reply. A component without a data task prints \"none\n"
+       "measured\". --json prints one JSON object with every bucket as\n"
+       "{\"lower_ns\",\"upper_ns\" (null: open),\"count\"}.\n"
        "  rackctl latency generator",
        cmd_latency},
       {"params", "params NAME [--json]", 1, 1, {"--json"},
@@ -1395,6 +1559,41 @@ const std::vector<Command>& commands() {
        "  rackctl send mcl INIT x=2 y=1.5 phi=0 sigma_xy=0.3 sigma_phi=0.2\n"
        "  rackctl send pilot SET_DESTINATION x=4 y=2",
        cmd_send},
+      {"hz", "hz NAME [--window N] [--period MS] [--count N] [--json]", 1, 1,
+       {"--window", "--period", "--count", "--json"},
+       "Subscribes like watch and prints, once a second, the rate of the stream and\n"
+       "min/max/mean/std of the period between samples over the last N samples\n"
+       "(--window, default 1000), like ros2 topic hz. Times are rackctl's arrival\n"
+       "times, so network jitter counts. --period MS asks the producer for every n-th\n"
+       "sample (as watch). --count N: stop after N reports (default: until\n"
+       "SIGINT/SIGTERM, exit 0). --json: one JSON object per report (SI units).\n"
+       "No sample for 5 s: exit 3; the producer going off: exit 1.\n"
+       "  rackctl hz generator\n"
+       "  rate 100 Hz  period min 8.02 ms, max 11.0 ms, mean 10.0 ms, std 244 us  (window 101 samples)",
+       cmd_hz},
+      {"bw", "bw NAME [--window N] [--period MS] [--count N] [--json]", 1, 1,
+       {"--window", "--period", "--count", "--json"},
+       "Subscribes like watch and prints, once a second, the bandwidth of the stream\n"
+       "(bytes of its TiMS messages, header and sample, per second) and the mean, min\n"
+       "and max message size over the last N samples (--window, default 100), like\n"
+       "ros2 topic bw. Options as for hz.\n"
+       "  rackctl bw generator\n"
+       "  bandwidth 4.69 KiB/s  message mean 48 B, min 48 B, max 48 B  (window 100 samples)",
+       cmd_bw},
+      {"doctor", "doctor [--json]", 0, 0, {"--json"},
+       "Checks what this host needs to run rackd in real time and prints one line per\n"
+       "check (ok, WARN or FAIL), what it found, and for each problem the fix:\n"
+       "  rt-priority      ulimit -r (RLIMIT_RTPRIO) or CAP_SYS_NICE: SCHED_FIFO tasks\n"
+       "  memlock          ulimit -l unlimited or CAP_IPC_LOCK: mlockall\n"
+       "  multicast-route  a route for the LCM group (of --lcm) on an interface that is up\n"
+       "                   and multicast-capable\n"
+       "  rmem-max         net.core.rmem_max >= 2 MiB (LCM's advice; large samples)\n"
+       "  preempt-rt       a PREEMPT_RT kernel (/sys/kernel/realtime, /proc/version)\n"
+       "  cpu-dma-latency  /dev/cpu_dma_latency writable (rackd's cpu_dma_latency_us)\n"
+       "  clocksource      a clock read through the vDSO (tsc, kvm-clock, arch_sys_counter)\n"
+       "It reads /proc, /sys and /dev only and changes nothing. Exit 0 when nothing\n"
+       "FAILs (WARNs are allowed), 1 otherwise. --json: one JSON array.",
+       cmd_help},
       {"keygen", "keygen FILE", 1, 1, {},
        "Writes a new key file for authenticated TiMS links: one random 32-byte key as\n"
        "64 hex digits, mode 0600; an existing file is never overwritten. Copy it to\n"
@@ -1465,6 +1664,7 @@ Options parse_arguments(int argc, char** argv) {
       return *n;
     };
     if (a == "-h" || a == "--help") o.help = true;
+    else if (a == "--version") o.version = true;
     else if (a == "--json") { o.json = true; o.given.insert(a); }
     else if (a == "--lcm") o.lcm_url = value("an LCM URL");
     else if (a == "--key-file") { o.key_file = value("a key file"); key_given = true; }
@@ -1483,6 +1683,11 @@ Options parse_arguments(int argc, char** argv) {
     else if (a == "--retries") {
       o.retries = non_negative("a number of retries");
       if (o.retries > 10) fail(kExitUsage, "--retries takes 0..10");
+    }
+    else if (a == "--window") {
+      o.window = non_negative("a number of samples");
+      if (o.window < 2 || o.window > 1000000) fail(kExitUsage, "--window takes 2..1000000 samples");
+      o.given.insert(a);
     }
     else if (a == "--time") { o.time_ns = non_negative("a host time in ns (0: newest)"); o.given.insert(a); }
     else if (a == "--count") {
@@ -1520,6 +1725,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "rackctl: %s\n", f.message.c_str());
     return f.code;
   }
+  if (o.version) {
+    rack::print_version("rackctl");
+    return kExitOk;
+  }
   if (o.command.empty()) {
     if (o.help) { std::fputs(kUsage, stdout); return kExitOk; }
     std::fputs(kUsage, stderr);
@@ -1553,6 +1762,7 @@ int main(int argc, char** argv) {
       return kExitUsage;
     }
   }
+  if (std::string(cmd->name) == "doctor") return run_doctor_command(o);
   if (std::string(cmd->name) == "keygen") {
     const std::string err = tims::generate_key_file(o.args[0]);
     if (!err.empty()) {

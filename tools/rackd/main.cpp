@@ -23,6 +23,7 @@
 #include "rack/rt/pm_qos.h"
 #include "rack/rt/modeswitch.h"
 #include "rack/tims/lcm_url.h"
+#include "rack/version.h"
 
 namespace {
 
@@ -45,6 +46,7 @@ options:
                      symbolize it with rack-backtrace
   --list-classes     print the component classes and their parameters, then exit
   -h, --help         this text
+  --version          the version (CMake project version, git describe)
 
 The log (GDOS: executor events and the components' log calls) goes to stderr, one
 line per record, and to LCM for the gdos viewer; the host file's gdos: map sets
@@ -243,6 +245,7 @@ static int run_rackd(int argc, char** argv) {
       return d;
     };
     if (a == "-h" || a == "--help") { std::fputs(kUsage, stdout); return 0; }
+    if (a == "--version") { rack::print_version("rackd"); return 0; }
     if (a == "--check") check = true;
     else if (a == "--list-classes") classes = true;
     else if (a == "--duration") duration = number("a number of seconds");

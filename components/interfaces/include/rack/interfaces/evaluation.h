@@ -18,7 +18,7 @@ struct EvaluatorData {
   uint64_t position_samples = 0;
   double position_error = 0.0;  // m, the last sample's
   double position_rms = 0.0;    // m, over every sample since ON
-  double position_p95 = 0.0;    // m (1 mm resolution, up to 10 m)
+  double position_p95 = 0.0;    // m, 1 mm resolution below 10 m; beyond: the max (an upper bound)
   double position_max = 0.0;    // m
   double position_heading_rms = 0.0;  // rad
   // MCL's estimate against the truth at its scan's time.
