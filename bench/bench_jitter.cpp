@@ -78,7 +78,9 @@ constexpr const char* kUsage =
     "  --load-name NAME the load's label in the output (default: idle, or the command)\n"
     "  --modeswitch     start mode-switch detection as rackd does (syscall user dispatch\n"
     "                   and a page-fault counter on each RT task; default: off, as an\n"
-    "                   embedding program that does not start it)\n";
+    "                   embedding program that does not start it)\n"
+    "  --modeswitch-only syscalls|faults\n"
+    "                   with --modeswitch: only that detector (to tell their costs apart)\n";
 
 constexpr double kTargetP99 = 1.05;   // issue 20: median per-round ratio
 constexpr double kTargetP999 = 1.2;
@@ -96,6 +98,7 @@ struct Options {
   std::string load_cmd;
   std::string load_name;
   bool modeswitch = false;
+  std::string modeswitch_only;
   bool verbose = false;
 };
 
@@ -325,6 +328,12 @@ void parse(int argc, char** argv, Options& o) {
     else if (a == "--load-name") o.load_name = next();
     else if (a == "--verbose") o.verbose = true;
     else if (a == "--modeswitch") o.modeswitch = true;
+    else if (a == "--modeswitch-only") {
+      o.modeswitch_only = next();
+      if (o.modeswitch_only != "syscalls" && o.modeswitch_only != "faults") {
+        throw std::invalid_argument("--modeswitch-only takes syscalls or faults");
+      }
+    }
     else if (a == "--help" || a == "-h") { std::fputs(kUsage, stdout); std::exit(0); }
     else throw std::invalid_argument("unknown option " + a);
   }
@@ -372,6 +381,12 @@ int main(int argc, char** argv) {
     rt::modeswitch::Config mc;
     mc.program = "bench_jitter";
     mc.crash_handlers = false;
+    if (!o.modeswitch_only.empty()) {
+      mc.syscalls = o.modeswitch_only == "syscalls";
+      mc.faults = o.modeswitch_only == "faults";
+      mc.allocations = false;
+      mc.locks = false;
+    }
     std::printf("bench_jitter: %s\n", rt::modeswitch::start(mc).describe().c_str());
   }
   const std::string load_before = rack::bench::read_first_line("/proc/loadavg");
