@@ -484,10 +484,12 @@ int main(int argc, char** argv) {
       << "\",\n  \"machine\": " << rack::bench::json_machine() << ",\n  \"seconds\": "
       << o.seconds << ", \"cpu\": " << o.cpu << ", \"priority\": " << o.priority << ", \"interval_us\": "
       << o.interval_us << ", \"rounds\": " << o.rounds << ", \"load_name\": \"" << rack::bench::json_escape(o.load_name)
-      << "\", \"load_cmd\": \"" << rack::bench::json_escape(o.load_cmd) << "\", \"modeswitch\": " << (o.modeswitch ? "true" : "false")
+      << "\", \"load_cmd\": \"" << rack::bench::json_escape(o.load_cmd) << "\", \"modeswitch\": "
+      << (o.modeswitch ? "true" : "false")
       << ", \"pm_qos_hold\": "
       << (qos && qos->active() ? "true" : "false") << ",\n  \"loadavg_before\": \"" << load_before
-      << "\", \"loadavg_after\": \"" << load_after << "\",\n  \"target_ratio_p99\": " << kTargetP99 << ", \"target_ratio_p999\": " << kTargetP999
+      << "\", \"loadavg_after\": \"" << load_after << "\",\n  \"target_ratio_p99\": " << kTargetP99
+      << ", \"target_ratio_p999\": " << kTargetP999
       << ", \"ratio_p99\": " << rack::bench::json_number(ratio_p99) << ", \"ratio_p999\": "
       << rack::bench::json_number(ratio_p999) << ", \"ratio_p50\": " << rack::bench::json_number(ratio_p50)
       << ",\n  \"round_ratios\": {";
@@ -509,7 +511,9 @@ int main(int argc, char** argv) {
       j << (first ? "" : ",") << "\n    \"" << (s == &rack_side ? "rack" : "cyclictest")
         << "\": {\"latency\": " << rack::bench::json_percentiles(s->p) << ", \"cycles\": " << s->cycles
         << ", \"overruns\": " << s->overruns << ", \"histogram_overflows\": " << s->overflows << ", \"rounds\": [";
-      for (std::size_t i = 0; i < s->rounds.size(); ++i) j << (i ? ", " : "") << rack::bench::json_percentiles(s->rounds[i]);
+      for (std::size_t i = 0; i < s->rounds.size(); ++i) {
+        j << (i ? ", " : "") << rack::bench::json_percentiles(s->rounds[i]);
+      }
       j << "], \"loadavg\": [";
       for (std::size_t i = 0; i < s->loads.size(); ++i) j << (i ? ", " : "") << "\"" << s->loads[i] << "\"";
       j << "],\n      \"histogram_us\": " << json_histogram(s->histogram) << "}";

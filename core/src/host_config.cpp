@@ -649,8 +649,8 @@ struct HostLoader {
     if (!rt_node) rt_set = rest(hk_set);
     if (!hk_node) hk_set = rest(rt_set);
     if (rt_set.empty() || hk_set.empty()) {
-      error(node.Mark(), std::string("'cpus': no CPU is left for ") + (rt_set.empty() ? "the RT tasks" : "housekeeping") +
-                             " (name both 'rt' and 'housekeeping')");
+      const std::string what = rt_set.empty() ? "the RT tasks" : "housekeeping";
+      error(node.Mark(), "'cpus': no CPU is left for " + what + " (name both 'rt' and 'housekeeping')");
       return;
     }
     hs.rt_cpus = rt_set;
