@@ -327,11 +327,15 @@ def section_jitter(c, keys):
         "(`clock_nanosleep`, its default). Both measure wake-up time minus deadline on CLOCK_MONOTONIC after an "
         "absolute `clock_nanosleep`, in 1-us buckets, and both skip missed periods; percentiles of both come "
         f"from the same code, truncated to whole us as cyclictest prints them. {jit['seconds']} s per side in "
-        f"{jit['rounds']} round(s), one side after the other (alternating order), never concurrently; the "
-        "same background load for both. /dev/cpu_dma_latency "
+        f"{jit['rounds']} round(s), one side after the other (alternating order: rack, cyclictest, cyclictest, "
+        "rack, ...), never concurrently; the same background load for both. /dev/cpu_dma_latency "
         + ("held at 0 for both sides (cyclictest does that by default)." if jit["pm_qos_hold"]
            else "left alone for both sides (cyclictest `--default-system`).")
-        + f" Target: p99 within {jit['target_ratio_p99']:.1f}x of cyclictest.")
+        + (" Mode-switch detection on for the RACK-RT side, as rackd runs it." if jit.get("modeswitch") else "")
+        + " Each round's RACK-RT segment is compared with its cyclictest segment (back to back, same load); the "
+        "verdict is the **median of the per-round ratios**, given with their range, so that one noisy segment "
+        f"cannot decide it. Targets: p99 <= {jit['target_ratio_p99']:.2f}x and p99.9 <= "
+        f"{jit.get('target_ratio_p999', 1.2):.2f}x cyclictest.")
     c.w("")
     for key, load, label, j in runs:
         c.w(f"### Load: {label}")
@@ -350,10 +354,31 @@ def section_jitter(c, keys):
             lat = j["sides"][side]["latency"]
             c.w(pct_row(side_label, lat) + f" {us(lat['mean_ns'])} |")
         c.w("")
-        c.w(f"All figures in us. Ratio RACK-RT / cyclictest: **p99 {j['ratio_p99']:.2f}x** "
-            f"({verdict(j['ratio_p99'], j['target_ratio_p99'])}), p50 {j['ratio_p50']:.2f}x. RACK-RT missed periods: "
-            f"{j['sides']['rack']['overruns']}; cyclictest histogram overflows (>= 10 ms): "
-            f"{j['sides']['cyclictest']['histogram_overflows']}.")
+        rr = j.get("round_ratios")
+        # The verdict: the median of the per-round ratios (older results: the pooled ratio).
+        r99 = rr["p99"]["median"] if rr else j["ratio_p99"]
+        r999 = rr["p999"]["median"] if rr else j.get("ratio_p999", 0)
+        t999 = j.get("target_ratio_p999", 1.2)
+        if rr:
+            c.w(f"Median of {len(rr['p99']['per_round'])} per-round ratios RACK-RT / cyclictest: "
+                f"**p99 {r99:.2f}x** (range {rr['p99']['min']:.2f}-{rr['p99']['max']:.2f}; "
+                f"{verdict(r99, j['target_ratio_p99'])}), **p99.9 {r999:.2f}x** (range {rr['p999']['min']:.2f}-"
+                f"{rr['p999']['max']:.2f}; {verdict(r999, t999)}), p50 {rr['p50']['median']:.2f}x. Pooled over "
+                f"all rounds: p99 {j['ratio_p99']:.2f}x, p99.9 {j.get('ratio_p999', 0):.2f}x. RACK-RT missed periods: "
+                f"{j['sides']['rack']['overruns']}; cyclictest histogram overflows (>= 10 ms): "
+                f"{j['sides']['cyclictest']['histogram_overflows']}.")
+            c.w("")
+            c.w("| round | RACK-RT p99 | cyclictest p99 | ratio | RACK-RT p99.9 | cyclictest p99.9 | ratio |")
+            c.w("|---|---|---|---|---|---|---|")
+            rounds_r, rounds_c = j["sides"]["rack"].get("rounds", []), j["sides"]["cyclictest"].get("rounds", [])
+            for i, (a, b) in enumerate(zip(rounds_r, rounds_c)):
+                c.w(f"| {i + 1} | {us(a['p99_ns'])} | {us(b['p99_ns'])} | {fx(ratio(a['p99_ns'], b['p99_ns']))} | "
+                    f"{us(a['p999_ns'])} | {us(b['p999_ns'])} | {fx(ratio(a['p999_ns'], b['p999_ns']))} |")
+        else:
+            c.w(f"All figures in us. Ratio RACK-RT / cyclictest: **p99 {j['ratio_p99']:.2f}x** "
+                f"({verdict(j['ratio_p99'], j['target_ratio_p99'])}), p50 {j['ratio_p50']:.2f}x. RACK-RT missed "
+                f"periods: {j['sides']['rack']['overruns']}; cyclictest histogram overflows (>= 10 ms): "
+                f"{j['sides']['cyclictest']['histogram_overflows']}.")
         c.w("")
         edges = [0, 10, 20, 30, 50, 100, 200, 500, 1000, 10000]
         hists = {s: dict((b, n) for b, n in j["sides"][s]["histogram_us"]) for s in ("rack", "cyclictest")}
@@ -372,29 +397,36 @@ def section_jitter(c, keys):
             c.w("")
         rk, ct = j["sides"]["rack"]["latency"], j["sides"]["cyclictest"]["latency"]
         c.summary.append((f"1 kHz wake-up latency, p99, {label}", f"CPU {j['cpu']}, SCHED_FIFO {j['priority']}",
-                          f"{us(rk['p99_ns'])} us", f"{us(ct['p99_ns'])} us (cyclictest)", f"{j['ratio_p99']:.2f}x",
-                          verdict(j["ratio_p99"], j["target_ratio_p99"])))
-        if j["ratio_p99"] > j["target_ratio_p99"]:
-            why = {
-                "idle": "idle p99 is the least repeatable figure on a VM: rare wake-ups of 0.5-1 ms from the "
-                        "haltpoll idle loop land on either side; earlier 10-15 s runs of the same build gave "
-                        "idle ratios from 0.71x to 2.56x",
+                          f"{us(rk['p99_ns'])} us", f"{us(ct['p99_ns'])} us (cyclictest)",
+                          f"{r99:.2f}x" + (" (median of rounds)" if rr else ""),
+                          verdict(r99, j["target_ratio_p99"])))
+        if rr:
+            c.summary.append((f"1 kHz wake-up latency, p99.9, {label}", f"CPU {j['cpu']}, SCHED_FIFO {j['priority']}",
+                              f"{us(rk['p999_ns'])} us", f"{us(ct['p999_ns'])} us (cyclictest)",
+                              f"{r999:.2f}x (median of rounds)", verdict(r999, t999)))
+        if r99 > j["target_ratio_p99"] or (rr and r999 > t999):
+            spread = (f"the per-round ratios range {rr['p99']['min']:.2f}-{rr['p99']['max']:.2f}x (p99), so "
+                      "the rounds disagree with each other by more than the target's margin: " if rr else "")
+            why = spread + {
+                "idle": "no thread or interrupt of RACK-RT's runs on the measured CPU around its wake-ups (ftrace, "
+                        "see \"Jitter: what runs on the measured CPU\" below the marker); what differs between "
+                        "rounds is the timer interrupt's lateness and what else the machine runs then",
                 "stress": "stress-ng's memory and I/O stressors make kernel work on the measured CPU; "
                           "both sides see it, but in different seconds",
-                "mcl": "no systematic cause found: the measured loop is cyclictest's, and the same build gave "
-                       "0.74x-1.52x beside MCL in runs minutes apart on a shared 2-CPU VM; the simulation's RT tasks "
-                       "(chassis SCHED_FIFO 80, its command task 82) are not pinned and share the measured CPU, and "
-                       "their phase against the 1 kHz task differs from segment to segment (see \"Jitter beside "
-                       "MCL\" at the end of this file)",
+                "mcl": "the simulation's RT tasks (chassis SCHED_FIFO 80, its command task 82) are not pinned and "
+                       "share the measured CPU, and their phase against the 1 kHz task differs from segment to "
+                       "segment (see \"Jitter: what runs on the measured CPU\" below the marker)",
             }.get(load, "see the notes below")
-            c.notes.append(f"Jitter {label}: p99 {j['ratio_p99']:.2f}x cyclictest, the target "
-                           f"{j['target_ratio_p99']:.1f}x missed by {100.0 * (j['ratio_p99'] / j['target_ratio_p99'] - 1):.0f}%: {why}.")
+            c.notes.append(f"Jitter {label}: median per-round ratio p99 {r99:.2f}x (target {j['target_ratio_p99']:.2f}x)"
+                           + (f", p99.9 {r999:.2f}x (target {t999:.2f}x)" if rr else "") + f": {why}.")
     c.w("Why the two sides can differ at all: the executor's data task is the same loop as cyclictest's "
-        "(`clock_nanosleep(TIMER_ABSTIME)` on CLOCK_MONOTONIC, latency recorded right after) plus `loop()` "
-        "(Generator: a sine and a ring write) and a few relaxed counter updates after the measurement; so the "
+        "(`clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)`, then `clock_gettime` through the vDSO and the "
+        "latency recorded; between the two only a thread-local pointer test, or two byte stores when mode-switch "
+        "detection is on) plus `loop()` (Generator: a sine and a ring write) after the measurement; so the "
         "two distributions should match within the run-to-run noise of a shared VM. The floor of about 10 us "
         "is the VM's timer path, not either program. Rare outliers (p99.9, max) follow the other load on the "
-        "machine; with short (quick) runs one of them moves the p99.")
+        "machine, which is why the verdict is the median of per-round ratios and the range is printed: a range "
+        "that straddles 1.0x says the difference is the machine's, not the program's.")
     c.w("")
     c.conditions(*keys)
     cmds = [c.cmd(k) for k in keys]

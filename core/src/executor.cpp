@@ -2,12 +2,16 @@
 
 #include "rack/tims/lcm_url.h"
 
+#include <dirent.h>
 #include <pthread.h>
 #include <sched.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <fstream>
 #include <iostream>
 #include <stdexcept>
 
@@ -30,9 +34,18 @@ namespace {
 // keep every CPU).
 class HousekeepingAffinity {
  public:
-  explicit HousekeepingAffinity(const std::vector<ComponentView>& views) noexcept {
+  HousekeepingAffinity(const std::vector<ComponentView>& views, const HostSettings& hs) noexcept {
     CPU_ZERO(&saved_);
     if (pthread_getaffinity_np(pthread_self(), sizeof saved_, &saved_) != 0) return;
+    if (!hs.housekeeping_cpus.empty()) {  // partitioned (`cpus:`): exactly the housekeeping CPUs
+      cpu_set_t hk;
+      CPU_ZERO(&hk);
+      for (const int c : hs.housekeeping_cpus) {
+        if (c >= 0 && c < CPU_SETSIZE) CPU_SET(static_cast<std::size_t>(c), &hk);
+      }
+      active_ = CPU_COUNT(&hk) > 0 && pthread_setaffinity_np(pthread_self(), sizeof hk, &hk) == 0;
+      return;
+    }
     cpu_set_t set = saved_;
     bool removed = false;
     const auto drop = [&](const TaskSettings& t) {
@@ -255,7 +268,7 @@ void Executor::start_steps(const std::string& url) {
   }
   gdos_running_ = true;
   {
-    const HousekeepingAffinity housekeeping(views_);
+    const HousekeepingAffinity housekeeping(views_, host_->settings);
     gdos_thread_ = std::thread([this] { gdos_loop(); });
   }
 
@@ -292,7 +305,7 @@ void Executor::start_steps(const std::string& url) {
   {
     // Threads a component starts in init() (a driver's device I/O: TcpSensorLink, the
     // camera's capture) are not real-time: they inherit the housekeeping CPUs.
-    const HousekeepingAffinity housekeeping(views_);
+    const HousekeepingAffinity housekeeping(views_, host_->settings);
     for (auto& v : views_) {
       step("init() of component '" + v.component->name() + "'");
       v.init_called = true;
@@ -316,10 +329,15 @@ void Executor::start_steps(const std::string& url) {
         return rt::modeswitch::TaskInfo{c.name() + suffix, c.name(), c.address().str(), c.address().raw(),
                                         t.modeswitch.value_or(fallback)};
       };
+      // Partitioned (`cpus:`): a task without its own `cpu:` runs on the RT CPUs when
+      // it is real-time, on the housekeeping CPUs when it is not.
+      auto task_cpus = [&hs](const TaskSettings& t) {
+        return t.cpu >= 0 ? std::vector<int>{} : t.priority > 0 ? hs.rt_cpus : hs.housekeeping_cpus;
+      };
       auto cmd = std::make_unique<rt::Thread>();
       gdos::LogRing* cmd_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " command task");
       const auto how = cmd->start({c.name().substr(0, 11) + ":cmd", s.command_task.priority, s.command_task.cpu,
-                                   s.command_task.stack_bytes},
+                                   s.command_task.stack_bytes, task_cpus(s.command_task)},
                                   [&c, cmd_ring, info = watch(s.command_task, ":cmd")] {
                                     gdos::bind_thread_ring(cmd_ring);
                                     rt::modeswitch::TaskAttachment attach(info);
@@ -335,7 +353,7 @@ void Executor::start_steps(const std::string& url) {
         auto data = std::make_unique<rt::Thread>();
         gdos::LogRing* data_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " data task");
         const auto how2 = data->start({c.name().substr(0, 10) + ":data", s.data_task.priority, s.data_task.cpu,
-                                       s.data_task.stack_bytes},
+                                       s.data_task.stack_bytes, task_cpus(s.data_task)},
                                       [dc, data_ring, info = watch(s.data_task, ":data")] {
                                         gdos::bind_thread_ring(data_ring);
                                         rt::modeswitch::TaskAttachment attach(info);
@@ -361,7 +379,7 @@ void Executor::start_steps(const std::string& url) {
       tc.large_slots = hs.large_slots;
       tc.receive_priority = hs.receive_priority;
       tc.warn = [this](const std::string& s) { log(gdos::Level::kWarning, s); };
-      const HousekeepingAffinity housekeeping(views_);  // the transport's threads
+      const HousekeepingAffinity housekeeping(views_, host_->settings);  // the transport's threads
       tc.replay_window_ns = hs.replay_window_ns;
       transport_ = std::make_unique<tims::LcmTransport>(router_, tc);
       // Other hosts of this robot own the rest of its addresses: let the transport
@@ -543,6 +561,149 @@ std::string Executor::status_report() const {
     out += line;
   }
   if (access_) out += access_->status_text();
+  return out;
+}
+
+}  // namespace rack
+
+namespace rack {
+
+namespace {
+
+std::vector<pid_t> own_threads() {
+  std::vector<pid_t> out;
+  DIR* d = opendir("/proc/self/task");
+  if (d == nullptr) return out;
+  while (const dirent* e = readdir(d)) {
+    char* end = nullptr;
+    const long tid = std::strtol(e->d_name, &end, 10);
+    if (tid > 0 && end != nullptr && *end == '\0') out.push_back(static_cast<pid_t>(tid));
+  }
+  closedir(d);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::string thread_name(pid_t tid) {
+  std::ifstream in("/proc/self/task/" + std::to_string(tid) + "/comm");
+  std::string name;
+  std::getline(in, name);
+  return name.empty() ? "?" : name;
+}
+
+std::vector<int> thread_cpus(pid_t tid) {
+  std::vector<int> out;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(tid, sizeof set, &set) != 0) return out;
+  for (int c = 0; c < CPU_SETSIZE; ++c) {
+    if (CPU_ISSET(static_cast<std::size_t>(c), &set)) out.push_back(c);
+  }
+  return out;
+}
+
+bool contains(const std::vector<int>& v, int c) { return std::find(v.begin(), v.end(), c) != v.end(); }
+
+}  // namespace
+
+std::string Executor::thread_report() const {
+  const HostSettings& hs = host_->settings;
+  struct Task {
+    pid_t tid;
+    std::string what;
+  };
+  std::vector<Task> tasks;
+  for (const auto& v : views_) {
+    if (!v.tasks_started) continue;
+    const Component& c = *v.component;
+    const ComponentSettings& s = c.settings();
+    tasks.push_back({c.command_task_faults().tid(),
+                     s.command_task.priority > 0 ? "RT task" : "task, not RT"});
+    if (c.data_task_mode() != DataTaskMode::kNone) {
+      tasks.push_back({c.data_task_faults().tid(), s.data_task.priority > 0 ? "RT task" : "task, not RT"});
+    }
+  }
+  std::string out;
+  if (hs.housekeeping_cpus.empty()) {
+    out += "threads (no partitioning: no 'cpus:' in the host file)\n";
+  } else {
+    out += "threads (cpus: rt " + rt::cpu_list_string(hs.rt_cpus) + ", housekeeping " +
+           rt::cpu_list_string(hs.housekeeping_cpus) + ")\n";
+  }
+  for (const pid_t tid : own_threads()) {
+    const int policy = sched_getscheduler(tid);
+    sched_param param{};
+    (void)sched_getparam(tid, &param);
+    std::string sched = policy == SCHED_FIFO ? "FIFO " + std::to_string(param.sched_priority)
+                        : policy == SCHED_RR ? "RR " + std::to_string(param.sched_priority)
+                                             : "OTHER";
+    std::string role = "housekeeping";
+    if (tid == getpid()) role = "housekeeping (main)";
+    for (const auto& t : tasks) {
+      if (t.tid == tid) role = t.what;
+    }
+    char line[160];
+    std::snprintf(line, sizeof line, "  %7d  %-15s  %-8s  CPUs %-8s  %s\n", static_cast<int>(tid),
+                  thread_name(tid).c_str(), sched.c_str(), rt::cpu_list_string(thread_cpus(tid)).c_str(),
+                  role.c_str());
+    out += line;
+  }
+  return out;
+}
+
+std::vector<std::string> Executor::partition_threads() {
+  std::vector<std::string> moved;
+  const HostSettings& hs = host_->settings;
+  if (hs.housekeeping_cpus.empty() || !started_) return moved;
+  std::vector<pid_t> tasks;
+  for (const auto& v : views_) {
+    if (!v.tasks_started) continue;
+    const Component& c = *v.component;
+    tasks.push_back(c.command_task_faults().tid());
+    if (c.data_task_mode() != DataTaskMode::kNone) tasks.push_back(c.data_task_faults().tid());
+  }
+  // A task that has not marked its start-up yet cannot be told from a helper thread:
+  // try again at the next call rather than move an RT task.
+  if (std::find(tasks.begin(), tasks.end(), 0) != tasks.end()) return moved;
+  for (const pid_t tid : own_threads()) {
+    if (std::find(tasks.begin(), tasks.end(), tid) != tasks.end()) continue;
+    if (thread_cpus(tid) == hs.housekeeping_cpus) continue;
+    if (rt::set_thread_affinity(tid, hs.housekeeping_cpus) == 0) {
+      moved.push_back(std::to_string(tid) + " (" + thread_name(tid) + ")");
+    }
+  }
+  return moved;
+}
+
+std::vector<std::string> Executor::partition_warnings() const {
+  std::vector<std::string> out;
+  const HostSettings& hs = host_->settings;
+  if (hs.housekeeping_cpus.empty()) return out;
+  std::vector<int> both;
+  for (const int c : hs.rt_cpus) {
+    if (contains(hs.housekeeping_cpus, c)) both.push_back(c);
+  }
+  if (!both.empty()) {
+    out.push_back("cpus: CPU " + rt::cpu_list_string(both) +
+                  " serves RT tasks and housekeeping alike: the GDOS, network and library threads there delay "
+                  "the RT tasks' wake-ups");
+  }
+  for (const auto& v : views_) {
+    const Component& c = *v.component;
+    const ComponentSettings& s = c.settings();
+    const auto check = [&](const TaskSettings& t, const char* which) {
+      if (t.cpu < 0) return;
+      if (t.priority > 0 && !contains(hs.rt_cpus, t.cpu)) {
+        out.push_back("cpus: " + c.name() + "'s " + which + " (RT, priority " + std::to_string(t.priority) +
+                      ") is pinned to CPU " + std::to_string(t.cpu) + ", not one of the RT CPUs " +
+                      rt::cpu_list_string(hs.rt_cpus));
+      } else if (t.priority == 0 && contains(hs.rt_cpus, t.cpu)) {
+        out.push_back("cpus: " + c.name() + "'s " + which + " (not RT) is pinned to RT CPU " + std::to_string(t.cpu));
+      }
+    };
+    check(s.command_task, "command task");
+    if (c.data_task_mode() != DataTaskMode::kNone) check(s.data_task, "data task");
+  }
   return out;
 }
 

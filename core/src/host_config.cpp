@@ -9,6 +9,7 @@
 #include "rack/tims/lcm_url.h"
 #include "rack/tims/link_auth.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -453,7 +454,7 @@ struct HostLoader {
     HostSettings& hs = host->settings;
     hs.file = file;
     check_keys(root, {"host", "system", "host_id", "require_rt", "lcm", "lcm_url", "heap_prefault_mib",
-                      "cpu_dma_latency_us", "plugins", "modeswitch", "components", "gdos", "tims", "access"},
+                      "cpu_dma_latency_us", "cpus", "plugins", "modeswitch", "components", "gdos", "tims", "access"},
                "the host file");
     char hostname[256] = {};
     gethostname(hostname, sizeof hostname - 1);
@@ -478,6 +479,7 @@ struct HostLoader {
                       "a latency bound in us (0: shallowest idle state; -1: leave to the system)")) {
       hs.cpu_dma_latency_us = static_cast<int>(v);
     }
+    if (const YAML::Node cpus = root["cpus"]) read_cpus(cpus, hs);
     if (const YAML::Node ms = root["modeswitch"]) read_modeswitch(ms, hs.modeswitch);
     if (const YAML::Node t = root["tims"]) load_tims(t, hs, root["lcm_url"].IsDefined());
     if (const YAML::Node plugins = root["plugins"]) {
@@ -547,6 +549,109 @@ struct HostLoader {
   // The network's receive threads must never preempt a real-time task of a component
   // (DESIGN: RT tasks never wait for the network): tims.receive_priority stays below
   // every SCHED_FIFO task's priority.
+  // A CPU set: a number, a list of numbers, or a cpulist text ("0-1,3"); every CPU
+  // online. Returns false (with an error at the node) otherwise.
+  bool read_cpu_set(const YAML::Node& node, const std::string& key, std::vector<int>& out) {
+    const auto add = [&](int64_t c) {
+      if (c < 0 || c >= CPU_SETSIZE || !caps.cpu_online(static_cast<int>(c))) {
+        std::string online;
+        for (int o : caps.online_cpus) {
+          if (!online.empty()) online += ',';
+          online += std::to_string(o);
+        }
+        std::string message = "'cpus: ";
+        message += key;
+        message += "': CPU ";
+        message += std::to_string(c);
+        message += " is not online (online: ";
+        message += online;
+        message += ')';
+        error(node.Mark(), message);
+        return false;
+      }
+      out.push_back(static_cast<int>(c));
+      return true;
+    };
+    const auto bad = [&] {
+      error(node.Mark(), "'cpus: " + key + "' must be a CPU number, a list of them or a CPU list such as \"0-1,3\"");
+      return false;
+    };
+    if (node.IsSequence()) {
+      for (const auto& n : node) {
+        int64_t c = 0;
+        if (!n.IsScalar()) return bad();
+        try {
+          c = n.as<int64_t>();
+        } catch (const YAML::Exception&) {
+          return bad();
+        }
+        if (!add(c)) return false;
+      }
+    } else if (node.IsScalar()) {
+      const std::string text = node.Scalar();
+      std::size_t i = 0;
+      const auto number = [&](int64_t& v) {
+        if (i >= text.size() || text[i] < '0' || text[i] > '9') return false;
+        v = 0;
+        while (i < text.size() && text[i] >= '0' && text[i] <= '9' && v < 100000) v = v * 10 + (text[i++] - '0');
+        return true;
+      };
+      while (i < text.size()) {
+        int64_t a = 0, b = 0;
+        if (!number(a)) return bad();
+        b = a;
+        if (i < text.size() && text[i] == '-') {
+          ++i;
+          if (!number(b) || b < a) return bad();
+        }
+        for (int64_t c = a; c <= b; ++c) {
+          if (!add(c)) return false;
+        }
+        if (i < text.size() && text[i++] != ',') return bad();
+        if (i == text.size() && text.back() == ',') return bad();
+      }
+    } else {
+      return bad();
+    }
+    std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
+    if (out.empty()) return bad();
+    return true;
+  }
+
+  // The `cpus:` block: rt and housekeeping CPU sets (configs/partitioned.yaml).
+  void read_cpus(const YAML::Node& node, HostSettings& hs) {
+    if (!node.IsMap()) {
+      error(node.Mark(), "'cpus' must be a map (rt, housekeeping)");
+      return;
+    }
+    check_keys(node, {"rt", "housekeeping"}, "cpus");
+    const YAML::Node rt_node = node["rt"], hk_node = node["housekeeping"];
+    if (!rt_node && !hk_node) {
+      error(node.Mark(), "'cpus' needs 'rt' or 'housekeeping' (or both)");
+      return;
+    }
+    std::vector<int> rt_set, hk_set;
+    if (rt_node && !read_cpu_set(rt_node, "rt", rt_set)) return;
+    if (hk_node && !read_cpu_set(hk_node, "housekeeping", hk_set)) return;
+    const auto rest = [&](const std::vector<int>& other) {
+      std::vector<int> r;
+      for (int c : caps.online_cpus) {
+        if (std::find(other.begin(), other.end(), c) == other.end()) r.push_back(c);
+      }
+      return r;
+    };
+    if (!rt_node) rt_set = rest(hk_set);
+    if (!hk_node) hk_set = rest(rt_set);
+    if (rt_set.empty() || hk_set.empty()) {
+      const std::string what = rt_set.empty() ? "the RT tasks" : "housekeeping";
+      error(node.Mark(), "'cpus': no CPU is left for " + what + " (name both 'rt' and 'housekeeping')");
+      return;
+    }
+    hs.rt_cpus = rt_set;
+    hs.housekeeping_cpus = hk_set;
+  }
+
   void check_receive_priority(const YAML::Node& root, const LoadedHost& host) {
     const int rx = host.settings.receive_priority;
     if (rx == 0) return;

@@ -263,6 +263,35 @@ components:
   EXPECT_EQ(r.host->components.at(0)->settings().data_task.priority, 0);
 }
 
+// CPU partitioning (`cpus:`): forms, defaults (the other set's complement), refusals.
+TEST_F(HostConfigTest, CpusPartitioning) {
+  const std::string comps = "components:\n  - name: gen\n    class: Generator\n    data_task: {period_ms: 10}\n";
+  {
+    const LoadResult r = load("lcm: false\ncpus: {rt: 1}\n" + comps);
+    ASSERT_NE(r.host, nullptr) << (r.errors.empty() ? "" : r.errors.front().str());
+    EXPECT_EQ(r.host->settings.rt_cpus, std::vector<int>({1}));
+    EXPECT_EQ(r.host->settings.housekeeping_cpus, std::vector<int>({0}));  // online less rt
+  }
+  {
+    const LoadResult r = load("lcm: false\ncpus: {rt: \"0-1\", housekeeping: [1, 1]}\n" + comps);
+    ASSERT_NE(r.host, nullptr) << (r.errors.empty() ? "" : r.errors.front().str());
+    EXPECT_EQ(r.host->settings.rt_cpus, std::vector<int>({0, 1}));
+    EXPECT_EQ(r.host->settings.housekeeping_cpus, std::vector<int>({1}));  // overlap: rackd warns
+  }
+  {
+    const LoadResult r = load("lcm: false\n" + comps);
+    ASSERT_NE(r.host, nullptr);
+    EXPECT_TRUE(r.host->settings.rt_cpus.empty());  // no partitioning
+    EXPECT_TRUE(r.host->settings.housekeeping_cpus.empty());
+  }
+  expect_error("lcm: false\ncpus: {rt: \"0-1\"}\n" + comps, 2, {"no CPU is left for housekeeping"});
+  expect_error("lcm: false\ncpus: {rt: 2}\n" + comps, 2, {"'cpus: rt'", "CPU 2 is not online", "0,1"});
+  expect_error("lcm: false\ncpus: {rt: \"1,\"}\n" + comps, 2, {"'cpus: rt' must be a CPU number"});
+  expect_error("lcm: false\ncpus: {rt: \"1-0\"}\n" + comps, 2, {"'cpus: rt' must be a CPU number"});
+  expect_error("lcm: false\ncpus: {housekeeping: {a: 1}}\n" + comps, 2, {"'cpus: housekeeping'"});
+  expect_error("lcm: false\ncpus: [0]\n" + comps, 2, {"'cpus' must be a map"});
+}
+
 TEST_F(HostConfigTest, CpuNotOnline) {
   expect_error(R"(lcm: false
 components:

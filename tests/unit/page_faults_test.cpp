@@ -8,10 +8,12 @@
 #include <sched.h>
 
 #include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -221,6 +223,68 @@ components:
   }));
   const cpu_set_t t = affinity_of(io);
   EXPECT_FALSE(CPU_ISSET(static_cast<std::size_t>(pinned), &t)) << "init()'s thread may run on CPU " << pinned << ", where RT tasks are pinned";
+}
+
+}  // namespace
+}  // namespace rack
+
+namespace rack {
+namespace {
+
+// Partitioning (`cpus:`): a thread that appears after start() (a library's pool
+// started on first use) is moved onto the housekeeping CPUs by partition_threads();
+// the tasks keep theirs; partition_threads() reports what it moved, once.
+TEST(PartitionThreadsTest, LateThreadsAreMovedToTheHousekeepingCpusAndTasksAreNot) {
+  Watchdog watchdog;
+  const cpu_set_t before = affinity_of(0);
+  if (!CPU_ISSET(0, &before) || !CPU_ISSET(1, &before)) GTEST_SKIP() << "needs CPUs 0 and 1 in this process's affinity";
+  {
+    test::HostUnderTest host(R"(system: 0
+lcm: false
+cpus: {rt: 1, housekeeping: 0}
+components:
+  - name: gen
+    class: Generator
+    instance: 1
+    command_task: {priority: 30}
+    data_task: {priority: 60, period_ms: 10}
+)");
+    // Started by a thread with both CPUs (this one, as a library would from anywhere).
+    std::atomic<bool> stop{false};
+    std::thread late([&] {
+      pthread_setname_np(pthread_self(), "late-pool");
+      while (!stop.load()) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    });
+    pid_t late_tid = 0;
+    ASSERT_TRUE(test::eventually([&] { return (late_tid = thread_named("late-pool")) != 0; }));
+    const cpu_set_t inherited = affinity_of(late_tid);
+    EXPECT_TRUE(CPU_ISSET(1, &inherited));
+    std::vector<std::string> moved;
+    ASSERT_TRUE(test::eventually([&] {
+      moved = host.executor().partition_threads();  // empty until both tasks marked their start-up
+      return !moved.empty();
+    }));
+    bool named = false;
+    for (const auto& m : moved) named = named || m.find("late-pool") != std::string::npos;
+    EXPECT_TRUE(named);
+    const cpu_set_t l = affinity_of(late_tid);
+    EXPECT_EQ(CPU_COUNT(&l), 1);
+    EXPECT_TRUE(CPU_ISSET(0, &l));
+    for (const char* task : {"gen:cmd", "gen:data"}) {
+      const pid_t tid = thread_named(task);
+      ASSERT_NE(tid, 0) << task;
+      const cpu_set_t t = affinity_of(tid);
+      EXPECT_EQ(CPU_COUNT(&t), 1) << task;
+      EXPECT_TRUE(CPU_ISSET(1, &t)) << task << " is an RT task: it stays on the rt CPU";
+    }
+    EXPECT_TRUE(host.executor().partition_threads().empty()) << "a second pass has nothing to move";
+    const std::string report = host.executor().thread_report();
+    EXPECT_NE(report.find("threads (cpus: rt 1, housekeeping 0)"), std::string::npos) << report;
+    EXPECT_NE(report.find("gen:data"), std::string::npos) << report;
+    stop = true;
+    late.join();
+  }
+  (void)sched_setaffinity(0, sizeof before, &before);  // partition_threads moved this thread too
 }
 
 }  // namespace

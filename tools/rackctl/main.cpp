@@ -8,6 +8,8 @@
 //
 // Exit codes: 0 ok, 1 the component answered ERROR (its reason is printed), 2 usage
 // error, 3 not available (NOT_AVAILABLE reply, unknown name, no reply in time).
+#include <dirent.h>
+#include <sched.h>
 #include <signal.h>
 #include <unistd.h>
 
@@ -106,6 +108,8 @@ commands:
                                 multicast route, rmem_max, PREEMPT_RT, ...), each
                                 with the fix
   keygen FILE                   write a new TiMS link key file (mode 0600) for key_file
+  threads [PID]                 where each thread of a rackd on this machine runs (CPUs,
+                                scheduling): checks the host file's 'cpus:' partitioning
   help [COMMAND]                this text, or a command's
 
 NAME is a component's name from its host file (found by discovery), or an address
@@ -1464,6 +1468,88 @@ int run_doctor_command(const Options& o) {
 
 int cmd_help(Session&, const Options&);  // handled before a session exists
 
+// threads [PID]: /proc only, no session.
+std::string read_line_of(const std::string& path) {
+  FILE* f = std::fopen(path.c_str(), "r");
+  if (f == nullptr) return {};
+  char buf[256] = {};
+  const bool ok = std::fgets(buf, sizeof buf, f) != nullptr;
+  std::fclose(f);
+  if (!ok) return {};
+  std::string s = buf;
+  while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
+  return s;
+}
+
+std::vector<long> numeric_entries(const std::string& dir) {
+  std::vector<long> out;
+  DIR* d = opendir(dir.c_str());
+  if (d == nullptr) return out;
+  while (const dirent* e = readdir(d)) {
+    char* end = nullptr;
+    const long n = std::strtol(e->d_name, &end, 10);
+    if (n > 0 && end != nullptr && *end == '\0') out.push_back(n);
+  }
+  closedir(d);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+int cmd_threads(const Options& o) {
+  std::vector<long> pids;
+  if (!o.args.empty()) {
+    const auto pid = parse_int(o.args[0]);
+    if (!pid || *pid <= 0 || *pid > INT_MAX) {
+      std::fprintf(stderr, "rackctl: threads: '%s' is not a process id\n", o.args[0].c_str());
+      return kExitUsage;
+    }
+    pids.push_back(static_cast<long>(*pid));
+  } else {
+    for (const long p : numeric_entries("/proc")) {
+      if (read_line_of("/proc/" + std::to_string(p) + "/comm") == "rackd") pids.push_back(p);
+    }
+    if (pids.empty()) {
+      std::fprintf(stderr, "rackctl: threads: no rackd runs on this machine\n");
+      return kExitUnavailable;
+    }
+  }
+  for (const long pid : pids) {
+    const std::string base = "/proc/" + std::to_string(pid) + "/task";
+    const auto tids = numeric_entries(base);
+    if (tids.empty()) {
+      std::fprintf(stderr, "rackctl: threads: no process %ld (or %s is not readable)\n", pid, base.c_str());
+      return kExitUnavailable;
+    }
+    std::printf("rackd %ld (%s): %zu threads\n%8s  %-15s  %-8s  %s\n", pid,
+                read_line_of("/proc/" + std::to_string(pid) + "/comm").c_str(), tids.size(), "TID", "NAME", "SCHED",
+                "CPUS");
+    for (const long tid : tids) {
+      const std::string dir = base + "/" + std::to_string(tid);
+      std::string cpus = "?";
+      if (FILE* f = std::fopen((dir + "/status").c_str(), "r")) {
+        char line[512];
+        while (std::fgets(line, sizeof line, f) != nullptr) {
+          if (std::strncmp(line, "Cpus_allowed_list:", 18) == 0) {
+            cpus = line + 18;
+            cpus.erase(0, cpus.find_first_not_of(" \t"));
+            while (!cpus.empty() && (cpus.back() == '\n' || cpus.back() == ' ')) cpus.pop_back();
+          }
+        }
+        std::fclose(f);
+      }
+      const int policy = sched_getscheduler(static_cast<pid_t>(tid));
+      sched_param param{};
+      (void)sched_getparam(static_cast<pid_t>(tid), &param);
+      const std::string sched = policy == SCHED_FIFO ? "FIFO " + std::to_string(param.sched_priority)
+                                : policy == SCHED_RR ? "RR " + std::to_string(param.sched_priority)
+                                : policy < 0         ? "?"
+                                                     : "OTHER";
+      std::printf("%8ld  %-15s  %-8s  %s\n", tid, read_line_of(dir + "/comm").c_str(), sched.c_str(), cpus.c_str());
+    }
+  }
+  return kExitOk;
+}
+
 const std::vector<Command>& commands() {
   static const std::vector<Command> kCommands = {
       {"list", "list [--json]", 0, 0, {"--json"},
@@ -1593,6 +1679,13 @@ const std::vector<Command>& commands() {
        "  clocksource      a clock read through the vDSO (tsc, kvm-clock, arch_sys_counter)\n"
        "It reads /proc, /sys and /dev only and changes nothing. Exit 0 when nothing\n"
        "FAILs (WARNs are allowed), 1 otherwise. --json: one JSON array.",
+      {"threads", "threads [PID]", 0, 1, {},
+       "Prints every thread of the rackd with process id PID (default: every rackd\n"
+       "running on this machine) from /proc: TID NAME SCHED CPUS, where SCHED is\n"
+       "FIFO/RR with the priority or OTHER, and CPUS the CPUs it may run on. With the\n"
+       "host file's 'cpus:' block the RT tasks show the 'rt' CPUs and every other\n"
+       "thread the 'housekeeping' ones (rackd prints the same table at start). Local:\n"
+       "reads /proc, needs no network. Exit 3 when no such rackd runs.",
        cmd_help},
       {"keygen", "keygen FILE", 1, 1, {},
        "Writes a new key file for authenticated TiMS links: one random 32-byte key as\n"
@@ -1763,6 +1856,7 @@ int main(int argc, char** argv) {
     }
   }
   if (std::string(cmd->name) == "doctor") return run_doctor_command(o);
+  if (std::string(cmd->name) == "threads") return cmd_threads(o);
   if (std::string(cmd->name) == "keygen") {
     const std::string err = tims::generate_key_file(o.args[0]);
     if (!err.empty()) {

@@ -53,6 +53,11 @@ line per record, and to LCM for the gdos viewer; the host file's gdos: map sets
 levels and outputs (configs/demo.yaml), `rackctl set-param NAME gdosLevel LEVEL`
 changes a component's level at run time.
 
+CPU partitioning (the host file's cpus: block, configs/partitioned.yaml): RT
+tasks on the 'rt' CPUs, every other thread of rackd (non-RT tasks, GDOS, TiMS/LCM,
+library threads) on the 'housekeeping' CPUs; rackd prints where each thread runs
+at start and warns when an RT CPU also serves housekeeping (rackctl threads).
+
 Access control (the host file's access: section, configs/access_control.yaml):
 which sources may send which messages to which component, at what priority and
 rate; refusals are answered ERROR, counted per rule (--status) and logged.
@@ -296,6 +301,17 @@ static int run_rackd(int argc, char** argv) {
   std::fprintf(stderr, "rackd: host '%s' system %u, %zu components from %s\n", settings.host.c_str(),
                settings.system, loaded.host->components.size(), file.c_str());
   std::fprintf(stderr, "rackd: %s\n", caps.describe().c_str());
+  if (!settings.housekeeping_cpus.empty()) {
+    // Partitioning: from here on every thread this one starts (the mode-switch
+    // reporter, the executor's GDOS and network threads, threads of libraries such as
+    // OpenMP's pool) inherits the housekeeping CPUs; the tasks get theirs explicitly.
+    // Threads started before (the start-up watch, plug-ins') are moved after start().
+    const int rc = rack::rt::set_thread_affinity(0, settings.housekeeping_cpus);
+    std::fprintf(stderr, "rackd: cpus: RT tasks on CPU %s, housekeeping on CPU %s%s%s\n",
+                 rack::rt::cpu_list_string(settings.rt_cpus).c_str(),
+                 rack::rt::cpu_list_string(settings.housekeeping_cpus).c_str(), rc == 0 ? "" : "; WARNING: ",
+                 rc == 0 ? "" : std::strerror(rc));
+  }
   const bool rt_ok = caps.sched_fifo && caps.memlock;
   if (settings.require_rt && (!rt_ok || !caps.preempt_rt)) {
     std::string missing;
@@ -363,6 +379,9 @@ static int run_rackd(int argc, char** argv) {
   if (executor.any_fallback() && caps.sched_fifo) {  // the probe said yes, a task was refused
     std::fprintf(stderr, "rackd: WARNING: SCHED_FIFO was refused; tasks run SCHED_OTHER.\n");
   }
+  for (const auto& w : executor.partition_warnings()) std::fprintf(stderr, "rackd: WARNING: %s\n", w.c_str());
+  (void)executor.partition_threads();  // threads started before the main thread's affinity was set
+  std::fprintf(stderr, "rackd: %s", executor.thread_report().c_str());
   std::fprintf(stderr, "rackd: running%s%s; SIGINT or SIGTERM stops\n",
                executor.transport() ? ", TiMS on " : "",
                executor.transport() ? executor.transport()->url().c_str() : "");
@@ -383,6 +402,10 @@ static int run_rackd(int argc, char** argv) {
       }
       std::fflush(stdout);
       next_status += static_cast<int64_t>(status_every * 1e9);
+    }
+    // Threads that libraries start late (a pool on first use) join housekeeping.
+    for (const auto& t : executor.partition_threads()) {
+      std::fprintf(stderr, "rackd: cpus: thread %s moved to the housekeeping CPUs\n", t.c_str());
     }
     const int64_t wait = std::min({end, next_status, now + rack::rt::kNsPerSec}) - now;
     timespec ts = rack::rt::to_timespec(wait > 0 ? wait : 0);

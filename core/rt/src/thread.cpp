@@ -2,6 +2,7 @@
 
 #include <sched.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <system_error>
 
@@ -38,6 +39,13 @@ int create(pthread_t* handle, const ThreadConfig& config, bool realtime, void* (
     CPU_ZERO(&set);
     CPU_SET(static_cast<std::size_t>(config.cpu), &set);
     pthread_attr_setaffinity_np(&attr, sizeof(set), &set);
+  } else if (!config.cpus.empty()) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    for (const int c : config.cpus) {
+      if (c >= 0 && c < CPU_SETSIZE) CPU_SET(static_cast<std::size_t>(c), &set);
+    }
+    if (CPU_COUNT(&set) > 0) pthread_attr_setaffinity_np(&attr, sizeof(set), &set);
   }
   const int rc = pthread_create(handle, &attr, fn, arg);
   pthread_attr_destroy(&attr);
@@ -91,6 +99,31 @@ int set_current_thread_priority(int priority) noexcept {
   sched_param param{};
   param.sched_priority = priority;
   return pthread_setschedparam(pthread_self(), priority > 0 ? SCHED_FIFO : SCHED_OTHER, &param);
+}
+
+int set_thread_affinity(pid_t tid, const std::vector<int>& cpus) noexcept {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  for (const int c : cpus) {
+    if (c >= 0 && c < CPU_SETSIZE) CPU_SET(static_cast<std::size_t>(c), &set);
+  }
+  if (CPU_COUNT(&set) == 0) return EINVAL;
+  return sched_setaffinity(tid, sizeof set, &set) == 0 ? 0 : errno;
+}
+
+std::string cpu_list_string(std::vector<int> cpus) {
+  std::sort(cpus.begin(), cpus.end());
+  cpus.erase(std::unique(cpus.begin(), cpus.end()), cpus.end());
+  std::string out;
+  for (std::size_t i = 0; i < cpus.size();) {
+    std::size_t j = i;
+    while (j + 1 < cpus.size() && cpus[j + 1] == cpus[j] + 1) ++j;
+    if (!out.empty()) out += ',';
+    out += std::to_string(cpus[i]);
+    if (j > i) out += '-' + std::to_string(cpus[j]);
+    i = j + 1;
+  }
+  return out;
 }
 
 }  // namespace rack::rt

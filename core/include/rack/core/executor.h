@@ -15,7 +15,10 @@
 // OFF, ERROR, overruns, autostart failures) go the same way.
 //
 // CPUs: the executor's own non-RT threads (GDOS, the TiMS/LCM transport) are kept off
-// the CPUs that RT tasks are pinned to (`cpu:`), when another CPU is left.
+// the CPUs that RT tasks are pinned to (`cpu:`), when another CPU is left. With the
+// host file's `cpus:` block (partitioning), RT tasks without a `cpu:` run on its `rt`
+// CPUs and everything else (non-RT tasks, the executor's threads, threads libraries
+// start: partition_threads()) on its `housekeeping` CPUs.
 // Page faults: each task marks the end of its start-up; the GDOS thread samples every
 // task's faults since then once a second (Component::sample_faults, GET_STATS).
 //
@@ -101,6 +104,21 @@ class Executor {
 
   // One line per component: state, data task cycles/overruns/latency (for rackd).
   [[nodiscard]] std::string status_report() const;
+
+  // Where every thread of this process runs: one line each with its id, name,
+  // scheduling, allowed CPUs and role (RT task, normal task, housekeeping), from
+  // /proc/self/task. Not RT-safe; any non-RT thread.
+  [[nodiscard]] std::string thread_report() const;
+  // Partitioning (`cpus:`): moves every thread that is not one of the executor's tasks
+  // (library threads started after start(), helpers) onto the housekeeping CPUs.
+  // Returns the ids and names of the threads moved ("1234 (name)"); none without
+  // partitioning, or while a task has not started yet. rackd calls it after start()
+  // and once a second. Not RT-safe; main thread.
+  std::vector<std::string> partition_threads();
+  // What is questionable about the partitioning: an RT CPU that also serves
+  // housekeeping, an RT task pinned (`cpu:`) to a housekeeping-only CPU, a non-RT task
+  // pinned to an RT CPU. Empty without partitioning. Not RT-safe.
+  [[nodiscard]] std::vector<std::string> partition_warnings() const;
 
   // The non-RT entry point for preformatted reports (mode-switch reports, crash
   // reports): queued to GDOS as a record of `source` (the executor when empty),

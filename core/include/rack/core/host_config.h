@@ -76,6 +76,12 @@ struct HostSettings {
   int receive_priority = 0;       // TiMS/LCM receive threads: 0 normal, else SCHED_FIFO (below control tasks)
   std::size_t heap_prefault_bytes = 64u << 20;
   int cpu_dma_latency_us = 0;     // PM QoS bound held while running; -1: leave to the system
+  // CPU partitioning (the `cpus:` block; configs/partitioned.yaml explains it). Both
+  // empty: no partitioning. Otherwise both are set (a missing one is the online CPUs
+  // less the other): RT tasks without a `cpu:` run on rt_cpus, every other thread of
+  // rackd (non-RT tasks, GDOS, TiMS/LCM, library threads) on housekeeping_cpus.
+  std::vector<int> rt_cpus;
+  std::vector<int> housekeeping_cpus;
   std::vector<std::string> plugins;
   // Mode-switch detection (the `modeswitch:` block); rackd starts the detector.
   rt::modeswitch::Config modeswitch;

@@ -41,6 +41,8 @@ class TaskFaults {
   // The faults since start-up as of the last sample(). RT-safe.
   [[nodiscard]] FaultCount last() const noexcept;
   [[nodiscard]] bool started() const noexcept { return tid_.load(std::memory_order_acquire) != 0; }
+  // The task's thread id once it marked its start-up, else 0. RT-safe.
+  [[nodiscard]] pid_t tid() const noexcept { return tid_.load(std::memory_order_acquire); }
 
  private:
   std::atomic<pid_t> tid_{0};

@@ -7,18 +7,21 @@
 #pragma once
 
 #include <pthread.h>
+#include <sys/types.h>
 
 #include <cstddef>
 #include <functional>
 #include <string>
+#include <vector>
 
 namespace rack::rt {
 
 struct ThreadConfig {
   std::string name;                         // shown in top/ps; cut to 15 characters
   int priority = 0;                         // 1..99: SCHED_FIFO; 0: SCHED_OTHER
-  int cpu = -1;                             // pin to this CPU; -1: any
+  int cpu = -1;                             // pin to this CPU; -1: any (or `cpus`)
   std::size_t stack_bytes = 256 * 1024;     // pre-faulted at start
+  std::vector<int> cpus;                    // with cpu -1: run on these CPUs; empty: any
 };
 
 enum class ThreadStart {
@@ -49,6 +52,14 @@ class Thread {
   std::function<void()> body_;
   static void* trampoline(void* self);
 };
+
+// Sets the CPU affinity of thread `tid` of this process (0: the calling thread) to
+// `cpus`. Returns errno or 0 (EINVAL for an empty list). Not RT-safe.
+int set_thread_affinity(pid_t tid, const std::vector<int>& cpus) noexcept;
+
+// "0-1,3" (the kernel's cpulist format) from CPU numbers (sorted, duplicates
+// dropped). Not RT-safe.
+[[nodiscard]] std::string cpu_list_string(std::vector<int> cpus);
 
 // Gives the calling thread SCHED_FIFO `priority` (0: SCHED_OTHER). Returns errno or 0.
 int set_current_thread_priority(int priority) noexcept;

@@ -1,0 +1,170 @@
+// CPU partitioning from the host file (issue 20, item 2): the real rackd with
+// `cpus: {rt: 1, housekeeping: 0}`. Every thread of the process is read from
+// /proc/PID/task/*/status: the RT tasks may run on CPU 1 only, every other thread
+// (main, GDOS, TiMS/LCM receive and send, the mode-switch reporter, the non-RT task)
+// on CPU 0 only. Also: the start-up report, the overlap warning, malformed `cpus:`.
+#include <gtest/gtest.h>
+#include <sched.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "process.h"
+
+namespace rack::test {
+namespace {
+
+using namespace std::chrono_literals;
+
+const std::string kRackd = RACK_RACKD_PATH;
+const std::string kRackctl = RACK_RACKCTL_PATH;
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+// name and Cpus_allowed_list of every thread of `pid`, by thread id.
+struct ThreadInfo {
+  std::string name;
+  std::string cpus;
+};
+std::map<int, ThreadInfo> threads_of(pid_t pid) {
+  std::map<int, ThreadInfo> out;
+  const std::filesystem::path dir = "/proc/" + std::to_string(pid) + "/task";
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+    std::ifstream in(e.path() / "status");
+    ThreadInfo t;
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.rfind("Name:", 0) == 0) t.name = line.substr(line.find_first_not_of(" \t", 5));
+      if (line.rfind("Cpus_allowed_list:", 0) == 0) t.cpus = line.substr(line.find_first_not_of(" \t", 18));
+    }
+    if (!t.name.empty()) out[std::stoi(e.path().filename().string())] = t;
+  }
+  return out;
+}
+
+bool cpus_0_and_1_usable() {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) != 0) return false;
+  return CPU_ISSET(0, &set) && CPU_ISSET(1, &set);
+}
+
+bool sched_fifo_allowed() {
+  sched_param p{};
+  p.sched_priority = 1;
+  // A short-lived probe on a helper thread would be cleaner; the test process itself
+  // gives the priority straight back.
+  if (sched_setscheduler(0, SCHED_FIFO, &p) != 0) return false;
+  p.sched_priority = 0;
+  sched_setscheduler(0, SCHED_OTHER, &p);
+  return true;
+}
+
+std::string host_file(const std::string& url, const std::string& cpus) {
+  return "host: partition-test\nsystem: 0\nlcm_url: \"" + url + "\"\n" + cpus +
+         "components:\n"
+         "  - name: control\n"
+         "    class: Generator\n"
+         "    instance: 0\n"
+         "    autostart: true\n"
+         "    command_task: {priority: 70}\n"
+         "    data_task: {priority: 80, period_ms: 1}\n"
+         "  - name: background\n"
+         "    class: Generator\n"
+         "    instance: 1\n"
+         "    autostart: true\n"
+         "    command_task: {priority: 30}\n"
+         "    data_task: {priority: 0, period_ms: 20}\n";
+}
+
+class PartitionTest : public ::testing::Test {
+ protected:
+  PartitionTest() : watchdog_(60s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
+  void SetUp() override {
+    if (!cpus_0_and_1_usable()) GTEST_SKIP() << "needs CPUs 0 and 1 in this process's affinity";
+    if (!sched_fifo_allowed()) GTEST_SKIP() << "needs SCHED_FIFO (root or CAP_SYS_NICE)";
+  }
+  Watchdog watchdog_;
+  TempDir dir_;
+  LcmBus bus_;
+};
+
+TEST_F(PartitionTest, EveryNonRtThreadRunsOnTheHousekeepingCpus) {
+  const auto file = dir_.write("part.yaml", host_file(bus_.url(), "cpus: {rt: 1, housekeeping: 0}\n"));
+  Process rackd({kRackd, file.string()}, dir_.path(), "rackd");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 20s)) << rackd.err();
+  // rackctl on the same bus: its requests exercise the receive and send threads.
+  const RunResult st = run({kRackctl, "--lcm", bus_.url(), "status", "control"}, 20s);
+  EXPECT_EQ(st.exit_code, 0) << st.out << st.err;
+
+  const std::set<std::string> rt_tasks{"control:cmd", "control:data", "background:cmd"};
+  const auto threads = threads_of(rackd.pid());
+  std::set<std::string> seen;
+  for (const auto& [tid, t] : threads) {
+    seen.insert(t.name);
+    if (rt_tasks.count(t.name) != 0) {
+      EXPECT_EQ(t.cpus, "1") << "RT task " << t.name << " (" << tid << ")";
+    } else {
+      EXPECT_EQ(t.cpus, "0") << "thread " << t.name << " (" << tid << ") is not an RT task";
+    }
+  }
+  // The threads the test means to cover are there (names as rackd gives them).
+  for (const char* name : {"control:cmd", "control:data", "background:cmd", "background:data", "rackd:gdos",
+                           "tims-rx", "tims-tx", "rack-reporter", "rackd"}) {
+    EXPECT_EQ(seen.count(name), 1u) << "no thread named " << name;
+  }
+  // The start-up report says where each thread runs.
+  const std::string err = rackd.err();
+  EXPECT_TRUE(contains(err, "rackd: cpus: RT tasks on CPU 1, housekeeping on CPU 0")) << err;
+  EXPECT_TRUE(contains(err, "threads (cpus: rt 1, housekeeping 0)")) << err;
+  EXPECT_TRUE(contains(err, "control:data")) << err;
+  EXPECT_FALSE(contains(err, "serves RT tasks and housekeeping alike")) << err;
+
+  // rackctl threads PID shows the same.
+  const RunResult th = run({kRackctl, "threads", std::to_string(rackd.pid())}, 20s);
+  EXPECT_EQ(th.exit_code, 0) << th.out << th.err;
+  EXPECT_TRUE(contains(th.out, "control:data")) << th.out;
+  EXPECT_TRUE(contains(th.out, "FIFO 80")) << th.out;
+
+  rackd.signal(SIGTERM);
+  EXPECT_EQ(rackd.wait_exit(20s), 0) << rackd.err();
+}
+
+TEST_F(PartitionTest, WarnsWhenAnRtCpuAlsoServesHousekeeping) {
+  const auto file = dir_.write("overlap.yaml", host_file(bus_.url(), "cpus: {rt: \"0-1\", housekeeping: [1]}\n"));
+  Process rackd({kRackd, file.string(), "--duration", "1"}, dir_.path(), "rackd");
+  ASSERT_EQ(rackd.wait_exit(30s), 0) << rackd.err();
+  EXPECT_TRUE(contains(rackd.err(), "WARNING: cpus: CPU 1 serves RT tasks and housekeeping alike")) << rackd.err();
+}
+
+TEST_F(PartitionTest, MalformedCpusAreRefusedWithTheirPlace) {
+  struct Case {
+    std::string cpus;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {"cpus: {rt: 4000}\n", "'cpus: rt': CPU 4000 is not online"},
+      {"cpus: {rt: \"1-\"}\n", "'cpus: rt' must be a CPU number, a list of them or a CPU list"},
+      {"cpus: {housekeeping: [0, x]}\n", "'cpus: housekeeping' must be a CPU number"},
+      {"cpus: {rt: 1, cores: 0}\n", "cores"},
+      {"cpus: 1\n", "'cpus' must be a map (rt, housekeeping)"},
+      {"cpus: {}\n", "'cpus' needs 'rt' or 'housekeeping'"},
+  };
+  for (const auto& c : cases) {
+    const auto file = dir_.write("bad.yaml", host_file(bus_.url(), c.cpus));
+    const RunResult r = run({kRackd, "--check", file.string()}, 20s);
+    EXPECT_EQ(r.exit_code, 2) << c.cpus << r.err;
+    EXPECT_TRUE(contains(r.err, "bad.yaml:4:")) << c.cpus << r.err;
+    EXPECT_TRUE(contains(r.err, c.message)) << c.cpus << r.err;
+  }
+}
+
+}  // namespace
+}  // namespace rack::test
