@@ -3,9 +3,11 @@
 // stays behind this header, linked privately to the MCL target only).
 //
 // One filter step (update()): KLD-sampling (Fox 2003) draws the new particles from the
-// weighted old ones, each moved by the odometry increment plus noise (the motion model
-// below), then weighs each by the scan (the likelihood field below), split over
-// `threads` threads, then the recovery test. What this class adds over MRPT's filter:
+// weighted old ones (a low-variance draw, taken in random order; the KLD bins count the
+// drawn source poses, the posterior's support, as AMCL does), each moved by the
+// odometry increment plus noise (the motion model below), then weighs each by the scan
+// (the likelihood field below), split over `threads` threads, then the recovery test.
+// What this class adds over MRPT's filter:
 // - the map conversion from rack::maps::OccupancyMap (free/occupied/unknown cells);
 // - robot-frame scan points as the observation (Scan2D output: any bearings, no
 //   regular beam layout needed), evenly subsampled to `beams` points;
