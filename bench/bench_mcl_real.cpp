@@ -24,7 +24,8 @@
 // MCL_TRACE=1 prints every scan of rack's filter to stderr (error, fit, consistency,
 // recovery state); MCL_INJECT, MCL_RATIO, MCL_LOW, MCL_OUTLIER, MCL_OSCALE, MCL_A1,
 // MCL_A3, MCL_SIGMA, MCL_BEAMS, MCL_KLD_XY, MCL_KLD_PHI, MCL_KLD_EPS override the
-// option of that name on both sides; MCL_TRACE also traces the global part.
+// option of that name on both sides; MCL_PMIN sets particles_min (KLD while tracking,
+// both sides); MCL_TRACE also traces the global part.
 //
 // Not RT code; needs no privileges.
 #include <algorithm>
@@ -152,6 +153,7 @@ MclOptions bench_options(uint32_t particles, uint64_t seed) {
   if (const char* v = std::getenv("MCL_KLD_XY")) o.kld_bin_xy = std::atof(v);
   if (const char* v = std::getenv("MCL_KLD_PHI")) o.kld_bin_phi = std::atof(v);
   if (const char* v = std::getenv("MCL_KLD_EPS")) o.kld_epsilon = std::atof(v);
+  if (const char* v = std::getenv("MCL_PMIN")) o.particles_min = static_cast<uint32_t>(std::atoi(v));  // KLD in tracking
   return o;
 }
 
