@@ -153,6 +153,7 @@ MclOptions bench_options(uint32_t particles, uint64_t seed) {
   if (const char* v = std::getenv("MCL_KLD_XY")) o.kld_bin_xy = std::atof(v);
   if (const char* v = std::getenv("MCL_KLD_PHI")) o.kld_bin_phi = std::atof(v);
   if (const char* v = std::getenv("MCL_KLD_EPS")) o.kld_epsilon = std::atof(v);
+  if (const char* v = std::getenv("MCL_GLOBAL_K")) o.global_candidates = static_cast<uint32_t>(std::atoi(v));
   if (const char* v = std::getenv("MCL_PMIN")) o.particles_min = static_cast<uint32_t>(std::atoi(v));  // KLD in tracking
   return o;
 }

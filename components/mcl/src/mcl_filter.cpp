@@ -138,6 +138,10 @@ const char* check_options(const MclOptions& o) noexcept {
   if (o.recovery_updates < 1 || o.recovery_updates > 1000) return "recovery_updates must be in 1..1000";
   if (!(o.inject_max_fraction >= 0 && o.inject_max_fraction <= 1)) return "inject_max_fraction must be in [0, 1]";
   if (!(o.fit_min >= 0 && o.fit_min < 1)) return "fit_min must be in [0, 1)";
+  if (o.global_candidates < 1 || o.global_candidates > 100) return "global_candidates must be in 1..100";
+  if (static_cast<uint64_t>(o.particles_max) * o.global_candidates > 10'000'000) {
+    return "particles_max * global_candidates must be at most 10000000";
+  }
   if (o.threads < 1 || o.threads > 2) return "threads must be 1 or 2";
   return nullptr;
 }
@@ -170,6 +174,7 @@ struct MclFilter::Impl {
   std::unique_ptr<Worker> worker;
 
   bool force_update = true;
+  bool move_only = false;  // the next update moves the particles without resampling (after init_global)
   bool have_odometry = false;
   mrpt::poses::CPose2D odometry_prev;  // odometry of the previous scan
   mrpt::poses::CPose2D moved;          // odometry motion since the last filter update (jumps left out)
@@ -276,6 +281,18 @@ struct MclFilter::Impl {
   // the motion model's noise.
   void predict(const mrpt::poses::CPose2D& incr) {
     const std::size_t m = pdf.m_particles.size();
+    if (move_only) {  // the candidates of a global start: all equally likely, each kept
+      move_only = false;
+      std::normal_distribution<double> n01(0.0, 1.0);
+      const double sxy = opt.odom_min_std_xy, sphi = opt.odom_min_std_phi;
+      for (auto& p : pdf.m_particles) {
+        const double dx = incr.x() + sxy * n01(rng), dy = incr.y() + sxy * n01(rng);
+        const double c = std::cos(p.d.phi), s = std::sin(p.d.phi);
+        p.d = mrpt::math::TPose2D(p.d.x + c * dx - s * dy, p.d.y + s * dx + c * dy, wrap(p.d.phi + incr.phi() + sphi * n01(rng)));
+        p.log_w = 0.0;
+      }
+      return;
+    }
     double max_lw = -std::numeric_limits<double>::infinity();
     for (const auto& p : pdf.m_particles) max_lw = std::max(max_lw, p.log_w);
     cumulative.resize(m);
@@ -511,6 +528,7 @@ void MclFilter::set_options(const MclOptions& options) {
 void MclFilter::init_pose(const MclPose& pose, double sigma_xy, double sigma_phi) {
   Impl& s = *impl_;
   s.reset_particles(s.opt.particles_max, false);
+  s.move_only = false;
   std::normal_distribution<double> nxy(0.0, std::max(sigma_xy, 0.0));
   std::normal_distribution<double> nphi(0.0, std::max(sigma_phi, 0.0));
   for (auto& p : s.pdf.m_particles) {
@@ -523,7 +541,8 @@ void MclFilter::init_pose(const MclPose& pose, double sigma_xy, double sigma_phi
 
 void MclFilter::init_global() {
   Impl& s = *impl_;
-  s.reset_particles(s.opt.particles_max, true);
+  s.reset_particles(static_cast<std::size_t>(s.opt.particles_max) * s.opt.global_candidates, true);
+  s.move_only = s.opt.global_candidates > 1;
   for (auto& p : s.pdf.m_particles) {
     double x = 0, y = 0, phi = 0;
     s.random_free_pose(x, y, phi);
