@@ -23,7 +23,9 @@
 // Experiment knobs (environment, for choosing defaults; not used by bench/run):
 // MCL_TRACE=1 prints every scan of rack's filter to stderr (error, fit, consistency,
 // recovery state); MCL_INJECT, MCL_RATIO, MCL_LOW, MCL_OUTLIER, MCL_OSCALE, MCL_A1,
-// MCL_A3, MCL_SIGMA, MCL_BEAMS override the option of that name on both sides.
+// MCL_A3, MCL_SIGMA, MCL_BEAMS, MCL_KLD_XY, MCL_KLD_PHI, MCL_KLD_EPS override the
+// option of that name on both sides; MCL_PMIN sets particles_min (KLD while tracking,
+// both sides); MCL_TRACE also traces the global part.
 //
 // Not RT code; needs no privileges.
 #include <algorithm>
@@ -148,6 +150,11 @@ MclOptions bench_options(uint32_t particles, uint64_t seed) {
   if (const char* v = std::getenv("MCL_A3")) o.odom_a3 = std::atof(v);
   if (const char* v = std::getenv("MCL_SIGMA")) o.sigma_hit = std::atof(v);
   if (const char* v = std::getenv("MCL_BEAMS")) o.beams = static_cast<uint32_t>(std::atoi(v));
+  if (const char* v = std::getenv("MCL_KLD_XY")) o.kld_bin_xy = std::atof(v);
+  if (const char* v = std::getenv("MCL_KLD_PHI")) o.kld_bin_phi = std::atof(v);
+  if (const char* v = std::getenv("MCL_KLD_EPS")) o.kld_epsilon = std::atof(v);
+  if (const char* v = std::getenv("MCL_GLOBAL_K")) o.global_candidates = static_cast<uint32_t>(std::atoi(v));
+  if (const char* v = std::getenv("MCL_PMIN")) o.particles_min = static_cast<uint32_t>(std::atoi(v));  // KLD in tracking
   return o;
 }
 
@@ -383,6 +390,11 @@ void part_global(const std::vector<Data>& sets, int seeds, uint32_t particles_ma
           const auto e = f.estimate();
           er.push_back({e.pose.x, e.pose.y, e.pose.phi});
           nr = e.particles;
+          if (std::getenv("MCL_TRACE") != nullptr) {
+            std::fprintf(stderr, "global %s seed %d scan %zu err %.3f fit %.3f cons %.3f ratio %.3f low %u inj %u n %u\n",
+                         d.name.c_str(), seed, er.size() - 1, std::hypot(e.pose.x - s.truth.x, e.pose.y - s.truth.y), e.fit,
+                         e.consistency, e.w_fast / e.w_slow, e.low_updates, e.injected, e.particles);
+          }
         }
       }
       {

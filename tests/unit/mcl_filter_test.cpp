@@ -255,6 +255,40 @@ TEST_F(MclFilterTest, KldShrinksTheParticleSetOnceLocalised) {
   EXPECT_NEAR(x[0], robot.truth().x, 0.5);
 }
 
+// global_candidates: init_global() spreads that many times particles_max poses, the
+// first update weighs every one of them (no resampling before it), the next one draws
+// at most particles_max from them. Out of range is refused with the option's name.
+TEST_F(MclFilterTest, GlobalCandidatesAreAllWeighedOnceThenResampled) {
+  MclOptions o;
+  o.particles_min = 100;
+  o.particles_max = 1000;
+  o.global_candidates = 5;
+  o.seed = 61;
+  MclFilter f(*map_, o);
+  f.init_global();
+  EXPECT_EQ(f.estimate().particles, 5000U);
+  ScriptedRobot robot(*map_, SimConfig{}, 61);
+  robot.place({2.0, 8.0, 0.0});
+  std::vector<uint32_t> counts;
+  for (int i = 0; i < 40 && counts.size() < 2 && !robot.step_towards(8.0, 8.0); ++i) {
+    const test::SimScan s = robot.scan();
+    const SimPose od = robot.odometry();
+    if (f.update({od.x, od.y, od.phi}, s.xs, s.ys)) counts.push_back(f.estimate().particles);
+  }
+  ASSERT_EQ(counts.size(), 2U);
+  EXPECT_EQ(counts[0], 5000U);
+  EXPECT_LE(counts[1], 1000U);
+  EXPECT_GE(counts[1], 100U);
+  f.init_pose({2.0, 8.0, 0.0}, 0.05, 0.02);
+  EXPECT_EQ(f.estimate().particles, 1000U);
+  for (uint32_t bad : {0U, 101U}) {
+    o.global_candidates = bad;
+    const char* why = check_options(o);
+    ASSERT_NE(why, nullptr) << bad;
+    EXPECT_NE(std::string(why).find("global_candidates"), std::string::npos) << why;
+  }
+}
+
 TEST_F(MclFilterTest, BadOptionsAreRejectedWithTheirName) {
   MclOptions o;
   o.particles_min = 500;

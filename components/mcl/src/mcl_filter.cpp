@@ -138,6 +138,10 @@ const char* check_options(const MclOptions& o) noexcept {
   if (o.recovery_updates < 1 || o.recovery_updates > 1000) return "recovery_updates must be in 1..1000";
   if (!(o.inject_max_fraction >= 0 && o.inject_max_fraction <= 1)) return "inject_max_fraction must be in [0, 1]";
   if (!(o.fit_min >= 0 && o.fit_min < 1)) return "fit_min must be in [0, 1)";
+  if (o.global_candidates < 1 || o.global_candidates > 100) return "global_candidates must be in 1..100";
+  if (static_cast<uint64_t>(o.particles_max) * o.global_candidates > 10'000'000) {
+    return "particles_max * global_candidates must be at most 10000000";
+  }
   if (o.threads < 1 || o.threads > 2) return "threads must be 1 or 2";
   return nullptr;
 }
@@ -164,11 +168,13 @@ struct MclFilter::Impl {
   std::vector<double> log_lik;    // per particle, this update
   std::vector<double> cumulative; // resampling
   std::vector<mrpt::math::TPose2D> drawn;
+  std::vector<uint32_t> order;    // resampling: source index of each new particle
   std::unordered_set<uint64_t> bins;
   std::mt19937_64 rng;
   std::unique_ptr<Worker> worker;
 
   bool force_update = true;
+  bool move_only = false;  // the next update moves the particles without resampling (after init_global)
   bool have_odometry = false;
   mrpt::poses::CPose2D odometry_prev;  // odometry of the previous scan
   mrpt::poses::CPose2D moved;          // odometry motion since the last filter update (jumps left out)
@@ -275,6 +281,18 @@ struct MclFilter::Impl {
   // the motion model's noise.
   void predict(const mrpt::poses::CPose2D& incr) {
     const std::size_t m = pdf.m_particles.size();
+    if (move_only) {  // the candidates of a global start: all equally likely, each kept
+      move_only = false;
+      std::normal_distribution<double> n01(0.0, 1.0);
+      const double sxy = opt.odom_min_std_xy, sphi = opt.odom_min_std_phi;
+      for (auto& p : pdf.m_particles) {
+        const double dx = incr.x() + sxy * n01(rng), dy = incr.y() + sxy * n01(rng);
+        const double c = std::cos(p.d.phi), s = std::sin(p.d.phi);
+        p.d = mrpt::math::TPose2D(p.d.x + c * dx - s * dy, p.d.y + s * dx + c * dy, wrap(p.d.phi + incr.phi() + sphi * n01(rng)));
+        p.log_w = 0.0;
+      }
+      return;
+    }
     double max_lw = -std::numeric_limits<double>::infinity();
     for (const auto& p : pdf.m_particles) max_lw = std::max(max_lw, p.log_w);
     cumulative.resize(m);
@@ -283,29 +301,52 @@ struct MclFilter::Impl {
       sum += std::exp(pdf.m_particles[i].log_w - max_lw);
       cumulative[i] = sum;
     }
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::normal_distribution<double> n01(0.0, 1.0);
+    // The sources: a low-variance (systematic) draw of particles_max from the weighted
+    // set (Thrun et al. table 4.4: one random offset, then even steps through the
+    // cumulative weights), in a random order; KLD-sampling takes them from the front
+    // until it has enough. A particle of weight w is drawn floor or ceil of
+    // w * particles_max times, never more or fewer; with equal weights (just after an
+    // init) every particle is kept once, where independent draws would leave out about
+    // a third of the hypotheses of a uniform start.
+    const std::size_t total = opt.particles_max;
+    order.resize(total);
+    {
+      const double stride = sum / static_cast<double>(total);
+      double r = u(rng) * stride;
+      std::size_t k = 0;
+      for (std::size_t j = 0; j < total; ++j, r += stride) {
+        while (k + 1 < m && cumulative[k] < r) ++k;
+        order[j] = static_cast<uint32_t>(k);
+      }
+      for (std::size_t j = total - 1; j > 0; --j) {  // Fisher-Yates
+        std::uniform_int_distribution<std::size_t> pick(0, j);
+        std::swap(order[j], order[pick(rng)]);
+      }
+    }
     const double d = std::hypot(incr.x(), incr.y()), a = std::fabs(incr.phi());
     const double sxy = std::max(opt.odom_min_std_xy, opt.odom_a1 * d + opt.odom_a2 * a);
     const double sphi = std::max(opt.odom_min_std_phi, opt.odom_a3 * d + opt.odom_a4 * a);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    std::normal_distribution<double> n01(0.0, 1.0);
     bins.clear();
     drawn.clear();
     const double eps1 = 0.5 / opt.kld_epsilon;
     std::size_t nx = opt.particles_min;
-    while (drawn.size() < std::max<std::size_t>(nx, opt.particles_min) && drawn.size() < opt.particles_max) {
-      const double r = u(rng) * sum;
-      const std::size_t k = std::min<std::size_t>(
-          m - 1, static_cast<std::size_t>(std::lower_bound(cumulative.begin(), cumulative.end(), r) - cumulative.begin()));
-      const auto& from = pdf.m_particles[k].d;
+    while (drawn.size() < std::max<std::size_t>(nx, opt.particles_min) && drawn.size() < total) {
+      const auto& from = pdf.m_particles[order[drawn.size()]].d;
       const double scale = u(rng) < opt.odom_outlier_fraction ? opt.odom_outlier_scale : 1.0;
       const double dx = incr.x() + scale * sxy * n01(rng), dy = incr.y() + scale * sxy * n01(rng);
       const double dphi = incr.phi() + scale * sphi * n01(rng);
       const double c = std::cos(from.phi), s = std::sin(from.phi);
       const mrpt::math::TPose2D to(from.x + c * dx - s * dy, from.y + s * dx + c * dy, wrap(from.phi + dphi));
       drawn.push_back(to);
-      const auto bx = static_cast<int64_t>(std::floor(to.x / opt.kld_bin_xy));
-      const auto by = static_cast<int64_t>(std::floor(to.y / opt.kld_bin_xy));
-      const auto bp = static_cast<int64_t>(std::floor(to.phi / opt.kld_bin_phi));
+      // KLD counts the bins of the source (the posterior the set approximates, as AMCL
+      // does), not of the moved pose: the motion noise of a 1 m step spreads the
+      // moved particles over hundreds of 0.1 m bins, each new bin asking for 10 more
+      // particles, so the set stayed at particles_max however sure the filter was.
+      const auto bx = static_cast<int64_t>(std::floor(from.x / opt.kld_bin_xy));
+      const auto by = static_cast<int64_t>(std::floor(from.y / opt.kld_bin_xy));
+      const auto bp = static_cast<int64_t>(std::floor(from.phi / opt.kld_bin_phi));
       const uint64_t key = (static_cast<uint64_t>(bx & 0x1FFFFF) << 42) | (static_cast<uint64_t>(by & 0x1FFFFF) << 21) |
                            static_cast<uint64_t>(bp & 0x1FFFFF);
       if (bins.insert(key).second && bins.size() > 1) {
@@ -487,6 +528,7 @@ void MclFilter::set_options(const MclOptions& options) {
 void MclFilter::init_pose(const MclPose& pose, double sigma_xy, double sigma_phi) {
   Impl& s = *impl_;
   s.reset_particles(s.opt.particles_max, false);
+  s.move_only = false;
   std::normal_distribution<double> nxy(0.0, std::max(sigma_xy, 0.0));
   std::normal_distribution<double> nphi(0.0, std::max(sigma_phi, 0.0));
   for (auto& p : s.pdf.m_particles) {
@@ -499,7 +541,8 @@ void MclFilter::init_pose(const MclPose& pose, double sigma_xy, double sigma_phi
 
 void MclFilter::init_global() {
   Impl& s = *impl_;
-  s.reset_particles(s.opt.particles_max, true);
+  s.reset_particles(static_cast<std::size_t>(s.opt.particles_max) * s.opt.global_candidates, true);
+  s.move_only = s.opt.global_candidates > 1;
   for (auto& p : s.pdf.m_particles) {
     double x = 0, y = 0, phi = 0;
     s.random_free_pose(x, y, phi);

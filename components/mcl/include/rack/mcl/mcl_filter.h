@@ -3,9 +3,11 @@
 // stays behind this header, linked privately to the MCL target only).
 //
 // One filter step (update()): KLD-sampling (Fox 2003) draws the new particles from the
-// weighted old ones, each moved by the odometry increment plus noise (the motion model
-// below), then weighs each by the scan (the likelihood field below), split over
-// `threads` threads, then the recovery test. What this class adds over MRPT's filter:
+// weighted old ones (a low-variance draw, taken in random order; the KLD bins count the
+// drawn source poses, the posterior's support, as AMCL does), each moved by the
+// odometry increment plus noise (the motion model below), then weighs each by the scan
+// (the likelihood field below), split over `threads` threads, then the recovery test.
+// What this class adds over MRPT's filter:
 // - the map conversion from rack::maps::OccupancyMap (free/occupied/unknown cells);
 // - robot-frame scan points as the observation (Scan2D output: any bearings, no
 //   regular beam layout needed), evenly subsampled to `beams` points;
@@ -107,6 +109,14 @@ struct MclOptions {
   // Also count an update as "low" while w_fast stays below this absolute fit (0: off; a
   // real scan's fit depends on clutter and the map, so off by default).
   double fit_min = 0.0;
+  // Global localisation: init_global() spreads this many times particles_max poses over
+  // the free space; the first update weighs them all (no resampling before it), the
+  // next one resamples to at most particles_max. The first scan finds the right place
+  // only if some pose lies near it: more candidates, once, for one costlier update.
+  // Default 1: 5 brought the real logs' global start to 10 of 10 seeds within 2x MRPT
+  // alone's travel, but the simulated office's repetitive corridor to 3 of 5 seeds
+  // within 15 m (1: 4 of 5); bench/RESULTS.md. Not a component parameter yet.
+  uint32_t global_candidates = 1;
   // Threads evaluating the likelihood (1: the caller's only; 2: one helper thread).
   uint32_t threads = 2;
   // Random seed for this filter's draws (0: from the clock).
@@ -150,7 +160,8 @@ class MclFilter {
   // sigma_xy, in phi with sigma_phi. The next update() runs the filter whatever the
   // odometry did.
   void init_pose(const MclPose& pose, double sigma_xy, double sigma_phi);
-  // Particles (particles_max) uniformly over the map's free cells and all headings.
+  // Particles (particles_max times global_candidates) uniformly over the map's free
+  // cells and all headings.
   void init_global();
 
   // One scan: robot-frame points (max-range readings left out by the caller) and the
