@@ -1679,6 +1679,7 @@ const std::vector<Command>& commands() {
        "  clocksource      a clock read through the vDSO (tsc, kvm-clock, arch_sys_counter)\n"
        "It reads /proc, /sys and /dev only and changes nothing. Exit 0 when nothing\n"
        "FAILs (WARNs are allowed), 1 otherwise. --json: one JSON array.",
+       cmd_help},
       {"threads", "threads [PID]", 0, 1, {},
        "Prints every thread of the rackd with process id PID (default: every rackd\n"
        "running on this machine) from /proc: TID NAME SCHED CPUS, where SCHED is\n"
