@@ -839,6 +839,42 @@ def section_faults(c, keys):
                      "# while it runs: rackctl status NAME   (page faults: command task ..., data task ...)"])
 
 
+def section_footprint(c, keys):
+    d = c.data("footprint")
+    c.w("## Footprint: locked memory, shared objects, time to ENABLED (issue 19)")
+    c.w("")
+    if d is None:
+        c.w(f"Not run: {c.skipped('footprint') or 'no results'}.")
+        c.w("")
+        return
+    c.w("Each rackd runs the host file on its own LCM port until it says `running` (every autostart component "
+        "switched on and ENABLED), then /proc is read. *plug-ins*: this build (heavy classes are plug-ins loaded by "
+        "name; service threads 1 MiB stacks; MCL's MRPT left unlocked). *before*: today's layout (every class linked "
+        "into rackd). VmLck is the kernel's size of the locked mappings; *locked resident* the sum of smaps' Locked. "
+        "Medians over the rounds (the two layouts alternate).")
+    c.w("")
+    c.w("| layout | host file | VmLck MiB | locked resident MiB | VmRSS MiB | shared objects | threads | to ENABLED s |")
+    c.w("|---|---|---|---|---|---|---|---|")
+
+    def med(case, key, div=1024.0, fmt="{:.1f}"):
+        v = case.get(key)
+        return "–" if not v else fmt.format(v["median"] / div)
+    for case in d["cases"]:
+        c.w(f"| {case['layout']} | {case['config'] or '–'} | {med(case, 'vmlck_kb')} | "
+            f"{med(case, 'locked_resident_kb')} | {med(case, 'vmrss_kb')} | "
+            f"{med(case, 'shared_objects', 1, '{:.0f}')} | {med(case, 'threads', 1, '{:.0f}')} | "
+            f"{med(case, 'time_to_enabled_s', 1, '{:.3f}')} |")
+    c.w("")
+    c.w("Locked memory by kind of mapping (first round, KiB):")
+    c.w("")
+    for case in d["cases"]:
+        kinds = ", ".join(f"{k}: {v}" for k, v in case.get("locked_by_kind_kb", {}).items())
+        c.w(f"- {case['layout']} {case['config']}: {kinds}")
+    c.w("")
+    c.conditions("footprint")
+    c.command_block([c.cmd("footprint") or "bench/footprint.py --rackd build/tools/rackd --before build-before/b/tools/rackd"])
+
+
 # ---- generic (a benchmark without a section function) ----------------------------------------
 def section_generic(c, keys):
     for k in keys:
@@ -983,6 +1019,7 @@ SECTIONS = [
     ("scan3d", section_scan3d),
     ("access", section_access),
     ("faults", section_faults),
+    ("footprint", section_footprint),
 ]
 
 

@@ -1,5 +1,7 @@
 #include "rack/core/executor.h"
 
+#include <algorithm>
+
 #include "rack/tims/lcm_url.h"
 
 #include <dirent.h>
@@ -398,12 +400,26 @@ void Executor::start_steps(const std::string& url) {
       transport_->set_announcement(std::move(info));
       transport_->start();
       // Autostarted components subscribe to other hosts: let discovery fill first
-      // (in steps, so that a stop request is not kept waiting).
-      for (const int64_t warm_at = rt::monotonic_ns() + tc.warmup_ns; rt::monotonic_ns() < warm_at;) {
-        step("waiting for the other hosts' announcements");
-        rt::sleep_for(10 * rt::kNsPerMs);
+      // (in steps, so that a stop request is not kept waiting). Only when one of
+      // them refers to a component that is not on this host: a host whose references
+      // are all its own (configs/demo.yaml) switches them on at once.
+      bool remote_refs = false;
+      for (const auto& v : views_) {
+        if (!v.component->settings().autostart) continue;
+        for (const auto& [param, target] : v.component->refs_) {
+          const bool local = std::any_of(views_.begin(), views_.end(), [&t = target](const auto& w) {
+            return w.component->address().component() == t.component();
+          });
+          remote_refs = remote_refs || !local;
+        }
       }
-      transport_->wait_until_warm();
+      if (remote_refs) {
+        for (const int64_t warm_at = rt::monotonic_ns() + tc.warmup_ns; rt::monotonic_ns() < warm_at;) {
+          step("waiting for the other hosts' announcements");
+          rt::sleep_for(10 * rt::kNsPerMs);
+        }
+        transport_->wait_until_warm();
+      }
     }
   }
   std::size_t realtime = 0;

@@ -484,12 +484,19 @@ struct HostLoader {
     if (const YAML::Node t = root["tims"]) load_tims(t, hs, root["lcm_url"].IsDefined());
     if (const YAML::Node plugins = root["plugins"]) {
       if (!plugins.IsSequence()) {
-        error(plugins.Mark(), "'plugins' must be a list of shared library paths");
+        error(plugins.Mark(), "'plugins' must be a list of plug-in directories or shared library paths");
       } else {
         for (const auto& p : plugins) {
           if (!p.IsScalar()) { error(p.Mark(), "a plug-in is a path"); continue; }
           if (p.Scalar().empty()) { error(p.Mark(), "a plug-in path must not be empty"); continue; }
           if (!options.open_files) continue;
+          // A directory is searched for plug-in classes by name (<Class>.rack-class,
+          // loaded only when a component names the class); a file is loaded now.
+          if (struct stat st {}; ::stat(p.Scalar().c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
+            registry.add_plugin_dir(p.Scalar());
+            hs.plugins.push_back(p.Scalar());
+            continue;
+          }
           try {
             registry.load_plugin(p.Scalar());
             hs.plugins.push_back(p.Scalar());
@@ -930,9 +937,13 @@ struct HostLoader {
       }
       if (!node["class"]) { error(node.Mark(), "component '" + name + "' has no 'class'"); continue; }
       if (!get(node, "class", impl, "a component class name")) continue;
-      const ComponentClass* cls = registry.find(impl);
+      // A class that is not built in is looked up as a plug-in by its name and loaded
+      // (only when files may be opened: --check does, a fuzz run does not).
+      std::string why;
+      const ComponentClass* cls = options.open_files ? registry.resolve(impl, why) : registry.find(impl);
       if (cls == nullptr) {
-        error(node["class"].Mark(), "unknown component class '" + impl + "' (known: " + registry.names() + ")");
+        error(node["class"].Mark(), why.empty() ? "unknown component class '" + impl + "' (known: " + registry.names() + ")"
+                                                : why);
         continue;
       }
       ComponentSettings s;

@@ -299,7 +299,7 @@ TEST_F(AddressTest, ClassTableLooksUpBothWays) {
   EXPECT_EQ(class_id("Monitor"), classes::kMonitor);
   EXPECT_EQ(class_name(0x99), nullptr);
   EXPECT_FALSE(class_id("Nope").has_value());
-  EXPECT_FALSE(register_class_name(0x10, "Mine"));  // below the user range
+  EXPECT_FALSE(register_class_name(0x10, "Mine"));  // Chassis: declared by ChassisSim and others
   EXPECT_TRUE(register_class_name(0xA7, "UnitTestClass"));
   EXPECT_TRUE(register_class_name(0xA7, "UnitTestClass"));  // idempotent
   EXPECT_FALSE(register_class_name(0xA8, "UnitTestClass"));  // name taken

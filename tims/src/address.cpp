@@ -15,21 +15,15 @@ struct ClassEntry {
   const char* name;
 };
 
+// The framework's own classes. Component classes are not named here: each class
+// declaration (components/<class>/CMakeLists.txt) names its TiMS class, and the
+// component registry registers that name when it adds the class.
 constexpr std::array kBuiltinClasses{
-    ClassEntry{classes::kExecutor, "Executor"}, ClassEntry{classes::kTool, "Tool"},
-    ClassEntry{classes::kChassis, "Chassis"},   ClassEntry{classes::kLadar, "Ladar"},
-    ClassEntry{classes::kCamera, "Camera"},     ClassEntry{classes::kGps, "Gps"},
-    ClassEntry{classes::kGyro, "Gyro"},         ClassEntry{classes::kJoystick, "Joystick"},
-    ClassEntry{classes::kOdometry, "Odometry"}, ClassEntry{classes::kServoDrive, "ServoDrive"},
-    ClassEntry{classes::kPath, "Path"},         ClassEntry{classes::kPilot, "Pilot"},
-    ClassEntry{classes::kPosition, "Position"}, ClassEntry{classes::kScan2d, "Scan2D"},
-    ClassEntry{classes::kScan3d, "Scan3D"},     ClassEntry{classes::kObjRecog, "ObjRecog"},
-    ClassEntry{classes::kMcl, "MCL"},           ClassEntry{classes::kGenerator, "Generator"},
-    ClassEntry{classes::kMonitor, "Monitor"},   ClassEntry{classes::kProbe, "Probe"},
-    ClassEntry{classes::kModeSwitchDemo, "ModeSwitchDemo"}, ClassEntry{classes::kEvaluator, "Evaluator"},
+    ClassEntry{classes::kExecutor, "Executor"},
+    ClassEntry{classes::kTool, "Tool"},
 };
 
-// User classes: written only before tasks start (register_class_name), read anywhere.
+// Registered names: written only before tasks start (register_class_name), read anywhere.
 constexpr std::size_t kUserNameLen = 32;
 std::array<std::array<char, kUserNameLen>, 256> g_user_names{};
 std::mutex g_user_mutex;
@@ -40,7 +34,7 @@ const char* class_name(uint8_t id) noexcept {
   for (const auto& e : kBuiltinClasses) {
     if (e.id == id) return e.name;
   }
-  if (id >= classes::kFirstUser && g_user_names[id][0] != '\0') return g_user_names[id].data();
+  if (g_user_names[id][0] != '\0') return g_user_names[id].data();
   return nullptr;
 }
 
@@ -48,7 +42,7 @@ std::optional<uint8_t> class_id(std::string_view name) noexcept {
   for (const auto& e : kBuiltinClasses) {
     if (name == e.name) return e.id;
   }
-  for (std::size_t id = classes::kFirstUser; id < 256; ++id) {
+  for (std::size_t id = 0; id < 256; ++id) {
     if (g_user_names[id][0] != '\0' && name == g_user_names[id].data()) {
       return static_cast<uint8_t>(id);
     }
@@ -58,7 +52,8 @@ std::optional<uint8_t> class_id(std::string_view name) noexcept {
 
 bool register_class_name(uint8_t id, std::string_view name) {
   std::lock_guard lock(g_user_mutex);
-  if (id < classes::kFirstUser || id == 0xFF || name.empty() || name.size() >= kUserNameLen) {
+  if (id == 0 || id == classes::kExecutor || id == classes::kTool || id == 0xFF || name.empty() ||
+      name.size() >= kUserNameLen) {
     return false;
   }
   if (const auto existing = class_id(name)) return *existing == id;

@@ -13,6 +13,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "rack/components/builtin.h"
 #include "rack/core/executor.h"
@@ -44,7 +45,9 @@ options:
                      file's modeswitch.crash_dir (default /var/tmp/rack); the report
                      file is DIR/rackd-PID.report (removed at exit when empty);
                      symbolize it with rack-backtrace
-  --list-classes     print the component classes and their parameters, then exit
+  --list-classes     print the built-in component classes and their parameters, and
+                     the plug-in classes (by their manifests, without loading them),
+                     then exit
   -h, --help         this text
   --version          the version (CMake project version, git describe)
 
@@ -67,6 +70,13 @@ and verifies every TiMS packet; the file (rackctl keygen PATH) must be readable
 by its owner only, or rackd refuses it (exit 2, with its path and mode). rackd
 re-reads a changed key file within a second (key rotation without a restart).
 
+Plug-ins: classes that link large libraries (MCL, ChassisReplay, LadarReplay,
+Scan3D, Camera, ObjRecogCamera) are plug-ins, loaded only when a host file names
+them: found by class name as CLASS.rack-class in the host file's `plugins:`
+directories, then RACK_PLUGIN_PATH (':'-separated), then the build tree's and the
+installed plug-in directory. A missing or broken plug-in is an error naming the
+class and the directories searched (also with --check).
+
 Host files are read strictly (README "Running a host"): a regular file of at most
 1 MiB (FIFOs and devices are refused), UTF-8 without NUL or control characters, one
 YAML document, no key twice in a map, at most 32 levels deep and 4096 bytes per
@@ -86,6 +96,7 @@ file:line:col: message).
 )";
 
 void list_classes(const rack::ComponentRegistry& registry) {
+  std::printf("built-in classes:\n");
   for (const auto* cls : registry.all()) {
     auto c = cls->make();
     std::printf("%s  (class %s, data task: %s)\n  %s\n", cls->impl.c_str(),
@@ -99,6 +110,18 @@ void list_classes(const rack::ComponentRegistry& registry) {
                   p.spec().doc.c_str(), p.spec().component_ref ? " [component]" : "");
     }
   }
+  // Plug-in classes by their manifests: the libraries (MRPT, PCL, OpenCV) are not
+  // loaded for a listing; their parameters: a host file with the class and --check.
+  std::vector<std::string> problems;
+  const auto plugins = registry.plugin_classes(&problems);
+  std::string dirs;
+  for (const auto& d : registry.plugin_dirs()) dirs += (dirs.empty() ? "" : ":") + d;
+  std::printf("plug-in classes (loaded when a host file names them; searched: %s):\n", dirs.c_str());
+  for (const auto& p : plugins) {
+    std::printf("%s  (class %s, plug-in %s)\n  %s\n", p.impl.c_str(),
+                p.interface_name.empty() ? "?" : p.interface_name.c_str(), p.library.c_str(), p.summary.c_str());
+  }
+  for (const auto& p : problems) std::printf("rackd: skipped a broken manifest: %s\n", p.c_str());
 }
 
 
@@ -262,6 +285,9 @@ static int run_rackd(int argc, char** argv) {
     else { std::fprintf(stderr, "rackd: one host file only ('%s' and '%s')\n", file.c_str(), a.c_str()); return 2; }
   }
   if (file.empty() && !classes) { std::fprintf(stderr, "rackd: no host file given\n%s", kUsage); return 2; }
+  // Before the first thread: service threads get 1 MiB stacks (locked whole by
+  // mlockall), not RLIMIT_STACK's 8 MiB.
+  rack::rt::limit_default_thread_stack();
   // From here on a signal stops start-up within a second (StartupWatch).
   StartupWatch watch(stop_signals);
   watch.phase("registering the component classes");
@@ -338,6 +364,12 @@ static int run_rackd(int argc, char** argv) {
   const auto mem = rack::rt::apply_memory_policy(settings.heap_prefault_bytes);
   if (watch.stop_requested()) return stopped_during_startup(watch);
   std::fprintf(stderr, "rackd: %s\n", mem.describe().c_str());
+  if (const auto libs = registry.unlockable_libraries(); !libs.empty() && mem.locked) {
+    // A plug-in whose libraries only non-RT work runs (MCL's MRPT): not locked.
+    const std::size_t bytes = rack::rt::unlock_file_mappings(libs);
+    std::fprintf(stderr, "rackd: %zu MiB of %zu plug-in libraries left unlocked (used by non-RT tasks only)\n",
+                 bytes >> 20, libs.size());
+  }
   if (settings.require_rt && !mem.locked) {
     std::fprintf(stderr, "rackd: require_rt is set and memory could not be locked: refusing to start.\n");
     return 1;

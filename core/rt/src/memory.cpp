@@ -3,14 +3,17 @@
 #include <alloca.h>
 #include <link.h>
 #include <malloc.h>
+#include <pthread.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 
 namespace rack::rt {
 
@@ -62,6 +65,18 @@ std::size_t sanitizer_stack_extra_bytes() noexcept {
   }
 }
 
+void limit_default_thread_stack() noexcept {
+  // Service threads: 1 MiB stacks, not 8 MiB each locked (memory.h).
+  pthread_attr_t attr;
+  if (pthread_getattr_default_np(&attr) != 0) return;
+  std::size_t current = 0;
+  if (pthread_attr_getstacksize(&attr, &current) == 0 && current > kServiceThreadStackBytes) {
+    pthread_attr_setstacksize(&attr, kServiceThreadStackBytes);
+    pthread_setattr_default_np(&attr);
+  }
+  pthread_attr_destroy(&attr);
+}
+
 MemoryPolicyResult apply_memory_policy(std::size_t heap_prefault_bytes) noexcept {
   MemoryPolicyResult result;
   if constexpr (kThreadSanitizer) {
@@ -80,6 +95,7 @@ MemoryPolicyResult apply_memory_policy(std::size_t heap_prefault_bytes) noexcept
   } else {
     result.lock_errno = errno;
   }
+  limit_default_thread_stack();
   if (heap_prefault_bytes > 0) {
     // Grow the heap once and touch every page; with trimming off the pages stay.
     auto* block = static_cast<volatile char*>(std::malloc(heap_prefault_bytes));
@@ -91,6 +107,31 @@ MemoryPolicyResult apply_memory_policy(std::size_t heap_prefault_bytes) noexcept
     }
   }
   return result;
+}
+
+std::size_t unlock_file_mappings(const std::vector<std::string>& paths) noexcept {
+  if (paths.empty()) return 0;
+  std::size_t unlocked = 0;
+  try {
+    std::ifstream maps("/proc/self/maps");
+    std::string line;
+    while (std::getline(maps, line)) {
+      // "start-end perms offset dev inode   path"
+      const auto path_at = line.find('/');
+      if (path_at == std::string::npos) continue;
+      const std::string path = line.substr(path_at);
+      if (std::find(paths.begin(), paths.end(), path) == paths.end()) continue;
+      const auto dash = line.find('-');
+      const auto space = line.find(' ');
+      if (dash == std::string::npos || space == std::string::npos || dash > space) continue;
+      const uintptr_t start = std::stoull(line.substr(0, dash), nullptr, 16);
+      const uintptr_t end = std::stoull(line.substr(dash + 1, space - dash - 1), nullptr, 16);
+      if (end > start && munlock(reinterpret_cast<void*>(start), end - start) == 0) unlocked += end - start;
+    }
+  } catch (...) {
+    // /proc unreadable or a malformed line: what was unlocked so far stays so.
+  }
+  return unlocked;
 }
 
 void prefault_stack(std::size_t bytes) noexcept {

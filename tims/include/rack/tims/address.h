@@ -48,8 +48,8 @@ class Address {
 // (`Class0x42(0/1)` and `66(0/1)` are accepted). nullopt on malformed text.
 [[nodiscard]] std::optional<Address> parse_address(std::string_view text) noexcept;
 
-// Known component classes (RACK's, plus the framework's own). Classes 0x80..0xFE are
-// free for out-of-tree components, which register a name with register_class_name().
+// Ids: the framework's own (kExecutor, kTool); the rest are TRANSITIONAL (tests, tools)
+// copies of the class declarations' ids (names: register_class_name, 0x80.. free).
 namespace classes {
 inline constexpr uint8_t kExecutor = 0x01;  // rackd itself
 inline constexpr uint8_t kTool = 0x02;      // rackctl, gdos and other tools
@@ -80,8 +80,8 @@ inline constexpr uint8_t kFirstUser = 0x80;
 [[nodiscard]] const char* class_name(uint8_t class_id) noexcept;
 // Class id of a name, or nullopt. RT-safe.
 [[nodiscard]] std::optional<uint8_t> class_id(std::string_view name) noexcept;
-// Registers a name for an out-of-tree class id (>= kFirstUser). Not RT-safe; call
-// before tasks start. Returns false when the id or name is taken or out of range.
+// Registers a class's name (the registry does, from each class declaration). Not RT-safe;
+// call before tasks start. false when id or name is taken, or id is 0, 1, 2 or 255.
 bool register_class_name(uint8_t class_id, std::string_view name);
 
 }  // namespace rack::tims

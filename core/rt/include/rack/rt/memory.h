@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <string>
+#include <vector>
 
 // A ThreadSanitizer build (RACK_SANITIZER=thread) cannot live with the memory
 // policy: TSan reserves tens of TiB of shadow memory (mlockall would try to make it
@@ -41,7 +42,20 @@ struct MemoryPolicyResult {
 // touches `heap_prefault_bytes` of heap so later allocations do not page-fault.
 // Idempotent. Not RT-safe. In a ThreadSanitizer build it does none of this (see
 // above) and returns skipped_for_sanitizer.
+// Threads created afterwards without an explicit stack size (the service threads:
+// TiMS receive/send, GDOS, the mode-switch reporter; a library's own) get
+// kServiceThreadStackBytes instead of RLIMIT_STACK's 8 MiB, which mlockall would lock
+// and fault in whole for each of them. RT tasks set their own (host file stack_kib).
+inline constexpr std::size_t kServiceThreadStackBytes = std::size_t{1} << 20;
+// Sets that default stack size now (rackd calls it first thing, before its first
+// thread). Not RT-safe.
+void limit_default_thread_stack() noexcept;
 MemoryPolicyResult apply_memory_policy(std::size_t heap_prefault_bytes) noexcept;
+
+// Unlocks (munlock) every mapping of the files named in `paths` (as /proc/self/maps
+// names them): libraries that only non-RT work uses (a plug-in's MRPT). Returns the
+// bytes unlocked. Not RT-safe.
+std::size_t unlock_file_mappings(const std::vector<std::string>& paths) noexcept;
 
 // Touches `bytes` of the calling thread's stack so it is resident (call at task
 // start, before the first cycle). Not RT-safe by intent: it is the warm-up.

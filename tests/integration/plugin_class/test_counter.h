@@ -1,0 +1,38 @@
+// TestCounter: a component class declared the way any class is (one folder, one
+// rack_add_class in its CMakeLists.txt) and built as a plug-in outside the plug-in
+// directory of the tree: the tests find it by name through `plugins:` and
+// RACK_PLUGIN_PATH. Its data type and class command are declared here, in its folder,
+// and nowhere else (tims/ and the tools' tables do not know it).
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+
+#include "rack/core/class_types.h"
+#include "rack/core/data_component.h"
+
+namespace rack::test_counter {
+
+struct CounterData {
+  int64_t count = 0;
+  static constexpr auto fields() noexcept { return std::array{RACK_FIELD(CounterData, count)}; }
+};
+inline constexpr int8_t kReset = 21;
+inline constexpr DataTypeInfo kCounterType = data_type_info<CounterData>("CounterData");
+inline constexpr CommandInfo kCounterCommands[] = {{"RESET", kReset, nullptr, "the count to 0"}};
+
+class TestCounter final : public DataComponent<CounterData> {
+ public:
+  TestCounter();
+
+ protected:
+  HookResult loop() override;  // RT
+  CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override;
+
+ private:
+  Parameter& step_;
+  std::atomic<int64_t> count_{0};
+};
+
+}  // namespace rack::test_counter

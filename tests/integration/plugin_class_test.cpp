@@ -1,0 +1,137 @@
+// Integration: component classes as plug-ins (issue 19 items 1 and 2). rackd links no
+// heavy library; a plug-in class is found by its name (<Class>.rack-class) in the
+// host file's plug-in directories, RACK_PLUGIN_PATH and the tree's plug-in
+// directory, and loaded only when a host file names it; a missing or broken plug-in
+// is an error that names the class and where rackd looked; --list-classes lists
+// plug-in classes without loading them.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <chrono>
+#include <fstream>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "process.h"
+
+namespace rack::test {
+namespace {
+
+using namespace std::chrono_literals;
+
+const std::string kRackd = RACK_RACKD_PATH;
+const std::string kTestPlugins = RACK_TEST_PLUGIN_DIR;  // TestCounter (tests/integration/plugin_class)
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+std::string maps_of(pid_t pid) { return read_file("/proc/" + std::to_string(pid) + "/maps"); }
+
+class PluginClassTest : public ::testing::Test {
+ protected:
+  PluginClassTest() : watchdog_(60s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
+
+  std::string counter_host(const std::string& plugins_line) const {
+    return "host: it-plugin\nsystem: 0\nheap_prefault_mib: 8\n" + plugins_line +
+           "components:\n  - name: counter\n    class: TestCounter\n    instance: 0\n    data_task: {period_ms: 10}\n"
+           "    params: {step: 3}\n";
+  }
+
+  Watchdog watchdog_;
+  TempDir dir_;
+};
+
+TEST_F(PluginClassTest, RackdLinksNoHeavyLibrary) {
+  // ldd lists every shared object the loader maps for rackd, transitively.
+  const auto r = run({"/usr/bin/ldd", kRackd}, 30s);
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  ASSERT_TRUE(contains(r.out, "librack_core")) << "ldd output not as expected:\n" << r.out;
+  for (const char* heavy : {"libmrpt", "libpcl_", "libopencv", "libvtk", "libQt"}) {
+    EXPECT_FALSE(contains(r.out, heavy)) << "rackd links " << heavy << ":\n" << r.out;
+  }
+}
+
+TEST_F(PluginClassTest, ListClassesNamesThePluginClassesWithoutLoadingThem) {
+  const auto r = run({kRackd, "--list-classes"}, 30s);
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(contains(r.out, "Generator  (class Generator, data task: ")) << r.out;
+  for (const char* cls : {"MCL  (class MCL, plug-in ", "ChassisReplay  (class Chassis, plug-in ",
+                          "LadarReplay  (class Ladar, plug-in ", "Scan3D  (class Scan3D, plug-in "}) {
+    EXPECT_TRUE(contains(r.out, cls)) << cls << " missing:\n" << r.out;
+  }
+  // The test plug-in is not in the tree's plug-in directory; through RACK_PLUGIN_PATH it is.
+  EXPECT_FALSE(contains(r.out, "TestCounter"));
+  const auto with_path = run({"/usr/bin/env", "RACK_PLUGIN_PATH=" + kTestPlugins, kRackd, "--list-classes"}, 30s);
+  ASSERT_EQ(with_path.exit_code, 0) << with_path.describe();
+  EXPECT_TRUE(contains(with_path.out, "TestCounter  (class TestCounter, plug-in " + kTestPlugins + "/")) << with_path.out;
+}
+
+TEST_F(PluginClassTest, AHostFileWithoutHeavyClassesMapsNoHeavyLibrary) {
+  LcmBus bus;
+  const auto host = dir_.write("demo.yaml",
+                               "host: it-light\nsystem: 0\nheap_prefault_mib: 8\ncomponents:\n"
+                               "  - name: gen\n    class: Generator\n    instance: 0\n    data_task: {period_ms: 10}\n");
+  Process rackd({kRackd, host.string(), "--lcm", bus.url()}, dir_.path(), "light");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 20s)) << rackd.err();
+  const std::string maps = maps_of(rackd.pid());
+  for (const char* heavy : {"libmrpt", "libpcl_", "libopencv", "librack_plugin_"}) {
+    EXPECT_FALSE(contains(maps, heavy)) << heavy << " is mapped";
+  }
+  rackd.signal(SIGTERM);
+  EXPECT_EQ(rackd.wait_exit(20s), std::optional<int>(0)) << rackd.err();
+}
+
+TEST_F(PluginClassTest, APluginClassIsFoundByNameThroughPluginsAndRuns) {
+  LcmBus bus;
+  const auto host = dir_.write("counter.yaml", counter_host("plugins: [" + kTestPlugins + "]\n"));
+  const auto check = run({kRackd, "--check", host.string()}, 30s);
+  EXPECT_EQ(check.exit_code, 0) << check.describe();
+  Process rackd({kRackd, host.string(), "--lcm", bus.url()}, dir_.path(), "counter");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 20s)) << rackd.err();
+  EXPECT_TRUE(contains(maps_of(rackd.pid()), kTestPlugins + "/librack_plugin_test_counter.so"));
+  rackd.signal(SIGTERM);
+  EXPECT_EQ(rackd.wait_exit(20s), std::optional<int>(0)) << rackd.err();
+  EXPECT_TRUE(contains(rackd.out(), "counter")) << rackd.out();
+}
+
+TEST_F(PluginClassTest, APluginClassIsFoundThroughRackPluginPath) {
+  const auto host = dir_.write("counter.yaml", counter_host(""));
+  const auto without = run({kRackd, "--check", host.string()}, 30s);
+  EXPECT_EQ(without.exit_code, 2) << without.describe();
+  const auto with = run({"/usr/bin/env", "RACK_PLUGIN_PATH=/nonexistent:" + kTestPlugins, kRackd, "--check",
+                         host.string()},
+                        30s);
+  EXPECT_EQ(with.exit_code, 0) << with.describe();
+}
+
+TEST_F(PluginClassTest, AMissingPluginNamesTheClassAndWhereRackdLooked) {
+  const auto host = dir_.write("missing.yaml", "host: it-missing\nsystem: 0\ncomponents:\n"
+                                               "  - name: x\n    class: NoSuchClass\n    instance: 0\n");
+  const auto r = run({"/usr/bin/env", "RACK_PLUGIN_PATH=" + dir_.path().string(), kRackd, "--check", host.string()},
+                     30s);
+  EXPECT_EQ(r.exit_code, 2) << r.describe();
+  EXPECT_TRUE(contains(r.err, "missing.yaml:5:")) << r.err;
+  EXPECT_TRUE(contains(r.err, "'NoSuchClass'")) << r.err;
+  EXPECT_TRUE(contains(r.err, "NoSuchClass.rack-class")) << r.err;
+  EXPECT_TRUE(contains(r.err, dir_.path().string())) << "the directories searched: " << r.err;
+}
+
+TEST_F(PluginClassTest, ABrokenPluginIsAnErrorWithTheClassAndTheLibrary) {
+  // A manifest whose library is not a shared object, and one that is malformed.
+  dir_.write("Broken.rack-class", "class Broken\nlibrary libbroken.so\nsummary a text file, not ELF\n");
+  dir_.write("libbroken.so", "not an ELF file\n");
+  dir_.write("Garbled.rack-class", "class Garbled\nlibrary\n");
+  for (const auto& [cls, expect] : std::vector<std::pair<std::string, std::string>>{
+           {"Broken", dir_.path().string() + "/libbroken.so"}, {"Garbled", "Garbled.rack-class:2: 'library'"}}) {
+    const auto host = dir_.write("broken.yaml", "host: it-broken\nsystem: 0\nplugins: [" + dir_.path().string() +
+                                                    "]\ncomponents:\n  - name: x\n    class: " + cls +
+                                                    "\n    instance: 0\n");
+    const auto r = run({kRackd, "--check", host.string()}, 30s);
+    EXPECT_EQ(r.exit_code, 2) << r.describe();
+    EXPECT_TRUE(contains(r.err, "class '" + cls + "'")) << r.err;
+    EXPECT_TRUE(contains(r.err, expect)) << r.err;
+  }
+}
+
+}  // namespace
+}  // namespace rack::test
