@@ -100,6 +100,7 @@ std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFor
     int send_tid = 0;
     int64_t receive_ns = 0;
     int receive_tid = 0;
+    std::size_t receive_task = 0;
     bool joined = false;
   };
   std::vector<Flow> flows;
@@ -111,8 +112,8 @@ std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFor
     }
   }
   for (auto& [key, list] : sends) std::sort(list.begin(), list.end());
-  std::map<std::pair<int, int64_t>, std::size_t> flow_of_receive;  // (tid, time) -> flow
-  for (const auto& t : tasks) {
+  for (std::size_t ti = 0; ti < tasks.size(); ++ti) {
+    const TaskTrace& t = tasks[ti];
     for (const auto& e : t.events) {
       if (e.kind != Kind::kReceive) continue;
       const auto it = sends.find({e.peer, e.self, e.aux});
@@ -127,7 +128,7 @@ std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFor
         fl.joined = true;
         fl.receive_ns = e.time_ns;
         fl.receive_tid = t.tid;
-        flow_of_receive[{t.tid, e.time_ns}] = pos->second;
+        fl.receive_task = ti;
         break;
       }
     }
@@ -223,21 +224,19 @@ std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFor
   // the enclosing slice (the cycle that sent); the end to the enclosing cycle when the
   // message was taken inside one (a reply read in loop()), else to the next slice of
   // that track (a command task receives, then handles the command).
-  std::map<int, std::vector<std::pair<int64_t, int64_t>>> cycles;  // tid -> (start, end), in time order
-  for (const auto& t : tasks) {
+  std::vector<std::vector<std::pair<int64_t, int64_t>>> cycles(tasks.size());  // per task: (start, end) in time order
+  for (std::size_t ti = 0; ti < tasks.size(); ++ti) {
     int64_t start_ns = -1;
-    for (const auto& e : t.events) {
+    for (const auto& e : tasks[ti].events) {
       if (e.kind == Kind::kCycleStart) start_ns = e.time_ns;
       if (e.kind == Kind::kCycleEnd && start_ns >= 0) {
-        cycles[t.tid].emplace_back(start_ns, e.time_ns);
+        cycles[ti].emplace_back(start_ns, e.time_ns);
         start_ns = -1;
       }
     }
   }
-  const auto inside_cycle = [&](int tid, int64_t ns) {
-    const auto it = cycles.find(tid);
-    if (it == cycles.end()) return false;
-    const auto& list = it->second;
+  const auto inside_cycle = [&](std::size_t task, int64_t ns) {
+    const auto& list = cycles[task];
     auto pos = std::upper_bound(list.begin(), list.end(), std::make_pair(ns, INT64_MAX));
     return pos != list.begin() && std::prev(pos)->second >= ns;
   };
@@ -250,7 +249,7 @@ std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFor
     w.end();
     w.begin("f", "message", "message", fl.receive_tid);
     w.ts("ts", fl.receive_ns);
-    w.raw(",\"id\":" + std::to_string(i + 1) + (inside_cycle(fl.receive_tid, fl.receive_ns) ? ",\"bp\":\"e\"" : ""));
+    w.raw(",\"id\":" + std::to_string(i + 1) + (inside_cycle(fl.receive_task, fl.receive_ns) ? ",\"bp\":\"e\"" : ""));
     w.end();
   }
   out += "\n]}\n";
