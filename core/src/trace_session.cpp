@@ -55,7 +55,9 @@ class Writer {
     out_ += "{\"ph\":\"";
     out_ += ph;
     out_ += "\",\"name\":\"" + json_escape(name) + "\"";
-    if (cat != nullptr) out_ += std::string(",\"cat\":\"") + cat + "\"";
+    // Every event carries a category: Chrome's own metadata events use "__metadata",
+    // and DevTools' trace model refuses an event without one.
+    out_ += std::string(",\"cat\":\"") + (cat != nullptr ? cat : "__metadata") + "\"";
     out_ += ",\"pid\":" + std::to_string(pid_) + ",\"tid\":" + std::to_string(tid);
   }
   void raw(const std::string& s) { out_ += s; }
@@ -245,11 +247,12 @@ std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFor
     if (!fl.joined) continue;
     w.begin("s", "message", "message", fl.send_tid);
     w.ts("ts", fl.send_ns);
-    w.raw(",\"id\":" + std::to_string(i + 1));
+    w.raw(",\"id\":" + std::to_string(i + 1) + ",\"args\":{}");  // DevTools wants args on every event
     w.end();
     w.begin("f", "message", "message", fl.receive_tid);
     w.ts("ts", fl.receive_ns);
-    w.raw(",\"id\":" + std::to_string(i + 1) + (inside_cycle(fl.receive_task, fl.receive_ns) ? ",\"bp\":\"e\"" : ""));
+    w.raw(",\"id\":" + std::to_string(i + 1) + (inside_cycle(fl.receive_task, fl.receive_ns) ? ",\"bp\":\"e\"" : "") +
+          ",\"args\":{}");
     w.end();
   }
   out += "\n]}\n";
