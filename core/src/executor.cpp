@@ -522,21 +522,15 @@ void Executor::trace_request(const tims::MessageHeader& h, std::span<const std::
   // A body in the other byte order (a big-endian rackctl): its integers are swapped.
   const bool swapped =
       ((h.flags & tims::kFlagBodyLittleEndian) != 0) != tims::kHostLittleEndian;
-  const auto u64 = [swapped](uint64_t v) { return swapped ? __builtin_bswap64(v) : v; };
   if (h.type == trace::kTraceStart) {
-    trace::TraceStartRequest req;
-    if (body.size() != sizeof req) {
-      error("TRACE_START body of " + std::to_string(body.size()) + " bytes, expected " + std::to_string(sizeof req));
+    const trace::DecodedStart req = trace::decode_start(body, swapped);
+    if (!req.ok) {
+      error(req.error);
       return;
     }
-    std::memcpy(&req, body.data(), sizeof req);
-    if (std::memchr(req.names, '\0', sizeof req.names) == nullptr) {
-      error("TRACE_START: the names are not NUL-terminated");
-      return;
-    }
-    const auto duration = static_cast<int64_t>(u64(static_cast<uint64_t>(req.duration_ns)));
+    const int64_t duration = req.duration_ns;
     trace::TraceStartReply reply;
-    const std::string why = trace_.start(trace::split_names(req.names), duration, rt::monotonic_ns(), reply.tasks);
+    const std::string why = trace_.start(req.names, duration, rt::monotonic_ns(), reply.tasks);
     if (!why.empty()) {
       error(why);
       return;
@@ -548,13 +542,12 @@ void Executor::trace_request(const tims::MessageHeader& h, std::span<const std::
     return;
   }
   if (h.type == trace::kTraceRead) {
-    trace::TraceReadRequest req;
-    if (body.size() != sizeof req) {
-      error("TRACE_READ body of " + std::to_string(body.size()) + " bytes, expected " + std::to_string(sizeof req));
+    const trace::DecodedRead req = trace::decode_read(body, swapped);
+    if (!req.ok) {
+      error(req.error);
       return;
     }
-    std::memcpy(&req, body.data(), sizeof req);
-    const uint64_t offset = u64(req.offset);
+    const uint64_t offset = req.offset;
     trace_.poll(rt::monotonic_ns());
     trace::TraceChunkHeader head;
     head.state = static_cast<uint32_t>(trace_.state());

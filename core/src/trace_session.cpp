@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <iterator>
 #include <cstdio>
+#include <cstring>
 #include <map>
 #include <tuple>
 
@@ -31,6 +32,39 @@ std::vector<std::string> split_names(const std::string& text) {
   }
   flush();
   return out;
+}
+
+DecodedStart decode_start(std::span<const std::byte> body, bool swapped) {
+  DecodedStart d;
+  TraceStartRequest req;
+  if (body.size() != sizeof req) {
+    d.error = "TRACE_START body of " + std::to_string(body.size()) + " bytes, expected " + std::to_string(sizeof req);
+    return d;
+  }
+  std::memcpy(&req, body.data(), sizeof req);
+  if (std::memchr(req.names, '\0', sizeof req.names) == nullptr) {
+    d.error = "TRACE_START: the names are not NUL-terminated";
+    return d;
+  }
+  const auto raw = static_cast<uint64_t>(req.duration_ns);
+  d.duration_ns = static_cast<int64_t>(swapped ? __builtin_bswap64(raw) : raw);
+  d.names = split_names(req.names);
+  if (d.names.size() == 1 && d.names[0] == "all") d.names.clear();
+  d.ok = true;
+  return d;
+}
+
+DecodedRead decode_read(std::span<const std::byte> body, bool swapped) {
+  DecodedRead d;
+  TraceReadRequest req;
+  if (body.size() != sizeof req) {
+    d.error = "TRACE_READ body of " + std::to_string(body.size()) + " bytes, expected " + std::to_string(sizeof req);
+    return d;
+  }
+  std::memcpy(&req, body.data(), sizeof req);
+  d.offset = swapped ? __builtin_bswap64(req.offset) : req.offset;
+  d.ok = true;
+  return d;
 }
 
 // ---------------------------------------------------------------- the JSON

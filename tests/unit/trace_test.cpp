@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cstring>
+#include <span>
 #include <set>
 #include <string>
 #include <thread>
@@ -216,6 +218,44 @@ TEST(TraceSessionTest, CountsTheEventsAFullRingDropped) {
   const test::Json* note = find_event(doc->at("traceEvents"), "i", "events dropped (ring full)");
   ASSERT_NE(note, nullptr);
   EXPECT_EQ(note->at("args").at("dropped").number, 6);
+}
+
+TEST(TraceSessionTest, DecodesRequestsFromTheNetworkOrSaysWhatIsWrong) {
+  trace::TraceStartRequest req;
+  req.duration_ns = 2'000'000'000;
+  std::memcpy(req.names, "mcl, ladar", 10);
+  const auto bytes = [](const auto& v) { return std::span<const std::byte>(reinterpret_cast<const std::byte*>(&v), sizeof v); };
+  trace::DecodedStart d = trace::decode_start(bytes(req), false);
+  ASSERT_TRUE(d.ok) << d.error;
+  EXPECT_EQ(d.duration_ns, 2'000'000'000);
+  EXPECT_EQ(d.names, (std::vector<std::string>{"mcl", "ladar"}));
+  // The other byte order: the integer is swapped back.
+  trace::TraceStartRequest big = req;
+  big.duration_ns = static_cast<int64_t>(__builtin_bswap64(static_cast<uint64_t>(req.duration_ns)));
+  d = trace::decode_start(bytes(big), true);
+  ASSERT_TRUE(d.ok);
+  EXPECT_EQ(d.duration_ns, 2'000'000'000);
+  // "all" is every task.
+  std::memcpy(req.names, "all", 4);
+  d = trace::decode_start(bytes(req), false);
+  ASSERT_TRUE(d.ok);
+  EXPECT_TRUE(d.names.empty());
+  // Short, long, unterminated.
+  d = trace::decode_start(bytes(req).first(10), false);
+  EXPECT_FALSE(d.ok);
+  EXPECT_NE(d.error.find("10 bytes"), std::string::npos) << d.error;
+  std::memset(req.names, 'x', sizeof req.names);
+  d = trace::decode_start(bytes(req), false);
+  EXPECT_FALSE(d.ok);
+  EXPECT_NE(d.error.find("NUL"), std::string::npos) << d.error;
+  trace::TraceReadRequest rr;
+  rr.offset = 65536;
+  trace::DecodedRead r = trace::decode_read(bytes(rr), false);
+  ASSERT_TRUE(r.ok);
+  EXPECT_EQ(r.offset, 65536u);
+  r = trace::decode_read(bytes(rr).first(3), false);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("3 bytes"), std::string::npos) << r.error;
 }
 
 TEST(TraceSessionTest, SplitsNameLists) {

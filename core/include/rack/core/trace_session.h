@@ -53,6 +53,23 @@ struct TraceChunkHeader {
   int64_t remaining_ns = 0;  // kRecording: time left
 };
 
+// Decoders of the request bodies as they arrive from the network (total: a reason,
+// never a throw past them; plain functions of a byte buffer for the fuzz harnesses).
+// `swapped`: the body is in the other byte order (its integers are swapped back).
+struct DecodedStart {
+  bool ok = false;
+  std::string error;               // what is wrong, when !ok
+  int64_t duration_ns = 0;
+  std::vector<std::string> names;  // empty: every task
+};
+[[nodiscard]] DecodedStart decode_start(std::span<const std::byte> body, bool swapped);
+struct DecodedRead {
+  bool ok = false;
+  std::string error;
+  uint64_t offset = 0;
+};
+[[nodiscard]] DecodedRead decode_read(std::span<const std::byte> body, bool swapped);
+
 // ---------------------------------------------------------------- the trace
 
 // The events of one task, as the trace thread collected them.
