@@ -1,7 +1,7 @@
 # Everything `cmake --install` and `cpack` do (issue 19, item 5), in one place:
 #   bin/            rackd, rackctl, gdos, rack-gui, rack-backtrace, rack-devsim
 #   include/rack/   the public headers (rt, tims, client, core, interfaces)
-#   lib/            the static libraries (rack::rt, rack::tims, rack::client, rack::core,
+#   lib/            the libraries (rack::rt, rack::tims, rack::client, rack::core,
 #                   rack::interfaces)
 #   lib/rack/plugins/        component-class plug-ins (RACK_INSTALL_PLUGINDIR)
 #   lib/cmake/rack/          rackConfig.cmake, rackConfigVersion.cmake, rackTargets.cmake,
@@ -74,8 +74,15 @@ set_target_properties(rack_interfaces PROPERTIES EXPORT_NAME interfaces)
 install(TARGETS rack_rt rack_tims rack_client rack_core rack_interfaces rack_plugin_api
         EXPORT rackTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT Development
-        LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT Development
+        LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT Runtime
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+# The other shared libraries rackd and the plug-ins load (rackd's RUNPATH: $ORIGIN/../lib).
+foreach(_lib rack_maps rack_devices rack_components)
+  get_target_property(_type ${_lib} TYPE)
+  if(_type STREQUAL "SHARED_LIBRARY")
+    install(TARGETS ${_lib} LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT Runtime)
+  endif()
+endforeach()
 install(EXPORT rackTargets NAMESPACE rack:: DESTINATION ${RACK_INSTALL_CMAKEDIR} COMPONENT Development)
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/rackConfig.cmake.in
                               ${PROJECT_BINARY_DIR}/rackConfig.cmake

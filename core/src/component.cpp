@@ -3,6 +3,7 @@
 #include <array>
 
 #include "rack/core/class_description.h"
+#include "rack/rt/trace.h"
 
 #include <cstring>
 #include <exception>
@@ -396,8 +397,12 @@ void Component::run_command_task() noexcept {
       case tims::RecvStatus::kOk: {
         // One command is one cycle of the command task: the mode-switch window.
         rt::modeswitch::enter_cycle();
+        rt::trace::record(rt::trace::Kind::kCycleStart);
         handle(r.header, buffer.subspan(sizeof(MessageHeader), r.length - sizeof(MessageHeader)));
-        if (rt::modeswitch::leave_cycle().abort) go_error();  // abort mode: the component goes to ERROR
+        rt::trace::record(rt::trace::Kind::kCycleEnd);
+        const rt::modeswitch::Verdict verdict = rt::modeswitch::leave_cycle();
+        if (verdict.reports > 0) rt::trace::record(rt::trace::Kind::kModeSwitch, verdict.reports);
+        if (verdict.abort) go_error();  // abort mode: the component goes to ERROR
         break;
       }
       case tims::RecvStatus::kTooSmall:

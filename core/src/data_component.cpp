@@ -1,5 +1,7 @@
 #include "rack/core/data_component.h"
 
+#include "rack/rt/trace.h"
+
 #include <algorithm>
 #include <climits>
 #include <cmath>
@@ -410,13 +412,18 @@ void DataComponentBase::run_one_cycle() noexcept {
     HookResult r = HookResult::kError;
     rt::modeswitch::enter_cycle();  // primary mode: loop() and nothing else
     const int64_t started = rt::monotonic_ns();
+    rt::trace::record_at(started, rt::trace::Kind::kCycleStart);
     try {
       r = loop();
     } catch (...) {
       r = HookResult::kError;
     }
-    exec_stats_.record(rt::monotonic_ns() - started);
-    if (rt::modeswitch::leave_cycle().abort) r = HookResult::kError;  // abort mode: to ERROR
+    const int64_t ended = rt::monotonic_ns();
+    exec_stats_.record(ended - started);
+    rt::trace::record_at(ended, rt::trace::Kind::kCycleEnd, r == HookResult::kOk ? 0 : 1);
+    const rt::modeswitch::Verdict verdict = rt::modeswitch::leave_cycle();
+    if (verdict.reports > 0) rt::trace::record(rt::trace::Kind::kModeSwitch, verdict.reports);
+    if (verdict.abort) r = HookResult::kError;  // abort mode: to ERROR
     if (r != HookResult::kOk) {
       loop_enabled_.store(false, std::memory_order_seq_cst);
       report_loop_failure();
@@ -470,6 +477,7 @@ void DataComponentBase::run_data_task() noexcept {
       }
       rt::sleep_until_monotonic(next);
       stats_.record_latency(rt::monotonic_ns() - next);
+      rt::trace::record(rt::trace::Kind::kWake, next);
       const int64_t cycle_start = rt::monotonic_ns();
       run_one_cycle();
       report_refused_input();
@@ -481,6 +489,7 @@ void DataComponentBase::run_data_task() noexcept {
         next += missed * period;
         stats_.record_overruns(static_cast<uint64_t>(missed));
         rt::modeswitch::note_overrun(static_cast<uint64_t>(missed), now - cycle_start);  // WATCHDOG
+        rt::trace::record_at(now, rt::trace::Kind::kOverrun, missed);
         unreported += static_cast<uint64_t>(missed);
       }
       if (unreported > 0 && now >= next_report) {

@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <cstring>
 #include <iostream>
 #include <stdexcept>
 
@@ -252,6 +253,11 @@ void Executor::start_steps(const std::string& url) {
   mailbox_ = std::make_unique<tims::Mailbox>(self, 16, 64 * 1024);
   router_.add(*mailbox_);
   endpoint_ = std::make_unique<tims::Endpoint>(router_, *mailbox_, 1);
+  // The trace mailbox: small requests only (TRACE_START, TRACE_READ).
+  trace_mailbox_ = std::make_unique<tims::Mailbox>(
+      Address::make(hs.system, tims::classes::kExecutor, hs.host_id, trace::kTraceMailbox), 8, 1024);
+  router_.add(*trace_mailbox_);
+  trace_endpoint_ = std::make_unique<tims::Endpoint>(router_, *trace_mailbox_, 1);
 
   // GDOS first, so that everything from here on is logged.
   log_source_.set_identity(self.component(), "rackd");
@@ -336,12 +342,15 @@ void Executor::start_steps(const std::string& url) {
       auto task_cpus = [&hs](const TaskSettings& t) {
         return t.cpu >= 0 ? std::vector<int>{} : t.priority > 0 ? hs.rt_cpus : hs.housekeeping_cpus;
       };
+      auto* cmd_trace = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(kTraceRingEvents)).get();
+      trace_.add_task(c.name() + " command task", c.name(), c.address().raw(), cmd_trace);
       auto cmd = std::make_unique<rt::Thread>();
       gdos::LogRing* cmd_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " command task");
       const auto how = cmd->start({c.name().substr(0, 11) + ":cmd", s.command_task.priority, s.command_task.cpu,
                                    s.command_task.stack_bytes, task_cpus(s.command_task)},
-                                  [&c, cmd_ring, info = watch(s.command_task, ":cmd")] {
+                                  [&c, cmd_ring, cmd_trace, info = watch(s.command_task, ":cmd")] {
                                     gdos::bind_thread_ring(cmd_ring);
+                                    rt::trace::bind_thread_ring(cmd_trace);
                                     rt::modeswitch::TaskAttachment attach(info);
                                     c.command_faults_.mark_started();  // start-up ends here
                                     c.run_command_task();
@@ -352,12 +361,15 @@ void Executor::start_steps(const std::string& url) {
       fallback_ = fallback_ || how == rt::ThreadStart::kFallback;
       threads_.push_back(std::move(cmd));
       if (auto* dc = dynamic_cast<DataComponentBase*>(&c); dc != nullptr && c.data_task_mode() != DataTaskMode::kNone) {
+        auto* data_trace = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(kTraceRingEvents)).get();
+        trace_.add_task(c.name() + " data task", c.name(), c.address().raw(), data_trace);
         auto data = std::make_unique<rt::Thread>();
         gdos::LogRing* data_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " data task");
         const auto how2 = data->start({c.name().substr(0, 10) + ":data", s.data_task.priority, s.data_task.cpu,
                                        s.data_task.stack_bytes, task_cpus(s.data_task)},
-                                      [dc, data_ring, info = watch(s.data_task, ":data")] {
+                                      [dc, data_ring, data_trace, info = watch(s.data_task, ":data")] {
                                         gdos::bind_thread_ring(data_ring);
+                                        rt::trace::bind_thread_ring(data_trace);
                                         rt::modeswitch::TaskAttachment attach(info);
                                         static_cast<Component*>(dc)->data_faults_.mark_started();  // start-up ends here
                                         dc->run_data_task();
@@ -422,6 +434,22 @@ void Executor::start_steps(const std::string& url) {
       }
     }
   }
+  {
+    trace_.format().pid = static_cast<int>(getpid());
+    trace_.format().process_name = "rackd host '" + hs.host + "'";
+    // Names of this host's components by address (the rest: TiMS's own spelling).
+    std::vector<std::pair<uint32_t, std::string>> names;
+    for (const auto& v : views_) names.emplace_back(v.component->address().raw(), v.component->name());
+    trace_.format().address_name = [names](uint32_t raw) {
+      const Address a(raw);
+      for (const auto& [addr, name] : names) {
+        if (addr == a.component().raw()) return name + (a.raw() == addr ? "" : "#" + std::to_string(a.raw() & 0xFFu));
+      }
+      return a.str();
+    };
+    const HousekeepingAffinity housekeeping(views_, host_->settings);
+    trace_thread_ = std::thread([this] { trace_loop(); });
+  }
   std::size_t realtime = 0;
   for (const auto& v : views_) realtime += v.realtime ? 1 : 0;
   log(gdos::Level::kInfo, "host '" + hs.host + "' started " + std::to_string(views_.size()) + " component(s), " +
@@ -461,6 +489,11 @@ void Executor::stop() {
   for (auto& v : views_) v.component->request_stop();
   for (auto& t : threads_) t->join();
   threads_.clear();
+  if (trace_mailbox_) {
+    trace_mailbox_->close();
+    if (trace_thread_.joinable()) trace_thread_.join();
+    router_.remove(trace_mailbox_->address());
+  }
   if (transport_) transport_->stop();
   for (auto it = views_.rbegin(); it != views_.rend(); ++it) {
     if (it->init_called) it->component->run_cleanup();
@@ -483,6 +516,94 @@ void Executor::stop() {
   if (gdos_thread_.joinable()) gdos_thread_.join();
   gdos_publisher_.reset();
   if (gdos::Hub::process_hub() == &hub_) gdos::Hub::set_process_hub(nullptr);
+}
+
+void Executor::trace_loop() {
+  pthread_setname_np(pthread_self(), "rackd:trace");  // not RT: SCHED_OTHER, housekeeping CPUs
+  alignas(8) std::byte buf[1024];
+  for (;;) {
+    // 10 ms while recording: a ring of kTraceRingEvents never fills below ~400 events/ms.
+    const int64_t wait = trace_.state() == trace::TraceState::kRecording ? 10 * rt::kNsPerMs : 200 * rt::kNsPerMs;
+    const auto r = trace_mailbox_->receive(std::span<std::byte>(buf), wait);
+    if (r.status == tims::RecvStatus::kClosed) break;
+    try {
+      if (r.status == tims::RecvStatus::kOk) {
+        trace_request(r.header, std::span<const std::byte>(buf + sizeof(tims::MessageHeader),
+                                                           r.length - sizeof(tims::MessageHeader)));
+      } else if (r.status == tims::RecvStatus::kTooSmall && r.header.is_request()) {
+        wire::ErrorText e;
+        wire::copy_text(e.text, "trace request larger than 1 KiB");
+        const tims::ConstBuffer part = tims::buffer_of(e);
+        (void)trace_endpoint_->reply(r.header, msg::kError, std::span<const tims::ConstBuffer>(&part, 1));
+      }
+      trace_.poll(rt::monotonic_ns());
+    } catch (const std::exception& e) {  // out of memory while collecting or formatting
+      log(gdos::Level::kError, std::string("trace: ") + e.what() + "; the trace is discarded");
+      trace_ = trace::TraceSession();
+    }
+  }
+  trace_.finish(rt::monotonic_ns());
+}
+
+void Executor::trace_request(const tims::MessageHeader& h, std::span<const std::byte> body) {
+  const auto error = [&](const std::string& why) {
+    wire::ErrorText e;
+    wire::copy_text(e.text, why.c_str());
+    const tims::ConstBuffer part = tims::buffer_of(e);
+    (void)trace_endpoint_->reply(h, msg::kError, std::span<const tims::ConstBuffer>(&part, 1));
+  };
+  if (!h.is_request()) return;  // replies and notifications: never answered
+  // A body in the other byte order (a big-endian rackctl): its integers are swapped.
+  const bool swapped =
+      ((h.flags & tims::kFlagBodyLittleEndian) != 0) != tims::kHostLittleEndian;
+  if (h.type == trace::kTraceStart) {
+    const trace::DecodedStart req = trace::decode_start(body, swapped);
+    if (!req.ok) {
+      error(req.error);
+      return;
+    }
+    const int64_t duration = req.duration_ns;
+    trace::TraceStartReply reply;
+    const std::string why = trace_.start(req.names, duration, rt::monotonic_ns(), reply.tasks);
+    if (!why.empty()) {
+      error(why);
+      return;
+    }
+    log(gdos::Level::kInfo, "trace: recording " + std::to_string(reply.tasks) + " task(s) for " +
+                                std::to_string(duration / rt::kNsPerMs) + " ms for " + h.source().str());
+    const tims::ConstBuffer part = tims::buffer_of(reply);
+    (void)trace_endpoint_->reply(h, msg::kOk, std::span<const tims::ConstBuffer>(&part, 1));
+    return;
+  }
+  if (h.type == trace::kTraceRead) {
+    const trace::DecodedRead req = trace::decode_read(body, swapped);
+    if (!req.ok) {
+      error(req.error);
+      return;
+    }
+    const uint64_t offset = req.offset;
+    trace_.poll(rt::monotonic_ns());
+    trace::TraceChunkHeader head;
+    head.state = static_cast<uint32_t>(trace_.state());
+    head.remaining_ns = trace_.remaining_ns(rt::monotonic_ns());
+    head.dropped = trace_.dropped();
+    const std::string& json = trace_.json();
+    if (trace_.state() == trace::TraceState::kReady) {
+      head.total = json.size();
+      if (offset > json.size()) {
+        error("TRACE_READ: offset " + std::to_string(offset) + " is past the end of the trace (" +
+              std::to_string(json.size()) + " bytes)");
+        return;
+      }
+      head.offset = offset;
+      head.length = static_cast<uint32_t>(std::min<uint64_t>(trace::kTraceChunkBytes, json.size() - offset));
+    }
+    const tims::ConstBuffer parts[2] = {tims::buffer_of(head),
+                                        {reinterpret_cast<const std::byte*>(json.data()) + head.offset, head.length}};
+    (void)trace_endpoint_->reply(h, msg::kOk, std::span<const tims::ConstBuffer>(parts, 2));
+    return;
+  }
+  error("unknown request " + std::to_string(h.type) + " for the trace mailbox (TRACE_START 21, TRACE_READ 22)");
 }
 
 std::string Executor::status_report() const {

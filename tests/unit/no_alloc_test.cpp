@@ -23,6 +23,7 @@
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
 #include "rack/rt/modeswitch.h"
+#include "rack/rt/trace.h"
 #include "rack/tims/trusted_sources.h"
 #include "test_support.h"
 
@@ -637,6 +638,44 @@ TEST_F(NoAllocationTest, GdosLogCallsInAnRtTask) {
   EXPECT_EQ(allocations, 0u);
   EXPECT_GT(ring.dropped(), 0u) << "the drop path ran too";
   EXPECT_GT(written, static_cast<uint64_t>(kRounds)) << "records were written";
+}
+
+TEST_F(NoAllocationTest, TraceHooksWithTracingOnAndOff) {
+  // A task with its trace ring bound: cycle hooks and the message hand-offs of the
+  // router and mailbox record into the preallocated ring, on and off, full or not.
+  tims::Router router(0);
+  Mailbox a(kA, 8, 256), b(kB, 8, 256);
+  router.add(a);
+  router.add(b);
+  rt::trace::Ring ring(64);  // small: the rounds overflow it (the drop path runs too)
+  uint64_t allocations = 0;
+  int failures = 0;
+  std::thread task([&] {
+    rt::trace::bind_thread_ring(&ring);
+    alignas(8) std::array<std::byte, 256> buf{};
+    const test::Tag tag{3, 0};
+    auto round = [&](int i) {
+      ring.set_enabled(i % 3 != 0);
+      rt::trace::record(rt::trace::Kind::kWake, i);
+      rt::trace::record(rt::trace::Kind::kCycleStart);
+      if (router.send(test::tag_header(kB, kA, 1), {tims::buffer_of(tag)}) != SendStatus::kOk) ++failures;
+      if (b.receive(buf, Mailbox::kNonBlocking).status != RecvStatus::kOk) ++failures;
+      rt::trace::record(rt::trace::Kind::kCycleEnd);
+      rt::trace::record(rt::trace::Kind::kOverrun, 1);
+    };
+    for (int i = 0; i < kWarmUp; ++i) round(i);
+    AllocationCounter counter;
+    for (int i = 0; i < kRounds; ++i) round(i);
+    allocations = counter.stop();
+    rt::trace::bind_thread_ring(nullptr);
+  });
+  task.join();
+  EXPECT_EQ(failures, 0);
+  EXPECT_EQ(allocations, 0u);
+  EXPECT_GT(ring.dropped(), 0u) << "the drop path ran too";
+  EXPECT_EQ(ring.pushed(), ring.capacity()) << "the ring filled, nobody drained it";
+  router.remove(kA);
+  router.remove(kB);
 }
 
 }  // namespace

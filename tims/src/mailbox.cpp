@@ -3,6 +3,7 @@
 #include <cstring>
 
 #include "rack/rt/clock.h"
+#include "rack/rt/trace.h"
 
 namespace rack::tims {
 
@@ -175,6 +176,11 @@ Mailbox::Received Mailbox::receive(std::span<std::byte> buffer, int64_t timeout_
     free_slot(index);
     bump(r.status == RecvStatus::kOk ? received_ : truncated_);
   }
+  // The task timeline's hand-off (after the lock: nothing is held while it records).
+  if (r.status == RecvStatus::kOk) {
+    rt::trace::record(rt::trace::Kind::kReceive, 0, r.header.src, rt::trace::message_aux(r.header.type, r.header.seq),
+                      r.header.dest);
+  }
   return r;
 }
 
@@ -198,6 +204,9 @@ Mailbox::Peeked Mailbox::peek(int64_t timeout_ns) noexcept {
   // Slots are 8-byte aligned and start with the header.
   p.header = reinterpret_cast<const MessageHeader*>(data);
   p.body = {data + sizeof(MessageHeader), p.header->length - sizeof(MessageHeader)};
+  // The task timeline's hand-off (a bounded store into the task's own ring).
+  rt::trace::record(rt::trace::Kind::kReceive, 0, p.header->src, rt::trace::message_aux(p.header->type, p.header->seq),
+                    p.header->dest);
   return p;
 }
 

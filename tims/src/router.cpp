@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "rack/rt/clock.h"
+#include "rack/rt/trace.h"
 #include "rack/tims/trusted_sources.h"
 
 namespace rack::tims {
@@ -129,6 +130,9 @@ SendStatus Router::send(const MessageHeader& header, std::initializer_list<Const
 
 SendStatus Router::send(const MessageHeader& header, std::span<const ConstBuffer> body) noexcept {
   const Address dest = header.destination();
+  // The task timeline's hand-off (before delivery: the send precedes the receive).
+  rt::trace::record(rt::trace::Kind::kSend, 0, header.dest, rt::trace::message_aux(header.type, header.seq),
+                    header.src);
   if (Mailbox* local = find(dest)) {
     if (!admit(header, *local, MessageOrigin::kLocal)) return SendStatus::kDenied;
     if (!trusted(header, *local)) return SendStatus::kDenied;

@@ -38,6 +38,7 @@
 #include "rack/core/host_config.h"
 #include "rack/core/parameters.h"
 #include "rack/core/payload_json.h"
+#include "rack/core/trace_session.h"
 #include "rack/core/wire.h"
 #include "rack/rt/clock.h"
 #include "rack/rt/latency_stats.h"
@@ -110,6 +111,9 @@ commands:
   keygen FILE                   write a new TiMS link key file (mode 0600) for key_file
   threads [PID]                 where each thread of a rackd on this machine runs (CPUs,
                                 scheduling): checks the host file's 'cpus:' partitioning
+  trace --duration S --out FILE [NAME ...|all]
+                                record the task timeline of one host (Chrome JSON
+                                trace: open it in ui.perfetto.dev or chrome://tracing)
   help [COMMAND]                this text, or a command's
 
 NAME is a component's name from its host file (found by discovery), or an address
@@ -156,6 +160,9 @@ struct Options {
   int64_t count = 0;       // watch --count (0: until SIGINT/SIGTERM); hz/bw: reports
   int64_t window = 0;      // hz/bw --window (0: the command's default)
   std::optional<int64_t> i64;  // send --i64: an 8-byte body
+  double duration_s = 0.0;  // trace --duration
+  std::string out;          // trace --out
+  std::string host;         // trace --host
   std::set<std::string> given;  // command-specific options seen (checked per command)
   std::string command;
   std::vector<std::string> args;
@@ -705,6 +712,99 @@ int cmd_hosts(Session& s, const Options& o) {
                 tims::describe(h.role), h.pid, h.components.size(), h.network.c_str(),
                 static_cast<long long>((now - h.last_seen_ns) / rt::kNsPerMs));
   }
+  return kExitOk;
+}
+
+int cmd_trace(Session& s, const Options& o) {
+  namespace rtrace = rack::trace;
+  if (o.duration_s <= 0) fail(kExitUsage, "trace needs --duration S (seconds, at most 60)");
+  if (o.out.empty()) fail(kExitUsage, "trace needs --out FILE");
+  std::vector<std::string> names;
+  for (const auto& a : o.args) {
+    for (auto& n : rtrace::split_names(a)) names.push_back(std::move(n));
+  }
+  const bool all = names.empty() || (names.size() == 1 && names[0] == "all");
+  std::string joined;
+  for (const auto& n : names) {
+    if (n == "all" && names.size() > 1) fail(kExitUsage, "'all' traces every task: give it alone");
+    joined += (joined.empty() ? "" : ",") + n;
+  }
+  rtrace::TraceStartRequest req;
+  if (joined.size() >= sizeof req.names) fail(kExitUsage, "the names are too long (trace fewer, or all)");
+  std::memcpy(req.names, joined.data(), joined.size());
+  req.duration_ns = static_cast<int64_t>(o.duration_s * 1e9);
+  if (req.duration_ns <= 0) fail(kExitUsage, "--duration is below a nanosecond");
+
+  // Which host: the one with the named components, --host, or the only one there is.
+  const auto holds = [&](const tims::HostInfo& h, const std::string& n) {
+    return std::any_of(h.components.begin(), h.components.end(), [&](const tims::ComponentInfo& c) { return c.name == n; });
+  };
+  const auto pick = [&](const std::vector<tims::HostInfo>& hosts) -> const tims::HostInfo* {
+    for (const auto& h : hosts) {
+      if (!o.host.empty() && h.host != o.host) continue;
+      if (all || std::all_of(names.begin(), names.end(), [&](const std::string& n) { return holds(h, n); })) return &h;
+    }
+    return nullptr;
+  };
+  const auto hosts = s.discover([&](const std::vector<tims::HostInfo>& hs) {
+    return (!all || !o.host.empty()) && pick(hs) != nullptr;
+  });
+  if (all && o.host.empty() && hosts.size() > 1) {
+    std::string list;
+    for (const auto& h : hosts) list += (list.empty() ? "" : ", ") + h.host;
+    fail(kExitUsage, "several hosts answered (" + list + "): say which with --host HOST, or name components");
+  }
+  const tims::HostInfo* host = pick(hosts);
+  if (host == nullptr) {
+    std::string what = all ? "no host" : "no host with every component of '" + joined + "'";
+    if (!o.host.empty()) what += " named '" + o.host + "'";
+    fail(kExitUnavailable, format("%s answered discovery within %lld ms on %s (components on several hosts: trace "
+                                  "each host on its own)", what.c_str(), static_cast<long long>(o.discover_ms),
+                                  s.url().c_str()));
+  }
+  const Address exec = host->executor;
+  const Target t{Address::make(exec.system(), exec.class_id(), exec.instance(), rtrace::kTraceMailbox),
+                 "host '" + host->host + "' trace"};
+  const std::string host_name = host->host;
+  CallResult r = s.call(t, rtrace::kTraceStart, req);
+  Session::expect(t, r, msg::kOk, "TRACE_START");
+  rtrace::TraceStartReply started;
+  std::memcpy(&started, r.body.data(), std::min(r.body.size(), sizeof started));
+  std::fprintf(stderr, "rackctl: recording %u task(s) of host '%s' for %.3f s\n", started.tasks, host_name.c_str(),
+               o.duration_s);
+
+  // Wait for the trace, then read it chunk by chunk.
+  std::string json;
+  uint64_t dropped = 0;
+  const int64_t give_up = rt::monotonic_ns() + req.duration_ns + 30 * rt::kNsPerSec;
+  for (;;) {
+    if (rt::monotonic_ns() > give_up) fail(kExitUnavailable, t.label() + ": the trace was not ready 30 s after its end");
+    rtrace::TraceReadRequest rr;
+    rr.offset = json.size();
+    r = s.call(t, rtrace::kTraceRead, rr);
+    Session::expect(t, r, msg::kOk, "TRACE_READ");
+    rtrace::TraceChunkHeader head;
+    if (r.body.size() < sizeof head) fail(kExitError, t.label() + ": TRACE_READ reply too short");
+    std::memcpy(&head, r.body.data(), sizeof head);
+    if (head.length > r.body.size() - sizeof head) fail(kExitError, t.label() + ": TRACE_READ chunk longer than its reply");
+    const auto state = static_cast<rtrace::TraceState>(head.state);
+    if (state == rtrace::TraceState::kRecording) {
+      rt::sleep_for(std::clamp<int64_t>(head.remaining_ns, 10 * rt::kNsPerMs, 200 * rt::kNsPerMs));
+      continue;
+    }
+    if (state != rtrace::TraceState::kReady) fail(kExitError, t.label() + ": the trace was discarded (see rackd's log)");
+    if (head.offset != json.size()) fail(kExitError, t.label() + ": TRACE_READ answered another offset");
+    json.append(reinterpret_cast<const char*>(r.body.data() + sizeof head), head.length);
+    dropped = head.dropped;
+    if (json.size() >= head.total) break;
+    if (head.length == 0) fail(kExitError, t.label() + ": TRACE_READ returned nothing before the end");
+  }
+  FILE* f = std::fopen(o.out.c_str(), "wb");
+  if (f == nullptr) fail(kExitUsage, "--out " + o.out + ": " + std::strerror(errno));
+  const bool written = std::fwrite(json.data(), 1, json.size(), f) == json.size();
+  if (std::fclose(f) != 0 || !written) fail(kExitError, "--out " + o.out + ": write failed: " + std::strerror(errno));
+  std::printf("%s: %zu bytes, %u task(s) of host '%s', %llu event(s) dropped\n", o.out.c_str(), json.size(),
+              started.tasks, host_name.c_str(), static_cast<unsigned long long>(dropped));
   return kExitOk;
 }
 
@@ -1696,6 +1796,22 @@ const std::vector<Command>& commands() {
        "a file may hold two keys (two lines): the first signs, both are accepted;\n"
        "hosts re-read a changed file within a second. See the README.",
        cmd_help},
+      {"trace", "trace --duration S --out FILE [--host HOST] [NAME ...|all]", 0, 64, {"--duration", "--out", "--host"},
+       "Records the task timeline of one host for S seconds (at most 60) and writes it\n"
+       "to FILE as a Chrome JSON trace, which ui.perfetto.dev and chrome://tracing\n"
+       "open: one track per task (\"mcl data task\"), a slice per cycle (\"loop\" or\n"
+       "\"command\", with its wake-up latency), instant events for wake-ups, overruns,\n"
+       "mode switches and every message sent or received (with the peer address), and\n"
+       "flow arrows from a send to the receive of the same message on that host.\n"
+       "NAMEs (or comma lists) pick components, all on one host; 'all' or none: every\n"
+       "task of the host (--host HOST when several answer discovery). rackd records\n"
+       "into preallocated per-task rings and sends the trace back over TiMS in\n"
+       "chunks, so this works from another machine. A ring that fills between two\n"
+       "drains (10 ms) drops events: the count is printed and kept in the file\n"
+       "(otherData.dropped_events). A trace already running: exit 1.\n"
+       "  rackctl trace --duration 2 --out sim.json all\n"
+       "  rackctl trace --duration 5 --out mcl.json mcl,ladar",
+       cmd_trace},
       {"help", "help [COMMAND]", 0, 1, {}, "Prints the usage, or a command's help.", cmd_help},
   };
   return kCommands;
@@ -1793,6 +1909,18 @@ Options parse_arguments(int argc, char** argv) {
       const auto p = parse_double(v);
       if (!p || *p < 0) fail(kExitUsage, "--period needs a period in milliseconds >= 0, got '" + v + "'");
       o.period_ms = *p;
+      o.given.insert(a);
+    } else if (a == "--duration") {
+      const std::string v = value("a number of seconds");
+      const auto d = parse_double(v);
+      if (!d || *d <= 0 || *d > 60) fail(kExitUsage, "--duration needs seconds in (0, 60], got '" + v + "'");
+      o.duration_s = *d;
+      o.given.insert(a);
+    } else if (a == "--out") {
+      o.out = value("a file");
+      o.given.insert(a);
+    } else if (a == "--host") {
+      o.host = value("a host name");
       o.given.insert(a);
     } else {
       fail(kExitUsage, "unknown option '" + a + "' (rackctl --help lists them)");

@@ -22,6 +22,11 @@
 // Page faults: each task marks the end of its start-up; the GDOS thread samples every
 // task's faults since then once a second (Component::sample_faults, GET_STATS).
 //
+// Task timeline: every task records into its own rt::trace::Ring (preallocated at
+// start(), kTraceRingEvents events, off until a trace is asked for); the trace thread
+// (rackd:trace, not RT, on the housekeeping CPUs) answers TRACE_START and TRACE_READ
+// on Executor(sys/host_id)#2 (rack/core/trace_session.h, `rackctl trace`).
+//
 // Real-time contract: not RT-safe; call from the main (non-RT) thread.
 // Thread-safety: start/stop from one thread; status() from any non-RT thread.
 #pragma once
@@ -38,6 +43,7 @@
 #include "rack/core/data_component.h"
 #include "rack/core/gdos.h"
 #include "rack/core/host_config.h"
+#include "rack/core/trace_session.h"
 #include "rack/rt/thread.h"
 #include "rack/tims/gdos_lcm.h"
 #include "rack/tims/lcm_transport.h"
@@ -139,6 +145,8 @@ class Executor {
   bool send_command(Component& c, int8_t type, int64_t timeout_ns, std::string& why);
   void start_steps(const std::string& url);
   void step(const std::string& what);  // phase + stop_requested check (start-up)
+  void trace_loop();
+  void trace_request(const tims::MessageHeader& h, std::span<const std::byte> body);
 
   std::unique_ptr<LoadedHost> host_;
   ExecutorOptions options_;
@@ -163,6 +171,18 @@ class Executor {
   uint64_t gdos_errors_reported_ = 0;   // publish errors already reported
   std::string gdos_out_;                // stderr text of one pass (GDOS thread)
   bool gdos_to_stderr_ = true;          // gdos.stderr: auto: the current choice
+
+  // Task timeline (trace thread only, except the rings, which the tasks write).
+ public:
+  // Events per task ring: 4096 x 32 bytes = 128 KiB per task; drained every 10 ms
+  // while a trace runs, so a task may record up to ~400 events per ms before it drops.
+  static constexpr std::size_t kTraceRingEvents = 4096;
+ private:
+  std::vector<std::unique_ptr<rt::trace::Ring>> trace_rings_;
+  trace::TraceSession trace_;
+  std::unique_ptr<tims::Mailbox> trace_mailbox_;
+  std::unique_ptr<tims::Endpoint> trace_endpoint_;
+  std::thread trace_thread_;
 };
 
 }  // namespace rack

@@ -3,6 +3,7 @@
 // panels redrawn from the latest messages; the map is one 2-D canvas redrawn per
 // animation frame with particles batched into one path.
 import './style.css';
+import { setupTimeline } from './timeline.js';
 
 const $ = (id) => document.getElementById(id);
 const LEVELS = ['print', 'error', 'warning', 'info', 'detail'];
@@ -181,7 +182,9 @@ function showView(name) {
   if (name === 'reports') renderReports();
   if (name === 'gdos') renderGdos(true);
   if (name === 'map') resizeMap();
+  if (name === 'timeline') drawTimeline();
 }
+const drawTimeline = setupTimeline() ?? (() => {});
 for (const b of document.querySelectorAll('#tabs button')) b.onclick = () => showView(b.dataset.view);
 
 // ---------------------------------------------------------------- details: parameters, timing, class views

@@ -1,0 +1,198 @@
+// Cost of the task timeline per cycle (issue 20, item 4), beside the same cycle
+// without it, in the same run (STYLE.md 11).
+//
+// A cycle is what a small data task does with the trace hooks of rackd's executor:
+// the wake-up record (5 events a cycle in all), cycle start and end (record_at with the clock reads the
+// executor makes anyway), and one message hand-off: a 64-byte sample sent through the
+// router into a mailbox (the send hook) and received from it (the receive hook).
+// Variants, interleaved round by round on the same SCHED_FIFO thread settings and CPU:
+//
+//   reference   no trace ring bound to the thread: the task without a timeline
+//   off         a ring bound and switched off: what every task pays in rackd
+//   on          the ring switched on, drained every 2 ms by a normal thread on
+//               another CPU (rackd's trace thread drains every 10 ms)
+//
+// Each sample is the time of one cycle (two clock reads around it). Per round, the
+// ratio of each variant's p50 and p99 to the reference's; printed: the median of the
+// per-round ratios with their range, and the pooled percentiles.
+//
+//   bench_trace [--cycles N] [--rounds R] [--cpu C] [--drain-cpu C] [--priority P]
+//
+// Needs root (SCHED_FIFO, mlockall).
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <pthread.h>
+#include <sched.h>
+
+#include "bench_common.h"
+#include "rack/rt/clock.h"
+#include "rack/rt/memory.h"
+#include "rack/rt/thread.h"
+#include "rack/rt/trace.h"
+#include "rack/tims/mailbox.h"
+#include "rack/tims/message.h"
+#include "rack/tims/router.h"
+
+namespace {
+
+using namespace rack::rt;
+using rack::bench::Percentiles;
+using rack::bench::percentiles_of;
+namespace tims = rack::tims;
+
+enum class Mode { kReference, kOff, kOn };
+struct Variant {
+  const char* name;
+  Mode mode;
+  std::vector<int64_t> pooled;
+  std::vector<double> ratio_p50, ratio_p99;  // per round, to the reference
+  Percentiles last;                          // this round's
+};
+
+struct Bus {
+  tims::Router router{0};
+  tims::Mailbox sink{tims::Address::make(0, tims::classes::kTool, 2, 1), 8, 256};
+  tims::Address self = tims::Address::make(0, tims::classes::kTool, 1, 1);
+  std::array<std::byte, 64> sample{};
+  alignas(8) std::array<std::byte, 256> buffer{};
+  Bus() { router.add(sink); }
+  ~Bus() { router.remove(sink.address()); }
+};
+
+__attribute__((noinline)) int64_t cycle(Bus& bus, int64_t due, uint8_t seq) {
+  const int64_t woke = monotonic_ns();
+  trace::record(trace::Kind::kWake, due);
+  trace::record_at(woke, trace::Kind::kCycleStart);
+  const tims::ConstBuffer part{bus.sample.data(), bus.sample.size()};
+  const auto h = tims::make_header(bus.sink.address(), bus.self, -6, 0, seq,
+                                   static_cast<uint32_t>(bus.sample.size()));
+  (void)bus.router.send(h, std::span<const tims::ConstBuffer>(&part, 1));
+  (void)bus.sink.receive(bus.buffer, tims::Mailbox::kNonBlocking);
+  const int64_t ended = monotonic_ns();
+  trace::record_at(ended, trace::Kind::kCycleEnd, 0);
+  return ended - woke;
+}
+
+void run_variant(Variant& v, Bus& bus, trace::Ring& ring, int cycles, int cpu, int drain_cpu, int priority) {
+  std::vector<int64_t> samples;
+  samples.reserve(static_cast<std::size_t>(cycles));
+  std::atomic<bool> done{false};
+  std::thread drainer;
+  if (v.mode == Mode::kOn) {
+    drainer = std::thread([&] {
+      if (drain_cpu >= 0) {
+        cpu_set_t set;
+        CPU_ZERO(&set);
+        CPU_SET(static_cast<std::size_t>(drain_cpu), &set);
+        (void)pthread_setaffinity_np(pthread_self(), sizeof set, &set);
+      }
+      std::vector<trace::Event> out(4096);
+      while (!done.load(std::memory_order_acquire)) {
+        while (ring.drain(out) > 0) {
+        }
+        sleep_for(2 * kNsPerMs);
+      }
+      while (ring.drain(out) > 0) {
+      }
+    });
+  }
+  Thread t;
+  t.start({std::string("bench:") + v.name, priority, cpu, 256 * 1024},
+          [&] {
+            trace::bind_thread_ring(v.mode == Mode::kReference ? nullptr : &ring);
+            ring.set_enabled(v.mode == Mode::kOn);
+            for (int k = 0; k < 500; ++k) (void)cycle(bus, monotonic_ns(), static_cast<uint8_t>(k));  // warm-up
+            for (int k = 0; k < cycles; ++k) {
+              samples.push_back(cycle(bus, monotonic_ns(), static_cast<uint8_t>(k)));
+              // A task's cycles are spaced by its period: a pause every 512 cycles
+              // (2560 events, within the ring's 4096) lets the drainer keep up, as it
+              // does in rackd, so that "on" measures recording, not the drop path.
+              if (k % 512 == 511) sleep_for(10 * kNsPerMs);
+            }
+            ring.set_enabled(false);
+            trace::bind_thread_ring(nullptr);
+          },
+          false);
+  t.join();
+  done.store(true, std::memory_order_release);
+  if (drainer.joinable()) drainer.join();
+  v.pooled.insert(v.pooled.end(), samples.begin(), samples.end());
+  v.last = percentiles_of(samples);
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int cycles = 20000, rounds = 7, cpu = 1, drain_cpu = 0, priority = 80;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&] {
+      if (i + 1 >= argc) { std::fprintf(stderr, "%s needs a value\n", a.c_str()); std::exit(2); }
+      return std::atoi(argv[++i]);
+    };
+    if (a == "--cycles") cycles = next();
+    else if (a == "--rounds") rounds = next();
+    else if (a == "--cpu") cpu = next();
+    else if (a == "--drain-cpu") drain_cpu = next();
+    else if (a == "--priority") priority = next();
+    else if (a == "-h" || a == "--help") {
+      std::puts("bench_trace [--cycles N] [--rounds R] [--cpu C] [--drain-cpu C] [--priority P]");
+      return 0;
+    } else {
+      std::fprintf(stderr, "unknown option %s\n", a.c_str());
+      return 2;
+    }
+  }
+  if (cycles < 100 || rounds < 1) {
+    std::fprintf(stderr, "--cycles at least 100, --rounds at least 1\n");
+    return 2;
+  }
+  const auto mem = apply_memory_policy(64u << 20);
+  std::fprintf(stderr, "%s\n", mem.describe().c_str());
+  Bus bus;
+  trace::Ring ring(4096);
+  std::vector<Variant> variants = {{"reference", Mode::kReference, {}, {}, {}, {}},
+                                   {"off", Mode::kOff, {}, {}, {}, {}},
+                                   {"on", Mode::kOn, {}, {}, {}, {}}};
+  const uint64_t dropped_before = ring.dropped();
+  for (int r = 0; r < rounds; ++r) {
+    // Alternate the order too, so that no variant always follows the same one.
+    std::vector<Variant*> order = {&variants[0], &variants[1], &variants[2]};
+    if (r % 2 == 1) std::reverse(order.begin(), order.end());
+    for (Variant* v : order) run_variant(*v, bus, ring, cycles, cpu, drain_cpu, priority);
+    for (auto& v : variants) {
+      v.ratio_p50.push_back(v.last.p50_ns / variants[0].last.p50_ns);
+      v.ratio_p99.push_back(v.last.p99_ns / variants[0].last.p99_ns);
+    }
+  }
+  std::printf("trace cost per cycle: %d rounds x %d cycles per variant, CPU %d (drainer CPU %d), SCHED_FIFO %d\n",
+              rounds, cycles, cpu, drain_cpu, priority);
+  std::printf("kernel %s, %s\n", rack::bench::kernel_string().c_str(), rack::bench::cpu_model().c_str());
+  std::printf("%-10s %8s %8s %8s %9s %9s  %-24s %-34s %s\n", "variant", "p50 ns", "p90 ns", "p99 ns", "p99.9 ns",
+              "max ns", "minus ref p50 / p99 ns", "ratio p50: median [min, max]", "ratio p99: median [min, max]");
+  Percentiles ref{};
+  for (auto& v : variants) {
+    const Percentiles p = percentiles_of(v.pooled);
+    if (v.mode == Mode::kReference) ref = p;
+    const auto [p50_min, p50_max] = std::minmax_element(v.ratio_p50.begin(), v.ratio_p50.end());
+    const auto [p99_min, p99_max] = std::minmax_element(v.ratio_p99.begin(), v.ratio_p99.end());
+    std::printf("%-10s %8.0f %8.0f %8.0f %9.0f %9.0f  %+8.0f / %+8.0f        %.3fx [%.3f, %.3f]              %.3fx [%.3f, %.3f]\n",
+                v.name, p.p50_ns, p.p90_ns, p.p99_ns, p.p999_ns, p.max_ns, p.p50_ns - ref.p50_ns, p.p99_ns - ref.p99_ns,
+                median(v.ratio_p50), *p50_min, *p50_max, median(v.ratio_p99), *p99_min, *p99_max);
+  }
+  std::printf("events recorded (on): %llu, dropped: %llu\n", static_cast<unsigned long long>(ring.pushed()),
+              static_cast<unsigned long long>(ring.dropped() - dropped_before));
+  return 0;
+}
