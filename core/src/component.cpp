@@ -107,6 +107,7 @@ bool Component::run_init(std::string& error) {
   }
   init_failed_ = true;
   wire::copy_text(init_error_, ("init() failed: " + error).c_str());
+  show_reason(init_error_);
   set_state(ComponentState::kError);
   bump(errors_);
   return false;
@@ -162,6 +163,7 @@ void Component::handle_on(const MessageHeader* request) noexcept {
   const bool retry = request == nullptr;
   if (call_on() == HookResult::kOk) {
     set_state(ComponentState::kEnabled);
+    show_reason("");
     entered_enabled();
     if (retry) log_info("ON (retry succeeded): ENABLED");
     else log_info("ON: ENABLED");
@@ -170,6 +172,7 @@ void Component::handle_on(const MessageHeader* request) noexcept {
   }
   char reason[96];
   take_error_reason(reason);
+  show_reason(reason[0] != '\0' ? reason : "on() failed, no reason given");
   call_off();  // undo what on() did halfway
   const bool first = state() != ComponentState::kError;
   if (first) bump(errors_);
@@ -200,6 +203,7 @@ void Component::handle_off() noexcept {
     call_off();
   }
   set_state(ComponentState::kDisabled);
+  if (!init_failed_) show_reason("");
   if (before != ComponentState::kDisabled) log_info("OFF: DISABLED (was %s)", describe(before));
 }
 
@@ -207,6 +211,7 @@ void Component::go_error() noexcept {
   if (state() != ComponentState::kEnabled) return;
   char reason[96];
   take_error_reason(reason);
+  show_reason(reason[0] != '\0' ? reason : "loop() or a command handler failed, no reason given");
   leaving_enabled();
   call_off();
   set_state(ComponentState::kError);
@@ -220,6 +225,11 @@ void Component::go_error() noexcept {
 void Component::set_error_reason(const char* reason) noexcept {
   rt::PiLock lock(reason_mutex_);
   wire::copy_text(error_reason_, reason != nullptr ? reason : "");
+}
+
+void Component::show_reason(const char* reason) noexcept {
+  rt::PiLock lock(reason_mutex_);
+  wire::copy_text(shown_reason_, reason);
 }
 
 void Component::take_error_reason(char (&out)[96]) noexcept {
@@ -271,6 +281,10 @@ void Component::reject_malformed(const MessageHeader& request, const char* reaso
 }
 
 void Component::fill_stats(wire::StatsReply& out) const noexcept {
+  {
+    rt::PiLock lock(reason_mutex_);
+    std::memcpy(out.error_reason, shown_reason_, sizeof out.error_reason);
+  }
   out.state = static_cast<uint8_t>(state());
   out.data_task = static_cast<uint8_t>(data_task_mode());
   out.period_ns = settings_.period_ns;
@@ -373,6 +387,13 @@ void Component::handle_set_param(const MessageHeader& h, std::span<const std::by
   if (p == log_level_param_) {
     sync_log_level();
     log_print("log level now %s", gdos::describe(log_source_.level()));
+  } else {
+    switch (static_cast<wire::ParamKind>(value.kind)) {
+      case wire::ParamKind::kInt: log_info("SET_PARAM %s = %lld from %s", p->name().c_str(), static_cast<long long>(value.int_value), h.source()); break;
+      case wire::ParamKind::kBool: log_info("SET_PARAM %s = %s from %s", p->name().c_str(), value.int_value != 0 ? "true" : "false", h.source()); break;
+      case wire::ParamKind::kFloat: log_info("SET_PARAM %s = %g from %s", p->name().c_str(), value.float_value, h.source()); break;
+      case wire::ParamKind::kString: log_info("SET_PARAM %s = \"%s\" from %s", p->name().c_str(), value.string_value, h.source()); break;
+    }
   }
   reply(h, msg::kOk);
 }

@@ -203,7 +203,17 @@ TEST_F(SimNavTest, AMissingMapStopsOnlyTheLadarAndWhatNeedsIt) {
   const auto st = ctl({"status", "chassis"});
   EXPECT_EQ(st.exit_code, 0) << st.describe();
   EXPECT_TRUE(contains(st.out, "ENABLED")) << st.describe();
-  EXPECT_EQ(ctl({"on", "pilot"}).exit_code, 1);
+  const RunResult pilot_on = ctl({"on", "pilot"});
+  EXPECT_EQ(pilot_on.exit_code, 1);
+  // Every ERROR names its cause through the cascade: `rackctl status` and GDOS.
+  EXPECT_TRUE(contains(pilot_on.err + pilot_on.out, "is in ERROR")) << pilot_on.describe();
+  const RunResult ladar_status = ctl({"status", "ladar"});
+  EXPECT_TRUE(contains(ladar_status.out, "reason")) << ladar_status.describe();
+  EXPECT_TRUE(contains(ladar_status.out, "no_such_map.yaml")) << ladar_status.describe();
+  const RunResult pilot_status = ctl({"status", "pilot"});
+  EXPECT_TRUE(contains(pilot_status.out, "reason")) << pilot_status.describe();
+  EXPECT_TRUE(contains(pilot_status.out, "is in ERROR")) << pilot_status.describe();
+  EXPECT_TRUE(rackd_->wait_for_stderr("is in ERROR", 5s)) << rackd_->err();
   EXPECT_TRUE(rackd_->running());
 }
 

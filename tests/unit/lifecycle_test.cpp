@@ -624,6 +624,9 @@ components:
     const std::string log = host.gdos_log();
     return log.find("Probe(0/1) is in ERROR") != std::string::npos;
   })) << host.gdos_log();
+  // GET_STATS (rackctl status) carries it while the ERROR lasts.
+  EXPECT_NE(std::string(host.stats(mon).error_reason).find("Probe(0/1) is in ERROR"), std::string::npos)
+      << host.stats(mon).error_reason;
 
   // The producer works again and goes OFF under its consumer: "left ENABLED".
   ASSERT_EQ(host.set_bool(probe, "fail_on", false).type, msg::kOk);
@@ -632,6 +635,14 @@ components:
   EXPECT_TRUE(test::eventually([&] {
     return host.gdos_log().find("ENABLED -> ERROR (Probe(0/1) left ENABLED") != std::string::npos;
   })) << host.gdos_log();
+  EXPECT_NE(std::string(host.stats(mon).error_reason).find("left ENABLED"), std::string::npos);
+  // ON (from ERROR, at once) switches the producer on again: no reason is shown any more.
+  ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
+  EXPECT_STREQ(host.stats(mon).error_reason, "");
+  // A parameter change is an info event.
+  ASSERT_EQ(host.set_bool(probe, "fail_loop", false).type, msg::kOk);
+  EXPECT_TRUE(test::eventually([&] { return host.gdos_log().find("SET_PARAM fail_loop = false") != std::string::npos; }))
+      << host.gdos_log();
 }
 
 }  // namespace

@@ -249,6 +249,7 @@ class Component {
   void sync_log_level() noexcept;  // gdosLevel parameter -> log_source_ (RT-safe)
   // Moves the pending error reason into `out` ("" when none) and clears it.
   void take_error_reason(char (&out)[96]) noexcept;
+  void show_reason(const char* reason) noexcept;  // the present ERROR's reason ("" on leaving it)
 
   ComponentSettings settings_;
   ParameterSet params_;
@@ -268,8 +269,9 @@ class Component {
   std::atomic<bool> stop_{false};
   // Set by the data task when loop() failed; consumed by the command task.
   std::atomic<bool> loop_failed_{false};
-  rt::PiMutex reason_mutex_;        // guards error_reason_ (command and data task)
+  mutable rt::PiMutex reason_mutex_;  // guards error_reason_, shown_reason_ (command and data task, GET_STATS)
   char error_reason_[96] = {};
+  char shown_reason_[96] = {};      // the reason of the present ERROR (GET_STATS); "" otherwise
   bool init_failed_ = false;
   char init_error_[120] = {};
   int64_t retry_at_ns_ = 0;
