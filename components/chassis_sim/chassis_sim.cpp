@@ -70,6 +70,7 @@ HookResult ChassisSim::on() {
   last_loop_ns_ = 0;
   watchdog_stops_ = 0;
   collisions_ = 0;
+  touching_ = false;
   return HookResult::kOk;
 }
 
@@ -109,10 +110,16 @@ HookResult ChassisSim::loop() {
   if (map_data_ && (motion.x != 0.0 || motion.y != 0.0 || motion.phi != 0.0) && collides(next)) {
     // A wall: the robot stands where it is (a bumper stop), nothing is reported moved.
     motion = Pose2d{};
+    if (!touching_) {  // once per contact (it stays until a move gets free)
+      touching_ = true;
+      log_info("collision with a wall at (%.2f, %.2f), heading %.0f deg: stopped", truth_.x, truth_.y,
+               truth_.phi * 180.0 / 3.141592653589793);
+    }
     measured_ = Velocity{};
     ++collisions_;
   } else {
     truth_ = next;
+    if (motion.x != 0.0 || motion.y != 0.0 || motion.phi != 0.0) touching_ = false;
   }
 
   // Odometry: the true increment with a random walk whose variance grows with the

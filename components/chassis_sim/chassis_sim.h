@@ -91,6 +91,7 @@ class ChassisSim final : public ChassisBase {
   int64_t last_loop_ns_ = 0;
   uint32_t watchdog_stops_ = 0;
   uint32_t collisions_ = 0;
+  bool touching_ = false;  // against a wall since the last collision (GDOS: once per contact)
 };
 
 }  // namespace rack::components

@@ -1,5 +1,8 @@
 #include "pilot/pilot.h"
 
+#include "path/path.h"
+#include "rack/maps/occupancy_map.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -40,13 +43,27 @@ Pilot::Pilot()
       goal_tolerance_(declare_float("goal_tolerance", 0.15, {.doc = "m, a destination this close counts as reached", .min = 0.01, .max = 10.0})),
       turn_in_place_deg_(declare_float("turn_in_place_deg", 45.0, {.doc = "turn on the spot when the goal is further off the heading", .min = 5.0, .max = 180.0, .unit = "deg"})),
       brake_fraction_(declare_float("brake_fraction", 0.5, {.doc = "plan braking with this fraction of the chassis' dec_max", .min = 0.05, .max = 1.0})),
-      input_timeout_ms_(declare_int("input_timeout_ms", 500, {.doc = "stand when Position or Scan2D data is older than this", .min = 10, .max = 60000, .unit = "ms"})) {
+      input_timeout_ms_(declare_int("input_timeout_ms", 500, {.doc = "stand when Position or Scan2D data is older than this", .min = 10, .max = 60000, .unit = "ms"})),
+      map_(declare_string("map", "", {.doc = "map to plan destinations on (ROS map_server YAML); \"\": drive straight to them", .init_only = true})),
+      plan_margin_(declare_float("plan_margin", 0.05, {.doc = "m kept beyond the circle round the chassis' outline when planning", .min = 0.0, .max = 5.0, .unit = "m"})),
+      replan_blocked_ms_(declare_int("replan_blocked_ms", 2000, {.doc = "plan again round what the scanner sees after standing BLOCKED this long on a planned way (0: never)", .min = 0, .max = 600000, .unit = "ms"})) {
   use_input_mailbox(kInputSlot);
+  set_command_slot_size(sizeof(tims::MessageHeader) + sizeof(PlanRequest) + 64);
 }
 
 void Pilot::init() {
   // mode (its Spec's choices) and destination (check_parameters) are checked before.
   rpc_buffer_.assign(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(PathData) + 256, std::byte{0});
+  const std::string map = map_.get_string();
+  if (!map.empty()) {
+    auto loaded = maps::load_map(map);
+    if (!loaded.ok()) throw std::runtime_error("map: " + loaded.error_text());
+    try {
+      planner_.set_map(*loaded.map);
+    } catch (const std::exception& e) {
+      throw std::runtime_error("map " + map + ": " + e.what());
+    }
+  }
 }
 
 bool Pilot::check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept {
@@ -82,6 +99,9 @@ HookResult Pilot::on() {
   const tims::Address path = resolved(path_);
   data_ = PilotData{};
   have_path_ = path_fresh_ = have_scan_ = false;
+  have_plan_ = plan_fresh_ = plan_asked_ = join_path_ = false;
+  blocked_since_ns_ = 0;
+  destination_writes_ = destination_.write_count();
   position_mono_ns_ = scan_mono_ns_ = 0;
   {
     rt::PiLock lock(mutex_);
@@ -97,13 +117,16 @@ HookResult Pilot::on() {
   const auto r = ep.call(chassis, interfaces::kChassisGetParams, std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
   if (r.status != tims::CallStatus::kOk || r.reply.type != interfaces::kChassisParamsReply ||
       !wire::read_payload(r.body, tims::body_is_native(r.reply), limits_)) {
+    set_error_reason("the chassis did not answer GET_PARAMS");
     return HookResult::kError;
   }
   outline_ = Outline{limits_.boundary_front, limits_.boundary_back, limits_.boundary_left, limits_.boundary_right,
                      limits_.safety_margin};
+  plan_radius_ = std::hypot(std::max(outline_.front, outline_.back), std::max(outline_.left, outline_.right));
   interfaces::ChassisSetActivePilot claim;
   claim.pilot = address().raw();
   if (!ep.call(chassis, interfaces::kChassisSetActivePilot, claim, std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns).ok()) {
+    set_error_reason("the chassis refused SET_ACTIVE_PILOT");
     return HookResult::kError;
   }
   if (subscribe(position, 0) != HookResult::kOk || subscribe(scan, 0) != HookResult::kOk) return HookResult::kError;
@@ -196,12 +219,18 @@ void Pilot::handle_input(int64_t now) noexcept {
       const tims::Address src = header.source().component();
       if (src == position) position_mono_ns_ = -1;
       if (src == scan) scan_mono_ns_ = -1;
+      if (src == position || src == scan) {
+        char reason[96];
+        src.format(reason, sizeof reason);
+        wire::append_text(reason, src == position ? " (position) left ENABLED" : " (scan2d) left ENABLED");
+        set_error_reason(reason);
+      }
     }
   }
 }
 
-bool Pilot::path_goal(const Pose2d& pose, double& gx, double& gy, double& remaining) noexcept {
-  const PathData& p = path_data_;
+bool Pilot::path_goal(const PathData& p, bool& fresh, const Pose2d& pose, double& gx, double& gy,
+                      double& remaining) noexcept {
   const uint32_t n = std::min(p.point_count, interfaces::kPathMaxPoints);
   const bool closed = p.closed != 0;
   const auto dist2 = [&](uint32_t i) {
@@ -210,12 +239,12 @@ bool Pilot::path_goal(const Pose2d& pose, double& gx, double& gy, double& remain
     return dx * dx + dy * dy;
   };
   uint32_t index = data_.path_index < n ? data_.path_index : 0;
-  if (path_fresh_) {  // a new path: start from the nearest point
+  if (fresh) {  // a new path: start from the nearest point
     index = 0;
     for (uint32_t i = 1; i < n; ++i) {
       if (dist2(i) < dist2(index)) index = i;
     }
-    path_fresh_ = false;
+    fresh = false;
   } else {  // progress: the nearest point a little way ahead (never backwards)
     uint32_t best = index;
     for (uint32_t k = 1; k < 64 && (closed || index + k < n); ++k) {
@@ -305,32 +334,70 @@ HookResult Pilot::loop() {
         data_.mode = u8(PilotMode::kFollowPath);
         path_fresh_ = true;
         break;
-      case Request::kHold: data_.mode = u8(PilotMode::kHold); break;
+      case Request::kHold:
+        data_.mode = u8(PilotMode::kHold);
+        data_.status = u8(PilotStatus::kIdle);
+        break;
       case Request::kDestination:
         data_.mode = u8(PilotMode::kDestination);
         data_.target_x = request_x_;
         data_.target_y = request_y_;
         line_pending_ = true;
+        have_plan_ = false;  // planned on a later cycle (when there is a map)
+        plan_asked_ = false;
+        break;
+      case Request::kPlanned:
+        data_.mode = u8(PilotMode::kDestination);
+        data_.target_x = request_x_;
+        data_.target_y = request_y_;
+        std::memcpy(&plan_data_, &plan_pending_, sizeof plan_data_);
+        have_plan_ = plan_fresh_ = true;
+        plan_asked_ = false;
+        blocked_since_ns_ = 0;
+        break;
+      case Request::kPlanFailed:
+        plan_asked_ = false;
+        blocked_since_ns_ = 0;
+        // No way even on the map alone: stand. (Round obstacles only: try again later.)
+        if (request_x_ == data_.target_x && request_y_ == data_.target_y && !have_plan_) {
+          if (join_path_) {  // no way back to the path now: follow it (blocked) and try again later
+            join_path_ = false;
+            data_.mode = u8(PilotMode::kFollowPath);
+            path_fresh_ = true;
+          } else {
+            data_.mode = u8(PilotMode::kHold);
+            data_.status = u8(PilotStatus::kUnreachable);
+          }
+        }
         break;
     }
-    reclaim = request_ != Request::kNone;
+    if (request_ != Request::kNone && request_ != Request::kPlanned && request_ != Request::kPlanFailed) join_path_ = false;
+    reclaim = request_ != Request::kNone && request_ != Request::kPlanFailed;
     request_ = Request::kNone;
   }
+  // The `destination` parameter: every SET_PARAM is an order (also "" after a
+  // SET_DESTINATION, when the text itself did not change).
   char text[wire::kParamStringLen];
+  const uint32_t writes = destination_.write_count();
   destination_.copy_string(text, sizeof text);
-  if (std::strcmp(text, last_destination_) != 0) {
+  if (writes != destination_writes_ || std::strcmp(text, last_destination_) != 0) {
+    destination_writes_ = writes;
+    join_path_ = false;
     std::memcpy(last_destination_, text, sizeof text);
     double x = 0.0, y = 0.0;
     if (text[0] == '\0') {
       data_.mode = u8(resolved(path_).raw() != 0 ? PilotMode::kFollowPath : PilotMode::kHold);
       path_fresh_ = true;
       reclaim = true;
+      log_info("destination \"\": %s", resolved(path_).raw() != 0 ? "following the path" : "holding");
     } else if (parse_destination(text, x, y)) {
       data_.mode = u8(PilotMode::kDestination);
       data_.target_x = x;
       data_.target_y = y;
       line_pending_ = true;
+      have_plan_ = plan_asked_ = false;
       reclaim = true;
+      log_info("destination (%.2f, %.2f) set by parameter", x, y);
     } else {
       ++data_.bad_destinations;
     }
@@ -367,17 +434,28 @@ HookResult Pilot::loop() {
   data_.speed_limit = c.inside ? 0.0 : std::sqrt(2.0 * brake * std::max(0.0, usable));
 
   const auto mode = static_cast<PilotMode>(data_.mode);
+  const bool planning = planner_.has_map() && mode == PilotMode::kDestination && !have_plan_;
   if (mode == PilotMode::kHold) {
-    data_.status = u8(PilotStatus::kIdle);
+    if (data_.status != u8(PilotStatus::kUnreachable)) data_.status = u8(PilotStatus::kIdle);
   } else if (!fresh) {
     data_.status = u8(PilotStatus::kNoInput);
   } else if (mode == PilotMode::kFollowPath && !have_path_) {
     data_.status = u8(PilotStatus::kNoPath);
+  } else if (planning) {
+    // Ask the command task for the way (again after a second, should a request be lost).
+    if (!plan_asked_ || now - plan_asked_ns_ > rt::kNsPerSec) ask_for_plan(pose, false);
+    data_.status = u8(PilotStatus::kPlanning);
   } else {
     double gx = data_.target_x, gy = data_.target_y, remaining = 0.0;
     bool going = true;
     if (mode == PilotMode::kFollowPath) {
-      going = path_goal(pose, gx, gy, remaining);
+      going = path_goal(path_data_, path_fresh_, pose, gx, gy, remaining);
+    } else if (have_plan_) {
+      going = path_goal(plan_data_, plan_fresh_, pose, gx, gy, remaining);
+      data_.target_x = plan_data_.x[plan_data_.point_count - 1];
+      data_.target_y = plan_data_.y[plan_data_.point_count - 1];
+      // path_goal ends within goal_tolerance of the way's last point (float): also the destination.
+      going = going || std::hypot(data_.target_x - pose.x, data_.target_y - pose.y) >= goal_tolerance_.get_float();
     } else {
       if (line_pending_) {
         line_x_ = pose.x;
@@ -397,7 +475,13 @@ HookResult Pilot::loop() {
         gy = line_y_ + ly / len * at;
       }
     }
-    if (!going) {
+    if (!going && join_path_) {  // the planned way back to the path ends: follow it again
+      join_path_ = false;
+      data_.mode = u8(PilotMode::kFollowPath);
+      path_fresh_ = true;
+      data_.status = u8(PilotStatus::kDriving);
+      log_info("back on the path at (%.2f, %.2f)", pose.x, pose.y);
+    } else if (!going) {
       data_.status = u8(PilotStatus::kReached);
     } else {
       steer(pose, gx, gy, remaining);
@@ -408,24 +492,139 @@ HookResult Pilot::loop() {
         data_.vx = 0.0;
         const double wmax = std::min(omega_max_.get_float(), limits_.omega_max);
         data_.omega = c.turn_blocked ? 0.0 : std::clamp(2.0 * goal_bearing_, -wmax, wmax);
+        if (blocked_since_ns_ == 0) {
+          blocked_since_ns_ = now;
+          log_info("BLOCKED at (%.2f, %.2f): something %.2f m ahead of the outline%s", pose.x, pose.y, c.free_ahead,
+                   have_plan_ && mode == PilotMode::kDestination ? "" : " (standing until it is gone)");
+        }
         data_.status = u8(PilotStatus::kBlocked);
         ++data_.blocked_cycles;
+        const int64_t replan_ns = replan_blocked_ms_.get_int() * rt::kNsPerMs;
+        if (have_plan_ && mode == PilotMode::kDestination && replan_ns > 0 && now - blocked_since_ns_ >= replan_ns &&
+            !plan_asked_) {
+          log_info("BLOCKED for %lld ms: planning again round what the scanner sees",
+                   static_cast<long long>((now - blocked_since_ns_) / rt::kNsPerMs));
+          ask_for_plan(pose, true);
+        } else if (mode == PilotMode::kFollowPath && planner_.has_map() && replan_ns > 0 &&
+                   now - blocked_since_ns_ >= replan_ns && !plan_asked_) {
+          // Off the path behind something (a wall after a bad estimate, a room): plan a
+          // way to the path's look-ahead point, then follow the path again.
+          log_info("BLOCKED for %lld ms off the path: planning a way back to it at (%.2f, %.2f)",
+                   static_cast<long long>((now - blocked_since_ns_) / rt::kNsPerMs), gx, gy);
+          join_path_ = true;
+          data_.mode = u8(PilotMode::kDestination);
+          data_.target_x = gx;
+          data_.target_y = gy;
+          have_plan_ = false;
+          ask_for_plan(pose, true);
+        }
       }
     }
   }
+  if (data_.status != u8(PilotStatus::kBlocked)) blocked_since_ns_ = 0;
   data_.distance_to_target = std::hypot(data_.target_x - pose.x, data_.target_y - pose.y);
   send_move(data_.vx, data_.omega);
   publish(data_, rt::host_time_ns());
   return HookResult::kOk;
 }
 
+void Pilot::ask_for_plan(const Pose2d& pose, bool replan) noexcept {
+  PlanRequest r;
+  r.gx = data_.target_x;
+  r.gy = data_.target_y;
+  r.x = pose.x;
+  r.y = pose.y;
+  r.phi = pose.phi;
+  r.replan = replan ? 1 : 0;
+  if (replan && have_scan_) {
+    // The scan points near the robot, in the map frame (the map lacks them).
+    const uint32_t n = std::min(scan_.point_count, interfaces::kScan2dMaxPoints);
+    const double c = std::cos(pose.phi), s = std::sin(pose.phi);
+    for (uint32_t i = 0; i < n && r.obstacles < kPlanObstacles; i += 2) {
+      if (scan_.type[i] == interfaces::kScanPointMaxRange) continue;
+      const double x = scan_.x[i], y = scan_.y[i];
+      if (std::hypot(x, y) > 2.0) continue;
+      r.ox[r.obstacles] = static_cast<float>(pose.x + c * x - s * y);
+      r.oy[r.obstacles] = static_cast<float>(pose.y + s * x + c * y);
+      ++r.obstacles;
+    }
+  }
+  const tims::ConstBuffer part = tims::buffer_of(r);
+  (void)data_endpoint().send(address(), kPlanSelf, std::span<const tims::ConstBuffer>(&part, 1));
+  plan_asked_ = true;
+  plan_asked_ns_ = rt::monotonic_ns();
+}
+
+const char* Pilot::plan_way(const PlanRequest& r) noexcept {
+  planner_.clear_obstacles();
+  const double radius = plan_radius_ + plan_margin_.get_float();
+  for (uint32_t i = 0; i < std::min(r.obstacles, kPlanObstacles); ++i) planner_.add_obstacle(r.ox[i], r.oy[i], radius);
+  interfaces::PathMake w;
+  const GridPlanner::Result result =
+      planner_.plan(r.x, r.y, r.gx, r.gy, GridPlanner::Options{.radius = radius, .comfort = 0.3}, w);
+  if (result.error != nullptr) return result.error;
+  if (const char* why = Path::make_path(w, 0.1, plan_scratch_)) return why;
+  log_info("way to (%.2f, %.2f) planned: %.1f m, %u waypoints, %u cells searched%s", r.gx, r.gy, result.length,
+           w.count, result.expanded, result.start_moved ? " (the robot stands too near a wall: it backs out first)" : "");
+  rt::PiLock lock(mutex_);
+  std::memcpy(&plan_pending_, &plan_scratch_, sizeof plan_pending_);
+  request_ = Request::kPlanned;
+  request_x_ = r.gx;
+  request_y_ = r.gy;
+  return nullptr;
+}
+
 CommandResult Pilot::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
   switch (request.type) {
+    case kPlanSelf: {
+      // Only from this pilot's own data task; to anyone else an unknown command.
+      if (!(request.source() == data_endpoint().address())) return CommandResult::kUnknown;
+      PlanRequest r;
+      if (body.size() != sizeof r) return CommandResult::kHandled;
+      std::memcpy(&r, body.data(), sizeof r);
+      if (const char* why = plan_way(r)) {
+        if (r.replan != 0) {
+          log_info("no way round what blocks the robot (%s): standing, trying again later", why);
+        } else {
+          log_warning("destination (%.2f, %.2f) unreachable: %s", r.gx, r.gy, why);
+        }
+        rt::PiLock lock(mutex_);
+        request_ = Request::kPlanFailed;
+        request_x_ = r.gx;
+        request_y_ = r.gy;
+      }
+      return CommandResult::kHandled;  // no reply: the data task does not wait
+    }
     case interfaces::kPilotSetDestination: {
       interfaces::PilotDestination d;
       if (!wire::read_payload(body, tims::body_is_native(request), d) || !std::isfinite(d.x) || !std::isfinite(d.y)) {
         reject_malformed(request, "SET_DESTINATION: body must be two finite doubles x, y");
         return CommandResult::kHandled;
+      }
+      log_info("SET_DESTINATION (%.2f, %.2f) from %s", d.x, d.y, request.source());
+      if (planner_.has_map() && state() == ComponentState::kEnabled) {
+        // Plan now from the newest estimate, so that a destination with no way is refused.
+        const auto pr = command_endpoint().call(resolved(position_), tims::msg::kGetData, std::span<std::byte>(rpc_buffer_),
+                                                settings().rpc_timeout_ns);
+        wire::SampleHeader sh;
+        PositionData pos;
+        if (pr.status == tims::CallStatus::kOk && pr.reply.type == tims::msg::kData && read_sample(pr.reply, pr.body, sh, pos)) {
+          PlanRequest r;
+          r.gx = d.x;
+          r.gy = d.y;
+          r.x = pos.x;
+          r.y = pos.y;
+          r.phi = pos.phi;
+          if (const char* why = plan_way(r)) {
+            log_warning("SET_DESTINATION (%.2f, %.2f) refused: %s", d.x, d.y, why);
+            wire::ErrorText text;
+            wire::copy_text(text.text, "SET_DESTINATION: ");
+            wire::append_text(text.text, why);
+            reply_with(request, tims::msg::kError, text);
+            return CommandResult::kHandled;
+          }
+          break;  // planned: handed to the data task
+        }
       }
       rt::PiLock lock(mutex_);
       request_ = Request::kDestination;
@@ -443,6 +642,7 @@ CommandResult Pilot::command(const tims::MessageHeader& request, std::span<const
         reply_error(request, "FOLLOW_PATH: no 'path' component configured");
         return CommandResult::kHandled;
       }
+      log_info("%s from %s", request.type == interfaces::kPilotHold ? "HOLD" : "FOLLOW_PATH", request.source());
       rt::PiLock lock(mutex_);
       request_ = request.type == interfaces::kPilotHold ? Request::kHold : Request::kFollowPath;
       break;

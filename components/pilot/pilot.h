@@ -18,15 +18,36 @@
 //
 // What to do: the `mode` parameter at ON (path, hold), FOLLOW_PATH, HOLD and
 // SET_DESTINATION commands, or the `destination` parameter ("x,y"; set it with
-// rackctl set-param to send the robot somewhere; "" goes back to the path).
+// rackctl set-param to send the robot somewhere; "" goes back to the path, also
+// after a SET_DESTINATION: every SET_PARAM of it is an order, changed or not).
+//
+// Planning: with a `map` (the localisation map, ROS map_server YAML), a destination
+// is reached along a planned way (GridPlanner, path/planner.h: A* on the map inflated
+// by the circle round the chassis' outline plus `plan_margin`, shortened to waypoints
+// and smoothed by Path's spline) instead of a straight line. SET_DESTINATION plans at
+// once from the Position estimate and answers ERROR with the reason when there is no
+// way (in a wall, outside the map, cut off); a `destination` parameter is planned on
+// the next cycle (status PLANNING, then DRIVING or UNREACHABLE). Standing BLOCKED on a
+// planned way for `replan_blocked_ms`, the pilot plans again round the points its
+// scanner sees (GDOS info says so); following the path, it plans a way back to the
+// path's look-ahead point (e.g. from a room, or after a bad INIT put it against a
+// wall) and follows the path again at its end. Without a map, destinations are driven
+// straight.
+//
+// GDOS (info): commands received, destinations planned or refused, BLOCKED (once per
+// stop), replanning.
 //
 // Threads: commands (command task) hand requests to the data task under a PI mutex.
-// Real-time contract: on(), off(), loop() and command() are RT-safe; init() allocates.
+// Plans run in the command task (a few ms, no allocation): the data task asks for one
+// with a message to its own command mailbox (kPlanSelf), never plans itself.
+// Real-time contract: on(), off(), loop() and command() are RT-safe; init() allocates
+// (and loads the map).
 #pragma once
 
 #include <vector>
 
 #include "common/pose2d.h"
+#include "path/planner.h"
 #include "rack/core/data_component.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
@@ -58,14 +79,29 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
   CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override;
 
  private:
-  enum class Request : uint8_t { kNone, kFollowPath, kHold, kDestination };
+  enum class Request : uint8_t { kNone, kFollowPath, kHold, kDestination, kPlanned, kPlanFailed };
+  // The data task's request for a plan (to its own command mailbox; native layout).
+  static constexpr int8_t kPlanSelf = 99;
+  static constexpr uint32_t kPlanObstacles = 96;
+  struct PlanRequest {
+    double gx = 0.0, gy = 0.0;          // the destination
+    double x = 0.0, y = 0.0, phi = 0.0; // the robot
+    uint32_t obstacles = 0;             // scan points to plan round (map frame)
+    uint32_t replan = 0;                // 1: blocked on the way
+    float ox[kPlanObstacles] = {}, oy[kPlanObstacles] = {};
+  };
+  // Command task: plans from (x, y) to (gx, gy) and hands the way to the data task.
+  // nullptr on success, else the reason.
+  const char* plan_way(const PlanRequest& r) noexcept;
+  void ask_for_plan(const Pose2d& pose, bool replan) noexcept;  // data task
   void handle_input(int64_t now) noexcept;
   [[nodiscard]] bool parse_destination(const char* text, double& x, double& y) const noexcept;
   // Steering towards `goal` (map frame); fills vx/omega in data_. `final_distance`
   // is how far the robot still has to go (braking), < 0 for an endless path.
   void steer(const Pose2d& pose, double gx, double gy, double final_distance) noexcept;
   // Picks the pure-pursuit goal on the path; false when the path is finished.
-  bool path_goal(const Pose2d& pose, double& gx, double& gy, double& remaining) noexcept;
+  bool path_goal(const interfaces::PathData& p, bool& fresh, const Pose2d& pose, double& gx, double& gy,
+                 double& remaining) noexcept;
   void send_move(double vx, double omega) noexcept;
 
   Parameter& chassis_;
@@ -81,11 +117,20 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
   Parameter& turn_in_place_deg_;
   Parameter& brake_fraction_;
   Parameter& input_timeout_ms_;
+  Parameter& map_;
+  Parameter& plan_margin_;
+  Parameter& replan_blocked_ms_;
+
+  // Command task (the planner is set up by init()).
+  GridPlanner planner_;
+  double plan_radius_ = 0.0;  // m, the circle round the outline (on())
+  interfaces::PathData plan_scratch_{};
 
   // Command task -> data task.
   rt::PiMutex mutex_;
   Request request_ = Request::kNone;
   double request_x_ = 0.0, request_y_ = 0.0;
+  interfaces::PathData plan_pending_{};  // with kPlanned
 
   // Set in on() (before the data task runs loop()), read by the data task.
   interfaces::ChassisParams limits_{};
@@ -103,6 +148,13 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
   double goal_bearing_ = 0.0;  // rad, the goal seen from the robot (set by steer())
   bool have_path_ = false;
   bool path_fresh_ = false;     // a new path arrived: find the nearest point again
+  interfaces::PathData plan_data_{};  // the planned way to the destination
+  bool have_plan_ = false, plan_fresh_ = false;
+  bool plan_asked_ = false;           // a kPlanSelf is on its way
+  bool join_path_ = false;            // the planned way leads back to the path
+  int64_t plan_asked_ns_ = 0;
+  int64_t blocked_since_ns_ = 0;      // 0: not blocked
+  uint32_t destination_writes_ = 0;   // destination_.write_count() seen
   int64_t position_mono_ns_ = 0;
   int64_t scan_mono_ns_ = 0;
   bool have_scan_ = false;

@@ -94,6 +94,7 @@ bool Component::run_init(std::string& error) {
   }
   init_failed_ = true;
   wire::copy_text(init_error_, ("init() failed: " + error).c_str());
+  show_reason(init_error_);
   set_state(ComponentState::kError);
   bump(errors_);
   return false;
@@ -149,12 +150,16 @@ void Component::handle_on(const MessageHeader* request) noexcept {
   const bool retry = request == nullptr;
   if (call_on() == HookResult::kOk) {
     set_state(ComponentState::kEnabled);
+    show_reason("");
     entered_enabled();
     if (retry) log_info("ON (retry succeeded): ENABLED");
     else log_info("ON: ENABLED");
     if (request != nullptr) reply(*request, msg::kOk);
     return;
   }
+  char reason[96];
+  take_error_reason(reason);
+  show_reason(reason[0] != '\0' ? reason : "on() failed, no reason given");
   call_off();  // undo what on() did halfway
   const bool first = state() != ComponentState::kError;
   if (first) bump(errors_);
@@ -162,11 +167,20 @@ void Component::handle_on(const MessageHeader* request) noexcept {
   retry_at_ns_ = rt::monotonic_ns() + settings_.retry_ns;
   // A retry that fails again is detail: the first failure already said so.
   if (first || !retry) {
-    log_error("ON: on() failed: ERROR (retrying every %lld ms)", static_cast<long long>(settings_.retry_ns / rt::kNsPerMs));
+    log_error("ON: on() failed: %s: ERROR (retrying every %lld ms)", reason[0] != '\0' ? reason : "no reason given",
+              static_cast<long long>(settings_.retry_ns / rt::kNsPerMs));
   } else {
-    log_detail("retry of on() failed: still ERROR");
+    log_detail("retry of on() failed: still ERROR (%s)", reason);
   }
-  if (request != nullptr) reply_error(*request, "on() failed");
+  if (request != nullptr) {
+    wire::ErrorText text;
+    wire::copy_text(text.text, "on() failed");
+    if (reason[0] != '\0') {
+      wire::append_text(text.text, ": ");
+      wire::append_text(text.text, reason);
+    }
+    reply_with(*request, msg::kError, text);
+  }
 }
 
 void Component::handle_off() noexcept {
@@ -176,25 +190,66 @@ void Component::handle_off() noexcept {
     call_off();
   }
   set_state(ComponentState::kDisabled);
+  if (!init_failed_) show_reason("");
   if (before != ComponentState::kDisabled) log_info("OFF: DISABLED (was %s)", describe(before));
 }
 
 void Component::go_error() noexcept {
   if (state() != ComponentState::kEnabled) return;
+  char reason[96];
+  take_error_reason(reason);
+  show_reason(reason[0] != '\0' ? reason : "loop() or a command handler failed, no reason given");
   leaving_enabled();
   call_off();
   set_state(ComponentState::kError);
   bump(errors_);
   retry_at_ns_ = rt::monotonic_ns() + settings_.retry_ns;
-  log_error("ENABLED -> ERROR (loop() or a command handler failed); retrying on() every %lld ms",
+  log_error("ENABLED -> ERROR (%s); retrying on() every %lld ms",
+            reason[0] != '\0' ? reason : "loop() or a command handler failed, no reason given",
             static_cast<long long>(settings_.retry_ns / rt::kNsPerMs));
+}
+
+void Component::set_error_reason(const char* reason) noexcept {
+  rt::PiLock lock(reason_mutex_);
+  wire::copy_text(error_reason_, reason != nullptr ? reason : "");
+}
+
+void Component::show_reason(const char* reason) noexcept {
+  rt::PiLock lock(reason_mutex_);
+  wire::copy_text(shown_reason_, reason);
+}
+
+void Component::take_error_reason(char (&out)[96]) noexcept {
+  rt::PiLock lock(reason_mutex_);
+  std::memcpy(out, error_reason_, sizeof out);
+  out[sizeof out - 1] = '\0';
+  error_reason_[0] = '\0';
 }
 
 HookResult Component::switch_on(Address dest) noexcept {
   alignas(8) std::byte buf[256];
   const auto r = command_endpoint_->call_with_retry(dest, msg::kOn, {}, std::span<std::byte>(buf),
                                                     {settings_.rpc_timeout_ns, settings_.rpc_retries + 1});
-  return r.ok() ? HookResult::kOk : HookResult::kError;
+  if (r.ok()) return HookResult::kOk;
+  // The cause, through the cascade: which dependency, and what it answered.
+  char reason[96];
+  dest.format(reason, sizeof reason);
+  if (r.status != tims::CallStatus::kOk) {
+    wire::append_text(reason, " did not answer ON");
+  } else if (r.reply.type == msg::kError) {
+    wire::append_text(reason, " is in ERROR: ");
+    wire::ErrorText text;
+    if (wire::read_payload(r.body, tims::body_is_native(r.reply), text)) {
+      text.text[sizeof text.text - 1] = '\0';
+      wire::append_text(reason, text.text);
+    } else {
+      wire::append_text(reason, "(no reason)");
+    }
+  } else {
+    wire::append_text(reason, " refused ON");
+  }
+  set_error_reason(reason);
+  return HookResult::kError;
 }
 
 void Component::reply(const MessageHeader& request, int8_t type, std::span<const ConstBuffer> body) noexcept {
@@ -213,6 +268,10 @@ void Component::reject_malformed(const MessageHeader& request, const char* reaso
 }
 
 void Component::fill_stats(wire::StatsReply& out) const noexcept {
+  {
+    rt::PiLock lock(reason_mutex_);
+    std::memcpy(out.error_reason, shown_reason_, sizeof out.error_reason);
+  }
   out.state = static_cast<uint8_t>(state());
   out.data_task = static_cast<uint8_t>(data_task_mode());
   out.period_ns = settings_.period_ns;
@@ -315,6 +374,13 @@ void Component::handle_set_param(const MessageHeader& h, std::span<const std::by
   if (p == log_level_param_) {
     sync_log_level();
     log_print("log level now %s", gdos::describe(log_source_.level()));
+  } else {
+    switch (static_cast<wire::ParamKind>(value.kind)) {
+      case wire::ParamKind::kInt: log_info("SET_PARAM %s = %lld from %s", p->name().c_str(), static_cast<long long>(value.int_value), h.source()); break;
+      case wire::ParamKind::kBool: log_info("SET_PARAM %s = %s from %s", p->name().c_str(), value.int_value != 0 ? "true" : "false", h.source()); break;
+      case wire::ParamKind::kFloat: log_info("SET_PARAM %s = %g from %s", p->name().c_str(), value.float_value, h.source()); break;
+      case wire::ParamKind::kString: log_info("SET_PARAM %s = \"%s\" from %s", p->name().c_str(), value.string_value, h.source()); break;
+    }
   }
   reply(h, msg::kOk);
 }

@@ -154,6 +154,11 @@ HookResult DataComponentBase::subscribe(Address producer, int64_t period_ns, int
     // sends is late, then forged, and its lease runs out.
     trusted_->retire(source, rt::monotonic_ns());
     sub->active = false;
+    char reason[96];
+    source.format(reason, sizeof reason);
+    wire::append_text(reason, r.status != tims::CallStatus::kOk ? " did not answer GET_CONT_DATA"
+                                                                 : " refused the subscription (GET_CONT_DATA)");
+    set_error_reason(reason);
     return HookResult::kError;
   }
   if (real_period_ns != nullptr) *real_period_ns = reply.period_ns;
@@ -179,6 +184,14 @@ void DataComponentBase::unsubscribe(Address producer) noexcept {
   alignas(8) std::byte buf[256];
   (void)command_endpoint().call(source, msg::kStopContData, req, std::span<std::byte>(buf),
                                 settings().rpc_timeout_ns);
+}
+
+void DataComponentBase::note_input_error(const MessageHeader& header) noexcept {
+  char reason[96];
+  header.source().component().format(reason, sizeof reason);
+  wire::append_text(reason, header.type == msg::kError ? " left ENABLED (its data stopped: it sent ERROR)"
+                                                        : " is not available (its data stopped)");
+  set_error_reason(reason);
 }
 
 void DataComponentBase::renew_due_subscriptions(int64_t now_ns) noexcept {

@@ -179,6 +179,7 @@ const char* Parameter::set_from_wire(const wire::ParamRecord& r) noexcept {
     case ParamKind::kString: store_string(v.string_value, strnlen(v.string_value, sizeof v.string_value)); break;
   }
   set_.store(true, std::memory_order_relaxed);
+  writes_.fetch_add(1, std::memory_order_release);
   return nullptr;
 }
 

@@ -6,6 +6,7 @@
 #include <signal.h>
 
 #include <chrono>
+#include <cmath>
 #include <memory>
 #include <optional>
 #include <string>
@@ -48,7 +49,7 @@ class SimNavTest : public ::testing::Test {
       // The second occurrence is the ladar's.
       text.replace(at, rel.size(), ++replaced == 2 && !ladar_map.empty() ? "map: " + ladar_map : abs);
     }
-    EXPECT_EQ(replaced, 2) << "sim_nav.yaml names the map for the chassis and the ladar";
+    EXPECT_EQ(replaced, 3) << "sim_nav.yaml names the map for the chassis, the ladar and the pilot";
     return dir_.write("sim_nav.yaml", text).string();
   }
   void start(const std::string& path) {
@@ -170,6 +171,43 @@ TEST_F(SimNavTest, TheRobotFollowsThePathAndTakesADestinationFromRackctl) {
   ASSERT_TRUE(eventually([&] { return number("chassis", "vx") == 0.0 && number("chassis", "active_pilot") == 0; }));
 }
 
+// README "Simulated robot and navigation", in order: a destination by parameter, one
+// behind a wall by SET_DESTINATION (planned through the door), one in a wall (refused
+// with the reason), then "" back to the path after the SET_DESTINATION.
+TEST_F(SimNavTest, TheReadmeWalkThroughReachesEachDestinationInOrder) {
+  start(host_file());
+  ASSERT_TRUE(eventually([&] { return number("pilot", "status") == 1; })) << rackd_->err();
+  const auto reached = [&](double x, double y) {
+    return eventually([&] {
+      const auto p = data("pilot");
+      return p && p->at("mode").number == 2 && p->at("status").number == 2 &&
+             std::abs(p->at("target_x").number - x) < 0.01 && std::abs(p->at("target_y").number - y) < 0.01;
+    }, 40s);
+  };
+  RunResult r = ctl({"set-param", "pilot", "destination", "10.0,8.0"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  ASSERT_TRUE(reached(10.0, 8.0)) << ctl({"get-data", "pilot"}).out << rackd_->err();
+  EXPECT_NEAR(number("chassis", "truth_x"), 10.0, 0.4);
+  EXPECT_NEAR(number("chassis", "truth_y"), 8.0, 0.4);
+  // Behind the corridor's south wall (y = 6): through the door at x = 9.0 .. 10.2.
+  r = ctl({"send", "pilot", "SET_DESTINATION", "x=11.5", "y=2.5"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  ASSERT_TRUE(reached(11.5, 2.5)) << ctl({"get-data", "pilot"}).out << rackd_->err();
+  EXPECT_NEAR(number("chassis", "truth_x"), 11.5, 0.4);
+  EXPECT_NEAR(number("chassis", "truth_y"), 2.5, 0.4);
+  EXPECT_EQ(number("chassis", "collisions"), 0);
+  EXPECT_TRUE(rackd_->wait_for_stderr("planned", 1s)) << rackd_->err();
+  // In a wall: refused with the reason, and the robot stays where it is.
+  r = ctl({"send", "pilot", "SET_DESTINATION", "x=12", "y=6"});
+  EXPECT_EQ(r.exit_code, 1) << r.describe();
+  EXPECT_TRUE(contains(r.err + r.out, "in a wall")) << r.describe();
+  EXPECT_EQ(number("pilot", "status"), 2);
+  // "" after a SET_DESTINATION (the parameter's text did not change): back to the path.
+  r = ctl({"set-param", "pilot", "destination", ""});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  ASSERT_TRUE(eventually([&] { return number("pilot", "mode") == 1; }, 5s)) << ctl({"get-data", "pilot"}).out;
+}
+
 TEST_F(SimNavTest, AMissingMapStopsOnlyTheLadarAndWhatNeedsIt) {
   const std::string missing = dir_.path().string() + "/no_such_map.yaml";
   start(host_file(missing));
@@ -184,7 +222,17 @@ TEST_F(SimNavTest, AMissingMapStopsOnlyTheLadarAndWhatNeedsIt) {
   const auto st = ctl({"status", "chassis"});
   EXPECT_EQ(st.exit_code, 0) << st.describe();
   EXPECT_TRUE(contains(st.out, "ENABLED")) << st.describe();
-  EXPECT_EQ(ctl({"on", "pilot"}).exit_code, 1);
+  const RunResult pilot_on = ctl({"on", "pilot"});
+  EXPECT_EQ(pilot_on.exit_code, 1);
+  // Every ERROR names its cause through the cascade: `rackctl status` and GDOS.
+  EXPECT_TRUE(contains(pilot_on.err + pilot_on.out, "is in ERROR")) << pilot_on.describe();
+  const RunResult ladar_status = ctl({"status", "ladar"});
+  EXPECT_TRUE(contains(ladar_status.out, "reason")) << ladar_status.describe();
+  EXPECT_TRUE(contains(ladar_status.out, "no_such_map.yaml")) << ladar_status.describe();
+  const RunResult pilot_status = ctl({"status", "pilot"});
+  EXPECT_TRUE(contains(pilot_status.out, "reason")) << pilot_status.describe();
+  EXPECT_TRUE(contains(pilot_status.out, "is in ERROR")) << pilot_status.describe();
+  EXPECT_TRUE(rackd_->wait_for_stderr("is in ERROR", 5s)) << rackd_->err();
   EXPECT_TRUE(rackd_->running());
 }
 

@@ -590,3 +590,60 @@ TEST_F(LifecycleTest, StopSwitchesEverythingOff) {
 
 }  // namespace
 }  // namespace rack
+
+namespace rack {
+namespace {
+
+// Every ERROR names its cause, through cascades: the ON answer and the GDOS error line
+// of a consumer whose producer fails on(), and of one whose producer went OFF.
+TEST(ErrorReasonTest, ACascadeNamesTheProducerAndItsReason) {
+  Watchdog dog;
+  test::HostUnderTest host(R"(system: 0
+lcm: false
+components:
+  - name: probe
+    class: Probe
+    instance: 1
+    retry_ms: 60000
+    data_task: {period_ms: 10, ring: 64}
+    params: {fail_on: true}
+  - name: mon
+    class: Monitor
+    instance: 1
+    retry_ms: 60000
+    data_task: {timeout_ms: 1000}
+    params: {source: probe, period_ms: 50}
+)", {}, /*capture_gdos=*/true);
+  const Address mon = host.address_of("mon");
+  const Address probe = host.address_of("probe");
+  const auto on = host.call(mon, msg::kOn);
+  ASSERT_EQ(on.type, msg::kError);
+  EXPECT_NE(on.error_text().find("on() failed: Probe(0/1) is in ERROR: on() failed"), std::string::npos)
+      << on.error_text();
+  EXPECT_TRUE(test::eventually([&] {
+    const std::string log = host.gdos_log();
+    return log.find("Probe(0/1) is in ERROR") != std::string::npos;
+  })) << host.gdos_log();
+  // GET_STATS (rackctl status) carries it while the ERROR lasts.
+  EXPECT_NE(std::string(host.stats(mon).error_reason).find("Probe(0/1) is in ERROR"), std::string::npos)
+      << host.stats(mon).error_reason;
+
+  // The producer works again and goes OFF under its consumer: "left ENABLED".
+  ASSERT_EQ(host.set_bool(probe, "fail_on", false).type, msg::kOk);
+  ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
+  ASSERT_EQ(host.call(probe, msg::kOff).type, msg::kOk);
+  EXPECT_TRUE(test::eventually([&] {
+    return host.gdos_log().find("ENABLED -> ERROR (Probe(0/1) left ENABLED") != std::string::npos;
+  })) << host.gdos_log();
+  EXPECT_NE(std::string(host.stats(mon).error_reason).find("left ENABLED"), std::string::npos);
+  // ON (from ERROR, at once) switches the producer on again: no reason is shown any more.
+  ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
+  EXPECT_STREQ(host.stats(mon).error_reason, "");
+  // A parameter change is an info event.
+  ASSERT_EQ(host.set_bool(probe, "fail_loop", false).type, msg::kOk);
+  EXPECT_TRUE(test::eventually([&] { return host.gdos_log().find("SET_PARAM fail_loop = false") != std::string::npos; }))
+      << host.gdos_log();
+}
+
+}  // namespace
+}  // namespace rack

@@ -37,7 +37,8 @@ constexpr EnumValue kPilotStatuses[] = {
     {u(PilotStatus::kIdle), "IDLE"},         {u(PilotStatus::kDriving), "DRIVING"},
     {u(PilotStatus::kReached), "REACHED"},   {u(PilotStatus::kBlocked), "BLOCKED"},
     {u(PilotStatus::kNoPath), "NO_PATH"},    {u(PilotStatus::kPreempted), "PREEMPTED"},
-    {u(PilotStatus::kNoInput), "NO_INPUT"}};
+    {u(PilotStatus::kNoInput), "NO_INPUT"},  {u(PilotStatus::kPlanning), "PLANNING"},
+    {u(PilotStatus::kUnreachable), "UNREACHABLE"}};
 constexpr EnumValue kGpsFixQualities[] = {{interfaces::kGpsFixNone, "NONE"},
                                           {interfaces::kGpsFixGps, "GPS"},
                                           {interfaces::kGpsFixDgps, "DGPS"},

@@ -893,12 +893,17 @@ int cmd_status(Session& s, const Options& o) {
                     ",\"input_forged\":" + std::to_string(st.input_forged) +
                     ",\"input_requests\":" + std::to_string(st.input_requests) +
                     ",\"input_late\":" + std::to_string(st.input_late) +
-                    ",\"listeners_expired\":" + std::to_string(st.listeners_expired) + "}";
+                    ",\"listeners_expired\":" + std::to_string(st.listeners_expired) +
+                    ",\"error_reason\":" + quoted(std::string(st.error_reason, strnlen(st.error_reason, sizeof st.error_reason))) + "}";
     std::printf("%s\n", j.c_str());
     return kExitOk;
   }
   std::printf("%s\n", t.label().c_str());
   std::printf("  %-16s %s\n", "state", state.c_str());
+  if (st.error_reason[0] != '\0') {  // why it is in ERROR
+    std::printf("  %-16s %.*s\n", "reason", static_cast<int>(strnlen(st.error_reason, sizeof st.error_reason)),
+                st.error_reason);
+  }
   if (st.period_ns > 0) {
     std::printf("  %-16s %s, period %s ms\n", "data task", mode,
                 double_text(static_cast<double>(st.period_ns) / 1e6).c_str());

@@ -38,6 +38,7 @@
 #include "rack/rt/clock.h"
 #include "rack/rt/modeswitch.h"
 #include "rack/rt/page_faults.h"
+#include "rack/rt/pi_mutex.h"
 #include "rack/tims/endpoint.h"
 
 namespace rack {
@@ -185,7 +186,14 @@ class Component {
   // RPCs from on() and command() (the command task's own reply mailbox).
   [[nodiscard]] tims::Endpoint& command_endpoint() noexcept { return *command_endpoint_; }
   // Cascading ON: switch on a component this one depends on, and wait for its answer.
+  // On failure the error reason names `dest` and carries its answer's reason.
   [[nodiscard]] HookResult switch_on(tims::Address dest) noexcept;
+  // Why this component fails, for the ERROR it is about to enter: on(), command() or
+  // loop() call it before returning kError, naming the cause (the producer that went
+  // OFF, the file that failed). The ERROR's GDOS line and the answer to ON carry it
+  // ("on() failed" alone when no reason was given). The last reason before a failure
+  // wins. RT-safe from the command and data tasks (copies under a PI mutex).
+  void set_error_reason(const char* reason) noexcept;
   void reply(const tims::MessageHeader& request, int8_t type,
              std::span<const tims::ConstBuffer> body = {}) noexcept;
   template <tims::Payload T>
@@ -240,6 +248,9 @@ class Component {
 
  private:
   void sync_log_level() noexcept;  // gdosLevel parameter -> log_source_ (RT-safe)
+  // Moves the pending error reason into `out` ("" when none) and clears it.
+  void take_error_reason(char (&out)[96]) noexcept;
+  void show_reason(const char* reason) noexcept;  // the present ERROR's reason ("" on leaving it)
 
   ComponentSettings settings_;
   ParameterSet params_;
@@ -262,6 +273,9 @@ class Component {
   std::atomic<bool> stop_{false};
   // Set by the data task when loop() failed; consumed by the command task.
   std::atomic<bool> loop_failed_{false};
+  mutable rt::PiMutex reason_mutex_;  // guards error_reason_, shown_reason_ (command and data task, GET_STATS)
+  char error_reason_[96] = {};
+  char shown_reason_[96] = {};      // the reason of the present ERROR (GET_STATS); "" otherwise
   bool init_failed_ = false;
   char init_error_[120] = {};
   int64_t retry_at_ns_ = 0;

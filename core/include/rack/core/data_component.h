@@ -175,6 +175,8 @@ class DataComponentBase : public Component {
     bool active = false;
   };
   // Data task, loop gate held: GET_CONT_DATA to every producer whose renewal is due.
+  // Sets the error reason "<producer> left ENABLED" (or NOT_AVAILABLE) for an input ERROR.
+  void note_input_error(const tims::MessageHeader& header) noexcept;
   void renew_due_subscriptions(int64_t now_ns) noexcept;
   // Data task: takes the loop gate and renews (a triggered task woken for it alone).
   void renew_gated() noexcept;
@@ -248,6 +250,7 @@ DataComponentBase::Input DataComponentBase::next_input(tims::MessageHeader& head
     header = *p.header;
     if (header.type == tims::msg::kError || header.type == tims::msg::kNotAvailable) {
       input_mailbox().peek_end();
+      note_input_error(header);  // the error reason, should loop() now fail
       return Input::kError;
     }
     if (header.type != tims::msg::kData) {  // a renewal's CONT_DATA, a wake-up: nothing to take

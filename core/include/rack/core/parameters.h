@@ -76,6 +76,9 @@ class Parameter {
   [[nodiscard]] std::string value_text() const;             // not RT-safe
 
   [[nodiscard]] bool was_set() const noexcept { return set_.load(std::memory_order_relaxed); }
+  // SET_PARAMs taken so far, of a changed value or not: a component that acts on every
+  // order (not only on a change) compares it. Acquire: the value written before it is seen.
+  [[nodiscard]] uint32_t write_count() const noexcept { return writes_.load(std::memory_order_acquire); }
 
  private:
   void store_string(const char* text, std::size_t len) noexcept;
@@ -89,6 +92,7 @@ class Parameter {
   std::atomic<int64_t> int_{0};
   std::atomic<double> float_{0.0};
   std::atomic<bool> set_{false};
+  std::atomic<uint32_t> writes_{0};  // SET_PARAMs (release after the value is stored)
   // Seqlock for the string: odd while being written. acquire/release pair the
   // sequence with the bytes (the bytes themselves are accessed through atomic_ref).
   std::atomic<uint32_t> string_seq_{0};

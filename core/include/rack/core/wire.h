@@ -148,6 +148,10 @@ struct StatsReply {
   int64_t exec_p50_ns = 0;
   int64_t exec_p99_ns = 0;
   int64_t exec_max_ns = 0;
+  // Why the component is in ERROR (Component::set_error_reason, or the framework's:
+  // a producer that left ENABLED, a failed cascading ON with the dependency's reason,
+  // init()'s error); "" when it is not in ERROR.
+  char error_reason[96] = {};
   static constexpr auto fields() noexcept {
     return std::array{
       RACK_FIELD(StatsReply, state), RACK_FIELD(StatsReply, data_task), RACK_FIELD(StatsReply, faults_measured),
@@ -166,7 +170,8 @@ struct StatsReply {
       RACK_FIELD(StatsReply, input_requests), RACK_FIELD(StatsReply, input_late),
       RACK_FIELD(StatsReply, listeners_expired),
       RACK_FIELD(StatsReply, exec_samples), RACK_FIELD(StatsReply, exec_p50_ns),
-      RACK_FIELD(StatsReply, exec_p99_ns), RACK_FIELD(StatsReply, exec_max_ns)};
+      RACK_FIELD(StatsReply, exec_p99_ns), RACK_FIELD(StatsReply, exec_max_ns),
+      RACK_FIELD(StatsReply, error_reason)};
   }
 };
 

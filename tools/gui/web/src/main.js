@@ -688,7 +688,7 @@ function draw(now) {
   }
 }
 
-const PILOT_STATUS = ['idle', 'driving', 'reached', 'blocked', 'no path', 'preempted', 'no input'];
+const PILOT_STATUS = ['idle', 'driving', 'reached', 'blocked', 'no path', 'preempted', 'no input', 'planning', 'unreachable'];
 
 // All particles in one path and one fill: tens of thousands stay smooth.
 function drawParticles(xs, ys, n) {

@@ -73,6 +73,8 @@ enum class PilotStatus : uint8_t {
   kNoPath = 4,     // following, but the Path has not published a path
   kPreempted = 5,  // the chassis refused MOVE (another pilot took over): standing
   kNoInput = 6,    // no recent Position (or Scan2D) data: standing
+  kPlanning = 7,   // waiting for the planned way to the destination (a cycle or two)
+  kUnreachable = 8,  // no way to the destination on the map (GDOS and SET_DESTINATION say why): holding
 };
 struct PilotData {
   double target_x = 0.0;  // the destination (or the path's last point)
@@ -104,8 +106,9 @@ struct PilotData {
                       RACK_FIELD(PilotData, bad_destinations), RACK_FIELD(PilotData, mode),         RACK_FIELD(PilotData, status)};
   }
 };
-// SET_DESTINATION (request): drive straight to (x, y) (no planner: the Scan2D speed
-// limit stops it before obstacles). Reply OK.
+// SET_DESTINATION (request): drive to (x, y): along a planned way when the Pilot has a
+// `map`, else straight (the Scan2D speed limit stops it before obstacles). Reply OK, or
+// ERROR with the reason when the planner finds no way there.
 inline constexpr int8_t kPilotSetDestination = 21;
 struct PilotDestination {
   double x = 0.0;
