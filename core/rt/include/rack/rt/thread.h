@@ -21,7 +21,7 @@ struct ThreadConfig {
   int priority = 0;                         // 1..99: SCHED_FIFO; 0: SCHED_OTHER
   int cpu = -1;                             // pin to this CPU; -1: any (or `cpus`)
   std::size_t stack_bytes = 256 * 1024;     // pre-faulted at start
-  std::vector<int> cpus;                    // with cpu -1: run on these CPUs; empty: any
+  std::vector<int> cpus{};                  // with cpu -1: run on these CPUs; empty: any
 };
 
 enum class ThreadStart {
