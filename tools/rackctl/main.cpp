@@ -281,7 +281,7 @@ std::optional<std::pair<std::string, Address>> parse_named_address(const std::st
 struct Target {
   Address address;
   std::string name;  // from the host file; empty when given as an address
-  std::string class_name;  // from its class description; empty: TiMS' name
+  std::string class_name{};  // from its class description; empty: TiMS' name
   [[nodiscard]] std::string address_text() const { return ::address_text(address, class_name); }
   [[nodiscard]] std::string label() const {
     return name.empty() ? address_text() : name + " " + address_text();
