@@ -433,9 +433,13 @@ components:
 // without one allocation.
 TEST_F(NoAllocationTest, SetParamChecksTheClassRules) {
   test::Watchdog dog;
+  // Every SET_PARAM is logged at info level (700 lines in the counted window): a ring
+  // large enough that none is dropped, since the GDOS thread (not RT) allocates the
+  // "records dropped" line and this test counts the allocations of every thread.
   test::HostUnderTest host(R"y(system: 0
 lcm: false
 heap_prefault_mib: 0
+gdos: {ring: 4096}
 components:
   - name: pilot
     class: Pilot

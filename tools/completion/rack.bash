@@ -34,17 +34,18 @@ _rackd() {
   fi
 }
 
-_RACKCTL_COMMANDS="list hosts on off status latency params set-param get-data watch send hz bw doctor keygen help"
+_RACKCTL_COMMANDS="list hosts on off status latency params classes set-param get-data watch send hz bw doctor keygen threads trace help"
 _RACKCTL_OPTIONS="--lcm --timeout --retries --discover-ms --host-file --key-file --help --version"
 
 # Command-specific options (as rackctl help COMMAND lists them).
 _rackctl_command_options() {
   case $1 in
-    list|hosts|status|latency|params|doctor) echo "--json" ;;
+    list|hosts|status|latency|params|classes|doctor) echo "--json" ;;
     get-data) echo "--time" ;;
     watch) echo "--period --count" ;;
     send) echo "--i64" ;;
     hz|bw) echo "--window --period --count --json" ;;
+    trace) echo "--duration --out --host" ;;
   esac
 }
 
@@ -77,14 +78,15 @@ _rackctl() {
   case $prev in
     --host-file) _rack_files '*.@(yaml|yml)'; return ;;
     --key-file) _rack_files; return ;;
-    --lcm|--timeout|--retries|--discover-ms|--time|--period|--count|--window|--i64) return ;;
+    --out) _rack_files '*.json'; return ;;
+    --lcm|--timeout|--retries|--discover-ms|--time|--period|--count|--window|--i64|--duration|--host) return ;;
   esac
   # The command and its position among the words that are not options.
   local cmd="" i n=0 w
   for ((i = 1; i < count - 1; i++)); do
     w=${_rackctl_w[i]}
     case $w in
-      --lcm|--timeout|--retries|--discover-ms|--host-file|--key-file|--time|--period|--count|--window|--i64)
+      --lcm|--timeout|--retries|--discover-ms|--host-file|--key-file|--time|--period|--count|--window|--i64|--duration|--out|--host)
         ((i++)); continue ;;
       -*) continue ;;
     esac
@@ -101,7 +103,11 @@ _rackctl() {
   case $cmd in
     help) ((n == 0)) && COMPREPLY=($(compgen -W "$_RACKCTL_COMMANDS" -- "$cur")) ;;
     keygen) ((n == 0)) && _rack_files ;;
-    list|hosts|doctor) ;;
+    list|hosts|doctor|classes|threads) ;;
+    trace)
+      local IFS=$'\n'
+      COMPREPLY=($(compgen -W "all"$'\n'"$(_rackctl_names)" -- "$cur"))
+      ;;
     on|off|status|latency|params|get-data|watch|hz|bw|set-param|send)
       if ((n == 0)); then
         local IFS=$'\n'
