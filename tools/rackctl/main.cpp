@@ -1297,20 +1297,25 @@ int cmd_get_data(Session& s, const Options& o) {
 std::atomic<bool> g_stop{false};
 extern "C" void on_stop_signal(int) { g_stop.store(true, std::memory_order_relaxed); }
 
-int cmd_watch(Session& s, const Options& o) {
-  const Target t = s.resolve(o.args[0]);
-  const rack::ClassDescription* described = s.describe(t.address);
-  const rack::TypeDescription* type = described != nullptr && described->data ? &*described->data : nullptr;
+// Subscribes to the data of `t` (GET_CONT_DATA into the session's data mailbox, at
+// period_ms; 0: every sample), calls subscribed(reply) once, then
+// sample(arrival_ns, header, body, message_bytes) for each DATA (false: stop) and
+// tick(now) every 100 ms at most (false: stop). The subscription is a lease: renewed
+// (GET_CONT_DATA again, answered into the data mailbox) every lease / 4, so that a
+// killed rackctl frees its slot within one lease. Ends on SIGINT/SIGTERM (then
+// STOP_CONT_DATA), the producer's ERROR (exit 1) or silence (exit 3): no sample for
+// 5 s, or twice the period plus --timeout when that is longer.
+template <typename Subscribed, typename Sample, typename Tick>
+void stream_samples(Session& s, const Target& t, double period_ms, Subscribed subscribed, Sample sample, Tick tick) {
   struct sigaction sa {};
   sa.sa_handler = on_stop_signal;
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
-  signal(SIGPIPE, SIG_IGN);  // a closed stdout ends the watch (checked below), not the process
-
+  signal(SIGPIPE, SIG_IGN);  // a closed stdout ends the stream (the callers check), not the process
   tims::Mailbox& data = s.data_mailbox();
   wire::ContDataRequest req;
-  req.period_ns = static_cast<int64_t>(std::llround(o.period_ms * 1e6));
+  req.period_ns = static_cast<int64_t>(std::llround(period_ms * 1e6));
   req.mailbox = data.address().raw();
   const CallResult r = s.call(t, msg::kGetContData, req);
   Session::expect(t, r, msg::kContData, "GET_CONT_DATA");
@@ -1318,9 +1323,7 @@ int cmd_watch(Session& s, const Options& o) {
   if (!wire::read_payload(r.body, tims::body_is_native(r.reply), rep)) {
     fail(kExitError, t.label() + ": GET_CONT_DATA: malformed CONT_DATA reply");
   }
-  std::fprintf(stderr, "rackctl: watching %s, period %s ms\n", t.label().c_str(),
-               rep.period_ns > 0 ? double_text(static_cast<double>(rep.period_ns) / 1e6).c_str() : "unknown");
-
+  subscribed(rep);
   const auto stop_cont_data = [&] {
     wire::StopContDataRequest stop;
     stop.mailbox = data.address().raw();
@@ -1329,17 +1332,14 @@ int cmd_watch(Session& s, const Options& o) {
     (void)s.endpoint().call(t.address, msg::kStopContData, std::span<const ConstBuffer>(&part, 1), s.buffer(),
                             s.timeout_ns());
   };
-  // No sample for this long: the producer is gone (or silent).
   const int64_t silence_ns = std::max<int64_t>(5 * rt::kNsPerSec, 2 * rep.period_ns + s.timeout_ns());
-  // The subscription is a lease: renewed (GET_CONT_DATA again, answered into the data
-  // mailbox) every lease / 4, so that a killed watch frees its slot within one lease.
   const int64_t renew_every = rep.lease_ns > 0 ? rep.lease_ns / 4 : 0;
   int64_t renew_at = rt::monotonic_ns() + renew_every;
   std::vector<std::byte> buf(data.slot_size());
   int64_t last_sample = rt::monotonic_ns();
-  int64_t received = 0;
   while (!g_stop.load(std::memory_order_relaxed)) {
     const int64_t now = rt::monotonic_ns();
+    if (!tick(now)) break;
     if (renew_every > 0 && now >= renew_at) {
       const ConstBuffer part = tims::buffer_of(req);
       (void)s.endpoint().send(t.address, msg::kGetContData, std::span<const ConstBuffer>(&part, 1), data.address());
@@ -1361,12 +1361,29 @@ int cmd_watch(Session& s, const Options& o) {
       fail(kExitError, t.label() + ": " + error_reason(body));
     }
     if (got.header.type != msg::kData) continue;
-    const std::string line = sample_json(t, type, got.header, body);
-    if (std::printf("%s\n", line.c_str()) < 0 || std::fflush(stdout) != 0) break;  // stdout closed
     last_sample = rt::monotonic_ns();
-    if (o.count > 0 && ++received >= o.count) break;
+    if (!sample(last_sample, got.header, body, static_cast<std::size_t>(got.length))) break;
   }
   stop_cont_data();
+}
+
+int cmd_watch(Session& s, const Options& o) {
+  const Target t = s.resolve(o.args[0]);
+  const rack::ClassDescription* described = s.describe(t.address);
+  const rack::TypeDescription* type = described != nullptr && described->data ? &*described->data : nullptr;
+  int64_t received = 0;
+  stream_samples(
+      s, t, o.period_ms,
+      [&](const wire::ContDataReply& rep) {
+        std::fprintf(stderr, "rackctl: watching %s, period %s ms\n", t.label().c_str(),
+                     rep.period_ns > 0 ? double_text(static_cast<double>(rep.period_ns) / 1e6).c_str() : "unknown");
+      },
+      [&](int64_t, const MessageHeader& h, std::span<const std::byte> body, std::size_t) {
+        const std::string line = sample_json(t, type, h, body);
+        if (std::printf("%s\n", line.c_str()) < 0 || std::fflush(stdout) != 0) return false;  // stdout closed
+        return !(o.count > 0 && ++received >= o.count);
+      },
+      [](int64_t) { return true; });
   return kExitOk;
 }
 
@@ -1461,68 +1478,6 @@ int cmd_send(Session& s, const Options& o) {
 
 // ---------------------------------------------------------------- hz, bw, doctor
 
-// Subscribes to NAME's data (as watch does: GET_CONT_DATA, lease renewed) and calls
-// sample(arrival_ns, message_bytes) for each DATA, tick(now) every 100 ms at most,
-// until tick returns false or SIGINT/SIGTERM (0), ERROR (exit 1) or 5 s of silence (3).
-template <typename Sample, typename Tick>
-void stream_samples(Session& s, const Target& t, double period_ms, Sample sample, Tick tick) {
-  struct sigaction sa {};
-  sa.sa_handler = on_stop_signal;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-  signal(SIGPIPE, SIG_IGN);
-  tims::Mailbox& data = s.data_mailbox();
-  wire::ContDataRequest req;
-  req.period_ns = static_cast<int64_t>(std::llround(period_ms * 1e6));
-  req.mailbox = data.address().raw();
-  const CallResult r = s.call(t, msg::kGetContData, req);
-  Session::expect(t, r, msg::kContData, "GET_CONT_DATA");
-  wire::ContDataReply rep;
-  if (!wire::read_payload(r.body, tims::body_is_native(r.reply), rep)) {
-    fail(kExitError, t.label() + ": GET_CONT_DATA: malformed CONT_DATA reply");
-  }
-  const auto stop_cont_data = [&] {
-    wire::StopContDataRequest stop;
-    stop.mailbox = data.address().raw();
-    const ConstBuffer part = tims::buffer_of(stop);
-    (void)s.endpoint().call(t.address, msg::kStopContData, std::span<const ConstBuffer>(&part, 1), s.buffer(),
-                            s.timeout_ns());
-  };
-  const int64_t silence_ns = std::max<int64_t>(5 * rt::kNsPerSec, 2 * rep.period_ns + s.timeout_ns());
-  const int64_t renew_every = rep.lease_ns > 0 ? rep.lease_ns / 4 : 0;
-  int64_t renew_at = rt::monotonic_ns() + renew_every;
-  std::vector<std::byte> buf(data.slot_size());
-  int64_t last_sample = rt::monotonic_ns();
-  while (!g_stop.load(std::memory_order_relaxed)) {
-    const int64_t now = rt::monotonic_ns();
-    if (!tick(now)) break;
-    if (renew_every > 0 && now >= renew_at) {
-      const ConstBuffer part = tims::buffer_of(req);
-      (void)s.endpoint().send(t.address, msg::kGetContData, std::span<const ConstBuffer>(&part, 1), data.address());
-      renew_at = now + renew_every;
-    }
-    if (now - last_sample >= silence_ns) {
-      stop_cont_data();
-      fail(kExitUnavailable, format("%s: no sample for %lld s", t.label().c_str(),
-                                    static_cast<long long>(silence_ns / rt::kNsPerSec)));
-    }
-    int64_t wait = std::min<int64_t>(100 * rt::kNsPerMs, silence_ns - (now - last_sample));
-    if (renew_every > 0) wait = std::max<int64_t>(0, std::min(wait, renew_at - now));
-    const auto got = data.receive(buf, wait);
-    if (got.status != tims::RecvStatus::kOk) continue;
-    if (got.header.source().component() != t.address) continue;
-    if (got.header.type == msg::kError) {
-      const auto body = std::span<const std::byte>(buf).subspan(sizeof(MessageHeader), got.length - sizeof(MessageHeader));
-      fail(kExitError, t.label() + ": " + error_reason(body));
-    }
-    if (got.header.type != msg::kData) continue;
-    last_sample = rt::monotonic_ns();
-    sample(last_sample, static_cast<std::size_t>(got.length));
-  }
-  stop_cont_data();
-}
-
 int rate_command(Session& s, const Options& o, bool bandwidth) {
   const Target t = s.resolve(o.args[0]);
   const auto window = static_cast<std::size_t>(o.window > 0 ? o.window : (bandwidth ? 100 : 1000));
@@ -1532,7 +1487,11 @@ int rate_command(Session& s, const Options& o, bool bandwidth) {
   int64_t reports = 0;
   int64_t next_report = rt::monotonic_ns() + rt::kNsPerSec;
   stream_samples(
-      s, t, o.period_ms, [&](int64_t at, std::size_t bytes) { stats.add(at, bytes); },
+      s, t, o.period_ms, [](const wire::ContDataReply&) {},
+      [&](int64_t at, const MessageHeader&, std::span<const std::byte>, std::size_t bytes) {
+        stats.add(at, bytes);
+        return true;
+      },
       [&](int64_t now) {
         if (now < next_report) return true;
         next_report += rt::kNsPerSec;
