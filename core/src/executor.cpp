@@ -107,7 +107,12 @@ void Executor::gdos_pass() {
     // A viewer says it listens once a second; 3 s without one: back to stderr.
     to_stderr = gdos_publisher_ == nullptr || !gdos_publisher_->listener_present(3 * rt::kNsPerSec);
   }
-  std::string& out = gdos_out_;  // reused: steady-state passes do not allocate for stderr
+  // Reused, and written out whenever it holds kStderrChunk bytes: however many records
+  // a late pass drains (a loaded machine, a burst of info lines), it keeps the capacity
+  // reserved by the first pass and the GDOS thread does not allocate for stderr.
+  static constexpr std::size_t kStderrChunk = 64 * 1024;
+  std::string& out = gdos_out_;
+  if (out.capacity() < 2 * kStderrChunk) out.reserve(2 * kStderrChunk);
   out.clear();
   // Access denials: one line per rule with new denials, at most every access.log_ms
   // (the check itself, in RT tasks and receive threads, only counts).
@@ -134,6 +139,10 @@ void Executor::gdos_pass() {
   hub_.drain([p = &pass](const gdos::Record& r) {
     if (p->to_stderr) {
       gdos::append_line(r, p->out);
+      if (p->out.size() >= kStderrChunk) {
+        std::fwrite(p->out.data(), 1, p->out.size(), stderr);
+        p->out.clear();
+      }
     }
     if (p->sink) p->sink(r);
     if (p->publisher != nullptr) {
