@@ -1,4 +1,5 @@
 #include "rack/client/host_file.h"
+#include "rack/tims/lcm_url.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -195,16 +196,25 @@ ToolNetwork read_tool_network_text(const std::string& text, const std::string& f
   if (root == nullptr || root->kind != Node::Kind::kMap) {
     return fail(root, "a host file is a map (host, system, components, ...)");
   }
-  const auto scalar = [&](const Node* map, const char* key, std::string& value) {
+  const auto scalar = [&](const Node* map, const char* key, std::string& value) -> const Node* {
     const Node* n = map->find(key);
-    if (n == nullptr) return;
+    if (n == nullptr) return nullptr;
     if (n->kind != Node::Kind::kScalar) {
       fail(n, std::string("'") + key + "' must be a string");
-      return;
+      return nullptr;
     }
     value = n->value;
+    return n;
   };
-  scalar(root, "lcm_url", out.url);
+  // A URL the host file gives is checked as rackd checks it (an empty or malformed one
+  // is an error at its line, never a silent default).
+  const auto check_url = [&](const Node* n, const char* key) {
+    if (n == nullptr) return;
+    const tims::LcmUrlResult parsed = tims::parse_lcm_url(out.url);
+    if (!parsed.ok()) fail(n, std::string("'") + key + "': " + parsed.error);
+  };
+  check_url(scalar(root, "lcm_url", out.url), "lcm_url");
+  if (!out.errors.empty()) return out;
   const Node* tims = root->find("tims");
   if (tims != nullptr && tims->kind == Node::Kind::kMap) {
     if (const Node* nets = tims->find("networks"); nets != nullptr) {
@@ -212,9 +222,10 @@ ToolNetwork read_tool_network_text(const std::string& text, const std::string& f
         return fail(nets, "'networks' must be a non-empty list of {name, url, scope, key_file}");
       }
       out.url.clear();
-      scalar(nets->items[0], "url", out.url);
+      const Node* url = scalar(nets->items[0], "url", out.url);
       scalar(nets->items[0], "key_file", out.key_file);
       if (out.url.empty()) return fail(nets->items[0], "the first network has no 'url'");
+      check_url(url, "url");
     }
   }
   return out;

@@ -77,6 +77,11 @@ TEST(ToolNetworkTest, RefusedShapesSayWhereAndWhy) {
       {"tims:\n  networks:\n    - name: robot\n", 3, "the first network has no 'url'"},
       {"tims:\n  networks:\n    - url: [a]\n", 3, "'url' must be a string"},
       {"tims:\n  networks: [*nothing]\n", 2, "names no anchor"},
+      // An empty or malformed URL is refused at its line as rackd refuses it (fuzz_tool_network
+      // found `lcm_url:` with no value answered with no URL and no error).
+      {"lcm_url:\nhost: a\n", 1, "'lcm_url': an LCM URL must not be empty"},
+      {"lcm_url: udpm://239.255.76.67:99999\n", 1, "is not a number 1..65535"},
+      {"tims:\n  networks:\n    - url: udpm://10.0.0.1:7667\n", 3, "is not a multicast address"},
   };
   for (const auto& c : cases) {
     const auto n = read_tool_network_text(c.text, "t.yaml");
