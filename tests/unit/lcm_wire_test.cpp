@@ -14,6 +14,7 @@
 #include "rack/tims/gdos_lcm.h"
 #include "rack/tims/lcm_transport.h"
 #include "rack/tims/router.h"
+#include "rack_lcm/tims_packet.hpp"
 
 namespace rack::tims {
 namespace {
@@ -295,6 +296,87 @@ TEST(GdosDatagramTest, NetworkTextReachesTheTerminalWithoutControlCharacters) {
   EXPECT_EQ(line.find('\x07'), std::string::npos) << line;
   EXPECT_NE(line.find("a\\x1b[2Jb\tc\\x9b31m\\x7f \xc3\xa9"), std::string::npos) << line;
   EXPECT_NE(line.find("h\\x1b]0;owned\\x07"), std::string::npos) << line;
+}
+
+// Several top routers share a fleet (issue 23): only the live one with the lowest host
+// id answers NOT_AVAILABLE for a robot nobody knows; the others stand by.
+class TopRouterTest : public ::testing::Test {
+ protected:
+  void make(uint8_t host_id) {
+    LcmTransportConfig c;
+    c.url = kNoNetwork;
+    c.role = NodeRole::kTopRouter;
+    c.warmup_ns = 0;
+    c.warn = [this](const std::string& s) { warnings += s + "\n"; };
+    transport = std::make_unique<LcmTransport>(router, c);
+    HostInfo self;
+    self.host = "base";
+    self.system = 0;
+    self.host_id = host_id;
+    self.executor = Address::make(0, classes::kExecutor, host_id);
+    transport->set_announcement(self);
+  }
+  // A GET_STATUS from a tool to Generator(7/0), as a tims_packet in an LCM datagram.
+  void request_to_unknown_robot() {
+    const MessageHeader h = make_header(Address::make(7, classes::kGenerator, 0),
+                                        Address::make(kToolSystem, classes::kTool, 1, 0), msg::kGetStatus, 0,
+                                        static_cast<uint8_t>(++seq), 0);
+    Bytes p(50 + sizeof h, 0);
+    const auto put = [&](std::size_t at, uint64_t v, int bytes) {
+      for (int i = 0; i < bytes; ++i) p[at + static_cast<std::size_t>(i)] = static_cast<uint8_t>(v >> (8 * (bytes - 1 - i)));
+    };
+    put(0, static_cast<uint64_t>(rack_lcm::tims_packet::getHash()), 8);
+    put(8, 0x7001, 8);                           // origin: the tool
+    put(24, static_cast<uint64_t>(seq), 4);      // packet sequence
+    put(28, static_cast<uint64_t>(seq), 4);      // message sequence
+    put(32, sizeof h, 4);                        // total
+    put(36, sizeof h, 4);                        // encoded
+    put(46, sizeof h, 4);                        // chunk size
+    std::memcpy(p.data() + 50, &h, sizeof h);
+    const Bytes d = datagram("TIMS", p);
+    transport->handle_datagram(d.data(), d.size());
+  }
+  void top_router_heard(uint8_t host_id, int64_t origin) {
+    auto a = an_announce();
+    a.origin = origin;
+    a.role = static_cast<int8_t>(NodeRole::kTopRouter);
+    a.host = "base" + std::to_string(host_id);
+    a.host_id = host_id;
+    a.executor = static_cast<int32_t>(Address::make(0, classes::kExecutor, host_id).raw());
+    a.components.clear();
+    a.count = 0;
+    const Bytes d = datagram("TIMS_ANNOUNCE", encode(a));
+    transport->handle_datagram(d.data(), d.size());
+  }
+
+  Router router{0};
+  std::string warnings;
+  std::unique_ptr<LcmTransport> transport;
+  int seq = 0;
+};
+
+TEST_F(TopRouterTest, AloneItAnswersForARobotNobodyKnows) {
+  make(1);
+  request_to_unknown_robot();
+  EXPECT_EQ(transport->counters().not_available, 1u) << warnings;
+  EXPECT_EQ(transport->counters().malformed, 0u) << warnings;
+}
+
+TEST_F(TopRouterTest, OneWithALowerHostIdAnswersInstead) {
+  make(1);
+  top_router_heard(0, 0x5000);
+  ASSERT_EQ(transport->hosts().size(), 1u) << warnings;
+  request_to_unknown_robot();
+  EXPECT_EQ(transport->counters().not_available, 0u) << "two top routers answered the same request";
+  EXPECT_EQ(transport->counters().malformed, 0u) << warnings;
+}
+
+TEST_F(TopRouterTest, OneWithAHigherHostIdStandsBy) {
+  make(0);
+  top_router_heard(1, 0x5001);
+  top_router_heard(2, 0x5002);
+  request_to_unknown_robot();
+  EXPECT_EQ(transport->counters().not_available, 1u) << warnings;
 }
 
 }  // namespace

@@ -647,14 +647,17 @@ struct LcmTransport::Impl {
   // `system` (see the header: exactly one authority per system).
   bool authoritative_locked(uint8_t system) const {
     if (system == kToolSystem || role() == NodeRole::kTool || !warm()) return false;
-    bool system_router = false, lower_executor = false;
+    bool system_router = false, lower_executor = false, lower_top_router = false;
     for (const auto& [o, e] : hosts) {
+      // Several top routers share a fleet (no single point of failure): the live one
+      // with the lowest host id answers, the others stand by until it expires.
+      if (e.info.role == NodeRole::kTopRouter && e.info.host_id < own_host_id) lower_top_router = true;
       if (e.info.system != system) continue;
       if (e.info.role == NodeRole::kSystemRouter) system_router = true;
       if (e.info.role == NodeRole::kExecutor && e.info.host_id < own_host_id) lower_executor = true;
     }
     switch (role()) {
-      case NodeRole::kTopRouter: return !system_router;
+      case NodeRole::kTopRouter: return !system_router && !lower_top_router;
       case NodeRole::kSystemRouter: return system == own_system;
       case NodeRole::kExecutor: return system == own_system && !system_router && !lower_executor;
       case NodeRole::kTool: return false;

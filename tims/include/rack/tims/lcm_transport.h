@@ -33,6 +33,11 @@
 // exactly one authority: the system router of the destination's system, else (no
 // system router) the top router, else the live executor with the lowest host id of
 // that system. Authority starts after a warm-up (the discovery table must be full).
+// A fleet may have several top routers (give each its own host_id): the live one with
+// the lowest host id answers; when it expires the next takes over, and a restarted one
+// with a lower id takes back over after its warm-up (the other stops on hearing it). Messages between robots never
+// pass a top router (system routers forward them on the fleet link directly), so a
+// top router's death costs only these answers, for at most expiry_ns.
 //
 // Failures: a host expires when it has not announced for `expiry_ns`, or when it is
 // replaced (same system and host id, new origin: it restarted). Every local
