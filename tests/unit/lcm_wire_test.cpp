@@ -302,11 +302,11 @@ TEST(GdosDatagramTest, NetworkTextReachesTheTerminalWithoutControlCharacters) {
 // id answers NOT_AVAILABLE for a robot nobody knows; the others stand by.
 class TopRouterTest : public ::testing::Test {
  protected:
-  void make(uint8_t host_id) {
+  void make(uint8_t host_id, int64_t warmup_ns = 0) {
     LcmTransportConfig c;
     c.url = kNoNetwork;
     c.role = NodeRole::kTopRouter;
-    c.warmup_ns = 0;
+    c.warmup_ns = warmup_ns;
     c.warn = [this](const std::string& s) { warnings += s + "\n"; };
     transport = std::make_unique<LcmTransport>(router, c);
     HostInfo self;
@@ -369,6 +369,13 @@ TEST_F(TopRouterTest, OneWithALowerHostIdAnswersInstead) {
   request_to_unknown_robot();
   EXPECT_EQ(transport->counters().not_available, 0u) << "two top routers answered the same request";
   EXPECT_EQ(transport->counters().malformed, 0u) << warnings;
+}
+
+TEST_F(TopRouterTest, AJustStartedLowerOneIsCoveredUntilItsWarmUpHasPassed) {
+  make(1, 60'000'000'000);  // a minute's warm-up: base0 below has only just started
+  top_router_heard(0, 0x5000);
+  request_to_unknown_robot();
+  EXPECT_EQ(transport->counters().not_available, 1u) << "nobody would answer while base0 warms up";
 }
 
 TEST_F(TopRouterTest, OneWithAHigherHostIdStandsBy) {

@@ -202,6 +202,7 @@ struct LcmTransport::Impl {
 
   struct HostEntry {
     HostInfo info;
+    int64_t first_seen_ns = 0;  // when its origin was first heard (its warm-up began)
   };
   struct Subscription {
     uint32_t producer = 0;  // component address of the remote producer
@@ -648,10 +649,17 @@ struct LcmTransport::Impl {
   bool authoritative_locked(uint8_t system) const {
     if (system == kToolSystem || role() == NodeRole::kTool || !warm()) return false;
     bool system_router = false, lower_executor = false, lower_top_router = false;
+    const int64_t now = rt::monotonic_ns();
     for (const auto& [o, e] : hosts) {
       // Several top routers share a fleet (no single point of failure): the live one
-      // with the lowest host id answers, the others stand by until it expires.
-      if (e.info.role == NodeRole::kTopRouter && e.info.host_id < own_host_id) lower_top_router = true;
+      // with the lowest host id answers, the others stand by until it expires. One
+      // heard for less than a warm-up is not answering yet (it has just started): this
+      // one goes on answering meanwhile (both may answer for a moment; the requester
+      // takes the first reply and drops the second as stale).
+      if (e.info.role == NodeRole::kTopRouter && e.info.host_id < own_host_id &&
+          now - e.first_seen_ns >= config.warmup_ns) {
+        lower_top_router = true;
+      }
       if (e.info.system != system) continue;
       if (e.info.role == NodeRole::kSystemRouter) system_router = true;
       if (e.info.role == NodeRole::kExecutor && e.info.host_id < own_host_id) lower_executor = true;
@@ -1171,6 +1179,7 @@ struct LcmTransport::Impl {
         full = true;
       } else {
         auto& e = hosts[a.origin];
+        if (e.first_seen_ns == 0) e.first_seen_ns = info.last_seen_ns;
         e.info = std::move(info);
       }
       // Every time: an announcement may change a host's components (few hosts, cheap).

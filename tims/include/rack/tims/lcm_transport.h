@@ -35,7 +35,8 @@
 // that system. Authority starts after a warm-up (the discovery table must be full).
 // A fleet may have several top routers (give each its own host_id): the live one with
 // the lowest host id answers; when it expires the next takes over, and a restarted one
-// with a lower id takes back over after its warm-up (the other stops on hearing it). Messages between robots never
+// with a lower id takes back over after its warm-up (the other stops a warm-up after
+// first hearing it, so no request goes unanswered in between). Messages between robots never
 // pass a top router (system routers forward them on the fleet link directly), so a
 // top router's death costs only these answers, for at most expiry_ns.
 //
