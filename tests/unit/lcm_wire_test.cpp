@@ -318,15 +318,16 @@ class TopRouterTest : public ::testing::Test {
   }
   // A GET_STATUS from a tool to Generator(7/0), as a tims_packet in an LCM datagram.
   void request_to_unknown_robot() {
-    const MessageHeader h = make_header(Address::make(7, classes::kGenerator, 0),
-                                        Address::make(kToolSystem, classes::kTool, 1, 0), msg::kGetStatus, 0,
-                                        static_cast<uint8_t>(++seq), 0);
+    packet(Address::make(7, classes::kGenerator, 0), Address::make(kToolSystem, classes::kTool, 1, 0), 0x7001);
+  }
+  void packet(Address dest, Address src, int64_t origin) {
+    const MessageHeader h = make_header(dest, src, msg::kGetStatus, 0, static_cast<uint8_t>(++seq), 0);
     Bytes p(50 + sizeof h, 0);
     const auto put = [&](std::size_t at, uint64_t v, int bytes) {
       for (int i = 0; i < bytes; ++i) p[at + static_cast<std::size_t>(i)] = static_cast<uint8_t>(v >> (8 * (bytes - 1 - i)));
     };
     put(0, static_cast<uint64_t>(rack_lcm::tims_packet::getHash()), 8);
-    put(8, 0x7001, 8);                           // origin: the tool
+    put(8, static_cast<uint64_t>(origin), 8);    // origin
     put(24, static_cast<uint64_t>(seq), 4);      // packet sequence
     put(28, static_cast<uint64_t>(seq), 4);      // message sequence
     put(32, sizeof h, 4);                        // total
@@ -376,6 +377,30 @@ TEST_F(TopRouterTest, AJustStartedLowerOneIsCoveredUntilItsWarmUpHasPassed) {
   top_router_heard(0, 0x5000);
   request_to_unknown_robot();
   EXPECT_EQ(transport->counters().not_available, 1u) << "nobody would answer while base0 warms up";
+}
+
+// The periodic announcement of a known host does not rebuild the table of component
+// owners (issue 23: that made each host's work grow with the square of the fleet), but
+// one that changes the host's components does: a source is judged by its new owner.
+TEST_F(TopRouterTest, AChangedComponentListIsTakenOverByTheOwnersTable) {
+  make(0);
+  const Address gen0 = Address::make(1, classes::kGenerator, 0), gen1 = Address::make(1, classes::kGenerator, 1);
+  auto a = an_announce();  // origin 0x1234 owns Generator(1/0)
+  a.system = 1;
+  a.executor = static_cast<int32_t>(Address::make(1, classes::kExecutor, 3).raw());
+  a.components[0].address = static_cast<int32_t>(gen0.raw());
+  const Bytes first = datagram("TIMS_ANNOUNCE", encode(a));
+  for (int i = 0; i < 3; ++i) transport->handle_datagram(first.data(), first.size());  // periodic: no change
+  packet(Address::make(1, classes::kMonitor, 0), gen0, 0x9999);  // not from its owner
+  EXPECT_EQ(transport->counters().forged, 1u) << warnings;
+  a.components[0].address = static_cast<int32_t>(gen1.raw());  // the host now runs Generator(1/1)
+  const Bytes d = datagram("TIMS_ANNOUNCE", encode(a));
+  transport->handle_datagram(d.data(), d.size());
+  packet(Address::make(1, classes::kMonitor, 0), gen0, 0x9999);  // nobody owns it now
+  EXPECT_EQ(transport->counters().forged, 1u) << warnings;
+  packet(Address::make(1, classes::kMonitor, 0), gen1, 0x9999);
+  EXPECT_EQ(transport->counters().forged, 2u) << warnings;
+  EXPECT_EQ(transport->counters().malformed, 0u) << warnings;
 }
 
 TEST_F(TopRouterTest, OneWithAHigherHostIdStandsBy) {

@@ -673,6 +673,16 @@ struct LcmTransport::Impl {
     return false;
   }
 
+  // Whether two announcements of a host name the same executor and component addresses
+  // (what `owners` maps).
+  static bool same_addresses(const HostInfo& a, const HostInfo& b) {
+    if (a.executor != b.executor || a.components.size() != b.components.size()) return false;
+    for (std::size_t i = 0; i < a.components.size(); ++i) {
+      if (a.components[i].address != b.components[i].address) return false;
+    }
+    return true;
+  }
+
   void rebuild_owners_locked() {
     owners.clear();
     for (const auto& [o, e] : hosts) {
@@ -1135,7 +1145,7 @@ struct LcmTransport::Impl {
       info.components.push_back({Address(static_cast<uint32_t>(c.address)), c.name, c.impl});
     }
     std::string replaced, conflict;
-    bool full = false;
+    bool full = false, owners_changed = false;
     {
       std::lock_guard lock(table_mutex);
       const auto same_id = [&](const HostInfo& h) {
@@ -1173,17 +1183,26 @@ struct LcmTransport::Impl {
         fail_subscriptions_locked(old, "restarted");
         bump(hosts_expired);
         it = hosts.erase(it);
+        owners_changed = true;
       }
       if (hosts.size() >= kMaxHosts && hosts.count(a.origin) == 0) {
         bump(hosts_refused);
         full = true;
       } else {
         auto& e = hosts[a.origin];
-        if (e.first_seen_ns == 0) e.first_seen_ns = info.last_seen_ns;
+        if (e.first_seen_ns == 0) {
+          e.first_seen_ns = info.last_seen_ns;
+          owners_changed = true;
+        } else if (!same_addresses(e.info, info)) {
+          owners_changed = true;
+        }
         e.info = std::move(info);
       }
-      // Every time: an announcement may change a host's components (few hosts, cheap).
-      rebuild_owners_locked();
+      // Only when a host came, went or changed its components: the periodic
+      // announcement of a known host (nearly all of them) costs a look-up, not a
+      // rebuild of the whole fleet's table (which made every host's work per second
+      // grow with the square of the fleet).
+      if (owners_changed) rebuild_owners_locked();
     }
     if (full) {
       return warn("hosts full " + n.config.name, [&] {
