@@ -49,6 +49,9 @@ struct BackendConfig {
   std::string reports_dir = "/var/tmp/rack";
   std::string backtrace_path;  // rack-backtrace; "" = beside rack-gui, else on PATH
   int poll_ms = 200;           // state and data poll period
+  // A host no longer announced leaves the list (with its components) after this long;
+  // until then it is shown as not answering. -1: never.
+  int host_forget_ms = 30000;
   int timeout_ms = 1000;       // a request not answered in this time fails
 };
 
