@@ -99,6 +99,19 @@ TEST(GuiProtocolTest, ClassCommandsByNameWithTheirFieldsAsText) {
             std::string::npos);
 }
 
+TEST(GuiProtocolTest, ALiveTraceNamesARobotAHostAndADuration) {
+  auto r = ok(R"j({"op":"trace","system":0,"host":"","duration_s":0.5})j");
+  EXPECT_EQ(r.op, Op::kTrace);
+  EXPECT_EQ(r.host, "");
+  EXPECT_DOUBLE_EQ(r.duration_s, 0.5);
+  EXPECT_EQ(ok(R"j({"op":"trace","system":1,"host":"sim-mcl","duration_s":10})j").host, "sim-mcl");
+  EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":"","duration_s":0})j").find("above 0 s"), std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":"","duration_s":-1})j").find("above 0 s"), std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":"","duration_s":11})j").find("key 'duration_s'"), std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":3,"duration_s":1})j").find("key 'host'"), std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"trace","system":0,"duration_s":1})j").find("missing key 'host'"), std::string::npos);
+}
+
 TEST(GuiProtocolTest, RefusesMalformedMessagesSayingWhat) {
   EXPECT_NE(refused("{\"op\":").find("not JSON"), std::string::npos);
   EXPECT_NE(refused("").find("not JSON"), std::string::npos);

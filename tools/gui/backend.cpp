@@ -18,6 +18,7 @@
 
 #include "gdos_view.h"
 #include "rack/core/class_description.h"
+#include "rack/core/trace_session.h"
 #include "rack/core/parameters.h"
 #include "rack/core/payload_json.h"
 #include "rack/core/wire.h"
@@ -45,6 +46,7 @@ using tims::Address;
 namespace msg = tims::msg;
 namespace classes = tims::classes;
 namespace ifc = rack::interfaces;
+namespace rtrace = rack::trace;
 
 constexpr uint32_t kSlotSize = 64 * 1024;  // the largest polled sample (Path) is ~17 KiB
 constexpr uint32_t kReplySlots = 256;       // a poll round asks every component at once
@@ -589,6 +591,112 @@ struct Backend::Impl {
       }
     }
   }
+  // Work for a later round of the worker (a trace that is still recording).
+  void defer(int64_t delay_ns, std::function<void()> f) {
+    deferred.emplace_back(rt::monotonic_ns() + delay_ns, std::move(f));
+  }
+  void run_deferred() {
+    const int64_t now = rt::monotonic_ns();
+    std::vector<std::function<void()>> due;
+    for (auto it = deferred.begin(); it != deferred.end();) {
+      if (it->first <= now) {
+        due.push_back(std::move(it->second));
+        it = deferred.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    for (auto& f : due) f();
+  }
+
+  // A live task timeline of one host (as `rackctl trace --duration S all`): TRACE_START
+  // to the executor's trace mailbox, TRACE_READ until the JSON is ready, read in
+  // chunks, checked to be JSON, then sent to the browser that asked.
+  void trace(uint64_t client, const Request& r) {
+    const tims::HostInfo* host = nullptr;
+    std::string names;
+    const auto all = transport.hosts();
+    for (const auto& h : all) {
+      if (h.system != r.system || h.role != tims::NodeRole::kExecutor) continue;
+      names += (names.empty() ? "" : ", ") + h.host;
+      if (!r.host.empty() && h.host != r.host) continue;
+      if (host != nullptr && r.host.empty()) {
+        result(client, r, false, "robot " + std::to_string(r.system) + " has several hosts (" + names + "...): name one");
+        return;
+      }
+      host = &h;
+    }
+    if (host == nullptr) {
+      result(client, r, false, "robot " + std::to_string(r.system) + ": no host" +
+                                   (r.host.empty() ? std::string() : " named '" + r.host + "'") + " answers" +
+                                   (names.empty() ? std::string() : " (hosts: " + names + ")"));
+      return;
+    }
+    const Address exec = host->executor;
+    const Address t = Address::make(exec.system(), exec.class_id(), exec.instance(), rtrace::kTraceMailbox);
+    const std::string host_name = host->host;
+    rtrace::TraceStartRequest req;
+    req.duration_ns = static_cast<int64_t>(r.duration_s * 1e9);
+    wire::copy_text(req.names, "all");
+    request(t, rtrace::kTraceStart, req, [this, client, r, t, host_name, req](const Reply* rep) {
+      if (rep == nullptr || rep->header.type != msg::kOk) {
+        result(client, r, false, failure(rep, "TRACE_START", t));
+        return;
+      }
+      auto text = std::make_shared<std::string>();
+      const int64_t give_up = rt::monotonic_ns() + req.duration_ns + 30 * rt::kNsPerSec;
+      defer(req.duration_ns, [this, client, r, t, host_name, text, give_up] { trace_read(client, r, t, host_name, text, give_up); });
+    });
+  }
+  void trace_read(uint64_t client, const Request& r, Address t, const std::string& host_name,
+                  const std::shared_ptr<std::string>& text, int64_t give_up) {
+    if (rt::monotonic_ns() > give_up) {
+      result(client, r, false, host_name + ": the trace was not ready 30 s after its end");
+      return;
+    }
+    rtrace::TraceReadRequest rr;
+    rr.offset = text->size();
+    request(t, rtrace::kTraceRead, rr, [this, client, r, t, host_name, text, give_up](const Reply* rep) {
+      rtrace::TraceChunkHeader head;
+      if (rep == nullptr || rep->header.type != msg::kOk || rep->body.size() < sizeof head) {
+        result(client, r, false, failure(rep, "TRACE_READ", t));
+        return;
+      }
+      std::memcpy(&head, rep->body.data(), sizeof head);
+      const auto state = static_cast<rtrace::TraceState>(head.state);
+      const auto again = [&](int64_t delay) {
+        defer(delay, [this, client, r, t, host_name, text, give_up] { trace_read(client, r, t, host_name, text, give_up); });
+      };
+      if (state == rtrace::TraceState::kRecording) {
+        again(std::clamp<int64_t>(head.remaining_ns, 10 * rt::kNsPerMs, 200 * rt::kNsPerMs));
+        return;
+      }
+      if (state != rtrace::TraceState::kReady || head.length > rep->body.size() - sizeof head || head.offset != text->size() ||
+          head.total > (100u << 20)) {
+        result(client, r, false, host_name + ": TRACE_READ: the trace was discarded or its chunk is malformed");
+        return;
+      }
+      text->append(reinterpret_cast<const char*>(rep->body.data() + sizeof head), head.length);
+      if (text->size() < head.total) {
+        if (head.length == 0) {
+          result(client, r, false, host_name + ": TRACE_READ returned nothing before the end");
+          return;
+        }
+        again(0);
+        return;
+      }
+      const json doc = json::parse(*text, nullptr, false);
+      if (doc.is_discarded()) {
+        result(client, r, false, host_name + ": the trace is not JSON (" + std::to_string(text->size()) + " bytes)");
+        return;
+      }
+      send_to(client, dump(json{{"type", "trace"}, {"host", host_name}, {"system", r.system}, {"dropped", head.dropped},
+                                {"json", *text}}));
+      result(client, r, true, host_name + ": trace of " + json(r.duration_s).dump() + " s, " +
+                                  std::to_string(text->size()) + " bytes");
+    });
+  }
+
   // A class command by name, its body filled from the browser's fields through the
   // class's own description (as `rackctl send NAME CMD field=value`).
   void command(uint64_t client, const Request& r) {
@@ -1084,6 +1192,7 @@ struct Backend::Impl {
         break;
       }
       case Op::kCommand: command(client, r); break;
+      case Op::kTrace: trace(client, r); break;
       case Op::kSetPose: set_pose(client, r); break;
       case Op::kJoystick: joystick(client, r); break;
       case Op::kJoystickRelease: {
@@ -1278,6 +1387,7 @@ struct Backend::Impl {
       }
       for (auto& [client, req] : work) handle(client, req);
       check_dead_man();
+      run_deferred();
 
       const int64_t now = rt::monotonic_ns();
       if (now >= next_discovery) {
@@ -1584,7 +1694,8 @@ struct Backend::Impl {
   std::vector<Pending> pending;
   std::map<uint32_t, Component> components;
   std::map<uint32_t, ClassInfo> class_infos;  // system << 24 | class id << 16 (described())
-  std::map<uint32_t, std::vector<std::pair<uint64_t, Request>>> class_waiters;  // get_class before it is known
+  std::map<uint32_t, std::vector<std::pair<uint64_t, Request>>> class_waiters;
+  std::vector<std::pair<int64_t, std::function<void()>>> deferred;  // worker thread only (defer())  // get_class before it is known
   std::map<std::string, Host> hosts;
   std::map<uint8_t, Robot> robots;
 

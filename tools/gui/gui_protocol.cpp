@@ -32,6 +32,7 @@ const std::vector<OpSpec>& specs() {
       {"follow_path", Op::kFollowPath, {"system"}},
       {"get_class", Op::kGetClass, {"component"}},
       {"command", Op::kCommand, {"component", "name", "fields"}},
+      {"trace", Op::kTrace, {"system", "host", "duration_s"}},
   };
   return kSpecs;
 }
@@ -264,6 +265,16 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
       case Op::kAllOff:
       case Op::kJoystickRelease:
       case Op::kFollowPath: r.system = system_of(msg); break;
+      case Op::kTrace: {
+        r.system = system_of(msg);
+        const json& h = msg.at("host");
+        if (!h.is_string()) throw Bad{"key 'host': expected a host name (or \"\"), got " + type_of(h)};
+        r.host = h.get<std::string>();
+        if (r.host.size() > kMaxFieldName) throw Bad{"key 'host': at most " + std::to_string(kMaxFieldName) + " bytes"};
+        r.duration_s = number(msg, "duration_s", kMaxTraceSeconds);
+        if (!(r.duration_s > 0.0)) throw Bad{"key 'duration_s': a duration above 0 s"};
+        break;
+      }
       case Op::kSetDestination:
         r.system = system_of(msg);
         r.x = number(msg, "x", kMaxCoordinate);

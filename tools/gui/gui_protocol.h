@@ -18,6 +18,9 @@
 //       a class command by the name its class describes; "fields" (at most
 //       kMaxCommandFields, names < kMaxFieldName bytes, values texts, numbers or
 //       booleans) fill its body as `rackctl send` does; fields not given are 0
+//   {"op":"trace","system":0,"host":"","duration_s":2}   a live task timeline of one
+//       host of robot 0 (as `rackctl trace --duration 2 all`; "" = its only host),
+//       answered with {"type":"trace",...}; duration 0 < s <= kMaxTraceSeconds
 //
 // Anything else is refused with a ParseError saying what and where (a byte offset for
 // JSON syntax, the key otherwise) and why (Refusal, which the server counts); the
@@ -65,6 +68,7 @@ enum class Op {
   kFollowPath,
   kGetClass,
   kCommand,
+  kTrace,
 };
 [[nodiscard]] const char* op_name(Op op) noexcept;
 
@@ -81,6 +85,7 @@ inline constexpr double kMaxCoordinate = 1.0e6;    // m: anything larger is a mi
 inline constexpr std::size_t kMaxCommandFields = 64;  // "fields" of a command
 inline constexpr std::size_t kMaxFieldName = 64;      // bytes of a field name
 inline constexpr std::size_t kMaxFieldText = 4096;    // bytes of a field's value text
+inline constexpr double kMaxTraceSeconds = 10.0;      // a live trace from the dashboard
 
 struct Request {
   Op op = Op::kSwitch;
@@ -94,6 +99,8 @@ struct Request {
   double vx = 0.0, omega = 0.0;        // joystick
   std::string command_name;            // command: the name its class describes
   std::vector<std::pair<std::string, std::string>> fields;  // command: field -> value text
+  std::string host;                    // trace: the host's name ("" = the robot's only host)
+  double duration_s = 0.0;             // trace
 };
 
 // Why a client message was refused (counted per reason by the server).

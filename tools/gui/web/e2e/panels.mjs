@@ -2,7 +2,7 @@
 // playwright-core): live plots, the class-command panel, numbers for people, the map's
 // legend / layer toggles / scale bar / cursor coordinates / follow mode / particles /
 // refit, the joystick beside (not over) the map, a phone's viewport, and honest empty
-// and stale states. Run by tests/integration/gui_e2e_test.cpp
+// and stale states, and a live trace in the Timeline tab. Run by tests/integration/gui_e2e_test.cpp
 // (GuiE2eTest.DashboardPanelsInChromium), or by hand:
 //
 //   node e2e/panels.mjs --url URL --empty-url URL2 --stop-pid PID [--shots DIR] [--chromium PATH]
@@ -224,6 +224,25 @@ try {
   await shot(phone, 'panels-phone-plots.png');
   log('phone: plots tab usable');
   await phone.context().close();
+
+  // 5b. A live trace in the Timeline tab (issue 20), as `rackctl trace`; a robot with
+  // no host is refused with the reason.
+  await page.setViewportSize({ width: 1400, height: 850 });
+  await page.locator('#tabs button[data-view="timeline"]').click();
+  await page.locator('[data-testid="timeline-system"]').fill('9');
+  await page.locator('[data-testid="timeline-record"]').click();
+  await until('a trace of a robot with no host refused', async () =>
+    /trace: robot 9: no host/.test(await page.locator('[data-testid="timeline-info"]').textContent()), 5000);
+  await page.locator('[data-testid="timeline-system"]').fill('0');
+  await page.locator('[data-testid="timeline-seconds"]').fill('0.5');
+  await page.locator('[data-testid="timeline-record"]').click();
+  const traced = await until('the live trace drawn', async () => {
+    const t = await page.locator('[data-testid="timeline-info"]').textContent();
+    const m = /live trace of host sim-mcl: (\d+) tasks, (\d+) cycles/.exec(t);
+    return m && Number(m[1]) > 0 && Number(m[2]) > 0 ? t : null;
+  }, 15000);
+  log(`timeline: ${traced}`);
+  await shot(page, 'panels-timeline-live.png');
 
   // 6. Robot 2's rackd stops cleanly: its host shows as not answering, then leaves
   // the list after rack-gui's --forget-s.

@@ -102,6 +102,10 @@ function handle(m) {
       if (st.selected === m.component && document.querySelector('#view-details.active')) renderDetails();
       break;
     case 'command_result': commands.onCommandResult(m); break;
+    case 'trace':
+      if (drawTimeline.load) drawTimeline.load(m.json, `live trace of host ${m.host}`);
+      $('tl-record').disabled = false;
+      break;
     case 'components': onComponents(m); break;
     case 'data': onData(m); break;
     case 'map': onMap(m); break;
@@ -113,6 +117,7 @@ function handle(m) {
     case 'params': st.params.set(m.component, m.params); if (st.selected === m.component) renderDetails(); break;
     case 'result':
       commands.onResult(m);
+      if (m.op === 'trace' && !m.ok) { $('tl-record').disabled = false; $('tl-info').textContent = `trace: ${m.text}`; $('tl-info').className = 'bad'; }
       if (!(m.ok && m.op === 'joystick') && !(m.ok && m.op === 'get_class')) notice(`${m.op}: ${m.text}`, m.ok);
       break;
     case 'error': notice(`refused: ${m.error}`, false); break;
@@ -229,6 +234,17 @@ const drawTimeline = setupTimeline() ?? (() => {});
 const plots = setupPlots({ st, send, $ });
 const commands = setupCommands({ st, send });
 st.addPlot = (component, field) => plots.add(component, field);
+st.timeline = drawTimeline;
+// A live trace (issue 20): rack-gui asks the host's executor, as `rackctl trace` does.
+$('tl-record').onclick = () => {
+  const seconds = Number($('tl-seconds').value);
+  const system = Number($('tl-system').value);
+  if (!(seconds > 0 && seconds <= 10) || !Number.isInteger(system)) { notice('trace: 0 < seconds <= 10 and a robot number', false); return; }
+  if (send({ op: 'trace', system, host: $('tl-host').value.trim(), duration_s: seconds }) !== null) {
+    $('tl-record').disabled = true;
+    $('tl-info').textContent = `recording ${seconds} s of robot ${system}…`;
+  }
+};
 for (const b of document.querySelectorAll('#tabs button')) b.onclick = () => showView(b.dataset.view);
 
 // ---------------------------------------------------------------- details: parameters, timing, class views
