@@ -142,7 +142,7 @@ function onComponents(m) {
   }
   // Redrawn only when something shown changed: a redraw between mouse-down and
   // mouse-up would swallow the click.
-  const key = JSON.stringify(m.robots.map((r) => [r.system, r.joystick, r.hosts.map((h) => [h.key, h.alive, h.pid, h.components.map((c) => [c.address, c.name, c.state])])]));
+  const key = JSON.stringify(m.robots.map((r) => [r.system, r.joystick, r.hosts.map((h) => [h.key, h.alive, Math.round((h.silent_ms ?? 0) / 1000), h.pid, h.components.map((c) => [c.address, c.name, c.state])])]));
   if (key !== st.componentsKey || !st.connected) {
     st.componentsKey = key;
     renderComponents();
