@@ -760,8 +760,8 @@ function draw(now) {
 const PILOT_STATUS = ['idle', 'driving', 'reached', 'blocked', 'no path', 'preempted', 'no input', 'planning', 'unreachable'];
 
 // All particles in one path and one fill (and their headings in one stroke): tens of
-// thousands stay smooth. Each is a 5 px square with a dark rim, big enough to see on a
-// phone, with a 9 px line along its heading when the sample has one.
+// thousands stay smooth. Each is a 5 px square, big enough to see on a phone; up to
+// 5000 of them get a dark rim and a 9 px line along their heading.
 function drawParticles(xs, ys, n, phis) {
   const dpr = window.devicePixelRatio || 1;
   const r = 2.5 * dpr, h = 9 * dpr;
@@ -770,10 +770,13 @@ function drawParticles(xs, ys, n, phis) {
   for (let i = 0; i < n; i++) ctx.rect(ox + xs[i] * k - r, oy - ys[i] * k - r, 2 * r, 2 * r);
   ctx.fillStyle = 'rgba(230,81,0,0.9)';
   ctx.fill();
+  // Rims and headings only for the clouds MCL shows (a few thousand): 50 000 particles
+  // are a solid cloud anyway, and a second pass over them would double the frame.
+  if (n > 5000) { st.particleSizePx = 2 * r / dpr; return; }
   ctx.strokeStyle = 'rgba(90,30,0,0.8)';
   ctx.lineWidth = 1;
   ctx.stroke();
-  if (phis && n <= 5000) {
+  if (phis) {
     ctx.beginPath();
     for (let i = 0; i < n; i++) {
       const px = ox + xs[i] * k, py = oy - ys[i] * k;
