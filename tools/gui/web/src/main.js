@@ -117,6 +117,7 @@ function handle(m) {
     case 'params': st.params.set(m.component, m.params); if (st.selected === m.component) renderDetails(); break;
     case 'result':
       commands.onResult(m);
+      if (m.op === 'get_class' && !m.ok && $('d-commands')) $('d-commands').innerHTML = `<h3>Commands</h3><p class="empty">${esc(m.text)}</p>`;
       if (m.op === 'trace' && !m.ok) { $('tl-record').disabled = false; $('tl-info').textContent = `trace: ${m.text}`; $('tl-info').className = 'bad'; }
       if (!(m.ok && m.op === 'joystick') && !(m.ok && m.op === 'get_class')) notice(`${m.op}: ${m.text}`, m.ok);
       break;
