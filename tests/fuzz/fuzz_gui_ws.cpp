@@ -105,6 +105,20 @@ void check_request(const gui::Request& r) {
     case gui::Op::kAllOff:
     case gui::Op::kJoystickRelease:
     case gui::Op::kFollowPath: break;
+    case gui::Op::kGetClass: GUI_WS_CHECK(r.component.mailbox() == 0); break;
+    case gui::Op::kCommand:
+      GUI_WS_CHECK(r.component.mailbox() == 0);
+      GUI_WS_CHECK(!r.command_name.empty() && r.command_name.size() <= gui::kMaxFieldName);
+      GUI_WS_CHECK(r.fields.size() <= gui::kMaxCommandFields);
+      for (const auto& [name, value] : r.fields) {
+        GUI_WS_CHECK(!name.empty() && name.size() <= gui::kMaxFieldName);
+        GUI_WS_CHECK(value.size() <= gui::kMaxFieldText);
+      }
+      break;
+    case gui::Op::kTrace:
+      GUI_WS_CHECK(r.duration_s > 0.0 && r.duration_s <= gui::kMaxTraceSeconds);
+      GUI_WS_CHECK(r.host.size() <= gui::kMaxFieldName);
+      break;
   }
   GUI_WS_CHECK(r.system <= 254);
   GUI_WS_CHECK(nlohmann::json::accept(gui::result_message(r.id, r.op, true, "done")));

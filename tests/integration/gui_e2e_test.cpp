@@ -177,5 +177,99 @@ TEST_F(GuiE2eTest, DashboardOperatesTheSimulatedRobotInChromium) {
   EXPECT_GE(std::stoi(gui_err.substr(start, at_count - start)), 3) << gui_err;
 }
 
+// Issue 21 item 4: rack-gui symbolizes only the reports added to a file since its last
+// look (the whole file again took 32 s for 1830 reports), and its "file:line"
+// references stay those of the real file. No browser needed.
+TEST_F(GuiE2eTest, ReportsAreSymbolizedIncrementally) {
+  const std::string crash_dir = (dir_.path() / "reports").string();
+  std::filesystem::create_directories(crash_dir);
+  Process robot1({kRackd, second_robot(crash_dir), "--lcm", bus_.url()}, dir_.path(), "rackd-robot1");
+  ASSERT_TRUE(robot1.wait_for_stderr("rackd: running", 30s)) << robot1.err();
+  const auto send_demo = [&] {
+    const RunResult sent = run({kRackctl, "--lcm", bus_.url(), "--discover-ms", "3000", "send", "demo", "21"}, 30s);
+    ASSERT_EQ(sent.exit_code, 0) << sent.describe();
+  };
+  send_demo();
+  Process gui({kGui, "--port", "0", "--lcm", bus_.url(), "--web", kWeb + "/dist", "--reports", crash_dir}, dir_.path(),
+              "rack-gui");
+  ASSERT_TRUE(gui.wait_for_stderr("symbolized in", 30s)) << gui.err();
+  // The first look: from byte 0 to the end of the first report.
+  const std::string first = gui.err();
+  const auto at = first.find(": bytes 0..");
+  ASSERT_NE(at, std::string::npos) << first;
+  const std::size_t end1 = std::stoul(first.substr(at + 11));
+  EXPECT_GT(end1, 0u);
+  send_demo();  // a second report appended to the same file
+  const std::string second_range = ": bytes " + std::to_string(end1) + "..";
+  ASSERT_TRUE(gui.wait_for_stderr(second_range, 30s)) << gui.err();
+  // Only the new part went to rack-backtrace; nothing was symbolized from 0 again.
+  const std::string log = gui.err();
+  std::size_t from_zero = 0;
+  for (auto p = log.find(": bytes 0.."); p != std::string::npos; p = log.find(": bytes 0..", p + 1)) ++from_zero;
+  EXPECT_EQ(from_zero, 1u) << log;
+  // A prompt, clean exit.
+  gui.signal(SIGTERM);
+  EXPECT_EQ(gui.wait_exit(10s), std::optional<int>(0)) << gui.err();
+}
+
+// Issue 21 item 4: plots, the class-command panel, numbers by name, the map's tools,
+// a phone's viewport, and the honest empty and stale states (tools/gui/web/e2e/panels.mjs).
+// Screenshots: panels-*.png beside the other test's.
+TEST_F(GuiE2eTest, DashboardPanelsInChromium) {
+  const auto node = find_program("node");
+  const char* chromium_env = std::getenv("RACK_CHROMIUM");
+  const std::string chromium = chromium_env != nullptr ? chromium_env : "/usr/bin/chromium";
+  if (!node) GTEST_SKIP() << "node is not installed (Debian: apt-get install nodejs); scripts/setup.sh installs it";
+  if (access(chromium.c_str(), X_OK) != 0) {
+    GTEST_SKIP() << chromium << " is not installed (Debian: apt-get install chromium); scripts/setup.sh installs it";
+  }
+  ASSERT_TRUE(std::filesystem::exists(kWeb + "/node_modules/uplot")) << "uplot is missing: run scripts/setup.sh (npm ci in " << kWeb << ")";
+  ASSERT_TRUE(std::filesystem::exists(kWeb + "/dist/index.html"))
+      << "the front end is not built: run scripts/setup.sh (npm run build in " << kWeb << ")";
+
+  Process rackd({kRackd, host_file(), "--lcm", bus_.url()}, dir_.path(), "rackd");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
+  // Robot 2: one Generator, stopped cleanly by panels.mjs.
+  const std::string robot2 = dir_.write("robot2.yaml",
+                                        "host: robot2-gen\n"
+                                        "system: 2\n"
+                                        "lcm: true\n"
+                                        "components:\n"
+                                        "  - name: generator\n"
+                                        "    class: Generator\n"
+                                        "    instance: 0\n"
+                                        "    autostart: true\n"
+                                        "    data_task: {period_ms: 100}\n")
+                                 .string();
+  Process gen({kRackd, robot2, "--lcm", bus_.url()}, dir_.path(), "rackd-robot2");
+  ASSERT_TRUE(gen.wait_for_stderr("rackd: running", 30s)) << gen.err();
+  const auto serve = [&](const std::string& lcm, const char* label) {
+    auto p = std::make_unique<Process>(std::vector<std::string>{kGui, "--port", "0", "--lcm", lcm, "--web", kWeb + "/dist",
+                                                                "--reports", "", "--forget-s", "3"},
+                                       dir_.path(), label);
+    EXPECT_TRUE(p->wait_for_stderr("rack-gui: serving http://", 15s)) << p->err();
+    const std::string err = p->err();
+    const auto at = err.find("http://");
+    return std::make_pair(std::move(p), err.substr(at, err.find(' ', at) - at));
+  };
+  auto [gui, url] = serve(bus_.url(), "rack-gui");
+  LcmBus empty_bus;  // nobody runs here
+  auto [empty_gui, empty_url] = serve(empty_bus.url(), "rack-gui-empty");
+
+  std::filesystem::create_directories(kArtifacts);
+  const RunResult r = run({*node, kWeb + "/e2e/panels.mjs", "--url", url, "--empty-url", empty_url, "--chromium", chromium,
+                           "--shots", kArtifacts, "--stop-pid", std::to_string(gen.pid())},
+                          120s);
+  std::printf("%s", r.out.c_str());
+  EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui->err();
+  for (const char* shot : {"panels-empty.png", "panels-plots.png", "panels-commands.png", "panels-map-follow.png",
+                           "panels-map-resized.png", "panels-phone-map.png", "panels-phone-plots.png", "panels-host-gone.png"}) {
+    EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(kArtifacts) / shot)) << shot;
+  }
+  // The clean stop: rackd exited 0, and rack-gui said it dropped the host.
+  EXPECT_EQ(gen.wait_exit(10s), std::optional<int>(0)) << gen.err();
+  EXPECT_NE(gui->err().find("host robot2-gen"), std::string::npos) << gui->err();
+}
+
 }  // namespace
 }  // namespace rack::test

@@ -65,6 +65,53 @@ TEST(GuiProtocolTest, AcceptsEveryOp) {
   EXPECT_EQ(ok(R"j({"op":"follow_path","system":0})j").op, Op::kFollowPath);
 }
 
+TEST(GuiProtocolTest, ClassCommandsByNameWithTheirFieldsAsText) {
+  auto r = ok(R"j({"op":"get_class","component":"Pilot(0/0)"})j");
+  EXPECT_EQ(r.op, Op::kGetClass);
+  EXPECT_EQ(r.component, tims::Address::make(0, tims::classes::kPilot, 0));
+  r = ok(R"j({"op":"command","component":"Pilot(0/0)","name":"SET_DESTINATION","fields":{"x":"2.5","y":-1,"z":0.25,"b":true}})j");
+  EXPECT_EQ(r.op, Op::kCommand);
+  EXPECT_EQ(r.command_name, "SET_DESTINATION");
+  ASSERT_EQ(r.fields.size(), 4u);
+  // nlohmann keeps the object's keys sorted.
+  EXPECT_EQ(r.fields[0], (std::pair<std::string, std::string>("b", "true")));
+  EXPECT_EQ(r.fields[1], (std::pair<std::string, std::string>("x", "2.5")));
+  EXPECT_EQ(r.fields[2], (std::pair<std::string, std::string>("y", "-1")));
+  EXPECT_EQ(r.fields[3], (std::pair<std::string, std::string>("z", "0.25")));
+  EXPECT_TRUE(ok(R"j({"op":"command","component":"Pilot(0/0)","name":"FOLLOW_PATH","fields":{}})j").fields.empty());
+
+  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X"})j").find("missing key 'fields'"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"","fields":{}})j").find("key 'name'"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":[1]})j").find("key 'fields': expected an object"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{"x":[1]}})j").find("field 'x': expected a text, number or boolean, got array"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{"x":null}})j").find("got null"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{"x":18446744073709551615}})j").find("above 2^63-1"),
+            std::string::npos);
+  std::string many = R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{)j";
+  for (std::size_t i = 0; i <= kMaxCommandFields; ++i) many += (i ? ",\"f" : "\"f") + std::to_string(i) + "\":1";
+  EXPECT_NE(refused(many + "}}").find("at most 64"), std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{"":1}})j").find("a field name has"),
+            std::string::npos);
+}
+
+TEST(GuiProtocolTest, ALiveTraceNamesARobotAHostAndADuration) {
+  auto r = ok(R"j({"op":"trace","system":0,"host":"","duration_s":0.5})j");
+  EXPECT_EQ(r.op, Op::kTrace);
+  EXPECT_EQ(r.host, "");
+  EXPECT_DOUBLE_EQ(r.duration_s, 0.5);
+  EXPECT_EQ(ok(R"j({"op":"trace","system":1,"host":"sim-mcl","duration_s":10})j").host, "sim-mcl");
+  EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":"","duration_s":0})j").find("above 0 s"), std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":"","duration_s":-1})j").find("above 0 s"), std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":"","duration_s":11})j").find("key 'duration_s'"), std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":3,"duration_s":1})j").find("key 'host'"), std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"trace","system":0,"duration_s":1})j").find("missing key 'host'"), std::string::npos);
+}
+
 TEST(GuiProtocolTest, RefusesMalformedMessagesSayingWhat) {
   EXPECT_NE(refused("{\"op\":").find("not JSON"), std::string::npos);
   EXPECT_NE(refused("").find("not JSON"), std::string::npos);

@@ -1,5 +1,8 @@
 #include "backend.h"
 
+#include <poll.h>
+#include <signal.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -15,6 +18,7 @@
 
 #include "gdos_view.h"
 #include "rack/core/class_description.h"
+#include "rack/core/trace_session.h"
 #include "rack/core/parameters.h"
 #include "rack/core/payload_json.h"
 #include "rack/core/wire.h"
@@ -31,6 +35,7 @@
 #include "rack/tims/message.h"
 #include "rack/tims/router.h"
 #include "rack/tims/tool_address.h"
+#include "field_names.h"  // tools/rackctl: enum and address names
 
 namespace rack::gui {
 
@@ -41,6 +46,7 @@ using tims::Address;
 namespace msg = tims::msg;
 namespace classes = tims::classes;
 namespace ifc = rack::interfaces;
+namespace rtrace = rack::trace;
 
 constexpr uint32_t kSlotSize = 64 * 1024;  // the largest polled sample (Path) is ~17 KiB
 constexpr uint32_t kReplySlots = 256;       // a poll round asks every component at once
@@ -158,6 +164,7 @@ struct Host {
   uint8_t host_id = 0;
   int32_t pid = 0;
   bool alive = false;        // still announced by the network
+  int64_t silent_since_ns = 0;  // monotonic time it stopped being announced (0: announced)
   std::string network;
 };
 
@@ -322,6 +329,7 @@ struct Backend::Impl {
 
   // ------------------------------------------------------------ discovery and state
   void refresh_hosts() {
+    forget_silent_hosts();
     for (auto& [key, h] : hosts) h.alive = false;
     for (const auto& h : transport.hosts()) {
       const std::string key = h.host + "#" + std::to_string(h.system) + "/" + std::to_string(h.host_id);
@@ -331,6 +339,7 @@ struct Backend::Impl {
       host.host_id = h.host_id;
       host.pid = h.pid;
       host.alive = true;
+      host.silent_since_ns = 0;
       host.network = h.network;
       for (std::size_t i = 0; i < h.components.size(); ++i) {
         const auto& c = h.components[i];
@@ -348,6 +357,38 @@ struct Backend::Impl {
         comp.system = c.address.system();
         comp.order = i;
       }
+    }
+  }
+
+  // A host the network stopped announcing (it stopped, cleanly or not, and discovery
+  // expired it) is shown as NOT ANSWERING for config.host_forget_ms, then leaves the
+  // list with its components, and every browser is told so.
+  void forget_silent_hosts() {
+    const int64_t now = rt::monotonic_ns();
+    std::vector<std::string> gone;
+    for (auto& [key, h] : hosts) {
+      if (h.alive) continue;
+      if (h.silent_since_ns == 0) h.silent_since_ns = now;
+      if (config.host_forget_ms >= 0 && now - h.silent_since_ns > int64_t{config.host_forget_ms} * rt::kNsPerMs) {
+        gone.push_back(key);
+      }
+    }
+    for (const auto& key : gone) {
+      std::size_t removed = 0;
+      for (auto it = components.begin(); it != components.end();) {
+        if (it->second.host_key == key) {
+          it = components.erase(it);
+          ++removed;
+        } else {
+          ++it;
+        }
+      }
+      const std::string text = "host " + hosts[key].name + " (" + key + ") silent for " +
+                               std::to_string(config.host_forget_ms / 1000) + " s: removed from the list with its " +
+                               std::to_string(removed) + " components";
+      std::fprintf(stderr, "rack-gui: %s\n", text.c_str());
+      broadcast(dump(json{{"type", "notice"}, {"level", "info"}, {"text", text}}));
+      hosts.erase(key);
     }
   }
 
@@ -469,7 +510,10 @@ struct Backend::Impl {
     request(a.component(), msg::kGetClass, q, [this, key, a](const Reply* r) {
       ClassInfo& info = class_infos[key];
       info.pending = false;
-      if (r == nullptr) return;  // asked again in a later round
+      if (r == nullptr) {  // asked again in a later round; a browser waiting is told now
+        answer_class_waiters(key, a, nullptr, "no reply to GET_CLASS in time (host gone or busy?)");
+        return;
+      }
       std::string error;
       if (r->header.type != msg::kClass) {
         error = r->header.type == msg::kError ? "refused: " + error_reason(r->body)
@@ -483,6 +527,7 @@ struct Backend::Impl {
       if (error.empty() && d.class_id != a.class_id()) error = "describes another class id";
       if (!error.empty()) {
         info.failed = true;
+        answer_class_waiters(key, a, nullptr, "its class description could not be read: " + error);
         {
           const std::lock_guard lock(counters_mutex);
           ++counters.bad_replies;
@@ -493,8 +538,241 @@ struct Backend::Impl {
       }
       info.desc = std::move(d);
       if (info.desc->data) info.data_fields = info.desc->data->field_table();
+      answer_class_waiters(key, a, &*info.desc, "");
     });
     return nullptr;
+  }
+
+  static json type_json(const rack::TypeDescription& t) {
+    json fields = json::array();
+    for (const auto& f : t.fields) {
+      fields.push_back({{"name", f.name}, {"kind", rack::describe(f.kind)}, {"count", f.count}});
+    }
+    return {{"name", t.name}, {"size", t.size}, {"fields", fields}};
+  }
+  // {"type":"class",...}: what the command panel and the plots are built from.
+  static std::string class_message(Address a, const rack::ClassDescription& d) {
+    json commands = json::array();
+    for (const auto& c : d.commands) {
+      commands.push_back({{"name", c.name}, {"type", c.type}, {"summary", c.summary},
+                          {"body", c.body ? type_json(*c.body) : json(nullptr)}});
+    }
+    json params = json::array();
+    for (const auto& p : d.parameters) {
+      params.push_back({{"name", p.name},
+                        {"kind", rack::describe(p.kind)},
+                        {"unit", p.unit},
+                        {"min", std::isfinite(p.min) ? json(p.min) : json(nullptr)},
+                        {"max", std::isfinite(p.max) ? json(p.max) : json(nullptr)},
+                        {"default", p.default_value},
+                        {"doc", p.doc},
+                        {"choices", p.choices}});
+    }
+    return dump(json{{"type", "class"},
+                     {"component", address_text(a.component())},
+                     {"class", d.class_name},
+                     {"impl", d.impl},
+                     {"summary", d.summary},
+                     {"data", d.data ? type_json(*d.data) : json(nullptr)},
+                     {"commands", commands},
+                     {"parameters", params}});
+  }
+  void answer_class_waiters(uint32_t key, Address a, const rack::ClassDescription* d, const std::string& why) {
+    const auto it = class_waiters.find(key);
+    if (it == class_waiters.end()) return;
+    auto waiting = std::move(it->second);
+    class_waiters.erase(it);
+    for (const auto& [client, r] : waiting) {
+      if (d != nullptr) {
+        send_to(client, class_message(r.component, *d));
+        result(client, r, true, address_text(r.component) + ": class " + d->class_name + " described");
+      } else {
+        result(client, r, false, address_text(a.component()) + ": " + why);
+      }
+    }
+  }
+  // Work for a later round of the worker (a trace that is still recording).
+  void defer(int64_t delay_ns, std::function<void()> f) {
+    deferred.emplace_back(rt::monotonic_ns() + delay_ns, std::move(f));
+  }
+  void run_deferred() {
+    const int64_t now = rt::monotonic_ns();
+    std::vector<std::function<void()>> due;
+    for (auto it = deferred.begin(); it != deferred.end();) {
+      if (it->first <= now) {
+        due.push_back(std::move(it->second));
+        it = deferred.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    for (auto& f : due) f();
+  }
+
+  // A live task timeline of one host (as `rackctl trace --duration S all`): TRACE_START
+  // to the executor's trace mailbox, TRACE_READ until the JSON is ready, read in
+  // chunks, checked to be JSON, then sent to the browser that asked.
+  void trace(uint64_t client, const Request& r) {
+    const tims::HostInfo* host = nullptr;
+    std::string names;
+    const auto all = transport.hosts();
+    for (const auto& h : all) {
+      if (h.system != r.system || h.role != tims::NodeRole::kExecutor) continue;
+      names += (names.empty() ? "" : ", ") + h.host;
+      if (!r.host.empty() && h.host != r.host) continue;
+      if (host != nullptr && r.host.empty()) {
+        result(client, r, false, "robot " + std::to_string(r.system) + " has several hosts (" + names + "...): name one");
+        return;
+      }
+      host = &h;
+    }
+    if (host == nullptr) {
+      result(client, r, false, "robot " + std::to_string(r.system) + ": no host" +
+                                   (r.host.empty() ? std::string() : " named '" + r.host + "'") + " answers" +
+                                   (names.empty() ? std::string() : " (hosts: " + names + ")"));
+      return;
+    }
+    const Address exec = host->executor;
+    const Address t = Address::make(exec.system(), exec.class_id(), exec.instance(), rtrace::kTraceMailbox);
+    const std::string host_name = host->host;
+    rtrace::TraceStartRequest req;
+    req.duration_ns = static_cast<int64_t>(r.duration_s * 1e9);
+    wire::copy_text(req.names, "all");
+    request(t, rtrace::kTraceStart, req, [this, client, r, t, host_name, req](const Reply* rep) {
+      if (rep == nullptr || rep->header.type != msg::kOk) {
+        result(client, r, false, failure(rep, "TRACE_START", t));
+        return;
+      }
+      auto text = std::make_shared<std::string>();
+      const int64_t give_up = rt::monotonic_ns() + req.duration_ns + 30 * rt::kNsPerSec;
+      defer(req.duration_ns, [this, client, r, t, host_name, text, give_up] { trace_read(client, r, t, host_name, text, give_up); });
+    });
+  }
+  void trace_read(uint64_t client, const Request& r, Address t, const std::string& host_name,
+                  const std::shared_ptr<std::string>& text, int64_t give_up) {
+    if (rt::monotonic_ns() > give_up) {
+      result(client, r, false, host_name + ": the trace was not ready 30 s after its end");
+      return;
+    }
+    rtrace::TraceReadRequest rr;
+    rr.offset = text->size();
+    request(t, rtrace::kTraceRead, rr, [this, client, r, t, host_name, text, give_up](const Reply* rep) {
+      rtrace::TraceChunkHeader head;
+      if (rep == nullptr || rep->header.type != msg::kOk || rep->body.size() < sizeof head) {
+        result(client, r, false, failure(rep, "TRACE_READ", t));
+        return;
+      }
+      std::memcpy(&head, rep->body.data(), sizeof head);
+      const auto state = static_cast<rtrace::TraceState>(head.state);
+      const auto again = [&](int64_t delay) {
+        defer(delay, [this, client, r, t, host_name, text, give_up] { trace_read(client, r, t, host_name, text, give_up); });
+      };
+      if (state == rtrace::TraceState::kRecording) {
+        again(std::clamp<int64_t>(head.remaining_ns, 10 * rt::kNsPerMs, 200 * rt::kNsPerMs));
+        return;
+      }
+      if (state != rtrace::TraceState::kReady || head.length > rep->body.size() - sizeof head || head.offset != text->size() ||
+          head.total > (100u << 20)) {
+        result(client, r, false, host_name + ": TRACE_READ: the trace was discarded or its chunk is malformed");
+        return;
+      }
+      text->append(reinterpret_cast<const char*>(rep->body.data() + sizeof head), head.length);
+      if (text->size() < head.total) {
+        if (head.length == 0) {
+          result(client, r, false, host_name + ": TRACE_READ returned nothing before the end");
+          return;
+        }
+        again(0);
+        return;
+      }
+      const json doc = json::parse(*text, nullptr, false);
+      if (doc.is_discarded()) {
+        result(client, r, false, host_name + ": the trace is not JSON (" + std::to_string(text->size()) + " bytes)");
+        return;
+      }
+      send_to(client, dump(json{{"type", "trace"}, {"host", host_name}, {"system", r.system}, {"dropped", head.dropped},
+                                {"json", *text}}));
+      result(client, r, true, host_name + ": trace of " + json(r.duration_s).dump() + " s, " +
+                                  std::to_string(text->size()) + " bytes");
+    });
+  }
+
+  // A class command by name, its body filled from the browser's fields through the
+  // class's own description (as `rackctl send NAME CMD field=value`).
+  void command(uint64_t client, const Request& r) {
+    const Address a = r.component;
+    const auto ci = class_infos.find(a.raw() & 0xFFFF0000u);
+    if (ci == class_infos.end() || !ci->second.desc) {
+      (void)described(a);
+      result(client, r, false, address_text(a) + ": command " + r.command_name +
+                                   ": its class description is not known yet (asked; try again)");
+      return;
+    }
+    const rack::ClassDescription& d = *ci->second.desc;
+    const rack::CommandDescription* info = d.find_command(r.command_name);
+    if (info == nullptr) {
+      std::string names;
+      for (const auto& c : d.commands) names += (names.empty() ? "" : ", ") + c.name;
+      result(client, r, false, address_text(a) + ": class " + d.class_name + " has no command '" + r.command_name +
+                                   "' (" + (names.empty() ? "it describes none" : "known: " + names) + "); nothing was sent");
+      return;
+    }
+    auto body = std::make_shared<std::vector<std::byte>>();
+    std::string sent = "(no body)";
+    if (info->body) {
+      const std::vector<tims::FieldDesc> table = info->body->field_table();
+      body->assign(info->body->size, std::byte{0});
+      for (const auto& [key, text] : r.fields) {
+        const tims::FieldDesc* field = nullptr;
+        for (const auto& f : table) {
+          if (key == f.name) field = &f;
+        }
+        const std::string why = field == nullptr ? "no such field in " + info->body->name
+                                                 : rack::set_field_from_text(*field, *body, text);
+        if (!why.empty()) {
+          {
+            const std::lock_guard lock(counters_mutex);
+            ++counters.malformed;
+            ++counters.refused[static_cast<std::size_t>(Refusal::kBadValue)];
+          }
+          result(client, r, false, address_text(a) + ": " + info->name + " field '" + key + "': " + why +
+                                       "; nothing was sent");
+          return;
+        }
+      }
+      sent = rack::payload_to_json(table, *body, true);
+    } else if (!r.fields.empty()) {
+      result(client, r, false, address_text(a) + ": " + info->name + " takes no fields; nothing was sent");
+      return;
+    }
+    const tims::ConstBuffer part{body->data(), body->size()};
+    const std::string name = info->name;
+    request(a, info->type, body->empty() ? std::span<const tims::ConstBuffer>() : std::span<const tims::ConstBuffer>(&part, 1),
+            kOnTimeoutNs, [this, client, r, a, name, sent](const Reply* rep) {
+              if (rep == nullptr || rep->header.type == msg::kError || rep->header.type == msg::kNotAvailable) {
+                result(client, r, false, failure(rep, name, a));
+                return;
+              }
+              std::string hex;
+              for (std::size_t k = 0; k < rep->body.size() && k < 64; ++k) {
+                static constexpr char kHex[] = "0123456789abcdef";
+                const auto b = static_cast<unsigned>(rep->body[k]);
+                hex += kHex[b >> 4];
+                hex += kHex[b & 15u];
+              }
+              const bool ok = rep->header.type == msg::kOk;
+              send_to(client, dump(json{{"type", "command_result"},
+                                        {"id", r.id ? json(*r.id) : json(nullptr)},
+                                        {"component", address_text(a)},
+                                        {"command", name},
+                                        {"sent", sent.front() == '{' ? json::parse(sent, nullptr, false) : json(nullptr)},
+                                        {"reply", ok ? "OK" : "type " + std::to_string(rep->header.type)},
+                                        {"reply_type", rep->header.type},
+                                        {"body_bytes", rep->body.size()},
+                                        {"body_hex", hex}}));
+              result(client, r, true, address_text(a) + ": " + name + " " + sent + ": " +
+                                          (ok ? std::string("OK") : "reply " + std::to_string(rep->header.type)));
+            });
   }
 
   // The name of a's class: TiMS' name, else its description's, else Class0xNN.
@@ -551,6 +829,11 @@ struct Backend::Impl {
         json data = json::parse(rack::payload_to_json(type.data_fields, sample, r->native()), nullptr, false);
         if (data.is_discarded()) return;
         trim_arrays(a.class_id(), data);
+        // Enums and addresses by name beside the raw values (as rackctl get-data).
+        json names = json::object();
+        const std::string names_text = rack::tools::field_names_json(a.class_id(), type.data_fields, sample, r->native());
+        if (!names_text.empty()) names = json::parse(names_text, nullptr, false);
+        if (names.is_discarded()) names = json::object();
         broadcast(dump(json{{"type", "data"},
                             {"component", address_text(a)},
                             {"name", comp.info.name},
@@ -558,7 +841,8 @@ struct Backend::Impl {
                             {"system", comp.system},
                             {"time_ns", sh.time_ns},
                             {"sequence", sh.sequence},
-                            {"data", std::move(data)}}));
+                            {"data", std::move(data)},
+                            {"names", std::move(names)}}));
       });
     }
   }
@@ -650,6 +934,10 @@ struct Backend::Impl {
           hj["host_id"] = h->second.host_id;
           hj["pid"] = h->second.pid;
           hj["alive"] = h->second.alive;
+          if (!h->second.alive && h->second.silent_since_ns != 0) {
+            hj["silent_ms"] = (now - h->second.silent_since_ns) / rt::kNsPerMs;
+            hj["forget_ms"] = config.host_forget_ms;
+          }
           hj["network"] = h->second.network;
         }
         hosts_j.push_back(hj);
@@ -890,6 +1178,21 @@ struct Backend::Impl {
         });
         break;
       }
+      case Op::kGetClass: {
+        const Address a = r.component;
+        const ClassInfo* info = described(a);
+        if (info != nullptr) {
+          send_to(client, class_message(a, *info->desc));
+          result(client, r, true, address_text(a) + ": class " + info->desc->class_name + " described");
+        } else if (class_infos[a.raw() & 0xFFFF0000u].failed) {
+          result(client, r, false, address_text(a) + ": its class description could not be read (see rack-gui's log)");
+        } else {
+          class_waiters[a.raw() & 0xFFFF0000u].emplace_back(client, r);  // answered when it arrives
+        }
+        break;
+      }
+      case Op::kCommand: command(client, r); break;
+      case Op::kTrace: trace(client, r); break;
       case Op::kSetPose: set_pose(client, r); break;
       case Op::kJoystick: joystick(client, r); break;
       case Op::kJoystickRelease: {
@@ -1084,6 +1387,7 @@ struct Backend::Impl {
       }
       for (auto& [client, req] : work) handle(client, req);
       check_dead_man();
+      run_deferred();
 
       const int64_t now = rt::monotonic_ns();
       if (now >= next_discovery) {
@@ -1150,13 +1454,21 @@ struct Backend::Impl {
     }
   }
 
-  // Every 2 s: report files that are new or changed are symbolized again.
+  // Every 2 s: the reports that were added to a report file since the last look are
+  // symbolized, and only those (rackd appends; a file of 1830 reports took 32 s to
+  // symbolize again whenever one was added). The new part goes to rack-backtrace with
+  // the file's header and module lines and the old reports blanked out, so its
+  // "file:line" references stay those of the real file. A report still being written
+  // (no `end` line yet) waits for the next look; one that stays incomplete for a whole
+  // look is passed on as it is (rack-backtrace then says it is truncated).
+  struct ReportFileState {
+    std::uintmax_t size = 0;
+    std::filesystem::file_time_type mtime;
+    std::size_t done = 0;  // bytes symbolized so far (whole lines)
+    bool tail_seen = false;  // an incomplete tail was there at the last look
+  };
   void run_reports() {
-    struct Seen {
-      std::uintmax_t size = 0;
-      std::filesystem::file_time_type mtime;
-    };
-    std::map<std::string, Seen> seen;
+    std::map<std::string, ReportFileState> seen;
     bool warned = false;
     while (running.load()) {
       std::error_code ec;
@@ -1171,20 +1483,104 @@ struct Backend::Impl {
       }
       bool changed = false;
       for (const auto& f : files) {
+        if (!running.load()) break;
         std::error_code e1, e2;
-        const Seen now{std::filesystem::file_size(f, e1), std::filesystem::last_write_time(f, e2)};
+        const auto size = std::filesystem::file_size(f, e1);
+        const auto mtime = std::filesystem::last_write_time(f, e2);
         if (e1 || e2) continue;
-        auto& old = seen[f.string()];
-        if (old.size == now.size && old.mtime == now.mtime) continue;
-        old = now;
-        const std::string text = symbolize(f.string());
+        auto& st = seen[f.string()];
+        const bool same = st.size == size && st.mtime == mtime;
+        if (same && (st.done >= size || !st.tail_seen)) {
+          if (st.done < size) st.tail_seen = true;  // complete it at the next look if it stays so
+          continue;
+        }
+        if (size < st.done) {  // cut or replaced: start again
+          st = ReportFileState{};
+          const std::lock_guard lock(greet_mutex);
+          report_texts.erase(f.string());
+        }
+        const bool flush_tail = same && st.tail_seen;
+        st.size = size;
+        st.mtime = mtime;
+        const std::size_t before = st.done;
+        const auto t0 = std::chrono::steady_clock::now();
+        const std::string added = symbolize_new(f.string(), st, flush_tail);
+        if (added.empty()) continue;
+        const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        std::fprintf(stderr, "rack-gui: reports: %s: bytes %zu..%zu symbolized in %.2f s\n", f.string().c_str(),
+                     before, st.done, took);
         const std::lock_guard lock(greet_mutex);
-        report_texts[f.string()] = text;
+        std::string& text = report_texts[f.string()];
+        text += added;
+        if (text.size() > kMaxReportText) {
+          std::size_t cut = text.size() - kMaxReportText;
+          cut = text.find('\n', cut);
+          text = "(older reports left out here: rack-backtrace " + f.string() + " shows them all)\n" +
+                 (cut == std::string::npos ? std::string() : text.substr(cut + 1));
+        }
         changed = true;
       }
       if (changed) broadcast(reports_message());
       for (int i = 0; i < 20 && running.load(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
+  }
+  static constexpr std::size_t kMaxReportText = 256 * 1024;  // per file: the newest reports
+
+  // The part of `file` after st.done up to its last complete report (or to its end
+  // when `flush_tail`), symbolized; st.done moves past it. "" when nothing new.
+  std::string symbolize_new(const std::string& file, ReportFileState& st, bool flush_tail) {
+    std::string bytes;
+    {
+      std::FILE* in = std::fopen(file.c_str(), "rb");
+      if (in == nullptr) return "";
+      char buf[65536];
+      std::size_t n = 0;
+      while ((n = std::fread(buf, 1, sizeof buf, in)) > 0 && bytes.size() < (64u << 20)) bytes.append(buf, n);
+      std::fclose(in);
+    }
+    if (bytes.size() <= st.done) return "";
+    // The end of the last complete report ("end N" line) after st.done.
+    std::size_t cut = st.done;
+    for (std::size_t at = st.done; at < bytes.size();) {
+      const auto nl = bytes.find('\n', at);
+      if (nl == std::string::npos) break;
+      if (bytes.compare(at, 4, "end ") == 0) cut = nl + 1;
+      at = nl + 1;
+    }
+    if (flush_tail) cut = bytes.size();
+    st.tail_seen = cut < bytes.size();
+    if (cut == st.done) return "";
+    // The header and module lines of the part already done, its other lines blank.
+    std::string input;
+    input.reserve(cut);
+    for (std::size_t at = 0; at < st.done;) {
+      auto nl = bytes.find('\n', at);
+      if (nl == std::string::npos || nl >= st.done) nl = st.done;
+      if (at == 0 || bytes.compare(at, 7, "module ") == 0) input.append(bytes, at, nl - at);
+      input += '\n';
+      at = nl + 1;
+    }
+    input.append(bytes, st.done, cut - st.done);
+    st.done = cut;
+    char tmp[] = "/tmp/rack-gui-report-XXXXXX";
+    const int fd = mkstemp(tmp);
+    if (fd < 0) return "rack-gui: cannot write a temporary file: " + std::string(std::strerror(errno)) + "\n";
+    bool written = true;
+    for (std::size_t off = 0; off < input.size();) {
+      const ssize_t w = ::write(fd, input.data() + off, input.size() - off);
+      if (w <= 0) {
+        written = false;
+        break;
+      }
+      off += static_cast<std::size_t>(w);
+    }
+    ::close(fd);
+    std::string out = written ? symbolize(tmp) : "rack-gui: cannot write a temporary file\n";
+    ::unlink(tmp);
+    // Its name in rack-backtrace's text is the real file's.
+    const std::string t = tmp;
+    for (auto at = out.find(t); at != std::string::npos; at = out.find(t, at + file.size())) out.replace(at, t.size(), file);
+    return out;
   }
 
   std::string backtrace_program() const {
@@ -1198,24 +1594,54 @@ struct Backend::Impl {
     return "rack-backtrace";  // on PATH
   }
 
-  // rack-backtrace FILE, its output (and errors), at most 256 KiB.
+  // rack-backtrace FILE, its output (and errors), at most kMaxReportText. Its own
+  // process, read with a 100 ms poll: stop() ends it (SIGKILL) instead of waiting for
+  // it, so rack-gui exits promptly while a large file is being symbolized.
   std::string symbolize(const std::string& file) const {
-    const auto quote = [](const std::string& s) {
-      std::string q = "'";
-      for (const char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-      return q + "'";
-    };
-    const std::string cmd = quote(backtrace_program()) + " " + quote(file) + " 2>&1";
-    FILE* p = popen(cmd.c_str(), "r");
-    if (p == nullptr) return "cannot run rack-backtrace: " + std::string(std::strerror(errno));
-    std::string out;
-    char buf[4096];
-    std::size_t n = 0;
-    while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) {
-      if (out.size() < 256 * 1024) out.append(buf, n);
+    const std::string program = backtrace_program();
+    int pipe_fd[2];
+    if (pipe(pipe_fd) != 0) return "cannot run rack-backtrace: " + std::string(std::strerror(errno)) + "\n";
+    const pid_t pid = fork();
+    if (pid < 0) {
+      ::close(pipe_fd[0]);
+      ::close(pipe_fd[1]);
+      return "cannot run rack-backtrace: " + std::string(std::strerror(errno)) + "\n";
     }
-    const int status = pclose(p);
-    if (status != 0 && out.empty()) out = "rack-backtrace failed (status " + std::to_string(status) + ")";
+    if (pid == 0) {
+      ::dup2(pipe_fd[1], 1);
+      ::dup2(pipe_fd[1], 2);
+      ::close(pipe_fd[0]);
+      ::close(pipe_fd[1]);
+      const char* argv[] = {program.c_str(), file.c_str(), nullptr};
+      ::execvp(argv[0], const_cast<char* const*>(argv));  // NOLINT: execvp's signature
+      std::fprintf(stderr, "cannot run %s: %s\n", program.c_str(), std::strerror(errno));
+      ::_exit(127);
+    }
+    ::close(pipe_fd[1]);
+    std::string out;
+    bool stopped = false;
+    for (;;) {
+      if (!running.load()) {
+        ::kill(pid, SIGKILL);
+        stopped = true;
+        break;
+      }
+      pollfd p{pipe_fd[0], POLLIN, 0};
+      const int ready = ::poll(&p, 1, 100);
+      if (ready < 0 && errno != EINTR) break;
+      if (ready <= 0) continue;
+      char buf[4096];
+      const ssize_t n = ::read(pipe_fd[0], buf, sizeof buf);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) break;
+      if (out.size() < kMaxReportText) out.append(buf, static_cast<std::size_t>(n));
+    }
+    ::close(pipe_fd[0]);
+    int status = 0;
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    if (stopped) return "";
+    if (status != 0 && out.empty()) out = "rack-backtrace failed (status " + std::to_string(status) + ")\n";
     return out;
   }
 
@@ -1268,6 +1694,8 @@ struct Backend::Impl {
   std::vector<Pending> pending;
   std::map<uint32_t, Component> components;
   std::map<uint32_t, ClassInfo> class_infos;  // system << 24 | class id << 16 (described())
+  std::map<uint32_t, std::vector<std::pair<uint64_t, Request>>> class_waiters;
+  std::vector<std::pair<int64_t, std::function<void()>>> deferred;  // worker thread only (defer())  // get_class before it is known
   std::map<std::string, Host> hosts;
   std::map<uint8_t, Robot> robots;
 

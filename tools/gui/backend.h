@@ -10,8 +10,19 @@
 //               discovery: it is kept in the list, never shown with its last state);
 //   "not_available": the network answered NOT_AVAILABLE for it.
 //
+// A host that the network no longer announces is kept (its components "no_reply") for
+// host_forget_ms, then removed from the list with its components, and the browsers are
+// told so.
+//
 // A reports thread symbolizes the report files in `reports_dir` with rack-backtrace
-// (a separate process, so libdw's work never delays the robots' state).
+// (a separate process, so libdw's work never delays the robots' state): only the
+// reports appended since its last look, and stop() kills a rack-backtrace still
+// running, so rack-gui exits promptly.
+//
+// Class descriptions (GET_CLASS) are passed to the browsers ("class" messages) for the
+// plots and the command panel; a "command" is encoded from the description as
+// `rackctl send` does; a "trace" runs TRACE_START/TRACE_READ on a host's executor as
+// `rackctl trace` does, its reads deferred to later rounds while the host records.
 //
 // A GDOS thread receives the log of every host (tims::GdosSubscriber) and passes it
 // on in batches; the last records are kept for browsers that connect later.
@@ -45,10 +56,13 @@ struct BackendConfig {
   std::vector<std::string> maps;  // --map SYSTEM=FILE or FILE (every robot)
   std::string map_root = ".";  // where relative `map` parameters are looked up
   // Mode-switch and crash report files (rackd-*.report) of the hosts on this machine,
-  // symbolized with rack-backtrace whenever one changes. "" disables it.
+  // symbolized with rack-backtrace as reports are added. "" disables it.
   std::string reports_dir = "/var/tmp/rack";
   std::string backtrace_path;  // rack-backtrace; "" = beside rack-gui, else on PATH
   int poll_ms = 200;           // state and data poll period
+  // A host no longer announced leaves the list (with its components) after this long;
+  // until then it is shown as not answering. -1: never.
+  int host_forget_ms = 30000;
   int timeout_ms = 1000;       // a request not answered in this time fails
 };
 

@@ -30,6 +30,9 @@ const std::vector<OpSpec>& specs() {
       {"joystick", Op::kJoystick, {"system", "vx", "omega"}},
       {"joystick_release", Op::kJoystickRelease, {"system"}},
       {"follow_path", Op::kFollowPath, {"system"}},
+      {"get_class", Op::kGetClass, {"component"}},
+      {"command", Op::kCommand, {"component", "name", "fields"}},
+      {"trace", Op::kTrace, {"system", "host", "duration_s"}},
   };
   return kSpecs;
 }
@@ -197,7 +200,46 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
         r.on = on.get<bool>();
         break;
       }
-      case Op::kGetParams: r.component = component_of(msg); break;
+      case Op::kGetParams:
+      case Op::kGetClass: r.component = component_of(msg); break;
+      case Op::kCommand: {
+        r.component = component_of(msg);
+        const json& n = msg.at("name");
+        if (!n.is_string()) throw Bad{"key 'name': expected a command name, got " + type_of(n)};
+        r.command_name = n.get<std::string>();
+        if (r.command_name.empty() || r.command_name.size() > kMaxFieldName) {
+          throw Bad{"key 'name': a command name has 1.." + std::to_string(kMaxFieldName) + " bytes"};
+        }
+        const json& f = msg.at("fields");
+        if (!f.is_object()) throw Bad{"key 'fields': expected an object of field: value, got " + type_of(f)};
+        if (f.size() > kMaxCommandFields) {
+          throw Bad{"key 'fields': " + std::to_string(f.size()) + " fields, at most " + std::to_string(kMaxCommandFields)};
+        }
+        for (const auto& [key, value] : f.items()) {
+          if (key.empty() || key.size() > kMaxFieldName) {
+            throw Bad{"key 'fields': a field name has 1.." + std::to_string(kMaxFieldName) + " bytes"};
+          }
+          std::string value_text;
+          if (value.is_string()) {
+            value_text = value.get<std::string>();
+          } else if (value.is_boolean()) {
+            value_text = value.get<bool>() ? "true" : "false";
+          } else if (value.is_number_integer()) {
+            const auto v = as_int64(value);
+            if (!v) throw Bad{"field '" + quote(key) + "': " + quote(value.dump()) + " is above 2^63-1"};
+            value_text = std::to_string(*v);
+          } else if (value.is_number_float()) {
+            value_text = value.dump();
+          } else {
+            throw Bad{"field '" + quote(key) + "': expected a text, number or boolean, got " + type_of(value)};
+          }
+          if (value_text.size() > kMaxFieldText) {
+            throw Bad{"field '" + quote(key) + "': a value of at most " + std::to_string(kMaxFieldText) + " bytes"};
+          }
+          r.fields.emplace_back(key, std::move(value_text));
+        }
+        break;
+      }
       case Op::kSetParam: {
         r.component = component_of(msg);
         const json& n = msg.at("name");
@@ -223,6 +265,16 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
       case Op::kAllOff:
       case Op::kJoystickRelease:
       case Op::kFollowPath: r.system = system_of(msg); break;
+      case Op::kTrace: {
+        r.system = system_of(msg);
+        const json& h = msg.at("host");
+        if (!h.is_string()) throw Bad{"key 'host': expected a host name (or \"\"), got " + type_of(h)};
+        r.host = h.get<std::string>();
+        if (r.host.size() > kMaxFieldName) throw Bad{"key 'host': at most " + std::to_string(kMaxFieldName) + " bytes"};
+        r.duration_s = number(msg, "duration_s", kMaxTraceSeconds);
+        if (!(r.duration_s > 0.0)) throw Bad{"key 'duration_s': a duration above 0 s"};
+        break;
+      }
       case Op::kSetDestination:
         r.system = system_of(msg);
         r.x = number(msg, "x", kMaxCoordinate);

@@ -13,6 +13,14 @@
 //   {"op":"joystick","system":0,"vx":0.3,"omega":0.0}        become the active pilot, MOVE
 //   {"op":"joystick_release","system":0}                     MOVE 0 (dead-man released)
 //   {"op":"follow_path","system":0}                          hand the chassis back to the Pilot
+//   {"op":"get_class","component":"Pilot(0/0)"}              its class description (GET_CLASS)
+//   {"op":"command","component":"Pilot(0/0)","name":"SET_DESTINATION","fields":{"x":"2.5","y":1}}
+//       a class command by the name its class describes; "fields" (at most
+//       kMaxCommandFields, names < kMaxFieldName bytes, values texts, numbers or
+//       booleans) fill its body as `rackctl send` does; fields not given are 0
+//   {"op":"trace","system":0,"host":"","duration_s":2}   a live task timeline of one
+//       host of robot 0 (as `rackctl trace --duration 2 all`; "" = its only host),
+//       answered with {"type":"trace",...}; duration 0 < s <= kMaxTraceSeconds
 //
 // Anything else is refused with a ParseError saying what and where (a byte offset for
 // JSON syntax, the key otherwise) and why (Refusal, which the server counts); the
@@ -38,6 +46,8 @@
 #include <string>
 #include <string_view>
 #include <variant>
+#include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -56,6 +66,9 @@ enum class Op {
   kJoystick,
   kJoystickRelease,
   kFollowPath,
+  kGetClass,
+  kCommand,
+  kTrace,
 };
 [[nodiscard]] const char* op_name(Op op) noexcept;
 
@@ -69,6 +82,10 @@ inline constexpr std::size_t kMaxQuoted = 64;  // bytes of a client's text quote
 inline constexpr double kMaxJoystickSpeed = 5.0;   // m/s
 inline constexpr double kMaxJoystickOmega = 10.0;  // rad/s
 inline constexpr double kMaxCoordinate = 1.0e6;    // m: anything larger is a mistake
+inline constexpr std::size_t kMaxCommandFields = 64;  // "fields" of a command
+inline constexpr std::size_t kMaxFieldName = 64;      // bytes of a field name
+inline constexpr std::size_t kMaxFieldText = 4096;    // bytes of a field's value text
+inline constexpr double kMaxTraceSeconds = 10.0;      // a live trace from the dashboard
 
 struct Request {
   Op op = Op::kSwitch;
@@ -80,6 +97,10 @@ struct Request {
   nlohmann::json param_value;  // set_param: checked against the kind later
   double x = 0.0, y = 0.0, phi = 0.0;  // set_destination, set_pose
   double vx = 0.0, omega = 0.0;        // joystick
+  std::string command_name;            // command: the name its class describes
+  std::vector<std::pair<std::string, std::string>> fields;  // command: field -> value text
+  std::string host;                    // trace: the host's name ("" = the robot's only host)
+  double duration_s = 0.0;             // trace
 };
 
 // Why a client message was refused (counted per reason by the server).

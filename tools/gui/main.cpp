@@ -61,6 +61,9 @@ options:
   --poll-ms MS       state and data poll period (default 200)
   --timeout-ms MS    a robot that does not answer within this is shown as
                      "no reply" (default 1000)
+  --forget-s SEC     a host the network no longer announces (it stopped) is shown
+                     as NOT ANSWERING for SEC seconds, then leaves the list with
+                     its components (default 30; -1: never)
   -h, --help         this text
   --version          the version (CMake project version, git describe)
 
@@ -149,6 +152,9 @@ int main(int argc, char** argv) {
       web_given = true;
     } else if (a == "--poll-ms") {
       config.poll_ms = static_cast<int>(number(a, value("milliseconds"), 20, 10000));
+    } else if (a == "--forget-s") {
+      const long sec = number(a, value("seconds"), -1, 86400);
+      config.host_forget_ms = sec < 0 ? -1 : static_cast<int>(sec * 1000);
     } else if (a == "--timeout-ms") {
       config.timeout_ms = static_cast<int>(number(a, value("milliseconds"), 50, 60000));
     } else {

@@ -4,6 +4,10 @@
 // animation frame with particles batched into one path.
 import './style.css';
 import { setupTimeline } from './timeline.js';
+import { setupPlots } from './plots.js';
+import { setupCommands } from './commands.js';
+import { setupMapTools } from './map_tools.js';
+import { formatField, formatArray, duration } from './numbers.js';
 
 const $ = (id) => document.getElementById(id);
 const LEVELS = ['print', 'error', 'warning', 'info', 'detail'];
@@ -18,6 +22,7 @@ const st = {
   data: new Map(),       // address -> latest data message
   maps: new Map(),       // system -> {meta, canvas}
   params: new Map(),     // address -> params list
+  classes: new Map(),    // address -> its class description ("class" message)
   images: new Map(),     // camera address -> latest "image" message
   selected: null,        // address shown in the details view
   log: [],               // GDOS records
@@ -32,7 +37,7 @@ window.__rack = st;  // for debugging and the end-to-end test
 function connect() {
   const ws = new WebSocket(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws`);
   st.ws = ws;
-  ws.onopen = () => { st.connected = true; setConn(); };
+  ws.onopen = () => { st.connected = true; st.componentsSeen = false; setConn(); };
   ws.onclose = () => {
     st.connected = false;
     setConn();
@@ -48,10 +53,23 @@ function connect() {
     handle(m);
   };
 }
+// Green only when a robot answers: rack-gui being there is not the robot being there.
 function setConn() {
   const el = $('conn');
-  el.textContent = st.connected ? 'connected' : 'disconnected: reconnecting…';
-  el.className = 'conn ' + (st.connected ? 'up' : 'down');
+  let text, cls;
+  if (!st.connected) {
+    text = 'rack-gui disconnected: reconnecting…'; cls = 'down';
+  } else {
+    const all = [...st.comps.values()];
+    const answering = all.filter((c) => c.state !== 'no_reply' && c.state !== 'not_available');
+    const robots = new Set(answering.map((c) => c.system));
+    if (all.length === 0) { text = st.componentsSeen ? 'no robot found (yet)' : 'connected to rack-gui; looking for robots…'; cls = 'warn'; }
+    else if (answering.length === 0) { text = 'no robot answering'; cls = 'down'; }
+    else { text = `${robots.size} robot${robots.size === 1 ? '' : 's'} answering (${answering.length}/${all.length} components)`; cls = answering.length === all.length ? 'up' : 'warn'; }
+  }
+  el.textContent = text;
+  el.className = 'conn ' + cls;
+  el.dataset.state = cls;
 }
 function send(obj) {
   if (!st.ws || st.ws.readyState !== 1) { notice('not connected to rack-gui', false); return null; }
@@ -77,7 +95,17 @@ function notice(text, ok) {
 
 function handle(m) {
   switch (m.type) {
-    case 'hello': break;
+    case 'hello': st.lcm = m.lcm; break;
+    case 'class':
+      st.classes.set(m.component, m);
+      plots.onClass(m);
+      if (st.selected === m.component && document.querySelector('#view-details.active')) renderDetails();
+      break;
+    case 'command_result': commands.onCommandResult(m); break;
+    case 'trace':
+      if (drawTimeline.load) drawTimeline.load(m.json, `live trace of host ${m.host}`);
+      $('tl-record').disabled = false;
+      break;
     case 'components': onComponents(m); break;
     case 'data': onData(m); break;
     case 'map': onMap(m); break;
@@ -88,7 +116,10 @@ function handle(m) {
     case 'gdos': onGdos(m.records); break;
     case 'params': st.params.set(m.component, m.params); if (st.selected === m.component) renderDetails(); break;
     case 'result':
-      if (!(m.ok && m.op === 'joystick')) notice(`${m.op}: ${m.text}`, m.ok);
+      commands.onResult(m);
+      if (m.op === 'get_class' && !m.ok && $('d-commands')) $('d-commands').innerHTML = `<h3>Commands</h3><p class="empty">${esc(m.text)}</p>`;
+      if (m.op === 'trace' && !m.ok) { $('tl-record').disabled = false; $('tl-info').textContent = `trace: ${m.text}`; $('tl-info').className = 'bad'; }
+      if (!(m.ok && m.op === 'joystick') && !(m.ok && m.op === 'get_class')) notice(`${m.op}: ${m.text}`, m.ok);
       break;
     case 'error': notice(`refused: ${m.error}`, false); break;
     case 'reports':
@@ -112,11 +143,16 @@ function onComponents(m) {
   }
   // Redrawn only when something shown changed: a redraw between mouse-down and
   // mouse-up would swallow the click.
-  const key = JSON.stringify(m.robots.map((r) => [r.system, r.joystick, r.hosts.map((h) => [h.key, h.alive, h.pid, h.components.map((c) => [c.address, c.name, c.state])])]));
+  const key = JSON.stringify(m.robots.map((r) => [r.system, r.joystick, r.hosts.map((h) => [h.key, h.alive, Math.round((h.silent_ms ?? 0) / 1000), h.pid, h.components.map((c) => [c.address, c.name, c.state])])]));
   if (key !== st.componentsKey || !st.connected) {
     st.componentsKey = key;
     renderComponents();
   }
+  // A few rounds without any component: nothing answers on this network.
+  st.emptyRounds = m.robots.length === 0 ? (st.emptyRounds ?? 0) + 1 : 0;
+  st.componentsSeen = st.emptyRounds > 10;
+  setConn();
+  plots.onComponents();
   updateRobotSelect();
   updateGdosTargets();
   if (st.selected && document.querySelector('#view-details.active')) renderDetails();
@@ -125,6 +161,14 @@ function onComponents(m) {
 function renderComponents() {
   const root = $('components');
   const frag = document.createDocumentFragment();
+  if (st.robots.length === 0) {
+    const p = document.createElement('div');
+    p.className = 'empty';
+    p.dataset.testid = 'no-robots';
+    p.textContent = !st.connected ? 'Not connected to rack-gui: nothing is known about the robots.'
+      : `No robot answers on ${st.lcm ?? 'this network'}. Is rackd running there, with "lcm: true" in its host file, and does rack-gui listen on the same URL (--lcm)?`;
+    frag.appendChild(p);
+  }
   for (const r of st.robots) {
     const div = document.createElement('div');
     div.className = 'robot';
@@ -141,7 +185,9 @@ function renderComponents() {
       const hd = document.createElement('div');
       hd.className = 'host' + (h.alive === false ? ' lost' : '');
       const h4 = document.createElement('h4');
-      h4.textContent = `${h.host ?? h.key} ${h.pid ? `(pid ${h.pid})` : ''}${h.alive === false ? ': NOT ANSWERING' : ''}`;
+      const silent = h.alive === false && h.silent_ms !== undefined
+        ? ` for ${Math.round(h.silent_ms / 1000)} s${h.forget_ms >= 0 ? ` (leaves the list after ${Math.round(h.forget_ms / 1000)} s)` : ''}` : '';
+      h4.textContent = `${h.host ?? h.key} ${h.pid ? `(pid ${h.pid})` : ''}${h.alive === false ? `: NOT ANSWERING${silent}` : ''}`;
       hd.appendChild(h4);
       for (const c of h.components) {
         const state = st.connected ? (st.comps.get(c.address)?.state ?? c.state) : 'no_reply';
@@ -183,8 +229,23 @@ function showView(name) {
   if (name === 'gdos') renderGdos(true);
   if (name === 'map') resizeMap();
   if (name === 'timeline') drawTimeline();
+  if (name === 'plots') plots.show();
 }
 const drawTimeline = setupTimeline() ?? (() => {});
+const plots = setupPlots({ st, send, $ });
+const commands = setupCommands({ st, send });
+st.addPlot = (component, field) => plots.add(component, field);
+st.timeline = drawTimeline;
+// A live trace (issue 20): rack-gui asks the host's executor, as `rackctl trace` does.
+$('tl-record').onclick = () => {
+  const seconds = Number($('tl-seconds').value);
+  const system = Number($('tl-system').value);
+  if (!(seconds > 0 && seconds <= 10) || !Number.isInteger(system)) { notice('trace: 0 < seconds <= 10 and a robot number', false); return; }
+  if (send({ op: 'trace', system, host: $('tl-host').value.trim(), duration_s: seconds }) !== null) {
+    $('tl-record').disabled = true;
+    $('tl-info').textContent = `recording ${seconds} s of robot ${system}…`;
+  }
+};
 for (const b of document.querySelectorAll('#tabs button')) b.onclick = () => showView(b.dataset.view);
 
 // ---------------------------------------------------------------- details: parameters, timing, class views
@@ -202,13 +263,13 @@ function renderDetails() {
   const c = st.comps.get(st.selected);
   if (!c) return;
   const params = st.params.get(c.address);
-  const key = `${c.address}|${JSON.stringify(params ?? null)}`;
+  const key = `${c.address}|${JSON.stringify(params ?? null)}|${st.classes.has(c.address)}`;
   if (root.dataset.key !== key) {
     root.dataset.key = key;
     const parts = ['<h2 id="d-head"></h2><div id="d-timing"></div>'];
     if (c.class === 'Camera') parts.push('<h3>Image</h3><p class="hint" id="camera-info">no image yet (polled once a second while the camera is ON)</p><canvas id="camera" class="plot" data-testid="camera" width="320" height="240"></canvas>');
     if (c.class === 'Ladar' || c.class === 'Scan2D') parts.push('<h3>Scan (polar)</h3><canvas id="polar" class="plot" width="360" height="360" data-testid="polar"></canvas>');
-    parts.push('<div id="d-data"></div>');
+    parts.push('<div id="d-data"></div><div id="d-commands" data-testid="commands"></div>');
     if (params) {
       parts.push('<h3>Parameters</h3><table class="kv" data-testid="params"><tr><th>name</th><th>kind</th><th>value</th><th></th></tr>');
       for (const p of params) {
@@ -221,6 +282,7 @@ function renderDetails() {
     }
     root.innerHTML = parts.join('');
     for (const b of root.querySelectorAll('button[data-set]')) b.onclick = () => setParam(c.address, b.dataset.set, b.dataset.kind);
+    commands.render($('d-commands'), c.address);
   }
   $('d-head').innerHTML = `${esc(c.name)} <span class="cls">${esc(c.class)}(${esc(c.impl)}) ${esc(c.address)} on ${esc(c.host ?? '?')}: ${esc(STATE_TEXT[c.state] ?? c.state)}</span>`;
   // Timing: the data task's wake-up latency histogram, percentiles and overruns.
@@ -230,10 +292,10 @@ function renderDetails() {
     if (!document.getElementById('latency-plot')) {
       timing.innerHTML = '<h3>Timing</h3><div id="d-tstats"></div><canvas id="latency-plot" class="plot" width="560" height="200" data-testid="latency"></canvas>';
     }
-    $('d-tstats').innerHTML = `<table class="kv"><tr><th>period</th><td>${s.period_ns ? (s.period_ns / 1e6).toFixed(1) + ' ms' : 'triggered/none'}</td><th>cycles</th><td>${s.cycles}</td><th>overruns</th><td data-testid="overruns">${s.overruns}</td><th>published</th><td>${s.published}</td><th>listeners</th><td>${s.listeners}</td><th>errors</th><td>${s.errors}</td></tr>${latencyRow(c.latency ?? null, s)}</table>`;
+    $('d-tstats').innerHTML = `<table class="kv"><tr><th>period</th><td>${s.period_ns ? duration(s.period_ns) : 'triggered/none'}</td><th>cycles</th><td>${s.cycles}</td><th>overruns</th><td data-testid="overruns">${s.overruns}</td><th>published</th><td>${s.published}</td><th>listeners</th><td>${s.listeners}</td><th>errors</th><td>${s.errors}</td></tr>${latencyRow(c.latency ?? null, s)}</table>`;
   }
   const d = st.data.get(c.address);
-  if (d) $('d-data').innerHTML = `<h3>Latest data${isStale(d, performance.now()) ? ' (OLD: no new sample)' : ''}</h3>${dataTable(d.data)}`;
+  if (d) $('d-data').innerHTML = `<h3>Latest data${isStale(d, performance.now()) ? ' (OLD: no new sample)' : ''}</h3>${dataTable(d.data, d.names)}`;
   drawDetailPlots(c, d);
 }
 
@@ -264,17 +326,16 @@ function setParam(address, name, kind) {
   setTimeout(() => send({ op: 'get_params', component: address }), 300);
 }
 
-function dataTable(obj) {
+// Units, sensible precision, enums and addresses by name (numbers.js).
+function dataTable(obj, names) {
   const rows = [];
   for (const [k, v] of Object.entries(obj)) {
-    let text;
-    if (Array.isArray(v)) text = v.length > 12 ? `[${v.slice(0, 8).map(fmt).join(', ')}, … ${v.length} values]` : `[${v.map(fmt).join(', ')}]`;
-    else text = fmt(v);
-    rows.push(`<tr><td>${esc(k)}</td><td>${esc(text)}</td></tr>`);
+    if (k.endsWith('_')) continue;  // padding
+    const text = Array.isArray(v) ? formatArray(k, v) : formatField(k, v, names);
+    rows.push(`<tr><td>${esc(k)}</td><td data-field="${esc(k)}">${esc(text)}</td></tr>`);
   }
-  return `<table class="kv">${rows.join('')}</table>`;
+  return `<table class="kv" data-testid="data-table">${rows.join('')}</table>`;
 }
-function fmt(v) { return typeof v === 'number' && !Number.isInteger(v) ? v.toFixed(4) : String(v); }
 
 // A camera image: raw RGB or mono pixels into ImageData, JPEG through an <img>.
 function drawCamera() {
@@ -315,7 +376,7 @@ function latencyRow(h, s) {
   const l = (h ?? s).latency_ns;
   const n = (h ?? s).samples;
   if (!l || !n) return '<tr><th>wake-up</th><td colspan="11">none measured</td></tr>';
-  const us = (v) => `${(v / 1000).toFixed(1)} us`;
+  const us = (v) => duration(v);
   return `<tr><th>wake-up</th><td colspan="11" data-testid="latency-text">min ${us(l.min)}, p50 ${us(l.p50)}, p99 ${us(l.p99)}, p99.9 ${us(l.p999)}, max ${us(l.max)}, mean ${us(l.mean)} (${n} samples)</td></tr>`;
 }
 
@@ -520,9 +581,10 @@ const STALE_MS = 1500;
 function onData(m) {
   m.received = performance.now();
   st.data.set(m.component, m);
+  plots.onData(m);
   if (m.class === 'Chassis' && m.system === st.view.system) {
     const c = m.data;
-    $('chassis-box').textContent = `vx ${c.vx.toFixed(2)} m/s  ω ${c.omega.toFixed(2)} rad/s\nbattery ${c.battery ? c.battery.toFixed(1) + ' V' : 'n/a'}\npilot ${pilotName(c.active_pilot)}\nwatchdog stops ${c.watchdog_stops}`;
+    $('chassis-box').textContent = `vx ${c.vx.toFixed(2)} m/s  ω ${(c.omega * 180 / Math.PI).toFixed(0)}°/s\nbattery ${c.battery ? c.battery.toFixed(1) + ' V' : 'n/a'}\npilot ${pilotName(c.active_pilot)}\nwatchdog stops ${c.watchdog_stops}`;
   }
   if (st.selected === m.component && document.querySelector('#view-details.active')) renderDetails();
 }
@@ -548,7 +610,10 @@ function resizeMap() {
   const w = Math.max(1, Math.round(r.width * dpr)), h = Math.max(1, Math.round(r.height * dpr));
   if (canvas.width !== w || canvas.height !== h) { canvas.width = w; canvas.height = h; }
 }
-window.addEventListener('resize', resizeMap);
+// The map is fitted again when the window (or the phone's orientation) changes.
+window.addEventListener('resize', () => { resizeMap(); st.view.fitted = false; });
+const mapTools = setupMapTools({ st, $ });
+const L = mapTools.layers;
 
 function fitMap() {
   const m = st.maps.get(st.view.system);
@@ -576,17 +641,21 @@ function draw(now) {
   if (!st.view.fitted) fitMap();
   const t0 = performance.now();
   const s = st.view.system;
+  {
+    const p0 = findData(s, 'Position') ?? findData(s, 'MCL');
+    if (p0 && !isStale(p0, t0)) mapTools.follow(p0.data, canvas);
+  }
   ctx.setTransform(1, 0, 0, 1, 0, 0);
   ctx.fillStyle = '#9e9e9e';
   ctx.fillRect(0, 0, canvas.width, canvas.height);
   const m = st.maps.get(s);
   const k = st.view.scale || 20;
-  if (m) {
+  if (m && L.map) {
     const { width, height, resolution, origin_x, origin_y } = m.meta;
     const [x0, y0] = toPx(origin_x, origin_y + height * resolution);
     ctx.imageSmoothingEnabled = false;
     ctx.drawImage(m.canvas, x0, y0, width * resolution * k, height * resolution * k);
-  } else {
+  } else if (!m) {
     ctx.fillStyle = '#333';
     ctx.font = '14px sans-serif';
     ctx.fillText('no map (yet): rack-gui loads the map named by the robot\'s MCL (or --map)', 20, 30);
@@ -601,7 +670,7 @@ function draw(now) {
     ctx.globalAlpha = stale ? 0.25 : 1;
   };
   const path = findData(s, 'Path');
-  if (path) {
+  if (path && L.path) {
     fade(path);
     const p = path.data;
     ctx.strokeStyle = '#1e88e5';
@@ -620,7 +689,7 @@ function draw(now) {
   const pos = findData(s, 'Position');
   const pose = pos ? pos.data : mcl ? mcl.data : null;
   const scan = findData(s, 'Scan2D');
-  if (scan && pose) {
+  if (scan && pose && L.scan) {
     fade(scan);
     const d = scan.data;
     const c = Math.cos(pose.phi), sn = Math.sin(pose.phi);
@@ -633,7 +702,7 @@ function draw(now) {
     ctx.fill();
   }
   const pilot = findData(s, 'Pilot');
-  if (pilot && pilot.data.mode === 2) {
+  if (pilot && pilot.data.mode === 2 && L.target) {
     fade(pilot);
     const [px, py] = toPx(pilot.data.target_x, pilot.data.target_y);
     ctx.strokeStyle = '#6a1b9a';
@@ -642,27 +711,28 @@ function draw(now) {
     ctx.moveTo(px - 8, py - 8); ctx.lineTo(px + 8, py + 8); ctx.moveTo(px + 8, py - 8); ctx.lineTo(px - 8, py + 8);
     ctx.stroke();
   }
-  if (pose) {
+  if (pose && L.robot) {
     fade(pos ?? mcl);
     drawRobot(pose.x, pose.y, pose.phi, 'rgba(0,137,123,0.55)');
   }
   // Particles and the covariance ellipse on top of the robot: when MCL has converged
   // they lie within its outline.
-  if (mcl) {
+  if (mcl && L.particles) {
     fade(mcl);
-    drawParticles(mcl.data.particle_x, mcl.data.particle_y, mcl.data.shown);
+    drawParticles(mcl.data.particle_x, mcl.data.particle_y, mcl.data.shown, mcl.data.particle_phi);
   }
-  if (pose) {
+  if (pose && L.ellipse) {
     fade(pos ?? mcl);
     const cov = mcl ? [mcl.data.covariance[0], mcl.data.covariance[1], mcl.data.covariance[4]] : [pose.var_x, 0, pose.var_y];
     drawEllipse(pose.x, pose.y, cov);
   }
   const chassis = findData(s, 'Chassis');
-  if (chassis && chassis.data.truth_valid) {
+  if (chassis && chassis.data.truth_valid && L.truth) {
     fade(chassis);
     drawRobot(chassis.data.truth_x, chassis.data.truth_y, chassis.data.truth_phi, 'rgba(0,0,0,0.35)');
   }
   ctx.globalAlpha = 1;
+  mapTools.drawScale(ctx, st.view.scale, canvas.height);
   st.mapStale = staleSince !== null;
   if (staleSince !== null) {
     ctx.fillStyle = 'rgba(239,108,0,0.9)';
@@ -690,13 +760,35 @@ function draw(now) {
 
 const PILOT_STATUS = ['idle', 'driving', 'reached', 'blocked', 'no path', 'preempted', 'no input', 'planning', 'unreachable'];
 
-// All particles in one path and one fill: tens of thousands stay smooth.
-function drawParticles(xs, ys, n) {
-  ctx.fillStyle = 'rgba(230,81,0,0.9)';
-  ctx.beginPath();
+// All particles in one path and one fill (and their headings in one stroke): tens of
+// thousands stay smooth. Each is a 5 px square, big enough to see on a phone; up to
+// 5000 of them get a dark rim and a 9 px line along their heading.
+function drawParticles(xs, ys, n, phis) {
+  const dpr = window.devicePixelRatio || 1;
+  const r = 2.5 * dpr, h = 9 * dpr;
   const k = st.view.scale, ox = st.view.ox, oy = st.view.oy;
-  for (let i = 0; i < n; i++) ctx.rect(ox + xs[i] * k - 1, oy - ys[i] * k - 1, 2, 2);
+  ctx.beginPath();
+  for (let i = 0; i < n; i++) ctx.rect(ox + xs[i] * k - r, oy - ys[i] * k - r, 2 * r, 2 * r);
+  ctx.fillStyle = 'rgba(230,81,0,0.9)';
   ctx.fill();
+  // Rims and headings only for the clouds MCL shows (a few thousand): 50 000 particles
+  // are a solid cloud anyway, and a second pass over them would double the frame.
+  if (n > 5000) { st.particleSizePx = 2 * r / dpr; return; }
+  ctx.strokeStyle = 'rgba(90,30,0,0.8)';
+  ctx.lineWidth = 1;
+  ctx.stroke();
+  if (phis) {
+    ctx.beginPath();
+    for (let i = 0; i < n; i++) {
+      const px = ox + xs[i] * k, py = oy - ys[i] * k;
+      ctx.moveTo(px, py);
+      ctx.lineTo(px + Math.cos(phis[i]) * h, py - Math.sin(phis[i]) * h);
+    }
+    ctx.strokeStyle = 'rgba(230,81,0,0.7)';
+    ctx.lineWidth = 1.5 * dpr;
+    ctx.stroke();
+  }
+  st.particleSizePx = 2 * r / dpr;
 }
 
 // The 2-sigma ellipse of the x/y covariance.
@@ -754,7 +846,10 @@ canvas.addEventListener('pointermove', (e) => {
   if (!drag) return;
   const [px, py] = canvasPoint(e);
   drag.px = px; drag.py = py;
-  if (drag.mode === 'pan') { st.view.ox = drag.ox + px - drag.sx; st.view.oy = drag.oy + py - drag.sy; }
+  if (drag.mode === 'pan') {
+    st.view.ox = drag.ox + px - drag.sx; st.view.oy = drag.oy + py - drag.sy;
+    if (st.view.follow && Math.hypot(px - drag.sx, py - drag.sy) > 5) { st.view.follow = false; $('follow-robot').checked = false; }
+  }
 });
 canvas.addEventListener('pointerup', () => {
   if (!drag) return;
@@ -798,8 +893,9 @@ function joyStop() {
   clearInterval(joy.timer);
   joy.vx = joy.omega = 0;
   $('joystick').classList.remove('active');
-  $('knob').style.left = '55px';
-  $('knob').style.top = '55px';
+  const c0 = (pad.clientWidth - 40) / 2;
+  $('knob').style.left = `${c0}px`;
+  $('knob').style.top = `${c0}px`;
   if (st.view.system !== null) send({ op: 'joystick_release', system: st.view.system });
 }
 const pad = $('joystick');
@@ -811,8 +907,9 @@ function padMove(e) {
   if (n > 1) { dx /= n; dy /= n; }
   joy.vx = -dy * joyMax();
   joy.omega = -dx * 1.0;
-  $('knob').style.left = `${55 + dx * 55}px`;
-  $('knob').style.top = `${55 + dy * 55}px`;
+  const c = (r.width - 40) / 2;
+  $('knob').style.left = `${c + dx * c}px`;
+  $('knob').style.top = `${c + dy * c}px`;
 }
 pad.addEventListener('pointerdown', (e) => { pad.setPointerCapture(e.pointerId); padMove(e); joyStart(); });
 pad.addEventListener('pointermove', (e) => { if (joy.held && !joy.keys.size) padMove(e); });

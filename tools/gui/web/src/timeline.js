@@ -110,7 +110,9 @@ export function setupTimeline() {
     // Time axis (ms since the trace start).
     g.fillStyle = '#263238';
     const span = view.t1 - view.t0;
-    const step = 10 ** Math.floor(Math.log10(span / 5));
+    // 1, 2 or 5 times a power of ten: at most about 10 labels, whatever the span.
+    const p10 = 10 ** Math.floor(Math.log10(span / 10));
+    const step = [1, 2, 5, 10].map((k) => k * p10).find((v) => span / v <= 10) ?? 10 * p10;
     for (let t = Math.ceil(view.t0 / step) * step; t <= view.t1; t += step) {
       const px = x(t);
       g.fillRect(px, 14, 1, 5);
@@ -169,5 +171,7 @@ export function setupTimeline() {
       (s.args.wake_latency_us !== undefined ? `, woke ${s.args.wake_latency_us} us late` : '') : '';
   };
   window.addEventListener('resize', () => { if (document.querySelector('#view-timeline.active')) draw(); });
+  draw.load = load;  // a live trace (main.js: rack-gui's "trace" message)
+  draw.loaded = () => trace;
   return draw;
 }
