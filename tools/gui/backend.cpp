@@ -111,6 +111,42 @@ json param_json(const wire::ParamRecord& p) {
 
 std::string dump(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
 
+// A class description as JSON, for tools that build on rack-gui's protocol (the
+// Foxglove bridge, tools/foxglove, makes each class's JSON schema from it):
+//   {"type":"class","system":0,"class_id":21,"class":"Chassis","impl":"ChassisSim",
+//    "summary":..,"data":{"name":"ChassisData","size":120,"fields":[{"name":"vx",
+//    "kind":"f64","count":1},..]} (null: no samples),"commands":[{"name":"MOVE",
+//    "type":21,"summary":..,"body":{..} or null}],"parameters":[{"name":..,"kind":..,
+//    "unit":..,"min":..,"max":..,"default":..,"doc":..,"choices":[..]}]}
+// Field kinds: i8 u8 bool char i16 u16 i32 u32 i64 u64 f32 f64 (char arrays are strings).
+json type_json(const rack::TypeDescription& t) {
+  static constexpr const char* kKinds[] = {"i8", "u8", "bool", "char", "i16", "u16", "i32", "u32", "i64", "u64", "f32", "f64"};
+  json fields = json::array();
+  for (const auto& f : t.fields) {
+    const auto k = static_cast<std::size_t>(f.kind);
+    fields.push_back({{"name", f.name}, {"kind", k < std::size(kKinds) ? kKinds[k] : "u8"}, {"count", f.count}});
+  }
+  return {{"name", t.name}, {"size", t.size}, {"fields", std::move(fields)}};
+}
+
+std::string class_message(uint8_t system, const rack::ClassDescription& d) {
+  json commands = json::array();
+  for (const auto& c : d.commands) {
+    commands.push_back({{"name", c.name}, {"type", c.type}, {"summary", c.summary},
+                        {"body", c.body ? type_json(*c.body) : json(nullptr)}});
+  }
+  json params = json::array();
+  for (const auto& p : d.parameters) {
+    params.push_back({{"name", p.name}, {"kind", rack::describe(p.kind)}, {"unit", p.unit},
+                      {"min", std::isfinite(p.min) ? json(p.min) : json(nullptr)},
+                      {"max", std::isfinite(p.max) ? json(p.max) : json(nullptr)},
+                      {"default", p.default_value}, {"doc", p.doc}, {"choices", p.choices}});
+  }
+  return dump(json{{"type", "class"}, {"system", system}, {"class_id", d.class_id}, {"class", d.class_name},
+                   {"impl", d.impl}, {"summary", d.summary}, {"data", d.data ? type_json(*d.data) : json(nullptr)},
+                   {"commands", std::move(commands)}, {"parameters", std::move(params)}});
+}
+
 struct Reply {
   tims::MessageHeader header{};
   std::span<const std::byte> body;
@@ -493,6 +529,12 @@ struct Backend::Impl {
       }
       info.desc = std::move(d);
       if (info.desc->data) info.data_fields = info.desc->data->field_table();
+      std::string message = class_message(a.system(), *info.desc);
+      {
+        const std::lock_guard lock(greet_mutex);
+        class_messages[key] = message;
+      }
+      broadcast(std::move(message));
     });
     return nullptr;
   }
@@ -1240,6 +1282,7 @@ struct Backend::Impl {
     send_to(client, dump(json{{"type", "hello"}, {"version", 1}, {"lcm", config.lcm_url}}));
     const std::lock_guard lock(greet_mutex);
     if (!last_components.empty()) send_to(client, last_components);
+    for (const auto& [k, m] : class_messages) send_to(client, m);
     for (const auto& [s, m] : map_messages) send_to(client, m);
     if (!recent_log.empty()) send_to(client, gdos_message(recent_log.begin(), recent_log.end()));
     if (!report_texts.empty()) {
@@ -1278,6 +1321,7 @@ struct Backend::Impl {
   std::mutex greet_mutex;  // worker and GDOS thread -> server thread (new clients)
   std::string last_components;
   std::map<uint8_t, std::string> map_messages;
+  std::map<uint32_t, std::string> class_messages;  // "class" messages by system and class id
   std::deque<std::string> recent_log;
   std::map<std::string, std::string> report_texts;  // report file -> rack-backtrace's output
 
