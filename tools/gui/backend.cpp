@@ -940,7 +940,41 @@ struct Backend::Impl {
         result(client, r, true, "joystick released: robot stopped");
         break;
       }
+      case Op::kCommand: class_command(client, r); break;
     }
+  }
+
+  // A class command by name (Foxglove services, rack-foxglove's player): the body is
+  // encoded against the class description's type for it and sent only when it fits.
+  void class_command(uint64_t client, const Request& r) {
+    const Address a = r.component;
+    const auto it = class_infos.find(a.raw() & 0xFFFF0000u);
+    if (it == class_infos.end() || !it->second.desc) {
+      result(client, r, false, address_text(a) + ": its class description is not known (yet): no command sent");
+      return;
+    }
+    const rack::ClassDescription& d = *it->second.desc;
+    const rack::CommandDescription* c = d.find_command(r.command);
+    if (c == nullptr) {
+      std::string known;
+      for (const auto& k : d.commands) known += (known.empty() ? "" : ", ") + k.name;
+      result(client, r, false, address_text(a) + ": class " + d.class_name + " has no command " + r.command +
+                                   " (it has: " + (known.empty() ? "none" : known) + ")");
+      return;
+    }
+    std::vector<std::byte> body;
+    const std::string why = encode_command_body(r.body, c->body ? &*c->body : nullptr, body);
+    if (!why.empty()) {
+      result(client, r, false, address_text(a) + ": " + r.command + ": " + why + " (not sent)");
+      return;
+    }
+    const tims::ConstBuffer part{body.data(), body.size()};
+    const std::string name = r.command;
+    request(a, c->type, std::span<const tims::ConstBuffer>(&part, body.empty() ? 0 : 1), default_timeout(),
+            [this, client, r, a, name](const Reply* rep) {
+              const bool ok = rep != nullptr && rep->header.type == msg::kOk;
+              result(client, r, ok, ok ? address_text(a) + ": " + name + " done" : failure(rep, name, a));
+            });
   }
 
   void all_off_step(uint64_t client, const Request& r, std::shared_ptr<std::vector<Address>> order, std::size_t i,

@@ -13,6 +13,11 @@
 //   {"op":"joystick","system":0,"vx":0.3,"omega":0.0}        become the active pilot, MOVE
 //   {"op":"joystick_release","system":0}                     MOVE 0 (dead-man released)
 //   {"op":"follow_path","system":0}                          hand the chassis back to the Pilot
+//   {"op":"command","component":"MCL(0/0)","command":"INIT","body":{"x":4.0,"y":7.2}}
+//        any command of the component's class by its name in the class description, the
+//        body's fields by name (a field left out is 0; arrays as JSON arrays, char
+//        arrays as strings), checked against the description's field kinds and ranges
+//        (encode_command_body) before anything is sent
 //
 // Anything else is refused with a ParseError saying what and where (a byte offset for
 // JSON syntax, the key otherwise) and why (Refusal, which the server counts); the
@@ -38,9 +43,11 @@
 #include <string>
 #include <string_view>
 #include <variant>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "rack/core/class_description.h"
 #include "rack/core/wire.h"
 #include "rack/tims/address.h"
 
@@ -56,6 +63,7 @@ enum class Op {
   kJoystick,
   kJoystickRelease,
   kFollowPath,
+  kCommand,
 };
 [[nodiscard]] const char* op_name(Op op) noexcept;
 
@@ -80,6 +88,8 @@ struct Request {
   nlohmann::json param_value;  // set_param: checked against the kind later
   double x = 0.0, y = 0.0, phi = 0.0;  // set_destination, set_pose
   double vx = 0.0, omega = 0.0;        // joystick
+  std::string command;          // command: the class command's name (upper case)
+  nlohmann::json body;          // command: an object of field values, checked later
 };
 
 // Why a client message was refused (counted per reason by the server).
@@ -111,6 +121,18 @@ struct ParseError {
 // (int: an integer; float: a finite number; bool: true/false; string: a string shorter
 // than wire::kParamStringLen). Returns the problem, or "" when it was set.
 [[nodiscard]] std::string check_param_value(const nlohmann::json& value, wire::ParamRecord& record);
+
+// Longest class command name a client may give (the descriptions' names are shorter).
+inline constexpr std::size_t kMaxCommandName = 31;
+
+// A command's body from the JSON object of a "command" request: `out` becomes
+// `type.size` bytes (host byte order), zero but for the fields `body` names; each value
+// must fit its field (rack::set_field_from_text: kind, range, array length, string
+// length). Returns the problem naming the field ("field 'x': ..."), or "" when `out`
+// holds the body. `type` nullptr: the command takes no body, and `body` must be empty.
+// Never throws.
+[[nodiscard]] std::string encode_command_body(const nlohmann::json& body, const rack::TypeDescription* type,
+                                              std::vector<std::byte>& out) noexcept;
 
 // Server -> client helpers.
 //
