@@ -7,11 +7,13 @@ import { WebSocket, WebSocketServer } from 'ws';
 import wsProtocol from '@foxglove/ws-protocol';
 
 import { Converter, kJsonEncoding, kSchemaEncoding } from './lib/convert.mjs';
+import { play } from './lib/player.mjs';
 import { Recorder } from './lib/recorder.mjs';
 
 const { FoxgloveServer } = wsProtocol;
 
 const kHelp = `usage: rack-foxglove --gui URL [options]
+       rack-foxglove play FILE --gui URL [play options]
 
 RACK-RT's robots in Foxglove, and recorded as MCAP. Takes everything from rack-gui
 (start rack-gui on the robots' network first) over its WebSocket.
@@ -47,12 +49,41 @@ Parameters: "<address>.<parameter>", e.g. "Pilot(0/0).vx_max" (get and set).
 Data arrive at rack-gui's poll rate (5 Hz for navigation classes, 1 Hz for the others),
 not at every sample: rack-gui asks each component for its newest sample.
 
-Exit status: 0 after SIGINT, SIGTERM or --duration; 1 when rack-gui cannot be reached
-or the arguments are wrong; 2 when the recording cannot be written.`;
+play FILE: plays an MCAP recording of rack-foxglove back into a running host (through
+rack-gui): each recorded component channel /rack/<system>/<name> goes to the component
+<name> of that system, which must be of a playback class standing in for the recorded
+one (host file: class Scan2dPlayback where Scan2D was; configs/replay_mcap_mcl.yaml).
+Every sample keeps its recorded time.
+  --gui URL            rack-gui's WebSocket on the host's network (required)
+  --speed S            1: as recorded (default); 2: twice as fast; 0: each sample as soon
+                       as the previous one was acknowledged
+  --topics REGEX       play only the channels REGEX matches, and wait until every one of
+                       them has its playback component (default: every channel whose
+                       component is a playback class)
+  --init-mcl NAME      first INIT the MCL component NAME at the recorded MCL pose (the
+                       channel /rack/<system>/NAME) of the first played sample's time
+  --init-sigma-xy M    its spread (default 0.1 m)
+  --init-sigma-phi R   (default 0.05 rad)
+  --wait S             wait this long for the host's components (default 30 s)
+
+Exit status: 0 after SIGINT, SIGTERM or --duration (play: every sample acknowledged); 1
+when rack-gui cannot be reached, the arguments are wrong or (play) a sample was refused;
+2 when the recording cannot be written or read.`;
 
 function parseArgs(argv) {
   const o = { gui: '', port: 8765, host: '127.0.0.1', server: true, record: '', topics: null,
-              compression: 'zstd', duration: 0 };
+              compression: 'zstd', duration: 0, play: '', speed: 1, initMcl: '', sigmaXy: 0.1, sigmaPhi: 0.05, waitS: 30 };
+  const positive = (v, name, min) => {
+    const n = Number(v);
+    if (!Number.isFinite(n) || n < min) throw new Error(`${name} ${v}: expected a number >= ${min}`);
+    return n;
+  };
+  if (argv[0] === 'play') {
+    if (argv.length < 2 || argv[1].startsWith('-')) throw new Error('play needs the MCAP file (see --help)');
+    o.play = argv[1];
+    o.server = false;
+    argv = argv.slice(2);
+  }
   const value = (i, name) => {
     if (i + 1 >= argv.length) throw new Error(`${name} needs a value`);
     return argv[i + 1];
@@ -86,11 +117,17 @@ function parseArgs(argv) {
         if (!Number.isFinite(o.duration) || o.duration <= 0) throw new Error(`--duration ${v}: expected seconds > 0`);
         break;
       }
+      case '--speed': o.speed = positive(value(i++, a), a, 0); break;
+      case '--init-mcl': o.initMcl = value(i++, a); break;
+      case '--init-sigma-xy': o.sigmaXy = positive(value(i++, a), a, 0); break;
+      case '--init-sigma-phi': o.sigmaPhi = positive(value(i++, a), a, 0); break;
+      case '--wait': o.waitS = positive(value(i++, a), a, 0); break;
       default: throw new Error(`unknown argument '${a}' (see --help)`);
     }
   }
   if (!o.help && !o.gui) throw new Error('--gui URL is required (see --help)');
-  if (!o.help && !o.server && !o.record) throw new Error('--no-server without --record does nothing');
+  if (!o.help && !o.play && !o.server && !o.record) throw new Error('--no-server without --record does nothing');
+  if (o.play && (o.record || o.duration)) throw new Error('play takes no --record or --duration');
   return o;
 }
 
@@ -330,6 +367,19 @@ async function main() {
     console.error(`rack-foxglove: cannot reach rack-gui at ${e.message}`);
     if (recorder) await recorder.close();
     return 1;
+  }
+  if (o.play) {
+    const log = (t) => console.error(`rack-foxglove: ${t}`);
+    try {
+      const r = await play({ file: o.play, speed: o.speed, topics: o.topics, initMcl: o.initMcl, sigmaXy: o.sigmaXy,
+                             sigmaPhi: o.sigmaPhi, waitS: o.waitS }, link, converter, log);
+      link.ws.close();
+      return r.refused === 0 ? 0 : 1;
+    } catch (e) {
+      log(`play ${o.play}: ${e.message}`);
+      link.ws.close();
+      return e.code === 'ENOENT' || /MCAP|magic|record/i.test(e.message) ? 2 : 1;
+    }
   }
   if (o.server) {
     const server = new FoxgloveServer({
