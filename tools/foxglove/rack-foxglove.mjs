@@ -6,7 +6,7 @@
 import { WebSocket, WebSocketServer } from 'ws';
 import wsProtocol from '@foxglove/ws-protocol';
 
-import { Converter, kJsonEncoding, kSchemaEncoding } from './lib/convert.mjs';
+import { Converter, kJsonEncoding, kSchemaEncoding, typeSchema } from './lib/convert.mjs';
 import { play } from './lib/player.mjs';
 import { Recorder } from './lib/recorder.mjs';
 
@@ -43,7 +43,10 @@ Channels (JSON encoding, JSON schemas):
   /rack/<system>/tf                Position as foxglove.FrameTransforms (map -> base_link)
   /rack/gdos                       every host's GDOS log as foxglove.Log
 Services (JSON): /rack/<system>/<name>/switch {"on":true}, /rack/<system>/all_off {},
-  /rack/<system>/set_destination {"x":..,"y":..}, /rack/<system>/set_pose {"x":..,"y":..,"phi":..}
+  /rack/<system>/set_destination {"x":..,"y":..}, /rack/<system>/set_pose {"x":..,"y":..,"phi":..},
+  and every class command: /rack/<system>/<name>/<COMMAND> with its body's fields, e.g.
+  /rack/0/mcl/INIT {"x":4,"y":7.2,"phi":0,"sigma_xy":0.2,"sigma_phi":0.1}. Each answers
+  {"ok":..,"text":..}; a value that does not fit its field is refused, nothing sent.
 Parameters: "<address>.<parameter>", e.g. "Pilot(0/0).vx_max" (get and set).
 
 Data arrive at rack-gui's poll rate (5 Hz for navigation classes, 1 Hz for the others),
@@ -256,6 +259,14 @@ class Bridge {
       systems.add(c.system);
       this.addService(`/rack/${c.system}/${c.name}/switch`, kObject({ on: { type: 'boolean' } }, ['on']),
                       (r) => this.link.request({ op: 'switch', component: c.address, on: r.on === true }));
+      // The class's commands (from its description), the body's fields as the request.
+      const cls = this.converter.classOf(c.system, c.class);
+      for (const k of cls?.commands ?? []) {
+        const schema = k.body ? typeSchema(`${cls.class}.${k.name}`, k.body) : { type: 'object', properties: {} };
+        schema.description = k.summary;
+        this.addService(`/rack/${c.system}/${c.name}/${k.name}`, JSON.stringify(schema),
+                        (r) => this.link.request({ op: 'command', component: c.address, command: k.name, body: r }));
+      }
     }
     for (const s of systems) {
       this.addService(`/rack/${s}/all_off`, kObject({}, []), () => this.link.request({ op: 'all_off', system: s }, 30000));
@@ -358,7 +369,7 @@ async function main() {
       if (bridge) bridge.publish(item);
       if (recorder) recorder.add(item);
     }
-    if (bridge && m?.type === 'components') bridge.updateServices();
+    if (bridge && (m?.type === 'components' || m?.type === 'class')) bridge.updateServices();
   };
   link = new GuiLink(o.gui, onMessage);
   try {

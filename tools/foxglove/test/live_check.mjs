@@ -53,6 +53,7 @@ const bySub = new Map();     // subscription id -> channel
 const services = new Map();  // name -> service
 const seen = new Map();      // topic -> messages checked
 let serverInfo = null;
+let lastMclPose = { x: 4.0, y: 7.2, phi: 0.0 };
 let resolveDone;
 const done = new Promise((r) => { resolveDone = r; });
 const pendingCalls = new Map();
@@ -79,6 +80,7 @@ client.on('message', ({ subscriptionId, timestamp, data }) => {
   } catch (e) {
     return fail(`${c.topic}: not JSON: ${e.message}`);
   }
+  if (c.topic === '/rack/0/mcl') lastMclPose = m.data;
   const n = (seen.get(c.topic) ?? 0) + 1;
   seen.set(c.topic, n);
   if (n > 3) return undefined;  // the first few of each are checked in full
@@ -87,7 +89,7 @@ client.on('message', ({ subscriptionId, timestamp, data }) => {
   const want = expected[c.topic];
   if (want && !want[1](m)) fail(`${c.topic}: unexpected content ${JSON.stringify(m).slice(0, 300)}`);
   if (typeof timestamp !== 'bigint') fail(`${c.topic}: timestamp ${typeof timestamp}`);
-  if (Object.keys(expected).every((t) => seen.has(t)) && services.has('/rack/0/chassis/switch')) resolveDone();
+  if (Object.keys(expected).every((t) => seen.has(t)) && services.has('/rack/0/chassis/switch') && services.has('/rack/0/mcl/INIT')) resolveDone();
   return undefined;
 });
 client.on('serviceCallResponse', (r) => {
@@ -149,6 +151,20 @@ if (why === 'timeout') {
   const far = await call('/rack/0/set_destination', { x: 1e9, y: 0 });
   if (far.response?.ok === false) log(`ok set_destination out of range refused: ${far.response.text}`);
   else fail(`set_destination x=1e9: ${JSON.stringify(far)}`);
+  // A class command from the class description (MCL's INIT, at the pose MCL has now),
+  // and one whose body names a field INIT does not have: refused, nothing sent.
+  if (!services.has('/rack/0/mcl/INIT')) {
+    fail(`no service /rack/0/mcl/INIT: ${[...services.keys()].join(', ')}`);
+  } else {
+    const schema = JSON.parse(services.get('/rack/0/mcl/INIT').request?.schema ?? '{}');
+    if (!schema.properties?.sigma_xy) fail(`/rack/0/mcl/INIT request schema ${JSON.stringify(schema)}`);
+    const init = await call('/rack/0/mcl/INIT', { x: lastMclPose.x, y: lastMclPose.y, phi: lastMclPose.phi, sigma_xy: 0.1, sigma_phi: 0.05 });
+    if (init.response?.ok === true) log(`ok /rack/0/mcl/INIT: ${init.response.text}`);
+    else fail(`/rack/0/mcl/INIT: ${JSON.stringify(init)}`);
+    const wrong = await call('/rack/0/mcl/INIT', { speed: 1 });
+    if (wrong.response?.ok === false && wrong.response.text.includes("field 'speed'")) log(`ok INIT with an unknown field refused: ${wrong.response.text}`);
+    else fail(`/rack/0/mcl/INIT {speed}: ${JSON.stringify(wrong)}`);
+  }
   // Parameters: the host file's value, then set and read back.
   const got = await params(['Chassis(0/0).vx_max'], 'get1');
   const vx = got?.find((p) => p.name === 'Chassis(0/0).vx_max');
