@@ -21,7 +21,8 @@
 // rack_gui_backend)) and run by hand, from the repository root, as one command line:
 //   clang++-14 -std=c++20 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
 //     -Itools/gui -Itims/include -Icore/include -Icore/rt/include
-//     tests/fuzz/fuzz_gui_ws.cpp tools/gui/gui_protocol.cpp tims/src/address.cpp -o /tmp/fuzz_gui_ws
+//     tests/fuzz/fuzz_gui_ws.cpp tools/gui/gui_protocol.cpp
+//     tims/src/address.cpp core/src/payload_json.cpp core/src/class_description.cpp -o /tmp/fuzz_gui_ws
 //   mkdir -p /tmp/gui_ws_corpus
 //   /tmp/fuzz_gui_ws -max_len=70000 -max_total_time=300 /tmp/gui_ws_corpus tests/fuzz/corpus/gui_ws
 #include <cmath>

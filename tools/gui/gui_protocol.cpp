@@ -334,7 +334,10 @@ std::string encode_command_body(const json& body, const rack::TypeDescription* t
     }
     const auto fields = type->field_table();
     out.assign(type->size, std::byte{0});
-    for (const auto& [key, value] : body.items()) {
+    for (const auto& item : body.items()) {
+      // (not a structured binding: clang 14, the fuzzing compiler, cannot capture one)
+      const std::string& key = item.key();
+      const json& value = item.value();
       const auto f = std::find_if(fields.begin(), fields.end(), [&key](const tims::FieldDesc& d) { return key == d.name; });
       if (f == fields.end()) return "field '" + quote(key) + "': " + type->name + " has no such field";
       const auto text = field_text(value);
