@@ -125,10 +125,16 @@ TEST_F(FoxgloveTest, FoxgloveClientReceivesTypedChannelsCallsServicesAndSetsPara
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-foxglove:\n" << bridge.err();
   EXPECT_NE(r.out.find("all checks passed"), std::string::npos) << r.out;
 
-  // The bridge outlives its clients and stops cleanly on SIGTERM.
+  // The bridge outlives its clients and stops cleanly on SIGTERM, with the hostile
+  // client's malformed messages (not JSON, a truncated and an unknown binary one) counted.
   ASSERT_TRUE(bridge.running()) << bridge.err();
   bridge.signal(SIGTERM);
   EXPECT_EQ(bridge.wait_exit(10s), std::optional<int>(0)) << bridge.err();
+  const std::string err = bridge.err();
+  const auto at = err.find(" malformed Foxglove client message(s) refused");
+  ASSERT_NE(at, std::string::npos) << err;
+  const auto start = err.rfind(' ', at - 1) + 1;
+  EXPECT_GE(std::stoi(err.substr(start, at - start)), 3) << err;
 }
 
 TEST_F(FoxgloveTest, RecorderWritesMcapThatTheMcapReaderChecksRecordByRecord) {

@@ -3,11 +3,13 @@
 // dashboard's protocol: tools/gui/gui_protocol.h and backend.h), serves the Foxglove
 // WebSocket protocol (@foxglove/ws-protocol) and/or records MCAP (@mcap/core). See
 // --help and README.md ("Foxglove and MCAP").
+import fs from 'node:fs';
+
 import { WebSocket, WebSocketServer } from 'ws';
 import wsProtocol from '@foxglove/ws-protocol';
 
 import { Converter, kJsonEncoding, kSchemaEncoding, typeSchema } from './lib/convert.mjs';
-import { play } from './lib/player.mjs';
+import { openMcap, play } from './lib/player.mjs';
 import { Recorder } from './lib/recorder.mjs';
 
 const { FoxgloveServer } = wsProtocol;
@@ -30,6 +32,7 @@ RACK-RT's robots in Foxglove, and recorded as MCAP. Takes everything from rack-g
   --compression C      chunk compression: zstd (default) or none
   --duration S         stop after S seconds (default: run until SIGINT or SIGTERM)
   -h, --help           this text
+  --version            rack-foxglove's version and its protocol and MCAP libraries'
 
 Channels (JSON encoding, JSON schemas):
   /rack/<system>/<name>            every component's data; schema rack.<Class> from its
@@ -95,6 +98,7 @@ function parseArgs(argv) {
     const a = argv[i];
     switch (a) {
       case '-h': case '--help': o.help = true; break;
+      case '--version': o.version = true; break;
       case '--gui': o.gui = value(i++, a); break;
       case '--port': {
         const v = value(i++, a);
@@ -128,6 +132,7 @@ function parseArgs(argv) {
       default: throw new Error(`unknown argument '${a}' (see --help)`);
     }
   }
+  if (o.version) return o;
   if (!o.help && !o.gui) throw new Error('--gui URL is required (see --help)');
   if (!o.help && !o.play && !o.server && !o.record) throw new Error('--no-server without --record does nothing');
   if (o.play && (o.record || o.duration)) throw new Error('play takes no --record or --duration');
@@ -222,7 +227,18 @@ class Bridge {
     server.on('serviceCallRequest', (req, conn) => this.call(req, conn));
     server.on('getParameters', (req, conn) => this.getParameters(req, conn));
     server.on('setParameters', (req, conn) => this.setParameters(req, conn));
-    server.on('error', (e) => console.error(`rack-foxglove: Foxglove client: ${e.message}`));
+    // A malformed message from a Foxglove client (the library refuses it and goes on):
+    // counted, logged at most once a second, the count printed at exit.
+    this.malformed = 0;
+    this.lastLog = 0;
+    server.on('error', (e) => {
+      this.malformed += 1;
+      const now = Date.now();
+      if (now - this.lastLog >= 1000) {
+        this.lastLog = now;
+        console.error(`rack-foxglove: refused a Foxglove client's message: ${e.message} (${this.malformed} so far)`);
+      }
+    });
   }
 
   publish(item) {
@@ -345,7 +361,22 @@ async function main() {
     console.log(kHelp);
     return 0;
   }
+  if (o.version) {
+    const version = (rel) => JSON.parse(fs.readFileSync(new URL(rel, import.meta.url), 'utf8')).version;
+    console.log(`rack-foxglove ${version('./package.json')} (@foxglove/ws-protocol ${version('./node_modules/@foxglove/ws-protocol/package.json')}, ` +
+                `@mcap/core ${version('./node_modules/@mcap/core/package.json')})`);
+    return 0;
+  }
   const converter = new Converter();
+  let reader = null;
+  if (o.play) {
+    try {
+      reader = await openMcap(o.play);
+    } catch (e) {
+      console.error(`rack-foxglove: play ${o.play}: not a readable MCAP file: ${e.message}`);
+      return 2;
+    }
+  }
   let recorder = null;
   if (o.record) {
     try {
@@ -382,14 +413,14 @@ async function main() {
   if (o.play) {
     const log = (t) => console.error(`rack-foxglove: ${t}`);
     try {
-      const r = await play({ file: o.play, speed: o.speed, topics: o.topics, initMcl: o.initMcl, sigmaXy: o.sigmaXy,
+      const r = await play({ reader, speed: o.speed, topics: o.topics, initMcl: o.initMcl, sigmaXy: o.sigmaXy,
                              sigmaPhi: o.sigmaPhi, waitS: o.waitS }, link, converter, log);
       link.ws.close();
       return r.refused === 0 ? 0 : 1;
     } catch (e) {
       log(`play ${o.play}: ${e.message}`);
       link.ws.close();
-      return e.code === 'ENOENT' || /MCAP|magic|record/i.test(e.message) ? 2 : 1;
+      return 1;
     }
   }
   if (o.server) {
@@ -430,6 +461,7 @@ async function main() {
           return 2;
         }
       }
+      if (bridge) console.error(`rack-foxglove: ${bridge.malformed} malformed Foxglove client message(s) refused`);
       console.error(`rack-foxglove: stopped (${why})`);
       return 0;
     })();

@@ -26,10 +26,10 @@ export async function openMcap(path) {
 
 const sleep = (ms) => new Promise((r) => { setTimeout(r, ms); });
 
-// options: {file, speed, topics (RegExp|null), initMcl (component name|''), sigmaXy,
+// options: {reader (openMcap's), speed, topics (RegExp|null), initMcl (component name|''), sigmaXy,
 //           sigmaPhi, waitS}; link: a connected GuiLink; converter: its Converter.
 export async function play(options, link, converter, log) {
-  const reader = await openMcap(options.file);
+  const { reader } = options;
   // The component channels: /rack/<system>/<name> with a rack.<Class> schema.
   const channels = new Map();  // channel id -> {topic, system, name}
   for (const [id, c] of reader.channelsById) {

@@ -165,6 +165,40 @@ if (why === 'timeout') {
     if (wrong.response?.ok === false && wrong.response.text.includes("field 'speed'")) log(`ok INIT with an unknown field refused: ${wrong.response.text}`);
     else fail(`/rack/0/mcl/INIT {speed}: ${JSON.stringify(wrong)}`);
   }
+  // Hostile input from another client: not JSON, a subscription to no channel, a
+  // truncated and an unknown binary message, a parameter of the wrong type. Each is
+  // refused (statuses come back), and the bridge goes on serving this client.
+  const statuses = [];
+  await new Promise((resolve) => {
+    const raw = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
+    raw.on('open', () => {
+      raw.send('{not json');
+      raw.send(JSON.stringify({ op: 'subscribe', subscriptions: [{ id: 1, channelId: 999999 }] }));
+      raw.send(Buffer.from([2, 0, 0, 0, 0, 1, 2]));
+      raw.send(Buffer.from([9, 9, 9]));
+      raw.send(JSON.stringify({ op: 'setParameters', parameters: [{ name: 'Pilot(0/0).vx_max', value: 'fast' }], id: 'bad' }));
+    });
+    raw.on('message', (d, binary) => {
+      if (binary) return;
+      const m = JSON.parse(d.toString());
+      if (m.op === 'status') statuses.push(m.message);
+      if (m.op === 'parameterValues' && m.id === 'bad') {
+        raw.close();
+        resolve();
+      }
+    });
+    setTimeout(resolve, 10000);
+  });
+  if (statuses.some((t) => t.includes("'vx_max' (float): expected a number")) && statuses.some((t) => t.includes('999999'))) {
+    log(`ok hostile client refused with ${statuses.length} statuses`);
+  } else {
+    fail(`hostile client: statuses ${JSON.stringify(statuses)}`);
+  }
+  const countBefore = [...seen.values()].reduce((a, b) => a + b, 0);
+  await new Promise((r) => { setTimeout(r, 1500); });
+  const countAfter = [...seen.values()].reduce((a, b) => a + b, 0);
+  if (countAfter > countBefore) log(`ok still served after it: ${countAfter - countBefore} messages in 1.5 s`);
+  else fail('no message after the hostile client');
   // Parameters: the host file's value, then set and read back.
   const got = await params(['Chassis(0/0).vx_max'], 'get1');
   const vx = got?.find((p) => p.name === 'Chassis(0/0).vx_max');
