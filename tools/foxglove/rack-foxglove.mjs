@@ -372,6 +372,7 @@ async function main() {
   if (o.play) {
     try {
       reader = await openMcap(o.play);
+      if (reader.truncated) console.error(`rack-foxglove: play ${o.play}: ${reader.truncated}`);
     } catch (e) {
       console.error(`rack-foxglove: play ${o.play}: not a readable MCAP file: ${e.message}`);
       return 2;

@@ -8,20 +8,59 @@
 // A recorded message that does not decode, or that the host refuses, is counted and
 // reported (the first few with their reason), and playing goes on.
 import fs from 'node:fs';
-import { McapIndexedReader } from '@mcap/core';
+import { McapIndexedReader, McapStreamReader, hasMcapPrefix } from '@mcap/core';
 import zstd from '@foxglove/wasm-zstd';
 
+// A recording's reader: @mcap/core's indexed reader, or, for a file without its summary
+// section (a recorder that was killed: rack-foxglove writes the summary when it stops),
+// every complete record read in order with the stream reader, as far as the file is
+// whole (the reader's `truncated` then says where it ends).
 export async function openMcap(path) {
   await zstd.isLoaded;
   const bytes = new Uint8Array(fs.readFileSync(path));
+  const decompressHandlers = { zstd: (data, size) => zstd.decompress(data, Number(size)) };
   const readable = {
     size: async () => BigInt(bytes.length),
     read: async (offset, length) => bytes.subarray(Number(offset), Number(offset + length)),
   };
-  return McapIndexedReader.Initialize({
-    readable,
-    decompressHandlers: { zstd: (data, size) => zstd.decompress(data, Number(size)) },
-  });
+  try {
+    return await McapIndexedReader.Initialize({ readable, decompressHandlers });
+  } catch (indexed) {
+    if (!hasMcapPrefix(new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength))) throw indexed;
+    return streamedReader(bytes, decompressHandlers, indexed.message);
+  }
+}
+
+function streamedReader(bytes, decompressHandlers, why) {
+  const stream = new McapStreamReader({ decompressHandlers, validateCrcs: true });
+  stream.append(bytes);
+  const schemasById = new Map();
+  const channelsById = new Map();
+  const messages = [];
+  let truncated = '';
+  try {
+    for (let r; (r = stream.nextRecord());) {
+      if (r.type === 'Schema') schemasById.set(r.id, r);
+      else if (r.type === 'Channel') channelsById.set(r.id, r);
+      else if (r.type === 'Message') messages.push(r);
+    }
+    if (!stream.done()) truncated = `the last ${stream.bytesRemaining()} bytes are an incomplete record`;
+  } catch (e) {
+    truncated = e.message;
+  }
+  if (channelsById.size === 0) throw new Error(`${why}; and no channel could be read record by record`);
+  messages.sort((a, b) => (a.logTime < b.logTime ? -1 : a.logTime > b.logTime ? 1 : 0));
+  return {
+    schemasById,
+    channelsById,
+    statistics: undefined,
+    truncated: `no summary section (${bytes.length} bytes without a footer: the recorder did not stop cleanly?); ` +
+               `read record by record${truncated ? `: ${truncated}` : ''}`,
+    async *readMessages({ topics } = {}) {
+      const ids = topics ? new Set([...channelsById.values()].filter((c) => topics.includes(c.topic)).map((c) => c.id)) : null;
+      for (const m of messages) if (!ids || ids.has(m.channelId)) yield m;
+    },
+  };
 }
 
 const sleep = (ms) => new Promise((r) => { setTimeout(r, ms); });
