@@ -70,4 +70,8 @@ cmake --build "$build" -j"$(nproc)"
 # rack-gui's front end (tools/gui/web): packages pinned by package-lock.json, built into
 # tools/gui/web/dist, which rack-gui serves (nothing is loaded from the internet at run time).
 (cd tools/gui/web && npm ci --no-audit --no-fund && npm run build)
+# rack-foxglove (tools/foxglove): the Foxglove WebSocket bridge and MCAP recorder and
+# player, on npm's maintained packages (@foxglove/ws-protocol, @mcap/core, ...), pinned
+# by its package-lock.json.
+(cd tools/foxglove && npm ci --no-audit --no-fund)
 echo "setup: built in $build/"

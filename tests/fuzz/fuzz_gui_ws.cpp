@@ -12,13 +12,17 @@
 //    message is valid JSON;
 //  - a set_param value, checked against every parameter kind (check_param_value), is
 //    either refused with a reason or stored within the record (NUL-terminated text,
-//    finite float).
+//    finite float);
+//  - a command body (encode_command_body) against a type with every field kind: refused
+//    with a bounded reason, or exactly the type's size; against no type, accepted only
+//    when empty.
 //
 // Build (until tests/fuzz/CMakeLists.txt lists it: rack_fuzz_harness(gui_ws LIBRARIES
 // rack_gui_backend)) and run by hand, from the repository root, as one command line:
 //   clang++-14 -std=c++20 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
 //     -Itools/gui -Itims/include -Icore/include -Icore/rt/include
-//     tests/fuzz/fuzz_gui_ws.cpp tools/gui/gui_protocol.cpp tims/src/address.cpp -o /tmp/fuzz_gui_ws
+//     tests/fuzz/fuzz_gui_ws.cpp tools/gui/gui_protocol.cpp
+//     tims/src/address.cpp core/src/payload_json.cpp core/src/class_description.cpp -o /tmp/fuzz_gui_ws
 //   mkdir -p /tmp/gui_ws_corpus
 //   /tmp/fuzz_gui_ws -max_len=70000 -max_total_time=300 /tmp/gui_ws_corpus tests/fuzz/corpus/gui_ws
 #include <cmath>
@@ -30,6 +34,7 @@
 #include <string>
 #include <string_view>
 #include <variant>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -48,6 +53,35 @@ namespace {
       std::abort();                                                                  \
     }                                                                                \
   } while (0)
+
+// A command body type with a field of every kind (scalars, an array, a text).
+const rack::TypeDescription& command_type() {
+  static const rack::TypeDescription kType = [] {
+    rack::TypeDescription t;
+    t.name = "FuzzBody";
+    using K = rack::tims::FieldKind;
+    uint32_t offset = 0;
+    const auto add = [&](const char* name, K kind, uint32_t count) {
+      t.fields.push_back({name, kind, offset, count});
+      offset += rack::tims::field_kind_size(kind) * count;
+    };
+    add("f64", K::kF64, 1);
+    add("i64", K::kI64, 1);
+    add("u64", K::kU64, 1);
+    add("f32s", K::kF32, 8);
+    add("i32", K::kI32, 1);
+    add("u32", K::kU32, 1);
+    add("i16", K::kI16, 1);
+    add("u16", K::kU16, 1);
+    add("i8", K::kI8, 1);
+    add("u8", K::kU8, 1);
+    add("flag", K::kBool, 1);
+    add("text", K::kChar, 16);
+    t.size = offset;
+    return t;
+  }();
+  return kType;
+}
 
 bool within(double v, double limit) { return std::isfinite(v) && std::fabs(v) <= limit; }
 
@@ -119,6 +153,20 @@ void check_request(const gui::Request& r) {
       GUI_WS_CHECK(r.duration_s > 0.0 && r.duration_s <= gui::kMaxTraceSeconds);
       GUI_WS_CHECK(r.host.size() <= gui::kMaxFieldName);
       break;
+    case gui::Op::kCommandJson: {
+      GUI_WS_CHECK(r.component.mailbox() == 0);
+      GUI_WS_CHECK(!r.command.empty() && r.command.size() <= gui::kMaxCommandName);
+      GUI_WS_CHECK(r.body.is_object());
+      // The body against a type with every kind of field, and against none: refused
+      // with a reason or encoded to exactly the type's size.
+      std::vector<std::byte> out;
+      const std::string why = gui::encode_command_body(r.body, &command_type(), out);
+      GUI_WS_CHECK(why.size() <= 1024);
+      if (why.empty()) GUI_WS_CHECK(out.size() == command_type().size);
+      const std::string none = gui::encode_command_body(r.body, nullptr, out);
+      GUI_WS_CHECK(none.empty() == r.body.empty());
+      break;
+    }
   }
   GUI_WS_CHECK(r.system <= 254);
   GUI_WS_CHECK(nlohmann::json::accept(gui::result_message(r.id, r.op, true, "done")));

@@ -354,5 +354,53 @@ TEST(GuiProtocolTest, ArbitraryBytesNeverThrowAndAlwaysGiveAnAnswer) {
   }
 }
 
+TEST(GuiProtocolTest, CommandOpTakesANameAndAnObjectBody) {
+  const auto r = ok(R"j({"op":"command_json","component":"MCL(0/0)","command":"INIT","body":{"x":4,"y":7.2},"id":3})j");
+  EXPECT_EQ(r.op, Op::kCommandJson);
+  EXPECT_EQ(r.command, "INIT");
+  EXPECT_EQ(r.body.at("y").get<double>(), 7.2);
+  EXPECT_NE(refused(R"j({"op":"command_json","component":"MCL(0/0)","command":"init","body":{}})j").find("not a command name"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"command_json","component":"MCL(0/0)","command":"","body":{}})j").find("not a command name"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"command_json","component":"MCL(0/0)","command":"INIT","body":[1]})j").find("key 'body'"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"command_json","component":"MCL(0/0)","command":"INIT"})j").find("missing key 'body'"),
+            std::string::npos);
+}
+
+TEST(GuiProtocolTest, CommandBodyIsEncodedOnlyWhenEveryFieldFits) {
+  TypeDescription t;
+  t.name = "Body";
+  t.fields = {{"x", tims::FieldKind::kF64, 0, 1}, {"n", tims::FieldKind::kU8, 8, 1},
+              {"v", tims::FieldKind::kF32, 12, 3}, {"label", tims::FieldKind::kChar, 24, 8}};
+  t.size = 32;
+  std::vector<std::byte> out;
+  ASSERT_EQ(encode_command_body(nlohmann::json::parse(R"({"x":1.5,"n":7,"v":[1,2],"label":"ab"})"), &t, out), "");
+  ASSERT_EQ(out.size(), 32u);
+  double x = 0;
+  float v[3] = {9, 9, 9};
+  std::memcpy(&x, out.data(), sizeof x);
+  std::memcpy(v, out.data() + 12, sizeof v);
+  EXPECT_EQ(x, 1.5);
+  EXPECT_EQ(static_cast<uint8_t>(out[8]), 7u);
+  EXPECT_EQ(v[0], 1.0F);
+  EXPECT_EQ(v[1], 2.0F);
+  EXPECT_EQ(v[2], 0.0F);  // left out: 0
+  EXPECT_EQ(std::memcmp(out.data() + 24, "ab\0", 3), 0);
+
+  EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"z":1})"), &t, out).find("field 'z': Body has no such field"),
+            std::string::npos);
+  EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"n":300})"), &t, out).find("field 'n'"), std::string::npos);
+  EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"v":[1,2,3,4]})"), &t, out).find("4 elements, at most 3"),
+            std::string::npos);
+  EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"x":{"a":1}})"), &t, out).find("got object"), std::string::npos);
+  EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"label":"far too long"})"), &t, out).find("field 'label'"),
+            std::string::npos);
+  // A command without a body takes only an empty one.
+  EXPECT_EQ(encode_command_body(nlohmann::json::object(), nullptr, out), "");
+  EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"x":1})"), nullptr, out).find("takes no body"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace rack::gui

@@ -117,6 +117,44 @@ json param_json(const wire::ParamRecord& p) {
 
 std::string dump(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
 
+// A class description as JSON, for tools that build on rack-gui's protocol (the
+// Foxglove bridge, tools/foxglove, makes each class's JSON schema from it):
+//   {"type":"class","system":0,"class_id":21,"class":"Chassis","impl":"ChassisSim",
+//    "summary":..,"data":{"name":"ChassisData","size":120,"fields":[{"name":"vx",
+//    "kind":"f64","count":1},..]} (null: no samples),"commands":[{"name":"MOVE",
+//    "type":21,"summary":..,"body":{..} or null}],"parameters":[{"name":..,"kind":..,
+//    "unit":..,"min":..,"max":..,"default":..,"doc":..,"choices":[..]}]}
+// Field kinds: i8 u8 bool char i16 u16 i32 u32 i64 u64 f32 f64 (char arrays are strings).
+json type_json(const rack::TypeDescription& t) {
+  static constexpr const char* kKinds[] = {"i8", "u8", "bool", "char", "i16", "u16", "i32", "u32", "i64", "u64", "f32", "f64"};
+  json fields = json::array();
+  for (const auto& f : t.fields) {
+    const auto k = static_cast<std::size_t>(f.kind);
+    fields.push_back({{"name", f.name}, {"kind", k < std::size(kKinds) ? kKinds[k] : "u8"}, {"count", f.count}});
+  }
+  return {{"name", t.name}, {"size", t.size}, {"fields", std::move(fields)}};
+}
+
+std::string class_message(uint8_t system, const rack::ClassDescription& d, std::optional<Address> component = std::nullopt) {
+  json commands = json::array();
+  for (const auto& c : d.commands) {
+    commands.push_back({{"name", c.name}, {"type", c.type}, {"summary", c.summary},
+                        {"body", c.body ? type_json(*c.body) : json(nullptr)}});
+  }
+  json params = json::array();
+  for (const auto& p : d.parameters) {
+    params.push_back({{"name", p.name}, {"kind", rack::describe(p.kind)}, {"unit", p.unit},
+                      {"min", std::isfinite(p.min) ? json(p.min) : json(nullptr)},
+                      {"max", std::isfinite(p.max) ? json(p.max) : json(nullptr)},
+                      {"default", p.default_value}, {"doc", p.doc}, {"choices", p.choices}});
+  }
+  json m{{"type", "class"}, {"system", system}, {"class_id", d.class_id}, {"class", d.class_name},
+         {"impl", d.impl}, {"summary", d.summary}, {"data", d.data ? type_json(*d.data) : json(nullptr)},
+         {"commands", std::move(commands)}, {"parameters", std::move(params)}};
+  if (component) m["component"] = address_text(component->component());
+  return dump(m);
+}
+
 struct Reply {
   tims::MessageHeader header{};
   std::span<const std::byte> body;
@@ -539,44 +577,16 @@ struct Backend::Impl {
       info.desc = std::move(d);
       if (info.desc->data) info.data_fields = info.desc->data->field_table();
       answer_class_waiters(key, a, &*info.desc, "");
+      std::string message = class_message(a.system(), *info.desc);
+      {
+        const std::lock_guard lock(greet_mutex);
+        class_messages[key] = message;
+      }
+      broadcast(std::move(message));
     });
     return nullptr;
   }
 
-  static json type_json(const rack::TypeDescription& t) {
-    json fields = json::array();
-    for (const auto& f : t.fields) {
-      fields.push_back({{"name", f.name}, {"kind", rack::describe(f.kind)}, {"count", f.count}});
-    }
-    return {{"name", t.name}, {"size", t.size}, {"fields", fields}};
-  }
-  // {"type":"class",...}: what the command panel and the plots are built from.
-  static std::string class_message(Address a, const rack::ClassDescription& d) {
-    json commands = json::array();
-    for (const auto& c : d.commands) {
-      commands.push_back({{"name", c.name}, {"type", c.type}, {"summary", c.summary},
-                          {"body", c.body ? type_json(*c.body) : json(nullptr)}});
-    }
-    json params = json::array();
-    for (const auto& p : d.parameters) {
-      params.push_back({{"name", p.name},
-                        {"kind", rack::describe(p.kind)},
-                        {"unit", p.unit},
-                        {"min", std::isfinite(p.min) ? json(p.min) : json(nullptr)},
-                        {"max", std::isfinite(p.max) ? json(p.max) : json(nullptr)},
-                        {"default", p.default_value},
-                        {"doc", p.doc},
-                        {"choices", p.choices}});
-    }
-    return dump(json{{"type", "class"},
-                     {"component", address_text(a.component())},
-                     {"class", d.class_name},
-                     {"impl", d.impl},
-                     {"summary", d.summary},
-                     {"data", d.data ? type_json(*d.data) : json(nullptr)},
-                     {"commands", commands},
-                     {"parameters", params}});
-  }
   void answer_class_waiters(uint32_t key, Address a, const rack::ClassDescription* d, const std::string& why) {
     const auto it = class_waiters.find(key);
     if (it == class_waiters.end()) return;
@@ -584,7 +594,7 @@ struct Backend::Impl {
     class_waiters.erase(it);
     for (const auto& [client, r] : waiting) {
       if (d != nullptr) {
-        send_to(client, class_message(r.component, *d));
+        send_to(client, class_message(r.component.system(), *d, r.component));
         result(client, r, true, address_text(r.component) + ": class " + d->class_name + " described");
       } else {
         result(client, r, false, address_text(a.component()) + ": " + why);
@@ -1182,7 +1192,7 @@ struct Backend::Impl {
         const Address a = r.component;
         const ClassInfo* info = described(a);
         if (info != nullptr) {
-          send_to(client, class_message(a, *info->desc));
+          send_to(client, class_message(a.system(), *info->desc, a));
           result(client, r, true, address_text(a) + ": class " + info->desc->class_name + " described");
         } else if (class_infos[a.raw() & 0xFFFF0000u].failed) {
           result(client, r, false, address_text(a) + ": its class description could not be read (see rack-gui's log)");
@@ -1201,7 +1211,41 @@ struct Backend::Impl {
         result(client, r, true, "joystick released: robot stopped");
         break;
       }
+      case Op::kCommandJson: class_command(client, r); break;
     }
+  }
+
+  // A class command by name (Foxglove services, rack-foxglove's player): the body is
+  // encoded against the class description's type for it and sent only when it fits.
+  void class_command(uint64_t client, const Request& r) {
+    const Address a = r.component;
+    const auto it = class_infos.find(a.raw() & 0xFFFF0000u);
+    if (it == class_infos.end() || !it->second.desc) {
+      result(client, r, false, address_text(a) + ": its class description is not known (yet): no command sent");
+      return;
+    }
+    const rack::ClassDescription& d = *it->second.desc;
+    const rack::CommandDescription* c = d.find_command(r.command);
+    if (c == nullptr) {
+      std::string known;
+      for (const auto& k : d.commands) known += (known.empty() ? "" : ", ") + k.name;
+      result(client, r, false, address_text(a) + ": class " + d.class_name + " has no command " + r.command +
+                                   " (it has: " + (known.empty() ? "none" : known) + ")");
+      return;
+    }
+    std::vector<std::byte> body;
+    const std::string why = encode_command_body(r.body, c->body ? &*c->body : nullptr, body);
+    if (!why.empty()) {
+      result(client, r, false, address_text(a) + ": " + r.command + ": " + why + " (not sent)");
+      return;
+    }
+    const tims::ConstBuffer part{body.data(), body.size()};
+    const std::string name = r.command;
+    request(a, c->type, std::span<const tims::ConstBuffer>(&part, body.empty() ? 0 : 1), default_timeout(),
+            [this, client, r, a, name](const Reply* rep) {
+              const bool ok = rep != nullptr && rep->header.type == msg::kOk;
+              result(client, r, ok, ok ? address_text(a) + ": " + name + " done" : failure(rep, name, a));
+            });
   }
 
   void all_off_step(uint64_t client, const Request& r, std::shared_ptr<std::vector<Address>> order, std::size_t i,
@@ -1666,6 +1710,7 @@ struct Backend::Impl {
     send_to(client, dump(json{{"type", "hello"}, {"version", 1}, {"lcm", config.lcm_url}}));
     const std::lock_guard lock(greet_mutex);
     if (!last_components.empty()) send_to(client, last_components);
+    for (const auto& [k, m] : class_messages) send_to(client, m);
     for (const auto& [s, m] : map_messages) send_to(client, m);
     if (!recent_log.empty()) send_to(client, gdos_message(recent_log.begin(), recent_log.end()));
     if (!report_texts.empty()) {
@@ -1706,6 +1751,7 @@ struct Backend::Impl {
   std::mutex greet_mutex;  // worker and GDOS thread -> server thread (new clients)
   std::string last_components;
   std::map<uint8_t, std::string> map_messages;
+  std::map<uint32_t, std::string> class_messages;  // "class" messages by system and class id
   std::deque<std::string> recent_log;
   std::map<std::string, std::string> report_texts;  // report file -> rack-backtrace's output
 

@@ -21,6 +21,12 @@
 //   {"op":"trace","system":0,"host":"","duration_s":2}   a live task timeline of one
 //       host of robot 0 (as `rackctl trace --duration 2 all`; "" = its only host),
 //       answered with {"type":"trace",...}; duration 0 < s <= kMaxTraceSeconds
+//   {"op":"command_json","component":"MCL(0/0)","command":"INIT","body":{"x":4.0,"y":7.2}}
+//        any command (as "command", but typed: for programs such as the
+//        Foxglove bridge) of the component's class by its name in the class description, the
+//        body's fields by name (a field left out is 0; arrays as JSON arrays, char
+//        arrays as strings), checked against the description's field kinds and ranges
+//        (encode_command_body) before anything is sent
 //
 // Anything else is refused with a ParseError saying what and where (a byte offset for
 // JSON syntax, the key otherwise) and why (Refusal, which the server counts); the
@@ -51,6 +57,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "rack/core/class_description.h"
 #include "rack/core/wire.h"
 #include "rack/tims/address.h"
 
@@ -69,6 +76,7 @@ enum class Op {
   kGetClass,
   kCommand,
   kTrace,
+  kCommandJson,
 };
 [[nodiscard]] const char* op_name(Op op) noexcept;
 
@@ -101,6 +109,8 @@ struct Request {
   std::vector<std::pair<std::string, std::string>> fields;  // command: field -> value text
   std::string host;                    // trace: the host's name ("" = the robot's only host)
   double duration_s = 0.0;             // trace
+  std::string command;          // command: the class command's name (upper case)
+  nlohmann::json body;          // command: an object of field values, checked later
 };
 
 // Why a client message was refused (counted per reason by the server).
@@ -132,6 +142,18 @@ struct ParseError {
 // (int: an integer; float: a finite number; bool: true/false; string: a string shorter
 // than wire::kParamStringLen). Returns the problem, or "" when it was set.
 [[nodiscard]] std::string check_param_value(const nlohmann::json& value, wire::ParamRecord& record);
+
+// Longest class command name a client may give (the descriptions' names are shorter).
+inline constexpr std::size_t kMaxCommandName = 31;
+
+// A command's body from the JSON object of a "command" request: `out` becomes
+// `type.size` bytes (host byte order), zero but for the fields `body` names; each value
+// must fit its field (rack::set_field_from_text: kind, range, array length, string
+// length). Returns the problem naming the field ("field 'x': ..."), or "" when `out`
+// holds the body. `type` nullptr: the command takes no body, and `body` must be empty.
+// Never throws.
+[[nodiscard]] std::string encode_command_body(const nlohmann::json& body, const rack::TypeDescription* type,
+                                              std::vector<std::byte>& out) noexcept;
 
 // Server -> client helpers.
 //

@@ -97,6 +97,7 @@ function handle(m) {
   switch (m.type) {
     case 'hello': st.lcm = m.lcm; break;
     case 'class':
+      if (!m.component) break;  // broadcast per class for other programs (the Foxglove bridge)
       st.classes.set(m.component, m);
       plots.onClass(m);
       if (st.selected === m.component && document.querySelector('#view-details.active')) renderDetails();

@@ -1,0 +1,74 @@
+// Playback classes: a component that publishes the samples a tool sends it, in place
+// of the producer that recorded them, so that the consumers of a host (MCL, Pilot, a
+// trajectory writer) receive a recording as they would the live data. rack-foxglove's
+// player (tools/foxglove, `rack-foxglove play`) reads an MCAP recording and sends each
+// recorded sample, at the recorded speed or faster, as a PUBLISH command through
+// rack-gui; the host file names the playback class where the recorded one was:
+//
+//   - name: scan2d
+//     class: Scan2dPlayback        # in place of Scan2D: MCL's `scan2d: scan2d` finds it
+//     instance: 0
+//     autostart: true
+//     data_task: {period_ms: 100, ring: 25}
+//
+// PUBLISH (type 21) carries the sample's time (ns, as recorded) and the sample itself
+// (the class's data type, field by field): PlaybackSample<T>. The component publishes it
+// at once with that time, from its command task; the data task does nothing. A PUBLISH
+// while the component is not ENABLED is refused (ERROR), one whose time is not after the
+// previous sample's or whose body has the wrong size is rejected as malformed and
+// counted (GET_STATS), and the component keeps running.
+//
+// Classes: Scan2dPlayback (Scan2D: what MCL localises on; the scans carry the odometry
+// at their time, so no Odometry or Chassis is needed beside them).
+//
+// Real-time contract: command() is RT-safe (the sample is copied into a member; no
+// allocation); loop() does nothing.
+#pragma once
+
+#include "playback_types.h"
+#include "rack/core/data_component.h"
+#include "rack/interfaces/robot.h"
+
+namespace rack::components {
+
+template <tims::Payload T>
+class Playback : public DataComponent<T> {
+ public:
+  Playback() : DataComponent<T>(DataTaskMode::kPeriodic) {
+    this->set_command_slot_size(static_cast<uint32_t>(sizeof(tims::MessageHeader) + sizeof(PlaybackSample<T>) + 64));
+  }
+
+ protected:
+  HookResult on() override {
+    last_time_ns_ = 0;
+    return HookResult::kOk;
+  }
+  HookResult loop() override { return HookResult::kOk; }
+  CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override {
+    if (request.type != kPlaybackPublish) return CommandResult::kUnknown;
+    if (!wire::read_payload(body, tims::body_is_native(request), sample_)) {
+      this->reject_malformed(request, "PUBLISH: body must be the time (i64) and one sample of the class's data type");
+      return CommandResult::kHandled;
+    }
+    if (sample_.time_ns <= last_time_ns_) {
+      this->reject_malformed(request, "PUBLISH: time_ns must be after the previous sample's");
+      return CommandResult::kHandled;
+    }
+    if (this->state() != ComponentState::kEnabled) {
+      this->reply_error(request, "PUBLISH: not enabled");
+      return CommandResult::kHandled;
+    }
+    last_time_ns_ = sample_.time_ns;
+    this->publish(sample_.data, sample_.time_ns);
+    this->reply(request, tims::msg::kOk);
+    return CommandResult::kHandled;
+  }
+
+ private:
+  PlaybackSample<T> sample_{};  // command task only
+  int64_t last_time_ns_ = 0;    // command task only
+};
+
+class Scan2dPlayback final : public Playback<interfaces::Scan2dData> {};
+
+}  // namespace rack::components

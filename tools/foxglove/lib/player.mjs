@@ -1,0 +1,169 @@
+// The MCAP player (rack-foxglove play): reads a recording with @mcap/core's indexed
+// reader and sends each recorded sample of the chosen component channels to the
+// component of the same name in a running host, as the PUBLISH command of a playback
+// class (components/playback: Scan2dPlayback stands in for Scan2D), through rack-gui's
+// "command" op, at the recorded speed (--speed 1), faster (--speed N) or as fast as
+// the host acknowledges (--speed 0). Each sample keeps its recorded time.
+//
+// A recorded message that does not decode, or that the host refuses, is counted and
+// reported (the first few with their reason), and playing goes on.
+import fs from 'node:fs';
+import { McapIndexedReader, McapStreamReader, hasMcapPrefix } from '@mcap/core';
+import zstd from '@foxglove/wasm-zstd';
+
+// A recording's reader: @mcap/core's indexed reader, or, for a file without its summary
+// section (a recorder that was killed: rack-foxglove writes the summary when it stops),
+// every complete record read in order with the stream reader, as far as the file is
+// whole (the reader's `truncated` then says where it ends).
+export async function openMcap(path) {
+  await zstd.isLoaded;
+  const bytes = new Uint8Array(fs.readFileSync(path));
+  const decompressHandlers = { zstd: (data, size) => zstd.decompress(data, Number(size)) };
+  const readable = {
+    size: async () => BigInt(bytes.length),
+    read: async (offset, length) => bytes.subarray(Number(offset), Number(offset + length)),
+  };
+  try {
+    return await McapIndexedReader.Initialize({ readable, decompressHandlers });
+  } catch (indexed) {
+    if (!hasMcapPrefix(new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength))) throw indexed;
+    return streamedReader(bytes, decompressHandlers, indexed.message);
+  }
+}
+
+function streamedReader(bytes, decompressHandlers, why) {
+  const stream = new McapStreamReader({ decompressHandlers, validateCrcs: true });
+  stream.append(bytes);
+  const schemasById = new Map();
+  const channelsById = new Map();
+  const messages = [];
+  let truncated = '';
+  try {
+    for (let r; (r = stream.nextRecord());) {
+      if (r.type === 'Schema') schemasById.set(r.id, r);
+      else if (r.type === 'Channel') channelsById.set(r.id, r);
+      else if (r.type === 'Message') messages.push(r);
+    }
+    if (!stream.done()) truncated = `the last ${stream.bytesRemaining()} bytes are an incomplete record`;
+  } catch (e) {
+    truncated = e.message;
+  }
+  if (channelsById.size === 0) throw new Error(`${why}; and no channel could be read record by record`);
+  messages.sort((a, b) => (a.logTime < b.logTime ? -1 : a.logTime > b.logTime ? 1 : 0));
+  return {
+    schemasById,
+    channelsById,
+    statistics: undefined,
+    truncated: `no summary section (${bytes.length} bytes without a footer: the recorder did not stop cleanly?); ` +
+               `read record by record${truncated ? `: ${truncated}` : ''}`,
+    async *readMessages({ topics } = {}) {
+      const ids = topics ? new Set([...channelsById.values()].filter((c) => topics.includes(c.topic)).map((c) => c.id)) : null;
+      for (const m of messages) if (!ids || ids.has(m.channelId)) yield m;
+    },
+  };
+}
+
+const sleep = (ms) => new Promise((r) => { setTimeout(r, ms); });
+
+// options: {reader (openMcap's), speed, topics (RegExp|null), initMcl (component name|''), sigmaXy,
+//           sigmaPhi, waitS}; link: a connected GuiLink; converter: its Converter.
+export async function play(options, link, converter, log) {
+  const { reader } = options;
+  // The component channels: /rack/<system>/<name> with a rack.<Class> schema.
+  const channels = new Map();  // channel id -> {topic, system, name}
+  for (const [id, c] of reader.channelsById) {
+    const m = /^\/rack\/(\d+)\/([^/]+)$/.exec(c.topic);
+    const schema = reader.schemasById.get(c.schemaId);
+    if (!m || !schema?.name.startsWith('rack.')) continue;
+    if (options.topics && !options.topics.test(c.topic)) continue;
+    channels.set(id, { topic: c.topic, system: Number(m[1]), name: m[2] });
+  }
+
+  // The host's components of those names, whose class takes PUBLISH.
+  const target = (ch) => {
+    for (const comp of converter.components.values()) {
+      if (comp.system !== ch.system || comp.name !== ch.name) continue;
+      const cls = converter.classOf(comp.system, comp.class);
+      return { comp, publish: cls?.commands.some((k) => k.name === 'PUBLISH') === true, known: cls !== undefined };
+    }
+    return null;
+  };
+  const deadline = Date.now() + options.waitS * 1000;
+  let targets;
+  for (;;) {
+    targets = new Map();
+    let pending = '';
+    for (const [id, ch] of channels) {
+      const t = target(ch);
+      if (t && t.publish && t.comp.state === 'enabled') targets.set(id, t.comp);
+      else if (options.topics) pending = `${ch.topic}: ${!t ? 'no component of that name' : !t.known ? 'class not described yet' : !t.publish ? `${t.comp.class} takes no PUBLISH (not a playback class)` : `state ${t.comp.state}`}`;
+    }
+    const mcl = options.initMcl ? [...converter.components.values()].find((c) => c.name === options.initMcl) : null;
+    const mclReady = !options.initMcl || (mcl && mcl.state === 'enabled' && converter.classOf(mcl.system, mcl.class));
+    if (targets.size > 0 && !pending && mclReady) break;
+    if (Date.now() > deadline) {
+      throw new Error(targets.size === 0
+        ? `no recorded channel has a playback component of its name running in the host (${[...channels.values()].map((c) => c.topic).join(', ') || 'no component channels in the file'})${pending ? `; ${pending}` : ''}`
+        : pending || `MCL '${options.initMcl}' is not enabled in the host`);
+    }
+    await sleep(200);
+  }
+  for (const [id, comp] of targets) log(`playing ${channels.get(id).topic} into ${comp.address} (${comp.impl})`);
+
+  // First sample time, and the recorded MCL pose there (--init-mcl).
+  const ids = [...targets.keys()];
+  let first = null;
+  for await (const m of reader.readMessages({ topics: ids.map((id) => channels.get(id).topic) })) {
+    first = m.logTime;
+    break;
+  }
+  if (first === null) throw new Error('the chosen channels hold no messages');
+  if (options.initMcl) {
+    const mcl = [...converter.components.values()].find((c) => c.name === options.initMcl);
+    const topic = `/rack/${mcl.system}/${options.initMcl}`;
+    let pose = null;
+    for await (const m of reader.readMessages({ topics: [topic] })) {
+      const d = JSON.parse(new TextDecoder().decode(m.data)).data;
+      if (m.logTime > first && pose) break;
+      pose = d;
+    }
+    if (!pose) throw new Error(`--init-mcl: the recording has no ${topic}`);
+    const r = await link.request({ op: 'command_json', component: mcl.address, command: 'INIT',
+                                   body: { x: pose.x, y: pose.y, phi: pose.phi, sigma_xy: options.sigmaXy, sigma_phi: options.sigmaPhi } });
+    if (!r.ok) throw new Error(`--init-mcl: ${r.text}`);
+    log(`${mcl.address} INIT at the recorded pose x ${pose.x.toFixed(3)} y ${pose.y.toFixed(3)} phi ${pose.phi.toFixed(3)}`);
+  }
+
+  const start = Date.now();
+  let played = 0;
+  let refused = 0;
+  let last = first;
+  for await (const m of reader.readMessages({ topics: ids.map((id) => channels.get(id).topic) })) {
+    const comp = targets.get(m.channelId);
+    last = m.logTime;
+    if (options.speed > 0) {
+      const due = start + Number(m.logTime - first) / 1e6 / options.speed;
+      if (due > Date.now()) await sleep(due - Date.now());
+    }
+    let body;
+    try {
+      const rec = JSON.parse(new TextDecoder().decode(m.data));
+      body = { time_ns: rec.time_ns, ...rec.data };
+    } catch (e) {
+      refused += 1;
+      if (refused <= 5) log(`${channels.get(m.channelId).topic} #${m.sequence}: not JSON: ${e.message} (skipped)`);
+      continue;
+    }
+    const r = await link.request({ op: 'command_json', component: comp.address, command: 'PUBLISH', body });
+    if (r.ok) {
+      played += 1;
+    } else {
+      refused += 1;
+      if (refused <= 5) log(`${channels.get(m.channelId).topic} #${m.sequence}: ${r.text}`);
+    }
+  }
+  const seconds = (Date.now() - start) / 1000;
+  const recorded = Number(last - first) / 1e9;
+  log(`played ${played} samples in ${seconds.toFixed(1)} s (${recorded.toFixed(1)} s recorded; speed ${options.speed || '0: as fast as acknowledged'}); ${refused} refused or skipped`);
+  return { played, refused };
+}

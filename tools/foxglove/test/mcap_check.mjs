@@ -1,0 +1,156 @@
+// Reads an MCAP file of rack-foxglove's recorder with the npm MCAP reader (@mcap/core)
+// and checks every record (driven by tests/integration/foxglove_test.cpp):
+//   - record by record (McapStreamReader, CRCs validated): header, schemas (jsonschema),
+//     channels (json), chunks (all with the expected compression), messages (each JSON
+//     that matches its channel's schema), message indexes, metadata, the summary
+//     section (schemas, channels, statistics, chunk indexes, summary offsets), footer;
+//   - through the index (McapIndexedReader): the statistics count what the stream
+//     holds, per channel, and the indexed messages are the streamed ones.
+//
+// usage: node mcap_check.mjs FILE [--compression zstd|none] [--topic T]... [--min-messages N]
+// Prints one line per check; exit status 0 when all passed.
+import fs from 'node:fs';
+import { McapIndexedReader, McapStreamReader } from '@mcap/core';
+import zstd from '@foxglove/wasm-zstd';
+
+import { matchesSchema } from './schema_check.mjs';
+
+const args = process.argv.slice(2);
+const file = args[0];
+let compression = 'zstd';
+let minMessages = 1;
+const topics = [];
+for (let i = 1; i < args.length; i += 2) {
+  if (args[i] === '--compression') compression = args[i + 1] === 'none' ? '' : args[i + 1];
+  else if (args[i] === '--topic') topics.push(args[i + 1]);
+  else if (args[i] === '--min-messages') minMessages = Number(args[i + 1]);
+  else {
+    console.log(`unknown argument ${args[i]}`);
+    process.exit(2);
+  }
+}
+if (!file) {
+  console.log('usage: node mcap_check.mjs FILE [--compression zstd|none] [--topic T]... [--min-messages N]');
+  process.exit(2);
+}
+
+let failed = false;
+const ok = (s) => console.log(`ok ${s}`);
+const fail = (s) => { console.log(`FAILED ${s}`); failed = true; };
+
+await zstd.isLoaded;
+const decompressHandlers = { zstd: (data, size) => zstd.decompress(data, Number(size)) };
+const bytes = new Uint8Array(fs.readFileSync(file));
+
+// ---- every record, in file order
+const stream = new McapStreamReader({ includeChunks: true, decompressHandlers, validateCrcs: true });
+stream.append(bytes);
+const counts = {};
+const schemas = new Map();
+const channels = new Map();
+const perChannel = new Map();
+const streamed = [];
+let inSummary = false;
+let record;
+try {
+  while ((record = stream.nextRecord())) {
+    counts[record.type] = (counts[record.type] ?? 0) + 1;
+    switch (record.type) {
+      case 'Header':
+        if (!record.library.startsWith('rack-foxglove')) fail(`header library '${record.library}'`);
+        break;
+      case 'Schema':
+        if (record.encoding !== 'jsonschema') fail(`schema ${record.name}: encoding ${record.encoding}`);
+        try {
+          const s = JSON.parse(new TextDecoder().decode(record.data));
+          if (s.title !== record.name) fail(`schema ${record.name}: title ${s.title}`);
+          if (!inSummary) schemas.set(record.id, s);
+        } catch (e) {
+          fail(`schema ${record.name}: not JSON: ${e.message}`);
+        }
+        break;
+      case 'Channel':
+        if (record.messageEncoding !== 'json') fail(`channel ${record.topic}: encoding ${record.messageEncoding}`);
+        if (!inSummary) channels.set(record.id, record);
+        break;
+      case 'Chunk':
+        if (record.compression !== compression) fail(`chunk at ${record.messageStartTime}: compression '${record.compression}', expected '${compression}'`);
+        break;
+      case 'Message': {
+        const c = channels.get(record.channelId);
+        if (!c) {
+          fail(`message on channel ${record.channelId} before its Channel record`);
+          break;
+        }
+        perChannel.set(c.id, (perChannel.get(c.id) ?? 0) + 1);
+        streamed.push(`${record.channelId}/${record.sequence}/${record.logTime}`);
+        let m;
+        try {
+          m = JSON.parse(new TextDecoder().decode(record.data));
+        } catch (e) {
+          fail(`${c.topic} #${record.sequence}: not JSON: ${e.message}`);
+          break;
+        }
+        const problem = matchesSchema(m, schemas.get(c.schemaId), `${c.topic} #${record.sequence}`);
+        if (problem) fail(problem);
+        if (record.logTime <= 0n) fail(`${c.topic} #${record.sequence}: log time ${record.logTime}`);
+        break;
+      }
+      case 'DataEnd':
+        inSummary = true;
+        break;
+      default:
+        break;
+    }
+  }
+} catch (e) {
+  fail(`reading record by record: ${e.message}`);
+}
+if (!stream.done()) fail(`the stream reader did not reach the end (${stream.bytesRemaining()} bytes left)`);
+ok(`records: ${Object.entries(counts).map(([k, v]) => `${k} ${v}`).join(', ')}`);
+for (const t of ['Header', 'Schema', 'Channel', 'Chunk', 'Message', 'MessageIndex', 'ChunkIndex', 'Statistics',
+                 'SummaryOffset', 'DataEnd', 'Footer', 'Metadata']) {
+  if (!counts[t]) fail(`no ${t} record`);
+}
+
+// ---- the summary and the index
+const readable = { size: async () => BigInt(bytes.length), read: async (offset, length) => bytes.subarray(Number(offset), Number(offset + length)) };
+try {
+  const r = await McapIndexedReader.Initialize({ readable, decompressHandlers });
+  const st = r.statistics;
+  const total = streamed.length;
+  if (!st) {
+    fail('no statistics in the summary');
+  } else {
+    if (st.messageCount !== BigInt(total)) fail(`statistics: ${st.messageCount} messages, the file holds ${total}`);
+    if (st.channelCount !== channels.size) fail(`statistics: ${st.channelCount} channels, the file holds ${channels.size}`);
+    if (st.chunkCount !== counts.Chunk) fail(`statistics: ${st.chunkCount} chunks, the file holds ${counts.Chunk}`);
+    for (const [id, n] of perChannel) {
+      if (st.channelMessageCounts.get(id) !== BigInt(n)) fail(`statistics: channel ${id}: ${st.channelMessageCounts.get(id)}, the file holds ${n}`);
+    }
+    ok(`statistics: ${st.messageCount} messages, ${st.channelCount} channels, ${st.schemaCount} schemas, ${st.chunkCount} chunks`);
+  }
+  if (r.chunkIndexes.length !== counts.Chunk) fail(`${r.chunkIndexes.length} chunk indexes for ${counts.Chunk} chunks`);
+  if (r.chunkIndexes.some((c) => c.compression !== compression)) fail('a chunk index names another compression');
+  if (r.channelsById.size !== channels.size || r.schemasById.size !== schemas.size) fail('summary channels or schemas differ from the data section');
+  const indexed = [];
+  for await (const m of r.readMessages()) indexed.push(`${m.channelId}/${m.sequence}/${m.logTime}`);
+  if (indexed.length !== total || [...indexed].sort().join() !== [...streamed].sort().join()) {
+    fail(`indexed reading gave ${indexed.length} messages, the stream ${total}`);
+  } else {
+    ok(`indexed reading: the same ${total} messages, in log-time order`);
+  }
+  if (total < minMessages) fail(`${total} messages, expected at least ${minMessages}`);
+  const byTopic = new Map([...channels.values()].map((c) => [c.topic, c]));
+  for (const t of topics) {
+    const c = byTopic.get(t);
+    if (!c || !perChannel.get(c.id)) fail(`no message on ${t}`);
+  }
+  for (const c of [...channels.values()].sort((a, b) => a.topic.localeCompare(b.topic))) {
+    console.log(`   ${c.topic} ${r.schemasById.get(c.schemaId)?.name} ${perChannel.get(c.id) ?? 0} messages`);
+  }
+} catch (e) {
+  fail(`indexed reader: ${e.message}`);
+}
+console.log(failed ? 'FAILED' : 'all checks passed');
+process.exit(failed ? 1 : 0);
