@@ -57,6 +57,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bench_common.h"
@@ -180,6 +181,7 @@ struct Side {
   // rack: the wake-ups during the executor's start-up, left out of the figures
   // unless --include-startup (all segments; those >= 500 us late; the worst).
   uint64_t startup_samples = 0, startup_late = 0;
+  uint64_t faults_minor = 0, faults_major = 0;  // rack: the data task's, while measured
   double startup_max_ns = 0;
   Percentiles p;
 };
@@ -198,6 +200,8 @@ void add_segment(Side& total, const Side& seg) {
   for (std::size_t i = 1000; i < kBuckets; ++i) late += seg.histogram[i];
   total.late_1ms.push_back(late);
   total.startup_samples += seg.startup_samples;
+  total.faults_minor += seg.faults_minor;
+  total.faults_major += seg.faults_major;
   total.startup_late += seg.startup_late;
   total.startup_max_ns = std::max(total.startup_max_ns, seg.startup_max_ns);
 }
@@ -223,6 +227,24 @@ RatioStats ratios(const Side& rack_side, const Side& ct_side, double Percentiles
   r.min = v.front();
   r.max = v.back();
   return r;
+}
+
+// Minor and major page faults of thread `tid` of this process so far (/proc), or
+// {0, 0} when it cannot be read.
+std::pair<uint64_t, uint64_t> thread_faults(pid_t tid) {
+  const std::string path = "/proc/self/task/" + std::to_string(tid) + "/stat";
+  const std::string line = rack::bench::read_first_line(path.c_str());
+  const std::size_t close = line.rfind(')');  // the name may hold spaces
+  if (close == std::string::npos) return {0, 0};
+  std::istringstream in(line.substr(close + 2));
+  std::string field;
+  uint64_t minor = 0, major = 0;
+  // After the name: state ppid pgrp session tty_nr tpgid flags minflt cminflt majflt
+  for (int i = 1; i <= 10 && in >> field; ++i) {
+    if (i == 8) minor = std::strtoull(field.c_str(), nullptr, 10);
+    if (i == 10) major = std::strtoull(field.c_str(), nullptr, 10);
+  }
+  return {minor, major};
 }
 
 std::string host_text(const Options& o) {
@@ -271,7 +293,12 @@ void run_rack_segment(const Options& o, const rt::RtCapabilities& caps, int seco
   auto before = std::make_unique<std::array<uint64_t, kBuckets>>();
   gen->data_task_stats().copy_histogram(*before);
   const rt::LatencySummary s0 = gen->data_task_stats().summary();
+  const pid_t data_tid = gen->data_task_faults().tid();
+  const auto faults0 = thread_faults(data_tid);
   rt::sleep_for(static_cast<int64_t>(seconds) * rt::kNsPerSec);
+  const auto faults1 = thread_faults(data_tid);
+  side.faults_minor += faults1.first - faults0.first;
+  side.faults_major += faults1.second - faults0.second;
   auto hist = std::make_unique<std::array<uint64_t, kBuckets>>();
   // Read while the task still runs: a snapshot a sample or two old is fine.
   gen->data_task_stats().copy_histogram(*hist);
@@ -548,6 +575,9 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>(rack_side.startup_late), kLateStartupUs,
               rack::bench::us(rack_side.startup_max_ns),
               o.include_startup ? "included in the figures above" : "not in the figures above");
+  std::printf("rack-rt data task page faults while measured (all rounds, /proc): %llu minor, %llu major\n",
+              static_cast<unsigned long long>(rack_side.faults_minor),
+              static_cast<unsigned long long>(rack_side.faults_major));
   std::printf("median of %zu per-round ratios: p99 %.2fx (range %.2f-%.2f; target <= %.2fx: %s), "
               "p99.9 %.2fx (range %.2f-%.2f; target <= %.2fx: %s), p50 %.2fx\n\n",
               r99.per_round.size(), r99.median, r99.min, r99.max, kTargetP99,
@@ -569,7 +599,8 @@ int main(int argc, char** argv) {
     j << "]"
       << ", \"startup\": {\"samples\": " << rack_side.startup_samples << ", \"late_500us\": "
       << rack_side.startup_late << ", \"max_us_below\": " << rack::bench::json_number(rack::bench::us(rack_side.startup_max_ns))
-      << "}"
+      << "}, \"data_task_faults\": {\"minor\": " << rack_side.faults_minor << ", \"major\": "
+      << rack_side.faults_major << "}"
       << ", \"pm_qos_hold\": "
       << (qos && qos->active() ? "true" : "false") << ",\n  \"loadavg_before\": \"" << load_before
       << "\", \"loadavg_after\": \"" << load_after << "\",\n  \"target_ratio_p99\": " << kTargetP99
