@@ -18,8 +18,22 @@
 //               priority P pinned to CPU N, command task pinned there too), lcm: false,
 //               memory policy applied as rackd does; after D s its data task's
 //               LatencyStats histogram is read (DataComponentBase::data_task_stats()).
-//   reference:  cyclictest -m -p P -i INTERVAL -a N -t1 -D Ds -q -h 10000
-//               (rt-tests 2.x has no -n: clock_nanosleep is its default).
+//               The wake-ups during the executor's start-up (the data task runs from
+//               its thread's start; start() goes on with the other threads, the
+//               command task's ON and the first GDOS pass) are counted apart and left
+//               out, as cyclictest's own set-up comes before its first cycle
+//               (--include-startup keeps them in).
+//   reference:  cyclictest -m -p P -i INTERVAL -a N -t1 -q -h 10000 --secaligned PHASE
+//               -l D*1e6/INTERVAL (rt-tests 2.x has no -n: clock_nanosleep is its
+//               default; -l: the same number of cycles as D seconds).
+//
+// Phase: where a segment's deadlines fall against the kernel's 4 ms tick changes its
+// latency by up to 2x on a VM (bench/RESULTS.md), and a segment that starts at a
+// random moment draws a random phase: the two sides of a round would compare
+// different phases. So both sides of round r put their deadlines on the same grid of
+// CLOCK_MONOTONIC: whole intervals plus PHASE = (2r + 1) * INTERVAL / (2 * R) (the
+// data task's `phase_ms:`, cyclictest's --secaligned), and the rounds walk the phase
+// across the interval. --free-phase: each side starts where it starts, as before.
 //
 // Load: --load-cmd CMD runs CMD (through /bin/sh, in its own process group, normal
 // scheduling) for the whole run, both sides, and stops it at the end: e.g. stress-ng,
@@ -43,6 +57,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bench_common.h"
@@ -63,7 +78,8 @@ namespace rt = rack::rt;
 constexpr const char* kUsage =
     "usage: bench_jitter [--seconds D] [--cpu N] [--json FILE] [--priority P] [--interval-us I]\n"
     "                    [--rounds R] [--cyclictest PATH] [--no-pm-qos] [--load-cmd CMD]\n"
-    "                    [--load-name NAME] [--modeswitch] [--verbose]\n"
+    "                    [--load-name NAME] [--modeswitch] [--include-startup] [--free-phase]\n"
+    "                    [--verbose]\n"
     "  --seconds D      measured seconds per side (default 30)\n"
     "  --cpu N          CPU of the periodic task on both sides (default: highest online CPU)\n"
     "  --json FILE      write machine-readable results (with both histograms)\n"
@@ -79,6 +95,11 @@ constexpr const char* kUsage =
     "  --modeswitch     start mode-switch detection as rackd does (syscall user dispatch\n"
     "                   and a page-fault counter on each RT task; default: off, as an\n"
     "                   embedding program that does not start it)\n"
+    "  --free-phase     do not put both sides' deadlines on the same phase of the clock in\n"
+    "                   each round (default: the same phase, walked across the interval)\n"
+    "  --include-startup count the RACK-RT task's wake-ups during the executor's start()\n"
+    "                   (default: counted apart and left out of the figures, as cyclictest's\n"
+    "                   set-up is not in its own)\n"
     "  --modeswitch-only syscalls|faults\n"
     "                   with --modeswitch: only that detector (to tell their costs apart)\n";
 
@@ -99,6 +120,9 @@ struct Options {
   std::string load_name;
   bool modeswitch = false;
   std::string modeswitch_only;
+  bool include_startup = false;
+  bool aligned = true;
+  int phase_us = -1;  // this round's phase (set per round when aligned)
   bool verbose = false;
 };
 
@@ -153,8 +177,16 @@ struct Side {
   uint64_t overruns = 0;    // rack: periods missed
   std::vector<std::string> loads;  // loadavg before/after each segment
   std::vector<Percentiles> rounds;  // each round's segment alone
+  std::vector<uint64_t> late_1ms;   // each round's wake-ups >= 1 ms late
+  // rack: the wake-ups during the executor's start-up, left out of the figures
+  // unless --include-startup (all segments; those >= 500 us late; the worst).
+  uint64_t startup_samples = 0, startup_late = 0;
+  uint64_t faults_minor = 0, faults_major = 0;  // rack: the data task's, while measured
+  double startup_max_ns = 0;
   Percentiles p;
 };
+
+constexpr std::size_t kLateStartupUs = 500;
 
 // Adds a segment (measured into a fresh Side) to the totals and keeps its percentiles.
 void add_segment(Side& total, const Side& seg) {
@@ -164,6 +196,14 @@ void add_segment(Side& total, const Side& seg) {
   total.cycles += seg.cycles;
   total.overruns += seg.overruns;
   total.rounds.push_back(rack::bench::percentiles_of_histogram(seg.histogram, seg.max_ns));
+  uint64_t late = 0;
+  for (std::size_t i = 1000; i < kBuckets; ++i) late += seg.histogram[i];
+  total.late_1ms.push_back(late);
+  total.startup_samples += seg.startup_samples;
+  total.faults_minor += seg.faults_minor;
+  total.faults_major += seg.faults_major;
+  total.startup_late += seg.startup_late;
+  total.startup_max_ns = std::max(total.startup_max_ns, seg.startup_max_ns);
 }
 
 struct RatioStats {
@@ -189,6 +229,24 @@ RatioStats ratios(const Side& rack_side, const Side& ct_side, double Percentiles
   return r;
 }
 
+// Minor and major page faults of thread `tid` of this process so far (/proc), or
+// {0, 0} when it cannot be read.
+std::pair<uint64_t, uint64_t> thread_faults(pid_t tid) {
+  const std::string path = "/proc/self/task/" + std::to_string(tid) + "/stat";
+  const std::string line = rack::bench::read_first_line(path.c_str());
+  const std::size_t close = line.rfind(')');  // the name may hold spaces
+  if (close == std::string::npos) return {0, 0};
+  std::istringstream in(line.substr(close + 2));
+  std::string field;
+  uint64_t minor = 0, major = 0;
+  // After the name: state ppid pgrp session tty_nr tpgid flags minflt cminflt majflt
+  for (int i = 1; i <= 10 && in >> field; ++i) {
+    if (i == 8) minor = std::strtoull(field.c_str(), nullptr, 10);
+    if (i == 10) major = std::strtoull(field.c_str(), nullptr, 10);
+  }
+  return {minor, major};
+}
+
 std::string host_text(const Options& o) {
   std::ostringstream y;
   y << "host: bench-jitter\n"
@@ -203,7 +261,9 @@ std::string host_text(const Options& o) {
        "    autostart: true\n"
        "    command_task: {priority: 30, cpu: " << o.cpu << "}\n"
        "    data_task: {priority: " << o.priority << ", cpu: " << o.cpu << ", period_ms: "
-    << static_cast<double>(o.interval_us) / 1000.0 << "}\n";
+    << static_cast<double>(o.interval_us) / 1000.0;
+  if (o.phase_us >= 0) y << ", phase_ms: " << static_cast<double>(o.phase_us) / 1000.0;
+  y << "}\n";
   return y.str();
 }
 
@@ -229,24 +289,51 @@ void run_rack_segment(const Options& o, const rt::RtCapabilities& caps, int seco
   if (gen->state() != rack::ComponentState::kEnabled) {
     throw std::runtime_error("the Generator did not switch on");
   }
+  // The start-up's wake-ups: from the data task's first cycle until start() returned.
+  auto before = std::make_unique<std::array<uint64_t, kBuckets>>();
+  gen->data_task_stats().copy_histogram(*before);
+  const rt::LatencySummary s0 = gen->data_task_stats().summary();
+  const pid_t data_tid = gen->data_task_faults().tid();
+  const auto faults0 = thread_faults(data_tid);
   rt::sleep_for(static_cast<int64_t>(seconds) * rt::kNsPerSec);
+  const auto faults1 = thread_faults(data_tid);
+  side.faults_minor += faults1.first - faults0.first;
+  side.faults_major += faults1.second - faults0.second;
   auto hist = std::make_unique<std::array<uint64_t, kBuckets>>();
   // Read while the task still runs: a snapshot a sample or two old is fine.
   gen->data_task_stats().copy_histogram(*hist);
   const rt::LatencySummary s = gen->data_task_stats().summary();
   executor.stop();
-  for (std::size_t i = 0; i < kBuckets; ++i) side.histogram[i] += (*hist)[i];
-  side.max_ns = std::max(side.max_ns, static_cast<double>(s.max_ns));
-  side.cycles += s.cycles;
-  side.overruns += s.overruns;
+  std::size_t top = 0, top_before = 0;  // highest non-empty bucket + 1
+  for (std::size_t i = 0; i < kBuckets; ++i) {
+    side.startup_samples += (*before)[i];
+    if (i >= kLateStartupUs) side.startup_late += (*before)[i];
+    if ((*before)[i] > 0) top_before = i + 1;
+    if (!o.include_startup) (*hist)[i] -= (*before)[i];
+    side.histogram[i] += (*hist)[i];
+    if ((*hist)[i] > 0) top = i + 1;
+  }
+  side.startup_max_ns = static_cast<double>(top_before) * 1000.0;
+  // The exact maximum is the segment's when it fell after the start-up; otherwise the
+  // top bucket's upper edge.
+  const bool exact = o.include_startup || top >= top_before;
+  side.max_ns = std::max(side.max_ns, exact ? static_cast<double>(s.max_ns) : static_cast<double>(top) * 1000.0);
+  side.cycles += o.include_startup ? s.cycles : s.cycles - s0.cycles;
+  side.overruns += o.include_startup ? s.overruns : s.overruns - s0.overruns;
   if (executor.any_fallback()) throw std::runtime_error("SCHED_FIFO was refused");
 }
 
 // Runs cyclictest and adds its histogram to `side`.
 void run_cyclictest_segment(const Options& o, int seconds, Side& side) {
   std::ostringstream cmd;
-  cmd << o.cyclictest << " -m -p " << o.priority << " -i " << o.interval_us << " -a " << o.cpu << " -t1 -D "
-      << seconds << "s -q -h " << kBuckets << (o.pm_qos ? "" : " --default-system") << " 2>&1";
+  cmd << o.cyclictest << " -m -p " << o.priority << " -i " << o.interval_us << " -a " << o.cpu << " -t1";
+  if (o.phase_us >= 0) {  // the same grid as the data task's phase_ms; as many cycles as D seconds
+    cmd << " --secaligned " << o.phase_us << " -l "
+        << static_cast<long long>(seconds) * 1'000'000LL / o.interval_us;
+  } else {
+    cmd << " -D " << seconds << "s";
+  }
+  cmd << " -q -h " << kBuckets << (o.pm_qos ? "" : " --default-system") << " 2>&1";
   if (o.verbose) std::fprintf(stderr, "bench_jitter: %s\n", cmd.str().c_str());
   FILE* pipe = popen(cmd.str().c_str(), "r");
   if (pipe == nullptr) throw std::runtime_error("cannot run " + cmd.str());
@@ -328,6 +415,8 @@ void parse(int argc, char** argv, Options& o) {
     else if (a == "--load-name") o.load_name = next();
     else if (a == "--verbose") o.verbose = true;
     else if (a == "--modeswitch") o.modeswitch = true;
+    else if (a == "--include-startup") o.include_startup = true;
+    else if (a == "--free-phase") o.aligned = false;
     else if (a == "--modeswitch-only") {
       o.modeswitch_only = next();
       if (o.modeswitch_only != "syscalls" && o.modeswitch_only != "faults") {
@@ -404,20 +493,28 @@ int main(int argc, char** argv) {
               o.seconds, o.cpu, o.priority, o.interval_us, o.rounds,
               qos && qos->active() ? "held at 0 us" : "not held (cyclictest --default-system)");
   std::printf("bench_jitter: mode-switch detection %s\n", o.modeswitch ? "on (as rackd)" : "off");
+  std::printf("bench_jitter: phase: %s\n", o.aligned ? "both sides of a round on the same grid of the clock "
+                                                      "(phase_ms / --secaligned), walked across the interval"
+                                                    : "free (--free-phase: each segment where it starts)");
+  std::printf("bench_jitter: RACK-RT's wake-ups during the executor's start-up %s\n",
+              o.include_startup ? "included (--include-startup)" : "counted apart, not in the figures");
   std::printf("bench_jitter: load: %s%s%s\n", o.load_name.c_str(), o.load_cmd.empty() ? "" : " = ",
               o.load_cmd.c_str());
   std::fflush(stdout);
   bool load_survived = true;
+  std::vector<int> phases;  // per round, us (-1: free)
   try {
     BackgroundLoad load(o.load_cmd);
     for (int r = 0; r < o.rounds; ++r) {
       const int secs = r + 1 == o.rounds ? last : seg;
+      if (o.aligned) o.phase_us = (2 * r + 1) * o.interval_us / (2 * o.rounds);
+      phases.push_back(o.phase_us);
       for (int k = 0; k < 2; ++k) {
         const bool rack_now = (k == 0) == (r % 2 == 0);  // rack, ct, ct, rack, rack, ct, ...
         Side& side = rack_now ? rack_side : ct_side;
         side.loads.push_back(rack::bench::read_first_line("/proc/loadavg"));
-        std::printf("bench_jitter: round %d: %s for %d s (loadavg %s)\n", r + 1, side.name.c_str(), secs,
-                    side.loads.back().c_str());
+        std::printf("bench_jitter: round %d: %s for %d s, phase %s (loadavg %s)\n", r + 1, side.name.c_str(), secs,
+                    o.phase_us >= 0 ? (std::to_string(o.phase_us) + " us").c_str() : "free", side.loads.back().c_str());
         std::fflush(stdout);
         Side segment;
         if (rack_now) run_rack_segment(o, caps, secs, segment);
@@ -461,15 +558,26 @@ int main(int argc, char** argv) {
               "histogram overflows, rack's counts missed periods)\n");
   std::printf("pooled ratio rack-rt / cyclictest: p50 %.2fx, p99 %.2fx, p99.9 %.2fx\n", ratio_p50, ratio_p99,
               ratio_p999);
-  std::printf("per round (rack p99 / p99.9 vs cyclictest p99 / p99.9, us):\n");
+  std::printf("per round (rack p99 / p99.9 vs cyclictest p99 / p99.9, us; wake-ups >= 1 ms late, rack vs cyclictest):\n");
   for (std::size_t i = 0; i < rack_side.rounds.size() && i < ct_side.rounds.size(); ++i) {
     const Percentiles& a = rack_side.rounds[i];
     const Percentiles& b = ct_side.rounds[i];
-    std::printf("  round %zu: %4.0f / %4.0f vs %4.0f / %4.0f  -> p99 %.2fx, p99.9 %.2fx\n", i + 1,
+    std::printf("  round %zu (phase %4d us): %4.0f / %4.0f vs %4.0f / %4.0f  -> p99 %.2fx, p99.9 %.2fx; >= 1 ms: %llu vs %llu\n",
+                i + 1, i < phases.size() ? phases[i] : -1,
                 rack::bench::us(a.p99_ns), rack::bench::us(a.p999_ns), rack::bench::us(b.p99_ns),
                 rack::bench::us(b.p999_ns), b.p99_ns > 0 ? a.p99_ns / b.p99_ns : 0.0,
-                b.p999_ns > 0 ? a.p999_ns / b.p999_ns : 0.0);
+                b.p999_ns > 0 ? a.p999_ns / b.p999_ns : 0.0, static_cast<unsigned long long>(rack_side.late_1ms[i]),
+                static_cast<unsigned long long>(ct_side.late_1ms[i]));
   }
+  std::printf("rack-rt start-up (data task's first cycle to start() returning, all rounds): %llu wake-ups, %llu of "
+              "them >= %zu us late, worst < %.0f us; %s\n",
+              static_cast<unsigned long long>(rack_side.startup_samples),
+              static_cast<unsigned long long>(rack_side.startup_late), kLateStartupUs,
+              rack::bench::us(rack_side.startup_max_ns),
+              o.include_startup ? "included in the figures above" : "not in the figures above");
+  std::printf("rack-rt data task page faults while measured (all rounds, /proc): %llu minor, %llu major\n",
+              static_cast<unsigned long long>(rack_side.faults_minor),
+              static_cast<unsigned long long>(rack_side.faults_major));
   std::printf("median of %zu per-round ratios: p99 %.2fx (range %.2f-%.2f; target <= %.2fx: %s), "
               "p99.9 %.2fx (range %.2f-%.2f; target <= %.2fx: %s), p50 %.2fx\n\n",
               r99.per_round.size(), r99.median, r99.min, r99.max, kTargetP99,
@@ -485,7 +593,14 @@ int main(int argc, char** argv) {
       << o.seconds << ", \"cpu\": " << o.cpu << ", \"priority\": " << o.priority << ", \"interval_us\": "
       << o.interval_us << ", \"rounds\": " << o.rounds << ", \"load_name\": \"" << rack::bench::json_escape(o.load_name)
       << "\", \"load_cmd\": \"" << rack::bench::json_escape(o.load_cmd) << "\", \"modeswitch\": "
-      << (o.modeswitch ? "true" : "false")
+      << (o.modeswitch ? "true" : "false") << ", \"include_startup\": " << (o.include_startup ? "true" : "false")
+      << ", \"aligned\": " << (o.aligned ? "true" : "false") << ", \"phase_us\": [";
+    for (std::size_t i = 0; i < phases.size(); ++i) j << (i ? ", " : "") << phases[i];
+    j << "]"
+      << ", \"startup\": {\"samples\": " << rack_side.startup_samples << ", \"late_500us\": "
+      << rack_side.startup_late << ", \"max_us_below\": " << rack::bench::json_number(rack::bench::us(rack_side.startup_max_ns))
+      << "}, \"data_task_faults\": {\"minor\": " << rack_side.faults_minor << ", \"major\": "
+      << rack_side.faults_major << "}"
       << ", \"pm_qos_hold\": "
       << (qos && qos->active() ? "true" : "false") << ",\n  \"loadavg_before\": \"" << load_before
       << "\", \"loadavg_after\": \"" << load_after << "\",\n  \"target_ratio_p99\": " << kTargetP99
@@ -510,7 +625,9 @@ int main(int argc, char** argv) {
     for (const Side* s : {&rack_side, &ct_side}) {
       j << (first ? "" : ",") << "\n    \"" << (s == &rack_side ? "rack" : "cyclictest")
         << "\": {\"latency\": " << rack::bench::json_percentiles(s->p) << ", \"cycles\": " << s->cycles
-        << ", \"overruns\": " << s->overruns << ", \"histogram_overflows\": " << s->overflows << ", \"rounds\": [";
+        << ", \"overruns\": " << s->overruns << ", \"histogram_overflows\": " << s->overflows << ", \"late_1ms\": [";
+      for (std::size_t i = 0; i < s->late_1ms.size(); ++i) j << (i ? ", " : "") << s->late_1ms[i];
+      j << "], \"rounds\": [";
       for (std::size_t i = 0; i < s->rounds.size(); ++i) {
         j << (i ? ", " : "") << rack::bench::json_percentiles(s->rounds[i]);
       }

@@ -16,7 +16,11 @@
 // ratio of each variant's p50 and p99 to the reference's; printed: the median of the
 // per-round ratios with their range, and the pooled percentiles.
 //
-//   bench_trace [--cycles N] [--rounds R] [--cpu C] [--drain-cpu C] [--priority P]
+//   bench_trace [--cycles N] [--rounds R] [--cpu C] [--drain-cpu C] [--priority P] [--json FILE]
+//
+// --json writes bench/run's generic form (results_md.py renders it): the off and on
+// variants against the reference, and a table in ns. Targets (issue 20): off costs
+// nothing measurable (median per-round p50 ratio within 1.05x), on under 1 us per cycle.
 //
 // Needs root (SCHED_FIFO, mlockall).
 #include <algorithm>
@@ -136,6 +140,12 @@ double median(std::vector<double> v) {
 
 int main(int argc, char** argv) {
   int cycles = 20000, rounds = 7, cpu = 1, drain_cpu = 0, priority = 80;
+  std::string json;
+  std::string command_line;
+  for (int i = 0; i < argc; ++i) {
+    if (i > 0) command_line += ' ';
+    command_line += argv[i];
+  }
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&] {
@@ -147,8 +157,9 @@ int main(int argc, char** argv) {
     else if (a == "--cpu") cpu = next();
     else if (a == "--drain-cpu") drain_cpu = next();
     else if (a == "--priority") priority = next();
+    else if (a == "--json" && i + 1 < argc) json = argv[++i];
     else if (a == "-h" || a == "--help") {
-      std::puts("bench_trace [--cycles N] [--rounds R] [--cpu C] [--drain-cpu C] [--priority P]");
+      std::puts("bench_trace [--cycles N] [--rounds R] [--cpu C] [--drain-cpu C] [--priority P] [--json FILE]");
       return 0;
     } else {
       std::fprintf(stderr, "unknown option %s\n", a.c_str());
@@ -183,8 +194,10 @@ int main(int argc, char** argv) {
   std::printf("%-10s %8s %8s %8s %9s %9s  %-24s %-34s %s\n", "variant", "p50 ns", "p90 ns", "p99 ns", "p99.9 ns",
               "max ns", "minus ref p50 / p99 ns", "ratio p50: median [min, max]", "ratio p99: median [min, max]");
   Percentiles ref{};
+  std::vector<Percentiles> pooled;
   for (auto& v : variants) {
     const Percentiles p = percentiles_of(v.pooled);
+    pooled.push_back(p);
     if (v.mode == Mode::kReference) ref = p;
     const auto [p50_min, p50_max] = std::minmax_element(v.ratio_p50.begin(), v.ratio_p50.end());
     const auto [p99_min, p99_max] = std::minmax_element(v.ratio_p99.begin(), v.ratio_p99.end());
@@ -192,7 +205,72 @@ int main(int argc, char** argv) {
                 v.name, p.p50_ns, p.p90_ns, p.p99_ns, p.p999_ns, p.max_ns, p.p50_ns - ref.p50_ns, p.p99_ns - ref.p99_ns,
                 median(v.ratio_p50), *p50_min, *p50_max, median(v.ratio_p99), *p99_min, *p99_max);
   }
+  const uint64_t dropped = ring.dropped() - dropped_before;
   std::printf("events recorded (on): %llu, dropped: %llu\n", static_cast<unsigned long long>(ring.pushed()),
-              static_cast<unsigned long long>(ring.dropped() - dropped_before));
+              static_cast<unsigned long long>(dropped));
+  if (!json.empty()) {
+    std::string md =
+        "| variant | p50 ns | p99 ns | p99.9 ns | minus reference p50 / p99 ns | per-round p50 ratio: median "
+        "[range] | per-round p99 ratio: median [range] |\n|---|---|---|---|---|---|---|\n";
+    for (std::size_t k = 0; k < variants.size(); ++k) {
+      const Variant& v = variants[k];
+      const Percentiles& p = pooled[k];
+      const auto [p50_min, p50_max] = std::minmax_element(v.ratio_p50.begin(), v.ratio_p50.end());
+      const auto [p99_min, p99_max] = std::minmax_element(v.ratio_p99.begin(), v.ratio_p99.end());
+      char row[512];
+      std::snprintf(row, sizeof row, "| %s | %.0f | %.0f | %.0f | %+.0f / %+.0f | %.3fx [%.3f, %.3f] | %.3fx [%.3f, %.3f] |\n",
+                    v.name, p.p50_ns, p.p99_ns, p.p999_ns, p.p50_ns - ref.p50_ns, p.p99_ns - ref.p99_ns,
+                    median(v.ratio_p50), *p50_min, *p50_max, median(v.ratio_p99), *p99_min, *p99_max);
+      md += row;
+    }
+    const double on_p50 = pooled[2].p50_ns - ref.p50_ns, on_p99 = pooled[2].p99_ns - ref.p99_ns;
+    char note[512];
+    std::snprintf(note, sizeof note,
+                  "On: %+.0f ns at p50 and %+.0f ns at p99 per cycle against the reference (target: under 1000 ns: "
+                  "%s); off: median per-round p50 ratio %.3fx (target: nothing measurable, within 1.05x: %s). "
+                  "Events recorded while on: %llu, dropped: %llu.",
+                  on_p50, on_p99, on_p99 < 1000.0 ? "met" : "MISSED", median(variants[1].ratio_p50),
+                  median(variants[1].ratio_p50) <= 1.05 ? "met" : "MISSED",
+                  static_cast<unsigned long long>(ring.pushed()), static_cast<unsigned long long>(dropped));
+    const std::string about =
+        "A cycle is what a small data task does with the executor's trace hooks (5 events: wake-up, cycle start "
+        "and end, a 64-byte message sent through the router and received). reference: no ring bound; off: a ring "
+        "bound and switched off (what every task of rackd pays); on: recording, drained by a normal thread on "
+        "another CPU. " + std::to_string(rounds) + " rounds x " + std::to_string(cycles) +
+        " cycles per variant, interleaved, SCHED_FIFO " + std::to_string(priority) + " on CPU " +
+        std::to_string(cpu) + "; the time of each cycle, in ns below, us in the comparisons.";
+    std::string j = "{\n  \"benchmark\": \"trace\",\n  \"command\": \"";
+    j += rack::bench::json_escape(command_line);
+    j += "\",\n  \"machine\": ";
+    j += rack::bench::json_machine();
+    j += ",\n  \"title\": \"bench_trace: the task timeline's cost per cycle, off and on, vs the cycle without it\"";
+    j += ",\n  \"about\": \"";
+    j += rack::bench::json_escape(about);
+    j += "\",\n  \"markdown\": \"";
+    j += rack::bench::json_escape(md);
+    j += "\",\n  \"comparisons\": [\n";
+    const char* names[2] = {"tracing off vs no ring", "tracing on vs no ring"};
+    for (std::size_t k = 1; k <= 2; ++k) {
+      if (k == 2) j += ",\n";
+      j += "    {\"name\": \"";
+      j += names[k - 1];
+      j += "\", \"rack_label\": \"";
+      j += variants[k].name;
+      j += "\", \"reference_label\": \"no ring\", \"rack\": ";
+      j += rack::bench::json_percentiles(pooled[k]);
+      j += ", \"reference\": ";
+      j += rack::bench::json_percentiles(ref);
+      j += ", \"metric\": \"p50_ns\"";
+      if (k == 1) j += ", \"target_ratio\": 1.05";
+      j += "}";
+    }
+    j += "\n  ],\n  \"notes\": [\"";
+    j += rack::bench::json_escape(note);
+    j += "\"]\n}\n";
+    if (!rack::bench::write_file(json, j)) {
+      std::fprintf(stderr, "bench_trace: cannot write %s\n", json.c_str());
+      return 1;
+    }
+  }
   return 0;
 }

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """What runs on the measured CPU around each wake-up of bench_jitter's two sides.
 
-    bench/jitter_trace.py [--cpu N] [--seconds S] [--bench PATH] [-- BENCH_JITTER_ARGS...]
+    bench/jitter_trace.py [--cpu N] [--seconds S] [--rounds R] [--late-us U] [--window-us W]
+                          [--bench PATH] [--analyse-only TRACE] [-- BENCH_JITTER_ARGS...]
 
 Needs root. Mounts tracefs at /sys/kernel/tracing if needed, traces CPU N only
 (sched_switch/wakeup, irq and softirq entry/exit, hrtimer_start/expire, local timer
@@ -13,6 +14,9 @@ data task and cyclictest, one after the other), then prints per side:
   - what was running when the timer fired, and which IRQs/softirqs came within
     200 us before it, for the worst 1 % of wake-ups;
   - p50/p99 by the deadline's phase within the scheduler tick (HZ from the trace).
+  - every wake-up later than --late-us (default 500): its time since the first
+    wake-up of that side's thread (a segment's start-up shows as small offsets), and
+    the events on the CPU in the --window-us (default 2500) before its switch-in.
 The trace stays in /tmp/jitter-trace.txt. The time from switch-in to the task's own
 timestamp is user space (clock_nanosleep returning, clock_gettime in the vDSO) and is
 not in the trace. See bench/RESULTS.md, "Jitter: what runs on the measured CPU".
@@ -38,7 +42,7 @@ def write(path, text):
         f.write(text)
 
 
-def trace(cpu, seconds, bench, extra, out):
+def trace(cpu, seconds, rounds, bench, extra, out):
     if not os.path.exists(os.path.join(T, "trace")):
         subprocess.run(["mount", "-t", "tracefs", "nodev", T], check=True)
     write("tracing_on", "0")
@@ -53,7 +57,7 @@ def trace(cpu, seconds, bench, extra, out):
             print(f"jitter_trace: event {e} not available: {err}", file=sys.stderr)
     write("tracing_on", "1")
     try:
-        r = subprocess.run([bench, "--cpu", str(cpu), "--seconds", str(seconds), "--rounds", "2"] + extra,
+        r = subprocess.run([bench, "--cpu", str(cpu), "--seconds", str(seconds), "--rounds", str(rounds)] + extra,
                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     finally:
         write("tracing_on", "0")
@@ -70,9 +74,12 @@ def pct(v, q):
     return v[min(len(v) - 1, int(q * len(v)))] if v else 0.0
 
 
-def analyse(path):
+def analyse(path, late_us=500.0, window_us=2500.0):
     starts, pending, res = {}, {}, collections.defaultdict(list)
     recent = collections.deque(maxlen=40)
+    history = collections.deque()  # (ts, comm, pid, ev, rest) within window_us
+    first_wake = {}  # pid of the measured thread -> its first switch-in (a segment's start)
+    late_list = []
     tick_ns = None
     last_tick = None
     for line in open(path):
@@ -82,6 +89,9 @@ def analyse(path):
         comm, pid, _, ts, ev, rest = m.groups()
         ts = float(ts) * 1e6
         recent.append((ts, comm, ev, rest))
+        history.append((ts, comm, pid, ev, rest))
+        while history and ts - history[0][0] > window_us:
+            history.popleft()
         if ev == "hrtimer_start":
             p = re.search(r"hrtimer=(\w+) function=(\w+) expires=(\d+)", rest)
             if not p:
@@ -107,7 +117,24 @@ def analyse(path):
                 if int(p.group(3)) < 99:  # the RT thread (cyclictest's main thread is SCHED_OTHER)
                     d["switch"] = ts - d["at"]
                     res[d["side"]].append(d)
+                    tid = re.search(r"next_pid=(\d+)", rest).group(1)
+                    first_wake.setdefault(tid, ts)
+                    if d["late"] + d["switch"] >= late_us:
+                        late_list.append((d, ts - first_wake[tid], list(history)))
     tick_ns = tick_ns or 4_000_000
+    tick_phase = None if last_tick is None else last_tick % tick_ns
+    by_after = collections.defaultdict(lambda: collections.defaultdict(list))
+    print(f"\nwake-ups later than {late_us:g} us (timer lateness + expiry -> switch-in), with the time since "
+          f"the first wake-up of that thread (its segment's start) and the CPU's events in the {window_us:g} us "
+          "before the switch-in (other threads' switches, IRQs, softirqs, IPIs; hrtimer starts left out):")
+    for d, since, hist in late_list:
+        print(f"- {d['side']}: {d['late'] + d['switch']:.0f} us late (timer {d['late']:.0f} + switch-in "
+              f"{d['switch']:.0f}), {since / 1e6:.3f} s into its segment, running when it fired: {d['running']}")
+        t_end = hist[-1][0] if hist else 0
+        for ts, comm, pid, ev, rest in hist:
+            if ev in ("hrtimer_start", "sched_wakeup") and "gen:data" not in rest and "cyclictest" not in rest:
+                continue
+            print(f"    {ts - t_end:9.1f} us  {comm}-{pid}  {ev}: {rest[:110]}")
     for side, ds in res.items():
         late = [d["late"] for d in ds]
         sw = [d["switch"] for d in ds]
@@ -135,12 +162,34 @@ def analyse(path):
             by_phase[round((d["deadline"] % tick_ns) / 1e6, 2)].append(d["late"] + d["switch"])
         print(f"  by deadline phase in the {tick_ns / 1e6:g} ms tick (ms: p50/p99 us, n):",
               {k: (round(pct(v, .5)), round(pct(v, .99)), len(v)) for k, v in sorted(by_phase.items()) if len(v) > 50})
+        if tick_phase is not None:
+            for d in ds:
+                after = (d["deadline"] - tick_phase) % tick_ns
+                by_after[side][int(after * 16 // tick_ns)].append(d["late"] + d["switch"])
+    if tick_phase is not None and len(by_after) == 2:
+        # The same wake-up, timed against the tick: if both sides have the same latency at
+        # the same phase, a difference between them is the phases their segments drew.
+        print(f"\nlatency (timer lateness + switch-in, p50 / p99 us, n) by the deadline's time after the "
+              f"{tick_ns / 1e6:g} ms scheduler tick, in sixteenths of it:")
+        for k in range(16):
+            row = []
+            for side in ("rack-rt", "cyclictest"):
+                v = by_after[side].get(k, [])
+                row.append(f"{side} {pct(v, .5):5.1f} / {pct(v, .99):6.1f} ({len(v):5d})" if v else f"{side} -")
+            print(f"  {k * tick_ns / 16e3:6.0f}-{(k + 1) * tick_ns / 16e3:4.0f} us: " + "   ".join(row))
+        for side in ("rack-rt", "cyclictest"):
+            v = [x for k in range(16) for x in by_after[side].get(k, [])]
+            w = {k: len(by_after[side].get(k, [])) / max(1, len(v)) for k in range(16)}
+            print(f"  {side}: share of wake-ups per sixteenth: " + " ".join(f"{w[k]:.2f}" for k in range(16)))
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cpu", type=int, default=os.cpu_count() - 1)
     ap.add_argument("--seconds", type=int, default=10)
+    ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--late-us", type=float, default=500.0, help="list every wake-up at least this late")
+    ap.add_argument("--window-us", type=float, default=2500.0, help="events shown before each late one")
     ap.add_argument("--bench", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "build",
                                                     "bench", "bench_jitter"))
     ap.add_argument("--analyse-only", metavar="TRACE", help="analyse an existing trace file")
@@ -152,8 +201,8 @@ def main():
     else:
         if os.geteuid() != 0:
             sys.exit("jitter_trace: needs root (tracefs, SCHED_FIFO)")
-        trace(a.cpu, a.seconds, a.bench, a.extra, out)
-    analyse(out)
+        trace(a.cpu, a.seconds, a.rounds, a.bench, a.extra, out)
+    analyse(out, a.late_us, a.window_us)
 
 
 if __name__ == "__main__":

@@ -323,8 +323,10 @@ def section_jitter(c, keys):
         f"SCHED_FIFO {jit['priority']} pinned to CPU {jit['cpu']} (command task pinned there too, idle), "
         "`lcm: false`, switched on, memory policy applied as rackd does; after the run its data "
         "task's latency histogram is read (`DataComponentBase::data_task_stats()`). Reference: "
-        f"`cyclictest -m -p {jit['priority']} -i {jit['interval_us']} -a {jit['cpu']} -t1 -D <s>s -q -h 10000` "
-        "(`clock_nanosleep`, its default). Both measure wake-up time minus deadline on CLOCK_MONOTONIC after an "
+        + (f"`cyclictest -m -p {jit['priority']} -i {jit['interval_us']} -a {jit['cpu']} -t1 -q -h 10000 "
+           "--secaligned <phase> -l <cycles>` " if jit.get("aligned") else
+           f"`cyclictest -m -p {jit['priority']} -i {jit['interval_us']} -a {jit['cpu']} -t1 -D <s>s -q -h 10000` ")
+        + "(`clock_nanosleep`, its default). Both measure wake-up time minus deadline on CLOCK_MONOTONIC after an "
         "absolute `clock_nanosleep`, in 1-us buckets, and both skip missed periods; percentiles of both come "
         f"from the same code, truncated to whole us as cyclictest prints them. {jit['seconds']} s per side in "
         f"{jit['rounds']} round(s), one side after the other (alternating order: rack, cyclictest, cyclictest, "
@@ -332,6 +334,14 @@ def section_jitter(c, keys):
         + ("held at 0 for both sides (cyclictest does that by default)." if jit["pm_qos_hold"]
            else "left alone for both sides (cyclictest `--default-system`).")
         + (" Mode-switch detection on for the RACK-RT side, as rackd runs it." if jit.get("modeswitch") else "")
+        + (" **Same phase for both sides of a round:** where the deadlines fall against the kernel's 4 ms tick "
+           "moves a segment's latency by up to 2x on this VM (\"Jitter: late wake-ups, the stress-ng gap and the "
+           "tick phase\" below the marker), so in each round both sides put their deadlines on the same grid of "
+           "CLOCK_MONOTONIC (the data task's `phase_ms:`, cyclictest's `--secaligned`), and the rounds walk that "
+           "phase across the period." if jit.get("aligned") else "")
+        + (" The RACK-RT task's wake-ups during the executor's start() (its first few cycles) are counted apart, "
+           "not in the figures, as cyclictest's set-up is not in its own." if "include_startup" in jit
+           and not jit["include_startup"] else "")
         + " Each round's RACK-RT segment is compared with its cyclictest segment (back to back, same load); the "
         "verdict is the **median of the per-round ratios**, given with their range, so that one noisy segment "
         f"cannot decide it. Targets: p99 <= {jit['target_ratio_p99']:.2f}x and p99.9 <= "
@@ -368,12 +378,27 @@ def section_jitter(c, keys):
                 f"{j['sides']['rack']['overruns']}; cyclictest histogram overflows (>= 10 ms): "
                 f"{j['sides']['cyclictest']['histogram_overflows']}.")
             c.w("")
-            c.w("| round | RACK-RT p99 | cyclictest p99 | ratio | RACK-RT p99.9 | cyclictest p99.9 | ratio |")
-            c.w("|---|---|---|---|---|---|---|")
+            late_r = j["sides"]["rack"].get("late_1ms")
+            late_c = j["sides"]["cyclictest"].get("late_1ms")
+            phases = j.get("phase_us") if j.get("aligned") else None
+            extra_head = (" phase us |" if phases else "") + (" >= 1 ms late: RACK-RT / cyclictest |" if late_r else "")
+            c.w("| round |" + extra_head + " RACK-RT p99 | cyclictest p99 | ratio | RACK-RT p99.9 | cyclictest p99.9 | ratio |")
+            c.w("|---|" + "---|" * extra_head.count("|") + "---|---|---|---|---|---|")
             rounds_r, rounds_c = j["sides"]["rack"].get("rounds", []), j["sides"]["cyclictest"].get("rounds", [])
             for i, (a, b) in enumerate(zip(rounds_r, rounds_c)):
-                c.w(f"| {i + 1} | {us(a['p99_ns'])} | {us(b['p99_ns'])} | {fx(ratio(a['p99_ns'], b['p99_ns']))} | "
+                extra = (f" {phases[i]} |" if phases and i < len(phases) else " – |" if phases else "")
+                if late_r:
+                    extra += (f" {late_r[i]} / {late_c[i]} |" if late_c and i < len(late_r) and i < len(late_c)
+                              else " – |")
+                c.w(f"| {i + 1} |{extra} {us(a['p99_ns'])} | {us(b['p99_ns'])} | {fx(ratio(a['p99_ns'], b['p99_ns']))} | "
                     f"{us(a['p999_ns'])} | {us(b['p999_ns'])} | {fx(ratio(a['p999_ns'], b['p999_ns']))} |")
+            st = j.get("startup")
+            if st:
+                c.w("")
+                c.w(f"RACK-RT's start-up (the data task's first cycles, until the executor's start() returned; "
+                    f"{'in' if j.get('include_startup') else 'not in'} the figures): {st['samples']} wake-ups over "
+                    f"all rounds, {st['late_500us']} of them 500 us late or more, the worst below "
+                    f"{st['max_us_below']:.0f} us.")
         else:
             c.w(f"All figures in us. Ratio RACK-RT / cyclictest: **p99 {j['ratio_p99']:.2f}x** "
                 f"({verdict(j['ratio_p99'], j['target_ratio_p99'])}), p50 {j['ratio_p50']:.2f}x. RACK-RT missed "
@@ -432,7 +457,9 @@ def section_jitter(c, keys):
     cmds = [c.cmd(k) for k in keys]
     c.command_block(cmds + ["# inside bench_jitter, per segment:",
                             f"cyclictest -m -p {jit['priority']} -i {jit['interval_us']} -a {jit['cpu']} -t1 "
-                            f"-D <seconds>s -q -h 10000" + ("" if jit["pm_qos_hold"] else " --default-system")]
+                            + ("-q -h 10000 --secaligned <phase us> -l <seconds * 1e6 / interval>" if jit.get("aligned")
+                               else "-D <seconds>s -q -h 10000")
+                            + ("" if jit["pm_qos_hold"] else " --default-system")]
                     if any(cmds) else [])
 
 

@@ -474,6 +474,10 @@ void DataComponentBase::run_data_task() noexcept {
   if (mode_ == DataTaskMode::kPeriodic) {
     const int64_t period = settings().period_ns;
     int64_t next = rt::monotonic_ns() + period;
+    if (const int64_t phase = settings().phase_ns; phase >= 0) {  // phase_ms: on the clock's grid
+      const int64_t now = rt::monotonic_ns();
+      next = (now - phase) / period * period + phase + period;  // the first grid point after now
+    }
     // Overruns are reported through GDOS at most once a second, with the count since
     // the last report (a task that overruns every cycle must not flood its ring).
     uint64_t unreported = 0;

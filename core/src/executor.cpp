@@ -351,7 +351,7 @@ void Executor::start_steps(const std::string& url) {
       auto task_cpus = [&hs](const TaskSettings& t) {
         return t.cpu >= 0 ? std::vector<int>{} : t.priority > 0 ? hs.rt_cpus : hs.housekeeping_cpus;
       };
-      auto* cmd_trace = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(kTraceRingEvents)).get();
+      auto* cmd_trace = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(hs.trace_ring_events)).get();
       trace_.add_task(c.name() + " command task", c.name(), c.address().raw(), cmd_trace);
       auto cmd = std::make_unique<rt::Thread>();
       gdos::LogRing* cmd_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " command task");
@@ -370,7 +370,7 @@ void Executor::start_steps(const std::string& url) {
       fallback_ = fallback_ || how == rt::ThreadStart::kFallback;
       threads_.push_back(std::move(cmd));
       if (auto* dc = dynamic_cast<DataComponentBase*>(&c); dc != nullptr && c.data_task_mode() != DataTaskMode::kNone) {
-        auto* data_trace = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(kTraceRingEvents)).get();
+        auto* data_trace = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(hs.trace_ring_events)).get();
         trace_.add_task(c.name() + " data task", c.name(), c.address().raw(), data_trace);
         auto data = std::make_unique<rt::Thread>();
         gdos::LogRing* data_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " data task");
@@ -531,8 +531,11 @@ void Executor::trace_loop() {
   pthread_setname_np(pthread_self(), "rackd:trace");  // not RT: SCHED_OTHER, housekeeping CPUs
   alignas(8) std::byte buf[1024];
   for (;;) {
-    // 10 ms while recording: a ring of kTraceRingEvents never fills below ~400 events/ms.
-    const int64_t wait = trace_.state() == trace::TraceState::kRecording ? 10 * rt::kNsPerMs : 200 * rt::kNsPerMs;
+    // 10 ms while recording: a ring of 4096 events (trace_ring_events' default) never
+    // fills below ~400 events/ms. Otherwise it sleeps until a request comes (or stop()
+    // closes the mailbox): an idle executor's trace thread does not wake at all.
+    const int64_t wait =
+        trace_.state() == trace::TraceState::kRecording ? 10 * rt::kNsPerMs : tims::Mailbox::kForever;
     const auto r = trace_mailbox_->receive(std::span<std::byte>(buf), wait);
     if (r.status == tims::RecvStatus::kClosed) break;
     try {

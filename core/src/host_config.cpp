@@ -454,7 +454,7 @@ struct HostLoader {
     HostSettings& hs = host->settings;
     hs.file = file;
     check_keys(root, {"host", "system", "host_id", "require_rt", "lcm", "lcm_url", "heap_prefault_mib",
-                      "cpu_dma_latency_us", "cpus", "plugins", "modeswitch", "components", "gdos", "tims", "access"},
+                      "cpu_dma_latency_us", "trace_ring_events", "cpus", "plugins", "modeswitch", "components", "gdos", "tims", "access"},
                "the host file");
     char hostname[256] = {};
     gethostname(hostname, sizeof hostname - 1);
@@ -478,6 +478,14 @@ struct HostLoader {
     if (get_int_range(root, "cpu_dma_latency_us", -1, 100000, v,
                       "a latency bound in us (0: shallowest idle state; -1: leave to the system)")) {
       hs.cpu_dma_latency_us = static_cast<int>(v);
+    }
+    if (get_int_range(root, "trace_ring_events", 16, 1 << 20, v, "a number of events (a power of two)")) {
+      if ((v & (v - 1)) != 0) {
+        error(root["trace_ring_events"].Mark(), "'trace_ring_events' = " + std::to_string(v) +
+                                                    " is not a power of two (e.g. 1024, 4096, 16384)");
+      } else {
+        hs.trace_ring_events = static_cast<std::size_t>(v);
+      }
     }
     if (const YAML::Node cpus = root["cpus"]) read_cpus(cpus, hs);
     if (const YAML::Node ms = root["modeswitch"]) read_modeswitch(ms, hs.modeswitch);
@@ -995,7 +1003,7 @@ struct HostLoader {
         error(dt.Mark(), "'data_task' must be a map");
       } else {
         std::set<std::string> extra{"ring", "max_listeners", "lease_ms"};
-        if (mode == DataTaskMode::kPeriodic) extra.insert("period_ms");
+        if (mode == DataTaskMode::kPeriodic) extra.insert({"period_ms", "phase_ms"});
         else extra.insert({"timeout_ms", "input_slots"});
         read_task(dt, s.data_task, "data_task of a " + std::string(describe(mode)) + " class", extra, 0);
         int64_t n = 0;
@@ -1008,6 +1016,17 @@ struct HostLoader {
         if (mode == DataTaskMode::kPeriodic) {
           if (!dt["period_ms"]) error(dt.Mark(), "periodic data task without 'period_ms'");
           else get_positive_ms(dt, "period_ms", s.period_ns);
+          // Deadlines on a fixed grid of the clock: tasks of one host (or cyclictest
+          // --secaligned) in a chosen phase against each other.
+          if (double ms = 0; dt["phase_ms"] && get(dt, "phase_ms", ms, "a number of milliseconds")) {
+            const auto ns = static_cast<int64_t>(std::llround(ms * 1e6));
+            if (!(ms >= 0) || !std::isfinite(ms) || (s.period_ns > 0 && ns >= s.period_ns)) {
+              error(dt["phase_ms"].Mark(), "'phase_ms' = " + dt["phase_ms"].Scalar() +
+                                               " must be at least 0 and below period_ms");
+            } else {
+              s.phase_ns = ns;
+            }
+          }
         } else {
           get_positive_ms(dt, "timeout_ms", s.data_timeout_ns);
         }

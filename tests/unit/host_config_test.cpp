@@ -292,6 +292,45 @@ TEST_F(HostConfigTest, CpusPartitioning) {
   expect_error("lcm: false\ncpus: [0]\n" + comps, 2, {"'cpus' must be a map"});
 }
 
+TEST_F(HostConfigTest, TraceRingEvents) {
+  const std::string comps = "components:\n  - name: gen\n    class: Generator\n    data_task: {period_ms: 10}\n";
+  {
+    const LoadResult r = load("lcm: false\n" + comps);
+    ASSERT_NE(r.host, nullptr);
+    EXPECT_EQ(r.host->settings.trace_ring_events, 4096u);  // the default
+  }
+  {
+    const LoadResult r = load("lcm: false\ntrace_ring_events: 16384\n" + comps);
+    ASSERT_NE(r.host, nullptr) << (r.errors.empty() ? "" : r.errors.front().str());
+    EXPECT_EQ(r.host->settings.trace_ring_events, 16384u);
+  }
+  expect_error("lcm: false\ntrace_ring_events: 3000\n" + comps, 2, {"'trace_ring_events' = 3000", "power of two"});
+  expect_error("lcm: false\ntrace_ring_events: 8\n" + comps, 2, {"'trace_ring_events' = 8", "outside 16..1048576"});
+  expect_error("lcm: false\ntrace_ring_events: 2097152\n" + comps, 2, {"outside 16..1048576"});
+  expect_error("lcm: false\ntrace_ring_events: many\n" + comps, 2, {"'trace_ring_events'", "power of two"});
+  // The error names the file, the line and the column of the value.
+  const LoadResult r = load("lcm: false\ntrace_ring_events: 3000\n" + comps);
+  ASSERT_FALSE(r.errors.empty());
+  EXPECT_EQ(r.errors.front().str().rfind("host.yaml:2:20: ", 0), 0u) << r.errors.front().str();
+}
+
+TEST_F(HostConfigTest, PeriodicPhase) {
+  const std::string head = "lcm: false\ncomponents:\n  - name: gen\n    class: Generator\n";
+  {
+    const LoadResult r = load(head + "    data_task: {period_ms: 10}\n");
+    ASSERT_NE(r.host, nullptr);
+    EXPECT_EQ(r.host->components.front()->settings().phase_ns, -1);  // default: from the start
+  }
+  {
+    const LoadResult r = load(head + "    data_task: {period_ms: 10, phase_ms: 2.5}\n");
+    ASSERT_NE(r.host, nullptr) << (r.errors.empty() ? "" : r.errors.front().str());
+    EXPECT_EQ(r.host->components.front()->settings().phase_ns, 2'500'000);
+  }
+  expect_error(head + "    data_task: {period_ms: 10, phase_ms: 10}\n", 5, {"'phase_ms' = 10", "below period_ms"});
+  expect_error(head + "    data_task: {period_ms: 10, phase_ms: -1}\n", 5, {"'phase_ms' = -1", "at least 0"});
+  expect_error(head + "    data_task: {period_ms: 10, phase_ms: soon}\n", 5, {"'phase_ms'"});
+}
+
 TEST_F(HostConfigTest, CpuNotOnline) {
   expect_error(R"(lcm: false
 components:

@@ -1,7 +1,8 @@
 // GET_LATENCY: the data task's 1-us wake-up latency histogram added up into the
 // reply's buckets (rt::LatencyStats::compress, wire::kLatencyLowerNs), the reply in
 // both byte orders, and the command through a real in-process executor (a periodic
-// generator; a malformed request).
+// generator; a malformed request). A periodic task's phase_ms puts its deadlines on the
+// clock's grid.
 #include <gtest/gtest.h>
 
 #include <array>
@@ -11,6 +12,9 @@
 #include <numeric>
 #include <vector>
 
+#include "rack/core/data_component.h"
+#include "rack/interfaces/demo.h"
+#include "rack/rt/clock.h"
 #include "rack/rt/latency_stats.h"
 #include "test_support.h"
 
@@ -272,6 +276,70 @@ TEST_F(LatencyCommandTest, RequestWithABodyIsAnsweredErrorAndCounted) {
   EXPECT_EQ(host_->stats(gen_).malformed, before + 1);
   // The component still answers.
   EXPECT_EQ(latency().bucket_count, wire::kLatencyBuckets);
+}
+
+// A periodic component that keeps the CLOCK_MONOTONIC time of its first cycles.
+class WakeRecorder final : public DataComponent<interfaces::GeneratorData> {
+ public:
+  static constexpr std::size_t kKept = 40;
+  WakeRecorder() : DataComponent(DataTaskMode::kPeriodic) {}
+  HookResult loop() override {  // RT: no allocation
+    const int64_t now = rt::monotonic_ns();
+    const std::size_t i = count_.load(std::memory_order_relaxed);
+    if (i < kKept) {
+      times_[i] = now;
+      count_.store(i + 1, std::memory_order_release);
+    }
+    return HookResult::kOk;
+  }
+  [[nodiscard]] std::size_t count() const noexcept { return count_.load(std::memory_order_acquire); }
+  [[nodiscard]] int64_t time(std::size_t i) const noexcept { return times_[i]; }
+
+ private:
+  std::array<int64_t, kKept> times_{};
+  std::atomic<std::size_t> count_{0};
+};
+
+// data_task.phase_ms: the deadlines are whole multiples of the period on CLOCK_MONOTONIC
+// plus the phase. Two tasks started together with phases 1 ms and 6 ms of a 10 ms
+// period wake, cycle after cycle, in the first half after their own grid point; had the
+// phase been ignored, both would wake at the same offset and one of them would be off.
+TEST(PeriodicPhaseTest, DeadlinesFallOnTheClocksGridPlusThePhase) {
+  Watchdog dog;
+  HostUnderTest host(R"(system: 0
+lcm: false
+components:
+  - name: early
+    class: WakeRecorder
+    instance: 1
+    autostart: true
+    data_task: {period_ms: 10, phase_ms: 1}
+  - name: late
+    class: WakeRecorder
+    instance: 2
+    autostart: true
+    data_task: {period_ms: 10, phase_ms: 6}
+)",
+                     [](ComponentRegistry& r) {
+                       r.add({"WakeRecorder", tims::classes::kFirstUser, "test: keeps its wake-up times",
+                              [] { return std::make_unique<WakeRecorder>(); }});
+                     });
+  auto* early = dynamic_cast<WakeRecorder*>(host.executor().find("early"));
+  auto* late = dynamic_cast<WakeRecorder*>(host.executor().find("late"));
+  ASSERT_NE(early, nullptr);
+  ASSERT_NE(late, nullptr);
+  ASSERT_TRUE(test::eventually([&] { return early->count() >= 20 && late->count() >= 20; }));
+  constexpr int64_t kPeriod = 10'000'000;
+  for (const auto& [task, phase] : {std::pair{early, int64_t{1'000'000}}, std::pair{late, int64_t{6'000'000}}}) {
+    std::size_t in_window = 0;
+    const std::size_t n = task->count();
+    for (std::size_t i = 0; i < n; ++i) {
+      const int64_t offset = ((task->time(i) - phase) % kPeriod + kPeriod) % kPeriod;
+      if (offset < kPeriod / 2) ++in_window;  // woke within 5 ms after its deadline
+    }
+    // Most, not all: a loaded machine may wake a task a few ms late now and then.
+    EXPECT_GE(in_window * 4, n * 3) << in_window << " of " << n << " wake-ups within 5 ms after phase " << phase;
+  }
 }
 
 }  // namespace

@@ -1772,7 +1772,8 @@ const std::vector<Command>& commands() {
        "into preallocated per-task rings and sends the trace back over TiMS in\n"
        "chunks, so this works from another machine. A ring that fills between two\n"
        "drains (10 ms) drops events: the count is printed and kept in the file\n"
-       "(otherData.dropped_events). A trace already running: exit 1.\n"
+       "(otherData.dropped_events); the host file's trace_ring_events sets the\n"
+       "rings' size (4096). A trace already running: exit 1.\n"
        "  rackctl trace --duration 2 --out sim.json all\n"
        "  rackctl trace --duration 5 --out mcl.json mcl,ladar",
        cmd_trace},

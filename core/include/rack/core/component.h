@@ -69,6 +69,9 @@ struct ComponentSettings {
   TaskSettings command_task{30, -1, 256 * 1024, std::nullopt};
   TaskSettings data_task{40, -1, 256 * 1024, std::nullopt};
   int64_t period_ns = 0;                // periodic data task
+  // Periodic data task: deadlines at whole multiples of period_ns on CLOCK_MONOTONIC
+  // plus this (data_task.phase_ms, 0 <= phase < period); -1: one period after start.
+  int64_t phase_ns = -1;
   int64_t data_timeout_ns = rt::kNsPerSec;  // triggered: loop() runs after this long without input
   int64_t retry_ns = rt::kNsPerSec;     // ERROR back-off
   int64_t rpc_timeout_ns = rt::kNsPerSec;   // cascading ON and other calls from hooks

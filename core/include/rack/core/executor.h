@@ -23,7 +23,7 @@
 // task's faults since then once a second (Component::sample_faults, GET_STATS).
 //
 // Task timeline: every task records into its own rt::trace::Ring (preallocated at
-// start(), kTraceRingEvents events, off until a trace is asked for); the trace thread
+// start(), the host file's trace_ring_events, 4096 by default; off until a trace is asked for); the trace thread
 // (rackd:trace, not RT, on the housekeeping CPUs) answers TRACE_START and TRACE_READ
 // on Executor(sys/host_id)#2 (rack/core/trace_session.h, `rackctl trace`).
 //
@@ -173,11 +173,6 @@ class Executor {
   bool gdos_to_stderr_ = true;          // gdos.stderr: auto: the current choice
 
   // Task timeline (trace thread only, except the rings, which the tasks write).
- public:
-  // Events per task ring: 4096 x 32 bytes = 128 KiB per task; drained every 10 ms
-  // while a trace runs, so a task may record up to ~400 events per ms before it drops.
-  static constexpr std::size_t kTraceRingEvents = 4096;
- private:
   std::vector<std::unique_ptr<rt::trace::Ring>> trace_rings_;
   trace::TraceSession trace_;
   std::unique_ptr<tims::Mailbox> trace_mailbox_;

@@ -76,6 +76,9 @@ struct HostSettings {
   int receive_priority = 0;       // TiMS/LCM receive threads: 0 normal, else SCHED_FIFO (below control tasks)
   std::size_t heap_prefault_bytes = 64u << 20;
   int cpu_dma_latency_us = 0;     // PM QoS bound held while running; -1: leave to the system
+  // Events per task in the task-timeline rings (`trace_ring_events:`, a power of two):
+  // 32 bytes each, preallocated and locked at start for every task.
+  std::size_t trace_ring_events = 4096;
   // CPU partitioning (the `cpus:` block; configs/partitioned.yaml explains it). Both
   // empty: no partitioning. Otherwise both are set (a missing one is the online CPUs
   // less the other): RT tasks without a `cpu:` run on rt_cpus, every other thread of
