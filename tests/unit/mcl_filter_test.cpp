@@ -256,9 +256,10 @@ TEST_F(MclFilterTest, KldShrinksTheParticleSetOnceLocalised) {
 }
 
 // global_candidates: init_global() spreads that many times particles_max poses, the
-// first update weighs every one of them (no resampling before it), the next one draws
-// at most particles_max from them. Out of range is refused with the option's name.
-TEST_F(MclFilterTest, GlobalCandidatesAreAllWeighedOnceThenResampled) {
+// first update weighs every one of them (no resampling before it) and keeps the
+// particles_max that fit the scan best, equally weighted; the next one resamples (KLD)
+// from those. Out of range is refused with the option's name.
+TEST_F(MclFilterTest, GlobalCandidatesAreAllWeighedOnceThenTheBestKept) {
   MclOptions o;
   o.particles_min = 100;
   o.particles_max = 1000;
@@ -273,10 +274,16 @@ TEST_F(MclFilterTest, GlobalCandidatesAreAllWeighedOnceThenResampled) {
   for (int i = 0; i < 40 && counts.size() < 2 && !robot.step_towards(8.0, 8.0); ++i) {
     const test::SimScan s = robot.scan();
     const SimPose od = robot.odometry();
-    if (f.update({od.x, od.y, od.phi}, s.xs, s.ys)) counts.push_back(f.estimate().particles);
+    if (!f.update({od.x, od.y, od.phi}, s.xs, s.ys)) continue;
+    counts.push_back(f.estimate().particles);
+    if (counts.size() == 1) {  // the kept candidates are equally weighted
+      std::vector<float> x(1000), y(1000), phi(1000), w(1000);
+      ASSERT_EQ(f.sample_particles(x, y, phi, w), 1000U);
+      for (float v : w) EXPECT_FLOAT_EQ(v, 1e-3F);
+    }
   }
   ASSERT_EQ(counts.size(), 2U);
-  EXPECT_EQ(counts[0], 5000U);
+  EXPECT_EQ(counts[0], 1000U);  // the best 1000 of the 5000 candidates
   EXPECT_LE(counts[1], 1000U);
   EXPECT_GE(counts[1], 100U);
   f.init_pose({2.0, 8.0, 0.0}, 0.05, 0.02);

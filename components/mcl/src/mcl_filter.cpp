@@ -361,6 +361,28 @@ struct MclFilter::Impl {
     }
   }
 
+  // After the candidates of a global start were weighed by the first scan: keep the
+  // `keep` best-fitting ones, equally weighted. (Resampling them by weight instead let
+  // a few near-perfect fits take the whole set: in a repetitive corridor the aliases'
+  // best candidates outweighed the true place's by chance of where the candidates fell,
+  // and KLD then shrank the set to particles_min around them.)
+  void keep_best(std::size_t keep) {
+    const std::size_t m = pdf.m_particles.size();
+    if (m <= keep || log_lik.size() < m) return;
+    order.resize(m);
+    for (std::size_t i = 0; i < m; ++i) order[i] = static_cast<uint32_t>(i);
+    std::nth_element(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(keep), order.end(),
+                     [this](uint32_t a, uint32_t b) { return log_lik[a] > log_lik[b]; });
+    std::sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(keep));
+    for (std::size_t j = 0; j < keep; ++j) {
+      pdf.m_particles[j].d = pdf.m_particles[order[j]].d;
+      pdf.m_particles[j].log_w = 0.0;
+      log_lik[j] = log_lik[order[j]];
+    }
+    pdf.m_particles.resize(keep);
+    log_lik.resize(keep);
+  }
+
   void random_free_pose(double& x, double& y, double& phi) {
     std::uniform_int_distribution<std::size_t> pick(0, free_cells.size() - 1);
     std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -382,6 +404,18 @@ struct MclFilter::Impl {
     c_slow = c_fast = global ? 1.0 : 0.0;
     if (global) est.w_slow = est.w_fast = 1.0;
     force_update = true;
+  }
+
+  // A global start: particles times candidates poses uniformly over the free space.
+  void spread_uniform(std::size_t particles, std::size_t candidates) {
+    reset_particles(particles * candidates, true);
+    move_only = candidates > 1;
+    for (auto& p : pdf.m_particles) {
+      double x = 0, y = 0, phi = 0;
+      random_free_pose(x, y, phi);
+      p.d = mrpt::math::TPose2D(x, y, phi);
+    }
+    refresh_estimate();
   }
 
   void refresh_estimate() {
@@ -512,7 +546,10 @@ MclFilter::MclFilter(const maps::OccupancyMap& map, const MclOptions& options) :
   s.rng.seed(options.seed != 0 ? options.seed
                                : static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count()));
   s.apply_options();
-  init_global();
+  // Uniform over the free space, one pose per particle: a state to start from until
+  // the owner calls init_pose() or init_global() (which spreads the candidates); it
+  // spares every construction the candidates' allocation and draws.
+  s.spread_uniform(s.opt.particles_max, 1);
 }
 
 MclFilter::~MclFilter() = default;
@@ -539,17 +576,7 @@ void MclFilter::init_pose(const MclPose& pose, double sigma_xy, double sigma_phi
   s.refresh_estimate();
 }
 
-void MclFilter::init_global() {
-  Impl& s = *impl_;
-  s.reset_particles(static_cast<std::size_t>(s.opt.particles_max) * s.opt.global_candidates, true);
-  s.move_only = s.opt.global_candidates > 1;
-  for (auto& p : s.pdf.m_particles) {
-    double x = 0, y = 0, phi = 0;
-    s.random_free_pose(x, y, phi);
-    p.d = mrpt::math::TPose2D(x, y, phi);
-  }
-  s.refresh_estimate();
-}
+void MclFilter::init_global() { impl_->spread_uniform(impl_->opt.particles_max, impl_->opt.global_candidates); }
 
 bool MclFilter::update(const MclPose& odometry, std::span<const float> xs, std::span<const float> ys) {
   Impl& s = *impl_;
@@ -582,9 +609,11 @@ bool MclFilter::update(const MclPose& odometry, std::span<const float> xs, std::
     s.px[k] = xs[i];
     s.py[k] = ys[i];
   }
+  const bool candidates = s.move_only;
   s.predict(incr);
   s.weigh_all();
   s.recover();
+  if (candidates) s.keep_best(s.opt.particles_max);
   s.pdf.normalizeWeights();
   s.moved = mrpt::poses::CPose2D();
   s.force_update = false;
