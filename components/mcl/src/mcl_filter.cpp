@@ -150,6 +150,9 @@ void validate(const MclOptions& o) {
   if (const char* why = check_options(o)) throw std::invalid_argument(why);
 }
 
+// Particles x points per update from which the likelihood is split over two threads.
+constexpr std::size_t kParallelMinLookups = 100'000;
+
 struct MclFilter::Impl {
   MclOptions opt;
   // The particles live in a frame shifted by the map's origin: cell (ix, iy) covers
@@ -266,7 +269,11 @@ struct MclFilter::Impl {
   void weigh_all() {
     const std::size_t m = pdf.m_particles.size();
     log_lik.resize(m);
-    if (worker && m >= 64) {
+    // The helper thread only when the work pays for its wake-up: below about 100 000
+    // look-ups (1000 particles x 60 points: 0.1-0.2 ms on this machine) the hand-over
+    // and wait cost more than half the work saves, and on a loaded machine the wait
+    // for a second thread to be scheduled is what sets the update's p95 (bench/RESULTS.md).
+    if (worker && m >= 64 && m * px.size() >= kParallelMinLookups) {
       const std::size_t half = m / 2;
       worker->start([this, half, m] { weigh(half, m); });
       weigh(0, half);

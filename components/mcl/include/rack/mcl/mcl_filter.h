@@ -119,7 +119,9 @@ struct MclOptions {
   // issue 18): within 2x MRPT alone's travel in 9-10 of 10 seeds on each real log
   // (1: seattle 5-7), the simulated office within 15 m in 18 of 20 seeds (1: 16).
   uint32_t global_candidates = 5;
-  // Threads evaluating the likelihood (1: the caller's only; 2: one helper thread).
+  // Threads evaluating the likelihood (1: the caller's only; 2: one helper thread, used
+  // for an update of at least 100 000 particles x points, below which its wake-up
+  // costs more than it saves).
   uint32_t threads = 2;
   // Random seed for this filter's draws (0: from the clock).
   uint64_t seed = 0;
