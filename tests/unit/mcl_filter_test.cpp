@@ -128,13 +128,15 @@ double travel_to_converge(MclFilter& f, ScriptedRobot& robot, double tolerance,
 
 // Global localisation: particles over the whole free space, the robot drives the tour
 // (about 37 m). The bar: the estimate is within 0.3 m of the truth, and stays there,
-// after at most 15 m of travel in at least 4 of the 5 seeds (11..15). The office's
+// after at most 15 m of travel in at least 8 of the 10 seeds (11..20). The office's
 // corridor is long and repetitive, so a seed may need more travel (or, rarely, the
-// whole tour) before a door or room tells the places apart.
+// whole tour) before a door or room tells the places apart. When this was written: 9
+// of 10 with the default (5 candidates, the best kept), 9 of 10 with one candidate per
+// particle; 5 seeds (11..15, 4 needed) were too few: one unlucky draw decided it.
 TEST_F(MclFilterTest, GlobalLocalisationConvergesWithinFifteenMetresInMostSeeds) {
   int converged = 0;
   std::string report;
-  for (uint64_t seed = 11; seed <= 15; ++seed) {
+  for (uint64_t seed = 11; seed <= 20; ++seed) {
     MclOptions o;
     o.particles_min = 300;
     o.particles_max = 8000;
@@ -147,7 +149,7 @@ TEST_F(MclFilterTest, GlobalLocalisationConvergesWithinFifteenMetresInMostSeeds)
     report += " seed " + std::to_string(seed) + ": " + (at < 1e8 ? std::to_string(at) + " m" : "never") + ";";
     if (at <= 15.0) ++converged;
   }
-  EXPECT_GE(converged, 4) << report;
+  EXPECT_GE(converged, 8) << report;
 }
 
 // Kidnapping: after tracking, the robot is carried 7.6 m along the corridor (a place

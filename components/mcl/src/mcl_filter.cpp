@@ -369,10 +369,9 @@ struct MclFilter::Impl {
   }
 
   // After the candidates of a global start were weighed by the first scan: keep the
-  // `keep` best-fitting ones, equally weighted. (Resampling them by weight instead let
-  // a few near-perfect fits take the whole set: in a repetitive corridor the aliases'
-  // best candidates outweighed the true place's by chance of where the candidates fell,
-  // and KLD then shrank the set to particles_min around them.)
+  // `keep` best-fitting ones, equally weighted, so that every place that fits the
+  // first scan stays for the second to choose among (the likelihood of 60 points is
+  // so peaked that by weight a few candidates would carry the set).
   void keep_best(std::size_t keep) {
     const std::size_t m = pdf.m_particles.size();
     if (m <= keep || log_lik.size() < m) return;

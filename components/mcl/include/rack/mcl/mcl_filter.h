@@ -113,9 +113,7 @@ struct MclOptions {
   // the free space; the first update weighs them all (no resampling before it) and
   // keeps the particles_max that fit the scan best, equally weighted; the next update
   // resamples those (KLD). The first scan finds the right place only if some pose lies
-  // near it: more candidates, once, for one costlier update. Keeping the best ones
-  // rather than resampling by weight matters: by weight, the aliases' luckiest
-  // candidates in a repetitive corridor took the whole set. 5 (bench/RESULTS.md,
+  // near it: more candidates, once, for one costlier update. 5 (bench/RESULTS.md,
   // issue 18): within 2x MRPT alone's travel in 9-10 of 10 seeds on each real log
   // (1: seattle 5-7), the simulated office within 15 m in 18 of 20 seeds (1: 16).
   uint32_t global_candidates = 5;
