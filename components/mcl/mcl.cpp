@@ -72,7 +72,7 @@ Mcl::Mcl()
       fit_min_(declare_float("fit_min", 0.0, {.doc = "recovery: also lost while the short-term scan fit (MclData.fit) stays below this (0: off; clutter lowers the fit)", .min = 0.0, .max = 0.99})),
       alpha_slow_(declare_float("alpha_slow", 0.01, {.doc = "recovery: long-term average rate", .min = 1e-6, .max = 1.0})),
       alpha_fast_(declare_float("alpha_fast", 0.2, {.doc = "recovery: short-term average rate (> alpha_slow)", .min = 1e-6, .max = 1.0})),
-      threads_(declare_int("threads", 2, {.doc = "threads evaluating the scan likelihood (1 or 2: one helper thread, normal scheduling)", .min = 1, .max = 2})),
+      threads_(declare_int("threads", 2, {.doc = "threads evaluating the scan likelihood (1 or 2: one helper thread, normal scheduling, for updates of at least 100000 particles x points)", .min = 1, .max = 2})),
       seed_(declare_int("seed", 0, {.doc = "random seed (0: from the clock)", .min = 0, .max = 4294967295.0})),
       show_particles_(declare_int("show_particles", 100, {.doc = "particles published per sample (at most 256)", .min = 0, .max = interfaces::kMclMaxShownParticles})),
       position_max_std_(declare_float("position_max_std", 0.5, {.doc = "send Position UPDATE only when the position std dev is below this (m)", .min = 0.0, .max = 1e3})) {

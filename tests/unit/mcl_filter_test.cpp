@@ -128,13 +128,15 @@ double travel_to_converge(MclFilter& f, ScriptedRobot& robot, double tolerance,
 
 // Global localisation: particles over the whole free space, the robot drives the tour
 // (about 37 m). The bar: the estimate is within 0.3 m of the truth, and stays there,
-// after at most 15 m of travel in at least 4 of the 5 seeds (11..15). The office's
+// after at most 15 m of travel in at least 8 of the 10 seeds (11..20). The office's
 // corridor is long and repetitive, so a seed may need more travel (or, rarely, the
-// whole tour) before a door or room tells the places apart.
+// whole tour) before a door or room tells the places apart. When this was written: 9
+// of 10 with the default (5 candidates, the best kept), 9 of 10 with one candidate per
+// particle; 5 seeds (11..15, 4 needed) were too few: one unlucky draw decided it.
 TEST_F(MclFilterTest, GlobalLocalisationConvergesWithinFifteenMetresInMostSeeds) {
   int converged = 0;
   std::string report;
-  for (uint64_t seed = 11; seed <= 15; ++seed) {
+  for (uint64_t seed = 11; seed <= 20; ++seed) {
     MclOptions o;
     o.particles_min = 300;
     o.particles_max = 8000;
@@ -147,7 +149,7 @@ TEST_F(MclFilterTest, GlobalLocalisationConvergesWithinFifteenMetresInMostSeeds)
     report += " seed " + std::to_string(seed) + ": " + (at < 1e8 ? std::to_string(at) + " m" : "never") + ";";
     if (at <= 15.0) ++converged;
   }
-  EXPECT_GE(converged, 4) << report;
+  EXPECT_GE(converged, 8) << report;
 }
 
 // Kidnapping: after tracking, the robot is carried 7.6 m along the corridor (a place
@@ -256,9 +258,10 @@ TEST_F(MclFilterTest, KldShrinksTheParticleSetOnceLocalised) {
 }
 
 // global_candidates: init_global() spreads that many times particles_max poses, the
-// first update weighs every one of them (no resampling before it), the next one draws
-// at most particles_max from them. Out of range is refused with the option's name.
-TEST_F(MclFilterTest, GlobalCandidatesAreAllWeighedOnceThenResampled) {
+// first update weighs every one of them (no resampling before it) and keeps the
+// particles_max that fit the scan best, equally weighted; the next one resamples (KLD)
+// from those. Out of range is refused with the option's name.
+TEST_F(MclFilterTest, GlobalCandidatesAreAllWeighedOnceThenTheBestKept) {
   MclOptions o;
   o.particles_min = 100;
   o.particles_max = 1000;
@@ -273,10 +276,16 @@ TEST_F(MclFilterTest, GlobalCandidatesAreAllWeighedOnceThenResampled) {
   for (int i = 0; i < 40 && counts.size() < 2 && !robot.step_towards(8.0, 8.0); ++i) {
     const test::SimScan s = robot.scan();
     const SimPose od = robot.odometry();
-    if (f.update({od.x, od.y, od.phi}, s.xs, s.ys)) counts.push_back(f.estimate().particles);
+    if (!f.update({od.x, od.y, od.phi}, s.xs, s.ys)) continue;
+    counts.push_back(f.estimate().particles);
+    if (counts.size() == 1) {  // the kept candidates are equally weighted
+      std::vector<float> x(1000), y(1000), phi(1000), w(1000);
+      ASSERT_EQ(f.sample_particles(x, y, phi, w), 1000U);
+      for (float v : w) EXPECT_FLOAT_EQ(v, 1e-3F);
+    }
   }
   ASSERT_EQ(counts.size(), 2U);
-  EXPECT_EQ(counts[0], 5000U);
+  EXPECT_EQ(counts[0], 1000U);  // the best 1000 of the 5000 candidates
   EXPECT_LE(counts[1], 1000U);
   EXPECT_GE(counts[1], 100U);
   f.init_pose({2.0, 8.0, 0.0}, 0.05, 0.02);

@@ -150,6 +150,9 @@ void validate(const MclOptions& o) {
   if (const char* why = check_options(o)) throw std::invalid_argument(why);
 }
 
+// Particles x points per update from which the likelihood is split over two threads.
+constexpr std::size_t kParallelMinLookups = 100'000;
+
 struct MclFilter::Impl {
   MclOptions opt;
   // The particles live in a frame shifted by the map's origin: cell (ix, iy) covers
@@ -266,7 +269,11 @@ struct MclFilter::Impl {
   void weigh_all() {
     const std::size_t m = pdf.m_particles.size();
     log_lik.resize(m);
-    if (worker && m >= 64) {
+    // The helper thread only when the work pays for its wake-up: below about 100 000
+    // look-ups (1000 particles x 60 points: 0.1-0.2 ms on this machine) the hand-over
+    // and wait cost more than half the work saves, and on a loaded machine the wait
+    // for a second thread to be scheduled is what sets the update's p95 (bench/RESULTS.md).
+    if (worker && m >= 64 && m * px.size() >= kParallelMinLookups) {
       const std::size_t half = m / 2;
       worker->start([this, half, m] { weigh(half, m); });
       weigh(0, half);
@@ -361,6 +368,27 @@ struct MclFilter::Impl {
     }
   }
 
+  // After the candidates of a global start were weighed by the first scan: keep the
+  // `keep` best-fitting ones, equally weighted, so that every place that fits the
+  // first scan stays for the second to choose among (the likelihood of 60 points is
+  // so peaked that by weight a few candidates would carry the set).
+  void keep_best(std::size_t keep) {
+    const std::size_t m = pdf.m_particles.size();
+    if (m <= keep || log_lik.size() < m) return;
+    order.resize(m);
+    for (std::size_t i = 0; i < m; ++i) order[i] = static_cast<uint32_t>(i);
+    std::nth_element(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(keep), order.end(),
+                     [this](uint32_t a, uint32_t b) { return log_lik[a] > log_lik[b]; });
+    std::sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(keep));
+    for (std::size_t j = 0; j < keep; ++j) {
+      pdf.m_particles[j].d = pdf.m_particles[order[j]].d;
+      pdf.m_particles[j].log_w = 0.0;
+      log_lik[j] = log_lik[order[j]];
+    }
+    pdf.m_particles.resize(keep);
+    log_lik.resize(keep);
+  }
+
   void random_free_pose(double& x, double& y, double& phi) {
     std::uniform_int_distribution<std::size_t> pick(0, free_cells.size() - 1);
     std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -382,6 +410,18 @@ struct MclFilter::Impl {
     c_slow = c_fast = global ? 1.0 : 0.0;
     if (global) est.w_slow = est.w_fast = 1.0;
     force_update = true;
+  }
+
+  // A global start: particles times candidates poses uniformly over the free space.
+  void spread_uniform(std::size_t particles, std::size_t candidates) {
+    reset_particles(particles * candidates, true);
+    move_only = candidates > 1;
+    for (auto& p : pdf.m_particles) {
+      double x = 0, y = 0, phi = 0;
+      random_free_pose(x, y, phi);
+      p.d = mrpt::math::TPose2D(x, y, phi);
+    }
+    refresh_estimate();
   }
 
   void refresh_estimate() {
@@ -512,7 +552,10 @@ MclFilter::MclFilter(const maps::OccupancyMap& map, const MclOptions& options) :
   s.rng.seed(options.seed != 0 ? options.seed
                                : static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count()));
   s.apply_options();
-  init_global();
+  // Uniform over the free space, one pose per particle: a state to start from until
+  // the owner calls init_pose() or init_global() (which spreads the candidates); it
+  // spares every construction the candidates' allocation and draws.
+  s.spread_uniform(s.opt.particles_max, 1);
 }
 
 MclFilter::~MclFilter() = default;
@@ -539,17 +582,7 @@ void MclFilter::init_pose(const MclPose& pose, double sigma_xy, double sigma_phi
   s.refresh_estimate();
 }
 
-void MclFilter::init_global() {
-  Impl& s = *impl_;
-  s.reset_particles(static_cast<std::size_t>(s.opt.particles_max) * s.opt.global_candidates, true);
-  s.move_only = s.opt.global_candidates > 1;
-  for (auto& p : s.pdf.m_particles) {
-    double x = 0, y = 0, phi = 0;
-    s.random_free_pose(x, y, phi);
-    p.d = mrpt::math::TPose2D(x, y, phi);
-  }
-  s.refresh_estimate();
-}
+void MclFilter::init_global() { impl_->spread_uniform(impl_->opt.particles_max, impl_->opt.global_candidates); }
 
 bool MclFilter::update(const MclPose& odometry, std::span<const float> xs, std::span<const float> ys) {
   Impl& s = *impl_;
@@ -582,9 +615,11 @@ bool MclFilter::update(const MclPose& odometry, std::span<const float> xs, std::
     s.px[k] = xs[i];
     s.py[k] = ys[i];
   }
+  const bool candidates = s.move_only;
   s.predict(incr);
   s.weigh_all();
   s.recover();
+  if (candidates) s.keep_best(s.opt.particles_max);
   s.pdf.normalizeWeights();
   s.moved = mrpt::poses::CPose2D();
   s.force_update = false;

@@ -110,14 +110,16 @@ struct MclOptions {
   // real scan's fit depends on clutter and the map, so off by default).
   double fit_min = 0.0;
   // Global localisation: init_global() spreads this many times particles_max poses over
-  // the free space; the first update weighs them all (no resampling before it), the
-  // next one resamples to at most particles_max. The first scan finds the right place
-  // only if some pose lies near it: more candidates, once, for one costlier update.
-  // Default 1: 5 brought the real logs' global start to 10 of 10 seeds within 2x MRPT
-  // alone's travel, but the simulated office's repetitive corridor to 3 of 5 seeds
-  // within 15 m (1: 4 of 5); bench/RESULTS.md. Not a component parameter yet.
-  uint32_t global_candidates = 1;
-  // Threads evaluating the likelihood (1: the caller's only; 2: one helper thread).
+  // the free space; the first update weighs them all (no resampling before it) and
+  // keeps the particles_max that fit the scan best, equally weighted; the next update
+  // resamples those (KLD). The first scan finds the right place only if some pose lies
+  // near it: more candidates, once, for one costlier update. 5 (bench/RESULTS.md,
+  // issue 18): within 2x MRPT alone's travel in 9-10 of 10 seeds on each real log
+  // (1: seattle 5-7), the simulated office within 15 m in 18 of 20 seeds (1: 16).
+  uint32_t global_candidates = 5;
+  // Threads evaluating the likelihood (1: the caller's only; 2: one helper thread, used
+  // for an update of at least 100 000 particles x points, below which its wake-up
+  // costs more than it saves).
   uint32_t threads = 2;
   // Random seed for this filter's draws (0: from the clock).
   uint64_t seed = 0;
@@ -150,7 +152,9 @@ struct MclEstimate {
 class MclFilter {
  public:
   // Converts the map (throws std::invalid_argument when it has no free cell or a
-  // rotated origin, which MRPT's axis-aligned grid cannot represent).
+  // rotated origin, which MRPT's axis-aligned grid cannot represent). Starts with
+  // particles_max poses uniformly over the free space (no candidates round: call
+  // init_global() or init_pose() before the first update).
   MclFilter(const maps::OccupancyMap& map, const MclOptions& options);
   ~MclFilter();
   MclFilter(const MclFilter&) = delete;
@@ -161,7 +165,7 @@ class MclFilter {
   // odometry did.
   void init_pose(const MclPose& pose, double sigma_xy, double sigma_phi);
   // Particles (particles_max times global_candidates) uniformly over the map's free
-  // cells and all headings.
+  // cells and all headings; the first update keeps the particles_max best of them.
   void init_global();
 
   // One scan: robot-frame points (max-range readings left out by the caller) and the
