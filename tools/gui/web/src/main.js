@@ -4,6 +4,7 @@
 // animation frame with particles batched into one path.
 import './style.css';
 import { setupTimeline } from './timeline.js';
+import { setupConfig } from './config/config.js';
 
 const $ = (id) => document.getElementById(id);
 const LEVELS = ['print', 'error', 'warning', 'info', 'detail'];
@@ -97,6 +98,7 @@ function handle(m) {
       if (document.querySelector('#view-reports.active')) renderReports();
       break;
     case 'notice': notice(m.text, m.level !== 'error' && m.level !== 'warning'); break;
+    case 'config': config.handle(m); break;
     default: break;
   }
 }
@@ -183,8 +185,10 @@ function showView(name) {
   if (name === 'gdos') renderGdos(true);
   if (name === 'map') resizeMap();
   if (name === 'timeline') drawTimeline();
+  if (name === 'config') config.show();
 }
 const drawTimeline = setupTimeline() ?? (() => {});
+const config = setupConfig(send);  // the Configuration view (src/config/): adds its tab
 for (const b of document.querySelectorAll('#tabs button')) b.onclick = () => showView(b.dataset.view);
 
 // ---------------------------------------------------------------- details: parameters, timing, class views
