@@ -430,9 +430,32 @@ std::vector<std::string> host_file_paths(const std::vector<std::string>& args, s
   return out;
 }
 
-Deployment build(std::vector<Host> hosts) {
+Deployment build(std::vector<Host> hosts, const std::vector<ClassInfo>* classes) {
   Deployment d;
   d.hosts = std::move(hosts);
+  const auto info_of = [&](const Component& c) -> const ClassInfo* {
+    if (classes == nullptr) return nullptr;
+    for (const auto& ci : *classes) {
+      if (ci.impl == c.impl) return &ci;
+    }
+    return nullptr;
+  };
+  // The classes' own names for their addresses.
+  for (auto& host : d.hosts) {
+    for (auto& c : host.components) {
+      const ClassInfo* ci = info_of(c);
+      if (ci == nullptr || ci->class_name.empty() || ci->class_name == c.class_name) continue;
+      c.class_name = ci->class_name;
+      const std::string where = "(" + std::to_string(host.system) + "/" + std::to_string(c.instance) + ")";
+      if (const auto id = tims::class_id(ci->class_name)) {
+        c.address = tims::Address::make(static_cast<uint8_t>(host.system), *id, static_cast<uint8_t>(c.instance)).raw();
+        c.address_text = ci->class_name + where;
+      } else {
+        c.address.reset();
+        c.address_text = ci->class_name + where + "?";
+      }
+    }
+  }
   // Every placed address, for flows across hosts and duplicate checks.
   std::map<std::string, std::pair<std::size_t, std::size_t>> placed;  // by address_key
   std::map<std::string, std::size_t> host_names;
@@ -458,8 +481,13 @@ Deployment build(std::vector<Host> hosts) {
   for (std::size_t h = 0; h < d.hosts.size(); ++h) {
     const Host& host = d.hosts[h];
     for (std::size_t c = 0; c < host.components.size(); ++c) {
+      const ClassInfo* ci = info_of(host.components[c]);
       for (const Param& p : host.components[c].params) {
         if (p.value.empty()) continue;
+        if (ci != nullptr && ci->described &&
+            std::find(ci->refs.begin(), ci->refs.end(), p.key) == ci->refs.end()) {
+          continue;  // the class says this parameter names no component
+        }
         Flow f;
         f.consumer_host = h;
         f.consumer = c;

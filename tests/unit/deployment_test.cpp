@@ -127,6 +127,29 @@ components:
   EXPECT_EQ(d.flows[0].line, 5);
 }
 
+TEST(DeploymentTest, ClassDescriptionsDecideWhichParametersAreFlows) {
+  // Pilot's `mode` is a choice that happens to be the name of the Path component.
+  const Host h = read_host_text(R"Y(host: a
+components:
+  - {name: path, class: PathPlanner, data_task: {priority: 20, period_ms: 200}}
+  - {name: chassis, class: ChassisSim, data_task: {priority: 80, period_ms: 10}}
+  - {name: pilot, class: Pilot, data_task: {priority: 66, period_ms: 50}, params: {path: path, mode: path, chassis: "Chassis(0/0)"}}
+)Y", "a.yaml");
+  const Deployment guessed = build({h});
+  EXPECT_EQ(guessed.flows.size(), 3u);  // path, mode (wrongly) and chassis
+  const std::vector<ClassInfo> classes{{"PathPlanner", "Path", true, {}},
+                                       {"ChassisSim", "Chassis", true, {}},
+                                       {"Pilot", "Pilot", true, {"path", "chassis"}}};
+  const Deployment d = build({h}, &classes);
+  ASSERT_EQ(d.flows.size(), 2u);
+  EXPECT_EQ(d.flows[0].param, "path");
+  EXPECT_EQ(d.flows[1].param, "chassis");
+  // Chassis(0/0) is the ChassisSim: the class's own name for its addresses.
+  ASSERT_NE(d.flows[1].producer, kNone);
+  EXPECT_EQ(d.hosts[0].components[d.flows[1].producer].name, "chassis");
+  EXPECT_EQ(d.hosts[0].components[1].address_text.rfind("Chassis(0/0)", 0), 0u) << d.hosts[0].components[1].address_text;
+}
+
 TEST(DeploymentTest, FlagsConsumerAboveProducerAndSamePriorityOnOneCpu) {
   const Deployment d = build({read_host_text(R"Y(host: a
 components:

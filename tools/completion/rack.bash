@@ -46,8 +46,8 @@ _rackctl_command_options() {
     send) echo "--i64" ;;
     hz|bw) echo "--window --period --count --json" ;;
     trace) echo "--duration --out --host" ;;
-    graph) echo "--live --format --out" ;;
-    alloc) echo "--live --json" ;;
+    graph) echo "--live --format --out --rackd" ;;
+    alloc) echo "--live --json --rackd" ;;
   esac
 }
 
@@ -79,7 +79,7 @@ _rackctl() {
   ((count > 1)) && prev=${_rackctl_w[count-2]}
   case $prev in
     --host-file) _rack_files '*.@(yaml|yml)'; return ;;
-    --key-file) _rack_files; return ;;
+    --key-file|--rackd) _rack_files; return ;;
     --out) _rack_files '*.json'; return ;;
     --format) _rack_words "dot svg json"; return ;;
     --lcm|--timeout|--retries|--discover-ms|--time|--period|--count|--window|--i64|--duration|--host) return ;;
@@ -89,7 +89,7 @@ _rackctl() {
   for ((i = 1; i < count - 1; i++)); do
     w=${_rackctl_w[i]}
     case $w in
-      --lcm|--timeout|--retries|--discover-ms|--host-file|--key-file|--time|--period|--count|--window|--i64|--duration|--out|--host|--format)
+      --lcm|--timeout|--retries|--discover-ms|--host-file|--key-file|--time|--period|--count|--window|--i64|--duration|--out|--host|--format|--rackd)
         ((i++)); continue ;;
       -*) continue ;;
     esac

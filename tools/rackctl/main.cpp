@@ -55,6 +55,7 @@
 #include "rack/tims/tool_address.h"
 #include "rack/version.h"
 
+#include "class_info.h"
 #include "doctor.h"
 #include "field_names.h"
 #include "stream_stats.h"
@@ -174,6 +175,7 @@ struct Options {
   std::string host;         // trace --host
   std::string format = "dot";  // graph --format: dot | svg | json
   bool live = false;        // graph/alloc --live
+  std::string rackd;        // graph/alloc --rackd: whose classes (default: beside rackctl)
   std::set<std::string> given;  // command-specific options seen (checked per command)
   std::string command;
   std::vector<std::string> args;
@@ -1564,7 +1566,16 @@ rack::deploy::Deployment read_deployment(const Options& o) {
   if (paths.empty()) fail(kExitUsage, "no host files to read");
   std::vector<rack::deploy::Host> hosts;
   for (const auto& p : paths) hosts.push_back(rack::deploy::read_host(p));
-  return rack::deploy::build(std::move(hosts));
+  // The classes' component references, from the rackd beside rackctl (or --rackd).
+  std::vector<rack::deploy::ClassInfo> classes;
+  std::string why;
+  const std::string rackd = o.rackd.empty() ? rack::tools::rackd_beside_me() : o.rackd;
+  if (!rack::tools::classes_from_rackd(rackd, classes, why)) {
+    std::fprintf(stderr, "rackctl: %s: cannot learn the classes (%s): every parameter naming a component is taken "
+                         "for a flow\n", o.command.c_str(), why.c_str());
+    return rack::deploy::build(std::move(hosts));
+  }
+  return rack::deploy::build(std::move(hosts), &classes);
 }
 
 // What discovery and GET_STATS say of the deployment's hosts and components.
@@ -1932,16 +1943,18 @@ const std::vector<Command>& commands() {
        "  rackctl trace --duration 2 --out sim.json all\n"
        "  rackctl trace --duration 5 --out mcl.json mcl,ladar",
        cmd_trace},
-      {"graph", "graph [--live] [--format dot|svg|json] [--out FILE] FILE|DIR ...", 1, 256,
-       {"--live", "--format", "--out"},
+      {"graph", "graph [--live] [--format dot|svg|json] [--out FILE] [--rackd PATH] FILE|DIR ...", 1, 256,
+       {"--live", "--format", "--out", "--rackd"},
        "Draws a deployment from its host files (a directory: its *.yaml files): a\n"
        "cluster per system (robot) and host with its role and networks, a box per\n"
        "component (name, address, class, each task's priority, CPU and period) and an\n"
        "arrow per data flow from producer to consumer, labelled with the consumer's\n"
        "parameter, the producer's period and the networks the flow crosses (blue;\n"
-       "thick when it goes through system routers). A flow is a parameter whose value\n"
-       "names a component of the same file or is an address like Generator(1/0); an\n"
-       "address no given file places is a dashed box. Errors of the reader are red\n"
+       "thick when it goes through system routers). A flow is a parameter that its\n"
+       "class declares as a component reference (the rackd beside rackctl, or\n"
+       "--rackd PATH, lists its classes as JSON) whose value names a component of\n"
+       "the same file or is an address like Generator(1/0); an address\n"
+       "no given file places is a dashed box. Errors of the reader are red\n"
        "notes with file:line:col (the full validation is rackd's own check); exit 1 then.\n"
        "--live adds what the network says: hosts that did not answer discovery are\n"
        "grey and dashed (STALE), each component its state, utilisation (execution\n"
@@ -1950,7 +1963,7 @@ const std::vector<Command>& commands() {
        "  rackctl graph configs/two_robots/ | dot -Tsvg > fleet.svg\n"
        "  rackctl graph --format svg --out fleet.svg configs/two_robots/",
        cmd_graph},
-      {"alloc", "alloc [--live] [--json] FILE|DIR ...", 1, 256, {"--live", "--json"},
+      {"alloc", "alloc [--live] [--json] [--rackd PATH] FILE|DIR ...", 1, 256, {"--live", "--json", "--rackd"},
        "Prints the allocation at a glance: per host and CPU (a task's 'cpu:', else the\n"
        "host's 'cpus: rt:', else 'any cpu') the RT tasks there (priority > 0), highest\n"
        "first, with their periods, and flags configuration priority inversions with\n"
@@ -2079,6 +2092,9 @@ Options parse_arguments(int argc, char** argv) {
       o.given.insert(a);
     } else if (a == "--live") {
       o.live = true;
+      o.given.insert(a);
+    } else if (a == "--rackd") {
+      o.rackd = value("the rackd program");
       o.given.insert(a);
     } else {
       fail(kExitUsage, "unknown option '" + a + "' (rackctl --help lists them)");

@@ -10,10 +10,12 @@
 // file:line:col error beside what it could read. Whether a file is valid is rackd's
 // loader's answer (rackd --check); this one never needs the component classes.
 //
-// Flows offline: a component's parameter whose value names another component of the
-// same host file, or is an address like Generator(1/0) (the forms rackd resolves for
-// component references: `source`, `chassis`, `position`, ...), is a flow from that
-// component (the producer) to this one (the consumer). An address that no given host
+// Flows offline: a component's parameter that its class declares as a component
+// reference (ClassInfo, from `rackd --list-classes --json`), whose value names another
+// component of the same host file or is an address like Generator(1/0) (the forms
+// rackd resolves), is a flow from that component (the producer) to this one (the
+// consumer). Without the class's description any parameter with such a value counts
+// (a guess: a choice that happens to be a component's name is taken for a flow). An address that no given host
 // file places is drawn as an unplaced producer. An address names a component when
 // system and instance match and its class is the component's: TiMS' name of the
 // class (the longest registered class name that begins the implementation's,
@@ -135,8 +137,20 @@ struct Deployment {
   std::vector<std::string> problems;  // across files: duplicate hosts or addresses
 };
 
-// Flows, networks crossed and the allocation of a set of hosts.
-[[nodiscard]] Deployment build(std::vector<Host> hosts);
+// What a class says of itself (`rackd --list-classes --json`, or GET_CLASS): with it
+// a flow is exactly a parameter the class declares as a component reference, and the
+// address's class is the class's own (ChassisSim: Chassis).
+struct ClassInfo {
+  std::string impl;               // "ChassisSim"
+  std::string class_name;         // "Chassis"
+  bool described = false;         // parameters known; false: a plug-in by its manifest
+  std::vector<std::string> refs;  // its parameters that name a component
+};
+
+// Flows, networks crossed and the allocation of a set of hosts. Without `classes` (or
+// for a class they do not describe) a flow is any parameter whose value names a
+// component or is an address (see above).
+[[nodiscard]] Deployment build(std::vector<Host> hosts, const std::vector<ClassInfo>* classes = nullptr);
 
 // What the live view knows of a host and its components (rackctl graph --live).
 struct LiveHost {
