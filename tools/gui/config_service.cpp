@@ -18,6 +18,7 @@
 
 #include "rack/client/deployment.h"
 #include "rack/client/host_file.h"
+#include "class_info.h"
 
 namespace rack::gui {
 namespace {
@@ -123,10 +124,12 @@ json check_errors(const std::string& output, const std::string& checked, const s
     const std::size_t c1 = rest.find(':');
     const std::size_t c2 = c1 == std::string::npos ? std::string::npos : rest.find(':', c1 + 1);
     if (c2 != std::string::npos) {
+      const std::string line_text = rest.substr(0, c1);
+      const std::string column_text = rest.substr(c1 + 1, c2 - c1 - 1);
       char* e1 = nullptr;
       char* e2 = nullptr;
-      const long l = std::strtol(rest.substr(0, c1).c_str(), &e1, 10);
-      const long c = std::strtol(rest.substr(c1 + 1, c2 - c1 - 1).c_str(), &e2, 10);
+      const long l = std::strtol(line_text.c_str(), &e1, 10);
+      const long c = std::strtol(column_text.c_str(), &e2, 10);
       if (*e1 == '\0' && *e2 == '\0' && c1 > 0 && c2 > c1 + 1 && l > 0 && c > 0) {
         ln = static_cast<int>(l);
         col = static_cast<int>(c);
@@ -290,7 +293,14 @@ std::string ConfigService::handle(std::string_view text) {
       for (const auto& path : rack::deploy::host_file_paths({dir}, problems)) {
         if (valid_name(fs::path(path).filename().string())) hosts.push_back(rack::deploy::read_host(path));
       }
-      const rack::deploy::Deployment d = rack::deploy::build(std::move(hosts));
+      // The classes' component references (rackd --list-classes --json), learnt once.
+      if (!class_info_) {
+        std::vector<rack::deploy::ClassInfo> classes;
+        std::string why;
+        if (rack::tools::classes_from_rackd(rackd_program(), classes, why, config_.timeout_ms)) class_info_ = std::move(classes);
+        else r["classes_error"] = why + ": every parameter naming a component is taken for a flow";
+      }
+      const rack::deploy::Deployment d = rack::deploy::build(std::move(hosts), class_info_ ? &*class_info_ : nullptr);
       const std::string dot = rack::deploy::to_dot(d);
       r["ok"] = true;
       r["deployment"] = json::parse(rack::deploy::to_json(d), nullptr, false);

@@ -35,10 +35,13 @@
 #include <deque>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <thread>
 #include <vector>
+
+#include "rack/client/deployment.h"
 
 namespace rack::gui {
 
@@ -80,6 +83,7 @@ class ConfigService {
   std::condition_variable wake_;
   std::deque<std::pair<uint64_t, std::string>> queue_;
   bool stop_ = false;
+  std::optional<std::vector<rack::deploy::ClassInfo>> class_info_;  // the service thread's
   std::thread thread_;
 };
 
