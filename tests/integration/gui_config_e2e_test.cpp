@@ -1,6 +1,7 @@
 // End to end: rack-gui's configuration tool (issue 25) in headless Chromium (Debian's
 // chromium, driven by playwright-core): rack-gui serves a copy of configs/two_robots/
-// (--config), the page draws the deployment graph, an invalid priority set in the
+// (--config), the page draws the deployment graph (and, live, robot1_aux.yaml's
+// running rackd measured, the other hosts stale), an invalid priority set in the
 // editor's form is shown at its line by rackd --check, the fixed file is saved, and
 // rackd --check accepts the file on disk, with only that value changed (comments and
 // layout kept). The browser part is tools/gui/web/e2e/config_e2e.mjs; screenshots
@@ -68,6 +69,11 @@ TEST(GuiConfigE2eTest, EditsAHostFileWithTheValidatorInTheLoop) {
   const auto edited = fleet / "robot1_aux.yaml";
   const std::string before = read_file(edited);
   LcmBus bus;
+  // robot1_aux.yaml's rackd on rack-gui's network (the other hosts do not run): the
+  // live view shows its scanner measured and the other hosts stale.
+  const auto run_copy = dir.write("run_aux.yaml", before);
+  Process rackd({RACK_RACKD_PATH, run_copy.string(), "--lcm", bus.url()}, dir.path(), "rackd");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
   Process gui({RACK_GUI_PATH, "--port", "0", "--lcm", bus.url(), "--web", web + "/dist", "--reports", "", "--config",
                fleet.string(), "--rackd", RACK_RACKD_PATH},
               dir.path(), "rack-gui");
@@ -78,11 +84,11 @@ TEST(GuiConfigE2eTest, EditsAHostFileWithTheValidatorInTheLoop) {
 
   std::filesystem::create_directories(artifacts);
   const RunResult r = run({*node, web + "/e2e/config_e2e.mjs", "--url", url, "--chromium", chromium, "--shots", artifacts,
-                           "--file", "robot1_aux.yaml"},
+                           "--file", "robot1_aux.yaml", "--live", "1"},
                           120s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui.err();
-  for (const char* shot : {"config-graph.png", "config-error.png", "config-saved.png"}) {
+  for (const char* shot : {"config-graph.png", "config-live.png", "config-error.png", "config-saved.png"}) {
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(artifacts) / shot)) << shot;
   }
   // The saved file: valid for rackd, the priority changed, everything else as it was.
@@ -103,6 +109,8 @@ TEST(GuiConfigE2eTest, EditsAHostFileWithTheValidatorInTheLoop) {
   EXPECT_EQ(files, 4u);
   gui.signal(SIGTERM);
   EXPECT_EQ(gui.wait_exit(10s), std::optional<int>(0)) << gui.err();
+  rackd.signal(SIGTERM);
+  EXPECT_EQ(rackd.wait_exit(30s), std::optional<int>(0)) << rackd.err();
 }
 
 }  // namespace

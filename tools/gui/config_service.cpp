@@ -220,6 +220,18 @@ std::string ConfigService::rackd_program() const {
   return "rackd";  // on PATH
 }
 
+std::string ConfigService::rackctl_program() const {
+  if (!config_.rackctl_path.empty()) return config_.rackctl_path;
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec).parent_path();
+  if (!ec) {
+    for (const auto& candidate : {self / "rackctl", self.parent_path() / "rackctl"}) {
+      if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+    }
+  }
+  return "rackctl";  // on PATH
+}
+
 std::string ConfigService::served_file(const std::string& file, std::string& why) const {
   const fs::path p(file);
   const std::string name = p.filename().string();
@@ -301,11 +313,41 @@ std::string ConfigService::handle(std::string_view text) {
         else r["classes_error"] = why + ": every parameter naming a component is taken for a flow";
       }
       const rack::deploy::Deployment d = rack::deploy::build(std::move(hosts), class_info_ ? &*class_info_ : nullptr);
-      const std::string dot = rack::deploy::to_dot(d);
+      std::string dot = rack::deploy::to_dot(d);
       r["ok"] = true;
       r["deployment"] = json::parse(rack::deploy::to_json(d), nullptr, false);
-      r["dot"] = dot;
       r["allocation"] = rack::deploy::allocation_text(d);
+      const auto live = request.find("live");
+      if (live != request.end() && live->is_boolean() && live->get<bool>()) {
+        // What the network says, by rackctl on rack-gui's network (two discoveries).
+        std::vector<std::string> base{rackctl_program(), "--lcm", config_.lcm_url, "--discover-ms", "500",
+                                      "--timeout", "500"};
+        if (!config_.key_file.empty()) base.insert(base.end(), {"--key-file", config_.key_file});
+        auto with = [&](std::vector<std::string> tail) {
+          std::vector<std::string> args = base;
+          args.insert(args.end(), tail.begin(), tail.end());
+          return args;
+        };
+        const ChildResult g = run_child(with({"graph", "--live", "--format", "json", "--rackd", rackd_program(), dir}), "",
+                                        false, config_.timeout_ms);
+        const ChildResult dd = run_child(with({"graph", "--live", "--rackd", rackd_program(), dir}), "", false,
+                                         config_.timeout_ms);
+        const ChildResult a = run_child(with({"alloc", "--live", "--rackd", rackd_program(), dir}), "", false,
+                                        config_.timeout_ms);
+        json lj = json::parse(g.out, nullptr, false);
+        // Exit 1 is a host file with errors: the picture is still made.
+        if ((g.exit_code == 0 || g.exit_code == 1) && lj.is_object() && (dd.exit_code == 0 || dd.exit_code == 1) &&
+            (a.exit_code == 0 || a.exit_code == 1)) {
+          r["deployment"] = lj;
+          dot = dd.out;
+          r["allocation"] = a.out;
+          r["live"] = true;
+        } else {
+          r["live"] = false;
+          r["live_error"] = "rackctl --live failed (exit " + std::to_string(g.exit_code) + "): " + g.out.substr(0, 512);
+        }
+      }
+      r["dot"] = dot;
       r["problems"] = problems;
       // SVG through graphviz (a temporary DOT file: dot reads it, its SVG is captured).
       char tmp[] = "/tmp/rack-gui-graph-XXXXXX";

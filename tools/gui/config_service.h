@@ -9,6 +9,8 @@
 //
 //   {"op":"config_files"}                         the served directories and their host files
 //   {"op":"config_graph","dir":D}                 D's deployment: JSON, DOT, SVG (graphviz), allocation
+//   {"op":"config_graph","dir":D,"live":true}     the same with what the network says (rackctl --live:
+//                                                 stale hosts, state, utilisation, worst wake-up latency)
 //   {"op":"config_classes"}                       `rackd --list-classes --json` (the editor's forms)
 //   {"op":"config_load","file":F}                 F's text
 //   {"op":"config_check","file":F,"text":T}       rackd --check on T (as F): errors with line and column
@@ -49,6 +51,11 @@ struct ConfigServiceConfig {
   std::vector<std::string> dirs;  // --config DIR: served directories (made absolute)
   std::string rackd_path;         // --rackd: "" = beside rack-gui, else on PATH
   std::string dot_path = "dot";   // graphviz
+  // The live view (config_graph with "live": true) runs `rackctl graph --live` and
+  // `rackctl alloc --live` on rack-gui's own network.
+  std::string rackctl_path;       // "" = beside rack-gui, else on PATH
+  std::string lcm_url;            // rack-gui's TiMS network
+  std::string key_file;           // its key file ("" = none)
   int timeout_ms = 10000;         // a child process running longer is killed
 };
 
@@ -76,6 +83,7 @@ class ConfigService {
  private:
   void run();
   [[nodiscard]] std::string rackd_program() const;
+  [[nodiscard]] std::string rackctl_program() const;
 
   ConfigServiceConfig config_;
   Sink sink_;

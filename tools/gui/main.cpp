@@ -208,6 +208,8 @@ int main(int argc, char** argv) {
     rack::gui::ServerHandlers handlers;
     handlers.opened = [&backend](uint64_t c) { backend.greet(c); };
     // The configuration tool's requests ("op":"config_*") have their own service.
+    config_dirs.lcm_url = config.lcm_url;
+    config_dirs.key_file = config.key_file;
     auto config_service = std::make_unique<rack::gui::ConfigService>(
         config_dirs, [&server_ptr](uint64_t client, std::string m) {
           if (server_ptr != nullptr) server_ptr->send(client, std::move(m));

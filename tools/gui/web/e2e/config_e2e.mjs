@@ -2,9 +2,10 @@
 // driven by playwright-core), against a rack-gui started with --config DIR on a copy
 // of configs/two_robots/. Run by tests/integration/gui_config_e2e_test.cpp, or by hand:
 //
-//   node e2e/config_e2e.mjs --url http://127.0.0.1:8080/ --file robot1_aux.yaml [--shots DIR] [--chromium PATH]
+//   node e2e/config_e2e.mjs --url http://127.0.0.1:8080/ --file robot1_aux.yaml [--live 1] [--shots DIR] [--chromium PATH]
 //
-// Steps: the deployment graph of the directory is drawn; FILE is opened; its data
+// Steps: the deployment graph of the directory is drawn (--live: and with what the
+// network says, robot1_aux.yaml's rackd running); FILE is opened; its data
 // task's priority set to 300 in the form shows rackd --check's error on its line and
 // Save stays disabled; 65 makes the file valid; Save writes it (the caller then runs
 // rackd --check on the file). Exit 0 when every step passed.
@@ -67,6 +68,24 @@ try {
   if (!alloc.includes('scanner') || !alloc.includes('10 ms')) throw new Error(`allocation: ${alloc}`);
   log('graph: 4 hosts, scanner -> fleet-monitor via robot1 > fleet > robot2');
   await shot('config-graph.png');
+
+  // 1b. Live (--live given: the caller runs robot1_aux.yaml's rackd on rack-gui's
+  // network): the allocation shows the scanner's state, utilisation and worst
+  // wake-up latency, and the hosts that do not run as STALE.
+  if (args.live) {
+    await page.check('[data-testid="cfg-live"]');
+    const live = await until('the live allocation', async () => {
+      const t = await page.locator('[data-testid="cfg-alloc"]').innerText();  // a line per row
+      return /scanner +data +10 ms +[0-9.]+% +[0-9]+ us +ENABLED/.test(t) && t.includes('STALE') ? t : null;
+    }, 30000);
+    const stale = live.split('\n').filter((l) => l.includes('STALE')).map((l) => l.split(' ')[0]).sort();
+    if (JSON.stringify(stale) !== JSON.stringify(['base-station', 'robot1-main', 'robot2-main'])) {
+      throw new Error(`stale hosts: ${JSON.stringify(stale)}\n${live}`);
+    }
+    log(`live: ${live.split('\n').find((l) => /scanner +data/.test(l)).trim()}; stale: ${stale.join(', ')}`);
+    await shot('config-live.png');
+    await page.uncheck('[data-testid="cfg-live"]');
+  }
 
   // 2. Open the file; its text and a form for the component under the cursor.
   const file = await page.evaluate((n) => {

@@ -30,6 +30,7 @@ export function setupConfig(send) {
   view.innerHTML = `
     <div class="toolbar">
       <label>directory <select id="cfg-dir" data-testid="cfg-dir"></select></label>
+      <label title="what the network says: stale hosts, state, utilisation, worst wake-up latency (every 5 s)"><input type="checkbox" id="cfg-live" data-testid="cfg-live"> live</label>
       <label>host file <select id="cfg-file" data-testid="cfg-file"></select></label>
       <button id="cfg-save" data-testid="cfg-save" disabled>Save</button>
       <button id="cfg-revert" data-testid="cfg-revert">Revert</button>
@@ -268,7 +269,13 @@ export function setupConfig(send) {
     }
     request({ op: 'config_load', file });
   }
-  function graph() { if (cs.dir) request({ op: 'config_graph', dir: cs.dir }); }
+  function graph() {
+    if (!cs.dir || cs.graphPending) return;
+    cs.graphPending = request({ op: 'config_graph', dir: cs.dir, live: $('cfg-live').checked }) !== null;
+  }
+  $('cfg-live').onchange = () => graph();
+  // Live: refreshed every 5 s while the view is shown.
+  setInterval(() => { if ($('cfg-live').checked && view.classList.contains('active')) graph(); }, 5000);
 
   function renderGraph(m) {
     const box = view.querySelector('.cfg-graph');
@@ -295,7 +302,7 @@ export function setupConfig(send) {
       const div = document.createElement('div');
       div.textContent = line;
       if (/^\s*!/.test(line)) div.className = 'flag';
-      if (/error:/.test(line)) div.className = 'bad';
+      if (/error:|STALE/.test(line)) div.className = 'bad';
       alloc.appendChild(div);
     }
     cs.deployment = m.deployment;
@@ -305,7 +312,11 @@ export function setupConfig(send) {
   function handle(m) {
     const req = m.id !== undefined ? cs.pending.get(m.id) : undefined;
     if (m.id !== undefined) cs.pending.delete(m.id);
-    if (m.ok === false) { status(m.error || 'refused', false); return; }
+    if (m.ok === false) {
+      if (req?.op === 'config_graph') cs.graphPending = false;
+      status(m.error || 'refused', false);
+      return;
+    }
     switch (m.op) {
       case 'config_files':
         cs.dirs = m.dirs || [];
@@ -320,7 +331,11 @@ export function setupConfig(send) {
         cs.classes = new Map((m.classes || []).map((c) => [c.impl, c]));
         renderForm();
         break;
-      case 'config_graph': renderGraph(m); break;
+      case 'config_graph':
+        cs.graphPending = false;
+        renderGraph(m);
+        if (m.live_error) status(m.live_error, false);
+        break;
       case 'config_load':
         cs.file = m.file;
         cs.disk = m.text;
@@ -364,6 +379,7 @@ export function setupConfig(send) {
         cs.shown = request({ op: 'config_files' }) !== null;
         if (cs.shown) request({ op: 'config_classes' });
       } else {
+        cs.graphPending = false;  // a reply lost with a connection is not waited for
         graph();
       }
       renderGutter();
