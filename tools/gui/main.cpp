@@ -63,7 +63,8 @@ options:
   --config DIR       serve the host files in DIR to the "Configuration" view
                      (repeatable): the deployment graph, the allocation per CPU,
                      and the editor, which saves a file of DIR only when rackd's
-                     own check accepts it (README: "The configuration tool")
+                     own check accepts it; "live" asks the network through the
+                     rackctl beside rack-gui (README: "The configuration tool")
   --rackd PATH       the rackd that checks edited host files (default: beside
                      rack-gui, else PATH)
   --poll-ms MS       state and data poll period (default 200)
