@@ -612,16 +612,13 @@ std::string to_dot(const Deployment& d, const Live* live) {
     }
     s += "  }\n";
   }
-  std::set<std::string> unplaced;
+  std::map<std::string, std::size_t> unplaced;  // target -> node number, in order of appearance
   for (const Flow& f : d.flows) {
     std::string from;
     if (f.producer == kNone) {
-      from = "u_" + std::to_string(unplaced.size());
-      for (std::size_t i = 0; const auto& u : unplaced) {
-        if (u == f.target) from = "u_" + std::to_string(i);
-        ++i;
-      }
-      if (unplaced.insert(f.target).second) {
+      const auto [it, fresh] = unplaced.emplace(f.target, unplaced.size());
+      from = "u_" + std::to_string(it->second);
+      if (fresh) {
         s += "  " + from + " [label=\"" + dot_escape(f.target) + "\\nnot in these host files\", style=dashed];\n";
       }
     } else {

@@ -114,6 +114,22 @@ TEST(DeploymentTest, FlowsAcrossHostsAndNetworks) {
   EXPECT_NE(dot.find("via robot1 > fleet > robot2"), std::string::npos) << dot;
 }
 
+TEST(DeploymentTest, EachUnplacedProducerIsOneNode) {
+  const Deployment d = build({read_host_text(R"Y(host: a
+components:
+  - {name: m1, class: Monitor, instance: 1, params: {source: "Generator(5/5)"}}
+  - {name: m2, class: Monitor, instance: 2, params: {source: "Generator(4/4)"}}
+  - {name: m3, class: Monitor, instance: 3, params: {source: "Generator(5/5)"}}
+)Y", "a.yaml")});
+  const std::string dot = to_dot(d);
+  EXPECT_NE(dot.find("u_0 [label=\"Generator(5/5)\\nnot in these host files\""), std::string::npos) << dot;
+  EXPECT_NE(dot.find("u_1 [label=\"Generator(4/4)\\nnot in these host files\""), std::string::npos) << dot;
+  EXPECT_NE(dot.find("u_0 -> c0_0"), std::string::npos) << dot;
+  EXPECT_NE(dot.find("u_1 -> c0_1"), std::string::npos) << dot;
+  EXPECT_NE(dot.find("u_0 -> c0_2"), std::string::npos) << dot;
+  EXPECT_EQ(dot.find("u_2"), std::string::npos) << dot;
+}
+
 TEST(DeploymentTest, FlowByNameInOneFileAndNotForPlainValues) {
   const Deployment d = build({read_host_text(R"Y(host: a
 components:
