@@ -1,5 +1,6 @@
 #include "rack/client/host_file.h"
 #include "rack/tims/lcm_url.h"
+#include "yaml_tree.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -69,29 +70,7 @@ std::optional<std::string> read_host_bytes(const std::string& path, std::string&
 }
 
 
-namespace {
-
-// The first YAML document as a tree of scalars, lists and maps (libyaml events). An
-// alias points at its anchored node (shared, not copied: no expansion blow-up).
-struct Node {
-  enum class Kind { kScalar, kList, kMap } kind = Kind::kScalar;
-  std::string value;                // a scalar's text
-  std::vector<const Node*> items;   // a list's items; a map's keys and values, alternating
-  int line = 1;
-  int column = 1;
-  [[nodiscard]] const Node* find(const char* key) const {
-    if (kind != Kind::kMap) return nullptr;
-    for (std::size_t i = 0; i + 1 < items.size(); i += 2) {
-      if (items[i]->kind == Kind::kScalar && items[i]->value == key) return items[i + 1];
-    }
-    return nullptr;
-  }
-};
-
-struct Document {
-  std::deque<Node> nodes;
-  const Node* root = nullptr;
-};
+namespace yaml_tree {
 
 // Parses the first document of `text`; false and `error` set on a syntax error.
 bool parse_document(const std::string& text, const std::string& file, Document& doc, ConfigError& error) {
@@ -177,7 +156,11 @@ bool parse_document(const std::string& text, const std::string& file, Document& 
   }
 }
 
-}  // namespace
+}  // namespace yaml_tree
+
+using yaml_tree::Document;
+using yaml_tree::Node;
+using yaml_tree::parse_document;
 
 ToolNetwork read_tool_network_text(const std::string& text, const std::string& file) {
   ToolNetwork out;

@@ -201,7 +201,7 @@ TEST_F(CliTest, CompletionOffersEveryOptionOfEachToolsHelp) {
       const auto first = complete("rack-devsim --");
       offered.insert(first.begin(), first.end());
     } else if (std::string(t.name) == "rackctl") {
-      for (const char* cmd : {"list", "status", "get-data", "watch", "send", "hz", "doctor", "classes", "trace"}) {
+      for (const char* cmd : {"list", "status", "get-data", "watch", "send", "hz", "doctor", "classes", "trace", "graph", "alloc"}) {
         const auto c = complete(std::string("rackctl ") + cmd + " --");
         offered.insert(c.begin(), c.end());
       }
@@ -210,7 +210,7 @@ TEST_F(CliTest, CompletionOffersEveryOptionOfEachToolsHelp) {
     }
     std::string help = run({t.path, "--help"}, 30s).out;
     if (std::string(t.name) == "rackctl") {
-      for (const char* cmd : {"list", "status", "get-data", "watch", "send", "hz", "doctor", "classes", "trace"}) {
+      for (const char* cmd : {"list", "status", "get-data", "watch", "send", "hz", "doctor", "classes", "trace", "graph", "alloc"}) {
         help += run({t.path, "help", cmd}, 30s).out;
       }
     }

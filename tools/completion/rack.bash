@@ -28,13 +28,13 @@ _rackd() {
     --lcm|--duration|--status) return ;;
   esac
   if [[ $cur == -* ]]; then
-    _rack_words "--check --list-classes --duration --status --lcm --crash-dir --help --version"
+    _rack_words "--check --list-classes --json --duration --status --lcm --crash-dir --help --version"
   else
     _rack_files '*.@(yaml|yml)'
   fi
 }
 
-_RACKCTL_COMMANDS="list hosts on off status latency params classes set-param get-data watch send hz bw doctor keygen threads trace help"
+_RACKCTL_COMMANDS="list hosts on off status latency params classes set-param get-data watch send hz bw doctor keygen threads trace graph alloc help"
 _RACKCTL_OPTIONS="--lcm --timeout --retries --discover-ms --host-file --key-file --help --version"
 
 # Command-specific options (as rackctl help COMMAND lists them).
@@ -46,6 +46,8 @@ _rackctl_command_options() {
     send) echo "--i64" ;;
     hz|bw) echo "--window --period --count --json" ;;
     trace) echo "--duration --out --host" ;;
+    graph) echo "--live --format --out --rackd" ;;
+    alloc) echo "--live --json --rackd" ;;
   esac
 }
 
@@ -77,8 +79,9 @@ _rackctl() {
   ((count > 1)) && prev=${_rackctl_w[count-2]}
   case $prev in
     --host-file) _rack_files '*.@(yaml|yml)'; return ;;
-    --key-file) _rack_files; return ;;
+    --key-file|--rackd) _rack_files; return ;;
     --out) _rack_files '*.json'; return ;;
+    --format) _rack_words "dot svg json"; return ;;
     --lcm|--timeout|--retries|--discover-ms|--time|--period|--count|--window|--i64|--duration|--host) return ;;
   esac
   # The command and its position among the words that are not options.
@@ -86,7 +89,7 @@ _rackctl() {
   for ((i = 1; i < count - 1; i++)); do
     w=${_rackctl_w[i]}
     case $w in
-      --lcm|--timeout|--retries|--discover-ms|--host-file|--key-file|--time|--period|--count|--window|--i64|--duration|--out|--host)
+      --lcm|--timeout|--retries|--discover-ms|--host-file|--key-file|--time|--period|--count|--window|--i64|--duration|--out|--host|--format|--rackd)
         ((i++)); continue ;;
       -*) continue ;;
     esac
@@ -103,6 +106,7 @@ _rackctl() {
   case $cmd in
     help) ((n == 0)) && COMPREPLY=($(compgen -W "$_RACKCTL_COMMANDS" -- "$cur")) ;;
     keygen) ((n == 0)) && _rack_files ;;
+    graph|alloc) _rack_files '*.@(yaml|yml)' ;;
     list|hosts|doctor|classes|threads) ;;
     trace)
       local IFS=$'\n'
@@ -137,12 +141,12 @@ _rack_gui() {
   local cur=${COMP_WORDS[COMP_CWORD]} prev=${COMP_WORDS[COMP_CWORD-1]}
   case $prev in
     --host-file) _rack_files '*.@(yaml|yml)'; return ;;
-    --key-file|--map|--backtrace) _rack_files; return ;;
-    --web|--reports|--map-root) COMPREPLY=($(compgen -d -- "$cur")); compopt -o filenames 2>/dev/null; return ;;
+    --key-file|--map|--backtrace|--rackd) _rack_files; return ;;
+    --web|--reports|--map-root|--config) COMPREPLY=($(compgen -d -- "$cur")); compopt -o filenames 2>/dev/null; return ;;
     --address|--port|--lcm|--gdos-lcm|--gdos-channel|--poll-ms|--timeout-ms|--forget-s) return ;;
   esac
   _rack_words "--address --port --lcm --host-file --key-file --web --map --map-root --reports --backtrace
-               --gdos-lcm --gdos-channel --poll-ms --timeout-ms --forget-s --help --version"
+               --gdos-lcm --gdos-channel --config --rackd --poll-ms --timeout-ms --forget-s --help --version"
 }
 
 _rack_backtrace() {

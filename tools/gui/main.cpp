@@ -8,10 +8,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <thread>
 
 #include "backend.h"
+#include "config_service.h"
 #include "http_server.h"
 #include "rack/core/host_config.h"
 #include "rack/tims/lcm_transport.h"
@@ -58,6 +60,13 @@ options:
   --backtrace PATH   the rack-backtrace program (default: beside rack-gui, else PATH)
   --web DIR          the built front end (default: tools/gui/web/dist of the source
                      tree it was built from, else <prefix>/share/rack-gui/web)
+  --config DIR       serve the host files in DIR to the "Configuration" view
+                     (repeatable): the deployment graph, the allocation per CPU,
+                     and the editor, which saves a file of DIR only when rackd's
+                     own check accepts it; "live" asks the network through the
+                     rackctl beside rack-gui (README: "The configuration tool")
+  --rackd PATH       the rackd that checks edited host files (default: beside
+                     rack-gui, else PATH)
   --poll-ms MS       state and data poll period (default 200)
   --timeout-ms MS    a robot that does not answer within this is shown as
                      "no reply" (default 1000)
@@ -110,6 +119,7 @@ int main(int argc, char** argv) {
   std::string address = "127.0.0.1";
   long port = 8080;
   std::string web = RACK_GUI_WEB_ROOT;
+  rack::gui::ConfigServiceConfig config_dirs;
   bool web_given = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -150,6 +160,13 @@ int main(int argc, char** argv) {
     } else if (a == "--web") {
       web = value("a directory");
       web_given = true;
+    } else if (a == "--config") {
+      const std::string dir = value("a directory of host files");
+      std::error_code dir_ec;
+      if (!std::filesystem::is_directory(dir, dir_ec)) usage_error("--config: '" + dir + "' is not a directory");
+      config_dirs.dirs.push_back(dir);
+    } else if (a == "--rackd") {
+      config_dirs.rackd_path = value("the rackd program");
     } else if (a == "--poll-ms") {
       config.poll_ms = static_cast<int>(number(a, value("milliseconds"), 20, 10000));
     } else if (a == "--forget-s") {
@@ -197,7 +214,17 @@ int main(int argc, char** argv) {
     });
     rack::gui::ServerHandlers handlers;
     handlers.opened = [&backend](uint64_t c) { backend.greet(c); };
-    handlers.message = [&backend](uint64_t c, const std::string& text) { backend.submit(c, text); };
+    // The configuration tool's requests ("op":"config_*") have their own service.
+    config_dirs.lcm_url = config.lcm_url;
+    config_dirs.key_file = config.key_file;
+    auto config_service = std::make_unique<rack::gui::ConfigService>(
+        config_dirs, [&server_ptr](uint64_t client, std::string m) {
+          if (server_ptr != nullptr) server_ptr->send(client, std::move(m));
+        });
+    handlers.message = [&backend, &config_service](uint64_t c, const std::string& text) {
+      if (rack::gui::ConfigService::handles(text)) config_service->submit(c, text);
+      else backend.submit(c, text);
+    };
     handlers.closed = [&backend](uint64_t c) { backend.client_closed(c); };
     handlers.refused = [&backend](uint64_t c, rack::gui::FrameRefusal why, std::size_t bytes) {
       if (why == rack::gui::FrameRefusal::kBinary) {
@@ -224,6 +251,7 @@ int main(int argc, char** argv) {
                  config.lcm_url.c_str());
     std::fflush(stderr);
     server.run();
+    config_service.reset();  // its thread ends before the server goes
     backend.stop();
     server_ptr = nullptr;
     const auto c = backend.counters();

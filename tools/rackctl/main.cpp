@@ -10,6 +10,7 @@
 // error, 3 not available (NOT_AVAILABLE reply, unknown name, no reply in time).
 #include <dirent.h>
 #include <sched.h>
+#include <sys/wait.h>
 #include <signal.h>
 #include <unistd.h>
 
@@ -31,8 +32,10 @@
 #include <span>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
+#include "rack/client/deployment.h"
 #include "rack/core/class_description.h"
 #include "rack/core/data_component.h"
 #include "rack/core/host_config.h"
@@ -52,6 +55,7 @@
 #include "rack/tims/tool_address.h"
 #include "rack/version.h"
 
+#include "class_info.h"
 #include "doctor.h"
 #include "field_names.h"
 #include "stream_stats.h"
@@ -114,6 +118,12 @@ commands:
   trace --duration S --out FILE [NAME ...|all]
                                 record the task timeline of one host (Chrome JSON
                                 trace: open it in ui.perfetto.dev or chrome://tracing)
+  graph [--live] [--format dot|svg|json] FILE|DIR ...
+                                the deployment of these host files as a graph:
+                                hosts, components, tasks, data flows, networks
+  alloc [--live] [--json] FILE|DIR ...
+                                RT tasks per CPU of each host, priority
+                                inversions flagged (--live: utilisation, latency)
   help [COMMAND]                this text, or a command's
 
 NAME is a component's name from its host file (found by discovery), or an address
@@ -163,6 +173,9 @@ struct Options {
   double duration_s = 0.0;  // trace --duration
   std::string out;          // trace --out
   std::string host;         // trace --host
+  std::string format = "dot";  // graph --format: dot | svg | json
+  bool live = false;        // graph/alloc --live
+  std::string rackd;        // graph/alloc --rackd: whose classes (default: beside rackctl)
   std::set<std::string> given;  // command-specific options seen (checked per command)
   std::string command;
   std::vector<std::string> args;
@@ -479,7 +492,7 @@ class Session {
   }
 
   // Sends `type` (no body) to every address of `dests` and calls answer(i, header)
-  // once for each that replied. Unlike call(), nothing ends the command: what got no
+  // (or answer(i, header, body)) once for each that replied. Unlike call(), nothing ends the command: what got no
   // reply after --retries + 1 attempts of --timeout each is simply not answered (the
   // caller says so). At most kFanoutWindow requests are outstanding; a reply to any
   // attempt of a request counts (an earlier attempt's reply may come late).
@@ -545,7 +558,13 @@ class Session {
         if (r.in_flight) --in_flight;
         r.in_flight = false;
         r.done = true;
-        answer(i, got.header);
+        if constexpr (std::is_invocable_v<Answer, std::size_t, const MessageHeader&, std::span<const std::byte>>) {
+          const std::size_t have = std::min(got.length, buf.size());
+          const std::size_t skip = std::min(have, sizeof(MessageHeader));
+          answer(i, got.header, std::span<const std::byte>(buf.data() + skip, have - skip));
+        } else {
+          answer(i, got.header);
+        }
         break;
       }
       // Anything else is a duplicate (a reply to a retried request that was answered
@@ -1530,6 +1549,154 @@ int run_doctor_command(const Options& o) {
   return failed ? kExitError : kExitOk;
 }
 
+// ---------------------------------------------------------------- graph, alloc
+
+bool write_text_file(const std::string& path, const std::string& text) {
+  FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) return false;
+  const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
+  return std::fclose(f) == 0 && ok;
+}
+
+// The deployment the arguments name (host files and directories of them).
+rack::deploy::Deployment read_deployment(const Options& o) {
+  std::vector<std::string> errors;
+  const auto paths = rack::deploy::host_file_paths(o.args, errors);
+  for (const auto& e : errors) std::fprintf(stderr, "rackctl: %s\n", e.c_str());
+  if (paths.empty()) fail(kExitUsage, "no host files to read");
+  std::vector<rack::deploy::Host> hosts;
+  for (const auto& p : paths) hosts.push_back(rack::deploy::read_host(p));
+  // The classes' component references, from the rackd beside rackctl (or --rackd).
+  std::vector<rack::deploy::ClassInfo> classes;
+  std::string why;
+  const std::string rackd = o.rackd.empty() ? rack::tools::rackd_beside_me() : o.rackd;
+  if (!rack::tools::classes_from_rackd(rackd, classes, why)) {
+    std::fprintf(stderr, "rackctl: %s: cannot learn the classes (%s): every parameter naming a component is taken "
+                         "for a flow\n", o.command.c_str(), why.c_str());
+    return rack::deploy::build(std::move(hosts));
+  }
+  return rack::deploy::build(std::move(hosts), &classes);
+}
+
+// What discovery and GET_STATS say of the deployment's hosts and components.
+rack::deploy::Live live_view(Session& s, const rack::deploy::Deployment& d) {
+  rack::deploy::Live live;
+  live.hosts.resize(d.hosts.size());
+  live.tasks.resize(d.hosts.size());
+  const auto found = s.discover([](const std::vector<tims::HostInfo>&) { return false; });
+  const int64_t now = rt::monotonic_ns();
+  std::vector<Address> dests;
+  std::vector<std::pair<std::size_t, std::size_t>> who;
+  for (std::size_t h = 0; h < d.hosts.size(); ++h) {
+    const auto& host = d.hosts[h];
+    for (const auto& info : found) {
+      if (info.system == host.system && info.host_id == host.host_id && (host.host.empty() || info.host == host.host)) {
+        live.hosts[h].answered = true;
+        live.hosts[h].seen_ms_ago = (now - info.last_seen_ns) / rt::kNsPerMs;
+      }
+    }
+    live.tasks[h].resize(host.components.size());
+    for (std::size_t c = 0; c < host.components.size(); ++c) {
+      live.tasks[h][c].state = "no reply";
+      if (!host.components[c].address) continue;
+      dests.push_back(Address(*host.components[c].address));
+      who.emplace_back(h, c);
+    }
+  }
+  s.fan_out(dests, msg::kGetStats, [&](std::size_t i, const MessageHeader& h, std::span<const std::byte> body) {
+    auto& t = live.tasks[who[i].first][who[i].second];
+    t.answered = true;
+    if (h.type != msg::kStats) {
+      t.state = h.type == msg::kNotAvailable ? "NOT_AVAILABLE" : state_name(h.type);
+      return;
+    }
+    wire::StatsReply st;
+    if (!wire::read_payload(body, tims::body_is_native(h), st)) {
+      t.state = format("malformed STATS (%zu bytes)", body.size());
+      return;
+    }
+    t.state = rack::describe(static_cast<rack::ComponentState>(st.state));
+    t.period_ns = st.period_ns;
+    if (st.exec_samples > 0) t.exec_p50_ns = st.exec_p50_ns;
+    if (st.exec_samples > 0 && st.period_ns > 0) {
+      t.utilisation = static_cast<double>(st.exec_p50_ns) / static_cast<double>(st.period_ns);
+    }
+    if (st.data.samples > 0) t.worst_latency_ns = st.data.latency_max_ns;
+  });
+  return live;
+}
+
+bool has_errors(const rack::deploy::Deployment& d) {
+  for (const auto& h : d.hosts) {
+    if (!h.errors.empty()) return true;
+  }
+  return !d.problems.empty();
+}
+
+// DOT through graphviz's dot into SVG, on stdout or into `out`.
+int write_svg(const std::string& dot_text, const std::string& out) {
+  char tmp[] = "/tmp/rackctl-graph-XXXXXX";
+  const int fd = ::mkstemp(tmp);
+  if (fd < 0) fail(kExitError, std::string("graph: cannot make a temporary file: ") + std::strerror(errno));
+  const bool written = ::write(fd, dot_text.data(), dot_text.size()) == static_cast<ssize_t>(dot_text.size());
+  ::close(fd);
+  int rc = -1;
+  if (written) {
+    std::fflush(stdout);
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      if (out.empty()) ::execlp("dot", "dot", "-Tsvg", tmp, static_cast<char*>(nullptr));
+      else ::execlp("dot", "dot", "-Tsvg", "-o", out.c_str(), tmp, static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    int status = 0;
+    if (pid > 0 && ::waitpid(pid, &status, 0) == pid && WIFEXITED(status)) rc = WEXITSTATUS(status);
+  }
+  ::unlink(tmp);
+  if (rc == 127) {
+    fail(kExitUnavailable, "graph --format svg needs graphviz's dot (apt-get install graphviz); "
+                           "--format dot prints the DOT text");
+  }
+  if (rc != 0) fail(kExitError, "graph: dot did not make the SVG (exit " + std::to_string(rc) + ")");
+  return kExitOk;
+}
+
+int run_graph(Session* s, const Options& o) {
+  const auto d = read_deployment(o);
+  std::optional<rack::deploy::Live> live;
+  if (s != nullptr) live = live_view(*s, d);
+  const rack::deploy::Live* lp = live ? &*live : nullptr;
+  for (const auto& h : d.hosts) {
+    for (const auto& e : h.errors) std::fprintf(stderr, "rackctl: graph: %s\n", e.str().c_str());
+  }
+  for (const auto& p : d.problems) std::fprintf(stderr, "rackctl: graph: %s\n", p.c_str());
+  if (o.format == "json") {
+    const std::string j = rack::deploy::to_json(d, lp) + "\n";
+    if (o.out.empty()) std::fputs(j.c_str(), stdout);
+    else if (!write_text_file(o.out, j)) fail(kExitError, "graph: cannot write " + o.out);
+  } else if (o.format == "svg") {
+    write_svg(rack::deploy::to_dot(d, lp), o.out);
+  } else {
+    const std::string dot = rack::deploy::to_dot(d, lp);
+    if (o.out.empty()) std::fputs(dot.c_str(), stdout);
+    else if (!write_text_file(o.out, dot)) fail(kExitError, "graph: cannot write " + o.out);
+  }
+  return has_errors(d) ? kExitError : kExitOk;
+}
+
+int run_alloc(Session* s, const Options& o) {
+  const auto d = read_deployment(o);
+  std::optional<rack::deploy::Live> live;
+  if (s != nullptr) live = live_view(*s, d);
+  const rack::deploy::Live* lp = live ? &*live : nullptr;
+  if (o.json) std::printf("%s\n", rack::deploy::to_json(d, lp).c_str());
+  else std::fputs(rack::deploy::allocation_text(d, lp).c_str(), stdout);
+  return has_errors(d) ? kExitError : kExitOk;
+}
+
+int cmd_graph(Session& s, const Options& o) { return run_graph(&s, o); }
+int cmd_alloc(Session& s, const Options& o) { return run_alloc(&s, o); }
+
 int cmd_help(Session&, const Options&);  // handled before a session exists
 
 // threads [PID]: /proc only, no session.
@@ -1777,6 +1944,37 @@ const std::vector<Command>& commands() {
        "  rackctl trace --duration 2 --out sim.json all\n"
        "  rackctl trace --duration 5 --out mcl.json mcl,ladar",
        cmd_trace},
+      {"graph", "graph [--live] [--format dot|svg|json] [--out FILE] [--rackd PATH] FILE|DIR ...", 1, 256,
+       {"--live", "--format", "--out", "--rackd"},
+       "Draws a deployment from its host files (a directory: its *.yaml files): a\n"
+       "cluster per system (robot) and host with its role and networks, a box per\n"
+       "component (name, address, class, each task's priority, CPU and period) and an\n"
+       "arrow per data flow from producer to consumer, labelled with the consumer's\n"
+       "parameter, the producer's period and the networks the flow crosses (blue;\n"
+       "thick when it goes through system routers). A flow is a parameter that its\n"
+       "class declares as a component reference (the rackd beside rackctl, or\n"
+       "--rackd PATH, lists its classes as JSON) whose value names a component of\n"
+       "the same file or is an address like Generator(1/0); an address\n"
+       "no given file places is a dashed box. Errors of the reader are red\n"
+       "notes with file:line:col (the full validation is rackd's own check); exit 1 then.\n"
+       "--live adds what the network says: hosts that did not answer discovery are\n"
+       "grey and dashed (STALE), each component its state, utilisation (execution\n"
+       "p50 / period) and worst wake-up latency (GET_STATS). Offline it needs no\n"
+       "network. --format svg runs graphviz's dot (apt-get install graphviz).\n"
+       "  rackctl graph configs/two_robots/ | dot -Tsvg > fleet.svg\n"
+       "  rackctl graph --format svg --out fleet.svg configs/two_robots/",
+       cmd_graph},
+      {"alloc", "alloc [--live] [--json] [--rackd PATH] FILE|DIR ...", 1, 256, {"--live", "--json", "--rackd"},
+       "Prints the allocation at a glance: per host and CPU (a task's 'cpu:', else the\n"
+       "host's 'cpus: rt:', else 'any cpu') the RT tasks there (priority > 0), highest\n"
+       "first, with their periods, and flags configuration priority inversions with\n"
+       "'!': a consumer's data task above its producer's on one CPU, and two data\n"
+       "tasks with the same priority on one CPU. --live adds each data task's\n"
+       "measured utilisation (execution p50 / period), worst wake-up latency and\n"
+       "state, and marks hosts that did not answer discovery as STALE. --json: the\n"
+       "deployment as one JSON object (what 'graph --format json' prints). Exit 1\n"
+       "when a host file has errors.",
+       cmd_alloc},
       {"help", "help [COMMAND]", 0, 1, {}, "Prints the usage, or a command's help.", cmd_help},
   };
   return kCommands;
@@ -1887,6 +2085,18 @@ Options parse_arguments(int argc, char** argv) {
     } else if (a == "--host") {
       o.host = value("a host name");
       o.given.insert(a);
+    } else if (a == "--format") {
+      o.format = value("dot, svg or json");
+      if (o.format != "dot" && o.format != "svg" && o.format != "json") {
+        fail(kExitUsage, "--format takes dot, svg or json, got '" + o.format + "'");
+      }
+      o.given.insert(a);
+    } else if (a == "--live") {
+      o.live = true;
+      o.given.insert(a);
+    } else if (a == "--rackd") {
+      o.rackd = value("the rackd program");
+      o.given.insert(a);
     } else {
       fail(kExitUsage, "unknown option '" + a + "' (rackctl --help lists them)");
     }
@@ -1951,6 +2161,14 @@ int main(int argc, char** argv) {
   }
   if (std::string(cmd->name) == "doctor") return run_doctor_command(o);
   if (std::string(cmd->name) == "threads") return cmd_threads(o);
+  if ((std::string(cmd->name) == "graph" || std::string(cmd->name) == "alloc") && !o.live) {
+    try {  // offline: from the host files alone, no network joined
+      return std::string(cmd->name) == "graph" ? run_graph(nullptr, o) : run_alloc(nullptr, o);
+    } catch (const Failure& f) {
+      std::fprintf(stderr, "rackctl: %s\n", f.message.c_str());
+      return f.code;
+    }
+  }
   if (std::string(cmd->name) == "keygen") {
     const std::string err = tims::generate_key_file(o.args[0]);
     if (!err.empty()) {

@@ -8,6 +8,7 @@
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
+#include <cmath>
 #include <cstring>
 #include <iostream>
 #include <mutex>
@@ -18,6 +19,8 @@
 #include "rack/components/builtin.h"
 #include "rack/core/executor.h"
 #include "rack/core/host_config.h"
+#include "rack/core/payload_json.h"
+#include "rack/core/registry.h"
 #include "rack/rt/capabilities.h"
 #include "rack/rt/clock.h"
 #include "rack/rt/memory.h"
@@ -48,6 +51,9 @@ options:
   --list-classes     print the built-in component classes and their parameters, and
                      the plug-in classes (by their manifests, without loading them),
                      then exit
+  --json             with --list-classes: one JSON array, each class with its
+                     parameters (kind, unit, min, max, default, doc, choices,
+                     required, init_only, component_ref), as rack-gui's editor uses it
   -h, --help         this text
   --version          the version (CMake project version, git describe)
 
@@ -124,6 +130,57 @@ void list_classes(const rack::ComponentRegistry& registry) {
   for (const auto& p : problems) std::printf("rackd: skipped a broken manifest: %s\n", p.c_str());
 }
 
+// --list-classes --json: the same as one JSON array, each class as it describes itself
+// to tools (rack/core/class_description.h), for programs (rack-gui's host-file editor
+// builds its forms from it). Plug-in classes: name, class and summary only.
+void list_classes_json(const rack::ComponentRegistry& registry) {
+  const auto q = [](const std::string& s) {
+    std::string out(1, '"');
+    out += rack::json_escape(s);
+    out += '"';
+    return out;
+  };
+  const auto number = [](double v) {
+    if (!std::isfinite(v)) return std::string("null");  // unbounded
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.17g", v);
+    return std::string(buf);
+  };
+  std::string out = "[";
+  bool first = true;
+  for (const auto* cls : registry.all()) {
+    auto c = cls->make();
+    const rack::ClassDescription d = rack::describe_class(*cls, c->parameters());
+    out += (first ? "" : ",") + std::string("{\"impl\":") + q(d.impl) + ",\"class\":" + q(d.class_name) +
+           ",\"summary\":" + q(d.summary) + ",\"data_task\":" + q(rack::describe(c->data_task_mode())) +
+           ",\"plugin\":false,\"parameters\":[";
+    first = false;
+    for (std::size_t i = 0; i < d.parameters.size(); ++i) {
+      const auto& p = d.parameters[i];
+      std::string choices;
+      for (std::size_t k = 0; k < p.choices.size(); ++k) {
+        if (k > 0) choices += ',';
+        choices += q(p.choices[k]);
+      }
+      out += (i == 0 ? "{" : ",{") + std::string("\"name\":") + q(p.name) + ",\"kind\":" + q(rack::describe(p.kind)) +
+             ",\"unit\":" + q(p.unit) + ",\"min\":" + number(p.min) + ",\"max\":" + number(p.max) +
+             ",\"default\":" + q(p.default_value) + ",\"doc\":" + q(p.doc) + ",\"choices\":[" + choices +
+             "],\"required\":" + ((p.flags & rack::ParameterDescription::kRequired) != 0 ? "true" : "false") +
+             ",\"init_only\":" + ((p.flags & rack::ParameterDescription::kInitOnly) != 0 ? "true" : "false") +
+             ",\"component_ref\":" + ((p.flags & rack::ParameterDescription::kComponentRef) != 0 ? "true" : "false") +
+             "}";
+    }
+    out += "]}";
+  }
+  std::vector<std::string> problems;
+  for (const auto& p : registry.plugin_classes(&problems)) {
+    out += (first ? "" : ",") + std::string("{\"impl\":") + q(p.impl) + ",\"class\":" + q(p.interface_name) +
+           ",\"summary\":" + q(p.summary) + ",\"plugin\":true}";
+    first = false;
+  }
+  std::printf("%s]\n", out.c_str());
+  for (const auto& p : problems) std::fprintf(stderr, "rackd: skipped a broken manifest: %s\n", p.c_str());
+}
 
 // SIGINT/SIGTERM during loading and starting (they are blocked in every thread; the
 // main thread waits for them only once the host runs). A watcher thread takes them
@@ -251,7 +308,7 @@ static int run_rackd(int argc, char** argv) {
   sigaddset(&stop_signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
   std::string file, lcm_url, crash_dir;
-  bool check = false, classes = false;
+  bool check = false, classes = false, json = false;
   double duration = -1, status_every = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -276,6 +333,7 @@ static int run_rackd(int argc, char** argv) {
     if (a == "--version") { rack::print_version("rackd"); return 0; }
     if (a == "--check") check = true;
     else if (a == "--list-classes") classes = true;
+    else if (a == "--json") json = true;
     else if (a == "--duration") duration = number("a number of seconds");
     else if (a == "--status") status_every = number("a number of seconds");
     else if (a == "--lcm") lcm_url = value("an LCM URL");
@@ -284,6 +342,7 @@ static int run_rackd(int argc, char** argv) {
     else if (file.empty()) file = a;
     else { std::fprintf(stderr, "rackd: one host file only ('%s' and '%s')\n", file.c_str(), a.c_str()); return 2; }
   }
+  if (json && !classes) { std::fprintf(stderr, "rackd: --json goes with --list-classes\n"); return 2; }
   if (file.empty() && !classes) { std::fprintf(stderr, "rackd: no host file given\n%s", kUsage); return 2; }
   // Before the first thread: service threads get 1 MiB stacks (locked whole by
   // mlockall), not RLIMIT_STACK's 8 MiB.
@@ -293,7 +352,11 @@ static int run_rackd(int argc, char** argv) {
   watch.phase("registering the component classes");
   rack::ComponentRegistry registry;
   rack::components::register_builtin(registry);
-  if (classes) { list_classes(registry); return 0; }
+  if (classes) {
+    if (json) list_classes_json(registry);
+    else list_classes(registry);
+    return 0;
+  }
 
   if (!lcm_url.empty()) {
     if (const auto u = rack::tims::parse_lcm_url(lcm_url); !u.ok()) {

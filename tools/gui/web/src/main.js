@@ -8,6 +8,7 @@ import { setupPlots } from './plots.js';
 import { setupCommands } from './commands.js';
 import { setupMapTools } from './map_tools.js';
 import { formatField, formatArray, duration } from './numbers.js';
+import { setupConfig } from './config/config.js';
 
 const $ = (id) => document.getElementById(id);
 const LEVELS = ['print', 'error', 'warning', 'info', 'detail'];
@@ -129,6 +130,7 @@ function handle(m) {
       if (document.querySelector('#view-reports.active')) renderReports();
       break;
     case 'notice': notice(m.text, m.level !== 'error' && m.level !== 'warning'); break;
+    case 'config': config.handle(m); break;
     default: break;
   }
 }
@@ -231,8 +233,10 @@ function showView(name) {
   if (name === 'map') resizeMap();
   if (name === 'timeline') drawTimeline();
   if (name === 'plots') plots.show();
+  if (name === 'config') config.show();
 }
 const drawTimeline = setupTimeline() ?? (() => {});
+const config = setupConfig(send);  // the Configuration view (src/config/): adds its tab
 const plots = setupPlots({ st, send, $ });
 const commands = setupCommands({ st, send });
 st.addPlot = (component, field) => plots.add(component, field);

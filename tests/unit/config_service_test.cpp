@@ -1,0 +1,151 @@
+// rack-gui's configuration service (tools/gui/config_service.h): which files a browser
+// may read and write (only host files directly in a served directory, no symbolic
+// links, no other names), that a text is saved only when rackd --check accepts it
+// (with its errors at their line otherwise), and that nothing else is left behind.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "config_service.h"
+
+namespace rack::gui {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr const char* kValid =
+    "# a comment that must survive\n"
+    "host: t\n"
+    "components:\n"
+    "  - name: gen\n"
+    "    class: Generator\n"
+    "    data_task: {priority: 60, period_ms: 10}   # 100 Hz\n";
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+class ConfigServiceTest : public ::testing::Test {
+ protected:
+  ConfigServiceTest() {
+    char tmpl[] = "/tmp/rack-config-test-XXXXXX";
+    root_ = ::mkdtemp(tmpl);
+    served_ = root_ / "served";
+    fs::create_directories(served_ / "sub");
+    std::ofstream(served_ / "host.yaml") << kValid;
+    std::ofstream(root_ / "outside.yaml") << kValid;
+    fs::create_symlink(root_ / "outside.yaml", served_ / "link.yaml");
+    ConfigServiceConfig c;
+    c.dirs = {served_.string()};
+    c.rackd_path = RACK_RACKD_PATH;
+    service_ = std::make_unique<ConfigService>(c, [](uint64_t, std::string) {});
+  }
+  ~ConfigServiceTest() override {
+    service_.reset();
+    fs::remove_all(root_);
+  }
+  json call(const json& request) { return json::parse(service_->handle(request.dump())); }
+  std::size_t entries() const {
+    std::size_t n = 0;
+    for (const auto& e : fs::directory_iterator(served_)) n += (e.is_regular_file() || e.is_symlink()) ? 1u : 0u;
+    return n;
+  }
+
+  fs::path root_, served_;
+  std::unique_ptr<ConfigService> service_;
+};
+
+TEST_F(ConfigServiceTest, RecognisesItsMessages) {
+  EXPECT_TRUE(ConfigService::handles(R"({"op":"config_files"})"));
+  EXPECT_FALSE(ConfigService::handles(R"({"op":"switch"})"));
+  EXPECT_FALSE(ConfigService::handles("not json"));
+  EXPECT_FALSE(ConfigService::handles(R"(["config_files"])"));
+  EXPECT_FALSE(ConfigService::handles(std::string(100000, '[')));
+}
+
+TEST_F(ConfigServiceTest, ServesOnlyHostFilesDirectlyInItsDirectories) {
+  std::string why;
+  EXPECT_EQ(service_->served_file((served_ / "host.yaml").string(), why), (served_ / "host.yaml").string()) << why;
+  EXPECT_EQ(service_->served_file((served_ / "new.yml").string(), why), (served_ / "new.yml").string()) << why;
+  for (const fs::path& bad : {root_ / "outside.yaml", served_ / "sub" / "x.yaml", served_ / ".." / "outside.yaml",
+                              served_ / "link.yaml", served_ / "notes.txt", served_ / ".hidden.yaml",
+                              fs::path("host.yaml"), served_ / "a b.yaml"}) {
+    why.clear();
+    EXPECT_EQ(service_->served_file(bad.string(), why), "") << bad;
+    EXPECT_FALSE(why.empty()) << bad;
+  }
+  const json r = call({{"op", "config_load"}, {"file", (served_ / "link.yaml").string()}, {"id", 7}});
+  EXPECT_EQ(r["ok"], false);
+  EXPECT_EQ(r["id"], 7);
+  EXPECT_NE(r["error"].get<std::string>().find("symbolic links"), std::string::npos) << r;
+}
+
+TEST_F(ConfigServiceTest, ListsAndLoads) {
+  const json files = call({{"op", "config_files"}});
+  ASSERT_EQ(files["ok"], true) << files;
+  ASSERT_EQ(files["dirs"].size(), 1u);
+  EXPECT_EQ(files["dirs"][0]["dir"], served_.string());
+  ASSERT_EQ(files["dirs"][0]["files"].size(), 2u) << files;  // host.yaml and link.yaml (refused when used)
+  const json load = call({{"op", "config_load"}, {"file", (served_ / "host.yaml").string()}});
+  ASSERT_EQ(load["ok"], true) << load;
+  EXPECT_EQ(load["text"], kValid);
+}
+
+TEST_F(ConfigServiceTest, SavesOnlyWhatRackdAccepts) {
+  const std::string file = (served_ / "host.yaml").string();
+  std::string bad = kValid;
+  bad.replace(bad.find("priority: 60"), 12, "priority: 300");
+  const json refused = call({{"op", "config_save"}, {"file", file}, {"text", bad}});
+  ASSERT_EQ(refused["ok"], true) << refused;
+  EXPECT_EQ(refused["valid"], false);
+  EXPECT_EQ(refused["saved"], false);
+  ASSERT_EQ(refused["errors"].size(), 1u) << refused.dump();
+  EXPECT_EQ(refused["errors"][0]["line"], 6) << refused.dump();
+  EXPECT_EQ(refused["errors"][0]["column"], 27);
+  // The message names the file, never the temporary copy that was checked.
+  EXPECT_EQ(refused["errors"][0]["message"].get<std::string>().find(".rack-gui-"), std::string::npos) << refused;
+  EXPECT_EQ(slurp(file), kValid);  // untouched
+  EXPECT_EQ(entries(), 2u);         // no temporary file left
+
+  std::string good = kValid;
+  good.replace(good.find("priority: 60"), 12, "priority: 65");
+  const json saved = call({{"op", "config_save"}, {"file", file}, {"text", good}});
+  ASSERT_EQ(saved["ok"], true) << saved;
+  EXPECT_EQ(saved["valid"], true) << saved;
+  EXPECT_EQ(saved["saved"], true);
+  EXPECT_EQ(slurp(file), good);
+  EXPECT_EQ(entries(), 2u);
+
+  // A check never writes.
+  const json checked = call({{"op", "config_check"}, {"file", file}, {"text", bad}});
+  EXPECT_EQ(checked["valid"], false);
+  EXPECT_EQ(slurp(file), good);
+  // Outside the served directory: refused before anything is written.
+  const json outside = call({{"op", "config_save"}, {"file", (root_ / "outside.yaml").string()}, {"text", good}});
+  EXPECT_EQ(outside["ok"], false);
+  EXPECT_EQ(slurp(root_ / "outside.yaml"), kValid);
+}
+
+TEST_F(ConfigServiceTest, MalformedRequestsAreAnsweredNotActedOn) {
+  for (const char* text : {"{", "[]", R"({"op":"config_nothing"})", R"({"op":"config_save","file":3,"text":"x"})",
+                           R"({"op":"config_graph","dir":"/"})", R"({"op":"config_load"})"}) {
+    const json r = json::parse(service_->handle(text));
+    EXPECT_EQ(r["type"], "config") << text;
+    EXPECT_EQ(r["ok"], false) << text;
+    EXPECT_FALSE(r["error"].get<std::string>().empty()) << text;
+  }
+  EXPECT_EQ(slurp(served_ / "host.yaml"), kValid);
+}
+
+}  // namespace
+}  // namespace rack::gui

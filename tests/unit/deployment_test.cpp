@@ -1,0 +1,256 @@
+// rack/client/deployment.h: host files read without the executor, the flows between
+// their components, the networks they cross and the allocation per CPU (rackctl graph,
+// rackctl alloc).
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "rack/client/deployment.h"
+
+namespace rack::deploy {
+namespace {
+
+std::string errors_of(const Host& h) {
+  std::string out;
+  for (const auto& e : h.errors) out += e.str() + "\n";
+  return out;
+}
+
+// Robot 1: a producer on its sensor computer, a consumer on its main computer (system
+// router); robot 2: a consumer across the fleet link.
+constexpr const char* kAux = R"Y(host: r1-aux
+system: 1
+host_id: 1
+tims:
+  networks:
+    - {name: robot1, url: "udpm://239.255.76.67:7711?ttl=1", scope: robot}
+components:
+  - name: scanner
+    class: Generator
+    instance: 0
+    data_task: {priority: 60, period_ms: 10}
+)Y";
+constexpr const char* kMain = R"Y(host: r1-main
+system: 1
+tims:
+  role: system_router
+  networks:
+    - {name: robot1, url: "udpm://239.255.76.67:7711?ttl=1", scope: robot}
+    - {name: fleet, url: "udpm://239.255.76.68:7700?ttl=1", scope: fleet}
+components:
+  - name: monitor
+    class: Monitor
+    instance: 1
+    data_task: {priority: 50}
+    params:
+      source: "Generator(1/0)"
+)Y";
+constexpr const char* kRobot2 = R"Y(host: r2-main
+system: 2
+tims:
+  role: system_router
+  networks:
+    - {name: robot2, url: "udpm://239.255.76.69:7712?ttl=1", scope: robot}
+    - {name: fleet, url: "udpm://239.255.76.68:7700?ttl=1", scope: fleet}
+components:
+  - name: far
+    class: Monitor
+    data_task: {priority: 50}
+    params: {source: "Generator(1/0)"}
+  - name: ghost
+    class: Monitor
+    instance: 1
+    params: {source: "Generator(7/3)"}
+)Y";
+
+Deployment fleet() {
+  return build({read_host_text(kAux, "aux.yaml"), read_host_text(kMain, "main.yaml"), read_host_text(kRobot2, "r2.yaml")});
+}
+
+const Flow* flow_to(const Deployment& d, const std::string& consumer) {
+  for (const auto& f : d.flows) {
+    if (d.hosts[f.consumer_host].components[f.consumer].name == consumer) return &f;
+  }
+  return nullptr;
+}
+
+TEST(DeploymentTest, ReadsHostsComponentsAndTasks) {
+  const Host h = read_host_text(kAux, "aux.yaml");
+  ASSERT_TRUE(h.errors.empty()) << errors_of(h);
+  EXPECT_EQ(h.host, "r1-aux");
+  EXPECT_EQ(h.system, 1);
+  EXPECT_EQ(h.host_id, 1);
+  ASSERT_EQ(h.networks.size(), 1u);
+  EXPECT_EQ(h.networks[0].scope, "robot");
+  ASSERT_EQ(h.components.size(), 1u);
+  const Component& c = h.components[0];
+  EXPECT_EQ(c.impl, "Generator");
+  // "Generator(1/0)" when TiMS knows the class (rackctl links rack::interfaces), else
+  // marked as a guess.
+  EXPECT_EQ(c.address_text.rfind("Generator(1/0)", 0), 0u) << c.address_text;
+  EXPECT_EQ(c.command_task.priority, 30);  // rackd's default when the file gives none
+  EXPECT_EQ(c.data_task.priority, 60);
+  EXPECT_EQ(c.period_ns, 10'000'000);
+}
+
+TEST(DeploymentTest, FlowsAcrossHostsAndNetworks) {
+  const Deployment d = fleet();
+  const Flow* local = flow_to(d, "monitor");
+  ASSERT_NE(local, nullptr);
+  ASSERT_NE(local->producer, kNone);
+  EXPECT_EQ(d.hosts[local->producer_host].components[local->producer].name, "scanner");
+  EXPECT_EQ(local->param, "source");
+  EXPECT_EQ(local->period_ns, 10'000'000);
+  EXPECT_EQ(local->networks, std::vector<std::string>{"robot1"});
+  const Flow* far = flow_to(d, "far");
+  ASSERT_NE(far, nullptr);
+  EXPECT_EQ(far->networks, (std::vector<std::string>{"robot1", "fleet", "robot2"}));
+  const Flow* ghost = flow_to(d, "ghost");
+  ASSERT_NE(ghost, nullptr);
+  EXPECT_EQ(ghost->producer, kNone);  // no given host file places Generator(7/3)
+  const std::string dot = to_dot(d);
+  EXPECT_NE(dot.find("not in these host files"), std::string::npos) << dot;
+  EXPECT_NE(dot.find("via robot1 > fleet > robot2"), std::string::npos) << dot;
+}
+
+TEST(DeploymentTest, EachUnplacedProducerIsOneNode) {
+  const Deployment d = build({read_host_text(R"Y(host: a
+components:
+  - {name: m1, class: Monitor, instance: 1, params: {source: "Generator(5/5)"}}
+  - {name: m2, class: Monitor, instance: 2, params: {source: "Generator(4/4)"}}
+  - {name: m3, class: Monitor, instance: 3, params: {source: "Generator(5/5)"}}
+)Y", "a.yaml")});
+  const std::string dot = to_dot(d);
+  EXPECT_NE(dot.find("u_0 [label=\"Generator(5/5)\\nnot in these host files\""), std::string::npos) << dot;
+  EXPECT_NE(dot.find("u_1 [label=\"Generator(4/4)\\nnot in these host files\""), std::string::npos) << dot;
+  EXPECT_NE(dot.find("u_0 -> c0_0"), std::string::npos) << dot;
+  EXPECT_NE(dot.find("u_1 -> c0_1"), std::string::npos) << dot;
+  EXPECT_NE(dot.find("u_0 -> c0_2"), std::string::npos) << dot;
+  EXPECT_EQ(dot.find("u_2"), std::string::npos) << dot;
+}
+
+TEST(DeploymentTest, FlowByNameInOneFileAndNotForPlainValues) {
+  const Deployment d = build({read_host_text(R"Y(host: a
+components:
+  - {name: gen, class: Generator, data_task: {priority: 40, period_ms: 5}}
+  - {name: cam, class: Camera, params: {source: /dev/video0}}
+  - {name: mon, class: Monitor, instance: 2, data_task: {priority: 45}, params: {source: gen, period_ms: 0}}
+)Y", "a.yaml")});
+  ASSERT_EQ(d.flows.size(), 1u);
+  EXPECT_EQ(d.flows[0].target, "gen");
+  EXPECT_TRUE(d.flows[0].networks.empty());  // inside one host
+  EXPECT_EQ(d.flows[0].line, 5);
+}
+
+TEST(DeploymentTest, ClassDescriptionsDecideWhichParametersAreFlows) {
+  // Pilot's `mode` is a choice that happens to be the name of the Path component.
+  const Host h = read_host_text(R"Y(host: a
+components:
+  - {name: path, class: PathPlanner, data_task: {priority: 20, period_ms: 200}}
+  - {name: chassis, class: ChassisSim, data_task: {priority: 80, period_ms: 10}}
+  - {name: pilot, class: Pilot, data_task: {priority: 66, period_ms: 50}, params: {path: path, mode: path, chassis: "Chassis(0/0)"}}
+)Y", "a.yaml");
+  const Deployment guessed = build({h});
+  EXPECT_EQ(guessed.flows.size(), 3u);  // path, mode (wrongly) and chassis
+  const std::vector<ClassInfo> classes{{"PathPlanner", "Path", true, {}},
+                                       {"ChassisSim", "Chassis", true, {}},
+                                       {"Pilot", "Pilot", true, {"path", "chassis"}}};
+  const Deployment d = build({h}, &classes);
+  ASSERT_EQ(d.flows.size(), 2u);
+  EXPECT_EQ(d.flows[0].param, "path");
+  EXPECT_EQ(d.flows[1].param, "chassis");
+  // Chassis(0/0) is the ChassisSim: the class's own name for its addresses.
+  ASSERT_NE(d.flows[1].producer, kNone);
+  EXPECT_EQ(d.hosts[0].components[d.flows[1].producer].name, "chassis");
+  EXPECT_EQ(d.hosts[0].components[1].address_text.rfind("Chassis(0/0)", 0), 0u) << d.hosts[0].components[1].address_text;
+}
+
+TEST(DeploymentTest, FlagsConsumerAboveProducerAndSamePriorityOnOneCpu) {
+  const Deployment d = build({read_host_text(R"Y(host: a
+components:
+  - {name: gen, class: Generator, data_task: {priority: 40, period_ms: 5, cpu: 1}}
+  - {name: mon, class: Monitor, instance: 2, data_task: {priority: 45, cpu: 1}, params: {source: gen}}
+  - {name: twin, class: Generator, instance: 3, data_task: {priority: 40, period_ms: 5, cpu: 1}}
+  - {name: other, class: Generator, instance: 4, data_task: {priority: 40, period_ms: 5, cpu: 2}}
+)Y", "a.yaml")});
+  const CpuGroup* cpu1 = nullptr;
+  const CpuGroup* cpu2 = nullptr;
+  for (const auto& g : d.cpus) {
+    if (g.cpus == "cpu 1") cpu1 = &g;
+    if (g.cpus == "cpu 2") cpu2 = &g;
+  }
+  ASSERT_NE(cpu1, nullptr);
+  ASSERT_NE(cpu2, nullptr);
+  ASSERT_EQ(cpu1->flags.size(), 2u) << allocation_text(d);
+  EXPECT_NE(cpu1->flags[0].find("same priority 40 on cpu 1"), std::string::npos) << cpu1->flags[0];
+  EXPECT_NE(cpu1->flags[1].find("consumer above its producer on cpu 1: 'mon' (data p45) reads 'gen' (data p40)"),
+            std::string::npos)
+      << cpu1->flags[1];
+  EXPECT_TRUE(cpu2->flags.empty());
+  EXPECT_EQ(cpu1->tasks.front().priority, 45);  // highest first
+}
+
+TEST(DeploymentTest, PartitionedHostPlacesUnpinnedRtTasksOnItsRtCpus) {
+  const Deployment d = build({read_host_text("host: p\ncpus: {rt: \"2-3\", housekeeping: 0}\ncomponents:\n"
+                                             "  - {name: g, class: Generator, data_task: {priority: 80, period_ms: 1}}\n"
+                                             "  - {name: n, class: Generator, instance: 1, data_task: {priority: 0, period_ms: 1}}\n",
+                                             "p.yaml")});
+  ASSERT_TRUE(d.hosts[0].errors.empty()) << errors_of(d.hosts[0]);
+  EXPECT_EQ(d.hosts[0].rt_cpus, (std::vector<int>{2, 3}));
+  // Both command tasks (priority 30) and g's data task on the rt cpus; n's data task
+  // (priority 0) is not an RT task.
+  ASSERT_EQ(d.cpus.size(), 1u);
+  EXPECT_EQ(d.cpus[0].cpus, "rt cpus 2,3");
+  EXPECT_EQ(d.cpus[0].tasks.size(), 3u);
+}
+
+TEST(DeploymentTest, ErrorsCarryFileLineColumnAndTheRestIsRead) {
+  const Host h = read_host_text("host: a\ncomponents:\n  - {name: g, class: Generator, data_task: {priority: 120}}\n"
+                                "  - {name: m, class: Monitor}\n",
+                                "bad.yaml");
+  ASSERT_EQ(h.errors.size(), 1u);
+  EXPECT_EQ(h.errors[0].str(), "bad.yaml:3:55: 'priority' must be an integer 0..99");
+  EXPECT_EQ(h.components.size(), 2u);
+  const Host syntax = read_host_text("host: [a\n", "s.yaml");
+  ASSERT_EQ(syntax.errors.size(), 1u);
+  EXPECT_EQ(syntax.errors[0].line, 2);
+}
+
+TEST(DeploymentTest, DuplicateAddressesAcrossFilesAreProblems) {
+  const Deployment d = build({read_host_text(kAux, "aux.yaml"), read_host_text(kAux, "copy.yaml")});
+  ASSERT_EQ(d.problems.size(), 2u);  // the host name and the address
+  EXPECT_NE(d.problems[1].find("copy.yaml:8:5: component 'scanner' has the address Generator(1/0)"), std::string::npos)
+      << d.problems[1];
+}
+
+TEST(DeploymentTest, LiveMarksStaleHostsAndMeasurements) {
+  const Deployment d = fleet();
+  Live live;
+  live.hosts.resize(d.hosts.size());
+  live.tasks.resize(d.hosts.size());
+  for (std::size_t h = 0; h < d.hosts.size(); ++h) live.tasks[h].resize(d.hosts[h].components.size());
+  live.hosts[0].answered = true;
+  live.tasks[0][0] = {true, "ENABLED", 0.125, 42'000, 1'250'000, 10'000'000};
+  const std::string dot = to_dot(d, &live);
+  EXPECT_NE(dot.find("ENABLED, util 12.5%, worst wake-up 42 us"), std::string::npos) << dot;
+  EXPECT_NE(dot.find("STALE: did not answer discovery"), std::string::npos) << dot;
+  const std::string text = allocation_text(d, &live);
+  EXPECT_NE(text.find("12.5%"), std::string::npos) << text;
+  EXPECT_NE(text.find("r1-main (main.yaml, system 1)  STALE"), std::string::npos) << text;
+}
+
+TEST(DeploymentTest, HostileTextNeverThrows) {
+  for (const char* text : {"", "\xff\xfe", "&a [*a]", "components: &c [*c]", "components: [{params: &p {a: *p}}]",
+                           "cpus: {rt: \"3-1\"}", "components: [{data_task: {period_ms: -1}}]", "- a\n- b"}) {
+    const Host h = read_host_text(text, "x.yaml");
+    const Deployment d = build({h});
+    (void)to_dot(d);
+    (void)to_json(d);
+    (void)allocation_text(d);
+  }
+  EXPECT_FALSE(read_host_text("cpus: {rt: \"3-1\"}", "x.yaml").errors.empty());
+}
+
+}  // namespace
+}  // namespace rack::deploy

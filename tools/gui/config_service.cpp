@@ -1,0 +1,443 @@
+#include "config_service.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <optional>
+
+#include <nlohmann/json.hpp>
+
+#include "rack/client/deployment.h"
+#include "rack/client/host_file.h"
+#include "class_info.h"
+
+namespace rack::gui {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+constexpr std::size_t kMaxOutput = 4u << 20;  // bytes of a child's output kept
+
+struct ChildResult {
+  int exit_code = -1;  // -1: killed (timeout) or not started; 127: exec failed
+  bool timed_out = false;
+  std::string out;
+};
+
+// Runs `args` with `cwd`, stdout (and stderr when `merge`) captured, killed after
+// `timeout_ms`. Every other descriptor of rack-gui is closed in the child.
+ChildResult run_child(const std::vector<std::string>& args, const std::string& cwd, bool merge, int timeout_ms) {
+  ChildResult r;
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0) {
+    r.out = std::string("pipe: ") + std::strerror(errno);
+    return r;
+  }
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    ::close(fds[0]);
+    ::close(fds[1]);
+    r.out = std::string("fork: ") + std::strerror(errno);
+    return r;
+  }
+  if (pid == 0) {  // the child: async-signal-safe calls only, then exec
+    const int devnull = ::open("/dev/null", O_RDWR);
+    ::dup2(devnull, 0);
+    ::dup2(fds[1], 1);
+    ::dup2(merge ? fds[1] : devnull, 2);
+    ::close_range(3, ~0U, 0);
+    if (!cwd.empty() && ::chdir(cwd.c_str()) != 0) ::_exit(126);
+    ::execvp(argv[0], argv.data());
+    ::_exit(127);
+  }
+  ::close(fds[1]);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+  char buf[8192];
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) {
+      r.timed_out = true;
+      ::kill(pid, SIGKILL);
+      break;
+    }
+    pollfd p{fds[0], POLLIN, 0};
+    const int n = ::poll(&p, 1, static_cast<int>(left.count()));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) continue;
+    const ssize_t got = ::read(fds[0], buf, sizeof buf);
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) break;
+    if (r.out.size() < kMaxOutput) r.out.append(buf, static_cast<std::size_t>(got));
+  }
+  ::close(fds[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (!r.timed_out && WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);
+  return r;
+}
+
+bool valid_name(const std::string& n) {
+  if (n.empty() || n.size() > 255 || n[0] == '.') return false;
+  for (const char c : n) {
+    if (!(std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '.' || c == '_' || c == '-')) return false;
+  }
+  const auto ends = [&](const char* s) {
+    const std::size_t l = std::strlen(s);
+    return n.size() > l && n.compare(n.size() - l, l, s) == 0;
+  };
+  return ends(".yaml") || ends(".yml");
+}
+
+json reply(const json& request, const std::string& op) {
+  json r = {{"type", "config"}, {"op", op}};
+  if (request.is_object() && request.contains("id") && request["id"].is_number_integer()) r["id"] = request["id"];
+  return r;
+}
+
+// rackd --check's complaints about `checked` (the temporary file), as the editor shows
+// them: line, column (0: the whole file) and message.
+json check_errors(const std::string& output, const std::string& checked, const std::string& shown) {
+  json errors = json::array();
+  std::size_t at = 0;
+  while (at < output.size()) {
+    const std::size_t end = std::min(output.find('\n', at), output.size());
+    std::string line = output.substr(at, end - at);
+    at = end + 1;
+    if (line.rfind(checked + ":", 0) != 0) continue;
+    std::string rest = line.substr(checked.size() + 1);
+    int ln = 0;
+    int col = 0;
+    const std::size_t c1 = rest.find(':');
+    const std::size_t c2 = c1 == std::string::npos ? std::string::npos : rest.find(':', c1 + 1);
+    if (c2 != std::string::npos) {
+      const std::string line_text = rest.substr(0, c1);
+      const std::string column_text = rest.substr(c1 + 1, c2 - c1 - 1);
+      char* e1 = nullptr;
+      char* e2 = nullptr;
+      const long l = std::strtol(line_text.c_str(), &e1, 10);
+      const long c = std::strtol(column_text.c_str(), &e2, 10);
+      if (*e1 == '\0' && *e2 == '\0' && c1 > 0 && c2 > c1 + 1 && l > 0 && c > 0) {
+        ln = static_cast<int>(l);
+        col = static_cast<int>(c);
+        rest = rest.substr(c2 + 1);
+      }
+    }
+    if (!rest.empty() && rest[0] == ' ') rest.erase(0, 1);
+    // The temporary file's name never reaches the browser: the file's does.
+    for (std::size_t p = rest.find(checked); p != std::string::npos; p = rest.find(checked, p + shown.size())) {
+      rest.replace(p, checked.size(), shown);
+    }
+    errors.push_back({{"line", ln}, {"column", col}, {"message", rest}});
+  }
+  return errors;
+}
+
+}  // namespace
+
+ConfigService::ConfigService(ConfigServiceConfig config, Sink sink) : config_(std::move(config)), sink_(std::move(sink)) {
+  for (auto& d : config_.dirs) {
+    std::error_code ec;
+    const fs::path canonical = fs::weakly_canonical(fs::absolute(d, ec), ec);
+    if (!ec) d = canonical.string();
+  }
+  thread_ = std::thread([this] { run(); });
+}
+
+ConfigService::~ConfigService() {
+  {
+    const std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+bool ConfigService::handles(std::string_view text) noexcept {
+  try {
+    const json j = json::parse(text, nullptr, false);
+    if (!j.is_object()) return false;
+    const auto it = j.find("op");
+    return it != j.end() && it->is_string() && it->get_ref<const std::string&>().rfind("config_", 0) == 0;
+  } catch (...) {
+    return false;
+  }
+}
+
+void ConfigService::submit(uint64_t client, std::string text) {
+  {
+    const std::lock_guard lock(mutex_);
+    if (queue_.size() < kMaxQueued) {
+      queue_.emplace_back(client, std::move(text));
+      wake_.notify_one();
+      return;
+    }
+  }
+  sink_(client, json({{"type", "config"}, {"ok", false}, {"error", "busy: " + std::to_string(kMaxQueued) +
+                                                                         " configuration requests wait already"}})
+                    .dump());
+}
+
+void ConfigService::run() {
+  pthread_setname_np(pthread_self(), "gui:config");
+  for (;;) {
+    std::pair<uint64_t, std::string> item;
+    {
+      std::unique_lock lock(mutex_);
+      wake_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+      if (stop_) return;
+      item = std::move(queue_.front());
+      queue_.pop_front();
+    }
+    std::string out = handle(item.second);
+    sink_(item.first, std::move(out));
+  }
+}
+
+std::string ConfigService::rackd_program() const {
+  if (!config_.rackd_path.empty()) return config_.rackd_path;
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec).parent_path();
+  if (!ec) {
+    // Installed: beside rack-gui; in a build tree: tools/rackd next to tools/gui/.
+    for (const auto& candidate : {self / "rackd", self.parent_path() / "rackd"}) {
+      if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+    }
+  }
+  return "rackd";  // on PATH
+}
+
+std::string ConfigService::rackctl_program() const {
+  if (!config_.rackctl_path.empty()) return config_.rackctl_path;
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec).parent_path();
+  if (!ec) {
+    for (const auto& candidate : {self / "rackctl", self.parent_path() / "rackctl"}) {
+      if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+    }
+  }
+  return "rackctl";  // on PATH
+}
+
+std::string ConfigService::served_file(const std::string& file, std::string& why) const {
+  const fs::path p(file);
+  const std::string name = p.filename().string();
+  if (!p.is_absolute()) {
+    why = "'" + file + "' is not a path config_files listed (absolute)";
+    return "";
+  }
+  if (!valid_name(name)) {
+    why = "'" + name + "' is not a host file name (letters, digits, '.', '_', '-'; *.yaml or *.yml; no leading '.')";
+    return "";
+  }
+  std::error_code ec;
+  const fs::path dir = fs::weakly_canonical(p.parent_path(), ec);
+  bool served = false;
+  for (const auto& d : config_.dirs) served = served || (!ec && dir.string() == d);
+  if (!served) {
+    why = "'" + file + "' is not in a directory rack-gui serves (--config)";
+    return "";
+  }
+  const fs::path full = dir / name;
+  struct stat st {};
+  if (::lstat(full.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+    why = full.string();
+    why.insert(0, 1, '\'');
+    why += "' is not a regular file (symbolic links are not followed)";
+    return "";
+  }
+  return full.string();
+}
+
+std::string ConfigService::handle(std::string_view text) {
+  json request = json::parse(text, nullptr, false);
+  json r = reply(request, request.is_object() && request.contains("op") && request["op"].is_string()
+                              ? request["op"].get<std::string>()
+                              : std::string("?"));
+  const auto refuse = [&](const std::string& why) {
+    r["ok"] = false;
+    r["error"] = why;
+    return r.dump(-1, ' ', false, json::error_handler_t::replace);
+  };
+  if (!request.is_object()) return refuse("a configuration request is a JSON object with \"op\"");
+  const std::string op = r["op"].get<std::string>();
+  const auto text_of = [&](const char* key, std::string& out) {
+    const auto it = request.find(key);
+    if (it == request.end() || !it->is_string()) return false;
+    out = it->get<std::string>();
+    return true;
+  };
+  try {
+    if (op == "config_files") {
+      json dirs = json::array();
+      for (const auto& d : config_.dirs) {
+        std::vector<std::string> problems;
+        json files = json::array();
+        for (const auto& path : rack::deploy::host_file_paths({d}, problems)) {
+          const std::string name = fs::path(path).filename().string();
+          if (valid_name(name)) files.push_back({{"name", name}, {"file", (fs::path(d) / name).string()}});
+        }
+        dirs.push_back({{"dir", d}, {"files", files}, {"problems", problems}});
+      }
+      r["ok"] = true;
+      r["dirs"] = dirs;
+    } else if (op == "config_graph") {
+      std::string dir;
+      if (!text_of("dir", dir)) return refuse("config_graph needs \"dir\": a directory config_files listed");
+      bool served = false;
+      for (const auto& d : config_.dirs) served = served || d == dir;
+      if (!served) return refuse("'" + dir + "' is not a directory rack-gui serves (--config)");
+      std::vector<std::string> problems;
+      std::vector<rack::deploy::Host> hosts;
+      for (const auto& path : rack::deploy::host_file_paths({dir}, problems)) {
+        if (valid_name(fs::path(path).filename().string())) hosts.push_back(rack::deploy::read_host(path));
+      }
+      // The classes' component references (rackd --list-classes --json), learnt once.
+      if (!class_info_) {
+        std::vector<rack::deploy::ClassInfo> classes;
+        std::string why;
+        if (rack::tools::classes_from_rackd(rackd_program(), classes, why, config_.timeout_ms)) class_info_ = std::move(classes);
+        else r["classes_error"] = why + ": every parameter naming a component is taken for a flow";
+      }
+      const rack::deploy::Deployment d = rack::deploy::build(std::move(hosts), class_info_ ? &*class_info_ : nullptr);
+      std::string dot = rack::deploy::to_dot(d);
+      r["ok"] = true;
+      r["deployment"] = json::parse(rack::deploy::to_json(d), nullptr, false);
+      r["allocation"] = rack::deploy::allocation_text(d);
+      const auto live = request.find("live");
+      if (live != request.end() && live->is_boolean() && live->get<bool>()) {
+        // What the network says, by rackctl on rack-gui's network (two discoveries).
+        std::vector<std::string> base{rackctl_program(), "--lcm", config_.lcm_url, "--discover-ms", "500",
+                                      "--timeout", "500"};
+        if (!config_.key_file.empty()) base.insert(base.end(), {"--key-file", config_.key_file});
+        auto with = [&](std::vector<std::string> tail) {
+          std::vector<std::string> args = base;
+          args.insert(args.end(), tail.begin(), tail.end());
+          return args;
+        };
+        const ChildResult g = run_child(with({"graph", "--live", "--format", "json", "--rackd", rackd_program(), dir}), "",
+                                        false, config_.timeout_ms);
+        const ChildResult dd = run_child(with({"graph", "--live", "--rackd", rackd_program(), dir}), "", false,
+                                         config_.timeout_ms);
+        const ChildResult a = run_child(with({"alloc", "--live", "--rackd", rackd_program(), dir}), "", false,
+                                        config_.timeout_ms);
+        json lj = json::parse(g.out, nullptr, false);
+        // Exit 1 is a host file with errors: the picture is still made.
+        if ((g.exit_code == 0 || g.exit_code == 1) && lj.is_object() && (dd.exit_code == 0 || dd.exit_code == 1) &&
+            (a.exit_code == 0 || a.exit_code == 1)) {
+          r["deployment"] = lj;
+          dot = dd.out;
+          r["allocation"] = a.out;
+          r["live"] = true;
+        } else {
+          r["live"] = false;
+          r["live_error"] = "rackctl --live failed (exit " + std::to_string(g.exit_code) + "): " + g.out.substr(0, 512);
+        }
+      }
+      r["dot"] = dot;
+      r["problems"] = problems;
+      // SVG through graphviz (a temporary DOT file: dot reads it, its SVG is captured).
+      char tmp[] = "/tmp/rack-gui-graph-XXXXXX";
+      const int fd = ::mkstemp(tmp);
+      if (fd >= 0) {
+        const bool written = ::write(fd, dot.data(), dot.size()) == static_cast<ssize_t>(dot.size());
+        ::close(fd);
+        const ChildResult svg = written ? run_child({config_.dot_path, "-Tsvg", tmp}, "", false, config_.timeout_ms)
+                                        : ChildResult{};
+        ::unlink(tmp);
+        if (svg.exit_code == 0) r["svg"] = svg.out;
+        else if (svg.exit_code == 127) r["svg_error"] = "graphviz's dot is not installed (apt-get install graphviz)";
+        else r["svg_error"] = "dot failed: " + svg.out.substr(0, 512);
+      }
+    } else if (op == "config_classes") {
+      const ChildResult c = run_child({rackd_program(), "--list-classes", "--json"}, "", false, config_.timeout_ms);
+      json classes = json::parse(c.out, nullptr, false);
+      if (c.exit_code != 0 || !classes.is_array()) {
+        return refuse("'" + rackd_program() + " --list-classes --json' failed (exit " + std::to_string(c.exit_code) + ")");
+      }
+      r["ok"] = true;
+      r["classes"] = classes;
+    } else if (op == "config_load") {
+      std::string file, why;
+      if (!text_of("file", file)) return refuse("config_load needs \"file\"");
+      const std::string path = served_file(file, why);
+      if (path.empty()) return refuse(why);
+      const auto bytes = rack::read_host_bytes(path, why);
+      if (!bytes) return refuse(path + ": " + why);
+      r["ok"] = true;
+      r["file"] = path;
+      r["text"] = *bytes;
+    } else if (op == "config_check" || op == "config_save") {
+      std::string file, body, why;
+      if (!text_of("file", file) || !text_of("text", body)) return refuse(op + " needs \"file\" and \"text\"");
+      const std::string path = served_file(file, why);
+      if (path.empty()) return refuse(why);
+      if (body.size() > rack::kMaxHostFileBytes) return refuse("the text is larger than a host file may be");
+      // The text in a temporary file beside the file: relative paths resolve as for it.
+      const fs::path dir = fs::path(path).parent_path();
+      std::string tmp = (dir / ("." + fs::path(path).filename().string() + ".rack-gui-XXXXXX.yaml")).string();
+      const int fd = ::mkstemps(tmp.data(), 5);
+      if (fd < 0) return refuse("cannot write beside " + path + ": " + std::strerror(errno));
+      bool keep = false;
+      struct Unlink {
+        const std::string& f;
+        bool& keep;
+        ~Unlink() {
+          if (!keep) ::unlink(f.c_str());
+        }
+      } unlink_tmp{tmp, keep};
+      std::size_t done = 0;
+      while (done < body.size()) {
+        const ssize_t n = ::write(fd, body.data() + done, body.size() - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) break;
+        done += static_cast<std::size_t>(n);
+      }
+      struct stat old {};
+      if (::stat(path.c_str(), &old) == 0) (void)::fchmod(fd, old.st_mode & 07777);
+      else (void)::fchmod(fd, 0644);
+      const bool synced = ::fsync(fd) == 0;
+      ::close(fd);
+      if (done != body.size() || !synced) return refuse("cannot write beside " + path + ": " + std::strerror(errno));
+      const ChildResult c = run_child({rackd_program(), "--check", tmp}, dir.string(), true, config_.timeout_ms);
+      r["valid"] = c.exit_code == 0;
+      r["errors"] = check_errors(c.out, tmp, path);
+      r["file"] = path;
+      if (c.exit_code != 0 && r["errors"].empty()) {
+        r["errors"].push_back({{"line", 0}, {"column", 0},
+                               {"message", c.timed_out ? "rackd --check did not finish in time"
+                                           : c.exit_code == 127 ? "cannot run " + rackd_program()
+                                                                : c.out.substr(0, 1024)}});
+      }
+      r["ok"] = true;
+      if (op == "config_save") {
+        r["saved"] = false;
+        if (c.exit_code == 0) {
+          if (::rename(tmp.c_str(), path.c_str()) != 0) return refuse("cannot replace " + path + ": " + std::strerror(errno));
+          keep = true;
+          r["saved"] = true;
+        }
+      }
+    } else {
+      return refuse("unknown op '" + op + "' (config_files, config_graph, config_classes, config_load, config_check, config_save)");
+    }
+  } catch (const std::exception& e) {
+    return refuse(std::string("internal error: ") + e.what());
+  }
+  return r.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+}  // namespace rack::gui

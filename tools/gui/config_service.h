@@ -1,0 +1,98 @@
+// rack-gui's configuration tool (issue 25): the host files of the directories it was
+// told to serve (--config DIR), drawn as a deployment graph with the allocation per
+// CPU (rack/client/deployment.h, as `rackctl graph` and `rackctl alloc`), checked by
+// the loader rackd uses (`rackd --check` on the edited text) and saved only when valid.
+//
+// Client -> server, JSON text on the dashboard's WebSocket, "op" beginning "config_"
+// (main.cpp routes these here, everything else to the Backend), with an optional
+// integer "id" echoed in the reply {"type":"config","op":...,"id":...,"ok":...}:
+//
+//   {"op":"config_files"}                         the served directories and their host files
+//   {"op":"config_graph","dir":D}                 D's deployment: JSON, DOT, SVG (graphviz), allocation
+//   {"op":"config_graph","dir":D,"live":true}     the same with what the network says (rackctl --live:
+//                                                 stale hosts, state, utilisation, worst wake-up latency)
+//   {"op":"config_classes"}                       `rackd --list-classes --json` (the editor's forms)
+//   {"op":"config_load","file":F}                 F's text
+//   {"op":"config_check","file":F,"text":T}       rackd --check on T (as F): errors with line and column
+//   {"op":"config_save","file":F,"text":T}        the same, and T replaces F only when rackd accepts it
+//
+// What may be read and written: F names a file directly inside one of the served
+// directories (the path as config_files lists it), called *.yaml or *.yml, its name
+// of letters, digits, '.', '_' and '-' not beginning with '.'; an existing F must be a
+// regular file, not a symbolic link. Anything else is refused with the reason. The
+// text is checked in a temporary file beside F (so relative paths in it resolve as
+// they will for F), with rackd's working directory F's directory, and that same file
+// is renamed over F when valid (atomic: a reader sees the old file or the new one).
+//
+// Malformed messages are answered {"type":"config","ok":false,"error":...}; nothing is
+// written then. Requests are carried out one at a time on the service's own thread
+// (rackd and dot run as child processes with a time limit), so the I/O thread and the
+// robot link never wait for them; at most kMaxQueued wait, more are refused as busy.
+//
+// Not RT code (a tool).
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <thread>
+#include <vector>
+
+#include "rack/client/deployment.h"
+
+namespace rack::gui {
+
+struct ConfigServiceConfig {
+  std::vector<std::string> dirs;  // --config DIR: served directories (made absolute)
+  std::string rackd_path;         // --rackd: "" = beside rack-gui, else on PATH
+  std::string dot_path = "dot";   // graphviz
+  // The live view (config_graph with "live": true) runs `rackctl graph --live` and
+  // `rackctl alloc --live` on rack-gui's own network.
+  std::string rackctl_path;       // "" = beside rack-gui, else on PATH
+  std::string lcm_url;            // rack-gui's TiMS network
+  std::string key_file;           // its key file ("" = none)
+  int timeout_ms = 10000;         // a child process running longer is killed
+};
+
+class ConfigService {
+ public:
+  static constexpr std::size_t kMaxQueued = 16;
+  using Sink = std::function<void(uint64_t client, std::string message)>;
+
+  ConfigService(ConfigServiceConfig config, Sink sink);
+  ~ConfigService();
+  ConfigService(const ConfigService&) = delete;
+  ConfigService& operator=(const ConfigService&) = delete;
+
+  // Whether a client message is for this service (a JSON object whose "op" begins
+  // "config_"). Never throws.
+  [[nodiscard]] static bool handles(std::string_view text) noexcept;
+  // Queues a request; the reply goes to the sink from the service's thread.
+  void submit(uint64_t client, std::string text);
+  // Carries out one request now and returns the reply (the thread's work; tests).
+  [[nodiscard]] std::string handle(std::string_view text);
+
+  // The served file a client names, or "" and `why` (the rules above).
+  [[nodiscard]] std::string served_file(const std::string& file, std::string& why) const;
+
+ private:
+  void run();
+  [[nodiscard]] std::string rackd_program() const;
+  [[nodiscard]] std::string rackctl_program() const;
+
+  ConfigServiceConfig config_;
+  Sink sink_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<std::pair<uint64_t, std::string>> queue_;
+  bool stop_ = false;
+  std::optional<std::vector<rack::deploy::ClassInfo>> class_info_;  // the service thread's
+  std::thread thread_;
+};
+
+}  // namespace rack::gui
