@@ -84,6 +84,13 @@ TEST_F(SdkOutOfTreeTest, ExampleClassBuiltFromTheInstalledTreeRunsInRackd) {
     EXPECT_TRUE(fs::exists(prefix() / file)) << file;
   }
   EXPECT_TRUE(fs::is_directory(prefix() / "lib/rack/plugins"));
+  // The installed rackd finds the installed plug-ins beside it and never searches the
+  // build tree's plug-in directory (a later build there must not change what it loads).
+  const RunResult listing = run({(prefix() / "bin/rackd").string(), "--list-classes"}, 30s);
+  ASSERT_EQ(listing.exit_code, 0) << listing.describe();
+  EXPECT_TRUE(contains(listing.out, (prefix() / "lib/rack/plugins").string())) << listing.out;
+  EXPECT_FALSE(contains(listing.out, std::string(RACK_BINARY_DIR) + "/plugins")) << listing.out;
+  EXPECT_TRUE(contains(listing.out, "MCL  (class")) << "the installed MCL plug-in: " << listing.out;
 
   // 2. Configure and build the example from the installed copy, against the prefix.
   const fs::path build = dir_.path() / "example";
