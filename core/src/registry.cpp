@@ -321,7 +321,16 @@ ClassDescription describe_class(const ComponentClass& cls, const ParameterSet& p
   d.class_name = tims_name != nullptr ? tims_name : cls.impl;
   d.class_id = cls.class_id;
   d.summary = cls.description;
-  if (cls.data != nullptr) d.data = describe_type(*cls.data);
+  if (cls.data != nullptr) {
+    d.data = describe_type(*cls.data);
+    for (const FieldValueNames& n : cls.data->value_names) {
+      FieldNamesDescription fd;
+      fd.field = n.field != nullptr ? n.field : "";
+      fd.address = n.address;
+      for (const ValueName& v : n.values) fd.values.push_back({v.value, v.name != nullptr ? v.name : ""});
+      d.value_names.push_back(std::move(fd));
+    }
+  }
   for (const CommandInfo& c : cls.commands) {
     CommandDescription cd;
     cd.name = c.name != nullptr ? c.name : "";

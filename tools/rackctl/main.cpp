@@ -980,9 +980,10 @@ int cmd_set_param(Session& s, const Options& o) {
 }
 
 // One DATA body (SampleHeader + sample) as a JSON line.
-// `type`: the class's data type from its description (nullptr: unknown, printed as hex).
-std::string sample_json(const Target& t, const rack::TypeDescription* type, const MessageHeader& h,
+// `d`: the class's description (nullptr or no data type: unknown, printed as hex).
+std::string sample_json(const Target& t, const rack::ClassDescription* d, const MessageHeader& h,
                         std::span<const std::byte> body) {
+  const rack::TypeDescription* type = d != nullptr && d->data ? &*d->data : nullptr;
   wire::SampleHeader sh;
   if (body.size() < sizeof sh ||
       !wire::read_payload(body.first(sizeof sh), tims::body_is_native(h), sh)) {
@@ -996,7 +997,7 @@ std::string sample_json(const Target& t, const rack::TypeDescription* type, cons
     j += ",\"data\":" + rack::payload_to_json(type->field_table(), sample, tims::body_is_native(h));
     // Enum and address fields by name beside their raw values (field_names.h).
     const std::string names =
-        rack::tools::field_names_json(t.address.class_id(), type->field_table(), sample, tims::body_is_native(h));
+        rack::tools::field_names_json(d->value_names, type->field_table(), sample, tims::body_is_native(h));
     if (!names.empty()) j += ",\"names\":" + names;
   } else {
     std::string hex;
@@ -1020,7 +1021,7 @@ int cmd_get_data(Session& s, const Options& o) {
   const MessageHeader reply = r.reply;
   const std::vector<std::byte> body(r.body.begin(), r.body.end());
   const rack::ClassDescription* d = s.describe(t.address);
-  std::printf("%s\n", sample_json(t, d != nullptr && d->data ? &*d->data : nullptr, reply, body).c_str());
+  std::printf("%s\n", sample_json(t, d, reply, body).c_str());
   return kExitOk;
 }
 
@@ -1101,7 +1102,6 @@ void stream_samples(Session& s, const Target& t, double period_ms, Subscribed su
 int cmd_watch(Session& s, const Options& o) {
   const Target t = s.resolve(o.args[0]);
   const rack::ClassDescription* described = s.describe(t.address);
-  const rack::TypeDescription* type = described != nullptr && described->data ? &*described->data : nullptr;
   int64_t received = 0;
   stream_samples(
       s, t, o.period_ms,
@@ -1110,7 +1110,7 @@ int cmd_watch(Session& s, const Options& o) {
                      rep.period_ns > 0 ? double_text(static_cast<double>(rep.period_ns) / 1e6).c_str() : "unknown");
       },
       [&](int64_t, const MessageHeader& h, std::span<const std::byte> body, std::size_t) {
-        const std::string line = sample_json(t, type, h, body);
+        const std::string line = sample_json(t, described, h, body);
         if (std::printf("%s\n", line.c_str()) < 0 || std::fflush(stdout) != 0) return false;  // stdout closed
         return !(o.count > 0 && ++received >= o.count);
       },
