@@ -125,7 +125,7 @@ rack::ComponentClass rack_class_${C_NAME}() {
     cmake_language(EVAL CODE
       "cmake_language(DEFER DIRECTORY [[${CMAKE_SOURCE_DIR}]] CALL _rack_finish_plugin [[${C_PLUGIN}]])")
     if(NOT C_OUTPUT_DIR)
-      install(TARGETS ${module} LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/rack/plugins)
+      install(TARGETS ${module} LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/rack/plugins COMPONENT Runtime)
     endif()
   endif()
   target_sources(${module} PRIVATE ${generated} ${C_SOURCES})
@@ -146,7 +146,7 @@ library $<TARGET_FILE_NAME:${module}>
 summary ${C_SUMMARY}
 ${lock_line}")
   if(NOT C_OUTPUT_DIR)
-    install(FILES "${out}/${C_NAME}.rack-class" DESTINATION ${CMAKE_INSTALL_LIBDIR}/rack/plugins)
+    install(FILES "${out}/${C_NAME}.rack-class" DESTINATION ${CMAKE_INSTALL_LIBDIR}/rack/plugins COMPONENT Runtime)
   endif()
 endfunction()
 

@@ -35,6 +35,39 @@ bool is_printable(std::string_view s) noexcept {
 bool valid_field_kind(uint8_t k) noexcept { return k <= static_cast<uint8_t>(tims::FieldKind::kF64); }
 bool valid_param_kind(uint8_t k) noexcept { return k <= static_cast<uint8_t>(wire::ParamKind::kString); }
 
+// Why entry `i` of `names` cannot name values of `data`'s fields ("" when it can):
+// the field exists once, is an integer of at most 4 bytes and one element; an
+// address field has no value names, an enum field at least one, each value and
+// name once, names not empty.
+std::string value_names_problem(const TypeDescription& data, const std::vector<FieldNamesDescription>& names,
+                                std::size_t i) {
+  const FieldNamesDescription& n = names[i];
+  const std::string what = "value names of field '" + n.field + "'";
+  for (std::size_t j = 0; j < i; ++j) {
+    if (names[j].field == n.field) return what + ": the field is named twice";
+  }
+  const FieldDescription* f = nullptr;
+  for (const auto& c : data.fields) {
+    if (c.name == n.field) f = &c;
+  }
+  if (f == nullptr) return what + ": '" + data.name + "' has no such field";
+  const bool integer = f->kind != tims::FieldKind::kF32 && f->kind != tims::FieldKind::kF64 &&
+                       f->kind != tims::FieldKind::kChar && tims::field_kind_size(f->kind) <= 4;
+  if (!integer || f->count != 1) return what + ": not an integer of at most 4 bytes (" + describe(f->kind) + ")";
+  if (n.address && (!n.values.empty() || tims::field_kind_size(f->kind) != 4)) {
+    return what + ": an address field is a u32 or i32 without value names";
+  }
+  if (!n.address && n.values.empty()) return what + ": no values";
+  for (std::size_t a = 0; a < n.values.size(); ++a) {
+    if (n.values[a].name.empty()) return what + ": value " + std::to_string(n.values[a].value) + " has an empty name";
+    for (std::size_t b = 0; b < a; ++b) {
+      if (n.values[b].value == n.values[a].value) return what + ": value " + std::to_string(n.values[a].value) + " named twice";
+      if (n.values[b].name == n.values[a].name) return what + ": name '" + n.values[a].name + "' given twice";
+    }
+  }
+  return "";
+}
+
 // ---------------------------------------------------------------- encoder
 
 class Writer {
@@ -243,6 +276,13 @@ bool ParameterDescription::operator==(const ParameterDescription& o) const {
          doc == o.doc && choices == o.choices;
 }
 
+const char* FieldNamesDescription::name_of(uint32_t value) const noexcept {
+  for (const auto& v : values) {
+    if (v.value == value) return v.name.c_str();
+  }
+  return nullptr;
+}
+
 const CommandDescription* ClassDescription::find_command(std::string_view name) const noexcept {
   for (const auto& c : commands) {
     if (c.name == name) return &c;
@@ -257,7 +297,7 @@ const ParameterDescription* ClassDescription::find_parameter(std::string_view na
   return nullptr;
 }
 
-std::vector<std::byte> encode_class_description(const ClassDescription& d) {
+std::vector<std::byte> encode_class_description(const ClassDescription& d, std::size_t* base_size) {
   Writer w;
   for (const std::byte b : kMagic) w.u8(std::to_integer<uint8_t>(b));
   w.u8(kClassDescriptionVersion);
@@ -292,6 +332,23 @@ std::vector<std::byte> encode_class_description(const ClassDescription& d) {
     if (p.choices.size() > kMaxDescriptionChoices) throw std::invalid_argument("parameter '" + p.name + "': too many choices");
     w.u8(static_cast<uint8_t>(p.choices.size()));
     for (const auto& c : p.choices) w.str(c, kMaxDescriptionText, false, "choice");
+  }
+  if (base_size != nullptr) *base_size = w.bytes().size();
+  if (!d.value_names.empty()) {
+    if (!d.data) throw std::invalid_argument("class '" + d.impl + "': value names without a data type");
+    w.count(d.value_names.size(), kMaxDescriptionFields, "fields with value names");
+    for (std::size_t i = 0; i < d.value_names.size(); ++i) {
+      const FieldNamesDescription& n = d.value_names[i];
+      const std::string why = value_names_problem(*d.data, d.value_names, i);
+      if (!why.empty()) throw std::invalid_argument("class '" + d.impl + "': " + why);
+      w.str(n.field, kMaxDescriptionName, true, "named field");
+      w.u8(n.address ? 1 : 0);
+      w.count(n.values.size(), kMaxDescriptionValueNames, "value names");
+      for (const auto& v : n.values) {
+        w.u32(v.value);
+        w.str(v.name, kMaxDescriptionName, false, "value name");
+      }
+    }
   }
   if (w.bytes().size() > kMaxClassDescriptionBytes) {
     throw std::invalid_argument("class '" + d.impl + "': description of " + std::to_string(w.bytes().size()) +
@@ -381,6 +438,34 @@ bool decode_class_description(std::span<const std::byte> bytes, ClassDescription
     out.parameters.push_back(std::move(p));
   }
   r.set_context("");
+  // The value-names section, when the executor served it (asked for and declared).
+  if (!r.failed() && r.left() != 0) {
+    r.set_context("value names");
+    if (!out.data) r.fail("value names in a class without a data type");
+    const std::size_t n_named = r.count(kMaxDescriptionFields, "fields with value names");
+    if (!r.failed() && n_named == 0) r.fail("the section names no field (it is left out then)");
+    for (std::size_t i = 0; i < n_named && !r.failed(); ++i) {
+      r.set_context("value names " + std::to_string(i));
+      FieldNamesDescription n;
+      n.field = r.str(kMaxDescriptionName, true, "named field");
+      r.set_context("value names " + std::to_string(i) + " '" + n.field + "'");
+      const uint8_t flags = r.u8("value-names flags");
+      if (!r.failed() && flags > 1) r.fail("flags are " + std::to_string(flags) + ", not 0 or 1");
+      n.address = flags == 1;
+      const std::size_t n_values = r.count(kMaxDescriptionValueNames, "value names");
+      for (std::size_t j = 0; j < n_values && !r.failed(); ++j) {
+        ValueNameDescription v;
+        v.value = r.u32("value");
+        v.name = r.str(kMaxDescriptionName, false, "value name");
+        n.values.push_back(std::move(v));
+      }
+      if (r.failed()) break;
+      out.value_names.push_back(std::move(n));
+      const std::string why = value_names_problem(*out.data, out.value_names, out.value_names.size() - 1);
+      if (!why.empty()) r.fail(why);
+    }
+    r.set_context("");
+  }
   if (!r.failed() && r.left() != 0) r.fail(std::to_string(r.left()) + " bytes after the end of the description");
   if (r.failed()) {
     error = r.error();
@@ -422,8 +507,8 @@ bool ClassPageAssembler::add(std::span<const std::byte> body, bool native, std::
   return true;
 }
 
-const char* class_page(std::span<const std::byte> encoded, std::span<const std::byte> request, bool native,
-                       ClassPageHeader& header, std::span<const std::byte>& page) noexcept {
+const char* class_page(std::span<const std::byte> encoded, std::size_t base_size, std::span<const std::byte> request,
+                       bool native, ClassPageHeader& header, std::span<const std::byte>& page) noexcept {
   ClassPageRequest q;
   if (request.empty()) {
     q.offset = 0;
@@ -431,10 +516,13 @@ const char* class_page(std::span<const std::byte> encoded, std::span<const std::
     return "GET_CLASS: body must be empty or an 8-byte page request";
   }
   if (encoded.empty()) return "GET_CLASS: this component has no class description";
-  if (q.offset >= encoded.size()) return "GET_CLASS: offset past the end of the description";
-  header.total = static_cast<uint32_t>(encoded.size());
+  // Without the optional sections for a client that does not ask for them.
+  const std::size_t total =
+      (q.sections & kClassSectionValueNames) != 0 ? encoded.size() : std::min(base_size, encoded.size());
+  if (q.offset >= total) return "GET_CLASS: offset past the end of the description";
+  header.total = static_cast<uint32_t>(total);
   header.offset = q.offset;
-  page = encoded.subspan(q.offset, std::min<std::size_t>(kClassPageBytes, encoded.size() - q.offset));
+  page = encoded.subspan(q.offset, std::min<std::size_t>(kClassPageBytes, total - q.offset));
   return nullptr;
 }
 

@@ -388,7 +388,7 @@ void Component::handle_set_param(const MessageHeader& h, std::span<const std::by
 void Component::handle_get_class(const MessageHeader& h, std::span<const std::byte> body) noexcept {
   ClassPageHeader header;
   std::span<const std::byte> page;
-  if (const char* why = class_page(class_description_, body, tims::body_is_native(h), header, page)) {
+  if (const char* why = class_page(class_description_, class_description_base_, body, tims::body_is_native(h), header, page)) {
     if (class_description_.empty()) return reply_error(h, why);
     return reject_malformed(h, why);
   }

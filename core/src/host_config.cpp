@@ -977,7 +977,8 @@ struct HostLoader {
       // What GET_CLASS serves (tools learn the class from it), with the declared values
       // as defaults: before the host file's values are set below.
       try {
-        component->class_description_ = encode_class_description(describe_class(*cls, component->parameters()));
+        component->class_description_ = encode_class_description(describe_class(*cls, component->parameters()),
+                                                                  &component->class_description_base_);
       } catch (const std::exception& e) {
         error(node["class"].Mark(), "class '" + impl + "' cannot be described to tools: " + e.what());
         continue;

@@ -8,6 +8,7 @@
 #include <limits.h>
 #include <link.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -28,6 +29,12 @@ constexpr const char* kManifestSuffix = ".rack-class";
 #ifndef RACK_PLUGIN_INSTALL_DIR
 #define RACK_PLUGIN_INSTALL_DIR ""
 #endif
+#ifndef RACK_PLUGIN_INSTALL_RELDIR
+#define RACK_PLUGIN_INSTALL_RELDIR ""
+#endif
+#ifndef RACK_BUILD_TREE_DIR
+#define RACK_BUILD_TREE_DIR ""
+#endif
 
 bool is_directory(const std::string& path) {
   struct stat st {};
@@ -37,6 +44,22 @@ bool is_directory(const std::string& path) {
 std::string dir_of(const std::string& path) {
   const auto slash = path.rfind('/');
   return slash == std::string::npos ? std::string(".") : path.substr(0, slash);
+}
+
+// The program this process runs (/proc/self/exe), "" when it cannot be read.
+std::string own_program() {
+  char buf[PATH_MAX];
+  const ssize_t n = ::readlink("/proc/self/exe", buf, sizeof buf - 1);
+  return n > 0 ? std::string(buf, static_cast<std::size_t>(n)) : std::string();
+}
+
+// Whether `path` (resolved) lies below directory `dir` (resolved here: the build tree
+// may be reached through a symbolic link).
+bool below(const std::string& path, const char* dir) {
+  if (dir == nullptr || *dir == '\0') return false;
+  char buf[PATH_MAX];
+  const std::string d = ::realpath(dir, buf) != nullptr ? std::string(buf) : std::string(dir);
+  return path.size() > d.size() && path.compare(0, d.size(), d) == 0 && path[d.size()] == '/';
 }
 
 bool printable_text(const std::string& s) {
@@ -200,7 +223,17 @@ std::vector<std::string> ComponentRegistry::plugin_dirs() const {
       pos = colon + 1;
     }
   }
-  if (is_directory(RACK_PLUGIN_BUILD_DIR)) add(RACK_PLUGIN_BUILD_DIR);
+  // The build tree's plug-ins only for a program of the build tree (rackd, the
+  // tests): an installed rackd does not load what a later build leaves there.
+  const std::string program = own_program();
+  if (below(program, RACK_BUILD_TREE_DIR) && is_directory(RACK_PLUGIN_BUILD_DIR)) add(RACK_PLUGIN_BUILD_DIR);
+  // The installed plug-ins beside an installed program (<prefix>/bin/rackd ->
+  // <prefix>/lib/rack/plugins), so that an installed tree works wherever it is
+  // copied, then those of the prefix it was configured for.
+  if (!program.empty() && !below(program, RACK_BUILD_TREE_DIR) && std::string(RACK_PLUGIN_INSTALL_RELDIR) != "") {
+    const std::string beside = dir_of(dir_of(program)) + "/" + RACK_PLUGIN_INSTALL_RELDIR;
+    if (is_directory(beside)) add(beside);
+  }
   add(RACK_PLUGIN_INSTALL_DIR);
   return dirs;
 }
@@ -288,7 +321,16 @@ ClassDescription describe_class(const ComponentClass& cls, const ParameterSet& p
   d.class_name = tims_name != nullptr ? tims_name : cls.impl;
   d.class_id = cls.class_id;
   d.summary = cls.description;
-  if (cls.data != nullptr) d.data = describe_type(*cls.data);
+  if (cls.data != nullptr) {
+    d.data = describe_type(*cls.data);
+    for (const FieldValueNames& n : cls.data->value_names) {
+      FieldNamesDescription fd;
+      fd.field = n.field != nullptr ? n.field : "";
+      fd.address = n.address;
+      for (const ValueName& v : n.values) fd.values.push_back({v.value, v.name != nullptr ? v.name : ""});
+      d.value_names.push_back(std::move(fd));
+    }
+  }
   for (const CommandInfo& c : cls.commands) {
     CommandDescription cd;
     cd.name = c.name != nullptr ? c.name : "";

@@ -9,7 +9,8 @@
 //   odd   CLASS reply bodies: each is a 2-byte length (little-endian) and that many bytes (byte order
 //         from the mode's bit 1), fed to ClassPageAssembler until one is refused or
 //         the description is complete, which is then decoded as above; also
-//         class_page() (the server's side) over the data with each body as a request.
+//         class_page() (the server's side) over the data with each body as a request
+//         (the mode's upper bits choose the length served without optional sections).
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -42,8 +43,18 @@ void decode(std::span<const std::byte> bytes) {
     FUZZ_CHECK(!error.empty());
     return;
   }
-  const std::vector<std::byte> again = rack::encode_class_description(d);
+  std::size_t base = 0;
+  const std::vector<std::byte> again = rack::encode_class_description(d, &base);
   FUZZ_CHECK(again.size() == bytes.size() && std::equal(again.begin(), again.end(), bytes.begin()));
+  // Without its value-names section (what a client that does not ask is served) it
+  // decodes to the same description without names.
+  FUZZ_CHECK(base <= bytes.size() && (base == bytes.size()) == d.value_names.empty());
+  if (base < bytes.size()) {
+    rack::ClassDescription plain;
+    FUZZ_CHECK(rack::decode_class_description(bytes.first(base), plain, error));
+    d.value_names.clear();
+    FUZZ_CHECK(plain == d);
+  }
   if (d.data) check_type(*d.data);
   for (const auto& c : d.commands) {
     FUZZ_CHECK(c.type >= 21);
@@ -77,10 +88,13 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   for (const auto b : bodies) {
     rack::ClassPageHeader h;
     std::span<const std::byte> page;
-    if (rack::class_page(whole, std::span(reinterpret_cast<const std::byte*>(b.data()), b.size()), native, h,
+    // The base (the description without its optional sections) from the mode's
+    // upper bits: all of it, or a prefix.
+    const std::size_t base = (mode >> 2) == 0 ? size : std::min<std::size_t>(size, (mode >> 2) * 16u);
+    if (rack::class_page(whole, base, std::span(reinterpret_cast<const std::byte*>(b.data()), b.size()), native, h,
                          page) == nullptr) {
-      FUZZ_CHECK(h.total == size && h.offset < size && page.size() <= rack::kClassPageBytes);
-      FUZZ_CHECK(page.data() == whole.data() + h.offset && h.offset + page.size() <= size);
+      FUZZ_CHECK((h.total == size || h.total == base) && h.offset < h.total && page.size() <= rack::kClassPageBytes);
+      FUZZ_CHECK(page.data() == whole.data() + h.offset && h.offset + page.size() <= h.total);
     }
   }
   return 0;

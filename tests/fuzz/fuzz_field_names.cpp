@@ -1,7 +1,8 @@
 // libFuzzer harness for rackctl's names of enum and address fields
 // (tools/rackctl/field_names.h: field_names_json), which reads sample bytes a component
 // sent over the network. Byte 0 is the TiMS class id, byte 1 bit 0 the byte order; the
-// rest is the sample, laid out by the class's field table. The answer must be empty or
+// rest is the sample, laid out by the class's field table, named by the value names
+// its data type declares (as its description carries them). The answer must be empty or
 // one valid JSON object of strings; never a crash or a read past the sample.
 //
 // Seeds: tests/fuzz/corpus/field_names/ (a Pilot, a Chassis and a GPS sample, each also
@@ -10,6 +11,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -23,7 +25,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::span<const std::byte> sample(reinterpret_cast<const std::byte*>(data + 2), size - 2);
   const rack::DataTypeInfo* type = rack::interfaces::data_type_for_class(class_id);
   if (type == nullptr) return 0;
-  const std::string j = rack::tools::field_names_json(class_id, type->fields, sample, native);
+  // The value names as the class's description carries them (GET_CLASS).
+  std::vector<rack::FieldNamesDescription> names;
+  for (const rack::FieldValueNames& n : type->value_names) {
+    rack::FieldNamesDescription d{n.field, n.address, {}};
+    for (const rack::ValueName& v : n.values) d.values.push_back({v.value, v.name});
+    names.push_back(std::move(d));
+  }
+  const std::string j = rack::tools::field_names_json(names, type->fields, sample, native);
   if (j.empty()) return 0;
   const auto parsed = nlohmann::json::parse(j, nullptr, false);
   if (parsed.is_discarded() || !parsed.is_object()) __builtin_trap();

@@ -183,6 +183,17 @@ def cd_pages(desc, size):
     return out
 
 
+# With the optional value-names section (served to clients that ask): an enum field
+# (state: IDLE, RUNNING, "2D") and an address field (owner).
+named = (b"RKCD" + bytes([1, 0x91, 0, 0]) + cd_str("Counter") + cd_str("Counter") + cd_str("test: counts")
+         + b"\1" + cd_type("CounterData", 32, [("count", 8, 0, 1), ("rate", 11, 8, 1), ("label", 3, 16, 8),
+                                             ("state", 1, 24, 1), ("owner", 7, 28, 1)])
+         + struct.pack("<HH", 0, 0)
+         + struct.pack("<H", 2)
+         + cd_str("state") + b"\0" + struct.pack("<H", 3) + struct.pack("<I", 0) + cd_str("IDLE")
+         + struct.pack("<I", 1) + cd_str("RUNNING") + struct.pack("<I", 7) + cd_str("2D")
+         + cd_str("owner") + b"\1" + struct.pack("<H", 0))
 write("class_description", [b"\0" + counter, b"\0" + empty, b"\1" + cd_pages(counter, 8192),
                             b"\1" + cd_pages(empty, 8192), b"\1" + cd_pages(counter, 100),
-                            b"\1" + struct.pack("<HII", 8, 4, 0)])
+                            b"\1" + struct.pack("<HII", 8, 4, 0), b"\0" + named,
+                            b"\1" + cd_pages(named, 64)])

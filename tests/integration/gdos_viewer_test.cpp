@@ -210,8 +210,10 @@ TEST_F(GdosViewerTest, ViewerStartedAfterTheHostRecordsAndReplays) {
 
   const auto live = lines_of(viewer->out());
   for (const auto& j : records(viewer->out())) EXPECT_EQ(j.at("name").string, "generator");
-  // Replay with the same filter: the same lines.
-  RunResult replay = run({kGdos, "--replay", file, "--json", "--component", "generator"}, kCommandLimit);
+  // Replay with the same filter: the same lines (the classes named by the hosts of
+  // the network it is given, as live).
+  RunResult replay =
+      run({kGdos, "--lcm", bus_.url(), "--replay", file, "--json", "--component", "generator"}, kCommandLimit);
   ASSERT_EQ(replay.exit_code, 0) << replay.describe();
   EXPECT_EQ(lines_of(replay.out), live);
   // Without the filter the file has more (the monitor's record), as text without

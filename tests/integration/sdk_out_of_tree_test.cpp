@@ -7,7 +7,8 @@
 //
 // rackctl is built with no Counter in it: it learns the class from the description the
 // component serves (GET_CLASS), so the address reads Counter(0/0), the data has its
-// field names, the parameters their docs, and the commands go by name.
+// field names, the parameters their docs, and the commands go by name; the installed
+// gdos selects and names its log records the same way.
 #include <gtest/gtest.h>
 #include <signal.h>
 
@@ -84,6 +85,13 @@ TEST_F(SdkOutOfTreeTest, ExampleClassBuiltFromTheInstalledTreeRunsInRackd) {
     EXPECT_TRUE(fs::exists(prefix() / file)) << file;
   }
   EXPECT_TRUE(fs::is_directory(prefix() / "lib/rack/plugins"));
+  // The installed rackd finds the installed plug-ins beside it and never searches the
+  // build tree's plug-in directory (a later build there must not change what it loads).
+  const RunResult listing = run({(prefix() / "bin/rackd").string(), "--list-classes"}, 30s);
+  ASSERT_EQ(listing.exit_code, 0) << listing.describe();
+  EXPECT_TRUE(contains(listing.out, (prefix() / "lib/rack/plugins").string())) << listing.out;
+  EXPECT_FALSE(contains(listing.out, std::string(RACK_BINARY_DIR) + "/plugins")) << listing.out;
+  EXPECT_TRUE(contains(listing.out, "MCL  (class")) << "the installed MCL plug-in: " << listing.out;
 
   // 2. Configure and build the example from the installed copy, against the prefix.
   const fs::path build = dir_.path() / "example";
@@ -153,6 +161,19 @@ TEST_F(SdkOutOfTreeTest, ExampleClassBuiltFromTheInstalledTreeRunsInRackd) {
   r = ctl({"send", "counter", "22"});
   EXPECT_EQ(r.exit_code, 1) << r.describe();
   EXPECT_TRUE(contains(r.out + r.err, "ADD takes an 8-byte body")) << r.describe();
+
+  // 5. The installed gdos (built with no class either) selects its log by the address
+  // its class describes (Counter(0/0)) and prints that address.
+  Process gdos({(prefix() / "bin/gdos").string(), "--lcm", bus_.url(), "--json", "--component", "Counter(0/0)",
+                "--count", "1"},
+               dir_.path(), "gdos");
+  ASSERT_TRUE(gdos.wait_for_stderr("gdos: listening", 30s)) << gdos.err();
+  ASSERT_EQ(ctl({"set-param", "counter", "gdosLevel", "detail"}).exit_code, 0);
+  ASSERT_EQ(gdos.wait_exit(30s), std::optional<int>(0)) << gdos.err();
+  const auto record = parse_json(gdos.out());
+  ASSERT_TRUE(record.has_value()) << gdos.out();
+  EXPECT_EQ(record->at("source").string, "Counter(0/0)") << gdos.out();
+  EXPECT_EQ(record->at("name").string, "counter") << gdos.out();
 
   rackd.signal(SIGTERM);
   EXPECT_EQ(rackd.wait_exit(30s), std::optional<int>(0)) << rackd.err();

@@ -88,8 +88,13 @@ TEST(ClassDescriptionTest, EveryTruncationIsRefusedWithItsOffset) {
   longer.push_back(std::byte{0});
   ClassDescription out;
   std::string error;
+  // Bytes after the parameters are the optional value-names section: one byte is not.
   EXPECT_FALSE(decode_class_description(longer, out, error));
-  EXPECT_NE(error.find("1 bytes after the end"), std::string::npos) << error;
+  EXPECT_NE(error.find("value names: ends inside"), std::string::npos) << error;
+  // An empty section is refused too (the encoder leaves it out): one encoding each.
+  longer.push_back(std::byte{0});
+  EXPECT_FALSE(decode_class_description(longer, out, error));
+  EXPECT_NE(error.find("names no field"), std::string::npos) << error;
 }
 
 // Finds `text` (a length-prefixed string of the encoding) and returns the offset of its bytes.
@@ -184,7 +189,7 @@ TEST(ClassDescriptionTest, PagesAssembleAndRefuseAnotherPage) {
     q.offset = assembler.next_offset();
     ClassPageHeader h;
     std::span<const std::byte> page;
-    ASSERT_EQ(class_page(bytes, bytes_of(q), true, h, page), nullptr);
+    ASSERT_EQ(class_page(bytes, bytes.size(), bytes_of(q), true, h, page), nullptr);
     std::vector<std::byte> body(sizeof h + page.size());
     std::memcpy(body.data(), &h, sizeof h);
     std::memcpy(body.data() + sizeof h, page.data(), page.size());
@@ -208,7 +213,87 @@ TEST(ClassDescriptionTest, PagesAssembleAndRefuseAnotherPage) {
   ClassPageRequest past;
   past.offset = static_cast<uint32_t>(bytes.size());
   std::span<const std::byte> page;
-  EXPECT_NE(class_page(bytes, bytes_of(past), true, h, page), nullptr);
+  EXPECT_NE(class_page(bytes, bytes.size(), bytes_of(past), true, h, page), nullptr);
+}
+
+// The value names of enum and address fields (an optional section after the
+// parameters): served only to a client that asks for them, so that a client that
+// predates them gets the bytes it always got; checked on both sides.
+TEST(ClassDescriptionTest, ValueNamesAreServedToClientsThatAskForThem) {
+  ClassDescription d = sample_description();
+  d.data->size = 32;
+  d.data->fields.push_back({"state", tims::FieldKind::kU8, 24, 1});
+  d.data->fields.push_back({"owner", tims::FieldKind::kU32, 28, 1});
+  d.value_names = {{"state", false, {{0, "IDLE"}, {1, "RUNNING"}, {7, "2D"}}}, {"owner", true, {}}};
+  std::size_t base = 0;
+  const std::vector<std::byte> bytes = encode_class_description(d, &base);
+  ASSERT_LT(base, bytes.size());
+  ClassDescription back;
+  std::string error;
+  ASSERT_TRUE(decode_class_description(bytes, back, error)) << error;
+  EXPECT_EQ(back, d);
+  ASSERT_NE(back.value_names[0].name_of(7), nullptr);
+  EXPECT_STREQ(back.value_names[0].name_of(7), "2D");
+  EXPECT_EQ(back.value_names[0].name_of(2), nullptr);
+  // Without the section: the description as before, without names.
+  ASSERT_TRUE(decode_class_description(std::span(bytes).first(base), back, error)) << error;
+  EXPECT_TRUE(back.value_names.empty());
+  ClassDescription plain = d;
+  plain.value_names.clear();
+  EXPECT_EQ(back, plain);
+  std::size_t plain_base = 0;
+  EXPECT_EQ(encode_class_description(plain, &plain_base).size(), base);
+  EXPECT_EQ(plain_base, base);
+
+  // The server: `total` is the base unless the request asks for the section.
+  ClassPageRequest q;
+  ClassPageHeader h;
+  std::span<const std::byte> page;
+  ASSERT_EQ(class_page(bytes, base, bytes_of(q), true, h, page), nullptr);
+  EXPECT_EQ(h.total, base);
+  EXPECT_EQ(page.size(), base);
+  ASSERT_EQ(class_page(bytes, base, {}, true, h, page), nullptr);  // an empty body: offset 0, no sections
+  EXPECT_EQ(h.total, base);
+  q.sections = kClassSectionValueNames;
+  ASSERT_EQ(class_page(bytes, base, bytes_of(q), true, h, page), nullptr);
+  EXPECT_EQ(h.total, bytes.size());
+  q.offset = static_cast<uint32_t>(base);  // inside the section: only for a client that asks
+  EXPECT_EQ(class_page(bytes, base, bytes_of(q), true, h, page), nullptr);
+  q.sections = 0;
+  EXPECT_NE(class_page(bytes, base, bytes_of(q), true, h, page), nullptr);
+
+  // Cut inside the section, a byte after it: refused with the place.
+  EXPECT_FALSE(decode_class_description(std::span(bytes).first(bytes.size() - 1), back, error));
+  EXPECT_NE(error.find("value names 1 'owner'"), std::string::npos) << error;
+  std::vector<std::byte> longer = bytes;
+  longer.push_back(std::byte{0});
+  EXPECT_FALSE(decode_class_description(longer, back, error));
+  EXPECT_NE(error.find("bytes after the end"), std::string::npos) << error;
+
+  // What cannot name values: refused by the encoder (the decoder applies the same rules).
+  const auto refused = [&](std::vector<FieldNamesDescription> names, const std::string& why) {
+    ClassDescription bad = d;
+    bad.value_names = std::move(names);
+    try {
+      (void)encode_class_description(bad);
+      ADD_FAILURE() << "encoded: " << why;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+  };
+  refused({{"speed", false, {{0, "A"}}}}, "has no such field");
+  refused({{"rate", false, {{0, "A"}}}}, "not an integer of at most 4 bytes");
+  refused({{"count", false, {{0, "A"}}}}, "not an integer of at most 4 bytes");
+  refused({{"state", false, {{0, "A"}, {0, "B"}}}}, "value 0 named twice");
+  refused({{"state", false, {{0, "A"}, {1, "A"}}}}, "name 'A' given twice");
+  refused({{"state", false, {}}}, "no values");
+  refused({{"state", true, {}}}, "an address field is a u32");
+  refused({{"state", false, {{0, "A"}}}, {"state", false, {{1, "B"}}}}, "named twice");
+  refused({{"state", false, {{0, "A\x1b"}}}}, "printable");
+  ClassDescription no_data = sample_description();
+  no_data.data.reset();
+  no_data.value_names = {{"state", false, {{0, "A"}}}};
+  EXPECT_THROW((void)encode_class_description(no_data), std::invalid_argument);
 }
 
 // A running component answers GET_CLASS with its class's description.
@@ -267,15 +352,17 @@ TEST(ClassDescriptionTest, EveryBuiltinClassIsDescribedAsDeclared) {
     const std::unique_ptr<Component> c = cls->make();
     const ClassDescription d = describe_class(*cls, c->parameters());
     std::vector<std::byte> bytes;
-    ASSERT_NO_THROW(bytes = encode_class_description(d));
-    // Through the pages the command task serves.
+    std::size_t base = 0;
+    ASSERT_NO_THROW(bytes = encode_class_description(d, &base));
+    // Through the pages the command task serves, with the value names.
     ClassPageAssembler assembler;
     while (!assembler.complete()) {
       ClassPageRequest q;
       q.offset = assembler.next_offset();
+      q.sections = kClassSectionValueNames;
       ClassPageHeader h;
       std::span<const std::byte> page;
-      ASSERT_EQ(class_page(bytes, bytes_of(q), true, h, page), nullptr);
+      ASSERT_EQ(class_page(bytes, base, bytes_of(q), true, h, page), nullptr);
       std::vector<std::byte> body(sizeof h + page.size());
       std::memcpy(body.data(), &h, sizeof h);
       std::memcpy(body.data() + sizeof h, page.data(), page.size());
@@ -291,6 +378,13 @@ TEST(ClassDescriptionTest, EveryBuiltinClassIsDescribedAsDeclared) {
     EXPECT_EQ(back.impl, cls->impl);
     EXPECT_EQ(back.class_id, cls->class_id);
     EXPECT_EQ(back.summary, cls->description);
+    // The names of its enum values and address fields, as its data type declares them.
+    const std::size_t declared_names = cls->data != nullptr ? cls->data->value_names.size() : 0;
+    ASSERT_EQ(back.value_names.size(), declared_names);
+    for (std::size_t i = 0; i < declared_names; ++i) {
+      EXPECT_EQ(back.value_names[i].field, cls->data->value_names[i].field);
+      EXPECT_EQ(back.value_names[i].values.size(), cls->data->value_names[i].values.size());
+    }
     ASSERT_EQ(back.parameters.size(), c->parameters().size());
     for (std::size_t i = 0; i < back.parameters.size(); ++i) {
       EXPECT_EQ(back.parameters[i].name, c->parameters().at(i).name());

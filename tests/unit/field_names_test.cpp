@@ -5,6 +5,8 @@
 #include <string>
 
 #include "field_names.h"
+#include "rack/core/registry.h"
+#include "rack/interfaces/declared_types.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
 #include "rack/tims/address.h"
@@ -17,42 +19,67 @@ std::span<const std::byte> bytes_of(const T& v) {
   return {reinterpret_cast<const std::byte*>(&v), sizeof v};
 }
 
+// The value names of a data type as its class's description carries them: declared
+// with the type (rack/interfaces/declared_types.h), through the encoder and decoder.
+std::vector<FieldNamesDescription> described_names(const DataTypeInfo& type) {
+  ComponentClass cls;
+  cls.impl = "NamesTest";
+  cls.class_id = 0xA9;
+  cls.description = "names";
+  cls.data = &type;
+  ClassDescription d = describe_class(cls, ParameterSet{});
+  ClassDescription back;
+  std::string error;
+  EXPECT_TRUE(decode_class_description(encode_class_description(d), back, error)) << error;
+  return back.value_names;
+}
+
 TEST(FieldNamesTest, PilotModeAndStatusByName) {
+  const auto names = described_names(interfaces::declared::kPilot);
   interfaces::PilotData d;
   d.mode = static_cast<uint8_t>(interfaces::PilotMode::kDestination);
   d.status = static_cast<uint8_t>(interfaces::PilotStatus::kBlocked);
-  EXPECT_EQ(field_names_json(tims::classes::kPilot, tims::fields_of<interfaces::PilotData>, bytes_of(d), true),
+  EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::PilotData>, bytes_of(d), true),
             "{\"mode\":\"DESTINATION\",\"status\":\"BLOCKED\"}");
-  d.status = 42;  // a value this rackctl does not know
-  EXPECT_EQ(field_names_json(tims::classes::kPilot, tims::fields_of<interfaces::PilotData>, bytes_of(d), true),
+  d.status = 42;  // a value the class does not name
+  EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::PilotData>, bytes_of(d), true),
             "{\"mode\":\"DESTINATION\",\"status\":\"UNKNOWN(42)\"}");
 }
 
 TEST(FieldNamesTest, ActivePilotAsAnAddressInEitherByteOrder) {
+  const auto names = described_names(interfaces::declared::kChassis);
   interfaces::ChassisData d;
   const tims::Address pilot(0x00190000u);  // Pilot(0/0): class 0x19
   d.active_pilot = pilot.raw();
   const std::string want = "{\"active_pilot\":\"" + pilot.str() + "\"}";
-  EXPECT_EQ(field_names_json(tims::classes::kChassis, tims::fields_of<interfaces::ChassisData>, bytes_of(d), true),
+  EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::ChassisData>, bytes_of(d), true),
             want);
   EXPECT_NE(want.find("Pilot("), std::string::npos) << want;
   d.active_pilot = __builtin_bswap32(pilot.raw());  // sent by a host of the other byte order
-  EXPECT_EQ(field_names_json(tims::classes::kChassis, tims::fields_of<interfaces::ChassisData>, bytes_of(d), false),
+  EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::ChassisData>, bytes_of(d), false),
             want);
   d.active_pilot = 0;
-  EXPECT_EQ(field_names_json(tims::classes::kChassis, tims::fields_of<interfaces::ChassisData>, bytes_of(d), true),
+  EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::ChassisData>, bytes_of(d), true),
             "{\"active_pilot\":\"none\"}");
 }
 
-TEST(FieldNamesTest, OtherClassesAndShortSamplesHaveNoNames) {
+TEST(FieldNamesTest, ClassesWithoutNamesAndShortSamplesHaveNoNames) {
   interfaces::PilotData d;
-  // The same layout under another class: no names.
-  EXPECT_EQ(field_names_json(tims::classes::kPath, tims::fields_of<interfaces::PilotData>, bytes_of(d), true), "");
+  // The same layout without value names (a class that declares none): no names.
+  EXPECT_EQ(field_names_json({}, tims::fields_of<interfaces::PilotData>, bytes_of(d), true), "");
   // A sample cut before the fields: nothing read past its end.
-  EXPECT_EQ(field_names_json(tims::classes::kPilot, tims::fields_of<interfaces::PilotData>, bytes_of(d).first(8), true),
-            "");
-  EXPECT_STREQ(enum_value_name(tims::classes::kPilot, "status", 2), "REACHED");
-  EXPECT_EQ(enum_value_name(tims::classes::kPilot, "target_x", 2), nullptr);
+  const auto names = described_names(interfaces::declared::kPilot);
+  EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::PilotData>, bytes_of(d).first(8), true), "");
+  ASSERT_EQ(names.size(), 2u);
+  EXPECT_STREQ(names[1].name_of(2), "REACHED");
+  EXPECT_EQ(names[1].name_of(200), nullptr);
+  // GPS: names that are not identifiers ("2D").
+  const auto gps = described_names(interfaces::declared::kGps);
+  interfaces::GpsData g;
+  g.fix_quality = interfaces::kGpsFixRtkFixed;
+  g.fix_mode = 2;
+  EXPECT_EQ(field_names_json(gps, tims::fields_of<interfaces::GpsData>, bytes_of(g), true),
+            "{\"fix_quality\":\"RTK_FIXED\",\"fix_mode\":\"2D\"}");
 }
 
 }  // namespace

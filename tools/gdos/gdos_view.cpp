@@ -7,6 +7,7 @@
 #include <cstring>
 #include <ctime>
 
+#include "rack/client/session.h"
 #include "rack/core/payload_json.h"
 #include "rack/tims/address.h"
 
@@ -14,7 +15,11 @@ namespace rack::gdos_view {
 
 namespace {
 
-std::string address_text(uint32_t raw) { return tims::Address(raw).str(); }
+// The address with its class named as the class describes itself; TiMS' spelling
+// (Class0x91(2/0) for a class it does not know) when `class_name` is empty.
+std::string address_text(uint32_t raw, const std::string& class_name) {
+  return client::address_text(tims::Address(raw), class_name);
+}
 
 gdos::Level level_of(uint8_t l) {
   return l <= static_cast<uint8_t>(gdos::Level::kDetail) ? static_cast<gdos::Level>(l) : gdos::Level::kError;
@@ -33,7 +38,7 @@ std::string time_text(int64_t ns, char date_sep, bool zulu) {
 
 }  // namespace
 
-bool Filter::matches(const tims::GdosRecord& r, const std::string& display_name) const {
+bool Filter::matches(const tims::GdosRecord& r, const std::string& display_name, const std::string& class_name) const {
   const gdos::Level l = level_of(r.level);
   if (l != gdos::Level::kPrint && l > max_level) return false;
   if (!hosts.empty()) {
@@ -42,7 +47,7 @@ bool Filter::matches(const tims::GdosRecord& r, const std::string& display_name)
     if (!any) return false;
   }
   if (!components.empty()) {
-    const std::string addr = address_text(r.source & 0xFFFFFF00u);
+    const std::string addr = address_text(r.source & 0xFFFFFF00u, class_name);
     bool any = false;
     for (const auto& c : components) {
       if (c == display_name || c == r.name || c == addr) { any = true; break; }
@@ -78,7 +83,8 @@ std::string printable(const std::string& s) {
   return out;
 }
 
-std::string text_line(const tims::GdosRecord& r, const std::string& display_name, bool colour) {
+std::string text_line(const tims::GdosRecord& r, const std::string& display_name, bool colour,
+                      const std::string& class_name) {
   const gdos::Level l = level_of(r.level);
   const char* on = "";
   if (colour) {
@@ -90,7 +96,7 @@ std::string text_line(const tims::GdosRecord& r, const std::string& display_name
       case gdos::Level::kDetail: on = "\x1b[2m"; break;        // dim
     }
   }
-  const std::string who = printable(display_name.empty() ? address_text(r.source) : display_name);
+  const std::string who = printable(display_name.empty() ? address_text(r.source, class_name) : display_name);
   const std::string host = printable(r.host);
   char head[160];
   std::snprintf(head, sizeof head, "%s %-10s %c %-14s ", time_text(r.time_ns, ' ', false).c_str(), host.c_str(),
@@ -107,7 +113,7 @@ std::string text_line(const tims::GdosRecord& r, const std::string& display_name
   return line;
 }
 
-std::string json_line(const tims::GdosRecord& r, const std::string& display_name) {
+std::string json_line(const tims::GdosRecord& r, const std::string& display_name, const std::string& class_name) {
   auto q = [](const std::string& s) {
     std::string out = json_escape(s);  // (not "\"" + ...: GCC 12 warns falsely, -Wrestrict)
     out.insert(out.begin(), '"');
@@ -116,7 +122,7 @@ std::string json_line(const tims::GdosRecord& r, const std::string& display_name
   };
   return "{\"host\":" + q(r.host) + ",\"pid\":" + std::to_string(r.pid) + ",\"time_ns\":" + std::to_string(r.time_ns) +
          ",\"time\":" + q(time_text(r.time_ns, 'T', true)) + ",\"sequence\":" + std::to_string(r.sequence) +
-         ",\"level\":" + q(gdos::describe(level_of(r.level))) + ",\"source\":" + q(address_text(r.source)) +
+         ",\"level\":" + q(gdos::describe(level_of(r.level))) + ",\"source\":" + q(address_text(r.source, class_name)) +
          ",\"source_raw\":" + std::to_string(r.source) + ",\"name\":" + q(display_name) +
          ",\"dropped_before\":" + std::to_string(r.dropped_before) + ",\"text\":" + q(r.text) + "}";
 }

@@ -33,18 +33,26 @@ struct Filter {
   std::vector<std::string> hosts;                 // empty: every host
   std::vector<std::string> components;            // names or addresses; empty: all
   std::string text;                               // substring of the text; empty: all
-  // `display_name` is the name the viewer shows (record's, announced, or "").
-  [[nodiscard]] bool matches(const tims::GdosRecord& r, const std::string& display_name) const;
+  // `display_name` is the name the viewer shows (record's, announced, or ""); a
+  // component given as an address matches in TiMS' spelling (Class0x91(2/0), 145(2/0))
+  // and, when `class_name` is the name the source's class describes itself with
+  // (GET_CLASS), in that name's (Counter(2/0)).
+  [[nodiscard]] bool matches(const tims::GdosRecord& r, const std::string& display_name,
+                             const std::string& class_name = {}) const;
 };
 
 // "2026-11-21 23:41:02.123456 host     W name        : text" with ANSI colours by
 // level when `colour` (no colours in a pipe). Ends without a newline.
+// `class_name` (in text_line and json_line): the name the source's class describes
+// itself with, for its address (Counter(2/0)); empty: TiMS' spelling (Class0x91(2/0)).
 // `s` with control characters (C0 but tab, DEL, C1) written as \xNN: network text on a terminal.
 [[nodiscard]] std::string printable(const std::string& s);
-[[nodiscard]] std::string text_line(const tims::GdosRecord& r, const std::string& display_name, bool colour);
+[[nodiscard]] std::string text_line(const tims::GdosRecord& r, const std::string& display_name, bool colour,
+                                    const std::string& class_name = {});
 // One JSON object: host, pid, time_ns, time (ISO 8601 UTC), sequence, level, source
 // (address text), source_raw, name, dropped_before, text.
-[[nodiscard]] std::string json_line(const tims::GdosRecord& r, const std::string& display_name);
+[[nodiscard]] std::string json_line(const tims::GdosRecord& r, const std::string& display_name,
+                                    const std::string& class_name = {});
 
 // A problem in a record file, with the byte offset where it starts.
 class FileError : public std::runtime_error {

@@ -8,13 +8,17 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
+#include <vector>
 
 #include "gdos_view.h"
+#include "rack/client/session.h"
 #include "rack/rt/clock.h"
-#include "rack/core/host_config.h"
+#include "rack/client/host_file.h"
 #include "rack/tims/gdos_lcm.h"
 #include "rack/tims/lcm_transport.h"
 #include "rack/version.h"
@@ -37,7 +41,8 @@ options:
                      info, detail (default detail: all); print always shows
   --host HOST        only records from HOST (repeatable)
   --component NAME   only records of component NAME: its host-file name or its
-                     address such as Generator(0/1) (repeatable)
+                     address such as Generator(0/1) or, for a plug-in class,
+                     Counter(2/0) (repeatable)
   --grep TEXT        only records whose text contains TEXT
   --record FILE      also write every record received (before the filters) to
                      FILE, in gdos's record format (see tools/gdos/README.md)
@@ -55,13 +60,20 @@ options:
                      keep writing their log to stderr)
   --host-file FILE   the network and key file of this host file (the first of
                      its 'tims: networks:', else its lcm_url); --lcm and
-                     --key-file override either
+                     --key-file override either (a replay asks that network
+                     for class names)
   --key-file FILE    the network's key file (authenticated links; default
                      $RACK_KEY_FILE): records and announcements that do not
                      verify are dropped and counted; without it, signed records
                      are shown unverified
   -h, --help         this text
   --version          the version (CMake project version, git describe)
+
+Addresses name each class as it describes itself to tools: gdos asks the host of
+a record's source once per class (GET_CLASS), so a plug-in class built outside
+the tree shows as Counter(2/0) like a built-in one. A replay asks the network
+too; when the recording's hosts do not answer discovery within 300 ms, its
+addresses keep class numbers (Class0x91(2/0)).
 
 Losses are reported on stderr: records a host's ring dropped (its next record
 says how many) and records lost on the network (gaps in a host's sequence).
@@ -76,6 +88,68 @@ exit codes: 0 ok (Ctrl-C, --count or --duration reached, end of a replay),
 )";
 
 std::atomic<bool> g_stop{false};
+
+// The names of the classes of the records' sources, as each class describes itself
+// to tools (GET_CLASS through rack/client/session.h), so that a plug-in's records show
+// as Counter(2/0) and `--component Counter(2/0)` selects them: gdos is built with no
+// class. Cached per system and class id. A source's host is asked only when it
+// answers discovery (waited for once per system, up to 300 ms): a replay without
+// its hosts shows TiMS' spelling (Class0x91(2/0)) without waiting on each class.
+class ClassNames {
+ public:
+  ClassNames(std::string url, std::string key_file) : url_(std::move(url)), key_file_(std::move(key_file)) {}
+
+  // "" when TiMS names the class itself (Executor, Tool) or nothing answers.
+  const std::string& of(uint32_t source) {
+    static const std::string kNone;
+    const rack::tims::Address a(source);
+    if (rack::tims::class_name(a.class_id()) != nullptr) return kNone;
+    const uint32_t key = source & 0xFFFF0000u;
+    if (const auto it = names_.find(key); it != names_.end()) return it->second;
+    if (!session_ && !open()) return kNone;
+    if (!host_heard(a.system())) return kNone;  // asked again with a later record
+    const rack::ClassDescription* d = session_->describe(a);
+    return names_[key] = d != nullptr ? d->class_name : std::string();
+  }
+
+ private:
+  bool open() {
+    if (failed_) return false;
+    rack::client::SessionConfig c;
+    c.tool = "gdos";
+    c.lcm_url = url_;
+    c.key_file = key_file_;
+    c.timeout_ms = 300;
+    c.retries = 1;
+    c.discover_ms = 300;
+    c.reply_slot_bytes = 64 * 1024;  // CLASS pages are 8 KiB
+    c.streams = false;
+    try {
+      session_ = std::make_unique<rack::client::Session>(c);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "gdos: class names are not learnt (addresses keep class numbers): %s\n", e.what());
+      failed_ = true;
+    }
+    return !failed_;
+  }
+  bool host_heard(uint8_t system) {
+    const auto heard = [system](const std::vector<rack::tims::HostInfo>& hosts) {
+      for (const auto& h : hosts) {
+        if (h.system == system && h.role == rack::tims::NodeRole::kExecutor) return true;
+      }
+      return false;
+    };
+    if (heard(session_->hosts())) return true;
+    if (!waited_.insert(system).second) return false;
+    return heard(session_->discover(heard));
+  }
+
+  std::string url_, key_file_;
+  std::unique_ptr<rack::client::Session> session_;
+  bool failed_ = false;
+  std::map<uint32_t, std::string> names_;  // system | class id << 16
+  std::set<uint8_t> waited_;               // systems discovery was waited for
+};
 void on_signal(int) { g_stop.store(true); }
 
 [[noreturn]] void usage_error(const std::string& what) {
@@ -88,7 +162,7 @@ void on_signal(int) { g_stop.store(true); }
 int main(int argc, char** argv) {
   using namespace rack;
   gdos_view::Filter filter;
-  std::string url = std::getenv("LCM_DEFAULT_URL") != nullptr ? std::getenv("LCM_DEFAULT_URL") : tims::kDefaultLcmUrl;
+  std::string url = rack::client::default_lcm_url();
   std::string channel = tims::kGdosChannel;
   std::string record_path, replay_path;
   std::string key_file = std::getenv("RACK_KEY_FILE") != nullptr ? std::getenv("RACK_KEY_FILE") : "";
@@ -161,10 +235,19 @@ int main(int argc, char** argv) {
   if (!record_path.empty() && !replay_path.empty()) usage_error("--record and --replay exclude each other");
   const bool colour = colour_opt.value_or(isatty(STDOUT_FILENO) == 1 && std::getenv("NO_COLOR") == nullptr);
 
+  if (!host_file.empty()) {
+    const rack::ToolNetwork net = rack::read_tool_network(host_file);
+    if (!net.errors.empty()) usage_error(net.errors.front().str());
+    if (!url_given) url = net.url;
+    if (!key_given) key_file = net.key_file;
+  }
+  ClassNames classes(url, key_file);
+
   long long shown = 0;
   auto show = [&](const tims::GdosRecord& r, const std::string& name) {
-    if (!filter.matches(r, name)) return;
-    const std::string line = json ? gdos_view::json_line(r, name) : gdos_view::text_line(r, name, colour);
+    const std::string& cls = classes.of(r.source);
+    if (!filter.matches(r, name, cls)) return;
+    const std::string line = json ? gdos_view::json_line(r, name, cls) : gdos_view::text_line(r, name, colour, cls);
     std::fputs(line.c_str(), stdout);
     std::fputc('\n', stdout);
     ++shown;
@@ -184,12 +267,6 @@ int main(int argc, char** argv) {
     return 0;
   }
 
-  if (!host_file.empty()) {
-    const rack::ToolNetwork net = rack::read_tool_network(host_file);
-    if (!net.errors.empty()) usage_error(net.errors.front().str());
-    if (!url_given) url = net.url;
-    if (!key_given) key_file = net.key_file;
-  }
   struct sigaction sa {};
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);

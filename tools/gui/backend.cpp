@@ -17,6 +17,7 @@
 #include <span>
 
 #include "gdos_view.h"
+#include "rack/client/session.h"
 #include "rack/core/class_description.h"
 #include "rack/core/trace_session.h"
 #include "rack/core/parameters.h"
@@ -93,12 +94,7 @@ std::string base64(const std::vector<uint8_t>& in) {
   return out;
 }
 
-std::string error_reason(std::span<const std::byte> body) {
-  if (body.empty()) return "no reason given";
-  const auto* text = reinterpret_cast<const char*>(body.data());
-  std::string reason(text, strnlen(text, body.size()));
-  return reason.empty() ? "no reason given" : reason;
-}
+using rack::client::error_reason;  // the text of an ERROR body (rack/client/session.h)
 
 std::string param_text(const char* s, std::size_t n) { return std::string(s, strnlen(s, n)); }
 

@@ -15,6 +15,7 @@
 #include "backend.h"
 #include "config_service.h"
 #include "http_server.h"
+#include "rack/client/session.h"
 #include "rack/core/host_config.h"
 #include "rack/tims/lcm_transport.h"
 #include "rack/version.h"
@@ -111,8 +112,7 @@ long number(const std::string& opt, const std::string& v, long lo, long hi) {
 
 int main(int argc, char** argv) {
   rack::gui::BackendConfig config;
-  const char* env = std::getenv("LCM_DEFAULT_URL");
-  config.lcm_url = env != nullptr && *env != '\0' ? env : rack::tims::kDefaultLcmUrl;
+  config.lcm_url = rack::client::default_lcm_url();
   if (const char* k = std::getenv("RACK_KEY_FILE"); k != nullptr) config.key_file = k;
   std::string host_file;
   bool lcm_given = false, key_given = false;

@@ -4,8 +4,11 @@
 // stay as they are:
 //   {..., "data":{"status":3,...}, "names":{"status":"BLOCKED","mode":"DESTINATION"}}
 //
-// Not RT code (allocates). Reads the sample through its field table; a field whose
-// value has no name gets "UNKNOWN(N)" (a newer executor may have more values).
+// The names come from the class's description (GET_CLASS: the value names its data
+// type declares, rack/core/class_types.h FieldValueNames), so a plug-in class's enum
+// fields are named too. Not RT code (allocates). Reads the sample through its field
+// table; a field whose value has no name gets "UNKNOWN(N)" (a newer executor may have
+// more values).
 #pragma once
 
 #include <cstddef>
@@ -13,17 +16,16 @@
 #include <span>
 #include <string>
 
+#include "rack/core/class_description.h"
 #include "rack/tims/payload.h"
 
 namespace rack::tools {
 
-// {"field":"NAME",...} for the sample of a component of class `class_id` laid out by
-// `fields`; empty when the class has no named fields (or none of them is in `sample`).
-[[nodiscard]] std::string field_names_json(uint8_t class_id, std::span<const tims::FieldDesc> fields,
+// {"field":"NAME",...} for a sample laid out by `fields`, with the value names its
+// class declares (ClassDescription::value_names, from GET_CLASS); empty when none
+// of those fields is in `sample`.
+[[nodiscard]] std::string field_names_json(std::span<const FieldNamesDescription> names,
+                                           std::span<const tims::FieldDesc> fields,
                                            std::span<const std::byte> sample, bool native);
-
-// The name of value `v` of field `field` of class `class_id`; nullptr when that field
-// is not an enum rackctl knows (addresses are not covered: see field_names_json).
-[[nodiscard]] const char* enum_value_name(uint8_t class_id, const std::string& field, uint32_t v);
 
 }  // namespace rack::tools

@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "rack/client/deployment.h"
+#include "rack/client/session.h"
 #include "rack/core/class_description.h"
 #include "rack/core/data_component.h"
 #include "rack/core/host_config.h"
@@ -234,13 +235,7 @@ std::string double_text(double v) {
 
 std::string quoted(const std::string& s) { return "\"" + rack::json_escape(s) + "\""; }
 
-// The text of an ERROR body (wire::ErrorText, possibly shorter or empty).
-std::string error_reason(std::span<const std::byte> body) {
-  if (body.empty()) return "no reason given";
-  const auto* text = reinterpret_cast<const char*>(body.data());
-  std::string reason(text, strnlen(text, body.size()));
-  return reason.empty() ? "no reason given" : reason;
-}
+using rack::client::error_reason;
 
 const char* reply_name(int8_t type) {
   const char* n = msg::name(type);
@@ -249,47 +244,8 @@ const char* reply_name(int8_t type) {
 
 // ---------------------------------------------------------------- the TiMS session
 
-// An address with its class named as the class describes itself (GET_CLASS), so
-// that a class rackctl was not built with prints as `Counter(2/0)` too.
-std::string address_text(Address a, const std::string& class_name) {
-  if (class_name.empty()) return a.str();
-  std::string out = class_name + "(" + std::to_string(a.system()) + "/" + std::to_string(a.instance()) + ")";
-  if (a.mailbox() != 0) out += "#" + std::to_string(a.mailbox());
-  return out;
-}
-
-// `Name(sys/inst)` or `Name(sys/inst)#mbx` with a class name TiMS does not know
-// (a class learnt from its description): the name and the numeric address.
-std::optional<std::pair<std::string, Address>> parse_named_address(const std::string& text) {
-  const auto open = text.find('(');
-  const auto slash = text.find('/', open);
-  const auto close = text.find(')', slash);
-  if (open == std::string::npos || open == 0 || slash == std::string::npos || close == std::string::npos) {
-    return std::nullopt;
-  }
-  const std::string name = text.substr(0, open);
-  for (const char c : name) {
-    if (std::isalnum(static_cast<unsigned char>(c)) == 0 && c != '_') return std::nullopt;
-  }
-  const auto number = [](const std::string& t) -> std::optional<uint8_t> {
-    if (t.empty() || t.size() > 3 || !std::all_of(t.begin(), t.end(), [](char c) { return c >= '0' && c <= '9'; })) {
-      return std::nullopt;
-    }
-    const int v = std::stoi(t);
-    return v <= 255 ? std::optional<uint8_t>(static_cast<uint8_t>(v)) : std::nullopt;
-  };
-  const auto sys = number(text.substr(open + 1, slash - open - 1));
-  const auto inst = number(text.substr(slash + 1, close - slash - 1));
-  uint8_t mbx = 0;
-  const std::string tail = text.substr(close + 1);
-  if (!tail.empty()) {
-    const auto m = tail[0] == '#' ? number(tail.substr(1)) : std::nullopt;
-    if (!m) return std::nullopt;
-    mbx = *m;
-  }
-  if (!sys || !inst) return std::nullopt;
-  return std::make_pair(name, Address::make(*sys, 0, *inst, mbx));
-}
+using rack::client::address_text;
+using rack::client::default_lcm_url;
 
 struct Target {
   Address address;
@@ -301,105 +257,23 @@ struct Target {
   }
 };
 
-std::string default_lcm_url() {
-  const char* env = std::getenv("LCM_DEFAULT_URL");
-  return env != nullptr && *env != '\0' ? env : tims::kDefaultLcmUrl;
+rack::client::SessionConfig session_config(const Options& o) {
+  rack::client::SessionConfig c;
+  c.tool = "rackctl";
+  c.lcm_url = o.lcm_url;
+  c.key_file = o.key_file;
+  c.timeout_ms = o.timeout_ms;
+  c.retries = o.retries;
+  c.discover_ms = o.discover_ms;
+  return c;
 }
 
-class Session {
+// The client library's session (rack/client/session.h: tool mailboxes, discovery,
+// class descriptions, requests, fan-out) with rackctl's way of ending a command:
+// what cannot be resolved or answered fails with its exit code.
+class Session : public rack::client::Session {
  public:
-  explicit Session(const Options& o)
-      : options_(o),
-        claim_(tims::ToolAddressClaim::claim()),
-        reply_mailbox_(claim_.mailbox(0), 4, kSlotSize),
-        data_mailbox_(claim_.mailbox(1), 16, kDataSlotSize),
-        fanout_mailbox_(claim_.mailbox(2), kFanoutSlots, kFanoutSlotSize),
-        endpoint_(router_, reply_mailbox_, kPriority),
-        fanout_endpoint_(router_, fanout_mailbox_, kPriority),
-        transport_(router_, transport_config(o)),
-        buffer_(kSlotSize) {
-    if (!claim_.warning().empty()) std::fprintf(stderr, "rackctl: %s\n", claim_.warning().c_str());
-    router_.add(reply_mailbox_);
-    router_.add(data_mailbox_);
-    router_.add(fanout_mailbox_);
-    transport_.start();
-  }
-  ~Session() {
-    transport_.stop();
-    router_.remove(reply_mailbox_.address());
-    router_.remove(data_mailbox_.address());
-    router_.remove(fanout_mailbox_.address());
-  }
-  Session(const Session&) = delete;
-  Session& operator=(const Session&) = delete;
-
-  [[nodiscard]] const std::string& url() const { return transport_.url(); }
-  [[nodiscard]] int64_t timeout_ns() const { return options_.timeout_ms * rt::kNsPerMs; }
-  [[nodiscard]] tims::Mailbox& data_mailbox() { return data_mailbox_; }
-  [[nodiscard]] tims::Endpoint& endpoint() { return endpoint_; }
-  [[nodiscard]] std::span<std::byte> buffer() { return buffer_; }
-
-  // Asks every host to announce itself and waits up to --discover-ms (less when
-  // `stop` is given and returns true for what was heard so far).
-  template <typename Stop>
-  std::vector<tims::HostInfo> discover(Stop stop) {
-    const int64_t start = rt::monotonic_ns();
-    const int64_t deadline = start + options_.discover_ms * rt::kNsPerMs;
-    int64_t next_request = start;
-    for (;;) {
-      const int64_t now = rt::monotonic_ns();
-      if (now >= next_request) {
-        // Asked again every 100 ms: a multicast datagram can be lost.
-        transport_.request_discovery();
-        next_request = now + 100 * rt::kNsPerMs;
-      }
-      auto hosts = transport_.hosts();
-      if (stop(hosts) || now >= deadline) return hosts;
-      rt::sleep_for(std::min<int64_t>(10 * rt::kNsPerMs, deadline - now));
-    }
-  }
-
-  // The description of the class of the component at `component` (GET_CLASS, its
-  // pages assembled and decoded), cached per system and class id: every component of
-  // a class describes it alike. nullptr when the component does not answer it (an
-  // older rackd) or its description is refused (the reason on stderr, once).
-  const rack::ClassDescription* describe(Address component) {
-    const uint32_t key = component.raw() & 0xFFFF0000u;
-    if (const auto it = classes_.find(key); it != classes_.end()) return it->second ? &*it->second : nullptr;
-    std::optional<rack::ClassDescription>& slot = classes_[key];
-    rack::ClassPageAssembler pages;
-    std::string error;
-    while (!pages.complete()) {
-      rack::ClassPageRequest q;
-      q.offset = pages.next_offset();
-      const ConstBuffer part = tims::buffer_of(q);
-      const CallResult r = endpoint_.call_with_retry(component.component(), msg::kGetClass,
-                                                     std::span<const ConstBuffer>(&part, 1), buffer_,
-                                                     {timeout_ns(), static_cast<uint32_t>(options_.retries + 1)});
-      if (r.status != CallStatus::kOk) {
-        error = std::string("no reply to GET_CLASS: ") + tims::describe(r.status);
-      } else if (r.reply.type != msg::kClass) {
-        error = std::string("GET_CLASS answered ") + reply_name(r.reply.type) +
-                (r.reply.type == msg::kError ? ": " + error_reason(r.body) : std::string());
-      } else if (pages.add(r.body, tims::body_is_native(r.reply), error)) {
-        continue;
-      }
-      break;
-    }
-    rack::ClassDescription d;
-    if (error.empty() && !rack::decode_class_description(pages.bytes(), d, error)) error = "class description: " + error;
-    if (!error.empty()) {
-      std::fprintf(stderr, "rackctl: %s: %s\n", component.component().str().c_str(), error.c_str());
-      return nullptr;
-    }
-    if (d.class_id != component.class_id()) {
-      std::fprintf(stderr, "rackctl: %s: describes class id 0x%02x, not its own\n", component.component().str().c_str(),
-                   d.class_id);
-      return nullptr;
-    }
-    slot = std::move(d);
-    return &*slot;
-  }
+  explicit Session(const Options& o) : rack::client::Session(session_config(o)), options_(o) {}
 
   // The class name of `t`'s addresses from its description, when TiMS has no name
   // for its class id (a class rackctl was not built with).
@@ -415,61 +289,38 @@ class Session {
       name_class(t);
       return t;
     }
-    if (const auto named = parse_named_address(text)) {
+    if (const auto named = rack::client::parse_named_address(text)) {
       // A class name TiMS does not know: the class whose description gives it, among
       // the components discovered at that system and instance.
       const auto& [cls, numeric] = *named;
-      std::optional<Target> found;
-      discover([&](const std::vector<tims::HostInfo>& hosts) {
-        for (const auto& h : hosts) {
-          for (const auto& c : h.components) {
-            if (c.address.system() != numeric.system() || c.address.instance() != numeric.instance()) continue;
-            const rack::ClassDescription* d = describe(c.address);
-            if (d != nullptr && (d->class_name == cls || d->impl == cls)) {
-              found = Target{c.address.component(), "", d->class_name};
-              return true;
-            }
-          }
-        }
-        return false;
-      });
+      const auto found = find_by_class(cls, numeric.system(), numeric.instance());
       if (!found) {
         fail(kExitUnavailable, format("no component of a class named '%s' at system %u, instance %u answered "
                                       "discovery within %lld ms on %s",
                                       cls.c_str(), numeric.system(), numeric.instance(),
                                       static_cast<long long>(options_.discover_ms), url().c_str()));
       }
-      return *found;
+      return Target{found->first.address.component(), "", found->second};
     }
     if (text.find('(') != std::string::npos) {
       fail(kExitUsage, "'" + text + "' is not an address (expected Class(system/instance), e.g. Generator(0/0))");
     }
-    std::optional<Target> found;
-    discover([&](const std::vector<tims::HostInfo>& hosts) {
-      for (const auto& h : hosts) {
-        for (const auto& c : h.components) {
-          if (c.name == text) {
-            found = Target{c.address.component(), c.name, ""};
-            return true;
-          }
-        }
-      }
-      return false;
-    });
-    if (found) name_class(*found);
+    const auto found = find_component(text);
     if (!found) {
       fail(kExitUnavailable, format("no component named '%s' answered discovery within %lld ms on %s",
                                     text.c_str(), static_cast<long long>(options_.discover_ms),
                                     url().c_str()));
     }
-    return *found;
+    Target t{found->address.component(), found->name, ""};
+    name_class(t);
+    return t;
   }
 
   // A request that must be answered; timeouts and NOT_AVAILABLE end the command
   // (exit 3). The result's body points into buffer() until the next call.
+  using rack::client::Session::call;
   CallResult call(const Target& t, int8_t type, std::span<const ConstBuffer> body = {}) {
-    const CallResult r = endpoint_.call_with_retry(
-        t.address, type, body, buffer_, {timeout_ns(), static_cast<uint32_t>(options_.retries + 1)});
+    const CallResult r = call(t.address, type, body);
     const char* what = msg::name(type) != nullptr ? msg::name(type) : "request";
     switch (r.status) {
       case CallStatus::kOk: break;
@@ -491,87 +342,6 @@ class Session {
     return call(t, type, std::span<const ConstBuffer>(&part, 1));
   }
 
-  // Sends `type` (no body) to every address of `dests` and calls answer(i, header)
-  // (or answer(i, header, body)) once for each that replied. Unlike call(), nothing ends the command: what got no
-  // reply after --retries + 1 attempts of --timeout each is simply not answered (the
-  // caller says so). At most kFanoutWindow requests are outstanding; a reply to any
-  // attempt of a request counts (an earlier attempt's reply may come late).
-  // Returns the number of retries made.
-  template <typename Answer>
-  uint64_t fan_out(const std::vector<Address>& dests, int8_t type, Answer answer) {
-    struct Pending {
-      std::vector<uint8_t> seqs;  // of every attempt so far
-      int64_t deadline = 0;
-      bool in_flight = false;
-      bool done = false;
-    };
-    std::vector<Pending> p(dests.size());
-    const auto attempts = static_cast<std::size_t>(options_.retries + 1);
-    uint64_t retries = 0;
-    std::size_t in_flight = 0;
-    std::array<std::byte, kFanoutSlotSize> buf{};
-    for (;;) {
-      int64_t now = rt::monotonic_ns();
-      int64_t earliest = INT64_MAX;
-      bool waiting = false;
-      for (std::size_t i = 0; i < p.size(); ++i) {
-        auto& r = p[i];
-        if (r.done) continue;
-        if (r.in_flight && now >= r.deadline) {  // this attempt timed out
-          r.in_flight = false;
-          --in_flight;
-          if (r.seqs.size() >= attempts) {
-            r.done = true;
-            continue;
-          }
-        }
-        if (!r.in_flight && in_flight < kFanoutWindow) {
-          // Back-pressure: the uplink drops its oldest message when full.
-          (void)transport_.wait_uplink(kUplinkSlots / 2, timeout_ns());
-          uint8_t seq = 0;
-          const auto st = fanout_endpoint_.send(dests[i], type, {}, Address(), &seq);
-          if (!r.seqs.empty()) ++retries;
-          r.seqs.push_back(seq);
-          now = rt::monotonic_ns();
-          r.deadline = now + timeout_ns();
-          if (!tims::delivered(st)) {  // not even queued: counts as an attempt
-            if (r.seqs.size() >= attempts) r.done = true;
-            continue;
-          }
-          r.in_flight = true;
-          ++in_flight;
-        }
-        if (r.in_flight) earliest = std::min(earliest, r.deadline);
-        waiting = true;
-      }
-      if (!waiting) return retries;
-      if (in_flight == 0) continue;  // everything left waits for a window slot: none busy
-      const int64_t left = std::max<int64_t>(earliest - now, 0);
-      const auto got = fanout_mailbox_.receive(buf, left);
-      if (got.status != tims::RecvStatus::kOk) continue;
-      for (std::size_t i = 0; i < p.size(); ++i) {
-        auto& r = p[i];
-        if (r.done || got.header.source() != dests[i] ||
-            std::find(r.seqs.begin(), r.seqs.end(), got.header.seq) == r.seqs.end()) {
-          continue;
-        }
-        if (r.in_flight) --in_flight;
-        r.in_flight = false;
-        r.done = true;
-        if constexpr (std::is_invocable_v<Answer, std::size_t, const MessageHeader&, std::span<const std::byte>>) {
-          const std::size_t have = std::min(got.length, buf.size());
-          const std::size_t skip = std::min(have, sizeof(MessageHeader));
-          answer(i, got.header, std::span<const std::byte>(buf.data() + skip, have - skip));
-        } else {
-          answer(i, got.header);
-        }
-        break;
-      }
-      // Anything else is a duplicate (a reply to a retried request that was answered
-      // already) or a stray message: dropped.
-    }
-  }
-
   // Ends the command when the reply is ERROR (exit 1, its reason) or not `expected`.
   static void expect(const Target& t, const CallResult& r, int8_t expected, const char* what) {
     if (r.reply.type == expected) return;
@@ -581,48 +351,7 @@ class Session {
   }
 
  private:
-  // Replies up to rackd's default max_message_kib (a Scan3D scan is 0.7 MB, a camera
-  // frame 0.9 MB, a range image 0.26 MB); a watch stream keeps up to 16 samples of 1 MiB.
-  static constexpr uint32_t kSlotSize = 4 * 1024 * 1024;
-  static constexpr uint32_t kDataSlotSize = 1024 * 1024;
-  static constexpr uint8_t kPriority = 10;
-  // Fan-out (list): small replies (a state, an ERROR text), many at once. At most
-  // kFanoutWindow requests are outstanding, so the mailbox always has room for their
-  // replies plus late replies to attempts that timed out; the uplink (kUplinkSlots)
-  // is drained before it could drop a request.
-  static constexpr uint32_t kFanoutSlots = 64;
-  static constexpr uint32_t kFanoutSlotSize = 4096;
-  static constexpr std::size_t kFanoutWindow = 24;
-  static constexpr uint32_t kUplinkSlots = 32;
-
-  static tims::LcmTransportConfig transport_config(const Options& o) {
-    tims::LcmTransportConfig c;
-    c.url = o.lcm_url.empty() ? default_lcm_url() : o.lcm_url;
-    // Signs what this tool sends and verifies what it hears (rack/tims/link_auth.h).
-    tims::use_key_file(c, "rackctl", o.key_file);
-    c.uplink_slots = kUplinkSlots;
-    c.announce_period_ns = 0;  // a tool announces nothing
-    c.role = tims::NodeRole::kTool;
-    c.max_message_bytes = kSlotSize;
-    c.reassembly_slots = 2;
-    c.large_slots = 1;
-    c.warn = [](const std::string& s) { std::fprintf(stderr, "rackctl: %s\n", s.c_str()); };
-    return c;
-  }
-
   const Options& options_;
-  // This tool's mailbox addresses (0 replies, 1 watch data, 2 fan-out replies), held
-  // by no other tool while it runs (rack/tims/tool_address.h).
-  tims::ToolAddressClaim claim_;
-  tims::Router router_{tims::kToolSystem};
-  tims::Mailbox reply_mailbox_;
-  tims::Mailbox data_mailbox_;
-  tims::Mailbox fanout_mailbox_;
-  tims::Endpoint endpoint_;
-  tims::Endpoint fanout_endpoint_;
-  tims::LcmTransport transport_;
-  std::vector<std::byte> buffer_;
-  std::map<uint32_t, std::optional<rack::ClassDescription>> classes_;  // system | class id << 16
 };
 
 // ---------------------------------------------------------------- commands
@@ -638,11 +367,7 @@ const char* state_name(int8_t reply_type) {
 
 // The class name of `a`: TiMS' name, else the one its class describes (GET_CLASS,
 // cached), else Class0xNN.
-std::string class_of(Session& s, Address a) {
-  if (const char* cls = tims::class_name(a.class_id())) return cls;
-  if (const rack::ClassDescription* d = s.describe(a)) return d->class_name;
-  return format("Class0x%02x", a.class_id());
-}
+std::string class_of(Session& s, Address a) { return s.class_name(a); }
 std::string class_label(const std::string& cls, const std::string& impl) {
   return impl.empty() ? cls : cls + "(" + impl + ")";
 }
@@ -1268,9 +993,10 @@ int cmd_set_param(Session& s, const Options& o) {
 }
 
 // One DATA body (SampleHeader + sample) as a JSON line.
-// `type`: the class's data type from its description (nullptr: unknown, printed as hex).
-std::string sample_json(const Target& t, const rack::TypeDescription* type, const MessageHeader& h,
+// `d`: the class's description (nullptr or no data type: unknown, printed as hex).
+std::string sample_json(const Target& t, const rack::ClassDescription* d, const MessageHeader& h,
                         std::span<const std::byte> body) {
+  const rack::TypeDescription* type = d != nullptr && d->data ? &*d->data : nullptr;
   wire::SampleHeader sh;
   if (body.size() < sizeof sh ||
       !wire::read_payload(body.first(sizeof sh), tims::body_is_native(h), sh)) {
@@ -1284,7 +1010,7 @@ std::string sample_json(const Target& t, const rack::TypeDescription* type, cons
     j += ",\"data\":" + rack::payload_to_json(type->field_table(), sample, tims::body_is_native(h));
     // Enum and address fields by name beside their raw values (field_names.h).
     const std::string names =
-        rack::tools::field_names_json(t.address.class_id(), type->field_table(), sample, tims::body_is_native(h));
+        rack::tools::field_names_json(d->value_names, type->field_table(), sample, tims::body_is_native(h));
     if (!names.empty()) j += ",\"names\":" + names;
   } else {
     std::string hex;
@@ -1308,7 +1034,7 @@ int cmd_get_data(Session& s, const Options& o) {
   const MessageHeader reply = r.reply;
   const std::vector<std::byte> body(r.body.begin(), r.body.end());
   const rack::ClassDescription* d = s.describe(t.address);
-  std::printf("%s\n", sample_json(t, d != nullptr && d->data ? &*d->data : nullptr, reply, body).c_str());
+  std::printf("%s\n", sample_json(t, d, reply, body).c_str());
   return kExitOk;
 }
 
@@ -1389,7 +1115,6 @@ void stream_samples(Session& s, const Target& t, double period_ms, Subscribed su
 int cmd_watch(Session& s, const Options& o) {
   const Target t = s.resolve(o.args[0]);
   const rack::ClassDescription* described = s.describe(t.address);
-  const rack::TypeDescription* type = described != nullptr && described->data ? &*described->data : nullptr;
   int64_t received = 0;
   stream_samples(
       s, t, o.period_ms,
@@ -1398,7 +1123,7 @@ int cmd_watch(Session& s, const Options& o) {
                      rep.period_ns > 0 ? double_text(static_cast<double>(rep.period_ns) / 1e6).c_str() : "unknown");
       },
       [&](int64_t, const MessageHeader& h, std::span<const std::byte> body, std::size_t) {
-        const std::string line = sample_json(t, type, h, body);
+        const std::string line = sample_json(t, described, h, body);
         if (std::printf("%s\n", line.c_str()) < 0 || std::fflush(stdout) != 0) return false;  // stdout closed
         return !(o.count > 0 && ++received >= o.count);
       },

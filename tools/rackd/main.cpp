@@ -79,8 +79,9 @@ re-reads a changed key file within a second (key rotation without a restart).
 Plug-ins: classes that link large libraries (MCL, ChassisReplay, LadarReplay,
 Scan3D, Camera, ObjRecogCamera) are plug-ins, loaded only when a host file names
 them: found by class name as CLASS.rack-class in the host file's `plugins:`
-directories, then RACK_PLUGIN_PATH (':'-separated), then the build tree's and the
-installed plug-in directory. A missing or broken plug-in is an error naming the
+directories, then RACK_PLUGIN_PATH (':'-separated), then the build tree's (only
+for a rackd of the build tree), then the installed plug-in directory beside this
+rackd (../lib/rack/plugins) and the configured prefix's. A missing or broken plug-in is an error naming the
 class and the directories searched (also with --check).
 
 Host files are read strictly (README "Running a host"): a regular file of at most

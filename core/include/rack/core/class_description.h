@@ -21,8 +21,18 @@
 //   u16 n_commands { str name, i8 type, str summary, u8 has_body [type] }
 //   u16 n_params   { str name, u8 kind, u8 flags, str unit, f64 min, f64 max,
 //                    str default, str doc, u8 n_choices { str choice } }
+//   [value names: only when the request asks for them (ClassPageRequest.sections)
+//    and the class declares some]
+//   u16 n_named    { str field, u8 flags (1: address), u16 n_values { u32 value, str name } }
 //   type = str name, u32 size, u16 n_fields { str name, u8 kind, u32 offset, u32 count }
 //   str  = u16 length + bytes (no NUL)
+//
+// The value-names section (the names of the data type's enum values and address
+// fields, rack/core/class_types.h FieldValueNames) follows the parameters. It is
+// served only to a client that asks for it (ClassPageRequest.sections bit
+// kClassSectionValueNames): a client that does not know it gets exactly the bytes it
+// always got (the description without it, with that length as `total`), and a client
+// that asks an executor that does not know it gets those too and decodes no names.
 //
 // The decoder is total: it is network input. Counts and lengths are bounded (kMax*),
 // strings hold no control characters (they are printed on terminals), names are
@@ -57,6 +67,7 @@ inline constexpr std::size_t kMaxDescriptionFields = 1024;       // per type
 inline constexpr std::size_t kMaxDescriptionCommands = 107;      // types 21..127
 inline constexpr std::size_t kMaxDescriptionParams = 512;
 inline constexpr std::size_t kMaxDescriptionChoices = 64;
+inline constexpr std::size_t kMaxDescriptionValueNames = 256;     // per field
 inline constexpr uint8_t kClassDescriptionVersion = 1;
 
 struct FieldDescription {
@@ -102,6 +113,20 @@ struct ParameterDescription {
   bool operator==(const ParameterDescription& o) const;
 };
 
+// The names of the values of one field of the data type (rack::FieldValueNames).
+struct ValueNameDescription {
+  uint32_t value = 0;
+  std::string name;
+  bool operator==(const ValueNameDescription&) const = default;
+};
+struct FieldNamesDescription {
+  std::string field;  // a field of the class's data type
+  bool address = false;  // holds a TiMS address: named as its component
+  std::vector<ValueNameDescription> values;
+  bool operator==(const FieldNamesDescription&) const = default;
+  [[nodiscard]] const char* name_of(uint32_t value) const noexcept;  // nullptr: no name
+};
+
 struct ClassDescription {
   std::string impl;        // the host files' class: "ChassisSim"
   std::string class_name;  // the addresses' class: "Chassis" (Chassis(0/0))
@@ -110,6 +135,7 @@ struct ClassDescription {
   std::optional<TypeDescription> data;  // none: publishes no samples
   std::vector<CommandDescription> commands;
   std::vector<ParameterDescription> parameters;
+  std::vector<FieldNamesDescription> value_names;  // of data's fields (empty: none or not asked)
   bool operator==(const ClassDescription&) const = default;
 
   [[nodiscard]] const CommandDescription* find_command(std::string_view name) const noexcept;
@@ -118,7 +144,10 @@ struct ClassDescription {
 
 // The bytes of a description. Throws std::invalid_argument when it breaks a limit the
 // decoder enforces (a class that a client would refuse is refused at registration).
-[[nodiscard]] std::vector<std::byte> encode_class_description(const ClassDescription& d);
+// `base_size`, when given, is set to the length of the description without the
+// value-names section (what a client that does not ask for it is served).
+[[nodiscard]] std::vector<std::byte> encode_class_description(const ClassDescription& d,
+                                                              std::size_t* base_size = nullptr);
 
 // Decodes `bytes` completely into `out`. On refusal returns false and sets `error` to
 // what is wrong and where ("byte 57: parameter 3 'speed': unit has a control
@@ -127,11 +156,14 @@ struct ClassDescription {
                                             std::string& error);
 
 // GET_CLASS request body: where the requested page starts.
+// `sections`: the optional sections the client reads (0 from clients that predate
+// them, which are served the description without them).
+inline constexpr uint32_t kClassSectionValueNames = 0x1;
 struct ClassPageRequest {
   uint32_t offset = 0;
-  uint32_t reserved = 0;
+  uint32_t sections = 0;
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(ClassPageRequest, offset)};
+    return std::array{RACK_FIELD(ClassPageRequest, offset), RACK_FIELD(ClassPageRequest, sections)};
   }
 };
 
@@ -164,8 +196,10 @@ class ClassPageAssembler {
 // and `page` (a span into `encoded`); nullptr on success, otherwise the reason
 // (malformed body, offset past the end). RT-safe (no allocation): the command task
 // serves pages with it.
-[[nodiscard]] const char* class_page(std::span<const std::byte> encoded, std::span<const std::byte> request,
-                                     bool native, ClassPageHeader& header,
+// `base_size`: the length of `encoded` without its optional sections (served when the
+// request does not ask for them).
+[[nodiscard]] const char* class_page(std::span<const std::byte> encoded, std::size_t base_size,
+                                     std::span<const std::byte> request, bool native, ClassPageHeader& header,
                                      std::span<const std::byte>& page) noexcept;
 
 [[nodiscard]] const char* describe(tims::FieldKind kind) noexcept;  // "f64"

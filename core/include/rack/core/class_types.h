@@ -13,16 +13,34 @@
 
 namespace rack {
 
+// The name of one value of an enum-valued field (Pilot status 3 -> "BLOCKED").
+struct ValueName {
+  uint32_t value;
+  const char* name;  // printable, at most 64 bytes: "BLOCKED", "RTK_FIXED", "2D"
+};
+
+// Names for the values of one field of a data type, which tools print beside the raw
+// value (rackctl's "names" object): an enum (`values`), or a field that holds a raw
+// TiMS address (`address`: printed as the component it names, "Pilot(0/0)"). The
+// field is an unsigned or signed integer of at most 4 bytes, one element.
+struct FieldValueNames {
+  const char* field;                  // the field's name in the type's field table
+  std::span<const ValueName> values;  // empty for an address field
+  bool address = false;
+};
+
 struct DataTypeInfo {
   const char* type_name;                   // "ChassisData"
   uint32_t size;                           // bytes of one sample (or body)
   std::span<const tims::FieldDesc> fields;  // by offset; see tims::fields_of<T>
+  std::span<const FieldValueNames> value_names{};  // of a sample type's enum and address fields
 };
 
-// The info of a struct that declares `static constexpr auto fields()` (RACK_FIELD).
+// The info of a struct that declares `static constexpr auto fields()` (RACK_FIELD),
+// with the value names of its enum and address fields, if any.
 template <typename T>
-constexpr DataTypeInfo data_type_info(const char* name) noexcept {
-  return DataTypeInfo{name, sizeof(T), std::span<const tims::FieldDesc>(tims::fields_of<T>)};
+constexpr DataTypeInfo data_type_info(const char* name, std::span<const FieldValueNames> value_names = {}) noexcept {
+  return DataTypeInfo{name, sizeof(T), std::span<const tims::FieldDesc>(tims::fields_of<T>), value_names};
 }
 
 // A class command as rackctl send names it.

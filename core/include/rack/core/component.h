@@ -270,6 +270,7 @@ class Component {
   // Its class's description (rack/core/class_description.h), encoded by the host
   // loader before the tasks start; GET_CLASS serves pages of it (empty: ERROR).
   std::vector<std::byte> class_description_;
+  std::size_t class_description_base_ = 0;  // its length without the optional sections
   // State: written by the command task, read by everyone (acquire/release so a
   // reader that sees ENABLED also sees what on() wrote).
   std::atomic<ComponentState> state_{ComponentState::kDisabled};

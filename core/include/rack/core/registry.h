@@ -7,8 +7,9 @@
 //
 // Plug-in directories, searched in this order: the host file's `plugins:` entries
 // that are directories, RACK_PLUGIN_PATH (':'-separated), the build tree's plug-in
-// directory (baked in when built in the tree) and the installed one
-// (${CMAKE_INSTALL_LIBDIR}/rack/plugins under the install prefix).
+// directory (baked in when built in the tree; searched only when /proc/self/exe lies
+// below the build tree), the installed one beside an installed program
+// (<exe>/../${CMAKE_INSTALL_LIBDIR}/rack/plugins) and the configured prefix's.
 //
 // Real-time contract: not RT-safe (set-up only). Not thread-safe.
 #pragma once

@@ -21,26 +21,57 @@
 namespace rack::interfaces::declared {
 
 template <typename T>
-inline constexpr DataTypeInfo info(const char* name) {
-  return data_type_info<T>(name);
+inline constexpr DataTypeInfo info(const char* name, std::span<const FieldValueNames> value_names = {}) {
+  return data_type_info<T>(name, value_names);
 }
+
+// The names of enum values and address fields that tools print beside the raw values
+// (rackctl's "names" object), from the interface headers' constants.
+constexpr uint32_t u(PilotMode m) { return static_cast<uint32_t>(m); }
+constexpr uint32_t u(PilotStatus s) { return static_cast<uint32_t>(s); }
+inline constexpr ValueName kPilotModeNames[] = {
+    {u(PilotMode::kHold), "HOLD"}, {u(PilotMode::kFollowPath), "FOLLOW_PATH"}, {u(PilotMode::kDestination), "DESTINATION"}};
+inline constexpr ValueName kPilotStatusNames[] = {
+    {u(PilotStatus::kIdle), "IDLE"},         {u(PilotStatus::kDriving), "DRIVING"},
+    {u(PilotStatus::kReached), "REACHED"},   {u(PilotStatus::kBlocked), "BLOCKED"},
+    {u(PilotStatus::kNoPath), "NO_PATH"},    {u(PilotStatus::kPreempted), "PREEMPTED"},
+    {u(PilotStatus::kNoInput), "NO_INPUT"},  {u(PilotStatus::kPlanning), "PLANNING"},
+    {u(PilotStatus::kUnreachable), "UNREACHABLE"}};
+inline constexpr FieldValueNames kPilotNames[] = {{"mode", kPilotModeNames}, {"status", kPilotStatusNames}};
+inline constexpr ValueName kGpsFixQualityNames[] = {{kGpsFixNone, "NONE"},
+                                                    {kGpsFixGps, "GPS"},
+                                                    {kGpsFixDgps, "DGPS"},
+                                                    {kGpsFixRtkFixed, "RTK_FIXED"},
+                                                    {kGpsFixRtkFloat, "RTK_FLOAT"}};
+inline constexpr ValueName kGpsFixModeNames[] = {{1, "NONE"}, {2, "2D"}, {3, "3D"}};  // GSA's mode (devices.h)
+inline constexpr FieldValueNames kGpsNames[] = {{"fix_quality", kGpsFixQualityNames}, {"fix_mode", kGpsFixModeNames}};
+inline constexpr ValueName kCameraFormatNames[] = {{kCameraRgb8, "RGB8"}, {kCameraMono8, "MONO8"}, {kCameraJpeg, "JPEG"}};
+inline constexpr FieldValueNames kCameraNames[] = {{"format", kCameraFormatNames}};
+inline constexpr ValueName kScan3dModeNames[] = {
+    {kScan3dModeRoll, "ROLL"}, {kScan3dModePitch, "PITCH"}, {kScan3dModeYaw, "YAW"}, {kScan3dModeFile, "FILE"}};
+inline constexpr FieldValueNames kScan3dNames[] = {{"mode", kScan3dModeNames}};
+inline constexpr ValueName kObjFrameNames[] = {{kObjFrameCamera, "CAMERA"}, {kObjFrameRobot, "ROBOT"}};
+inline constexpr FieldValueNames kObjRecogNames[] = {{"frame", kObjFrameNames}};
+// The pilot whose commands the chassis follows: a TiMS address (0: none).
+inline constexpr FieldValueNames kChassisNames[] = {{"active_pilot", {}, true}};
+
 inline constexpr DataTypeInfo kGenerator = info<GeneratorData>("GeneratorData");
 inline constexpr DataTypeInfo kMonitor = info<MonitorData>("MonitorData");
 inline constexpr DataTypeInfo kProbe = info<ProbeData>("ProbeData");
-inline constexpr DataTypeInfo kChassis = info<ChassisData>("ChassisData");
+inline constexpr DataTypeInfo kChassis = info<ChassisData>("ChassisData", kChassisNames);
 inline constexpr DataTypeInfo kLadar = info<LadarData>("LadarData");
 inline constexpr DataTypeInfo kOdometry = info<OdometryData>("OdometryData");
 inline constexpr DataTypeInfo kPosition = info<PositionData>("PositionData");
 inline constexpr DataTypeInfo kScan2d = info<Scan2dData>("Scan2dData");
 inline constexpr DataTypeInfo kMcl = info<MclData>("MclData");
 inline constexpr DataTypeInfo kPath = info<PathData>("PathData");
-inline constexpr DataTypeInfo kPilot = info<PilotData>("PilotData");
+inline constexpr DataTypeInfo kPilot = info<PilotData>("PilotData", kPilotNames);
 inline constexpr DataTypeInfo kEvaluator = info<EvaluatorData>("EvaluatorData");
 inline constexpr DataTypeInfo kModeSwitchDemo = info<ModeSwitchDemoData>("ModeSwitchDemoData");
-inline constexpr DataTypeInfo kGps = info<GpsData>("GpsData");
+inline constexpr DataTypeInfo kGps = info<GpsData>("GpsData", kGpsNames);
 inline constexpr DataTypeInfo kJoystick = info<JoystickData>("JoystickData");
 inline constexpr DataTypeInfo kServoDrive = info<ServoDriveData>("ServoDriveData");
-inline constexpr DataTypeInfo kCamera = info<CameraData>("CameraData");
+inline constexpr DataTypeInfo kCamera = info<CameraData>("CameraData", kCameraNames);
 
 // Bodies of class commands.
 struct Int64Body {  // the 8-byte integer body of Probe ECHO and ModeSwitchDemo SPIN
@@ -95,8 +126,8 @@ inline constexpr CommandInfo kServoDriveCommands[] = {
     {"HOME", kServoDriveHome, nullptr, "the current position becomes home"},
     {"MOVE_POS", kServoDriveMovePos, &kServoDriveMovePosBody, "move to position at velocity (0: max)"},
     {"MOVE_VEL", kServoDriveMoveVel, &kServoDriveMoveVelBody, "move at velocity until a limit"}};
-inline constexpr DataTypeInfo kScan3d = info<Scan3dData>("Scan3dData");
-inline constexpr DataTypeInfo kObjRecog = info<ObjRecogData>("ObjRecogData");
+inline constexpr DataTypeInfo kScan3d = info<Scan3dData>("Scan3dData", kScan3dNames);
+inline constexpr DataTypeInfo kObjRecog = info<ObjRecogData>("ObjRecogData", kObjRecogNames);
 inline constexpr DataTypeInfo kScan3dRangeImageRequestBody = info<Scan3dRangeImageRequest>("Scan3dRangeImageRequest");
 inline constexpr DataTypeInfo kScan3dStoreDataBody = info<Scan3dStoreData>("Scan3dStoreData");
 inline constexpr CommandInfo kScan3dCommands[] = {

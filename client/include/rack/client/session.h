@@ -1,0 +1,145 @@
+// A tool's TiMS session (issue 19, item 4): the code rackctl, gdos and out-of-tree
+// tools share to speak to rackd hosts without the executor. It claims a tool address
+// (rack/tims/tool_address.h), joins the LCM network (with the key file when one is
+// given), opens the tool's mailboxes, discovers hosts and their components, sends
+// requests with retries, fans a request out to many components, and learns each
+// class from its description (GET_CLASS, rack/core/class_description.h), so that a
+// class the tool was not built with is named and decoded like a built-in one.
+//
+// Mailboxes of the tool (local mailbox numbers): 0 replies to call(); with
+// `streams`, 1 data samples (the caller reads data_mailbox()) and 2 fan-out replies.
+//
+// Errors: the constructor throws std::runtime_error when the network cannot be
+// joined or every tool address is taken; nothing else throws. What a host answers
+// wrongly is a result (CallStatus, nullptr, nullopt) and, for descriptions, one line
+// on stderr prefixed with the tool's name.
+//
+// Real-time contract: not RT-safe (tools only: allocates, blocks, prints).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "rack/core/class_description.h"
+#include "rack/tims/address.h"
+#include "rack/tims/endpoint.h"
+#include "rack/tims/lcm_transport.h"
+#include "rack/tims/mailbox.h"
+#include "rack/tims/router.h"
+#include "rack/tims/tool_address.h"
+
+namespace rack::client {
+
+struct SessionConfig {
+  std::string tool = "tool";  // this tool's name, in warnings and the key-file check
+  std::string lcm_url;        // "": default_lcm_url()
+  std::string key_file;       // "": unauthenticated links
+  int64_t timeout_ms = 2000;  // per attempt of a request
+  int64_t retries = 1;        // attempts after the first
+  int64_t discover_ms = 300;  // how long discovery waits for hosts
+  uint32_t reply_slot_bytes = 4 * 1024 * 1024;  // the largest reply (a camera frame: 0.9 MB)
+  bool streams = true;        // open the data (1) and fan-out (2) mailboxes
+};
+
+// $LCM_DEFAULT_URL when set and not empty, else rackd's default (tims::kDefaultLcmUrl).
+[[nodiscard]] std::string default_lcm_url();
+
+// `a` with its class named `class_name` (as the class describes itself): `Counter(2/0)`,
+// `Counter(2/0)#3`; TiMS' spelling (Address::str()) when `class_name` is empty.
+[[nodiscard]] std::string address_text(tims::Address a, const std::string& class_name);
+
+// `Name(sys/inst)` or `Name(sys/inst)#mbx` whatever the name (a class learnt from its
+// description, unknown to TiMS): the name and the address with class id 0. nullopt
+// when the text is not of that shape (the name must be an identifier, the numbers 0..255).
+[[nodiscard]] std::optional<std::pair<std::string, tims::Address>> parse_named_address(std::string_view text);
+
+// The text of an ERROR body (wire::ErrorText, possibly shorter or empty).
+[[nodiscard]] std::string error_reason(std::span<const std::byte> body);
+
+class Session {
+ public:
+  explicit Session(SessionConfig config);
+  ~Session();
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+
+  [[nodiscard]] const SessionConfig& config() const noexcept { return config_; }
+  [[nodiscard]] const std::string& url() const;
+  [[nodiscard]] int64_t timeout_ns() const noexcept;
+  [[nodiscard]] tims::Endpoint& endpoint() noexcept { return endpoint_; }
+  // The data mailbox (local mailbox 1); only with `streams` (std::logic_error otherwise).
+  [[nodiscard]] tims::Mailbox& data_mailbox();
+  // The reply buffer of call(): a reply's body points into it until the next call.
+  [[nodiscard]] std::span<std::byte> buffer() noexcept { return buffer_; }
+
+  // Asks every host to announce itself (again every 100 ms: a datagram can be lost)
+  // and waits up to discover_ms, less when `stop` returns true for what was heard.
+  using DiscoverStop = std::function<bool(const std::vector<tims::HostInfo>&)>;
+  std::vector<tims::HostInfo> discover(const DiscoverStop& stop);
+  // The hosts heard so far, without asking.
+  [[nodiscard]] std::vector<tims::HostInfo> hosts() const;
+
+  // The component named `name` in its host file, by discovery.
+  std::optional<tims::ComponentInfo> find_component(const std::string& name);
+  // The component at system `system`, instance `instance` whose class describes
+  // itself as `class_name` (its class or implementation name), by discovery and
+  // GET_CLASS: addresses such as Counter(2/0) for a class TiMS does not know. The
+  // description's class name is returned beside it.
+  std::optional<std::pair<tims::ComponentInfo, std::string>> find_by_class(const std::string& class_name,
+                                                                          uint8_t system, uint8_t instance);
+
+  // The description of the class of the component at `component` (GET_CLASS, its
+  // pages assembled and decoded), cached per system and class id: every component of
+  // a class describes it alike. nullptr when the component does not answer it (an
+  // older rackd, no such host) or its description is refused (the reason on stderr, once).
+  const ClassDescription* describe(tims::Address component);
+  // The class name of `a`: TiMS' name, else the one its class describes (cached),
+  // else Class0xNN.
+  std::string class_name(tims::Address a);
+
+  // A request with --retries retries of --timeout each; the reply's body points into
+  // buffer() until the next call.
+  tims::CallResult call(tims::Address dest, int8_t type, std::span<const tims::ConstBuffer> body = {});
+
+  // Sends `type` (no body) to every address of `dests` (with `streams`) and calls
+  // answer(i, header) once for each that replied. What got no reply after retries + 1
+  // attempts is simply not answered. At most kFanoutWindow requests are outstanding;
+  // a reply to any attempt of a request counts. Returns the number of retries made.
+  using Answer = std::function<void(std::size_t, const tims::MessageHeader&)>;
+  uint64_t fan_out(const std::vector<tims::Address>& dests, int8_t type, const Answer& answer);
+  // The same, with each reply's body (after its header; at most kFanoutSlotSize bytes).
+  using AnswerWithBody = std::function<void(std::size_t, const tims::MessageHeader&, std::span<const std::byte>)>;
+  uint64_t fan_out(const std::vector<tims::Address>& dests, int8_t type, const AnswerWithBody& answer);
+
+  static constexpr uint32_t kDataSlotSize = 1024 * 1024;  // a watch stream keeps up to 16 samples
+  static constexpr uint32_t kFanoutSlots = 64;             // fan-out: small replies, many at once
+  static constexpr uint32_t kFanoutSlotSize = 4096;
+  static constexpr std::size_t kFanoutWindow = 24;
+  static constexpr uint32_t kUplinkSlots = 32;
+
+ private:
+  static tims::LcmTransportConfig transport_config(const SessionConfig& c);
+
+  SessionConfig config_;
+  // This tool's mailbox addresses, held by no other tool while it runs.
+  tims::ToolAddressClaim claim_;
+  tims::Router router_{tims::kToolSystem};
+  tims::Mailbox reply_mailbox_;
+  std::unique_ptr<tims::Mailbox> data_mailbox_;
+  std::unique_ptr<tims::Mailbox> fanout_mailbox_;
+  tims::Endpoint endpoint_;
+  std::unique_ptr<tims::Endpoint> fanout_endpoint_;
+  tims::LcmTransport transport_;
+  std::vector<std::byte> buffer_;
+  std::map<uint32_t, std::optional<ClassDescription>> classes_;  // system | class id << 16
+};
+
+}  // namespace rack::client
