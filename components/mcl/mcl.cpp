@@ -38,7 +38,7 @@ bool parse_pose(const char* text, double& x, double& y, double& phi) noexcept {
 
 Mcl::Mcl()
     : DataComponent(DataTaskMode::kTriggered),
-      map_(declare_string("map", "", {.doc = "map_server YAML file of the map (e.g. configs/maps/office.yaml)", .required = true, .init_only = true})),
+      map_(declare_string("map", "", {.doc = "map_server YAML file of the map (relative: to the host file's folder, e.g. maps/office.yaml)", .required = true, .init_only = true, .path = PathRole::kInput})),
       scan2d_(declare_component_ref("scan2d", "the Scan2D component whose scans (with odometry) MCL uses")),
       position_(declare_string("position", "",
                                {.doc = "Position component to send UPDATE to (optional; empty: none)",

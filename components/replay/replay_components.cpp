@@ -35,7 +35,10 @@ std::size_t join_index(const replay::SharedLog& log, const Records& records, std
 double wrap(double a) noexcept { return std::remainder(a, 2.0 * std::numbers::pi); }
 
 Parameter::Spec log_spec() {
-  return {.doc = "log file to play: CARMEN (.log/.clf/...) or MRPT rawlog (.rawlog)", .required = true, .init_only = true};
+  return {.doc = "log file to play: CARMEN (.log/.clf/...) or MRPT rawlog (.rawlog); relative: to the host file's folder",
+          .required = true,
+          .init_only = true,
+          .path = PathRole::kInput};
 }
 Parameter::Spec speed_spec() {
   return {.doc = "replay speed (1: as recorded; 2: twice as fast; 0: as fast as LadarReplay's pace allows)",
