@@ -226,7 +226,9 @@ HookResult TrajectoryWriter::loop() {
     rt::PiLock lock(summary_mutex_);
     summary_ = std::to_string(poses_.size()) + " poses written to " + file_.get_string();
   }
-  if (ended || (!got && !poses_.empty() && input_silent())) finish();
+  // The end of the input: its source left ENABLED, ended its stream (a replay at the
+  // end of its log), or fell silent.
+  if (ended || inputs_ended() || (!got && !poses_.empty() && input_silent())) finish();
   return HookResult::kOk;
 }
 

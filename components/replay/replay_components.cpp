@@ -106,6 +106,7 @@ HookResult ChassisReplay::loop() {
   const bool paced = shared_->paced();
   if (paced && !shared_->ready()) return HookResult::kOk;  // the paced pipeline does not listen yet
   if (!joined_.exchange(true, std::memory_order_acq_rel)) {
+    ended_ = false;
     const int64_t anchor = shared_->start(now);
     // Joining a running clock: records that played more than a period ago are skipped;
     // the next increment then spans them, so the integrated odometry stays right.
@@ -142,6 +143,12 @@ HookResult ChassisReplay::loop() {
     have_last_ = true;
     ++next_;
     publish(d, replay::SharedLog::sample_time(r.time));
+  }
+  if (next_ >= stream_.size() && !ended_) {
+    ended_ = true;
+    log_info("end of log: %u odometry records played from %s; no more samples (end of stream), staying ENABLED",
+             static_cast<unsigned>(stream_.size()), shared_->log().source.c_str());
+    end_stream();
   }
   return HookResult::kOk;
 }
@@ -247,6 +254,7 @@ HookResult LadarReplay::loop() {
     shared_->set_ready();
   }
   if (!joined_.exchange(true, std::memory_order_acq_rel)) {
+    ended_ = false;
     const int64_t anchor = shared_->start(now);
     if (!paced) next_ = join_index(*shared_, scans, next_, now, anchor, period_ns());
   }
@@ -283,6 +291,12 @@ HookResult LadarReplay::loop() {
     progress_.last_time_ns.store(t, std::memory_order_relaxed);
     shared_->set_scans_released(next_);
     if (paced) break;  // one scan per pace check
+  }
+  if (next_ >= scans.size() && !ended_) {
+    ended_ = true;
+    log_info("end of log: %u scans played from %s; no more samples (end of stream), staying ENABLED",
+             static_cast<unsigned>(scans.size()), shared_->log().source.c_str());
+    end_stream();
   }
   return HookResult::kOk;
 }
