@@ -343,7 +343,7 @@ struct HostLoader {
     }
     check_keys(node, {"mode", "abort", "crash_dir", "crash_handlers", "syscalls", "faults", "allocations",
                       "locks", "rusage", "lock_wait_us", "watchdog_periods", "rttime_ms", "allow_syscalls",
-                      "stderr", "stderr_per_second"},
+                      "stderr", "stderr_per_second", "repeat_ms"},
                "modeswitch");
     if (node["mode"]) {
       if (const auto m = get_mode(node, "mode")) c.default_mode = *m;
@@ -371,6 +371,9 @@ struct HostLoader {
       c.watchdog_periods = static_cast<uint32_t>(v);
     }
     if (get_int_range(node, "rttime_ms", 0, 3'600'000, v, "milliseconds (0: off)")) c.rttime_us = v * 1000;
+    if (get_int_range(node, "repeat_ms", 0, 86'400'000, v, "milliseconds (0: every report in full)")) {
+      c.repeat_every_ns = v * 1'000'000;
+    }
     if (get_int_range(node, "stderr_per_second", 0, 1'000'000, v, "a report count")) {
       c.stderr_per_second = static_cast<uint32_t>(v);
     }
