@@ -52,6 +52,8 @@ TEST(ReplayEndTest, TheEndOfTheLogIsSaidOnceAndThePipelineStaysEnabled) {
                                "MCL(0/0): end of stream", "Position(0/0): end of stream"}) {
     EXPECT_EQ(count_of(err, consumer), 1u) << consumer << "\n" << err;
   }
+  // MCL says at info level when it has converged: once (from the INIT of ON).
+  EXPECT_EQ(count_of(err, "MCL(0/0): converged at ("), 1u) << err;
   const auto ctl = [&](std::vector<std::string> args) {
     args.insert(args.begin(), {kRackctl, "--lcm", bus.url(), "--discover-ms", "3000"});
     return run(args, 30s);
