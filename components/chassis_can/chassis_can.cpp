@@ -56,6 +56,7 @@ HookResult ChassisCan::fail(Fault f) noexcept {
     case Fault::kNoPdo: what = "no TPDO from a drive within half a period"; break;
     case Fault::kNotOperational: what = "a drive did not report the NMT state OPERATIONAL within heartbeat_timeout_ms of the start"; break;
   }
+  if (f != Fault::kOpen) set_error_reason(what);  // kOpen: on() gave the port's own words
   log_error("chassis fault: %s (%s); retrying after the back-off", what, static_cast<const char*>(spec_));
   return HookResult::kError;
 }
@@ -85,8 +86,14 @@ HookResult ChassisCan::on() {
   drives_[1] = Drive{};
   drives_[0].node = static_cast<uint8_t>(left_node_.get_int());
   drives_[1].node = static_cast<uint8_t>(right_node_.get_int());
-  std::string error;  // allocates only when opening fails (allocation at open only)
-  if (!port_.open(spec_, error)) return fail(Fault::kOpen);
+  // A missing bus (no interface, no simulator) fails here every retry: the error text
+  // goes into a fixed buffer (no allocation in the command task, failures included)
+  // and becomes the ERROR's reason.
+  devices::CanError error;
+  if (!port_.open(spec_, error)) {
+    set_error_reason(error.text);
+    return fail(Fault::kOpen);
+  }
   // The port registered its descriptor(s) as RT devices when it opened: mode-switch
   // detection allows their I/O in this component's RT tasks.
   // Only what this driver listens to: SDO answers, TPDO1/2 and heartbeats of its drives.
@@ -97,7 +104,10 @@ HookResult ChassisCan::on() {
       filters[n++] = can_filter{base + d.node, CAN_SFF_MASK};
     }
   }
-  if (!port_.set_filters(std::span<const can_filter>(filters, n), error)) return fail(Fault::kOpen);
+  if (!port_.set_filters(std::span<const can_filter>(filters, n), error)) {
+    set_error_reason(error.text);
+    return fail(Fault::kOpen);
+  }
   for (Drive& d : drives_) {
     if (!configure(d)) return fail(Fault::kSdo);
   }

@@ -35,7 +35,7 @@ ChassisSim::ChassisSim()
       initial_y_(declare_float("initial_y", 0.0, {.doc = "m, true start pose in the map frame", .init_only = true})),
       initial_phi_(declare_float("initial_phi", 0.0, {.doc = "rad, true start heading", .min = -7.0, .max = 7.0, .init_only = true})),
       battery_(declare_float("battery_v", 24.0, {.doc = "V, the battery voltage reported", .min = 0.0, .max = 1000.0, .unit = "V"})),
-      map_(declare_string("map", "", {.doc = "optional map_server YAML: the robot stops at occupied cells (\"\": no walls)", .init_only = true})) {}
+      map_(declare_string("map", "", {.doc = "optional map_server YAML: the robot stops at occupied cells (\"\": no walls; relative: to the host file's folder)", .init_only = true, .path = PathRole::kInput})) {}
 
 void ChassisSim::init() {
   const std::string path = map_.get_string();

@@ -104,8 +104,8 @@ std::vector<TimedPose> read_trajectory_file(const std::string& path) {
 TrajectoryWriter::TrajectoryWriter()
     : DataComponent(DataTaskMode::kTriggered),
       source_(declare_component_ref("source", "the MCL (or Position) whose estimates to write")),
-      file_(declare_string("file", "", {.doc = "output file: one 't x y theta' line per estimate", .required = true})),
-      reference_(declare_string("reference", "", {.doc = "reference 't x y theta' file to compare with at the end (empty: none)"})),
+      file_(declare_string("file", "", {.doc = "output file: one 't x y theta' line per estimate (relative: to the host file's folder)", .required = true, .path = PathRole::kOutput})),
+      reference_(declare_string("reference", "", {.doc = "reference 't x y theta' file to compare with at the end (empty: none)", .path = PathRole::kInput})),
       lost_threshold_(declare_float("lost_threshold", 0.5, {.doc = "m, a reference pose estimated further off than this is lost", .min = 0.0, .max = 1000.0})),
       max_gap_ms_(declare_float("max_gap_ms", 1000.0, {.doc = "ms, longest gap between two estimates interpolated at a reference time", .min = 0.0, .max = 600000.0, .unit = "ms"})),
       exit_when_done_(declare_bool("exit_when_done", false, {.doc = "stop rackd (SIGTERM to its process) when the input has ended and the error is printed"})) {
@@ -226,7 +226,9 @@ HookResult TrajectoryWriter::loop() {
     rt::PiLock lock(summary_mutex_);
     summary_ = std::to_string(poses_.size()) + " poses written to " + file_.get_string();
   }
-  if (ended || (!got && !poses_.empty() && input_silent())) finish();
+  // The end of the input: its source left ENABLED, ended its stream (a replay at the
+  // end of its log), or fell silent.
+  if (ended || inputs_ended() || (!got && !poses_.empty() && input_silent())) finish();
   return HookResult::kOk;
 }
 

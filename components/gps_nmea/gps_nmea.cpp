@@ -9,7 +9,7 @@ using devices::NmeaParser;
 
 GpsNmea::GpsNmea()
     : DataComponent(DataTaskMode::kPeriodic),
-      device_(declare_string("device", "", {.doc = "serial device of the receiver (/dev/ttyUSB0)", .required = true})),
+      device_(declare_string("device", "", {.doc = "serial device of the receiver (/dev/ttyUSB0)", .required = true, .path = PathRole::kDevice})),
       baud_(declare_int("baud", 9600, {.doc = "baud rate (4800, 9600, 38400, 115200, ...)", .min = 1200, .max = 4000000})),
       timeout_ms_(declare_float("timeout_ms", 2000.0,
                                 {.doc = "ERROR when no valid position sentence came for this long", .min = 1.0})),

@@ -19,7 +19,7 @@ using interfaces::kJoystickMaxAxes;
 
 Joystick::Joystick()
     : DataComponent(DataTaskMode::kPeriodic),
-      device_(declare_string("device", "/dev/input/js0", {.doc = "joystick device (Linux joystick API)"})),
+      device_(declare_string("device", "/dev/input/js0", {.doc = "joystick device (Linux joystick API)", .path = PathRole::kDevice})),
       chassis_(declare_string("chassis", "",
                               {.doc = "Chassis to drive as its active pilot (empty: only publish)",
                                .required = false,

@@ -11,7 +11,7 @@ using devices::IoStatus;
 
 LadarHokuyo::LadarHokuyo()
     : DataComponent(DataTaskMode::kPeriodic),
-      device_(declare_string("device", "", {.doc = "serial/USB-ACM device (/dev/ttyACM0)", .required = true})),
+      device_(declare_string("device", "", {.doc = "serial/USB-ACM device (/dev/ttyACM0)", .required = true, .path = PathRole::kDevice})),
       baud_(declare_int("baud", 115200, {.doc = "baud rate (ignored by USB-ACM models)", .min = 1200, .max = 4000000})),
       cluster_(declare_int("cluster", 1, {.doc = "steps merged into one beam (1: full resolution)", .min = 1, .max = 99})),
       timeout_ms_(declare_float("timeout_ms", 500.0, {.doc = "ERROR when no valid scan came for this long", .min = 1.0, .unit = "ms"})) {}

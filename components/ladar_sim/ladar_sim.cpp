@@ -14,7 +14,7 @@ using interfaces::LadarData;
 
 LadarSim::LadarSim()
     : DataComponent(DataTaskMode::kPeriodic),
-      map_(declare_string("map", "", {.doc = "map_server YAML file (path relative to rackd's working directory)", .required = true, .init_only = true})),
+      map_(declare_string("map", "", {.doc = "map_server YAML file (relative: to the host file's folder)", .required = true, .init_only = true, .path = PathRole::kInput})),
       chassis_(declare_component_ref("chassis", "the simulated Chassis whose true pose the scans are rendered from")),
       mount_x_(declare_float("mount_x", 0.0, {.doc = "m, sensor position in the robot frame (forward)", .min = -10.0, .max = 10.0})),
       mount_y_(declare_float("mount_y", 0.0, {.doc = "m, sensor position in the robot frame (left)", .min = -10.0, .max = 10.0})),

@@ -38,7 +38,7 @@ bool parse_pose(const char* text, double& x, double& y, double& phi) noexcept {
 
 Mcl::Mcl()
     : DataComponent(DataTaskMode::kTriggered),
-      map_(declare_string("map", "", {.doc = "map_server YAML file of the map (e.g. configs/maps/office.yaml)", .required = true, .init_only = true})),
+      map_(declare_string("map", "", {.doc = "map_server YAML file of the map (relative: to the host file's folder, e.g. maps/office.yaml)", .required = true, .init_only = true, .path = PathRole::kInput})),
       scan2d_(declare_component_ref("scan2d", "the Scan2D component whose scans (with odometry) MCL uses")),
       position_(declare_string("position", "",
                                {.doc = "Position component to send UPDATE to (optional; empty: none)",
@@ -205,6 +205,9 @@ bool Mcl::apply_init() {
   if (init.global != 0) filter_->init_global();
   else filter_->init_pose({init.x, init.y, init.phi}, init.sigma_xy, init.sigma_phi);
   updates_since_init_ = 0;
+  localisation_ = Localisation::kUnknown;  // a new estimate: the next convergence is said again
+  was_lost_ = false;
+  lost_updates_ = 0;
   return true;
 }
 
@@ -265,12 +268,60 @@ HookResult Mcl::loop() {
         std::span<float>(d.particle_x, shown), std::span<float>(d.particle_y, shown),
         std::span<float>(d.particle_phi, shown), std::span<float>(d.particle_weight, shown)));
     publish(d, sh.time_ns);
-    if (ran) send_position_update(sh.time_ns);
+    if (ran) {
+      send_position_update(sh.time_ns);
+      report_localisation(d);
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "MCL '%s': update failed: %s\n", name().c_str(), e.what());
     return HookResult::kError;
   }
   return HookResult::kOk;
+}
+
+void Mcl::report_localisation(const MclData& d) noexcept {
+  const double std_xy = std::sqrt(std::max(0.0, d.covariance[0] + d.covariance[4]));
+  Localisation now = localisation_;
+  if (d.injected > 0) now = Localisation::kLost;  // recovery injects random particles
+  else if (std_xy <= position_max_std_.get_float()) now = Localisation::kConverged;
+  else if (localisation_ == Localisation::kConverged) now = Localisation::kUncertain;
+  if (now == Localisation::kLost) ++lost_updates_;
+  if (now == localisation_) return;
+  const Localisation before = localisation_;
+  localisation_ = now;
+  const int64_t t = rt::monotonic_ns();
+  if (last_event_ns_ != 0 && t - last_event_ns_ < kEventEveryNs) {  // rate limit: counted
+    ++events_unlogged_;
+    if (now == Localisation::kLost) was_lost_ = true;
+    return;
+  }
+  last_event_ns_ = t;
+  const unsigned unlogged = events_unlogged_;
+  events_unlogged_ = 0;
+  switch (now) {
+    case Localisation::kLost:
+      was_lost_ = true;
+      log_info("lost: the scans no longer fit the map (fit %.2f, std %.2f m); recovering: %u random particles "
+               "injected (%u changes not logged)",
+               static_cast<double>(d.fit), std_xy, static_cast<unsigned>(d.injected), unlogged);
+      break;
+    case Localisation::kConverged:
+      if (was_lost_ || before == Localisation::kLost) {
+        log_info("re-localised at (%.2f, %.2f, %.2f rad), std %.2f m, after %u updates lost (%u changes not logged)",
+                 d.x, d.y, d.phi, std_xy, static_cast<unsigned>(lost_updates_), unlogged);
+      } else {
+        log_info("converged at (%.2f, %.2f, %.2f rad), std %.2f m, after %u updates (%u changes not logged)", d.x, d.y,
+                 d.phi, std_xy, static_cast<unsigned>(d.updates), unlogged);
+      }
+      was_lost_ = false;
+      lost_updates_ = 0;
+      break;
+    case Localisation::kUncertain:
+      log_info("uncertain: std %.2f m, above position_max_std (Position gets no updates) (%u changes not logged)",
+               std_xy, unlogged);
+      break;
+    case Localisation::kUnknown: break;
+  }
 }
 
 void Mcl::send_position_update(int64_t time_ns) noexcept {

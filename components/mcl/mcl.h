@@ -55,6 +55,10 @@ class Mcl final : public DataComponent<interfaces::MclData> {
   [[nodiscard]] mcl::MclOptions read_options(const ParameterValues& v = {}) const noexcept;
   bool apply_init();  // data task: pending INIT or ON re-initialisation
   void send_position_update(int64_t time_ns) noexcept;
+  // GDOS info on a change of the localisation (converged, lost and recovering,
+  // re-localised, uncertain), at most one line per kEventEveryNs (later changes are
+  // counted into the next line). Data task.
+  void report_localisation(const interfaces::MclData& d) noexcept;
 
   Parameter& map_;
   Parameter& scan2d_;
@@ -108,6 +112,14 @@ class Mcl final : public DataComponent<interfaces::MclData> {
   std::atomic<bool> reinit_{false};
   bool filter_ran_ = false;
   uint32_t updates_since_init_ = 0;
+  // report_localisation (data task only).
+  enum class Localisation : uint8_t { kUnknown, kConverged, kLost, kUncertain };
+  static constexpr int64_t kEventEveryNs = 1'000'000'000;
+  Localisation localisation_ = Localisation::kUnknown;
+  bool was_lost_ = false;           // lost since the last convergence: the next one is a re-localisation
+  uint32_t lost_updates_ = 0;       // updates spent lost or recovering
+  int64_t last_event_ns_ = 0;
+  uint32_t events_unlogged_ = 0;    // changes not logged since the last line (rate limit)
 
   std::atomic<uint64_t> scans_{0}, no_odometry_{0}, position_ok_{0}, position_failed_{0};
 };

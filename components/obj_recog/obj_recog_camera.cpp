@@ -16,7 +16,7 @@ ObjRecogCamera::ObjRecogCamera()
     : DataComponent(DataTaskMode::kTriggered),
       camera_(declare_component_ref("camera", "the Camera whose images are searched")),
       period_ms_(declare_float("period_ms", 0.0, {.doc = "requested image period (0: every image)", .min = 0.0, .max = 60000.0, .unit = "ms"})),
-      calibration_(declare_string("calibration", "", {.doc = "OpenCV calibration file (empty: the calibration in the Camera's frames)", .init_only = true})),
+      calibration_(declare_string("calibration", "", {.doc = "OpenCV calibration file (empty: the calibration in the Camera's frames)", .init_only = true, .path = PathRole::kInput})),
       width_(declare_int("width", 0, {.doc = "expected image width; other sizes are skipped (0: any)", .min = 0, .max = 16384})),
       height_(declare_int("height", 0, {.doc = "expected image height (0: any)", .min = 0, .max = 16384})),
       dictionary_(declare_string("dictionary", "DICT_4X4_50", {.doc = "ArUco dictionary (OpenCV's names: DICT_4X4_50 ... DICT_APRILTAG_36h11)",

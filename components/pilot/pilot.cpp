@@ -44,7 +44,7 @@ Pilot::Pilot()
       turn_in_place_deg_(declare_float("turn_in_place_deg", 45.0, {.doc = "turn on the spot when the goal is further off the heading", .min = 5.0, .max = 180.0, .unit = "deg"})),
       brake_fraction_(declare_float("brake_fraction", 0.5, {.doc = "plan braking with this fraction of the chassis' dec_max", .min = 0.05, .max = 1.0})),
       input_timeout_ms_(declare_int("input_timeout_ms", 500, {.doc = "stand when Position or Scan2D data is older than this", .min = 10, .max = 60000, .unit = "ms"})),
-      map_(declare_string("map", "", {.doc = "map to plan destinations on (ROS map_server YAML); \"\": drive straight to them", .init_only = true})),
+      map_(declare_string("map", "", {.doc = "map to plan destinations on (ROS map_server YAML; relative: to the host file's folder); \"\": drive straight to them", .init_only = true, .path = PathRole::kInput})),
       plan_margin_(declare_float("plan_margin", 0.05, {.doc = "m kept beyond the circle round the chassis' outline when planning", .min = 0.0, .max = 5.0, .unit = "m"})),
       replan_blocked_ms_(declare_int("replan_blocked_ms", 2000, {.doc = "plan again round what the scanner sees after standing BLOCKED this long on a planned way (0: never)", .min = 0, .max = 600000, .unit = "ms"})) {
   use_input_mailbox(kInputSlot);

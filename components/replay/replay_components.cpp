@@ -35,7 +35,10 @@ std::size_t join_index(const replay::SharedLog& log, const Records& records, std
 double wrap(double a) noexcept { return std::remainder(a, 2.0 * std::numbers::pi); }
 
 Parameter::Spec log_spec() {
-  return {.doc = "log file to play: CARMEN (.log/.clf/...) or MRPT rawlog (.rawlog)", .required = true, .init_only = true};
+  return {.doc = "log file to play: CARMEN (.log/.clf/...) or MRPT rawlog (.rawlog); relative: to the host file's folder",
+          .required = true,
+          .init_only = true,
+          .path = PathRole::kInput};
 }
 Parameter::Spec speed_spec() {
   return {.doc = "replay speed (1: as recorded; 2: twice as fast; 0: as fast as LadarReplay's pace allows)",
@@ -103,6 +106,7 @@ HookResult ChassisReplay::loop() {
   const bool paced = shared_->paced();
   if (paced && !shared_->ready()) return HookResult::kOk;  // the paced pipeline does not listen yet
   if (!joined_.exchange(true, std::memory_order_acq_rel)) {
+    ended_ = false;
     const int64_t anchor = shared_->start(now);
     // Joining a running clock: records that played more than a period ago are skipped;
     // the next increment then spans them, so the integrated odometry stays right.
@@ -139,6 +143,12 @@ HookResult ChassisReplay::loop() {
     have_last_ = true;
     ++next_;
     publish(d, replay::SharedLog::sample_time(r.time));
+  }
+  if (next_ >= stream_.size() && !ended_) {
+    ended_ = true;
+    log_info("end of log: %u odometry records played from %s; no more samples (end of stream), staying ENABLED",
+             static_cast<unsigned>(stream_.size()), shared_->log().source.c_str());
+    end_stream();
   }
   return HookResult::kOk;
 }
@@ -244,6 +254,7 @@ HookResult LadarReplay::loop() {
     shared_->set_ready();
   }
   if (!joined_.exchange(true, std::memory_order_acq_rel)) {
+    ended_ = false;
     const int64_t anchor = shared_->start(now);
     if (!paced) next_ = join_index(*shared_, scans, next_, now, anchor, period_ns());
   }
@@ -280,6 +291,12 @@ HookResult LadarReplay::loop() {
     progress_.last_time_ns.store(t, std::memory_order_relaxed);
     shared_->set_scans_released(next_);
     if (paced) break;  // one scan per pace check
+  }
+  if (next_ >= scans.size() && !ended_) {
+    ended_ = true;
+    log_info("end of log: %u scans played from %s; no more samples (end of stream), staying ENABLED",
+             static_cast<unsigned>(scans.size()), shared_->log().source.c_str());
+    end_stream();
   }
   return HookResult::kOk;
 }

@@ -21,7 +21,10 @@
 // being when the first of them was switched on, so scans and odometry stay in step.
 // A component switched on within 2 s of that plays from the log's beginning; one
 // switched on later (or again) joins the running clock and skips what has played.
-// At the end of the log both stop publishing.
+// At the end of the log each says so once (GDOS info: how many records it played from
+// which file) and ends its stream (DataComponentBase::end_stream): it stays ENABLED, its
+// consumers get END_OF_STREAM, stay ENABLED and pass the end on; nothing goes to
+// ERROR, nothing retries. OFF and ON again joins the clock at the end: the end again.
 //
 // Pacing (LadarReplay 'pace': the component at the end of the pipeline, e.g. MCL or
 // a TrajectoryWriter): nothing plays until that component is ENABLED (so it and
@@ -75,6 +78,7 @@ class ChassisReplay final : public DataComponent<interfaces::ChassisData> {
   replay::OdometryRecord last_{};
   std::atomic<bool> joined_{false};  // on() clears; loop() joins the clock
   std::atomic<uint32_t> active_pilot_{0};
+  bool ended_ = false;  // data task: the end of the log was announced (on() clears via joined_)
 };
 
 // LadarReplay's status: what has played, how the pace went (for describe_status).
@@ -113,6 +117,7 @@ class LadarReplay final : public DataComponent<interfaces::LadarData> {
   bool paced_ = false;           // 'pace' names a component (set in init)
   int64_t pace_wait_since_ = 0;  // host time the release of scan next_ began to wait (0: not waiting)
   std::atomic<bool> joined_{false};
+  bool ended_ = false;  // data task: the end of the log was announced
   LadarReplayProgress progress_;
 };
 

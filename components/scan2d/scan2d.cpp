@@ -212,9 +212,13 @@ HookResult Scan2d::loop() {
     }
   }
   release(false);
-  if (!got_scan && rt::monotonic_ns() - last_scan_rx_ns_ >= settings().data_timeout_ns) {
+  // The ladar fell silent (inputs that ended, a replay at the end of its log, are
+  // quiet, not failing).
+  if (!got_scan && !inputs_ended() &&
+      rt::monotonic_ns() - last_scan_rx_ns_ >= settings().data_timeout_ns) {
     release(true);
-    return HookResult::kError;  // the ladar fell silent
+    set_error_reason("the ladar fell silent: no scan within data_task timeout_ms");
+    return HookResult::kError;
   }
   return HookResult::kOk;
 }

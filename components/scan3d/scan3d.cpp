@@ -32,7 +32,7 @@ Scan3d::Scan3d()
       servo_(declare_string("servo", "", {.doc = "the ServoDrive that turns the ladar (with ladar)", .component_ref = true})),
       odometry_(declare_string("odometry", "", {.doc = "optional, with ladar+servo: an Odometry or Position component; its poses undo the robot's motion during a sweep (points in the robot frame at the sweep's end, the scan stamped with that time)", .component_ref = true})),
       odometry_period_ms_(declare_float("odometry_period_ms", 0.0, {.doc = "requested period of the odometry's pose stream (0: every pose); the last 256 poses must cover a sweep's processing time", .min = 0.0, .max = 1000.0, .unit = "ms"})),
-      pcd_(declare_string("pcd", "", {.doc = "instead of ladar+servo: a PCD file, or a directory whose *.pcd files are played in name order", .init_only = true})),
+      pcd_(declare_string("pcd", "", {.doc = "instead of ladar+servo: a PCD file, or a directory whose *.pcd files are played in name order", .init_only = true, .path = PathRole::kInput})),
       mode_(declare_string("mode", "pitch", {.doc = "scan mode: the drive turns the scan plane about x (roll), y (pitch) or z (yaw)", .choices = {"roll", "pitch", "yaw"}, .init_only = true})),
       mount_x_(declare_float("mount_x", 0.0, {.doc = "m, the ladar's centre (on the drive axis) in the robot frame, forward", .min = -10.0, .max = 10.0})),
       mount_y_(declare_float("mount_y", 0.0, {.doc = "m, ... left", .min = -10.0, .max = 10.0})),
@@ -53,7 +53,7 @@ Scan3d::Scan3d()
       ceiling_height_(declare_float("ceiling_height", 0.0, {.doc = "m above the ground: higher points are ceiling (0: none)", .min = 0.0, .max = 1000.0})),
       max_points_(declare_int("max_points", interfaces::kScan3dMaxPoints, {.doc = "points per published scan (evenly thinned above)", .min = 1, .max = interfaces::kScan3dMaxPoints})),
       range_image_res_deg_(declare_float("range_image_res_deg", 1.0, {.doc = "GET_RANGE_IMAGE: degrees per pixel when the request gives none (at least 0.2)", .min = 0.2, .max = 45.0, .unit = "deg"})),
-      store_dir_(declare_string("store_dir", ".", {.doc = "STORE_DATA without a path writes <store_dir>/scan3d_<number>.pcd"})),
+      store_dir_(declare_string("store_dir", ".", {.doc = "STORE_DATA without a path writes <store_dir>/scan3d_<number>.pcd (relative: to the host file's folder)", .path = PathRole::kOutputDir})),
       pcd_period_ms_(declare_float("pcd_period_ms", 1000.0, {.doc = "PCD source: one file every this long (the data task's timeout_ms must not be longer)", .min = 1.0, .max = 3.6e6, .unit = "ms"})),
       pcd_loop_(declare_bool("pcd_loop", true, {.doc = "PCD source: start again after the last file"})),
       silence_ms_(declare_int("silence_ms", 2000, {.doc = "ERROR when the ladar, the drive or the odometry sent nothing for this long", .min = 10, .max = 600000, .unit = "ms"})),
@@ -305,7 +305,8 @@ void Scan3d::serve_requests() {
       const tims::ConstBuffer part = tims::buffer_of(*image_);
       (void)data_endpoint().reply(r.header, interfaces::kScan3dRangeImageReply, std::span<const tims::ConstBuffer>(&part, 1));
     } else {
-      std::string path = r.store.path;
+      // A relative path is the host file's folder's, as in the host file and SET_PARAM.
+      std::string path = resolve_path(settings().base_dir, r.store.path);
       if (path.empty()) path = store_dir_.get_string() + "/scan3d_" + std::to_string(out_->scan_number) + ".pcd";
       std::string error;
       if (!scan3d::write_pcd(path, *out_, error)) {

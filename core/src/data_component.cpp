@@ -3,6 +3,7 @@
 #include "rack/rt/trace.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <climits>
 #include <cmath>
 
@@ -113,6 +114,8 @@ void DataComponentBase::leaving_enabled() noexcept {
 }
 
 void DataComponentBase::entered_enabled() noexcept {
+  stream_ended_.store(false, std::memory_order_release);  // a new stream
+  inputs_ended_reported_ = false;  // the data task is gated off until loop_enabled_
   loop_enabled_.store(true, std::memory_order_seq_cst);
   if (input_mailbox_) input_mailbox_->wake();
 }
@@ -166,6 +169,7 @@ HookResult DataComponentBase::subscribe(Address producer, int64_t period_ns, int
   sub->period_ns = period_ns;
   sub->renew_every_ns = reply.lease_ns > 0 ? reply.lease_ns / 4 : 0;
   sub->renew_at_ns = sub->renew_every_ns > 0 ? rt::monotonic_ns() + sub->renew_every_ns : INT64_MAX;
+  sub->ended = false;
   sub->active = true;
   if (sub->renew_at_ns < next_renewal_ns_.load(std::memory_order_relaxed)) {
     next_renewal_ns_.store(sub->renew_at_ns, std::memory_order_relaxed);
@@ -192,6 +196,46 @@ void DataComponentBase::note_input_error(const MessageHeader& header) noexcept {
   wire::append_text(reason, header.type == msg::kError ? " left ENABLED (its data stopped: it sent ERROR)"
                                                         : " is not available (its data stopped)");
   set_error_reason(reason);
+}
+
+void DataComponentBase::send_end_of_stream(uint32_t mailbox, uint8_t priority) noexcept {
+  const MessageHeader h = tims::make_header(Address(mailbox), address(), msg::kEndOfStream, priority, 0, 0);
+  (void)router().send(h, std::span<const ConstBuffer>());
+}
+
+void DataComponentBase::end_stream() noexcept {
+  if (stream_ended_.exchange(true, std::memory_order_acq_rel)) return;
+  rt::PiLock lock(listeners_mutex_);
+  for (const auto& l : listeners_) {
+    if (l.active && !l.oneshot) send_end_of_stream(l.mailbox, l.priority);
+  }
+}
+
+void DataComponentBase::note_end_of_stream(const MessageHeader& header) noexcept {
+  const Address source = header.source().component();
+  for (auto& s : subscriptions_) {
+    if (s.active && s.producer == source) s.ended = true;
+  }
+  last_good_input_ns_ = rt::monotonic_ns();
+  last_ended_ = source;
+}
+
+void DataComponentBase::pass_end_on() noexcept {
+  // After loop(): what it made of the last input is published before the end.
+  if (inputs_ended_reported_ || !inputs_ended()) return;
+  inputs_ended_reported_ = true;
+  log_info("end of stream: every input ended (the last: %s); no more samples, staying ENABLED", last_ended_);
+  end_stream();
+}
+
+bool DataComponentBase::inputs_ended() const noexcept {
+  bool any = false;
+  for (const auto& s : subscriptions_) {
+    if (!s.active) continue;
+    if (!s.ended) return false;
+    any = true;
+  }
+  return any;
 }
 
 void DataComponentBase::renew_due_subscriptions(int64_t now_ns) noexcept {
@@ -318,6 +362,8 @@ bool DataComponentBase::handle_data_request(const MessageHeader& h, std::span<co
       rep.period_ns = own > 0 ? own * factor : 0;
       rep.lease_ns = settings().lease_ns;
       reply_with(h, msg::kContData, rep);
+      // A stream that has ended says so to a new listener (and again on a renewal).
+      if (stream_ended()) send_end_of_stream(req.mailbox, h.priority);
       return true;
     }
     case msg::kStopContData: {
@@ -440,6 +486,8 @@ void DataComponentBase::run_one_cycle() noexcept {
     if (r != HookResult::kOk) {
       loop_enabled_.store(false, std::memory_order_seq_cst);
       report_loop_failure();
+    } else {
+      pass_end_on();
     }
   }
   in_loop_.store(false, std::memory_order_seq_cst);
@@ -453,7 +501,17 @@ void DataComponentBase::drain_input() noexcept {
 }
 
 bool DataComponentBase::input_silent() const noexcept {
-  return rt::monotonic_ns() - last_good_input_ns_ >= settings().data_timeout_ns;
+  if (inputs_ended()) return false;  // ended streams are quiet, not failing
+  const int64_t silent_ns = rt::monotonic_ns() - last_good_input_ns_;
+  if (silent_ns < settings().data_timeout_ns) return false;
+  // The reason of the ERROR this usually leads to (a set-up value read under its
+  // own PI lock: RT-safe; snprintf of integers allocates nothing).
+  char reason[96];
+  std::snprintf(reason, sizeof reason, "no input for %lld ms (data_task timeout_ms %lld): its producers are silent",
+                static_cast<long long>(silent_ns / rt::kNsPerMs),
+                static_cast<long long>(settings().data_timeout_ns / rt::kNsPerMs));
+  const_cast<DataComponentBase*>(this)->set_error_reason(reason);
+  return true;
 }
 
 void DataComponentBase::input_malformed(const tims::MessageHeader& header, std::size_t size) noexcept {

@@ -13,6 +13,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <functional>
 #include <map>
 #include <set>
@@ -183,12 +184,54 @@ struct HostLoader {
   const rt::RtCapabilities& caps;
   HostLoadOptions options;
   std::vector<ConfigError> errors;
+  // The host file's folder, absolute: every relative path the file holds (plug-ins,
+  // key files, crash_dir, parameters with a Parameter::Spec::path) is taken from here.
+  std::string base_dir;
   // Every component's address by name (filled while loading them, even when another
   // component has errors, so that the access rules resolve names regardless).
   std::map<std::string, tims::Address> component_addresses;
 
   void error(const YAML::Mark& mark, const std::string& message) {
     errors.push_back({file, mark.line + 1, mark.column + 1, message});
+  }
+
+  // What an error about a path adds when the file gave it relative.
+  std::string relative_note(const std::string& given) const {
+    if (given.empty() || given.front() == '/') return {};
+    return " ('" + given + "' is relative to the host file's folder, " + base_dir + ")";
+  }
+
+  // --check: the files and folders a component's parameters name exist (what init()
+  // or the first STORE_DATA would otherwise find out after the start).
+  void check_parameter_paths(const YAML::Node& node, const std::string& name, const ParameterSet& params,
+                             const std::map<const Parameter*, YAML::Mark>& marks) {
+    for (std::size_t i = 0; i < params.size(); ++i) {
+      const Parameter& prm = params.at(i);
+      const PathRole role = prm.spec().path;
+      if (role == PathRole::kNone || role == PathRole::kDevice) continue;
+      const std::string value = prm.get_string();
+      if (value.empty()) continue;
+      const auto at = marks.find(&prm);
+      const YAML::Mark mark = at != marks.end() ? at->second : node.Mark();
+      const std::string given = at != marks.end() ? node["params"][prm.name()].Scalar() : value;
+      std::string target = value;
+      if (role == PathRole::kOutput) {
+        const auto slash = value.find_last_of('/');
+        target = slash == std::string::npos ? "." : slash == 0 ? "/" : value.substr(0, slash);
+      }
+      const char* what = role == PathRole::kInput ? "" : role == PathRole::kOutput ? "the folder of " : "";
+      struct stat st {};
+      std::string problem;
+      if (::stat(target.c_str(), &st) != 0) {
+        const int e = errno;
+        problem = std::string(what) + target + ": " + std::strerror(e);
+      } else if (role != PathRole::kInput && !S_ISDIR(st.st_mode)) {
+        problem = target + ": not a folder";
+      }
+      if (!problem.empty()) {
+        error(mark, "component '" + name + "': parameter '" + prm.name() + "': " + problem + relative_note(given));
+      }
+    }
   }
 
   // Checks that a map has only known keys; reports each unknown one.
@@ -300,7 +343,7 @@ struct HostLoader {
     }
     check_keys(node, {"mode", "abort", "crash_dir", "crash_handlers", "syscalls", "faults", "allocations",
                       "locks", "rusage", "lock_wait_us", "watchdog_periods", "rttime_ms", "allow_syscalls",
-                      "stderr", "stderr_per_second"},
+                      "stderr", "stderr_per_second", "repeat_ms"},
                "modeswitch");
     if (node["mode"]) {
       if (const auto m = get_mode(node, "mode")) c.default_mode = *m;
@@ -313,7 +356,7 @@ struct HostLoader {
     }
     if (get(node, "crash_dir", text, "a directory")) {
       if (text.empty()) error(node["crash_dir"].Mark(), "'crash_dir' must not be empty");
-      else c.crash_dir = text;
+      else c.crash_dir = resolve_path(base_dir, text);
     }
     get(node, "crash_handlers", c.crash_handlers, "true or false");
     get(node, "syscalls", c.syscalls, "true or false");
@@ -328,6 +371,9 @@ struct HostLoader {
       c.watchdog_periods = static_cast<uint32_t>(v);
     }
     if (get_int_range(node, "rttime_ms", 0, 3'600'000, v, "milliseconds (0: off)")) c.rttime_us = v * 1000;
+    if (get_int_range(node, "repeat_ms", 0, 86'400'000, v, "milliseconds (0: every report in full)")) {
+      c.repeat_every_ns = v * 1'000'000;
+    }
     if (get_int_range(node, "stderr_per_second", 0, 1'000'000, v, "a report count")) {
       c.stderr_per_second = static_cast<uint32_t>(v);
     }
@@ -453,6 +499,7 @@ struct HostLoader {
     auto host = std::make_unique<LoadedHost>();
     HostSettings& hs = host->settings;
     hs.file = file;
+    base_dir = host_file_folder(file);
     check_keys(root, {"host", "system", "host_id", "require_rt", "lcm", "lcm_url", "heap_prefault_mib",
                       "cpu_dma_latency_us", "trace_ring_events", "cpus", "plugins", "modeswitch", "components", "gdos", "tims", "access"},
                "the host file");
@@ -498,16 +545,23 @@ struct HostLoader {
           if (!p.IsScalar()) { error(p.Mark(), "a plug-in is a path"); continue; }
           if (p.Scalar().empty()) { error(p.Mark(), "a plug-in path must not be empty"); continue; }
           if (!options.open_files) continue;
+          const std::string path = resolve_path(base_dir, p.Scalar());
           // A directory is searched for plug-in classes by name (<Class>.rack-class,
           // loaded only when a component names the class); a file is loaded now.
-          if (struct stat st {}; ::stat(p.Scalar().c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
-            registry.add_plugin_dir(p.Scalar());
-            hs.plugins.push_back(p.Scalar());
+          struct stat st {};
+          if (::stat(path.c_str(), &st) != 0) {
+            const int e = errno;
+            error(p.Mark(), "plug-in " + path + ": " + std::strerror(e) + relative_note(p.Scalar()));
+            continue;
+          }
+          if (S_ISDIR(st.st_mode)) {
+            registry.add_plugin_dir(path);
+            hs.plugins.push_back(path);
             continue;
           }
           try {
-            registry.load_plugin(p.Scalar());
-            hs.plugins.push_back(p.Scalar());
+            registry.load_plugin(path);
+            hs.plugins.push_back(path);
           } catch (const std::exception& e) {
             error(p.Mark(), e.what());
           }
@@ -765,6 +819,7 @@ struct HostLoader {
       // The key itself never is in the host file: only the path of a file that group
       // and others cannot read. Checked here so that --check reports it too.
       if (get(n, "key_file", nc.key_file, "the path of a key file")) {
+        nc.key_file = resolve_path(base_dir, nc.key_file);
         if (nc.key_file.empty()) {
           error(n["key_file"].Mark(), "'key_file' must not be empty (leave it out for an unauthenticated network)");
         } else if (!options.open_files) {
@@ -957,6 +1012,7 @@ struct HostLoader {
       ComponentSettings s;
       s.name = name;
       s.impl = impl;
+      s.base_dir = base_dir;
       int64_t instance = 0;
       get_int_range(node, "instance", 0, 255, instance, "an instance number 0..255");
       s.address = tims::Address::make(host.settings.system, cls->class_id, static_cast<uint8_t>(instance));
@@ -1035,6 +1091,11 @@ struct HostLoader {
       // Parameters.
       Pending p{node, std::move(component), {}};
       ParameterSet& params = p.component->parameters();
+      // Relative paths in parameters (declared defaults and the file's values) are the
+      // host file's folder's.
+      for (std::size_t i = 0; i < params.size(); ++i) {
+        if (auto err = params.at(i).set_base_dir(base_dir)) error(node.Mark(), "component '" + name + "': " + *err);
+      }
       std::set<std::string> given;
       std::map<const Parameter*, YAML::Mark> given_marks;
       if (const YAML::Node pn = node["params"]) {
@@ -1074,6 +1135,7 @@ struct HostLoader {
                                  "' (" + prm.spec().doc + ")");
         }
       }
+      if (options.check_paths) check_parameter_paths(node, name, params, given_marks);
       // The class's own rules for its values (what init() and SET_PARAM check too).
       if (ParameterProblem problem; !p.component->check_parameters(ParameterValues(), problem)) {
         const auto at = problem.parameter != nullptr ? given_marks.find(problem.parameter) : given_marks.end();
@@ -1156,9 +1218,22 @@ struct HostLoader {
   }
 };
 
+std::string host_file_folder(const std::string& file) {
+  // Not canonical (symbolic links stay as the user named them); "" on an error of the
+  // working directory: relative paths are then the process's.
+  std::error_code ec;
+  std::filesystem::path dir = std::filesystem::path(file).parent_path();
+  if (dir.empty()) dir = ".";
+  dir = std::filesystem::absolute(dir, ec);
+  if (ec) return {};
+  std::string out = dir.lexically_normal().string();
+  while (out.size() > 1 && out.back() == '/') out.pop_back();
+  return out;
+}
+
 LoadResult load_host_text(const std::string& text, const std::string& file, ComponentRegistry& registry,
                           const rt::RtCapabilities& caps, const HostLoadOptions& options) {
-  HostLoader loader{file, registry, caps, options, {}, {}};
+  HostLoader loader{file, registry, caps, options, {}, {}, {}};
   // Outside input: whatever escapes the checks (a yaml-cpp conversion that throws, an
   // allocation that fails) is one more error of this file, never an exception.
   LoadResult r;
@@ -1175,7 +1250,8 @@ LoadResult load_host_text(const std::string& text, const std::string& file, Comp
   return r;
 }
 
-LoadResult load_host_file(const std::string& path, ComponentRegistry& registry, const rt::RtCapabilities& caps) {
+LoadResult load_host_file(const std::string& path, ComponentRegistry& registry, const rt::RtCapabilities& caps,
+                          const HostLoadOptions& options) {
   std::string why;
   const auto text = read_host_bytes(path, why);
   if (!text) {
@@ -1183,7 +1259,7 @@ LoadResult load_host_file(const std::string& path, ComponentRegistry& registry, 
     r.errors.push_back({path, 0, 0, why});
     return r;
   }
-  return load_host_text(*text, path, registry, caps);
+  return load_host_text(*text, path, registry, caps, options);
 }
 
 }  // namespace rack

@@ -5,8 +5,32 @@
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
+#include <string_view>
 
 namespace rack {
+
+namespace {
+// "./a" -> "a", "." -> "": what is left of a relative path once its folder is known.
+std::string_view strip_dot(std::string_view rest) noexcept {
+  for (;;) {
+    if (rest == ".") return {};
+    if (!rest.starts_with("./")) return rest;
+    rest.remove_prefix(2);
+    while (rest.starts_with('/')) rest.remove_prefix(1);
+  }
+}
+}  // namespace
+
+std::string resolve_path(const std::string& base_dir, const std::string& path) {
+  if (path.empty() || path.front() == '/' || base_dir.empty()) return path;
+  const std::string_view rest = strip_dot(path);
+  std::string out = base_dir;
+  if (!rest.empty()) {
+    if (out.back() != '/') out += '/';
+    out += rest;
+  }
+  return out;
+}
 
 Parameter::Parameter(std::string name, ParamKind kind, Spec spec)
     : name_(std::move(name)), kind_(kind), spec_(std::move(spec)) {}
@@ -49,6 +73,42 @@ void Parameter::copy_string(char* out, std::size_t size) const noexcept {
     std::atomic_thread_fence(std::memory_order_acquire);
     if (string_seq_.load(std::memory_order_relaxed) == before) return;
   }
+}
+
+bool Parameter::resolve(const char* text, std::size_t len, char (&out)[wire::kParamStringLen]) const noexcept {
+  // RT-safe: string_views over the value and base_dir_ (set-up data), copies into `out`.
+  std::string_view rest(text, len);
+  const bool relative = spec_.path != PathRole::kNone && !base_dir_.empty() && !rest.empty() && rest.front() != '/' &&
+                        !(spec_.path == PathRole::kDevice && rest.find_first_not_of("0123456789") == std::string_view::npos);
+  std::size_t n = 0;
+  const auto put = [&](std::string_view part) noexcept {
+    if (n + part.size() >= sizeof out) return false;
+    std::memcpy(out + n, part.data(), part.size());
+    n += part.size();
+    return true;
+  };
+  if (relative) {
+    rest = strip_dot(rest);
+    if (!put(base_dir_)) return false;
+    if (!rest.empty() && ((base_dir_.back() != '/' && !put("/")) || !put(rest))) return false;
+  } else if (!put(rest)) {
+    return false;
+  }
+  out[n] = '\0';
+  return true;
+}
+
+std::optional<std::string> Parameter::set_base_dir(const std::string& dir) {
+  base_dir_ = dir;
+  if (kind_ != ParamKind::kString || spec_.path == PathRole::kNone) return std::nullopt;
+  const std::string value = get_string();
+  char buf[wire::kParamStringLen] = {};
+  if (!resolve(value.data(), value.size(), buf)) {
+    return "parameter '" + name_ + "': the path " + resolve_path(base_dir_, value) + " is longer than " +
+           std::to_string(wire::kParamStringLen - 1) + " characters";
+  }
+  store_string(buf, strnlen(buf, sizeof buf));
+  return std::nullopt;
 }
 
 std::string Parameter::get_string() const {
@@ -114,7 +174,7 @@ std::optional<std::string> Parameter::set_from_text(const std::string& text) {
       }
       break;
     }
-    case ParamKind::kString:
+    case ParamKind::kString: {
       if (!spec_.choices.empty() && !is_choice(text.c_str())) {
         std::string list;
         for (const auto& c : spec_.choices) list += (list.empty() ? "" : ", ") + c;
@@ -124,8 +184,15 @@ std::optional<std::string> Parameter::set_from_text(const std::string& text) {
         return "parameter '" + name_ + "' is longer than " +
                std::to_string(wire::kParamStringLen - 1) + " characters";
       }
-      store_string(text.data(), text.size());
+      char buf[wire::kParamStringLen] = {};
+      if (!resolve(text.data(), text.size(), buf)) {
+        // A relative path fitted, the absolute one it names (against the host file's folder) does not.
+        return "parameter '" + name_ + "': the path " + resolve_path(base_dir_, text) + " is longer than " +
+               std::to_string(wire::kParamStringLen - 1) + " characters (a relative path is taken from the host file's folder)";
+      }
+      store_string(buf, strnlen(buf, sizeof buf));
       break;
+    }
   }
   set_.store(true, std::memory_order_relaxed);
   return std::nullopt;
@@ -162,7 +229,10 @@ const char* Parameter::check_wire(const wire::ParamRecord& r, wire::ParamRecord&
       const std::size_t len = strnlen(r.string_value, sizeof r.string_value);
       if (len == sizeof r.string_value) return "string not terminated";
       if (!spec_.choices.empty() && !is_choice(r.string_value)) return "not one of the allowed values";
-      std::memcpy(value.string_value, r.string_value, len);
+      // A relative path is taken from the host file's folder, as in the host file.
+      if (!resolve(r.string_value, len, value.string_value)) {
+        return "the path made absolute (against the host file's folder) is longer than 127 characters";
+      }
       break;
     }
   }

@@ -11,6 +11,7 @@
 #include <array>
 #include <atomic>
 #include <cerrno>
+#include <cstdio>
 #include <cstdlib>
 #include <new>
 #include <string>
@@ -36,6 +37,7 @@ void rack_test_note_free() noexcept {}
 // ---- tests ---------------------------------------------------------------------
 
 #include <sys/socket.h>
+#include <unistd.h>
 
 #include "rack/devices/can_port.h"
 #include "rack/devices/canopen.h"
@@ -102,6 +104,33 @@ TEST(DriverNoAllocTest, CanPortCycleAgainstTheDriveSimulator) {
   EXPECT_EQ(c.stop(), 0U);
   EXPECT_GT(frames, 200U) << "the cycle really ran";
   sim.stop();
+}
+
+// ChassisCan opens its bus in on() (its command task) and retries every second while
+// the bus is missing: the failing opens allocate nothing and say what is missing.
+TEST(DriverNoAllocTest, CanPortOpenFailuresAllocateNothing) {
+  test::Watchdog w;
+  char tmpl[] = "/tmp/rack-can-open-XXXXXX";
+  const int tmp_fd = ::mkstemp(tmpl);
+  ASSERT_GE(tmp_fd, 0);
+  ::close(tmp_fd);
+  const std::string regular = tmpl;  // a regular file where a socket is expected
+  const std::string unix_regular = "unix:" + regular;
+  CanPort port;
+  CanError missing, not_socket, no_interface;
+  Counting c;
+  const bool a = port.open("unix:/nonexistent/rack-chassis.can", missing);
+  const bool b = port.open(unix_regular.c_str(), not_socket);
+  const bool d = port.open("rackcan9", no_interface);
+  EXPECT_EQ(c.stop(), 0U);
+  EXPECT_FALSE(a);
+  EXPECT_FALSE(b);
+  EXPECT_FALSE(d);
+  EXPECT_STREQ(missing.text, "/nonexistent/rack-chassis.can: connect: No such file or directory");
+  EXPECT_NE(std::string(not_socket.text).find("not a socket"), std::string::npos) << not_socket.text;
+  EXPECT_NE(std::string(no_interface.text).find("rackcan9: "), std::string::npos) << no_interface.text;
+  EXPECT_FALSE(port.is_open());
+  ::unlink(tmpl);
 }
 
 TEST(DriverNoAllocTest, SerialReadAndNmeaParsing) {

@@ -119,7 +119,7 @@ class AccessTest : public ::testing::Test {
 // chassis only from `driver`; everyone else may switch, read and set it up.
 std::string sim_nav_with_access(const std::string& driver) {
   std::string text = read_file(kConfigs + "/sim_nav.yaml");
-  const std::string rel = "map: configs/maps/office.yaml";
+  const std::string rel = "map: maps/office.yaml";
   for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1)) {
     text.replace(at, rel.size(), "map: " + kConfigs + "/maps/office.yaml");
   }

@@ -56,7 +56,7 @@ class GuiE2eTest : public ::testing::Test {
   // common working directory).
   std::string host_file() {
     std::string text = read_file(kConfigs + "/sim_mcl.yaml");
-    const std::string rel = "map: configs/maps/office.yaml";
+    const std::string rel = "map: maps/office.yaml";
     const std::string abs = "map: " + kConfigs + "/maps/office.yaml";
     int replaced = 0;
     for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + abs.size())) {

@@ -198,6 +198,57 @@ TEST_F(ModeSwitchIntegrationTest, EachReasonIsReportedAndSymbolizesToTheDemoLine
   EXPECT_TRUE(contains(summary.out, "report(s) in ")) << summary.out;
 }
 
+// The same mode switch many times (issue 21): the report file holds it once in full
+// and `repeat` lines with counts, so a fault that repeats cannot fill a disk; the
+// counts add up to every report, and rack-backtrace counts them.
+TEST_F(ModeSwitchIntegrationTest, IdenticalReportsAreAggregatedAndTheToolsCountThem) {
+  auto rackd = start_rackd(R"(host: it-modeswitch-repeat
+system: 0
+heap_prefault_mib: 16
+modeswitch:
+  repeat_ms: 5000
+components:
+  - name: demo
+    class: ModeSwitchDemo
+    instance: 0
+    autostart: true
+    command_task: {priority: 30}
+    data_task: {priority: 40, period_ms: 10}
+)");
+  ASSERT_TRUE(rackd);
+  if (!contains(rackd->err(), "SYSCALL on")) GTEST_SKIP() << "no SYSCALL detection here:\n" << rackd->err();
+  constexpr int kSends = 20;
+  for (int i = 0; i < kSends; ++i) {
+    const RunResult r = ctl({"send", "demo", "21"});  // write() in a command handler, the same line each time
+    ASSERT_EQ(r.exit_code, 0) << r.describe();
+  }
+  rackd->signal(SIGTERM);
+  ASSERT_EQ(rackd->wait_exit(30s), 0) << rackd->err();
+  const auto files = report_files();
+  ASSERT_EQ(files.size(), 1u);
+  const std::string text = read_file(files[0]);
+  EXPECT_EQ(count_of(text, "reason=SYSCALL "), 1) << "written once in full\n" << text;
+  uint64_t repeated = 0;
+  int repeat_lines = 0;
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("repeat ", 0) != 0) continue;
+    ++repeat_lines;
+    const auto at = line.find(" count=");
+    ASSERT_NE(at, std::string::npos) << line;
+    repeated += std::stoull(line.substr(at + 7));
+  }
+  EXPECT_EQ(repeated, uint64_t{kSends - 1}) << text;
+  EXPECT_GE(repeat_lines, 1);
+  EXPECT_LE(repeat_lines, 4) << "at most one line per 5 s while it repeats, and one at exit\n" << text;
+  EXPECT_TRUE(contains(rackd->err(), "repeated ")) << rackd->err();
+  const RunResult summary = backtrace({"--summary", files[0]});
+  EXPECT_EQ(summary.exit_code, 0) << summary.describe();
+  EXPECT_TRUE(contains(summary.out, std::to_string(kSends) + " x [SYSCALL] task demo:cmd")) << summary.out;
+  const RunResult full = backtrace({"--reason", "SYSCALL", files[0]});
+  EXPECT_TRUE(contains(full.out, "and " + std::to_string(kSends - 1) + " identical report(s) after it")) << full.out;
+}
+
 TEST_F(ModeSwitchIntegrationTest, AbortModePutsTheComponentInError) {
   auto rackd = start_rackd(R"(host: it-modeswitch-abort
 system: 0

@@ -38,14 +38,14 @@ class Scan3dSimTest : public ::testing::Test {
   // repository root, where the README runs rackd).
   std::string host_file() {
     std::string text = read_file(kConfigs + "/sim_scan3d.yaml");
-    const std::string rel = "map: configs/maps/office.yaml";
+    const std::string rel = "map: maps/office.yaml";
     int replaced = 0;
     for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1), ++replaced) {
       text.replace(at, rel.size(), "map: " + kConfigs + "/maps/office.yaml");
     }
     EXPECT_EQ(replaced, 2) << "sim_scan3d.yaml names the map for the chassis and the ladar";
     // STORE_DATA writes into the test's directory instead of rackd's working directory.
-    const std::string store = "store_dir: \".\"";
+    const std::string store = "store_dir: /tmp";
     const auto at = text.find(store);
     EXPECT_NE(at, std::string::npos) << "sim_scan3d.yaml sets store_dir";
     if (at != std::string::npos) text.replace(at, store.size(), "store_dir: \"" + dir_.path().string() + "\"");
@@ -75,7 +75,7 @@ TEST_F(Scan3dSimTest, TheShippedHostFilesAreValid) {
     GTEST_SKIP() << "ObjRecogCamera is not built into this rackd (libopencv-contrib-dev missing)";
   }
   std::string text = read_file(kConfigs + "/objrecog.yaml");
-  const std::string rel = "map: configs/maps/office.yaml";
+  const std::string rel = "map: maps/office.yaml";
   for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1)) {
     text.replace(at, rel.size(), "map: " + kConfigs + "/maps/office.yaml");
   }

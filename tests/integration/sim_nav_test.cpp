@@ -38,11 +38,11 @@ class SimNavTest : public ::testing::Test {
   }
 
   // configs/sim_nav.yaml with its map paths made absolute (the shipped file names
-  // them relative to the repository root, where the README runs rackd), optionally
+  // them relative to its own folder, and the copy is written elsewhere), optionally
   // with the ladar's map replaced.
   std::string host_file(const std::string& ladar_map = "") {
     std::string text = read_file(kConfigs + "/sim_nav.yaml");
-    const std::string rel = "map: configs/maps/office.yaml";
+    const std::string rel = "map: maps/office.yaml";
     const std::string abs = "map: " + kConfigs + "/maps/office.yaml";
     int replaced = 0;
     for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1)) {
@@ -119,7 +119,7 @@ TEST_F(SimNavTest, TheMainJobsHostFileIsValidWhenMclIsBuiltIn) {
   ASSERT_EQ(classes.exit_code, 0) << classes.describe();
   if (!contains(classes.out, "MCL  (class ")) GTEST_SKIP() << "class MCL is not built into this rackd";
   std::string text = read_file(kConfigs + "/sim_mcl.yaml");
-  const std::string rel = "map: configs/maps/office.yaml";
+  const std::string rel = "map: maps/office.yaml";
   for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1)) {
     text.replace(at, rel.size(), "map: " + kConfigs + "/maps/office.yaml");
   }

@@ -37,7 +37,7 @@ class TraceTest : public ::testing::Test {
     // sim_mcl.yaml with its map paths made absolute (the shipped file names them
     // relative to the repository root).
     std::string text = read_file(kConfigs + "/sim_mcl.yaml");
-    const std::string rel = "map: configs/maps/office.yaml";
+    const std::string rel = "map: maps/office.yaml";
     for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1)) {
       text.replace(at, rel.size(), "map: " + kConfigs + "/maps/office.yaml");
     }

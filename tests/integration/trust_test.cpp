@@ -147,7 +147,7 @@ class TrustTest : public ::testing::Test {
 // configs/sim_nav.yaml with absolute map paths.
 std::string sim_nav_text() {
   std::string text = read_file(kConfigs + "/sim_nav.yaml");
-  const std::string rel = "map: configs/maps/office.yaml";
+  const std::string rel = "map: maps/office.yaml";
   for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1)) {
     text.replace(at, rel.size(), "map: " + kConfigs + "/maps/office.yaml");
   }

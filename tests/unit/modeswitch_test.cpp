@@ -46,6 +46,7 @@ class DetectorEnvironment : public ::testing::Environment {
     c.program = "modeswitch_test";
     c.to_stderr = false;
     c.lock_wait_ns = 5 * kNsPerMs;
+    c.repeat_every_ns = 20 * kNsPerMs;  // identical reports' counts reach the file quickly
     g_started = start(c);
   }
   void TearDown() override {
@@ -399,7 +400,8 @@ TEST_F(ModeSwitchTest, AFullRingDropsAndCountsAndRecovers) {
 
 // Several RT threads report at once (the ring's producers race on their CAS) while
 // the reporter writes: every report that was not dropped reaches the file exactly
-// once and complete (read back with rack-backtrace's own parser).
+// once, complete or counted as a repeat of an identical one (read back with
+// rack-backtrace's own parser).
 TEST_F(ModeSwitchTest, ConcurrentProducersLoseNothingButWhatIsCountedAsDropped) {
   if (!g_started.allocations || g_started.report_path.empty()) GTEST_SKIP() << "no interposers or no report file";
   auto count_in_file = [] {
@@ -408,7 +410,7 @@ TEST_F(ModeSwitchTest, ConcurrentProducersLoseNothingButWhatIsCountedAsDropped) 
     EXPECT_TRUE(file.errors.empty()) << file.errors.front();
     uint64_t n = 0;
     for (const auto& r : file.reports) {
-      if (r.field("task").rfind("test:mp", 0) == 0) ++n;  // any reason: FAULT and NOMLOCK share the ring
+      if (r.field("task").rfind("test:mp", 0) == 0) n += 1 + r.repeats;  // any reason: FAULT and NOMLOCK share the ring
     }
     return n;
   };
@@ -444,6 +446,53 @@ TEST_F(ModeSwitchTest, ConcurrentProducersLoseNothingButWhatIsCountedAsDropped) 
     sleep_for(10 * kNsPerMs);
   }
   EXPECT_EQ(in_file, recorded - dropped) << "recorded " << recorded << ", dropped " << dropped;
+}
+
+// The same report many times (one site, every cycle): the file holds it once in full
+// and `repeat` lines with the count, so it stays small; the counts add up.
+TEST_F(ModeSwitchTest, IdenticalReportsAreCountedNotWrittenAgain) {
+  if (!g_started.allocations || g_started.report_path.empty()) GTEST_SKIP() << "no interposers or no report file";
+  auto read = [] {
+    std::ifstream in(g_started.report_path);
+    return backtrace::parse_report_file(in, g_started.report_path);
+  };
+  sleep_for(100 * kNsPerMs);
+  const auto size_before = std::filesystem::file_size(g_started.report_path);
+  const Counters before = counters();
+  constexpr int kCycles = 2000;
+  std::thread t([] {
+    TaskAttachment attach(TaskInfo{"test:repeat", "rep", "Rep(0/0)", 0, Mode::kWarn});
+    for (int k = 0; k < kCycles; ++k) {
+      enter_cycle();
+      g_sink = std::malloc(40);  // the same two call sites each cycle
+      std::free(g_sink);
+      (void)leave_cycle();
+      if (k % 50 == 0) sleep_for(1 * kNsPerMs);  // let the reporter keep up with the ring
+    }
+  });
+  t.join();
+  const Counters after = counters();
+  const uint64_t recorded = after.by_reason[static_cast<int>(Reason::kAlloc)] - before.by_reason[static_cast<int>(Reason::kAlloc)];
+  ASSERT_EQ(recorded, uint64_t{kCycles} * 2);
+  const uint64_t dropped = after.dropped - before.dropped;
+  uint64_t in_file = 0, written = 0;
+  for (int i = 0; i < 300; ++i) {
+    in_file = written = 0;
+    for (const auto& r : read().reports) {
+      if (r.field("task") != "test:repeat" || r.field("reason") != "ALLOC") continue;
+      ++written;
+      in_file += 1 + r.repeats;
+    }
+    if (in_file + dropped >= recorded) break;
+    sleep_for(10 * kNsPerMs);
+  }
+  EXPECT_EQ(written, 2u) << "malloc and free: one report each in full";
+  // Every report is in the file (in full or counted) unless the ring dropped it (the
+  // drop count also holds this thread's other reasons: NOMLOCK, FAULT).
+  EXPECT_LE(in_file, recorded);
+  EXPECT_GE(in_file + dropped, recorded) << "dropped " << dropped;
+  // 4000 reports in full would be well over 1 MB; written once plus repeat lines, a few KB.
+  EXPECT_LT(std::filesystem::file_size(g_started.report_path) - size_before, 64u * 1024);
 }
 
 TEST_F(ModeSwitchTest, SyscallNamesComeFromTheKernelHeaders) {

@@ -216,5 +216,71 @@ TEST_F(ParametersTest, ComponentReferenceCannotChangeAtRunTime) {
   EXPECT_EQ(r.flags & 1, 1);
 }
 
+// Paths (issue 21 item 3): relative to the host file's folder in the host file and in
+// SET_PARAM alike, stored absolute.
+TEST(ParameterPathsTest, ARelativePathIsStoredAgainstTheBaseFolder) {
+  ParameterSet set;
+  Parameter& map = set.declare_string("map", "", {.doc = "a path", .path = PathRole::kInput});
+  Parameter& out = set.declare_string("store_dir", ".", {.doc = "a path", .path = PathRole::kOutputDir});
+  Parameter& label = set.declare_string("label", "a/b");
+  // Before the base is set (a component made outside a host file): as given.
+  EXPECT_EQ(out.get_string(), ".");
+  for (std::size_t i = 0; i < set.size(); ++i) EXPECT_FALSE(set.at(i).set_base_dir("/robot/configs").has_value());
+  EXPECT_EQ(out.get_string(), "/robot/configs");  // the declared default too
+  EXPECT_EQ(label.get_string(), "a/b");           // not a path
+  EXPECT_EQ(map.get_string(), "");                // empty stays empty (none)
+  ASSERT_FALSE(map.set_from_text("maps/office.yaml").has_value());
+  EXPECT_EQ(map.get_string(), "/robot/configs/maps/office.yaml");
+  ASSERT_FALSE(map.set_from_text("./maps/../maps/office.yaml").has_value());
+  EXPECT_EQ(map.get_string(), "/robot/configs/maps/../maps/office.yaml");
+  ASSERT_FALSE(map.set_from_text("/abs/office.yaml").has_value());
+  EXPECT_EQ(map.get_string(), "/abs/office.yaml");
+  EXPECT_EQ(resolve_path("/robot/configs", "scans/a.pcd"), "/robot/configs/scans/a.pcd");
+  EXPECT_EQ(resolve_path("/", "a"), "/a");
+  EXPECT_EQ(resolve_path("", "a"), "a");
+}
+
+TEST(ParameterPathsTest, SetParamResolvesAgainstTheHostFilesFolderNotTheSenders) {
+  ParameterSet set;
+  Parameter& out = set.declare_string("store_dir", ".", {.doc = "a path", .path = PathRole::kOutputDir});
+  Parameter& dev = set.declare_string("device", "", {.doc = "a path", .path = PathRole::kDevice});
+  ASSERT_FALSE(out.set_base_dir("/robot").has_value());
+  ASSERT_FALSE(dev.set_base_dir("/robot").has_value());
+  wire::ParamRecord r;
+  r.kind = static_cast<uint8_t>(ParamKind::kString);
+  wire::copy_text(r.string_value, "scans");
+  ASSERT_EQ(out.set_from_wire(r), nullptr);
+  EXPECT_EQ(out.get_string(), "/robot/scans");
+  // check_wire shows the class's rules the value as it will be stored.
+  wire::ParamRecord v;
+  wire::copy_text(r.string_value, "./x");
+  ASSERT_EQ(out.check_wire(r, v), nullptr);
+  EXPECT_STREQ(v.string_value, "/robot/x");
+  // A device number stays a number; a relative device path is resolved.
+  wire::copy_text(r.string_value, "0");
+  ASSERT_EQ(dev.set_from_wire(r), nullptr);
+  EXPECT_EQ(dev.get_string(), "0");
+  wire::copy_text(r.string_value, "dev/ttyX");
+  ASSERT_EQ(dev.set_from_wire(r), nullptr);
+  EXPECT_EQ(dev.get_string(), "/robot/dev/ttyX");
+}
+
+TEST(ParameterPathsTest, AnAbsolutePathThatDoesNotFitIsRefusedWithIt) {
+  ParameterSet set;
+  Parameter& map = set.declare_string("map", "", {.doc = "a path", .path = PathRole::kInput});
+  const std::string base = "/" + std::string(100, 'd');
+  ASSERT_FALSE(map.set_base_dir(base).has_value());
+  const std::string rel(40, 'm');  // fits alone, not behind the base
+  const auto err = map.set_from_text(rel);
+  ASSERT_TRUE(err.has_value());
+  EXPECT_NE(err->find(base + "/" + rel), std::string::npos) << *err;
+  EXPECT_NE(err->find("longer than 127"), std::string::npos) << *err;
+  wire::ParamRecord r;
+  r.kind = static_cast<uint8_t>(ParamKind::kString);
+  wire::copy_text(r.string_value, rel.c_str());
+  EXPECT_NE(map.set_from_wire(r), nullptr);
+  EXPECT_EQ(map.get_string(), "");  // unchanged
+}
+
 }  // namespace
 }  // namespace rack

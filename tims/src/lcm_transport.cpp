@@ -729,7 +729,7 @@ struct LcmTransport::Impl {
   }
 
   void expire_hosts() {
-    std::vector<std::string> lines;
+    std::vector<std::pair<std::string, std::string>> lines;  // rate-limit key (the host), text
     {
       std::lock_guard lock(table_mutex);
       const int64_t now = rt::monotonic_ns();
@@ -741,10 +741,11 @@ struct LcmTransport::Impl {
           continue;
         }
         const HostInfo& info = it->second.info;
-        lines.push_back("TiMS/LCM: host '" + info.host + "' (system " + std::to_string(info.system) + ", host id " +
-                        std::to_string(info.host_id) + ", pid " + std::to_string(info.pid) + ", " +
-                        describe(info.role) + ") expired: no announcement for " +
-                        std::to_string(silent / rt::kNsPerMs) + " ms");
+        lines.emplace_back("expired " + info.host + " " + std::to_string(info.system) + "/" + std::to_string(info.host_id),
+                           "TiMS/LCM: host '" + info.host + "' (system " + std::to_string(info.system) + ", host id " +
+                               std::to_string(info.host_id) + ", pid " + std::to_string(info.pid) + ", " +
+                               describe(info.role) + ") expired: no announcement for " +
+                               std::to_string(silent / rt::kNsPerMs) + " ms");
         fail_subscriptions_locked(info, "no announcement for " + std::to_string(silent / rt::kNsPerMs) + " ms");
         bump(hosts_expired);
         it = hosts.erase(it);
@@ -752,8 +753,19 @@ struct LcmTransport::Impl {
       }
       if (changed) rebuild_owners_locked();
     }
-    // Host events are rare and each matters: not rate-limited by kind.
-    for (const auto& l : lines) warn("expired " + l, [&] { return l; });
+    // Each host at most once a second (one that comes and goes is counted into its next
+    // line), and at most kMaxExpiredLines lines per pass: a fleet that drops off the
+    // network at once (a switch restarts) is one line more, not hundreds.
+    constexpr std::size_t kMaxExpiredLines = 8;
+    for (std::size_t i = 0; i < lines.size() && i < kMaxExpiredLines; ++i) {
+      warn(lines[i].first, [&] { return lines[i].second; });
+    }
+    if (lines.size() > kMaxExpiredLines) {
+      const std::size_t more = lines.size() - kMaxExpiredLines;
+      warn("expired more", [&] {
+        return "TiMS/LCM: " + std::to_string(more) + " more host(s) expired at the same time (counted in hosts_expired)";
+      });
+    }
   }
 
   // ------------------------------------------------------------------ receiving

@@ -259,7 +259,7 @@ int run(const Options& o) {
     for (const auto& e : errors) std::fprintf(stderr, "rack-backtrace: %s\n", e.c_str());
     problems = problems || !errors.empty();
     for (const auto& r : file.reports) {
-      ++total;
+      total += 1 + r.repeats;  // identical reports counted, not written
       if (!any_equal(o.reasons, r.field("reason")) || !any_equal(o.tasks, r.field("task")) ||
           !any_equal(o.components, r.field("component"))) {
         continue;
@@ -269,11 +269,15 @@ int run(const Options& o) {
         for (auto& f : sym.frames(pc)) frames.push_back(std::move(f));
       }
       if (!frames_match(o.functions, frames, false) || !frames_match(o.files, frames, true)) continue;
-      ++shown;
+      shown += 1 + r.repeats;
       std::vector<std::string> lines;
       for (std::size_t k = 0; k < frames.size(); ++k) lines.push_back(frame_text(frames[k], static_cast<int>(k)));
       if (!o.summary) {
         std::printf("%s: %s\n    %s\n", r.where.c_str(), head_text(r).c_str(), r.detail.c_str());
+        if (r.repeats > 0) {
+          std::printf("    and %llu identical report(s) after it (counted, not written)\n",
+                      static_cast<unsigned long long>(r.repeats));
+        }
         for (const auto& l : lines) std::printf("%s\n", l.c_str());
         std::printf("\n");
         continue;
@@ -292,7 +296,7 @@ int run(const Options& o) {
         it->second.frames = lines;
         order.push_back(key);
       }
-      ++it->second.count;
+      it->second.count += 1 + r.repeats;
     }
   }
   if (o.summary) {

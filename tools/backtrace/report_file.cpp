@@ -140,6 +140,7 @@ ReportFile parse(std::istream& in, const std::string& name) {
   Report current;
   uint64_t expected_frames = 0;
   int open_line = 0;
+  std::map<uint64_t, std::size_t> by_sequence;  // complete reports: index in f.reports
   auto close_truncated = [&](const std::string& why) {
     errors.push_back(where(open_line) + ": report " + std::to_string(current.sequence) + " is truncated: " +
                        std::to_string(current.pcs.size()) + " of " + std::to_string(expected_frames) +
@@ -203,9 +204,27 @@ ReportFile parse(std::istream& in, const std::string& name) {
                            std::to_string(current.pcs.size()) + " frames, its header says " +
                            std::to_string(expected_frames));
       } else {
+        by_sequence[current.sequence] = f.reports.size();
         f.reports.push_back(current);
       }
       open = false;
+    } else if (starts_with(line, "repeat ")) {
+      // `repeat FIRST count=N ...`: N more reports identical to report FIRST.
+      if (open) close_truncated("a repeat line follows it");
+      std::istringstream seq(line.substr(7));
+      uint64_t first = 0, count = 0;
+      const auto kv = key_values(line, 7);
+      if (!(seq >> first) || !kv.count("count") || !parse_u64(kv.at("count"), count)) {
+        errors.push_back(where(n) + ": malformed repeat line");
+        continue;
+      }
+      const auto at = by_sequence.find(first);
+      if (at != by_sequence.end()) {
+        uint64_t& repeats = f.reports[at->second].repeats;
+        repeats = count > UINT64_MAX - repeats ? UINT64_MAX : repeats + count;  // a hostile file saturates
+      } else {
+        errors.push_back(where(n) + ": repeat of report " + std::to_string(first) + ", which is not in the file");
+      }
     } else {
       errors.push_back(where(n) + ": unknown line '" + line.substr(0, 40) + "'");
     }

@@ -27,6 +27,9 @@ struct Report {
   std::string detail;
   std::vector<uint64_t> pcs;  // call-site PCs (already adjusted), innermost first
   std::string where;          // "file:line" of its first line, for messages
+  // Identical reports after it that were counted, not written (`repeat` lines):
+  // this report stands for 1 + repeats.
+  uint64_t repeats = 0;
   [[nodiscard]] std::string field(const std::string& key) const {
     const auto it = fields.find(key);
     return it == fields.end() ? "" : it->second;

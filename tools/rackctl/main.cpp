@@ -669,8 +669,10 @@ int cmd_status(Session& s, const Options& o) {
     std::printf("  %-16s none measured\n", "wake-up latency");
   }
   if (st.exec_samples > 0) {  // how long loop() ran: periodic and triggered tasks alike
-    std::printf("  %-16s p50 %s us, p99 %s us, max %s us (%llu cycles)\n", "execution time",
-                us(st.exec_p50_ns).c_str(), us(st.exec_p99_ns).c_str(), us(st.exec_max_ns).c_str(), u(st.exec_samples));
+    // 3 significant digits and a unit, as the latency line ("812 us", "1.25 ms").
+    std::printf("  %-16s p50 %s, p99 %s, max %s (%llu cycles)\n", "execution time",
+                latency_for_people(st.exec_p50_ns).c_str(), latency_for_people(st.exec_p99_ns).c_str(),
+                latency_for_people(st.exec_max_ns).c_str(), u(st.exec_samples));
   } else {
     std::printf("  %-16s none measured\n", "execution time");
   }
@@ -1105,6 +1107,11 @@ void stream_samples(Session& s, const Target& t, double period_ms, Subscribed su
       // The producer left ENABLED and dropped us: no STOP_CONT_DATA needed.
       fail(kExitError, t.label() + ": " + error_reason(body));
     }
+    if (got.header.type == msg::kEndOfStream) {
+      // The producer's stream ended (a replay at the end of its log): nothing more comes.
+      std::fprintf(stderr, "rackctl: %s: end of stream (no more samples)\n", t.label().c_str());
+      break;
+    }
     if (got.header.type != msg::kData) continue;
     last_sample = rt::monotonic_ns();
     if (!sample(last_sample, got.header, body, static_cast<std::size_t>(got.length))) break;
@@ -1534,7 +1541,7 @@ const std::vector<Command>& commands() {
        "Prints the state and the timing statistics: data task mode and period,\n"
        "cycles, overruns, wake-up latency (min, p50, p99, p99.9, max: 3 digits with\n"
        "their unit; a percentile beyond the histogram's 10 ms as \">= 10.0 ms\"),\n"
-       "execution time of loop() (p50, p99, max in us; triggered tasks too),\n"
+       "execution time of loop() (p50, p99, max with units; triggered tasks too),\n"
        "samples published, listeners, listener drops, malformed requests, commands,\n"
        "and the page faults of the command and data task since their start-up (0 is\n"
        "the target for an RT task; counted once a second by the executor).\n"
@@ -1587,6 +1594,7 @@ const std::vector<Command>& commands() {
        "--period MS: the wanted period (the producer sends every n-th sample; the real\n"
        "period is printed on stderr); default 0 = every sample. --count N: stop after\n"
        "N samples. SIGINT/SIGTERM stop it too (exit 0). The producer going off: exit 1.\n"
+       "The producer's stream ending (a replay at the end of its log): exit 0.\n"
        "No sample for 5 s: exit 3. The subscription is a lease (the producer's\n"
        "lease_ms): renewed every lease / 4, so a killed watch frees its slot in time.",
        cmd_watch},

@@ -37,7 +37,8 @@ Runs the components listed in a host file (see configs/demo.yaml for every key)
 until SIGINT or SIGTERM, then switches them OFF in reverse dependency order.
 
 options:
-  --check            validate the host file and exit (nothing is started)
+  --check            validate the host file and exit (nothing is started); also
+                     checks that the files and folders it names exist
   --duration SEC     shut down by itself after SEC seconds (as on SIGTERM)
   --status SEC       print each component's state and timing every SEC seconds
                      (default 0: only at shutdown), and each task's page faults
@@ -83,6 +84,12 @@ directories, then RACK_PLUGIN_PATH (':'-separated), then the build tree's (only
 for a rackd of the build tree), then the installed plug-in directory beside this
 rackd (../lib/rack/plugins) and the configured prefix's. A missing or broken plug-in is an error naming the
 class and the directories searched (also with --check).
+
+Paths in a host file (plug-ins, key_file, crash_dir, maps, logs, calibration and
+output files in parameters) are relative to the host file's folder, not to the
+working directory: `rackd configs/sim_mcl.yaml` runs from anywhere. rackd stores
+them absolute (rackctl params shows them so) and says so in errors. A relative path
+in `rackctl set-param` or STORE_DATA is relative to the host file's folder too.
 
 Host files are read strictly (README "Running a host"): a regular file of at most
 1 MiB (FIFOs and devices are refused), UTF-8 without NUL or control characters, one
@@ -368,7 +375,9 @@ static int run_rackd(int argc, char** argv) {
 
   watch.phase("reading " + file);
   const rack::rt::RtCapabilities caps = rack::rt::probe_capabilities();
-  auto loaded = rack::load_host_file(file, registry, caps);
+  // --check also makes sure that the files the parameters name exist; a start leaves
+  // a missing one to its component (that one fails, the others run).
+  auto loaded = rack::load_host_file(file, registry, caps, rack::HostLoadOptions{.open_files = true, .check_paths = check});
   if (watch.stop_requested()) return stopped_during_startup(watch);
   if (!loaded.errors.empty()) {
     // A hostile file can hold thousands: the first kMaxShown say enough.

@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 
 #include "poll_util.h"
@@ -20,46 +21,50 @@
 namespace rack::devices {
 
 namespace {
-std::string errno_text(const char* what, const char* name) {
-  return std::string(name) + ": " + what + ": " + std::strerror(errno);
+// "name: what: errno text" into `error`. No allocation: strerrordesc_np (glibc 2.32)
+// returns a constant, where strerror may format an unknown errno into a new buffer.
+void errno_text(CanError& error, const char* what, const char* name, int err = errno) noexcept {
+  const char* desc = strerrordesc_np(err);
+  std::snprintf(error.text, sizeof error.text, "%s: %s: %s", name, what, desc != nullptr ? desc : "unknown error");
 }
 }  // namespace
 
 CanPort::~CanPort() { close(); }
 
-bool CanPort::configure_common(std::string& error) {
+bool CanPort::configure_common(CanError& error) noexcept {
   const int on = 1;
   // Software receive timestamps in the host clock, on CAN and AF_UNIX sockets alike.
   if (::setsockopt(fd_, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) != 0) {
-    error = errno_text("SO_TIMESTAMPNS", "CAN socket");
+    errno_text(error, "SO_TIMESTAMPNS", "CAN socket");
     return false;
   }
   const int flags = ::fcntl(fd_, F_GETFL);
   if (flags < 0 || ::fcntl(fd_, F_SETFL, flags | O_NONBLOCK) != 0) {
-    error = errno_text("O_NONBLOCK", "CAN socket");
+    errno_text(error, "O_NONBLOCK", "CAN socket");
     return false;
   }
   return true;
 }
 
-bool CanPort::open_socketcan(const char* ifname, std::string& error) {
+bool CanPort::open_socketcan(const char* ifname, CanError& error) noexcept {
+  const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
   close();
   const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
   if (fd < 0) {
-    error = errno_text("socket(PF_CAN) (does this kernel have CAN support? modprobe can-raw)", ifname);
+    errno_text(error, "socket(PF_CAN) (does this kernel have CAN support? modprobe can-raw)", ifname);
     return false;
   }
   ifreq ifr{};
   std::strncpy(ifr.ifr_name, ifname, IFNAMSIZ - 1);
   if (::ioctl(fd, SIOCGIFINDEX, &ifr) != 0) {
-    error = errno_text("no such CAN interface", ifname);
+    errno_text(error, "no such CAN interface", ifname);
     ::close(fd);
     return false;
   }
   // Every controller error class: bus-off, error passive, restarts, lost arbitration.
   const can_err_mask_t mask = CAN_ERR_MASK;
   if (::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &mask, sizeof mask) != 0) {
-    error = errno_text("CAN_RAW_ERR_FILTER", ifname);
+    errno_text(error, "CAN_RAW_ERR_FILTER", ifname);
     ::close(fd);
     return false;
   }
@@ -67,19 +72,20 @@ bool CanPort::open_socketcan(const char* ifname, std::string& error) {
   addr.can_family = AF_CAN;
   addr.can_ifindex = ifr.ifr_ifindex;
   if (::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-    error = errno_text("bind", ifname);
+    errno_text(error, "bind", ifname);
     ::close(fd);
     return false;
   }
   return take(fd, CanKind::kSocketCan, error, /*close_on_failure=*/true);
 }
 
-bool CanPort::open_unix(const char* path, std::string& error) {
+bool CanPort::open_unix(const char* path, CanError& error) noexcept {
+  const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
   close();
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
   if (std::strlen(path) >= sizeof addr.sun_path) {
-    error = std::string(path) + ": socket path too long";
+    std::snprintf(error.text, sizeof error.text, "%s: socket path too long", path);
     return false;
   }
   std::strncpy(addr.sun_path, path, sizeof addr.sun_path - 1);
@@ -87,36 +93,58 @@ bool CanPort::open_unix(const char* path, std::string& error) {
   // (connect() would only say "Connection refused"). When stat() fails, connect() says why.
   struct stat st {};
   if (::stat(path, &st) == 0 && !S_ISSOCK(st.st_mode)) {
-    error = std::string(path) + ": the CAN bus socket is " + rt::file_kind_text(st.st_mode) + ", not a socket";
+    std::snprintf(error.text, sizeof error.text, "%s: the CAN bus socket is %s, not a socket", path,
+                  rt::file_kind_text(st.st_mode));
     return false;
   }
   const int fd = ::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0);
   if (fd < 0) {
-    error = errno_text("socket(AF_UNIX, SOCK_SEQPACKET)", path);
+    errno_text(error, "socket(AF_UNIX, SOCK_SEQPACKET)", path);
     return false;
   }
   if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-    error = errno_text("connect", path);
+    errno_text(error, "connect", path);
     ::close(fd);
     return false;
   }
   return take(fd, CanKind::kOther, error, /*close_on_failure=*/true);
 }
 
-bool CanPort::open(const char* spec, std::string& error) {
-  const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
+bool CanPort::open(const char* spec, CanError& error) noexcept {
   if (std::strncmp(spec, "unix:", 5) == 0) return open_unix(spec + 5, error);
   return open_socketcan(spec, error);
+}
+
+// The std::string forms (set-up code, tests): the same, with the text copied.
+bool CanPort::open_socketcan(const char* ifname, std::string& error) {
+  CanError e;
+  if (open_socketcan(ifname, e)) return true;
+  error = e.text;
+  return false;
+}
+
+bool CanPort::open_unix(const char* path, std::string& error) {
+  CanError e;
+  if (open_unix(path, e)) return true;
+  error = e.text;
+  return false;
+}
+
+bool CanPort::open(const char* spec, std::string& error) {
+  CanError e;
+  if (open(spec, e)) return true;
+  error = e.text;
+  return false;
 }
 
 void CanPort::adopt(int fd) {
   const rt::modeswitch::DeviceSetupScope setup;  // opening blocks: deliberate set-up in on()
   close();
-  std::string ignored;
+  CanError ignored;
   (void)take(fd, CanKind::kOther, ignored, /*close_on_failure=*/false);  // best effort: a socketpair supports both
 }
 
-bool CanPort::take(int fd, CanKind kind, std::string& error, bool close_on_failure) {
+bool CanPort::take(int fd, CanKind kind, CanError& error, bool close_on_failure) noexcept {
   fd_ = fd;
   kind_ = kind;
   (void)rt::modeswitch::register_rt_device(fd_);  // RT tasks send, receive and poll on it
@@ -137,23 +165,31 @@ void CanPort::close() noexcept {
   error_passive_ = false;
 }
 
-bool CanPort::set_filters(std::span<const can_filter> filters, std::string& error) {
+bool CanPort::set_filters(std::span<const can_filter> filters, CanError& error) noexcept {
   if (filters.size() > kMaxFilters) {
-    error = "CAN: at most " + std::to_string(kMaxFilters) + " filters";
+    std::snprintf(error.text, sizeof error.text, "CAN: at most %zu filters", kMaxFilters);
     return false;
   }
   std::copy(filters.begin(), filters.end(), filters_.begin());
   filter_count_ = filters.size();
   if (kind_ == CanKind::kSocketCan) {
+    const rt::modeswitch::DeviceSetupScope setup;  // setsockopt: deliberate set-up in on()
     // No filters on a raw socket means "receive all"; an empty list must mean the same.
     if (!filters.empty() &&
         ::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
                      static_cast<socklen_t>(filters.size() * sizeof(can_filter))) != 0) {
-      error = errno_text("CAN_RAW_FILTER", "CAN socket");
+      errno_text(error, "CAN_RAW_FILTER", "CAN socket");
       return false;
     }
   }
   return true;
+}
+
+bool CanPort::set_filters(std::span<const can_filter> filters, std::string& error) {
+  CanError e;
+  if (set_filters(filters, e)) return true;
+  error = e.text;
+  return false;
 }
 
 bool CanPort::accepted(canid_t id) const noexcept {

@@ -597,16 +597,93 @@ int64_t g_stderr_window_start = 0;  // rate limit (consumer only)
 uint32_t g_stderr_in_window = 0;
 uint64_t g_stderr_suppressed = 0;
 
+// Aggregation of identical reports (Config::repeat_every_ns). Consumer only: a fixed
+// table, no allocation. Reports of sites beyond kMaxRepeatSites are written in full.
+struct RepeatSite {
+  uint64_t key = 0;        // report_key(); 0: free
+  uint64_t first = 0;      // the sequence number of the report written in full
+  uint64_t pending = 0;    // identical reports since the last line about it
+  uint64_t total = 0;      // all of them, the first included
+  int64_t due_ns = 0;      // monotonic: the next repeat line no earlier than this
+};
+constexpr std::size_t kMaxRepeatSites = 1024;
+RepeatSite g_repeat_sites[kMaxRepeatSites];
+std::size_t g_repeat_site_count = 0;
+
+// What makes two reports the same: reason, system call (or heap call kind), task,
+// component and the call sites (FNV-1a). Sizes and addresses of data may differ.
+uint64_t report_key(const Record& r) noexcept {
+  uint64_t h = 14695981039346656037ull;
+  const auto mix = [&h](const void* p, std::size_t n) noexcept {
+    const auto* b = static_cast<const unsigned char*>(p);
+    for (std::size_t i = 0; i < n; ++i) {
+      h ^= b[i];
+      h *= 1099511628211ull;
+    }
+  };
+  mix(&r.reason, sizeof r.reason);
+  mix(&r.nr, sizeof r.nr);
+  mix(r.task, ::strnlen(r.task, sizeof r.task));
+  mix(r.component, ::strnlen(r.component, sizeof r.component));
+  mix(r.pc, r.frames * sizeof r.pc[0]);
+  return h | 1u;  // never 0 (a free entry)
+}
+
+// True when `r` repeats a report already written (then counted only).
+bool counted_as_repeat(const Record& r) noexcept {
+  if (g_config.repeat_every_ns <= 0 || r.reason == Reason::kCrash) return false;
+  const uint64_t key = report_key(r);
+  for (std::size_t i = 0; i < g_repeat_site_count; ++i) {
+    RepeatSite& s = g_repeat_sites[i];
+    if (s.key != key) continue;
+    ++s.pending;
+    ++s.total;
+    return true;
+  }
+  if (g_repeat_site_count < kMaxRepeatSites) {
+    g_repeat_sites[g_repeat_site_count++] = RepeatSite{key, r.sequence, 0, 1, monotonic_ns() + g_config.repeat_every_ns};
+  }
+  return false;
+}
+
+// `repeat FIRST count=N total=T time_ns=...` for each site with repeats whose period
+// is over (`all`: every one, at stop). Consumer only.
+void write_repeats(bool all) noexcept {
+  const int64_t now = monotonic_ns();
+  for (std::size_t i = 0; i < g_repeat_site_count; ++i) {
+    RepeatSite& s = g_repeat_sites[i];
+    if (s.pending == 0 || (!all && now < s.due_ns)) continue;
+    char buf[256];
+    Text t(buf, sizeof buf);
+    t.s("repeat ").u(s.first).s(" count=").u(s.pending).s(" total=").u(s.total).s(" time_ns=").i(now_realtime()).c('\n');
+    write_all(g_report_fd, t.data(), t.size());
+    if (g_config.to_stderr) {
+      char head[384];
+      Text h(head, sizeof head);
+      h.s("rack: MODE SWITCH report ").u(s.first).s(" repeated ").u(s.pending).s(" more time(s), ").u(s.total)
+          .s(" in all");
+      if (g_report_fd >= 0) h.s(" -- symbolize: rack-backtrace ").s(g_report_path);
+      h.c('\n');
+      write_all(STDERR_FILENO, h.data(), h.size());
+    }
+    s.pending = 0;
+    s.due_ns = now + g_config.repeat_every_ns;
+  }
+}
+
 // Writes one record to the file, stderr and (when `sinks`) the other sinks.
-// Async-signal-safe when sinks is false (crash path).
+// Async-signal-safe when sinks is false (crash path: every record in full).
 void emit(const Record& r, bool sinks) noexcept {
   static char buf[8192];  // consumer only (g_consumer held)
   Text t(buf, sizeof buf);
   format_record(r, t);
-  write_new_modules();
-  write_all(g_report_fd, t.data(), t.size());
-  ++g_written;
-  if (g_config.to_stderr) {
+  const bool repeat = sinks && counted_as_repeat(r);
+  if (!repeat) {
+    write_new_modules();
+    write_all(g_report_fd, t.data(), t.size());
+    ++g_written;
+  }
+  if (g_config.to_stderr && !repeat) {
     const int64_t now = monotonic_ns();
     if (now - g_stderr_window_start > kNsPerSec) {
       g_stderr_window_start = now;
@@ -669,6 +746,7 @@ void drain_locked(bool sinks) noexcept {
     emit(r, sinks);
     if (r.reason == Reason::kWatchdog && r.nr == 1) g_rttime_hit.store(true, std::memory_order_relaxed);
   }
+  if (sinks) write_repeats(false);
 }
 
 void drain() {
@@ -1205,6 +1283,10 @@ void stop() {
   g_reporter_cv.notify_all();
   if (g_reporter.joinable()) g_reporter.join();
   drain();
+  if (try_lock_consumer(50 * kNsPerMs)) {  // the counts not yet written
+    write_repeats(true);
+    unlock_consumer();
+  }
   if (g_written == 0 && g_report_fd >= 0) {
     // Nothing to report: leave no empty file behind, and no handler writing to it.
     if (g_crash_installed) {

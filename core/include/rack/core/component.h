@@ -84,6 +84,9 @@ struct ComponentSettings {
   // ERROR (DataComponentBase: leases). Consumers renew every lease / 4.
   int64_t lease_ns = 10 * rt::kNsPerSec;
   bool autostart = false;
+  // The host file's folder (absolute; "" outside a host file): relative paths in
+  // parameters and commands (STORE_DATA) are taken from it (rack/core/parameters.h).
+  std::string base_dir;
 };
 
 class Executor;

@@ -25,6 +25,17 @@
 // The reply mailboxes (#1 of the command task, #2 of the data task) take no request
 // either: refused silently, counted with input_requests.
 //
+// End of stream: a producer whose data has ended for good while it stays ENABLED (a
+// replay at the end of its log) calls end_stream(): every listener, and every one that
+// subscribes later, gets END_OF_STREAM (tims::msg::kEndOfStream) instead of silence.
+// A consumer takes it in next_input() (it is not DATA, nor an ERROR): that
+// subscription is over without a failure. Once every producer it subscribed to has
+// ended, input_silent() stays false (no ERROR after data_timeout, no retry every
+// second), inputs_ended() is true, and after its next loop() (which publishes what it
+// made of the last input) GDOS says so once (info) and the consumer ends its own
+// stream: the end travels down the pipeline behind the last sample, and every
+// component stays ENABLED and quiet. Switching the producer OFF and ON starts a new stream.
+//
 // Leases: a listener (GET_CONT_DATA) holds its slot for ComponentSettings::lease_ns
 // (host file: data_task.lease_ms, default 10 s) after its last GET_CONT_DATA. A
 // GET_CONT_DATA from the same mailbox renews and replaces it (new period, same slot,
@@ -115,7 +126,16 @@ class DataComponentBase : public Component {
   // source is silent, or sends nothing usable, and loop() should return kError. A
   // wake-up by one malformed message alone is skipped, not an error. Data task;
   // RT-safe.
+  // When it returns true it also sets the error reason ("no input for N ms").
   [[nodiscard]] bool input_silent() const noexcept;
+  // Every producer this component subscribed to has ended its stream (END_OF_STREAM,
+  // see "End of stream" above): no more input will come. Data task; RT-safe.
+  [[nodiscard]] bool inputs_ended() const noexcept;
+  // For a producer, data task: its stream has ended for good (see "End of stream").
+  // Every listener gets END_OF_STREAM now, a later one right after its CONT_DATA,
+  // until the component leaves ENABLED. Idempotent. RT-safe.
+  void end_stream() noexcept;
+  [[nodiscard]] bool stream_ended() const noexcept { return stream_ended_.load(std::memory_order_acquire); }
 
   // From on(): trusts `producer` in the input mailbox, then GET_CONT_DATA to it for
   // this component's input mailbox; the data task renews it every lease / 4 while
@@ -173,7 +193,15 @@ class DataComponentBase : public Component {
     int64_t renew_every_ns = 0;  // lease / 4; 0: the producer grants no lease
     int64_t renew_at_ns = 0;
     bool active = false;
+    bool ended = false;  // END_OF_STREAM received (data task)
   };
+  // Data task: `header` is an END_OF_STREAM; marks its producer's subscription ended.
+  void note_end_of_stream(const tims::MessageHeader& header) noexcept;
+  // Data task, after a loop() that succeeded: once every input has ended, logs it and
+  // ends this component's own stream (after what loop() published of the last input).
+  void pass_end_on() noexcept;
+  tims::Address last_ended_;  // data task: the producer whose end came last
+  void send_end_of_stream(uint32_t mailbox, uint8_t priority) noexcept;
   // Data task, loop gate held: GET_CONT_DATA to every producer whose renewal is due.
   // Sets the error reason "<producer> left ENABLED" (or NOT_AVAILABLE) for an input ERROR.
   void note_input_error(const tims::MessageHeader& header) noexcept;
@@ -213,6 +241,10 @@ class DataComponentBase : public Component {
   std::atomic<int64_t> last_time_ns_{0};
   std::atomic<int64_t> last_interval_ns_{0};
   std::atomic<uint64_t> published_{0}, listener_drops_{0}, listeners_expired_{0};
+  // end_stream() was called since the last ENABLED (release: the command task then
+  // tells a new listener; acquire in stream_ended()).
+  std::atomic<bool> stream_ended_{false};
+  bool inputs_ended_reported_ = false;  // data task
 };
 
 template <tims::Payload T>
@@ -252,6 +284,11 @@ DataComponentBase::Input DataComponentBase::next_input(tims::MessageHeader& head
       input_mailbox().peek_end();
       note_input_error(header);  // the error reason, should loop() now fail
       return Input::kError;
+    }
+    if (header.type == tims::msg::kEndOfStream) {  // a producer's stream ended: not a failure
+      input_mailbox().peek_end();
+      note_end_of_stream(header);
+      continue;
     }
     if (header.type != tims::msg::kData) {  // a renewal's CONT_DATA, a wake-up: nothing to take
       input_mailbox().peek_end();

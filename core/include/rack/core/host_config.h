@@ -116,13 +116,21 @@ struct HostLoadOptions {
   // reports them. False: only their paths are checked, no file named by the input is
   // opened (the fuzz harness, tests/fuzz/fuzz_host_config.cpp).
   bool open_files = true;
+  // rackd --check: every file and folder a parameter names (Parameter::Spec::path)
+  // must exist. A normal start leaves that to the component (init() fails with the
+  // path, the other components run).
+  bool check_paths = false;
 };
+
+// The folder of a host file, absolute and normalised: relative paths in the file
+// (plug-ins, key files, crash_dir, file parameters) are taken from it. Not RT-safe.
+[[nodiscard]] std::string host_file_folder(const std::string& file);
 
 // Reads and validates a host file. `caps` gives the online CPUs. The file must be a
 // regular file of at most kMaxHostFileBytes (fstat before anything is read; opened
 // non-blocking, so a FIFO never stalls the caller).
 [[nodiscard]] LoadResult load_host_file(const std::string& path, ComponentRegistry& registry,
-                                        const rt::RtCapabilities& caps);
+                                        const rt::RtCapabilities& caps, const HostLoadOptions& options = {});
 // read_host_bytes and read_tool_network: rack/client/host_file.h.
 
 // load_host_file from text (tests, tools); `file` names it in error messages.

@@ -24,6 +24,25 @@ namespace rack {
 using wire::ParamKind;
 [[nodiscard]] const char* describe(ParamKind kind) noexcept;
 
+// What a string parameter names on this host's file system (Parameter::Spec::path).
+// A relative path is relative to the folder of the host file that rackd runs (set
+// with ParameterSet::set_base_dir), in the host file and in a SET_PARAM alike: the
+// parameter stores it made absolute, so GET_PARAM, the component's messages and the
+// tools all show the one file it names. Without a base folder (a component made
+// outside a host file) the value is kept as given.
+enum class PathRole : uint8_t {
+  kNone,
+  kInput,      // a file or folder read: `rackd --check` fails when it does not exist
+  kOutput,     // a file written: `rackd --check` fails when its folder does not exist
+  kOutputDir,  // a folder files are written to: `rackd --check` fails when it does not exist
+  kDevice,     // a device (or file) opened when switched on: may appear later, not checked;
+               // a value of digits only is a device number, kept as given
+};
+
+// `path` made absolute against `base_dir` ("." and leading "./" dropped); `path` itself
+// when it is empty or absolute, or `base_dir` is empty. Not RT-safe.
+[[nodiscard]] std::string resolve_path(const std::string& base_dir, const std::string& path);
+
 class Parameter {
  public:
   struct Spec {
@@ -44,6 +63,9 @@ class Parameter {
     // Of a number, for tools (rackctl params, the class description): "m", "m/s",
     // "rad", "ms", "Hz"; empty: none, or not a number.
     std::string unit{};
+    // A string that names a file, folder or device (PathRole): resolved against the
+    // host file's folder, checked by rackd --check.
+    PathRole path = PathRole::kNone;
   };
 
   Parameter(std::string name, ParamKind kind, Spec spec);
@@ -75,6 +97,12 @@ class Parameter {
   void to_record(wire::ParamRecord& out) const noexcept;  // RT-safe
   [[nodiscard]] std::string value_text() const;             // not RT-safe
 
+  // The folder a relative path resolves against (absolute; "": none), for a parameter
+  // with Spec::path: the present value is resolved at once. Before the tasks start
+  // (host file loader). Returns the reason when the resolved path does not fit.
+  std::optional<std::string> set_base_dir(const std::string& dir);
+  [[nodiscard]] const std::string& base_dir() const noexcept { return base_dir_; }
+
   [[nodiscard]] bool was_set() const noexcept { return set_.load(std::memory_order_relaxed); }
   // SET_PARAMs taken so far, of a changed value or not: a component that acts on every
   // order (not only on a change) compares it. Acquire: the value written before it is seen.
@@ -83,10 +111,14 @@ class Parameter {
  private:
   void store_string(const char* text, std::size_t len) noexcept;
   [[nodiscard]] bool is_choice(const char* text) const noexcept;
+  // `text` as stored: made absolute against base_dir_ when it is a relative path
+  // (Spec::path). False when the result does not fit `out`. RT-safe.
+  [[nodiscard]] bool resolve(const char* text, std::size_t len, char (&out)[wire::kParamStringLen]) const noexcept;
 
   std::string name_;
   ParamKind kind_;
   Spec spec_;
+  std::string base_dir_;  // set before the tasks start, then only read
   // Each value is independent; relaxed is enough for int/float/bool: a reader sees
   // the old or the new value, never a torn one.
   std::atomic<int64_t> int_{0};

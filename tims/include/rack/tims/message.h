@@ -78,6 +78,10 @@ inline constexpr int8_t kEnabled = -4;
 inline constexpr int8_t kDisabled = -5;
 inline constexpr int8_t kData = -6;
 inline constexpr int8_t kContData = -7;
+// RACK-RT: a producer's stream has ended (a replay at the end of its log): no more DATA
+// follows while it stays ENABLED. Sent to each listener (no body); a consumer whose
+// every input ended is idle, not failing (rack/core/data_component.h "End of stream").
+inline constexpr int8_t kEndOfStream = -8;
 inline constexpr int8_t kParam = -9;
 inline constexpr int8_t kStats = -11;
 inline constexpr int8_t kLatency = -12;

@@ -54,6 +54,13 @@ struct CanCounters {
   uint64_t send_failed = 0;   // ENOBUFS (tx queue full), bus-off, other errors
 };
 
+// Why opening failed, in a fixed buffer: the open path fills it without allocating,
+// so a driver that opens its bus in on() (the command task) can fail and retry every
+// second without leaving real time.
+struct CanError {
+  char text[160] = {};
+};
+
 class CanPort {
  public:
   static constexpr std::size_t kMaxFilters = 16;
@@ -63,10 +70,15 @@ class CanPort {
   CanPort(const CanPort&) = delete;
   CanPort& operator=(const CanPort&) = delete;
 
-  // Not RT-safe. false with `error` naming the interface/path and the errno text.
+  // Not RT-safe (blocking set-up system calls, in a DeviceSetupScope). false with
+  // `error` naming the interface/path and the errno text. The CanError forms allocate
+  // nothing, failures included; the std::string forms copy the text.
+  [[nodiscard]] bool open_socketcan(const char* ifname, CanError& error) noexcept;
+  [[nodiscard]] bool open_unix(const char* path, CanError& error) noexcept;
+  // "vcan0" or "unix:/path": the form host files use.
+  [[nodiscard]] bool open(const char* spec, CanError& error) noexcept;
   [[nodiscard]] bool open_socketcan(const char* ifname, std::string& error);
   [[nodiscard]] bool open_unix(const char* path, std::string& error);
-  // "vcan0" or "unix:/path": the form host files use. Not RT-safe.
   [[nodiscard]] bool open(const char* spec, std::string& error);
   // Takes ownership of `fd`. Not RT-safe.
   void adopt(int fd);
@@ -77,6 +89,7 @@ class CanPort {
 
   // Accept only frames matching one of these (empty: all). Error frames always pass.
   // Not RT-safe (setsockopt on AF_CAN). false when more than kMaxFilters.
+  [[nodiscard]] bool set_filters(std::span<const can_filter> filters, CanError& error) noexcept;
   [[nodiscard]] bool set_filters(std::span<const can_filter> filters, std::string& error);
 
   // Waits up to timeout_ns for a data frame. Error frames update the bus state and
@@ -96,10 +109,10 @@ class CanPort {
  private:
   [[nodiscard]] bool accepted(canid_t id) const noexcept;
   void handle_error_frame(const can_frame& f) noexcept;
-  bool configure_common(std::string& error);
+  bool configure_common(CanError& error) noexcept;
   // Makes `fd` this port's descriptor (registered as an RT device for mode-switch
   // detection) and applies the common options; on failure `error` says why.
-  bool take(int fd, CanKind kind, std::string& error, bool close_on_failure);
+  bool take(int fd, CanKind kind, CanError& error, bool close_on_failure) noexcept;
 
   int fd_ = -1;
   CanKind kind_ = CanKind::kNone;

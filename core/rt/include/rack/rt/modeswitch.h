@@ -118,6 +118,11 @@ struct Config {
   int64_t rttime_us = 0;              // RLIMIT_RTTIME soft limit (0: off)
   std::vector<std::string> allow_syscalls;  // added to the default allow-list
   uint32_t stderr_per_second = 20;    // more reports than this go to the file only
+  // Identical reports (same reason, task, component, system call and backtrace) after
+  // the first are counted, not written: the first in full, then at most one `repeat`
+  // line per this period while it repeats (and at stop), so a fault that repeats each
+  // cycle cannot fill a disk (tools/backtrace/README.md). 0: every report in full.
+  int64_t repeat_every_ns = 10'000'000'000;
 };
 
 // What start() switched on, and why anything was left off.
