@@ -72,7 +72,7 @@ class FoxgloveTest : public ::testing::Test {
   // A file of configs/ with absolute map paths (rackd then needs no working directory).
   std::string config(const std::string& name) {
     std::string text = read_file(kConfigs + "/" + name);
-    const std::string rel = "map: configs/maps/office.yaml";
+    const std::string rel = "map: maps/office.yaml";
     const std::string abs = "map: " + kConfigs + "/maps/office.yaml";
     for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + abs.size())) text.replace(at, rel.size(), abs);
     return dir_.write(name, text).string();
