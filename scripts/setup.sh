@@ -4,6 +4,7 @@
 #
 #   scripts/setup.sh            # install + build
 #   RACK_BUILD_DIR=out scripts/setup.sh
+#   RACK_WERROR=ON scripts/setup.sh   # warnings fail the build (what CI does: .ci/run)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -65,7 +66,7 @@ if ! ip route get 239.255.76.67 >/dev/null 2>&1; then
 fi
 
 build=${RACK_BUILD_DIR:-build}
-cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DRACK_WERROR="${RACK_WERROR:-OFF}" >/dev/null
 cmake --build "$build" -j"$(nproc)"
 # rack-gui's front end (tools/gui/web): packages pinned by package-lock.json, built into
 # tools/gui/web/dist, which rack-gui serves (nothing is loaded from the internet at run time).
