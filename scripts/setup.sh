@@ -32,7 +32,7 @@ packages=(
   libboost-dev libboost-system-dev       # rack-gui: HTTP/WebSocket server (Boost.Beast)
   nlohmann-json3-dev                     # rack-gui: its WebSocket protocol (JSON)
   chromium                               # rack-gui's end-to-end test (headless, driven by Playwright)
-  clang-format-14                        # code style: scripts/format.sh (ctest format_check)
+  clang-format-14 clang-tidy-14          # code style: scripts/format.sh, scripts/tidy.sh (ctest format_check, tidy_naming)
 )
 # rack-gui's front end is built with node/npm: Debian's, unless a node is installed already.
 command -v node >/dev/null 2>&1 || packages+=(nodejs)
