@@ -24,6 +24,9 @@ fi
 
 if (($#)); then
   files=("$@")
+elif ! git rev-parse --is-inside-work-tree >/dev/null 2>&1; then
+  echo "tidy: not a git checkout: the file list comes from git ls-files (name the files instead)" >&2
+  exit 77
 else
   # Tracked production sources that the build compiles (optional components that
   # were not configured, e.g. without OpenCV, have no compile command).
