@@ -12,6 +12,9 @@ function(rack_set_warnings target)
   target_compile_options(${target} PRIVATE
     -Wall -Wextra -Wshadow -Wconversion -Wsign-conversion -Wold-style-cast
     -Wnon-virtual-dtor -Woverloaded-virtual -Wnull-dereference -Wformat=2)
+  if(RACK_WERROR)  # CMakeLists.txt: CI builds with it
+    target_compile_options(${target} PRIVATE -Werror)
+  endif()
   if(RACK_SANITIZER)
     target_compile_options(${target} PRIVATE -fsanitize=${RACK_SANITIZER} -fno-omit-frame-pointer)
     target_link_options(${target} PRIVATE -fsanitize=${RACK_SANITIZER})

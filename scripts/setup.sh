@@ -4,6 +4,7 @@
 #
 #   scripts/setup.sh            # install + build
 #   RACK_BUILD_DIR=out scripts/setup.sh
+#   RACK_WERROR=ON scripts/setup.sh   # warnings fail the build (what CI does: .ci/run)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -32,6 +33,7 @@ packages=(
   nlohmann-json3-dev                     # rack-gui: its WebSocket protocol (JSON)
   chromium                               # rack-gui's end-to-end test (headless, driven by Playwright)
   graphviz                               # rackctl graph --format svg (dot)
+  clang-format-14 clang-tidy-14          # code style: scripts/format.sh, scripts/tidy.sh (ctest format_check, tidy_naming)
 )
 # rack-gui's front end is built with node/npm: Debian's, unless a node is installed already.
 command -v node >/dev/null 2>&1 || packages+=(nodejs)
@@ -66,7 +68,7 @@ if ! ip route get 239.255.76.67 >/dev/null 2>&1; then
 fi
 
 build=${RACK_BUILD_DIR:-build}
-cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DRACK_WERROR="${RACK_WERROR:-OFF}" >/dev/null
 cmake --build "$build" -j"$(nproc)"
 # rack-gui's front end (tools/gui/web): packages pinned by package-lock.json, built into
 # tools/gui/web/dist, which rack-gui serves (nothing is loaded from the internet at run time).

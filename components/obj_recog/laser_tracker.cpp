@@ -64,14 +64,14 @@ void LaserTracker::cluster_scan(const Scan2dData& scan) noexcept {
 void LaserTracker::predict(Track& t, double dt) const noexcept {
   const double q = options_.accel_std * options_.accel_std;
   const double q11 = q * dt * dt * dt * dt / 4.0, q12 = q * dt * dt * dt / 2.0, q22 = q * dt * dt;
-  const auto axis = [&](double& p, double& v, double* P) {
+  const auto axis = [&](double& p, double& v, double* cov) {
     p += v * dt;
-    // P = F P F' + Q with F = [1 dt; 0 1].
-    const double a = P[0], b = P[1], d = P[3];
-    P[0] = a + 2.0 * dt * b + dt * dt * d + q11;
-    P[1] = b + dt * d + q12;
-    P[2] = P[1];
-    P[3] = d + q22;
+    // cov = F cov F' + Q with F = [1 dt; 0 1] (cov: this axis' 2x2 covariance P).
+    const double a = cov[0], b = cov[1], d = cov[3];
+    cov[0] = a + 2.0 * dt * b + dt * dt * d + q11;
+    cov[1] = b + dt * d + q12;
+    cov[2] = cov[1];
+    cov[3] = d + q22;
   };
   axis(t.x, t.vx, t.pxx);
   axis(t.y, t.vy, t.pyy);
@@ -79,17 +79,17 @@ void LaserTracker::predict(Track& t, double dt) const noexcept {
 
 void LaserTracker::correct(Track& t, double zx, double zy) const noexcept {
   const double r = options_.measurement_std * options_.measurement_std;
-  const auto axis = [&](double& p, double& v, double* P, double z) {
-    const double s = P[0] + r;
-    const double k0 = P[0] / s, k1 = P[2] / s;
+  const auto axis = [&](double& p, double& v, double* cov, double z) {
+    const double s = cov[0] + r;
+    const double k0 = cov[0] / s, k1 = cov[2] / s;
     const double innov = z - p;
     p += k0 * innov;
     v += k1 * innov;
-    const double a = P[0], b = P[1], d = P[3];
-    P[0] = (1.0 - k0) * a;
-    P[1] = (1.0 - k0) * b;
-    P[2] = P[1];
-    P[3] = d - k1 * b;
+    const double a = cov[0], b = cov[1], d = cov[3];
+    cov[0] = (1.0 - k0) * a;
+    cov[1] = (1.0 - k0) * b;
+    cov[2] = cov[1];
+    cov[3] = d - k1 * b;
   };
   axis(t.x, t.vx, t.pxx, zx);
   axis(t.y, t.vy, t.pyy, zy);

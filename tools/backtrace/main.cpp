@@ -89,9 +89,9 @@ class Symbolizer {
  public:
   Symbolizer(const ReportFile& file, const std::string& root, std::vector<std::string>& errors) : file_(file) {
     static char* debuginfo_path = nullptr;
-    static const Dwfl_Callbacks callbacks = {
+    static const Dwfl_Callbacks kCallbacks = {
         dwfl_build_id_find_elf, dwfl_standard_find_debuginfo, dwfl_offline_section_address, &debuginfo_path};
-    dwfl_ = dwfl_begin(&callbacks);
+    dwfl_ = dwfl_begin(&kCallbacks);
     if (dwfl_ == nullptr) {
       errors.push_back(std::string("libdw: ") + dwfl_errmsg(-1));
       return;
@@ -333,7 +333,7 @@ int main(int argc, char** argv) {
     if (a == "--summary") o.summary = true;
     else if (a == "--reason") {
       value(o.reasons);
-      static const char* kReasons[] = {"SYSCALL", "FAULT", "ALLOC", "PRIOINV", "WATCHDOG", "NOMLOCK", "RUSAGE", "CRASH"};
+      static const char* const kReasons[] = {"SYSCALL", "FAULT", "ALLOC", "PRIOINV", "WATCHDOG", "NOMLOCK", "RUSAGE", "CRASH"};
       if (std::none_of(std::begin(kReasons), std::end(kReasons), [&](const char* r) { return o.reasons.back() == r; })) {
         std::fprintf(stderr, "rack-backtrace: unknown reason '%s' (SYSCALL, FAULT, ALLOC, PRIOINV, WATCHDOG, NOMLOCK, "
                              "RUSAGE, CRASH)\n", o.reasons.back().c_str());

@@ -46,7 +46,7 @@ std::size_t sanitizer_stack_extra_bytes() noexcept {
   } else {
     // Computed once: the loaded objects' PT_TLS segments (static TLS), plus room for
     // glibc's thread descriptor and TLS surplus.
-    static const std::size_t extra = [] {
+    static const std::size_t kExtra = [] {
       std::size_t tls = 0;
       dl_iterate_phdr(
           [](dl_phdr_info* info, std::size_t, void* data) {
@@ -61,7 +61,7 @@ std::size_t sanitizer_stack_extra_bytes() noexcept {
           &tls);
       return tls + 64 * 1024;
     }();
-    return extra;
+    return kExtra;
   }
 }
 

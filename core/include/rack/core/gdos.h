@@ -239,8 +239,8 @@ constexpr FormatError check_format_for(std::string_view fmt) {
   if constexpr (sizeof...(Args) == 0) {
     return check_format(fmt, nullptr, 0);
   } else {
-    constexpr ArgInfo infos[] = {arg_info<Args>()...};
-    return check_format(fmt, infos, sizeof...(Args));
+    constexpr ArgInfo kInfos[] = {arg_info<Args>()...};
+    return check_format(fmt, kInfos, sizeof...(Args));
   }
 }
 
@@ -407,8 +407,8 @@ class Writer {
   void put(const T& value) noexcept {
     using U = std::remove_cvref_t<T>;
     using D = std::decay_t<U>;
-    constexpr ArgInfo info = arg_info<T>();
-    if constexpr (info.kind == ArgKind::kInt) {
+    constexpr ArgInfo kInfo = arg_info<T>();
+    if constexpr (kInfo.kind == ArgKind::kInt) {
       if constexpr (std::is_enum_v<D>) {
         put(static_cast<std::underlying_type_t<D>>(value));
       } else if constexpr (std::is_signed_v<D>) {
@@ -416,15 +416,15 @@ class Writer {
       } else {
         put_raw(ArgKind::kInt, static_cast<uint64_t>(value));
       }
-    } else if constexpr (info.kind == ArgKind::kDouble) {
+    } else if constexpr (kInfo.kind == ArgKind::kDouble) {
       put_raw(ArgKind::kDouble, static_cast<double>(value));
-    } else if constexpr (info.kind == ArgKind::kLongDouble) {
+    } else if constexpr (kInfo.kind == ArgKind::kLongDouble) {
       put_raw(ArgKind::kLongDouble, value);
-    } else if constexpr (info.kind == ArgKind::kAddress) {
+    } else if constexpr (kInfo.kind == ArgKind::kAddress) {
       put_raw(ArgKind::kAddress, value.raw());
-    } else if constexpr (info.kind == ArgKind::kPointer) {
+    } else if constexpr (kInfo.kind == ArgKind::kPointer) {
       put_raw(ArgKind::kPointer, reinterpret_cast<uint64_t>(static_cast<const volatile void*>(value)));
-    } else if constexpr (info.kind == ArgKind::kString) {
+    } else if constexpr (kInfo.kind == ArgKind::kString) {
       if constexpr (std::is_array_v<U>) {
         constexpr std::size_t kN = std::extent_v<U> < kMaxStringBytes ? std::extent_v<U> : kMaxStringBytes;
         std::size_t n = strnlen(value, kN);
@@ -490,10 +490,10 @@ class Writer {
 // Fixed bytes an argument needs (strings: kind + length only).
 template <class T>
 consteval std::size_t fixed_bytes() {
-  constexpr ArgInfo info = arg_info<T>();
-  if constexpr (info.kind == ArgKind::kString) return 3;
-  else if constexpr (info.kind == ArgKind::kLongDouble) return 1 + sizeof(long double);
-  else if constexpr (info.kind == ArgKind::kAddress) return 1 + 4;
+  constexpr ArgInfo kInfo = arg_info<T>();
+  if constexpr (kInfo.kind == ArgKind::kString) return 3;
+  else if constexpr (kInfo.kind == ArgKind::kLongDouble) return 1 + sizeof(long double);
+  else if constexpr (kInfo.kind == ArgKind::kAddress) return 1 + 4;
   else return 1 + 8;
 }
 
@@ -521,22 +521,22 @@ template <class T>
 Value to_value(const T& value) noexcept {
   using U = std::remove_cvref_t<T>;
   using D = std::decay_t<U>;
-  constexpr ArgInfo info = arg_info<T>();
+  constexpr ArgInfo kInfo = arg_info<T>();
   Value v;
-  v.kind = info.kind;
-  if constexpr (info.kind == ArgKind::kInt) {
+  v.kind = kInfo.kind;
+  if constexpr (kInfo.kind == ArgKind::kInt) {
     if constexpr (std::is_enum_v<D>) return to_value(static_cast<std::underlying_type_t<D>>(value));
     else if constexpr (std::is_signed_v<D>) v.bits = static_cast<uint64_t>(static_cast<int64_t>(value));
     else v.bits = static_cast<uint64_t>(value);
-  } else if constexpr (info.kind == ArgKind::kDouble) {
+  } else if constexpr (kInfo.kind == ArgKind::kDouble) {
     v.d = static_cast<double>(value);
-  } else if constexpr (info.kind == ArgKind::kLongDouble) {
+  } else if constexpr (kInfo.kind == ArgKind::kLongDouble) {
     v.ld = value;
-  } else if constexpr (info.kind == ArgKind::kAddress) {
+  } else if constexpr (kInfo.kind == ArgKind::kAddress) {
     v.bits = value.raw();
-  } else if constexpr (info.kind == ArgKind::kPointer) {
+  } else if constexpr (kInfo.kind == ArgKind::kPointer) {
     v.bits = reinterpret_cast<uint64_t>(static_cast<const volatile void*>(value));
-  } else if constexpr (info.kind == ArgKind::kString) {
+  } else if constexpr (kInfo.kind == ArgKind::kString) {
     if constexpr (std::is_array_v<U>) v.s = std::string_view(value, strnlen(value, std::extent_v<U>));
     else if constexpr (std::is_pointer_v<D>) v.s = value == nullptr ? std::string_view("(null)") : std::string_view(value);
     else v.s = std::string_view(value);
