@@ -541,6 +541,7 @@ struct Backend::Impl {
     ci.pending = true;
     rack::ClassPageRequest q;
     q.offset = ci.pages.next_offset();
+    q.sections = rack::kClassSectionValueNames;  // enum and address names (the "names" object)
     request(a.component(), msg::kGetClass, q, [this, key, a](const Reply* r) {
       ClassInfo& info = class_infos[key];
       info.pending = false;
@@ -837,7 +838,7 @@ struct Backend::Impl {
         trim_arrays(a.class_id(), data);
         // Enums and addresses by name beside the raw values (as rackctl get-data).
         json names = json::object();
-        const std::string names_text = rack::tools::field_names_json(a.class_id(), type.data_fields, sample, r->native());
+        const std::string names_text = rack::tools::field_names_json(type.desc->value_names, type.data_fields, sample, r->native());
         if (!names_text.empty()) names = json::parse(names_text, nullptr, false);
         if (names.is_discarded()) names = json::object();
         broadcast(dump(json{{"type", "data"},
