@@ -55,9 +55,9 @@ using tims::Address;
 struct Options {
   int cpu = 1;
   int priority = 80;
-  int samples = 20000;      // per side and size (parts 1 and 2)
-  int rpcs = 2000;          // per side and size (part 3)
-  int flood_seconds = 4;    // per side (part 4), in rounds of 1 s
+  int samples = 20000;    // per side and size (parts 1 and 2)
+  int rpcs = 2000;        // per side and size (part 3)
+  int flood_seconds = 4;  // per side (part 4), in rounds of 1 s
   int port = 7893;
   std::string json;
 };
@@ -85,7 +85,7 @@ tims::AccessConfig sixteen_rules() {
   r.any_type = false;
   r.types.set(21 + 128);
   r.max_priority = 50;
-  r.rate = 1e9;          // never empty: the check's full path, always allowed
+  r.rate = 1e9;  // never empty: the check's full path, always allowed
   r.burst = 1e6;
   r.bandwidth = 1e15;
   r.burst_bytes = 1e12;
@@ -113,28 +113,29 @@ Pair measure_check(const Options& o, std::size_t body) {
   w.reserve(static_cast<std::size_t>(o.samples));
   wo.reserve(static_cast<std::size_t>(o.samples));
   rt::Thread t;
-  t.start({"bench-access", o.priority, o.cpu, 256 * 1024},
-          [&] {
-            const auto one = [&](tims::Router& r, tims::Mailbox& m, std::vector<int64_t>* out) {
-              const tims::MessageHeader h = tims::make_header(kDest, kSrc, 21, 10, 1, body);
-              const tims::ConstBuffer part{payload.data(), payload.size()};
-              const int64_t t0 = rt::monotonic_ns();
-              const auto s = r.send(h, std::span<const tims::ConstBuffer>(&part, 1));
-              const int64_t t1 = rt::monotonic_ns();
-              if (!tims::delivered(s)) std::fprintf(stderr, "bench_access: send failed: %s\n", tims::describe(s));
-              (void)m.receive(sink, tims::Mailbox::kNonBlocking);
-              if (out != nullptr) out->push_back(t1 - t0);
-            };
-            for (int i = 0; i < 2000; ++i) {
-              one(plain, a, nullptr);
-              one(guarded, b, nullptr);
-            }
-            while (static_cast<int>(w.size()) < o.samples) {
-              for (int k = 0; k < kBlock; ++k) one(guarded, b, &w);
-              for (int k = 0; k < kBlock; ++k) one(plain, a, &wo);
-            }
-          },
-          true);
+  t.start(
+      {"bench-access", o.priority, o.cpu, 256 * 1024},
+      [&] {
+        const auto one = [&](tims::Router& r, tims::Mailbox& m, std::vector<int64_t>* out) {
+          const tims::MessageHeader h = tims::make_header(kDest, kSrc, 21, 10, 1, body);
+          const tims::ConstBuffer part{payload.data(), payload.size()};
+          const int64_t t0 = rt::monotonic_ns();
+          const auto s = r.send(h, std::span<const tims::ConstBuffer>(&part, 1));
+          const int64_t t1 = rt::monotonic_ns();
+          if (!tims::delivered(s)) std::fprintf(stderr, "bench_access: send failed: %s\n", tims::describe(s));
+          (void)m.receive(sink, tims::Mailbox::kNonBlocking);
+          if (out != nullptr) out->push_back(t1 - t0);
+        };
+        for (int i = 0; i < 2000; ++i) {
+          one(plain, a, nullptr);
+          one(guarded, b, nullptr);
+        }
+        while (static_cast<int>(w.size()) < o.samples) {
+          for (int k = 0; k < kBlock; ++k) one(guarded, b, &w);
+          for (int k = 0; k < kBlock; ++k) one(plain, a, &wo);
+        }
+      },
+      true);
   t.join();
   guarded.set_access(nullptr);
   res.with = percentiles_of(w);
@@ -226,15 +227,20 @@ Percentiles rpc_round(const std::string& url, const std::string& key, std::size_
   uint64_t failed = 0;
   for (int i = 0; i < count + 50; ++i) {
     const int64_t t0 = rt::monotonic_ns();
-    const auto r = ep.call(server.box.address(), 21, std::span<const tims::ConstBuffer>(&part, 1), reply, 1'000'000'000);
+    const auto r = ep.call(server.box.address(), 21, std::span<const tims::ConstBuffer>(&part, 1), reply,
+                           1'000'000'000);
     const int64_t t1 = rt::monotonic_ns();
-    if (r.status != tims::CallStatus::kOk) { ++failed; continue; }
+    if (r.status != tims::CallStatus::kOk) {
+      ++failed;
+      continue;
+    }
     if (i >= 50) lat.push_back(t1 - t0);
   }
   stop = true;
   echo.join();
-  if (failed > 0) std::fprintf(stderr, "bench_access: %llu RPC(s) without a reply (%zu B, %s)\n",
-                               static_cast<unsigned long long>(failed), body, key.empty() ? "unkeyed" : "keyed");
+  if (failed > 0)
+    std::fprintf(stderr, "bench_access: %llu RPC(s) without a reply (%zu B, %s)\n",
+                 static_cast<unsigned long long>(failed), body, key.empty() ? "unkeyed" : "keyed");
   return percentiles_of(lat);
 }
 
@@ -302,29 +308,30 @@ FloodResult measure_flood(const Options& o) {
   });
   std::vector<int64_t> idle, busy;
   rt::Thread t;
-  t.start({"bench-flood", o.priority, o.cpu, 256 * 1024},
-          [&] {
-            std::vector<std::byte> sink(256);
-            for (int round = 0; round < 2 * o.flood_seconds; ++round) {
-              const bool f = round % 2 == 1;
-              flooding.store(f);
-              auto& out = f ? busy : idle;
-              int64_t next = rt::monotonic_ns() + 1'000'000;
-              for (int i = 0; i < 1000; ++i) {
-                const timespec ts = rt::to_timespec(next);
-                clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
-                const int64_t woke = rt::monotonic_ns();
-                if (i >= 20) out.push_back(woke - next);  // skip the switch-over
-                const tims::MessageHeader h = tims::make_header(kDest, kSrc, 21, 10, 0, 0);
-                (void)router.send(h, std::span<const tims::ConstBuffer>{});
-                while (box.receive(sink, tims::Mailbox::kNonBlocking).status == tims::RecvStatus::kOk) {
-                }
-                next += 1'000'000;
-              }
+  t.start(
+      {"bench-flood", o.priority, o.cpu, 256 * 1024},
+      [&] {
+        std::vector<std::byte> sink(256);
+        for (int round = 0; round < 2 * o.flood_seconds; ++round) {
+          const bool f = round % 2 == 1;
+          flooding.store(f);
+          auto& out = f ? busy : idle;
+          int64_t next = rt::monotonic_ns() + 1'000'000;
+          for (int i = 0; i < 1000; ++i) {
+            const timespec ts = rt::to_timespec(next);
+            clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+            const int64_t woke = rt::monotonic_ns();
+            if (i >= 20) out.push_back(woke - next);  // skip the switch-over
+            const tims::MessageHeader h = tims::make_header(kDest, kSrc, 21, 10, 0, 0);
+            (void)router.send(h, std::span<const tims::ConstBuffer>{});
+            while (box.receive(sink, tims::Mailbox::kNonBlocking).status == tims::RecvStatus::kOk) {
             }
-            flooding.store(false);
-          },
-          true);
+            next += 1'000'000;
+          }
+        }
+        flooding.store(false);
+      },
+      true);
   t.join();
   done = true;
   flood.join();
@@ -372,8 +379,11 @@ int main(int argc, char** argv) {
     else if (a == "--flood-seconds") o.flood_seconds = std::atoi(next().c_str());
     else if (a == "--port") o.port = std::atoi(next().c_str());
     else if (a == "--json") o.json = next();
-    else if (a == "--quick") { o.samples = 5000; o.rpcs = 400; o.flood_seconds = 2; }
-    else {
+    else if (a == "--quick") {
+      o.samples = 5000;
+      o.rpcs = 400;
+      o.flood_seconds = 2;
+    } else {
       std::fprintf(stderr,
                    "usage: bench_access [--cpu N] [--priority P] [--samples N] [--rpcs N] [--flood-seconds S]\n"
                    "                    [--port PORT] [--quick] [--json FILE]\n");
@@ -400,12 +410,14 @@ int main(int argc, char** argv) {
   std::string md;
   md += "### Policy check: Router::send to a local mailbox, 16 rules (16th matches) vs none (us per send)\n\n";
   md += "| side | p50 | p90 | p99 | p99.9 | max |\n|---|---|---|---|---|---|\n";
-  for (const auto& c : checks) md += row(c.label + " with access control", c.with) + row(c.label + " without", c.without);
+  for (const auto& c : checks)
+    md += row(c.label + " with access control", c.with) + row(c.label + " without", c.without);
   md += "\n";
   for (const auto& c : checks) md += "- " + c.label + ": " + ratio(c.with, c.without) + "\n";
   md += "\n### MAC per message: sign and verify (keyed BLAKE2b, replay window) vs memcpy of the payload (us)\n\n";
   md += "| side | p50 | p90 | p99 | p99.9 | max |\n|---|---|---|---|---|---|\n";
-  for (const auto& m : macs) md += row(m.label + " sign", m.sign) + row(m.label + " verify", m.verify) + row(m.label + " memcpy", m.copy);
+  for (const auto& m : macs)
+    md += row(m.label + " sign", m.sign) + row(m.label + " verify", m.verify) + row(m.label + " memcpy", m.copy);
   md += "\n### TiMS RPC between two transports (one process, udpm ttl=0): keyed vs unkeyed (us per round trip)\n\n";
   md += "| side | p50 | p90 | p99 | p99.9 | max |\n|---|---|---|---|---|---|\n";
   for (const auto& r : rpcs) md += row(r.label + " keyed", r.with) + row(r.label + " unkeyed", r.without);
@@ -416,29 +428,32 @@ int main(int argc, char** argv) {
   md += row("idle", flood.idle) + row("flood", flood.flood);
   char line[256];
   std::snprintf(line, sizeof line, "\n- flood: %llu messages checked, %llu refused; %s\n",
-                static_cast<unsigned long long>(flood.flood_checked), static_cast<unsigned long long>(flood.flood_denied),
-                ratio(flood.flood, flood.idle).c_str());
+                static_cast<unsigned long long>(flood.flood_checked),
+                static_cast<unsigned long long>(flood.flood_denied), ratio(flood.flood, flood.idle).c_str());
   md += line;
   std::fputs(md.c_str(), stdout);
 
   if (!o.json.empty()) {
     std::string j = "{\"machine\":" + json_machine() + ",\"check\":[";
     for (std::size_t i = 0; i < checks.size(); ++i) {
-      j += (i ? "," : "") + std::string("{\"label\":\"") + checks[i].label + "\",\"with\":" +
-           json_percentiles(checks[i].with) + ",\"without\":" + json_percentiles(checks[i].without) + "}";
+      j += (i ? "," : "") + std::string("{\"label\":\"") + checks[i].label +
+           "\",\"with\":" + json_percentiles(checks[i].with) + ",\"without\":" + json_percentiles(checks[i].without) +
+           "}";
     }
     j += "],\"mac\":[";
     for (std::size_t i = 0; i < macs.size(); ++i) {
-      j += (i ? "," : "") + std::string("{\"label\":\"") + macs[i].label + "\",\"sign\":" + json_percentiles(macs[i].sign) +
-           ",\"verify\":" + json_percentiles(macs[i].verify) + ",\"memcpy\":" + json_percentiles(macs[i].copy) + "}";
+      j += (i ? "," : "") + std::string("{\"label\":\"") + macs[i].label +
+           "\",\"sign\":" + json_percentiles(macs[i].sign) + ",\"verify\":" + json_percentiles(macs[i].verify) +
+           ",\"memcpy\":" + json_percentiles(macs[i].copy) + "}";
     }
     j += "],\"rpc\":[";
     for (std::size_t i = 0; i < rpcs.size(); ++i) {
-      j += (i ? "," : "") + std::string("{\"label\":\"") + rpcs[i].label + "\",\"keyed\":" +
-           json_percentiles(rpcs[i].with) + ",\"unkeyed\":" + json_percentiles(rpcs[i].without) + "}";
+      j += (i ? "," : "") + std::string("{\"label\":\"") + rpcs[i].label +
+           "\",\"keyed\":" + json_percentiles(rpcs[i].with) + ",\"unkeyed\":" + json_percentiles(rpcs[i].without) + "}";
     }
     j += "],\"flood\":{\"idle\":" + json_percentiles(flood.idle) + ",\"flood\":" + json_percentiles(flood.flood) +
-         ",\"checked\":" + std::to_string(flood.flood_checked) + ",\"denied\":" + std::to_string(flood.flood_denied) + "}}";
+         ",\"checked\":" + std::to_string(flood.flood_checked) + ",\"denied\":" + std::to_string(flood.flood_denied) +
+         "}}";
     if (!write_file(o.json, j)) {
       std::fprintf(stderr, "bench_access: cannot write %s\n", o.json.c_str());
       return 1;

@@ -198,8 +198,9 @@ int main(int argc, char** argv) {
     else if (a == "--vcan") o.vcan = next();
     else if (a == "--json") o.json = next();
     else if (a == "--help" || a == "-h") {
-      std::printf("usage: bench_can [--iterations N] [--rounds R] [--cpu-mode same|cross|both] [--gap-us US]\n"
-                  "                 [--priority P] [--vcan IFACE] [--json FILE]\n");
+      std::printf(
+          "usage: bench_can [--iterations N] [--rounds R] [--cpu-mode same|cross|both] [--gap-us US]\n"
+          "                 [--priority P] [--vcan IFACE] [--json FILE]\n");
       return 0;
     } else {
       std::fprintf(stderr, "bench_can: unknown option %s\n", a.c_str());
@@ -215,8 +216,8 @@ int main(int argc, char** argv) {
                      (o.vcan.empty() ? std::string("AF_UNIX SOCK_SEQPACKET") : "CAN_RAW " + o.vcan) +
                      "\", \"results\": [";
   std::printf("CAN frame round trip (%s), %d x %d round trips per mechanism, gap %d us, SCHED_FIFO %d\n",
-              o.vcan.empty() ? "AF_UNIX SOCK_SEQPACKET socketpair" : ("CAN_RAW on " + o.vcan).c_str(),
-              o.iterations, o.rounds, o.gap_us, o.priority);
+              o.vcan.empty() ? "AF_UNIX SOCK_SEQPACKET socketpair" : ("CAN_RAW on " + o.vcan).c_str(), o.iterations,
+              o.rounds, o.gap_us, o.priority);
   std::printf("| placement | mechanism | p50 us | p90 us | p99 us | p99.9 us | max us | p50 ratio | p99 ratio |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|\n");
   bool first = true;

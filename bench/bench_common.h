@@ -73,7 +73,10 @@ inline Percentiles percentiles_of_histogram(const std::vector<uint64_t>& buckets
   for (std::size_t i = 0; i < buckets.size(); ++i) {
     if (buckets[i] == 0) continue;
     const double edge = static_cast<double>(i) * 1000.0;
-    if (!have_min) { p.min_ns = edge; have_min = true; }
+    if (!have_min) {
+      p.min_ns = edge;
+      have_min = true;
+    }
     const uint64_t before = cum;
     cum += buckets[i];
     if (before < r50 && cum >= r50) p.p50_ns = edge;
@@ -123,9 +126,7 @@ inline std::string kernel_string() {
   return std::string(u.sysname) + " " + u.release + " " + u.version + " " + u.machine;
 }
 
-inline bool kernel_is_preempt_rt() {
-  return read_first_line("/sys/kernel/realtime") == "1";
-}
+inline bool kernel_is_preempt_rt() { return read_first_line("/sys/kernel/realtime") == "1"; }
 
 inline std::string cpu_model() {
   std::ifstream in("/proc/cpuinfo");
@@ -179,10 +180,11 @@ inline std::string json_percentiles(const Percentiles& p) {
 // The machine block every result file carries.
 inline std::string json_machine() {
   std::ostringstream o;
-  o << "{\"kernel\": \"" << json_escape(kernel_string()) << "\", \"preempt_rt\": "
-    << (kernel_is_preempt_rt() ? "true" : "false") << ", \"cpu_model\": \"" << json_escape(cpu_model())
-    << "\", \"online_cpus\": " << sysconf(_SC_NPROCESSORS_ONLN) << ", \"cpuidle_driver\": \""
-    << json_escape(read_first_line("/sys/devices/system/cpu/cpuidle/current_driver")) << "\"}";
+  o << "{\"kernel\": \"" << json_escape(kernel_string())
+    << "\", \"preempt_rt\": " << (kernel_is_preempt_rt() ? "true" : "false") << ", \"cpu_model\": \""
+    << json_escape(cpu_model()) << "\", \"online_cpus\": " << sysconf(_SC_NPROCESSORS_ONLN)
+    << ", \"cpuidle_driver\": \"" << json_escape(read_first_line("/sys/devices/system/cpu/cpuidle/current_driver"))
+    << "\"}";
   return o.str();
 }
 

@@ -50,7 +50,7 @@ namespace {
 struct Options {
   int cpu = 1;
   int priority = 80;
-  int samples = 20000;       // per message and side (each sample = 8 calls)
+  int samples = 20000;  // per message and side (each sample = 8 calls)
   int rate_seconds = 1;
   int port = 7891;
   std::vector<int> rates{10000, 50000, 100000, 200000, 400000, 800000, 1600000};
@@ -79,39 +79,41 @@ CostResult measure_cost(const Options& o, const std::string& label, const std::s
   r.reserve(static_cast<std::size_t>(o.samples));
   gdos::LogRing ring(kBlock * kBatch * 2, "bench");
   rt::Thread t;
-  t.start({"bench-gdos", o.priority, o.cpu, 256 * 1024},
-          [&] {
-            gdos::bind_thread_ring(&ring);
-            auto empty = [&] {
-              while (ring.peek() != nullptr) ring.pop();
-            };
-            for (int warm = 0; warm < 2000; ++warm) {
-              log_fn(warm);
-              ref_fn(warm);
-              empty();
-            }
-            int i = 0;
-            while (static_cast<int>(g.size()) < o.samples) {
-              for (int k = 0; k < kBlock; ++k, ++i) {
-                const int64_t t0 = rt::monotonic_ns();
-                for (int b = 0; b < kBatch; ++b) log_fn(i + b);
-                const int64_t t1 = rt::monotonic_ns();
-                g.push_back((t1 - t0) / kBatch);
-              }
-              empty();
-              for (int k = 0; k < kBlock; ++k, ++i) {
-                const int64_t t0 = rt::monotonic_ns();
-                for (int b = 0; b < kBatch; ++b) ref_fn(i + b);
-                const int64_t t1 = rt::monotonic_ns();
-                r.push_back((t1 - t0) / kBatch);
-              }
-            }
-            gdos::bind_thread_ring(nullptr);
-          },
-          true);
+  t.start(
+      {"bench-gdos", o.priority, o.cpu, 256 * 1024},
+      [&] {
+        gdos::bind_thread_ring(&ring);
+        auto empty = [&] {
+          while (ring.peek() != nullptr) ring.pop();
+        };
+        for (int warm = 0; warm < 2000; ++warm) {
+          log_fn(warm);
+          ref_fn(warm);
+          empty();
+        }
+        int i = 0;
+        while (static_cast<int>(g.size()) < o.samples) {
+          for (int k = 0; k < kBlock; ++k, ++i) {
+            const int64_t t0 = rt::monotonic_ns();
+            for (int b = 0; b < kBatch; ++b) log_fn(i + b);
+            const int64_t t1 = rt::monotonic_ns();
+            g.push_back((t1 - t0) / kBatch);
+          }
+          empty();
+          for (int k = 0; k < kBlock; ++k, ++i) {
+            const int64_t t0 = rt::monotonic_ns();
+            for (int b = 0; b < kBatch; ++b) ref_fn(i + b);
+            const int64_t t1 = rt::monotonic_ns();
+            r.push_back((t1 - t0) / kBatch);
+          }
+        }
+        gdos::bind_thread_ring(nullptr);
+      },
+      true);
   t.join();
-  if (ring.dropped() != 0) std::fprintf(stderr, "bench_gdos: unexpected drops in part 1: %llu\n",
-                                        static_cast<unsigned long long>(ring.dropped()));
+  if (ring.dropped() != 0)
+    std::fprintf(stderr, "bench_gdos: unexpected drops in part 1: %llu\n",
+                 static_cast<unsigned long long>(ring.dropped()));
   res.gdos = percentiles_of(g);
   res.ref = percentiles_of(r);
   return res;
@@ -132,8 +134,8 @@ class FloodLogger final : public DataComponent<interfaces::GeneratorData> {
   HookResult loop() override {
     const int64_t n = per_cycle_.get_int();
     for (int64_t i = 0; i < n; ++i) {
-      log_info("scan %lld: %d points, nearest %.3f m at %s", static_cast<long long>(i), 541, 0.25 * static_cast<double>(i),
-               "front");
+      log_info("scan %lld: %d points, nearest %.3f m at %s", static_cast<long long>(i), 541,
+               0.25 * static_cast<double>(i), "front");
     }
     offered.fetch_add(static_cast<uint64_t>(n), std::memory_order_relaxed);
     return HookResult::kOk;
@@ -151,8 +153,7 @@ struct RateResult {
 
 struct Receiver {
   // A 4 MiB socket buffer (DESIGN.md: without it LCM loses bursts in the kernel).
-  explicit Receiver(const std::string& url)
-      : sub(url + "&recv_buf_size=4194304", tims::kGdosChannel, false, "bench") {
+  explicit Receiver(const std::string& url) : sub(url + "&recv_buf_size=4194304", tims::kGdosChannel, false, "bench") {
     thread = std::thread([this] {
       while (!stop.load()) sub.poll(50, [this](const tims::GdosRecord&) { received.fetch_add(1); });
     });
@@ -180,8 +181,8 @@ std::vector<RateResult> measure_rates(const Options& o, const std::string& url) 
                            "gdos: {level: info, stderr: never, ring: 8192, drain_ms: 10}\n"
                            "components:\n"
                            "  - name: flood\n    class: FloodLogger\n    instance: 1\n"
-                           "    data_task: {priority: " + std::to_string(o.priority) + ", cpu: " + std::to_string(o.cpu) +
-                           ", period_ms: 1}\n";
+                           "    data_task: {priority: " +
+                           std::to_string(o.priority) + ", cpu: " + std::to_string(o.cpu) + ", period_ms: 1}\n";
   auto loaded = load_host_text(yaml, "bench.yaml", registry, rt::probe_capabilities());
   if (!loaded.errors.empty()) {
     std::fprintf(stderr, "bench_gdos: %s\n", loaded.errors.front().str().c_str());
@@ -225,8 +226,8 @@ std::vector<RateResult> measure_rates(const Options& o, const std::string& url) 
     r.lost = rx.sub.counters().lost - lost0;
     r.published = r.drained;  // every drained record is handed to the publisher
     out.push_back(r);
-    std::fprintf(stderr, "bench_gdos: rate %d/s: offered %llu drained %llu dropped %llu received %llu lost %llu\n", rate,
-                 static_cast<unsigned long long>(r.offered), static_cast<unsigned long long>(r.drained),
+    std::fprintf(stderr, "bench_gdos: rate %d/s: offered %llu drained %llu dropped %llu received %llu lost %llu\n",
+                 rate, static_cast<unsigned long long>(r.offered), static_cast<unsigned long long>(r.drained),
                  static_cast<unsigned long long>(r.dropped), static_cast<unsigned long long>(r.received),
                  static_cast<unsigned long long>(r.lost));
   }
@@ -297,14 +298,17 @@ int main(int argc, char** argv) {
     else if (a == "--rate-seconds") o.rate_seconds = std::stoi(next());
     else if (a == "--port") o.port = std::stoi(next());
     else if (a == "--json") o.json = next();
-    else if (a == "--quick") { o.samples = 5000; o.rates = {10000, 100000, 400000, 800000}; }
-    else if (a == "-h" || a == "--help") {
-      std::puts("usage: bench_gdos [--quick] [--cpu C] [--priority P] [--samples N] [--rate-seconds S]\n"
-                "                  [--port PORT] [--json FILE]\n"
-                "Part 1: cost of a GDOS log call in an RT task vs snprintf of the same message (same\n"
-                "thread, same run, alternating blocks). Part 2: records per second one host publishes\n"
-                "on LCM (udpm on 239.255.76.67:PORT, ttl=0) vs formatting and publishing directly.\n"
-                "Prints a Markdown section for bench/RESULTS.md.");
+    else if (a == "--quick") {
+      o.samples = 5000;
+      o.rates = {10000, 100000, 400000, 800000};
+    } else if (a == "-h" || a == "--help") {
+      std::puts(
+          "usage: bench_gdos [--quick] [--cpu C] [--priority P] [--samples N] [--rate-seconds S]\n"
+          "                  [--port PORT] [--json FILE]\n"
+          "Part 1: cost of a GDOS log call in an RT task vs snprintf of the same message (same\n"
+          "thread, same run, alternating blocks). Part 2: records per second one host publishes\n"
+          "on LCM (udpm on 239.255.76.67:PORT, ttl=0) vs formatting and publishing directly.\n"
+          "Prints a Markdown section for bench/RESULTS.md.");
       return 0;
     } else {
       std::fprintf(stderr, "bench_gdos: unknown option %s\n", a.c_str());
@@ -322,12 +326,20 @@ int main(int argc, char** argv) {
   char buf[256];
   costs.push_back(measure_cost(
       o, "integers", "cycle %d: %u points, %ld us late, flags %#x",
-      [&](int i) { gdos::log(src, gdos::Level::kInfo, "cycle %d: %u points, %ld us late, flags %#x", i, 541u, 17L * i, 0x2au); },
-      [&](int i) { g_sink = std::snprintf(buf, sizeof buf, "cycle %d: %u points, %ld us late, flags %#x", i, 541u, 17L * i, 0x2au); }));
+      [&](int i) {
+        gdos::log(src, gdos::Level::kInfo, "cycle %d: %u points, %ld us late, flags %#x", i, 541u, 17L * i, 0x2au);
+      },
+      [&](int i) {
+        g_sink = std::snprintf(buf, sizeof buf, "cycle %d: %u points, %ld us late, flags %#x", i, 541u, 17L * i, 0x2au);
+      }));
   costs.push_back(measure_cost(
       o, "doubles", "pose x %.3f y %.3f phi %.4f v %g",
-      [&](int i) { gdos::log(src, gdos::Level::kInfo, "pose x %.3f y %.3f phi %.4f v %g", 1.5 * i, -0.25 * i, 0.001 * i, 0.7); },
-      [&](int i) { g_sink = std::snprintf(buf, sizeof buf, "pose x %.3f y %.3f phi %.4f v %g", 1.5 * i, -0.25 * i, 0.001 * i, 0.7); }));
+      [&](int i) {
+        gdos::log(src, gdos::Level::kInfo, "pose x %.3f y %.3f phi %.4f v %g", 1.5 * i, -0.25 * i, 0.001 * i, 0.7);
+      },
+      [&](int i) {
+        g_sink = std::snprintf(buf, sizeof buf, "pose x %.3f y %.3f phi %.4f v %g", 1.5 * i, -0.25 * i, 0.001 * i, 0.7);
+      }));
   costs.push_back(measure_cost(
       o, "mixed + strings", "scan %d to %s (%s): nearest %.3f m, %zu points",
       [&](int i) {
@@ -367,11 +379,13 @@ int main(int argc, char** argv) {
     md += line;
   }
   md += "### Records per second one host publishes\n\n";
-  md += "One periodic (1 ms) component logs rate/1000 records per cycle (`\"scan %lld: %d points, nearest %.3f m at "
-        "%s\"`); ring 8192 records, GDOS thread every 10 ms, published on LCM udpm (loopback, ttl=0), a subscriber in "
-        "the same process (recv_buf_size=4194304) counts arrivals.\n\n";
-  md += "| offered rate | offered | drained + published (all records of the host) | dropped (ring full) | received | lost on LCM | delivered/s |\n"
-        "|---|---|---|---|---|---|---|\n";
+  md +=
+      "One periodic (1 ms) component logs rate/1000 records per cycle (`\"scan %lld: %d points, nearest %.3f m at "
+      "%s\"`); ring 8192 records, GDOS thread every 10 ms, published on LCM udpm (loopback, ttl=0), a subscriber in "
+      "the same process (recv_buf_size=4194304) counts arrivals.\n\n";
+  md +=
+      "| offered rate | offered | drained + published (all records of the host) | dropped (ring full) | received | lost on LCM | delivered/s |\n"
+      "|---|---|---|---|---|---|---|\n";
   double sustained = 0;
   for (const auto& r : rates) {
     const double per_s = static_cast<double>(r.received) / r.seconds;
@@ -384,33 +398,34 @@ int main(int argc, char** argv) {
     if (r.dropped == 0 && r.lost == 0 && r.received >= r.offered) sustained = std::max(sustained, per_s);
   }
   const double direct_rate = static_cast<double>(direct.received) / direct.seconds;
-  std::snprintf(line, sizeof line,
-                "\nSustained without any loss: **%.0f records/s** (delivered at the highest offered rate with "
-                "nothing dropped or lost; the limit lies between it and the next rate). Reference in the same run: one thread formatting with snprintf and publishing the same records "
-                "in the same batches directly (no rings, no GDOS thread): %llu published in %.1f s, %llu received, "
-                "%llu lost: **%.0f records/s**.\n\n",
-                sustained, static_cast<unsigned long long>(direct.published), direct.seconds,
-                static_cast<unsigned long long>(direct.received), static_cast<unsigned long long>(direct.lost),
-                direct_rate);
+  std::snprintf(
+      line, sizeof line,
+      "\nSustained without any loss: **%.0f records/s** (delivered at the highest offered rate with "
+      "nothing dropped or lost; the limit lies between it and the next rate). Reference in the same run: one thread formatting with snprintf and publishing the same records "
+      "in the same batches directly (no rings, no GDOS thread): %llu published in %.1f s, %llu received, "
+      "%llu lost: **%.0f records/s**.\n\n",
+      sustained, static_cast<unsigned long long>(direct.published), direct.seconds,
+      static_cast<unsigned long long>(direct.received), static_cast<unsigned long long>(direct.lost), direct_rate);
   md += line;
   std::fputs(md.c_str(), stdout);
   if (!o.json.empty()) {
     std::string j = "{\"machine\":" + json_machine() + ",\"cost\":[";
     for (std::size_t i = 0; i < costs.size(); ++i) {
-      j += (i ? "," : "") + std::string("{\"label\":\"") + json_escape(costs[i].label) +
-           "\",\"format\":\"" + json_escape(costs[i].format) + "\",\"gdos\":" + json_percentiles(costs[i].gdos) +
+      j += (i ? "," : "") + std::string("{\"label\":\"") + json_escape(costs[i].label) + "\",\"format\":\"" +
+           json_escape(costs[i].format) + "\",\"gdos\":" + json_percentiles(costs[i].gdos) +
            ",\"snprintf\":" + json_percentiles(costs[i].ref) + "}";
     }
     j += "],\"rates\":[";
     for (std::size_t i = 0; i < rates.size(); ++i) {
       const auto& r = rates[i];
-      j += (i ? "," : "") + std::string("{\"rate\":") + std::to_string(r.rate) + ",\"offered\":" + std::to_string(r.offered) +
-           ",\"drained\":" + std::to_string(r.drained) + ",\"dropped\":" + std::to_string(r.dropped) +
-           ",\"received\":" + std::to_string(r.received) + ",\"lost\":" + std::to_string(r.lost) +
-           ",\"seconds\":" + json_number(r.seconds) + "}";
+      j += (i ? "," : "") + std::string("{\"rate\":") + std::to_string(r.rate) +
+           ",\"offered\":" + std::to_string(r.offered) + ",\"drained\":" + std::to_string(r.drained) +
+           ",\"dropped\":" + std::to_string(r.dropped) + ",\"received\":" + std::to_string(r.received) +
+           ",\"lost\":" + std::to_string(r.lost) + ",\"seconds\":" + json_number(r.seconds) + "}";
     }
     j += "],\"priority\":" + std::to_string(o.priority) + ",\"cpu\":" + std::to_string(o.cpu) +
-         ",\"sustained_records_per_s\":" + json_number(sustained) + ",\"direct_records_per_s\":" + json_number(direct_rate) + "}";
+         ",\"sustained_records_per_s\":" + json_number(sustained) +
+         ",\"direct_records_per_s\":" + json_number(direct_rate) + "}";
     write_file(o.json, j);
   }
   return 0;

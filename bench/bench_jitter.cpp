@@ -103,7 +103,7 @@ constexpr const char* kUsage =
     "  --modeswitch-only syscalls|faults\n"
     "                   with --modeswitch: only that detector (to tell their costs apart)\n";
 
-constexpr double kTargetP99 = 1.05;   // issue 20: median per-round ratio
+constexpr double kTargetP99 = 1.05;  // issue 20: median per-round ratio
 constexpr double kTargetP999 = 1.2;
 constexpr std::size_t kBuckets = rt::LatencyStats::kBuckets;  // 10000 x 1 us + ">= 10 ms", like -h 10001
 
@@ -139,7 +139,7 @@ class BackgroundLoad {
       execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
       _exit(127);
     }
-    setpgid(pid_, pid_);  // also here: no race with the child's own call
+    setpgid(pid_, pid_);               // also here: no race with the child's own call
     rt::sleep_for(2 * rt::kNsPerSec);  // let it ramp up before measuring
     int status = 0;
     if (waitpid(pid_, &status, WNOHANG) == pid_) {
@@ -171,11 +171,11 @@ class BackgroundLoad {
 struct Side {
   std::string name;
   std::vector<uint64_t> histogram = std::vector<uint64_t>(kBuckets, 0);
-  double max_ns = 0;        // exact where known
-  uint64_t overflows = 0;   // cyclictest: latencies beyond the histogram
+  double max_ns = 0;       // exact where known
+  uint64_t overflows = 0;  // cyclictest: latencies beyond the histogram
   uint64_t cycles = 0;
-  uint64_t overruns = 0;    // rack: periods missed
-  std::vector<std::string> loads;  // loadavg before/after each segment
+  uint64_t overruns = 0;            // rack: periods missed
+  std::vector<std::string> loads;   // loadavg before/after each segment
   std::vector<Percentiles> rounds;  // each round's segment alone
   std::vector<uint64_t> late_1ms;   // each round's wake-ups >= 1 ms late
   // rack: the wake-ups during the executor's start-up, left out of the figures
@@ -259,9 +259,11 @@ std::string host_text(const Options& o) {
        "    class: Generator\n"
        "    instance: 0\n"
        "    autostart: true\n"
-       "    command_task: {priority: 30, cpu: " << o.cpu << "}\n"
-       "    data_task: {priority: " << o.priority << ", cpu: " << o.cpu << ", period_ms: "
-    << static_cast<double>(o.interval_us) / 1000.0;
+       "    command_task: {priority: 30, cpu: "
+    << o.cpu
+    << "}\n"
+       "    data_task: {priority: "
+    << o.priority << ", cpu: " << o.cpu << ", period_ms: " << static_cast<double>(o.interval_us) / 1000.0;
   if (o.phase_us >= 0) y << ", phase_ms: " << static_cast<double>(o.phase_us) / 1000.0;
   y << "}\n";
   return y.str();
@@ -328,8 +330,7 @@ void run_cyclictest_segment(const Options& o, int seconds, Side& side) {
   std::ostringstream cmd;
   cmd << o.cyclictest << " -m -p " << o.priority << " -i " << o.interval_us << " -a " << o.cpu << " -t1";
   if (o.phase_us >= 0) {  // the same grid as the data task's phase_ms; as many cycles as D seconds
-    cmd << " --secaligned " << o.phase_us << " -l "
-        << static_cast<long long>(seconds) * 1'000'000LL / o.interval_us;
+    cmd << " --secaligned " << o.phase_us << " -l " << static_cast<long long>(seconds) * 1'000'000LL / o.interval_us;
   } else {
     cmd << " -D " << seconds << "s";
   }
@@ -347,12 +348,18 @@ void run_cyclictest_segment(const Options& o, int seconds, Side& side) {
       counted += count;
       continue;
     }
-    if (std::sscanf(line, "# Total: %llu", &count) == 1) { total += count; continue; }
+    if (std::sscanf(line, "# Total: %llu", &count) == 1) {
+      total += count;
+      continue;
+    }
     if (std::sscanf(line, "# Max Latencies: %llu", &count) == 1) {
       side.max_ns = std::max(side.max_ns, static_cast<double>(count) * 1000.0);
       continue;
     }
-    if (std::sscanf(line, "# Histogram Overflows: %llu", &count) == 1) { side.overflows += count; continue; }
+    if (std::sscanf(line, "# Histogram Overflows: %llu", &count) == 1) {
+      side.overflows += count;
+      continue;
+    }
     if (line[0] != '#') unparsed += line;
   }
   const int status = pclose(pipe);
@@ -379,7 +386,8 @@ void print_coarse(const Side& a, const Side& b) {
     char label[32];
     if (k + 2 == std::size(edges)) std::snprintf(label, sizeof label, ">= %d", edges[k]);
     else std::snprintf(label, sizeof label, "[%d, %d)", edges[k], edges[k + 1]);
-    std::printf("%-18s %14llu %14llu\n", label, static_cast<unsigned long long>(ca), static_cast<unsigned long long>(cb));
+    std::printf("%-18s %14llu %14llu\n", label, static_cast<unsigned long long>(ca),
+                static_cast<unsigned long long>(cb));
   }
 }
 
@@ -422,9 +430,10 @@ void parse(int argc, char** argv, Options& o) {
       if (o.modeswitch_only != "syscalls" && o.modeswitch_only != "faults") {
         throw std::invalid_argument("--modeswitch-only takes syscalls or faults");
       }
-    }
-    else if (a == "--help" || a == "-h") { std::fputs(kUsage, stdout); std::exit(0); }
-    else throw std::invalid_argument("unknown option " + a);
+    } else if (a == "--help" || a == "-h") {
+      std::fputs(kUsage, stdout);
+      std::exit(0);
+    } else throw std::invalid_argument("unknown option " + a);
   }
   if (o.seconds < 1) throw std::invalid_argument("--seconds must be >= 1");
   if (o.priority < 1 || o.priority > 99) throw std::invalid_argument("--priority must be 1..99");
@@ -494,12 +503,11 @@ int main(int argc, char** argv) {
               qos && qos->active() ? "held at 0 us" : "not held (cyclictest --default-system)");
   std::printf("bench_jitter: mode-switch detection %s\n", o.modeswitch ? "on (as rackd)" : "off");
   std::printf("bench_jitter: phase: %s\n", o.aligned ? "both sides of a round on the same grid of the clock "
-                                                      "(phase_ms / --secaligned), walked across the interval"
-                                                    : "free (--free-phase: each segment where it starts)");
+                                                       "(phase_ms / --secaligned), walked across the interval"
+                                                     : "free (--free-phase: each segment where it starts)");
   std::printf("bench_jitter: RACK-RT's wake-ups during the executor's start-up %s\n",
               o.include_startup ? "included (--include-startup)" : "counted apart, not in the figures");
-  std::printf("bench_jitter: load: %s%s%s\n", o.load_name.c_str(), o.load_cmd.empty() ? "" : " = ",
-              o.load_cmd.c_str());
+  std::printf("bench_jitter: load: %s%s%s\n", o.load_name.c_str(), o.load_cmd.empty() ? "" : " = ", o.load_cmd.c_str());
   std::fflush(stdout);
   bool load_survived = true;
   std::vector<int> phases;  // per round, us (-1: free)
@@ -543,10 +551,10 @@ int main(int argc, char** argv) {
   const double ratio_p50 = ct_side.p.p50_ns > 0 ? rack_side.p.p50_ns / ct_side.p.p50_ns : 0.0;
   const std::string load_after = rack::bench::read_first_line("/proc/loadavg");
 
-  std::printf("\n== wake-up latency, %d us period, SCHED_FIFO %d, CPU %d, %d s each, load: %s ==\n",
-              o.interval_us, o.priority, o.cpu, o.seconds, o.load_name.c_str());
-  std::printf("%-12s %10s %8s %8s %8s %8s %8s %10s %9s\n", "side (us)", "samples", "min", "p50", "p99", "p99.9",
-              "max", "mean", "overruns");
+  std::printf("\n== wake-up latency, %d us period, SCHED_FIFO %d, CPU %d, %d s each, load: %s ==\n", o.interval_us,
+              o.priority, o.cpu, o.seconds, o.load_name.c_str());
+  std::printf("%-12s %10s %8s %8s %8s %8s %8s %10s %9s\n", "side (us)", "samples", "min", "p50", "p99", "p99.9", "max",
+              "mean", "overruns");
   for (const Side* s : {&rack_side, &ct_side}) {
     std::printf("%-12s %10llu %8.0f %8.0f %8.0f %8.0f %8.1f %10.1f %9llu\n", s->name.c_str(),
                 static_cast<unsigned long long>(s->p.samples), rack::bench::us(s->p.min_ns),
@@ -554,60 +562,62 @@ int main(int argc, char** argv) {
                 rack::bench::us(s->p.max_ns), rack::bench::us(s->p.mean_ns),
                 static_cast<unsigned long long>(s == &rack_side ? s->overruns : s->overflows));
   }
-  std::printf("(percentiles in whole us, truncated like cyclictest; cyclictest's last column counts "
-              "histogram overflows, rack's counts missed periods)\n");
+  std::printf(
+      "(percentiles in whole us, truncated like cyclictest; cyclictest's last column counts "
+      "histogram overflows, rack's counts missed periods)\n");
   std::printf("pooled ratio rack-rt / cyclictest: p50 %.2fx, p99 %.2fx, p99.9 %.2fx\n", ratio_p50, ratio_p99,
               ratio_p999);
-  std::printf("per round (rack p99 / p99.9 vs cyclictest p99 / p99.9, us; wake-ups >= 1 ms late, rack vs cyclictest):\n");
+  std::printf(
+      "per round (rack p99 / p99.9 vs cyclictest p99 / p99.9, us; wake-ups >= 1 ms late, rack vs cyclictest):\n");
   for (std::size_t i = 0; i < rack_side.rounds.size() && i < ct_side.rounds.size(); ++i) {
     const Percentiles& a = rack_side.rounds[i];
     const Percentiles& b = ct_side.rounds[i];
-    std::printf("  round %zu (phase %4d us): %4.0f / %4.0f vs %4.0f / %4.0f  -> p99 %.2fx, p99.9 %.2fx; >= 1 ms: %llu vs %llu\n",
-                i + 1, i < phases.size() ? phases[i] : -1,
-                rack::bench::us(a.p99_ns), rack::bench::us(a.p999_ns), rack::bench::us(b.p99_ns),
-                rack::bench::us(b.p999_ns), b.p99_ns > 0 ? a.p99_ns / b.p99_ns : 0.0,
-                b.p999_ns > 0 ? a.p999_ns / b.p999_ns : 0.0, static_cast<unsigned long long>(rack_side.late_1ms[i]),
-                static_cast<unsigned long long>(ct_side.late_1ms[i]));
+    std::printf(
+        "  round %zu (phase %4d us): %4.0f / %4.0f vs %4.0f / %4.0f  -> p99 %.2fx, p99.9 %.2fx; >= 1 ms: %llu vs %llu\n",
+        i + 1, i < phases.size() ? phases[i] : -1, rack::bench::us(a.p99_ns), rack::bench::us(a.p999_ns),
+        rack::bench::us(b.p99_ns), rack::bench::us(b.p999_ns), b.p99_ns > 0 ? a.p99_ns / b.p99_ns : 0.0,
+        b.p999_ns > 0 ? a.p999_ns / b.p999_ns : 0.0, static_cast<unsigned long long>(rack_side.late_1ms[i]),
+        static_cast<unsigned long long>(ct_side.late_1ms[i]));
   }
-  std::printf("rack-rt start-up (data task's first cycle to start() returning, all rounds): %llu wake-ups, %llu of "
-              "them >= %zu us late, worst < %.0f us; %s\n",
-              static_cast<unsigned long long>(rack_side.startup_samples),
-              static_cast<unsigned long long>(rack_side.startup_late), kLateStartupUs,
-              rack::bench::us(rack_side.startup_max_ns),
-              o.include_startup ? "included in the figures above" : "not in the figures above");
+  std::printf(
+      "rack-rt start-up (data task's first cycle to start() returning, all rounds): %llu wake-ups, %llu of "
+      "them >= %zu us late, worst < %.0f us; %s\n",
+      static_cast<unsigned long long>(rack_side.startup_samples),
+      static_cast<unsigned long long>(rack_side.startup_late), kLateStartupUs,
+      rack::bench::us(rack_side.startup_max_ns),
+      o.include_startup ? "included in the figures above" : "not in the figures above");
   std::printf("rack-rt data task page faults while measured (all rounds, /proc): %llu minor, %llu major\n",
               static_cast<unsigned long long>(rack_side.faults_minor),
               static_cast<unsigned long long>(rack_side.faults_major));
-  std::printf("median of %zu per-round ratios: p99 %.2fx (range %.2f-%.2f; target <= %.2fx: %s), "
-              "p99.9 %.2fx (range %.2f-%.2f; target <= %.2fx: %s), p50 %.2fx\n\n",
-              r99.per_round.size(), r99.median, r99.min, r99.max, kTargetP99,
-              r99.median <= kTargetP99 ? "met" : "MISSED", r999.median, r999.min, r999.max, kTargetP999,
-              r999.median <= kTargetP999 ? "met" : "MISSED", r50.median);
+  std::printf(
+      "median of %zu per-round ratios: p99 %.2fx (range %.2f-%.2f; target <= %.2fx: %s), "
+      "p99.9 %.2fx (range %.2f-%.2f; target <= %.2fx: %s), p50 %.2fx\n\n",
+      r99.per_round.size(), r99.median, r99.min, r99.max, kTargetP99, r99.median <= kTargetP99 ? "met" : "MISSED",
+      r999.median, r999.min, r999.max, kTargetP999, r999.median <= kTargetP999 ? "met" : "MISSED", r50.median);
   print_coarse(rack_side, ct_side);
   std::printf("bench_jitter: loadavg after: %s\n", load_after.c_str());
 
   if (!o.json.empty()) {
     std::ostringstream j;
     j << "{\n  \"benchmark\": \"jitter\",\n  \"command\": \"" << rack::bench::json_escape(command_line)
-      << "\",\n  \"machine\": " << rack::bench::json_machine() << ",\n  \"seconds\": "
-      << o.seconds << ", \"cpu\": " << o.cpu << ", \"priority\": " << o.priority << ", \"interval_us\": "
-      << o.interval_us << ", \"rounds\": " << o.rounds << ", \"load_name\": \"" << rack::bench::json_escape(o.load_name)
-      << "\", \"load_cmd\": \"" << rack::bench::json_escape(o.load_cmd) << "\", \"modeswitch\": "
-      << (o.modeswitch ? "true" : "false") << ", \"include_startup\": " << (o.include_startup ? "true" : "false")
+      << "\",\n  \"machine\": " << rack::bench::json_machine() << ",\n  \"seconds\": " << o.seconds
+      << ", \"cpu\": " << o.cpu << ", \"priority\": " << o.priority << ", \"interval_us\": " << o.interval_us
+      << ", \"rounds\": " << o.rounds << ", \"load_name\": \"" << rack::bench::json_escape(o.load_name)
+      << "\", \"load_cmd\": \"" << rack::bench::json_escape(o.load_cmd)
+      << "\", \"modeswitch\": " << (o.modeswitch ? "true" : "false")
+      << ", \"include_startup\": " << (o.include_startup ? "true" : "false")
       << ", \"aligned\": " << (o.aligned ? "true" : "false") << ", \"phase_us\": [";
     for (std::size_t i = 0; i < phases.size(); ++i) j << (i ? ", " : "") << phases[i];
     j << "]"
-      << ", \"startup\": {\"samples\": " << rack_side.startup_samples << ", \"late_500us\": "
-      << rack_side.startup_late << ", \"max_us_below\": " << rack::bench::json_number(rack::bench::us(rack_side.startup_max_ns))
-      << "}, \"data_task_faults\": {\"minor\": " << rack_side.faults_minor << ", \"major\": "
-      << rack_side.faults_major << "}"
-      << ", \"pm_qos_hold\": "
-      << (qos && qos->active() ? "true" : "false") << ",\n  \"loadavg_before\": \"" << load_before
-      << "\", \"loadavg_after\": \"" << load_after << "\",\n  \"target_ratio_p99\": " << kTargetP99
-      << ", \"target_ratio_p999\": " << kTargetP999
-      << ", \"ratio_p99\": " << rack::bench::json_number(ratio_p99) << ", \"ratio_p999\": "
-      << rack::bench::json_number(ratio_p999) << ", \"ratio_p50\": " << rack::bench::json_number(ratio_p50)
-      << ",\n  \"round_ratios\": {";
+      << ", \"startup\": {\"samples\": " << rack_side.startup_samples << ", \"late_500us\": " << rack_side.startup_late
+      << ", \"max_us_below\": " << rack::bench::json_number(rack::bench::us(rack_side.startup_max_ns))
+      << "}, \"data_task_faults\": {\"minor\": " << rack_side.faults_minor << ", \"major\": " << rack_side.faults_major
+      << "}"
+      << ", \"pm_qos_hold\": " << (qos && qos->active() ? "true" : "false") << ",\n  \"loadavg_before\": \""
+      << load_before << "\", \"loadavg_after\": \"" << load_after << "\",\n  \"target_ratio_p99\": " << kTargetP99
+      << ", \"target_ratio_p999\": " << kTargetP999 << ", \"ratio_p99\": " << rack::bench::json_number(ratio_p99)
+      << ", \"ratio_p999\": " << rack::bench::json_number(ratio_p999)
+      << ", \"ratio_p50\": " << rack::bench::json_number(ratio_p50) << ",\n  \"round_ratios\": {";
     bool first_ratio = true;
     for (const auto& [name, rs] : {std::pair{"p50", &r50}, std::pair{"p99", &r99}, std::pair{"p999", &r999}}) {
       j << (first_ratio ? "" : ", ") << "\"" << name << "\": {\"median\": " << rack::bench::json_number(rs->median)

@@ -48,8 +48,8 @@ struct Options {
   int rounds = 4;
   int priority = 80;
   int cpu = 0;
-  int64_t gap_us = 50;          // the client sleeps between calls (not 100% RT load)
-  std::string json;             // bench/run's generic form (bench/run's header)
+  int64_t gap_us = 50;  // the client sleeps between calls (not 100% RT load)
+  std::string json;     // bench/run's generic form (bench/run's header)
 };
 
 void usage_exit(int code) {
@@ -95,10 +95,12 @@ std::string host_text(const Options& o) {
   const int data_priority = o.priority == 0 ? 0 : (o.priority < 99 ? o.priority + 1 : 99);
   return "host: bench-latency-reply\nsystem: 0\nhost_id: 0\nlcm: false\nheap_prefault_mib: 16\ncomponents:\n"
          "  - name: gen\n    class: Generator\n    instance: 0\n    autostart: true\n"
-         "    command_task: {priority: " + std::to_string(o.priority) + ", cpu: " + std::to_string(o.cpu) + "}\n"
+         "    command_task: {priority: " +
+         std::to_string(o.priority) + ", cpu: " + std::to_string(o.cpu) +
+         "}\n"
          // A running data task (1 kHz) so that the histogram fills while it is read.
-         "    data_task: {priority: " + std::to_string(data_priority) + ", cpu: " + std::to_string(o.cpu) +
-         ", period_ms: 1}\n";
+         "    data_task: {priority: " +
+         std::to_string(data_priority) + ", cpu: " + std::to_string(o.cpu) + ", period_ms: 1}\n";
 }
 
 void print_row(const char* name, const Percentiles& p) {
@@ -141,50 +143,55 @@ int main(int argc, char** argv) {
     rt::sleep_for(500 * rt::kNsPerMs);  // some samples in the histogram
 
     std::printf("bench_latency_reply: kernel %s (%s), %s; priority %d, cpu %d, %d rounds, gap %lld us\n",
-                rack::bench::kernel_string().c_str(), rack::bench::kernel_is_preempt_rt() ? "PREEMPT_RT" : "not PREEMPT_RT",
-                rack::bench::cpu_model().c_str(), o.priority, o.cpu, o.rounds, static_cast<long long>(o.gap_us));
+                rack::bench::kernel_string().c_str(),
+                rack::bench::kernel_is_preempt_rt() ? "PREEMPT_RT" : "not PREEMPT_RT", rack::bench::cpu_model().c_str(),
+                o.priority, o.cpu, o.rounds, static_cast<long long>(o.gap_us));
 
     const uint64_t per_block = (o.iterations + static_cast<uint64_t>(o.rounds) - 1) / static_cast<uint64_t>(o.rounds);
     std::vector<int64_t> fill_latency, fill_stats, rpc_latency, rpc_stats;
-    for (auto* v : {&fill_latency, &fill_stats, &rpc_latency, &rpc_stats}) v->reserve(per_block * static_cast<uint64_t>(o.rounds));
+    for (auto* v : {&fill_latency, &fill_stats, &rpc_latency, &rpc_stats})
+      v->reserve(per_block * static_cast<uint64_t>(o.rounds));
     uint64_t failures = 0;
     rt::Thread client;
-    client.start(rt::ThreadConfig{"bench-lat-cli", o.priority, o.cpu, 256 * 1024}, [&] {
-      wire::LatencyHistogram h;
-      wire::StatsReply s;
-      alignas(8) static std::byte buf[4096];
-      const tims::Address dest = gen->address();
-      for (int round = 0; round < o.rounds; ++round) {
-        for (uint64_t i = 0; i < per_block; ++i) {
-          if (o.gap_us > 0) rt::sleep_for(o.gap_us * rt::kNsPerUs);
-          int64_t t0 = rt::monotonic_ns();
-          gen->fill_latency(h);
-          int64_t t1 = rt::monotonic_ns();
-          fill_latency.push_back(t1 - t0);
-          t0 = rt::monotonic_ns();
-          gen->fill_stats(s);
-          t1 = rt::monotonic_ns();
-          fill_stats.push_back(t1 - t0);
-        }
-        // RPCs: one side's block, then the other's (the order swaps every round).
-        for (int side = 0; side < 2; ++side) {
-          const bool hist = (side + round) % 2 == 0;
-          auto& out = hist ? rpc_latency : rpc_stats;
-          for (uint64_t i = 0; i < per_block; ++i) {
-            if (o.gap_us > 0) rt::sleep_for(o.gap_us * rt::kNsPerUs);
-            const int64_t t0 = rt::monotonic_ns();
-            const auto r = endpoint.call(dest, hist ? tims::msg::kGetLatency : tims::msg::kGetStats,
-                                         std::span<std::byte>(buf), rt::kNsPerSec);
-            const int64_t t1 = rt::monotonic_ns();
-            if (r.status != tims::CallStatus::kOk ||
-                r.reply.type != (hist ? tims::msg::kLatency : tims::msg::kStats)) {
-              ++failures;
+    client.start(
+        rt::ThreadConfig{"bench-lat-cli", o.priority, o.cpu, 256 * 1024},
+        [&] {
+          wire::LatencyHistogram h;
+          wire::StatsReply s;
+          alignas(8) static std::byte buf[4096];
+          const tims::Address dest = gen->address();
+          for (int round = 0; round < o.rounds; ++round) {
+            for (uint64_t i = 0; i < per_block; ++i) {
+              if (o.gap_us > 0) rt::sleep_for(o.gap_us * rt::kNsPerUs);
+              int64_t t0 = rt::monotonic_ns();
+              gen->fill_latency(h);
+              int64_t t1 = rt::monotonic_ns();
+              fill_latency.push_back(t1 - t0);
+              t0 = rt::monotonic_ns();
+              gen->fill_stats(s);
+              t1 = rt::monotonic_ns();
+              fill_stats.push_back(t1 - t0);
             }
-            out.push_back(t1 - t0);
+            // RPCs: one side's block, then the other's (the order swaps every round).
+            for (int side = 0; side < 2; ++side) {
+              const bool hist = (side + round) % 2 == 0;
+              auto& out = hist ? rpc_latency : rpc_stats;
+              for (uint64_t i = 0; i < per_block; ++i) {
+                if (o.gap_us > 0) rt::sleep_for(o.gap_us * rt::kNsPerUs);
+                const int64_t t0 = rt::monotonic_ns();
+                const auto r = endpoint.call(dest, hist ? tims::msg::kGetLatency : tims::msg::kGetStats,
+                                             std::span<std::byte>(buf), rt::kNsPerSec);
+                const int64_t t1 = rt::monotonic_ns();
+                if (r.status != tims::CallStatus::kOk ||
+                    r.reply.type != (hist ? tims::msg::kLatency : tims::msg::kStats)) {
+                  ++failures;
+                }
+                out.push_back(t1 - t0);
+              }
+            }
           }
-        }
-      }
-    }, o.priority == 0);
+        },
+        o.priority == 0);
     client.join();
     const wire::StatsReply final_stats = [&] {
       wire::StatsReply s;
@@ -209,7 +216,8 @@ int main(int argc, char** argv) {
       std::ofstream f(o.json);
       f << "{\"benchmark\": \"latency_reply\", \"machine\": " << rack::bench::json_machine()
         << ", \"title\": \"bench_latency_reply: GET_LATENCY (the wake-up histogram, 40 buckets) vs GET_STATS\""
-        << ", \"about\": \"" << json_escape(
+        << ", \"about\": \""
+        << json_escape(
                "What asking a running component for its data task's wake-up latency histogram costs, beside "
                "GET_STATS in the same run: the command task's work per request (fill), and the round trip from a "
                "SCHED_FIFO client (rpc), in alternating blocks. A Generator's data task runs at 1 kHz meanwhile.")

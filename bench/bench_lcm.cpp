@@ -106,13 +106,17 @@ struct Namespaces {
     const std::string p = "rkbench-" + std::to_string(getpid());
     a = p + "-a";
     b = p + "-b";
-    const std::vector<std::string> cmds = {
-        "ip netns add " + a, "ip netns add " + b,
-        "ip link add eth0 netns " + a + " type veth peer name eth0 netns " + b,
-        "ip -n " + a + " link set lo up", "ip -n " + b + " link set lo up",
-        "ip -n " + a + " addr add 10.78.0.1/24 dev eth0", "ip -n " + b + " addr add 10.78.0.2/24 dev eth0",
-        "ip -n " + a + " link set eth0 up", "ip -n " + b + " link set eth0 up",
-        "ip -n " + a + " route add 224.0.0.0/4 dev eth0", "ip -n " + b + " route add 224.0.0.0/4 dev eth0"};
+    const std::vector<std::string> cmds = {"ip netns add " + a,
+                                           "ip netns add " + b,
+                                           "ip link add eth0 netns " + a + " type veth peer name eth0 netns " + b,
+                                           "ip -n " + a + " link set lo up",
+                                           "ip -n " + b + " link set lo up",
+                                           "ip -n " + a + " addr add 10.78.0.1/24 dev eth0",
+                                           "ip -n " + b + " addr add 10.78.0.2/24 dev eth0",
+                                           "ip -n " + a + " link set eth0 up",
+                                           "ip -n " + b + " link set eth0 up",
+                                           "ip -n " + a + " route add 224.0.0.0/4 dev eth0",
+                                           "ip -n " + b + " route add 224.0.0.0/4 dev eth0"};
     for (const auto& c : cmds) {
       if (sh(c) != 0) {
         cleanup();
@@ -212,8 +216,8 @@ std::string cpu_report(const CpuSnapshot& a, const CpuSnapshot& b, double megaby
   for (std::size_t c = 0; c < std::min(a.cpu.size(), b.cpu.size()); ++c) {
     const double total = static_cast<double>(b.cpu[c][2] - a.cpu[c][2]);
     if (total <= 0) continue;
-    o << "    CPU " << c << ": busy " << 100.0 * static_cast<double>(b.cpu[c][0] - a.cpu[c][0]) / total
-      << "% (softirq " << 100.0 * static_cast<double>(b.cpu[c][1] - a.cpu[c][1]) / total << "%, all processes)\n";
+    o << "    CPU " << c << ": busy " << 100.0 * static_cast<double>(b.cpu[c][0] - a.cpu[c][0]) / total << "% (softirq "
+      << 100.0 * static_cast<double>(b.cpu[c][1] - a.cpu[c][1]) / total << "%, all processes)\n";
   }
   o << "    this process, ms of CPU per MB received:";
   for (const auto& [name, ns] : b.thread_ns) {
@@ -380,7 +384,8 @@ std::vector<uint8_t> bulk_payload(std::size_t n) {
   std::mt19937 rng(42);
   for (std::size_t i = 0; i + 1 < n; i += 2) {
     const auto x = static_cast<double>(i % 1280), y = static_cast<double>(i / 1280);
-    const auto depth = static_cast<uint16_t>(2000.0 + 500.0 * std::sin(x / 200.0) * std::cos(y / 150.0) + static_cast<double>(rng() % 4));
+    const auto depth = static_cast<uint16_t>(2000.0 + 500.0 * std::sin(x / 200.0) * std::cos(y / 150.0) +
+                                             static_cast<double>(rng() % 4));
     v[i] = static_cast<uint8_t>(depth & 0xFF);
     v[i + 1] = static_cast<uint8_t>(depth >> 8);
   }
@@ -459,8 +464,8 @@ BulkResult bulk_tims(TimsHost& tx, TimsHost& rx, std::size_t size, int count, co
   const auto before = tx.transport->counters();
   const int64_t t0 = rt::monotonic_ns();
   for (int i = 0; i < count; ++i) {
-    const tims::MessageHeader h =
-        tims::make_header(rx.inbox.address(), tx.reply.address(), tims::msg::kData, 1, static_cast<uint8_t>(i), size);
+    const tims::MessageHeader h = tims::make_header(rx.inbox.address(), tx.reply.address(), tims::msg::kData, 1,
+                                                    static_cast<uint8_t>(i), size);
     const int64_t now = rt::monotonic_ns();
     const tims::ConstBuffer parts[2] = {{&now, sizeof now}, {payload.data() + sizeof now, payload.size() - sizeof now}};
     (void)tx.router.send(h, std::span<const tims::ConstBuffer>(parts, 2));
@@ -524,14 +529,25 @@ int main(int argc, char** argv) {
     else if (a == "--cpu-report") o.cpu_report = true;
     else if (a == "--bulk") o.bulk = next();
     else if (a == "--bulk-rounds") o.bulk_rounds = std::max(1, std::atoi(next().c_str()));
-    else if (a == "--bulk-queue") o.bulk_queue = std::clamp(std::atoi(next().c_str()), 1, static_cast<int>(kLargeSlots) - 1);
+    else if (a == "--bulk-queue")
+      o.bulk_queue = std::clamp(std::atoi(next().c_str()), 1, static_cast<int>(kLargeSlots) - 1);
     else if (a == "--cpus") {
       const std::string v = next();
-      if (v == "any") { o.cpu_a = o.cpu_b = -1; }
-      else if (std::sscanf(v.c_str(), "%d,%d", &o.cpu_a, &o.cpu_b) != 2) { std::fputs(kUsage, stderr); return 2; }
+      if (v == "any") {
+        o.cpu_a = o.cpu_b = -1;
+      } else if (std::sscanf(v.c_str(), "%d,%d", &o.cpu_a, &o.cpu_b) != 2) {
+        std::fputs(kUsage, stderr);
+        return 2;
+      }
+    } else if (a == "--quick") {
+      o.iterations = 1000;
+      o.rounds = 2;
+      o.bulk_count = 100;
+      o.bulk_rounds = 2;
+    } else {
+      std::fputs(kUsage, a == "-h" || a == "--help" ? stdout : stderr);
+      return a == "-h" || a == "--help" ? 0 : 2;
     }
-    else if (a == "--quick") { o.iterations = 1000; o.rounds = 2; o.bulk_count = 100; o.bulk_rounds = 2; }
-    else { std::fputs(kUsage, a == "-h" || a == "--help" ? stdout : stderr); return a == "-h" || a == "--help" ? 0 : 2; }
   }
   if (geteuid() != 0) {
     std::fprintf(stderr, "bench_lcm: needs root (network namespaces)\n");
@@ -539,8 +555,7 @@ int main(int argc, char** argv) {
   }
   try {
     Namespaces ns;
-    const std::string url =
-        "udpm://239.255.76.67:" + std::to_string(o.port) + "?ttl=1&recv_buf_size=4194304";
+    const std::string url = "udpm://239.255.76.67:" + std::to_string(o.port) + "?ttl=1&recv_buf_size=4194304";
     std::printf("bench_lcm: hosts %s (CPU %d) and %s (CPU %d) on a veth pair, %s\n", ns.a.c_str(), o.cpu_a,
                 ns.b.c_str(), o.cpu_b, url.c_str());
 
@@ -581,7 +596,7 @@ int main(int argc, char** argv) {
       tx_zstd = std::make_unique<TimsHost>(3, url, tims::Compression::kZstd, 64 * 1024);
     });
     pthread_setname_np(pthread_self(), "A-main");
-    if (o.cpu_a >= 0) pin(o.cpu_a);  // the measuring (client) thread belongs to host A
+    if (o.cpu_a >= 0) pin(o.cpu_a);      // the measuring (client) thread belongs to host A
     rt::sleep_for(1500 * rt::kNsPerMs);  // discovery warm-up on every side
 
     // ------------------------------------------------------------ RPC
@@ -635,7 +650,7 @@ int main(int argc, char** argv) {
     const Pair pairs[2] = {{"TiMS", "raw LCM"}, {"TiMS+zstd", "raw LCM+zstd"}};
     ZSTD_CCtx* ref_cctx = ZSTD_createCCtx();
     std::vector<std::vector<BulkResult>> runs;  // per (size, mechanism): one per round
-    std::vector<BulkResult> bulk;                // aggregated over the rounds
+    std::vector<BulkResult> bulk;               // aggregated over the rounds
     std::vector<std::string> ratio_lines;
     std::ostringstream ratios_json;
     for (const std::size_t size : {std::size_t{100 * 1000}, std::size_t{1000 * 1000}}) {
@@ -657,8 +672,13 @@ int main(int argc, char** argv) {
       };
       for (int round = 0; round < o.bulk_rounds; ++round) {
         for (const auto& pr2 : pairs) {
-          if (round % 2 == 0) { run(pr2.lcm); run(pr2.tims); }
-          else { run(pr2.tims); run(pr2.lcm); }
+          if (round % 2 == 0) {
+            run(pr2.lcm);
+            run(pr2.tims);
+          } else {
+            run(pr2.tims);
+            run(pr2.lcm);
+          }
         }
       }
       for (const char* mech : {"raw LCM", "TiMS", "raw LCM+zstd", "TiMS+zstd"}) {
@@ -690,8 +710,9 @@ int main(int argc, char** argv) {
         std::sort(q.begin(), q.end());
         const double med = q.size() % 2 != 0 ? q[q.size() / 2] : (q[q.size() / 2 - 1] + q[q.size() / 2]) / 2;
         char line[200];
-        std::snprintf(line, sizeof line, "  %-9s / %-12s %7zu B: ratio per round p50 %.2fx, min %.2fx, max %.2fx (%zu rounds)",
-                      pr2.tims, pr2.lcm, size, med, q.front(), q.back(), q.size());
+        std::snprintf(line, sizeof line,
+                      "  %-9s / %-12s %7zu B: ratio per round p50 %.2fx, min %.2fx, max %.2fx (%zu rounds)", pr2.tims,
+                      pr2.lcm, size, med, q.front(), q.back(), q.size());
         ratio_lines.emplace_back(line);
         ratios_json << (ratios_json.tellp() > 0 ? ", " : "") << "{\"tims\": \"" << pr2.tims << "\", \"reference\": \""
                     << pr2.lcm << "\", \"size\": " << size << ", \"p50\": " << rack::bench::json_number(med)
@@ -716,9 +737,10 @@ int main(int argc, char** argv) {
     }
     std::printf("Throughput TiMS / raw LCM (target >= 0.90x, loss no higher):\n");
     for (const auto& l : ratio_lines) std::printf("%s\n", l.c_str());
-    std::printf("One-way latency per message, send call to receipt (ms; includes the queue in front of a\n"
-                "saturated link, which differs: up to %d messages in the TiMS uplink, the socket buffers for LCM):\n",
-                o.bulk_queue);
+    std::printf(
+        "One-way latency per message, send call to receipt (ms; includes the queue in front of a\n"
+        "saturated link, which differs: up to %d messages in the TiMS uplink, the socket buffers for LCM):\n",
+        o.bulk_queue);
     for (auto& b : bulk) {
       std::vector<int64_t> v = b.latency_ns;
       const Percentiles p = rack::bench::percentiles_of(v);
@@ -736,10 +758,12 @@ int main(int argc, char** argv) {
         auto& b = bulk[i];
         std::vector<int64_t> v = b.latency_ns;
         j << (i ? ", " : "") << "{\"mechanism\": \"" << b.mechanism << "\", \"size\": " << b.size
-          << ", \"sent\": " << b.sent << ", \"received\": " << b.received << ", \"mb_per_s\": "
-          << rack::bench::json_number(b.mb_per_s) << ", \"loss\": " << rack::bench::json_number(b.loss)
-          << ", \"wire_bytes\": " << b.wire_bytes << ", \"rounds_mb_per_s\": [";
-        for (std::size_t k = 0; k < runs[i].size(); ++k) j << (k ? ", " : "") << rack::bench::json_number(runs[i][k].mb_per_s);
+          << ", \"sent\": " << b.sent << ", \"received\": " << b.received
+          << ", \"mb_per_s\": " << rack::bench::json_number(b.mb_per_s)
+          << ", \"loss\": " << rack::bench::json_number(b.loss) << ", \"wire_bytes\": " << b.wire_bytes
+          << ", \"rounds_mb_per_s\": [";
+        for (std::size_t k = 0; k < runs[i].size(); ++k)
+          j << (k ? ", " : "") << rack::bench::json_number(runs[i][k].mb_per_s);
         j << "], \"latency\": " << rack::bench::json_percentiles(rack::bench::percentiles_of(v)) << "}";
       }
       j << "], \"bulk_ratios\": [" << ratios_json.str() << "]}\n";

@@ -69,8 +69,8 @@ struct Step {
   SimScan scan;
 };
 
-const std::vector<std::pair<double, double>> kTour = {{2.0, 8.0},  {9.6, 8.0},  {9.6, 4.0},  {11.0, 3.0},
-                                                      {9.6, 4.0},  {9.6, 8.0},  {18.0, 8.0}, {19.6, 11.5},
+const std::vector<std::pair<double, double>> kTour = {{2.0, 8.0},   {9.6, 8.0},  {9.6, 4.0},  {11.0, 3.0},
+                                                      {9.6, 4.0},   {9.6, 8.0},  {18.0, 8.0}, {19.6, 11.5},
                                                       {19.6, 13.5}, {19.6, 8.0}, {4.0, 8.0}};
 
 std::vector<Step> record(const rack::maps::OccupancyMap& map, uint64_t seed,
@@ -85,7 +85,6 @@ std::vector<Step> record(const rack::maps::OccupancyMap& map, uint64_t seed,
   }
   return steps;
 }
-
 
 int64_t now_ns() { return rack::rt::monotonic_ns(); }
 
@@ -120,14 +119,16 @@ std::vector<UpdateResult> bench_update_time(const rack::maps::OccupancyMap& map,
   std::vector<UpdateResult> results;
   const std::size_t n_steps = std::min<std::size_t>(steps.size(), scans > 0 ? scans : (quick ? 150 : 400));
   std::printf("\n### Update time per scan\n\n");
-  std::printf("Every scan updates (no gating), %zu scans per round, 2 rounds; fixed particle count (KLD min = max). "
-              "Both filters run in lockstep, one after the other on each scan (order alternating per scan), so that "
-              "both see the same machine load. Same map, options and scans; rack's filter gets the echoes as "
-              "robot-frame points (as Scan2D delivers them), MRPT's the same beams as a CObservation2DRangeScan "
-              "(which MRPT turns into points itself, with its own filtering; rack uses every echo). Time: CLOCK_MONOTONIC "
-              "around one update call, SCHED_OTHER.\n\n",
-              n_steps);
-  std::printf("| particles | side | updates | p50 ms | p95 ms | p99 ms | max ms | p50 ratio | p95 ratio | median per-scan ratio |\n");
+  std::printf(
+      "Every scan updates (no gating), %zu scans per round, 2 rounds; fixed particle count (KLD min = max). "
+      "Both filters run in lockstep, one after the other on each scan (order alternating per scan), so that "
+      "both see the same machine load. Same map, options and scans; rack's filter gets the echoes as "
+      "robot-frame points (as Scan2D delivers them), MRPT's the same beams as a CObservation2DRangeScan "
+      "(which MRPT turns into points itself, with its own filtering; rack uses every echo). Time: CLOCK_MONOTONIC "
+      "around one update call, SCHED_OTHER.\n\n",
+      n_steps);
+  std::printf(
+      "| particles | side | updates | p50 ms | p95 ms | p99 ms | max ms | p50 ratio | p95 ratio | median per-scan ratio |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
   struct Config {
     uint32_t n, beams, decimation;
@@ -197,10 +198,10 @@ std::vector<UpdateResult> bench_update_time(const rack::maps::OccupancyMap& map,
     char label[64];
     if (c.beams == 0) std::snprintf(label, sizeof label, "%u", n);
     else std::snprintf(label, sizeof label, "%u, %u points (MRPT: 1 in %u beams)", n, c.beams, c.decimation);
-    std::printf("| %s | **rack MclFilter** | %zu | %.3f | %.3f | %.3f | %.3f | **%.2fx** | **%.2fx** | **%.2fx** |\n", label,
-                a.n, a.p50, a.p95, a.p99, a.max, a.p50 / b.p50, a.p95 / b.p95, median_pair);
-    std::printf("| %s | MRPT CMonteCarloLocalization2D (reference) | %zu | %.3f | %.3f | %.3f | %.3f | 1 | 1 | 1 |\n", label,
-                b.n, b.p50, b.p95, b.p99, b.max);
+    std::printf("| %s | **rack MclFilter** | %zu | %.3f | %.3f | %.3f | %.3f | **%.2fx** | **%.2fx** | **%.2fx** |\n",
+                label, a.n, a.p50, a.p95, a.p99, a.max, a.p50 / b.p50, a.p95 / b.p95, median_pair);
+    std::printf("| %s | MRPT CMonteCarloLocalization2D (reference) | %zu | %.3f | %.3f | %.3f | %.3f | 1 | 1 | 1 |\n",
+                label, b.n, b.p50, b.p95, b.p99, b.max);
     std::fflush(stdout);
   }
   return results;
@@ -208,11 +209,11 @@ std::vector<UpdateResult> bench_update_time(const rack::maps::OccupancyMap& map,
 
 // ---- 2. accuracy against ground truth ---------------------------------------------
 struct Accuracy {
-  double ate = 0;        // m, RMS position error over the filter updates
-  double ate_phi = 0;    // rad, RMS heading error
-  double rpe_t = 0;      // translational error per metre travelled (ratio), 1 m segments, RMS
-  double rpe_r = 0;      // rad per metre, RMS
-  double max_err = 0;    // m
+  double ate = 0;      // m, RMS position error over the filter updates
+  double ate_phi = 0;  // rad, RMS heading error
+  double rpe_t = 0;    // translational error per metre travelled (ratio), 1 m segments, RMS
+  double rpe_r = 0;    // rad per metre, RMS
+  double max_err = 0;  // m
   std::size_t n = 0;
 };
 
@@ -257,13 +258,15 @@ Accuracy accuracy_of(const std::vector<SimPose>& est, const std::vector<SimPose>
 void bench_accuracy(const rack::maps::OccupancyMap& map, bool quick) {
   std::printf("\n### Accuracy on the simulated tour (ground truth)\n\n");
   const int seeds = quick ? 2 : 5;
-  std::printf("Tour of the office map (%zu waypoints, about 60 m), default MCL options (particles 100..2000, "
-              "update after 0.10 m or 0.10 rad, 60 beams), start pose known within 0.2 m / 0.1 rad; seeds 1..%d. "
-              "ATE: RMS of the position (heading) error at every filter update; RPE: RMS over 1 m segments of the "
-              "relative-motion error per metre. Odometry alone (aligned at the start) and MRPT's own filter "
-              "(same options, every echo, same gating) beside it.\n\n",
-              kTour.size(), seeds);
-  std::printf("| side | updates | ATE m | ATE heading deg | max error m | RPE %% | RPE deg/m |\n|---|---|---|---|---|---|---|\n");
+  std::printf(
+      "Tour of the office map (%zu waypoints, about 60 m), default MCL options (particles 100..2000, "
+      "update after 0.10 m or 0.10 rad, 60 beams), start pose known within 0.2 m / 0.1 rad; seeds 1..%d. "
+      "ATE: RMS of the position (heading) error at every filter update; RPE: RMS over 1 m segments of the "
+      "relative-motion error per metre. Odometry alone (aligned at the start) and MRPT's own filter "
+      "(same options, every echo, same gating) beside it.\n\n",
+      kTour.size(), seeds);
+  std::printf(
+      "| side | updates | ATE m | ATE heading deg | max error m | RPE %% | RPE deg/m |\n|---|---|---|---|---|---|---|\n");
   std::vector<SimPose> e_rack, e_ref, e_odo, t_all;
   for (int seed = 1; seed <= seeds; ++seed) {
     const auto steps = record(map, static_cast<uint64_t>(seed));
@@ -293,8 +296,8 @@ void bench_accuracy(const rack::maps::OccupancyMap& map, bool quick) {
   }
   const auto row = [&](const char* name, const std::vector<SimPose>& e) {
     const Accuracy a = accuracy_of(e, t_all);
-    std::printf("| %s | %zu | %.4f | %.2f | %.3f | %.2f | %.3f |\n", name, a.n, a.ate, a.ate_phi * 180 / std::numbers::pi,
-                a.max_err, a.rpe_t * 100, a.rpe_r * 180 / std::numbers::pi);
+    std::printf("| %s | %zu | %.4f | %.2f | %.3f | %.2f | %.3f |\n", name, a.n, a.ate,
+                a.ate_phi * 180 / std::numbers::pi, a.max_err, a.rpe_t * 100, a.rpe_r * 180 / std::numbers::pi);
   };
   row("**rack MclFilter**", e_rack);
   row("MRPT CMonteCarloLocalization2D (reference)", e_ref);
@@ -320,10 +323,12 @@ double travel_to_converge(MclFilter& f, const std::vector<Step>& steps, std::siz
 void bench_recovery(const rack::maps::OccupancyMap& map, bool quick) {
   const int seeds = quick ? 8 : 20;
   std::printf("\n### Global localisation and kidnapping (travel until the estimate is within 0.3 m and stays)\n\n");
-  std::printf("Seeds 11..%d (global) and 21..%d (kidnap); particles 300..8000 (global) and 200..3000 (kidnap); "
-              "'no injection' is the same filter with inject_max_fraction 0 (no recovery, as MRPT's filter).\n\n",
-              10 + seeds, 20 + seeds);
-  std::printf("| case | side | within 5 m | within 15 m | within 40 m | never | median m |\n|---|---|---|---|---|---|---|\n");
+  std::printf(
+      "Seeds 11..%d (global) and 21..%d (kidnap); particles 300..8000 (global) and 200..3000 (kidnap); "
+      "'no injection' is the same filter with inject_max_fraction 0 (no recovery, as MRPT's filter).\n\n",
+      10 + seeds, 20 + seeds);
+  std::printf(
+      "| case | side | within 5 m | within 15 m | within 40 m | never | median m |\n|---|---|---|---|---|---|---|\n");
   for (int kind = 0; kind < 2; ++kind) {
     for (int inj = 1; inj >= 0; --inj) {
       std::vector<double> at;
@@ -344,21 +349,31 @@ void bench_recovery(const rack::maps::OccupancyMap& map, bool quick) {
           o.particles_max = 3000;
           // Track from (2, 8) to (8, 8), then the robot is carried to (15.6, 8).
           const auto before = record(map, seed, {{2.0, 8.0}, {8.0, 8.0}});
-          auto after = record(map, seed + 1000, {{15.6, 8.0}, {21.0, 8.0}, {21.1, 4.0}, {21.1, 8.0}, {14.0, 8.0},
-                                                 {13.6, 11.5}, {13.6, 13.5}, {13.6, 8.0}, {4.0, 8.0}});
+          auto after = record(map, seed + 1000,
+                              {{15.6, 8.0},
+                               {21.0, 8.0},
+                               {21.1, 4.0},
+                               {21.1, 8.0},
+                               {14.0, 8.0},
+                               {13.6, 11.5},
+                               {13.6, 13.5},
+                               {13.6, 8.0},
+                               {4.0, 8.0}});
           // The odometry continues from where it was: shift the second part's odometry.
           const mrpt::poses::CPose2D last_odo(before.back().odometry.x, before.back().odometry.y,
                                               before.back().odometry.phi);
           const mrpt::poses::CPose2D first_odo(after.front().odometry.x, after.front().odometry.y,
                                                after.front().odometry.phi);
           for (auto& s : after) {
-            const mrpt::poses::CPose2D p =
-                last_odo + (mrpt::poses::CPose2D(s.odometry.x, s.odometry.y, s.odometry.phi) - first_odo);
+            const mrpt::poses::CPose2D p = last_odo +
+                                           (mrpt::poses::CPose2D(s.odometry.x, s.odometry.y, s.odometry.phi) -
+                                            first_odo);
             s.odometry = {p.x(), p.y(), p.phi()};
           }
           MclFilter f(map, o);
           f.init_pose({2.0, 8.0, 0.0}, 0.1, 0.05);
-          for (const auto& s : before) (void)f.update({s.odometry.x, s.odometry.y, s.odometry.phi}, s.scan.xs, s.scan.ys);
+          for (const auto& s : before)
+            (void)f.update({s.odometry.x, s.odometry.y, s.odometry.phi}, s.scan.xs, s.scan.ys);
           at.push_back(travel_to_converge(f, after, 0, 0.3));
         }
       }
@@ -395,9 +410,10 @@ LatencyResult run_control(int seconds, const std::function<void(std::atomic<bool
   rack::components::register_builtin(registry);
   const auto caps = rack::rt::probe_capabilities();
   const int cpu = caps.online_cpus.empty() ? 0 : caps.online_cpus.back();
-  const std::string text = "host: bench-mcl\nsystem: 0\nlcm: false\ncomponents:\n  - name: control\n    class: Generator\n"
-                           "    autostart: true\n    command_task: {priority: 30, cpu: " + std::to_string(cpu) +
-                           "}\n    data_task: {priority: 80, cpu: " + std::to_string(cpu) + ", period_ms: 1}\n";
+  const std::string text =
+      "host: bench-mcl\nsystem: 0\nlcm: false\ncomponents:\n  - name: control\n    class: Generator\n"
+      "    autostart: true\n    command_task: {priority: 30, cpu: " +
+      std::to_string(cpu) + "}\n    data_task: {priority: 80, cpu: " + std::to_string(cpu) + ", period_ms: 1}\n";
   auto loaded = rack::load_host_text(text, "bench_mcl.yaml", registry, caps);
   if (!loaded.errors.empty()) throw std::runtime_error(loaded.errors.front().str());
   rack::ExecutorOptions eo;
@@ -430,11 +446,12 @@ void bench_latency(const rack::maps::OccupancyMap& map, const std::vector<Step>&
     return;
   }
   const int cpu = caps.online_cpus.empty() ? 0 : caps.online_cpus.back();
-  std::printf("A Generator data task at SCHED_FIFO 80, 1 ms period, pinned to CPU %d, in an executor with the "
-              "memory policy applied (mlockall); %d s idle, then %d s with MCL updating continuously (every scan, "
-              "2000 particles, 60 beams) in a SCHED_OTHER thread of the same process, unpinned (as MCL's priority-0 "
-              "data task runs in rackd). Wake-up latency histogram of the control task, 1-us buckets.\n\n",
-              cpu, seconds, seconds);
+  std::printf(
+      "A Generator data task at SCHED_FIFO 80, 1 ms period, pinned to CPU %d, in an executor with the "
+      "memory policy applied (mlockall); %d s idle, then %d s with MCL updating continuously (every scan, "
+      "2000 particles, 60 beams) in a SCHED_OTHER thread of the same process, unpinned (as MCL's priority-0 "
+      "data task runs in rackd). Wake-up latency histogram of the control task, 1-us buckets.\n\n",
+      cpu, seconds, seconds);
   const auto mem = rack::rt::apply_memory_policy(64u << 20);
   (void)mem;
   rack::bench::PmQosHold qos(0);
@@ -462,7 +479,8 @@ void bench_latency(const rack::maps::OccupancyMap& map, const std::vector<Step>&
   });
   const Percentiles a = rack::bench::percentiles_of_histogram(idle.hist, idle.max_ns);
   const Percentiles b = rack::bench::percentiles_of_histogram(busy.hist, busy.max_ns);
-  std::printf("| side | samples | p50 us | p90 us | p99 us | p99.9 us | max us | missed periods |\n|---|---|---|---|---|---|---|---|\n");
+  std::printf(
+      "| side | samples | p50 us | p90 us | p99 us | p99.9 us | max us | missed periods |\n|---|---|---|---|---|---|---|---|\n");
   std::printf("| control task, idle (reference) | %lu | %.0f | %.0f | %.0f | %.0f | %.0f | %lu |\n",
               static_cast<unsigned long>(a.samples), a.p50_ns / 1e3, a.p90_ns / 1e3, a.p99_ns / 1e3, a.p999_ns / 1e3,
               a.max_ns / 1e3, static_cast<unsigned long>(idle.overruns));
@@ -487,9 +505,11 @@ int write_carmen(const rack::maps::OccupancyMap& map, const std::string& path, s
     std::fprintf(stderr, "bench_mcl: cannot write %s\n", path.c_str());
     return 1;
   }
-  std::fprintf(f, "# CARMEN Logfile\n# written by bench_mcl --write-carmen: the scripted robot's tour of "
-                  "configs/maps/office.yaml (1 cm range noise, 2 %% odometry noise); TRUEPOS is the ground truth\n"
-                  "# message formats: ODOM, ROBOTLASER1, TRUEPOS (see components/replay/include/rack/replay/carmen_log.h)\n");
+  std::fprintf(
+      f,
+      "# CARMEN Logfile\n# written by bench_mcl --write-carmen: the scripted robot's tour of "
+      "configs/maps/office.yaml (1 cm range noise, 2 %% odometry noise); TRUEPOS is the ground truth\n"
+      "# message formats: ODOM, ROBOTLASER1, TRUEPOS (see components/replay/include/rack/replay/carmen_log.h)\n");
   std::size_t step = 0;
   for (std::size_t w = 1; w < kTour.size() && step < max_steps; ++w) {
     for (int guard = 0; guard < 5000 && step < max_steps && !robot.step_towards(kTour[w].first, kTour[w].second);
@@ -497,11 +517,12 @@ int write_carmen(const rack::maps::OccupancyMap& map, const std::string& path, s
       const double t = 1000.0 + 0.1 * static_cast<double>(step);
       const SimPose o = robot.odometry(), tr = robot.truth();
       std::fprintf(f, "ODOM %.4f %.4f %.5f 0.5 0 0 %.3f sim %.3f\n", o.x, o.y, o.phi, t, t);
-      std::fprintf(f, "TRUEPOS %.4f %.4f %.5f %.4f %.4f %.5f %.3f sim %.3f\n", tr.x, tr.y, tr.phi, o.x, o.y, o.phi, t, t);
+      std::fprintf(f, "TRUEPOS %.4f %.4f %.5f %.4f %.4f %.5f %.3f sim %.3f\n", tr.x, tr.y, tr.phi, o.x, o.y, o.phi, t,
+                   t);
       if (step % 2 != 0) continue;
       const SimScan s = robot.scan();
-      std::fprintf(f, "ROBOTLASER1 0 %.5f %.5f %.6f %.1f 0.01 0 %zu", double{s.start_angle},
-                   1.5 * std::numbers::pi, double{s.step}, double{s.max_range}, s.ranges.size());
+      std::fprintf(f, "ROBOTLASER1 0 %.5f %.5f %.6f %.1f 0.01 0 %zu", double{s.start_angle}, 1.5 * std::numbers::pi,
+                   double{s.step}, double{s.max_range}, s.ranges.size());
       for (float r : s.ranges) std::fprintf(f, " %.3f", double{r});
       std::fprintf(f, " 0 %.4f %.4f %.5f %.4f %.4f %.5f 0.5 0 0 0 0 %.3f sim %.3f\n", o.x, o.y, o.phi, o.x, o.y, o.phi,
                    t, t);
@@ -533,7 +554,8 @@ int main(int argc, char** argv) {
     else if (a == "--beams" && i + 1 < argc) carmen_beams = std::atoi(argv[++i]);
     else if (a == "--scans" && i + 1 < argc) scans = static_cast<std::size_t>(std::atol(argv[++i]));
     else if (a == "--json" && i + 1 < argc) json = argv[++i];
-    else if (a == "--threads" && i + 1 < argc) g_threads = static_cast<uint32_t>(std::clamp(std::atoi(argv[++i]), 1, 2));
+    else if (a == "--threads" && i + 1 < argc)
+      g_threads = static_cast<uint32_t>(std::clamp(std::atoi(argv[++i]), 1, 2));
     else if (a == "--particles" && i + 1 < argc) {
       for (const char* p = argv[++i]; *p != '\0';) {
         char* end = nullptr;
@@ -557,9 +579,10 @@ int main(int argc, char** argv) {
         return 2;
       }
     } else if (a == "-h" || a == "--help") {
-      std::printf("bench_mcl [--quick] [--no-latency] [--latency-seconds S] [--parts update,accuracy,recovery,latency]\n"
-                  "          [--particles N,N,...] [--scans N] [--threads 1|2] [--json FILE]\n"
-                  "bench_mcl --write-carmen FILE [--steps N] [--beams B]   write the simulated tour as a CARMEN log\n");
+      std::printf(
+          "bench_mcl [--quick] [--no-latency] [--latency-seconds S] [--parts update,accuracy,recovery,latency]\n"
+          "          [--particles N,N,...] [--scans N] [--threads 1|2] [--json FILE]\n"
+          "bench_mcl --write-carmen FILE [--steps N] [--beams B]   write the simulated tour as a CARMEN log\n");
       return 0;
     } else {
       std::fprintf(stderr, "bench_mcl: unknown option %s\n", a.c_str());
@@ -592,9 +615,9 @@ int main(int argc, char** argv) {
       const auto& u = updates[i];
       j += std::string(i ? ", " : "") + "{\"particles\": " + std::to_string(u.particles) +
            ", \"points\": " + std::to_string(u.points) + ", \"mrpt_decimation\": " + std::to_string(u.decimation) +
-           ", \"rack\": " + rack::bench::json_percentiles(u.rack) + ", \"mrpt\": " +
-           rack::bench::json_percentiles(u.mrpt) + ", \"median_pair_ratio\": " +
-           rack::bench::json_number(u.median_pair_ratio) + "}";
+           ", \"rack\": " + rack::bench::json_percentiles(u.rack) +
+           ", \"mrpt\": " + rack::bench::json_percentiles(u.mrpt) +
+           ", \"median_pair_ratio\": " + rack::bench::json_number(u.median_pair_ratio) + "}";
     }
     j += "]}\n";
     if (!rack::bench::write_file(json, j)) {

@@ -82,8 +82,8 @@ struct Data {
 };
 
 // The simulated tour (as bench_mcl's accuracy part), as dataset steps.
-const std::vector<std::pair<double, double>> kTour = {{2.0, 8.0},  {9.6, 8.0},  {9.6, 4.0},  {11.0, 3.0},
-                                                      {9.6, 4.0},  {9.6, 8.0},  {18.0, 8.0}, {19.6, 11.5},
+const std::vector<std::pair<double, double>> kTour = {{2.0, 8.0},   {9.6, 8.0},  {9.6, 4.0},  {11.0, 3.0},
+                                                      {9.6, 4.0},   {9.6, 8.0},  {18.0, 8.0}, {19.6, 11.5},
                                                       {19.6, 13.5}, {19.6, 8.0}, {4.0, 8.0}};
 std::vector<DatasetStep> sim_tour(const rack::maps::OccupancyMap& map, uint64_t seed) {
   rack::test::ScriptedRobot robot(map, rack::test::SimConfig{}, seed);
@@ -154,7 +154,8 @@ MclOptions bench_options(uint32_t particles, uint64_t seed) {
   if (const char* v = std::getenv("MCL_KLD_PHI")) o.kld_bin_phi = std::atof(v);
   if (const char* v = std::getenv("MCL_KLD_EPS")) o.kld_epsilon = std::atof(v);
   if (const char* v = std::getenv("MCL_GLOBAL_K")) o.global_candidates = static_cast<uint32_t>(std::atoi(v));
-  if (const char* v = std::getenv("MCL_PMIN")) o.particles_min = static_cast<uint32_t>(std::atoi(v));  // KLD in tracking
+  if (const char* v = std::getenv("MCL_PMIN"))
+    o.particles_min = static_cast<uint32_t>(std::atoi(v));  // KLD in tracking
   return o;
 }
 
@@ -176,8 +177,10 @@ Score run_rack(const Data& d, const std::vector<DatasetStep>& steps, const MclOp
     const SimPose ep{e.pose.x, e.pose.y, e.pose.phi};
     if (std::getenv("MCL_TRACE") != nullptr) {
       std::fprintf(stderr, "%zu err %.3f fit %.3f cons %.3f ratio %.3f low %u inj %u n %u odo_step %.2f\n", i,
-                   std::hypot(ep.x - s.truth.x, ep.y - s.truth.y), e.fit, e.consistency, e.w_fast / e.w_slow, e.low_updates, e.injected,
-                   e.particles, i > 0 ? std::hypot(s.odometry.x - steps[i - 1].odometry.x, s.odometry.y - steps[i - 1].odometry.y) : 0.0);
+                   std::hypot(ep.x - s.truth.x, ep.y - s.truth.y), e.fit, e.consistency, e.w_fast / e.w_slow,
+                   e.low_updates, e.injected, e.particles,
+                   i > 0 ? std::hypot(s.odometry.x - steps[i - 1].odometry.x, s.odometry.y - steps[i - 1].odometry.y)
+                         : 0.0);
     }
     sc.add(ep, s.truth);
     if (i > 0) sc.add_rel(prev_e, ep, prev_t, s.truth);
@@ -244,14 +247,15 @@ void print_side(const std::string& dataset, const char* side, const std::vector<
   }
   out("| %s | %s | %s | %s of %zu | %s | %s m, %s deg | %s | %s / %s |\n", dataset.c_str(), side,
       range_text(ate, 3).c_str(), range_text(lost, 0).c_str(), runs[0].n, range_text(rot, 2).c_str(),
-      range_text(rt, 3).c_str(), range_text(rr, 2).c_str(), range_text(inj, 0).c_str(),
-      range_text(p50, 2).c_str(), range_text(p95, 2).c_str());
+      range_text(rt, 3).c_str(), range_text(rr, 2).c_str(), range_text(inj, 0).c_str(), range_text(p50, 2).c_str(),
+      range_text(p95, 2).c_str());
   g_rows.push_back({dataset, side, *std::max_element(ate.begin(), ate.end()), *std::max_element(rot.begin(), rot.end()),
                     lost_total});
 }
 
 void part_track(const std::vector<Data>& sets, int seeds, uint32_t particles) {
-  out("\n### Tracking: RACK-RT MCL (default options) beside MRPT alone, %u particles, seeds 1..%d\n\n", particles, seeds);
+  out("\n### Tracking: RACK-RT MCL (default options) beside MRPT alone, %u particles, seeds 1..%d\n\n", particles,
+      seeds);
   out("Both filters start from the first reference pose with a spread of 0.2 m / 0.1 rad and get every scan "
       "(gating: 0.10 m or 0.10 rad of odometry); rack's filter takes %u of the echoes as points, MRPT its own "
       "CObservation2DRangeScan with LF_decimation n/%u. Same option values on both sides (MclOptions defaults "
@@ -288,7 +292,8 @@ void part_track(const std::vector<Data>& sets, int seeds, uint32_t particles) {
 std::vector<DatasetStep> kidnapped(const std::vector<DatasetStep>& steps, std::size_t from, std::size_t to) {
   std::vector<DatasetStep> out_steps(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(from));
   const auto pose = [](const SimPose& p) { return mrpt::poses::CPose2D(p.x, p.y, p.phi); };
-  const mrpt::poses::CPose2D base = pose(steps[from - 1].odometry) + (pose(steps[to].odometry) - pose(steps[to - 1].odometry));
+  const mrpt::poses::CPose2D base = pose(steps[from - 1].odometry) +
+                                    (pose(steps[to].odometry) - pose(steps[to - 1].odometry));
   const mrpt::poses::CPose2D first = pose(steps[to].odometry);
   for (std::size_t i = to; i < steps.size(); ++i) {
     DatasetStep s = steps[i];
@@ -305,7 +310,8 @@ template <typename Estimate>
 double recovered_after(const std::vector<DatasetStep>& steps, std::size_t from, const std::vector<SimPose>& est) {
   double travelled = 0, at = -1;
   for (std::size_t i = from; i < steps.size(); ++i) {
-    if (i > from) travelled += std::hypot(steps[i].truth.x - steps[i - 1].truth.x, steps[i].truth.y - steps[i - 1].truth.y);
+    if (i > from)
+      travelled += std::hypot(steps[i].truth.x - steps[i - 1].truth.x, steps[i].truth.y - steps[i - 1].truth.y);
     const bool good = std::hypot(est[i].x - steps[i].truth.x, est[i].y - steps[i].truth.y) < kLost;
     if (!good) at = -1;
     else if (at < 0) at = travelled;
@@ -323,7 +329,8 @@ void part_kidnap(const std::vector<Data>& sets, int seeds, uint32_t particles) {
     if (!d.real) continue;
     const std::size_t from = d.steps.size() / 3, to = 2 * d.steps.size() / 3;
     const auto steps = kidnapped(d.steps, from, to);
-    const double jump = std::hypot(d.steps[to].truth.x - d.steps[from - 1].truth.x, d.steps[to].truth.y - d.steps[from - 1].truth.y);
+    const double jump = std::hypot(d.steps[to].truth.x - d.steps[from - 1].truth.x,
+                                   d.steps[to].truth.y - d.steps[from - 1].truth.y);
     std::string rr, mm;
     for (int seed = 1; seed <= seeds; ++seed) {
       const MclOptions o = bench_options(particles, static_cast<uint64_t>(seed));
@@ -333,7 +340,8 @@ void part_kidnap(const std::vector<Data>& sets, int seeds, uint32_t particles) {
         MclFilter f(*d.map, o);
         f.init_pose({steps[0].truth.x, steps[0].truth.y, steps[0].truth.phi}, 0.2, 0.1);
         for (std::size_t i = 0; i < steps.size(); ++i) {
-          (void)f.update({steps[i].odometry.x, steps[i].odometry.y, steps[i].odometry.phi}, steps[i].scan.xs, steps[i].scan.ys);
+          (void)f.update({steps[i].odometry.x, steps[i].odometry.y, steps[i].odometry.phi}, steps[i].scan.xs,
+                         steps[i].scan.ys);
           const auto e = f.estimate();
           er.push_back({e.pose.x, e.pose.y, e.pose.phi});
           if (i < from && std::hypot(e.pose.x - steps[i].truth.x, e.pose.y - steps[i].truth.y) > kLost) ++lost_r;
@@ -352,9 +360,11 @@ void part_kidnap(const std::vector<Data>& sets, int seeds, uint32_t particles) {
       }
       const double ar = recovered_after<int>(steps, from, er), am = recovered_after<int>(steps, from, em);
       char buf[96];
-      std::snprintf(buf, sizeof buf, "%s%s [%zu]", seed > 1 ? ", " : "", ar < 0 ? "never" : (std::to_string(static_cast<int>(std::lround(ar))) + " m").c_str(), lost_r);
+      std::snprintf(buf, sizeof buf, "%s%s [%zu]", seed > 1 ? ", " : "",
+                    ar < 0 ? "never" : (std::to_string(static_cast<int>(std::lround(ar))) + " m").c_str(), lost_r);
       rr += buf;
-      std::snprintf(buf, sizeof buf, "%s%s [%zu]", seed > 1 ? ", " : "", am < 0 ? "never" : (std::to_string(static_cast<int>(std::lround(am))) + " m").c_str(), lost_m);
+      std::snprintf(buf, sizeof buf, "%s%s [%zu]", seed > 1 ? ", " : "",
+                    am < 0 ? "never" : (std::to_string(static_cast<int>(std::lround(am))) + " m").c_str(), lost_m);
       mm += buf;
     }
     out("| %s | %.1f | %s | %s |\n", d.name.c_str(), jump, rr.c_str(), mm.c_str());
@@ -369,12 +379,13 @@ void part_global(const std::vector<Data>& sets, int seeds, uint32_t particles_ma
       particles_max, scans, seeds);
   out("Travel (reference, m) until the estimate is within %.1f m and stays so (never: not within the scans "
       "used); particle count at the last scan in brackets. MRPT alone starts from MRPT's own uniform "
-      "initialisation over the free cells (resetUniformFreeSpace).\n\n", kLost);
+      "initialisation over the free cells (resetUniformFreeSpace).\n\n",
+      kLost);
   out("| dataset | RACK-RT MCL | MRPT alone | converged (rack / MRPT) | rack within 2x MRPT's travel |\n|---|---|---|---|---|\n");
   for (const auto& d : sets) {
     if (!d.real) continue;
-    const std::vector<DatasetStep> steps(d.steps.begin(),
-                                         d.steps.begin() + static_cast<std::ptrdiff_t>(std::min(scans, d.steps.size())));
+    const std::vector<DatasetStep> steps(
+        d.steps.begin(), d.steps.begin() + static_cast<std::ptrdiff_t>(std::min(scans, d.steps.size())));
     std::string rr, mm;
     int conv_r = 0, conv_m = 0, within = 0;
     for (int seed = 1; seed <= seeds; ++seed) {
@@ -391,9 +402,10 @@ void part_global(const std::vector<Data>& sets, int seeds, uint32_t particles_ma
           er.push_back({e.pose.x, e.pose.y, e.pose.phi});
           nr = e.particles;
           if (std::getenv("MCL_TRACE") != nullptr) {
-            std::fprintf(stderr, "global %s seed %d scan %zu err %.3f fit %.3f cons %.3f ratio %.3f low %u inj %u n %u\n",
-                         d.name.c_str(), seed, er.size() - 1, std::hypot(e.pose.x - s.truth.x, e.pose.y - s.truth.y), e.fit,
-                         e.consistency, e.w_fast / e.w_slow, e.low_updates, e.injected, e.particles);
+            std::fprintf(stderr,
+                         "global %s seed %d scan %zu err %.3f fit %.3f cons %.3f ratio %.3f low %u inj %u n %u\n",
+                         d.name.c_str(), seed, er.size() - 1, std::hypot(e.pose.x - s.truth.x, e.pose.y - s.truth.y),
+                         e.fit, e.consistency, e.w_fast / e.w_slow, e.low_updates, e.injected, e.particles);
           }
         }
       }
@@ -447,12 +459,15 @@ int main(int argc, char** argv) {
     else if (a == "--markdown" && i + 1 < argc) markdown = argv[++i];
     else if (a == "--perfect-odometry") perfect = true;
     else if (a == "--global-seeds" && i + 1 < argc) global_seeds = std::max(1, std::atoi(argv[++i]));
-    else if (a == "--global-particles" && i + 1 < argc) global_particles = static_cast<uint32_t>(std::max(300, std::atoi(argv[++i])));
-    else if (a == "--global-scans" && i + 1 < argc) global_scans = static_cast<std::size_t>(std::max(10, std::atoi(argv[++i])));
+    else if (a == "--global-particles" && i + 1 < argc)
+      global_particles = static_cast<uint32_t>(std::max(300, std::atoi(argv[++i])));
+    else if (a == "--global-scans" && i + 1 < argc)
+      global_scans = static_cast<std::size_t>(std::max(10, std::atoi(argv[++i])));
     else if (a == "-h" || a == "--help") {
-      std::printf("bench_mcl_real [--quick] [--seeds N] [--particles N] [--datasets intel,aces,fhw,seattle,sim]\n"
-                  "               [--parts track,kidnap,global] [--global-seeds N] [--global-particles N]\n"
-                  "               [--global-scans N] [--json FILE] [--markdown FILE] [--perfect-odometry]\n");
+      std::printf(
+          "bench_mcl_real [--quick] [--seeds N] [--particles N] [--datasets intel,aces,fhw,seattle,sim]\n"
+          "               [--parts track,kidnap,global] [--global-seeds N] [--global-particles N]\n"
+          "               [--global-scans N] [--json FILE] [--markdown FILE] [--perfect-odometry]\n");
       return 0;
     } else {
       std::fprintf(stderr, "bench_mcl_real: unknown option %s\n", a.c_str());
@@ -518,8 +533,10 @@ int main(int argc, char** argv) {
     }
     std::FILE* f = std::fopen(json.c_str(), "w");
     if (f == nullptr) return 1;
-    std::fprintf(f, "{\"title\": \"bench_mcl_real: localisation on real recorded data beside MRPT alone\", \"markdown\": \"%s\"}\n",
-                 esc.c_str());
+    std::fprintf(
+        f,
+        "{\"title\": \"bench_mcl_real: localisation on real recorded data beside MRPT alone\", \"markdown\": \"%s\"}\n",
+        esc.c_str());
     std::fclose(f);
   }
   return 0;

@@ -72,20 +72,21 @@ __attribute__((noinline)) void cycle_body(Shared& s, unsigned i, bool syscall) {
 
 void run_variant(Variant& v, Shared& shared, int cycles, int cpu, int priority) {
   Thread t;
-  t.start({std::string("bench:") + v.name, priority, cpu, 256 * 1024},
-          [&] {
-            if (v.attach) ms::attach_current_thread(ms::TaskInfo{"bench", "bench", "Bench(0/0)", 0, v.mode});
-            for (int k = 0; k < 200; ++k) cycle_body(shared, static_cast<unsigned>(k), v.syscall);  // warm-up
-            for (int k = 0; k < cycles; ++k) {
-              const int64_t t0 = monotonic_ns();
-              if (v.window) ms::enter_cycle();
-              cycle_body(shared, static_cast<unsigned>(k), v.syscall);
-              if (v.window) (void)ms::leave_cycle();
-              v.samples.push_back(monotonic_ns() - t0);
-            }
-            if (v.attach) ms::detach_current_thread();
-          },
-          false);
+  t.start(
+      {std::string("bench:") + v.name, priority, cpu, 256 * 1024},
+      [&] {
+        if (v.attach) ms::attach_current_thread(ms::TaskInfo{"bench", "bench", "Bench(0/0)", 0, v.mode});
+        for (int k = 0; k < 200; ++k) cycle_body(shared, static_cast<unsigned>(k), v.syscall);  // warm-up
+        for (int k = 0; k < cycles; ++k) {
+          const int64_t t0 = monotonic_ns();
+          if (v.window) ms::enter_cycle();
+          cycle_body(shared, static_cast<unsigned>(k), v.syscall);
+          if (v.window) (void)ms::leave_cycle();
+          v.samples.push_back(monotonic_ns() - t0);
+        }
+        if (v.attach) ms::detach_current_thread();
+      },
+      false);
   t.join();
 }
 
@@ -98,7 +99,10 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&] {
-      if (i + 1 >= argc) { std::fprintf(stderr, "%s needs a value\n", a.c_str()); std::exit(2); }
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "%s needs a value\n", a.c_str());
+        std::exit(2);
+      }
       return std::atoi(argv[++i]);
     };
     if (a == "--cycles") cycles = next();
@@ -164,11 +168,12 @@ int main(int argc, char** argv) {
     std::printf("%-14s %9.0f %9.0f %9.0f %9.0f   %-22s %.2fx / %.2fx\n", v.name, p.p50_ns, p.p99_ns, p.p999_ns,
                 p.max_ns, diff, p.p50_ns / base.p50_ns, p.p99_ns / base.p99_ns);
   }
-  std::printf("reports recorded during the run: %llu (expected 0: getpid is on the allow-list, trapped but not reported)\n",
-              static_cast<unsigned long long>(counts.reports));
+  std::printf(
+      "reports recorded during the run: %llu (expected 0: getpid is on the allow-list, trapped but not reported)\n",
+      static_cast<unsigned long long>(counts.reports));
   j += "], \"reports\": " + std::to_string(counts.reports) + ", \"memory\": \"" +
-       rack::bench::json_escape(mem.describe()) + "\", \"detector\": \"" + rack::bench::json_escape(started.describe()) +
-       "\"}\n";
+       rack::bench::json_escape(mem.describe()) + "\", \"detector\": \"" +
+       rack::bench::json_escape(started.describe()) + "\"}\n";
   if (!json.empty() && !rack::bench::write_file(json, j)) {
     std::fprintf(stderr, "bench_modeswitch: cannot write %s\n", json.c_str());
     return 1;

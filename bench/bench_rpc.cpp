@@ -105,11 +105,13 @@ struct Placement {
 long futex(std::atomic<uint32_t>* word, int op, uint32_t val) noexcept {
   return syscall(SYS_futex, reinterpret_cast<uint32_t*>(word), op, val, nullptr, nullptr, 0);
 }
-void futex_wait(std::atomic<uint32_t>* word, uint32_t expected) noexcept { (void)futex(word, FUTEX_WAIT_PRIVATE, expected); }
+void futex_wait(std::atomic<uint32_t>* word, uint32_t expected) noexcept {
+  (void)futex(word, FUTEX_WAIT_PRIVATE, expected);
+}
 void futex_wake(std::atomic<uint32_t>* word) noexcept { (void)futex(word, FUTEX_WAKE_PRIVATE, 1); }
 
 struct BlockResult {
-  uint64_t voluntary_switches = 0;    // client thread, over the timed iterations
+  uint64_t voluntary_switches = 0;  // client thread, over the timed iterations
   uint64_t involuntary_switches = 0;
   uint64_t failures = 0;
 };
@@ -146,25 +148,31 @@ BlockResult run_futex_block(const Options& o, const Placement& pl, uint64_t coun
   BlockResult result;
   rt::Thread server;
   rt::Thread client;
-  server.start(thread_config("ref-futex-srv", o.priority, pl.server_cpu), [&word] {
-    for (;;) {
-      uint32_t w;
-      while ((w = word.load(std::memory_order_acquire)) == 0) futex_wait(&word, 0);
-      if (w == 2) return;
-      word.store(0, std::memory_order_release);  // release: the client sees what we did
-      futex_wake(&word);
-    }
-  }, false);
-  client.start(thread_config("ref-futex-cli", o.priority, pl.client_cpu), [&] {
-    result = client_loop(o, count, out, [&word] {
-      word.store(1, std::memory_order_release);
-      futex_wake(&word);
-      while (word.load(std::memory_order_acquire) == 1) futex_wait(&word, 1);
-      return true;
-    });
-    word.store(2, std::memory_order_release);
-    futex_wake(&word);
-  }, false);
+  server.start(
+      thread_config("ref-futex-srv", o.priority, pl.server_cpu),
+      [&word] {
+        for (;;) {
+          uint32_t w;
+          while ((w = word.load(std::memory_order_acquire)) == 0) futex_wait(&word, 0);
+          if (w == 2) return;
+          word.store(0, std::memory_order_release);  // release: the client sees what we did
+          futex_wake(&word);
+        }
+      },
+      false);
+  client.start(
+      thread_config("ref-futex-cli", o.priority, pl.client_cpu),
+      [&] {
+        result = client_loop(o, count, out, [&word] {
+          word.store(1, std::memory_order_release);
+          futex_wake(&word);
+          while (word.load(std::memory_order_acquire) == 1) futex_wait(&word, 1);
+          return true;
+        });
+        word.store(2, std::memory_order_release);
+        futex_wake(&word);
+      },
+      false);
   client.join();
   server.join();
   return result;
@@ -211,8 +219,8 @@ struct CondvarChannel {
 struct FutexChannel {
   rt::PiMutex mutex;
   alignas(64) std::atomic<uint32_t> seq{0};  // release/acquire: pairs the bump with the re-check
-  bool full = false;  // guarded by mutex
-  bool stop = false;  // guarded by mutex
+  bool full = false;                         // guarded by mutex
+  bool stop = false;                         // guarded by mutex
   void bump_and_wake() noexcept {
     seq.fetch_add(1, std::memory_order_release);
     futex_wake(&seq);
@@ -253,16 +261,22 @@ BlockResult run_channel_block(const Options& o, const Placement& pl, uint64_t co
   BlockResult result;
   rt::Thread server;
   rt::Thread client;
-  server.start(thread_config("ref-ch-srv", o.priority, pl.server_cpu), [&] {
-    while (request.receive()) reply.send();
-  }, false);
-  client.start(thread_config("ref-ch-cli", o.priority, pl.client_cpu), [&] {
-    result = client_loop(o, count, out, [&] {
-      request.send();
-      return reply.receive();
-    });
-    request.close();
-  }, false);
+  server.start(
+      thread_config("ref-ch-srv", o.priority, pl.server_cpu),
+      [&] {
+        while (request.receive()) reply.send();
+      },
+      false);
+  client.start(
+      thread_config("ref-ch-cli", o.priority, pl.client_cpu),
+      [&] {
+        result = client_loop(o, count, out, [&] {
+          request.send();
+          return reply.receive();
+        });
+        request.close();
+      },
+      false);
   client.join();
   server.join();
   return result;
@@ -272,7 +286,7 @@ BlockResult run_channel_block(const Options& o, const Placement& pl, uint64_t co
 
 struct RackSide {
   std::unique_ptr<rack::Executor> executor;
-  std::unique_ptr<tims::Mailbox> mailbox;   // the client's reply mailbox
+  std::unique_ptr<tims::Mailbox> mailbox;  // the client's reply mailbox
   std::unique_ptr<tims::Endpoint> endpoint;
   tims::Address server;
 };
@@ -289,10 +303,12 @@ std::string host_text(const Options& o) {
        "    class: Generator\n"
        "    instance: 0\n"
        "    autostart: false\n"
-       "    command_task: {priority: " << o.priority << ", cpu: " << o.server_cpu << "}\n"
+       "    command_task: {priority: "
+    << o.priority << ", cpu: " << o.server_cpu
+    << "}\n"
        // The data task must exist for a Generator; once a second, below the command task.
-       "    data_task: {priority: " << (o.priority > 1 ? o.priority - 1 : 1) << ", cpu: " << o.server_cpu
-    << ", period_ms: 1000}\n";
+       "    data_task: {priority: "
+    << (o.priority > 1 ? o.priority - 1 : 1) << ", cpu: " << o.server_cpu << ", period_ms: 1000}\n";
   return y.str();
 }
 
@@ -317,8 +333,7 @@ RackSide start_rack(const Options& o, const rt::RtCapabilities& caps) {
   rack::Component* gen = side.executor->find("gen");
   if (gen == nullptr) throw std::runtime_error("component 'gen' not found");
   side.server = gen->address();
-  side.mailbox = std::make_unique<tims::Mailbox>(
-      tims::Address::make(0, tims::classes::kTool, 1, 0), 8, 256);
+  side.mailbox = std::make_unique<tims::Mailbox>(tims::Address::make(0, tims::classes::kTool, 1, 0), 8, 256);
   side.executor->router().add(*side.mailbox);
   side.endpoint = std::make_unique<tims::Endpoint>(side.executor->router(), *side.mailbox,
                                                    static_cast<uint8_t>(o.priority));
@@ -329,16 +344,19 @@ BlockResult run_rack_block(const Options& o, const Placement& pl, RackSide& side
                            std::vector<int64_t>& out) {
   BlockResult result;
   rt::Thread client;
-  client.start(thread_config("rack-rpc-cli", o.priority, pl.client_cpu), [&] {
-    alignas(8) std::byte buf[256];
-    tims::Endpoint& ep = *side.endpoint;
-    const tims::Address dest = side.server;
-    result = client_loop(o, count, out, [&] {
-      const tims::CallResult r = ep.call(dest, tims::msg::kGetStatus, std::span<std::byte>(buf), rt::kNsPerSec);
-      return r.status == tims::CallStatus::kOk &&
-             (r.reply.type == tims::msg::kDisabled || r.reply.type == tims::msg::kEnabled);
-    });
-  }, false);
+  client.start(
+      thread_config("rack-rpc-cli", o.priority, pl.client_cpu),
+      [&] {
+        alignas(8) std::byte buf[256];
+        tims::Endpoint& ep = *side.endpoint;
+        const tims::Address dest = side.server;
+        result = client_loop(o, count, out, [&] {
+          const tims::CallResult r = ep.call(dest, tims::msg::kGetStatus, std::span<std::byte>(buf), rt::kNsPerSec);
+          return r.status == tims::CallStatus::kOk &&
+                 (r.reply.type == tims::msg::kDisabled || r.reply.type == tims::msg::kEnabled);
+        });
+      },
+      false);
   client.join();
   return result;
 }
@@ -365,12 +383,13 @@ struct ModeResult {
 };
 
 void print_mode(const ModeResult& m, const Options& o) {
-  std::printf("\n== placement '%s': client CPU %d, server CPU %d, SCHED_FIFO %d, %llu round trips each, "
-              "gap %lld us ==\n",
-              m.placement.mode.c_str(), m.placement.client_cpu, m.placement.server_cpu, o.priority,
-              static_cast<unsigned long long>(o.iterations), static_cast<long long>(o.gap_us));
-  std::printf("%-22s %9s %9s %9s %9s %9s %9s   %s\n", "mechanism (us)", "min", "p50", "p90", "p99", "p99.9",
-              "max", "client ctx sw/rt (vol/invol)");
+  std::printf(
+      "\n== placement '%s': client CPU %d, server CPU %d, SCHED_FIFO %d, %llu round trips each, "
+      "gap %lld us ==\n",
+      m.placement.mode.c_str(), m.placement.client_cpu, m.placement.server_cpu, o.priority,
+      static_cast<unsigned long long>(o.iterations), static_cast<long long>(o.gap_us));
+  std::printf("%-22s %9s %9s %9s %9s %9s %9s   %s\n", "mechanism (us)", "min", "p50", "p90", "p99", "p99.9", "max",
+              "client ctx sw/rt (vol/invol)");
   for (const auto& mech : m.mechanisms) {
     if (mech.p.samples == 0) continue;
     const Percentiles& p = mech.p;
@@ -408,8 +427,10 @@ bool parse(int argc, char** argv, Options& o) {
     else if (a == "--no-diagnostics") o.diagnostics = false;
     else if (a == "--only") o.only = next();
     else if (a == "--verbose") o.verbose = true;
-    else if (a == "--help" || a == "-h") { std::fputs(kUsage, stdout); std::exit(0); }
-    else throw std::invalid_argument("unknown option " + a);
+    else if (a == "--help" || a == "-h") {
+      std::fputs(kUsage, stdout);
+      std::exit(0);
+    } else throw std::invalid_argument("unknown option " + a);
   }
   if (o.cpu_mode != "same" && o.cpu_mode != "cross" && o.cpu_mode != "both") {
     throw std::invalid_argument("--cpu-mode must be same, cross or both");
@@ -450,7 +471,10 @@ int main(int argc, char** argv) {
     int other = o.cross_cpu;
     if (other < 0) {
       for (int c : caps.online_cpus) {
-        if (c != o.server_cpu) { other = c; break; }
+        if (c != o.server_cpu) {
+          other = c;
+          break;
+        }
       }
     }
     if (other < 0 || other == o.server_cpu || !caps.cpu_online(other)) {
@@ -467,8 +491,8 @@ int main(int argc, char** argv) {
     if (!qos->active()) std::fprintf(stderr, "bench_rpc: warning: cannot hold /dev/cpu_dma_latency\n");
   }
   const std::string load_before = rack::bench::read_first_line("/proc/loadavg");
-  std::printf("bench_rpc: %s\nbench_rpc: %s; kernel %s (%s)\nbench_rpc: loadavg before: %s\n",
-              caps.describe().c_str(), mem.describe().c_str(), rack::bench::kernel_string().c_str(),
+  std::printf("bench_rpc: %s\nbench_rpc: %s; kernel %s (%s)\nbench_rpc: loadavg before: %s\n", caps.describe().c_str(),
+              mem.describe().c_str(), rack::bench::kernel_string().c_str(),
               caps.preempt_rt ? "PREEMPT_RT" : "not PREEMPT_RT", load_before.c_str());
 
   RackSide side;
@@ -538,19 +562,23 @@ int main(int argc, char** argv) {
       << ",\n  \"iterations\": " << o.iterations << ", \"rounds\": " << o.rounds << ", \"gap_us\": " << o.gap_us
       << ", \"warmup\": " << o.warmup << ", \"priority\": " << o.priority
       << ", \"pm_qos_hold\": " << (qos && qos->active() ? "true" : "false") << ",\n  \"loadavg_before\": \""
-      << load_before << "\", \"loadavg_after\": \"" << load_after << "\",\n  \"target_ratio_p50\": 1.5,\n  \"modes\": [";
+      << load_before << "\", \"loadavg_after\": \"" << load_after
+      << "\",\n  \"target_ratio_p50\": 1.5,\n  \"modes\": [";
     for (std::size_t i = 0; i < results.size(); ++i) {
       const ModeResult& r = results[i];
-      j << (i ? "," : "") << "\n    {\"mode\": \"" << r.placement.mode << "\", \"client_cpu\": " << r.placement.client_cpu
-        << ", \"server_cpu\": " << r.placement.server_cpu << ", \"ratio_p50\": " << rack::bench::json_number(r.ratio_p50)
+      j << (i ? "," : "") << "\n    {\"mode\": \"" << r.placement.mode
+        << "\", \"client_cpu\": " << r.placement.client_cpu << ", \"server_cpu\": " << r.placement.server_cpu
+        << ", \"ratio_p50\": " << rack::bench::json_number(r.ratio_p50)
         << ", \"ratio_p99\": " << rack::bench::json_number(r.ratio_p99) << ", \"mechanisms\": {";
       for (std::size_t k = 0; k < r.mechanisms.size(); ++k) {
         const Mechanism& m = r.mechanisms[k];
         const double n = m.p.samples > 0 ? static_cast<double>(m.p.samples) : 1.0;
         j << (k ? ", " : "") << "\n      \"" << m.key << "\": {\"latency\": " << rack::bench::json_percentiles(m.p)
-          << ", \"client_voluntary_switches_per_rt\": " << rack::bench::json_number(static_cast<double>(m.voluntary) / n)
-          << ", \"client_involuntary_switches_per_rt\": " << rack::bench::json_number(static_cast<double>(m.involuntary) / n)
-          << ", \"failures\": " << m.failures << "}";
+          << ", \"client_voluntary_switches_per_rt\": "
+          << rack::bench::json_number(static_cast<double>(m.voluntary) / n)
+          << ", \"client_involuntary_switches_per_rt\": "
+          << rack::bench::json_number(static_cast<double>(m.involuntary) / n) << ", \"failures\": " << m.failures
+          << "}";
       }
       j << "}}";
     }

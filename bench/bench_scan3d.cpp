@@ -201,14 +201,16 @@ int main(int argc, char** argv) {
       const int64_t c0 = thread_cpu_ns();
       const auto t0 = std::chrono::steady_clock::now();
       ours.process(c.x.data(), c.y.data(), c.z.data(), c.i.data(), c.x.size(), o, *out);
-      t_ours.push_back(std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count());
+      t_ours.push_back(
+          std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count());
       c_ours.push_back(thread_cpu_ns() - c0);
     };
     const auto time_ref = [&] {
       const int64_t c0 = thread_cpu_ns();
       const auto t0 = std::chrono::steady_clock::now();
       reference.run(c, o);
-      t_ref.push_back(std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count());
+      t_ref.push_back(
+          std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count());
       c_ref.push_back(thread_cpu_ns() - c0);
     };
     if (s % 2 == 0) {
@@ -236,14 +238,17 @@ int main(int argc, char** argv) {
               pr.p50_ns / 1e6, pr.p90_ns / 1e6, pr.p99_ns / 1e6, pr.max_ns / 1e6);
   std::printf("  ratio ours/reference (wall): p50 %.3f  p90 %.3f  p99 %.3f\n", ratio(po.p50_ns, pr.p50_ns),
               ratio(po.p90_ns, pr.p90_ns), ratio(po.p99_ns, pr.p99_ns));
-  std::printf("  thread CPU time: ours p50 %.2f ms p90 %.2f ms, reference p50 %.2f ms p90 %.2f ms; ratio p50 %.3f p90 %.3f\n",
-              cpo.p50_ns / 1e6, cpo.p90_ns / 1e6, cpr.p50_ns / 1e6, cpr.p90_ns / 1e6, ratio(cpo.p50_ns, cpr.p50_ns),
-              ratio(cpo.p90_ns, cpr.p90_ns));
-  std::printf("  scans whose results differ (points kept, ground points): %llu\n", static_cast<unsigned long long>(mismatched));
+  std::printf(
+      "  thread CPU time: ours p50 %.2f ms p90 %.2f ms, reference p50 %.2f ms p90 %.2f ms; ratio p50 %.3f p90 %.3f\n",
+      cpo.p50_ns / 1e6, cpo.p90_ns / 1e6, cpr.p50_ns / 1e6, cpr.p90_ns / 1e6, ratio(cpo.p50_ns, cpr.p50_ns),
+      ratio(cpo.p90_ns, cpr.p90_ns));
+  std::printf("  scans whose results differ (points kept, ground points): %llu\n",
+              static_cast<unsigned long long>(mismatched));
   std::string json = "{\"benchmark\": \"scan3d\", \"machine\": " + rack::bench::json_machine() +
-                     ", \"scans\": " + std::to_string(scans) + ", \"points_per_scan\": " +
-                     std::to_string(raw_total / scans) + ", \"points_after_processing\": " +
-                     std::to_string(kept_total / scans) + ", \"voxel_m\": " + rack::bench::json_number(voxel) +
+                     ", \"scans\": " + std::to_string(scans) +
+                     ", \"points_per_scan\": " + std::to_string(raw_total / scans) +
+                     ", \"points_after_processing\": " + std::to_string(kept_total / scans) +
+                     ", \"voxel_m\": " + rack::bench::json_number(voxel) +
                      ", \"ours\": " + rack::bench::json_percentiles(po) +
                      ", \"reference\": " + rack::bench::json_percentiles(pr) +
                      ", \"ours_cpu\": " + rack::bench::json_percentiles(cpo) +

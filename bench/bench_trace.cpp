@@ -75,8 +75,7 @@ __attribute__((noinline)) int64_t cycle(Bus& bus, int64_t due, uint8_t seq) {
   trace::record(trace::Kind::kWake, due);
   trace::record_at(woke, trace::Kind::kCycleStart);
   const tims::ConstBuffer part{bus.sample.data(), bus.sample.size()};
-  const auto h = tims::make_header(bus.sink.address(), bus.self, -6, 0, seq,
-                                   static_cast<uint32_t>(bus.sample.size()));
+  const auto h = tims::make_header(bus.sink.address(), bus.self, -6, 0, seq, static_cast<uint32_t>(bus.sample.size()));
   (void)bus.router.send(h, std::span<const tims::ConstBuffer>(&part, 1));
   (void)bus.sink.receive(bus.buffer, tims::Mailbox::kNonBlocking);
   const int64_t ended = monotonic_ns();
@@ -108,22 +107,23 @@ void run_variant(Variant& v, Bus& bus, trace::Ring& ring, int cycles, int cpu, i
     });
   }
   Thread t;
-  t.start({std::string("bench:") + v.name, priority, cpu, 256 * 1024},
-          [&] {
-            trace::bind_thread_ring(v.mode == Mode::kReference ? nullptr : &ring);
-            ring.set_enabled(v.mode == Mode::kOn);
-            for (int k = 0; k < 500; ++k) (void)cycle(bus, monotonic_ns(), static_cast<uint8_t>(k));  // warm-up
-            for (int k = 0; k < cycles; ++k) {
-              samples.push_back(cycle(bus, monotonic_ns(), static_cast<uint8_t>(k)));
-              // A task's cycles are spaced by its period: a pause every 512 cycles
-              // (2560 events, within the ring's 4096) lets the drainer keep up, as it
-              // does in rackd, so that "on" measures recording, not the drop path.
-              if (k % 512 == 511) sleep_for(10 * kNsPerMs);
-            }
-            ring.set_enabled(false);
-            trace::bind_thread_ring(nullptr);
-          },
-          false);
+  t.start(
+      {std::string("bench:") + v.name, priority, cpu, 256 * 1024},
+      [&] {
+        trace::bind_thread_ring(v.mode == Mode::kReference ? nullptr : &ring);
+        ring.set_enabled(v.mode == Mode::kOn);
+        for (int k = 0; k < 500; ++k) (void)cycle(bus, monotonic_ns(), static_cast<uint8_t>(k));  // warm-up
+        for (int k = 0; k < cycles; ++k) {
+          samples.push_back(cycle(bus, monotonic_ns(), static_cast<uint8_t>(k)));
+          // A task's cycles are spaced by its period: a pause every 512 cycles
+          // (2560 events, within the ring's 4096) lets the drainer keep up, as it
+          // does in rackd, so that "on" measures recording, not the drop path.
+          if (k % 512 == 511) sleep_for(10 * kNsPerMs);
+        }
+        ring.set_enabled(false);
+        trace::bind_thread_ring(nullptr);
+      },
+      false);
   t.join();
   done.store(true, std::memory_order_release);
   if (drainer.joinable()) drainer.join();
@@ -149,7 +149,10 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&] {
-      if (i + 1 >= argc) { std::fprintf(stderr, "%s needs a value\n", a.c_str()); std::exit(2); }
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "%s needs a value\n", a.c_str());
+        std::exit(2);
+      }
       return std::atoi(argv[++i]);
     };
     if (a == "--cycles") cycles = next();
@@ -201,26 +204,28 @@ int main(int argc, char** argv) {
     if (v.mode == Mode::kReference) ref = p;
     const auto [p50_min, p50_max] = std::minmax_element(v.ratio_p50.begin(), v.ratio_p50.end());
     const auto [p99_min, p99_max] = std::minmax_element(v.ratio_p99.begin(), v.ratio_p99.end());
-    std::printf("%-10s %8.0f %8.0f %8.0f %9.0f %9.0f  %+8.0f / %+8.0f        %.3fx [%.3f, %.3f]              %.3fx [%.3f, %.3f]\n",
-                v.name, p.p50_ns, p.p90_ns, p.p99_ns, p.p999_ns, p.max_ns, p.p50_ns - ref.p50_ns, p.p99_ns - ref.p99_ns,
-                median(v.ratio_p50), *p50_min, *p50_max, median(v.ratio_p99), *p99_min, *p99_max);
+    std::printf(
+        "%-10s %8.0f %8.0f %8.0f %9.0f %9.0f  %+8.0f / %+8.0f        %.3fx [%.3f, %.3f]              %.3fx [%.3f, %.3f]\n",
+        v.name, p.p50_ns, p.p90_ns, p.p99_ns, p.p999_ns, p.max_ns, p.p50_ns - ref.p50_ns, p.p99_ns - ref.p99_ns,
+        median(v.ratio_p50), *p50_min, *p50_max, median(v.ratio_p99), *p99_min, *p99_max);
   }
   const uint64_t dropped = ring.dropped() - dropped_before;
   std::printf("events recorded (on): %llu, dropped: %llu\n", static_cast<unsigned long long>(ring.pushed()),
               static_cast<unsigned long long>(dropped));
   if (!json.empty()) {
-    std::string md =
-        "| variant | p50 ns | p99 ns | p99.9 ns | minus reference p50 / p99 ns | per-round p50 ratio: median "
-        "[range] | per-round p99 ratio: median [range] |\n|---|---|---|---|---|---|---|\n";
+    std::string
+        md = "| variant | p50 ns | p99 ns | p99.9 ns | minus reference p50 / p99 ns | per-round p50 ratio: median "
+             "[range] | per-round p99 ratio: median [range] |\n|---|---|---|---|---|---|---|\n";
     for (std::size_t k = 0; k < variants.size(); ++k) {
       const Variant& v = variants[k];
       const Percentiles& p = pooled[k];
       const auto [p50_min, p50_max] = std::minmax_element(v.ratio_p50.begin(), v.ratio_p50.end());
       const auto [p99_min, p99_max] = std::minmax_element(v.ratio_p99.begin(), v.ratio_p99.end());
       char row[512];
-      std::snprintf(row, sizeof row, "| %s | %.0f | %.0f | %.0f | %+.0f / %+.0f | %.3fx [%.3f, %.3f] | %.3fx [%.3f, %.3f] |\n",
-                    v.name, p.p50_ns, p.p99_ns, p.p999_ns, p.p50_ns - ref.p50_ns, p.p99_ns - ref.p99_ns,
-                    median(v.ratio_p50), *p50_min, *p50_max, median(v.ratio_p99), *p99_min, *p99_max);
+      std::snprintf(row, sizeof row,
+                    "| %s | %.0f | %.0f | %.0f | %+.0f / %+.0f | %.3fx [%.3f, %.3f] | %.3fx [%.3f, %.3f] |\n", v.name,
+                    p.p50_ns, p.p99_ns, p.p999_ns, p.p50_ns - ref.p50_ns, p.p99_ns - ref.p99_ns, median(v.ratio_p50),
+                    *p50_min, *p50_max, median(v.ratio_p99), *p99_min, *p99_max);
       md += row;
     }
     const double on_p50 = pooled[2].p50_ns - ref.p50_ns, on_p99 = pooled[2].p99_ns - ref.p99_ns;
@@ -236,9 +241,10 @@ int main(int argc, char** argv) {
         "A cycle is what a small data task does with the executor's trace hooks (5 events: wake-up, cycle start "
         "and end, a 64-byte message sent through the router and received). reference: no ring bound; off: a ring "
         "bound and switched off (what every task of rackd pays); on: recording, drained by a normal thread on "
-        "another CPU. " + std::to_string(rounds) + " rounds x " + std::to_string(cycles) +
-        " cycles per variant, interleaved, SCHED_FIFO " + std::to_string(priority) + " on CPU " +
-        std::to_string(cpu) + "; the time of each cycle, in ns below, us in the comparisons.";
+        "another CPU. " +
+        std::to_string(rounds) + " rounds x " + std::to_string(cycles) +
+        " cycles per variant, interleaved, SCHED_FIFO " + std::to_string(priority) + " on CPU " + std::to_string(cpu) +
+        "; the time of each cycle, in ns below, us in the comparisons.";
     std::string j = "{\n  \"benchmark\": \"trace\",\n  \"command\": \"";
     j += rack::bench::json_escape(command_line);
     j += "\",\n  \"machine\": ";

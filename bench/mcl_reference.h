@@ -40,8 +40,8 @@ class MrptReference {
     for (int iy = 0; iy < map.height(); ++iy) {
       for (int ix = 0; ix < map.width(); ++ix) {
         const auto s = map.cell_state(ix, iy);
-        grid_->setCell(ix, iy,
-                       s == rack::maps::CellState::kFree ? 1.0F : (s == rack::maps::CellState::kOccupied ? 0.0F : 0.5F));
+        grid_->setCell(
+            ix, iy, s == rack::maps::CellState::kFree ? 1.0F : (s == rack::maps::CellState::kOccupied ? 0.0F : 0.5F));
       }
     }
     auto& lf = grid_->likelihoodOptions;

@@ -203,7 +203,8 @@ struct Reader {
             const Node* k = params->items[i];
             const Node* v = params->items[i + 1];
             if (k->kind != Node::Kind::kScalar) continue;
-            c.params.push_back({k->value, v->kind == Node::Kind::kScalar ? v->value : std::string(), v->line, v->column});
+            c.params.push_back(
+                {k->value, v->kind == Node::Kind::kScalar ? v->value : std::string(), v->line, v->column});
           }
         }
       }
@@ -484,8 +485,7 @@ Deployment build(std::vector<Host> hosts, const std::vector<ClassInfo>* classes)
       const ClassInfo* ci = info_of(host.components[c]);
       for (const Param& p : host.components[c].params) {
         if (p.value.empty()) continue;
-        if (ci != nullptr && ci->described &&
-            std::find(ci->refs.begin(), ci->refs.end(), p.key) == ci->refs.end()) {
+        if (ci != nullptr && ci->described && std::find(ci->refs.begin(), ci->refs.end(), p.key) == ci->refs.end()) {
           continue;  // the class says this parameter names no component
         }
         Flow f;
@@ -575,8 +575,9 @@ Deployment build(std::vector<Host> hosts, const std::vector<ClassInfo>* classes)
 }
 
 std::string to_dot(const Deployment& d, const Live* live) {
-  std::string s = "digraph deployment {\n  rankdir=LR;\n  compound=true;\n  node [shape=box, fontname=\"sans\", fontsize=10];\n"
-                  "  edge [fontname=\"sans\", fontsize=9];\n";
+  std::string
+      s = "digraph deployment {\n  rankdir=LR;\n  compound=true;\n  node [shape=box, fontname=\"sans\", fontsize=10];\n"
+          "  edge [fontname=\"sans\", fontsize=9];\n";
   std::map<int, std::vector<std::size_t>> by_system;
   for (std::size_t h = 0; h < d.hosts.size(); ++h) by_system[d.hosts[h].system].push_back(h);
   for (const auto& [system, hosts] : by_system) {
@@ -602,11 +603,12 @@ std::string to_dot(const Deployment& d, const Live* live) {
           if (t->state == "ERROR") attrs = ", color=red, fontcolor=red";
           else if (!t->answered) attrs = ", color=grey, fontcolor=grey, style=dashed";
         }
-        s += "      c" + std::to_string(h) + "_" + std::to_string(c) + " [label=\"" + dot_escape(l) + "\"" + attrs + "];\n";
+        s += "      c" + std::to_string(h) + "_" + std::to_string(c) + " [label=\"" + dot_escape(l) + "\"" + attrs +
+             "];\n";
       }
       for (std::size_t e = 0; e < host.errors.size() && e < 8; ++e) {
-        s += "      e" + std::to_string(h) + "_" + std::to_string(e) + " [shape=note, color=red, fontcolor=red, label=\"" +
-             dot_escape(host.errors[e].str()) + "\"];\n";
+        s += "      e" + std::to_string(h) + "_" + std::to_string(e) +
+             " [shape=note, color=red, fontcolor=red, label=\"" + dot_escape(host.errors[e].str()) + "\"];\n";
       }
       s += "    }\n";
     }
@@ -660,8 +662,8 @@ std::string allocation_text(const Deployment& d, const Live* live) {
       for (const PlacedTask& t : g.tasks) {
         const Component& c = host.components[t.component];
         const std::string period = !t.data ? "-" : t.period_ns > 0 ? ms_text(t.period_ns) : "triggered";
-        std::snprintf(line, sizeof line, "    %-4d %-20s %-5s %-10s", t.priority, c.name.c_str(), t.data ? "data" : "cmd",
-                      period.c_str());
+        std::snprintf(line, sizeof line, "    %-4d %-20s %-5s %-10s", t.priority, c.name.c_str(),
+                      t.data ? "data" : "cmd", period.c_str());
         s += line;
         if (const LiveTask* lt = live_task(live, h, t.component); lt != nullptr && t.data) {
           char util[16] = "-";
@@ -715,13 +717,14 @@ std::string to_json(const Deployment& d, const Live* live) {
            ",\"cpu\":" + std::to_string(comp.command_task.cpu) + "}";
       if (comp.has_data_task) {
         s += ",\"data_task\":{\"priority\":" + std::to_string(comp.data_task.priority) +
-             ",\"cpu\":" + std::to_string(comp.data_task.cpu) + ",\"period_ns\":" + std::to_string(comp.period_ns) + "}";
+             ",\"cpu\":" + std::to_string(comp.data_task.cpu) + ",\"period_ns\":" + std::to_string(comp.period_ns) +
+             "}";
       }
       if (const LiveTask* t = live_task(live, h, c)) {
-        s += ",\"live\":{\"state\":" + quoted(t->state) + ",\"utilisation\":" +
-             (t->utilisation >= 0 ? std::to_string(t->utilisation) : std::string("null")) +
-             ",\"worst_latency_ns\":" + (t->worst_latency_ns >= 0 ? std::to_string(t->worst_latency_ns) : std::string("null")) +
-             "}";
+        s += ",\"live\":{\"state\":" + quoted(t->state) +
+             ",\"utilisation\":" + (t->utilisation >= 0 ? std::to_string(t->utilisation) : std::string("null")) +
+             ",\"worst_latency_ns\":" +
+             (t->worst_latency_ns >= 0 ? std::to_string(t->worst_latency_ns) : std::string("null")) + "}";
       }
       s += "}";
     }
@@ -730,11 +733,13 @@ std::string to_json(const Deployment& d, const Live* live) {
   s += "],\"flows\":[";
   for (std::size_t i = 0; i < d.flows.size(); ++i) {
     const Flow& f = d.flows[i];
-    s += (i == 0 ? "{" : ",{") + std::string("\"consumer\":") + quoted(d.hosts[f.consumer_host].components[f.consumer].name) +
+    s += (i == 0 ? "{" : ",{") + std::string("\"consumer\":") +
+         quoted(d.hosts[f.consumer_host].components[f.consumer].name) +
          ",\"consumer_host\":" + quoted(d.hosts[f.consumer_host].label()) + ",\"param\":" + quoted(f.param) +
          ",\"target\":" + quoted(f.target) + ",\"producer\":" +
          (f.producer == kNone ? std::string("null") : quoted(d.hosts[f.producer_host].components[f.producer].name)) +
-         ",\"producer_host\":" + (f.producer == kNone ? std::string("null") : quoted(d.hosts[f.producer_host].label())) +
+         ",\"producer_host\":" +
+         (f.producer == kNone ? std::string("null") : quoted(d.hosts[f.producer_host].label())) +
          ",\"period_ns\":" + std::to_string(f.period_ns) + ",\"networks\":[";
     for (std::size_t n = 0; n < f.networks.size(); ++n) s += (n == 0 ? "" : ",") + quoted(f.networks[n]);
     s += "]}";
@@ -742,13 +747,13 @@ std::string to_json(const Deployment& d, const Live* live) {
   s += "],\"cpus\":[";
   for (std::size_t i = 0; i < d.cpus.size(); ++i) {
     const CpuGroup& g = d.cpus[i];
-    s += (i == 0 ? "{" : ",{") + std::string("\"host\":") + quoted(d.hosts[g.host].label()) + ",\"cpus\":" + quoted(g.cpus) +
-         ",\"tasks\":[";
+    s += (i == 0 ? "{" : ",{") + std::string("\"host\":") + quoted(d.hosts[g.host].label()) +
+         ",\"cpus\":" + quoted(g.cpus) + ",\"tasks\":[";
     for (std::size_t t = 0; t < g.tasks.size(); ++t) {
       const PlacedTask& p = g.tasks[t];
-      s += (t == 0 ? "{" : ",{") + std::string("\"component\":") + quoted(d.hosts[g.host].components[p.component].name) +
-           ",\"task\":" + quoted(p.data ? "data" : "command") + ",\"priority\":" + std::to_string(p.priority) +
-           ",\"period_ns\":" + std::to_string(p.period_ns) + "}";
+      s += (t == 0 ? "{" : ",{") + std::string("\"component\":") +
+           quoted(d.hosts[g.host].components[p.component].name) + ",\"task\":" + quoted(p.data ? "data" : "command") +
+           ",\"priority\":" + std::to_string(p.priority) + ",\"period_ns\":" + std::to_string(p.period_ns) + "}";
     }
     s += "],\"flags\":[";
     for (std::size_t f = 0; f < g.flags.size(); ++f) s += (f == 0 ? "" : ",") + quoted(g.flags[f]);

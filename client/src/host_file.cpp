@@ -36,10 +36,12 @@ std::optional<std::string> read_host_bytes(const std::string& path, std::string&
     return std::nullopt;
   }
   if (!S_ISREG(st.st_mode)) {
-    error = std::string("the host file is ") + (S_ISFIFO(st.st_mode) ? "a FIFO" : S_ISDIR(st.st_mode) ? "a directory"
-                                                  : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "a device"
-                                                  : S_ISSOCK(st.st_mode)                       ? "a socket"
-                                                                                               : "not a regular file") +
+    error = std::string("the host file is ") +
+            (S_ISFIFO(st.st_mode)                         ? "a FIFO"
+             : S_ISDIR(st.st_mode)                        ? "a directory"
+             : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "a device"
+             : S_ISSOCK(st.st_mode)                       ? "a socket"
+                                                          : "not a regular file") +
             ": a host file must be a regular file";
     return std::nullopt;
   }
@@ -68,7 +70,6 @@ std::optional<std::string> read_host_bytes(const std::string& path, std::string&
   text.resize(have);
   return text;
 }
-
 
 namespace yaml_tree {
 
@@ -106,8 +107,7 @@ bool parse_document(const std::string& text, const std::string& file, Document& 
     Node* node = nullptr;
     switch (event.type) {
       case YAML_STREAM_END_EVENT:
-      case YAML_DOCUMENT_END_EVENT:
-        return true;  // only the first document is read (rackd refuses a second one)
+      case YAML_DOCUMENT_END_EVENT: return true;  // only the first document is read (rackd refuses a second one)
       case YAML_SCALAR_EVENT:
         node = &doc.nodes.emplace_back();
         node->value.assign(reinterpret_cast<const char*>(event.data.scalar.value), event.data.scalar.length);
@@ -141,8 +141,7 @@ bool parse_document(const std::string& text, const std::string& file, Document& 
         }
         continue;
       }
-      default:
-        continue;  // stream and document start, nothing
+      default: continue;  // stream and document start, nothing
     }
     node->line = static_cast<int>(mark.line) + 1;
     node->column = static_cast<int>(mark.column) + 1;

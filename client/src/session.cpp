@@ -175,7 +175,7 @@ std::optional<tims::ComponentInfo> Session::find_component(const std::string& na
 }
 
 std::optional<std::pair<tims::ComponentInfo, std::string>> Session::find_by_class(const std::string& class_name,
-                                                                                 uint8_t system, uint8_t instance) {
+                                                                                  uint8_t system, uint8_t instance) {
   std::optional<std::pair<tims::ComponentInfo, std::string>> found;
   discover([&](const std::vector<tims::HostInfo>& hosts) {
     for (const auto& h : hosts) {
@@ -204,7 +204,8 @@ const ClassDescription* Session::describe(tims::Address component) {
     q.offset = pages.next_offset();
     q.sections = kClassSectionValueNames;  // the names of enum values and address fields
     const tims::ConstBuffer part = tims::buffer_of(q);
-    const tims::CallResult r = call(component.component(), msg::kGetClass, std::span<const tims::ConstBuffer>(&part, 1));
+    const tims::CallResult r = call(component.component(), msg::kGetClass,
+                                    std::span<const tims::ConstBuffer>(&part, 1));
     if (r.status != tims::CallStatus::kOk) {
       error = std::string("no reply to GET_CLASS: ") + tims::describe(r.status);
     } else if (r.reply.type != msg::kClass) {
@@ -244,7 +245,8 @@ tims::CallResult Session::call(tims::Address dest, int8_t type, std::span<const 
 }
 
 uint64_t Session::fan_out(const std::vector<tims::Address>& dests, int8_t type, const Answer& answer) {
-  return fan_out(dests, type, AnswerWithBody([&answer](std::size_t i, const tims::MessageHeader& h, std::span<const std::byte>) {
+  return fan_out(dests, type,
+                 AnswerWithBody([&answer](std::size_t i, const tims::MessageHeader& h, std::span<const std::byte>) {
                    answer(i, h);
                  }));
 }

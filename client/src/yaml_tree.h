@@ -16,8 +16,8 @@ namespace rack::yaml_tree {
 // alias points at its anchored node (shared, not copied: no expansion blow-up).
 struct Node {
   enum class Kind { kScalar, kList, kMap } kind = Kind::kScalar;
-  std::string value;                // a scalar's text
-  std::vector<const Node*> items;   // a list's items; a map's keys and values, alternating
+  std::string value;               // a scalar's text
+  std::vector<const Node*> items;  // a list's items; a map's keys and values, alternating
   int line = 1;
   int column = 1;
   [[nodiscard]] const Node* find(const char* key) const {

@@ -43,15 +43,28 @@ struct Camera::Capture {
 
 Camera::Camera()
     : DataComponent(DataTaskMode::kPeriodic),
-      source_(declare_string("source", "", {.doc = "V4L2 device (/dev/video0 or 0), video file, or image sequence (img_%04d.png); relative: to the host file's folder", .required = true, .path = PathRole::kDevice})),
+      source_(declare_string(
+          "source", "",
+          {.doc =
+               "V4L2 device (/dev/video0 or 0), video file, or image sequence (img_%04d.png); relative: to the host file's folder",
+           .required = true,
+           .path = PathRole::kDevice})),
       width_(declare_int("width", 0, {.doc = "requested width (0: the source's)", .min = 0, .max = 8192})),
       height_(declare_int("height", 0, {.doc = "requested height (0: the source's)", .min = 0, .max = 8192})),
       fps_(declare_float("fps", 0.0, {.doc = "requested frame rate (0: the source's)", .min = 0.0, .max = 1000.0})),
-      format_(declare_string("format", "rgb", {.doc = "rgb, mono or jpeg (for remote viewing)", .choices = {"rgb", "mono", "jpeg"}})),
+      format_(declare_string("format", "rgb",
+                             {.doc = "rgb, mono or jpeg (for remote viewing)", .choices = {"rgb", "mono", "jpeg"}})),
       jpeg_quality_(declare_int("jpeg_quality", 80, {.doc = "JPEG quality 1..100", .min = 1, .max = 100})),
       loop_file_(declare_bool("loop", false, {.doc = "start a video file or image sequence again at its end"})),
-      calibration_(declare_string("calibration", "", {.doc = "OpenCV calibration file (camera_matrix, distortion_coefficients)", .init_only = true, .path = PathRole::kInput})),
-      timeout_ms_(declare_float("timeout_ms", 2000.0, {.doc = "ERROR when no frame came for this long (and on() waits this long for the source)", .min = 1.0, .unit = "ms"})) {}
+      calibration_(declare_string("calibration", "",
+                                  {.doc = "OpenCV calibration file (camera_matrix, distortion_coefficients)",
+                                   .init_only = true,
+                                   .path = PathRole::kInput})),
+      timeout_ms_(
+          declare_float("timeout_ms", 2000.0,
+                        {.doc = "ERROR when no frame came for this long (and on() waits this long for the source)",
+                         .min = 1.0,
+                         .unit = "ms"})) {}
 
 Camera::~Camera() { cleanup(); }
 
@@ -162,7 +175,7 @@ void Camera::run() noexcept {
         std::string refused;
         if (!index && !is_pattern_or_url(src)) {
           const bool ok = src.rfind("/dev/", 0) == 0 ? rt::check_char_device(src, "camera device", refused)
-                                                    : rt::check_regular_file(src, UINT64_MAX, "video file", refused);
+                                                     : rt::check_regular_file(src, UINT64_MAX, "video file", refused);
           if (!ok) log_error("%s", refused.c_str());
         }
         const bool ok = refused.empty() && (index ? c.video.open(std::stoi(src)) : c.video.open(src));

@@ -61,13 +61,13 @@ class Camera final : public DataComponent<interfaces::CameraData> {
   int64_t stamps_[3] = {};  // host-clock capture time of each buffer (travels with it)
   static constexpr uint8_t kFresh = 0x80;
   std::atomic<uint8_t> middle_{1};
-  uint8_t front_ = 0;  // loop() only
+  uint8_t front_ = 0;                   // loop() only
   std::atomic<bool> capturing_{false};  // on() -> thread: capture while true
   std::atomic<bool> quit_{false};
-  std::atomic<int> open_state_{0};      // thread -> on(): 0 opening, 1 open, -1 failed
+  std::atomic<int> open_state_{0};  // thread -> on(): 0 opening, 1 open, -1 failed
   std::atomic<uint32_t> bad_frames_{0}, delivered_{0}, ended_{0};
-  uint32_t published_frames_ = 0;       // loop() only
-  int64_t last_frame_ns_ = 0;           // loop() only
+  uint32_t published_frames_ = 0;  // loop() only
+  int64_t last_frame_ns_ = 0;      // loop() only
   std::thread thread_;
 };
 

@@ -15,25 +15,28 @@ using interfaces::ChassisData;
 
 ChassisCan::ChassisCan()
     : ChassisBase(DataTaskMode::kPeriodic),
-      can_(declare_string("can", "", {.doc = "CAN interface (can0, vcan0) or unix:/path of a drive simulator",
-                                      .required = true})),
+      can_(declare_string("can", "",
+                          {.doc = "CAN interface (can0, vcan0) or unix:/path of a drive simulator", .required = true})),
       left_node_(declare_int("left_node", 1, {.doc = "CANopen node id of the left drive", .min = 1, .max = 127})),
       right_node_(declare_int("right_node", 2, {.doc = "CANopen node id of the right drive", .min = 1, .max = 127})),
       track_(declare_float("track_width", 0.5, {.doc = "m between the wheel contact points", .min = 0.01})),
-      counts_per_meter_(declare_float("counts_per_meter", 10000.0,
-                                      {.doc = "drive position units per metre of wheel travel (gear, encoder)",
-                                       .min = 1e-6})),
+      counts_per_meter_(
+          declare_float("counts_per_meter", 10000.0,
+                        {.doc = "drive position units per metre of wheel travel (gear, encoder)", .min = 1e-6})),
       left_inverted_(declare_bool("left_inverted", false, {.doc = "left motor counts backwards"})),
       right_inverted_(declare_bool("right_inverted", false, {.doc = "right motor counts backwards (mirrored mount)"})),
       vx_max_(declare_float("vx_max", 1.0, {.doc = "m/s, MOVE is clamped to this", .min = 0.0})),
       omega_max_(declare_float("omega_max", 1.5, {.doc = "rad/s, MOVE is clamped to this", .min = 0.0})),
       acc_max_(declare_float("acc_max", 1.0, {.doc = "m/s^2, the drives' profile acceleration", .min = 0.001})),
       dec_max_(declare_float("dec_max", 2.0, {.doc = "m/s^2, the drives' profile deceleration", .min = 0.001})),
-      watchdog_ms_(declare_float("watchdog_ms", 500.0, {.doc = "stop when no MOVE came for this long", .min = 1.0, .unit = "ms"})),
-      heartbeat_ms_(declare_int("heartbeat_ms", 100, {.doc = "drive heartbeat producer time", .min = 1, .max = 65535, .unit = "ms"})),
+      watchdog_ms_(declare_float("watchdog_ms", 500.0,
+                                 {.doc = "stop when no MOVE came for this long", .min = 1.0, .unit = "ms"})),
+      heartbeat_ms_(declare_int("heartbeat_ms", 100,
+                                {.doc = "drive heartbeat producer time", .min = 1, .max = 65535, .unit = "ms"})),
       heartbeat_timeout_ms_(declare_float("heartbeat_timeout_ms", 350.0,
                                           {.doc = "a drive silent this long: ERROR, the other stops", .min = 1.0})),
-      sdo_timeout_ms_(declare_float("sdo_timeout_ms", 100.0, {.doc = "wait for each SDO answer in on()", .min = 1.0, .unit = "ms"})),
+      sdo_timeout_ms_(declare_float("sdo_timeout_ms", 100.0,
+                                    {.doc = "wait for each SDO answer in on()", .min = 1.0, .unit = "ms"})),
       max_missed_syncs_(declare_int("max_missed_syncs", 10,
                                     {.doc = "consecutive cycles without both drives' TPDOs before ERROR", .min = 1})),
       boundary_front_(declare_float("boundary_front", 0.3, {.doc = "m, outline ahead of the axle centre"})),
@@ -54,7 +57,9 @@ HookResult ChassisCan::fail(Fault f) noexcept {
     case Fault::kDriveFault: what = "a drive reports a fault (statusword)"; break;
     case Fault::kBus: what = "CAN bus error (bus-off or the interface is gone)"; break;
     case Fault::kNoPdo: what = "no TPDO from a drive within half a period"; break;
-    case Fault::kNotOperational: what = "a drive did not report the NMT state OPERATIONAL within heartbeat_timeout_ms of the start"; break;
+    case Fault::kNotOperational:
+      what = "a drive did not report the NMT state OPERATIONAL within heartbeat_timeout_ms of the start";
+      break;
   }
   if (f != Fault::kOpen) set_error_reason(what);  // kOpen: on() gave the port's own words
   log_error("chassis fault: %s (%s); retrying after the back-off", what, static_cast<const char*>(spec_));
@@ -236,10 +241,10 @@ HookResult ChassisCan::loop() {
     if (silent || faulted || left_operational || never_operational) {
       stop_drive(drives_[1 - i]);  // the other drive must not keep turning the robot
       stop_drive(d);
-      return fail(silent              ? Fault::kHeartbeat
-                  : faulted           ? Fault::kDriveFault
-                  : left_operational  ? Fault::kNmtState
-                                      : Fault::kNotOperational);
+      return fail(silent             ? Fault::kHeartbeat
+                  : faulted          ? Fault::kDriveFault
+                  : left_operational ? Fault::kNmtState
+                                     : Fault::kNotOperational);
     }
   }
   const bool complete = left.got_tpdo1 && right.got_tpdo1;
@@ -257,8 +262,10 @@ HookResult ChassisCan::loop() {
   double dl = 0.0, dr = 0.0;
   if (left.have_position && right.have_position) {
     // int32 difference wraps correctly across the counter's overflow.
-    dl = sl * static_cast<int32_t>(static_cast<uint32_t>(left.position) - static_cast<uint32_t>(left.last_position)) / cpm;
-    dr = sr * static_cast<int32_t>(static_cast<uint32_t>(right.position) - static_cast<uint32_t>(right.last_position)) / cpm;
+    dl = sl * static_cast<int32_t>(static_cast<uint32_t>(left.position) - static_cast<uint32_t>(left.last_position)) /
+         cpm;
+    dr = sr * static_cast<int32_t>(static_cast<uint32_t>(right.position) - static_cast<uint32_t>(right.last_position)) /
+         cpm;
   }
   left.last_position = left.position;
   right.last_position = right.position;

@@ -50,17 +50,26 @@ class ChassisCan final : public ChassisBase {
   struct Drive {
     uint8_t node = 0;
     int64_t last_heartbeat_ns = 0;
-    int64_t started_ns = 0;     // when on() sent NMT start
-    bool operational = false;   // a heartbeat said OPERATIONAL since then
-    int32_t velocity = 0;   // counts/s (TPDO1)
-    int32_t position = 0;   // counts (TPDO1)
+    int64_t started_ns = 0;    // when on() sent NMT start
+    bool operational = false;  // a heartbeat said OPERATIONAL since then
+    int32_t velocity = 0;      // counts/s (TPDO1)
+    int32_t position = 0;      // counts (TPDO1)
     int32_t last_position = 0;
     uint16_t statusword = 0;
     bool have_position = false;
     bool got_tpdo1 = false, got_tpdo2 = false;
   };
   enum class Fault : uint8_t {
-    kNone, kOpen, kSdo, kPowerUp, kHeartbeat, kNmtState, kDriveFault, kBus, kNoPdo, kNotOperational
+    kNone,
+    kOpen,
+    kSdo,
+    kPowerUp,
+    kHeartbeat,
+    kNmtState,
+    kDriveFault,
+    kBus,
+    kNoPdo,
+    kNotOperational
   };
 
   [[nodiscard]] bool sdo_write(uint8_t node, uint16_t index, uint8_t sub, uint32_t value, uint8_t size) noexcept;

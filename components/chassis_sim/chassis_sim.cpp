@@ -14,28 +14,53 @@ using interfaces::ChassisParams;
 ChassisSim::ChassisSim()
     : ChassisBase(DataTaskMode::kPeriodic),
       vx_max_(declare_float("vx_max", 1.0, {.doc = "m/s, fastest forward/backward speed", .min = 0.0, .max = 20.0})),
-      vx_min_(declare_float("vx_min", 0.05, {.doc = "m/s, slowest useful speed (told to pilots)", .min = 0.0, .max = 5.0})),
-      vy_max_(declare_float("vy_max", 0.0, {.doc = "m/s, sideways limit (0: differential drive)", .min = 0.0, .max = 20.0})),
+      vx_min_(
+          declare_float("vx_min", 0.05, {.doc = "m/s, slowest useful speed (told to pilots)", .min = 0.0, .max = 5.0})),
+      vy_max_(declare_float("vy_max", 0.0,
+                            {.doc = "m/s, sideways limit (0: differential drive)", .min = 0.0, .max = 20.0})),
       omega_max_(declare_float("omega_max", 1.5, {.doc = "rad/s, fastest turn", .min = 0.0, .max = 20.0})),
       acc_max_(declare_float("acc_max", 1.0, {.doc = "m/s^2, speeding up", .min = 0.01, .max = 50.0})),
       dec_max_(declare_float("dec_max", 2.0, {.doc = "m/s^2, braking", .min = 0.01, .max = 50.0})),
-      omega_acc_max_(declare_float("omega_acc_max", 4.0, {.doc = "rad/s^2, turn acceleration and braking", .min = 0.01, .max = 100.0})),
-      boundary_front_(declare_float("boundary_front", 0.30, {.doc = "m, outline ahead of the reference point", .min = 0.0, .max = 10.0})),
-      boundary_back_(declare_float("boundary_back", 0.30, {.doc = "m, outline behind the reference point", .min = 0.0, .max = 10.0})),
+      omega_acc_max_(declare_float("omega_acc_max", 4.0,
+                                   {.doc = "rad/s^2, turn acceleration and braking", .min = 0.01, .max = 100.0})),
+      boundary_front_(declare_float("boundary_front", 0.30,
+                                    {.doc = "m, outline ahead of the reference point", .min = 0.0, .max = 10.0})),
+      boundary_back_(declare_float("boundary_back", 0.30,
+                                   {.doc = "m, outline behind the reference point", .min = 0.0, .max = 10.0})),
       boundary_left_(declare_float("boundary_left", 0.25, {.doc = "m, outline to the left", .min = 0.0, .max = 10.0})),
-      boundary_right_(declare_float("boundary_right", 0.25, {.doc = "m, outline to the right", .min = 0.0, .max = 10.0})),
-      safety_margin_(declare_float("safety_margin", 0.10, {.doc = "m, kept free around the outline (told to pilots)", .min = 0.0, .max = 5.0})),
-      watchdog_ms_(declare_int("watchdog_ms", 500, {.doc = "stop when no MOVE came for this long", .min = 10, .max = 60000, .unit = "ms"})),
-      noise_xy_(declare_float("noise_xy", 0.02, {.doc = "odometry translation noise, m per sqrt(m) travelled (std-dev)", .min = 0.0, .max = 1.0})),
-      noise_phi_(declare_float("noise_phi", 0.02, {.doc = "odometry rotation noise, rad per sqrt(rad) turned (std-dev)", .min = 0.0, .max = 1.0})),
-      noise_phi_per_m_(declare_float("noise_phi_per_m", 0.01, {.doc = "odometry rotation noise from driving, rad per sqrt(m) (std-dev)", .min = 0.0, .max = 1.0})),
-      odometry_scale_(declare_float("odometry_scale", 1.0, {.doc = "systematic scale of the reported translation (1: none)", .min = 0.5, .max = 1.5})),
-      seed_(declare_int("seed", 1, {.doc = "seed of the noise generator (same seed, same noise)", .min = 0, .max = 1e15, .init_only = true})),
+      boundary_right_(
+          declare_float("boundary_right", 0.25, {.doc = "m, outline to the right", .min = 0.0, .max = 10.0})),
+      safety_margin_(declare_float(
+          "safety_margin", 0.10, {.doc = "m, kept free around the outline (told to pilots)", .min = 0.0, .max = 5.0})),
+      watchdog_ms_(declare_int("watchdog_ms", 500,
+                               {.doc = "stop when no MOVE came for this long", .min = 10, .max = 60000, .unit = "ms"})),
+      noise_xy_(declare_float(
+          "noise_xy", 0.02,
+          {.doc = "odometry translation noise, m per sqrt(m) travelled (std-dev)", .min = 0.0, .max = 1.0})),
+      noise_phi_(declare_float(
+          "noise_phi", 0.02,
+          {.doc = "odometry rotation noise, rad per sqrt(rad) turned (std-dev)", .min = 0.0, .max = 1.0})),
+      noise_phi_per_m_(declare_float(
+          "noise_phi_per_m", 0.01,
+          {.doc = "odometry rotation noise from driving, rad per sqrt(m) (std-dev)", .min = 0.0, .max = 1.0})),
+      odometry_scale_(
+          declare_float("odometry_scale", 1.0,
+                        {.doc = "systematic scale of the reported translation (1: none)", .min = 0.5, .max = 1.5})),
+      seed_(declare_int(
+          "seed", 1,
+          {.doc = "seed of the noise generator (same seed, same noise)", .min = 0, .max = 1e15, .init_only = true})),
       initial_x_(declare_float("initial_x", 0.0, {.doc = "m, true start pose in the map frame", .init_only = true})),
       initial_y_(declare_float("initial_y", 0.0, {.doc = "m, true start pose in the map frame", .init_only = true})),
-      initial_phi_(declare_float("initial_phi", 0.0, {.doc = "rad, true start heading", .min = -7.0, .max = 7.0, .init_only = true})),
-      battery_(declare_float("battery_v", 24.0, {.doc = "V, the battery voltage reported", .min = 0.0, .max = 1000.0, .unit = "V"})),
-      map_(declare_string("map", "", {.doc = "optional map_server YAML: the robot stops at occupied cells (\"\": no walls; relative: to the host file's folder)", .init_only = true, .path = PathRole::kInput})) {}
+      initial_phi_(declare_float("initial_phi", 0.0,
+                                 {.doc = "rad, true start heading", .min = -7.0, .max = 7.0, .init_only = true})),
+      battery_(declare_float("battery_v", 24.0,
+                             {.doc = "V, the battery voltage reported", .min = 0.0, .max = 1000.0, .unit = "V"})),
+      map_(declare_string(
+          "map", "",
+          {.doc =
+               "optional map_server YAML: the robot stops at occupied cells (\"\": no walls; relative: to the host file's folder)",
+           .init_only = true,
+           .path = PathRole::kInput})) {}
 
 void ChassisSim::init() {
   const std::string path = map_.get_string();

@@ -26,7 +26,8 @@ class PoseSeries : public StampedSeries<Pose2d, N> {
   // newest, kEmpty without samples. The caller checks that what it pushes is finite.
   [[nodiscard]] SeriesLookup pose_at(int64_t t, Pose2d& out) const noexcept {
     return this->lookup(t, 0, out, [](const Pose2d& a, const Pose2d& b, double f) {
-      return Pose2d{a.x + f * (b.x - a.x), a.y + f * (b.y - a.y), normalize_angle(a.phi + f * normalize_angle(b.phi - a.phi))};
+      return Pose2d{a.x + f * (b.x - a.x), a.y + f * (b.y - a.y),
+                    normalize_angle(a.phi + f * normalize_angle(b.phi - a.phi))};
     });
   }
 };

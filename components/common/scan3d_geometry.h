@@ -35,7 +35,7 @@ struct Vec3 {
 
 struct Scan3dMount {
   uint8_t mode = interfaces::kScan3dModePitch;  // kScan3dModeRoll / Pitch / Yaw
-  double x = 0.0;  // m, the ladar's centre in the robot frame
+  double x = 0.0;                               // m, the ladar's centre in the robot frame
   double y = 0.0;
   double z = 0.0;
 };

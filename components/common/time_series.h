@@ -13,9 +13,9 @@
 namespace rack::components {
 
 enum class SeriesLookup : uint8_t {
-  kOk,        // inside the history (interpolated), or within max_extrapolation_ns after its end
-  kTooOld,    // before the oldest sample: that moment is lost
-  kTooNew,    // after the newest sample (+ max_extrapolation_ns): wait for more samples
+  kOk,      // inside the history (interpolated), or within max_extrapolation_ns after its end
+  kTooOld,  // before the oldest sample: that moment is lost
+  kTooNew,  // after the newest sample (+ max_extrapolation_ns): wait for more samples
   kEmpty,
 };
 
@@ -24,7 +24,10 @@ enum class SeriesLookup : uint8_t {
 template <typename Value, std::size_t N>
 class StampedSeries {
  public:
-  void clear() noexcept { count_ = 0; head_ = 0; }
+  void clear() noexcept {
+    count_ = 0;
+    head_ = 0;
+  }
   [[nodiscard]] std::size_t size() const noexcept { return count_; }
   [[nodiscard]] int64_t oldest_time() const noexcept { return count_ ? at(0).t : 0; }
   [[nodiscard]] int64_t newest_time() const noexcept { return count_ ? at(count_ - 1).t : 0; }

@@ -14,9 +14,10 @@ using interfaces::PositionData;
 
 namespace {
 constexpr int64_t kMatchWindowNs = 20 * rt::kNsPerMs;
-constexpr std::size_t kMaxPayload =
-    sizeof(MclData) > sizeof(ChassisData) ? (sizeof(MclData) > sizeof(PositionData) ? sizeof(MclData) : sizeof(PositionData))
-                                          : sizeof(ChassisData);
+constexpr std::size_t kMaxPayload = sizeof(MclData) > sizeof(ChassisData)
+                                        ? (sizeof(MclData) > sizeof(PositionData) ? sizeof(MclData)
+                                                                                  : sizeof(PositionData))
+                                        : sizeof(ChassisData);
 }  // namespace
 
 void Evaluator::ErrorStats::add(double error, double heading_error) noexcept {
@@ -52,12 +53,15 @@ double Evaluator::ErrorStats::p95() const noexcept {
 Evaluator::Evaluator()
     : DataComponent(DataTaskMode::kTriggered),
       chassis_(declare_component_ref("chassis", "the ChassisSim whose true pose (truth_x/y/phi) is the reference")),
-      position_(declare_string("position", "",
-                               {.doc = "Position component to evaluate (optional; empty: none)", .component_ref = true})),
-      mcl_(declare_string("mcl", "", {.doc = "MCL component to evaluate (optional; empty: none)", .component_ref = true})),
-      position_period_ms_(declare_float("position_period_ms", 100.0,
-                                        {.doc = "requested Position sample period (ms; 0: every sample; a triggered Position sends every sample)", .min = 0.0,
-                                         .max = 60000.0})) {
+      position_(declare_string(
+          "position", "", {.doc = "Position component to evaluate (optional; empty: none)", .component_ref = true})),
+      mcl_(declare_string("mcl", "",
+                          {.doc = "MCL component to evaluate (optional; empty: none)", .component_ref = true})),
+      position_period_ms_(declare_float(
+          "position_period_ms", 100.0,
+          {.doc = "requested Position sample period (ms; 0: every sample; a triggered Position sends every sample)",
+           .min = 0.0,
+           .max = 60000.0})) {
   use_input_mailbox(static_cast<uint32_t>(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + kMaxPayload + 64));
 }
 
@@ -72,8 +76,9 @@ HookResult Evaluator::on() {
   if (subscribe(chassis, 0) != HookResult::kOk) return HookResult::kError;
   // Position and MCL too (cascading ON: neither moves the robot; the pilot does).
   const tims::Address position = resolved(position_);
-  if (position.raw() != 0 && (switch_on(position) != HookResult::kOk ||
-      subscribe(position, static_cast<int64_t>(position_period_ms_.get_float() * 1e6)) != HookResult::kOk)) {
+  if (position.raw() != 0 &&
+      (switch_on(position) != HookResult::kOk ||
+       subscribe(position, static_cast<int64_t>(position_period_ms_.get_float() * 1e6)) != HookResult::kOk)) {
     return HookResult::kError;
   }
   const tims::Address mcl = resolved(mcl_);
@@ -188,15 +193,15 @@ void Evaluator::describe_status(std::string& out) const {
                 "driven %.1f m; position error now %.3f m, RMS %.3f m, max %.3f m (%llu samples); "
                 "MCL error RMS %.3f m, p95 %s%.3f m, max %.3f m (%llu scans)",
                 shown_distance_.load(std::memory_order_relaxed), shown_position_error_.load(std::memory_order_relaxed),
-                shown_position_rms_.load(std::memory_order_relaxed), shown_position_max_.load(std::memory_order_relaxed),
+                shown_position_rms_.load(std::memory_order_relaxed),
+                shown_position_max_.load(std::memory_order_relaxed),
                 static_cast<unsigned long long>(shown_position_samples_.load(std::memory_order_relaxed)),
                 shown_mcl_rms_.load(std::memory_order_relaxed),
                 // Beyond the 10 m histogram p95 is the max: say it is a bound.
                 shown_mcl_p95_.load(std::memory_order_relaxed) >= static_cast<double>(ErrorStats::kBuckets) / 1000.0
                     ? "at most "
                     : "",
-                shown_mcl_p95_.load(std::memory_order_relaxed),
-                shown_mcl_max_.load(std::memory_order_relaxed),
+                shown_mcl_p95_.load(std::memory_order_relaxed), shown_mcl_max_.load(std::memory_order_relaxed),
                 static_cast<unsigned long long>(shown_mcl_samples_.load(std::memory_order_relaxed)));
   out += line;
 }

@@ -78,7 +78,8 @@ std::vector<TimedPose> parse_trajectory_text(std::string_view text, const std::s
     TimedPose p;
     double* fields[4] = {&p.t, &p.x, &p.y, &p.phi};
     for (int k = 0; k < 4; ++k) {
-      if (k > 0 && !(ls >> word)) throw std::runtime_error(where + "expected 't x y theta', found " + std::to_string(k) + " field(s)");
+      if (k > 0 && !(ls >> word))
+        throw std::runtime_error(where + "expected 't x y theta', found " + std::to_string(k) + " field(s)");
       char* end = nullptr;
       errno = 0;
       *fields[k] = std::strtod(word.c_str(), &end);
@@ -104,11 +105,25 @@ std::vector<TimedPose> read_trajectory_file(const std::string& path) {
 TrajectoryWriter::TrajectoryWriter()
     : DataComponent(DataTaskMode::kTriggered),
       source_(declare_component_ref("source", "the MCL (or Position) whose estimates to write")),
-      file_(declare_string("file", "", {.doc = "output file: one 't x y theta' line per estimate (relative: to the host file's folder)", .required = true, .path = PathRole::kOutput})),
-      reference_(declare_string("reference", "", {.doc = "reference 't x y theta' file to compare with at the end (empty: none)", .path = PathRole::kInput})),
-      lost_threshold_(declare_float("lost_threshold", 0.5, {.doc = "m, a reference pose estimated further off than this is lost", .min = 0.0, .max = 1000.0})),
-      max_gap_ms_(declare_float("max_gap_ms", 1000.0, {.doc = "ms, longest gap between two estimates interpolated at a reference time", .min = 0.0, .max = 600000.0, .unit = "ms"})),
-      exit_when_done_(declare_bool("exit_when_done", false, {.doc = "stop rackd (SIGTERM to its process) when the input has ended and the error is printed"})) {
+      file_(declare_string(
+          "file", "",
+          {.doc = "output file: one 't x y theta' line per estimate (relative: to the host file's folder)",
+           .required = true,
+           .path = PathRole::kOutput})),
+      reference_(declare_string("reference", "",
+                                {.doc = "reference 't x y theta' file to compare with at the end (empty: none)",
+                                 .path = PathRole::kInput})),
+      lost_threshold_(declare_float(
+          "lost_threshold", 0.5,
+          {.doc = "m, a reference pose estimated further off than this is lost", .min = 0.0, .max = 1000.0})),
+      max_gap_ms_(declare_float("max_gap_ms", 1000.0,
+                                {.doc = "ms, longest gap between two estimates interpolated at a reference time",
+                                 .min = 0.0,
+                                 .max = 600000.0,
+                                 .unit = "ms"})),
+      exit_when_done_(declare_bool(
+          "exit_when_done", false,
+          {.doc = "stop rackd (SIGTERM to its process) when the input has ended and the error is printed"})) {
   use_input_mailbox(static_cast<uint32_t>(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + kMaxPayload + 64));
 }
 
@@ -179,8 +194,8 @@ void TrajectoryWriter::finish() noexcept {
     std::snprintf(line, sizeof line, "%zu poses written to %s (no reference given)", poses_.size(),
                   file_.get_string().c_str());
   } else {
-    const TrajectoryError e =
-        trajectory_error(poses_, reference_poses_, lost_threshold_.get_float(), max_gap_ms_.get_float() * 1e-3);
+    const TrajectoryError e = trajectory_error(poses_, reference_poses_, lost_threshold_.get_float(),
+                                               max_gap_ms_.get_float() * 1e-3);
     data_.mcl_rms = e.ate_rmse;
     data_.mcl_max = e.max_error;
     data_.mcl_heading_rms = e.rotation_rmse;

@@ -48,12 +48,12 @@ struct TimedPose {
 
 // The error of an estimated trajectory against a reference (pure functions; not RT).
 struct TrajectoryError {
-  std::size_t reference = 0;  // reference poses
-  std::size_t matched = 0;    // with an estimate at their time
-  std::size_t lost = 0;       // of those, further than the threshold
-  double ate_rmse = 0.0;      // m
-  double max_error = 0.0;     // m
-  double rotation_rmse = 0.0; // rad
+  std::size_t reference = 0;   // reference poses
+  std::size_t matched = 0;     // with an estimate at their time
+  std::size_t lost = 0;        // of those, further than the threshold
+  double ate_rmse = 0.0;       // m
+  double max_error = 0.0;      // m
+  double rotation_rmse = 0.0;  // rad
 };
 // `estimate` sorted by time. A reference pose is matched when an estimate lies within
 // 1 us of its time or two estimates at most max_gap apart lie around it.

@@ -9,8 +9,11 @@ using devices::NmeaParser;
 
 GpsNmea::GpsNmea()
     : DataComponent(DataTaskMode::kPeriodic),
-      device_(declare_string("device", "", {.doc = "serial device of the receiver (/dev/ttyUSB0)", .required = true, .path = PathRole::kDevice})),
-      baud_(declare_int("baud", 9600, {.doc = "baud rate (4800, 9600, 38400, 115200, ...)", .min = 1200, .max = 4000000})),
+      device_(declare_string(
+          "device", "",
+          {.doc = "serial device of the receiver (/dev/ttyUSB0)", .required = true, .path = PathRole::kDevice})),
+      baud_(declare_int("baud", 9600,
+                        {.doc = "baud rate (4800, 9600, 38400, 115200, ...)", .min = 1200, .max = 4000000})),
       timeout_ms_(declare_float("timeout_ms", 2000.0,
                                 {.doc = "ERROR when no valid position sentence came for this long", .min = 1.0})),
       origin_lat_(declare_float("origin_latitude_deg", 0.0,
@@ -75,8 +78,9 @@ void GpsNmea::fill(interfaces::GpsData& d) noexcept {
     have_origin_ = true;
   }
   // The local frame stays in the origin's zone, so it does not jump at a zone border.
-  const devices::UtmPoint l =
-      u.zone == origin_zone_ ? u : devices::wgs84_to_utm(f.latitude_deg, f.longitude_deg, origin_zone_);
+  const devices::UtmPoint l = u.zone == origin_zone_
+                                  ? u
+                                  : devices::wgs84_to_utm(f.latitude_deg, f.longitude_deg, origin_zone_);
   d.x = l.easting - origin_e_;
   d.y = l.northing - origin_n_;
 }
@@ -95,13 +99,14 @@ HookResult GpsNmea::loop() {
     struct Seen {
       bool position = false;
     } seen;
-    parser_.feed(std::span<const uint8_t>(buffer_.data(), r.bytes),
-                 [](void* user, NmeaParser::Sentence s) {
-                   if (s == NmeaParser::Sentence::kGga || s == NmeaParser::Sentence::kRmc) {
-                     static_cast<Seen*>(user)->position = true;
-                   }
-                 },
-                 &seen);
+    parser_.feed(
+        std::span<const uint8_t>(buffer_.data(), r.bytes),
+        [](void* user, NmeaParser::Sentence s) {
+          if (s == NmeaParser::Sentence::kGga || s == NmeaParser::Sentence::kRmc) {
+            static_cast<Seen*>(user)->position = true;
+          }
+        },
+        &seen);
     if (seen.position) {
       position = true;
       stamp = r.stamp_ns;
@@ -116,7 +121,8 @@ HookResult GpsNmea::loop() {
     return HookResult::kOk;
   }
   if (static_cast<double>(now - last_position_ns_) > timeout_ms_.get_float() * 1e6) {
-    log_error("%s: no position sentence for %.0f ms; reopening", static_cast<const char*>(path_), timeout_ms_.get_float());
+    log_error("%s: no position sentence for %.0f ms; reopening", static_cast<const char*>(path_),
+              timeout_ms_.get_float());
     return HookResult::kError;
   }
   return HookResult::kOk;

@@ -19,7 +19,8 @@ using interfaces::kJoystickMaxAxes;
 
 Joystick::Joystick()
     : DataComponent(DataTaskMode::kPeriodic),
-      device_(declare_string("device", "/dev/input/js0", {.doc = "joystick device (Linux joystick API)", .path = PathRole::kDevice})),
+      device_(declare_string("device", "/dev/input/js0",
+                             {.doc = "joystick device (Linux joystick API)", .path = PathRole::kDevice})),
       chassis_(declare_string("chassis", "",
                               {.doc = "Chassis to drive as its active pilot (empty: only publish)",
                                .required = false,
@@ -28,7 +29,8 @@ Joystick::Joystick()
       axis_turn_(declare_int("axis_turn", 0, {.doc = "axis for turning", .min = 0, .max = 7})),
       deadman_button_(declare_int("deadman_button", -1,
                                   {.doc = "button that must be held to move (-1: none)", .min = -1, .max = 31})),
-      deadband_(declare_float("deadband", 0.05, {.doc = "axis values below this count as zero", .min = 0.0, .max = 0.9})),
+      deadband_(
+          declare_float("deadband", 0.05, {.doc = "axis values below this count as zero", .min = 0.0, .max = 0.9})),
       speed_scale_(declare_float("speed_scale", 0.5,
                                  {.doc = "fraction of the chassis vx_max at full stick", .min = 0.0, .max = 1.0})),
       obstacles_(declare_string("obstacles", "",
@@ -37,8 +39,8 @@ Joystick::Joystick()
                                  .component_ref = true})),
       slow_distance_(declare_float("slow_distance", 1.0,
                                    {.doc = "m of free space ahead below which forward speed is reduced", .min = 0.01})),
-      obstacle_timeout_ms_(declare_float("obstacle_timeout_ms", 500.0,
-                                         {.doc = "no scan this long: no forward motion", .min = 1.0})) {
+      obstacle_timeout_ms_(
+          declare_float("obstacle_timeout_ms", 500.0, {.doc = "no scan this long: no forward motion", .min = 1.0})) {
   // Scans arrive here (a Scan2dData is the largest payload accepted).
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(interfaces::Scan2dData) + 128);
 }
@@ -95,7 +97,8 @@ HookResult Joystick::on() {
     if (!command_endpoint().call(chassis_address_, interfaces::kChassisSetActivePilot, p, reply_, timeout).ok()) {
       return HookResult::kError;
     }
-    const tims::CallResult r = command_endpoint().call(chassis_address_, interfaces::kChassisGetParams, reply_, timeout);
+    const tims::CallResult r = command_endpoint().call(chassis_address_, interfaces::kChassisGetParams, reply_,
+                                                       timeout);
     if (r.status != tims::CallStatus::kOk || r.reply.type != interfaces::kChassisParamsReply ||
         r.body.size() != sizeof limits_) {
       return HookResult::kError;
@@ -213,8 +216,8 @@ HookResult Joystick::loop() {
     const interfaces::ChassisMove m{state_.vx, 0.0, state_.omega};
     // Bounded by half a period; a refused or lost MOVE is counted and the chassis
     // watchdog stops the robot if they keep failing.
-    const tims::CallResult r =
-        data_endpoint().call(chassis_address_, interfaces::kChassisMove, m, reply_, period_ns() / 2);
+    const tims::CallResult r = data_endpoint().call(chassis_address_, interfaces::kChassisMove, m, reply_,
+                                                    period_ns() / 2);
     if (!r.ok()) ++state_.moves_rejected;
   }
   publish(state_, rt::host_time_ns());

@@ -11,10 +11,13 @@ using devices::IoStatus;
 
 LadarHokuyo::LadarHokuyo()
     : DataComponent(DataTaskMode::kPeriodic),
-      device_(declare_string("device", "", {.doc = "serial/USB-ACM device (/dev/ttyACM0)", .required = true, .path = PathRole::kDevice})),
+      device_(declare_string(
+          "device", "", {.doc = "serial/USB-ACM device (/dev/ttyACM0)", .required = true, .path = PathRole::kDevice})),
       baud_(declare_int("baud", 115200, {.doc = "baud rate (ignored by USB-ACM models)", .min = 1200, .max = 4000000})),
-      cluster_(declare_int("cluster", 1, {.doc = "steps merged into one beam (1: full resolution)", .min = 1, .max = 99})),
-      timeout_ms_(declare_float("timeout_ms", 500.0, {.doc = "ERROR when no valid scan came for this long", .min = 1.0, .unit = "ms"})) {}
+      cluster_(
+          declare_int("cluster", 1, {.doc = "steps merged into one beam (1: full resolution)", .min = 1, .max = 99})),
+      timeout_ms_(declare_float("timeout_ms", 500.0,
+                                {.doc = "ERROR when no valid scan came for this long", .min = 1.0, .unit = "ms"})) {}
 
 void LadarHokuyo::init() {
   parser_ = std::make_unique<scip::Parser>();
@@ -40,14 +43,15 @@ bool LadarHokuyo::transact(const char* command, scip::Parser::Event until) noexc
     const devices::IoResult r = port_.read(buffer_, left);
     if (r.status == IoStatus::kTimeout) return false;
     if (r.status != IoStatus::kOk) return false;
-    parser_->feed(std::span<const uint8_t>(buffer_.data(), r.bytes),
-                  [](void* user, scip::Parser::Event e, const char cmd[2], const char st[2]) {
-                    auto* wait = static_cast<Wait*>(user);
-                    if (cmd[0] != wait->command[0] || cmd[1] != wait->command[1]) return;  // stale output
-                    if (e == wait->until) wait->done = true;
-                    else if (e == scip::Parser::Event::kStatus && !(st[0] == '0' && st[1] == '0')) wait->error = true;
-                  },
-                  &w);
+    parser_->feed(
+        std::span<const uint8_t>(buffer_.data(), r.bytes),
+        [](void* user, scip::Parser::Event e, const char cmd[2], const char st[2]) {
+          auto* wait = static_cast<Wait*>(user);
+          if (cmd[0] != wait->command[0] || cmd[1] != wait->command[1]) return;  // stale output
+          if (e == wait->until) wait->done = true;
+          else if (e == scip::Parser::Event::kStatus && !(st[0] == '0' && st[1] == '0')) wait->error = true;
+        },
+        &w);
   }
   return w.done;
 }
@@ -124,14 +128,15 @@ HookResult LadarHokuyo::loop() {
       int64_t stamp;
       bool scan = false;
     } seen{this, r.stamp_ns};
-    parser_->feed(std::span<const uint8_t>(buffer_.data(), r.bytes),
-                  [](void* user, scip::Parser::Event e, const char*, const char*) {
-                    auto* s = static_cast<Seen*>(user);
-                    if (e != scip::Parser::Event::kScan) return;
-                    s->self->publish_scan(s->stamp);  // the scan is only valid during the call
-                    s->scan = true;
-                  },
-                  &seen);
+    parser_->feed(
+        std::span<const uint8_t>(buffer_.data(), r.bytes),
+        [](void* user, scip::Parser::Event e, const char*, const char*) {
+          auto* s = static_cast<Seen*>(user);
+          if (e != scip::Parser::Event::kScan) return;
+          s->self->publish_scan(s->stamp);  // the scan is only valid during the call
+          s->scan = true;
+        },
+        &seen);
     if (seen.scan) last_scan_ns_ = rt::monotonic_ns();
   }
   if (static_cast<double>(rt::monotonic_ns() - last_scan_ns_) > timeout_ms_.get_float() * 1e6) {

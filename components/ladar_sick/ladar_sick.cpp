@@ -9,10 +9,14 @@ using devices::IoStatus;
 
 LadarSick::LadarSick()
     : DataComponent(DataTaskMode::kPeriodic),
-      host_(declare_string("host", "", {.doc = "scanner IPv4 address (factory default 192.168.0.1)", .required = true, .init_only = true})),
+      host_(declare_string(
+          "host", "",
+          {.doc = "scanner IPv4 address (factory default 192.168.0.1)", .required = true, .init_only = true})),
       port_(declare_int("port", 2111, {.doc = "CoLa-A TCP port", .min = 1, .max = 65535, .init_only = true})),
-      timeout_ms_(declare_float("timeout_ms", 500.0, {.doc = "ERROR when no valid scan came for this long", .min = 1.0, .unit = "ms"})),
-      max_range_(declare_float("max_range", 20.0, {.doc = "m, the model's range (LMS111: 20, LMS151: 50)", .min = 0.1})) {}
+      timeout_ms_(declare_float("timeout_ms", 500.0,
+                                {.doc = "ERROR when no valid scan came for this long", .min = 1.0, .unit = "ms"})),
+      max_range_(
+          declare_float("max_range", 20.0, {.doc = "m, the model's range (LMS111: 20, LMS151: 50)", .min = 0.1})) {}
 
 void LadarSick::init() {
   parser_ = std::make_unique<cola::Parser>();
@@ -31,7 +35,7 @@ void LadarSick::cleanup() { link_.stop(); }
 
 HookResult LadarSick::on() {
   if (!link_.connected()) return HookResult::kError;  // the link thread keeps trying
-  link_.discard();   // what queued while DISABLED is old
+  link_.discard();                                    // what queued while DISABLED is old
   parser_->reset();
   last_scan_ns_ = rt::monotonic_ns();
   return HookResult::kOk;
@@ -73,14 +77,15 @@ HookResult LadarSick::loop() {
       int64_t stamp;
       bool scan = false;
     } seen{this, r.stamp_ns};
-    parser_->feed(std::span<const uint8_t>(buffer_.data(), r.bytes),
-                  [](void* user, const char*, std::size_t, bool is_scan) {
-                    auto* s = static_cast<Seen*>(user);
-                    if (!is_scan) return;
-                    s->self->publish_scan(s->stamp);
-                    s->scan = true;
-                  },
-                  &seen);
+    parser_->feed(
+        std::span<const uint8_t>(buffer_.data(), r.bytes),
+        [](void* user, const char*, std::size_t, bool is_scan) {
+          auto* s = static_cast<Seen*>(user);
+          if (!is_scan) return;
+          s->self->publish_scan(s->stamp);
+          s->scan = true;
+        },
+        &seen);
     if (seen.scan) last_scan_ns_ = rt::monotonic_ns();
   }
   if (static_cast<double>(rt::monotonic_ns() - last_scan_ns_) > timeout_ms_.get_float() * 1e6) {

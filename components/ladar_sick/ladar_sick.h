@@ -46,8 +46,8 @@ class LadarSick final : public DataComponent<interfaces::LadarData> {
   Parameter& timeout_ms_;
   Parameter& max_range_;
   devices::TcpSensorLink link_;
-  std::unique_ptr<devices::cola::Parser> parser_;   // ~45 KB: allocated in init()
-  std::unique_ptr<interfaces::LadarData> sample_;   // ~9 KB: allocated in init()
+  std::unique_ptr<devices::cola::Parser> parser_;  // ~45 KB: allocated in init()
+  std::unique_ptr<interfaces::LadarData> sample_;  // ~9 KB: allocated in init()
   std::array<uint8_t, 8192> buffer_{};
   int64_t last_scan_ns_ = 0;
 };

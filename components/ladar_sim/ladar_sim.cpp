@@ -14,22 +14,42 @@ using interfaces::LadarData;
 
 LadarSim::LadarSim()
     : DataComponent(DataTaskMode::kPeriodic),
-      map_(declare_string("map", "", {.doc = "map_server YAML file (relative: to the host file's folder)", .required = true, .init_only = true, .path = PathRole::kInput})),
+      map_(declare_string("map", "",
+                          {.doc = "map_server YAML file (relative: to the host file's folder)",
+                           .required = true,
+                           .init_only = true,
+                           .path = PathRole::kInput})),
       chassis_(declare_component_ref("chassis", "the simulated Chassis whose true pose the scans are rendered from")),
-      mount_x_(declare_float("mount_x", 0.0, {.doc = "m, sensor position in the robot frame (forward)", .min = -10.0, .max = 10.0})),
-      mount_y_(declare_float("mount_y", 0.0, {.doc = "m, sensor position in the robot frame (left)", .min = -10.0, .max = 10.0})),
-      mount_phi_(declare_float("mount_phi", 0.0, {.doc = "rad, sensor heading in the robot frame", .min = -7.0, .max = 7.0})),
+      mount_x_(declare_float("mount_x", 0.0,
+                             {.doc = "m, sensor position in the robot frame (forward)", .min = -10.0, .max = 10.0})),
+      mount_y_(declare_float("mount_y", 0.0,
+                             {.doc = "m, sensor position in the robot frame (left)", .min = -10.0, .max = 10.0})),
+      mount_phi_(
+          declare_float("mount_phi", 0.0, {.doc = "rad, sensor heading in the robot frame", .min = -7.0, .max = 7.0})),
       beams_(declare_int("beams", 541, {.doc = "beams per scan", .min = 2, .max = interfaces::kLadarMaxBeams})),
-      fov_deg_(declare_float("fov_deg", 270.0, {.doc = "field of view, centred on the sensor's axis", .min = 1.0, .max = 360.0, .unit = "deg"})),
+      fov_deg_(declare_float(
+          "fov_deg", 270.0,
+          {.doc = "field of view, centred on the sensor's axis", .min = 1.0, .max = 360.0, .unit = "deg"})),
       range_min_(declare_float("range_min", 0.05, {.doc = "m, the sensor's blind zone", .min = 0.0, .max = 100.0})),
       range_max_(declare_float("range_max", 20.0, {.doc = "m, no echo beyond", .min = 0.1, .max = 1000.0})),
-      noise_sigma_(declare_float("noise_sigma", 0.01, {.doc = "m, std-dev of gaussian range noise", .min = 0.0, .max = 10.0})),
+      noise_sigma_(
+          declare_float("noise_sigma", 0.01, {.doc = "m, std-dev of gaussian range noise", .min = 0.0, .max = 10.0})),
       seed_(declare_int("seed", 2, {.doc = "seed of the noise generator", .min = 0, .max = 1e15, .init_only = true})),
-      silence_ms_(declare_int("silence_ms", 1000, {.doc = "ERROR when the chassis sent no pose for this long", .min = 10, .max = 60000, .unit = "ms"})),
-      servo_(declare_string("servo", "", {.doc = "3-D: the ServoDrive that turns the ladar (empty: a fixed 2-D ladar)", .component_ref = true})),
-      scan_mode_(declare_string("scan_mode", "pitch", {.doc = "3-D: how the drive turns the scan plane (as Scan3D's mode)", .choices = {"roll", "pitch", "yaw"}, .init_only = true})),
-      mount_z_(declare_float("mount_z", 0.5, {.doc = "3-D: m, the ladar's centre above the floor", .min = 0.0, .max = 100.0})),
-      ceiling_height_(declare_float("ceiling_height", 2.5, {.doc = "3-D: m, the ceiling (0: none); walls reach up to it", .min = 0.0, .max = 1000.0})) {
+      silence_ms_(declare_int(
+          "silence_ms", 1000,
+          {.doc = "ERROR when the chassis sent no pose for this long", .min = 10, .max = 60000, .unit = "ms"})),
+      servo_(declare_string("servo", "",
+                            {.doc = "3-D: the ServoDrive that turns the ladar (empty: a fixed 2-D ladar)",
+                             .component_ref = true})),
+      scan_mode_(declare_string("scan_mode", "pitch",
+                                {.doc = "3-D: how the drive turns the scan plane (as Scan3D's mode)",
+                                 .choices = {"roll", "pitch", "yaw"},
+                                 .init_only = true})),
+      mount_z_(declare_float("mount_z", 0.5,
+                             {.doc = "3-D: m, the ladar's centre above the floor", .min = 0.0, .max = 100.0})),
+      ceiling_height_(
+          declare_float("ceiling_height", 2.5,
+                        {.doc = "3-D: m, the ceiling (0: none); walls reach up to it", .min = 0.0, .max = 1000.0})) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(ChassisData) + 64);
 }
 
@@ -41,7 +61,7 @@ void LadarSim::init() {
   rng_.seed(static_cast<uint64_t>(seed_.get_int()));
   three_d_ = !servo_.get_string().empty();
   const std::string mode = scan_mode_.get_string();
-  mode_id_ = mode == "roll" ? interfaces::kScan3dModeRoll
+  mode_id_ = mode == "roll"  ? interfaces::kScan3dModeRoll
              : mode == "yaw" ? interfaces::kScan3dModeYaw
                              : interfaces::kScan3dModePitch;
 }

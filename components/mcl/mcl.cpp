@@ -38,44 +38,128 @@ bool parse_pose(const char* text, double& x, double& y, double& phi) noexcept {
 
 Mcl::Mcl()
     : DataComponent(DataTaskMode::kTriggered),
-      map_(declare_string("map", "", {.doc = "map_server YAML file of the map (relative: to the host file's folder, e.g. maps/office.yaml)", .required = true, .init_only = true, .path = PathRole::kInput})),
+      map_(declare_string(
+          "map", "",
+          {.doc = "map_server YAML file of the map (relative: to the host file's folder, e.g. maps/office.yaml)",
+           .required = true,
+           .init_only = true,
+           .path = PathRole::kInput})),
       scan2d_(declare_component_ref("scan2d", "the Scan2D component whose scans (with odometry) MCL uses")),
       position_(declare_string("position", "",
                                {.doc = "Position component to send UPDATE to (optional; empty: none)",
                                 .component_ref = true})),
-      period_ms_(declare_float("period_ms", 0.0, {.doc = "requested scan period (0: every scan)", .min = 0.0, .max = 60000.0, .unit = "ms"})),
-      particles_min_(declare_int("particles_min", 100, {.doc = "KLD-sampling: fewest particles", .min = 1, .max = 1e6})),
-      particles_max_(declare_int("particles_max", 2000, {.doc = "KLD-sampling: most particles (also the count after an init)", .min = 1, .max = 1e6})),
-      initial_pose_(declare_string("initial_pose", "0 0 0", {.doc = "start pose 'x y phi' (m, m, rad) in the map frame, used when global is false"})),
-      initial_sigma_xy_(declare_float("initial_sigma_xy", 0.3, {.doc = "spread (std dev, m) around initial_pose", .min = 0.0, .max = 1e3})),
-      initial_sigma_phi_(declare_float("initial_sigma_phi", 0.2, {.doc = "spread (std dev, rad) around initial_pose", .min = 0.0, .max = 10.0})),
+      period_ms_(
+          declare_float("period_ms", 0.0,
+                        {.doc = "requested scan period (0: every scan)", .min = 0.0, .max = 60000.0, .unit = "ms"})),
+      particles_min_(
+          declare_int("particles_min", 100, {.doc = "KLD-sampling: fewest particles", .min = 1, .max = 1e6})),
+      particles_max_(
+          declare_int("particles_max", 2000,
+                      {.doc = "KLD-sampling: most particles (also the count after an init)", .min = 1, .max = 1e6})),
+      initial_pose_(
+          declare_string("initial_pose", "0 0 0",
+                         {.doc = "start pose 'x y phi' (m, m, rad) in the map frame, used when global is false"})),
+      initial_sigma_xy_(declare_float("initial_sigma_xy", 0.3,
+                                      {.doc = "spread (std dev, m) around initial_pose", .min = 0.0, .max = 1e3})),
+      initial_sigma_phi_(declare_float("initial_sigma_phi", 0.2,
+                                       {.doc = "spread (std dev, rad) around initial_pose", .min = 0.0, .max = 10.0})),
       global_(declare_bool("global", false, {.doc = "start with global localisation over the map's free space"})),
-      update_distance_(declare_float("update_distance", 0.10, {.doc = "run the filter after this much travel (m)", .min = 0.0, .max = 100.0})),
-      update_angle_(declare_float("update_angle", 0.10, {.doc = "... or this much turn (rad)", .min = 0.0, .max = 10.0})),
-      odometry_jump_(declare_float("odometry_jump", 5.0, {.doc = "an odometry increment longer than this between two consecutive scans is a jump (RESET): that increment is dropped, the motion before it kept (m; 0: off)", .min = 0.0, .max = 1e3})),
-      beams_(declare_int("beams", 60, {.doc = "scan points used per update, evenly chosen (0: all)", .min = 0, .max = 100000})),
-      sigma_hit_(declare_float("sigma_hit", 0.10, {.doc = "likelihood field: std dev of a point's distance to the nearest wall (m): sensor noise plus map error", .min = 1e-3, .max = 10.0})),
-      max_range_(declare_float("max_range", 30.0, {.doc = "likelihood field: support of the random-reading term (m)", .min = 0.1, .max = 1000.0})),
-      max_corr_distance_(declare_float("max_corr_distance", 0.5, {.doc = "likelihood field: distances to a wall beyond this count as this far; also for points outside the map (m)", .min = 0.01, .max = 100.0})),
-      odom_a1_(declare_float("odom_a1", 0.20, {.doc = "motion model: translation std dev per metre travelled (m/m; MRPT's a1)", .min = 0.0, .max = 10.0})),
-      odom_a2_(declare_float("odom_a2", 0.001, {.doc = "motion model: translation std dev per radian turned (m/rad; MRPT's a2)", .min = 0.0, .max = 10.0})),
-      odom_a3_(declare_float("odom_a3", 0.05, {.doc = "motion model: heading std dev per metre travelled (rad/m; MRPT's a3)", .min = 0.0, .max = 10.0})),
-      odom_a4_(declare_float("odom_a4", 0.05, {.doc = "motion model: heading std dev per radian turned (rad/rad; MRPT's a4)", .min = 0.0, .max = 10.0})),
-      odom_min_std_xy_(declare_float("odom_min_std_xy", 0.01, {.doc = "motion model: least translation std dev per update (m)", .min = 0.0, .max = 10.0})),
-      odom_min_std_phi_(declare_float("odom_min_std_phi", 0.01, {.doc = "motion model: least heading std dev per update (rad)", .min = 0.0, .max = 10.0})),
-      odom_outlier_fraction_(declare_float("odom_outlier_fraction", 0.10, {.doc = "motion model: fraction of particles moved with odom_outlier_scale times the noise (odometry that stalls or slips; 0: off)", .min = 0.0, .max = 1.0})),
-      odom_outlier_scale_(declare_float("odom_outlier_scale", 3.0, {.doc = "motion model: noise factor for that fraction", .min = 1.0, .max = 1000.0})),
-      recovery_ratio_(declare_float("recovery_ratio", 0.5, {.doc = "recovery: lost when the short-term scan fit is below this times the long-term one ...", .min = 0.01, .max = 0.99})),
-      recovery_consistency_(declare_float("recovery_consistency", 0.9, {.doc = "... and the short-term share of beams not through a wall is below this times the long-term one ...", .min = 0.01, .max = 1.0})),
-      recovery_updates_(declare_int("recovery_updates", 5, {.doc = "... for this many updates in a row: then random particles are injected", .min = 1, .max = 1000})),
-      inject_max_fraction_(declare_float("inject_max_fraction", 0.50, {.doc = "recovery: most random particles added per update while lost, as a fraction of particles_max (0: no recovery)", .min = 0.0, .max = 1.0})),
-      fit_min_(declare_float("fit_min", 0.0, {.doc = "recovery: also lost while the short-term scan fit (MclData.fit) stays below this (0: off; clutter lowers the fit)", .min = 0.0, .max = 0.99})),
-      alpha_slow_(declare_float("alpha_slow", 0.01, {.doc = "recovery: long-term average rate", .min = 1e-6, .max = 1.0})),
-      alpha_fast_(declare_float("alpha_fast", 0.2, {.doc = "recovery: short-term average rate (> alpha_slow)", .min = 1e-6, .max = 1.0})),
-      threads_(declare_int("threads", 2, {.doc = "threads evaluating the scan likelihood (1 or 2: one helper thread, normal scheduling, for updates of at least 100000 particles x points)", .min = 1, .max = 2})),
+      update_distance_(declare_float("update_distance", 0.10,
+                                     {.doc = "run the filter after this much travel (m)", .min = 0.0, .max = 100.0})),
+      update_angle_(
+          declare_float("update_angle", 0.10, {.doc = "... or this much turn (rad)", .min = 0.0, .max = 10.0})),
+      odometry_jump_(declare_float(
+          "odometry_jump", 5.0,
+          {.doc =
+               "an odometry increment longer than this between two consecutive scans is a jump (RESET): that increment is dropped, the motion before it kept (m; 0: off)",
+           .min = 0.0,
+           .max = 1e3})),
+      beams_(declare_int("beams", 60,
+                         {.doc = "scan points used per update, evenly chosen (0: all)", .min = 0, .max = 100000})),
+      sigma_hit_(declare_float(
+          "sigma_hit", 0.10,
+          {.doc =
+               "likelihood field: std dev of a point's distance to the nearest wall (m): sensor noise plus map error",
+           .min = 1e-3,
+           .max = 10.0})),
+      max_range_(declare_float(
+          "max_range", 30.0,
+          {.doc = "likelihood field: support of the random-reading term (m)", .min = 0.1, .max = 1000.0})),
+      max_corr_distance_(declare_float(
+          "max_corr_distance", 0.5,
+          {.doc =
+               "likelihood field: distances to a wall beyond this count as this far; also for points outside the map (m)",
+           .min = 0.01,
+           .max = 100.0})),
+      odom_a1_(declare_float(
+          "odom_a1", 0.20,
+          {.doc = "motion model: translation std dev per metre travelled (m/m; MRPT's a1)", .min = 0.0, .max = 10.0})),
+      odom_a2_(declare_float(
+          "odom_a2", 0.001,
+          {.doc = "motion model: translation std dev per radian turned (m/rad; MRPT's a2)", .min = 0.0, .max = 10.0})),
+      odom_a3_(declare_float(
+          "odom_a3", 0.05,
+          {.doc = "motion model: heading std dev per metre travelled (rad/m; MRPT's a3)", .min = 0.0, .max = 10.0})),
+      odom_a4_(declare_float(
+          "odom_a4", 0.05,
+          {.doc = "motion model: heading std dev per radian turned (rad/rad; MRPT's a4)", .min = 0.0, .max = 10.0})),
+      odom_min_std_xy_(
+          declare_float("odom_min_std_xy", 0.01,
+                        {.doc = "motion model: least translation std dev per update (m)", .min = 0.0, .max = 10.0})),
+      odom_min_std_phi_(
+          declare_float("odom_min_std_phi", 0.01,
+                        {.doc = "motion model: least heading std dev per update (rad)", .min = 0.0, .max = 10.0})),
+      odom_outlier_fraction_(declare_float(
+          "odom_outlier_fraction", 0.10,
+          {.doc =
+               "motion model: fraction of particles moved with odom_outlier_scale times the noise (odometry that stalls or slips; 0: off)",
+           .min = 0.0,
+           .max = 1.0})),
+      odom_outlier_scale_(
+          declare_float("odom_outlier_scale", 3.0,
+                        {.doc = "motion model: noise factor for that fraction", .min = 1.0, .max = 1000.0})),
+      recovery_ratio_(
+          declare_float("recovery_ratio", 0.5,
+                        {.doc = "recovery: lost when the short-term scan fit is below this times the long-term one ...",
+                         .min = 0.01,
+                         .max = 0.99})),
+      recovery_consistency_(declare_float(
+          "recovery_consistency", 0.9,
+          {.doc = "... and the short-term share of beams not through a wall is below this times the long-term one ...",
+           .min = 0.01,
+           .max = 1.0})),
+      recovery_updates_(declare_int(
+          "recovery_updates", 5,
+          {.doc = "... for this many updates in a row: then random particles are injected", .min = 1, .max = 1000})),
+      inject_max_fraction_(declare_float(
+          "inject_max_fraction", 0.50,
+          {.doc =
+               "recovery: most random particles added per update while lost, as a fraction of particles_max (0: no recovery)",
+           .min = 0.0,
+           .max = 1.0})),
+      fit_min_(declare_float(
+          "fit_min", 0.0,
+          {.doc =
+               "recovery: also lost while the short-term scan fit (MclData.fit) stays below this (0: off; clutter lowers the fit)",
+           .min = 0.0,
+           .max = 0.99})),
+      alpha_slow_(
+          declare_float("alpha_slow", 0.01, {.doc = "recovery: long-term average rate", .min = 1e-6, .max = 1.0})),
+      alpha_fast_(declare_float("alpha_fast", 0.2,
+                                {.doc = "recovery: short-term average rate (> alpha_slow)", .min = 1e-6, .max = 1.0})),
+      threads_(declare_int(
+          "threads", 2,
+          {.doc =
+               "threads evaluating the scan likelihood (1 or 2: one helper thread, normal scheduling, for updates of at least 100000 particles x points)",
+           .min = 1,
+           .max = 2})),
       seed_(declare_int("seed", 0, {.doc = "random seed (0: from the clock)", .min = 0, .max = 4294967295.0})),
-      show_particles_(declare_int("show_particles", 100, {.doc = "particles published per sample (at most 256)", .min = 0, .max = interfaces::kMclMaxShownParticles})),
-      position_max_std_(declare_float("position_max_std", 0.5, {.doc = "send Position UPDATE only when the position std dev is below this (m)", .min = 0.0, .max = 1e3})) {
+      show_particles_(declare_int(
+          "show_particles", 100,
+          {.doc = "particles published per sample (at most 256)", .min = 0, .max = interfaces::kMclMaxShownParticles})),
+      position_max_std_(declare_float(
+          "position_max_std", 0.5,
+          {.doc = "send Position UPDATE only when the position std dev is below this (m)", .min = 0.0, .max = 1e3})) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(Scan2dData) + 128);
   set_command_slot_size(1024);
 }
@@ -140,9 +224,9 @@ void Mcl::init() {
   out_ = std::make_unique<MclData>();
   xs_ = std::make_unique<float[]>(interfaces::kScan2dMaxPoints);
   ys_ = std::make_unique<float[]>(interfaces::kScan2dMaxPoints);
-  std::fprintf(stderr, "MCL '%s': map %s (%d x %d cells of %.3f m), particles %u..%u\n", name().c_str(),
-               path.c_str(), loaded.map->width(), loaded.map->height(), loaded.map->resolution(),
-               options.particles_min, options.particles_max);
+  std::fprintf(stderr, "MCL '%s': map %s (%d x %d cells of %.3f m), particles %u..%u\n", name().c_str(), path.c_str(),
+               loaded.map->width(), loaded.map->height(), loaded.map->resolution(), options.particles_min,
+               options.particles_max);
 }
 
 HookResult Mcl::on() {
@@ -248,8 +332,8 @@ HookResult Mcl::loop() {
       ys_[n] = s.y[i];
       ++n;
     }
-    const bool ran = filter_->update({s.odometry_x, s.odometry_y, s.odometry_phi},
-                                     std::span<const float>(xs_.get(), n), std::span<const float>(ys_.get(), n));
+    const bool ran = filter_->update({s.odometry_x, s.odometry_y, s.odometry_phi}, std::span<const float>(xs_.get(), n),
+                                     std::span<const float>(ys_.get(), n));
     if (ran) ++updates_since_init_;
     const mcl::MclEstimate e = filter_->estimate();
     MclData& d = *out_;
@@ -264,9 +348,9 @@ HookResult Mcl::loop() {
     d.injected = e.injected;
     d.fit = static_cast<float>(e.fit);
     const auto shown = static_cast<std::size_t>(show_particles_.get_int());
-    d.shown = static_cast<uint32_t>(filter_->sample_particles(
-        std::span<float>(d.particle_x, shown), std::span<float>(d.particle_y, shown),
-        std::span<float>(d.particle_phi, shown), std::span<float>(d.particle_weight, shown)));
+    d.shown = static_cast<uint32_t>(
+        filter_->sample_particles(std::span<float>(d.particle_x, shown), std::span<float>(d.particle_y, shown),
+                                  std::span<float>(d.particle_phi, shown), std::span<float>(d.particle_weight, shown)));
     publish(d, sh.time_ns);
     if (ran) {
       send_position_update(sh.time_ns);
@@ -301,9 +385,10 @@ void Mcl::report_localisation(const MclData& d) noexcept {
   switch (now) {
     case Localisation::kLost:
       was_lost_ = true;
-      log_info("lost: the scans no longer fit the map (fit %.2f, std %.2f m); recovering: %u random particles "
-               "injected (%u changes not logged)",
-               static_cast<double>(d.fit), std_xy, static_cast<unsigned>(d.injected), unlogged);
+      log_info(
+          "lost: the scans no longer fit the map (fit %.2f, std %.2f m); recovering: %u random particles "
+          "injected (%u changes not logged)",
+          static_cast<double>(d.fit), std_xy, static_cast<unsigned>(d.injected), unlogged);
       break;
     case Localisation::kConverged:
       if (was_lost_ || before == Localisation::kLost) {

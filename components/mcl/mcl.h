@@ -40,10 +40,12 @@ class Mcl final : public DataComponent<interfaces::MclData> {
   // Counters for tests and status (any thread).
   [[nodiscard]] uint64_t scans_received() const noexcept { return scans_.load(std::memory_order_relaxed); }
   [[nodiscard]] uint64_t position_updates_sent() const noexcept { return position_ok_.load(std::memory_order_relaxed); }
-  [[nodiscard]] uint64_t position_updates_failed() const noexcept { return position_failed_.load(std::memory_order_relaxed); }
+  [[nodiscard]] uint64_t position_updates_failed() const noexcept {
+    return position_failed_.load(std::memory_order_relaxed);
+  }
 
  protected:
-  void init() override;    // loads the map, builds the filter (non-RT)
+  void init() override;  // loads the map, builds the filter (non-RT)
   [[nodiscard]] bool check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept override;
   HookResult on() override;
   void off() override;
@@ -116,10 +118,10 @@ class Mcl final : public DataComponent<interfaces::MclData> {
   enum class Localisation : uint8_t { kUnknown, kConverged, kLost, kUncertain };
   static constexpr int64_t kEventEveryNs = 1'000'000'000;
   Localisation localisation_ = Localisation::kUnknown;
-  bool was_lost_ = false;           // lost since the last convergence: the next one is a re-localisation
-  uint32_t lost_updates_ = 0;       // updates spent lost or recovering
+  bool was_lost_ = false;      // lost since the last convergence: the next one is a re-localisation
+  uint32_t lost_updates_ = 0;  // updates spent lost or recovering
   int64_t last_event_ns_ = 0;
-  uint32_t events_unlogged_ = 0;    // changes not logged since the last line (rate limit)
+  uint32_t events_unlogged_ = 0;  // changes not logged since the last line (rate limit)
 
   std::atomic<uint64_t> scans_{0}, no_odometry_{0}, position_ok_{0}, position_failed_{0};
 };

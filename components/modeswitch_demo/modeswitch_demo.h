@@ -46,7 +46,7 @@ class ModeSwitchDemo final : public DataComponent<interfaces::ModeSwitchDemoData
   std::size_t fresh_pages_ = 0;
   std::size_t next_page_ = 0;
   std::size_t page_ = 4096;
-  std::mutex plain_mutex_;    // no priority inheritance: PRIOINV when locked in a cycle
+  std::mutex plain_mutex_;  // no priority inheritance: PRIOINV when locked in a cycle
   int* volatile null_ = nullptr;
   std::atomic<bool> loop_syscall_{false}, overrun_{false};
   int64_t cycles_ = 0;

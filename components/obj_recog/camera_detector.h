@@ -33,11 +33,11 @@ struct DetectorOptions {
   double marker_length = 0.15;             // m, the black square's side
   bool fiducials = true;
   bool people = false;
-  double person_height = 1.75;     // m
-  double person_fraction = 0.8;    // of the HOG box's height that is the person
-  double hog_threshold = 0.0;      // SVM score threshold (higher: fewer, surer detections)
-  double hog_scale = 1.05;         // image pyramid step
-  int hog_max_width = 640;         // larger images are scaled down for HOG (speed)
+  double person_height = 1.75;   // m
+  double person_fraction = 0.8;  // of the HOG box's height that is the person
+  double hog_threshold = 0.0;    // SVM score threshold (higher: fewer, surer detections)
+  double hog_scale = 1.05;       // image pyramid step
+  int hog_max_width = 640;       // larger images are scaled down for HOG (speed)
 };
 
 class CameraDetector {

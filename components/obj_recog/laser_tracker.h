@@ -23,10 +23,10 @@
 namespace rack::components {
 
 struct TrackerOptions {
-  double cluster_gap = 0.25;        // m, neighbouring points closer than this are one cluster
+  double cluster_gap = 0.25;  // m, neighbouring points closer than this are one cluster
   uint32_t cluster_min_points = 3;
-  double cluster_max_size = 1.0;    // m, larger clusters (walls) are not objects
-  double gate = 0.8;                // m, a cluster farther from a track's prediction is not it
+  double cluster_max_size = 1.0;  // m, larger clusters (walls) are not objects
+  double gate = 0.8;              // m, a cluster farther from a track's prediction is not it
   uint32_t confirm_hits = 3;
   uint32_t max_missed = 5;
   double accel_std = 2.0;           // m/s^2, process noise of the constant-velocity model
@@ -42,11 +42,11 @@ class LaserTracker {
   struct Cluster {
     uint32_t first = 0, last = 0;  // point indices in the scan (inclusive; may include max-range points between)
     uint32_t points = 0;
-    double x = 0, y = 0;           // centre, odometry frame
-    double rx = 0, ry = 0;         // centre, robot frame
-    double size_x = 0, size_y = 0; // robot-frame bounding box
-    int track = -1;                // index into tracks(), -1: none
-    bool object = false;           // small enough to track
+    double x = 0, y = 0;            // centre, odometry frame
+    double rx = 0, ry = 0;          // centre, robot frame
+    double size_x = 0, size_y = 0;  // robot-frame bounding box
+    int track = -1;                 // index into tracks(), -1: none
+    bool object = false;            // small enough to track
   };
   struct Track {
     uint32_t id = 0;

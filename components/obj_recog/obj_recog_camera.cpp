@@ -15,18 +15,37 @@ using interfaces::ObjRecogData;
 ObjRecogCamera::ObjRecogCamera()
     : DataComponent(DataTaskMode::kTriggered),
       camera_(declare_component_ref("camera", "the Camera whose images are searched")),
-      period_ms_(declare_float("period_ms", 0.0, {.doc = "requested image period (0: every image)", .min = 0.0, .max = 60000.0, .unit = "ms"})),
-      calibration_(declare_string("calibration", "", {.doc = "OpenCV calibration file (empty: the calibration in the Camera's frames)", .init_only = true, .path = PathRole::kInput})),
-      width_(declare_int("width", 0, {.doc = "expected image width; other sizes are skipped (0: any)", .min = 0, .max = 16384})),
+      period_ms_(
+          declare_float("period_ms", 0.0,
+                        {.doc = "requested image period (0: every image)", .min = 0.0, .max = 60000.0, .unit = "ms"})),
+      calibration_(declare_string("calibration", "",
+                                  {.doc = "OpenCV calibration file (empty: the calibration in the Camera's frames)",
+                                   .init_only = true,
+                                   .path = PathRole::kInput})),
+      width_(declare_int("width", 0,
+                         {.doc = "expected image width; other sizes are skipped (0: any)", .min = 0, .max = 16384})),
       height_(declare_int("height", 0, {.doc = "expected image height (0: any)", .min = 0, .max = 16384})),
-      dictionary_(declare_string("dictionary", "DICT_4X4_50", {.doc = "ArUco dictionary (OpenCV's names: DICT_4X4_50 ... DICT_APRILTAG_36h11)",
-                                                               .choices = CameraDetector::dictionary_names(), .init_only = true})),
-      marker_length_(declare_float("marker_length", 0.15, {.doc = "m, side of the markers' black square", .min = 1e-4, .max = 100.0, .init_only = true})),
+      dictionary_(declare_string("dictionary", "DICT_4X4_50",
+                                 {.doc = "ArUco dictionary (OpenCV's names: DICT_4X4_50 ... DICT_APRILTAG_36h11)",
+                                  .choices = CameraDetector::dictionary_names(),
+                                  .init_only = true})),
+      marker_length_(
+          declare_float("marker_length", 0.15,
+                        {.doc = "m, side of the markers' black square", .min = 1e-4, .max = 100.0, .init_only = true})),
       fiducials_(declare_bool("fiducials", true, {.doc = "find ArUco markers", .init_only = true})),
-      people_(declare_bool("people", false, {.doc = "find people (HOG; about 0.1-0.5 s per 640x480 image)", .init_only = true})),
-      person_height_(declare_float("person_height", 1.75, {.doc = "m, assumed height of a person (distance from the box)", .min = 0.1, .max = 3.0, .init_only = true})),
-      hog_threshold_(declare_float("hog_threshold", 0.0, {.doc = "HOG SVM score threshold (higher: fewer false detections)", .min = -10.0, .max = 10.0, .init_only = true})),
-      person_gate_(declare_float("person_gate", 0.7, {.doc = "m, a person this close to one in the previous image is the same", .min = 0.01, .max = 100.0})) {
+      people_(declare_bool("people", false,
+                           {.doc = "find people (HOG; about 0.1-0.5 s per 640x480 image)", .init_only = true})),
+      person_height_(declare_float(
+          "person_height", 1.75,
+          {.doc = "m, assumed height of a person (distance from the box)", .min = 0.1, .max = 3.0, .init_only = true})),
+      hog_threshold_(declare_float("hog_threshold", 0.0,
+                                   {.doc = "HOG SVM score threshold (higher: fewer false detections)",
+                                    .min = -10.0,
+                                    .max = 10.0,
+                                    .init_only = true})),
+      person_gate_(declare_float(
+          "person_gate", 0.7,
+          {.doc = "m, a person this close to one in the previous image is the same", .min = 0.01, .max = 100.0})) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(CameraData) + 64);
 }
 
@@ -125,9 +144,10 @@ HookResult ObjRecogCamera::loop() {
   const auto start = std::chrono::steady_clock::now();
   const CameraData& f = *frame_;
   const int64_t want_w = width_.get_int(), want_h = height_.get_int();
-  if ((want_w > 0 && f.width != static_cast<uint64_t>(want_w)) || (want_h > 0 && f.height != static_cast<uint64_t>(want_h))) {
-    count_bad("size " + std::to_string(f.width) + "x" + std::to_string(f.height) + ", expected " + std::to_string(want_w) +
-              "x" + std::to_string(want_h) + " (parameters width/height)");
+  if ((want_w > 0 && f.width != static_cast<uint64_t>(want_w)) ||
+      (want_h > 0 && f.height != static_cast<uint64_t>(want_h))) {
+    count_bad("size " + std::to_string(f.width) + "x" + std::to_string(f.height) + ", expected " +
+              std::to_string(want_w) + "x" + std::to_string(want_h) + " (parameters width/height)");
     out_->bad_input = bad_;
     return HookResult::kOk;
   }

@@ -11,15 +11,27 @@ using interfaces::Scan2dData;
 ObjRecogLaser::ObjRecogLaser()
     : DataComponent(DataTaskMode::kTriggered),
       scan2d_(declare_component_ref("scan2d", "the Scan2D component whose scans are clustered and tracked")),
-      cluster_gap_(declare_float("cluster_gap", 0.25, {.doc = "m, neighbouring points closer than this form one cluster", .min = 0.01, .max = 10.0})),
-      cluster_min_points_(declare_int("cluster_min_points", 3, {.doc = "fewer points: not an object", .min = 1, .max = 1000})),
-      cluster_max_size_(declare_float("cluster_max_size", 1.0, {.doc = "m, larger clusters (walls) are not objects", .min = 0.01, .max = 100.0})),
-      gate_(declare_float("gate", 0.8, {.doc = "m, association gate around a track's prediction", .min = 0.01, .max = 100.0})),
-      confirm_hits_(declare_int("confirm_hits", 3, {.doc = "associations before a track is published", .min = 1, .max = 1000})),
-      max_missed_(declare_int("max_missed", 5, {.doc = "scans without association before a track is dropped", .min = 0, .max = 1000})),
-      accel_std_(declare_float("accel_std", 2.0, {.doc = "m/s^2, process noise (how abruptly objects change speed)", .min = 1e-3, .max = 100.0})),
-      measurement_std_(declare_float("measurement_std", 0.05, {.doc = "m, noise of a cluster's centre", .min = 1e-4, .max = 10.0})),
-      dynamic_min_speed_(declare_float("dynamic_min_speed", 0.25, {.doc = "m/s, informational: the speed Scan2D calls dynamic", .min = 0.0, .max = 100.0})) {
+      cluster_gap_(
+          declare_float("cluster_gap", 0.25,
+                        {.doc = "m, neighbouring points closer than this form one cluster", .min = 0.01, .max = 10.0})),
+      cluster_min_points_(
+          declare_int("cluster_min_points", 3, {.doc = "fewer points: not an object", .min = 1, .max = 1000})),
+      cluster_max_size_(declare_float(
+          "cluster_max_size", 1.0, {.doc = "m, larger clusters (walls) are not objects", .min = 0.01, .max = 100.0})),
+      gate_(declare_float("gate", 0.8,
+                          {.doc = "m, association gate around a track's prediction", .min = 0.01, .max = 100.0})),
+      confirm_hits_(
+          declare_int("confirm_hits", 3, {.doc = "associations before a track is published", .min = 1, .max = 1000})),
+      max_missed_(declare_int("max_missed", 5,
+                              {.doc = "scans without association before a track is dropped", .min = 0, .max = 1000})),
+      accel_std_(declare_float(
+          "accel_std", 2.0,
+          {.doc = "m/s^2, process noise (how abruptly objects change speed)", .min = 1e-3, .max = 100.0})),
+      measurement_std_(
+          declare_float("measurement_std", 0.05, {.doc = "m, noise of a cluster's centre", .min = 1e-4, .max = 10.0})),
+      dynamic_min_speed_(
+          declare_float("dynamic_min_speed", 0.25,
+                        {.doc = "m/s, informational: the speed Scan2D calls dynamic", .min = 0.0, .max = 100.0})) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(Scan2dData) + 64);
 }
 
@@ -57,7 +69,8 @@ void ObjRecogLaser::fill(const LaserTracker& tracker, ObjRecogData& out) noexcep
     const double dx = t.x - robot.x, dy = t.y - robot.y;
     out.id[n] = t.id;
     out.type[n] = interfaces::kObjTypeLaserCluster;
-    out.probability[n] = static_cast<float>(std::min(1.0, static_cast<double>(t.hits) / (2.0 * tracker.options().confirm_hits)));
+    out.probability[n] = static_cast<float>(
+        std::min(1.0, static_cast<double>(t.hits) / (2.0 * tracker.options().confirm_hits)));
     out.x[n] = static_cast<float>(c * dx + s * dy);
     out.y[n] = static_cast<float>(-s * dx + c * dy);
     out.z[n] = 0.0F;
@@ -91,7 +104,8 @@ HookResult ObjRecogLaser::loop() {
       }
       continue;
     }
-    const Pose2d robot = scan_.odometry_valid != 0 ? Pose2d{scan_.odometry_x, scan_.odometry_y, scan_.odometry_phi} : Pose2d{};
+    const Pose2d robot = scan_.odometry_valid != 0 ? Pose2d{scan_.odometry_x, scan_.odometry_y, scan_.odometry_phi}
+                                                   : Pose2d{};
     tracker_.update(scan_, robot, sh.time_ns);
     ++out_.inputs;
     fill(tracker_, out_);

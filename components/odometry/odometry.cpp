@@ -16,7 +16,7 @@ HookResult Odometry::on() {
   resets_applied_ = reset_requests_.load(std::memory_order_relaxed);
   const tims::Address chassis = resolved(chassis_);
   if (switch_on(chassis) != HookResult::kOk) return HookResult::kError;  // cascading ON
-  return subscribe(chassis, 0);  // every sample: increments must not be skipped
+  return subscribe(chassis, 0);                                          // every sample: increments must not be skipped
 }
 
 void Odometry::off() { unsubscribe(resolved(chassis_)); }

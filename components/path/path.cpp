@@ -14,9 +14,11 @@ using interfaces::PathMake;
 
 Path::Path()
     : DataComponent(DataTaskMode::kPeriodic),
-      waypoints_(declare_string("waypoints", "", {.doc = "\"x,y; x,y; ...\" in metres, map frame (2..32 points; empty: none until MAKE)"})),
+      waypoints_(declare_string(
+          "waypoints", "", {.doc = "\"x,y; x,y; ...\" in metres, map frame (2..32 points; empty: none until MAKE)"})),
       closed_(declare_bool("closed", false, {.doc = "join the last waypoint to the first (a loop)"})),
-      resolution_(declare_float("resolution", 0.1, {.doc = "m between sampled path points", .min = 0.01, .max = 10.0})) {
+      resolution_(
+          declare_float("resolution", 0.1, {.doc = "m between sampled path points", .min = 0.01, .max = 10.0})) {
   set_command_slot_size(sizeof(tims::MessageHeader) + sizeof(PathMake) + 64);
 }
 

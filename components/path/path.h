@@ -49,10 +49,10 @@ class Path final : public DataComponent<interfaces::PathData> {
   Parameter& closed_;
   Parameter& resolution_;
 
-  rt::PiMutex mutex_;                 // guards pending_, has_pending_
-  interfaces::PathData pending_{};    // made by MAKE, published by the data task
+  rt::PiMutex mutex_;               // guards pending_, has_pending_
+  interfaces::PathData pending_{};  // made by MAKE, published by the data task
   bool has_pending_ = false;
-  interfaces::PathData scratch_{};    // command task: MAKE builds here first
+  interfaces::PathData scratch_{};        // command task: MAKE builds here first
   mutable interfaces::PathData check_{};  // check_parameters (command task, or set-up before it runs)
 
   // Data task.

@@ -22,9 +22,7 @@ void distance_1d(const double* f, int n, double* d, int* v, double* z) {
   z[0] = -kFar;
   z[1] = kFar;
   for (int q = 1; q < n; ++q) {
-    const auto s_of = [&](int p) {
-      return ((f[q] + double(q) * q) - (f[p] + double(p) * p)) / (2.0 * q - 2.0 * p);
-    };
+    const auto s_of = [&](int p) { return ((f[q] + double(q) * q) - (f[p] + double(p) * p)) / (2.0 * q - 2.0 * p); };
     double s = s_of(v[k]);
     while (k > 0 && s <= z[k]) {
       --k;
@@ -72,9 +70,11 @@ void GridPlanner::set_map(const maps::OccupancyMap& map) {
   std::vector<int> v(static_cast<std::size_t>(side));
   std::vector<double> columns(n);
   for (int ix = 0; ix < width_; ++ix) {
-    for (int iy = 0; iy < height_; ++iy) f[std::size_t(iy)] = map.cell_state(ix, iy) == maps::CellState::kFree ? kFar : 0.0;
+    for (int iy = 0; iy < height_; ++iy)
+      f[std::size_t(iy)] = map.cell_state(ix, iy) == maps::CellState::kFree ? kFar : 0.0;
     distance_1d(f.data(), height_, d.data(), v.data(), z.data());
-    for (int iy = 0; iy < height_; ++iy) columns[std::size_t(iy) * std::size_t(width_) + std::size_t(ix)] = d[std::size_t(iy)];
+    for (int iy = 0; iy < height_; ++iy)
+      columns[std::size_t(iy) * std::size_t(width_) + std::size_t(ix)] = d[std::size_t(iy)];
   }
   for (int iy = 0; iy < height_; ++iy) {
     const std::size_t row = std::size_t(iy) * std::size_t(width_);
@@ -211,7 +211,8 @@ GridPlanner::Result GridPlanner::plan(double sx, double sy, double gx, double gy
   if (!std::isfinite(sx) || !std::isfinite(sy) || !std::isfinite(gx) || !std::isfinite(gy)) {
     return result.error = "the start or the destination is not a finite number", result;
   }
-  if (!(options.radius >= 0.0) || !(options.comfort >= 0.0)) return result.error = "radius and comfort must be >= 0", result;
+  if (!(options.radius >= 0.0) || !(options.comfort >= 0.0))
+    return result.error = "radius and comfort must be >= 0", result;
   const double rc = options.radius / resolution_;
   radius_cells2_ = rc * rc;
   const double comfort_c = std::max(options.comfort / resolution_, 1e-9);
@@ -280,7 +281,8 @@ GridPlanner::Result GridPlanner::plan(double sx, double sy, double gx, double gy
     }
   }
   if (!found) {
-    return result.error = "no way there: the destination is cut off from the robot (walls, or obstacles the scanner sees)",
+    return result.error =
+               "no way there: the destination is cut off from the robot (walls, or obstacles the scanner sees)",
            result;
   }
 

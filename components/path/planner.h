@@ -71,8 +71,7 @@ class GridPlanner {
   // Plans from (sx, sy) to (gx, gy) (map frame). On success `out` holds the waypoints
   // (the start, the turns, the destination; out.closed = 0). RT-safe (no allocation),
   // bounded by the grid's size.
-  Result plan(double sx, double sy, double gx, double gy, const Options& options,
-              interfaces::PathMake& out) noexcept;
+  Result plan(double sx, double sy, double gx, double gy, const Options& options, interfaces::PathMake& out) noexcept;
 
  private:
   [[nodiscard]] bool passable(uint32_t cell) const noexcept;
@@ -88,15 +87,15 @@ class GridPlanner {
   maps::OccupancyMap map_;
   int width_ = 0, height_ = 0;
   double resolution_ = 0.0;
-  double radius_cells2_ = 0.0;       // (radius / resolution)^2 of the running plan
-  std::vector<float> dist2_;         // squared distance in cells to the nearest non-free cell
-  std::vector<uint8_t> blocked_;     // temporary obstacles
-  std::vector<float> g_, f_;         // A* costs (cells)
-  std::vector<int32_t> parent_;      // -1: none
-  std::vector<int32_t> heap_pos_;    // -1 never seen, -2 closed, else index in heap_
+  double radius_cells2_ = 0.0;     // (radius / resolution)^2 of the running plan
+  std::vector<float> dist2_;       // squared distance in cells to the nearest non-free cell
+  std::vector<uint8_t> blocked_;   // temporary obstacles
+  std::vector<float> g_, f_;       // A* costs (cells)
+  std::vector<int32_t> parent_;    // -1: none
+  std::vector<int32_t> heap_pos_;  // -1 never seen, -2 closed, else index in heap_
   std::vector<uint32_t> heap_;
   uint32_t heap_size_ = 0;
-  std::vector<uint32_t> trace_;      // the cell path, start first
+  std::vector<uint32_t> trace_;  // the cell path, start first
 };
 
 }  // namespace rack::components

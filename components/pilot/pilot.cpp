@@ -23,8 +23,8 @@ using interfaces::PositionData;
 using interfaces::Scan2dData;
 
 namespace {
-constexpr uint32_t kInputSlot =
-    sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + (sizeof(Scan2dData) > sizeof(PathData) ? sizeof(Scan2dData) : sizeof(PathData)) + 64;
+constexpr uint32_t kInputSlot = sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) +
+                                (sizeof(Scan2dData) > sizeof(PathData) ? sizeof(Scan2dData) : sizeof(PathData)) + 64;
 uint8_t u8(PilotMode m) noexcept { return static_cast<uint8_t>(m); }
 uint8_t u8(PilotStatus s) noexcept { return static_cast<uint8_t>(s); }
 }  // namespace
@@ -35,18 +35,46 @@ Pilot::Pilot()
       position_(declare_component_ref("position", "the Position estimate to steer on")),
       scan2d_(declare_component_ref("scan2d", "the Scan2D whose points limit the speed")),
       path_(declare_string("path", "", {.doc = "optional Path to follow", .component_ref = true})),
-      mode_(declare_string("mode", "path", {.doc = "at ON: 'path' (follow the Path) or 'hold' (stand)", .choices = {"path", "hold"}})),
-      destination_(declare_string("destination", "", {.doc = "\"x,y\": drive there (map frame); \"\": back to the mode"})),
-      vx_max_(declare_float("vx_max", 0.6, {.doc = "m/s, cruising speed (also capped by the chassis)", .min = 0.0, .max = 20.0})),
-      omega_max_(declare_float("omega_max", 1.0, {.doc = "rad/s, fastest turn (also capped by the chassis)", .min = 0.0, .max = 20.0})),
-      lookahead_(declare_float("lookahead", 0.6, {.doc = "m, pure-pursuit look-ahead distance", .min = 0.05, .max = 20.0})),
-      goal_tolerance_(declare_float("goal_tolerance", 0.15, {.doc = "m, a destination this close counts as reached", .min = 0.01, .max = 10.0})),
-      turn_in_place_deg_(declare_float("turn_in_place_deg", 45.0, {.doc = "turn on the spot when the goal is further off the heading", .min = 5.0, .max = 180.0, .unit = "deg"})),
-      brake_fraction_(declare_float("brake_fraction", 0.5, {.doc = "plan braking with this fraction of the chassis' dec_max", .min = 0.05, .max = 1.0})),
-      input_timeout_ms_(declare_int("input_timeout_ms", 500, {.doc = "stand when Position or Scan2D data is older than this", .min = 10, .max = 60000, .unit = "ms"})),
-      map_(declare_string("map", "", {.doc = "map to plan destinations on (ROS map_server YAML; relative: to the host file's folder); \"\": drive straight to them", .init_only = true, .path = PathRole::kInput})),
-      plan_margin_(declare_float("plan_margin", 0.05, {.doc = "m kept beyond the circle round the chassis' outline when planning", .min = 0.0, .max = 5.0, .unit = "m"})),
-      replan_blocked_ms_(declare_int("replan_blocked_ms", 2000, {.doc = "plan again round what the scanner sees after standing BLOCKED this long on a planned way (0: never)", .min = 0, .max = 600000, .unit = "ms"})) {
+      mode_(declare_string("mode", "path",
+                           {.doc = "at ON: 'path' (follow the Path) or 'hold' (stand)", .choices = {"path", "hold"}})),
+      destination_(
+          declare_string("destination", "", {.doc = "\"x,y\": drive there (map frame); \"\": back to the mode"})),
+      vx_max_(declare_float("vx_max", 0.6,
+                            {.doc = "m/s, cruising speed (also capped by the chassis)", .min = 0.0, .max = 20.0})),
+      omega_max_(declare_float("omega_max", 1.0,
+                               {.doc = "rad/s, fastest turn (also capped by the chassis)", .min = 0.0, .max = 20.0})),
+      lookahead_(
+          declare_float("lookahead", 0.6, {.doc = "m, pure-pursuit look-ahead distance", .min = 0.05, .max = 20.0})),
+      goal_tolerance_(declare_float(
+          "goal_tolerance", 0.15, {.doc = "m, a destination this close counts as reached", .min = 0.01, .max = 10.0})),
+      turn_in_place_deg_(declare_float("turn_in_place_deg", 45.0,
+                                       {.doc = "turn on the spot when the goal is further off the heading",
+                                        .min = 5.0,
+                                        .max = 180.0,
+                                        .unit = "deg"})),
+      brake_fraction_(
+          declare_float("brake_fraction", 0.5,
+                        {.doc = "plan braking with this fraction of the chassis' dec_max", .min = 0.05, .max = 1.0})),
+      input_timeout_ms_(declare_int(
+          "input_timeout_ms", 500,
+          {.doc = "stand when Position or Scan2D data is older than this", .min = 10, .max = 60000, .unit = "ms"})),
+      map_(declare_string(
+          "map", "",
+          {.doc =
+               "map to plan destinations on (ROS map_server YAML; relative: to the host file's folder); \"\": drive straight to them",
+           .init_only = true,
+           .path = PathRole::kInput})),
+      plan_margin_(declare_float("plan_margin", 0.05,
+                                 {.doc = "m kept beyond the circle round the chassis' outline when planning",
+                                  .min = 0.0,
+                                  .max = 5.0,
+                                  .unit = "m"})),
+      replan_blocked_ms_(declare_int(
+          "replan_blocked_ms", 2000,
+          {.doc = "plan again round what the scanner sees after standing BLOCKED this long on a planned way (0: never)",
+           .min = 0,
+           .max = 600000,
+           .unit = "ms"})) {
   use_input_mailbox(kInputSlot);
   set_command_slot_size(sizeof(tims::MessageHeader) + sizeof(PlanRequest) + 64);
 }
@@ -114,7 +142,8 @@ HookResult Pilot::on() {
   }
   // The outline, margin and limits the chassis reports.
   auto& ep = command_endpoint();
-  const auto r = ep.call(chassis, interfaces::kChassisGetParams, std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
+  const auto r = ep.call(chassis, interfaces::kChassisGetParams, std::span<std::byte>(rpc_buffer_),
+                         settings().rpc_timeout_ns);
   if (r.status != tims::CallStatus::kOk || r.reply.type != interfaces::kChassisParamsReply ||
       !wire::read_payload(r.body, tims::body_is_native(r.reply), limits_)) {
     set_error_reason("the chassis did not answer GET_PARAMS");
@@ -125,7 +154,9 @@ HookResult Pilot::on() {
   plan_radius_ = std::hypot(std::max(outline_.front, outline_.back), std::max(outline_.left, outline_.right));
   interfaces::ChassisSetActivePilot claim;
   claim.pilot = address().raw();
-  if (!ep.call(chassis, interfaces::kChassisSetActivePilot, claim, std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns).ok()) {
+  if (!ep.call(chassis, interfaces::kChassisSetActivePilot, claim, std::span<std::byte>(rpc_buffer_),
+               settings().rpc_timeout_ns)
+           .ok()) {
     set_error_reason("the chassis refused SET_ACTIVE_PILOT");
     return HookResult::kError;
   }
@@ -157,7 +188,8 @@ HookResult Pilot::on() {
 void Pilot::off() {
   auto& ep = command_endpoint();
   const tims::Address chassis = resolved(chassis_);
-  (void)ep.call(chassis, interfaces::kChassisMove, ChassisMove{}, std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
+  (void)ep.call(chassis, interfaces::kChassisMove, ChassisMove{}, std::span<std::byte>(rpc_buffer_),
+                settings().rpc_timeout_ns);
   // Release the chassis if it is still ours (never take it from another pilot).
   const auto r = ep.call(chassis, tims::msg::kGetData, std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
   wire::SampleHeader sh;
@@ -371,7 +403,8 @@ HookResult Pilot::loop() {
         }
         break;
     }
-    if (request_ != Request::kNone && request_ != Request::kPlanned && request_ != Request::kPlanFailed) join_path_ = false;
+    if (request_ != Request::kNone && request_ != Request::kPlanned && request_ != Request::kPlanFailed)
+      join_path_ = false;
     reclaim = request_ != Request::kNone && request_ != Request::kPlanFailed;
     request_ = Request::kNone;
   }
@@ -560,12 +593,12 @@ const char* Pilot::plan_way(const PlanRequest& r) noexcept {
   const double radius = plan_radius_ + plan_margin_.get_float();
   for (uint32_t i = 0; i < std::min(r.obstacles, kPlanObstacles); ++i) planner_.add_obstacle(r.ox[i], r.oy[i], radius);
   interfaces::PathMake w;
-  const GridPlanner::Result result =
-      planner_.plan(r.x, r.y, r.gx, r.gy, GridPlanner::Options{.radius = radius, .comfort = 0.3}, w);
+  const GridPlanner::Result result = planner_.plan(r.x, r.y, r.gx, r.gy,
+                                                   GridPlanner::Options{.radius = radius, .comfort = 0.3}, w);
   if (result.error != nullptr) return result.error;
   if (const char* why = Path::make_path(w, 0.1, plan_scratch_)) return why;
-  log_info("way to (%.2f, %.2f) planned: %.1f m, %u waypoints, %u cells searched%s", r.gx, r.gy, result.length,
-           w.count, result.expanded, result.start_moved ? " (the robot stands too near a wall: it backs out first)" : "");
+  log_info("way to (%.2f, %.2f) planned: %.1f m, %u waypoints, %u cells searched%s", r.gx, r.gy, result.length, w.count,
+           result.expanded, result.start_moved ? " (the robot stands too near a wall: it backs out first)" : "");
   rt::PiLock lock(mutex_);
   std::memcpy(&plan_pending_, &plan_scratch_, sizeof plan_pending_);
   request_ = Request::kPlanned;
@@ -604,11 +637,12 @@ CommandResult Pilot::command(const tims::MessageHeader& request, std::span<const
       log_info("SET_DESTINATION (%.2f, %.2f) from %s", d.x, d.y, request.source());
       if (planner_.has_map() && state() == ComponentState::kEnabled) {
         // Plan now from the newest estimate, so that a destination with no way is refused.
-        const auto pr = command_endpoint().call(resolved(position_), tims::msg::kGetData, std::span<std::byte>(rpc_buffer_),
-                                                settings().rpc_timeout_ns);
+        const auto pr = command_endpoint().call(resolved(position_), tims::msg::kGetData,
+                                                std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
         wire::SampleHeader sh;
         PositionData pos;
-        if (pr.status == tims::CallStatus::kOk && pr.reply.type == tims::msg::kData && read_sample(pr.reply, pr.body, sh, pos)) {
+        if (pr.status == tims::CallStatus::kOk && pr.reply.type == tims::msg::kData &&
+            read_sample(pr.reply, pr.body, sh, pos)) {
           PlanRequest r;
           r.gx = d.x;
           r.gy = d.y;

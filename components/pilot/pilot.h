@@ -63,8 +63,8 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
     double front = 0.3, back = 0.3, left = 0.25, right = 0.25, margin = 0.1;
   };
   struct Clearance {
-    double free_ahead = 0.0;  // m from the front of the outline to the nearest point in the swept corridor
-    bool inside = false;      // a point lies inside outline + margin
+    double free_ahead = 0.0;    // m from the front of the outline to the nearest point in the swept corridor
+    bool inside = false;        // a point lies inside outline + margin
     bool turn_blocked = false;  // a point lies inside the circle the outline sweeps when turning in place
   };
   // Obstacle clearance of a robot-frame scan (pure, RT-safe). Max-range points are ignored.
@@ -84,10 +84,10 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
   static constexpr int8_t kPlanSelf = 99;
   static constexpr uint32_t kPlanObstacles = 96;
   struct PlanRequest {
-    double gx = 0.0, gy = 0.0;          // the destination
-    double x = 0.0, y = 0.0, phi = 0.0; // the robot
-    uint32_t obstacles = 0;             // scan points to plan round (map frame)
-    uint32_t replan = 0;                // 1: blocked on the way
+    double gx = 0.0, gy = 0.0;           // the destination
+    double x = 0.0, y = 0.0, phi = 0.0;  // the robot
+    uint32_t obstacles = 0;              // scan points to plan round (map frame)
+    uint32_t replan = 0;                 // 1: blocked on the way
     float ox[kPlanObstacles] = {}, oy[kPlanObstacles] = {};
   };
   // Command task: plans from (x, y) to (gx, gy) and hands the way to the data task.
@@ -147,14 +147,14 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
   bool line_pending_ = false;  // the line starts at the next pose
   double goal_bearing_ = 0.0;  // rad, the goal seen from the robot (set by steer())
   bool have_path_ = false;
-  bool path_fresh_ = false;     // a new path arrived: find the nearest point again
+  bool path_fresh_ = false;           // a new path arrived: find the nearest point again
   interfaces::PathData plan_data_{};  // the planned way to the destination
   bool have_plan_ = false, plan_fresh_ = false;
-  bool plan_asked_ = false;           // a kPlanSelf is on its way
-  bool join_path_ = false;            // the planned way leads back to the path
+  bool plan_asked_ = false;  // a kPlanSelf is on its way
+  bool join_path_ = false;   // the planned way leads back to the path
   int64_t plan_asked_ns_ = 0;
-  int64_t blocked_since_ns_ = 0;      // 0: not blocked
-  uint32_t destination_writes_ = 0;   // destination_.write_count() seen
+  int64_t blocked_since_ns_ = 0;     // 0: not blocked
+  uint32_t destination_writes_ = 0;  // destination_.write_count() seen
   int64_t position_mono_ns_ = 0;
   int64_t scan_mono_ns_ = 0;
   bool have_scan_ = false;

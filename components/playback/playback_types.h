@@ -34,8 +34,8 @@ struct PlaybackSample {
   }
 };
 
-inline constexpr DataTypeInfo kScan2dPlaybackBody =
-    data_type_info<PlaybackSample<interfaces::Scan2dData>>("Scan2dPlaybackSample");
+inline constexpr DataTypeInfo kScan2dPlaybackBody = data_type_info<PlaybackSample<interfaces::Scan2dData>>(
+    "Scan2dPlaybackSample");
 inline constexpr CommandInfo kScan2dPlaybackCommands[] = {
     {"PUBLISH", kPlaybackPublish, &kScan2dPlaybackBody,
      "publish this sample (time_ns as recorded, then the Scan2D fields) as if the recorded producer had"}};

@@ -14,10 +14,15 @@ Position::Position()
       initial_x_(declare_float("initial_x", 0.0, {.doc = "m, pose at ON (map frame) until the first UPDATE"})),
       initial_y_(declare_float("initial_y", 0.0, {.doc = "m, pose at ON (map frame)"})),
       initial_phi_(declare_float("initial_phi", 0.0, {.doc = "rad, heading at ON", .min = -7.0, .max = 7.0})),
-      initial_var_xy_(declare_float("initial_var_xy", 0.01, {.doc = "m^2, variance of the initial x and y", .min = 0.0, .max = 1e6})),
-      initial_var_phi_(declare_float("initial_var_phi", 0.01, {.doc = "rad^2, variance of the initial heading", .min = 0.0, .max = 100.0})),
-      var_xy_per_m_(declare_float("var_xy_per_m", 0.001, {.doc = "m^2 of x and y variance added per metre driven", .min = 0.0, .max = 10.0})),
-      var_phi_per_m_(declare_float("var_phi_per_m", 0.0005, {.doc = "rad^2 of heading variance added per metre driven", .min = 0.0, .max = 10.0})) {
+      initial_var_xy_(declare_float("initial_var_xy", 0.01,
+                                    {.doc = "m^2, variance of the initial x and y", .min = 0.0, .max = 1e6})),
+      initial_var_phi_(declare_float("initial_var_phi", 0.01,
+                                     {.doc = "rad^2, variance of the initial heading", .min = 0.0, .max = 100.0})),
+      var_xy_per_m_(declare_float("var_xy_per_m", 0.001,
+                                  {.doc = "m^2 of x and y variance added per metre driven", .min = 0.0, .max = 10.0})),
+      var_phi_per_m_(
+          declare_float("var_phi_per_m", 0.0005,
+                        {.doc = "rad^2 of heading variance added per metre driven", .min = 0.0, .max = 10.0})) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(OdometryData) + 64);
 }
 
@@ -33,7 +38,8 @@ HookResult Position::on() {
       reference_.var_y = last_.var_y;
       reference_.var_phi = last_.var_phi;
     } else {
-      reference_.pose = Pose2d{initial_x_.get_float(), initial_y_.get_float(), normalize_angle(initial_phi_.get_float())};
+      reference_.pose = Pose2d{initial_x_.get_float(), initial_y_.get_float(),
+                               normalize_angle(initial_phi_.get_float())};
       reference_.var_x = reference_.var_y = initial_var_xy_.get_float();
       reference_.var_phi = initial_var_phi_.get_float();
     }

@@ -38,12 +38,12 @@ class Position final : public DataComponent<interfaces::PositionData> {
 
  private:
   struct Reference {
-    Pose2d pose;             // map frame, at `time_ns`
-    Pose2d odometry;         // odometry frame, at `time_ns`
-    double distance = 0.0;   // odometry path length at `time_ns`
+    Pose2d pose;            // map frame, at `time_ns`
+    Pose2d odometry;        // odometry frame, at `time_ns`
+    double distance = 0.0;  // odometry path length at `time_ns`
     double var_x = 0.0, var_y = 0.0, var_phi = 0.0;
-    int64_t time_ns = 0;     // 0: not anchored yet (anchors at the first sample)
-    uint32_t resets = 0;     // the odometry's RESET count the reference belongs to
+    int64_t time_ns = 0;  // 0: not anchored yet (anchors at the first sample)
+    uint32_t resets = 0;  // the odometry's RESET count the reference belongs to
     uint32_t updates = 0;
   };
   void handle_update(const tims::MessageHeader& request, std::span<const std::byte> body) noexcept;

@@ -7,12 +7,18 @@ namespace rack::components {
 Probe::Probe()
     : DataComponent(DataTaskMode::kPeriodic),
       fail_init_(declare_bool("fail_init", false, {.doc = "init() throws", .init_only = true})),
-      init_delay_ms_(declare_int("init_delay_ms", 0, {.doc = "init() takes this long (a slow start-up: a large map, a device)", .min = 0, .max = 600000, .init_only = true, .unit = "ms"})),
+      init_delay_ms_(declare_int("init_delay_ms", 0,
+                                 {.doc = "init() takes this long (a slow start-up: a large map, a device)",
+                                  .min = 0,
+                                  .max = 600000,
+                                  .init_only = true,
+                                  .unit = "ms"})),
       fail_on_(declare_bool("fail_on", false, {.doc = "on() returns an error"})),
       throw_on_(declare_bool("throw_on", false, {.doc = "on() throws"})),
       fail_loop_(declare_bool("fail_loop", false, {.doc = "loop() returns an error"})),
       throw_loop_(declare_bool("throw_loop", false, {.doc = "loop() throws"})),
-      on_delay_ms_(declare_int("on_delay_ms", 0, {.doc = "on() takes this long", .min = 0, .max = 60000, .unit = "ms"})),
+      on_delay_ms_(
+          declare_int("on_delay_ms", 0, {.doc = "on() takes this long", .min = 0, .max = 60000, .unit = "ms"})),
       label_(declare_string("label", "probe", {.doc = "free text (string parameter tests)"})) {}
 
 void Probe::init() {

@@ -35,10 +35,11 @@ std::size_t join_index(const replay::SharedLog& log, const Records& records, std
 double wrap(double a) noexcept { return std::remainder(a, 2.0 * std::numbers::pi); }
 
 Parameter::Spec log_spec() {
-  return {.doc = "log file to play: CARMEN (.log/.clf/...) or MRPT rawlog (.rawlog); relative: to the host file's folder",
-          .required = true,
-          .init_only = true,
-          .path = PathRole::kInput};
+  return {
+      .doc = "log file to play: CARMEN (.log/.clf/...) or MRPT rawlog (.rawlog); relative: to the host file's folder",
+      .required = true,
+      .init_only = true,
+      .path = PathRole::kInput};
 }
 Parameter::Spec speed_spec() {
   return {.doc = "replay speed (1: as recorded; 2: twice as fast; 0: as fast as LadarReplay's pace allows)",
@@ -61,7 +62,8 @@ ChassisReplay::ChassisReplay()
       source_(declare_string("odometry", "auto",
                              {.doc = "odometry from 'odom' lines (CARMEN ODOM, rawlog odometry), 'laser' (poses on "
                                      "FLASER/ROBOTLASER1 lines, rawlog frames) or 'auto' (odom if any)",
-                              .choices = {"auto", "odom", "laser"}, .init_only = true})) {}
+                              .choices = {"auto", "odom", "laser"},
+                              .init_only = true})) {}
 
 ChassisReplay::~ChassisReplay() = default;
 
@@ -91,8 +93,8 @@ void ChassisReplay::init() {
     params_.vx_max = std::max(params_.vx_max, v);
     params_.omega_max = std::max(params_.omega_max, w);
   }
-  std::fprintf(stderr, "ChassisReplay '%s': %zu odometry records from %s (%s), %.1f s at speed %.2f\n",
-               name().c_str(), stream_.size(), log.source.c_str(), use_odom ? "odom" : "laser poses",
+  std::fprintf(stderr, "ChassisReplay '%s': %zu odometry records from %s (%s), %.1f s at speed %.2f\n", name().c_str(),
+               stream_.size(), log.source.c_str(), use_odom ? "odom" : "laser poses",
                stream_.back().time - stream_.front().time, speed_.get_float());
 }
 
@@ -235,7 +237,8 @@ bool LadarReplay::pace_reached(int64_t time_ns) noexcept {
   const wire::GetDataRequest newest{};  // time 0: the newest sample
   const auto r = data_endpoint().call(resolved(pace_), tims::msg::kGetData, newest,
                                       std::span<std::byte>(reply_.get(), kReplyBytes), settings().rpc_timeout_ns);
-  if (r.status != tims::CallStatus::kOk || r.reply.type != tims::msg::kData || r.body.size() < sizeof(wire::SampleHeader)) {
+  if (r.status != tims::CallStatus::kOk || r.reply.type != tims::msg::kData ||
+      r.body.size() < sizeof(wire::SampleHeader)) {
     return false;
   }
   wire::SampleHeader sh;

@@ -15,19 +15,40 @@ using interfaces::Scan2dData;
 Scan2d::Scan2d()
     : DataComponent(DataTaskMode::kTriggered),
       ladar_(declare_component_ref("ladar", "the Ladar whose scans to convert")),
-      odometry_(declare_string("odometry", "", {.doc = "optional Odometry: fills odometry_* at each scan's time", .component_ref = true})),
-      mount_x_(declare_float("mount_x", 0.0, {.doc = "m, sensor position in the robot frame (forward)", .min = -10.0, .max = 10.0})),
-      mount_y_(declare_float("mount_y", 0.0, {.doc = "m, sensor position in the robot frame (left)", .min = -10.0, .max = 10.0})),
-      mount_phi_(declare_float("mount_phi", 0.0, {.doc = "rad, sensor heading in the robot frame", .min = -7.0, .max = 7.0})),
-      range_min_(declare_float("range_min", 0.05, {.doc = "m, shorter ranges are dropped (the robot's own body)", .min = 0.0, .max = 1000.0})),
-      range_max_(declare_float("range_max", 0.0, {.doc = "m, longer ranges count as no echo (0: the ladar's max)", .min = 0.0, .max = 1000.0})),
-      median_(declare_int("median", 1, {.doc = "median filter window over neighbouring beams (odd; 1: off)", .min = 1, .max = 9})),
-      keep_max_range_(declare_bool("keep_max_range", true, {.doc = "beams without echo become max-range points (else left out)"})),
-      dynamic_objects_(declare_bool("dynamic_objects", false, {.doc = "track small clusters; mark moving ones DYN_OBSTACLE (type 2)"})),
-      dynamic_min_speed_(declare_float("dynamic_min_speed", 0.25, {.doc = "m/s, a tracked cluster faster than this is dynamic", .min = 0.0, .max = 100.0})),
-      cluster_gap_(declare_float("cluster_gap", 0.25, {.doc = "m, neighbouring points closer than this form one cluster", .min = 0.01, .max = 10.0})),
-      cluster_max_size_(declare_float("cluster_max_size", 1.0, {.doc = "m, larger clusters (walls) are not tracked", .min = 0.01, .max = 100.0})),
-      odometry_wait_ms_(declare_float("odometry_wait_ms", 500.0, {.doc = "ms a scan waits for odometry at or after its time before it goes out without (counted)", .min = 0.0, .max = 600000.0, .unit = "ms"})),
+      odometry_(declare_string(
+          "odometry", "", {.doc = "optional Odometry: fills odometry_* at each scan's time", .component_ref = true})),
+      mount_x_(declare_float("mount_x", 0.0,
+                             {.doc = "m, sensor position in the robot frame (forward)", .min = -10.0, .max = 10.0})),
+      mount_y_(declare_float("mount_y", 0.0,
+                             {.doc = "m, sensor position in the robot frame (left)", .min = -10.0, .max = 10.0})),
+      mount_phi_(
+          declare_float("mount_phi", 0.0, {.doc = "rad, sensor heading in the robot frame", .min = -7.0, .max = 7.0})),
+      range_min_(
+          declare_float("range_min", 0.05,
+                        {.doc = "m, shorter ranges are dropped (the robot's own body)", .min = 0.0, .max = 1000.0})),
+      range_max_(
+          declare_float("range_max", 0.0,
+                        {.doc = "m, longer ranges count as no echo (0: the ladar's max)", .min = 0.0, .max = 1000.0})),
+      median_(declare_int("median", 1,
+                          {.doc = "median filter window over neighbouring beams (odd; 1: off)", .min = 1, .max = 9})),
+      keep_max_range_(
+          declare_bool("keep_max_range", true, {.doc = "beams without echo become max-range points (else left out)"})),
+      dynamic_objects_(declare_bool("dynamic_objects", false,
+                                    {.doc = "track small clusters; mark moving ones DYN_OBSTACLE (type 2)"})),
+      dynamic_min_speed_(
+          declare_float("dynamic_min_speed", 0.25,
+                        {.doc = "m/s, a tracked cluster faster than this is dynamic", .min = 0.0, .max = 100.0})),
+      cluster_gap_(
+          declare_float("cluster_gap", 0.25,
+                        {.doc = "m, neighbouring points closer than this form one cluster", .min = 0.01, .max = 10.0})),
+      cluster_max_size_(declare_float(
+          "cluster_max_size", 1.0, {.doc = "m, larger clusters (walls) are not tracked", .min = 0.01, .max = 100.0})),
+      odometry_wait_ms_(declare_float(
+          "odometry_wait_ms", 500.0,
+          {.doc = "ms a scan waits for odometry at or after its time before it goes out without (counted)",
+           .min = 0.0,
+           .max = 600000.0,
+           .unit = "ms"})),
       held_(std::make_unique<LadarData[]>(kHeld)) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(LadarData) + 64);
 }
@@ -44,15 +65,14 @@ void Scan2d::describe_status(std::string& out) const {
   const OdometryCounts c = odometry_counts();
   char line[200];
   std::snprintf(line, sizeof line, "odometry per scan: %llu interpolated (never extrapolated), %llu missing",
-                static_cast<unsigned long long>(c.interpolated),
-                static_cast<unsigned long long>(c.missing));
+                static_cast<unsigned long long>(c.interpolated), static_cast<unsigned long long>(c.missing));
   out += line;
 }
 
 void Scan2d::convert(const LadarData& ladar, const Geometry& g, Scan2dData& out) noexcept {
   const uint32_t n = std::min(ladar.beam_count, interfaces::kLadarMaxBeams);
-  const double max_range =
-      g.range_max > 0.0 ? std::min(g.range_max, static_cast<double>(ladar.max_range)) : static_cast<double>(ladar.max_range);
+  const double max_range = g.range_max > 0.0 ? std::min(g.range_max, static_cast<double>(ladar.max_range))
+                                             : static_cast<double>(ladar.max_range);
   const double min_range = std::max(g.range_min, static_cast<double>(ladar.min_range));
   const auto valid = [&](float r) { return std::isfinite(r) && r > 0.0F && static_cast<double>(r) <= max_range; };
   const int half = std::clamp(g.median, 1, 9) / 2;
@@ -89,7 +109,8 @@ void Scan2d::convert(const LadarData& ladar, const Geometry& g, Scan2dData& out)
     } else if (static_cast<double>(r) < min_range) {
       continue;  // too close: the robot itself, or the sensor's blind zone
     }
-    const double bearing = static_cast<double>(ladar.start_angle) + static_cast<double>(i) * static_cast<double>(ladar.angle_step);
+    const double bearing = static_cast<double>(ladar.start_angle) +
+                           static_cast<double>(i) * static_cast<double>(ladar.angle_step);
     const double a = g.mount_phi + bearing;
     out.x[k] = static_cast<float>(g.mount_x + static_cast<double>(r) * std::cos(a));
     out.y[k] = static_cast<float>(g.mount_y + static_cast<double>(r) * std::sin(a));
@@ -140,7 +161,8 @@ void Scan2d::convert_and_publish(const LadarData& ladar, int64_t time_ns) noexce
     o.cluster_gap = cluster_gap_.get_float();
     o.cluster_max_size = cluster_max_size_.get_float();
     tracker_.set_options(o);
-    const Pose2d robot = scan_.odometry_valid != 0 ? Pose2d{scan_.odometry_x, scan_.odometry_y, scan_.odometry_phi} : Pose2d{};
+    const Pose2d robot = scan_.odometry_valid != 0 ? Pose2d{scan_.odometry_x, scan_.odometry_y, scan_.odometry_phi}
+                                                   : Pose2d{};
     tracker_.update(scan_, robot, time_ns);
     (void)tracker_.mark_dynamic(scan_);
   }
@@ -183,7 +205,8 @@ bool Scan2d::take(const tims::MessageHeader& h, std::span<const std::byte> body,
   if (h.source().class_id() == tims::classes::kOdometry && use_odometry_) {
     OdometryData o;
     if (!read_sample(h, body, sh, o)) return false;
-    if (std::isfinite(o.x) && std::isfinite(o.y) && std::isfinite(o.phi)) (void)poses_.push(sh.time_ns, Pose2d{o.x, o.y, o.phi});
+    if (std::isfinite(o.x) && std::isfinite(o.y) && std::isfinite(o.phi))
+      (void)poses_.push(sh.time_ns, Pose2d{o.x, o.y, o.phi});
     return true;
   }
   if (held_count_ == kHeld) release(false);  // cannot happen (release() makes room), but never overwrite
@@ -214,8 +237,7 @@ HookResult Scan2d::loop() {
   release(false);
   // The ladar fell silent (inputs that ended, a replay at the end of its log, are
   // quiet, not failing).
-  if (!got_scan && !inputs_ended() &&
-      rt::monotonic_ns() - last_scan_rx_ns_ >= settings().data_timeout_ns) {
+  if (!got_scan && !inputs_ended() && rt::monotonic_ns() - last_scan_rx_ns_ >= settings().data_timeout_ns) {
     release(true);
     set_error_reason("the ladar fell silent: no scan within data_task timeout_ms");
     return HookResult::kError;

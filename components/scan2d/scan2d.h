@@ -88,8 +88,8 @@ class Scan2d final : public DataComponent<interfaces::Scan2dData> {
   Parameter& cluster_gap_;
   Parameter& cluster_max_size_;
   Parameter& odometry_wait_ms_;
-  LaserTracker tracker_;  // data task
-  interfaces::Scan2dData scan_{};       // data task
+  LaserTracker tracker_;           // data task
+  interfaces::Scan2dData scan_{};  // data task
   // Data task: the odometry poses, the held scans (a ring of kHeld) with their times
   // and host arrival times.
   PoseSeries<512> poses_;

@@ -28,36 +28,107 @@ constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 Scan3d::Scan3d()
     : DataComponent(DataTaskMode::kTriggered),
-      ladar_(declare_string("ladar", "", {.doc = "the Ladar whose 2-D scans are assembled (with servo; empty: pcd)", .component_ref = true})),
-      servo_(declare_string("servo", "", {.doc = "the ServoDrive that turns the ladar (with ladar)", .component_ref = true})),
-      odometry_(declare_string("odometry", "", {.doc = "optional, with ladar+servo: an Odometry or Position component; its poses undo the robot's motion during a sweep (points in the robot frame at the sweep's end, the scan stamped with that time)", .component_ref = true})),
-      odometry_period_ms_(declare_float("odometry_period_ms", 0.0, {.doc = "requested period of the odometry's pose stream (0: every pose); the last 256 poses must cover a sweep's processing time", .min = 0.0, .max = 1000.0, .unit = "ms"})),
-      pcd_(declare_string("pcd", "", {.doc = "instead of ladar+servo: a PCD file, or a directory whose *.pcd files are played in name order", .init_only = true, .path = PathRole::kInput})),
-      mode_(declare_string("mode", "pitch", {.doc = "scan mode: the drive turns the scan plane about x (roll), y (pitch) or z (yaw)", .choices = {"roll", "pitch", "yaw"}, .init_only = true})),
-      mount_x_(declare_float("mount_x", 0.0, {.doc = "m, the ladar's centre (on the drive axis) in the robot frame, forward", .min = -10.0, .max = 10.0})),
+      ladar_(declare_string("ladar", "",
+                            {.doc = "the Ladar whose 2-D scans are assembled (with servo; empty: pcd)",
+                             .component_ref = true})),
+      servo_(declare_string("servo", "",
+                            {.doc = "the ServoDrive that turns the ladar (with ladar)", .component_ref = true})),
+      odometry_(declare_string(
+          "odometry", "",
+          {.doc =
+               "optional, with ladar+servo: an Odometry or Position component; its poses undo the robot's motion during a sweep (points in the robot frame at the sweep's end, the scan stamped with that time)",
+           .component_ref = true})),
+      odometry_period_ms_(declare_float(
+          "odometry_period_ms", 0.0,
+          {.doc =
+               "requested period of the odometry's pose stream (0: every pose); the last 256 poses must cover a sweep's processing time",
+           .min = 0.0,
+           .max = 1000.0,
+           .unit = "ms"})),
+      pcd_(declare_string(
+          "pcd", "",
+          {.doc = "instead of ladar+servo: a PCD file, or a directory whose *.pcd files are played in name order",
+           .init_only = true,
+           .path = PathRole::kInput})),
+      mode_(declare_string("mode", "pitch",
+                           {.doc = "scan mode: the drive turns the scan plane about x (roll), y (pitch) or z (yaw)",
+                            .choices = {"roll", "pitch", "yaw"},
+                            .init_only = true})),
+      mount_x_(declare_float(
+          "mount_x", 0.0,
+          {.doc = "m, the ladar's centre (on the drive axis) in the robot frame, forward", .min = -10.0, .max = 10.0})),
       mount_y_(declare_float("mount_y", 0.0, {.doc = "m, ... left", .min = -10.0, .max = 10.0})),
       mount_z_(declare_float("mount_z", 0.5, {.doc = "m, ... above the floor", .min = -10.0, .max = 10.0})),
-      angle_min_(declare_float("angle_min", -0.5, {.doc = "rad, drive angle where a sweep starts or ends", .min = -10.0, .max = 10.0})),
-      angle_max_(declare_float("angle_max", 0.5, {.doc = "rad, the other end (> angle_min)", .min = -10.0, .max = 10.0})),
-      sweep_velocity_(declare_float("sweep_velocity", 0.5, {.doc = "rad/s, drive speed during a sweep (0: the drive's default)", .min = 0.0, .max = 100.0})),
-      angle_tolerance_(declare_float("angle_tolerance", 0.01, {.doc = "rad, the drive is at a sweep's end when this close", .min = 1e-5, .max = 1.0})),
-      servo_period_ms_(declare_float("servo_period_ms", 0.0, {.doc = "requested period of the drive's position stream (0: every sample)", .min = 0.0, .max = 1000.0, .unit = "ms"})),
-      range_min_(declare_float("range_min", 0.05, {.doc = "m, closer echoes are dropped (the robot, the drive)", .min = 0.0, .max = 1000.0})),
-      range_max_(declare_float("range_max", 0.0, {.doc = "m, farther echoes are dropped (0: the ladar's max)", .min = 0.0, .max = 1000.0})),
-      voxel_size_(declare_float("voxel_size", 0.05, {.doc = "m, voxel-grid leaf (0: no downsampling)", .min = 0.0, .max = 10.0})),
-      outlier_neighbours_(declare_int("outlier_neighbours", 16, {.doc = "statistical outlier removal: neighbours (0: off)", .min = 0, .max = 1000})),
-      outlier_std_(declare_float("outlier_std", 2.0, {.doc = "... remove points farther than mean + this * std dev", .min = 0.01, .max = 100.0})),
-      ground_tolerance_(declare_float("ground_tolerance", 0.05, {.doc = "m, RANSAC inlier distance; points this close to the plane are ground", .min = 1e-4, .max = 10.0})),
-      ground_max_tilt_(declare_float("ground_max_tilt", 0.2, {.doc = "rad, the ground plane's normal may be this far from vertical", .min = 1e-3, .max = 1.4})),
-      ground_max_height_(declare_float("ground_max_height", 0.3, {.doc = "m, ground candidates have |z| below this", .min = 1e-3, .max = 100.0})),
-      ceiling_height_(declare_float("ceiling_height", 0.0, {.doc = "m above the ground: higher points are ceiling (0: none)", .min = 0.0, .max = 1000.0})),
-      max_points_(declare_int("max_points", interfaces::kScan3dMaxPoints, {.doc = "points per published scan (evenly thinned above)", .min = 1, .max = interfaces::kScan3dMaxPoints})),
-      range_image_res_deg_(declare_float("range_image_res_deg", 1.0, {.doc = "GET_RANGE_IMAGE: degrees per pixel when the request gives none (at least 0.2)", .min = 0.2, .max = 45.0, .unit = "deg"})),
-      store_dir_(declare_string("store_dir", ".", {.doc = "STORE_DATA without a path writes <store_dir>/scan3d_<number>.pcd (relative: to the host file's folder)", .path = PathRole::kOutputDir})),
-      pcd_period_ms_(declare_float("pcd_period_ms", 1000.0, {.doc = "PCD source: one file every this long (the data task's timeout_ms must not be longer)", .min = 1.0, .max = 3.6e6, .unit = "ms"})),
+      angle_min_(declare_float("angle_min", -0.5,
+                               {.doc = "rad, drive angle where a sweep starts or ends", .min = -10.0, .max = 10.0})),
+      angle_max_(
+          declare_float("angle_max", 0.5, {.doc = "rad, the other end (> angle_min)", .min = -10.0, .max = 10.0})),
+      sweep_velocity_(declare_float(
+          "sweep_velocity", 0.5,
+          {.doc = "rad/s, drive speed during a sweep (0: the drive's default)", .min = 0.0, .max = 100.0})),
+      angle_tolerance_(
+          declare_float("angle_tolerance", 0.01,
+                        {.doc = "rad, the drive is at a sweep's end when this close", .min = 1e-5, .max = 1.0})),
+      servo_period_ms_(declare_float("servo_period_ms", 0.0,
+                                     {.doc = "requested period of the drive's position stream (0: every sample)",
+                                      .min = 0.0,
+                                      .max = 1000.0,
+                                      .unit = "ms"})),
+      range_min_(
+          declare_float("range_min", 0.05,
+                        {.doc = "m, closer echoes are dropped (the robot, the drive)", .min = 0.0, .max = 1000.0})),
+      range_max_(declare_float(
+          "range_max", 0.0, {.doc = "m, farther echoes are dropped (0: the ladar's max)", .min = 0.0, .max = 1000.0})),
+      voxel_size_(declare_float("voxel_size", 0.05,
+                                {.doc = "m, voxel-grid leaf (0: no downsampling)", .min = 0.0, .max = 10.0})),
+      outlier_neighbours_(
+          declare_int("outlier_neighbours", 16,
+                      {.doc = "statistical outlier removal: neighbours (0: off)", .min = 0, .max = 1000})),
+      outlier_std_(
+          declare_float("outlier_std", 2.0,
+                        {.doc = "... remove points farther than mean + this * std dev", .min = 0.01, .max = 100.0})),
+      ground_tolerance_(declare_float(
+          "ground_tolerance", 0.05,
+          {.doc = "m, RANSAC inlier distance; points this close to the plane are ground", .min = 1e-4, .max = 10.0})),
+      ground_max_tilt_(declare_float(
+          "ground_max_tilt", 0.2,
+          {.doc = "rad, the ground plane's normal may be this far from vertical", .min = 1e-3, .max = 1.4})),
+      ground_max_height_(declare_float("ground_max_height", 0.3,
+                                       {.doc = "m, ground candidates have |z| below this", .min = 1e-3, .max = 100.0})),
+      ceiling_height_(
+          declare_float("ceiling_height", 0.0,
+                        {.doc = "m above the ground: higher points are ceiling (0: none)", .min = 0.0, .max = 1000.0})),
+      max_points_(declare_int(
+          "max_points", interfaces::kScan3dMaxPoints,
+          {.doc = "points per published scan (evenly thinned above)", .min = 1, .max = interfaces::kScan3dMaxPoints})),
+      range_image_res_deg_(
+          declare_float("range_image_res_deg", 1.0,
+                        {.doc = "GET_RANGE_IMAGE: degrees per pixel when the request gives none (at least 0.2)",
+                         .min = 0.2,
+                         .max = 45.0,
+                         .unit = "deg"})),
+      store_dir_(declare_string(
+          "store_dir", ".",
+          {.doc =
+               "STORE_DATA without a path writes <store_dir>/scan3d_<number>.pcd (relative: to the host file's folder)",
+           .path = PathRole::kOutputDir})),
+      pcd_period_ms_(
+          declare_float("pcd_period_ms", 1000.0,
+                        {.doc = "PCD source: one file every this long (the data task's timeout_ms must not be longer)",
+                         .min = 1.0,
+                         .max = 3.6e6,
+                         .unit = "ms"})),
       pcd_loop_(declare_bool("pcd_loop", true, {.doc = "PCD source: start again after the last file"})),
-      silence_ms_(declare_int("silence_ms", 2000, {.doc = "ERROR when the ladar, the drive or the odometry sent nothing for this long", .min = 10, .max = 600000, .unit = "ms"})),
-      sweep_timeout_s_(declare_float("sweep_timeout_s", 30.0, {.doc = "ERROR when the drive does not reach a sweep's end within this", .min = 0.1, .max = 3600.0, .unit = "s"})) {
+      silence_ms_(declare_int("silence_ms", 2000,
+                              {.doc = "ERROR when the ladar, the drive or the odometry sent nothing for this long",
+                               .min = 10,
+                               .max = 600000,
+                               .unit = "ms"})),
+      sweep_timeout_s_(declare_float("sweep_timeout_s", 30.0,
+                                     {.doc = "ERROR when the drive does not reach a sweep's end within this",
+                                      .min = 0.1,
+                                      .max = 3600.0,
+                                      .unit = "s"})) {
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(LadarData) + 64);
   set_command_slot_size(sizeof(tims::MessageHeader) + sizeof(interfaces::Scan3dStoreData) + 64);
 }
@@ -101,7 +172,8 @@ void Scan3d::init() {
   }
   file_source_ = !pcd.empty();
   compensate_ = !odometry_.get_string().empty();
-  if (file_source_ && compensate_) throw std::runtime_error("'odometry' compensates a ladar on a drive: it needs 'ladar' and 'servo', not 'pcd'");
+  if (file_source_ && compensate_)
+    throw std::runtime_error("'odometry' compensates a ladar on a drive: it needs 'ladar' and 'servo', not 'pcd'");
   if (compensate_) {
     const uint8_t c = resolved(odometry_).class_id();
     if (c != tims::classes::kOdometry && c != tims::classes::kPosition) {
@@ -110,7 +182,7 @@ void Scan3d::init() {
     }
   }
   const std::string mode = mode_.get_string();
-  mode_id_ = mode == "roll" ? interfaces::kScan3dModeRoll
+  mode_id_ = mode == "roll"  ? interfaces::kScan3dModeRoll
              : mode == "yaw" ? interfaces::kScan3dModeYaw
                              : interfaces::kScan3dModePitch;
   // The pipeline's options and the sweep's angles were checked (check_parameters, before init()).
@@ -148,7 +220,8 @@ void Scan3d::describe_status(std::string& out) const {
   char line[160];
   std::snprintf(line, sizeof line, "scans %llu, last %u points in %.1f ms, bad input %llu, dropped 2-D scans %llu",
                 static_cast<unsigned long long>(published_scans_.load(std::memory_order_relaxed)),
-                last_points_.load(std::memory_order_relaxed), static_cast<double>(last_ms_.load(std::memory_order_relaxed)),
+                last_points_.load(std::memory_order_relaxed),
+                static_cast<double>(last_ms_.load(std::memory_order_relaxed)),
                 static_cast<unsigned long long>(bad_input_.load(std::memory_order_relaxed)),
                 static_cast<unsigned long long>(dropped_scans_.load(std::memory_order_relaxed)));
   out += line;
@@ -162,7 +235,8 @@ bool Scan3d::move_drive(double target) noexcept {
   const auto r = data_endpoint().call(resolved(servo_), interfaces::kServoDriveMovePos, m, std::span<std::byte>(buf),
                                       settings().rpc_timeout_ns);
   if (!r.ok()) {
-    log_error("the drive %s refused MOVE_POS to %.3f rad (not homed, or outside its limits?)", resolved(servo_), target);
+    log_error("the drive %s refused MOVE_POS to %.3f rad (not homed, or outside its limits?)", resolved(servo_),
+              target);
     return false;
   }
   return true;
@@ -200,12 +274,14 @@ HookResult Scan3d::on() {
   const tims::Address odometry = compensate_ ? resolved(odometry_) : tims::Address();
   if (switch_on(servo) != HookResult::kOk || switch_on(ladar) != HookResult::kOk) return HookResult::kError;
   if (compensate_ && switch_on(odometry) != HookResult::kOk) return HookResult::kError;
-  if (subscribe(servo, static_cast<int64_t>(servo_period_ms_.get_float() * 1e6)) != HookResult::kOk) return HookResult::kError;
+  if (subscribe(servo, static_cast<int64_t>(servo_period_ms_.get_float() * 1e6)) != HookResult::kOk)
+    return HookResult::kError;
   if (subscribe(ladar, 0) != HookResult::kOk) {
     unsubscribe(servo);
     return HookResult::kError;
   }
-  if (compensate_ && subscribe(odometry, static_cast<int64_t>(odometry_period_ms_.get_float() * 1e6)) != HookResult::kOk) {
+  if (compensate_ &&
+      subscribe(odometry, static_cast<int64_t>(odometry_period_ms_.get_float() * 1e6)) != HookResult::kOk) {
     unsubscribe(ladar);
     unsubscribe(servo);
     return HookResult::kError;
@@ -303,7 +379,8 @@ void Scan3d::serve_requests() {
       image_->scan_number = out_->scan_number;
       image_->scan_time_ns = scan_time_ns_;
       const tims::ConstBuffer part = tims::buffer_of(*image_);
-      (void)data_endpoint().reply(r.header, interfaces::kScan3dRangeImageReply, std::span<const tims::ConstBuffer>(&part, 1));
+      (void)data_endpoint().reply(r.header, interfaces::kScan3dRangeImageReply,
+                                  std::span<const tims::ConstBuffer>(&part, 1));
     } else {
       // A relative path is the host file's folder's, as in the host file and SET_PARAM.
       std::string path = resolve_path(settings().base_dir, r.store.path);
@@ -321,13 +398,15 @@ void Scan3d::serve_requests() {
 }
 
 void Scan3d::count_bad(BadKind kind, const char* detail) noexcept {
-  static constexpr const char* kWhat[] = {"a PCD file", "a ladar scan", "a sweep", "a drive position", "an odometry pose"};
+  static constexpr const char* kWhat[] = {"a PCD file", "a ladar scan", "a sweep", "a drive position",
+                                          "an odometry pose"};
   static_assert(std::size(kWhat) == kBadKinds);
   const auto i = static_cast<std::size_t>(kind);
   out_->bad_input++;
   bad_input_.fetch_add(1, std::memory_order_relaxed);
   const uint64_t k = ++bad_kinds_[i];
-  if (detail != nullptr && k % 100 == 1) log_warning("skipped %s: %s (%llu of this kind so far)", kWhat[i], detail, static_cast<unsigned long long>(k));
+  if (detail != nullptr && k % 100 == 1)
+    log_warning("skipped %s: %s (%llu of this kind so far)", kWhat[i], detail, static_cast<unsigned long long>(k));
 }
 
 void Scan3d::finish_scan(int64_t time_ns, int64_t duration_ns, uint8_t mode, uint32_t ladar_scans, const float* x,
@@ -428,7 +507,10 @@ HookResult Scan3d::loop_ladar(int64_t now) {
     }
     if (from == From::kOther) continue;
     if (!decoded) {
-      count_bad(from == From::kDrive ? BadKind::kDrive : from == From::kOdometry ? BadKind::kPose : BadKind::kLadarScan, nullptr);
+      count_bad(from == From::kDrive      ? BadKind::kDrive
+                : from == From::kOdometry ? BadKind::kPose
+                                          : BadKind::kLadarScan,
+                nullptr);
       continue;
     }
     if (from == From::kOdometry) {
@@ -497,9 +579,10 @@ HookResult Scan3d::loop_ladar(int64_t now) {
       // (or its poses are not newer than the ones before).
       const int64_t lag = pending_time_[slot] - assembler_->pose_newest_time();
       if (assembler_->poses() > 0 && lag > silence) {
-        log_error("the odometry %s has no pose for the ladar scan at %lld ns: its newest pose is %lld ms older (silence_ms %lld)",
-                  odometry, static_cast<long long>(pending_time_[slot]), static_cast<long long>(lag / rt::kNsPerMs),
-                  static_cast<long long>(silence_ms_.get_int()));
+        log_error(
+            "the odometry %s has no pose for the ladar scan at %lld ns: its newest pose is %lld ms older (silence_ms %lld)",
+            odometry, static_cast<long long>(pending_time_[slot]), static_cast<long long>(lag / rt::kNsPerMs),
+            static_cast<long long>(silence_ms_.get_int()));
         return HookResult::kError;
       }
       break;
@@ -556,8 +639,8 @@ HookResult Scan3d::loop_ladar(int64_t now) {
   // The new sweep's scans stay in the mailbox until the next loop(): the assembler's
   // points are this sweep's until finish_scan() has copied them.
   if (n > 0) {
-    finish_scan(end_frame ? end_ns : start_ns, duration, mode_id_, scans, assembler_->x(), assembler_->y(), assembler_->z(),
-                assembler_->intensity(), n);
+    finish_scan(end_frame ? end_ns : start_ns, duration, mode_id_, scans, assembler_->x(), assembler_->y(),
+                assembler_->z(), assembler_->intensity(), n);
   } else {
     count_bad(BadKind::kSweep, "no ladar point in a whole sweep");
   }

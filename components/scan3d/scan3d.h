@@ -163,16 +163,16 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
   // Data task state.
   Phase phase_ = Phase::kToStart;
   double sweep_from_ = 0.0, sweep_to_ = 0.0;
-  int64_t sweep_start_ns_ = 0;      // host time the current sweep started (drive left its start)
-  int64_t sweep_end_ns_ = 0;        // drive sample time that reached the target (0: not yet)
+  int64_t sweep_start_ns_ = 0;  // host time the current sweep started (drive left its start)
+  int64_t sweep_end_ns_ = 0;    // drive sample time that reached the target (0: not yet)
   int64_t sweep_started_mono_ = 0;
   int64_t newest_ladar_ns_ = 0;
   int64_t last_ladar_mono_ = 0, last_drive_mono_ = 0, last_pose_mono_ = 0;
   interfaces::ServoDriveData drive_{};
   int64_t drive_time_ns_ = 0;
   bool have_drive_ = false;
-  bool have_scan_ = false;          // out_ holds a published scan
-  int64_t scan_time_ns_ = 0;        // its time
+  bool have_scan_ = false;    // out_ holds a published scan
+  int64_t scan_time_ns_ = 0;  // its time
   std::size_t next_file_ = 0;
   int64_t next_file_mono_ = 0;
   uint32_t scan_number_ = 0;

@@ -14,18 +14,24 @@ using devices::IoStatus;
 
 ServoDriveCan::ServoDriveCan()
     : DataComponent(DataTaskMode::kPeriodic),
-      can_(declare_string("can", "", {.doc = "CAN interface (can0) or unix:/path of a drive simulator", .required = true})),
+      can_(declare_string("can", "",
+                          {.doc = "CAN interface (can0) or unix:/path of a drive simulator", .required = true})),
       node_(declare_int("node", 3, {.doc = "CANopen node id of the drive", .min = 1, .max = 127})),
       counts_per_unit_(declare_float("counts_per_unit", 10000.0,
                                      {.doc = "drive position units per metre or radian of the axis", .min = 1e-6})),
       max_velocity_(declare_float("max_velocity", 1.0, {.doc = "unit/s, also the default move speed", .min = 1e-6})),
-      acceleration_(declare_float("acceleration", 2.0, {.doc = "unit/s^2, the drive's profile acceleration", .min = 1e-6})),
+      acceleration_(
+          declare_float("acceleration", 2.0, {.doc = "unit/s^2, the drive's profile acceleration", .min = 1e-6})),
       position_min_(declare_float("position_min", -1.0, {.doc = "unit, lower soft limit (from home)"})),
       position_max_(declare_float("position_max", 1.0, {.doc = "unit, upper soft limit (from home)"})),
-      home_position_(declare_float("home_position", 0.0, {.doc = "unit, the position HOME assigns to where the axis is"})),
-      heartbeat_ms_(declare_int("heartbeat_ms", 100, {.doc = "drive heartbeat producer time", .min = 1, .max = 65535, .unit = "ms"})),
-      heartbeat_timeout_ms_(declare_float("heartbeat_timeout_ms", 350.0, {.doc = "drive silent this long: ERROR", .min = 1.0, .unit = "ms"})),
-      sdo_timeout_ms_(declare_float("sdo_timeout_ms", 100.0, {.doc = "wait for each SDO answer in on()", .min = 1.0, .unit = "ms"})) {}
+      home_position_(
+          declare_float("home_position", 0.0, {.doc = "unit, the position HOME assigns to where the axis is"})),
+      heartbeat_ms_(declare_int("heartbeat_ms", 100,
+                                {.doc = "drive heartbeat producer time", .min = 1, .max = 65535, .unit = "ms"})),
+      heartbeat_timeout_ms_(declare_float("heartbeat_timeout_ms", 350.0,
+                                          {.doc = "drive silent this long: ERROR", .min = 1.0, .unit = "ms"})),
+      sdo_timeout_ms_(declare_float("sdo_timeout_ms", 100.0,
+                                    {.doc = "wait for each SDO answer in on()", .min = 1.0, .unit = "ms"})) {}
 
 double ServoDriveCan::to_unit(int32_t counts) const noexcept {
   return static_cast<double>(counts - home_offset_.load(std::memory_order_relaxed)) / counts_per_unit_.get_float() +
@@ -60,8 +66,7 @@ HookResult ServoDriveCan::on() {
       !w(co::kObjTpdo1Comm, 2, 1, 1) || !w(co::kObjTpdo2Comm, 2, 1, 1) ||
       co::sdo_read_wait(port_, node_id_, co::kObjPositionActual, 0, position, timeout) != co::SdoResult::kOk ||
       !w(co::kObjTargetPosition, 0, position, 4) ||  // hold where it is
-      !co::power_up(port_, node_id_, timeout) ||
-      port_.send(co::nmt(co::kNmtStart, node_id_)).status != IoStatus::kOk) {
+      !co::power_up(port_, node_id_, timeout) || port_.send(co::nmt(co::kNmtStart, node_id_)).status != IoStatus::kOk) {
     port_.close();
     return HookResult::kError;
   }
@@ -144,8 +149,8 @@ HookResult ServoDriveCan::loop() {
     if (r.status != IoStatus::kOk) return HookResult::kError;
     handle(f);
   }
-  const bool silent =
-      rt::monotonic_ns() - last_heartbeat_ns_ > static_cast<int64_t>(heartbeat_timeout_ms_.get_float() * 1e6);
+  const bool silent = rt::monotonic_ns() - last_heartbeat_ns_ >
+                      static_cast<int64_t>(heartbeat_timeout_ms_.get_float() * 1e6);
   const bool faulted = got_tpdo2_ && ((statusword_ & co::kSwFault) != 0 ||
                                       (statusword_ & co::kSwStateMask) != co::kSwOperationEnabled);
   if (silent || faulted || nmt_left_operational_) {
@@ -257,7 +262,9 @@ CommandResult ServoDriveCan::command(const tims::MessageHeader& request, std::sp
       const double vmax = max_velocity_.get_float();
       const double v = std::fabs(m.velocity) > vmax ? vmax : std::fabs(m.velocity);
       const double here = to_unit(last_position_.load(std::memory_order_relaxed));
-      const double goal = m.velocity > 0 ? position_max_.get_float() : m.velocity < 0 ? position_min_.get_float() : here;
+      const double goal = m.velocity > 0   ? position_max_.get_float()
+                          : m.velocity < 0 ? position_min_.get_float()
+                                           : here;
       (void)request_move(goal, v == 0.0 ? vmax : v, 0);
       reply(request, tims::msg::kOk);
       return CommandResult::kHandled;

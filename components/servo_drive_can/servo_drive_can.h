@@ -58,10 +58,10 @@ class ServoDriveCan final : public DataComponent<interfaces::ServoDriveData> {
   bool got_tpdo1_ = false, got_tpdo2_ = false;
   int64_t last_heartbeat_ns_ = 0;
   bool nmt_left_operational_ = false;
-  bool setpoint_high_ = false;   // bit 4 raised, waiting for the acknowledgement
-  bool moving_ = false;          // a set-point taken, not yet reached
+  bool setpoint_high_ = false;  // bit 4 raised, waiting for the acknowledgement
+  bool moving_ = false;         // a set-point taken, not yet reached
   int32_t target_counts_ = 0;
-  uint32_t notify_ = 0;          // who gets POSITION_REACHED
+  uint32_t notify_ = 0;  // who gets POSITION_REACHED
   interfaces::ServoDriveData out_{};
 
   // Command task -> data task. SYNC POINT: the command task writes the move's values,

@@ -14,7 +14,8 @@ ServoDriveSim::ServoDriveSim()
       acceleration_(declare_float("acceleration", 4.0, {.doc = "unit/s^2", .min = 1e-6})),
       position_min_(declare_float("position_min", -1.0, {.doc = "unit, lower limit"})),
       position_max_(declare_float("position_max", 1.0, {.doc = "unit, upper limit"})),
-      home_position_(declare_float("home_position", 0.0, {.doc = "unit, the position HOME assigns to where the axis is"})) {}
+      home_position_(
+          declare_float("home_position", 0.0, {.doc = "unit, the position HOME assigns to where the axis is"})) {}
 
 HookResult ServoDriveSim::on() {
   if (last_ns_ == 0) {  // first ON: start where the parameter says; later ONs keep the axis where it is
@@ -47,7 +48,8 @@ CommandResult ServoDriveSim::command(const tims::MessageHeader& request, std::sp
         return CommandResult::kHandled;
       }
       move_target_.store(m.position, std::memory_order_relaxed);
-      move_velocity_.store(m.velocity > 0.0 ? std::min(m.velocity, max_velocity_.get_float()) : max_velocity_.get_float(),
+      move_velocity_.store(m.velocity > 0.0 ? std::min(m.velocity, max_velocity_.get_float())
+                                            : max_velocity_.get_float(),
                            std::memory_order_relaxed);
       move_is_velocity_.store(false, std::memory_order_relaxed);
       move_requester_.store(request.src, std::memory_order_relaxed);

@@ -37,8 +37,8 @@ class ServoDriveSim final : public DataComponent<interfaces::ServoDriveData> {
   // then sets pending_ (release); loop() takes pending_ (acquire) and reads them.
   std::atomic<bool> pending_{false};
   std::atomic<double> move_target_{0.0};
-  std::atomic<double> move_velocity_{0.0};   // > 0: position move at this speed
-  std::atomic<double> vel_command_{0.0};     // MOVE_VEL (when move_is_velocity_)
+  std::atomic<double> move_velocity_{0.0};  // > 0: position move at this speed
+  std::atomic<double> vel_command_{0.0};    // MOVE_VEL (when move_is_velocity_)
   std::atomic<bool> move_is_velocity_{false};
   std::atomic<uint32_t> move_requester_{0};
   std::atomic<bool> home_pending_{false};

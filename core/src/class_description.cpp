@@ -61,7 +61,8 @@ std::string value_names_problem(const TypeDescription& data, const std::vector<F
   for (std::size_t a = 0; a < n.values.size(); ++a) {
     if (n.values[a].name.empty()) return what + ": value " + std::to_string(n.values[a].value) + " has an empty name";
     for (std::size_t b = 0; b < a; ++b) {
-      if (n.values[b].value == n.values[a].value) return what + ": value " + std::to_string(n.values[a].value) + " named twice";
+      if (n.values[b].value == n.values[a].value)
+        return what + ": value " + std::to_string(n.values[a].value) + " named twice";
       if (n.values[b].name == n.values[a].name) return what + ": name '" + n.values[a].name + "' given twice";
     }
   }
@@ -85,7 +86,8 @@ class Writer {
   }
   void f64(double v) { u64(std::bit_cast<uint64_t>(v)); }
   void str(const std::string& s, std::size_t max, bool identifier, const char* what) {
-    if (s.size() > max) throw std::invalid_argument(std::string(what) + " '" + s + "' is longer than " + std::to_string(max));
+    if (s.size() > max)
+      throw std::invalid_argument(std::string(what) + " '" + s + "' is longer than " + std::to_string(max));
     if (identifier ? !is_identifier(s) : !is_printable(s)) {
       throw std::invalid_argument(std::string(what) + " '" + s + "' is not " +
                                   (identifier ? "a name (letters, digits, _ . [ ])" : "printable text"));
@@ -138,8 +140,8 @@ class Reader {
   bool take(std::size_t n, const char* what) {
     if (failed()) return false;
     if (left() < n) {
-      fail(std::string("ends inside ") + what + " (" + std::to_string(left()) + " bytes left, " +
-           std::to_string(n) + " needed)");
+      fail(std::string("ends inside ") + what + " (" + std::to_string(left()) + " bytes left, " + std::to_string(n) +
+           " needed)");
       return false;
     }
     return true;
@@ -150,7 +152,8 @@ class Reader {
   }
   uint16_t u16(const char* what) {
     if (!take(2, what)) return 0;
-    const auto v = static_cast<uint16_t>(std::to_integer<unsigned>(in_[at_]) | (std::to_integer<unsigned>(in_[at_ + 1]) << 8));
+    const auto v = static_cast<uint16_t>(std::to_integer<unsigned>(in_[at_]) |
+                                         (std::to_integer<unsigned>(in_[at_ + 1]) << 8));
     at_ += 2;
     return v;
   }
@@ -180,8 +183,8 @@ class Reader {
     if (!take(n, what)) return {};
     std::string s(reinterpret_cast<const char*>(in_.data() + at_), n);
     if (identifier ? !is_identifier(s) : !is_printable(s)) {
-      fail(std::string(what) + (identifier ? " is not a name (letters, digits, _ . [ ], not empty)"
-                                           : " has a control character"));
+      fail(std::string(what) +
+           (identifier ? " is not a name (letters, digits, _ . [ ], not empty)" : " has a control character"));
       return {};
     }
     at_ += n;
@@ -202,7 +205,8 @@ class Reader {
     t.size = u32("type size");
     if (failed()) return false;
     if (t.size > kMaxTypeBytes) {
-      fail("type '" + t.name + "' claims " + std::to_string(t.size) + " bytes, at most " + std::to_string(kMaxTypeBytes));
+      fail("type '" + t.name + "' claims " + std::to_string(t.size) + " bytes, at most " +
+           std::to_string(kMaxTypeBytes));
       return false;
     }
     const std::size_t n = count(kMaxDescriptionFields, "fields");
@@ -329,7 +333,8 @@ std::vector<std::byte> encode_class_description(const ClassDescription& d, std::
     w.f64(p.max);
     w.str(p.default_value, kMaxDescriptionText, false, "default value");
     w.str(p.doc, kMaxDescriptionText, false, "parameter doc");
-    if (p.choices.size() > kMaxDescriptionChoices) throw std::invalid_argument("parameter '" + p.name + "': too many choices");
+    if (p.choices.size() > kMaxDescriptionChoices)
+      throw std::invalid_argument("parameter '" + p.name + "': too many choices");
     w.u8(static_cast<uint8_t>(p.choices.size()));
     for (const auto& c : p.choices) w.str(c, kMaxDescriptionText, false, "choice");
   }
@@ -433,7 +438,8 @@ bool decode_class_description(std::span<const std::byte> bytes, ClassDescription
     if (!r.failed() && n_choices > kMaxDescriptionChoices) {
       r.fail(std::to_string(n_choices) + " choices, at most " + std::to_string(kMaxDescriptionChoices));
     }
-    for (std::size_t j = 0; j < n_choices && !r.failed(); ++j) p.choices.push_back(r.str(kMaxDescriptionText, false, "choice"));
+    for (std::size_t j = 0; j < n_choices && !r.failed(); ++j)
+      p.choices.push_back(r.str(kMaxDescriptionText, false, "choice"));
     if (!r.failed() && out.find_parameter(p.name) != nullptr) r.fail("parameter named twice");
     out.parameters.push_back(std::move(p));
   }
@@ -517,8 +523,8 @@ const char* class_page(std::span<const std::byte> encoded, std::size_t base_size
   }
   if (encoded.empty()) return "GET_CLASS: this component has no class description";
   // Without the optional sections for a client that does not ask for them.
-  const std::size_t total =
-      (q.sections & kClassSectionValueNames) != 0 ? encoded.size() : std::min(base_size, encoded.size());
+  const std::size_t total = (q.sections & kClassSectionValueNames) != 0 ? encoded.size()
+                                                                        : std::min(base_size, encoded.size());
   if (q.offset >= total) return "GET_CLASS: offset past the end of the description";
   header.total = static_cast<uint32_t>(total);
   header.offset = q.offset;

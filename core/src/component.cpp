@@ -59,13 +59,13 @@ void Component::attach(tims::Router& router) {
   router_ = &router;
   log_source_.set_identity(settings_.address, settings_.name);
   sync_log_level();
-  command_mailbox_ = std::make_unique<tims::Mailbox>(settings_.address.with_mailbox(0),
-                                                     settings_.command_slots, command_slot_size_);
+  command_mailbox_ = std::make_unique<tims::Mailbox>(settings_.address.with_mailbox(0), settings_.command_slots,
+                                                     command_slot_size_);
   // Replies to calls made from hooks: GET_DATA replies can be as large as a slot.
   command_reply_mailbox_ = std::make_unique<tims::Mailbox>(settings_.address.with_mailbox(1), 8, 64 * 1024);
   command_reply_mailbox_->set_replies_only(true);  // a request here is refused by the router
-  command_endpoint_ = std::make_unique<tims::Endpoint>(
-      router, *command_reply_mailbox_, message_priority(settings_.command_task.priority));
+  command_endpoint_ = std::make_unique<tims::Endpoint>(router, *command_reply_mailbox_,
+                                                       message_priority(settings_.command_task.priority));
   command_buffer_.assign(command_slot_size_ + 8, std::byte{0});
   param_records_.assign(params_.size(), wire::ParamRecord{});
   router.add(*command_mailbox_);
@@ -349,7 +349,8 @@ void Component::handle_set_param(const MessageHeader& h, std::span<const std::by
     return;
   }
   if (p == log_level_param_ && record.kind == static_cast<uint8_t>(wire::ParamKind::kString) &&
-      !gdos::parse_level(std::string_view(record.string_value, strnlen(record.string_value, sizeof record.string_value)))) {
+      !gdos::parse_level(
+          std::string_view(record.string_value, strnlen(record.string_value, sizeof record.string_value)))) {
     wire::copy_text(text.text, "gdosLevel must be one of ");
     wire::append_text(text.text, gdos::kLevelNames);
     reply_with(h, msg::kError, text);
@@ -376,10 +377,18 @@ void Component::handle_set_param(const MessageHeader& h, std::span<const std::by
     log_print("log level now %s", gdos::describe(log_source_.level()));
   } else {
     switch (static_cast<wire::ParamKind>(value.kind)) {
-      case wire::ParamKind::kInt: log_info("SET_PARAM %s = %lld from %s", p->name().c_str(), static_cast<long long>(value.int_value), h.source()); break;
-      case wire::ParamKind::kBool: log_info("SET_PARAM %s = %s from %s", p->name().c_str(), value.int_value != 0 ? "true" : "false", h.source()); break;
-      case wire::ParamKind::kFloat: log_info("SET_PARAM %s = %g from %s", p->name().c_str(), value.float_value, h.source()); break;
-      case wire::ParamKind::kString: log_info("SET_PARAM %s = \"%s\" from %s", p->name().c_str(), value.string_value, h.source()); break;
+      case wire::ParamKind::kInt:
+        log_info("SET_PARAM %s = %lld from %s", p->name().c_str(), static_cast<long long>(value.int_value), h.source());
+        break;
+      case wire::ParamKind::kBool:
+        log_info("SET_PARAM %s = %s from %s", p->name().c_str(), value.int_value != 0 ? "true" : "false", h.source());
+        break;
+      case wire::ParamKind::kFloat:
+        log_info("SET_PARAM %s = %g from %s", p->name().c_str(), value.float_value, h.source());
+        break;
+      case wire::ParamKind::kString:
+        log_info("SET_PARAM %s = \"%s\" from %s", p->name().c_str(), value.string_value, h.source());
+        break;
     }
   }
   reply(h, msg::kOk);
@@ -388,7 +397,8 @@ void Component::handle_set_param(const MessageHeader& h, std::span<const std::by
 void Component::handle_get_class(const MessageHeader& h, std::span<const std::byte> body) noexcept {
   ClassPageHeader header;
   std::span<const std::byte> page;
-  if (const char* why = class_page(class_description_, class_description_base_, body, tims::body_is_native(h), header, page)) {
+  if (const char* why = class_page(class_description_, class_description_base_, body, tims::body_is_native(h), header,
+                                   page)) {
     if (class_description_.empty()) return reply_error(h, why);
     return reject_malformed(h, why);
   }
@@ -476,8 +486,7 @@ void Component::run_command_task() noexcept {
         break;
       case tims::RecvStatus::kTimeout:
       case tims::RecvStatus::kEmpty:
-      case tims::RecvStatus::kClosed:
-        break;
+      case tims::RecvStatus::kClosed: break;
     }
     if (state() == ComponentState::kError && !init_failed_ && rt::monotonic_ns() >= retry_at_ns_) {
       rt::modeswitch::enter_cycle();

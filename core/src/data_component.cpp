@@ -19,16 +19,14 @@ void bump(std::atomic<uint64_t>& c) noexcept { c.fetch_add(1, std::memory_order_
 uint8_t message_priority(int p) noexcept { return static_cast<uint8_t>(p < 0 ? 0 : (p > 255 ? 255 : p)); }
 }  // namespace
 
-DataComponentBase::DataComponentBase(DataTaskMode mode, uint32_t payload_size,
-                                     std::span<const tims::FieldDesc> fields)
+DataComponentBase::DataComponentBase(DataTaskMode mode, uint32_t payload_size, std::span<const tims::FieldDesc> fields)
     : mode_(mode), payload_size_(payload_size), fields_(fields) {}
 
 void DataComponentBase::attach(tims::Router& router) {
   Component::attach(router);
   const ComponentSettings& settings = this->settings();
   ring_ = std::make_unique<SampleRing>(settings.ring_size, payload_size_);
-  data_reply_mailbox_ = std::make_unique<tims::Mailbox>(address().with_mailbox(kDataReplyMailbox), 8,
-                                                        64 * 1024);
+  data_reply_mailbox_ = std::make_unique<tims::Mailbox>(address().with_mailbox(kDataReplyMailbox), 8, 64 * 1024);
   data_reply_mailbox_->set_replies_only(true);  // a request here is refused by the router
   data_endpoint_ = std::make_unique<tims::Endpoint>(router, *data_reply_mailbox_,
                                                     message_priority(settings.data_task.priority));
@@ -81,8 +79,7 @@ uint64_t DataComponentBase::publish_bytes(const void* sample, int64_t time_ns) n
   return seq;
 }
 
-void DataComponentBase::send_sample(const Listener& l, const wire::SampleHeader& sh,
-                                    const void* payload) noexcept {
+void DataComponentBase::send_sample(const Listener& l, const wire::SampleHeader& sh, const void* payload) noexcept {
   const MessageHeader h = tims::make_header(Address(l.mailbox), address(), msg::kData, l.priority, l.seq,
                                             sizeof sh + payload_size_);
   const ConstBuffer parts[] = {tims::buffer_of(sh), ConstBuffer{payload, payload_size_}};
@@ -92,8 +89,7 @@ void DataComponentBase::send_sample(const Listener& l, const wire::SampleHeader&
 void DataComponentBase::drop_listener_locked(Listener& l, const char* why) noexcept {
   wire::ErrorText text;
   wire::copy_text(text.text, why);
-  const MessageHeader h = tims::make_header(Address(l.mailbox), address(), msg::kError, l.priority, l.seq,
-                                            sizeof text);
+  const MessageHeader h = tims::make_header(Address(l.mailbox), address(), msg::kError, l.priority, l.seq, sizeof text);
   const ConstBuffer part = tims::buffer_of(text);
   (void)router().send(h, std::span<const ConstBuffer>(&part, 1));
   l.active = false;
@@ -115,7 +111,7 @@ void DataComponentBase::leaving_enabled() noexcept {
 
 void DataComponentBase::entered_enabled() noexcept {
   stream_ended_.store(false, std::memory_order_release);  // a new stream
-  inputs_ended_reported_ = false;  // the data task is gated off until loop_enabled_
+  inputs_ended_reported_ = false;                         // the data task is gated off until loop_enabled_
   loop_enabled_.store(true, std::memory_order_seq_cst);
   if (input_mailbox_) input_mailbox_->wake();
 }
@@ -128,11 +124,17 @@ HookResult DataComponentBase::subscribe(Address producer, int64_t period_ns, int
   const Address source = producer.component();
   Subscription* sub = nullptr;
   for (auto& s : subscriptions_) {
-    if (s.active && s.producer == source) { sub = &s; break; }
+    if (s.active && s.producer == source) {
+      sub = &s;
+      break;
+    }
   }
   if (sub == nullptr) {
     for (auto& s : subscriptions_) {
-      if (!s.active) { sub = &s; break; }
+      if (!s.active) {
+        sub = &s;
+        break;
+      }
     }
   }
   // Trusted before the request goes out: the first samples may overtake the reply.
@@ -160,7 +162,7 @@ HookResult DataComponentBase::subscribe(Address producer, int64_t period_ns, int
     char reason[96];
     source.format(reason, sizeof reason);
     wire::append_text(reason, r.status != tims::CallStatus::kOk ? " did not answer GET_CONT_DATA"
-                                                                 : " refused the subscription (GET_CONT_DATA)");
+                                                                : " refused the subscription (GET_CONT_DATA)");
     set_error_reason(reason);
     return HookResult::kError;
   }
@@ -186,15 +188,14 @@ void DataComponentBase::unsubscribe(Address producer) noexcept {
   wire::StopContDataRequest req;
   req.mailbox = input_address().raw();
   alignas(8) std::byte buf[256];
-  (void)command_endpoint().call(source, msg::kStopContData, req, std::span<std::byte>(buf),
-                                settings().rpc_timeout_ns);
+  (void)command_endpoint().call(source, msg::kStopContData, req, std::span<std::byte>(buf), settings().rpc_timeout_ns);
 }
 
 void DataComponentBase::note_input_error(const MessageHeader& header) noexcept {
   char reason[96];
   header.source().component().format(reason, sizeof reason);
   wire::append_text(reason, header.type == msg::kError ? " left ENABLED (its data stopped: it sent ERROR)"
-                                                        : " is not available (its data stopped)");
+                                                       : " is not available (its data stopped)");
   set_error_reason(reason);
 }
 
@@ -272,11 +273,12 @@ void DataComponentBase::report_refused_input() noexcept {
   if (c.forged == refused_reported_.forged && c.requests == refused_reported_.requests) return;
   const int64_t now = rt::monotonic_ns();
   if (refused_logged_ns_ != 0 && now - refused_logged_ns_ < rt::kNsPerSec) return;
-  log_warning("input: refused %llu message(s) not from a subscribed producer and %llu request(s) sent into the data "
-              "mailbox since the last report (the last: type %d from %s)",
-              static_cast<unsigned long long>(c.forged - refused_reported_.forged),
-              static_cast<unsigned long long>(c.requests - refused_reported_.requests), static_cast<int>(c.last_type),
-              Address(c.last_source));
+  log_warning(
+      "input: refused %llu message(s) not from a subscribed producer and %llu request(s) sent into the data "
+      "mailbox since the last report (the last: type %d from %s)",
+      static_cast<unsigned long long>(c.forged - refused_reported_.forged),
+      static_cast<unsigned long long>(c.requests - refused_reported_.requests), static_cast<int>(c.last_type),
+      Address(c.last_source));
   refused_reported_ = c;
   refused_logged_ns_ = now;
 }
@@ -292,8 +294,8 @@ bool DataComponentBase::handle_data_request(const MessageHeader& h, std::span<co
         return true;
       }
       auto* sh = reinterpret_cast<wire::SampleHeader*>(scratch_.data());
-      const RingLookup res =
-          ring_->read(req.time_ns, 2 * effective_period_ns(), *sh, scratch_.data() + sizeof(wire::SampleHeader));
+      const RingLookup res = ring_->read(req.time_ns, 2 * effective_period_ns(), *sh,
+                                         scratch_.data() + sizeof(wire::SampleHeader));
       if (res != RingLookup::kOk) {
         reply_error(h, describe(res));
         return true;
@@ -324,7 +326,10 @@ bool DataComponentBase::handle_data_request(const MessageHeader& h, std::span<co
         rt::PiLock lock(listeners_mutex_);
         Listener* slot = nullptr;
         for (auto& l : listeners_) {
-          if (l.active && !l.oneshot && l.mailbox == req.mailbox) { slot = &l; break; }
+          if (l.active && !l.oneshot && l.mailbox == req.mailbox) {
+            slot = &l;
+            break;
+          }
         }
         if (slot != nullptr) {
           // A renewal or a new period from the same mailbox: the same listener, never a
@@ -336,7 +341,10 @@ bool DataComponentBase::handle_data_request(const MessageHeader& h, std::span<co
           placed = true;
         } else {
           for (auto& l : listeners_) {
-            if (!l.active) { slot = &l; break; }
+            if (!l.active) {
+              slot = &l;
+              break;
+            }
           }
           if (slot == nullptr) {  // full: a listener whose lease ran out gives way
             for (auto& l : listeners_) {
@@ -521,9 +529,10 @@ void DataComponentBase::input_malformed(const tims::MessageHeader& header, std::
     ++input_malformed_suppressed_;
     return;
   }
-  log_warning("input: dropped a DATA message of %u bytes from %s that is not the sample expected (%u more since the "
-              "last report)",
-              static_cast<unsigned>(size), header.source(), static_cast<unsigned>(input_malformed_suppressed_));
+  log_warning(
+      "input: dropped a DATA message of %u bytes from %s that is not the sample expected (%u more since the "
+      "last report)",
+      static_cast<unsigned>(size), header.source(), static_cast<unsigned>(input_malformed_suppressed_));
   input_malformed_logged_ns_ = now;
   input_malformed_suppressed_ = 0;
 }

@@ -146,16 +146,16 @@ void Executor::gdos_pass() {
     }
     if (p->sink) p->sink(r);
     if (p->publisher != nullptr) {
-      p->publisher->add(r.source.raw(), r.name, static_cast<uint8_t>(r.level), r.time_ns, r.sequence,
-                        r.dropped_before, r.text);
+      p->publisher->add(r.source.raw(), r.name, static_cast<uint8_t>(r.level), r.time_ns, r.sequence, r.dropped_before,
+                        r.text);
     }
   });
   if (gdos_publisher_) {
     gdos_publisher_->flush();
     const uint64_t errors = gdos_publisher_->counters().publish_errors;
     if (errors > gdos_errors_reported_) {
-      out += "rackd: GDOS: " + std::to_string(errors - gdos_errors_reported_) + " batch(es) could not be published on " +
-             gdos_publisher_->url() + "\n";
+      out += "rackd: GDOS: " + std::to_string(errors - gdos_errors_reported_) +
+             " batch(es) could not be published on " + gdos_publisher_->url() + "\n";
       gdos_errors_reported_ = errors;
     }
   }
@@ -312,8 +312,9 @@ void Executor::start_steps(const std::string& url) {
     log(gdos::Level::kInfo, "access control: " + std::to_string(access_->rule_count()) + " rule(s), default " +
                                 (access_->default_policy() == tims::AccessDefault::kClosed ? "closed" : "open"));
   } else {
-    log(gdos::Level::kWarning, "access control: the host file has no 'access:' section: every source may send "
-                               "every message to every component here (see configs/access_control.yaml)");
+    log(gdos::Level::kWarning,
+        "access control: the host file has no 'access:' section: every source may send "
+        "every message to every component here (see configs/access_control.yaml)");
   }
   for (auto& v : views_) {
     v.component->attach(router_);
@@ -355,16 +356,17 @@ void Executor::start_steps(const std::string& url) {
       trace_.add_task(c.name() + " command task", c.name(), c.address().raw(), cmd_trace);
       auto cmd = std::make_unique<rt::Thread>();
       gdos::LogRing* cmd_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " command task");
-      const auto how = cmd->start({c.name().substr(0, 11) + ":cmd", s.command_task.priority, s.command_task.cpu,
-                                   s.command_task.stack_bytes, task_cpus(s.command_task)},
-                                  [&c, cmd_ring, cmd_trace, info = watch(s.command_task, ":cmd")] {
-                                    gdos::bind_thread_ring(cmd_ring);
-                                    rt::trace::bind_thread_ring(cmd_trace);
-                                    rt::modeswitch::TaskAttachment attach(info);
-                                    c.command_faults_.mark_started();  // start-up ends here
-                                    c.run_command_task();
-                                  },
-                                  options_.allow_rt_fallback);
+      const auto how = cmd->start(
+          {c.name().substr(0, 11) + ":cmd", s.command_task.priority, s.command_task.cpu, s.command_task.stack_bytes,
+           task_cpus(s.command_task)},
+          [&c, cmd_ring, cmd_trace, info = watch(s.command_task, ":cmd")] {
+            gdos::bind_thread_ring(cmd_ring);
+            rt::trace::bind_thread_ring(cmd_trace);
+            rt::modeswitch::TaskAttachment attach(info);
+            c.command_faults_.mark_started();  // start-up ends here
+            c.run_command_task();
+          },
+          options_.allow_rt_fallback);
       v.realtime = how == rt::ThreadStart::kRealTime;
       v.tasks_started = true;
       fallback_ = fallback_ || how == rt::ThreadStart::kFallback;
@@ -374,16 +376,17 @@ void Executor::start_steps(const std::string& url) {
         trace_.add_task(c.name() + " data task", c.name(), c.address().raw(), data_trace);
         auto data = std::make_unique<rt::Thread>();
         gdos::LogRing* data_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " data task");
-        const auto how2 = data->start({c.name().substr(0, 10) + ":data", s.data_task.priority, s.data_task.cpu,
-                                       s.data_task.stack_bytes, task_cpus(s.data_task)},
-                                      [dc, data_ring, data_trace, info = watch(s.data_task, ":data")] {
-                                        gdos::bind_thread_ring(data_ring);
-                                        rt::trace::bind_thread_ring(data_trace);
-                                        rt::modeswitch::TaskAttachment attach(info);
-                                        static_cast<Component*>(dc)->data_faults_.mark_started();  // start-up ends here
-                                        dc->run_data_task();
-                                      },
-                                      options_.allow_rt_fallback);
+        const auto how2 = data->start(
+            {c.name().substr(0, 10) + ":data", s.data_task.priority, s.data_task.cpu, s.data_task.stack_bytes,
+             task_cpus(s.data_task)},
+            [dc, data_ring, data_trace, info = watch(s.data_task, ":data")] {
+              gdos::bind_thread_ring(data_ring);
+              rt::trace::bind_thread_ring(data_trace);
+              rt::modeswitch::TaskAttachment attach(info);
+              static_cast<Component*>(dc)->data_faults_.mark_started();  // start-up ends here
+              dc->run_data_task();
+            },
+            options_.allow_rt_fallback);
         fallback_ = fallback_ || how2 == rt::ThreadStart::kFallback;
         threads_.push_back(std::move(data));
       }
@@ -461,11 +464,10 @@ void Executor::start_steps(const std::string& url) {
   }
   std::size_t realtime = 0;
   for (const auto& v : views_) realtime += v.realtime ? 1 : 0;
-  log(gdos::Level::kInfo, "host '" + hs.host + "' started " + std::to_string(views_.size()) + " component(s), " +
-                              std::to_string(realtime) + " with SCHED_FIFO tasks" +
-                              (transport_ ? ", TiMS on " + transport_->url() : std::string(", no LCM")) +
-                              (gdos_publisher_ ? ", GDOS on " + gdos_publisher_->url() + " channel " + hs.gdos.channel
-                                               : std::string()));
+  log(gdos::Level::kInfo,
+      "host '" + hs.host + "' started " + std::to_string(views_.size()) + " component(s), " + std::to_string(realtime) +
+          " with SCHED_FIFO tasks" + (transport_ ? ", TiMS on " + transport_->url() : std::string(", no LCM")) +
+          (gdos_publisher_ ? ", GDOS on " + gdos_publisher_->url() + " channel " + hs.gdos.channel : std::string()));
   for (auto& v : views_) {
     Component& c = *v.component;
     if (!c.settings().autostart) continue;
@@ -534,8 +536,7 @@ void Executor::trace_loop() {
     // 10 ms while recording: a ring of 4096 events (trace_ring_events' default) never
     // fills below ~400 events/ms. Otherwise it sleeps until a request comes (or stop()
     // closes the mailbox): an idle executor's trace thread does not wake at all.
-    const int64_t wait =
-        trace_.state() == trace::TraceState::kRecording ? 10 * rt::kNsPerMs : tims::Mailbox::kForever;
+    const int64_t wait = trace_.state() == trace::TraceState::kRecording ? 10 * rt::kNsPerMs : tims::Mailbox::kForever;
     const auto r = trace_mailbox_->receive(std::span<std::byte>(buf), wait);
     if (r.status == tims::RecvStatus::kClosed) break;
     try {
@@ -566,8 +567,7 @@ void Executor::trace_request(const tims::MessageHeader& h, std::span<const std::
   };
   if (!h.is_request()) return;  // replies and notifications: never answered
   // A body in the other byte order (a big-endian rackctl): its integers are swapped.
-  const bool swapped =
-      ((h.flags & tims::kFlagBodyLittleEndian) != 0) != tims::kHostLittleEndian;
+  const bool swapped = ((h.flags & tims::kFlagBodyLittleEndian) != 0) != tims::kHostLittleEndian;
   if (h.type == trace::kTraceStart) {
     const trace::DecodedStart req = trace::decode_start(body, swapped);
     if (!req.ok) {
@@ -632,7 +632,8 @@ std::string Executor::status_report() const {
                     "published %llu, listeners %llu\n",
                     c.name().c_str(), c.address().str().c_str(), describe(c.state()),
                     static_cast<unsigned long long>(s.data.cycles), static_cast<unsigned long long>(s.data.overruns),
-                    static_cast<long long>(s.data.latency_p50_ns / 1000), static_cast<long long>(s.data.latency_p99_ns / 1000),
+                    static_cast<long long>(s.data.latency_p50_ns / 1000),
+                    static_cast<long long>(s.data.latency_p99_ns / 1000),
                     static_cast<long long>(s.data.latency_max_ns / 1000), static_cast<unsigned long long>(s.published),
                     static_cast<unsigned long long>(s.listeners));
     } else if (c.data_task_mode() == DataTaskMode::kTriggered) {
@@ -676,12 +677,13 @@ std::string Executor::status_report() const {
   {
     const auto g = hub_.counters();
     char line[256];
-    std::snprintf(line, sizeof line, "  GDOS: records %llu, dropped in full rings %llu", static_cast<unsigned long long>(g.records),
-                  static_cast<unsigned long long>(g.dropped));
+    std::snprintf(line, sizeof line, "  GDOS: records %llu, dropped in full rings %llu",
+                  static_cast<unsigned long long>(g.records), static_cast<unsigned long long>(g.dropped));
     out += line;
     if (gdos_publisher_) {
       const auto p = gdos_publisher_->counters();
-      std::snprintf(line, sizeof line, ", published %llu in %llu batches, publish errors %llu, listener messages refused %llu",
+      std::snprintf(line, sizeof line,
+                    ", published %llu in %llu batches, publish errors %llu, listener messages refused %llu",
                     static_cast<unsigned long long>(p.records), static_cast<unsigned long long>(p.batches),
                     static_cast<unsigned long long>(p.publish_errors), static_cast<unsigned long long>(p.refused));
       out += line;
@@ -697,8 +699,7 @@ std::string Executor::status_report() const {
                   "undeliverable %llu, sequence gaps %llu, lost %llu, forwarded %llu, not available %llu, hosts %zu, "
                   "expired %llu, subscriptions failed %llu\n",
                   u(t.packets_in), u(t.packets_out), u(t.malformed), u(t.forged), u(t.auth_failed), u(t.replayed),
-                  u(t.delivery_failed),
-                  u(t.sequence_gaps), u(t.lost_messages), u(t.forwarded), u(t.not_available),
+                  u(t.delivery_failed), u(t.sequence_gaps), u(t.lost_messages), u(t.forwarded), u(t.not_available),
                   transport_->hosts().size(), u(t.hosts_expired), u(t.subscriptions_failed));
     out += line;
     // What was refused, by kind (README: "What the network may not do"); parsed by tests.
@@ -766,8 +767,7 @@ std::string Executor::thread_report() const {
     if (!v.tasks_started) continue;
     const Component& c = *v.component;
     const ComponentSettings& s = c.settings();
-    tasks.push_back({c.command_task_faults().tid(),
-                     s.command_task.priority > 0 ? "RT task" : "task, not RT"});
+    tasks.push_back({c.command_task_faults().tid(), s.command_task.priority > 0 ? "RT task" : "task, not RT"});
     if (c.data_task_mode() != DataTaskMode::kNone) {
       tasks.push_back({c.data_task_faults().tid(), s.data_task.priority > 0 ? "RT task" : "task, not RT"});
     }
@@ -793,8 +793,7 @@ std::string Executor::thread_report() const {
     }
     char line[160];
     std::snprintf(line, sizeof line, "  %7d  %-15s  %-8s  CPUs %-8s  %s\n", static_cast<int>(tid),
-                  thread_name(tid).c_str(), sched.c_str(), rt::cpu_list_string(thread_cpus(tid)).c_str(),
-                  role.c_str());
+                  thread_name(tid).c_str(), sched.c_str(), rt::cpu_list_string(thread_cpus(tid)).c_str(), role.c_str());
     out += line;
   }
   return out;

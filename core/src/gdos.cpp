@@ -142,8 +142,9 @@ bool format_values(std::string_view fmt, const Value* values, std::size_t count,
     std::size_t k = 0;
     spec[k++] = '%';
     std::size_t j = c.begin + 1;
-    while (j < c.end - 1 && (fmt[j] == '-' || fmt[j] == '+' || fmt[j] == ' ' || fmt[j] == '#' || fmt[j] == '0' ||
-                             fmt[j] == '\'') && k < 16) {
+    while (j < c.end - 1 &&
+           (fmt[j] == '-' || fmt[j] == '+' || fmt[j] == ' ' || fmt[j] == '#' || fmt[j] == '0' || fmt[j] == '\'') &&
+           k < 16) {
       spec[k++] = fmt[j++];
     }
     if (c.star_width) {
@@ -409,8 +410,8 @@ std::size_t Hub::drain(const std::function<void(const Record&)>& sink) {
     const std::string_view name = h.source != nullptr ? std::string_view(h.source->name()) : std::string_view();
     if (h.dropped_before > 0) {
       // Report the loss where it happened, before the record that follows it.
-      scratch_ = std::to_string(h.dropped_before) + " log record(s) dropped: the log ring of " + ring.owner() +
-                 " (" + std::to_string(ring.capacity()) + " records) was full";
+      scratch_ = std::to_string(h.dropped_before) + " log record(s) dropped: the log ring of " + ring.owner() + " (" +
+                 std::to_string(ring.capacity()) + " records) was full";
       Record r;
       r.level = Level::kWarning;
       r.mono_ns = h.mono_ns;

@@ -29,11 +29,20 @@ std::size_t utf8_sequence(std::string_view text, std::size_t i, uint32_t& cp) {
   const auto b = [&](std::size_t k) { return static_cast<unsigned char>(text[i + k]); };
   const unsigned char c = b(0);
   std::size_t n = 0;
-  if (c < 0x80) { cp = c; return 1; }
-  if (c >= 0xC2 && c <= 0xDF) { n = 2; cp = c & 0x1Fu; }
-  else if (c >= 0xE0 && c <= 0xEF) { n = 3; cp = c & 0x0Fu; }
-  else if (c >= 0xF0 && c <= 0xF4) { n = 4; cp = c & 0x07u; }
-  else return 0;
+  if (c < 0x80) {
+    cp = c;
+    return 1;
+  }
+  if (c >= 0xC2 && c <= 0xDF) {
+    n = 2;
+    cp = c & 0x1Fu;
+  } else if (c >= 0xE0 && c <= 0xEF) {
+    n = 3;
+    cp = c & 0x0Fu;
+  } else if (c >= 0xF0 && c <= 0xF4) {
+    n = 4;
+    cp = c & 0x07u;
+  } else return 0;
   if (i + n > text.size()) return 0;
   for (std::size_t k = 1; k < n; ++k) {
     if ((b(k) & 0xC0u) != 0x80u) return 0;
@@ -68,7 +77,9 @@ std::string unclean_text(std::string_view text) {
   for (std::size_t i = 0; i < text.size();) {
     uint32_t cp = 0;
     const std::size_t n = utf8_sequence(text, i, cp);
-    if (n == 0) return "invalid UTF-8 (byte " + byte_text(static_cast<unsigned char>(text[i])) + " at offset " + std::to_string(i) + ")";
+    if (n == 0)
+      return "invalid UTF-8 (byte " + byte_text(static_cast<unsigned char>(text[i])) + " at offset " +
+             std::to_string(i) + ")";
     if (cp == 0) return "a NUL byte at offset " + std::to_string(i);
     if (is_control(cp)) return "a control character (" + code_point_text(cp) + ") at offset " + std::to_string(i);
     i += n;
@@ -268,8 +279,8 @@ struct HostLoader {
     int64_t v = 0;
     if (!get(map, key, v, what)) return false;
     if (v < lo || v > hi) {
-      error(map[key].Mark(), std::string("'") + key + "' = " + std::to_string(v) + " is outside " +
-                                 std::to_string(lo) + ".." + std::to_string(hi));
+      error(map[key].Mark(), std::string("'") + key + "' = " + std::to_string(v) + " is outside " + std::to_string(lo) +
+                                 ".." + std::to_string(hi));
       return false;
     }
     out = v;
@@ -341,9 +352,10 @@ struct HostLoader {
       error(node.Mark(), "'modeswitch' must be a map (mode, abort, crash_dir, ...)");
       return;
     }
-    check_keys(node, {"mode", "abort", "crash_dir", "crash_handlers", "syscalls", "faults", "allocations",
-                      "locks", "rusage", "lock_wait_us", "watchdog_periods", "rttime_ms", "allow_syscalls",
-                      "stderr", "stderr_per_second", "repeat_ms"},
+    check_keys(node,
+               {"mode", "abort", "crash_dir", "crash_handlers", "syscalls", "faults", "allocations", "locks", "rusage",
+                "lock_wait_us", "watchdog_periods", "rttime_ms", "allow_syscalls", "stderr", "stderr_per_second",
+                "repeat_ms"},
                "modeswitch");
     if (node["mode"]) {
       if (const auto m = get_mode(node, "mode")) c.default_mode = *m;
@@ -352,7 +364,9 @@ struct HostLoader {
     if (get(node, "abort", text, "component or process")) {
       if (text == "component") c.abort_action = rt::modeswitch::AbortAction::kComponent;
       else if (text == "process") c.abort_action = rt::modeswitch::AbortAction::kProcess;
-      else error(node["abort"].Mark(), "'abort' must be component (to ERROR) or process (abort, core dump), got '" + text + "'");
+      else
+        error(node["abort"].Mark(),
+              "'abort' must be component (to ERROR) or process (abort, core dump), got '" + text + "'");
     }
     if (get(node, "crash_dir", text, "a directory")) {
       if (text.empty()) error(node["crash_dir"].Mark(), "'crash_dir' must not be empty");
@@ -413,15 +427,17 @@ struct HostLoader {
   }
 
   void check_url(const YAML::Node& map, const char* key, const std::string& url) {
-    if (const auto u = tims::parse_lcm_url(url); !u.ok()) error(map[key].Mark(), std::string("'") + key + "': " + u.error);
+    if (const auto u = tims::parse_lcm_url(url); !u.ok())
+      error(map[key].Mark(), std::string("'") + key + "': " + u.error);
   }
 
   // The raw bytes, before YAML sees them: size, NUL bytes, UTF-8, control characters
   // (tab, newline and carriage return aside). False: not parsed at all.
   bool check_text(std::string_view text) {
     if (text.size() > kMaxHostFileBytes) {
-      errors.push_back({file, 0, 0, "the host file has " + std::to_string(text.size()) + " bytes: at most " +
-                                        std::to_string(kMaxHostFileBytes) + " are read"});
+      errors.push_back({file, 0, 0,
+                        "the host file has " + std::to_string(text.size()) + " bytes: at most " +
+                            std::to_string(kMaxHostFileBytes) + " are read"});
       return false;
     }
     int line = 1, column = 1;
@@ -463,8 +479,9 @@ struct HostLoader {
     // ignored: yaml-cpp's Load would read the first and drop the rest unseen.
     try {
       if (parser.HandleNextDocument(events)) {
-        error(events.second_document, "a second YAML document: a host file is one document (remove the '---' and "
-                                      "what follows)");
+        error(events.second_document,
+              "a second YAML document: a host file is one document (remove the '---' and "
+              "what follows)");
       }
     } catch (const YAML::Exception& e) {
       error(e.mark, "after the host file's document: a host file is one document (YAML syntax: " + e.msg + ")");
@@ -500,8 +517,9 @@ struct HostLoader {
     HostSettings& hs = host->settings;
     hs.file = file;
     base_dir = host_file_folder(file);
-    check_keys(root, {"host", "system", "host_id", "require_rt", "lcm", "lcm_url", "heap_prefault_mib",
-                      "cpu_dma_latency_us", "trace_ring_events", "cpus", "plugins", "modeswitch", "components", "gdos", "tims", "access"},
+    check_keys(root,
+               {"host", "system", "host_id", "require_rt", "lcm", "lcm_url", "heap_prefault_mib", "cpu_dma_latency_us",
+                "trace_ring_events", "cpus", "plugins", "modeswitch", "components", "gdos", "tims", "access"},
                "the host file");
     char hostname[256] = {};
     gethostname(hostname, sizeof hostname - 1);
@@ -528,8 +546,8 @@ struct HostLoader {
     }
     if (get_int_range(root, "trace_ring_events", 16, 1 << 20, v, "a number of events (a power of two)")) {
       if ((v & (v - 1)) != 0) {
-        error(root["trace_ring_events"].Mark(), "'trace_ring_events' = " + std::to_string(v) +
-                                                    " is not a power of two (e.g. 1024, 4096, 16384)");
+        error(root["trace_ring_events"].Mark(),
+              "'trace_ring_events' = " + std::to_string(v) + " is not a power of two (e.g. 1024, 4096, 16384)");
       } else {
         hs.trace_ring_events = static_cast<std::size_t>(v);
       }
@@ -542,8 +560,14 @@ struct HostLoader {
         error(plugins.Mark(), "'plugins' must be a list of plug-in directories or shared library paths");
       } else {
         for (const auto& p : plugins) {
-          if (!p.IsScalar()) { error(p.Mark(), "a plug-in is a path"); continue; }
-          if (p.Scalar().empty()) { error(p.Mark(), "a plug-in path must not be empty"); continue; }
+          if (!p.IsScalar()) {
+            error(p.Mark(), "a plug-in is a path");
+            continue;
+          }
+          if (p.Scalar().empty()) {
+            error(p.Mark(), "a plug-in path must not be empty");
+            continue;
+          }
           if (!options.open_files) continue;
           const std::string path = resolve_path(base_dir, p.Scalar());
           // A directory is searched for plug-in classes by name (<Class>.rack-class,
@@ -596,7 +620,8 @@ struct HostLoader {
     std::string text;
     if (get(g, "level", text, std::string("a GDOS level (") + gdos::kLevelNames + ")")) {
       if (const auto l = gdos::parse_level(text)) out.level = *l;
-      else error(g["level"].Mark(), "'level' must be one of " + std::string(gdos::kLevelNames) + ", got '" + text + "'");
+      else
+        error(g["level"].Mark(), "'level' must be one of " + std::string(gdos::kLevelNames) + ", got '" + text + "'");
     }
     if (get(g, "stderr", text, "always, auto or never")) {
       if (text == "always") out.to_stderr = GdosSettings::Stderr::kAlways;
@@ -834,21 +859,23 @@ struct HostLoader {
       bool robot = false, fleet = false;
       for (const auto& nc : hs.networks) (nc.scope == tims::NetworkScope::kRobot ? robot : fleet) = true;
       if (!robot || !fleet) {
-        error(nets.Mark(), "a system_router bridges its robot's network and the fleet network: list one of "
-                           "each (scope: robot, scope: fleet)");
+        error(nets.Mark(),
+              "a system_router bridges its robot's network and the fleet network: list one of "
+              "each (scope: robot, scope: fleet)");
       }
     }
   }
 
   // A `to`/`from` entry: a component name of this host file, an address pattern
   // (rack/tims/access.h: parse_address_mask), or (from only) local / network.
-  bool read_access_addresses(const YAML::Node& node, const char* key,
-                             std::vector<tims::AddressMask>& out, tims::AccessRuleConfig* rule) {
+  bool read_access_addresses(const YAML::Node& node, const char* key, std::vector<tims::AddressMask>& out,
+                             tims::AccessRuleConfig* rule) {
     const YAML::Node n = node[key];
     if (!n) return false;
     std::vector<YAML::Node> items;
     if (n.IsScalar()) items.push_back(n);
-    else if (n.IsSequence()) for (const auto& i : n) items.push_back(i);
+    else if (n.IsSequence())
+      for (const auto& i : n) items.push_back(i);
     else {
       error(n.Mark(), std::string("'") + key + "' must be a name, an address pattern or a list of them");
       return false;
@@ -859,8 +886,14 @@ struct HostLoader {
         continue;
       }
       const std::string text = i.Scalar();
-      if (rule != nullptr && text == "local") { rule->from_local = true; continue; }
-      if (rule != nullptr && text == "network") { rule->from_network = true; continue; }
+      if (rule != nullptr && text == "local") {
+        rule->from_local = true;
+        continue;
+      }
+      if (rule != nullptr && text == "network") {
+        rule->from_network = true;
+        continue;
+      }
       if (const auto it = component_addresses.find(text); it != component_addresses.end()) {
         out.push_back({it->second.component().raw(), 0xFFFFFF00u});  // all its mailboxes
         continue;
@@ -930,23 +963,25 @@ struct HostLoader {
       read_access_addresses(r, "from", rc.from, &rc);
       for (const char* k : {"to", "from"}) {
         if (r[k] && r[k].IsSequence() && r[k].size() > tims::AccessControl::kMaxMasks) {
-          error(r[k].Mark(), std::string("at most ") + std::to_string(tims::AccessControl::kMaxMasks) + " entries in '" +
-                                 k + "'");
+          error(r[k].Mark(),
+                std::string("at most ") + std::to_string(tims::AccessControl::kMaxMasks) + " entries in '" + k + "'");
         }
       }
       if (const YAML::Node t = r["types"]) {
         rc.any_type = false;
         std::vector<YAML::Node> items;
         if (t.IsScalar()) items.push_back(t);
-        else if (t.IsSequence()) for (const auto& i : t) items.push_back(i);
+        else if (t.IsSequence())
+          for (const auto& i : t) items.push_back(i);
         else error(t.Mark(), "'types' must be a list of message types (names such as get_status, or numbers)");
         for (const auto& i : items) {
           int8_t type = 0;
           if (!i.IsScalar() || !tims::parse_message_type(i.Scalar(), type)) {
-            error(i.Mark(), "'" + (i.IsScalar() ? i.Scalar() : std::string("?")) +
-                                "' is not a message type (on, off, get_status, get_data, get_cont_data, "
-                                "stop_cont_data, get_next_data, get_param, set_param, get_stats, get_latency, a reply name "
-                                "such as data, or a number -128..127)");
+            error(i.Mark(),
+                  "'" + (i.IsScalar() ? i.Scalar() : std::string("?")) +
+                      "' is not a message type (on, off, get_status, get_data, get_cont_data, "
+                      "stop_cont_data, get_next_data, get_param, set_param, get_stats, get_latency, a reply name "
+                      "such as data, or a number -128..127)");
             continue;
           }
           rc.types.set(static_cast<std::size_t>(type + 128));
@@ -987,26 +1022,33 @@ struct HostLoader {
         error(node.Mark(), "a component is a map (name, class, instance, tasks, params)");
         continue;
       }
-      check_keys(node, {"name", "class", "instance", "autostart", "retry_ms", "rpc_timeout_ms", "rpc_retries",
-                        "command_task", "data_task", "params"},
+      check_keys(node,
+                 {"name", "class", "instance", "autostart", "retry_ms", "rpc_timeout_ms", "rpc_retries", "command_task",
+                  "data_task", "params"},
                  "a component");
       std::string name, impl;
-      if (!node["name"]) { error(node.Mark(), "component without 'name'"); continue; }
+      if (!node["name"]) {
+        error(node.Mark(), "component without 'name'");
+        continue;
+      }
       if (!get(node, "name", name, "a name")) continue;
       if (!valid_name(name)) {
         error(node["name"].Mark(), "component name '" + printable(name) + "' must be 1.." +
                                        std::to_string(kMaxNameLength) + " letters, digits, '_' or '-'");
         continue;
       }
-      if (!node["class"]) { error(node.Mark(), "component '" + name + "' has no 'class'"); continue; }
+      if (!node["class"]) {
+        error(node.Mark(), "component '" + name + "' has no 'class'");
+        continue;
+      }
       if (!get(node, "class", impl, "a component class name")) continue;
       // A class that is not built in is looked up as a plug-in by its name and loaded
       // (only when files may be opened: --check does, a fuzz run does not).
       std::string why;
       const ComponentClass* cls = options.open_files ? registry.resolve(impl, why) : registry.find(impl);
       if (cls == nullptr) {
-        error(node["class"].Mark(), why.empty() ? "unknown component class '" + impl + "' (known: " + registry.names() + ")"
-                                                : why);
+        error(node["class"].Mark(),
+              why.empty() ? "unknown component class '" + impl + "' (known: " + registry.names() + ")" : why);
         continue;
       }
       ComponentSettings s;
@@ -1034,7 +1076,7 @@ struct HostLoader {
       // as defaults: before the host file's values are set below.
       try {
         component->class_description_ = encode_class_description(describe_class(*cls, component->parameters()),
-                                                                  &component->class_description_base_);
+                                                                 &component->class_description_base_);
       } catch (const std::exception& e) {
         error(node["class"].Mark(), "class '" + impl + "' cannot be described to tools: " + e.what());
         continue;
@@ -1045,7 +1087,8 @@ struct HostLoader {
         else {
           read_task(ct, s.command_task, "command_task", {"slots"});
           int64_t slots = 0;
-          if (get_int_range(ct, "slots", 1, 4096, slots, "a slot count")) s.command_slots = static_cast<uint32_t>(slots);
+          if (get_int_range(ct, "slots", 1, 4096, slots, "a slot count"))
+            s.command_slots = static_cast<uint32_t>(slots);
         }
       }
       const YAML::Node dt = node["data_task"];
@@ -1053,8 +1096,8 @@ struct HostLoader {
         if (dt) error(dt.Mark(), "class '" + impl + "' has no data task");
       } else if (!dt) {
         if (mode == DataTaskMode::kPeriodic) {
-          error(node.Mark(), "component '" + name + "': class '" + impl +
-                                 "' has a periodic data task: give data_task.period_ms");
+          error(node.Mark(),
+                "component '" + name + "': class '" + impl + "' has a periodic data task: give data_task.period_ms");
         }
       } else if (!dt.IsMap()) {
         error(dt.Mark(), "'data_task' must be a map");
@@ -1065,7 +1108,8 @@ struct HostLoader {
         read_task(dt, s.data_task, "data_task of a " + std::string(describe(mode)) + " class", extra, 0);
         int64_t n = 0;
         if (get_int_range(dt, "ring", 2, 1'000'000, n, "a sample count")) s.ring_size = static_cast<uint32_t>(n);
-        if (get_int_range(dt, "max_listeners", 1, 1024, n, "a listener count")) s.max_listeners = static_cast<uint32_t>(n);
+        if (get_int_range(dt, "max_listeners", 1, 1024, n, "a listener count"))
+          s.max_listeners = static_cast<uint32_t>(n);
         if (get_int_range(dt, "lease_ms", 100, 86'400'000, n, "a lease of 100..86400000 ms")) {
           s.lease_ns = n * rt::kNsPerMs;
         }
@@ -1078,8 +1122,8 @@ struct HostLoader {
           if (double ms = 0; dt["phase_ms"] && get(dt, "phase_ms", ms, "a number of milliseconds")) {
             const auto ns = static_cast<int64_t>(std::llround(ms * 1e6));
             if (!(ms >= 0) || !std::isfinite(ms) || (s.period_ns > 0 && ns >= s.period_ns)) {
-              error(dt["phase_ms"].Mark(), "'phase_ms' = " + dt["phase_ms"].Scalar() +
-                                               " must be at least 0 and below period_ms");
+              error(dt["phase_ms"].Mark(),
+                    "'phase_ms' = " + dt["phase_ms"].Scalar() + " must be at least 0 and below period_ms");
             } else {
               s.phase_ns = ns;
             }
@@ -1106,8 +1150,8 @@ struct HostLoader {
             const std::string key = it->first.Scalar();
             Parameter* param = params.find(key.c_str());
             if (param == nullptr) {
-              error(it->first.Mark(), "unknown parameter '" + key + "' for class '" + impl +
-                                          "' (known: " + params.names() + ")");
+              error(it->first.Mark(),
+                    "unknown parameter '" + key + "' for class '" + impl + "' (known: " + params.names() + ")");
               continue;
             }
             if (!it->second.IsScalar()) {
@@ -1126,13 +1170,14 @@ struct HostLoader {
       }
       // The host's default log level for components that do not set their own.
       if (given.count(Component::kLogLevelParam) == 0) {
-        if (Parameter* lp = params.find(Component::kLogLevelParam)) (void)lp->set_from_text(gdos::describe(host.settings.gdos.level));
+        if (Parameter* lp = params.find(Component::kLogLevelParam))
+          (void)lp->set_from_text(gdos::describe(host.settings.gdos.level));
       }
       for (std::size_t i = 0; i < params.size(); ++i) {
         const Parameter& prm = params.at(i);
         if (prm.spec().required && given.count(prm.name()) == 0) {
-          error(node.Mark(), "component '" + name + "': missing required parameter '" + prm.name() +
-                                 "' (" + prm.spec().doc + ")");
+          error(node.Mark(),
+                "component '" + name + "': missing required parameter '" + prm.name() + "' (" + prm.spec().doc + ")");
         }
       }
       if (options.check_paths) check_parameter_paths(node, name, params, given_marks);
@@ -1148,9 +1193,8 @@ struct HostLoader {
         continue;
       }
       if (const auto it = by_address.find(s.address.raw()); it != by_address.end()) {
-        error(node.Mark(), "component '" + name + "' has the address " + s.address.str() +
-                               " of component '" + pending[it->second].component->name() +
-                               "' (give another 'instance')");
+        error(node.Mark(), "component '" + name + "' has the address " + s.address.str() + " of component '" +
+                               pending[it->second].component->name() + "' (give another 'instance')");
         continue;
       }
       p.component->settings_ = s;

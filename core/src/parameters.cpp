@@ -79,7 +79,8 @@ bool Parameter::resolve(const char* text, std::size_t len, char (&out)[wire::kPa
   // RT-safe: string_views over the value and base_dir_ (set-up data), copies into `out`.
   std::string_view rest(text, len);
   const bool relative = spec_.path != PathRole::kNone && !base_dir_.empty() && !rest.empty() && rest.front() != '/' &&
-                        !(spec_.path == PathRole::kDevice && rest.find_first_not_of("0123456789") == std::string_view::npos);
+                        !(spec_.path == PathRole::kDevice &&
+                          rest.find_first_not_of("0123456789") == std::string_view::npos);
   std::size_t n = 0;
   const auto put = [&](std::string_view part) noexcept {
     if (n + part.size() >= sizeof out) return false;
@@ -181,14 +182,14 @@ std::optional<std::string> Parameter::set_from_text(const std::string& text) {
         return "parameter '" + name_ + "' must be one of " + list + ", got '" + text + "'";
       }
       if (text.size() >= wire::kParamStringLen) {
-        return "parameter '" + name_ + "' is longer than " +
-               std::to_string(wire::kParamStringLen - 1) + " characters";
+        return "parameter '" + name_ + "' is longer than " + std::to_string(wire::kParamStringLen - 1) + " characters";
       }
       char buf[wire::kParamStringLen] = {};
       if (!resolve(text.data(), text.size(), buf)) {
         // A relative path fitted, the absolute one it names (against the host file's folder) does not.
         return "parameter '" + name_ + "': the path " + resolve_path(base_dir_, text) + " is longer than " +
-               std::to_string(wire::kParamStringLen - 1) + " characters (a relative path is taken from the host file's folder)";
+               std::to_string(wire::kParamStringLen - 1) +
+               " characters (a relative path is taken from the host file's folder)";
       }
       store_string(buf, strnlen(buf, sizeof buf));
       break;
@@ -350,8 +351,7 @@ Parameter& ParameterSet::declare_bool(const std::string& name, bool initial, Par
   return p;
 }
 
-Parameter& ParameterSet::declare_string(const std::string& name, const std::string& initial,
-                                        Parameter::Spec spec) {
+Parameter& ParameterSet::declare_string(const std::string& name, const std::string& initial, Parameter::Spec spec) {
   Parameter& p = add(name, ParamKind::kString, std::move(spec));
   if (auto err = p.set_from_text(initial)) throw std::invalid_argument(*err);
   return p;

@@ -116,8 +116,7 @@ std::string number(const tims::FieldDesc& f, const std::byte* p) {
 
 }  // namespace
 
-std::string payload_to_json(std::span<const tims::FieldDesc> fields, std::span<const std::byte> body,
-                            bool native) {
+std::string payload_to_json(std::span<const tims::FieldDesc> fields, std::span<const std::byte> body, bool native) {
   std::vector<std::byte> copy(body.begin(), body.end());
   if (!native) tims::swap_fields(fields, copy.data(), copy.size());
   std::string out = "{";
@@ -233,8 +232,7 @@ std::string store_element(const tims::FieldDesc& f, std::byte* p, const std::str
 
 }  // namespace
 
-std::string set_field_from_text(const tims::FieldDesc& field, std::span<std::byte> payload,
-                                const std::string& text) {
+std::string set_field_from_text(const tims::FieldDesc& field, std::span<std::byte> payload, const std::string& text) {
   const uint32_t w = tims::field_kind_size(field.kind);
   if (field.offset + std::size_t{w} * field.count > payload.size()) return "the field lies beyond the payload";
   std::byte* base = payload.data() + field.offset;

@@ -89,25 +89,43 @@ bool read_plugin_manifest(const std::string& path, PluginClassInfo& out, std::st
     pos = end + 1;
     ++line_no;
     const std::string where = path + ":" + std::to_string(line_no) + ": ";
-    if (line.size() > kMaxManifestLine) { error = where + "line longer than 512 bytes"; return false; }
-    if (!printable_text(line)) { error = where + "control character in the line"; return false; }
+    if (line.size() > kMaxManifestLine) {
+      error = where + "line longer than 512 bytes";
+      return false;
+    }
+    if (!printable_text(line)) {
+      error = where + "control character in the line";
+      return false;
+    }
     if (line.empty() || line[0] == '#') continue;
     const auto space = line.find(' ');
     const std::string key = line.substr(0, space);
     const std::string value = space == std::string::npos ? std::string() : line.substr(space + 1);
     if (key == "class") {
-      if (!valid_class_name(value)) { error = where + "'class' needs a class name (letters, digits, '_')"; return false; }
+      if (!valid_class_name(value)) {
+        error = where + "'class' needs a class name (letters, digits, '_')";
+        return false;
+      }
       out.impl = value;
     } else if (key == "library") {
-      if (value.empty()) { error = where + "'library' needs a file name"; return false; }
+      if (value.empty()) {
+        error = where + "'library' needs a file name";
+        return false;
+      }
       out.library = value[0] == '/' ? value : dir_of(path) + "/" + value;
     } else if (key == "summary") {
       out.summary = value;
     } else if (key == "lock_dependencies") {
-      if (value != "yes" && value != "no") { error = where + "'lock_dependencies' is yes or no"; return false; }
+      if (value != "yes" && value != "no") {
+        error = where + "'lock_dependencies' is yes or no";
+        return false;
+      }
       out.lock_dependencies = value == "yes";
     } else if (key == "interface") {
-      if (!valid_class_name(value)) { error = where + "'interface' needs a TiMS class name"; return false; }
+      if (!valid_class_name(value)) {
+        error = where + "'interface' needs a TiMS class name";
+        return false;
+      }
       out.interface_name = value;
     } else {
       error = where + "unknown key '" + key + "' (class, interface, library, summary, lock_dependencies)";
@@ -127,13 +145,14 @@ void ComponentRegistry::add(ComponentClass cls) {
   if (classes_.count(name) != 0) throw std::invalid_argument("component class '" + name + "' registered twice");
   if (!cls.interface_name.empty() && !tims::register_class_name(cls.class_id, cls.interface_name)) {
     const char* taken = tims::class_name(cls.class_id);
-    throw std::invalid_argument("component class '" + name + "': TiMS class 0x" +
-                                [](uint8_t v) {
-                                  constexpr char kHex[] = "0123456789abcdef";
-                                  return std::string{kHex[v >> 4], kHex[v & 15]};
-                                }(cls.class_id) +
-                                " cannot be named '" + cls.interface_name + "'" +
-                                (taken != nullptr ? std::string(" (it is '") + taken + "')" : std::string(" (name taken)")));
+    throw std::invalid_argument(
+        "component class '" + name + "': TiMS class 0x" +
+        [](uint8_t v) {
+          constexpr char kHex[] = "0123456789abcdef";
+          return std::string{kHex[v >> 4], kHex[v & 15]};
+        }(cls.class_id) +
+        " cannot be named '" + cls.interface_name + "'" +
+        (taken != nullptr ? std::string(" (it is '") + taken + "')" : std::string(" (name taken)")));
   }
   classes_.emplace(name, std::move(cls));
 }

@@ -8,9 +8,7 @@ namespace {
 uint64_t load(const uint64_t* p) noexcept {
   return std::atomic_ref<uint64_t>(*const_cast<uint64_t*>(p)).load(std::memory_order_relaxed);
 }
-void store(uint64_t* p, uint64_t v) noexcept {
-  std::atomic_ref<uint64_t>(*p).store(v, std::memory_order_relaxed);
-}
+void store(uint64_t* p, uint64_t v) noexcept { std::atomic_ref<uint64_t>(*p).store(v, std::memory_order_relaxed); }
 uint64_t load_acquire(const uint64_t* p) noexcept {
   return std::atomic_ref<uint64_t>(*const_cast<uint64_t*>(p)).load(std::memory_order_acquire);
 }
@@ -108,8 +106,12 @@ RingLookup SampleRing::read(int64_t time_ns, int64_t max_ahead_ns, wire::SampleH
         while (lo < hi) {
           const uint64_t mid = lo + (hi - lo) / 2;
           int64_t t = 0;
-          if (!read_time(mid, t)) { ok = false; break; }
-          if (t < time_ns) lo = mid + 1; else hi = mid;
+          if (!read_time(mid, t)) {
+            ok = false;
+            break;
+          }
+          if (t < time_ns) lo = mid + 1;
+          else hi = mid;
         }
         if (!ok) continue;
         pick = lo;

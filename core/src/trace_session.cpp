@@ -209,9 +209,7 @@ std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFor
           w.raw(",\"s\":\"t\",\"args\":{\"latency_us\":" + us_text(e.time_ns - e.value) + "}");
           w.end();
           break;
-        case Kind::kCycleStart:
-          start_ns = e.time_ns;
-          break;
+        case Kind::kCycleStart: start_ns = e.time_ns; break;
         case Kind::kCycleEnd: {
           if (start_ns < 0) break;  // its start came before the trace
           w.begin("X", cycle_name, "cycle", t.tid);
@@ -245,14 +243,14 @@ std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFor
           const int type = rt::trace::aux_type(e.aux);
           w.begin("i", std::string(send ? "send to " : "receive from ") + name_of(e.peer), "message", t.tid);
           w.ts("ts", e.time_ns);
-          w.raw(",\"s\":\"t\",\"args\":{\"" + std::string(send ? "to" : "from") + "\":\"" + json_escape(name_of(e.peer)) +
-                "\",\"" + std::string(send ? "from" : "to") + "\":\"" + json_escape(name_of(e.self)) +
-                "\",\"type\":" + std::to_string(type) + ",\"seq\":" + std::to_string(rt::trace::aux_seq(e.aux)) + "}");
+          w.raw(",\"s\":\"t\",\"args\":{\"" + std::string(send ? "to" : "from") + "\":\"" +
+                json_escape(name_of(e.peer)) + "\",\"" + std::string(send ? "from" : "to") + "\":\"" +
+                json_escape(name_of(e.self)) + "\",\"type\":" + std::to_string(type) +
+                ",\"seq\":" + std::to_string(rt::trace::aux_seq(e.aux)) + "}");
           w.end();
           break;
         }
-        case Kind::kNone:
-          break;
+        case Kind::kNone: break;
       }
     }
   }
@@ -317,7 +315,8 @@ std::string TraceSession::start(const std::vector<std::string>& names, int64_t d
   const bool all = names.empty() || (names.size() == 1 && names[0] == "all");
   if (!all) {
     for (const auto& n : names) {
-      const bool known = std::any_of(tasks_.begin(), tasks_.end(), [&](const Task& t) { return t.trace.component == n; });
+      const bool known = std::any_of(tasks_.begin(), tasks_.end(),
+                                     [&](const Task& t) { return t.trace.component == n; });
       if (!known) return "no component named '" + n + "' on this host";
     }
   }

@@ -18,8 +18,8 @@ namespace example {
 
 // The sample type: a fixed layout with a field table (tools print it by name).
 struct CounterData {
-  int64_t count = 0;     // step per period since ON, RESET or ADD
-  int64_t step = 0;      // the step parameter in effect
+  int64_t count = 0;  // step per period since ON, RESET or ADD
+  int64_t step = 0;   // the step parameter in effect
   static constexpr auto fields() noexcept {
     return std::array{RACK_FIELD(CounterData, count), RACK_FIELD(CounterData, step)};
   }

@@ -286,8 +286,9 @@ TEST(CanPortOpenTest, UnixSpecConnectsAndMissingPeerIsANamedError) {
 // (modprobe vcan; ip link add vcan0 type vcan; ip link set vcan0 up).
 TEST(CanPortSocketCanTest, RoundTripOnVcan0) {
   const int probe = ::socket(PF_CAN, SOCK_RAW, CAN_RAW);
-  if (probe < 0) GTEST_SKIP() << "this kernel has no AF_CAN (" << std::strerror(errno)
-                              << "); the same path is covered over AF_UNIX by CanPortTest";
+  if (probe < 0)
+    GTEST_SKIP() << "this kernel has no AF_CAN (" << std::strerror(errno)
+                 << "); the same path is covered over AF_UNIX by CanPortTest";
   ::close(probe);
   Watchdog w;
   CanPort a, b;
@@ -307,8 +308,9 @@ TEST(CanPortSocketCanTest, RoundTripOnVcan0) {
 // candump. Needs AF_CAN, vcan0 and can-utils (scripts/setup.sh installs can-utils).
 TEST(CanPortSocketCanTest, CansendAndCandumpArePeersOnVcan0) {
   const int probe = ::socket(PF_CAN, SOCK_RAW, CAN_RAW);
-  if (probe < 0) GTEST_SKIP() << "this kernel has no AF_CAN (" << std::strerror(errno)
-                              << "); the same path is covered over AF_UNIX by CanPortTest";
+  if (probe < 0)
+    GTEST_SKIP() << "this kernel has no AF_CAN (" << std::strerror(errno)
+                 << "); the same path is covered over AF_UNIX by CanPortTest";
   ::close(probe);
   if (std::system("command -v cansend >/dev/null && command -v candump >/dev/null") != 0) {
     GTEST_SKIP() << "can-utils (cansend, candump) not installed";

@@ -84,8 +84,10 @@ components:
       device: )" + c.link + R"(
       baud: 115200
       timeout_ms: 300
-      origin_latitude_deg: )" + std::to_string(c.latitude_deg) + R"(
-      origin_longitude_deg: )" + std::to_string(c.longitude_deg) + "\n");
+      origin_latitude_deg: )" + std::to_string(c.latitude_deg) +
+                                            R"(
+      origin_longitude_deg: )" + std::to_string(c.longitude_deg) +
+                                            "\n");
     gps_ = host_->address_of("gps");
   }
   void TearDown() override {
@@ -194,7 +196,7 @@ components:
       max_missed_syncs: 50
       watchdog_ms: 300
 )" + extra,
-                                           std::function<void(ComponentRegistry&)>{}, /*capture_gdos=*/true);
+                                            std::function<void(ComponentRegistry&)>{}, /*capture_gdos=*/true);
     chassis_ = host_->address_of("chassis");
   }
   void TearDown() override {
@@ -203,7 +205,7 @@ components:
     sim_.reset();
   }
   // Timeouts are generous (tolerant of a loaded 2-CPU machine); the behaviour, not the
-// timing, is what these tests check. The test's own tool mailbox is the pilot.
+  // timing, is what these tests check. The test's own tool mailbox is the pilot.
   [[nodiscard]] uint32_t me() const { return Address::make(0, tims::classes::kTool, 1, 0).raw(); }
   HostUnderTest::Reply move(double vx, double omega) {
     const interfaces::ChassisMove m{vx, 0.0, omega};
@@ -252,7 +254,8 @@ TEST_F(ChassisCanTest, DrivesBothWheelsAndPublishesOdometry) {
     // delta_x: 0.5 m/s for one 10 ms cycle (SYNCs are as regular as the data task).
     return host_->get_data(chassis_, h, d) && std::fabs(d.vx - 0.5) < 0.01 && std::fabs(d.delta_phi) < 1e-9 &&
            std::fabs(d.delta_x - 0.005) < 0.0015;
-  })) << "vx " << d.vx << " delta_phi " << d.delta_phi << " delta_x " << d.delta_x;
+  })) << "vx "
+      << d.vx << " delta_phi " << d.delta_phi << " delta_x " << d.delta_x;
   EXPECT_EQ(d.active_pilot, me());
   // Turning on the spot: the left wheel backwards, the right forwards.
   ASSERT_EQ(move(0.0, 1.0).type, msg::kOk);
@@ -310,7 +313,8 @@ TEST_F(ChassisCanTest, TheWatchdogStopsTheRobotWhenMovesStop) {
   ASSERT_TRUE(test::eventually([&] { return sim_->state(1).target_velocity == 2000; }));
   // No more MOVEs: within watchdog_ms (300) plus a cycle the targets are zero.
   ChassisData d;
-  ASSERT_TRUE(wait_sample<ChassisData>(*host_, chassis_, d, [](const ChassisData& c) { return c.watchdog_stops == 1; }));
+  ASSERT_TRUE(
+      wait_sample<ChassisData>(*host_, chassis_, d, [](const ChassisData& c) { return c.watchdog_stops == 1; }));
   EXPECT_EQ(sim_->state(1).target_velocity, 0);
   EXPECT_EQ(sim_->state(2).target_velocity, 0);
   EXPECT_EQ(host_->status(chassis_), msg::kEnabled) << "a watchdog stop is not an error";
@@ -355,9 +359,10 @@ TEST_F(ChassisCanTest, ADriveOutOfNmtOperationalIsAnErrorUntilItTakesTheStart) {
     return host_->gdos_log().find("a drive left the NMT state OPERATIONAL") != std::string::npos;
   })) << host_->gdos_log();
   // Held: the retries' NMT start is ignored, and each ON ends in ERROR again.
-  EXPECT_TRUE(test::eventually([&] {
-    return host_->gdos_log().find("did not report the NMT state OPERATIONAL") != std::string::npos;
-  }, std::chrono::milliseconds(5000))) << host_->gdos_log();
+  EXPECT_TRUE(test::eventually(
+      [&] { return host_->gdos_log().find("did not report the NMT state OPERATIONAL") != std::string::npos; },
+      std::chrono::milliseconds(5000)))
+      << host_->gdos_log();
   EXPECT_NE(move(0.2, 0.0).type, msg::kOk) << "no MOVE while in ERROR";
   sim_->release_nmt(2);
   ASSERT_TRUE(host_->wait_status(chassis_, msg::kEnabled, std::chrono::milliseconds(5000))) << host_->gdos_log();
@@ -383,8 +388,9 @@ TEST_F(ChassisCanTest, GarbageOnTheBusIsIgnoredAndALostConnectionRecovers) {
 // CAN_RAW socket of the same vcan0. Needs AF_CAN and vcan0.
 TEST(ChassisCanVcanTest, DrivesTheSimulatorOnVcan0) {
   const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
-  if (fd < 0) GTEST_SKIP() << "this kernel has no AF_CAN (" << std::strerror(errno)
-                           << "); ChassisCanTest runs the same driver over AF_UNIX";
+  if (fd < 0)
+    GTEST_SKIP() << "this kernel has no AF_CAN (" << std::strerror(errno)
+                 << "); ChassisCanTest runs the same driver over AF_UNIX";
   ifreq ifr{};
   std::strncpy(ifr.ifr_name, "vcan0", IFNAMSIZ - 1);
   sockaddr_can addr{};
@@ -478,9 +484,11 @@ class JoystickTest : public ChassisCanTest {
     retry_ms: 100
     data_task: {period_ms: 20, ring: 64}
     params:
-      device: )" + fifo_ + R"(
+      device: )" +
+               fifo_ + R"(
       chassis: chassis
-      deadman_button: )" + (deadman ? "0" : "-1") + "\n" + extra_params);
+      deadman_button: )" +
+               (deadman ? "0" : "-1") + "\n" + extra_params);
     joystick_ = host_->address_of("joystick");
   }
   std::string fifo_;
@@ -512,8 +520,8 @@ TEST_F(JoystickTest, TheStickDrivesTheChassisAsActivePilot) {
   ASSERT_TRUE(wait_sample<ChassisData>(*host_, chassis_, c, [](const ChassisData& s) { return s.omega > 0.5; }));
   // Releasing the dead-man button stops the robot.
   event(JS_EVENT_BUTTON, 0, 0);
-  EXPECT_TRUE(wait_sample<ChassisData>(*host_, chassis_, c,
-                                       [](const ChassisData& s) { return std::fabs(s.vx) < 1e-3; }));
+  EXPECT_TRUE(
+      wait_sample<ChassisData>(*host_, chassis_, c, [](const ChassisData& s) { return std::fabs(s.vx) < 1e-3; }));
 }
 
 TEST_F(JoystickTest, ForwardSpeedIsLimitedByTheFreeSpaceAheadInALadarScan) {
@@ -555,9 +563,9 @@ TEST_F(JoystickTest, BadEventsAreCountedAndAnUnpluggedStickStopsTheRobot) {
   Watchdog w;
   start_joystick(/*deadman=*/false);
   ASSERT_TRUE(host_->wait_status(joystick_, msg::kEnabled));
-  event(0x40, 0, 1);               // unknown type
-  event(JS_EVENT_AXIS, 200, 5);    // axis out of range
-  event(JS_EVENT_BUTTON, 40, 1);   // button out of range
+  event(0x40, 0, 1);              // unknown type
+  event(JS_EVENT_AXIS, 200, 5);   // axis out of range
+  event(JS_EVENT_BUTTON, 40, 1);  // button out of range
   event(JS_EVENT_AXIS, 1, -32767);
   JoystickData j;
   ASSERT_TRUE(wait_sample<JoystickData>(*host_, joystick_, j, [](const JoystickData& s) { return s.events >= 1; }));
@@ -567,9 +575,9 @@ TEST_F(JoystickTest, BadEventsAreCountedAndAnUnpluggedStickStopsTheRobot) {
   ::close(writer_);  // the stick is unplugged
   writer_ = -1;
   ASSERT_TRUE(host_->wait_status(joystick_, msg::kError));
-  ASSERT_TRUE(wait_sample<ChassisData>(*host_, chassis_, c,
-                                       [](const ChassisData& s) { return std::fabs(s.vx) < 1e-3 && s.active_pilot == 0; }))
-      << "the joystick stopped the robot and released the chassis";
+  ASSERT_TRUE(wait_sample<ChassisData>(*host_, chassis_, c, [](const ChassisData& s) {
+    return std::fabs(s.vx) < 1e-3 && s.active_pilot == 0;
+  })) << "the joystick stopped the robot and released the chassis";
   open_writer();
   EXPECT_TRUE(host_->wait_status(joystick_, msg::kEnabled));
 }
@@ -867,8 +875,9 @@ TEST_F(ServoDriveCanTest, HomeMoveToPositionAndPositionReached) {
                              << " syncs " << sim_->state(3).syncs << " status " << int(host_->status(servo_))
                              << " errors " << host_->stats(servo_).errors;
   interfaces::ServoDriveData d;
-  ASSERT_TRUE(wait_sample<interfaces::ServoDriveData>(*host_, servo_, d,
-                                                      [](const interfaces::ServoDriveData& s) { return s.target_reached == 1; }));
+  ASSERT_TRUE(wait_sample<interfaces::ServoDriveData>(*host_, servo_, d, [](const interfaces::ServoDriveData& s) {
+    return s.target_reached == 1;
+  }));
   EXPECT_NEAR(d.position, 0.5, 1e-3);
   EXPECT_EQ(d.homed, 1);
   EXPECT_EQ(d.reached, 1U);
@@ -888,10 +897,12 @@ TEST_F(ServoDriveCanTest, MoveAtVelocityStopsAtTheLimitAndASilentDriveIsAnError)
   const interfaces::ServoDriveMoveVel v{2.0};
   ASSERT_EQ(call(interfaces::kServoDriveMoveVel, &v, sizeof v), msg::kOk);
   interfaces::ServoDriveData d;
-  ASSERT_TRUE(wait_sample<interfaces::ServoDriveData>(
-      *host_, servo_, d, [](const interfaces::ServoDriveData& s) { return s.velocity > 1.5; }));
-  ASSERT_TRUE(wait_sample<interfaces::ServoDriveData>(
-      *host_, servo_, d, [](const interfaces::ServoDriveData& s) { return s.target_reached == 1; }));
+  ASSERT_TRUE(wait_sample<interfaces::ServoDriveData>(*host_, servo_, d, [](const interfaces::ServoDriveData& s) {
+    return s.velocity > 1.5;
+  }));
+  ASSERT_TRUE(wait_sample<interfaces::ServoDriveData>(*host_, servo_, d, [](const interfaces::ServoDriveData& s) {
+    return s.target_reached == 1;
+  }));
   EXPECT_NEAR(d.position, 1.0, 1e-3) << "stopped at position_max";
   sim_->set_silent(3, true);
   ASSERT_TRUE(host_->wait_status(servo_, msg::kError));
@@ -925,11 +936,13 @@ class CameraTest : public ::testing::Test {
     }
     calibration_ = dir_ + "/calib.yaml";
     FILE* c = std::fopen(calibration_.c_str(), "w");
-    std::fputs("%YAML:1.0\n---\nimage_width: 128\nimage_height: 96\n"
-               "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
-               "   data: [ 200., 0., 64., 0., 210., 48., 0., 0., 1. ]\n"
-               "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n"
-               "   data: [ 0.1, -0.2, 0.001, 0.002, 0.05 ]\n", c);
+    std::fputs(
+        "%YAML:1.0\n---\nimage_width: 128\nimage_height: 96\n"
+        "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+        "   data: [ 200., 0., 64., 0., 210., 48., 0., 0., 1. ]\n"
+        "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n"
+        "   data: [ 0.1, -0.2, 0.001, 0.002, 0.05 ]\n",
+        c);
     std::fclose(c);
   }
   void TearDown() override {

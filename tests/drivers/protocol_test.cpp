@@ -154,7 +154,7 @@ TEST(UtmTest, EastingIsSymmetricAndScaleIsRight) {
 }
 
 TEST(UtmTest, ZoneExceptionsAndForcedZone) {
-  EXPECT_EQ(utm_zone(60.0, 5.0), 32);   // Norway
+  EXPECT_EQ(utm_zone(60.0, 5.0), 32);  // Norway
   EXPECT_EQ(utm_zone(60.0, 2.0), 31);
   EXPECT_EQ(utm_zone(78.0, 15.0), 33);  // Svalbard
   EXPECT_EQ(utm_zone(78.0, 25.0), 35);
@@ -239,8 +239,7 @@ TEST_F(Cia402SimTest, ProfileVelocityThroughNmtSdoRpdoSyncAndTpdo) {
   Watchdog w;
   EXPECT_EQ(sdo(co::sdo_write(1, co::kObjModesOfOperation, 0, 3, 1), 1).kind, co::SdoResponse::Kind::kWriteOk);
   EXPECT_EQ(sdo(co::sdo_write(1, co::kObjHeartbeatTime, 0, 20, 2), 1).kind, co::SdoResponse::Kind::kWriteOk);
-  EXPECT_EQ(sdo(co::sdo_write(1, co::kObjProfileAcceleration, 0, 100000, 4), 1).kind,
-            co::SdoResponse::Kind::kWriteOk);
+  EXPECT_EQ(sdo(co::sdo_write(1, co::kObjProfileAcceleration, 0, 100000, 4), 1).kind, co::SdoResponse::Kind::kWriteOk);
   const co::SdoResponse abort = sdo(co::sdo_write(1, 0x2345, 0, 1, 4), 1);
   EXPECT_EQ(abort.kind, co::SdoResponse::Kind::kAbort);
   EXPECT_EQ(abort.value, co::kAbortNoObject);
@@ -303,14 +302,17 @@ namespace rack::devices {
 namespace {
 
 std::size_t scip_feed(scip::Parser& p, const std::string& s, int* scans = nullptr) {
-  return p.feed(std::span(reinterpret_cast<const uint8_t*>(s.data()), s.size()),
-                [](void* user, scip::Parser::Event e, const char*, const char*) {
-                  if (user != nullptr && e == scip::Parser::Event::kScan) ++*static_cast<int*>(user);
-                },
-                scans);
+  return p.feed(
+      std::span(reinterpret_cast<const uint8_t*>(s.data()), s.size()),
+      [](void* user, scip::Parser::Event e, const char*, const char*) {
+        if (user != nullptr && e == scip::Parser::Event::kScan) ++*static_cast<int*>(user);
+      },
+      scans);
 }
 
-std::string scip_line(const std::string& payload) { return payload + scip::checksum(payload.data(), payload.size()) + "\n"; }
+std::string scip_line(const std::string& payload) {
+  return payload + scip::checksum(payload.data(), payload.size()) + "\n";
+}
 
 TEST(ScipTest, ChecksumAndEncodingAsTheSpecificationShowsThem) {
   EXPECT_EQ(scip::checksum("00", 2), 'P');  // "00P": the status line of every OK answer
@@ -324,11 +326,11 @@ TEST(ScipTest, ChecksumAndEncodingAsTheSpecificationShowsThem) {
 
 TEST(ScipTest, ParsesParametersAndAScanSplitAcrossLines) {
   scip::Parser p;
-  const std::string pp = "PP\n" + scip_line("00") + "DMIN:20;" +
-                         scip::checksum("DMIN:20", 7) + "\nDMAX:5600;" + scip::checksum("DMAX:5600", 9) + "\nARES:1024;" +
-                         scip::checksum("ARES:1024", 9) + "\nAMIN:44;" + scip::checksum("AMIN:44", 7) + "\nAMAX:725;" +
-                         scip::checksum("AMAX:725", 8) + "\nAFRT:384;" + scip::checksum("AFRT:384", 8) + "\nSCAN:600;" +
-                         scip::checksum("SCAN:600", 8) + "\n\n";
+  const std::string pp = "PP\n" + scip_line("00") + "DMIN:20;" + scip::checksum("DMIN:20", 7) + "\nDMAX:5600;" +
+                         scip::checksum("DMAX:5600", 9) + "\nARES:1024;" + scip::checksum("ARES:1024", 9) +
+                         "\nAMIN:44;" + scip::checksum("AMIN:44", 7) + "\nAMAX:725;" + scip::checksum("AMAX:725", 8) +
+                         "\nAFRT:384;" + scip::checksum("AFRT:384", 8) + "\nSCAN:600;" + scip::checksum("SCAN:600", 8) +
+                         "\n\n";
   EXPECT_EQ(scip_feed(p, pp), 1U);
   EXPECT_TRUE(p.parameters().complete());
   EXPECT_EQ(p.parameters().afrt, 384U);
@@ -354,7 +356,8 @@ TEST(ScipTest, ParsesParametersAndAScanSplitAcrossLines) {
   EXPECT_EQ(scip_feed(p, bad, &scans), 0U);
   EXPECT_EQ(p.counters().checksum_errors, 1U);
   // Fewer values than the echo announces: malformed.
-  const std::string short_scan = "MD0100012901000\n" + scip_line("99") + scip_line("0000") + scip_line(data.substr(0, 63)) + "\n";
+  const std::string short_scan = "MD0100012901000\n" + scip_line("99") + scip_line("0000") +
+                                 scip_line(data.substr(0, 63)) + "\n";
   EXPECT_EQ(scip_feed(p, short_scan, &scans), 0U);
   EXPECT_EQ(p.counters().malformed, 1U);
   // Garbage without empty lines overflows the block and is counted, then parsing resumes.
@@ -374,11 +377,12 @@ namespace rack::devices {
 namespace {
 
 std::size_t cola_feed(cola::Parser& p, const std::string& s, int* scans = nullptr) {
-  return p.feed(std::span(reinterpret_cast<const uint8_t*>(s.data()), s.size()),
-                [](void* user, const char*, std::size_t, bool is_scan) {
-                  if (user != nullptr && is_scan) ++*static_cast<int*>(user);
-                },
-                scans);
+  return p.feed(
+      std::span(reinterpret_cast<const uint8_t*>(s.data()), s.size()),
+      [](void* user, const char*, std::size_t, bool is_scan) {
+        if (user != nullptr && is_scan) ++*static_cast<int*>(user);
+      },
+      scans);
 }
 
 // A telegram as an LMS111 sends it (fields per SICK's telegram listing), 5 points.

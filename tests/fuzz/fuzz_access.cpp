@@ -85,7 +85,8 @@ void check_messages(FuzzInput& in) {
     h.length = 16U + in.take<uint16_t>();
     const uint8_t how = in.byte();
     now += int64_t{how & 0x7F} * 1'000'000;
-    const auto d = access.check(h, (how & 0x80) != 0 ? tims::MessageOrigin::kNetwork : tims::MessageOrigin::kLocal, now);
+    const auto d = access.check(h, (how & 0x80) != 0 ? tims::MessageOrigin::kNetwork : tims::MessageOrigin::kLocal,
+                                now);
     FUZZ_CHECK(d.rule >= -1 && d.rule < static_cast<int>(access.rule_count()));
     if (!d.allowed()) {
       char text[160];

@@ -24,11 +24,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
   rack::deploy::Host b = rack::deploy::read_host_text(text, "copy.yaml");
   const std::vector<rack::deploy::ClassInfo> classes{{"Monitor", "Monitor", true, {"source"}}};
-  const rack::deploy::Deployment d = rack::deploy::build({std::move(a), std::move(b)}, size % 2 == 0 ? &classes : nullptr);
+  const rack::deploy::Deployment d = rack::deploy::build({std::move(a), std::move(b)},
+                                                         size % 2 == 0 ? &classes : nullptr);
   for (const auto& f : d.flows) {
     if (f.consumer_host >= d.hosts.size() || f.consumer >= d.hosts[f.consumer_host].components.size()) __builtin_trap();
-    if (f.producer != rack::deploy::kNone && (f.producer_host >= d.hosts.size() ||
-                                              f.producer >= d.hosts[f.producer_host].components.size())) {
+    if (f.producer != rack::deploy::kNone &&
+        (f.producer_host >= d.hosts.size() || f.producer >= d.hosts[f.producer_host].components.size())) {
       __builtin_trap();
     }
   }

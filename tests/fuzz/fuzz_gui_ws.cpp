@@ -46,12 +46,12 @@ namespace wire = rack::wire;
 namespace {
 
 // Aborts with file:line when a property does not hold (a crash libFuzzer keeps).
-#define GUI_WS_CHECK(cond)                                                           \
-  do {                                                                               \
-    if (!(cond)) {                                                                   \
+#define GUI_WS_CHECK(cond)                                                               \
+  do {                                                                                   \
+    if (!(cond)) {                                                                       \
       std::fprintf(stderr, "%s:%d: fuzz check failed: %s\n", __FILE__, __LINE__, #cond); \
-      std::abort();                                                                  \
-    }                                                                                \
+      std::abort();                                                                      \
+    }                                                                                    \
   } while (0)
 
 // A command body type with a field of every kind (scalars, an array, a text).
@@ -98,8 +98,8 @@ void check_refusal(const gui::ParseError& e) {
 }
 
 void check_value_against_kinds(const nlohmann::json& value) {
-  for (const auto kind : {wire::ParamKind::kInt, wire::ParamKind::kFloat, wire::ParamKind::kBool,
-                          wire::ParamKind::kString}) {
+  for (const auto kind :
+       {wire::ParamKind::kInt, wire::ParamKind::kFloat, wire::ParamKind::kBool, wire::ParamKind::kString}) {
     wire::ParamRecord p{};
     p.kind = static_cast<decltype(p.kind)>(kind);
     const std::string why = gui::check_param_value(value, p);

@@ -33,7 +33,8 @@ struct World {
     rack::tims::HostInfo self;
     self.host = "fuzz";
     self.executor = rack::tims::Address::make(0, rack::tims::classes::kExecutor, 0);
-    self.components.push_back({rack::tims::Address::make(0, rack::tims::classes::kGenerator, 0), "generator", "Generator"});
+    self.components.push_back(
+        {rack::tims::Address::make(0, rack::tims::classes::kGenerator, 0), "generator", "Generator"});
     transport->set_announcement(self);
   }
 };

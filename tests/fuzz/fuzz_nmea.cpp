@@ -35,7 +35,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   NmeaParser p;
   std::size_t accepted = 0;
   while (!in.empty()) {
-    accepted += p.feed(in.bytes(piece), [](void* user, NmeaParser::Sentence) { check_fix(static_cast<NmeaParser*>(user)->fix()); }, &p);
+    accepted += p.feed(
+        in.bytes(piece), [](void* user, NmeaParser::Sentence) { check_fix(static_cast<NmeaParser*>(user)->fix()); },
+        &p);
   }
   FUZZ_CHECK(accepted == p.counters().sentences);
   check_fix(p.fix());

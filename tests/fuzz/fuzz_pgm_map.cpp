@@ -18,7 +18,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const auto img = rack::maps::parse_pgm("fuzz.pgm", bytes, errors);
   if (img) {
     if (!errors.empty()) std::abort();
-    if (img->pixels.size() != static_cast<std::size_t>(img->width) * static_cast<std::size_t>(img->height)) std::abort();
+    if (img->pixels.size() != static_cast<std::size_t>(img->width) * static_cast<std::size_t>(img->height))
+      std::abort();
     for (uint8_t p : img->pixels) {
       if (p > img->maxval) std::abort();
     }

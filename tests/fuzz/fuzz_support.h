@@ -59,5 +59,4 @@ class FuzzInput {
 }  // namespace rack::fuzz
 
 // A property of the code under test; aborts with its text and place when false.
-#define FUZZ_CHECK(cond) \
-  ((cond) ? static_cast<void>(0) : ::rack::fuzz::check_failed(#cond, __FILE__, __LINE__))
+#define FUZZ_CHECK(cond) ((cond) ? static_cast<void>(0) : ::rack::fuzz::check_failed(#cond, __FILE__, __LINE__))

@@ -38,8 +38,10 @@ bool replay(const std::filesystem::path& file) {
 
 int main(int argc, char** argv) {
   if (argc < 2 || std::string(argv[1]) == "--help") {
-    std::fprintf(stderr, "usage: %s FOLDER|FILE...\nRuns this fuzz harness once over every file given "
-                 "(folders: every regular file in them, in name order).\n", argv[0]);
+    std::fprintf(stderr,
+                 "usage: %s FOLDER|FILE...\nRuns this fuzz harness once over every file given "
+                 "(folders: every regular file in them, in name order).\n",
+                 argv[0]);
     return argc < 2 ? 2 : 0;
   }
   std::size_t inputs = 0;

@@ -83,8 +83,8 @@ class AccessTest : public ::testing::Test {
     EXPECT_EQ(rackd_->wait_exit(30s), std::optional<int>(0)) << rackd_->err();
   }
   RunResult ctl(const std::string& key, std::vector<std::string> args, const std::string& timeout_ms = "2000") {
-    std::vector<std::string> head{kRackctl, "--lcm", url_, "--discover-ms", "3000", "--timeout", timeout_ms,
-                                  "--retries", "1"};
+    std::vector<std::string> head{kRackctl,   "--lcm",     url_, "--discover-ms", "3000", "--timeout",
+                                  timeout_ms, "--retries", "1"};
     if (!key.empty()) head.insert(head.end(), {"--key-file", key});
     args.insert(args.begin(), head.begin(), head.end());
     return run(args, 30s);
@@ -130,7 +130,8 @@ access:
   rules:
     - name: chassis-drive
       to: chassis
-      from: [")" + driver + R"("]
+      from: [")" +
+         driver + R"("]
     - name: chassis-others
       to: chassis
       types: [on, off, get_status, get_data, get_cont_data, stop_cont_data, get_next_data, get_param,
@@ -179,7 +180,8 @@ TEST_F(AccessTest, AuthorisedPilotStillDrivesWithTheRulesInPlace) {
     const auto j = parse_json(r.out);
     x = j ? j->at("data").at("truth_x").number : 0;
     return x > 4.3;
-  })) << "truth_x " << x;
+  })) << "truth_x "
+      << x;
   const RunResult r = ctl("", {"status", "chassis", "--json"});
   const auto j = parse_json(r.out);
   ASSERT_TRUE(j) << r.describe();
@@ -191,7 +193,8 @@ TEST_F(AccessTest, KeyFileReadableByOthersIsRefusedWithPathAndMode) {
   const auto path = dir_.write("host.yaml", keyed_host(url_, open_key));
   RunResult r = run({kRackd, path.string()}, 30s);
   EXPECT_EQ(r.exit_code, 2) << r.describe();
-  EXPECT_TRUE(contains(r.err, "key file " + open_key + ": has mode 0644: group or others may access it")) << r.describe();
+  EXPECT_TRUE(contains(r.err, "key file " + open_key + ": has mode 0644: group or others may access it"))
+      << r.describe();
   r = run({kRackd, "--check", path.string()}, 30s);
   EXPECT_EQ(r.exit_code, 2) << r.describe();
   r = ctl(open_key, {"list"});
@@ -201,7 +204,7 @@ TEST_F(AccessTest, KeyFileReadableByOthersIsRefusedWithPathAndMode) {
   const std::string made = (dir_.path() / "made.key").string();
   r = run({kRackctl, "keygen", made}, 10s);
   ASSERT_EQ(r.exit_code, 0) << r.describe();
-  struct stat st{};
+  struct stat st {};
   ASSERT_EQ(stat(made.c_str(), &st), 0);
   EXPECT_EQ(st.st_mode & 0777, 0600u);
   r = run({kRackctl, "keygen", made}, 10s);

@@ -30,8 +30,7 @@ bool contains(const std::string& text, const std::string& part) { return text.fi
 
 class ClassDescriptionTest : public ::testing::Test {
  protected:
-  ClassDescriptionTest()
-      : watchdog_(60s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
+  ClassDescriptionTest() : watchdog_(60s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
 
   RunResult ctl(std::vector<std::string> args, const std::string& discover_ms = "3000") {
     args.insert(args.begin(), {kRackctl, "--lcm", bus_.url(), "--discover-ms", discover_ms});

@@ -33,9 +33,9 @@ struct Tool {
   std::string path;
 };
 const std::vector<Tool>& tools() {
-  static const std::vector<Tool> kTools = {{"rackd", RACK_RACKD_PATH},       {"rackctl", RACK_RACKCTL_PATH},
-                                           {"gdos", RACK_GDOS_PATH},         {"rack-gui", RACK_GUI_PATH},
-                                           {"rack-backtrace", RACK_BACKTRACE_PATH}, {"rack-devsim", RACK_DEVSIM_PATH}};
+  static const std::vector<Tool> kTools = {
+      {"rackd", RACK_RACKD_PATH},  {"rackctl", RACK_RACKCTL_PATH},          {"gdos", RACK_GDOS_PATH},
+      {"rack-gui", RACK_GUI_PATH}, {"rack-backtrace", RACK_BACKTRACE_PATH}, {"rack-devsim", RACK_DEVSIM_PATH}};
   return kTools;
 }
 
@@ -118,7 +118,8 @@ TEST_F(CliTest, EveryToolPrintsItsVersion) {
     const RunResult r = run({t.path, "--version"}, 30s);
     EXPECT_EQ(r.exit_code, 0) << t.name << ": " << r.describe();
     // "NAME MAJOR.MINOR.PATCH" and, in a git checkout, " (git DESCRIBE)".
-    EXPECT_TRUE(std::regex_match(r.out, std::regex(std::string(t.name) + " [0-9]+\\.[0-9]+\\.[0-9]+( \\(git [^)]+\\))?\n")))
+    EXPECT_TRUE(
+        std::regex_match(r.out, std::regex(std::string(t.name) + " [0-9]+\\.[0-9]+\\.[0-9]+( \\(git [^)]+\\))?\n")))
         << t.name << ": " << r.describe();
     const RunResult help = run({t.path, "--help"}, 30s);
     EXPECT_NE(help.out.find("--version"), std::string::npos) << t.name << " --help does not mention --version";
@@ -155,7 +156,8 @@ TEST_F(CliTest, HzAndBwMeasureTheGeneratorsStream) {
   // Text: units on every number.
   r = ctl({"hz", "generator", "--count", "1"});
   ASSERT_EQ(r.exit_code, 0) << r.describe();
-  EXPECT_TRUE(std::regex_search(r.out, std::regex("^rate [0-9.]+ k?Hz  period min [0-9.]+ [mun]?s, max .* std .*\\(window [0-9]+ samples\\)")))
+  EXPECT_TRUE(std::regex_search(
+      r.out, std::regex("^rate [0-9.]+ k?Hz  period min [0-9.]+ [mun]?s, max .* std .*\\(window [0-9]+ samples\\)")))
       << r.out;
 }
 
@@ -201,7 +203,8 @@ TEST_F(CliTest, CompletionOffersEveryOptionOfEachToolsHelp) {
       const auto first = complete("rack-devsim --");
       offered.insert(first.begin(), first.end());
     } else if (std::string(t.name) == "rackctl") {
-      for (const char* cmd : {"list", "status", "get-data", "watch", "send", "hz", "doctor", "classes", "trace", "graph", "alloc"}) {
+      for (const char* cmd :
+           {"list", "status", "get-data", "watch", "send", "hz", "doctor", "classes", "trace", "graph", "alloc"}) {
         const auto c = complete(std::string("rackctl ") + cmd + " --");
         offered.insert(c.begin(), c.end());
       }
@@ -210,7 +213,8 @@ TEST_F(CliTest, CompletionOffersEveryOptionOfEachToolsHelp) {
     }
     std::string help = run({t.path, "--help"}, 30s).out;
     if (std::string(t.name) == "rackctl") {
-      for (const char* cmd : {"list", "status", "get-data", "watch", "send", "hz", "doctor", "classes", "trace", "graph", "alloc"}) {
+      for (const char* cmd :
+           {"list", "status", "get-data", "watch", "send", "hz", "doctor", "classes", "trace", "graph", "alloc"}) {
         help += run({t.path, "help", cmd}, 30s).out;
       }
     }
@@ -218,8 +222,8 @@ TEST_F(CliTest, CompletionOffersEveryOptionOfEachToolsHelp) {
       EXPECT_EQ(offered.count(opt), 1u) << t.name << ": completion does not offer " << opt;
     }
     for (const auto& opt : offered) {
-      EXPECT_TRUE(help.find(opt) != std::string::npos) << t.name << ": completion offers " << opt
-                                                       << ", which --help does not mention";
+      EXPECT_TRUE(help.find(opt) != std::string::npos)
+          << t.name << ": completion offers " << opt << ", which --help does not mention";
     }
   }
 }

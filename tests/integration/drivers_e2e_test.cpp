@@ -57,10 +57,10 @@ TEST_F(DriversEndToEndTest, TheJoystickDrivesTheCanChassisThroughTheSimulators) 
   const auto host_file = dir_.write("can_joystick.yaml", host);
 
   Process drives({RACK_DEVSIM_PATH, "cia402", "--socket", can}, dir_.path(), "drives");
-  auto stick = std::make_unique<Process>(
-      std::vector<std::string>{RACK_DEVSIM_PATH, "joystick", "--fifo", js, "--forward", "0.4", "--turn", "0.2",
-                               "--deadman", "0", "--period-ms", "50"},
-      dir_.path(), "stick");
+  auto stick = std::make_unique<Process>(std::vector<std::string>{RACK_DEVSIM_PATH, "joystick", "--fifo", js,
+                                                                  "--forward", "0.4", "--turn", "0.2", "--deadman", "0",
+                                                                  "--period-ms", "50"},
+                                         dir_.path(), "stick");
   ASSERT_TRUE(eventually([&] { return std::filesystem::exists(can) && std::filesystem::exists(js); }))
       << drives.err() << stick->err();
   const auto crash_dir = dir_.path() / "crash";
@@ -75,7 +75,8 @@ TEST_F(DriversEndToEndTest, TheJoystickDrivesTheCanChassisThroughTheSimulators) 
     return c && std::abs(c->at("data").at("vx").number - 0.2) < 0.005 &&
            std::abs(c->at("data").at("omega").number - 0.3) < 0.005;
   })) << (c ? "last chassis data seen: vx " + std::to_string(c->at("data").at("vx").number) : "no chassis data")
-      << "\n" << rackd.err();
+      << "\n"
+      << rackd.err();
   EXPECT_EQ(c->at("data").at("active_pilot").number, static_cast<double>(0x00150000))
       << "the joystick, Joystick(0/0), is the active pilot";
   EXPECT_GT(c->at("data").at("delta_x").number, 0.0);

@@ -74,7 +74,8 @@ class FoxgloveTest : public ::testing::Test {
     std::string text = read_file(kConfigs + "/" + name);
     const std::string rel = "map: maps/office.yaml";
     const std::string abs = "map: " + kConfigs + "/maps/office.yaml";
-    for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + abs.size())) text.replace(at, rel.size(), abs);
+    for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + abs.size()))
+      text.replace(at, rel.size(), abs);
     return dir_.write(name, text).string();
   }
 
@@ -86,7 +87,8 @@ class FoxgloveTest : public ::testing::Test {
     // (rack-gui serves a front end; the bridge needs none: a placeholder page.)
     std::filesystem::create_directories(dir_.path() / "web");
     const auto web = dir_.write("web/index.html", "<!doctype html><title>rack-gui</title>\n").parent_path();
-    gui_.emplace(std::vector<std::string>{kGui, "--port", "0", "--lcm", bus_.url(), "--web", web.string(), "--reports", ""},
+    gui_.emplace(std::vector<std::string>{kGui, "--port", "0", "--lcm", bus_.url(), "--web", web.string(), "--reports",
+                                          ""},
                  dir_.path(), "rack-gui");
     EXPECT_TRUE(gui_->wait_for_stderr("rack-gui: serving http://", 15s)) << gui_->err();
     const std::string http = word_after(gui_->err(), "rack-gui: serving ");
@@ -115,7 +117,8 @@ class FoxgloveTest : public ::testing::Test {
 
 TEST_F(FoxgloveTest, FoxgloveClientReceivesTypedChannelsCallsServicesAndSetsParameters) {
   const std::string gui_ws = start_robot_and_gui();
-  Process bridge({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--port", "0"}, dir_.path(), "rack-foxglove");
+  Process bridge({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--port", "0"}, dir_.path(),
+                 "rack-foxglove");
   ASSERT_TRUE(bridge.wait_for_stderr("(Foxglove WebSocket)", 15s)) << bridge.err();
   const std::string url = word_after(bridge.err(), "rack-foxglove: serving ");
   ASSERT_EQ(url.rfind("ws://127.0.0.1:", 0), 0u) << bridge.err();
@@ -140,20 +143,39 @@ TEST_F(FoxgloveTest, FoxgloveClientReceivesTypedChannelsCallsServicesAndSetsPara
 TEST_F(FoxgloveTest, RecorderWritesMcapThatTheMcapReaderChecksRecordByRecord) {
   const std::string gui_ws = start_robot_and_gui();
   const std::string file = (dir_.path() / "sim.mcap").string();
-  Process rec({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--no-server", "--record", file, "--duration", "6"},
+  Process rec({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--no-server", "--record", file, "--duration",
+               "6"},
               dir_.path(), "rack-foxglove");
   ASSERT_TRUE(rec.wait_for_stderr("rack-foxglove: recording", 15s)) << rec.err();
   // A parameter change: its GDOS line is recorded on /rack/gdos.
   std::this_thread::sleep_for(1500ms);
-  const RunResult set = run({kRackctl, "--lcm", bus_.url(), "--discover-ms", "2000", "set-param", "pilot", "vx_max", "0.5"}, 20s);
+  const RunResult set = run(
+      {kRackctl, "--lcm", bus_.url(), "--discover-ms", "2000", "set-param", "pilot", "vx_max", "0.5"}, 20s);
   EXPECT_EQ(set.exit_code, 0) << set.describe();
   ASSERT_EQ(rec.wait_exit(20s), std::optional<int>(0)) << rec.err();
   EXPECT_NE(rec.err().find("rack-foxglove: wrote "), std::string::npos) << rec.err();
 
-  const RunResult r = run({*node_, kFoxglove + "/test/mcap_check.mjs", file, "--compression", "zstd", "--min-messages", "50",
-                           "--topic", "/rack/0/map", "--topic", "/rack/0/ladar/scan", "--topic", "/rack/0/scan2d/points",
-                           "--topic", "/rack/0/mcl/pose", "--topic", "/rack/0/mcl/particles", "--topic", "/rack/0/chassis",
-                           "--topic", "/rack/gdos"},
+  const RunResult r = run({*node_,
+                           kFoxglove + "/test/mcap_check.mjs",
+                           file,
+                           "--compression",
+                           "zstd",
+                           "--min-messages",
+                           "50",
+                           "--topic",
+                           "/rack/0/map",
+                           "--topic",
+                           "/rack/0/ladar/scan",
+                           "--topic",
+                           "/rack/0/scan2d/points",
+                           "--topic",
+                           "/rack/0/mcl/pose",
+                           "--topic",
+                           "/rack/0/mcl/particles",
+                           "--topic",
+                           "/rack/0/chassis",
+                           "--topic",
+                           "/rack/gdos"},
                           30s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe();
@@ -176,16 +198,16 @@ TEST_F(FoxgloveTest, ReplayIntoMclGivesTheRecordedLocalisation) {
   const std::string recorded = (dir_.path() / "sim.mcap").string();
   {
     const std::string gui_ws = start_robot_and_gui();
-    const RunResult rec = run({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--no-server", "--record", recorded,
-                               "--topics", "^/rack/0/(scan2d|mcl|chassis)$", "--duration", "8"},
+    const RunResult rec = run({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--no-server", "--record",
+                               recorded, "--topics", "^/rack/0/(scan2d|mcl|chassis)$", "--duration", "8"},
                               30s);
     ASSERT_EQ(rec.exit_code, 0) << rec.describe();
     stop_robot_and_gui();
   }
   const std::string gui_ws = start_robot_and_gui("replay_mcap_mcl.yaml");
   const std::string replayed = (dir_.path() / "replay.mcap").string();
-  Process rec({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--no-server", "--record", replayed, "--topics",
-               "^/rack/0/mcl$"},
+  Process rec({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--no-server", "--record", replayed,
+               "--topics", "^/rack/0/mcl$"},
               dir_.path(), "rack-foxglove-record");
   ASSERT_TRUE(rec.wait_for_stderr("rack-foxglove: recording", 15s)) << rec.err();
   const RunResult played = run({*node_, kFoxglove + "/rack-foxglove.mjs", "play", recorded, "--gui", gui_ws, "--topics",
@@ -198,8 +220,8 @@ TEST_F(FoxgloveTest, ReplayIntoMclGivesTheRecordedLocalisation) {
   rec.signal(SIGTERM);
   ASSERT_EQ(rec.wait_exit(15s), std::optional<int>(0)) << rec.err();
 
-  const RunResult r = run({*node_, kFoxglove + "/test/replay_check.mjs", recorded, replayed, "--max-xy", "0.15", "--max-phi",
-                           "0.05", "--min-compared", "10"},
+  const RunResult r = run({*node_, kFoxglove + "/test/replay_check.mjs", recorded, replayed, "--max-xy", "0.15",
+                           "--max-phi", "0.05", "--min-compared", "10"},
                           30s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrackd:\n" << rackd_->err();

@@ -50,11 +50,18 @@ class GdosViewerTest : public ::testing::Test {
   GdosViewerTest() : watchdog_(kTestLimit, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
 
   std::string host_file(const std::string& to_stderr, const std::string& host = "gdos-host", int system = 0) {
-    return "host: " + host + "\n"
-           "system: " + std::to_string(system) + "\n"
-           "lcm_url: \"" + bus_.url() + "\"\n"
+    return "host: " + host +
+           "\n"
+           "system: " +
+           std::to_string(system) +
+           "\n"
+           "lcm_url: \"" +
+           bus_.url() +
+           "\"\n"
            "heap_prefault_mib: 8\n"
-           "gdos: {stderr: " + to_stderr + "}\n"
+           "gdos: {stderr: " +
+           to_stderr +
+           "}\n"
            "components:\n"
            "  - name: generator\n"
            "    class: Generator\n"
@@ -139,7 +146,8 @@ TEST_F(GdosViewerTest, ViewerStartedBeforeTheHostSeesNamesLevelsAndRunTimeLevelC
     const auto v = records(viewer->out());
     return has(v, "rackd", "started 2 component(s)") && has(v, "generator", "ON: ENABLED", "info") &&
            has(v, "monitor", "ON: ENABLED", "info");
-  })) << viewer->out() << viewer->err();
+  })) << viewer->out()
+      << viewer->err();
 
   // With gdos.stderr: auto, rackd notices the viewer and says so.
   ASSERT_TRUE(rackd->wait_for_stderr("a gdos viewer listens", kSettleLimit)) << rackd->err();
@@ -197,7 +205,8 @@ TEST_F(GdosViewerTest, ViewerStartedAfterTheHostRecordsAndReplays) {
   ASSERT_TRUE(eventually([&] {
     const auto v = records(viewer->out());
     return has(v, "generator", "log level now detail") && has(v, "generator", "log level now info");
-  })) << viewer->out() << viewer->err();
+  })) << viewer->out()
+      << viewer->err();
   // Something of another component, which the filter hides but the file keeps.
   ASSERT_EQ(ctl({"set-param", "monitor", "gdosLevel", "detail"}).exit_code, 0);
   ASSERT_TRUE(eventually([&] { return contains(rackd->err(), "monitor Monitor(0/0): log level now detail"); }));
@@ -212,8 +221,8 @@ TEST_F(GdosViewerTest, ViewerStartedAfterTheHostRecordsAndReplays) {
   for (const auto& j : records(viewer->out())) EXPECT_EQ(j.at("name").string, "generator");
   // Replay with the same filter: the same lines (the classes named by the hosts of
   // the network it is given, as live).
-  RunResult replay =
-      run({kGdos, "--lcm", bus_.url(), "--replay", file, "--json", "--component", "generator"}, kCommandLimit);
+  RunResult replay = run({kGdos, "--lcm", bus_.url(), "--replay", file, "--json", "--component", "generator"},
+                         kCommandLimit);
   ASSERT_EQ(replay.exit_code, 0) << replay.describe();
   EXPECT_EQ(lines_of(replay.out), live);
   // Without the filter the file has more (the monitor's record), as text without
@@ -265,7 +274,8 @@ TEST_F(GdosViewerTest, OneViewerShowsEveryHostAndFiltersByHost) {
     const auto v = records(all->out());
     return host_seen(v, "robot-a", "generator") && host_seen(v, "robot-b", "generator") &&
            host_seen(v, "robot-a", "monitor") && host_seen(v, "robot-b", "monitor");
-  })) << all->out() << all->err();
+  })) << all->out()
+      << all->err();
   ASSERT_TRUE(eventually([&] { return host_seen(records(one->out()), "robot-b", "monitor"); })) << one->out();
   // Addresses carry each host's system: Generator(1/0) and Generator(2/0).
   bool sys1 = false, sys2 = false;
@@ -316,28 +326,31 @@ TEST_F(GdosViewerTest, ModeSwitchReportsArriveAsWarningsOfTheirComponent) {
   if (rack::rt::kThreadSanitizer) GTEST_SKIP() << "SYSCALL detection is off in a ThreadSanitizer build";
   auto viewer = start_viewer({"--json"}, "gdos");
   ASSERT_NE(viewer, nullptr);
-  const auto file = dir_.write("ms.yaml", "host: ms-host\n"
-                                          "lcm_url: \"" + bus_.url() + "\"\n"
-                                          "heap_prefault_mib: 8\n"
-                                          "gdos: {stderr: always}\n"
-                                          "components:\n"
-                                          "  - name: demo\n"
-                                          "    class: ModeSwitchDemo\n"
-                                          "    instance: 0\n"
-                                          "    autostart: true\n"
-                                          "    data_task: {priority: 40, period_ms: 10}\n");
+  const auto file = dir_.write("ms.yaml",
+                               "host: ms-host\n"
+                               "lcm_url: \"" +
+                                   bus_.url() +
+                                   "\"\n"
+                                   "heap_prefault_mib: 8\n"
+                                   "gdos: {stderr: always}\n"
+                                   "components:\n"
+                                   "  - name: demo\n"
+                                   "    class: ModeSwitchDemo\n"
+                                   "    instance: 0\n"
+                                   "    autostart: true\n"
+                                   "    data_task: {priority: 40, period_ms: 10}\n");
   Process rackd({kRackd, file.string(), "--crash-dir", (dir_.path() / "crash").string()}, dir_.path(), "rackd");
   ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", kStartLimit)) << rackd.err();
   const RunResult r = ctl({"send", "demo", "21"});  // SYSCALL: write() in the command handler
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  ASSERT_TRUE(eventually([&] {
-    return has(records(viewer->out()), "demo", "mode switch SYSCALL", "warning");
-  })) << viewer->out() << "\nrackd:\n" << rackd.err();
+  ASSERT_TRUE(eventually([&] { return has(records(viewer->out()), "demo", "mode switch SYSCALL", "warning"); }))
+      << viewer->out() << "\nrackd:\n"
+      << rackd.err();
   bool names_the_call = false;
   for (const auto& j : records(viewer->out())) {
-    names_the_call = names_the_call || (contains(j.at("text").string, "mode switch SYSCALL") &&
-                                        contains(j.at("text").string, "write(") &&
-                                        j.at("source").string == "ModeSwitchDemo(0/0)");
+    names_the_call = names_the_call ||
+                     (contains(j.at("text").string, "mode switch SYSCALL") && contains(j.at("text").string, "write(") &&
+                      j.at("source").string == "ModeSwitchDemo(0/0)");
   }
   EXPECT_TRUE(names_the_call) << viewer->out();
 }

@@ -41,18 +41,20 @@ TEST(GraphTest, TwoRobotsOfflineAsDot) {
 TEST(GraphTest, AllocFlagsInversionsAndReportsErrorsAtTheirLine) {
   Watchdog watchdog(30s, "GraphTest");
   TempDir dir;
-  const auto file = dir.write("host.yaml",
-                              "host: inv\n"
-                              "components:\n"
-                              "  - {name: gen, class: Generator, data_task: {priority: 40, period_ms: 5, cpu: 0}}\n"
-                              "  - {name: mon, class: Monitor, data_task: {priority: 45, cpu: 0}, params: {source: gen}}\n");
+  const auto file = dir.write(
+      "host.yaml",
+      "host: inv\n"
+      "components:\n"
+      "  - {name: gen, class: Generator, data_task: {priority: 40, period_ms: 5, cpu: 0}}\n"
+      "  - {name: mon, class: Monitor, data_task: {priority: 45, cpu: 0}, params: {source: gen}}\n");
   const RunResult r = run({kRackctl, "alloc", file.string()}, 20s);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("  cpu 0\n"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("! consumer above its producer on cpu 0: 'mon' (data p45) reads 'gen' (data p40)"),
             std::string::npos)
       << r.out;
-  const auto bad = dir.write("bad.yaml", "host: bad\ncomponents:\n  - {name: g, class: Generator, data_task: {priority: x}}\n");
+  const auto bad = dir.write("bad.yaml",
+                             "host: bad\ncomponents:\n  - {name: g, class: Generator, data_task: {priority: x}}\n");
   const RunResult e = run({kRackctl, "graph", bad.string()}, 20s);
   EXPECT_EQ(e.exit_code, 1);
   EXPECT_NE(e.err.find(bad.string() + ":3:55: 'priority' must be an integer 0..99"), std::string::npos) << e.err;
@@ -68,8 +70,9 @@ TEST(GraphTest, LiveShowsMeasurementsAndStaleHosts) {
   Process rackd({kRackd, kConfigs + "/demo.yaml", "--lcm", bus.url()}, dir.path(), "rackd");
   ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
   // A second host in the deployment that never runs.
-  const auto absent = dir.write("absent.yaml", "host: absent\nsystem: 7\ncomponents:\n"
-                                               "  - {name: far, class: Monitor, params: {source: \"Generator(0/0)\"}}\n");
+  const auto absent = dir.write("absent.yaml",
+                                "host: absent\nsystem: 7\ncomponents:\n"
+                                "  - {name: far, class: Monitor, params: {source: \"Generator(0/0)\"}}\n");
   // The demo's monitor switches the generator on; wait until it has run cycles.
   std::string out;
   const auto deadline = std::chrono::steady_clock::now() + 20s;

@@ -54,7 +54,8 @@ TEST(GuiConfigE2eTest, EditsAHostFileWithTheValidatorInTheLoop) {
   if (access(chromium.c_str(), X_OK) != 0) {
     GTEST_SKIP() << chromium << " is not installed (Debian: apt-get install chromium); scripts/setup.sh installs it";
   }
-  if (!on_path("dot")) GTEST_SKIP() << "graphviz's dot is not installed (apt-get install graphviz); scripts/setup.sh installs it";
+  if (!on_path("dot"))
+    GTEST_SKIP() << "graphviz's dot is not installed (apt-get install graphviz); scripts/setup.sh installs it";
   ASSERT_TRUE(std::filesystem::exists(web + "/node_modules/playwright-core"))
       << "playwright-core is missing: run scripts/setup.sh (npm ci in " << web << ")";
   ASSERT_TRUE(std::filesystem::exists(web + "/dist/index.html"))
@@ -83,8 +84,8 @@ TEST(GuiConfigE2eTest, EditsAHostFileWithTheValidatorInTheLoop) {
   const std::string url = err.substr(at, err.find(' ', at) - at);
 
   std::filesystem::create_directories(artifacts);
-  const RunResult r = run({*node, web + "/e2e/config_e2e.mjs", "--url", url, "--chromium", chromium, "--shots", artifacts,
-                           "--file", "robot1_aux.yaml", "--live", "1"},
+  const RunResult r = run({*node, web + "/e2e/config_e2e.mjs", "--url", url, "--chromium", chromium, "--shots",
+                           artifacts, "--file", "robot1_aux.yaml", "--live", "1"},
                           120s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui.err();

@@ -90,20 +90,23 @@ class GuiE2eTest : public ::testing::Test {
                "host: robot1-demo\n"
                "system: 1\n"
                "lcm: true\n"
-               "modeswitch: {crash_dir: " + crash_dir + ", stderr: false}\n"
-               "components:\n"
-               "  - name: demo\n"
-               "    class: ModeSwitchDemo\n"
-               "    instance: 0\n"
-               "    autostart: true\n"
-               "    command_task: {priority: 30}\n"
-               "    data_task: {priority: 40, period_ms: 20}\n"
-               "  - name: camera\n"
-               "    class: Camera\n"
-               "    instance: 0\n"
-               "    autostart: true\n"
-               "    data_task: {period_ms: 100, ring: 4}\n"
-               "    params: {source: " + (frames / "img_%03d.ppm").string() + ", loop: true, fps: 10}\n")
+               "modeswitch: {crash_dir: " +
+                   crash_dir +
+                   ", stderr: false}\n"
+                   "components:\n"
+                   "  - name: demo\n"
+                   "    class: ModeSwitchDemo\n"
+                   "    instance: 0\n"
+                   "    autostart: true\n"
+                   "    command_task: {priority: 30}\n"
+                   "    data_task: {priority: 40, period_ms: 20}\n"
+                   "  - name: camera\n"
+                   "    class: Camera\n"
+                   "    instance: 0\n"
+                   "    autostart: true\n"
+                   "    data_task: {period_ms: 100, ring: 4}\n"
+                   "    params: {source: " +
+                   (frames / "img_%03d.ppm").string() + ", loop: true, fps: 10}\n")
         .string();
   }
 
@@ -136,8 +139,9 @@ TEST_F(GuiE2eTest, DashboardOperatesTheSimulatedRobotInChromium) {
   ASSERT_EQ(sent.exit_code, 0) << sent.describe();
   // A camera image is one 0.9 MB message of 16 datagrams: a large socket buffer, as
   // the README says for large messages, or the kernel drops some of them.
-  Process gui({kGui, "--port", "0", "--lcm", bus_.url() + "&recv_buf_size=4194304", "--web", kWeb + "/dist", "--reports", crash_dir}, dir_.path(),
-              "rack-gui");
+  Process gui({kGui, "--port", "0", "--lcm", bus_.url() + "&recv_buf_size=4194304", "--web", kWeb + "/dist",
+               "--reports", crash_dir},
+              dir_.path(), "rack-gui");
   ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
   const std::string err = gui.err();
   const auto at = err.find("http://");
@@ -156,12 +160,14 @@ TEST_F(GuiE2eTest, DashboardOperatesTheSimulatedRobotInChromium) {
   const std::string hist_line = r.out.substr(hist_at, r.out.find('\n', hist_at) - hist_at);
   int nonzero = 0;
   unsigned long long samples = 0;
-  ASSERT_EQ(std::sscanf(hist_line.c_str(), "latency histogram: %d non-empty buckets, %llu samples", &nonzero, &samples), 2)
+  ASSERT_EQ(std::sscanf(hist_line.c_str(), "latency histogram: %d non-empty buckets, %llu samples", &nonzero, &samples),
+            2)
       << hist_line;
   EXPECT_GT(nonzero, 0) << hist_line;
   EXPECT_GT(samples, 0u) << hist_line;
-  for (const char* shot : {"components.png", "all-off.png", "disconnected.png", "map-zoomed.png", "map.png", "gdos.png", "details-pilot.png", "details-chassis.png",
-                           "details-ladar.png", "details-camera.png", "reports.png", "destination.png", "joystick.png", "no-reply.png"}) {
+  for (const char* shot : {"components.png", "all-off.png", "disconnected.png", "map-zoomed.png", "map.png", "gdos.png",
+                           "details-pilot.png", "details-chassis.png", "details-ladar.png", "details-camera.png",
+                           "reports.png", "destination.png", "joystick.png", "no-reply.png"}) {
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(kArtifacts) / shot)) << shot;
   }
   // e2e.mjs stopped rack-gui with SIGTERM at its end: a clean exit, and the browser's
@@ -223,7 +229,8 @@ TEST_F(GuiE2eTest, DashboardPanelsInChromium) {
   if (access(chromium.c_str(), X_OK) != 0) {
     GTEST_SKIP() << chromium << " is not installed (Debian: apt-get install chromium); scripts/setup.sh installs it";
   }
-  ASSERT_TRUE(std::filesystem::exists(kWeb + "/node_modules/uplot")) << "uplot is missing: run scripts/setup.sh (npm ci in " << kWeb << ")";
+  ASSERT_TRUE(std::filesystem::exists(kWeb + "/node_modules/uplot"))
+      << "uplot is missing: run scripts/setup.sh (npm ci in " << kWeb << ")";
   ASSERT_TRUE(std::filesystem::exists(kWeb + "/dist/index.html"))
       << "the front end is not built: run scripts/setup.sh (npm run build in " << kWeb << ")";
 
@@ -244,8 +251,8 @@ TEST_F(GuiE2eTest, DashboardPanelsInChromium) {
   Process gen({kRackd, robot2, "--lcm", bus_.url()}, dir_.path(), "rackd-robot2");
   ASSERT_TRUE(gen.wait_for_stderr("rackd: running", 30s)) << gen.err();
   const auto serve = [&](const std::string& lcm, const char* label) {
-    auto p = std::make_unique<Process>(std::vector<std::string>{kGui, "--port", "0", "--lcm", lcm, "--web", kWeb + "/dist",
-                                                                "--reports", "", "--forget-s", "3"},
+    auto p = std::make_unique<Process>(std::vector<std::string>{kGui, "--port", "0", "--lcm", lcm, "--web",
+                                                                kWeb + "/dist", "--reports", "", "--forget-s", "3"},
                                        dir_.path(), label);
     EXPECT_TRUE(p->wait_for_stderr("rack-gui: serving http://", 15s)) << p->err();
     const std::string err = p->err();
@@ -257,13 +264,14 @@ TEST_F(GuiE2eTest, DashboardPanelsInChromium) {
   auto [empty_gui, empty_url] = serve(empty_bus.url(), "rack-gui-empty");
 
   std::filesystem::create_directories(kArtifacts);
-  const RunResult r = run({*node, kWeb + "/e2e/panels.mjs", "--url", url, "--empty-url", empty_url, "--chromium", chromium,
-                           "--shots", kArtifacts, "--stop-pid", std::to_string(gen.pid())},
+  const RunResult r = run({*node, kWeb + "/e2e/panels.mjs", "--url", url, "--empty-url", empty_url, "--chromium",
+                           chromium, "--shots", kArtifacts, "--stop-pid", std::to_string(gen.pid())},
                           120s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui->err();
-  for (const char* shot : {"panels-empty.png", "panels-plots.png", "panels-commands.png", "panels-map-follow.png",
-                           "panels-map-resized.png", "panels-phone-map.png", "panels-phone-plots.png", "panels-host-gone.png"}) {
+  for (const char* shot :
+       {"panels-empty.png", "panels-plots.png", "panels-commands.png", "panels-map-follow.png",
+        "panels-map-resized.png", "panels-phone-map.png", "panels-phone-plots.png", "panels-host-gone.png"}) {
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(kArtifacts) / shot)) << shot;
   }
   // The clean stop: rackd exited 0, and rack-gui said it dropped the host.

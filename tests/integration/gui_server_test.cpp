@@ -306,17 +306,18 @@ TEST(RackGuiServerTest, SeesAKeyedHostOnlyWithItsKeyFile) {
   std::filesystem::permissions(key, std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
   const auto host = dir.write("keyed.yaml",
                               "host: keyed\nsystem: 0\nheap_prefault_mib: 0\ntims:\n  announce_ms: 300\n"
-                              "  networks:\n    - {name: robot, url: \"" + bus.url() +
-                                  "\", scope: robot, key_file: \"" + key.string() + "\"}\n"
-                              "components:\n  - name: generator\n    class: Generator\n    instance: 0\n"
-                              "    autostart: true\n    data_task: {priority: 60, period_ms: 10}\n");
+                              "  networks:\n    - {name: robot, url: \"" +
+                                  bus.url() + "\", scope: robot, key_file: \"" + key.string() +
+                                  "\"}\n"
+                                  "components:\n  - name: generator\n    class: Generator\n    instance: 0\n"
+                                  "    autostart: true\n    data_task: {priority: 60, period_ms: 10}\n");
   Process rackd({RACK_RACKD_PATH, host.string()}, dir.path(), "rackd");
   ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
 
   // The components rack-gui reports within `limit` (names), from one rack-gui run.
   const auto components_seen = [&](std::vector<std::string> args, std::chrono::seconds limit) {
-    std::vector<std::string> cmd{RACK_GUI_PATH, "--port", "0", "--web", (dir.path() / "web").string(), "--reports",
-                                 "", "--poll-ms", "100"};
+    std::vector<std::string> cmd{RACK_GUI_PATH, "--port", "0",         "--web", (dir.path() / "web").string(),
+                                 "--reports",   "",       "--poll-ms", "100"};
     cmd.insert(cmd.end(), args.begin(), args.end());
     Process gui(cmd, dir.path(), "rack-gui");
     std::vector<std::string> names;
@@ -366,7 +367,8 @@ TEST(RackGuiServerTest, PluginClassDataHasItsFieldNames) {
   std::filesystem::create_directories(dir.path() / "web");
   dir.write("web/index.html", "<html></html>");
   const auto host = dir.write("counter.yaml", std::string("host: gui-describe\nsystem: 2\nheap_prefault_mib: 0\n") +
-                                                  "plugins: [" + RACK_COUNTER_PLUGIN_PATH + "]\ncomponents:\n"
+                                                  "plugins: [" + RACK_COUNTER_PLUGIN_PATH +
+                                                  "]\ncomponents:\n"
                                                   "  - name: counter\n    class: Counter\n    instance: 0\n"
                                                   "    autostart: true\n    data_task: {period_ms: 20}\n"
                                                   "    params: {label: hello}\n");

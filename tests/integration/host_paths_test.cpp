@@ -52,7 +52,9 @@ class HostPathsTest : public ::testing::Test {
         "components:\n"
         "  - name: chassis\n    class: ChassisSim\n    instance: 0\n"
         "    data_task: {period_ms: 20}\n"
-        "    params:\n      map: " + map + "\n      initial_x: 4.0\n      initial_y: 7.2\n"
+        "    params:\n      map: " +
+        map +
+        "\n      initial_x: 4.0\n      initial_y: 7.2\n"
         "  - name: counter\n    class: TestCounter\n    instance: 0\n    data_task: {period_ms: 10}\n";
     const fs::path path = robot_ / name;
     write_text(path, text);
@@ -110,13 +112,12 @@ TEST_F(HostPathsTest, CheckFailsOnAMissingFileWithItsLineAndAbsolutePath) {
   write_text(robot_ / "noplugins.yaml", "host: p\nsystem: 0\nplugins: [gone]\ncomponents: []\n");
   const RunResult p = run(from_tmp({kRackd, "--check", (robot_ / "noplugins.yaml").string()}), 30s);
   EXPECT_EQ(p.exit_code, 2) << p.describe();
-  EXPECT_TRUE(contains(p.err, ":3:11: plug-in " + (robot_ / "gone").string() + ": No such file or directory"))
-      << p.err;
+  EXPECT_TRUE(contains(p.err, ":3:11: plug-in " + (robot_ / "gone").string() + ": No such file or directory")) << p.err;
 }
 
 TEST_F(HostPathsTest, TheShippedConfigsCheckFromAnyFolder) {
-  for (const char* config : {"sim_nav.yaml", "sim_mcl.yaml", "replay_carmen.yaml", "replay_carmen_mcl.yaml",
-                             "sim_scan3d.yaml"}) {
+  for (const char* config :
+       {"sim_nav.yaml", "sim_mcl.yaml", "replay_carmen.yaml", "replay_carmen_mcl.yaml", "sim_scan3d.yaml"}) {
     const RunResult r = run(from_tmp({kRackd, "--check", kConfigs + "/" + config}), 30s);
     EXPECT_EQ(r.exit_code, 0) << config << ": " << r.describe();
   }

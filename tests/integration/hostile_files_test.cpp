@@ -63,18 +63,20 @@ class HostileFilesTest : public ::testing::Test {
 TEST_F(HostileFilesTest, HostileMapsAndLogsPutTheirComponentInErrorAndTheRestRuns) {
   const std::string fifo_pgm = fifo("fifo.pgm");
   const std::string fifo_log = fifo("fifo.log");
-  const std::string map_tail = "resolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
+  const std::string
+      map_tail = "resolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
   const auto fifo_map = dir_.write("fifo_map.yaml", "image: " + fifo_pgm + "\n" + map_tail);
   const auto zero_map = dir_.write("zero_map.yaml", "image: /dev/zero\n" + map_tail);
   dir_.write("huge.pgm", "P5\n30000 30000\n255\n\xff\xff");
   const auto huge_map = dir_.write("huge_map.yaml", "image: huge.pgm\n" + map_tail);
-  std::string host =
-      "host: hostile-files\nsystem: 0\nlcm: true\nlcm_url: \"" + bus_.url() + "\"\nheap_prefault_mib: 8\n"
-      "components:\n"
-      "  - name: generator\n    class: Generator\n    instance: 0\n    autostart: true\n"
-      "    data_task: {priority: 60, period_ms: 10}\n"
-      "  - name: chassis\n    class: ChassisReplay\n    instance: 0\n    autostart: false\n"
-      "    data_task: {priority: 61, period_ms: 10}\n    params:\n      log: " + fifo_log + "\n";
+  std::string host = "host: hostile-files\nsystem: 0\nlcm: true\nlcm_url: \"" + bus_.url() +
+                     "\"\nheap_prefault_mib: 8\n"
+                     "components:\n"
+                     "  - name: generator\n    class: Generator\n    instance: 0\n    autostart: true\n"
+                     "    data_task: {priority: 60, period_ms: 10}\n"
+                     "  - name: chassis\n    class: ChassisReplay\n    instance: 0\n    autostart: false\n"
+                     "    data_task: {priority: 61, period_ms: 10}\n    params:\n      log: " +
+                     fifo_log + "\n";
   const std::pair<std::string, std::string> ladars[] = {
       {"ladar_fifo", fifo_map.string()}, {"ladar_zero", zero_map.string()}, {"ladar_huge", huge_map.string()}};
   int instance = 0;
@@ -90,7 +92,8 @@ TEST_F(HostileFilesTest, HostileMapsAndLogsPutTheirComponentInErrorAndTheRestRun
   EXPECT_TRUE(contains(err, fifo_pgm + ": the map image is a FIFO, not a regular file")) << err;
   EXPECT_TRUE(contains(err, "/dev/zero: the map image is a character device, not a regular file")) << err;
   EXPECT_TRUE(contains(err, "huge.pgm: byte 18: 30000x30000 = 900000000 pixels, more than the limit")) << err;
-  for (const char* name : {"chassis", "ladar_fifo", "ladar_zero", "ladar_huge"}) EXPECT_EQ(state_of(name), "ERROR") << name;
+  for (const char* name : {"chassis", "ladar_fifo", "ladar_zero", "ladar_huge"})
+    EXPECT_EQ(state_of(name), "ERROR") << name;
   EXPECT_TRUE(eventually([&] { return state_of("generator") == "ENABLED"; }));
   d.signal(SIGTERM);
   EXPECT_EQ(d.wait_exit(20s), std::optional<int>(0)) << d.err();
@@ -98,8 +101,9 @@ TEST_F(HostileFilesTest, HostileMapsAndLogsPutTheirComponentInErrorAndTheRestRun
 
 TEST_F(HostileFilesTest, APluginThatIsAFifoIsAHostFileErrorNotAHang) {
   const std::string plugin = fifo("plugin.so");
-  const auto host = dir_.write("plugin.yaml", "host: p\nsystem: 0\nplugins:\n  - " + plugin +
-                                                  "\ncomponents:\n  - name: g\n    class: Generator\n    instance: 0\n");
+  const auto host = dir_.write("plugin.yaml",
+                               "host: p\nsystem: 0\nplugins:\n  - " + plugin +
+                                   "\ncomponents:\n  - name: g\n    class: Generator\n    instance: 0\n");
   const RunResult r = run({kRackd, "--check", host.string()}, 30s);
   EXPECT_FALSE(r.timed_out) << r.describe();
   EXPECT_EQ(r.exit_code, 2) << r.describe();

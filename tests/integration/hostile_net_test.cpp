@@ -180,7 +180,7 @@ Bytes gdos_batch(int32_t host_length, int32_t count, int32_t text_length) {
   put64(d, static_cast<uint64_t>(rack_lcm::gdos_batch::getHash()));
   put64(d, 0);
   put_string(d, host_length, host_length > 0 ? std::string(static_cast<std::size_t>(host_length - 1), 'h') + '\0' : "");
-  put32(d, 1);      // pid
+  put32(d, 1);  // pid
   put32(d, static_cast<uint32_t>(count));
   if (count > 0) {  // one record, whatever the count says
     put64(d, 0);

@@ -67,10 +67,24 @@ class JsonParser {
     const char c = s_[i_];
     if (c == '{') return object(out, depth);
     if (c == '[') return array(out, depth);
-    if (c == '"') { out.type = Json::Type::kString; return string(out.string); }
-    if (literal("true")) { out.type = Json::Type::kBool; out.boolean = true; return true; }
-    if (literal("false")) { out.type = Json::Type::kBool; out.boolean = false; return true; }
-    if (literal("null")) { out.type = Json::Type::kNull; return true; }
+    if (c == '"') {
+      out.type = Json::Type::kString;
+      return string(out.string);
+    }
+    if (literal("true")) {
+      out.type = Json::Type::kBool;
+      out.boolean = true;
+      return true;
+    }
+    if (literal("false")) {
+      out.type = Json::Type::kBool;
+      out.boolean = false;
+      return true;
+    }
+    if (literal("null")) {
+      out.type = Json::Type::kNull;
+      return true;
+    }
     return number(out);
   }
   bool number(Json& out) {
@@ -78,7 +92,8 @@ class JsonParser {
     if (i_ < s_.size() && s_[i_] == '-') ++i_;
     if (i_ >= s_.size() || std::isdigit(static_cast<unsigned char>(s_[i_])) == 0) return false;
     if (s_[i_] == '0') ++i_;
-    else while (i_ < s_.size() && std::isdigit(static_cast<unsigned char>(s_[i_])) != 0) ++i_;
+    else
+      while (i_ < s_.size() && std::isdigit(static_cast<unsigned char>(s_[i_])) != 0) ++i_;
     if (i_ < s_.size() && s_[i_] == '.') {
       ++i_;
       if (i_ >= s_.size() || std::isdigit(static_cast<unsigned char>(s_[i_])) == 0) return false;
@@ -100,7 +115,10 @@ class JsonParser {
       const char c = s_[i_++];
       if (c == '"') return true;
       if (static_cast<unsigned char>(c) < 0x20) return false;
-      if (c != '\\') { out += c; continue; }
+      if (c != '\\') {
+        out += c;
+        continue;
+      }
       if (i_ >= s_.size()) return false;
       const char e = s_[i_++];
       switch (e) {
@@ -131,7 +149,10 @@ class JsonParser {
     out.type = Json::Type::kArray;
     ++i_;
     skip_ws();
-    if (i_ < s_.size() && s_[i_] == ']') { ++i_; return true; }
+    if (i_ < s_.size() && s_[i_] == ']') {
+      ++i_;
+      return true;
+    }
     for (;;) {
       Json v;
       skip_ws();
@@ -139,7 +160,10 @@ class JsonParser {
       out.array.push_back(std::move(v));
       skip_ws();
       if (i_ >= s_.size()) return false;
-      if (s_[i_] == ']') { ++i_; return true; }
+      if (s_[i_] == ']') {
+        ++i_;
+        return true;
+      }
       if (s_[i_++] != ',') return false;
     }
   }
@@ -147,7 +171,10 @@ class JsonParser {
     out.type = Json::Type::kObject;
     ++i_;
     skip_ws();
-    if (i_ < s_.size() && s_[i_] == '}') { ++i_; return true; }
+    if (i_ < s_.size() && s_[i_] == '}') {
+      ++i_;
+      return true;
+    }
     for (;;) {
       skip_ws();
       if (i_ >= s_.size() || s_[i_] != '"') return false;
@@ -161,7 +188,10 @@ class JsonParser {
       out.object[key] = std::move(v);
       skip_ws();
       if (i_ >= s_.size()) return false;
-      if (s_[i_] == '}') { ++i_; return true; }
+      if (s_[i_] == '}') {
+        ++i_;
+        return true;
+      }
       if (s_[i_++] != ',') return false;
     }
   }

@@ -54,16 +54,15 @@ std::map<std::string, int> demo_lines() {
 
 class ModeSwitchIntegrationTest : public ::testing::Test {
  protected:
-  ModeSwitchIntegrationTest()
-      : watchdog_(100s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
+  ModeSwitchIntegrationTest() : watchdog_(100s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
 
   std::string crash_dir() const { return (dir_.path() / "crash").string(); }
 
   std::unique_ptr<Process> start_rackd(const std::string& host_text) {
     const auto file = dir_.write("host.yaml", host_text);
-    auto p = std::make_unique<Process>(
-        std::vector<std::string>{kRackd, file.string(), "--lcm", bus_.url(), "--crash-dir", crash_dir()}, dir_.path(),
-        "rackd");
+    auto p = std::make_unique<Process>(std::vector<std::string>{kRackd, file.string(), "--lcm", bus_.url(),
+                                                                "--crash-dir", crash_dir()},
+                                       dir_.path(), "rackd");
     if (!p->wait_for_stderr("rackd: running", 30s)) {
       ADD_FAILURE() << "rackd did not start:\n" << p->err();
       return nullptr;
@@ -142,8 +141,8 @@ TEST_F(ModeSwitchIntegrationTest, EachReasonIsReportedAndSymbolizesToTheDemoLine
     const char* task;
   };
   const Case cases[] = {
-      {"21", "SYSCALL", "SYSCALL", "demo:cmd"}, {"22", "FAULT", "FAULT", "demo:cmd"},
-      {"23", "ALLOC", "ALLOC", "demo:cmd"},     {"24", "PRIOINV", "PRIOINV", "demo:cmd"},
+      {"21", "SYSCALL", "SYSCALL", "demo:cmd"},       {"22", "FAULT", "FAULT", "demo:cmd"},
+      {"23", "ALLOC", "ALLOC", "demo:cmd"},           {"24", "PRIOINV", "PRIOINV", "demo:cmd"},
       {"30", "SYSCALL", "LOOP_SYSCALL", "demo:data"},
   };
   int syscalls = 0;
@@ -164,8 +163,8 @@ TEST_F(ModeSwitchIntegrationTest, EachReasonIsReportedAndSymbolizesToTheDemoLine
   rackd->signal(SIGTERM);
   ASSERT_EQ(rackd->wait_exit(30s), 0) << rackd->err();
   const std::string err = rackd->err();
-  EXPECT_EQ(count_of(err, "reason=SYSCALL "), 2) << err;     // the device write added none
-  EXPECT_EQ(count_of(err, "reason=ALLOC "), 2) << err;       // new[] and delete[]
+  EXPECT_EQ(count_of(err, "reason=SYSCALL "), 2) << err;  // the device write added none
+  EXPECT_EQ(count_of(err, "reason=ALLOC "), 2) << err;    // new[] and delete[]
   EXPECT_TRUE(contains(err, "detail cycle overran by ")) << err;
   EXPECT_TRUE(contains(err, "detail RLIMIT_RTTIME: ran more than 100000 us")) << err;
   EXPECT_TRUE(contains(err, "mode switch(es) reported")) << err;

@@ -63,9 +63,10 @@ std::string producer_host(const std::string& url) {
 }
 
 std::string consumer_host(const std::string& url, int host_id, int instance) {
-  return "host: host-" + std::string(1, static_cast<char>('a' + host_id)) + "\nsystem: 0\nhost_id: " +
-         std::to_string(host_id) + "\nheap_prefault_mib: 0\n" + tims_section(url) + "components:\n  - name: monitor" +
-         std::to_string(instance) + "\n    class: Monitor\n    instance: " + std::to_string(instance) +
+  return "host: host-" + std::string(1, static_cast<char>('a' + host_id)) +
+         "\nsystem: 0\nhost_id: " + std::to_string(host_id) + "\nheap_prefault_mib: 0\n" + tims_section(url) +
+         "components:\n  - name: monitor" + std::to_string(instance) +
+         "\n    class: Monitor\n    instance: " + std::to_string(instance) +
          R"yaml(
     autostart: true
     retry_ms: 300
@@ -334,9 +335,7 @@ class TwoRobotsTest : public MultiHostTest {
     const auto at = out.rfind("packets in ");
     return at == std::string::npos ? 0 : std::strtoull(out.c_str() + at + 11, nullptr, 10);
   }
-  std::string url(const LcmBus& bus) const {
-    return "udpm://239.255.76.68:" + std::to_string(bus.port()) + "?ttl=1";
-  }
+  std::string url(const LcmBus& bus) const { return "udpm://239.255.76.68:" + std::to_string(bus.port()) + "?ttl=1"; }
   std::string robot_url(const LcmBus& bus) const {
     return "udpm://239.255.76.67:" + std::to_string(bus.port()) + "?ttl=1";
   }

@@ -108,8 +108,6 @@ NetnsTopology::~NetnsTopology() {
   for (auto it = made_.rbegin(); it != made_.rend(); ++it) (void)run({ip_path(), "netns", "del", *it}, 10s);
 }
 
-void NetnsTopology::set_link(int i, bool up) {
-  ip({"-n", switch_, "link", "set", port_name(i), up ? "up" : "down"});
-}
+void NetnsTopology::set_link(int i, bool up) { ip({"-n", switch_, "link", "set", port_name(i), up ? "up" : "down"}); }
 
 }  // namespace rack::test

@@ -116,8 +116,8 @@ TEST_F(PartitionTest, EveryNonRtThreadRunsOnTheHousekeepingCpus) {
     }
   }
   // The threads the test means to cover are there (names as rackd gives them).
-  for (const char* name : {"control:cmd", "control:data", "background:cmd", "background:data", "rackd:gdos",
-                           "tims-rx", "tims-tx", "rack-reporter", "rackd"}) {
+  for (const char* name : {"control:cmd", "control:data", "background:cmd", "background:data", "rackd:gdos", "tims-rx",
+                           "tims-tx", "rack-reporter", "rackd"}) {
     EXPECT_EQ(seen.count(name), 1u) << "no thread named " << name;
   }
   // The start-up report says where each thread runs.

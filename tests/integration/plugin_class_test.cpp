@@ -63,14 +63,16 @@ TEST_F(PluginClassTest, ListClassesNamesThePluginClassesWithoutLoadingThem) {
   EXPECT_FALSE(contains(r.out, "TestCounter"));
   const auto with_path = run({"/usr/bin/env", "RACK_PLUGIN_PATH=" + kTestPlugins, kRackd, "--list-classes"}, 30s);
   ASSERT_EQ(with_path.exit_code, 0) << with_path.describe();
-  EXPECT_TRUE(contains(with_path.out, "TestCounter  (class TestCounter, plug-in " + kTestPlugins + "/")) << with_path.out;
+  EXPECT_TRUE(contains(with_path.out, "TestCounter  (class TestCounter, plug-in " + kTestPlugins + "/"))
+      << with_path.out;
 }
 
 TEST_F(PluginClassTest, AHostFileWithoutHeavyClassesMapsNoHeavyLibrary) {
   LcmBus bus;
-  const auto host = dir_.write("demo.yaml",
-                               "host: it-light\nsystem: 0\nheap_prefault_mib: 8\ncomponents:\n"
-                               "  - name: gen\n    class: Generator\n    instance: 0\n    data_task: {period_ms: 10}\n");
+  const auto host = dir_.write(
+      "demo.yaml",
+      "host: it-light\nsystem: 0\nheap_prefault_mib: 8\ncomponents:\n"
+      "  - name: gen\n    class: Generator\n    instance: 0\n    data_task: {period_ms: 10}\n");
   Process rackd({kRackd, host.string(), "--lcm", bus.url()}, dir_.path(), "light");
   ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 20s)) << rackd.err();
   const std::string maps = maps_of(rackd.pid());
@@ -98,15 +100,15 @@ TEST_F(PluginClassTest, APluginClassIsFoundThroughRackPluginPath) {
   const auto host = dir_.write("counter.yaml", counter_host(""));
   const auto without = run({kRackd, "--check", host.string()}, 30s);
   EXPECT_EQ(without.exit_code, 2) << without.describe();
-  const auto with = run({"/usr/bin/env", "RACK_PLUGIN_PATH=/nonexistent:" + kTestPlugins, kRackd, "--check",
-                         host.string()},
-                        30s);
+  const auto with = run(
+      {"/usr/bin/env", "RACK_PLUGIN_PATH=/nonexistent:" + kTestPlugins, kRackd, "--check", host.string()}, 30s);
   EXPECT_EQ(with.exit_code, 0) << with.describe();
 }
 
 TEST_F(PluginClassTest, AMissingPluginNamesTheClassAndWhereRackdLooked) {
-  const auto host = dir_.write("missing.yaml", "host: it-missing\nsystem: 0\ncomponents:\n"
-                                               "  - name: x\n    class: NoSuchClass\n    instance: 0\n");
+  const auto host = dir_.write("missing.yaml",
+                               "host: it-missing\nsystem: 0\ncomponents:\n"
+                               "  - name: x\n    class: NoSuchClass\n    instance: 0\n");
   const auto r = run({"/usr/bin/env", "RACK_PLUGIN_PATH=" + dir_.path().string(), kRackd, "--check", host.string()},
                      30s);
   EXPECT_EQ(r.exit_code, 2) << r.describe();

@@ -76,8 +76,7 @@ int open_netns(const std::string& netns) {
 }
 
 int64_t now_ms() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch())
       .count();
 }
 
@@ -213,8 +212,8 @@ Watchdog::Watchdog(std::chrono::seconds limit, std::string what) {
   thread_ = std::thread([this, limit, what = std::move(what)] {
     std::unique_lock lock(mutex_);
     if (cv_.wait_for(lock, limit, [this] { return done_; })) return;
-    std::fprintf(stderr, "WATCHDOG: %s ran longer than %lld s: killing its children and aborting\n",
-                 what.c_str(), static_cast<long long>(limit.count()));
+    std::fprintf(stderr, "WATCHDOG: %s ran longer than %lld s: killing its children and aborting\n", what.c_str(),
+                 static_cast<long long>(limit.count()));
     {
       std::lock_guard children(g_children_mutex);
       for (const pid_t pid : g_children) kill(pid, SIGKILL);

@@ -21,7 +21,7 @@ namespace rack::test {
 
 // What a finished child left behind.
 struct RunResult {
-  int exit_code = -1;      // -1 when killed by a signal (or by the timeout)
+  int exit_code = -1;  // -1 when killed by a signal (or by the timeout)
   int term_signal = 0;
   bool timed_out = false;  // killed because it ran past its bound
   std::string out;
@@ -32,8 +32,7 @@ struct RunResult {
 // Runs `args` (args[0] is the path) to completion, capturing stdout and stderr.
 // Killed (SIGKILL) after `timeout`. `netns`: the named network namespace
 // (/run/netns/NAME) the child enters before exec; empty: the test's own.
-RunResult run(const std::vector<std::string>& args, std::chrono::milliseconds timeout,
-              const std::string& netns = "");
+RunResult run(const std::vector<std::string>& args, std::chrono::milliseconds timeout, const std::string& netns = "");
 
 // A long-running child (rackd) whose stdout and stderr go to files in `dir`.
 class Process {

@@ -29,10 +29,10 @@ const std::string kRackd = RACK_RACKD_PATH;
 const std::string kRackctl = RACK_RACKCTL_PATH;
 const std::string kConfigs = RACK_CONFIGS_DIR;
 
-constexpr auto kTestLimit = 100s;      // the watchdog (ctest's own TIMEOUT is 120 s)
-constexpr auto kCommandLimit = 30s;    // one rackd --check or rackctl run
-constexpr auto kStartLimit = 30s;      // rackd until "running"
-constexpr auto kSettleLimit = 20s;     // a state change we wait for
+constexpr auto kTestLimit = 100s;    // the watchdog (ctest's own TIMEOUT is 120 s)
+constexpr auto kCommandLimit = 30s;  // one rackd --check or rackctl run
+constexpr auto kStartLimit = 30s;    // rackd until "running"
+constexpr auto kSettleLimit = 20s;   // a state change we wait for
 
 std::vector<std::string> lines_of(const std::string& text) {
   std::vector<std::string> out;
@@ -49,8 +49,7 @@ bool contains(const std::string& text, const std::string& part) { return text.fi
 
 class IntegrationTest : public ::testing::Test {
  protected:
-  IntegrationTest()
-      : watchdog_(kTestLimit, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
+  IntegrationTest() : watchdog_(kTestLimit, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
 
   RunResult rackd(std::vector<std::string> args) {
     args.insert(args.begin(), kRackd);
@@ -66,8 +65,8 @@ class IntegrationTest : public ::testing::Test {
 
   // Starts rackd on this test's bus and waits until it runs.
   std::unique_ptr<Process> start_rackd(const std::string& host_file) {
-    auto p = std::make_unique<Process>(std::vector<std::string>{kRackd, host_file, "--lcm", bus_.url()},
-                                       dir_.path(), "rackd");
+    auto p = std::make_unique<Process>(std::vector<std::string>{kRackd, host_file, "--lcm", bus_.url()}, dir_.path(),
+                                       "rackd");
     if (!p->wait_for_stderr("rackd: running", kStartLimit)) {
       ADD_FAILURE() << "rackd did not start:\n" << p->err();
       return nullptr;
@@ -195,7 +194,9 @@ TEST_P(HostFileErrorTest, ExitsTwoWithFileLineColumnAndStartsNothing) {
     if (!contains(l, c.message)) continue;
     found = true;
     EXPECT_EQ(l.rfind(path + ":" + std::to_string(line) + ":", 0), 0u)
-        << "expected " << path << ":" << line << ":col: ... in\n" << l << "\nfile:\n" << text;
+        << "expected " << path << ":" << line << ":col: ... in\n"
+        << l << "\nfile:\n"
+        << text;
   }
   EXPECT_TRUE(found) << "no error containing '" << c.message << "':\n" << check.describe() << "\nfile:\n" << text;
   EXPECT_TRUE(contains(check.err, "nothing started")) << check.describe();
@@ -208,16 +209,25 @@ TEST_P(HostFileErrorTest, ExitsTwoWithFileLineColumnAndStartsNothing) {
 }
 
 const MalformedCase kMalformed[] = {
-    {"unknown_key", {{"    instance: 0", "    instance: 0\n    colour: blue  # <-- error"}}, "",
+    {"unknown_key",
+     {{"    instance: 0", "    instance: 0\n    colour: blue  # <-- error"}},
+     "",
      "unknown key 'colour'"},
-    {"wrong_type_priority", {{"      priority: 60", "      priority: \"high\"  # <-- error"}}, "", "'priority' must be"},
+    {"wrong_type_priority",
+     {{"      priority: 60", "      priority: \"high\"  # <-- error"}},
+     "",
+     "'priority' must be"},
     {"missing_required_parameter",
      {{"      source: generator", "      period_ms: 100"}, {"  - name: monitor", "  - name: monitor  # <-- error"}},
      "",
      "missing required parameter 'source'"},
-    {"unknown_parameter", {{"      amplitude: 2.0", "      amplitude: 2.0\n      colour: 3  # <-- error"}}, "",
+    {"unknown_parameter",
+     {{"      amplitude: 2.0", "      amplitude: 2.0\n      colour: 3  # <-- error"}},
+     "",
      "unknown parameter 'colour'"},
-    {"unknown_class", {{"    class: Generator", "    class: Generatr  # <-- error"}}, "",
+    {"unknown_class",
+     {{"    class: Generator", "    class: Generatr  # <-- error"}},
+     "",
      "unknown component class 'Generatr'"},
     {"duplicate_address",
      {},
@@ -225,19 +235,30 @@ const MalformedCase kMalformed[] = {
      "has the address Generator(0/0)"},
     // A data task may have priority 0 (normal scheduling, for heavy components such as
     // MCL); below that, or above 99, is an error.
-    {"priority_negative", {{"      priority: 60", "      priority: -1  # <-- error"}}, "", "'priority' = -1 is outside 0..99"},
-    {"priority_100", {{"      priority: 60", "      priority: 100  # <-- error"}}, "",
+    {"priority_negative",
+     {{"      priority: 60", "      priority: -1  # <-- error"}},
+     "",
+     "'priority' = -1 is outside 0..99"},
+    {"priority_100",
+     {{"      priority: 60", "      priority: 100  # <-- error"}},
+     "",
      "'priority' = 100 is outside 0..99"},
-    {"cpu_not_online", {{"      priority: 60", "      priority: 60\n      cpu: 999  # <-- error"}}, "",
+    {"cpu_not_online",
+     {{"      priority: 60", "      priority: 60\n      cpu: 999  # <-- error"}},
+     "",
      "CPU 999 is not online"},
     {"period_zero", {{"      period_ms: 10", "      period_ms: 0  # <-- error"}}, "", "'period_ms' must be positive"},
-    {"period_negative", {{"      period_ms: 10", "      period_ms: -5  # <-- error"}}, "",
+    {"period_negative",
+     {{"      period_ms: 10", "      period_ms: -5  # <-- error"}},
+     "",
      "'period_ms' must be positive"},
     {"yaml_syntax", {{"      period_ms: 10", "      period_ms: 10: 5  # <-- error"}}, "", "YAML syntax"},
 };
 
 INSTANTIATE_TEST_SUITE_P(Malformed, HostFileErrorTest, ::testing::ValuesIn(kMalformed),
-                         [](const ::testing::TestParamInfo<MalformedCase>& param_info) { return param_info.param.name; });
+                         [](const ::testing::TestParamInfo<MalformedCase>& param_info) {
+                           return param_info.param.name;
+                         });
 
 // ------------------------------------------------------------------ rackctl alone
 
@@ -417,7 +438,8 @@ TEST_F(RackdDemoTest, OffGeneratorSendsMonitorToErrorAndItRecovers) {
   // The monitor recovers by itself (retry, re-subscribe).
   EXPECT_TRUE(eventually([&] {
     return state_of("Monitor(0/0)") == "ENABLED" && state_of("Generator(0/0)") == "ENABLED";
-  })) << "monitor " << state_of("Monitor(0/0)") << ", generator " << state_of("Generator(0/0)");
+  })) << "monitor "
+      << state_of("Monitor(0/0)") << ", generator " << state_of("Generator(0/0)");
   // ... and receives data again.
   r = ctl({"watch", "monitor", "--count", "1"});
   EXPECT_EQ(r.exit_code, 0) << r.describe();
@@ -600,10 +622,13 @@ class RackdProbeTest : public IntegrationTest {
   // A Generator and a Probe (both autostart) on this test's bus; `probe_extra` ends
   // the probe's entry (e.g. its params).
   std::string probe_host(const std::string& name, const std::string& probe_extra = "") {
-    return "host: " + name + "\n"
+    return "host: " + name +
+           "\n"
            "system: 0\n"
            "lcm: true\n"
-           "lcm_url: \"" + bus_.url() + "\"\n"
+           "lcm_url: \"" +
+           bus_.url() +
+           "\"\n"
            "heap_prefault_mib: 8\n"
            "components:\n"
            "  - name: generator\n"
@@ -615,7 +640,8 @@ class RackdProbeTest : public IntegrationTest {
            "    class: Probe\n"
            "    instance: 0\n"
            "    autostart: true\n"
-           "    data_task: {priority: 50, period_ms: 10}\n" + probe_extra;
+           "    data_task: {priority: 50, period_ms: 10}\n" +
+           probe_extra;
   }
 };
 

@@ -73,8 +73,7 @@ TEST(ReplayMclTest, ShippedLogLocalisesThroughTheWholePipeline) {
   ASSERT_TRUE(truth.count(last_scan) == 1) << "no TRUEPOS at the last scan's time " << last_scan;
   const Truth end = truth.at(last_scan);
   auto estimate = [&](const std::string& name) {
-    const RunResult r =
-        run({kRackctl, "--lcm", bus.url(), "--discover-ms", "3000", "get-data", name}, 30s);
+    const RunResult r = run({kRackctl, "--lcm", bus.url(), "--discover-ms", "3000", "get-data", name}, 30s);
     EXPECT_EQ(r.exit_code, 0) << r.describe();
     const auto j = parse_json(r.out);
     const Json* d = j ? j->get("data") : nullptr;
@@ -88,9 +87,11 @@ TEST(ReplayMclTest, ShippedLogLocalisesThroughTheWholePipeline) {
     const RunResult r = run({kRackctl, "--lcm", bus.url(), "--discover-ms", "3000", "status", "mcl"}, 30s);
     EXPECT_EQ(r.exit_code, 0) << r.describe();
     EXPECT_NE(r.out.find("triggered"), std::string::npos) << r.out;
-    EXPECT_TRUE(std::regex_search(r.out, std::regex("execution time +p50 [0-9.]+ (ns|us|ms|s), p99 [0-9.]+ (ns|us|ms|s), max [0-9.]+ (ns|us|ms|s)"))) << r.out;
-    const RunResult j =
-        run({kRackctl, "--lcm", bus.url(), "--discover-ms", "3000", "status", "scan2d", "--json"}, 30s);
+    EXPECT_TRUE(std::regex_search(
+        r.out,
+        std::regex("execution time +p50 [0-9.]+ (ns|us|ms|s), p99 [0-9.]+ (ns|us|ms|s), max [0-9.]+ (ns|us|ms|s)")))
+        << r.out;
+    const RunResult j = run({kRackctl, "--lcm", bus.url(), "--discover-ms", "3000", "status", "scan2d", "--json"}, 30s);
     const auto json = parse_json(j.out);
     const Json* exec = json ? json->get("execution_us") : nullptr;
     const Json* samples = exec != nullptr ? exec->get("samples") : nullptr;
@@ -102,7 +103,8 @@ TEST(ReplayMclTest, ShippedLogLocalisesThroughTheWholePipeline) {
   }
   const Truth mcl = estimate("mcl");
   EXPECT_LT(std::hypot(mcl.x - end.x, mcl.y - end.y), 0.15)
-      << "MCL at (" << mcl.x << ", " << mcl.y << "), truth (" << end.x << ", " << end.y << ")\n" << rackd.err();
+      << "MCL at (" << mcl.x << ", " << mcl.y << "), truth (" << end.x << ", " << end.y << ")\n"
+      << rackd.err();
   // Position: re-anchored by MCL's UPDATEs, carried on by odometry to the last ODOM
   // (0.1 s after the last scan at 0.5 m/s).
   const Truth pos = estimate("position");

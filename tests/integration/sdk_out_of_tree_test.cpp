@@ -72,16 +72,15 @@ class SdkOutOfTreeTest : public ::testing::Test {
 TEST_F(SdkOutOfTreeTest, ExampleClassBuiltFromTheInstalledTreeRunsInRackd) {
   // 1. Install the programs and the SDK (not the GUI: its front end is optional).
   for (const char* component : {"Runtime", "Development"}) {
-    const RunResult r = run({kCmake, "--install", RACK_BINARY_DIR, "--prefix", prefix().string(), "--component",
-                             component},
-                            60s);
+    const RunResult r = run(
+        {kCmake, "--install", RACK_BINARY_DIR, "--prefix", prefix().string(), "--component", component}, 60s);
     ASSERT_EQ(r.exit_code, 0) << r.describe();
   }
-  for (const char* file : {"bin/rackd", "bin/rackctl", "include/rack/core/component.h",
-                           "include/rack/client/host_file.h", "lib/cmake/rack/rackConfig.cmake",
-                           "lib/cmake/rack/rackConfigVersion.cmake", "lib/cmake/rack/RackPlugin.cmake",
-                           "share/rack/examples/out_of_tree_class/CMakeLists.txt", "share/rack/configs/demo.yaml",
-                           "lib/systemd/system/rackd@.service"}) {
+  for (const char* file :
+       {"bin/rackd", "bin/rackctl", "include/rack/core/component.h", "include/rack/client/host_file.h",
+        "lib/cmake/rack/rackConfig.cmake", "lib/cmake/rack/rackConfigVersion.cmake", "lib/cmake/rack/RackPlugin.cmake",
+        "share/rack/examples/out_of_tree_class/CMakeLists.txt", "share/rack/configs/demo.yaml",
+        "lib/systemd/system/rackd@.service"}) {
     EXPECT_TRUE(fs::exists(prefix() / file)) << file;
   }
   EXPECT_TRUE(fs::is_directory(prefix() / "lib/rack/plugins"));

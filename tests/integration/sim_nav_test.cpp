@@ -53,7 +53,8 @@ class SimNavTest : public ::testing::Test {
     return dir_.write("sim_nav.yaml", text).string();
   }
   void start(const std::string& path) {
-    rackd_ = std::make_unique<Process>(std::vector<std::string>{kRackd, path, "--lcm", bus_.url()}, dir_.path(), "rackd");
+    rackd_ = std::make_unique<Process>(std::vector<std::string>{kRackd, path, "--lcm", bus_.url()}, dir_.path(),
+                                       "rackd");
     ASSERT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
   }
   RunResult ctl(std::vector<std::string> args) {
@@ -145,10 +146,13 @@ TEST_F(SimNavTest, TheRobotFollowsThePathAndTakesADestinationFromRackctl) {
   // A destination through rackctl: the pilot drives there and reports it reached.
   RunResult r = ctl({"set-param", "pilot", "destination", "6.5,8.0"});
   ASSERT_EQ(r.exit_code, 0) << r.describe();
-  ASSERT_TRUE(eventually([&] {
-    const auto p = data("pilot");
-    return p && p->at("mode").number == 2 && p->at("target_x").number == 6.5 && p->at("status").number == 2;
-  }, 60s)) << ctl({"get-data", "pilot"}).out;
+  ASSERT_TRUE(eventually(
+      [&] {
+        const auto p = data("pilot");
+        return p && p->at("mode").number == 2 && p->at("target_x").number == 6.5 && p->at("status").number == 2;
+      },
+      60s))
+      << ctl({"get-data", "pilot"}).out;
   EXPECT_NEAR(number("chassis", "truth_x"), 6.5, 0.4);
   EXPECT_NEAR(number("chassis", "truth_y"), 8.0, 0.4);
   // A malformed destination is refused where it is set (the pilot's rule, the same
@@ -178,11 +182,13 @@ TEST_F(SimNavTest, TheReadmeWalkThroughReachesEachDestinationInOrder) {
   start(host_file());
   ASSERT_TRUE(eventually([&] { return number("pilot", "status") == 1; })) << rackd_->err();
   const auto reached = [&](double x, double y) {
-    return eventually([&] {
-      const auto p = data("pilot");
-      return p && p->at("mode").number == 2 && p->at("status").number == 2 &&
-             std::abs(p->at("target_x").number - x) < 0.01 && std::abs(p->at("target_y").number - y) < 0.01;
-    }, 40s);
+    return eventually(
+        [&] {
+          const auto p = data("pilot");
+          return p && p->at("mode").number == 2 && p->at("status").number == 2 &&
+                 std::abs(p->at("target_x").number - x) < 0.01 && std::abs(p->at("target_y").number - y) < 0.01;
+        },
+        40s);
   };
   RunResult r = ctl({"set-param", "pilot", "destination", "10.0,8.0"});
   ASSERT_EQ(r.exit_code, 0) << r.describe();

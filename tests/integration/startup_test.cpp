@@ -74,23 +74,36 @@ std::vector<Malformed> corpus() {
       {"duplicate_top_level_key", "system: 0\nsystem: 1\n" + kComponent, 2, "duplicate key 'system' (first at line 1)"},
       {"duplicate_param", lcm_off + kComponent + "    params:\n      amplitude: 1\n      amplitude: 2\n", 8,
        "duplicate key 'amplitude' (first at line 7)"},
-      {"duplicate_task_key", lcm_off + "components:\n  - name: gen\n    class: Generator\n    data_task:\n      period_ms: 10\n"
-                             "      period_ms: 20\n", 7, "duplicate key 'period_ms'"},
-      {"duplicate_component_key", lcm_off + "components:\n  - name: gen\n    name: gen2\n    class: Generator\n"
-                                  "    data_task: {period_ms: 10}\n", 4, "duplicate key 'name'"},
-      {"cpu_wraps", lcm_off + "components:\n  - name: gen\n    class: Generator\n"
-                    "    data_task: {period_ms: 10, cpu: 4294967297}\n", 5, "CPU 4294967297 is not online"},
-      {"priority_overflows", lcm_off + "components:\n  - name: gen\n    class: Generator\n"
-                             "    data_task: {period_ms: 10, priority: 18446744073709551617}\n", 5, "'priority' must be"},
+      {"duplicate_task_key",
+       lcm_off + "components:\n  - name: gen\n    class: Generator\n    data_task:\n      period_ms: 10\n"
+                 "      period_ms: 20\n",
+       7, "duplicate key 'period_ms'"},
+      {"duplicate_component_key",
+       lcm_off + "components:\n  - name: gen\n    name: gen2\n    class: Generator\n"
+                 "    data_task: {period_ms: 10}\n",
+       4, "duplicate key 'name'"},
+      {"cpu_wraps",
+       lcm_off + "components:\n  - name: gen\n    class: Generator\n"
+                 "    data_task: {period_ms: 10, cpu: 4294967297}\n",
+       5, "CPU 4294967297 is not online"},
+      {"priority_overflows",
+       lcm_off + "components:\n  - name: gen\n    class: Generator\n"
+                 "    data_task: {period_ms: 10, priority: 18446744073709551617}\n",
+       5, "'priority' must be"},
       {"system_out_of_range", "system: 255\n" + kComponent, 1, "'system' = 255 is outside 0..254"},
-      {"instance_out_of_range", lcm_off + "components:\n  - name: gen\n    class: Generator\n    instance: 256\n"
-                                "    data_task: {period_ms: 10}\n", 5, "'instance' = 256 is outside 0..255"},
-      {"period_beyond_a_day", lcm_off + "components:\n  - name: gen\n    class: Generator\n"
-                              "    data_task: {period_ms: 1e300}\n", 5, "above 86400000 ms"},
+      {"instance_out_of_range",
+       lcm_off + "components:\n  - name: gen\n    class: Generator\n    instance: 256\n"
+                 "    data_task: {period_ms: 10}\n",
+       5, "'instance' = 256 is outside 0..255"},
+      {"period_beyond_a_day",
+       lcm_off + "components:\n  - name: gen\n    class: Generator\n"
+                 "    data_task: {period_ms: 1e300}\n",
+       5, "above 86400000 ms"},
       {"garbage_lcm_url", "lcm_url: garbage\n" + kComponent, 1, "is not an LCM URL"},
       {"lcm_url_bad_port", "lcm_url: \"udpm://239.255.76.67:76670?ttl=0\"\n" + kComponent, 1, "not a number 1..65535"},
       {"lcm_url_not_multicast", "lcm_url: \"udpm://192.168.1.1:7667\"\n" + kComponent, 1, "not a multicast address"},
-      {"lcm_url_unknown_option", "lcm_url: \"udpm://239.255.76.67:7667?tl=0\"\n" + kComponent, 1, "unknown option 'tl'"},
+      {"lcm_url_unknown_option", "lcm_url: \"udpm://239.255.76.67:7667?tl=0\"\n" + kComponent, 1,
+       "unknown option 'tl'"},
       {"gdos_lcm_url", "gdos:\n  lcm_url: \"udpm://239.255.76.67:7667?ttl=x\"\n" + kComponent, 2, "ttl 'x'"},
       {"network_url", "tims:\n  networks:\n    - {name: robot, url: \"tcp://robot\"}\n" + kComponent, 3,
        "unknown LCM provider 'tcp'"},
@@ -104,19 +117,29 @@ std::vector<Malformed> corpus() {
       {"host_name_control", "host: \"robot\\e[2J\"\n" + kComponent, 1, "control character (U+001B)"},
       {"host_name_escaped_nul", "host: \"ro\\0bot\"\n" + kComponent, 1, "a NUL byte"},
       {"raw_nul_byte", "lcm: false\nhost: ro" + std::string(1, '\0') + "bot\n" + kComponent, 2, "a NUL byte"},
-      {"invalid_utf8_name", lcm_off + "components:\n  - name: g\xe9n\n    class: Generator\n"
-                            "    data_task: {period_ms: 10}\n", 3, "invalid UTF-8"},
-      {"component_name_spaces", lcm_off + "components:\n  - name: \"my gen\"\n    class: Generator\n"
-                                "    data_task: {period_ms: 10}\n", 3, "component name"},
-      {"control_in_param", lcm_off + "components:\n  - name: p\n    class: Probe\n    data_task: {period_ms: 10}\n"
-                           "    params: {label: \"a\\x07b\"}\n", 6, "control character (U+0007)"},
+      {"invalid_utf8_name",
+       lcm_off + "components:\n  - name: g\xe9n\n    class: Generator\n"
+                 "    data_task: {period_ms: 10}\n",
+       3, "invalid UTF-8"},
+      {"component_name_spaces",
+       lcm_off + "components:\n  - name: \"my gen\"\n    class: Generator\n"
+                 "    data_task: {period_ms: 10}\n",
+       3, "component name"},
+      {"control_in_param",
+       lcm_off + "components:\n  - name: p\n    class: Probe\n    data_task: {period_ms: 10}\n"
+                 "    params: {label: \"a\\x07b\"}\n",
+       6, "control character (U+0007)"},
       {"nested_too_deep", lcm_off + "x: " + std::string(40, '[') + std::string(40, ']') + "\n" + kComponent, 2,
        "nested deeper than 32"},
-      {"pilot_mode", lcm_off + "components:\n  - name: pilot\n    class: Pilot\n    data_task: {period_ms: 50}\n"
-                     "    params:\n      chassis: \"Chassis(0/9)\"\n      position: \"Position(0/9)\"\n"
-                     "      scan2d: \"Scan2D(0/9)\"\n      mode: fly\n", 10, "must be one of path, hold, got 'fly'"},
-      {"path_waypoints", lcm_off + "components:\n  - name: path\n    class: Path\n    data_task: {period_ms: 200}\n"
-                         "    params: {waypoints: \"0,0; 1\"}\n", 6, "parameter 'waypoints': item 2"},
+      {"pilot_mode",
+       lcm_off + "components:\n  - name: pilot\n    class: Pilot\n    data_task: {period_ms: 50}\n"
+                 "    params:\n      chassis: \"Chassis(0/9)\"\n      position: \"Position(0/9)\"\n"
+                 "      scan2d: \"Scan2D(0/9)\"\n      mode: fly\n",
+       10, "must be one of path, hold, got 'fly'"},
+      {"path_waypoints",
+       lcm_off + "components:\n  - name: path\n    class: Path\n    data_task: {period_ms: 200}\n"
+                 "    params: {waypoints: \"0,0; 1\"}\n",
+       6, "parameter 'waypoints': item 2"},
       {"too_large", std::string((1u << 20) + 1, '#'), 0, "bytes: at most 1048576 are read"},
   };
 }
@@ -216,7 +239,8 @@ TEST_F(StartupTest, SigtermInsideAnInitThatDoesNotReturnEndsRackdWithinASecond) 
   Process p({kRackd, host.string(), "--crash-dir", crash_dir_}, dir_.path(), "rackd");
   const auto took = stop_during_init(p, SIGTERM);
   EXPECT_LT(took, 1000ms) << p.err();
-  EXPECT_TRUE(contains(p.err(), "rackd: Terminated during start-up (init() of component 'slow0'): stopping")) << p.err();
+  EXPECT_TRUE(contains(p.err(), "rackd: Terminated during start-up (init() of component 'slow0'): stopping"))
+      << p.err();
   EXPECT_TRUE(contains(p.err(), "start-up did not stop within 500 ms (still init() of component 'slow0')")) << p.err();
   EXPECT_FALSE(contains(p.err(), "CRASH")) << p.err();
 }

@@ -223,27 +223,27 @@ TEST_F(TimsInputTest, FloodOfMalformedPacketsIsDroppedCountedAndThePeriodicTaskK
   while (std::chrono::steady_clock::now() - start < 3s) {
     for (int burst = 0; burst < 20; ++burst) {
       ++seq;
-      raw.send("TIMS", random_bytes(rng() % 2000));                                  // random bytes
-      raw.send("TIMS", random_bytes(rng() % 40));                                    // shorter than a packet
+      raw.send("TIMS", random_bytes(rng() % 2000));  // random bytes
+      raw.send("TIMS", random_bytes(rng() % 40));    // shorter than a packet
       auto truncated = message_packet(ok_request, 0x1111, seq);
       truncated.resize(truncated.size() - 5);
-      raw.send("TIMS", truncated);                                                   // size field lies
+      raw.send("TIMS", truncated);  // size field lies
       Chunk wrong_type;
       wrong_type.fingerprint = 0x0123456789abcdefULL;
       wrong_type.total = wrong_type.encoded = static_cast<int32_t>(ok_request.size());
-      raw.send("TIMS", packet(wrong_type, ok_request));                              // not a tims_packet
+      raw.send("TIMS", packet(wrong_type, ok_request));  // not a tims_packet
       Chunk huge;
       huge.total = huge.encoded = 1 << 30;
-      raw.send("TIMS", packet(huge, ok_request));                                    // absurd lengths
+      raw.send("TIMS", packet(huge, ok_request));  // absurd lengths
       Chunk negative;
       negative.total = negative.encoded = static_cast<int32_t>(ok_request.size());
       negative.offset = -60000;
-      raw.send("TIMS", packet(negative, ok_request));                                // negative offset
+      raw.send("TIMS", packet(negative, ok_request));  // negative offset
       auto bad_len = ok_request;
-      bad_len.at(12) = 99;                                                           // header length lies
+      bad_len.at(12) = 99;  // header length lies
       raw.send("TIMS", message_packet(bad_len, 0x2222, seq));
       auto bad_flags = ok_request;
-      bad_flags.at(0) = 0xF3;                                                        // reserved flag bits
+      bad_flags.at(0) = 0xF3;  // reserved flag bits
       raw.send("TIMS", message_packet(bad_flags, 0x2222, seq));
       // Forged: claims to come from the generator itself (a mailbox of that host).
       raw.send("TIMS", message_packet(tims_message(generator.with_mailbox(2), generator, tims::msg::kData, 0,
@@ -257,7 +257,7 @@ TEST_F(TimsInputTest, FloodOfMalformedPacketsIsDroppedCountedAndThePeriodicTaskK
       RawLcm::put32(ann, 0x7FFFFFFF);
       raw.send("TIMS_ANNOUNCE", ann);
       raw.send("TIMS_DISCOVER", random_bytes(64));
-      raw.send_raw(random_bytes(200));                                               // not even LCM
+      raw.send_raw(random_bytes(200));  // not even LCM
       sent += 13;
     }
     std::this_thread::sleep_for(5ms);
@@ -281,7 +281,8 @@ TEST_F(TimsInputTest, FloodOfMalformedPacketsIsDroppedCountedAndThePeriodicTaskK
   // Logged at a bounded rate: one line per kind per second, not one per packet.
   const std::string err = rackd_->err();
   std::size_t lines = 0;
-  for (std::size_t at = err.find("TiMS/LCM: dropped"); at != std::string::npos; at = err.find("TiMS/LCM: dropped", at + 1)) {
+  for (std::size_t at = err.find("TiMS/LCM: dropped"); at != std::string::npos;
+       at = err.find("TiMS/LCM: dropped", at + 1)) {
     ++lines;
   }
   EXPECT_GT(lines, 0u) << err;
@@ -318,8 +319,8 @@ TEST_F(TimsInputTest, ChunkedMessageWithAMissingChunkIsReportedLost) {
   // 150 000 bytes in three chunks; the middle one never arrives.
   const Address generator = Address::make(0, tims::classes::kGenerator, 0);
   const Address tool = Address::make(tims::kToolSystem, tims::classes::kTool, 0x66, 0x30);
-  const auto msg = tims_message(generator, tool, tims::msg::kSetParam, 3, std::vector<uint8_t>(150000 - 16, 0),
-                                true, true);
+  const auto msg = tims_message(generator, tool, tims::msg::kSetParam, 3, std::vector<uint8_t>(150000 - 16, 0), true,
+                                true);
   RawLcm raw(bus_.port());
   for (int32_t off : {0, 120000}) {
     Chunk c;
@@ -344,8 +345,8 @@ TEST_F(TimsInputTest, ChunkedMessageForAnotherHostIsSkippedNotReportedLost) {
   // dropped unassembled, and nothing is reported lost when the rest never comes.
   const Address elsewhere = Address::make(0, tims::classes::kScan3d, 5, 3);
   const Address producer = Address::make(0, tims::classes::kScan3d, 6, 0);
-  const auto msg = tims_message(elsewhere, producer, tims::msg::kData, 0, std::vector<uint8_t>(150000 - 16, 1),
-                                true, true);
+  const auto msg = tims_message(elsewhere, producer, tims::msg::kData, 0, std::vector<uint8_t>(150000 - 16, 1), true,
+                                true);
   RawLcm raw(bus_.port());
   Chunk c;
   c.origin = 0x9999;

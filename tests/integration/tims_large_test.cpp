@@ -166,8 +166,8 @@ TEST_F(TimsLargeTest, LargeMessagesForOtherHostsAreNotReassembled) {
   // shared network): recognised by its first chunk, the rest dropped unassembled.
   const auto body = random_body(1 << 20, 3);
   const tims::MessageHeader h = tims::make_header(Address::make(1, tims::classes::kScan3d, 5, 3),
-                                                  Address::make(2, tims::classes::kTool, 1, 1), tims::msg::kData, 1,
-                                                  9, body.size());
+                                                  Address::make(2, tims::classes::kTool, 1, 1), tims::msg::kData, 1, 9,
+                                                  body.size());
   const tims::ConstBuffer part{body.data(), body.size()};
   ASSERT_TRUE(tims::delivered(tx_router_.send(h, std::span<const tims::ConstBuffer>(&part, 1))));
   // A message for the inbox right behind it arrives, and nothing was reported lost.
@@ -188,8 +188,8 @@ TEST_F(TimsLargeTest, CompressedLargeMessagesForOtherHostsAreNotReassembled) {
   auto body = random_body(1 << 20, 5);
   for (auto& b : body) b &= std::byte{0x0F};
   const tims::MessageHeader h = tims::make_header(Address::make(1, tims::classes::kScan3d, 5, 3),
-                                                  Address::make(2, tims::classes::kTool, 1, 1), tims::msg::kData, 1,
-                                                  9, body.size());
+                                                  Address::make(2, tims::classes::kTool, 1, 1), tims::msg::kData, 1, 9,
+                                                  body.size());
   const tims::ConstBuffer part{body.data(), body.size()};
   ASSERT_TRUE(tims::delivered(tx_router_.send(h, std::span<const tims::ConstBuffer>(&part, 1))));
   EXPECT_TRUE(send_and_receive(smooth_body(200 * 1000), 10)) << warnings_;

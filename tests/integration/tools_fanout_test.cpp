@@ -58,8 +58,9 @@ std::string host_file(int host) {
   std::string t = "host: fanout-" + std::to_string(host) + "\nsystem: 0\nhost_id: " + std::to_string(host) +
                   "\nheap_prefault_mib: 0\ntims:\n  announce_ms: 300\n  expiry_ms: 3000\ncomponents:\n";
   for (int i = 0; i < kPerHost; ++i) {
-    t += "  - name: " + component_name(host, i) + "\n    class: Generator\n    instance: " +
-         std::to_string(host * kPerHost + i) + "\n    autostart: " + (i % 2 == 0 ? "true" : "false") +
+    t += "  - name: " + component_name(host, i) +
+         "\n    class: Generator\n    instance: " + std::to_string(host * kPerHost + i) +
+         "\n    autostart: " + (i % 2 == 0 ? "true" : "false") +
          "\n    command_task: {priority: 30}\n    data_task: {priority: 40, period_ms: 100}\n"
          "    params: {amplitude: " +
          std::to_string(host * kPerHost + i + 1) + ".0}\n";
@@ -164,8 +165,8 @@ class Flood {
     while (!stop_ && sent_ < limit) {
       for (int i = 0; i < kBurst; ++i) {
         switch (rng() % 5) {
-          case 0: raw_.send_raw(bytes(8 + rng() % 200)); break;             // not LCM
-          case 1: raw_.send("TIMS", bytes(rng() % 300)); break;             // not a tims_packet
+          case 0: raw_.send_raw(bytes(8 + rng() % 200)); break;                            // not LCM
+          case 1: raw_.send("TIMS", bytes(rng() % 300)); break;                            // not a tims_packet
           case 2: raw_.send("TIMS", tims_packet(bytes(16), 0x0bad, seq, 1 << 30)); break;  // lying length
           case 3: {  // a request in the name of a component its host owns
             const Address dest = Address::make(0, tims::classes::kGenerator, static_cast<uint8_t>(10 + rng() % 20), 0);
@@ -193,9 +194,9 @@ class ToolsFanoutTest : public ::testing::Test {
   void SetUp() override {
     for (int h = 0; h < kHosts; ++h) {
       const auto path = dir_.write("host" + std::to_string(h) + ".yaml", host_file(h));
-      auto p = std::make_unique<Process>(
-          std::vector<std::string>{kRackd, path.string(), "--lcm", bus_.url(), "--status", "2"}, dir_.path(),
-          "rackd" + std::to_string(h));
+      auto p = std::make_unique<Process>(std::vector<std::string>{kRackd, path.string(), "--lcm", bus_.url(),
+                                                                  "--status", "2"},
+                                         dir_.path(), "rackd" + std::to_string(h));
       ASSERT_TRUE(p->wait_for_stderr("rackd: running", 30s)) << p->err();
       rackd_.push_back(std::move(p));
     }
@@ -288,8 +289,8 @@ TEST_F(ToolsFanoutTest, TwentyRackctlStartedAtOnceHoldDistinctAddressesAndGetThe
   std::vector<RunResult> results(kTools);
   for (int k = 0; k < kTools; ++k) {
     threads.emplace_back([&, k] {
-      results[static_cast<std::size_t>(k)] =
-          ctl({"--discover-ms", "3000", "params", component_name(k % kHosts, k % kPerHost), "--json"});
+      results[static_cast<std::size_t>(k)] = ctl(
+          {"--discover-ms", "3000", "params", component_name(k % kHosts, k % kPerHost), "--json"});
     });
   }
   for (auto& t : threads) t.join();

@@ -42,7 +42,8 @@ class TraceTest : public ::testing::Test {
       text.replace(at, rel.size(), "map: " + kConfigs + "/maps/office.yaml");
     }
     const auto path = dir_.write("sim_mcl.yaml", text).string();
-    rackd_ = std::make_unique<Process>(std::vector<std::string>{kRackd, path, "--lcm", bus_.url()}, dir_.path(), "rackd");
+    rackd_ = std::make_unique<Process>(std::vector<std::string>{kRackd, path, "--lcm", bus_.url()}, dir_.path(),
+                                       "rackd");
     ASSERT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
   }
   void TearDown() override {
@@ -79,7 +80,8 @@ TEST_F(TraceTest, RecordsEveryTaskOfSimMclAndTheJsonReadsBack) {
     ASSERT_TRUE(e.at("ph").is_string() && e.at("name").is_string() && e.at("pid").is_number() &&
                 e.at("tid").is_number());
     const std::string& ph = e.at("ph").string;
-    if (ph == "M" && e.at("name").string == "thread_name") track_of[e.at("tid").number] = e.at("args").at("name").string;
+    if (ph == "M" && e.at("name").string == "thread_name")
+      track_of[e.at("tid").number] = e.at("args").at("name").string;
     if (ph == "X") {
       ASSERT_TRUE(e.at("ts").is_number() && e.at("dur").is_number() && e.at("dur").number >= 0);
     } else if (ph == "i") {
@@ -159,7 +161,8 @@ TEST_F(TraceTest, NamedComponentsOnlyAndTheCommandLineIsChecked) {
   for (const auto& e : doc->at("traceEvents").array) {
     if (e.at("name").string == "thread_name") tracks.insert(e.at("args").at("name").string);
   }
-  EXPECT_EQ(tracks, (std::set<std::string>{"ladar command task", "ladar data task", "mcl command task", "mcl data task"}));
+  EXPECT_EQ(tracks,
+            (std::set<std::string>{"ladar command task", "ladar data task", "mcl command task", "mcl data task"}));
 
   r = ctl({"trace", "--duration", "0", "--out", out.string()});
   EXPECT_EQ(r.exit_code, 2) << r.describe();

@@ -62,7 +62,9 @@ class Tool {
   static constexpr Address kAddress = Address::make(tims::kToolSystem, tims::classes::kTool, 0xEE, 0x10);
 
   explicit Tool(const std::string& url)
-      : router_(tims::kToolSystem), reply_(kAddress, 64, 64 * 1024), endpoint_(router_, reply_, 10),
+      : router_(tims::kToolSystem),
+        reply_(kAddress, 64, 64 * 1024),
+        endpoint_(router_, reply_, 10),
         transport_(router_, config(url)) {
     router_.add(reply_);
     transport_.start();
@@ -115,7 +117,8 @@ class TrustTest : public ::testing::Test {
   }
 
   void start(const std::string& path) {
-    rackd_ = std::make_unique<Process>(std::vector<std::string>{kRackd, path, "--lcm", bus_.url()}, dir_.path(), "rackd");
+    rackd_ = std::make_unique<Process>(std::vector<std::string>{kRackd, path, "--lcm", bus_.url()}, dir_.path(),
+                                       "rackd");
     ASSERT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
   }
   std::vector<std::string> ctl_args(std::vector<std::string> args) const {
@@ -226,8 +229,9 @@ components:
   - name: generator
     class: Generator
     instance: 0
-    data_task: {period_ms: 10, max_listeners: 16, lease_ms: )" + std::to_string(kLeaseMs) +
-                                                   R"(}
+    data_task: {period_ms: 10, max_listeners: 16, lease_ms: )" +
+                                    std::to_string(kLeaseMs) +
+                                    R"(}
   - name: monitor
     class: Monitor
     instance: 0
@@ -278,7 +282,8 @@ components:
   EXPECT_EQ(std::count(again.out.begin(), again.out.end(), '\n'), 3) << again.out;
   // Every dead listener expired (more than the slots could ever hold at once); the
   // monitor and the keeper are the two left, and neither lost its subscription.
-  EXPECT_TRUE(eventually([&] { return stat("generator", "listeners") == 2; }, std::chrono::milliseconds(kLeaseMs + 3000)));
+  EXPECT_TRUE(
+      eventually([&] { return stat("generator", "listeners") == 2; }, std::chrono::milliseconds(kLeaseMs + 3000)));
   const double expired = stat("generator", "listeners_expired");
   EXPECT_GE(expired, static_cast<double>(addresses.size())) << "one expiry per dead mailbox";
   EXPECT_GT(expired, 16) << "more than the slots could hold at once";
@@ -307,7 +312,8 @@ TEST_F(TrustTest, AConsumerOnAnotherHostKeepsItsLeaseByRenewing) {
     instance: 0
     autostart: true
     data_task: {period_ms: 10, lease_ms: 400}
-)")).string()},
+)"))
+                         .string()},
             dir_.path(), "rackd-a");
   ASSERT_TRUE(a.wait_for_stderr("rackd: running", 30s)) << a.err();
   rackd_ = std::make_unique<Process>(std::vector<std::string>{kRackd, dir_.write("b.yaml", host(1, R"(  - name: monitor
@@ -316,7 +322,8 @@ TEST_F(TrustTest, AConsumerOnAnotherHostKeepsItsLeaseByRenewing) {
     autostart: true
     data_task: {timeout_ms: 1000}
     params: {source: Generator(0/0), period_ms: 10}
-)")).string()},
+)"))
+                                                                          .string()},
                                      dir_.path(), "rackd-b");
   ASSERT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
   ASSERT_TRUE(eventually([&] { return state("monitor") == "ENABLED"; }, 30s)) << rackd_->err();

@@ -53,8 +53,8 @@ cv::Matx33d rot_z(double a) { return {std::cos(a), -std::sin(a), 0, std::sin(a),
 
 struct MarkerPose {
   int id;
-  cv::Vec3d t;     // m, camera frame
-  cv::Matx33d r;   // marker frame (x right, y up, z out of the marker) in the camera frame
+  cv::Vec3d t;    // m, camera frame
+  cv::Matx33d r;  // marker frame (x right, y up, z out of the marker) in the camera frame
 };
 
 // Renders markers (with their white quiet zone) at the poses, by projecting their
@@ -117,8 +117,8 @@ class ArucoPoseTest : public ::testing::TestWithParam<uint8_t> {};
 
 TEST_P(ArucoPoseTest, MarkersAtKnownPosesComeBackWithTheirPose) {
   const std::vector<MarkerPose> markers = {
-      {7, {0.10, -0.05, 1.2}, rot_x(M_PI) * rot_y(0.35) * rot_x(0.15)},   // facing the camera, turned 20 deg
-      {3, {-0.35, 0.12, 1.8}, rot_x(M_PI) * rot_y(-0.25) * rot_z(0.6)},   // farther, rotated in its plane
+      {7, {0.10, -0.05, 1.2}, rot_x(M_PI) * rot_y(0.35) * rot_x(0.15)},  // facing the camera, turned 20 deg
+      {3, {-0.35, 0.12, 1.8}, rot_x(M_PI) * rot_y(-0.25) * rot_z(0.6)},  // farther, rotated in its plane
   };
   const cv::Mat image = render(markers);
   const auto frame = frame_of(image, GetParam());
@@ -138,8 +138,8 @@ TEST_P(ArucoPoseTest, MarkersAtKnownPosesComeBackWithTheirPose) {
       EXPECT_EQ(out->type[i], interfaces::kObjTypeFiducial);
       const double distance = cv::norm(m.t);
       const double err = std::hypot(std::hypot(out->x[i] - m.t[0], out->y[i] - m.t[1]), out->z[i] - m.t[2]);
-      EXPECT_LT(err, 0.01 + 0.01 * distance) << "marker " << m.id << " at (" << out->x[i] << ", " << out->y[i] << ", "
-                                             << out->z[i] << ")";
+      EXPECT_LT(err, 0.01 + 0.01 * distance)
+          << "marker " << m.id << " at (" << out->x[i] << ", " << out->y[i] << ", " << out->z[i] << ")";
       const cv::Matx33d r = rot_z(out->yaw[i]) * rot_y(out->pitch[i]) * rot_x(out->roll[i]);
       EXPECT_LT(angle_between(r, m.r), 3.0 * M_PI / 180.0) << "marker " << m.id;
       EXPECT_FLOAT_EQ(out->size_x[i], static_cast<float>(kMarker));
@@ -342,8 +342,9 @@ components:
   // Each wrong sample wakes the data task with nothing usable: skipped and counted; the
   // camera counts as silent only after timeout_ms without a frame.
   ASSERT_TRUE(eventually([&] { return host.stats(objects).malformed >= 5; })) << host.log();
-  ASSERT_TRUE(eventually([&] { return host.gdos_log().find("input: dropped a DATA message of ") != std::string::npos; }))
-      << host.gdos_log();
+  ASSERT_TRUE(eventually([&] {
+    return host.gdos_log().find("input: dropped a DATA message of ") != std::string::npos;
+  })) << host.gdos_log();
   EXPECT_EQ(host.status(objects), tims::msg::kEnabled) << host.log();
   EXPECT_EQ(host.stats(objects).errors, 0U) << host.log();
   EXPECT_EQ(host.status(host.address_of("camera")), tims::msg::kEnabled);

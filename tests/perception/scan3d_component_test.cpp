@@ -79,7 +79,8 @@ components:
   - name: chassis
     class: ChassisSim
     data_task: {priority: 0, period_ms: 20}
-    params: {map: )" + kOffice + R"(, initial_x: 4.0, initial_y: 7.2, initial_phi: 0.0}
+    params: {map: )" +
+         kOffice + R"(, initial_x: 4.0, initial_y: 7.2, initial_phi: 0.0}
   - name: servo
     class: ServoDriveSim
     data_task: {priority: 0, period_ms: 10}
@@ -87,14 +88,16 @@ components:
   - name: ladar
     class: LadarSim
     data_task: {priority: 0, period_ms: 40}
-    params: {map: )" + kOffice + R"(, chassis: chassis, servo: servo, scan_mode: pitch, mount_x: 0.2, mount_z: 0.5,
+    params: {map: )" +
+         kOffice + R"(, chassis: chassis, servo: servo, scan_mode: pitch, mount_x: 0.2, mount_z: 0.5,
              ceiling_height: 2.5, beams: 181, fov_deg: 180, range_max: 12.0, noise_sigma: 0.005}
   - name: scan3d
     class: Scan3D
     autostart: true
     data_task: {priority: 0, timeout_ms: 200, ring: 4, input_slots: 128}
     params: {ladar: ladar, servo: servo, mode: pitch, mount_x: 0.2, mount_z: 0.5, angle_min: -0.5, angle_max: 0.5,
-             sweep_velocity: 1.0, ceiling_height: 2.2, store_dir: )" + std::filesystem::temp_directory_path().string() + R"(}
+             sweep_velocity: 1.0, ceiling_height: 2.2, store_dir: )" +
+         std::filesystem::temp_directory_path().string() + R"(}
 )";
 }
 
@@ -128,7 +131,8 @@ TEST(Scan3dComponentTest, SweepsTheSimulatedScannerIntoTypedScans) {
   // metres out may sit r * tan(tilt) higher or lower than its height over the plane.
   const double tilt_slope = std::tan(std::acos(std::min(1.0, static_cast<double>(scan->ground_c))));
   for (uint32_t i = 0; i < scan->point_count; ++i) {
-    const float h = scan->ground_a * scan->x[i] + scan->ground_b * scan->y[i] + scan->ground_c * scan->z[i] + scan->ground_d;
+    const float h = scan->ground_a * scan->x[i] + scan->ground_b * scan->y[i] + scan->ground_c * scan->z[i] +
+                    scan->ground_d;
     const double slack = 0.03 + std::hypot(scan->x[i], scan->y[i]) * tilt_slope;
     if (scan->type[i] == interfaces::kScanPointGround) {
       ASSERT_LE(std::fabs(h), 0.05F + 1e-4F);
@@ -144,7 +148,9 @@ TEST(Scan3dComponentTest, SweepsTheSimulatedScannerIntoTypedScans) {
 
   // STORE_DATA to a path: the file holds the scan.
   interfaces::Scan3dStoreData store;
-  const std::string path = (std::filesystem::temp_directory_path() / ("rack_scan3d_store_" + std::to_string(::getpid()) + ".pcd")).string();
+  const std::string path = (std::filesystem::temp_directory_path() /
+                            ("rack_scan3d_store_" + std::to_string(::getpid()) + ".pcd"))
+                               .string();
   wire::copy_text(store.path, path.c_str());
   auto r = big.call(scan3d, interfaces::kScan3dStoreData, &store, sizeof store);
   ASSERT_EQ(r.type, tims::msg::kOk) << r.error_text();
@@ -183,7 +189,8 @@ TEST(Scan3dComponentTest, PlaysPcdFilesAndSkipsAMalformedOne) {
   std::filesystem::create_directories(dir);
   {
     std::ofstream good(dir / "a_good.pcd");
-    good << "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2500\nHEIGHT 1\nPOINTS 2500\nDATA ascii\n";
+    good
+        << "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2500\nHEIGHT 1\nPOINTS 2500\nDATA ascii\n";
     for (int i = 0; i < 50; ++i) {
       for (int j = 0; j < 50; ++j) good << 0.1 * i << " " << 0.1 * j - 2.5 << " 0.0\n";  // a floor
     }
@@ -196,7 +203,8 @@ components:
     class: Scan3D
     autostart: true
     data_task: {priority: 0, timeout_ms: 20, ring: 4}
-    params: {pcd: )" + dir.string() + R"(, pcd_period_ms: 50, voxel_size: 0.0, outlier_neighbours: 0}
+    params: {pcd: )" +
+                     dir.string() + R"(, pcd_period_ms: 50, voxel_size: 0.0, outlier_neighbours: 0}
   - name: gen
     class: Generator
     autostart: true
@@ -248,10 +256,12 @@ components:
   ASSERT_TRUE(host.wait_status(scan3d, tims::msg::kEnabled)) << host.log();
   auto* component = dynamic_cast<components::Scan3d*>(host.executor().find("scan3d"));
   ASSERT_NE(component, nullptr);
-  ASSERT_TRUE(eventually([&] { return component->bad_input() >= 5 && host.stats(scan3d).malformed >= 5; })) << host.log();
+  ASSERT_TRUE(eventually([&] { return component->bad_input() >= 5 && host.stats(scan3d).malformed >= 5; }))
+      << host.log();
   EXPECT_EQ(component->scans_published(), 0U);
-  ASSERT_TRUE(eventually([&] { return host.gdos_log().find("input: dropped a DATA message of ") != std::string::npos; }))
-      << host.gdos_log();
+  ASSERT_TRUE(eventually([&] {
+    return host.gdos_log().find("input: dropped a DATA message of ") != std::string::npos;
+  })) << host.gdos_log();
   EXPECT_EQ(host.status(scan3d), tims::msg::kEnabled) << "a bad sample is skipped, not fatal";
   EXPECT_EQ(host.status(host.address_of("servo")), tims::msg::kEnabled);
 }
@@ -288,7 +298,8 @@ components:
   - name: chassis
     class: ChassisSim
     data_task: {priority: 0, period_ms: 20, ring: 500}
-    params: {map: )" + map + R"(, initial_x: 5.0, initial_y: 3.0, initial_phi: 0.0, noise_xy: 0.0, noise_phi: 0.0,
+    params: {map: )" +
+         map + R"(, initial_x: 5.0, initial_y: 3.0, initial_phi: 0.0, noise_xy: 0.0, noise_phi: 0.0,
              noise_phi_per_m: 0.0, watchdog_ms: 1000}
   - name: odometry
     class: Odometry
@@ -301,7 +312,8 @@ components:
   - name: ladar
     class: LadarSim
     data_task: {priority: 0, period_ms: 40}
-    params: {map: )" + map + R"(, chassis: chassis, servo: servo, scan_mode: pitch, mount_x: 0.2, mount_z: 0.5,
+    params: {map: )" +
+         map + R"(, chassis: chassis, servo: servo, scan_mode: pitch, mount_x: 0.2, mount_z: 0.5,
              ceiling_height: 2.5, beams: 181, fov_deg: 180, range_max: 12.0, noise_sigma: 0.0}
   - name: scan3d
     class: Scan3D
@@ -386,10 +398,11 @@ TEST(Scan3dComponentTest, OdometryKeepsTheWallAheadThinWhileTheRobotDrives) {
 
   EXPECT_EQ(scan->bad_input, 0U);
   const WallBand wall = wall_ahead(*scan);
-  std::printf("driving scan: %.2f s, robot travelled %.3f m during it; wall ahead %u points, %.4f m thick at x %.3f "
-              "(expected %.3f)\n",
-              static_cast<double>(scan->duration_ns) * 1e-9, travelled, wall.n, wall.thickness(), wall.mean(),
-              kRoomWallX - at_end.truth_x);
+  std::printf(
+      "driving scan: %.2f s, robot travelled %.3f m during it; wall ahead %u points, %.4f m thick at x %.3f "
+      "(expected %.3f)\n",
+      static_cast<double>(scan->duration_ns) * 1e-9, travelled, wall.n, wall.thickness(), wall.mean(),
+      kRoomWallX - at_end.truth_x);
   // Without compensation the wall's points spread over what the robot drove while the
   // beams swept the wall (about half the sweep here: 0.24 m thick, 0.38 m off, when
   // this test was run with compensation switched off in the component).
@@ -439,7 +452,8 @@ components:
   - name: chassis
     class: ChassisSim
     data_task: {priority: 0, period_ms: 20}
-    params: {map: )" + kOffice + R"(, initial_x: 4.0, initial_y: 7.2, initial_phi: 0.0}
+    params: {map: )" + kOffice +
+                         R"(, initial_x: 4.0, initial_y: 7.2, initial_phi: 0.0}
   - name: servo
     class: ServoDriveSim
     data_task: {priority: 0, period_ms: 10}
@@ -447,7 +461,8 @@ components:
   - name: ladar
     class: LadarSim
     data_task: {priority: 0, period_ms: 40}
-    params: {map: )" + kOffice + R"(, chassis: chassis, servo: servo, scan_mode: pitch, mount_x: 0.2, mount_z: 0.5,
+    params: {map: )" + kOffice +
+                         R"(, chassis: chassis, servo: servo, scan_mode: pitch, mount_x: 0.2, mount_z: 0.5,
              ceiling_height: 2.5, beams: 91, fov_deg: 180, range_max: 12.0}
   - name: odo
     class: ControlledOdometry
@@ -500,8 +515,9 @@ components:
 
   // Poses 2 s behind the scans: they arrive, but cover none of them.
   odo->lag_ns.store(2'000'000'000);
-  ASSERT_TRUE(eventually([&] { return host.gdos_log().find("has no pose for the ladar scan at") != std::string::npos; }))
-      << host.gdos_log();
+  ASSERT_TRUE(eventually([&] {
+    return host.gdos_log().find("has no pose for the ladar scan at") != std::string::npos;
+  })) << host.gdos_log();
   EXPECT_NE(host.gdos_log().find("ms older (silence_ms 500)"), std::string::npos) << host.gdos_log();
   odo->lag_ns.store(0);
 }

@@ -95,8 +95,8 @@ TEST(Scan3dPipelineTest, FindsTheFloorAndTypesBoxesAndCeiling) {
   ASSERT_GT(out->point_count, 1000U);
   EXPECT_LT(out->point_count, c.x.size());  // downsampled
   ASSERT_EQ(out->ground_valid, 1);
-  EXPECT_GT(out->ground_c, 0.999F);          // the plane is the floor: normal up,
-  EXPECT_NEAR(out->ground_d, 0.0F, 0.02F);   // through z = 0
+  EXPECT_GT(out->ground_c, 0.999F);         // the plane is the floor: normal up,
+  EXPECT_NEAR(out->ground_d, 0.0F, 0.02F);  // through z = 0
   uint32_t floor = 0, floor_ground = 0, box = 0, box_object = 0, ceiling = 0, ceiling_typed = 0;
   for (uint32_t i = 0; i < out->point_count; ++i) {
     const float x = out->x[i], y = out->y[i], z = out->z[i];
@@ -230,7 +230,8 @@ const char* kHeader =
 TEST(PcdFileTest, ReadsAsciiAndBinaryAndWritesWhatItReads) {
   scan3d::PcdCloud cloud;
   std::string error;
-  ASSERT_TRUE(scan3d::parse_pcd("a.pcd", std::string(kHeader) + "1 2 3 10\n4 5 6 20\nnan nan nan 0\n", cloud, error)) << error;
+  ASSERT_TRUE(scan3d::parse_pcd("a.pcd", std::string(kHeader) + "1 2 3 10\n4 5 6 20\nnan nan nan 0\n", cloud, error))
+      << error;
   ASSERT_EQ(cloud.size(), 2U);  // the NaN point is left out
   EXPECT_EQ(cloud.non_finite, 1U);
   EXPECT_FLOAT_EQ(cloud.y[1], 5.0F);
@@ -279,13 +280,13 @@ TEST(PcdFileTest, RejectsMalformedFilesWithLineAndReason) {
       {"bad type", "FIELDS x y z\nSIZE 4 4 4\nTYPE F Q F\n", "a.pcd:3: TYPE of field 'y' is 'Q'"},
       {"unknown key", "FIELDS x y z\nCOLOR red\n", "a.pcd:2: unknown header keyword 'COLOR'"},
       {"no z", "FIELDS x y\nSIZE 4 4\nTYPE F F\nWIDTH 1\nDATA ascii\n1 2\n", "a.pcd:5: FIELDS must include x, y and z"},
-      {"points", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nPOINTS 3\nDATA ascii\n", "POINTS 3 is not WIDTH x HEIGHT = 2"},
+      {"points", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nPOINTS 3\nDATA ascii\n",
+       "POINTS 3 is not WIDTH x HEIGHT = 2"},
       {"bad number", h + "1 2 3 4\n1 abc 3 4\n", "a.pcd:13: point 1, field 'y': 'abc' is not a number"},
       {"short line", h + "1 2 3 4\n1 2 3\n", "a.pcd:13: point 1 has 3 values, FIELDS need 4"},
       {"too few", h + "1 2 3 4\n", "file ends after 1 of 3 points"},
       {"too many", h + "1 2 3 4\n1 2 3 4\n1 2 3 4\n1 2 3 4\n", "a.pcd:15: more points than POINTS 3"},
-      {"binary short",
-       "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 10\nDATA binary\n" + std::string(20, '\0'),
+      {"binary short", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 10\nDATA binary\n" + std::string(20, '\0'),
        "binary data holds 20 bytes, the header needs 10 points x 12 bytes = 120"},
       {"compressed, no sizes", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nDATA binary_compressed\n",
        "binary_compressed data: 0 bytes, no size header"},
@@ -299,10 +300,12 @@ TEST(PcdFileTest, RejectsMalformedFilesWithLineAndReason) {
       // A literal run of 32 bytes (control 31) into a 12-byte cloud.
       {"compressed, overflow", kCompressedHeader + sizes(33, 12) + std::string(1, '\x1f') + std::string(32, 'a'),
        "decompresses to more than the declared size"},
-      {"compressed, lie", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 100000\nDATA binary_compressed\n" +
-                              sizes(2, 1200000) + std::string(2, '\0'),
+      {"compressed, lie",
+       "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 100000\nDATA binary_compressed\n" + sizes(2, 1200000) +
+           std::string(2, '\0'),
        "more than LZF can expand"},
-      {"float size", "FIELDS x y z\nSIZE 4 2 4\nTYPE F F F\nWIDTH 1\nDATA ascii\n1 2 3\n", "field 'y': TYPE F with SIZE 2"},
+      {"float size", "FIELDS x y z\nSIZE 4 2 4\nTYPE F F F\nWIDTH 1\nDATA ascii\n1 2 3\n",
+       "field 'y': TYPE F with SIZE 2"},
   };
   for (const auto& c : cases) {
     scan3d::PcdCloud cloud;
@@ -341,7 +344,8 @@ TEST(PcdFileTest, OverflowingSizesAreRefusedBeforeTheyAreUsed) {
                            "\nCOUNT 1 1 1" + few_counts + "\nWIDTH 1\nDATA binary\n";
   const std::vector<BadPcd> cases = {
       {"point size wraps to 0", wraps, "a.pcd:1: FIELDS names 1077 fields, more than the limit of 1000"},
-      {"wide point", wide, "a.pcd:6: a point of these FIELDS, SIZE and COUNT takes 80000012 bytes, more than the limit"},
+      {"wide point", wide,
+       "a.pcd:6: a point of these FIELDS, SIZE and COUNT takes 80000012 bytes, more than the limit"},
       {"width x height", "FIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nWIDTH 1000000000\nHEIGHT 1000000000\nDATA binary\n",
        "a.pcd:4: WIDTH 1000000000 is more than the limit of 10000000 points"},
       {"product", "FIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nWIDTH 10000000\nHEIGHT 10000000\nDATA binary\n",
@@ -477,8 +481,8 @@ TEST(Scan3dAssemblerTest, WaitsForTheDriveAndSkipsWhatItCannotPlace) {
   EXPECT_EQ(a.add_scan(*scan, 100), scan3d::AddStatus::kWaitForDrive);  // no drive sample yet
   a.add_drive_sample(1'000'000'000, 0.1);
   a.add_drive_sample(1'020'000'000, 0.2);
-  EXPECT_EQ(a.add_scan(*scan, 500'000'000), scan3d::AddStatus::kNoDriveAngle);   // before the history
-  EXPECT_EQ(a.add_scan(*scan, 1'015'000'000), scan3d::AddStatus::kWaitForDrive); // ends after the newest sample
+  EXPECT_EQ(a.add_scan(*scan, 500'000'000), scan3d::AddStatus::kNoDriveAngle);    // before the history
+  EXPECT_EQ(a.add_scan(*scan, 1'015'000'000), scan3d::AddStatus::kWaitForDrive);  // ends after the newest sample
   EXPECT_EQ(a.add_scan(*scan, 1'005'000'000), scan3d::AddStatus::kAdded);
   EXPECT_EQ(a.size(), 3U);
   scan->range[0] = scan->range[1] = scan->range[2] = 0.0F;
@@ -498,8 +502,8 @@ TEST(Scan3dAssemblerTest, WaitsForTheDriveAndSkipsWhatItCannotPlace) {
 // frame (offset and turned), so the rotation is exercised too.
 
 struct DrivingSweep {
-  static constexpr double kSpeed = 0.5;     // m/s along the robot's x
-  static constexpr double kWallAhead = 4.0; // m from the start pose's origin
+  static constexpr double kSpeed = 0.5;      // m/s along the robot's x
+  static constexpr double kWallAhead = 4.0;  // m from the start pose's origin
   static constexpr int64_t kT0 = 2'000'000'000'000;
   components::Scan3dMount mount{interfaces::kScan3dModePitch, 0.2, 0.0, 0.5};
   components::Pose2d start{10.0, -5.0, 0.7};  // in the odometry frame
@@ -612,8 +616,8 @@ TEST(Scan3dMotionTest, WaitsForAPoseAfterTheScanAndSkipsScansOlderThanThePoses) 
   EXPECT_TRUE(a.add_pose(1'010'000'000, components::Pose2d{1.0, 0.0, 0.0}));
   EXPECT_FALSE(a.add_pose(1'010'000'000, components::Pose2d{2.0, 0.0, 0.0})) << "not newer: ignored";
   EXPECT_TRUE(a.add_pose(1'030'000'000, components::Pose2d{1.2, 0.0, 0.0}));
-  EXPECT_EQ(a.add_scan(*scan, 1'005'000'000), scan3d::AddStatus::kNoPose);        // starts before the poses
-  EXPECT_EQ(a.add_scan(*scan, 1'025'000'000), scan3d::AddStatus::kWaitForPose);   // ends after the newest
+  EXPECT_EQ(a.add_scan(*scan, 1'005'000'000), scan3d::AddStatus::kNoPose);       // starts before the poses
+  EXPECT_EQ(a.add_scan(*scan, 1'025'000'000), scan3d::AddStatus::kWaitForPose);  // ends after the newest
   EXPECT_EQ(a.add_scan(*scan, 1'015'000'000), scan3d::AddStatus::kAdded);
   EXPECT_EQ(a.size(), 3U);
   EXPECT_TRUE(a.to_end_frame());

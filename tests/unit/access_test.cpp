@@ -132,20 +132,23 @@ TEST(AccessControlTest, DeniesAbovePriority) {
 TEST(AccessControlTest, RateLimitPerSourceRefillsWithTime) {
   AccessConfig c;
   AccessRuleConfig r = rule("rate", kChassis);
-  r.rate = 10;   // one every 100 ms
+  r.rate = 10;  // one every 100 ms
   r.burst = 3;
   c.rules = {r};
   AccessControl ac(c);
   const int64_t t0 = 100 * kSec;
-  for (int i = 0; i < 3; ++i) EXPECT_TRUE(ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kLocal, t0).allowed());
-  EXPECT_EQ(ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kLocal, t0).verdict, AccessVerdict::kDeniedRate);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_TRUE(ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kLocal, t0).allowed());
+  EXPECT_EQ(ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kLocal, t0).verdict,
+            AccessVerdict::kDeniedRate);
   // Another source has its own bucket: the flood of the first does not touch it.
   EXPECT_TRUE(ac.check(header(kChassis, kPilot, kMove), MessageOrigin::kLocal, t0).allowed());
   // 100 ms later one message more; 300 ms later the full burst again, not more.
   EXPECT_TRUE(ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kLocal, t0 + kSec / 10).allowed());
   EXPECT_FALSE(ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kLocal, t0 + kSec / 10).allowed());
   int passed = 0;
-  for (int i = 0; i < 10; ++i) passed += ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kLocal, t0 + 2 * kSec).allowed() ? 1 : 0;
+  for (int i = 0; i < 10; ++i)
+    passed += ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kLocal, t0 + 2 * kSec).allowed() ? 1 : 0;
   EXPECT_EQ(passed, 3);
   EXPECT_EQ(ac.counters()[0].denied_rate, 9u);
 }
@@ -153,7 +156,7 @@ TEST(AccessControlTest, RateLimitPerSourceRefillsWithTime) {
 TEST(AccessControlTest, BandwidthLimitCountsBytes) {
   AccessConfig c;
   AccessRuleConfig r = rule("bw", kChassis);
-  r.bandwidth = 10000;     // 10 kB/s
+  r.bandwidth = 10000;  // 10 kB/s
   r.burst_bytes = 3000;
   c.rules = {r};
   AccessControl ac(c);
@@ -179,9 +182,10 @@ TEST(AccessControlTest, ManySourcesShareTheOverflowBucketNotTheEstablishedOnes) 
   // A crowd of forged sources: at most the table's entries plus one overflow message pass.
   int passed = 0;
   for (uint32_t i = 0; i < 1000; ++i) {
-    passed += ac.check(header(kChassis, Address::make(9, 0x90, static_cast<uint8_t>(i), static_cast<uint8_t>(i >> 8)), kMove),
+    passed += ac.check(header(kChassis, Address::make(9, 0x90, static_cast<uint8_t>(i), static_cast<uint8_t>(i >> 8)),
+                              kMove),
                        MessageOrigin::kNetwork, t0)
-                  .allowed()
+                      .allowed()
                   ? 1
                   : 0;
   }
@@ -199,7 +203,8 @@ TEST(AccessControlTest, RefusedRequestsAreAnsweredAtABoundedRate) {
   AccessControl ac(c);
   const int64_t t0 = 20 * kSec;
   int answered = 0;
-  for (int i = 0; i < 200; ++i) answered += ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kNetwork, t0).answer ? 1 : 0;
+  for (int i = 0; i < 200; ++i)
+    answered += ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kNetwork, t0).answer ? 1 : 0;
   EXPECT_EQ(answered, AccessControl::kRepliesPerSecond) << "a flood is not echoed";
   EXPECT_EQ(ac.counters()[0].denied_type, 200u) << "but every refusal is counted";
   EXPECT_TRUE(ac.check(header(kChassis, kJoystick, kMove), MessageOrigin::kNetwork, t0 + kSec).answer);
@@ -330,7 +335,7 @@ TEST_F(LinkAuthTest, KeyFileMustBePrivateAndWellFormed) {
   EXPECT_NE(load_key_file(dir_ + "/missing").error.find("cannot open"), std::string::npos);
   const std::string gen = dir_ + "/generated";
   EXPECT_EQ(generate_key_file(gen), "");
-  struct stat st{};
+  struct stat st {};
   ASSERT_EQ(stat(gen.c_str(), &st), 0);
   EXPECT_EQ(st.st_mode & 0777, 0600u);
   EXPECT_TRUE(load_key_file(gen).error.empty());
@@ -531,7 +536,8 @@ TEST_F(AccessHostFileTest, KeyFileIsCheckedAtLoad) {
   const std::string good = write("good.key", key_line('e'));
   const std::string open = write("open.key", key_line('e'), 0640);
   const auto host = [&](const std::string& key) {
-    return std::string("tims:\n  networks:\n    - {name: robot, url: \"udpm://239.255.76.67:7667?ttl=0\", key_file: \"") +
+    return std::string(
+               "tims:\n  networks:\n    - {name: robot, url: \"udpm://239.255.76.67:7667?ttl=0\", key_file: \"") +
            key + "\"}\n" + kComponents;
   };
   LoadResult r = load(host(good));

@@ -31,11 +31,14 @@ ClassDescription sample_description() {
   d.class_name = "Counter";
   d.class_id = 0x91;
   d.summary = "test: counts, with a reset command";
-  TypeDescription data{"CounterData", 24, {{"count", tims::FieldKind::kI64, 0, 1},
-                                           {"rate", tims::FieldKind::kF64, 8, 1},
-                                           {"label", tims::FieldKind::kChar, 16, 8}}};
+  TypeDescription data{"CounterData",
+                       24,
+                       {{"count", tims::FieldKind::kI64, 0, 1},
+                        {"rate", tims::FieldKind::kF64, 8, 1},
+                        {"label", tims::FieldKind::kChar, 16, 8}}};
   d.data = data;
-  CommandDescription reset{"RESET", 21, "start counting again from `start`", TypeDescription{"CounterReset", 8, {{"start", tims::FieldKind::kI64, 0, 1}}}};
+  CommandDescription reset{"RESET", 21, "start counting again from `start`",
+                           TypeDescription{"CounterReset", 8, {{"start", tims::FieldKind::kI64, 0, 1}}}};
   d.commands.push_back(reset);
   d.commands.push_back({"FREEZE", 22, "stop counting", std::nullopt});
   ParameterDescription step;

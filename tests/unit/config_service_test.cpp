@@ -77,9 +77,9 @@ TEST_F(ConfigServiceTest, ServesOnlyHostFilesDirectlyInItsDirectories) {
   std::string why;
   EXPECT_EQ(service_->served_file((served_ / "host.yaml").string(), why), (served_ / "host.yaml").string()) << why;
   EXPECT_EQ(service_->served_file((served_ / "new.yml").string(), why), (served_ / "new.yml").string()) << why;
-  for (const fs::path& bad : {root_ / "outside.yaml", served_ / "sub" / "x.yaml", served_ / ".." / "outside.yaml",
-                              served_ / "link.yaml", served_ / "notes.txt", served_ / ".hidden.yaml",
-                              fs::path("host.yaml"), served_ / "a b.yaml"}) {
+  for (const fs::path& bad :
+       {root_ / "outside.yaml", served_ / "sub" / "x.yaml", served_ / ".." / "outside.yaml", served_ / "link.yaml",
+        served_ / "notes.txt", served_ / ".hidden.yaml", fs::path("host.yaml"), served_ / "a b.yaml"}) {
     why.clear();
     EXPECT_EQ(service_->served_file(bad.string(), why), "") << bad;
     EXPECT_FALSE(why.empty()) << bad;
@@ -115,7 +115,7 @@ TEST_F(ConfigServiceTest, SavesOnlyWhatRackdAccepts) {
   // The message names the file, never the temporary copy that was checked.
   EXPECT_EQ(refused["errors"][0]["message"].get<std::string>().find(".rack-gui-"), std::string::npos) << refused;
   EXPECT_EQ(slurp(file), kValid);  // untouched
-  EXPECT_EQ(entries(), 2u);         // no temporary file left
+  EXPECT_EQ(entries(), 2u);        // no temporary file left
 
   std::string good = kValid;
   good.replace(good.find("priority: 60"), 12, "priority: 65");

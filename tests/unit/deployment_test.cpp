@@ -65,7 +65,8 @@ components:
 )Y";
 
 Deployment fleet() {
-  return build({read_host_text(kAux, "aux.yaml"), read_host_text(kMain, "main.yaml"), read_host_text(kRobot2, "r2.yaml")});
+  return build(
+      {read_host_text(kAux, "aux.yaml"), read_host_text(kMain, "main.yaml"), read_host_text(kRobot2, "r2.yaml")});
 }
 
 const Flow* flow_to(const Deployment& d, const std::string& consumer) {
@@ -120,7 +121,8 @@ components:
   - {name: m1, class: Monitor, instance: 1, params: {source: "Generator(5/5)"}}
   - {name: m2, class: Monitor, instance: 2, params: {source: "Generator(4/4)"}}
   - {name: m3, class: Monitor, instance: 3, params: {source: "Generator(5/5)"}}
-)Y", "a.yaml")});
+)Y",
+                                             "a.yaml")});
   const std::string dot = to_dot(d);
   EXPECT_NE(dot.find("u_0 [label=\"Generator(5/5)\\nnot in these host files\""), std::string::npos) << dot;
   EXPECT_NE(dot.find("u_1 [label=\"Generator(4/4)\\nnot in these host files\""), std::string::npos) << dot;
@@ -136,7 +138,8 @@ components:
   - {name: gen, class: Generator, data_task: {priority: 40, period_ms: 5}}
   - {name: cam, class: Camera, params: {source: /dev/video0}}
   - {name: mon, class: Monitor, instance: 2, data_task: {priority: 45}, params: {source: gen, period_ms: 0}}
-)Y", "a.yaml")});
+)Y",
+                                             "a.yaml")});
   ASSERT_EQ(d.flows.size(), 1u);
   EXPECT_EQ(d.flows[0].target, "gen");
   EXPECT_TRUE(d.flows[0].networks.empty());  // inside one host
@@ -150,7 +153,8 @@ components:
   - {name: path, class: PathPlanner, data_task: {priority: 20, period_ms: 200}}
   - {name: chassis, class: ChassisSim, data_task: {priority: 80, period_ms: 10}}
   - {name: pilot, class: Pilot, data_task: {priority: 66, period_ms: 50}, params: {path: path, mode: path, chassis: "Chassis(0/0)"}}
-)Y", "a.yaml");
+)Y",
+                                "a.yaml");
   const Deployment guessed = build({h});
   EXPECT_EQ(guessed.flows.size(), 3u);  // path, mode (wrongly) and chassis
   const std::vector<ClassInfo> classes{{"PathPlanner", "Path", true, {}},
@@ -163,7 +167,8 @@ components:
   // Chassis(0/0) is the ChassisSim: the class's own name for its addresses.
   ASSERT_NE(d.flows[1].producer, kNone);
   EXPECT_EQ(d.hosts[0].components[d.flows[1].producer].name, "chassis");
-  EXPECT_EQ(d.hosts[0].components[1].address_text.rfind("Chassis(0/0)", 0), 0u) << d.hosts[0].components[1].address_text;
+  EXPECT_EQ(d.hosts[0].components[1].address_text.rfind("Chassis(0/0)", 0), 0u)
+      << d.hosts[0].components[1].address_text;
 }
 
 TEST(DeploymentTest, FlagsConsumerAboveProducerAndSamePriorityOnOneCpu) {
@@ -173,7 +178,8 @@ components:
   - {name: mon, class: Monitor, instance: 2, data_task: {priority: 45, cpu: 1}, params: {source: gen}}
   - {name: twin, class: Generator, instance: 3, data_task: {priority: 40, period_ms: 5, cpu: 1}}
   - {name: other, class: Generator, instance: 4, data_task: {priority: 40, period_ms: 5, cpu: 2}}
-)Y", "a.yaml")});
+)Y",
+                                             "a.yaml")});
   const CpuGroup* cpu1 = nullptr;
   const CpuGroup* cpu2 = nullptr;
   for (const auto& g : d.cpus) {
@@ -192,10 +198,11 @@ components:
 }
 
 TEST(DeploymentTest, PartitionedHostPlacesUnpinnedRtTasksOnItsRtCpus) {
-  const Deployment d = build({read_host_text("host: p\ncpus: {rt: \"2-3\", housekeeping: 0}\ncomponents:\n"
-                                             "  - {name: g, class: Generator, data_task: {priority: 80, period_ms: 1}}\n"
-                                             "  - {name: n, class: Generator, instance: 1, data_task: {priority: 0, period_ms: 1}}\n",
-                                             "p.yaml")});
+  const Deployment d = build(
+      {read_host_text("host: p\ncpus: {rt: \"2-3\", housekeeping: 0}\ncomponents:\n"
+                      "  - {name: g, class: Generator, data_task: {priority: 80, period_ms: 1}}\n"
+                      "  - {name: n, class: Generator, instance: 1, data_task: {priority: 0, period_ms: 1}}\n",
+                      "p.yaml")});
   ASSERT_TRUE(d.hosts[0].errors.empty()) << errors_of(d.hosts[0]);
   EXPECT_EQ(d.hosts[0].rt_cpus, (std::vector<int>{2, 3}));
   // Both command tasks (priority 30) and g's data task on the rt cpus; n's data task
@@ -206,9 +213,10 @@ TEST(DeploymentTest, PartitionedHostPlacesUnpinnedRtTasksOnItsRtCpus) {
 }
 
 TEST(DeploymentTest, ErrorsCarryFileLineColumnAndTheRestIsRead) {
-  const Host h = read_host_text("host: a\ncomponents:\n  - {name: g, class: Generator, data_task: {priority: 120}}\n"
-                                "  - {name: m, class: Monitor}\n",
-                                "bad.yaml");
+  const Host h = read_host_text(
+      "host: a\ncomponents:\n  - {name: g, class: Generator, data_task: {priority: 120}}\n"
+      "  - {name: m, class: Monitor}\n",
+      "bad.yaml");
   ASSERT_EQ(h.errors.size(), 1u);
   EXPECT_EQ(h.errors[0].str(), "bad.yaml:3:55: 'priority' must be an integer 0..99");
   EXPECT_EQ(h.components.size(), 2u);

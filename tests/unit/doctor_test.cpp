@@ -15,14 +15,14 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kLimitsHeader = "Limit                     Soft Limit           Hard Limit           Units     \n";
+constexpr const char*
+    kLimitsHeader = "Limit                     Soft Limit           Hard Limit           Units     \n";
 
 class DoctorTest : public ::testing::Test {
  protected:
   DoctorTest() {
-    root_ = fs::temp_directory_path() /
-            ("rack-doctor-" + std::to_string(::getpid()) + "-" +
-             ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    root_ = fs::temp_directory_path() / ("rack-doctor-" + std::to_string(::getpid()) + "-" +
+                                         ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(root_);
     // A healthy host: limits granted, no capabilities, a multicast route on eth0.
     write("proc/self/limits", std::string(kLimitsHeader) +

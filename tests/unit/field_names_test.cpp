@@ -52,12 +52,10 @@ TEST(FieldNamesTest, ActivePilotAsAnAddressInEitherByteOrder) {
   const tims::Address pilot(0x00190000u);  // Pilot(0/0): class 0x19
   d.active_pilot = pilot.raw();
   const std::string want = "{\"active_pilot\":\"" + pilot.str() + "\"}";
-  EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::ChassisData>, bytes_of(d), true),
-            want);
+  EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::ChassisData>, bytes_of(d), true), want);
   EXPECT_NE(want.find("Pilot("), std::string::npos) << want;
   d.active_pilot = __builtin_bswap32(pilot.raw());  // sent by a host of the other byte order
-  EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::ChassisData>, bytes_of(d), false),
-            want);
+  EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::ChassisData>, bytes_of(d), false), want);
   d.active_pilot = 0;
   EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::ChassisData>, bytes_of(d), true),
             "{\"active_pilot\":\"none\"}");

@@ -56,9 +56,9 @@ static_assert(gdos::check_format_for<>("100%%") == FormatError::kOk);
 
 TEST(GdosFormatCheckTest, RejectsWhatPrintfWouldMisread) {
   // Each of these is a compile error in a log call; here the checker's verdicts.
-  EXPECT_EQ(gdos::check_format_for<int>("%f"), FormatError::kArgumentTypeMismatch);   // RACK's %f bug
+  EXPECT_EQ(gdos::check_format_for<int>("%f"), FormatError::kArgumentTypeMismatch);  // RACK's %f bug
   EXPECT_EQ(gdos::check_format_for<double>("%d"), FormatError::kArgumentTypeMismatch);
-  EXPECT_EQ(gdos::check_format_for<long>("%d"), FormatError::kArgumentTypeMismatch);   // 8 bytes for 4
+  EXPECT_EQ(gdos::check_format_for<long>("%d"), FormatError::kArgumentTypeMismatch);  // 8 bytes for 4
   EXPECT_EQ(gdos::check_format_for<int>("%ld"), FormatError::kArgumentTypeMismatch);
   EXPECT_EQ(gdos::check_format_for<double>("%Lf"), FormatError::kArgumentTypeMismatch);
   EXPECT_EQ(gdos::check_format_for<int>("%s"), FormatError::kArgumentTypeMismatch);
@@ -112,12 +112,12 @@ std::string via_values(gdos::Format<Args...> f, const Args&... a) {
   return out;
 }
 
-#define EXPECT_LIKE_PRINTF(fmt, ...)                                                         \
-  do {                                                                                       \
-    char expected_[1024];                                                                    \
-    std::snprintf(expected_, sizeof expected_, fmt __VA_OPT__(, ) __VA_ARGS__);              \
-    EXPECT_EQ(via_ring(fmt __VA_OPT__(, ) __VA_ARGS__), std::string(expected_)) << (fmt);    \
-    EXPECT_EQ(via_values(fmt __VA_OPT__(, ) __VA_ARGS__), std::string(expected_)) << (fmt);  \
+#define EXPECT_LIKE_PRINTF(fmt, ...)                                                        \
+  do {                                                                                      \
+    char expected_[1024];                                                                   \
+    std::snprintf(expected_, sizeof expected_, fmt __VA_OPT__(, ) __VA_ARGS__);             \
+    EXPECT_EQ(via_ring(fmt __VA_OPT__(, ) __VA_ARGS__), std::string(expected_)) << (fmt);   \
+    EXPECT_EQ(via_values(fmt __VA_OPT__(, ) __VA_ARGS__), std::string(expected_)) << (fmt); \
   } while (0)
 
 TEST(GdosConversionTest, IntegersFormatLikePrintf) {
@@ -312,7 +312,9 @@ TEST(GdosHubTest, ThreadsWithoutARingQueueFormattedTextToTheProcessHub) {
   t.join();
   hub.publish_text(Level::kWarning, kLadar, "ladar", "a preformatted report");
   std::vector<std::string> got;
-  hub.drain([&](const gdos::Record& r) { got.emplace_back(std::string(gdos::describe(r.level)) + ": " + std::string(r.text)); });
+  hub.drain([&](const gdos::Record& r) {
+    got.emplace_back(std::string(gdos::describe(r.level)) + ": " + std::string(r.text));
+  });
   gdos::Hub::set_process_hub(nullptr);
   ASSERT_EQ(got.size(), 2u);
   EXPECT_EQ(got[0], "error: from an unbound thread: x 7");
@@ -449,8 +451,8 @@ components:
   const Component* gen = executor_->find("gen");
   ASSERT_NE(flood, nullptr);
   ASSERT_NE(gen, nullptr);
-  EXPECT_EQ(flood->log_source().level(), Level::kInfo);    // its own
-  EXPECT_EQ(gen->log_source().level(), Level::kWarning);   // the host's default
+  EXPECT_EQ(flood->log_source().level(), Level::kInfo);   // its own
+  EXPECT_EQ(gen->log_source().level(), Level::kWarning);  // the host's default
   EXPECT_EQ(flood->log_source().name(), "flood");
   // Executor events: the start.
   EXPECT_TRUE(saw("rackd", "started 2 component(s)"));
@@ -555,8 +557,10 @@ components:
   EXPECT_NE(all.find("bad.yaml:5:11: 'stderr' must be always, auto or never"), std::string::npos) << all;
   EXPECT_NE(all.find("bad.yaml:6:9: 'ring' = 1 is outside 2..65536"), std::string::npos) << all;
   EXPECT_NE(all.find("bad.yaml:7:3: unknown key 'colour' in gdos"), std::string::npos) << all;
-  EXPECT_NE(all.find("bad.yaml:12:25: parameter 'gdosLevel' must be one of print, error, warning, info, detail, got 'chatty'"),
-            std::string::npos)
+  EXPECT_NE(
+      all.find(
+          "bad.yaml:12:25: parameter 'gdosLevel' must be one of print, error, warning, info, detail, got 'chatty'"),
+      std::string::npos)
       << all;
 }
 
@@ -723,9 +727,10 @@ TEST_F(GdosRecordFileTest, FifosDevicesAndHugeLengthsAreRefusedWithTheirOffset) 
   test::HostileDir d("gdos");
   const std::string fifo = d.fifo("fifo.gdos");
   test::HangGuard guard("RecordReader on a FIFO");
-  for (const auto& [path, expect] : {std::pair<std::string, std::string>{fifo, fifo + ": byte offset 0: the gdos record file is a FIFO"},
-                                     {"/dev/zero", "/dev/zero: byte offset 0: the gdos record file is a character device"},
-                                     {d.subdir("dir"), "dir: byte offset 0: the gdos record file is a directory"}}) {
+  for (const auto& [path, expect] :
+       {std::pair<std::string, std::string>{fifo, fifo + ": byte offset 0: the gdos record file is a FIFO"},
+        {"/dev/zero", "/dev/zero: byte offset 0: the gdos record file is a character device"},
+        {d.subdir("dir"), "dir: byte offset 0: the gdos record file is a directory"}}) {
     try {
       gdos_view::RecordReader reader(path);
       ADD_FAILURE() << path << " was opened as a record file";

@@ -69,7 +69,8 @@ TEST(GuiProtocolTest, ClassCommandsByNameWithTheirFieldsAsText) {
   auto r = ok(R"j({"op":"get_class","component":"Pilot(0/0)"})j");
   EXPECT_EQ(r.op, Op::kGetClass);
   EXPECT_EQ(r.component, tims::Address::make(0, tims::classes::kPilot, 0));
-  r = ok(R"j({"op":"command","component":"Pilot(0/0)","name":"SET_DESTINATION","fields":{"x":"2.5","y":-1,"z":0.25,"b":true}})j");
+  r = ok(
+      R"j({"op":"command","component":"Pilot(0/0)","name":"SET_DESTINATION","fields":{"x":"2.5","y":-1,"z":0.25,"b":true}})j");
   EXPECT_EQ(r.op, Op::kCommand);
   EXPECT_EQ(r.command_name, "SET_DESTINATION");
   ASSERT_EQ(r.fields.size(), 4u);
@@ -84,19 +85,23 @@ TEST(GuiProtocolTest, ClassCommandsByNameWithTheirFieldsAsText) {
             std::string::npos);
   EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"","fields":{}})j").find("key 'name'"),
             std::string::npos);
-  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":[1]})j").find("key 'fields': expected an object"),
+  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":[1]})j")
+                .find("key 'fields': expected an object"),
             std::string::npos);
-  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{"x":[1]}})j").find("field 'x': expected a text, number or boolean, got array"),
+  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{"x":[1]}})j")
+                .find("field 'x': expected a text, number or boolean, got array"),
             std::string::npos);
   EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{"x":null}})j").find("got null"),
             std::string::npos);
-  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{"x":18446744073709551615}})j").find("above 2^63-1"),
+  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{"x":18446744073709551615}})j")
+                .find("above 2^63-1"),
             std::string::npos);
   std::string many = R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{)j";
   for (std::size_t i = 0; i <= kMaxCommandFields; ++i) many += (i ? ",\"f" : "\"f") + std::to_string(i) + "\":1";
   EXPECT_NE(refused(many + "}}").find("at most 64"), std::string::npos);
-  EXPECT_NE(refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{"":1}})j").find("a field name has"),
-            std::string::npos);
+  EXPECT_NE(
+      refused(R"j({"op":"command","component":"Pilot(0/0)","name":"X","fields":{"":1}})j").find("a field name has"),
+      std::string::npos);
 }
 
 TEST(GuiProtocolTest, ALiveTraceNamesARobotAHostAndADuration) {
@@ -107,7 +112,8 @@ TEST(GuiProtocolTest, ALiveTraceNamesARobotAHostAndADuration) {
   EXPECT_EQ(ok(R"j({"op":"trace","system":1,"host":"sim-mcl","duration_s":10})j").host, "sim-mcl");
   EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":"","duration_s":0})j").find("above 0 s"), std::string::npos);
   EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":"","duration_s":-1})j").find("above 0 s"), std::string::npos);
-  EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":"","duration_s":11})j").find("key 'duration_s'"), std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":"","duration_s":11})j").find("key 'duration_s'"),
+            std::string::npos);
   EXPECT_NE(refused(R"j({"op":"trace","system":0,"host":3,"duration_s":1})j").find("key 'host'"), std::string::npos);
   EXPECT_NE(refused(R"j({"op":"trace","system":0,"duration_s":1})j").find("missing key 'host'"), std::string::npos);
 }
@@ -127,7 +133,8 @@ TEST(GuiProtocolTest, RefusesMalformedMessagesSayingWhat) {
 }
 
 TEST(GuiProtocolTest, RefusesWrongTypesAndRanges) {
-  EXPECT_NE(refused(R"j({"op":"switch","component":"Chassis(0/0)","on":"yes"})j").find("key 'on': expected true or false, got string"),
+  EXPECT_NE(refused(R"j({"op":"switch","component":"Chassis(0/0)","on":"yes"})j")
+                .find("key 'on': expected true or false, got string"),
             std::string::npos);
   EXPECT_NE(refused(R"j({"op":"switch","component":"Chassis(0/0)","on":1})j").find("got integer"), std::string::npos);
   EXPECT_NE(refused(R"j({"op":"switch","component":17,"on":true})j").find("key 'component'"), std::string::npos);
@@ -135,8 +142,9 @@ TEST(GuiProtocolTest, RefusesWrongTypesAndRanges) {
             std::string::npos);
   EXPECT_NE(refused(R"j({"op":"switch","component":"Chassis(0/0)#3","on":true})j").find("names a mailbox"),
             std::string::npos);
-  EXPECT_NE(refused(R"j({"op":"set_destination","system":0,"x":"10","y":8})j").find("key 'x': expected a number, got string"),
-            std::string::npos);
+  EXPECT_NE(
+      refused(R"j({"op":"set_destination","system":0,"x":"10","y":8})j").find("key 'x': expected a number, got string"),
+      std::string::npos);
   EXPECT_NE(refused(R"j({"op":"set_destination","system":0,"x":1e300,"y":8})j").find("key 'x'"), std::string::npos);
   EXPECT_NE(refused(R"j({"op":"set_destination","system":0.5,"x":1,"y":8})j").find("key 'system'"), std::string::npos);
   EXPECT_NE(refused(R"j({"op":"set_destination","system":255,"x":1,"y":8})j").find("0..254"), std::string::npos);
@@ -296,8 +304,8 @@ TEST(GuiProtocolTest, RefusesHostileMessagesWithTheirReason) {
   EXPECT_FALSE(e.id.has_value());
   EXPECT_EQ(refusal(R"j({"op":"set_param","component":"Pilot(0/0)","name":"n","value":9223372036854775808})j").reason,
             Refusal::kBadValue);
-  EXPECT_TRUE(std::holds_alternative<Request>(
-      parse_request(R"j({"op":"all_off","system":0,"id":9223372036854775807})j")));
+  EXPECT_TRUE(
+      std::holds_alternative<Request>(parse_request(R"j({"op":"all_off","system":0,"id":9223372036854775807})j")));
   // Integers JSON writes as numbers beyond uint64 become doubles: not an integer.
   EXPECT_EQ(refusal(R"j({"op":"all_off","system":100000000000000000000})j").reason, Refusal::kBadValue);
   // Ops and keys.
@@ -341,9 +349,13 @@ TEST(GuiProtocolTest, ArbitraryBytesNeverThrowAndAlwaysGiveAnAnswer) {
     for (int k = 0; k < edits; ++k) {
       const std::size_t at = next() % (m.size() + 1);
       switch (next() % 3) {
-        case 0: if (at < m.size()) m[at] = static_cast<char>(next()); break;
+        case 0:
+          if (at < m.size()) m[at] = static_cast<char>(next());
+          break;
         case 1: m.insert(at, 1, "{}[]\",:0e-9\\u"[next() % 14]); break;
-        default: if (at < m.size()) m.erase(at, 1); break;
+        default:
+          if (at < m.size()) m.erase(at, 1);
+          break;
       }
     }
     const auto r = parse_request(m);
@@ -359,10 +371,12 @@ TEST(GuiProtocolTest, CommandOpTakesANameAndAnObjectBody) {
   EXPECT_EQ(r.op, Op::kCommandJson);
   EXPECT_EQ(r.command, "INIT");
   EXPECT_EQ(r.body.at("y").get<double>(), 7.2);
-  EXPECT_NE(refused(R"j({"op":"command_json","component":"MCL(0/0)","command":"init","body":{}})j").find("not a command name"),
+  EXPECT_NE(refused(R"j({"op":"command_json","component":"MCL(0/0)","command":"init","body":{}})j")
+                .find("not a command name"),
             std::string::npos);
-  EXPECT_NE(refused(R"j({"op":"command_json","component":"MCL(0/0)","command":"","body":{}})j").find("not a command name"),
-            std::string::npos);
+  EXPECT_NE(
+      refused(R"j({"op":"command_json","component":"MCL(0/0)","command":"","body":{}})j").find("not a command name"),
+      std::string::npos);
   EXPECT_NE(refused(R"j({"op":"command_json","component":"MCL(0/0)","command":"INIT","body":[1]})j").find("key 'body'"),
             std::string::npos);
   EXPECT_NE(refused(R"j({"op":"command_json","component":"MCL(0/0)","command":"INIT"})j").find("missing key 'body'"),
@@ -372,8 +386,10 @@ TEST(GuiProtocolTest, CommandOpTakesANameAndAnObjectBody) {
 TEST(GuiProtocolTest, CommandBodyIsEncodedOnlyWhenEveryFieldFits) {
   TypeDescription t;
   t.name = "Body";
-  t.fields = {{"x", tims::FieldKind::kF64, 0, 1}, {"n", tims::FieldKind::kU8, 8, 1},
-              {"v", tims::FieldKind::kF32, 12, 3}, {"label", tims::FieldKind::kChar, 24, 8}};
+  t.fields = {{"x", tims::FieldKind::kF64, 0, 1},
+              {"n", tims::FieldKind::kU8, 8, 1},
+              {"v", tims::FieldKind::kF32, 12, 3},
+              {"label", tims::FieldKind::kChar, 24, 8}};
   t.size = 32;
   std::vector<std::byte> out;
   ASSERT_EQ(encode_command_body(nlohmann::json::parse(R"({"x":1.5,"n":7,"v":[1,2],"label":"ab"})"), &t, out), "");
@@ -394,12 +410,14 @@ TEST(GuiProtocolTest, CommandBodyIsEncodedOnlyWhenEveryFieldFits) {
   EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"n":300})"), &t, out).find("field 'n'"), std::string::npos);
   EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"v":[1,2,3,4]})"), &t, out).find("4 elements, at most 3"),
             std::string::npos);
-  EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"x":{"a":1}})"), &t, out).find("got object"), std::string::npos);
+  EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"x":{"a":1}})"), &t, out).find("got object"),
+            std::string::npos);
   EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"label":"far too long"})"), &t, out).find("field 'label'"),
             std::string::npos);
   // A command without a body takes only an empty one.
   EXPECT_EQ(encode_command_body(nlohmann::json::object(), nullptr, out), "");
-  EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"x":1})"), nullptr, out).find("takes no body"), std::string::npos);
+  EXPECT_NE(encode_command_body(nlohmann::json::parse(R"({"x":1})"), nullptr, out).find("takes no body"),
+            std::string::npos);
 }
 
 }  // namespace

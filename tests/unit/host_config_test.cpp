@@ -226,7 +226,8 @@ components:
   - name: gen
     class: Generator
     command_task:
-      priority: )") + prio + R"(
+      priority: )") + prio +
+                     R"(
     data_task: {period_ms: 10}
 )",
                  6, {"'priority'", "1..99"});
@@ -847,7 +848,10 @@ components:
 TEST_F(HostConfigTest, RawBytesMustBeUtf8TextWithoutNulOrControlCharacters) {
   expect_error(std::string("lcm: false\nhost: a") + std::string(1, '\0') + "b\n" + kOneComponent, 2, {"a NUL byte"});
   expect_error(std::string("lcm: false\nhost: a\xff\n") + kOneComponent, 2, {"invalid UTF-8 (byte 0xff)"});
-  expect_error(std::string("lcm: false\nhost: a\xc0\xaf" "b\n") + kOneComponent, 2, {"invalid UTF-8"});  // overlong
+  expect_error(std::string("lcm: false\nhost: a\xc0\xaf"
+                           "b\n") +
+                   kOneComponent,
+               2, {"invalid UTF-8"});  // overlong
   expect_error(std::string("lcm: false\nhost: a\x07\n") + kOneComponent, 2, {"control character (U+0007)"});
   // UTF-8 in a comment or a free-text value is fine.
   EXPECT_NE(load(std::string("lcm: false  # Büro, 東京\n") + kOneComponent).host, nullptr);
@@ -933,13 +937,27 @@ TEST(LcmUrlTest, ParsesWhatLcmTakesAndRefusesTheRest) {
   EXPECT_TRUE(tims::parse_lcm_url("udpm://").ok());
   EXPECT_TRUE(tims::parse_lcm_url("memq://").ok());
   EXPECT_TRUE(tims::parse_lcm_url("file:///tmp/x.lcm?mode=w").ok());
-  for (const char* bad : {"", "garbage", "udpm:/239.255.76.67", "udpm://239.255.76.67:0", "udpm://239.255.76.67:65536",
-                          "udpm://239.255.76.67:-1", "udpm://239.255.76.67:76a", "udpm://1.2.3.4:7667",
-                          "udpm://239.255.76.67:7667?ttl=256", "udpm://239.255.76.67:7667?ttl=-1",
-                          "udpm://239.255.76.67:7667?ttl=1&ttl=2", "udpm://239.255.76.67:7667?",
-                          "udpm://239.255.76.67:7667?ttl=1&", "udpm://239.255.76.67:7667?recv_buf_size=0",
-                          "udpm://239.255.76.67:7667?recv_buf_size=99999999999999999999", "udpm://239.255.76.67 :7667",
-                          "memq://x", "tcpq://", "file://", "file:///x?mode=q", "bogus://x"}) {
+  for (const char* bad : {"",
+                          "garbage",
+                          "udpm:/239.255.76.67",
+                          "udpm://239.255.76.67:0",
+                          "udpm://239.255.76.67:65536",
+                          "udpm://239.255.76.67:-1",
+                          "udpm://239.255.76.67:76a",
+                          "udpm://1.2.3.4:7667",
+                          "udpm://239.255.76.67:7667?ttl=256",
+                          "udpm://239.255.76.67:7667?ttl=-1",
+                          "udpm://239.255.76.67:7667?ttl=1&ttl=2",
+                          "udpm://239.255.76.67:7667?",
+                          "udpm://239.255.76.67:7667?ttl=1&",
+                          "udpm://239.255.76.67:7667?recv_buf_size=0",
+                          "udpm://239.255.76.67:7667?recv_buf_size=99999999999999999999",
+                          "udpm://239.255.76.67 :7667",
+                          "memq://x",
+                          "tcpq://",
+                          "file://",
+                          "file:///x?mode=q",
+                          "bogus://x"}) {
     EXPECT_FALSE(tims::parse_lcm_url(bad).ok()) << "accepted '" << bad << "'";
   }
   EXPECT_FALSE(tims::parse_lcm_url(std::string(300, 'u')).ok());

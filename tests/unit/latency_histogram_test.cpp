@@ -46,21 +46,21 @@ TEST(LatencyHistogramTest, KnownLatenciesLandInTheirBuckets) {
   auto stats = std::make_unique<rt::LatencyStats>();
   // ns -> the expected lower edge of its reply bucket.
   const std::vector<std::pair<int64_t, int64_t>> cases = {
-      {-5, 0},                      // a clock oddity counts as 0
+      {-5, 0},  // a clock oddity counts as 0
       {0, 0},
       {999, 0},
       {1'000, 1'000},
       {7'999, 7'000},
       {8'000, 8'000},
-      {9'999, 8'000},               // 8..10 us
+      {9'999, 8'000},  // 8..10 us
       {10'000, 10'000},
-      {20'500, 20'000},             // a 20 us jitter
+      {20'500, 20'000},  // a 20 us jitter
       {119'999, 100'000},
       {120'000, 120'000},
-      {5'000'000, 5'000'000},       // a 5 ms overrun
-      {9'999'999, 8'000'000},       // just below the open bucket
-      {10'000'000, 10'000'000},     // the open bucket
-      {55'000'000, 10'000'000},     // far beyond: still the open bucket
+      {5'000'000, 5'000'000},    // a 5 ms overrun
+      {9'999'999, 8'000'000},    // just below the open bucket
+      {10'000'000, 10'000'000},  // the open bucket
+      {55'000'000, 10'000'000},  // far beyond: still the open bucket
   };
   std::array<uint64_t, wire::kLatencyBuckets> want{};
   for (const auto& [ns, lower] : cases) {

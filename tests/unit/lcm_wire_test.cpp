@@ -29,7 +29,8 @@ Bytes encode(const T& m) {
   return b;
 }
 void set32(Bytes& b, std::size_t at, int32_t v) {
-  for (int i = 0; i < 4; ++i) b[at + static_cast<std::size_t>(i)] = static_cast<uint8_t>(static_cast<uint32_t>(v) >> (24 - 8 * i));
+  for (int i = 0; i < 4; ++i)
+    b[at + static_cast<std::size_t>(i)] = static_cast<uint8_t>(static_cast<uint32_t>(v) >> (24 - 8 * i));
 }
 Bytes datagram(const std::string& channel, const Bytes& payload) {
   // Built as a string (GCC 12 warns falsely, -Warray-bounds and -Wnull-dereference, on
@@ -290,7 +291,9 @@ TEST(GdosDatagramTest, NetworkTextReachesTheTerminalWithoutControlCharacters) {
   GdosRecord r;
   r.host = "h\x1b]0;owned\x07";
   r.name = "gen";
-  r.text = "a\x1b[2Jb\tc\xc2\x9b" "31m\x7f \xc3\xa9";  // ESC, tab, C1 CSI, DEL, an e-acute
+  r.text =
+      "a\x1b[2Jb\tc\xc2\x9b"
+      "31m\x7f \xc3\xa9";  // ESC, tab, C1 CSI, DEL, an e-acute
   const std::string line = gdos_view::text_line(r, r.name, false);
   EXPECT_EQ(line.find('\x1b'), std::string::npos) << line;
   EXPECT_EQ(line.find('\x07'), std::string::npos) << line;
@@ -324,15 +327,16 @@ class TopRouterTest : public ::testing::Test {
     const MessageHeader h = make_header(dest, src, msg::kGetStatus, 0, static_cast<uint8_t>(++seq), 0);
     Bytes p(50 + sizeof h, 0);
     const auto put = [&](std::size_t at, uint64_t v, int bytes) {
-      for (int i = 0; i < bytes; ++i) p[at + static_cast<std::size_t>(i)] = static_cast<uint8_t>(v >> (8 * (bytes - 1 - i)));
+      for (int i = 0; i < bytes; ++i)
+        p[at + static_cast<std::size_t>(i)] = static_cast<uint8_t>(v >> (8 * (bytes - 1 - i)));
     };
     put(0, static_cast<uint64_t>(rack_lcm::tims_packet::getHash()), 8);
-    put(8, static_cast<uint64_t>(origin), 8);    // origin
-    put(24, static_cast<uint64_t>(seq), 4);      // packet sequence
-    put(28, static_cast<uint64_t>(seq), 4);      // message sequence
-    put(32, sizeof h, 4);                        // total
-    put(36, sizeof h, 4);                        // encoded
-    put(46, sizeof h, 4);                        // chunk size
+    put(8, static_cast<uint64_t>(origin), 8);  // origin
+    put(24, static_cast<uint64_t>(seq), 4);    // packet sequence
+    put(28, static_cast<uint64_t>(seq), 4);    // message sequence
+    put(32, sizeof h, 4);                      // total
+    put(36, sizeof h, 4);                      // encoded
+    put(46, sizeof h, 4);                      // chunk size
     std::memcpy(p.data() + 50, &h, sizeof h);
     const Bytes d = datagram("TIMS", p);
     transport->handle_datagram(d.data(), d.size());
@@ -391,7 +395,7 @@ TEST_F(TopRouterTest, AChangedComponentListIsTakenOverByTheOwnersTable) {
   a.components[0].address = static_cast<int32_t>(gen0.raw());
   const Bytes first = datagram("TIMS_ANNOUNCE", encode(a));
   for (int i = 0; i < 3; ++i) transport->handle_datagram(first.data(), first.size());  // periodic: no change
-  packet(Address::make(1, classes::kMonitor, 0), gen0, 0x9999);  // not from its owner
+  packet(Address::make(1, classes::kMonitor, 0), gen0, 0x9999);                        // not from its owner
   EXPECT_EQ(transport->counters().forged, 1u) << warnings;
   a.components[0].address = static_cast<int32_t>(gen1.raw());  // the host now runs Generator(1/1)
   const Bytes d = datagram("TIMS_ANNOUNCE", encode(a));

@@ -50,7 +50,8 @@ components:
     class: Monitor
     instance: 1
     retry_ms: 100
-    autostart: )" + std::string(monitor_autostart ? "true" : "false") +
+    autostart: )" +
+           std::string(monitor_autostart ? "true" : "false") +
            R"(
     data_task: {timeout_ms: 1000}
     params: {source: gen, period_ms: 50}
@@ -613,7 +614,8 @@ components:
     retry_ms: 60000
     data_task: {timeout_ms: 1000}
     params: {source: probe, period_ms: 50}
-)", {}, /*capture_gdos=*/true);
+)",
+                           {}, /*capture_gdos=*/true);
   const Address mon = host.address_of("mon");
   const Address probe = host.address_of("probe");
   const auto on = host.call(mon, msg::kOn);
@@ -641,8 +643,9 @@ components:
   EXPECT_STREQ(host.stats(mon).error_reason, "");
   // A parameter change is an info event.
   ASSERT_EQ(host.set_bool(probe, "fail_loop", false).type, msg::kOk);
-  EXPECT_TRUE(test::eventually([&] { return host.gdos_log().find("SET_PARAM fail_loop = false") != std::string::npos; }))
-      << host.gdos_log();
+  EXPECT_TRUE(test::eventually([&] {
+    return host.gdos_log().find("SET_PARAM fail_loop = false") != std::string::npos;
+  })) << host.gdos_log();
 }
 
 }  // namespace

@@ -64,7 +64,7 @@ TEST_F(MailboxTest, FifoSurvivesSlotReuse) {
   Mailbox m(kSelf, 3, 128);
   ASSERT_EQ(send_tag(m, 1, 2), SendStatus::kOk);
   ASSERT_EQ(send_tag(m, 2, 2), SendStatus::kOk);
-  EXPECT_EQ(recv_id(m), 1u);                       // frees slot 0
+  EXPECT_EQ(recv_id(m), 1u);                      // frees slot 0
   ASSERT_EQ(send_tag(m, 3, 2), SendStatus::kOk);  // lands in slot 0
   ASSERT_EQ(send_tag(m, 4, 2), SendStatus::kOk);  // slot 2
   EXPECT_EQ(drain(m), (std::vector<uint32_t>{2, 3, 4}));
@@ -117,8 +117,7 @@ TEST_F(MailboxTest, HeaderLengthDisagreeingWithTheBodyIsRefused) {
   Mailbox m(kSelf, 2, 128);
   const Tag t{1, 0};
   // The header claims 4 body bytes more than are given.
-  EXPECT_NE(m.try_send(make_header(kSelf, kPeer, msg::kData, 0, 0, sizeof t + 4), {buffer_of(t)}),
-            SendStatus::kOk);
+  EXPECT_NE(m.try_send(make_header(kSelf, kPeer, msg::kData, 0, 0, sizeof t + 4), {buffer_of(t)}), SendStatus::kOk);
   EXPECT_EQ(m.queued(), 0u);
 }
 
@@ -299,8 +298,7 @@ TEST_F(MailboxTest, ConcurrentSendersNeverTearAMessage) {
       std::array<uint64_t, kWords> body{};
       for (uint32_t i = 0; i < kPerSender; ++i) {
         body.fill((uint64_t{static_cast<uint32_t>(s)} << 32) | i);
-        const auto st = m.try_send(make_header(kSelf, kPeer, msg::kData, static_cast<uint8_t>(i % 3), 0,
-                                               sizeof body),
+        const auto st = m.try_send(make_header(kSelf, kPeer, msg::kData, static_cast<uint8_t>(i % 3), 0, sizeof body),
                                    {buffer_of(body)});
         EXPECT_TRUE(st == SendStatus::kOk || st == SendStatus::kOkDroppedOlder || st == SendStatus::kFull);
         if (i % 64 == 0) std::this_thread::yield();

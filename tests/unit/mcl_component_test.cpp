@@ -124,7 +124,8 @@ class UpdateRecorder final : public Component {
 };
 
 void register_test_classes(ComponentRegistry& r) {
-  r.add({"SimScan2d", tims::classes::kScan2d, "test: scripted robot's scans", [] { return std::make_unique<SimScan2d>(); }});
+  r.add({"SimScan2d", tims::classes::kScan2d, "test: scripted robot's scans",
+         [] { return std::make_unique<SimScan2d>(); }});
   r.add({"UpdateRecorder", tims::classes::kPosition, "test: records Position UPDATEs",
          [] { return std::make_unique<UpdateRecorder>(); }});
 }
@@ -142,13 +143,15 @@ components:
     autostart: true
     data_task: {priority: 0, timeout_ms: 2000}
     params:
-      map: )" + map + R"(
+      map: )" +
+         map + R"(
       scan2d: scans
       position: position
       initial_pose: "2.05 7.95 0.02"
       particles_max: 1000
       seed: 5
-)" + extra_params + R"(
+)" + extra_params +
+         R"(
   - name: gen
     class: Generator
     autostart: true

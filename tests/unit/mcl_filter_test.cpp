@@ -23,8 +23,8 @@ const std::string kOffice = std::string(RACK_SOURCE_DIR) + "/configs/maps/office
 
 // A tour of the office (map frame, metres): along the corridor (y = 8), into the
 // second south room through its door (x = 9.6), back, and on east.
-const std::vector<std::pair<double, double>> kTour = {
-    {2.0, 8.0}, {9.6, 8.0}, {9.6, 4.0}, {11.0, 3.0}, {9.6, 4.0}, {9.6, 8.0}, {18.0, 8.0}, {19.6, 11.5}};
+const std::vector<std::pair<double, double>> kTour = {{2.0, 8.0}, {9.6, 8.0}, {9.6, 4.0},  {11.0, 3.0},
+                                                      {9.6, 4.0}, {9.6, 8.0}, {18.0, 8.0}, {19.6, 11.5}};
 
 class MclFilterTest : public ::testing::Test {
  protected:
@@ -42,16 +42,16 @@ class MclFilterTest : public ::testing::Test {
 maps::OccupancyMap* MclFilterTest::map_ = nullptr;
 
 struct RunStats {
-  double rms = 0.0;           // position error RMS over the filter updates after settling
-  double max_heading = 0.0;   // rad
-  double final_error = 0.0;   // m
+  double rms = 0.0;          // position error RMS over the filter updates after settling
+  double max_heading = 0.0;  // rad
+  double final_error = 0.0;  // m
   int updates = 0;
 };
 
 // Drives the tour (from its first waypoint) feeding every scan to the filter.
 // `settle` updates at the start are left out of the statistics.
-RunStats drive(MclFilter& f, ScriptedRobot& robot, const std::vector<std::pair<double, double>>& tour,
-               int settle, double max_travel = 1e9) {
+RunStats drive(MclFilter& f, ScriptedRobot& robot, const std::vector<std::pair<double, double>>& tour, int settle,
+               double max_travel = 1e9) {
   RunStats st;
   double sum_sq = 0.0;
   int n = 0;
@@ -168,7 +168,7 @@ TEST_F(MclFilterTest, RecoversFromKidnapping) {
     const RunStats before = drive(f, robot, {{2.0, 8.0}, {8.0, 8.0}}, 3);
     ASSERT_LT(before.final_error, 0.1) << "seed " << seed;
     robot.kidnap({15.6, 8.0, 0.0});
-    const std::vector<std::pair<double, double>> after = {{15.6, 8.0}, {21.0, 8.0}, {21.1, 4.0}, {21.1, 8.0},
+    const std::vector<std::pair<double, double>> after = {{15.6, 8.0}, {21.0, 8.0},  {21.1, 4.0}, {21.1, 8.0},
                                                           {14.0, 8.0}, {13.6, 11.5}, {13.6, 13.5}};
     uint32_t injected = 0;
     const double at = travel_to_converge(f, robot, 0.3, after, &injected);
@@ -205,7 +205,7 @@ TEST_F(MclFilterTest, UpdatesAreGatedByTravelAndTurn) {
   EXPECT_FALSE(f.update({0.19, 0, 0.2}, s.xs, s.ys));
   // Between updates the estimate follows odometry.
   EXPECT_NEAR(f.estimate().pose.x, 2.19, 0.05);
-  EXPECT_TRUE(f.update({0.21, 0, 0}, s.xs, s.ys));   // 0.21 m
+  EXPECT_TRUE(f.update({0.21, 0, 0}, s.xs, s.ys));  // 0.21 m
   EXPECT_FALSE(f.update({0.21, 0, 0.2}, s.xs, s.ys));
   EXPECT_TRUE(f.update({0.21, 0, 0.35}, s.xs, s.ys));  // 0.35 rad
   EXPECT_EQ(f.estimate().updates, 3U);

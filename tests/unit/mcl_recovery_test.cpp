@@ -106,7 +106,8 @@ TEST(MclRecoveryTest, KidnapOnRealDataIsRecovered) {
   // Odometry after the kidnap: continues from where it was, with the increments of the
   // part the robot was carried to.
   const auto compose = [](const SimPose& a, const SimPose& d) {
-    return SimPose{a.x + std::cos(a.phi) * d.x - std::sin(a.phi) * d.y, a.y + std::sin(a.phi) * d.x + std::cos(a.phi) * d.y,
+    return SimPose{a.x + std::cos(a.phi) * d.x - std::sin(a.phi) * d.y,
+                   a.y + std::sin(a.phi) * d.x + std::cos(a.phi) * d.y,
                    std::remainder(a.phi + d.phi, 2 * std::numbers::pi)};
   };
   const auto between = [](const SimPose& a, const SimPose& b) {
@@ -133,7 +134,8 @@ TEST(MclRecoveryTest, KidnapOnRealDataIsRecovered) {
     std::size_t good_from = steps.size();
     while (good_from > from && r.errors[good_from - 1] < 0.5) --good_from;
     const bool ok = good_from < steps.size() - 20;  // within 0.5 m for the last 20+ scans
-    report += " seed " + std::to_string(seed) + ": " + (ok ? "back at scan " + std::to_string(good_from) : "not back") + ";";
+    report += " seed " + std::to_string(seed) + ": " + (ok ? "back at scan " + std::to_string(good_from) : "not back") +
+              ";";
     recovered += ok ? 1 : 0;
   }
   EXPECT_GE(recovered, 2) << report;

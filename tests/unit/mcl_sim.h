@@ -29,20 +29,19 @@ struct SimScan {
 };
 
 struct SimConfig {
-  int beams = 181;              // over the field of view
+  int beams = 181;                      // over the field of view
   double fov = 1.5 * std::numbers::pi;  // 270 degrees
-  double max_range = 10.0;      // m
-  double range_noise = 0.01;    // m (std dev)
-  double step = 0.05;           // m travelled between scans
-  double turn_step = 0.15;      // rad turned at most between scans
-  double odom_noise_xy = 0.02;  // relative (std dev per metre)
-  double odom_noise_phi = 0.02; // rad per rad + per metre
+  double max_range = 10.0;              // m
+  double range_noise = 0.01;            // m (std dev)
+  double step = 0.05;                   // m travelled between scans
+  double turn_step = 0.15;              // rad turned at most between scans
+  double odom_noise_xy = 0.02;          // relative (std dev per metre)
+  double odom_noise_phi = 0.02;         // rad per rad + per metre
 };
 
 class ScriptedRobot {
  public:
-  ScriptedRobot(const maps::OccupancyMap& map, SimConfig config, uint64_t seed)
-      : map_(map), cfg_(config), rng_(seed) {}
+  ScriptedRobot(const maps::OccupancyMap& map, SimConfig config, uint64_t seed) : map_(map), cfg_(config), rng_(seed) {}
 
   void place(const SimPose& p) {
     truth_ = p;

@@ -230,8 +230,8 @@ TEST_F(PayloadByteOrderTest, ReadSampleConvertsAForeignDataMessage) {
   put_be(body.data() + 16, uint64_t{5});
   put_be(body.data() + 24, uint64_t{2});
   put_be(body.data() + 32, uint64_t{1});
-  MessageHeader h = make_header(Address::make(0, classes::kTool, 1), Address::make(0, classes::kProbe, 1),
-                                msg::kData, 0, 0, kSize);
+  MessageHeader h = make_header(Address::make(0, classes::kTool, 1), Address::make(0, classes::kProbe, 1), msg::kData,
+                                0, 0, kSize);
   h.flags = kHostLittleEndian ? kFlagHeaderLittleEndian : kFlagBodyLittleEndian;  // body foreign
   wire::SampleHeader sh;
   interfaces::ProbeData d;
@@ -270,9 +270,12 @@ TEST_F(AddressTest, FieldsAndComponentAddress) {
 
 TEST_F(AddressTest, ParseRoundTripsFormattedAddresses) {
   const Address samples[] = {
-      Address::make(0, classes::kGenerator, 1),       Address::make(0, classes::kGenerator, 1, 3),
-      Address::make(0, 0x99, 1),                      Address::make(254, classes::kMonitor, 255, 255),
-      Address::make(255, classes::kTool, 0, 1),       Address::make(0, 0, 0),
+      Address::make(0, classes::kGenerator, 1),
+      Address::make(0, classes::kGenerator, 1, 3),
+      Address::make(0, 0x99, 1),
+      Address::make(254, classes::kMonitor, 255, 255),
+      Address::make(255, classes::kTool, 0, 1),
+      Address::make(0, 0, 0),
   };
   for (const Address a : samples) {
     const auto parsed = parse_address(a.str());
@@ -284,12 +287,30 @@ TEST_F(AddressTest, ParseRoundTripsFormattedAddresses) {
 }
 
 TEST_F(AddressTest, ParseRejectsMalformedText) {
-  for (const char* bad : {"", "Generator", "Generator(", "Generator(0/1", "Generator)0/1(", "(0/1)",
-                          "Generator(0-1)", "Generator(/1)", "Generator(0/)", "Generator(0/256)",
-                          "Generator(256/0)", "Generator(-1/0)", "Generator(0/1/2)", "Generator(0/1)#",
-                          "Generator(0/1)#x", "Generator(0/1)#256", "Generator(0/1)x", "Generator(0/1)(2/3)",
-                          "NoSuchClass(0/1)", "Class0xZZ(0/1)", "Class0x100(0/1)", "300(0/1)",
-                          " Generator(0/1)", "Generator(0x1/1)"}) {
+  for (const char* bad : {"",
+                          "Generator",
+                          "Generator(",
+                          "Generator(0/1",
+                          "Generator)0/1(",
+                          "(0/1)",
+                          "Generator(0-1)",
+                          "Generator(/1)",
+                          "Generator(0/)",
+                          "Generator(0/256)",
+                          "Generator(256/0)",
+                          "Generator(-1/0)",
+                          "Generator(0/1/2)",
+                          "Generator(0/1)#",
+                          "Generator(0/1)#x",
+                          "Generator(0/1)#256",
+                          "Generator(0/1)x",
+                          "Generator(0/1)(2/3)",
+                          "NoSuchClass(0/1)",
+                          "Class0xZZ(0/1)",
+                          "Class0x100(0/1)",
+                          "300(0/1)",
+                          " Generator(0/1)",
+                          "Generator(0x1/1)"}) {
     EXPECT_FALSE(parse_address(bad).has_value()) << "accepted '" << bad << "'";
   }
 }
@@ -301,7 +322,7 @@ TEST_F(AddressTest, ClassTableLooksUpBothWays) {
   EXPECT_FALSE(class_id("Nope").has_value());
   EXPECT_FALSE(register_class_name(0x10, "Mine"));  // Chassis: declared by ChassisSim and others
   EXPECT_TRUE(register_class_name(0xA7, "UnitTestClass"));
-  EXPECT_TRUE(register_class_name(0xA7, "UnitTestClass"));  // idempotent
+  EXPECT_TRUE(register_class_name(0xA7, "UnitTestClass"));   // idempotent
   EXPECT_FALSE(register_class_name(0xA8, "UnitTestClass"));  // name taken
   EXPECT_EQ(Address::make(1, 0xA7, 2).str(), "UnitTestClass(1/2)");
   EXPECT_EQ(parse_address("UnitTestClass(1/2)"), Address::make(1, 0xA7, 2));

@@ -142,17 +142,20 @@ TEST_F(ModeSwitchTest, AllowListAndFrameworkPrimitivesAreNotReported) {
   PiCondVar cv;
   std::atomic<int> word{0};
   const auto r = run_cycle([&] {
-    sleep_for(100 * kNsPerUs);                    // clock_nanosleep via rt::
+    sleep_for(100 * kNsPerUs);  // clock_nanosleep via rt::
     timespec ts{0, 50'000};
     clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, nullptr);  // on the allow-list, called directly
-    { PiLock lock(m); cv.notify_one(); }
+    {
+      PiLock lock(m);
+      cv.notify_one();
+    }
     {
       PiLock lock(m);
       (void)cv.wait_until(m, monotonic_ns() + 100 * kNsPerUs);  // times out
     }
-    (void)monotonic_ns();                         // vDSO
+    (void)monotonic_ns();  // vDSO
     (void)getpid();
-    word.notify_one();                             // futex (C++20 atomic wait/notify)
+    word.notify_one();  // futex (C++20 atomic wait/notify)
   });
   EXPECT_EQ(r.total(), 0u);
 }
@@ -215,13 +218,14 @@ TEST_F(ModeSwitchTest, AllocationAndReleaseAreReported) {
 TEST_F(ModeSwitchTest, NothingIsReportedOutsideTheWindow) {
   const int fd = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
   ASSERT_GE(fd, 0);
-  const auto r = run_cycle([] {}, Mode::kWarn, [&] {
-    g_sink = std::malloc(64);
-    std::free(g_sink);
-    (void)!::write(fd, "x", 1);
-    std::mutex m;
-    std::lock_guard lock(m);
-  });
+  const auto r = run_cycle([] {}, Mode::kWarn,
+                           [&] {
+                             g_sink = std::malloc(64);
+                             std::free(g_sink);
+                             (void)!::write(fd, "x", 1);
+                             std::mutex m;
+                             std::lock_guard lock(m);
+                           });
   ::close(fd);
   EXPECT_EQ(r.total(), 0u);
 }
@@ -255,8 +259,8 @@ TEST_F(ModeSwitchTest, LongWaitOnPiMutexIsPriorityInversion) {
 TEST_F(ModeSwitchTest, PageFaultIsReported) {
   if (!g_started.faults) GTEST_SKIP() << "perf sigtrap unavailable";
   const long page = sysconf(_SC_PAGESIZE);
-  auto* area = static_cast<char*>(mmap(nullptr, static_cast<std::size_t>(page) * 4, PROT_READ | PROT_WRITE,
-                                       MAP_PRIVATE | MAP_ANONYMOUS, -1, 0));
+  auto* area = static_cast<char*>(
+      mmap(nullptr, static_cast<std::size_t>(page) * 4, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0));
   ASSERT_NE(area, MAP_FAILED);
   const auto r = run_cycle([&] { *static_cast<volatile char*>(area + page) = 1; });
   EXPECT_GE(r.delta(Reason::kFault), 1u);
@@ -266,13 +270,28 @@ TEST_F(ModeSwitchTest, PageFaultIsReported) {
 
 TEST_F(ModeSwitchTest, AbortModeFailsTheCycleWarnModeDoesNot) {
   if (!g_started.allocations) GTEST_SKIP() << "no interposers in this build (sanitizer)";
-  const auto warn = run_cycle([] { g_sink = std::malloc(8); std::free(g_sink); }, Mode::kWarn);
+  const auto warn = run_cycle(
+      [] {
+        g_sink = std::malloc(8);
+        std::free(g_sink);
+      },
+      Mode::kWarn);
   EXPECT_FALSE(warn.verdict.abort);
-  const auto abort = run_cycle([] { g_sink = std::malloc(8); std::free(g_sink); }, Mode::kAbort);
+  const auto abort = run_cycle(
+      [] {
+        g_sink = std::malloc(8);
+        std::free(g_sink);
+      },
+      Mode::kAbort);
   EXPECT_TRUE(abort.verdict.abort);
   const auto clean = run_cycle([] {}, Mode::kAbort);
   EXPECT_FALSE(clean.verdict.abort);
-  const auto off = run_cycle([] { g_sink = std::malloc(8); std::free(g_sink); }, Mode::kOff);
+  const auto off = run_cycle(
+      [] {
+        g_sink = std::malloc(8);
+        std::free(g_sink);
+      },
+      Mode::kOff);
   EXPECT_EQ(off.total(), 0u);
 }
 
@@ -299,7 +318,10 @@ TEST_F(ModeSwitchTest, OverrunBeyondTheWatchdogIsReported) {
 TEST_F(ModeSwitchTest, ReportFileHoldsModulesAndCompleteReports) {
   if (!g_started.allocations) GTEST_SKIP() << "no interposers in this build (sanitizer)";
   if (g_started.report_path.empty()) GTEST_SKIP() << "no report file";
-  (void)run_cycle([] { g_sink = std::malloc(8); std::free(g_sink); });
+  (void)run_cycle([] {
+    g_sink = std::malloc(8);
+    std::free(g_sink);
+  });
   // The reporter writes within its 20 ms poll; bounded wait.
   std::string text;
   for (int i = 0; i < 200; ++i) {
@@ -393,7 +415,10 @@ TEST_F(ModeSwitchTest, AFullRingDropsAndCountsAndRecovers) {
   // The reporter drains it; later reports get through again.
   sleep_for(200 * kNsPerMs);
   const uint64_t dropped = counters().dropped;
-  const auto again = run_cycle([] { g_sink = std::malloc(8); std::free(g_sink); });
+  const auto again = run_cycle([] {
+    g_sink = std::malloc(8);
+    std::free(g_sink);
+  });
   EXPECT_EQ(again.delta(Reason::kAlloc), 2u);
   EXPECT_EQ(counters().dropped, dropped);
 }
@@ -472,7 +497,8 @@ TEST_F(ModeSwitchTest, IdenticalReportsAreCountedNotWrittenAgain) {
   });
   t.join();
   const Counters after = counters();
-  const uint64_t recorded = after.by_reason[static_cast<int>(Reason::kAlloc)] - before.by_reason[static_cast<int>(Reason::kAlloc)];
+  const uint64_t recorded = after.by_reason[static_cast<int>(Reason::kAlloc)] -
+                            before.by_reason[static_cast<int>(Reason::kAlloc)];
   ASSERT_EQ(recorded, uint64_t{kCycles} * 2);
   const uint64_t dropped = after.dropped - before.dropped;
   uint64_t in_file = 0, written = 0;

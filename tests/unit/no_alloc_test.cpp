@@ -510,7 +510,8 @@ components:
     class: ChassisSim
     instance: 0
     data_task: {priority: 45, period_ms: 10, ring: 200}
-    params: {map: ")" + map + R"(", initial_x: 3.0, initial_y: 7.0}
+    params: {map: ")" + map +
+                           R"(", initial_x: 3.0, initial_y: 7.0}
   - name: odometry
     class: Odometry
     instance: 0
@@ -525,7 +526,8 @@ components:
     class: LadarSim
     instance: 0
     data_task: {priority: 42, period_ms: 40, ring: 10}
-    params: {chassis: chassis, map: ")" + map + R"(", mount_x: 0.2}
+    params: {chassis: chassis, map: ")" +
+                           map + R"(", mount_x: 0.2}
   - name: scan2d
     class: Scan2D
     instance: 0

@@ -126,8 +126,9 @@ TEST_F(OccupancyMapTest, TextPgmAndNegateAreRead) {
   EXPECT_EQ(r.map->cell_state(1, 1), CellState::kFree);
   EXPECT_EQ(r.map->cell_state(2, 1), CellState::kUnknown);
   EXPECT_EQ(r.map->cell_state(2, 0), CellState::kOccupied);
-  write("map2.yaml", "image: map.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: 1\n"
-                     "occupied_thresh: 0.65\nfree_thresh: 0.196\n");
+  write("map2.yaml",
+        "image: map.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: 1\n"
+        "occupied_thresh: 0.65\nfree_thresh: 0.196\n");
   r = load_map((dir_ / "map2.yaml").string());
   ASSERT_TRUE(r.ok()) << r.error_text();
   EXPECT_EQ(r.map->cell_state(0, 1), CellState::kFree);
@@ -142,19 +143,23 @@ TEST_F(OccupancyMapTest, MissingFilesAreNamed) {
 TEST_F(OccupancyMapTest, YamlErrorsNameTheLineAndKey) {
   write("map.pgm", "P2\n1 1\n255\n0\n");
   expect_error(load_map(yaml("map.pgm", "colour: red\n")), {"map.yaml:7:", "unknown key 'colour'"});
-  expect_error(load_map(write("a.yaml", "image: map.pgm\nresolution: -1\norigin: [0, 0, 0]\nnegate: 0\n"
-                                        "occupied_thresh: 0.65\nfree_thresh: 0.196\n")),
+  expect_error(load_map(write("a.yaml",
+                              "image: map.pgm\nresolution: -1\norigin: [0, 0, 0]\nnegate: 0\n"
+                              "occupied_thresh: 0.65\nfree_thresh: 0.196\n")),
                {"a.yaml:2:", "'resolution' must be positive"});
-  expect_error(load_map(write("b.yaml", "image: map.pgm\nresolution: 0.1\norigin: [0, 0]\nnegate: 0\n"
-                                        "occupied_thresh: 0.65\nfree_thresh: 0.196\n")),
+  expect_error(load_map(write("b.yaml",
+                              "image: map.pgm\nresolution: 0.1\norigin: [0, 0]\nnegate: 0\n"
+                              "occupied_thresh: 0.65\nfree_thresh: 0.196\n")),
                {"b.yaml:3:", "'origin' must be [x, y, yaw]"});
-  expect_error(load_map(write("c.yaml", "image: map.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: 0\n"
-                                        "occupied_thresh: 0.1\nfree_thresh: 0.5\n")),
+  expect_error(load_map(write("c.yaml",
+                              "image: map.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: 0\n"
+                              "occupied_thresh: 0.1\nfree_thresh: 0.5\n")),
                {"c.yaml:6:", "'free_thresh' is above 'occupied_thresh'"});
   expect_error(load_map(write("d.yaml", "image: map.pgm\nresolution: 0.1\n")), {"d.yaml", "missing key 'origin'"});
   expect_error(load_map(write("e.yaml", "image: map.pgm\nresolution: [1\n")), {"e.yaml:", "YAML syntax"});
-  expect_error(load_map(write("f.yaml", "image: map.pgm\nresolution: abc\norigin: [0, 0, 0]\nnegate: 2\n"
-                                        "occupied_thresh: 0.65\nfree_thresh: 0.196\n")),
+  expect_error(load_map(write("f.yaml",
+                              "image: map.pgm\nresolution: abc\norigin: [0, 0, 0]\nnegate: 2\n"
+                              "occupied_thresh: 0.65\nfree_thresh: 0.196\n")),
                {"f.yaml:2:", "'resolution' must be a finite number", "f.yaml:4:", "'negate' must be 0 or 1"});
 }
 
@@ -207,8 +212,9 @@ TEST_F(OccupancyMapTest, HostileYamlFilesAreRefused) {
   write("map.pgm", "P2\n1 1\n255\n0\n");
   expect_error(load_map(yaml("map.pgm", "resolution: 0.2\n")), {"map.yaml:7:", "key 'resolution' appears twice"});
   expect_error(load_map(write("g.yaml", std::string(50000, '[') + "\n")), {"g.yaml"});
-  expect_error(load_map(write("n.yaml", "image: {a: b}\nresolution: [1]\norigin: [[1], 2, 3]\nnegate: [0]\n"
-                                        "occupied_thresh: 0.65\nfree_thresh: 0.196\nmode: [x]\n")),
+  expect_error(load_map(write("n.yaml",
+                              "image: {a: b}\nresolution: [1]\norigin: [[1], 2, 3]\nnegate: [0]\n"
+                              "occupied_thresh: 0.65\nfree_thresh: 0.196\nmode: [x]\n")),
                {"n.yaml:1: 'image' must name the PGM file", "n.yaml:2: 'resolution' must be a finite number",
                 "n.yaml:3: 'origin' entries must be finite numbers", "n.yaml:4: 'negate' must be 0 or 1",
                 "n.yaml:7: 'mode' must be trinary"});

@@ -187,8 +187,10 @@ components:
   - name: gen
     class: Generator
     instance: 1
-    command_task: {priority: 30, cpu: )" + std::to_string(pinned) + R"(}
-    data_task: {priority: 60, cpu: )" + std::to_string(pinned) + R"(, period_ms: 10}
+    command_task: {priority: 30, cpu: )" +
+                               std::to_string(pinned) + R"(}
+    data_task: {priority: 60, cpu: )" +
+                               std::to_string(pinned) + R"(, period_ms: 10}
   - name: io
     class: ThreadInInit
 )",
@@ -213,7 +215,8 @@ components:
     return false;
   }));
   const cpu_set_t g = affinity_of(gdos);
-  EXPECT_FALSE(CPU_ISSET(static_cast<std::size_t>(pinned), &g)) << "GDOS thread may run on CPU " << pinned << ", where RT tasks are pinned";
+  EXPECT_FALSE(CPU_ISSET(static_cast<std::size_t>(pinned), &g))
+      << "GDOS thread may run on CPU " << pinned << ", where RT tasks are pinned";
   EXPECT_GE(CPU_COUNT(&g), 1);
   // A thread the component started in init() (as a driver's device I/O thread).
   pid_t io = 0;
@@ -222,7 +225,8 @@ components:
     return io != 0;
   }));
   const cpu_set_t t = affinity_of(io);
-  EXPECT_FALSE(CPU_ISSET(static_cast<std::size_t>(pinned), &t)) << "init()'s thread may run on CPU " << pinned << ", where RT tasks are pinned";
+  EXPECT_FALSE(CPU_ISSET(static_cast<std::size_t>(pinned), &t))
+      << "init()'s thread may run on CPU " << pinned << ", where RT tasks are pinned";
 }
 
 }  // namespace

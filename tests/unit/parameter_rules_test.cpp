@@ -40,7 +40,8 @@ components:
   - name: mcl
     class: MCL
     data_task: {priority: 0}
-    params: {map: ")y" + kMap + R"y(", scan2d: "Scan2D(0/9)", initial_pose: "1 2 0"}
+    params: {map: ")y" +
+         kMap + R"y(", scan2d: "Scan2D(0/9)", initial_pose: "1 2 0"}
   - name: scan3d
     class: Scan3D
     params: {ladar: "Ladar(0/9)", servo: "ServoDrive(0/9)", angle_min: -0.5, angle_max: 0.5}
@@ -101,7 +102,8 @@ TEST_F(ParameterRulesTest, PathRefusesAWaypointListItCannotMake) {
 TEST_F(ParameterRulesTest, MclRefusesAPoseAndOptionsItsFilterWouldRefuse) {
   expect_refused(set_string("mcl", "initial_pose", "1 2"), "mcl", "initial_pose", "1 2 0", "x y phi");
   // Cross-parameter rules of the filter (mcl::check_options), with the candidate in place.
-  expect_refused(set_int("mcl", "particles_min", 5000), "mcl", "particles_min", "100", "particles_max must be at least");
+  expect_refused(set_int("mcl", "particles_min", 5000), "mcl", "particles_min", "100",
+                 "particles_max must be at least");
   expect_refused(set_float("mcl", "alpha_slow", 0.5), "mcl", "alpha_slow", value_of("mcl", "alpha_slow"),
                  "alpha_slow < alpha_fast");
   // The map is loaded by init() only: changing it at run time is refused.

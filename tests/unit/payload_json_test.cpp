@@ -24,8 +24,8 @@ struct Mixed {
   char label[8] = {};
   int32_t values[3] = {};
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(Mixed, small), RACK_FIELD(Mixed, port),  RACK_FIELD(Mixed, address),
-                      RACK_FIELD(Mixed, ratio), RACK_FIELD(Mixed, flag),  RACK_FIELD(Mixed, label),
+    return std::array{RACK_FIELD(Mixed, small), RACK_FIELD(Mixed, port), RACK_FIELD(Mixed, address),
+                      RACK_FIELD(Mixed, ratio), RACK_FIELD(Mixed, flag), RACK_FIELD(Mixed, label),
                       RACK_FIELD(Mixed, values)};
   }
 };
@@ -42,10 +42,11 @@ std::span<std::byte> bytes(Mixed& m) { return {reinterpret_cast<std::byte*>(&m),
 // JSON text is UTF-8: a char array's bytes that are not (a sender's garbage) become
 // U+FFFD; well-formed sequences pass (found by fuzz_payload: rack-gui dropped the sample).
 TEST(JsonEscape, KeepsWellFormedUtf8AndReplacesInvalidBytes) {
-  EXPECT_EQ(json_escape("gr\xc3\xbc\xc3\x9f \xe2\x82\xac \xf0\x9f\xa4\x96"), "gr\xc3\xbc\xc3\x9f \xe2\x82\xac \xf0\x9f\xa4\x96");
+  EXPECT_EQ(json_escape("gr\xc3\xbc\xc3\x9f \xe2\x82\xac \xf0\x9f\xa4\x96"),
+            "gr\xc3\xbc\xc3\x9f \xe2\x82\xac \xf0\x9f\xa4\x96");
   EXPECT_EQ(json_escape("the\xad*reason"), "the\\ufffd*reason");
-  EXPECT_EQ(json_escape("\xc3"), "\\ufffd");              // cut sequence
-  EXPECT_EQ(json_escape("\xc0\xaf"), "\\ufffd\\ufffd");   // overlong '/'
+  EXPECT_EQ(json_escape("\xc3"), "\\ufffd");                        // cut sequence
+  EXPECT_EQ(json_escape("\xc0\xaf"), "\\ufffd\\ufffd");             // overlong '/'
   EXPECT_EQ(json_escape("\xed\xa0\x80"), "\\ufffd\\ufffd\\ufffd");  // a surrogate
   EXPECT_EQ(json_escape("a\"b\\\x01"), "a\\\"b\\\\\\u0001");
 }
@@ -127,8 +128,8 @@ TEST(PayloadToJson, FloatsAreShortestRoundTrip) {
     }
   };
   Floats v;
-  const std::string j = payload_to_json(tims::fields_of<Floats>,
-                                        std::span<const std::byte>(reinterpret_cast<const std::byte*>(&v), sizeof v), true);
+  const std::string j = payload_to_json(
+      tims::fields_of<Floats>, std::span<const std::byte>(reinterpret_cast<const std::byte*>(&v), sizeof v), true);
   EXPECT_EQ(j, "{\"f\": 0.1, \"d\": 0.3, \"big\": 1e+300}");
 }
 

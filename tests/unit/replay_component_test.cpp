@@ -45,9 +45,8 @@ LogPose odom_between_records(double t) {
 class ReplayComponentTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("rack_replay_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = std::filesystem::temp_directory_path() / ("rack_replay_test_" + std::to_string(::getpid()) + "_" +
+                                                     ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::create_directories(dir_);
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
@@ -112,12 +111,14 @@ class ReplayComponentTest : public ::testing::Test {
   }
   // Plays the interleaved log through Scan2D at `speed` and returns the odometry each
   // scan carries, by scan time (read back from Scan2D's ring once all 20 played).
-  std::map<int64_t, LogPose> scan_odometry(const std::string& log, double speed, components::Scan2d::OdometryCounts& counts) {
+  std::map<int64_t, LogPose> scan_odometry(const std::string& log, double speed,
+                                           components::Scan2d::OdometryCounts& counts) {
     HostUnderTest h(pipeline_host(log, speed));
     const auto scan2d = h.address_of("scan2d");
     EXPECT_EQ(h.call(scan2d, tims::msg::kOn).type, tims::msg::kOk) << h.log();
     EXPECT_TRUE(eventually([&] { return h.stats(scan2d).published >= 20; }, std::chrono::seconds(20)))
-        << "speed " << speed << ": " << h.stats(scan2d).published << " scans\n" << h.log();
+        << "speed " << speed << ": " << h.stats(scan2d).published << " scans\n"
+        << h.log();
     std::map<int64_t, LogPose> out;
     auto s = std::make_unique<Scan2dData>();
     for (int k = 0; k < 20; ++k) {

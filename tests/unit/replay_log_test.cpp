@@ -48,8 +48,7 @@ TEST(CarmenLogTest, OdomLine) {
 }
 
 TEST(CarmenLogTest, FlaserLine) {
-  const CarmenLine l =
-      parse_carmen_line("FLASER 5 1.0 2.0 3.0 4.0 5.0 10.0 20.0 0.1 1.0 2.0 0.2 100.25 robot 0.5", 3);
+  const CarmenLine l = parse_carmen_line("FLASER 5 1.0 2.0 3.0 4.0 5.0 10.0 20.0 0.1 1.0 2.0 0.2 100.25 robot 0.5", 3);
   const auto* s = std::get_if<ScanRecord>(&l);
   ASSERT_NE(s, nullptr) << reason_of(l);
   ASSERT_EQ(s->ranges.size(), 5U);
@@ -350,8 +349,8 @@ TEST(HostileLogTest, GzipBombsGarbageAndTruncatedGzipAreRefused) {
   std::string plain, why;
   {
     std::string gz_file;
-    ASSERT_TRUE(rt::read_regular_file("/usr/share/mrpt/datasets/localization_demo.rawlog", 1u << 20, "rawlog", gz_file,
-                                      why))
+    ASSERT_TRUE(
+        rt::read_regular_file("/usr/share/mrpt/datasets/localization_demo.rawlog", 1u << 20, "rawlog", gz_file, why))
         << why << " (mrpt-common missing? run scripts/setup.sh)";
     ASSERT_TRUE(gunzip_bounded(gz_file, 1u << 20, plain, why)) << why;
   }
@@ -364,7 +363,10 @@ TEST(HostileLogTest, GzipBombsGarbageAndTruncatedGzipAreRefused) {
 // Found by fuzz_rawlog: a corrupt JPEG in a CImage (here under its old name
 // CMRPTImage) made libjpeg call exit() inside MRPT's deserialisation: rackd ended.
 TEST(HostileLogTest, ImagesAreNotHandedToMrptsJpegDecoder) {
-  const std::string bytes("\x8a" "CMRPTImage\x03serN4mrpt21Excei:", 29);
+  const std::string bytes(
+      "\x8a"
+      "CMRPTImage\x03serN4mrpt21Excei:",
+      29);
   const LoadLogResult r = parse_rawlog("image.rawlog", bytes);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error_text().find("image.rawlog: record 0 at byte offset 0 (uncompressed) holds an image"),
@@ -376,8 +378,7 @@ TEST(HostileLogTest, ImagesAreNotHandedToMrptsJpegDecoder) {
 // CActionRobotMovement2D::serializeFrom. load_rawlog() runs MRPT in a child process:
 // the crash is an error naming the record, and this process lives on.
 TEST(HostileLogTest, AnMrptCrashIsAnErrorOfTheRecordNotOfTheProcess) {
-  const std::string seed =
-      std::string(RACK_SOURCE_DIR) + "/tests/unit/data/rawlog_mrpt_segv_movement2d.rawlog";
+  const std::string seed = std::string(RACK_SOURCE_DIR) + "/tests/unit/data/rawlog_mrpt_segv_movement2d.rawlog";
   const LoadLogResult r = load_replay_log(seed);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error_text().find(seed + ": record 0 at byte offset 0 (uncompressed): MRPT's reader crashed on it"),
@@ -392,7 +393,8 @@ TEST(HostileLogTest, AnMrptCrashIsAnErrorOfTheRecordNotOfTheProcess) {
   EXPECT_NE(c.error_text().find(claim + ": record "), std::string::npos) << c.error_text();
   // The corrupt JPEG whose decoder calls exit(): in the child, images are read, and the
   // exit ends only the child.
-  const std::string jpeg = std::string(RACK_SOURCE_DIR) + "/tests/fuzz/corpus/rawlog/regression_corrupt_jpeg_exit.rawlog";
+  const std::string jpeg = std::string(RACK_SOURCE_DIR) +
+                           "/tests/fuzz/corpus/rawlog/regression_corrupt_jpeg_exit.rawlog";
   const LoadLogResult j = load_replay_log(jpeg);
   ASSERT_FALSE(j.ok());
   EXPECT_NE(j.error_text().find(jpeg + ": record 0 at byte offset 0 (uncompressed)"), std::string::npos)
@@ -411,7 +413,8 @@ TEST(HostileLogTest, AnMrptCrashIsAnErrorOfTheRecordNotOfTheProcess) {
     EXPECT_EQ(isolated.log.scans[i].ranges, direct.log.scans[i].ranges);
     EXPECT_EQ(isolated.log.scans[i].time, direct.log.scans[i].time);
   }
-  for (std::size_t i = 0; i < direct.log.odometry.size(); ++i) EXPECT_EQ(isolated.log.odometry[i].x, direct.log.odometry[i].x);
+  for (std::size_t i = 0; i < direct.log.odometry.size(); ++i)
+    EXPECT_EQ(isolated.log.odometry[i].x, direct.log.odometry[i].x);
 }
 
 }  // namespace

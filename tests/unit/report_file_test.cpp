@@ -56,7 +56,10 @@ TEST(ReportFileTest, FifoDeviceDirectoryAndHugeFilesAreRefusedWithTheirName) {
 }
 
 TEST(ReportFileTest, GarbageAndTruncationNameTheLine) {
-  const ReportFile bin = parse_report_text(std::string("\x7f" "ELF\x02\x01\x01\0\0\0", 10), "x.report");
+  const ReportFile bin = parse_report_text(std::string("\x7f"
+                                                       "ELF\x02\x01\x01\0\0\0",
+                                                       10),
+                                           "x.report");
   ASSERT_EQ(bin.errors.size(), 1u);
   EXPECT_NE(bin.errors[0].find("x.report:1: not a RACK mode-switch report"), std::string::npos) << bin.errors[0];
   const std::string cut = std::string(kGood).substr(0, std::string(kGood).find("frame 0"));

@@ -504,9 +504,9 @@ TEST_F(RobotSimTest, LadarSimRangesMatchTheKnownWallsOfTheMap) {
   const auto cast = [&](double deg) {
     return static_cast<double>(loaded.map->cast_ray(7.7, 8.0, deg * std::numbers::pi / 180.0, 20.0).range);
   };
-  EXPECT_NEAR(l.range[beam(90)], 9.95 - 8.0, 2 * cell);    // north wall
-  EXPECT_NEAR(l.range[beam(-90)], 8.0 - 6.05, 2 * cell);   // south wall
-  EXPECT_NEAR(l.range[beam(0)], 23.95 - 7.7, 2 * cell);    // east end of the corridor
+  EXPECT_NEAR(l.range[beam(90)], 9.95 - 8.0, 2 * cell);                  // north wall
+  EXPECT_NEAR(l.range[beam(-90)], 8.0 - 6.05, 2 * cell);                 // south wall
+  EXPECT_NEAR(l.range[beam(0)], 23.95 - 7.7, 2 * cell);                  // east end of the corridor
   EXPECT_NEAR(l.range[beam(45)], 1.95 * std::numbers::sqrt2, 3 * cell);  // north wall, diagonally
   for (double deg : {90.0, -90.0, 0.0, 45.0, -30.0, 120.0}) {
     EXPECT_NEAR(l.range[beam(deg)], cast(deg), 1e-4) << deg << " degrees";
@@ -749,8 +749,8 @@ TEST(PilotClearance, MeasuresFreeSpaceAheadOfTheOutline) {
 // position and a pilot, on the office map.
 std::string robot_yaml(double x, double y, double phi, const std::string& pilot_params) {
   char pose[160];
-  std::snprintf(pose, sizeof pose, ", map: \"%s\", initial_x: %.3f, initial_y: %.3f, initial_phi: %.4f", kOffice.c_str(),
-                x, y, phi);
+  std::snprintf(pose, sizeof pose, ", map: \"%s\", initial_x: %.3f, initial_y: %.3f, initial_phi: %.4f",
+                kOffice.c_str(), x, y, phi);
   char ppose[120];
   std::snprintf(ppose, sizeof ppose, ", initial_x: %.3f, initial_y: %.3f, initial_phi: %.4f", x, y, phi);
   return host(chassis_yaml(pose, 300) + odometry_position_yaml(ppose) + ladar_scan_yaml(kOffice, ", mount_x: 0.2") +
@@ -770,8 +770,8 @@ double outline_clearance(const maps::OccupancyMap& map, const ChassisData& d) {
   const Pose2d pose{d.truth_x, d.truth_y, d.truth_phi};
   for (int k = 0; k < 40; ++k) {
     const double t = k / 40.0;
-    const Pose2d corners[] = {{0.3 - 0.6 * t, 0.25, 0}, {-0.3, 0.25 - 0.5 * t, 0}, {-0.3 + 0.6 * t, -0.25, 0},
-                              {0.3, -0.25 + 0.5 * t, 0}};
+    const Pose2d corners[] = {
+        {0.3 - 0.6 * t, 0.25, 0}, {-0.3, 0.25 - 0.5 * t, 0}, {-0.3 + 0.6 * t, -0.25, 0}, {0.3, -0.25 + 0.5 * t, 0}};
     for (const auto& c : corners) {
       const Pose2d w = components::compose(pose, c);
       for (int a = 0; a < 16; ++a) {

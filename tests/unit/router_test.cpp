@@ -76,8 +76,7 @@ TEST_F(RouterTest, RequestToAnUnknownMailboxIsAnsweredNotAvailable) {
 
 TEST_F(RouterTest, ReplyOrNotificationToAnUnknownMailboxIsDroppedAndCounted) {
   const Tag t{1, 0};
-  EXPECT_EQ(router_.send(test::tag_header(kUnknown, kClient, 1, msg::kOk), {buffer_of(t)}),
-            SendStatus::kNotAvailable);
+  EXPECT_EQ(router_.send(test::tag_header(kUnknown, kClient, 1, msg::kOk), {buffer_of(t)}), SendStatus::kNotAvailable);
   EXPECT_EQ(router_.send(test::tag_header(kUnknown, kClient, 1, msg::kData), {buffer_of(t)}),
             SendStatus::kNotAvailable);
   const auto c = router_.counters();
@@ -90,8 +89,7 @@ TEST_F(RouterTest, ReplyOrNotificationToAnUnknownMailboxIsDroppedAndCounted) {
 
 TEST_F(RouterTest, RequestWhoseSourceIsAlsoUnknownEndsWithoutALoop) {
   const Tag t{1, 0};
-  EXPECT_EQ(router_.send(test::tag_header(kUnknown, kOther, 1, msg::kOn), {buffer_of(t)}),
-            SendStatus::kNotAvailable);
+  EXPECT_EQ(router_.send(test::tag_header(kUnknown, kOther, 1, msg::kOn), {buffer_of(t)}), SendStatus::kNotAvailable);
   const auto c = router_.counters();
   EXPECT_EQ(c.not_available, 1u);
   EXPECT_EQ(c.unroutable, 1u);  // the NOT_AVAILABLE reply itself had nowhere to go
@@ -102,8 +100,7 @@ TEST_F(RouterTest, OtherSystemsGoToTheUplink) {
   const Address remote = Address::make(3, classes::kLadar, 0, 0);
   const Tag t{5, 0};
   // Without an uplink a remote request is answered NOT_AVAILABLE like an unknown one.
-  EXPECT_EQ(router_.send(test::tag_header(remote, kClient, 1, msg::kOn), {buffer_of(t)}),
-            SendStatus::kNotAvailable);
+  EXPECT_EQ(router_.send(test::tag_header(remote, kClient, 1, msg::kOn), {buffer_of(t)}), SendStatus::kNotAvailable);
   EXPECT_EQ(client_box_.queued(), 1u);
   (void)client_box_.receive(buf_, Mailbox::kNonBlocking);
   router_.set_uplink(&uplink);
@@ -114,8 +111,7 @@ TEST_F(RouterTest, OtherSystemsGoToTheUplink) {
   EXPECT_EQ(uplink.queued(), 2u);
   EXPECT_EQ(router_.counters().sent_uplink, 2u);
   // A local unknown address still does not leave the host.
-  EXPECT_EQ(router_.send(test::tag_header(kUnknown, kClient, 1, msg::kOn), {buffer_of(t)}),
-            SendStatus::kNotAvailable);
+  EXPECT_EQ(router_.send(test::tag_header(kUnknown, kClient, 1, msg::kOn), {buffer_of(t)}), SendStatus::kNotAvailable);
   EXPECT_EQ(uplink.queued(), 2u);
   router_.set_uplink(nullptr);
 }

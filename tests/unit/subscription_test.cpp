@@ -168,7 +168,8 @@ TEST(SubscriptionLeaseConfigTest, LeaseMsIsReadAndRangeChecked) {
   components::register_builtin(registry);
   const auto host = [](const std::string& lease) {
     return "system: 0\nlcm: false\ncomponents:\n  - name: gen\n    class: Generator\n    instance: 1\n"
-           "    data_task: {period_ms: 10" + lease + "}\n";
+           "    data_task: {period_ms: 10" +
+           lease + "}\n";
   };
   auto loaded = load_host_text(host(""), "lease.yaml", registry, rt::probe_capabilities());
   ASSERT_TRUE(loaded.errors.empty());
@@ -177,7 +178,8 @@ TEST(SubscriptionLeaseConfigTest, LeaseMsIsReadAndRangeChecked) {
   loaded = load_host_text(host(", lease_ms: 2500"), "lease.yaml", registry, rt::probe_capabilities());
   ASSERT_TRUE(loaded.errors.empty());
   EXPECT_EQ(loaded.host->components[0]->settings().lease_ns, 2500 * rt::kNsPerMs);
-  for (const char* bad : {", lease_ms: 50", ", lease_ms: 0", ", lease_ms: -1", ", lease_ms: 86400001", ", lease_ms: x"}) {
+  for (const char* bad :
+       {", lease_ms: 50", ", lease_ms: 0", ", lease_ms: -1", ", lease_ms: 86400001", ", lease_ms: x"}) {
     loaded = load_host_text(host(bad), "lease.yaml", registry, rt::probe_capabilities());
     ASSERT_EQ(loaded.errors.size(), 1u) << bad;
     EXPECT_NE(loaded.errors[0].str().find("lease_ms"), std::string::npos) << loaded.errors[0].str();
@@ -196,7 +198,8 @@ components:
     class: Generator
     instance: 1
     retry_ms: 100
-    data_task: {period_ms: 10, ring: 200, max_listeners: 2, lease_ms: )" + std::to_string(kLeaseMs) + R"(}
+    data_task: {period_ms: 10, ring: 200, max_listeners: 2, lease_ms: )" +
+                                            std::to_string(kLeaseMs) + R"(}
   - name: mon
     class: Monitor
     instance: 1

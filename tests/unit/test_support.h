@@ -126,10 +126,9 @@ class HostUnderTest {
     }
     executor_ = std::make_unique<Executor>(std::move(loaded.host), std::move(options));
     const uint8_t sys = executor_->settings().system;
-    reply_mailbox_ = std::make_unique<tims::Mailbox>(tims::Address::make(sys, tims::classes::kTool, 1, 1),
-                                                     16, kReplySlotSize);
-    data_mailbox_ = std::make_unique<tims::Mailbox>(tims::Address::make(sys, tims::classes::kTool, 1, 2),
-                                                    256, 1024);
+    reply_mailbox_ = std::make_unique<tims::Mailbox>(tims::Address::make(sys, tims::classes::kTool, 1, 1), 16,
+                                                     kReplySlotSize);
+    data_mailbox_ = std::make_unique<tims::Mailbox>(tims::Address::make(sys, tims::classes::kTool, 1, 2), 256, 1024);
     executor_->router().add(*reply_mailbox_);
     executor_->router().add(*data_mailbox_);
     endpoint_ = std::make_unique<tims::Endpoint>(executor_->router(), *reply_mailbox_, 10);
@@ -174,8 +173,7 @@ class HostUnderTest {
              int64_t timeout_ns = kCallTimeoutNs) {
     const tims::ConstBuffer part{body, size};
     const std::span<const tims::ConstBuffer> parts(&part, size == 0 ? 0 : 1);
-    const auto r = endpoint_->call(dest, type, parts, std::span<std::byte>(buffer_.get(), kReplySlotSize),
-                                   timeout_ns);
+    const auto r = endpoint_->call(dest, type, parts, std::span<std::byte>(buffer_.get(), kReplySlotSize), timeout_ns);
     Reply out;
     out.status = r.status;
     if (r.status == tims::CallStatus::kOk) {

@@ -51,7 +51,7 @@ TEST_F(ToolAddressTest, ClaimsInOneProcessAreDistinctAndOnTheToolSystem) {
 // Locks bytes [from, to) of the registry as another holder would (a descriptor of its own).
 bool lock_range(int fd, off_t from, off_t to, short type = F_WRLCK) {
   if (to <= from) return true;
-  struct flock l{};
+  struct flock l {};
   l.l_type = type;
   l.l_whence = SEEK_SET;
   l.l_start = from;

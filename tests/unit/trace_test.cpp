@@ -173,7 +173,7 @@ TEST(TraceSessionTest, WritesTracksCyclesInstantsAndFlowsAsChromeJson) {
   EXPECT_EQ(tracks, (std::set<std::string>{"ladar data task", "mcl data task"}));
   const test::Json* loop = find_event(events, "X", "loop");
   ASSERT_NE(loop, nullptr);
-  EXPECT_DOUBLE_EQ(loop->at("ts").number, 3.0);   // us since the trace start (1000 ns)
+  EXPECT_DOUBLE_EQ(loop->at("ts").number, 3.0);  // us since the trace start (1000 ns)
   EXPECT_DOUBLE_EQ(loop->at("dur").number, 5.0);
   EXPECT_DOUBLE_EQ(loop->at("args").at("wake_latency_us").number, 0.02);
   const test::Json* overrun = find_event(events, "i", "overrun");
@@ -224,7 +224,9 @@ TEST(TraceSessionTest, DecodesRequestsFromTheNetworkOrSaysWhatIsWrong) {
   trace::TraceStartRequest req;
   req.duration_ns = 2'000'000'000;
   std::memcpy(req.names, "mcl, ladar", 10);
-  const auto bytes = [](const auto& v) { return std::span<const std::byte>(reinterpret_cast<const std::byte*>(&v), sizeof v); };
+  const auto bytes = [](const auto& v) {
+    return std::span<const std::byte>(reinterpret_cast<const std::byte*>(&v), sizeof v);
+  };
   trace::DecodedStart d = trace::decode_start(bytes(req), false);
   ASSERT_TRUE(d.ok) << d.error;
   EXPECT_EQ(d.duration_ns, 2'000'000'000);

@@ -84,7 +84,8 @@ TEST(TrajectoryTextTest, ParsesFromMemoryWithCrlfAndNamesTheSourceInErrors) {
     (void)components::parse_trajectory_text("1 0 0 0\n2 1 0", "mem");
     ADD_FAILURE() << "no error";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("mem:2: expected 't x y theta', found 3 field(s)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("mem:2: expected 't x y theta', found 3 field(s)"), std::string::npos)
+        << e.what();
   }
 }
 

@@ -268,7 +268,8 @@ std::vector<AccessRuleCounters> AccessControl::counters() const {
 std::vector<std::string> AccessControl::report() {
   std::vector<std::string> lines;
   const auto last_text = [](uint64_t src_dst, uint32_t tpv) {
-    const MessageHeader h = make_header(Address(static_cast<uint32_t>(src_dst)), Address(static_cast<uint32_t>(src_dst >> 32)),
+    const MessageHeader h = make_header(Address(static_cast<uint32_t>(src_dst)),
+                                        Address(static_cast<uint32_t>(src_dst >> 32)),
                                         static_cast<int8_t>(static_cast<uint8_t>(tpv >> 16)),
                                         static_cast<uint8_t>(tpv >> 8), 0, 0);
     return h.source().str() + " -> " + h.destination().str() + " type " + type_text(h.type) + " priority " +
@@ -286,8 +287,8 @@ std::vector<std::string> AccessControl::report() {
     const uint32_t tpv = r.last_type_prio_verdict.load(std::memory_order_relaxed);
     lines.push_back("access: rule '" + std::string(r.name.data()) + "' refused " + u(total - r.reported) +
                     " message(s) since the last report (in all: type " + u(dt) + ", priority " + u(dp) + ", rate " +
-                    u(dr) + ", bandwidth " + u(db) + "); last: " +
-                    last_text(r.last_src_dst.load(std::memory_order_relaxed), tpv) + ": " +
+                    u(dr) + ", bandwidth " + u(db) +
+                    "); last: " + last_text(r.last_src_dst.load(std::memory_order_relaxed), tpv) + ": " +
                     describe(static_cast<AccessVerdict>(tpv & 0xFF)));
     r.reported = total;
   }
@@ -308,9 +309,11 @@ std::string AccessControl::status_text() const {
   char line[256];
   const auto u = [](uint64_t v) { return static_cast<unsigned long long>(v); };
   for (const auto& c : counters()) {
-    std::snprintf(line, sizeof line, "  access rule %-18s allowed %llu, denied %llu (type %llu, priority %llu, rate %llu, bandwidth %llu)\n",
-                  ("'" + c.name + "'").c_str(), u(c.allowed), u(c.denied()), u(c.denied_type), u(c.denied_priority),
-                  u(c.denied_rate), u(c.denied_bandwidth));
+    std::snprintf(
+        line, sizeof line,
+        "  access rule %-18s allowed %llu, denied %llu (type %llu, priority %llu, rate %llu, bandwidth %llu)\n",
+        ("'" + c.name + "'").c_str(), u(c.allowed), u(c.denied()), u(c.denied_type), u(c.denied_priority),
+        u(c.denied_rate), u(c.denied_bandwidth));
     out += line;
   }
   std::snprintf(line, sizeof line, "  access default %s: denied %llu; source table overflow %llu\n",
@@ -325,18 +328,30 @@ bool parse_message_type(const std::string& text, int8_t& out) noexcept {
     int8_t type;
   };
   static constexpr Named kNames[] = {
-      {"on", msg::kOn},           {"off", msg::kOff},
-      {"get_status", msg::kGetStatus}, {"get_data", msg::kGetData},
-      {"get_cont_data", msg::kGetContData}, {"stop_cont_data", msg::kStopContData},
-      {"get_next_data", msg::kGetNextData}, {"get_param", msg::kGetParam},
-      {"set_param", msg::kSetParam}, {"get_stats", msg::kGetStats},
-      {"get_latency", msg::kGetLatency}, {"latency", msg::kLatency},
-      {"get_class", msg::kGetClass}, {"class", msg::kClass},
-      {"ok", msg::kOk},           {"error", msg::kError},
-      {"timeout", msg::kTimeout}, {"not_available", msg::kNotAvailable},
-      {"enabled", msg::kEnabled}, {"disabled", msg::kDisabled},
-      {"data", msg::kData},       {"cont_data", msg::kContData},
-      {"param", msg::kParam},     {"stats", msg::kStats},
+      {"on", msg::kOn},
+      {"off", msg::kOff},
+      {"get_status", msg::kGetStatus},
+      {"get_data", msg::kGetData},
+      {"get_cont_data", msg::kGetContData},
+      {"stop_cont_data", msg::kStopContData},
+      {"get_next_data", msg::kGetNextData},
+      {"get_param", msg::kGetParam},
+      {"set_param", msg::kSetParam},
+      {"get_stats", msg::kGetStats},
+      {"get_latency", msg::kGetLatency},
+      {"latency", msg::kLatency},
+      {"get_class", msg::kGetClass},
+      {"class", msg::kClass},
+      {"ok", msg::kOk},
+      {"error", msg::kError},
+      {"timeout", msg::kTimeout},
+      {"not_available", msg::kNotAvailable},
+      {"enabled", msg::kEnabled},
+      {"disabled", msg::kDisabled},
+      {"data", msg::kData},
+      {"cont_data", msg::kContData},
+      {"param", msg::kParam},
+      {"stats", msg::kStats},
   };
   std::string lower;
   for (char c : text) lower += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -356,8 +371,8 @@ bool parse_message_type(const std::string& text, int8_t& out) noexcept {
 
 std::optional<AddressMask> parse_address_mask(const std::string& text) {
   if (text == "*") return AddressMask{0, 0};
-  if (const auto slash = text.find('/'); text.rfind("0x", 0) == 0 && slash != std::string::npos &&
-                                         text.find('(') == std::string::npos) {
+  if (const auto slash = text.find('/');
+      text.rfind("0x", 0) == 0 && slash != std::string::npos && text.find('(') == std::string::npos) {
     char* end = nullptr;
     const unsigned long long value = std::strtoull(text.c_str(), &end, 16);
     if (end != text.c_str() + slash) return std::nullopt;

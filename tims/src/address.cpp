@@ -87,8 +87,7 @@ std::string Address::str() const {
 std::optional<Address> parse_address(std::string_view text) noexcept {
   const auto open = text.find('(');
   const auto close = text.find(')');
-  if (open == std::string_view::npos || close == std::string_view::npos || close < open ||
-      open == 0) {
+  if (open == std::string_view::npos || close == std::string_view::npos || close < open || open == 0) {
     return std::nullopt;
   }
   const std::string_view cls = text.substr(0, open);

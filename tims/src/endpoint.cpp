@@ -15,8 +15,8 @@ const char* describe(CallStatus s) noexcept {
   return "unknown";
 }
 
-SendStatus Endpoint::send(Address dest, int8_t type, std::span<const ConstBuffer> body,
-                          Address reply_to, uint8_t* seq_out) noexcept {
+SendStatus Endpoint::send(Address dest, int8_t type, std::span<const ConstBuffer> body, Address reply_to,
+                          uint8_t* seq_out) noexcept {
   std::size_t len = 0;
   for (const auto& p : body) len += p.size;
   const uint8_t seq = ++seq_;
@@ -26,16 +26,15 @@ SendStatus Endpoint::send(Address dest, int8_t type, std::span<const ConstBuffer
   return router_.send(h, body);
 }
 
-SendStatus Endpoint::reply(const MessageHeader& request, int8_t type,
-                           std::span<const ConstBuffer> body) noexcept {
+SendStatus Endpoint::reply(const MessageHeader& request, int8_t type, std::span<const ConstBuffer> body) noexcept {
   std::size_t len = 0;
   for (const auto& p : body) len += p.size;
   const MessageHeader h = make_reply_header(request, type, len);
   return router_.send(h, body);
 }
 
-CallResult Endpoint::call(Address dest, int8_t type, std::span<const ConstBuffer> body,
-                          std::span<std::byte> buffer, int64_t timeout_ns) noexcept {
+CallResult Endpoint::call(Address dest, int8_t type, std::span<const ConstBuffer> body, std::span<std::byte> buffer,
+                          int64_t timeout_ns) noexcept {
   CallResult result;
   uint8_t seq = 0;
   const SendStatus sent = send(dest, type, body, Address(), &seq);
@@ -71,8 +70,7 @@ CallResult Endpoint::call(Address dest, int8_t type, std::span<const ConstBuffer
     if (r.header.seq == seq && r.header.source() == dest && !r.header.is_request()) {
       result.status = CallStatus::kOk;
       result.reply = r.header;
-      result.body = std::span<const std::byte>(buffer.data() + sizeof(MessageHeader),
-                                               r.length - sizeof(MessageHeader));
+      result.body = std::span<const std::byte>(buffer.data() + sizeof(MessageHeader), r.length - sizeof(MessageHeader));
       return result;
     }
     ++stale_;

@@ -130,8 +130,8 @@ void GdosPublisher::flush() {
     m.scratch.resize(static_cast<std::size_t>(size) + kAuthTrailerBytes);
     rc = b.encode(m.scratch.data(), 0, size) == size ? 0 : -1;
     if (rc == 0) {
-      m.signer->sign(m.config.channel, m.scratch.data(), static_cast<std::size_t>(size),
-                     m.scratch.data() + size, rt::host_time_ns());
+      m.signer->sign(m.config.channel, m.scratch.data(), static_cast<std::size_t>(size), m.scratch.data() + size,
+                     rt::host_time_ns());
       rc = m.lcm.publish(m.config.channel, m.scratch.data(), static_cast<unsigned>(m.scratch.size()));
     }
   } else {
@@ -195,8 +195,9 @@ const std::string& GdosPublisher::url() const noexcept { return impl_->config.ur
 
 struct GdosSubscriber::Impl {
   Impl(const std::string& u, std::string c, bool a, std::string n, const std::string& key_file)
-      : url(u), channel(std::move(c)), announce(a), name(std::move(n)), lcm(u),
-        warn([this](const std::string& line) { warnings += line + "\n"; }) {
+      : url(u), channel(std::move(c)), announce(a), name(std::move(n)), lcm(u), warn([this](const std::string& line) {
+          warnings += line + "\n";
+        }) {
     if (!key_file.empty()) {
       keys = std::make_unique<KeyRing>(key_file);
       verifier = std::make_unique<LinkVerifier>(*keys, kDefaultReplayWindowNs);
@@ -235,7 +236,7 @@ struct GdosSubscriber::Impl {
   // (its fragment reassembly) never sees the network.
   std::unique_ptr<lcm_rx::LcmSocketReader> reader;
   int64_t next_announce_ns = 0;
-  std::map<uint32_t, std::string> names;  // from TIMS_ANNOUNCE
+  std::map<uint32_t, std::string> names;          // from TIMS_ANNOUNCE
   std::map<std::string, uint64_t> last_sequence;  // per host/pid
   GdosSubscriberCounters counters;
   std::string warnings;

@@ -38,9 +38,7 @@
 
 namespace rack::tims {
 
-const char* describe(NetworkScope s) noexcept {
-  return s == NetworkScope::kRobot ? "robot" : "fleet";
-}
+const char* describe(NetworkScope s) noexcept { return s == NetworkScope::kRobot ? "robot" : "fleet"; }
 const char* describe(Compression c) noexcept { return c == Compression::kZstd ? "zstd" : "none"; }
 const char* describe(NodeRole r) noexcept {
   switch (r) {
@@ -153,7 +151,7 @@ struct LcmTransport::Impl {
     // Publishing (any non-RT thread of this transport): buffers under the mutex.
     std::mutex publish_mutex;
     uint32_t packet_seq = 0;
-    std::vector<uint8_t> packet;      // prefix + one chunk
+    std::vector<uint8_t> packet;  // prefix + one chunk
     std::vector<std::byte> compressed;
     ZSTD_CCtx* cctx = nullptr;
     // Receiving (this network's receive thread only).
@@ -163,7 +161,7 @@ struct LcmTransport::Impl {
     // host hears every 4 MB scan). A small ring of (origin, message number).
     std::array<std::pair<int64_t, int32_t>, 16> skipped{};
     std::size_t next_skipped = 0;
-    std::vector<std::byte> message;   // a whole message in host byte order, for delivery
+    std::vector<std::byte> message;  // a whole message in host byte order, for delivery
     ZSTD_DCtx* dctx = nullptr;
     std::unordered_map<int64_t, uint32_t> last_packet_seq;  // per publisher
     // Our own socket on a udpm network: the receive thread reads datagrams itself
@@ -254,8 +252,8 @@ struct LcmTransport::Impl {
 
   // Discovery table and subscriptions (non-RT threads only).
   mutable std::mutex table_mutex;
-  std::map<int64_t, HostEntry> hosts;                  // by origin
-  std::unordered_map<uint32_t, int64_t> owners;        // component address -> origin
+  std::map<int64_t, HostEntry> hosts;            // by origin
+  std::unordered_map<uint32_t, int64_t> owners;  // component address -> origin
   std::vector<Subscription> subscriptions;
   // Streams that leave this host: (local producer component << 32 | remote listener
   // mailbox). When the listener's host is lost, the producer is told to stop
@@ -272,9 +270,10 @@ struct LcmTransport::Impl {
 
   std::atomic<uint64_t> packets_in{0}, packets_out{0}, messages_in{0}, messages_out{0}, malformed{0}, forged{0},
       not_for_us{0}, forwarded{0}, not_available{0}, sequence_gaps{0}, lost_messages{0}, publish_errors{0},
-      delivery_failed{0}, hosts_expired{0}, subscriptions_failed{0}, streams_stopped{0}, compressed_out{0}, bytes_out{0},
-      wire_bytes_out{0}, auth_failed{0}, replayed{0}, malformed_lcm{0}, malformed_packet{0}, malformed_announce{0},
-      malformed_discover{0}, lcm_fragments{0}, hosts_refused{0}, discovers_answered{0}, discovers_suppressed{0};
+      delivery_failed{0}, hosts_expired{0}, subscriptions_failed{0}, streams_stopped{0}, compressed_out{0},
+      bytes_out{0}, wire_bytes_out{0}, auth_failed{0}, replayed{0}, malformed_lcm{0}, malformed_packet{0},
+      malformed_announce{0}, malformed_discover{0}, lcm_fragments{0}, hosts_refused{0}, discovers_answered{0},
+      discovers_suppressed{0};
 
   // ------------------------------------------------------------------ set-up
   void join() {
@@ -488,8 +487,9 @@ struct LcmTransport::Impl {
       }
       if (is_signed) {
         bump(malformed);
-        bump(channel == kAnnounceChannel ? malformed_announce
-                                         : channel == kDiscoverChannel ? malformed_discover : malformed_packet);
+        bump(channel == kAnnounceChannel   ? malformed_announce
+             : channel == kDiscoverChannel ? malformed_discover
+                                           : malformed_packet);
         warn("unkeyed " + n.config.name, [&] {
           return "TiMS/LCM: dropped a signed packet on network '" + n.config.name + "' (" + n.config.url +
                  "), which has no key_file here: give this host the network's key file";
@@ -508,8 +508,8 @@ struct LcmTransport::Impl {
     const int64_t from = n.verifier->last_sender();
     warn((replay ? "replayed " : "auth ") + n.config.name, [&] {
       return "TiMS/LCM: dropped a packet on network '" + n.config.name + "' (" + n.config.url + ", key file " +
-             n.keys->path() + ") channel " + std::string(channel) + (from != 0 ? " from origin " + origin_text(from) : "") +
-             ": " + describe(r);
+             n.keys->path() + ") channel " + std::string(channel) +
+             (from != 0 ? " from origin " + origin_text(from) : "") + ": " + describe(r);
     });
     return false;
   }
@@ -551,8 +551,8 @@ struct LcmTransport::Impl {
   // be used as scratch (restored before return), so that chunks after the first go out
   // in place (the 50-byte prefix written over the tail of the chunk before, which has
   // been sent) instead of being copied into the packet buffer first. Any non-RT thread.
-  bool publish_message(Network& n, const std::byte* msg, uint32_t len, int64_t msg_origin, int64_t relay,
-                       int8_t hops, int32_t seq, bool writable = false) {
+  bool publish_message(Network& n, const std::byte* msg, uint32_t len, int64_t msg_origin, int64_t relay, int8_t hops,
+                       int32_t seq, bool writable = false) {
     std::lock_guard lock(n.publish_mutex);
     const std::byte* stream = msg;
     uint32_t encoded = len;
@@ -640,9 +640,7 @@ struct LcmTransport::Impl {
   // Lock held. A component (or executor) address that a live host announced.
   bool known_locked(Address a) const { return owners.count(a.component().raw()) != 0; }
 
-  bool warm() const {
-    return rt::monotonic_ns() - started_ns >= config.warmup_ns;
-  }
+  bool warm() const { return rt::monotonic_ns() - started_ns >= config.warmup_ns; }
 
   // Lock held. Whether this transport answers NOT_AVAILABLE for unknown mailboxes of
   // `system` (see the header: exactly one authority per system).
@@ -705,8 +703,8 @@ struct LcmTransport::Impl {
         ++it;
         continue;
       }
-      const MessageHeader h =
-          make_header(Address(it->listener), Address(it->producer), msg::kError, it->priority, 0, sizeof text);
+      const MessageHeader h = make_header(Address(it->listener), Address(it->producer), msg::kError, it->priority, 0,
+                                          sizeof text);
       const ConstBuffer part{text, sizeof text};
       (void)router.send(h, std::span<const ConstBuffer>(&part, 1));
       bump(subscriptions_failed);
@@ -741,11 +739,11 @@ struct LcmTransport::Impl {
           continue;
         }
         const HostInfo& info = it->second.info;
-        lines.emplace_back("expired " + info.host + " " + std::to_string(info.system) + "/" + std::to_string(info.host_id),
-                           "TiMS/LCM: host '" + info.host + "' (system " + std::to_string(info.system) + ", host id " +
-                               std::to_string(info.host_id) + ", pid " + std::to_string(info.pid) + ", " +
-                               describe(info.role) + ") expired: no announcement for " +
-                               std::to_string(silent / rt::kNsPerMs) + " ms");
+        lines.emplace_back(
+            "expired " + info.host + " " + std::to_string(info.system) + "/" + std::to_string(info.host_id),
+            "TiMS/LCM: host '" + info.host + "' (system " + std::to_string(info.system) + ", host id " +
+                std::to_string(info.host_id) + ", pid " + std::to_string(info.pid) + ", " + describe(info.role) +
+                ") expired: no announcement for " + std::to_string(silent / rt::kNsPerMs) + " ms");
         fail_subscriptions_locked(info, "no announcement for " + std::to_string(silent / rt::kNsPerMs) + " ms");
         bump(hosts_expired);
         it = hosts.erase(it);
@@ -763,7 +761,8 @@ struct LcmTransport::Impl {
     if (lines.size() > kMaxExpiredLines) {
       const std::size_t more = lines.size() - kMaxExpiredLines;
       warn("expired more", [&] {
-        return "TiMS/LCM: " + std::to_string(more) + " more host(s) expired at the same time (counted in hosts_expired)";
+        return "TiMS/LCM: " + std::to_string(more) +
+               " more host(s) expired at the same time (counted in hosts_expired)";
       });
     }
   }
@@ -774,8 +773,10 @@ struct LcmTransport::Impl {
   // logged at most once a second per kind with the reason.
   void reject(Network& n, const std::string& kind, const std::function<std::string()>& why) {
     bump(malformed);
-    bump(kind == "lcm" ? malformed_lcm
-                       : kind == "announce" ? malformed_announce : kind == "discover" ? malformed_discover : malformed_packet);
+    bump(kind == "lcm"        ? malformed_lcm
+         : kind == "announce" ? malformed_announce
+         : kind == "discover" ? malformed_discover
+                              : malformed_packet);
     warn("malformed " + kind, [&] {
       return "TiMS/LCM: dropped a malformed packet on network '" + n.config.name + "' (" + n.config.url + "): " + why();
     });
@@ -807,8 +808,8 @@ struct LcmTransport::Impl {
     const uint32_t total = s.total;
     warn("lost", [&] {
       return "TiMS/LCM: " + what + " (" + std::to_string(total) + " bytes) lost on network '" + n.config.name +
-             "': " + std::to_string(chunks - received) + " of " + std::to_string(chunks) + " chunks missing (" +
-             why + "); raise recv_buf_size in the LCM URL and net.core.rmem_max";
+             "': " + std::to_string(chunks - received) + " of " + std::to_string(chunks) + " chunks missing (" + why +
+             "); raise recv_buf_size in the LCM URL and net.core.rmem_max";
     });
     s.used = false;
   }
@@ -869,18 +870,18 @@ struct LcmTransport::Impl {
     const int32_t chunk = get_i32(d + kOffSize);
     if (static_cast<int64_t>(chunk) != static_cast<int64_t>(size - kPacketPrefix)) {
       return rejected(n, "size", [&] {
-        return "size field " + std::to_string(chunk) + " but " + std::to_string(size - kPacketPrefix) +
-               " bytes follow";
+        return "size field " + std::to_string(chunk) + " but " + std::to_string(size - kPacketPrefix) + " bytes follow";
       });
     }
     if (pkt_origin == origin || relay == origin) return {};  // our own packet, back over multicast
     count_gap(n, relay != 0 ? relay : pkt_origin, pseq);
     const uint32_t max_encoded = static_cast<uint32_t>(n.slots[0].data.size());
-    if (total < static_cast<int32_t>(sizeof(MessageHeader)) || static_cast<uint32_t>(total) > config.max_message_bytes ||
-        encoded < 0 || static_cast<uint32_t>(encoded) > max_encoded || offset < 0 || static_cast<uint32_t>(offset) % kChunk != 0 ||
+    if (total < static_cast<int32_t>(sizeof(MessageHeader)) ||
+        static_cast<uint32_t>(total) > config.max_message_bytes || encoded < 0 ||
+        static_cast<uint32_t>(encoded) > max_encoded || offset < 0 || static_cast<uint32_t>(offset) % kChunk != 0 ||
         static_cast<int64_t>(offset) + chunk > encoded ||
-        (static_cast<int64_t>(offset) + chunk != encoded && static_cast<uint32_t>(chunk) != kChunk) ||
-        encoding < 0 || encoding > 2 || (encoding == 0 && encoded != total) ||
+        (static_cast<int64_t>(offset) + chunk != encoded && static_cast<uint32_t>(chunk) != kChunk) || encoding < 0 ||
+        encoding > 2 || (encoding == 0 && encoded != total) ||
         (encoding == 2 && encoded <= static_cast<int32_t>(sizeof(MessageHeader))) || hops < 0 || hops > kMaxHops) {
       return rejected(n, "fields", [&] {
         return "bad chunk fields (total " + std::to_string(total) + ", encoded " + std::to_string(encoded) +
@@ -909,7 +910,10 @@ struct LcmTransport::Impl {
     }
     if (slot == nullptr) {
       for (auto& s : n.slots) {
-        if (!s.used) { slot = &s; break; }
+        if (!s.used) {
+          slot = &s;
+          break;
+        }
       }
       if (slot == nullptr) {  // all busy: the oldest gives way
         slot = &n.slots[0];
@@ -984,12 +988,12 @@ struct LcmTransport::Impl {
   // A whole encoded message: decode it (into n.message, or in place when `stream` is
   // our own reassembly buffer: a 4 MiB message is not copied once more), then handle it.
   void take_stream(Network& n, const std::byte* stream, bool own_buffer, uint32_t encoded, uint32_t total,
-                   int8_t encoding,
-                   int64_t msg_origin, int32_t mseq, int8_t hops) {
+                   int8_t encoding, int64_t msg_origin, int32_t mseq, int8_t hops) {
     if (encoding == 1) {
       const unsigned long long size = ZSTD_getFrameContentSize(stream, encoded);
       if (size != total) {
-        return reject(n, "zstd", [&] { return std::string("compressed message whose frame size differs from its total"); });
+        return reject(n, "zstd",
+                      [&] { return std::string("compressed message whose frame size differs from its total"); });
       }
       const std::size_t got = ZSTD_decompressDCtx(n.dctx, n.message.data(), total, stream, encoded);
       if (ZSTD_isError(got) != 0 || got != total) {
@@ -1008,10 +1012,12 @@ struct LcmTransport::Impl {
       const std::size_t body = total - kHead;
       const unsigned long long size = ZSTD_getFrameContentSize(stream + kHead, encoded - kHead);
       if (total < kHead || size != body) {
-        return reject(n, "zstd", [&] { return std::string("compressed body whose frame size differs from its total"); });
+        return reject(n, "zstd",
+                      [&] { return std::string("compressed body whose frame size differs from its total"); });
       }
       std::memcpy(n.message.data(), stream, kHead);
-      const std::size_t got = ZSTD_decompressDCtx(n.dctx, n.message.data() + kHead, body, stream + kHead, encoded - kHead);
+      const std::size_t got = ZSTD_decompressDCtx(n.dctx, n.message.data() + kHead, body, stream + kHead,
+                                                  encoded - kHead);
       if (ZSTD_isError(got) != 0 || got != body) {
         return reject(n, "zstd", [&] {
           return std::string("compressed body does not decompress: ") +
@@ -1061,8 +1067,8 @@ struct LcmTransport::Impl {
     if (forged_source) {
       bump(forged);
       return warn("forged", [&] {
-        return "TiMS/LCM: dropped a message with a forged source on network '" + n.config.name + "': " +
-               h.source().str() + " -> " + h.destination().str() + " from origin " + origin_text(msg_origin) +
+        return "TiMS/LCM: dropped a message with a forged source on network '" + n.config.name +
+               "': " + h.source().str() + " -> " + h.destination().str() + " from origin " + origin_text(msg_origin) +
                ", which does not own " + h.source().str();
       });
     }
@@ -1095,8 +1101,7 @@ struct LcmTransport::Impl {
 
   // Routers: relays a message heard on `in` to the networks where it belongs.
   bool forward_message(Network& in, const std::byte* msg, const MessageHeader& h, uint32_t len, int64_t msg_origin,
-                       int32_t mseq,
-                       int8_t hops) {
+                       int32_t mseq, int8_t hops) {
     if (role() != NodeRole::kSystemRouter && role() != NodeRole::kTopRouter) return false;
     if (hops >= kMaxHops) return false;
     bool any = false;
@@ -1114,7 +1119,7 @@ struct LcmTransport::Impl {
     if (from == to) return false;
     if (dest_system == kToolSystem) return true;
     if (from == NetworkScope::kRobot) return dest_system != own_system;  // leaves the robot
-    return dest_system == own_system;                                   // enters the robot
+    return dest_system == own_system;                                    // enters the robot
   }
 
   // ------------------------------------------------------------------ announcements
@@ -1130,7 +1135,8 @@ struct LcmTransport::Impl {
         a.hops > kMaxHops) {
       return reject(n, "announce", [&] {
         return "announcement with fields out of range (system " + std::to_string(a.system) + ", host_id " +
-               std::to_string(a.host_id) + ", role " + std::to_string(a.role) + ", hops " + std::to_string(a.hops) + ")";
+               std::to_string(a.host_id) + ", role " + std::to_string(a.role) + ", hops " + std::to_string(a.hops) +
+               ")";
       });
     }
     // Names go to terminals (rackctl list, hosts) and browsers (rack-gui): a host file
@@ -1181,8 +1187,8 @@ struct LcmTransport::Impl {
         }
         if (retired.count(a.origin) != 0 || retired.count(it->first) != 0) {
           conflict = "TiMS/LCM: two hosts announce system " + std::to_string(info.system) + " host id " +
-                     std::to_string(info.host_id) + ": '" + old.host + "' (pid " + std::to_string(old.pid) +
-                     ") and '" + info.host + "' (pid " + std::to_string(info.pid) +
+                     std::to_string(info.host_id) + ": '" + old.host + "' (pid " + std::to_string(old.pid) + ") and '" +
+                     info.host + "' (pid " + std::to_string(info.pid) +
                      "): give every computer of a robot its own host_id";
           ++it;
           continue;
@@ -1374,9 +1380,10 @@ struct LcmTransport::Impl {
   }
 
   void forget_subscription_locked(uint32_t producer, uint32_t listener) {
-    subscriptions.erase(std::remove_if(subscriptions.begin(), subscriptions.end(),
-                                       [&](const Subscription& s) { return s.producer == producer && s.listener == listener; }),
-                        subscriptions.end());
+    subscriptions.erase(
+        std::remove_if(subscriptions.begin(), subscriptions.end(),
+                       [&](const Subscription& s) { return s.producer == producer && s.listener == listener; }),
+        subscriptions.end());
   }
 
   // Remembers GET_CONT_DATA/STOP_CONT_DATA that leave this host, so that local
@@ -1571,8 +1578,8 @@ bool LcmTransport::wait_uplink(uint32_t max_queued, int64_t timeout_ns) {
     }
     // The sender reads the threshold after its mailbox changed and notifies under the
     // mutex, so no wake-up is lost; the 10 ms re-check is a bound, not the mechanism.
-    if (m.drained.wait_until(lock, std::min(deadline, std::chrono::steady_clock::now() + std::chrono::milliseconds(10))) ==
-            std::cv_status::timeout &&
+    if (m.drained.wait_until(lock, std::min(deadline, std::chrono::steady_clock::now() +
+                                                          std::chrono::milliseconds(10))) == std::cv_status::timeout &&
         std::chrono::steady_clock::now() >= deadline) {
       ok = m.uplink_queued() <= max_queued;
       break;

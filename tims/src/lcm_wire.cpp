@@ -49,8 +49,8 @@ class Reader {
     if (!i32(len, field)) return false;
     if (len < 1) return fail(field, "string length " + std::to_string(len) + " (at least 1: the NUL)", at);
     if (static_cast<std::size_t>(len) > size_ - pos_) {
-      return fail(field, "string length " + std::to_string(len) + " but " + std::to_string(size_ - pos_) + " bytes left",
-                  at);
+      return fail(field,
+                  "string length " + std::to_string(len) + " but " + std::to_string(size_ - pos_) + " bytes left", at);
     }
     const auto n = static_cast<std::size_t>(len);
     if (d_[pos_ + n - 1] != 0) return fail(field, "string not NUL-terminated", at);

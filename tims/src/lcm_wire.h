@@ -36,7 +36,8 @@ inline constexpr std::size_t kMinGdosRecordBytes = 8 + 8 + 4 + 5 + 1 + 4 + 5;
 // Each returns the bytes used (the rest may be an authentication trailer), or -1 with
 // `why` set. `size` is the payload (after LCM's framing).
 [[nodiscard]] int decode(const uint8_t* d, std::size_t size, rack_lcm::host_announce& out, std::string& why) noexcept;
-[[nodiscard]] int decode(const uint8_t* d, std::size_t size, rack_lcm::discover_request& out, std::string& why) noexcept;
+[[nodiscard]] int decode(const uint8_t* d, std::size_t size, rack_lcm::discover_request& out,
+                         std::string& why) noexcept;
 [[nodiscard]] int decode(const uint8_t* d, std::size_t size, rack_lcm::gdos_batch& out, std::string& why) noexcept;
 [[nodiscard]] int decode(const uint8_t* d, std::size_t size, rack_lcm::gdos_listener& out, std::string& why) noexcept;
 
@@ -58,7 +59,7 @@ inline constexpr std::size_t kMinGdosRecordBytes = 8 + 8 + 4 + 5 + 1 + 4 + 5;
 // 64 KB) and refuses them: LCM 1.3's own reassembly trusts its input.
 inline constexpr uint32_t kLcmShortMagic = 0x4c433032;     // "LC02"
 inline constexpr uint32_t kLcmFragmentMagic = 0x4c433033;  // "LC03"
-inline constexpr std::size_t kLcmMaxChannel = 63;           // LCM_MAX_CHANNEL_NAME_LENGTH
+inline constexpr std::size_t kLcmMaxChannel = 63;          // LCM_MAX_CHANNEL_NAME_LENGTH
 
 struct LcmDatagram {
   enum Kind : uint8_t {
@@ -70,7 +71,7 @@ struct LcmDatagram {
   std::string_view channel;  // points into the datagram
   const uint8_t* payload = nullptr;
   std::size_t payload_size = 0;
-  const char* why = "";      // kInvalid: a static text
+  const char* why = "";  // kInvalid: a static text
 };
 [[nodiscard]] LcmDatagram parse_datagram(const uint8_t* d, std::size_t size) noexcept;
 

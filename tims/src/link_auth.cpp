@@ -133,7 +133,8 @@ KeyFile load_key_file(const std::string& path) {
       if (hi < 0 || lo < 0) return refuse(where + "not a hex digit at column " + std::to_string(first + 2 * i + 1));
       bytes[i] = static_cast<uint8_t>(hi * 16 + lo);
     }
-    if (out.keys.size() == 2) return refuse(where + "more than two keys (the signing key and one more during a rotation)");
+    if (out.keys.size() == 2)
+      return refuse(where + "more than two keys (the signing key and one more during a rotation)");
     out.keys.push_back(make_link_key(bytes));
     sodium_memzero(bytes, sizeof bytes);
   }
@@ -167,7 +168,7 @@ KeyRing::KeyRing(std::string path) : path_(std::move(path)) {
   KeyFile f = load_key_file(path_);
   if (!f.error.empty()) throw std::runtime_error(f.error);
   keys_ = std::move(f.keys);
-  struct stat st{};
+  struct stat st {};
   if (stat(path_.c_str(), &st) == 0) {
     dev_ = st.st_dev;
     ino_ = st.st_ino;
@@ -177,7 +178,7 @@ KeyRing::KeyRing(std::string path) : path_(std::move(path)) {
 }
 
 std::string KeyRing::check_reload() {
-  struct stat st{};
+  struct stat st {};
   if (stat(path_.c_str(), &st) != 0) {
     // Gone for a moment (an editor replacing it): keep the keys, try again later.
     return {};
@@ -229,7 +230,8 @@ const char* describe(AuthResult r) noexcept {
     case AuthResult::kUnsigned: return "not signed (a host without the key?)";
     case AuthResult::kUnknownKey: return "signed with a key this host does not have";
     case AuthResult::kBadMac: return "MAC does not match (tampered, or a different key)";
-    case AuthResult::kOutsideWindow: return "time outside the replay window (an old capture, or clocks not synchronised)";
+    case AuthResult::kOutsideWindow:
+      return "time outside the replay window (an old capture, or clocks not synchronised)";
     case AuthResult::kReplayed: return "sequence number already seen (replayed)";
     case AuthResult::kTableFull: return "too many senders to track (sender table full)";
   }

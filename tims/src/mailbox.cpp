@@ -51,15 +51,15 @@ int Mailbox::find_next_locked() const noexcept {
     const SlotInfo& s = slots_[i];
     if (s.state != SlotState::kReady) continue;
     if (best < 0 || s.priority > slots_[static_cast<std::size_t>(best)].priority ||
-        (s.priority == slots_[static_cast<std::size_t>(best)].priority && s.order < slots_[static_cast<std::size_t>(best)].order)) {
+        (s.priority == slots_[static_cast<std::size_t>(best)].priority &&
+         s.order < slots_[static_cast<std::size_t>(best)].order)) {
       best = static_cast<int>(i);
     }
   }
   return best;
 }
 
-SendStatus Mailbox::try_send(const MessageHeader& header,
-                             std::initializer_list<ConstBuffer> body) noexcept {
+SendStatus Mailbox::try_send(const MessageHeader& header, std::initializer_list<ConstBuffer> body) noexcept {
   return try_send(header, std::span<const ConstBuffer>(body.begin(), body.size()));
 }
 
@@ -76,7 +76,10 @@ SendStatus Mailbox::try_send(const MessageHeader& header, std::span<const ConstB
     }
     bool dropped = false;
     for (uint32_t i = 0; i < slot_count_; ++i) {
-      if (slots_[i].state == SlotState::kFree) { index = static_cast<int>(i); break; }
+      if (slots_[i].state == SlotState::kFree) {
+        index = static_cast<int>(i);
+        break;
+      }
     }
     if (index < 0) {
       // Full: the victim is the oldest message of the lowest priority.
@@ -85,7 +88,8 @@ SendStatus Mailbox::try_send(const MessageHeader& header, std::span<const ConstB
         const SlotInfo& s = slots_[i];
         if (s.state != SlotState::kReady) continue;
         if (victim < 0 || s.priority < slots_[static_cast<std::size_t>(victim)].priority ||
-            (s.priority == slots_[static_cast<std::size_t>(victim)].priority && s.order < slots_[static_cast<std::size_t>(victim)].order)) {
+            (s.priority == slots_[static_cast<std::size_t>(victim)].priority &&
+             s.order < slots_[static_cast<std::size_t>(victim)].order)) {
           victim = static_cast<int>(i);
         }
       }
@@ -138,9 +142,19 @@ int Mailbox::wait_ready_locked(int64_t timeout_ns, RecvStatus& status) noexcept 
   for (;;) {
     const int next = find_next_locked();
     if (next >= 0) return next;
-    if (closed_) { status = RecvStatus::kClosed; return -1; }
-    if (wakeups_ > 0) { --wakeups_; status = RecvStatus::kTimeout; return -1; }
-    if (timeout_ns == kNonBlocking) { status = RecvStatus::kEmpty; return -1; }
+    if (closed_) {
+      status = RecvStatus::kClosed;
+      return -1;
+    }
+    if (wakeups_ > 0) {
+      --wakeups_;
+      status = RecvStatus::kTimeout;
+      return -1;
+    }
+    if (timeout_ns == kNonBlocking) {
+      status = RecvStatus::kEmpty;
+      return -1;
+    }
     if (!ready_cv_.wait_until(mutex_, deadline) && find_next_locked() < 0) {
       status = RecvStatus::kTimeout;
       return -1;
@@ -148,9 +162,7 @@ int Mailbox::wait_ready_locked(int64_t timeout_ns, RecvStatus& status) noexcept 
   }
 }
 
-void Mailbox::free_slot(int index) noexcept {
-  slots_[static_cast<std::size_t>(index)].state = SlotState::kFree;
-}
+void Mailbox::free_slot(int index) noexcept { slots_[static_cast<std::size_t>(index)].state = SlotState::kFree; }
 
 Mailbox::Received Mailbox::receive(std::span<std::byte> buffer, int64_t timeout_ns) noexcept {
   Received r;

@@ -70,8 +70,7 @@ MessageError decode_header(std::span<const std::byte> bytes, MessageHeader& out)
 
 void encode_header(const MessageHeader& h, bool little_endian, std::byte* out16) noexcept {
   MessageHeader w = h;
-  w.flags = static_cast<uint8_t>((h.flags & ~kFlagHeaderLittleEndian) |
-                                 (little_endian ? kFlagHeaderLittleEndian : 0));
+  w.flags = static_cast<uint8_t>((h.flags & ~kFlagHeaderLittleEndian) | (little_endian ? kFlagHeaderLittleEndian : 0));
   if (little_endian != kHostLittleEndian) {
     w.dest = bswap(h.dest);
     w.src = bswap(h.src);

@@ -33,7 +33,7 @@ uint32_t random_block() {
 // Open-file-description lock on byte `block`: owned by this descriptor (not the
 // process, so two claims in one process exclude each other too), released on close.
 bool try_lock(int fd, uint32_t block) {
-  struct flock l{};
+  struct flock l {};
   l.l_type = F_WRLCK;
   l.l_whence = SEEK_SET;
   l.l_start = static_cast<off_t>(block);
@@ -68,7 +68,7 @@ ToolAddressClaim ToolAddressClaim::claim(const std::string& registry) {
                             "tool address registry " + path + ": " + std::strerror(errno) +
                                 "; a random address is used (tools on this machine may collide)");
   }
-  struct stat st{};
+  struct stat st {};
   if (fstat(fd, &st) == 0 && st.st_uid == geteuid()) (void)fchmod(fd, 0666);  // every user's tools share it
   for (uint32_t i = 0; i < kToolBlocks; ++i) {
     const uint32_t block = (start + i) % kToolBlocks;

@@ -89,8 +89,8 @@ class Symbolizer {
  public:
   Symbolizer(const ReportFile& file, const std::string& root, std::vector<std::string>& errors) : file_(file) {
     static char* debuginfo_path = nullptr;
-    static const Dwfl_Callbacks kCallbacks = {
-        dwfl_build_id_find_elf, dwfl_standard_find_debuginfo, dwfl_offline_section_address, &debuginfo_path};
+    static const Dwfl_Callbacks kCallbacks = {dwfl_build_id_find_elf, dwfl_standard_find_debuginfo,
+                                              dwfl_offline_section_address, &debuginfo_path};
     dwfl_ = dwfl_begin(&kCallbacks);
     if (dwfl_ == nullptr) {
       errors.push_back(std::string("libdw: ") + dwfl_errmsg(-1));
@@ -102,8 +102,8 @@ class Symbolizer {
       const std::string path = root + m.path;
       Dwfl_Module* mod = dwfl_report_elf(dwfl_, m.path.c_str(), path.c_str(), -1, m.base, false);
       if (mod == nullptr) {
-        errors.push_back(file.name + ": module " + std::to_string(m.id) + " " + path + ": cannot open: " +
-                         dwfl_errmsg(-1) + " (frames in it stay unsymbolized)");
+        errors.push_back(file.name + ": module " + std::to_string(m.id) + " " + path +
+                         ": cannot open: " + dwfl_errmsg(-1) + " (frames in it stay unsymbolized)");
         continue;
       }
       const unsigned char* bits = nullptr;
@@ -137,7 +137,8 @@ class Symbolizer {
     const ModuleLine* m = file_.module_of(pc);
     const std::string where = m != nullptr ? basename_of(m->path) + "+" + hex(pc - m->base) : hex(pc);
     Dwfl_Module* mod = dwfl_ != nullptr ? dwfl_addrmodule(dwfl_, pc) : nullptr;
-    if (mod == nullptr || (m != nullptr && std::find(mismatched_.begin(), mismatched_.end(), m->id) != mismatched_.end())) {
+    if (mod == nullptr ||
+        (m != nullptr && std::find(mismatched_.begin(), mismatched_.end(), m->id) != mismatched_.end())) {
       out.push_back(Frame{pc, "??", "", 0, false, where});
       return out;
     }
@@ -328,19 +329,28 @@ int main(int argc, char** argv) {
       }
       into.push_back(argv[++i]);
     };
-    if (a == "-h" || a == "--help") { std::fputs(kUsage, stdout); return 0; }
-    if (a == "--version") { rack::print_version("rack-backtrace"); return 0; }
+    if (a == "-h" || a == "--help") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+    if (a == "--version") {
+      rack::print_version("rack-backtrace");
+      return 0;
+    }
     if (a == "--summary") o.summary = true;
     else if (a == "--reason") {
       value(o.reasons);
-      static const char* const kReasons[] = {"SYSCALL", "FAULT", "ALLOC", "PRIOINV", "WATCHDOG", "NOMLOCK", "RUSAGE", "CRASH"};
-      if (std::none_of(std::begin(kReasons), std::end(kReasons), [&](const char* r) { return o.reasons.back() == r; })) {
-        std::fprintf(stderr, "rack-backtrace: unknown reason '%s' (SYSCALL, FAULT, ALLOC, PRIOINV, WATCHDOG, NOMLOCK, "
-                             "RUSAGE, CRASH)\n", o.reasons.back().c_str());
+      static const char* const kReasons[] = {"SYSCALL",  "FAULT",   "ALLOC",  "PRIOINV",
+                                             "WATCHDOG", "NOMLOCK", "RUSAGE", "CRASH"};
+      if (std::none_of(std::begin(kReasons), std::end(kReasons),
+                       [&](const char* r) { return o.reasons.back() == r; })) {
+        std::fprintf(stderr,
+                     "rack-backtrace: unknown reason '%s' (SYSCALL, FAULT, ALLOC, PRIOINV, WATCHDOG, NOMLOCK, "
+                     "RUSAGE, CRASH)\n",
+                     o.reasons.back().c_str());
         return 2;
       }
-    }
-    else if (a == "--task") value(o.tasks);
+    } else if (a == "--task") value(o.tasks);
     else if (a == "--component") value(o.components);
     else if (a == "--function") value(o.functions);
     else if (a == "--file") value(o.files);

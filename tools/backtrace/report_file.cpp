@@ -128,7 +128,7 @@ ReportFile parse(std::istream& in, const std::string& name) {
   n = 1;
   if (!starts_with(line, "RACK-MODESWITCH-REPORT ")) {
     errors.push_back(where(1) + ": not a RACK mode-switch report (expected 'RACK-MODESWITCH-REPORT 1 ...', got '" +
-                       line.substr(0, 60) + "')");
+                     line.substr(0, 60) + "')");
     return f;
   }
   if (!starts_with(line, "RACK-MODESWITCH-REPORT 1 ")) {
@@ -142,9 +142,9 @@ ReportFile parse(std::istream& in, const std::string& name) {
   int open_line = 0;
   std::map<uint64_t, std::size_t> by_sequence;  // complete reports: index in f.reports
   auto close_truncated = [&](const std::string& why) {
-    errors.push_back(where(open_line) + ": report " + std::to_string(current.sequence) + " is truncated: " +
-                       std::to_string(current.pcs.size()) + " of " + std::to_string(expected_frames) +
-                       " frames and no 'end " + std::to_string(current.sequence) + "' line (" + why + ")");
+    errors.push_back(where(open_line) + ": report " + std::to_string(current.sequence) +
+                     " is truncated: " + std::to_string(current.pcs.size()) + " of " + std::to_string(expected_frames) +
+                     " frames and no 'end " + std::to_string(current.sequence) + "' line (" + why + ")");
     open = false;
   };
   while (std::getline(in, line)) {
@@ -178,17 +178,23 @@ ReportFile parse(std::istream& in, const std::string& name) {
       open = true;
       open_line = n;
     } else if (starts_with(line, "detail ")) {
-      if (!open) { errors.push_back(where(n) + ": 'detail' outside a report"); continue; }
+      if (!open) {
+        errors.push_back(where(n) + ": 'detail' outside a report");
+        continue;
+      }
       current.detail = line.substr(7);
     } else if (starts_with(line, "frame ")) {
-      if (!open) { errors.push_back(where(n) + ": 'frame' outside a report"); continue; }
+      if (!open) {
+        errors.push_back(where(n) + ": 'frame' outside a report");
+        continue;
+      }
       std::istringstream fr(line.substr(6));
       uint64_t index = 0;
       std::string pc_text;
       uint64_t pc = 0;
       if (!(fr >> index >> pc_text) || !parse_u64(pc_text, pc) || index != current.pcs.size()) {
-        errors.push_back(where(n) + ": malformed frame line (expected 'frame " +
-                           std::to_string(current.pcs.size()) + " 0x...')");
+        errors.push_back(where(n) + ": malformed frame line (expected 'frame " + std::to_string(current.pcs.size()) +
+                         " 0x...')");
         continue;
       }
       current.pcs.push_back(pc);
@@ -201,8 +207,8 @@ ReportFile parse(std::istream& in, const std::string& name) {
       }
       if (current.pcs.size() != expected_frames) {
         errors.push_back(where(open_line) + ": report " + std::to_string(seq) + " has " +
-                           std::to_string(current.pcs.size()) + " frames, its header says " +
-                           std::to_string(expected_frames));
+                         std::to_string(current.pcs.size()) + " frames, its header says " +
+                         std::to_string(expected_frames));
       } else {
         by_sequence[current.sequence] = f.reports.size();
         f.reports.push_back(current);

@@ -15,7 +15,7 @@ namespace rack::backtrace {
 
 struct ModuleLine {
   int id = 0;
-  uint64_t base = 0;  // load bias
+  uint64_t base = 0;        // load bias
   uint64_t lo = 0, hi = 0;  // executable range, absolute
   std::string build_id;     // hex, "" when the module had none
   std::string path;
@@ -38,11 +38,11 @@ struct Report {
 
 struct ReportFile {
   std::string name;
-  std::string header;                // the first line
-  std::vector<ModuleLine> modules;   // in the order seen (ids index them)
-  std::vector<Report> reports;       // complete reports only
-  std::vector<std::string> errors;   // "file:line: ..." for truncated or malformed parts
-  bool unreadable = false;           // the file could not be read at all (errors says why)
+  std::string header;               // the first line
+  std::vector<ModuleLine> modules;  // in the order seen (ids index them)
+  std::vector<Report> reports;      // complete reports only
+  std::vector<std::string> errors;  // "file:line: ..." for truncated or malformed parts
+  bool unreadable = false;          // the file could not be read at all (errors says why)
   // The module holding `pc` (absolute), or nullptr.
   [[nodiscard]] const ModuleLine* module_of(uint64_t pc) const;
 };

@@ -50,7 +50,10 @@ bool Filter::matches(const tims::GdosRecord& r, const std::string& display_name,
     const std::string addr = address_text(r.source & 0xFFFFFF00u, class_name);
     bool any = false;
     for (const auto& c : components) {
-      if (c == display_name || c == r.name || c == addr) { any = true; break; }
+      if (c == display_name || c == r.name || c == addr) {
+        any = true;
+        break;
+      }
       // An address given in another spelling (Class0x11(0/1), 17(0/1)).
       if (const auto parsed = tims::parse_address(c)) any = parsed->component().raw() == (r.source & 0xFFFFFF00u);
       if (any) break;
@@ -89,11 +92,11 @@ std::string text_line(const tims::GdosRecord& r, const std::string& display_name
   const char* on = "";
   if (colour) {
     switch (l) {
-      case gdos::Level::kPrint: on = "\x1b[1m"; break;         // bold
-      case gdos::Level::kError: on = "\x1b[1;31m"; break;      // bold red
-      case gdos::Level::kWarning: on = "\x1b[33m"; break;      // yellow
-      case gdos::Level::kInfo: on = ""; break;                 // plain
-      case gdos::Level::kDetail: on = "\x1b[2m"; break;        // dim
+      case gdos::Level::kPrint: on = "\x1b[1m"; break;     // bold
+      case gdos::Level::kError: on = "\x1b[1;31m"; break;  // bold red
+      case gdos::Level::kWarning: on = "\x1b[33m"; break;  // yellow
+      case gdos::Level::kInfo: on = ""; break;             // plain
+      case gdos::Level::kDetail: on = "\x1b[2m"; break;    // dim
     }
   }
   const std::string who = printable(display_name.empty() ? address_text(r.source, class_name) : display_name);
@@ -173,7 +176,8 @@ class Cursor {
   bool get(T& v) {
     if (at_ + sizeof(T) > b_.size()) return false;
     uint64_t x = 0;
-    for (std::size_t i = 0; i < sizeof(T); ++i) x |= static_cast<uint64_t>(static_cast<uint8_t>(b_[at_ + i])) << (8 * i);
+    for (std::size_t i = 0; i < sizeof(T); ++i)
+      x |= static_cast<uint64_t>(static_cast<uint8_t>(b_[at_ + i])) << (8 * i);
     v = static_cast<T>(x);
     at_ += sizeof(T);
     return true;
@@ -253,14 +257,15 @@ RecordReader::RecordReader(const std::string& path) : path_(path) {
   (void)c.get(version);
   (void)c.get(n);
   if (version != kFileVersion) {
-    throw FileError(path, 8, "file format version " + std::to_string(version) + " (this gdos reads version " +
-                                 std::to_string(kFileVersion) + ")");
+    throw FileError(path, 8,
+                    "file format version " + std::to_string(version) + " (this gdos reads version " +
+                        std::to_string(kFileVersion) + ")");
   }
   std::string fields(n, '\0');
   const auto fields_got = static_cast<std::size_t>(read(fields.data(), n));
   if (fields_got != n) {
-    throw FileError(path, 12 + fields_got, "truncated header (" + std::to_string(n) +
-                                               " bytes of header fields announced)");
+    throw FileError(path, 12 + fields_got,
+                    "truncated header (" + std::to_string(n) + " bytes of header fields announced)");
   }
   Cursor f(fields);
   if (!f.get(created_ns_) || !f.get_string<uint16_t>(description_)) {
@@ -289,15 +294,17 @@ bool RecordReader::next(tims::GdosRecord& r) {
     const uint64_t size = static_cast<uint64_t>(st.st_size);
     const uint64_t present = size > in_.offset() ? size - in_.offset() : 0;
     if (length > present) {
-      throw FileError(path_, offset_, "truncated record (" + std::to_string(length) + " bytes announced, " +
-                                          std::to_string(present) + " present)");
+      throw FileError(path_, offset_,
+                      "truncated record (" + std::to_string(length) + " bytes announced, " + std::to_string(present) +
+                          " present)");
     }
   }
   std::string body(length, '\0');
   const auto body_got = static_cast<std::size_t>(read(body.data(), length));
   if (body_got != length) {
-    throw FileError(path_, offset_, "truncated record (" + std::to_string(length) + " bytes announced, " +
-                                        std::to_string(body_got) + " present)");
+    throw FileError(path_, offset_,
+                    "truncated record (" + std::to_string(length) + " bytes announced, " + std::to_string(body_got) +
+                        " present)");
   }
   if (crc32(body.data(), body.size()) != crc) throw FileError(path_, offset_, "record fails its CRC (corrupt file)");
   Cursor b(body);

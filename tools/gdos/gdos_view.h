@@ -30,9 +30,9 @@ namespace rack::gdos_view {
 
 struct Filter {
   gdos::Level max_level = gdos::Level::kDetail;  // show records at or below this level
-  std::vector<std::string> hosts;                 // empty: every host
-  std::vector<std::string> components;            // names or addresses; empty: all
-  std::string text;                               // substring of the text; empty: all
+  std::vector<std::string> hosts;                // empty: every host
+  std::vector<std::string> components;           // names or addresses; empty: all
+  std::string text;                              // substring of the text; empty: all
   // `display_name` is the name the viewer shows (record's, announced, or ""); a
   // component given as an address matches in TiMS' spelling (Class0x91(2/0), 145(2/0))
   // and, when `class_name` is the name the source's class describes itself with

@@ -227,7 +227,8 @@ int main(int argc, char** argv) {
       const std::string v = value("seconds");
       char* end = nullptr;
       duration = std::strtod(v.c_str(), &end);
-      if (v.empty() || *end != '\0' || !(duration > 0)) usage_error("--duration needs positive seconds, got '" + v + "'");
+      if (v.empty() || *end != '\0' || !(duration > 0))
+        usage_error("--duration needs positive seconds, got '" + v + "'");
     } else {
       usage_error("unknown argument '" + a + "'");
     }

@@ -50,16 +50,16 @@ namespace ifc = rack::interfaces;
 namespace rtrace = rack::trace;
 
 constexpr uint32_t kSlotSize = 64 * 1024;  // the largest polled sample (Path) is ~17 KiB
-constexpr uint32_t kReplySlots = 256;       // a poll round asks every component at once
+constexpr uint32_t kReplySlots = 256;      // a poll round asks every component at once
 // Camera images (0.9 MB): their replies go to a mailbox of their own with large slots.
-constexpr uint32_t kImageSlotSize =
-    static_cast<uint32_t>(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(rack::interfaces::CameraData));
+constexpr uint32_t kImageSlotSize = static_cast<uint32_t>(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) +
+                                                          sizeof(rack::interfaces::CameraData));
 constexpr uint32_t kImageSlots = 2;
-constexpr int64_t kStaleNs = 1500 * rt::kNsPerMs;     // no status reply for this long: "no_reply"
-constexpr int64_t kDeadManNs = 400 * rt::kNsPerMs;    // joystick silent this long: MOVE 0
-constexpr int64_t kOnTimeoutNs = 6 * rt::kNsPerSec;   // ON is answered when on() has finished
-constexpr std::size_t kRecentLog = 500;               // GDOS records kept for new clients
-constexpr int kMapRetryRounds = 50;                   // a map that failed to load: try again later
+constexpr int64_t kStaleNs = 1500 * rt::kNsPerMs;    // no status reply for this long: "no_reply"
+constexpr int64_t kDeadManNs = 400 * rt::kNsPerMs;   // joystick silent this long: MOVE 0
+constexpr int64_t kOnTimeoutNs = 6 * rt::kNsPerSec;  // ON is answered when on() has finished
+constexpr std::size_t kRecentLog = 500;              // GDOS records kept for new clients
+constexpr int kMapRetryRounds = 50;                  // a map that failed to load: try again later
 
 std::string address_text(Address a) { return a.str(); }
 
@@ -104,7 +104,9 @@ json param_json(const wire::ParamRecord& p) {
             {"component_ref", (p.flags & 1u) != 0}};
   switch (static_cast<wire::ParamKind>(p.kind)) {
     case wire::ParamKind::kInt: j["value"] = p.int_value; break;
-    case wire::ParamKind::kFloat: j["value"] = std::isfinite(p.float_value) ? json(p.float_value) : json(nullptr); break;
+    case wire::ParamKind::kFloat:
+      j["value"] = std::isfinite(p.float_value) ? json(p.float_value) : json(nullptr);
+      break;
     case wire::ParamKind::kBool: j["value"] = p.int_value != 0; break;
     case wire::ParamKind::kString: j["value"] = param_text(p.string_value, sizeof p.string_value); break;
   }
@@ -122,7 +124,8 @@ std::string dump(const json& j) { return j.dump(-1, ' ', false, json::error_hand
 //    "unit":..,"min":..,"max":..,"default":..,"doc":..,"choices":[..]}]}
 // Field kinds: i8 u8 bool char i16 u16 i32 u32 i64 u64 f32 f64 (char arrays are strings).
 json type_json(const rack::TypeDescription& t) {
-  static constexpr const char* kKinds[] = {"i8", "u8", "bool", "char", "i16", "u16", "i32", "u32", "i64", "u64", "f32", "f64"};
+  static constexpr const char* kKinds[] = {"i8",  "u8",  "bool", "char", "i16", "u16",
+                                           "i32", "u32", "i64",  "u64",  "f32", "f64"};
   json fields = json::array();
   for (const auto& f : t.fields) {
     const auto k = static_cast<std::size_t>(f.kind);
@@ -131,22 +134,35 @@ json type_json(const rack::TypeDescription& t) {
   return {{"name", t.name}, {"size", t.size}, {"fields", std::move(fields)}};
 }
 
-std::string class_message(uint8_t system, const rack::ClassDescription& d, std::optional<Address> component = std::nullopt) {
+std::string class_message(uint8_t system, const rack::ClassDescription& d,
+                          std::optional<Address> component = std::nullopt) {
   json commands = json::array();
   for (const auto& c : d.commands) {
-    commands.push_back({{"name", c.name}, {"type", c.type}, {"summary", c.summary},
+    commands.push_back({{"name", c.name},
+                        {"type", c.type},
+                        {"summary", c.summary},
                         {"body", c.body ? type_json(*c.body) : json(nullptr)}});
   }
   json params = json::array();
   for (const auto& p : d.parameters) {
-    params.push_back({{"name", p.name}, {"kind", rack::describe(p.kind)}, {"unit", p.unit},
+    params.push_back({{"name", p.name},
+                      {"kind", rack::describe(p.kind)},
+                      {"unit", p.unit},
                       {"min", std::isfinite(p.min) ? json(p.min) : json(nullptr)},
                       {"max", std::isfinite(p.max) ? json(p.max) : json(nullptr)},
-                      {"default", p.default_value}, {"doc", p.doc}, {"choices", p.choices}});
+                      {"default", p.default_value},
+                      {"doc", p.doc},
+                      {"choices", p.choices}});
   }
-  json m{{"type", "class"}, {"system", system}, {"class_id", d.class_id}, {"class", d.class_name},
-         {"impl", d.impl}, {"summary", d.summary}, {"data", d.data ? type_json(*d.data) : json(nullptr)},
-         {"commands", std::move(commands)}, {"parameters", std::move(params)}};
+  json m{{"type", "class"},
+         {"system", system},
+         {"class_id", d.class_id},
+         {"class", d.class_name},
+         {"impl", d.impl},
+         {"summary", d.summary},
+         {"data", d.data ? type_json(*d.data) : json(nullptr)},
+         {"commands", std::move(commands)},
+         {"parameters", std::move(params)}};
   if (component) m["component"] = address_text(component->component());
   return dump(m);
 }
@@ -169,18 +185,18 @@ struct Pending {
 struct Component {
   tims::ComponentInfo info;
   uint8_t system = 0;
-  std::string host_key;     // host name + host id: the group it is shown in
-  std::size_t order = 0;    // position in its host's announcement (host-file order)
+  std::string host_key;   // host name + host id: the group it is shown in
+  std::size_t order = 0;  // position in its host's announcement (host-file order)
   std::string state = "no_reply";
-  int64_t last_reply_ns = 0;   // monotonic time of the last status reply
+  int64_t last_reply_ns = 0;  // monotonic time of the last status reply
   bool status_pending = false;
   bool data_pending = false;
   bool stats_pending = false;
-  json stats;               // the last GET_STATS, or null
+  json stats;  // the last GET_STATS, or null
   bool latency_pending = false;
-  bool latency_refused = false;    // answered ERROR (a rackd from before GET_LATENCY): not asked again
-  bool latency_bad_logged = false; // a malformed reply was logged (once per component)
-  json latency;             // the last GET_LATENCY (gui_protocol.h: latency_json), or null
+  bool latency_refused = false;     // answered ERROR (a rackd from before GET_LATENCY): not asked again
+  bool latency_bad_logged = false;  // a malformed reply was logged (once per component)
+  json latency;                     // the last GET_LATENCY (gui_protocol.h: latency_json), or null
 };
 
 // What a class described of itself (GET_CLASS), per system and class id.
@@ -197,7 +213,7 @@ struct Host {
   uint8_t system = 0;
   uint8_t host_id = 0;
   int32_t pid = 0;
-  bool alive = false;        // still announced by the network
+  bool alive = false;           // still announced by the network
   int64_t silent_since_ns = 0;  // monotonic time it stopped being announced (0: announced)
   std::string network;
 };
@@ -210,12 +226,12 @@ struct Robot {
   bool claimed = false;
   bool claim_pending = false;
   double want_vx = 0.0, want_omega = 0.0;
-  int64_t position_time_ns = 0;    // host time of the newest Position sample
+  int64_t position_time_ns = 0;  // host time of the newest Position sample
   // Map: loaded once (or from --map), retried while it fails.
   bool map_sent = false;
   bool map_pending = false;
   int map_retry = 0;
-  std::string map_message;         // the map as a "map" message, for new clients
+  std::string map_message;  // the map as a "map" message, for new clients
 };
 
 }  // namespace
@@ -306,8 +322,8 @@ struct Backend::Impl {
   void request(Address dest, int8_t type, const T& body, ReplyHandler done, int64_t timeout_ns = 0) {
     // The body is copied into the mailbox by send(): a local is fine.
     const tims::ConstBuffer part = tims::buffer_of(body);
-    request(dest, type, std::span<const tims::ConstBuffer>(&part, 1),
-            timeout_ns > 0 ? timeout_ns : default_timeout(), std::move(done));
+    request(dest, type, std::span<const tims::ConstBuffer>(&part, 1), timeout_ns > 0 ? timeout_ns : default_timeout(),
+            std::move(done));
   }
   [[nodiscard]] int64_t default_timeout() const { return int64_t{config.timeout_ms} * rt::kNsPerMs; }
 
@@ -558,7 +574,8 @@ struct Backend::Impl {
         return;
       }
       rack::ClassDescription d;
-      if (error.empty() && !rack::decode_class_description(info.pages.bytes(), d, error)) error = "description: " + error;
+      if (error.empty() && !rack::decode_class_description(info.pages.bytes(), d, error))
+        error = "description: " + error;
       if (error.empty() && d.class_id != a.class_id()) error = "describes another class id";
       if (!error.empty()) {
         info.failed = true;
@@ -628,15 +645,17 @@ struct Backend::Impl {
       names += (names.empty() ? "" : ", ") + h.host;
       if (!r.host.empty() && h.host != r.host) continue;
       if (host != nullptr && r.host.empty()) {
-        result(client, r, false, "robot " + std::to_string(r.system) + " has several hosts (" + names + "...): name one");
+        result(client, r, false,
+               "robot " + std::to_string(r.system) + " has several hosts (" + names + "...): name one");
         return;
       }
       host = &h;
     }
     if (host == nullptr) {
-      result(client, r, false, "robot " + std::to_string(r.system) + ": no host" +
-                                   (r.host.empty() ? std::string() : " named '" + r.host + "'") + " answers" +
-                                   (names.empty() ? std::string() : " (hosts: " + names + ")"));
+      result(client, r, false,
+             "robot " + std::to_string(r.system) + ": no host" +
+                 (r.host.empty() ? std::string() : " named '" + r.host + "'") + " answers" +
+                 (names.empty() ? std::string() : " (hosts: " + names + ")"));
       return;
     }
     const Address exec = host->executor;
@@ -652,7 +671,8 @@ struct Backend::Impl {
       }
       auto text = std::make_shared<std::string>();
       const int64_t give_up = rt::monotonic_ns() + req.duration_ns + 30 * rt::kNsPerSec;
-      defer(req.duration_ns, [this, client, r, t, host_name, text, give_up] { trace_read(client, r, t, host_name, text, give_up); });
+      defer(req.duration_ns,
+            [this, client, r, t, host_name, text, give_up] { trace_read(client, r, t, host_name, text, give_up); });
     });
   }
   void trace_read(uint64_t client, const Request& r, Address t, const std::string& host_name,
@@ -672,14 +692,15 @@ struct Backend::Impl {
       std::memcpy(&head, rep->body.data(), sizeof head);
       const auto state = static_cast<rtrace::TraceState>(head.state);
       const auto again = [&](int64_t delay) {
-        defer(delay, [this, client, r, t, host_name, text, give_up] { trace_read(client, r, t, host_name, text, give_up); });
+        defer(delay,
+              [this, client, r, t, host_name, text, give_up] { trace_read(client, r, t, host_name, text, give_up); });
       };
       if (state == rtrace::TraceState::kRecording) {
         again(std::clamp<int64_t>(head.remaining_ns, 10 * rt::kNsPerMs, 200 * rt::kNsPerMs));
         return;
       }
-      if (state != rtrace::TraceState::kReady || head.length > rep->body.size() - sizeof head || head.offset != text->size() ||
-          head.total > (100u << 20)) {
+      if (state != rtrace::TraceState::kReady || head.length > rep->body.size() - sizeof head ||
+          head.offset != text->size() || head.total > (100u << 20)) {
         result(client, r, false, host_name + ": TRACE_READ: the trace was discarded or its chunk is malformed");
         return;
       }
@@ -697,10 +718,13 @@ struct Backend::Impl {
         result(client, r, false, host_name + ": the trace is not JSON (" + std::to_string(text->size()) + " bytes)");
         return;
       }
-      send_to(client, dump(json{{"type", "trace"}, {"host", host_name}, {"system", r.system}, {"dropped", head.dropped},
+      send_to(client, dump(json{{"type", "trace"},
+                                {"host", host_name},
+                                {"system", r.system},
+                                {"dropped", head.dropped},
                                 {"json", *text}}));
-      result(client, r, true, host_name + ": trace of " + json(r.duration_s).dump() + " s, " +
-                                  std::to_string(text->size()) + " bytes");
+      result(client, r, true,
+             host_name + ": trace of " + json(r.duration_s).dump() + " s, " + std::to_string(text->size()) + " bytes");
     });
   }
 
@@ -711,8 +735,9 @@ struct Backend::Impl {
     const auto ci = class_infos.find(a.raw() & 0xFFFF0000u);
     if (ci == class_infos.end() || !ci->second.desc) {
       (void)described(a);
-      result(client, r, false, address_text(a) + ": command " + r.command_name +
-                                   ": its class description is not known yet (asked; try again)");
+      result(client, r, false,
+             address_text(a) + ": command " + r.command_name +
+                 ": its class description is not known yet (asked; try again)");
       return;
     }
     const rack::ClassDescription& d = *ci->second.desc;
@@ -720,8 +745,9 @@ struct Backend::Impl {
     if (info == nullptr) {
       std::string names;
       for (const auto& c : d.commands) names += (names.empty() ? "" : ", ") + c.name;
-      result(client, r, false, address_text(a) + ": class " + d.class_name + " has no command '" + r.command_name +
-                                   "' (" + (names.empty() ? "it describes none" : "known: " + names) + "); nothing was sent");
+      result(client, r, false,
+             address_text(a) + ": class " + d.class_name + " has no command '" + r.command_name + "' (" +
+                 (names.empty() ? "it describes none" : "known: " + names) + "); nothing was sent");
       return;
     }
     auto body = std::make_shared<std::vector<std::byte>>();
@@ -742,8 +768,8 @@ struct Backend::Impl {
             ++counters.malformed;
             ++counters.refused[static_cast<std::size_t>(Refusal::kBadValue)];
           }
-          result(client, r, false, address_text(a) + ": " + info->name + " field '" + key + "': " + why +
-                                       "; nothing was sent");
+          result(client, r, false,
+                 address_text(a) + ": " + info->name + " field '" + key + "': " + why + "; nothing was sent");
           return;
         }
       }
@@ -754,7 +780,8 @@ struct Backend::Impl {
     }
     const tims::ConstBuffer part{body->data(), body->size()};
     const std::string name = info->name;
-    request(a, info->type, body->empty() ? std::span<const tims::ConstBuffer>() : std::span<const tims::ConstBuffer>(&part, 1),
+    request(a, info->type,
+            body->empty() ? std::span<const tims::ConstBuffer>() : std::span<const tims::ConstBuffer>(&part, 1),
             kOnTimeoutNs, [this, client, r, a, name, sent](const Reply* rep) {
               if (rep == nullptr || rep->header.type == msg::kError || rep->header.type == msg::kNotAvailable) {
                 result(client, r, false, failure(rep, name, a));
@@ -768,17 +795,19 @@ struct Backend::Impl {
                 hex += kHex[b & 15u];
               }
               const bool ok = rep->header.type == msg::kOk;
-              send_to(client, dump(json{{"type", "command_result"},
-                                        {"id", r.id ? json(*r.id) : json(nullptr)},
-                                        {"component", address_text(a)},
-                                        {"command", name},
-                                        {"sent", sent.front() == '{' ? json::parse(sent, nullptr, false) : json(nullptr)},
-                                        {"reply", ok ? "OK" : "type " + std::to_string(rep->header.type)},
-                                        {"reply_type", rep->header.type},
-                                        {"body_bytes", rep->body.size()},
-                                        {"body_hex", hex}}));
-              result(client, r, true, address_text(a) + ": " + name + " " + sent + ": " +
-                                          (ok ? std::string("OK") : "reply " + std::to_string(rep->header.type)));
+              send_to(client,
+                      dump(json{{"type", "command_result"},
+                                {"id", r.id ? json(*r.id) : json(nullptr)},
+                                {"component", address_text(a)},
+                                {"command", name},
+                                {"sent", sent.front() == '{' ? json::parse(sent, nullptr, false) : json(nullptr)},
+                                {"reply", ok ? "OK" : "type " + std::to_string(rep->header.type)},
+                                {"reply_type", rep->header.type},
+                                {"body_bytes", rep->body.size()},
+                                {"body_hex", hex}}));
+              result(client, r, true,
+                     address_text(a) + ": " + name + " " + sent + ": " +
+                         (ok ? std::string("OK") : "reply " + std::to_string(rep->header.type)));
             });
   }
 
@@ -838,7 +867,8 @@ struct Backend::Impl {
         trim_arrays(a.class_id(), data);
         // Enums and addresses by name beside the raw values (as rackctl get-data).
         json names = json::object();
-        const std::string names_text = rack::tools::field_names_json(type.desc->value_names, type.data_fields, sample, r->native());
+        const std::string names_text = rack::tools::field_names_json(type.desc->value_names, type.data_fields, sample,
+                                                                     r->native());
         if (!names_text.empty()) names = json::parse(names_text, nullptr, false);
         if (names.is_discarded()) names = json::object();
         broadcast(dump(json{{"type", "data"},
@@ -860,37 +890,38 @@ struct Backend::Impl {
     c.data_pending = true;
     wire::GetDataRequest req;
     const tims::ConstBuffer part = tims::buffer_of(req);
-    request(Address(raw), msg::kGetData, std::span<const tims::ConstBuffer>(&part, 1), default_timeout(),
-            [this, raw](const Reply* r) {
-              auto it = components.find(raw);
-              if (it == components.end()) return;
-              Component& comp = it->second;
-              comp.data_pending = false;
-              wire::SampleHeader sh;
-              auto img = std::make_unique<ifc::CameraData>();
-              if (r == nullptr || r->header.type != msg::kData || r->body.size() != sizeof sh + sizeof *img ||
-                  !wire::read_payload(r->body.first(sizeof sh), r->native(), sh) ||
-                  !wire::read_payload(r->body.subspan(sizeof sh), r->native(), *img)) {
-                return;
-              }
-              const std::size_t bytes = std::min<std::size_t>(img->bytes, sizeof img->data);
-              const char* format = img->format == ifc::kCameraRgb8    ? "rgb"
-                                   : img->format == ifc::kCameraMono8 ? "mono"
-                                   : img->format == ifc::kCameraJpeg  ? "jpeg"
-                                                                      : "unknown";
-              broadcast(dump(json{{"type", "image"},
-                                  {"component", address_text(Address(raw))},
-                                  {"system", comp.system},
-                                  {"time_ns", sh.time_ns},
-                                  {"width", img->width},
-                                  {"height", img->height},
-                                  {"frame", img->frame},
-                                  {"dropped", img->dropped},
-                                  {"bad_frames", img->bad_frames},
-                                  {"format", format},
-                                  {"data", base64(std::vector<uint8_t>(img->data, img->data + bytes))}}));
-            },
-            image_mailbox.address());
+    request(
+        Address(raw), msg::kGetData, std::span<const tims::ConstBuffer>(&part, 1), default_timeout(),
+        [this, raw](const Reply* r) {
+          auto it = components.find(raw);
+          if (it == components.end()) return;
+          Component& comp = it->second;
+          comp.data_pending = false;
+          wire::SampleHeader sh;
+          auto img = std::make_unique<ifc::CameraData>();
+          if (r == nullptr || r->header.type != msg::kData || r->body.size() != sizeof sh + sizeof *img ||
+              !wire::read_payload(r->body.first(sizeof sh), r->native(), sh) ||
+              !wire::read_payload(r->body.subspan(sizeof sh), r->native(), *img)) {
+            return;
+          }
+          const std::size_t bytes = std::min<std::size_t>(img->bytes, sizeof img->data);
+          const char* format = img->format == ifc::kCameraRgb8    ? "rgb"
+                               : img->format == ifc::kCameraMono8 ? "mono"
+                               : img->format == ifc::kCameraJpeg  ? "jpeg"
+                                                                  : "unknown";
+          broadcast(dump(json{{"type", "image"},
+                              {"component", address_text(Address(raw))},
+                              {"system", comp.system},
+                              {"time_ns", sh.time_ns},
+                              {"width", img->width},
+                              {"height", img->height},
+                              {"frame", img->frame},
+                              {"dropped", img->dropped},
+                              {"bad_frames", img->bad_frames},
+                              {"format", format},
+                              {"data", base64(std::vector<uint8_t>(img->data, img->data + bytes))}}));
+        },
+        image_mailbox.address());
   }
 
   // Fixed-capacity arrays are sent only up to their count (a scan of 541 beams, not
@@ -900,7 +931,8 @@ struct Backend::Impl {
       if (!d.contains(count) || !d[count].is_number_unsigned()) return;
       const auto n = d[count].get<std::size_t>();
       for (const char* a : arrays) {
-        if (d.contains(a) && d[a].is_array() && d[a].size() > n) d[a].erase(d[a].begin() + static_cast<std::ptrdiff_t>(n), d[a].end());
+        if (d.contains(a) && d[a].is_array() && d[a].size() > n)
+          d[a].erase(d[a].begin() + static_cast<std::ptrdiff_t>(n), d[a].end());
       }
     };
     switch (cls) {
@@ -950,9 +982,8 @@ struct Backend::Impl {
         hosts_j.push_back(hj);
       }
       const auto r = robots.find(system);
-      robots_j.push_back({{"system", system},
-                          {"hosts", hosts_j},
-                          {"joystick", r != robots.end() && r->second.claimed}});
+      robots_j.push_back(
+          {{"system", system}, {"hosts", hosts_j}, {"joystick", r != robots.end() && r->second.claimed}});
     }
     return dump(json{{"type", "components"}, {"robots", robots_j}});
   }
@@ -1042,17 +1073,18 @@ struct Backend::Impl {
     const auto loaded = maps::load_map(path.string());
     if (!loaded.ok()) {
       robot.map_retry = kMapRetryRounds * 5;
-      broadcast(dump(json{{"type", "notice"},
-                          {"level", "error"},
-                          {"text", "map of robot " + std::to_string(system) + " (" + from + "): " + loaded.error_text()}}));
+      broadcast(
+          dump(json{{"type", "notice"},
+                    {"level", "error"},
+                    {"text", "map of robot " + std::to_string(system) + " (" + from + "): " + loaded.error_text()}}));
       return;
     }
     const auto& m = *loaded.map;
     std::vector<uint8_t> cells(static_cast<std::size_t>(m.width()) * static_cast<std::size_t>(m.height()));
     for (int iy = 0; iy < m.height(); ++iy) {
       for (int ix = 0; ix < m.width(); ++ix) {
-        cells[static_cast<std::size_t>(iy) * static_cast<std::size_t>(m.width()) + static_cast<std::size_t>(ix)] =
-            static_cast<uint8_t>(m.cell_state(ix, iy));
+        cells[static_cast<std::size_t>(iy) * static_cast<std::size_t>(m.width()) +
+              static_cast<std::size_t>(ix)] = static_cast<uint8_t>(m.cell_state(ix, iy));
       }
     }
     robot.map_message = dump(json{{"type", "map"},
@@ -1078,11 +1110,15 @@ struct Backend::Impl {
     switch (r.op) {
       case Op::kSwitch: {
         const Address a = r.component;
-        request(a, r.on ? msg::kOn : msg::kOff, [this, client, r, a](const Reply* rep) {
-          const bool ok = rep != nullptr && rep->header.type == msg::kOk;
-          result(client, r, ok, ok ? address_text(a) + (r.on ? " on" : " off") : failure(rep, r.on ? "ON" : "OFF", a));
-          poll_status();
-        }, r.on ? kOnTimeoutNs : 0);
+        request(
+            a, r.on ? msg::kOn : msg::kOff,
+            [this, client, r, a](const Reply* rep) {
+              const bool ok = rep != nullptr && rep->header.type == msg::kOk;
+              result(client, r, ok,
+                     ok ? address_text(a) + (r.on ? " on" : " off") : failure(rep, r.on ? "ON" : "OFF", a));
+              poll_status();
+            },
+            r.on ? kOnTimeoutNs : 0);
         break;
       }
       case Op::kAllOff: {
@@ -1148,8 +1184,9 @@ struct Backend::Impl {
           }
           request(a, msg::kSetParam, p, [this, client, r, a, p](const Reply* rep2) {
             const bool ok = rep2 != nullptr && rep2->header.type == msg::kOk;
-            result(client, r, ok, ok ? address_text(a) + ": " + r.param_name + " = " + dump(param_json(p)["value"])
-                                     : failure(rep2, "SET_PARAM " + r.param_name, a));
+            result(client, r, ok,
+                   ok ? address_text(a) + ": " + r.param_name + " = " + dump(param_json(p)["value"])
+                      : failure(rep2, "SET_PARAM " + r.param_name, a));
           });
         });
         break;
@@ -1226,8 +1263,9 @@ struct Backend::Impl {
     if (c == nullptr) {
       std::string known;
       for (const auto& k : d.commands) known += (known.empty() ? "" : ", ") + k.name;
-      result(client, r, false, address_text(a) + ": class " + d.class_name + " has no command " + r.command +
-                                   " (it has: " + (known.empty() ? "none" : known) + ")");
+      result(client, r, false,
+             address_text(a) + ": class " + d.class_name + " has no command " + r.command +
+                 " (it has: " + (known.empty() ? "none" : known) + ")");
       return;
     }
     std::vector<std::byte> body;
@@ -1249,7 +1287,8 @@ struct Backend::Impl {
                     std::shared_ptr<std::vector<std::string>> failures) {
     if (i >= order->size()) {
       const bool ok = failures->empty();
-      std::string text = ok ? "robot " + std::to_string(r.system) + ": all " + std::to_string(order->size()) + " off" : "";
+      std::string text = ok ? "robot " + std::to_string(r.system) + ": all " + std::to_string(order->size()) + " off"
+                            : "";
       for (const auto& f : *failures) text += (text.empty() ? "" : "; ") + f;
       result(client, r, ok, text);
       poll_status();
@@ -1283,8 +1322,8 @@ struct Backend::Impl {
       const Address a = *mcl;
       request(a, ifc::kMclInit, init, [this, client, r, a, done](const Reply* rep) {
         const bool ok = rep != nullptr && rep->header.type == msg::kOk;
-        result(client, r, ok, ok ? done + (done.empty() ? "" : "; ") + address_text(a) + " re-initialised"
-                                 : failure(rep, "INIT", a));
+        result(client, r, ok,
+               ok ? done + (done.empty() ? "" : "; ") + address_text(a) + " re-initialised" : failure(rep, "INIT", a));
       });
     };
     if (!position) {
@@ -1505,7 +1544,7 @@ struct Backend::Impl {
   struct ReportFileState {
     std::uintmax_t size = 0;
     std::filesystem::file_time_type mtime;
-    std::size_t done = 0;  // bytes symbolized so far (whole lines)
+    std::size_t done = 0;    // bytes symbolized so far (whole lines)
     bool tail_seen = false;  // an incomplete tail was there at the last look
   };
   void run_reports() {
@@ -1548,8 +1587,8 @@ struct Backend::Impl {
         const std::string added = symbolize_new(f.string(), st, flush_tail);
         if (added.empty()) continue;
         const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        std::fprintf(stderr, "rack-gui: reports: %s: bytes %zu..%zu symbolized in %.2f s\n", f.string().c_str(),
-                     before, st.done, took);
+        std::fprintf(stderr, "rack-gui: reports: %s: bytes %zu..%zu symbolized in %.2f s\n", f.string().c_str(), before,
+                     st.done, took);
         const std::lock_guard lock(greet_mutex);
         std::string& text = report_texts[f.string()];
         text += added;
@@ -1620,7 +1659,8 @@ struct Backend::Impl {
     ::unlink(tmp);
     // Its name in rack-backtrace's text is the real file's.
     const std::string t = tmp;
-    for (auto at = out.find(t); at != std::string::npos; at = out.find(t, at + file.size())) out.replace(at, t.size(), file);
+    for (auto at = out.find(t); at != std::string::npos; at = out.find(t, at + file.size()))
+      out.replace(at, t.size(), file);
     return out;
   }
 
@@ -1737,7 +1777,8 @@ struct Backend::Impl {
   std::map<uint32_t, Component> components;
   std::map<uint32_t, ClassInfo> class_infos;  // system << 24 | class id << 16 (described())
   std::map<uint32_t, std::vector<std::pair<uint64_t, Request>>> class_waiters;
-  std::vector<std::pair<int64_t, std::function<void()>>> deferred;  // worker thread only (defer())  // get_class before it is known
+  std::vector<std::pair<int64_t, std::function<void()>>>
+      deferred;  // worker thread only (defer())  // get_class before it is known
   std::map<std::string, Host> hosts;
   std::map<uint8_t, Robot> robots;
 

@@ -49,12 +49,12 @@
 namespace rack::gui {
 
 struct BackendConfig {
-  std::string lcm_url;         // TiMS network
-  std::string key_file;        // the network's link key (authenticated links); "" = none
-  std::string gdos_url;        // "" = lcm_url
-  std::string gdos_channel;    // "" = RACK_GDOS
+  std::string lcm_url;            // TiMS network
+  std::string key_file;           // the network's link key (authenticated links); "" = none
+  std::string gdos_url;           // "" = lcm_url
+  std::string gdos_channel;       // "" = RACK_GDOS
   std::vector<std::string> maps;  // --map SYSTEM=FILE or FILE (every robot)
-  std::string map_root = ".";  // where relative `map` parameters are looked up
+  std::string map_root = ".";     // where relative `map` parameters are looked up
   // Mode-switch and crash report files (rackd-*.report) of the hosts on this machine,
   // symbolized with rack-backtrace as reports are added. "" disables it.
   std::string reports_dir = "/var/tmp/rack";
@@ -63,7 +63,7 @@ struct BackendConfig {
   // A host no longer announced leaves the list (with its components) after this long;
   // until then it is shown as not answering. -1: never.
   int host_forget_ms = 30000;
-  int timeout_ms = 1000;       // a request not answered in this time fails
+  int timeout_ms = 1000;  // a request not answered in this time fails
 };
 
 class Backend {
@@ -95,11 +95,11 @@ class Backend {
   void greet(uint64_t client);
 
   struct Counters {
-    uint64_t malformed = 0;   // client messages refused (every reason)
+    uint64_t malformed = 0;                         // client messages refused (every reason)
     std::array<uint64_t, kRefusalKinds> refused{};  // by Refusal
-    uint64_t requests = 0;    // TiMS requests sent
-    uint64_t timeouts = 0;    // TiMS requests not answered in time
-    uint64_t bad_replies = 0; // replies that did not decode (GET_LATENCY), not passed on
+    uint64_t requests = 0;                          // TiMS requests sent
+    uint64_t timeouts = 0;                          // TiMS requests not answered in time
+    uint64_t bad_replies = 0;                       // replies that did not decode (GET_LATENCY), not passed on
   };
   [[nodiscard]] Counters counters() const;
 

@@ -67,7 +67,8 @@ ChildResult run_child(const std::vector<std::string>& args, const std::string& c
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
   char buf[8192];
   for (;;) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline -
+                                                                            std::chrono::steady_clock::now());
     if (left.count() <= 0) {
       r.timed_out = true;
       ::kill(pid, SIGKILL);
@@ -148,7 +149,8 @@ json check_errors(const std::string& output, const std::string& checked, const s
 
 }  // namespace
 
-ConfigService::ConfigService(ConfigServiceConfig config, Sink sink) : config_(std::move(config)), sink_(std::move(sink)) {
+ConfigService::ConfigService(ConfigServiceConfig config, Sink sink)
+    : config_(std::move(config)), sink_(std::move(sink)) {
   for (auto& d : config_.dirs) {
     std::error_code ec;
     const fs::path canonical = fs::weakly_canonical(fs::absolute(d, ec), ec);
@@ -186,8 +188,9 @@ void ConfigService::submit(uint64_t client, std::string text) {
       return;
     }
   }
-  sink_(client, json({{"type", "config"}, {"ok", false}, {"error", "busy: " + std::to_string(kMaxQueued) +
-                                                                         " configuration requests wait already"}})
+  sink_(client, json({{"type", "config"},
+                      {"ok", false},
+                      {"error", "busy: " + std::to_string(kMaxQueued) + " configuration requests wait already"}})
                     .dump());
 }
 
@@ -309,7 +312,8 @@ std::string ConfigService::handle(std::string_view text) {
       if (!class_info_) {
         std::vector<rack::deploy::ClassInfo> classes;
         std::string why;
-        if (rack::tools::classes_from_rackd(rackd_program(), classes, why, config_.timeout_ms)) class_info_ = std::move(classes);
+        if (rack::tools::classes_from_rackd(rackd_program(), classes, why, config_.timeout_ms))
+          class_info_ = std::move(classes);
         else r["classes_error"] = why + ": every parameter naming a component is taken for a flow";
       }
       const rack::deploy::Deployment d = rack::deploy::build(std::move(hosts), class_info_ ? &*class_info_ : nullptr);
@@ -321,15 +325,15 @@ std::string ConfigService::handle(std::string_view text) {
       if (live != request.end() && live->is_boolean() && live->get<bool>()) {
         // What the network says, by rackctl on rack-gui's network (two discoveries).
         std::vector<std::string> base{rackctl_program(), "--lcm", config_.lcm_url, "--discover-ms", "500",
-                                      "--timeout", "500"};
+                                      "--timeout",       "500"};
         if (!config_.key_file.empty()) base.insert(base.end(), {"--key-file", config_.key_file});
         auto with = [&](std::vector<std::string> tail) {
           std::vector<std::string> args = base;
           args.insert(args.end(), tail.begin(), tail.end());
           return args;
         };
-        const ChildResult g = run_child(with({"graph", "--live", "--format", "json", "--rackd", rackd_program(), dir}), "",
-                                        false, config_.timeout_ms);
+        const ChildResult g = run_child(with({"graph", "--live", "--format", "json", "--rackd", rackd_program(), dir}),
+                                        "", false, config_.timeout_ms);
         const ChildResult dd = run_child(with({"graph", "--live", "--rackd", rackd_program(), dir}), "", false,
                                          config_.timeout_ms);
         const ChildResult a = run_child(with({"alloc", "--live", "--rackd", rackd_program(), dir}), "", false,
@@ -366,7 +370,8 @@ std::string ConfigService::handle(std::string_view text) {
       const ChildResult c = run_child({rackd_program(), "--list-classes", "--json"}, "", false, config_.timeout_ms);
       json classes = json::parse(c.out, nullptr, false);
       if (c.exit_code != 0 || !classes.is_array()) {
-        return refuse("'" + rackd_program() + " --list-classes --json' failed (exit " + std::to_string(c.exit_code) + ")");
+        return refuse("'" + rackd_program() + " --list-classes --json' failed (exit " + std::to_string(c.exit_code) +
+                      ")");
       }
       r["ok"] = true;
       r["classes"] = classes;
@@ -417,8 +422,9 @@ std::string ConfigService::handle(std::string_view text) {
       r["errors"] = check_errors(c.out, tmp, path);
       r["file"] = path;
       if (c.exit_code != 0 && r["errors"].empty()) {
-        r["errors"].push_back({{"line", 0}, {"column", 0},
-                               {"message", c.timed_out ? "rackd --check did not finish in time"
+        r["errors"].push_back({{"line", 0},
+                               {"column", 0},
+                               {"message", c.timed_out          ? "rackd --check did not finish in time"
                                            : c.exit_code == 127 ? "cannot run " + rackd_program()
                                                                 : c.out.substr(0, 1024)}});
       }
@@ -426,13 +432,15 @@ std::string ConfigService::handle(std::string_view text) {
       if (op == "config_save") {
         r["saved"] = false;
         if (c.exit_code == 0) {
-          if (::rename(tmp.c_str(), path.c_str()) != 0) return refuse("cannot replace " + path + ": " + std::strerror(errno));
+          if (::rename(tmp.c_str(), path.c_str()) != 0)
+            return refuse("cannot replace " + path + ": " + std::strerror(errno));
           keep = true;
           r["saved"] = true;
         }
       }
     } else {
-      return refuse("unknown op '" + op + "' (config_files, config_graph, config_classes, config_load, config_check, config_save)");
+      return refuse("unknown op '" + op +
+                    "' (config_files, config_graph, config_classes, config_load, config_check, config_save)");
     }
   } catch (const std::exception& e) {
     return refuse(std::string("internal error: ") + e.what());

@@ -53,10 +53,10 @@ struct ConfigServiceConfig {
   std::string dot_path = "dot";   // graphviz
   // The live view (config_graph with "live": true) runs `rackctl graph --live` and
   // `rackctl alloc --live` on rack-gui's own network.
-  std::string rackctl_path;       // "" = beside rack-gui, else on PATH
-  std::string lcm_url;            // rack-gui's TiMS network
-  std::string key_file;           // its key file ("" = none)
-  int timeout_ms = 10000;         // a child process running longer is killed
+  std::string rackctl_path;  // "" = beside rack-gui, else on PATH
+  std::string lcm_url;       // rack-gui's TiMS network
+  std::string key_file;      // its key file ("" = none)
+  int timeout_ms = 10000;    // a child process running longer is killed
 };
 
 class ConfigService {

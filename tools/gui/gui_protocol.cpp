@@ -95,7 +95,8 @@ uint8_t system_of(const json& msg) {
   const json& v = msg.at("system");
   if (!v.is_number_integer()) throw Bad{"key 'system': expected an integer 0..254, got " + type_of(v)};
   const auto s = as_int64(v);
-  if (!s || *s < 0 || *s > 254) throw Bad{"key 'system': " + quote(v.dump()) + " is not a robot's system number 0..254"};
+  if (!s || *s < 0 || *s > 254)
+    throw Bad{"key 'system': " + quote(v.dump()) + " is not a robot's system number 0..254"};
   return static_cast<uint8_t>(*s);
 }
 
@@ -164,7 +165,8 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
   } catch (const Bad& b) {
     return ParseError{std::nullopt, b.message, b.reason};
   }
-  if (!msg.is_object()) return ParseError{std::nullopt, "expected a JSON object, got " + type_of(msg), Refusal::kNotObject};
+  if (!msg.is_object())
+    return ParseError{std::nullopt, "expected a JSON object, got " + type_of(msg), Refusal::kNotObject};
   Request r;
   if (const auto it = msg.find("id"); it != msg.end()) {
     if (!it->is_number_integer()) {
@@ -176,7 +178,8 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
   }
   const auto op_it = msg.find("op");
   if (op_it == msg.end()) return ParseError{r.id, "missing key 'op'", Refusal::kBadOp};
-  if (!op_it->is_string()) return ParseError{r.id, "key 'op': expected a string, got " + type_of(*op_it), Refusal::kBadOp};
+  if (!op_it->is_string())
+    return ParseError{r.id, "key 'op': expected a string, got " + type_of(*op_it), Refusal::kBadOp};
   const auto& op_text = op_it->get_ref<const std::string&>();
   const OpSpec* spec = nullptr;
   for (const auto& s : specs()) {
@@ -216,7 +219,8 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
         const json& f = msg.at("fields");
         if (!f.is_object()) throw Bad{"key 'fields': expected an object of field: value, got " + type_of(f)};
         if (f.size() > kMaxCommandFields) {
-          throw Bad{"key 'fields': " + std::to_string(f.size()) + " fields, at most " + std::to_string(kMaxCommandFields)};
+          throw Bad{"key 'fields': " + std::to_string(f.size()) + " fields, at most " +
+                    std::to_string(kMaxCommandFields)};
         }
         for (const auto& [key, value] : f.items()) {
           if (key.empty() || key.size() > kMaxFieldName) {
@@ -304,8 +308,8 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
                                return (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '_';
                              });
         if (!name_ok) {
-          throw Bad{"key 'command': '" + quote(name) + "' is not a command name (1.." + std::to_string(kMaxCommandName) +
-                    " of A-Z, 0-9, _)"};
+          throw Bad{"key 'command': '" + quote(name) + "' is not a command name (1.." +
+                    std::to_string(kMaxCommandName) + " of A-Z, 0-9, _)"};
         }
         r.command = name;
         r.body = msg.at("body");
@@ -377,7 +381,8 @@ std::optional<std::string> field_text(const json& v) {
 
 }  // namespace
 
-std::string encode_command_body(const json& body, const rack::TypeDescription* type, std::vector<std::byte>& out) noexcept {
+std::string encode_command_body(const json& body, const rack::TypeDescription* type,
+                                std::vector<std::byte>& out) noexcept {
   try {
     if (!body.is_object()) return "body: expected an object, got " + type_of(body);
     if (type == nullptr) {
@@ -390,12 +395,16 @@ std::string encode_command_body(const json& body, const rack::TypeDescription* t
       // (not a structured binding: clang 14, the fuzzing compiler, cannot capture one)
       const std::string& key = item.key();
       const json& value = item.value();
-      const auto f = std::find_if(fields.begin(), fields.end(), [&key](const tims::FieldDesc& d) { return key == d.name; });
+      const auto f = std::find_if(fields.begin(), fields.end(),
+                                  [&key](const tims::FieldDesc& d) { return key == d.name; });
       if (f == fields.end()) return "field '" + quote(key) + "': " + type->name + " has no such field";
       const auto text = field_text(value);
-      if (!text) return "field '" + quote(key) + "': expected a number, boolean, string or array of numbers, got " + type_of(value);
+      if (!text)
+        return "field '" + quote(key) + "': expected a number, boolean, string or array of numbers, got " +
+               type_of(value);
       if (value.is_array() && value.size() > f->count) {
-        return "field '" + quote(key) + "': " + std::to_string(value.size()) + " elements, at most " + std::to_string(f->count);
+        return "field '" + quote(key) + "': " + std::to_string(value.size()) + " elements, at most " +
+               std::to_string(f->count);
       }
       const std::string why = rack::set_field_from_text(*f, out, *text);
       if (!why.empty()) return "field '" + quote(key) + "': " + quote(why);

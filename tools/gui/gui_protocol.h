@@ -87,9 +87,9 @@ inline constexpr int kMaxRequestDepth = 8;     // objects and arrays inside each
 inline constexpr std::size_t kMaxQuoted = 64;  // bytes of a client's text quoted back
 
 // Limits a browser may ask for; the chassis clamps to its own limits as well.
-inline constexpr double kMaxJoystickSpeed = 5.0;   // m/s
-inline constexpr double kMaxJoystickOmega = 10.0;  // rad/s
-inline constexpr double kMaxCoordinate = 1.0e6;    // m: anything larger is a mistake
+inline constexpr double kMaxJoystickSpeed = 5.0;      // m/s
+inline constexpr double kMaxJoystickOmega = 10.0;     // rad/s
+inline constexpr double kMaxCoordinate = 1.0e6;       // m: anything larger is a mistake
 inline constexpr std::size_t kMaxCommandFields = 64;  // "fields" of a command
 inline constexpr std::size_t kMaxFieldName = 64;      // bytes of a field name
 inline constexpr std::size_t kMaxFieldText = 4096;    // bytes of a field's value text
@@ -97,20 +97,20 @@ inline constexpr double kMaxTraceSeconds = 10.0;      // a live trace from the d
 
 struct Request {
   Op op = Op::kSwitch;
-  std::optional<int64_t> id;   // echoed in the result
-  tims::Address component;     // switch, get_params, set_param (command mailbox)
-  uint8_t system = 0;          // robot-wide ops
-  bool on = false;             // switch
-  std::string param_name;      // set_param
-  nlohmann::json param_value;  // set_param: checked against the kind later
-  double x = 0.0, y = 0.0, phi = 0.0;  // set_destination, set_pose
-  double vx = 0.0, omega = 0.0;        // joystick
-  std::string command_name;            // command: the name its class describes
+  std::optional<int64_t> id;                                // echoed in the result
+  tims::Address component;                                  // switch, get_params, set_param (command mailbox)
+  uint8_t system = 0;                                       // robot-wide ops
+  bool on = false;                                          // switch
+  std::string param_name;                                   // set_param
+  nlohmann::json param_value;                               // set_param: checked against the kind later
+  double x = 0.0, y = 0.0, phi = 0.0;                       // set_destination, set_pose
+  double vx = 0.0, omega = 0.0;                             // joystick
+  std::string command_name;                                 // command: the name its class describes
   std::vector<std::pair<std::string, std::string>> fields;  // command: field -> value text
-  std::string host;                    // trace: the host's name ("" = the robot's only host)
-  double duration_s = 0.0;             // trace
-  std::string command;          // command: the class command's name (upper case)
-  nlohmann::json body;          // command: an object of field values, checked later
+  std::string host;                                         // trace: the host's name ("" = the robot's only host)
+  double duration_s = 0.0;                                  // trace
+  std::string command;                                      // command: the class command's name (upper case)
+  nlohmann::json body;                                      // command: an object of field values, checked later
 };
 
 // Why a client message was refused (counted per reason by the server).

@@ -68,7 +68,8 @@ struct HttpServer::Impl : std::enable_shared_from_this<HttpServer::Impl> {
   // One HTTP connection; hands itself to a WsSession on an upgrade to /ws.
   class HttpSession : public std::enable_shared_from_this<HttpSession> {
    public:
-    HttpSession(std::shared_ptr<Impl> server, tcp::socket socket) : server_(std::move(server)), stream_(std::move(socket)) {}
+    HttpSession(std::shared_ptr<Impl> server, tcp::socket socket)
+        : server_(std::move(server)), stream_(std::move(socket)) {}
     void start() { read(); }
 
    private:

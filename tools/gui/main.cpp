@@ -217,10 +217,11 @@ int main(int argc, char** argv) {
     // The configuration tool's requests ("op":"config_*") have their own service.
     config_dirs.lcm_url = config.lcm_url;
     config_dirs.key_file = config.key_file;
-    auto config_service = std::make_unique<rack::gui::ConfigService>(
-        config_dirs, [&server_ptr](uint64_t client, std::string m) {
-          if (server_ptr != nullptr) server_ptr->send(client, std::move(m));
-        });
+    auto config_service = std::make_unique<rack::gui::ConfigService>(config_dirs,
+                                                                     [&server_ptr](uint64_t client, std::string m) {
+                                                                       if (server_ptr != nullptr)
+                                                                         server_ptr->send(client, std::move(m));
+                                                                     });
     handlers.message = [&backend, &config_service](uint64_t c, const std::string& text) {
       if (rack::gui::ConfigService::handles(text)) config_service->submit(c, text);
       else backend.submit(c, text);
@@ -231,7 +232,8 @@ int main(int argc, char** argv) {
         backend.refused(c, rack::gui::Refusal::kBinary,
                         "binary WebSocket message of " + std::to_string(bytes) + " bytes; the protocol is JSON text");
       } else if (why == rack::gui::FrameRefusal::kNotUtf8) {
-        backend.refused(c, rack::gui::Refusal::kNotJson, "WebSocket text message is not UTF-8; connection closed (1007)");
+        backend.refused(c, rack::gui::Refusal::kNotJson,
+                        "WebSocket text message is not UTF-8; connection closed (1007)");
       } else {
         backend.refused(c, rack::gui::Refusal::kTooLarge,
                         "WebSocket message over " + std::to_string(rack::gui::HttpServer::kMaxMessage) +
@@ -258,15 +260,18 @@ int main(int argc, char** argv) {
     std::string by_reason;
     for (std::size_t k = 0; k < c.refused.size(); ++k) {
       if (c.refused[k] == 0) continue;
-      by_reason += (by_reason.empty() ? " (" : ", ") + std::string(rack::gui::describe(static_cast<rack::gui::Refusal>(k))) +
-                   " " + std::to_string(c.refused[k]);
+      by_reason += (by_reason.empty() ? " (" : ", ") +
+                   std::string(rack::gui::describe(static_cast<rack::gui::Refusal>(k))) + " " +
+                   std::to_string(c.refused[k]);
     }
     if (!by_reason.empty()) by_reason += ")";
-    std::fprintf(stderr, "rack-gui: stopped; %llu request(s) sent, %llu not answered in time, %llu malformed client message(s)%s, "
-                 "%llu malformed reply(ies)\n",
-                 static_cast<unsigned long long>(c.requests), static_cast<unsigned long long>(c.timeouts),
-                 static_cast<unsigned long long>(c.malformed), by_reason.c_str(),
-                 static_cast<unsigned long long>(c.bad_replies));
+    std::fprintf(
+        stderr,
+        "rack-gui: stopped; %llu request(s) sent, %llu not answered in time, %llu malformed client message(s)%s, "
+        "%llu malformed reply(ies)\n",
+        static_cast<unsigned long long>(c.requests), static_cast<unsigned long long>(c.timeouts),
+        static_cast<unsigned long long>(c.malformed), by_reason.c_str(),
+        static_cast<unsigned long long>(c.bad_replies));
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rack-gui: %s\n", e.what());
     return 1;

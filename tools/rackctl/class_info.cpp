@@ -86,7 +86,8 @@ bool classes_from_rackd(const std::string& rackd, std::vector<rack::deploy::Clas
   bool timed_out = false;
   char buf[8192];
   for (;;) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline -
+                                                                            std::chrono::steady_clock::now());
     if (left.count() <= 0) {
       timed_out = true;
       ::kill(pid, SIGKILL);
@@ -110,7 +111,7 @@ bool classes_from_rackd(const std::string& rackd, std::vector<rack::deploy::Clas
   }
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
     why = WIFEXITED(status) && WEXITSTATUS(status) == 127 ? "cannot run " + rackd
-                                                           : rackd + " --list-classes --json failed";
+                                                          : rackd + " --list-classes --json failed";
     return false;
   }
   if (!parse_class_list(text, out, why)) {

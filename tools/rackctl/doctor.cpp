@@ -232,8 +232,7 @@ DoctorCheck check_preempt_rt(const fs::path& root) {
   const auto realtime = read_text(under(root, "/sys/kernel/realtime"));
   const auto version = read_text(under(root, "/proc/version"));
   const std::string kernel = version ? first_line(*version) : std::string("unknown kernel");
-  if ((realtime && first_line(*realtime) == "1") ||
-      (version && version->find("PREEMPT_RT") != std::string::npos)) {
+  if ((realtime && first_line(*realtime) == "1") || (version && version->find("PREEMPT_RT") != std::string::npos)) {
     c.found = "PREEMPT_RT kernel";
     return c;
   }
@@ -250,15 +249,17 @@ DoctorCheck check_cpu_dma_latency(const fs::path& root) {
   if (!fs::exists(p, ec)) {
     c.verdict = Verdict::kWarn;
     c.found = p.string() + " does not exist: rackd cannot keep the CPUs out of deep idle states";
-    c.fix = "a kernel with CONFIG_CPU_IDLE / PM QoS (Debian's have it); in a container, bind-mount /dev/cpu_dma_latency";
+    c.fix =
+        "a kernel with CONFIG_CPU_IDLE / PM QoS (Debian's have it); in a container, bind-mount /dev/cpu_dma_latency";
     return c;
   }
   if (::access(p.c_str(), W_OK) != 0) {
     c.verdict = Verdict::kWarn;
     c.found = p.string() + " is not writable by this user (" + std::strerror(errno) +
               "): rackd's cpu_dma_latency_us is not held";
-    c.fix = "as root: echo 'KERNEL==\"cpu_dma_latency\", GROUP=\"realtime\", MODE=\"0660\"' > "
-            "/etc/udev/rules.d/99-cpu-dma-latency.rules; udevadm trigger (and be in group realtime)";
+    c.fix =
+        "as root: echo 'KERNEL==\"cpu_dma_latency\", GROUP=\"realtime\", MODE=\"0660\"' > "
+        "/etc/udev/rules.d/99-cpu-dma-latency.rules; udevadm trigger (and be in group realtime)";
     return c;
   }
   c.found = p.string() + " writable";

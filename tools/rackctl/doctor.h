@@ -15,7 +15,7 @@ enum class Verdict { kOk, kWarn, kFail };
 [[nodiscard]] const char* describe(Verdict v) noexcept;  // "ok", "WARN", "FAIL"
 
 struct DoctorCheck {
-  std::string name;   // short key, e.g. "rt-priority"
+  std::string name;  // short key, e.g. "rt-priority"
   Verdict verdict = Verdict::kOk;
   std::string found;  // what was read, with where from
   std::string fix;    // what to do (empty when ok)

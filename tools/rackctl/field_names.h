@@ -25,7 +25,7 @@ namespace rack::tools {
 // class declares (ClassDescription::value_names, from GET_CLASS); empty when none
 // of those fields is in `sample`.
 [[nodiscard]] std::string field_names_json(std::span<const FieldNamesDescription> names,
-                                           std::span<const tims::FieldDesc> fields,
-                                           std::span<const std::byte> sample, bool native);
+                                           std::span<const tims::FieldDesc> fields, std::span<const std::byte> sample,
+                                           bool native);
 
 }  // namespace rack::tools

@@ -74,7 +74,7 @@ namespace tims = rack::tims;
 namespace wire = rack::wire;
 
 constexpr int kExitOk = 0;
-constexpr int kExitError = 1;        // the component answered ERROR
+constexpr int kExitError = 1;  // the component answered ERROR
 constexpr int kExitUsage = 2;
 constexpr int kExitUnavailable = 3;  // NOT_AVAILABLE, unknown name, timeout
 
@@ -166,17 +166,17 @@ struct Options {
   bool json = false;
   bool help = false;
   bool version = false;
-  int64_t time_ns = 0;     // get-data --time
-  double period_ms = 0.0;  // watch --period
-  int64_t count = 0;       // watch --count (0: until SIGINT/SIGTERM); hz/bw: reports
-  int64_t window = 0;      // hz/bw --window (0: the command's default)
-  std::optional<int64_t> i64;  // send --i64: an 8-byte body
-  double duration_s = 0.0;  // trace --duration
-  std::string out;          // trace --out
-  std::string host;         // trace --host
-  std::string format = "dot";  // graph --format: dot | svg | json
-  bool live = false;        // graph/alloc --live
-  std::string rackd;        // graph/alloc --rackd: whose classes (default: beside rackctl)
+  int64_t time_ns = 0;          // get-data --time
+  double period_ms = 0.0;       // watch --period
+  int64_t count = 0;            // watch --count (0: until SIGINT/SIGTERM); hz/bw: reports
+  int64_t window = 0;           // hz/bw --window (0: the command's default)
+  std::optional<int64_t> i64;   // send --i64: an 8-byte body
+  double duration_s = 0.0;      // trace --duration
+  std::string out;              // trace --out
+  std::string host;             // trace --host
+  std::string format = "dot";   // graph --format: dot | svg | json
+  bool live = false;            // graph/alloc --live
+  std::string rackd;            // graph/alloc --rackd: whose classes (default: beside rackctl)
   std::set<std::string> given;  // command-specific options seen (checked per command)
   std::string command;
   std::vector<std::string> args;
@@ -249,12 +249,10 @@ using rack::client::default_lcm_url;
 
 struct Target {
   Address address;
-  std::string name;  // from the host file; empty when given as an address
+  std::string name;          // from the host file; empty when given as an address
   std::string class_name{};  // from its class description; empty: TiMS' name
   [[nodiscard]] std::string address_text() const { return ::address_text(address, class_name); }
-  [[nodiscard]] std::string label() const {
-    return name.empty() ? address_text() : name + " " + address_text();
-  }
+  [[nodiscard]] std::string label() const { return name.empty() ? address_text() : name + " " + address_text(); }
 };
 
 rack::client::SessionConfig session_config(const Options& o) {
@@ -307,9 +305,8 @@ class Session : public rack::client::Session {
     }
     const auto found = find_component(text);
     if (!found) {
-      fail(kExitUnavailable, format("no component named '%s' answered discovery within %lld ms on %s",
-                                    text.c_str(), static_cast<long long>(options_.discover_ms),
-                                    url().c_str()));
+      fail(kExitUnavailable, format("no component named '%s' answered discovery within %lld ms on %s", text.c_str(),
+                                    static_cast<long long>(options_.discover_ms), url().c_str()));
     }
     Target t{found->address.component(), found->name, ""};
     name_class(t);
@@ -325,11 +322,11 @@ class Session : public rack::client::Session {
     switch (r.status) {
       case CallStatus::kOk: break;
       case CallStatus::kTimeout:
-        fail(kExitUnavailable, format("%s: no reply to %s within %lld ms, %lld attempt(s) (is its rackd running on %s?)",
-                                      t.label().c_str(), what, static_cast<long long>(options_.timeout_ms),
-                                      static_cast<long long>(options_.retries + 1), url().c_str()));
-      default:
-        fail(kExitUnavailable, t.label() + ": " + what + ": " + tims::describe(r.status));
+        fail(kExitUnavailable,
+             format("%s: no reply to %s within %lld ms, %lld attempt(s) (is its rackd running on %s?)",
+                    t.label().c_str(), what, static_cast<long long>(options_.timeout_ms),
+                    static_cast<long long>(options_.retries + 1), url().c_str()));
+      default: fail(kExitUnavailable, t.label() + ": " + what + ": " + tims::describe(r.status));
     }
     if (r.reply.type == msg::kNotAvailable) {
       fail(kExitUnavailable, t.label() + ": NOT_AVAILABLE (no such component on a running host)");
@@ -346,8 +343,8 @@ class Session : public rack::client::Session {
   static void expect(const Target& t, const CallResult& r, int8_t expected, const char* what) {
     if (r.reply.type == expected) return;
     if (r.reply.type == msg::kError) fail(kExitError, t.label() + ": " + what + ": " + error_reason(r.body));
-    fail(kExitError, format("%s: %s: unexpected reply %s (%d)", t.label().c_str(), what,
-                            reply_name(r.reply.type), r.reply.type));
+    fail(kExitError,
+         format("%s: %s: unexpected reply %s (%d)", t.label().c_str(), what, reply_name(r.reply.type), r.reply.type));
   }
 
  private:
@@ -382,11 +379,11 @@ int cmd_list(Session& s, const Options& o) {
   const auto hosts = s.discover([](const std::vector<tims::HostInfo>&) { return false; });
   std::vector<Row> rows;
   for (const auto& h : hosts) {
-    for (const auto& c : h.components) rows.push_back(Row{c, h.host + " (pid " + std::to_string(h.pid) + ")", "no reply"});
+    for (const auto& c : h.components)
+      rows.push_back(Row{c, h.host + " (pid " + std::to_string(h.pid) + ")", "no reply"});
   }
-  std::sort(rows.begin(), rows.end(), [](const Row& a, const Row& b) {
-    return a.info.address.raw() < b.info.address.raw();
-  });
+  std::sort(rows.begin(), rows.end(),
+            [](const Row& a, const Row& b) { return a.info.address.raw() < b.info.address.raw(); });
   if (rows.empty()) {
     fail(kExitUnavailable, format("no rackd answered discovery within %lld ms on %s",
                                   static_cast<long long>(o.discover_ms), s.url().c_str()));
@@ -401,7 +398,8 @@ int cmd_list(Session& s, const Options& o) {
     ++answered;
   });
   if (answered < rows.size()) {
-    std::fprintf(stderr, "rackctl: list: %zu of %zu component(s) did not answer GET_STATUS (%lld attempt(s) of %lld ms)\n",
+    std::fprintf(stderr,
+                 "rackctl: list: %zu of %zu component(s) did not answer GET_STATUS (%lld attempt(s) of %lld ms)\n",
                  rows.size() - answered, rows.size(), static_cast<long long>(o.retries + 1),
                  static_cast<long long>(o.timeout_ms));
   }
@@ -411,8 +409,7 @@ int cmd_list(Session& s, const Options& o) {
     for (std::size_t i = 0; i < rows.size(); ++i) {
       const auto& r = rows[i];
       out += (i == 0 ? "" : ",") + std::string("{\"address\":") + quoted(address_text(r.info.address, r.cls)) +
-             ",\"name\":" + quoted(r.info.name) + ",\"class\":" +
-             quoted(r.cls) + ",\"impl\":" + quoted(r.info.impl) +
+             ",\"name\":" + quoted(r.info.name) + ",\"class\":" + quoted(r.cls) + ",\"impl\":" + quoted(r.info.impl) +
              ",\"state\":" + quoted(r.state) + ",\"host\":" + quoted(r.host) + "}";
     }
     std::printf("%s]\n", out.c_str());
@@ -449,8 +446,8 @@ int cmd_hosts(Session& s, const Options& o) {
     std::printf("%s]\n", out.c_str());
     return kExitOk;
   }
-  std::printf("%-18s %-6s %-7s %-14s %-8s %-10s %-10s %s\n", "HOST", "SYSTEM", "HOST_ID", "ROLE", "PID",
-              "COMPONENTS", "NETWORK", "SEEN");
+  std::printf("%-18s %-6s %-7s %-14s %-8s %-10s %-10s %s\n", "HOST", "SYSTEM", "HOST_ID", "ROLE", "PID", "COMPONENTS",
+              "NETWORK", "SEEN");
   for (const auto& h : hosts) {
     std::printf("%-18s %-6u %-7u %-14s %-8d %-10zu %-10s %lld ms ago\n", h.host.c_str(), h.system, h.host_id,
                 tims::describe(h.role), h.pid, h.components.size(), h.network.c_str(),
@@ -481,7 +478,8 @@ int cmd_trace(Session& s, const Options& o) {
 
   // Which host: the one with the named components, --host, or the only one there is.
   const auto holds = [&](const tims::HostInfo& h, const std::string& n) {
-    return std::any_of(h.components.begin(), h.components.end(), [&](const tims::ComponentInfo& c) { return c.name == n; });
+    return std::any_of(h.components.begin(), h.components.end(),
+                       [&](const tims::ComponentInfo& c) { return c.name == n; });
   };
   const auto pick = [&](const std::vector<tims::HostInfo>& hosts) -> const tims::HostInfo* {
     for (const auto& h : hosts) {
@@ -490,9 +488,8 @@ int cmd_trace(Session& s, const Options& o) {
     }
     return nullptr;
   };
-  const auto hosts = s.discover([&](const std::vector<tims::HostInfo>& hs) {
-    return (!all || !o.host.empty()) && pick(hs) != nullptr;
-  });
+  const auto hosts = s.discover(
+      [&](const std::vector<tims::HostInfo>& hs) { return (!all || !o.host.empty()) && pick(hs) != nullptr; });
   if (all && o.host.empty() && hosts.size() > 1) {
     std::string list;
     for (const auto& h : hosts) list += (list.empty() ? "" : ", ") + h.host;
@@ -503,8 +500,8 @@ int cmd_trace(Session& s, const Options& o) {
     std::string what = all ? "no host" : "no host with every component of '" + joined + "'";
     if (!o.host.empty()) what += " named '" + o.host + "'";
     fail(kExitUnavailable, format("%s answered discovery within %lld ms on %s (components on several hosts: trace "
-                                  "each host on its own)", what.c_str(), static_cast<long long>(o.discover_ms),
-                                  s.url().c_str()));
+                                  "each host on its own)",
+                                  what.c_str(), static_cast<long long>(o.discover_ms), s.url().c_str()));
   }
   const Address exec = host->executor;
   const Target t{Address::make(exec.system(), exec.class_id(), exec.instance(), rtrace::kTraceMailbox),
@@ -522,7 +519,8 @@ int cmd_trace(Session& s, const Options& o) {
   uint64_t dropped = 0;
   const int64_t give_up = rt::monotonic_ns() + req.duration_ns + 30 * rt::kNsPerSec;
   for (;;) {
-    if (rt::monotonic_ns() > give_up) fail(kExitUnavailable, t.label() + ": the trace was not ready 30 s after its end");
+    if (rt::monotonic_ns() > give_up)
+      fail(kExitUnavailable, t.label() + ": the trace was not ready 30 s after its end");
     rtrace::TraceReadRequest rr;
     rr.offset = json.size();
     r = s.call(t, rtrace::kTraceRead, rr);
@@ -530,13 +528,15 @@ int cmd_trace(Session& s, const Options& o) {
     rtrace::TraceChunkHeader head;
     if (r.body.size() < sizeof head) fail(kExitError, t.label() + ": TRACE_READ reply too short");
     std::memcpy(&head, r.body.data(), sizeof head);
-    if (head.length > r.body.size() - sizeof head) fail(kExitError, t.label() + ": TRACE_READ chunk longer than its reply");
+    if (head.length > r.body.size() - sizeof head)
+      fail(kExitError, t.label() + ": TRACE_READ chunk longer than its reply");
     const auto state = static_cast<rtrace::TraceState>(head.state);
     if (state == rtrace::TraceState::kRecording) {
       rt::sleep_for(std::clamp<int64_t>(head.remaining_ns, 10 * rt::kNsPerMs, 200 * rt::kNsPerMs));
       continue;
     }
-    if (state != rtrace::TraceState::kReady) fail(kExitError, t.label() + ": the trace was discarded (see rackd's log)");
+    if (state != rtrace::TraceState::kReady)
+      fail(kExitError, t.label() + ": the trace was discarded (see rackd's log)");
     if (head.offset != json.size()) fail(kExitError, t.label() + ": TRACE_READ answered another offset");
     json.append(reinterpret_cast<const char*>(r.body.data() + sizeof head), head.length);
     dropped = head.dropped;
@@ -567,8 +567,7 @@ std::string us(int64_t ns) { return double_text(static_cast<double>(ns) / 1000.0
 // The executor's latency statistics count everything from 10 ms on in one open bucket
 // (rack/rt/latency_stats.h), whose percentiles come back as its upper edge, 10.001 ms:
 // such a percentile is ">= 10 ms", not a measured 10001 us.
-constexpr int64_t kOpenLatencyNs =
-    static_cast<int64_t>(rt::LatencyStats::kBuckets - 1) * rt::LatencyStats::kBucketNs;
+constexpr int64_t kOpenLatencyNs = static_cast<int64_t>(rt::LatencyStats::kBuckets - 1) * rt::LatencyStats::kBucketNs;
 bool in_open_bucket(int64_t p_ns, int64_t max_ns) { return rack::tools::in_open_bucket(p_ns, max_ns, kOpenLatencyNs); }
 // A latency for people: 3 significant digits and its unit ("37.0 us", "1.25 ms"); the
 // JSON keeps the exact microseconds.
@@ -590,8 +589,7 @@ std::string open_bucket_json(int64_t p50, int64_t p99, int64_t p999, int64_t max
 int cmd_status(Session& s, const Options& o) {
   const Target t = s.resolve(o.args[0]);
   const CallResult status = s.call(t, msg::kGetStatus);
-  if (status.reply.type != msg::kEnabled && status.reply.type != msg::kDisabled &&
-      status.reply.type != msg::kError) {
+  if (status.reply.type != msg::kEnabled && status.reply.type != msg::kDisabled && status.reply.type != msg::kError) {
     Session::expect(t, status, msg::kEnabled, "GET_STATUS");
   }
   const std::string state = state_name(status.reply.type);
@@ -599,30 +597,29 @@ int cmd_status(Session& s, const Options& o) {
   Session::expect(t, r, msg::kStats, "GET_STATS");
   wire::StatsReply st;
   if (!wire::read_payload(r.body, tims::body_is_native(r.reply), st)) {
-    fail(kExitError, format("%s: GET_STATS: reply of %zu bytes, expected %zu", t.label().c_str(), r.body.size(),
-                            sizeof st));
+    fail(kExitError,
+         format("%s: GET_STATS: reply of %zu bytes, expected %zu", t.label().c_str(), r.body.size(), sizeof st));
   }
   const char* mode = rack::describe(static_cast<rack::DataTaskMode>(st.data_task));
   if (o.json) {
-    std::string j = "{\"component\":" + quoted(t.address_text()) + ",\"name\":" +
-                    (t.name.empty() ? std::string("null") : quoted(t.name)) + ",\"state\":" + quoted(state) +
-                    ",\"data_task\":" + quoted(mode) + ",\"period_ns\":" + std::to_string(st.period_ns) +
-                    ",\"cycles\":" + std::to_string(st.data.cycles) +
+    std::string j = "{\"component\":" + quoted(t.address_text()) +
+                    ",\"name\":" + (t.name.empty() ? std::string("null") : quoted(t.name)) +
+                    ",\"state\":" + quoted(state) + ",\"data_task\":" + quoted(mode) +
+                    ",\"period_ns\":" + std::to_string(st.period_ns) + ",\"cycles\":" + std::to_string(st.data.cycles) +
                     ",\"overruns\":" + std::to_string(st.data.overruns) +
                     ",\"latency_us\":{\"min\":" + us(st.data.latency_min_ns) +
                     ",\"p50\":" + us(st.data.latency_p50_ns) + ",\"p99\":" + us(st.data.latency_p99_ns) +
                     ",\"p99.9\":" + us(st.data.latency_p999_ns) + ",\"max\":" + us(st.data.latency_max_ns) +
-                    ",\"mean\":" + us(st.data.latency_mean_ns) + ",\"samples\":" +
-                    std::to_string(st.data.samples) +
+                    ",\"mean\":" + us(st.data.latency_mean_ns) + ",\"samples\":" + std::to_string(st.data.samples) +
                     open_bucket_json(st.data.latency_p50_ns, st.data.latency_p99_ns, st.data.latency_p999_ns,
                                      st.data.latency_max_ns) +
-                    "}" + ",\"execution_us\":{\"p50\":" + us(st.exec_p50_ns) +
-                    ",\"p99\":" + us(st.exec_p99_ns) + ",\"max\":" + us(st.exec_max_ns) +
-                    ",\"samples\":" + std::to_string(st.exec_samples) + "}" + ",\"published\":" + std::to_string(st.published) +
+                    "}" + ",\"execution_us\":{\"p50\":" + us(st.exec_p50_ns) + ",\"p99\":" + us(st.exec_p99_ns) +
+                    ",\"max\":" + us(st.exec_max_ns) + ",\"samples\":" + std::to_string(st.exec_samples) + "}" +
+                    ",\"published\":" + std::to_string(st.published) +
                     ",\"listeners\":" + std::to_string(st.listeners) +
                     ",\"listener_drops\":" + std::to_string(st.listener_drops) +
-                    ",\"malformed\":" + std::to_string(st.malformed) +
-                    ",\"commands\":" + std::to_string(st.commands) + ",\"errors\":" + std::to_string(st.errors) +
+                    ",\"malformed\":" + std::to_string(st.malformed) + ",\"commands\":" + std::to_string(st.commands) +
+                    ",\"errors\":" + std::to_string(st.errors) +
                     ",\"command_drops\":" + std::to_string(st.command_drops) +
                     ",\"page_faults_after_startup\":{\"command_task\":" +
                     ((st.faults_measured & 1) != 0 ? "{\"minor\":" + std::to_string(st.command_minor_faults) +
@@ -632,13 +629,12 @@ int cmd_status(Session& s, const Options& o) {
                     ((st.faults_measured & 2) != 0 ? "{\"minor\":" + std::to_string(st.data_minor_faults) +
                                                          ",\"major\":" + std::to_string(st.data_major_faults) + "}"
                                                    : std::string("null")) +
-                    "}" +
-                    ",\"access_denied\":" + std::to_string(st.access_denied) +
+                    "}" + ",\"access_denied\":" + std::to_string(st.access_denied) +
                     ",\"input_forged\":" + std::to_string(st.input_forged) +
                     ",\"input_requests\":" + std::to_string(st.input_requests) +
                     ",\"input_late\":" + std::to_string(st.input_late) +
-                    ",\"listeners_expired\":" + std::to_string(st.listeners_expired) +
-                    ",\"error_reason\":" + quoted(std::string(st.error_reason, strnlen(st.error_reason, sizeof st.error_reason))) + "}";
+                    ",\"listeners_expired\":" + std::to_string(st.listeners_expired) + ",\"error_reason\":" +
+                    quoted(std::string(st.error_reason, strnlen(st.error_reason, sizeof st.error_reason))) + "}";
     std::printf("%s\n", j.c_str());
     return kExitOk;
   }
@@ -659,8 +655,8 @@ int cmd_status(Session& s, const Options& o) {
   std::printf("  %-16s %llu\n", "overruns", u(st.data.overruns));
   if (st.data.samples > 0) {
     const int64_t max_ns = st.data.latency_max_ns;
-    std::printf("  %-16s min %s, p50 %s, p99 %s, p99.9 %s, max %s (%llu samples)\n",
-                "wake-up latency", latency_for_people(st.data.latency_min_ns).c_str(),
+    std::printf("  %-16s min %s, p50 %s, p99 %s, p99.9 %s, max %s (%llu samples)\n", "wake-up latency",
+                latency_for_people(st.data.latency_min_ns).c_str(),
                 percentile_text(st.data.latency_p50_ns, max_ns).c_str(),
                 percentile_text(st.data.latency_p99_ns, max_ns).c_str(),
                 percentile_text(st.data.latency_p999_ns, max_ns).c_str(), latency_for_people(max_ns).c_str(),
@@ -710,8 +706,8 @@ int cmd_latency(Session& s, const Options& o) {
   Session::expect(t, r, msg::kLatency, "GET_LATENCY");
   wire::LatencyHistogram h;
   if (!wire::read_payload(r.body, tims::body_is_native(r.reply), h)) {
-    fail(kExitError, format("%s: GET_LATENCY: reply of %zu bytes, expected %zu", t.label().c_str(), r.body.size(),
-                            sizeof h));
+    fail(kExitError,
+         format("%s: GET_LATENCY: reply of %zu bytes, expected %zu", t.label().c_str(), r.body.size(), sizeof h));
   }
   if (const char* bad = wire::check_latency_histogram(h)) {
     fail(kExitError, format("%s: GET_LATENCY: malformed reply: %s", t.label().c_str(), bad));
@@ -720,17 +716,17 @@ int cmd_latency(Session& s, const Options& o) {
   const std::size_t n = h.bucket_count;
   const auto u = [](uint64_t v) { return static_cast<unsigned long long>(v); };
   if (o.json) {
-    std::string j = "{\"component\":" + quoted(t.address_text()) + ",\"name\":" +
-                    (t.name.empty() ? std::string("null") : quoted(t.name)) + ",\"data_task\":" + quoted(mode) +
-                    ",\"period_ns\":" + std::to_string(h.period_ns) + ",\"cycles\":" + std::to_string(h.cycles) +
-                    ",\"overruns\":" + std::to_string(h.overruns) + ",\"samples\":" + std::to_string(h.samples) +
-                    ",\"latency_us\":{\"min\":" + us(h.min_ns) + ",\"p50\":" + us(h.p50_ns) +
-                    ",\"p99\":" + us(h.p99_ns) + ",\"p99.9\":" + us(h.p999_ns) + ",\"max\":" + us(h.max_ns) +
-                    ",\"mean\":" + us(h.mean_ns) + open_bucket_json(h.p50_ns, h.p99_ns, h.p999_ns, h.max_ns) +
-                    "},\"buckets\":[";
+    std::string j = "{\"component\":" + quoted(t.address_text()) +
+                    ",\"name\":" + (t.name.empty() ? std::string("null") : quoted(t.name)) +
+                    ",\"data_task\":" + quoted(mode) + ",\"period_ns\":" + std::to_string(h.period_ns) +
+                    ",\"cycles\":" + std::to_string(h.cycles) + ",\"overruns\":" + std::to_string(h.overruns) +
+                    ",\"samples\":" + std::to_string(h.samples) + ",\"latency_us\":{\"min\":" + us(h.min_ns) +
+                    ",\"p50\":" + us(h.p50_ns) + ",\"p99\":" + us(h.p99_ns) + ",\"p99.9\":" + us(h.p999_ns) +
+                    ",\"max\":" + us(h.max_ns) + ",\"mean\":" + us(h.mean_ns) +
+                    open_bucket_json(h.p50_ns, h.p99_ns, h.p999_ns, h.max_ns) + "},\"buckets\":[";
     for (std::size_t i = 0; i < n; ++i) {
-      j += (i == 0 ? "" : ",") + std::string("{\"lower_ns\":") + std::to_string(h.lower_ns[i]) + ",\"upper_ns\":" +
-           (i + 1 < n ? std::to_string(h.lower_ns[i + 1]) : std::string("null")) +
+      j += (i == 0 ? "" : ",") + std::string("{\"lower_ns\":") + std::to_string(h.lower_ns[i]) +
+           ",\"upper_ns\":" + (i + 1 < n ? std::to_string(h.lower_ns[i + 1]) : std::string("null")) +
            ",\"count\":" + std::to_string(h.counts[i]) + "}";
     }
     std::printf("%s]}\n", j.c_str());
@@ -765,7 +761,8 @@ int cmd_latency(Session& s, const Options& o) {
     int bar = static_cast<int>(static_cast<double>(h.counts[i]) / static_cast<double>(most) * kBarWidth + 0.5);
     if (h.counts[i] > 0 && bar == 0) bar = 1;
     std::printf("  %-19s %12llu %7.3f %s\n", range.c_str(), u(h.counts[i]),
-                100.0 * static_cast<double>(h.counts[i]) / static_cast<double>(h.samples), std::string(static_cast<std::size_t>(bar), '#').c_str());
+                100.0 * static_cast<double>(h.counts[i]) / static_cast<double>(h.samples),
+                std::string(static_cast<std::size_t>(bar), '#').c_str());
   }
   return kExitOk;
 }
@@ -856,8 +853,8 @@ int cmd_classes(Session& s, const Options& o) {
       std::string cmds = "[", params = "[";
       for (const auto& c : d->commands) {
         cmds += (cmds.size() > 1 ? "," : "") + std::string("{\"name\":") + quoted(c.name) +
-                ",\"type\":" + std::to_string(c.type) + ",\"summary\":" + quoted(c.summary) + ",\"body\":" +
-                (c.body ? quoted(type_text(*c.body)) : std::string("null")) + "}";
+                ",\"type\":" + std::to_string(c.type) + ",\"summary\":" + quoted(c.summary) +
+                ",\"body\":" + (c.body ? quoted(type_text(*c.body)) : std::string("null")) + "}";
       }
       for (const auto& p : d->parameters) {
         params += (params.size() > 1 ? "," : "") + std::string("{\"name\":") + quoted(p.name) +
@@ -866,8 +863,8 @@ int cmd_classes(Session& s, const Options& o) {
       json += (json.size() > 1 ? "," : "") + std::string("{\"host\":") + quoted(where.second) +
               ",\"system\":" + std::to_string(where.first.system()) + ",\"class\":" + quoted(d->class_name) +
               ",\"impl\":" + quoted(d->impl) + ",\"class_id\":" + std::to_string(d->class_id) +
-              ",\"summary\":" + quoted(d->summary) + ",\"data\":" +
-              (d->data ? quoted(type_text(*d->data)) : std::string("null")) + ",\"commands\":" + cmds +
+              ",\"summary\":" + quoted(d->summary) +
+              ",\"data\":" + (d->data ? quoted(type_text(*d->data)) : std::string("null")) + ",\"commands\":" + cmds +
               "],\"parameters\":" + params + "]}";
       continue;
     }
@@ -875,11 +872,12 @@ int cmd_classes(Session& s, const Options& o) {
                 where.second.c_str(), where.first.system(), d->summary.c_str());
     std::printf("  data      %s\n", d->data ? type_text(*d->data).c_str() : "(none)");
     for (const auto& c : d->commands) {
-      std::printf("  command   %s %d %s - %s\n", c.name.c_str(), c.type, c.body ? type_text(*c.body).c_str() : "(no body)",
-                  c.summary.c_str());
+      std::printf("  command   %s %d %s - %s\n", c.name.c_str(), c.type,
+                  c.body ? type_text(*c.body).c_str() : "(no body)", c.summary.c_str());
     }
     for (const auto& p : d->parameters) {
-      std::printf("  param     %-20s %-6s %s\n", p.name.c_str(), rack::describe(p.kind), parameter_spec_text(p).c_str());
+      std::printf("  param     %-20s %-6s %s\n", p.name.c_str(), rack::describe(p.kind),
+                  parameter_spec_text(p).c_str());
     }
   }
   if (o.json) std::printf("%s]\n", json.c_str());
@@ -895,8 +893,8 @@ int cmd_params(Session& s, const Options& o) {
   const CallResult r = s.call(t, msg::kGetParam);
   Session::expect(t, r, msg::kParam, "GET_PARAM");
   if (r.body.size() % sizeof(wire::ParamRecord) != 0) {
-    fail(kExitError, format("%s: GET_PARAM: reply of %zu bytes is not a list of %zu-byte records",
-                            t.label().c_str(), r.body.size(), sizeof(wire::ParamRecord)));
+    fail(kExitError, format("%s: GET_PARAM: reply of %zu bytes is not a list of %zu-byte records", t.label().c_str(),
+                            r.body.size(), sizeof(wire::ParamRecord)));
   }
   const bool native = tims::body_is_native(r.reply);
   std::vector<wire::ParamRecord> records(r.body.size() / sizeof(wire::ParamRecord));
@@ -920,8 +918,7 @@ int cmd_params(Session& s, const Options& o) {
       // object's end, as before descriptions.
       j += i == 0 ? "{" : ",{";
       if (const rack::ParameterDescription* d = spec_of(p)) j += "\"spec\":" + parameter_spec_json(*d) + ",";
-      j += "\"name\":" + quoted(param_name(p)) + ",\"kind\":" + quoted(rack::describe(kind)) + ",\"value\":" + v +
-           "}";
+      j += "\"name\":" + quoted(param_name(p)) + ",\"kind\":" + quoted(rack::describe(kind)) + ",\"value\":" + v + "}";
     }
     std::printf("%s]\n", j.c_str());
     return kExitOk;
@@ -957,7 +954,7 @@ int cmd_set_param(Session& s, const Options& o) {
   const auto kind = static_cast<wire::ParamKind>(record.kind);
   const auto bad = [&](const char* what) {
     return Failure{kExitUsage, format("'%s' is not %s (parameter '%s' of %s is a %s)", text.c_str(), what, key.c_str(),
-                            t.label().c_str(), rack::describe(kind))};
+                                      t.label().c_str(), rack::describe(kind))};
   };
   switch (kind) {
     case wire::ParamKind::kInt: {
@@ -985,8 +982,8 @@ int cmd_set_param(Session& s, const Options& o) {
       wire::copy_text(record.string_value, text.c_str());
       break;
     default:
-      fail(kExitError, format("%s: parameter '%s' has an unknown kind %u", t.label().c_str(), key.c_str(),
-                              record.kind));
+      fail(kExitError,
+           format("%s: parameter '%s' has an unknown kind %u", t.label().c_str(), key.c_str(), record.kind));
   }
   r = s.call(t, msg::kSetParam, record);
   Session::expect(t, r, msg::kOk, "SET_PARAM");
@@ -1000,19 +997,18 @@ std::string sample_json(const Target& t, const rack::ClassDescription* d, const 
                         std::span<const std::byte> body) {
   const rack::TypeDescription* type = d != nullptr && d->data ? &*d->data : nullptr;
   wire::SampleHeader sh;
-  if (body.size() < sizeof sh ||
-      !wire::read_payload(body.first(sizeof sh), tims::body_is_native(h), sh)) {
+  if (body.size() < sizeof sh || !wire::read_payload(body.first(sizeof sh), tims::body_is_native(h), sh)) {
     fail(kExitError, format("%s: DATA of %zu bytes is shorter than a sample header", t.label().c_str(), body.size()));
   }
   const auto sample = body.subspan(sizeof sh);
-  std::string j = "{\"component\":" + quoted(t.address_text()) + ",\"name\":" +
-                  (t.name.empty() ? std::string("null") : quoted(t.name)) + ",\"time_ns\":" +
-                  std::to_string(sh.time_ns) + ",\"sequence\":" + std::to_string(sh.sequence);
+  std::string j = "{\"component\":" + quoted(t.address_text()) +
+                  ",\"name\":" + (t.name.empty() ? std::string("null") : quoted(t.name)) +
+                  ",\"time_ns\":" + std::to_string(sh.time_ns) + ",\"sequence\":" + std::to_string(sh.sequence);
   if (type != nullptr && type->size == sample.size()) {
     j += ",\"data\":" + rack::payload_to_json(type->field_table(), sample, tims::body_is_native(h));
     // Enum and address fields by name beside their raw values (field_names.h).
-    const std::string names =
-        rack::tools::field_names_json(d->value_names, type->field_table(), sample, tims::body_is_native(h));
+    const std::string names = rack::tools::field_names_json(d->value_names, type->field_table(), sample,
+                                                            tims::body_is_native(h));
     if (!names.empty()) j += ",\"names\":" + names;
   } else {
     std::string hex;
@@ -1094,15 +1090,16 @@ void stream_samples(Session& s, const Target& t, double period_ms, Subscribed su
     }
     if (now - last_sample >= silence_ns) {
       stop_cont_data();
-      fail(kExitUnavailable, format("%s: no sample for %lld s", t.label().c_str(),
-                                    static_cast<long long>(silence_ns / rt::kNsPerSec)));
+      fail(kExitUnavailable,
+           format("%s: no sample for %lld s", t.label().c_str(), static_cast<long long>(silence_ns / rt::kNsPerSec)));
     }
     int64_t wait = std::min<int64_t>(100 * rt::kNsPerMs, silence_ns - (now - last_sample));
     if (renew_every > 0) wait = std::max<int64_t>(0, std::min(wait, renew_at - now));
     const auto got = data.receive(buf, wait);
     if (got.status != tims::RecvStatus::kOk) continue;
     if (got.header.source().component() != t.address) continue;  // a late message of someone else
-    const auto body = std::span<const std::byte>(buf).subspan(sizeof(MessageHeader), got.length - sizeof(MessageHeader));
+    const auto body = std::span<const std::byte>(buf).subspan(sizeof(MessageHeader),
+                                                              got.length - sizeof(MessageHeader));
     if (got.header.type == msg::kError) {
       // The producer left ENABLED and dropped us: no STOP_CONT_DATA needed.
       fail(kExitError, t.label() + ": " + error_reason(body));
@@ -1172,11 +1169,10 @@ int cmd_send(Session& s, const Options& o) {
       }
     }
     if (info == nullptr) {
-      fail(kExitUsage, format("%s: class %s has no command '%s' (%s)", t.label().c_str(),
-                              described != nullptr ? described->class_name.c_str() : "(not described)",
-                              o.args[1].c_str(),
-                              names.empty() ? "no named commands known: give the number"
-                                            : ("known: " + names).c_str()));
+      fail(kExitUsage,
+           format("%s: class %s has no command '%s' (%s)", t.label().c_str(),
+                  described != nullptr ? described->class_name.c_str() : "(not described)", o.args[1].c_str(),
+                  names.empty() ? "no named commands known: give the number" : ("known: " + names).c_str()));
     }
     cmd = info->type;
   }
@@ -1248,9 +1244,10 @@ int rate_command(Session& s, const Options& o, bool bandwidth) {
         next_report += rt::kNsPerSec;
         if (next_report <= now) next_report = now + rt::kNsPerSec;  // after a stall
         const auto r = stats.report();
-        const std::string line = !r ? std::string(o.json ? "{\"samples\":0}" : "no two samples yet")
-                                 : o.json ? rack::tools::stream_json(*r)
-                                 : bandwidth ? rack::tools::bw_line(*r) : rack::tools::hz_line(*r);
+        const std::string line = !r          ? std::string(o.json ? "{\"samples\":0}" : "no two samples yet")
+                                 : o.json    ? rack::tools::stream_json(*r)
+                                 : bandwidth ? rack::tools::bw_line(*r)
+                                             : rack::tools::hz_line(*r);
         if (std::printf("%s\n", line.c_str()) < 0 || std::fflush(stdout) != 0) {
           return false;  // stdout closed
         }
@@ -1303,8 +1300,10 @@ rack::deploy::Deployment read_deployment(const Options& o) {
   std::string why;
   const std::string rackd = o.rackd.empty() ? rack::tools::rackd_beside_me() : o.rackd;
   if (!rack::tools::classes_from_rackd(rackd, classes, why)) {
-    std::fprintf(stderr, "rackctl: %s: cannot learn the classes (%s): every parameter naming a component is taken "
-                         "for a flow\n", o.command.c_str(), why.c_str());
+    std::fprintf(stderr,
+                 "rackctl: %s: cannot learn the classes (%s): every parameter naming a component is taken "
+                 "for a flow\n",
+                 o.command.c_str(), why.c_str());
     return rack::deploy::build(std::move(hosts));
   }
   return rack::deploy::build(std::move(hosts), &classes);
@@ -1386,8 +1385,9 @@ int write_svg(const std::string& dot_text, const std::string& out) {
   }
   ::unlink(tmp);
   if (rc == 127) {
-    fail(kExitUnavailable, "graph --format svg needs graphviz's dot (apt-get install graphviz); "
-                           "--format dot prints the DOT text");
+    fail(kExitUnavailable,
+         "graph --format svg needs graphviz's dot (apt-get install graphviz); "
+         "--format dot prints the DOT text");
   }
   if (rc != 0) fail(kExitError, "graph: dot did not make the SVG (exit " + std::to_string(rc) + ")");
   return kExitOk;
@@ -1515,7 +1515,11 @@ int cmd_threads(const Options& o) {
 
 const std::vector<Command>& commands() {
   static const std::vector<Command> kCommands = {
-      {"list", "list [--json]", 0, 0, {"--json"},
+      {"list",
+       "list [--json]",
+       0,
+       0,
+       {"--json"},
        "Discovers every rackd on the network (waits the full --discover-ms), asks each\n"
        "component for its state and prints ADDRESS NAME CLASS(IMPL) STATE HOST.\n"
        "The requests go out together, at most 24 outstanding; one not answered within\n"
@@ -1523,21 +1527,37 @@ const std::vector<Command>& commands() {
        "or 'no reply' when no attempt was answered (their number is printed on\n"
        "stderr). --json prints one JSON array instead.",
        cmd_list},
-      {"hosts", "hosts [--json]", 0, 0, {"--json"},
+      {"hosts",
+       "hosts [--json]",
+       0,
+       0,
+       {"--json"},
        "Discovers every host on the network (waits the full --discover-ms) and prints\n"
        "HOST SYSTEM HOST_ID ROLE PID COMPONENTS NETWORK SEEN: what each announced, on\n"
        "which of this tool's networks it was heard, and how long ago (ms). Routers pass\n"
        "on the announcements of the robots behind them.",
        cmd_hosts},
-      {"on", "on NAME", 1, 1, {},
+      {"on",
+       "on NAME",
+       1,
+       1,
+       {},
        "Switches the component on. The reply comes when its on() has finished, so\n"
        "this also switches on what it depends on (cascading ON). ERROR: exit 1.",
        cmd_on},
-      {"off", "off NAME", 1, 1, {},
+      {"off",
+       "off NAME",
+       1,
+       1,
+       {},
        "Switches the component off (answered at once). Its listeners get an ERROR\n"
        "message and are dropped.",
        cmd_off},
-      {"status", "status NAME [--json]", 1, 1, {"--json"},
+      {"status",
+       "status NAME [--json]",
+       1,
+       1,
+       {"--json"},
        "Prints the state and the timing statistics: data task mode and period,\n"
        "cycles, overruns, wake-up latency (min, p50, p99, p99.9, max: 3 digits with\n"
        "their unit; a percentile beyond the histogram's 10 ms as \">= 10.0 ms\"),\n"
@@ -1548,7 +1568,11 @@ const std::vector<Command>& commands() {
        "--json prints the same as one JSON object (exact values in us; the\n"
        "percentiles in the open bucket listed in latency_us.in_open_bucket).",
        cmd_status},
-      {"latency", "latency NAME [--json]", 1, 1, {"--json"},
+      {"latency",
+       "latency NAME [--json]",
+       1,
+       1,
+       {"--json"},
        "Prints the data task's wake-up latency histogram (GET_LATENCY): samples,\n"
        "cycles, overruns, min/p50/p99/p99.9/max/mean, then one row per bucket from\n"
        "the first to the last non-empty one: its range, count, share of the samples\n"
@@ -1560,14 +1584,22 @@ const std::vector<Command>& commands() {
        "{\"lower_ns\",\"upper_ns\" (null: open),\"count\"}.\n"
        "  rackctl latency generator",
        cmd_latency},
-      {"params", "params NAME [--json]", 1, 1, {"--json"},
+      {"params",
+       "params NAME [--json]",
+       1,
+       1,
+       {"--json"},
        "Prints the component's runtime parameters, one per line: name, kind, value\n"
        "with its unit, then what its class declares: the one-line doc, [range and\n"
        "unit, choices, default, required, read at start only]. --json: one array of\n"
        "{spec: {doc, unit, min, max (null: unbounded), default, choices, required,\n"
        "init_only}, name, kind, value} (no spec when the class gives no description).",
        cmd_params},
-      {"classes", "classes [HOST] [--json]", 0, 1, {"--json"},
+      {"classes",
+       "classes [HOST] [--json]",
+       0,
+       1,
+       {"--json"},
        "Lists the component classes running on every host discovered (or on HOST, by\n"
        "its host name) as each class describes itself to tools (GET_CLASS): class\n"
        "name (the one in addresses) and implementation, TiMS class id, summary, data\n"
@@ -1576,20 +1608,32 @@ const std::vector<Command>& commands() {
        "listed, printed (get-data, watch), addressed (Counter(2/0)) and sent commands\n"
        "by name like a built-in one. --json: one JSON array.",
        cmd_classes},
-      {"set-param", "set-param NAME KEY VALUE", 3, 3, {},
+      {"set-param",
+       "set-param NAME KEY VALUE",
+       3,
+       3,
+       {},
        "Sets one runtime parameter. VALUE is parsed as the parameter's kind (int,\n"
        "float, bool as true|false|1|0, string); a value that does not parse is a\n"
        "usage error (exit 2). The component's refusal (unknown parameter, out of\n"
        "range) is printed with exit 1.",
        cmd_set_param},
-      {"get-data", "get-data NAME [--time T]", 1, 1, {"--time"},
+      {"get-data",
+       "get-data NAME [--time T]",
+       1,
+       1,
+       {"--time"},
        "Prints one sample as a JSON line:\n"
        "  {\"component\":...,\"name\":...,\"time_ns\":...,\"sequence\":...,\"data\":{...}}\n"
        "--time T: the sample nearest host time T (ns); default 0 = the newest.\n"
        "The field names come from the class's description (GET_CLASS); a component\n"
        "that gives none (an older rackd) prints \"data_hex\" instead.",
        cmd_get_data},
-      {"watch", "watch NAME [--period MS] [--count N]", 1, 1, {"--period", "--count"},
+      {"watch",
+       "watch NAME [--period MS] [--count N]",
+       1,
+       1,
+       {"--period", "--count"},
        "Subscribes (GET_CONT_DATA) and prints one JSON line per sample (as get-data).\n"
        "--period MS: the wanted period (the producer sends every n-th sample; the real\n"
        "period is printed on stderr); default 0 = every sample. --count N: stop after\n"
@@ -1598,7 +1642,11 @@ const std::vector<Command>& commands() {
        "No sample for 5 s: exit 3. The subscription is a lease (the producer's\n"
        "lease_ms): renewed every lease / 4, so a killed watch frees its slot in time.",
        cmd_watch},
-      {"send", "send NAME CMD [FIELD=VALUE ...] [--i64 N]", 2, 66, {"--i64"},
+      {"send",
+       "send NAME CMD [FIELD=VALUE ...] [--i64 N]",
+       2,
+       66,
+       {"--i64"},
        "Sends class command CMD, a number from 21 to 127 or the command's name (as the\n"
        "class describes it: rackctl classes lists them), and prints the\n"
        "reply type and body (hex). FIELD=VALUE arguments fill the command's body:\n"
@@ -1609,7 +1657,10 @@ const std::vector<Command>& commands() {
        "  rackctl send mcl INIT x=2 y=1.5 phi=0 sigma_xy=0.3 sigma_phi=0.2\n"
        "  rackctl send pilot SET_DESTINATION x=4 y=2",
        cmd_send},
-      {"hz", "hz NAME [--window N] [--period MS] [--count N] [--json]", 1, 1,
+      {"hz",
+       "hz NAME [--window N] [--period MS] [--count N] [--json]",
+       1,
+       1,
        {"--window", "--period", "--count", "--json"},
        "Subscribes like watch and prints, once a second, the rate of the stream and\n"
        "min/max/mean/std of the period between samples over the last N samples\n"
@@ -1621,7 +1672,10 @@ const std::vector<Command>& commands() {
        "  rackctl hz generator\n"
        "  rate 100 Hz  period min 8.02 ms, max 11.0 ms, mean 10.0 ms, std 244 us  (window 101 samples)",
        cmd_hz},
-      {"bw", "bw NAME [--window N] [--period MS] [--count N] [--json]", 1, 1,
+      {"bw",
+       "bw NAME [--window N] [--period MS] [--count N] [--json]",
+       1,
+       1,
        {"--window", "--period", "--count", "--json"},
        "Subscribes like watch and prints, once a second, the bandwidth of the stream\n"
        "(bytes of its TiMS messages, header and sample, per second) and the mean, min\n"
@@ -1630,7 +1684,11 @@ const std::vector<Command>& commands() {
        "  rackctl bw generator\n"
        "  bandwidth 4.69 KiB/s  message mean 48 B, min 48 B, max 48 B  (window 100 samples)",
        cmd_bw},
-      {"doctor", "doctor [--json]", 0, 0, {"--json"},
+      {"doctor",
+       "doctor [--json]",
+       0,
+       0,
+       {"--json"},
        "Checks what this host needs to run rackd in real time and prints one line per\n"
        "check (ok, WARN or FAIL), what it found, and for each problem the fix:\n"
        "  rt-priority      ulimit -r (RLIMIT_RTPRIO) or CAP_SYS_NICE: SCHED_FIFO tasks\n"
@@ -1644,7 +1702,11 @@ const std::vector<Command>& commands() {
        "It reads /proc, /sys and /dev only and changes nothing. Exit 0 when nothing\n"
        "FAILs (WARNs are allowed), 1 otherwise. --json: one JSON array.",
        cmd_help},
-      {"threads", "threads [PID]", 0, 1, {},
+      {"threads",
+       "threads [PID]",
+       0,
+       1,
+       {},
        "Prints every thread of the rackd with process id PID (default: every rackd\n"
        "running on this machine) from /proc: TID NAME SCHED CPUS, where SCHED is\n"
        "FIFO/RR with the priority or OTHER, and CPUS the CPUs it may run on. With the\n"
@@ -1652,7 +1714,11 @@ const std::vector<Command>& commands() {
        "thread the 'housekeeping' ones (rackd prints the same table at start). Local:\n"
        "reads /proc, needs no network. Exit 3 when no such rackd runs.",
        cmd_help},
-      {"keygen", "keygen FILE", 1, 1, {},
+      {"keygen",
+       "keygen FILE",
+       1,
+       1,
+       {},
        "Writes a new key file for authenticated TiMS links: one random 32-byte key as\n"
        "64 hex digits, mode 0600; an existing file is never overwritten. Copy it to\n"
        "every host of the network (keeping mode 0600) and name it in the host files\n"
@@ -1660,7 +1726,11 @@ const std::vector<Command>& commands() {
        "a file may hold two keys (two lines): the first signs, both are accepted;\n"
        "hosts re-read a changed file within a second. See the README.",
        cmd_help},
-      {"trace", "trace --duration S --out FILE [--host HOST] [NAME ...|all]", 0, 64, {"--duration", "--out", "--host"},
+      {"trace",
+       "trace --duration S --out FILE [--host HOST] [NAME ...|all]",
+       0,
+       64,
+       {"--duration", "--out", "--host"},
        "Records the task timeline of one host for S seconds (at most 60) and writes it\n"
        "to FILE as a Chrome JSON trace, which ui.perfetto.dev and chrome://tracing\n"
        "open: one track per task (\"mcl data task\"), a slice per cycle (\"loop\" or\n"
@@ -1677,7 +1747,10 @@ const std::vector<Command>& commands() {
        "  rackctl trace --duration 2 --out sim.json all\n"
        "  rackctl trace --duration 5 --out mcl.json mcl,ladar",
        cmd_trace},
-      {"graph", "graph [--live] [--format dot|svg|json] [--out FILE] [--rackd PATH] FILE|DIR ...", 1, 256,
+      {"graph",
+       "graph [--live] [--format dot|svg|json] [--out FILE] [--rackd PATH] FILE|DIR ...",
+       1,
+       256,
        {"--live", "--format", "--out", "--rackd"},
        "Draws a deployment from its host files (a directory: its *.yaml files): a\n"
        "cluster per system (robot) and host with its role and networks, a box per\n"
@@ -1697,7 +1770,11 @@ const std::vector<Command>& commands() {
        "  rackctl graph configs/two_robots/ | dot -Tsvg > fleet.svg\n"
        "  rackctl graph --format svg --out fleet.svg configs/two_robots/",
        cmd_graph},
-      {"alloc", "alloc [--live] [--json] [--rackd PATH] FILE|DIR ...", 1, 256, {"--live", "--json", "--rackd"},
+      {"alloc",
+       "alloc [--live] [--json] [--rackd PATH] FILE|DIR ...",
+       1,
+       256,
+       {"--live", "--json", "--rackd"},
        "Prints the allocation at a glance: per host and CPU (a task's 'cpu:', else the\n"
        "host's 'cpus: rt:', else 'any cpu') the RT tasks there (priority > 0), highest\n"
        "first, with their periods, and flags configuration priority inversions with\n"
@@ -1723,8 +1800,9 @@ const Command* find_command(const std::string& name) {
 void print_command_help(const Command& c, FILE* out) {
   std::fprintf(out, "usage: rackctl [options] %s\n\n%s\n", c.synopsis, c.help);
   if (std::string(c.name) == "send") {
-    std::fprintf(out, "\nEach class describes its commands (names, numbers, body fields) to rackctl:\n"
-                      "'rackctl classes [HOST]' lists them for the classes running there.\n");
+    std::fprintf(out,
+                 "\nEach class describes its commands (names, numbers, body fields) to rackctl:\n"
+                 "'rackctl classes [HOST]' lists them for the classes running there.\n");
   }
   std::fprintf(out, "\n(rackctl --help for the common options)\n");
 }
@@ -1752,7 +1830,10 @@ Options parse_arguments(int argc, char** argv) {
       else o.args.push_back(a);
       continue;
     }
-    if (a == "--") { only_positional = true; continue; }
+    if (a == "--") {
+      only_positional = true;
+      continue;
+    }
     std::optional<std::string> inline_value;
     if (const auto eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos) {
       inline_value = a.substr(eq + 1);
@@ -1771,32 +1852,34 @@ Options parse_arguments(int argc, char** argv) {
     };
     if (a == "-h" || a == "--help") o.help = true;
     else if (a == "--version") o.version = true;
-    else if (a == "--json") { o.json = true; o.given.insert(a); }
-    else if (a == "--lcm") o.lcm_url = value("an LCM URL");
-    else if (a == "--key-file") { o.key_file = value("a key file"); key_given = true; }
-    else if (a == "--host-file") host_file = value("a host file");
+    else if (a == "--json") {
+      o.json = true;
+      o.given.insert(a);
+    } else if (a == "--lcm") o.lcm_url = value("an LCM URL");
+    else if (a == "--key-file") {
+      o.key_file = value("a key file");
+      key_given = true;
+    } else if (a == "--host-file") host_file = value("a host file");
     else if (a == "--timeout") {
       o.timeout_ms = non_negative("a number of milliseconds");
       if (o.timeout_ms == 0) fail(kExitUsage, "--timeout needs at least 1 ms");
-    }
-    else if (a == "--discover-ms") o.discover_ms = non_negative("a number of milliseconds");
+    } else if (a == "--discover-ms") o.discover_ms = non_negative("a number of milliseconds");
     else if (a == "--i64") {
       const std::string v = value("a 64-bit integer");
       o.i64 = parse_int(v);
       if (!o.i64) fail(kExitUsage, "--i64 needs a 64-bit integer, got '" + v + "'");
       o.given.insert(a);
-    }
-    else if (a == "--retries") {
+    } else if (a == "--retries") {
       o.retries = non_negative("a number of retries");
       if (o.retries > 10) fail(kExitUsage, "--retries takes 0..10");
-    }
-    else if (a == "--window") {
+    } else if (a == "--window") {
       o.window = non_negative("a number of samples");
       if (o.window < 2 || o.window > 1000000) fail(kExitUsage, "--window takes 2..1000000 samples");
       o.given.insert(a);
-    }
-    else if (a == "--time") { o.time_ns = non_negative("a host time in ns (0: newest)"); o.given.insert(a); }
-    else if (a == "--count") {
+    } else if (a == "--time") {
+      o.time_ns = non_negative("a host time in ns (0: newest)");
+      o.given.insert(a);
+    } else if (a == "--count") {
       o.count = non_negative("a number of samples");
       if (o.count == 0) fail(kExitUsage, "--count needs at least 1");
       o.given.insert(a);
@@ -1860,7 +1943,10 @@ int main(int argc, char** argv) {
     return kExitOk;
   }
   if (o.command.empty()) {
-    if (o.help) { std::fputs(kUsage, stdout); return kExitOk; }
+    if (o.help) {
+      std::fputs(kUsage, stdout);
+      return kExitOk;
+    }
     std::fputs(kUsage, stderr);
     return kExitUsage;
   }
@@ -1870,7 +1956,10 @@ int main(int argc, char** argv) {
     return kExitUsage;
   }
   if (std::string(cmd->name) == "help") {
-    if (o.args.empty()) { std::fputs(kUsage, stdout); return kExitOk; }
+    if (o.args.empty()) {
+      std::fputs(kUsage, stdout);
+      return kExitOk;
+    }
     const Command* about = find_command(o.args[0]);
     if (about == nullptr || o.args.size() > 1) {
       std::fprintf(stderr, "rackctl: no command '%s' (rackctl --help lists them)\n", o.args[0].c_str());
@@ -1879,7 +1968,10 @@ int main(int argc, char** argv) {
     print_command_help(*about, stdout);
     return kExitOk;
   }
-  if (o.help) { print_command_help(*cmd, stdout); return kExitOk; }
+  if (o.help) {
+    print_command_help(*cmd, stdout);
+    return kExitOk;
+  }
   if (o.args.size() < cmd->min_args || o.args.size() > cmd->max_args) {
     std::fprintf(stderr, "rackctl: %s: wrong number of arguments (%zu)\n\n", cmd->name, o.args.size());
     print_command_help(*cmd, stderr);

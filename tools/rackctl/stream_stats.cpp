@@ -89,9 +89,7 @@ std::string bytes_text(double bytes) {
   return buf;
 }
 
-bool in_open_bucket(int64_t p_ns, int64_t max_ns, int64_t open_from_ns) {
-  return p_ns > open_from_ns && p_ns < max_ns;
-}
+bool in_open_bucket(int64_t p_ns, int64_t max_ns, int64_t open_from_ns) { return p_ns > open_from_ns && p_ns < max_ns; }
 
 std::string percentile_text(int64_t p_ns, int64_t max_ns, int64_t open_from_ns) {
   if (in_open_bucket(p_ns, max_ns, open_from_ns)) {
@@ -117,8 +115,8 @@ std::string stream_json(const StreamReport& r) {
   std::snprintf(buf, sizeof buf,
                 "{\"samples\":%zu,\"rate_hz\":%.6g,\"period_s\":{\"min\":%.6g,\"max\":%.6g,\"mean\":%.6g,"
                 "\"std\":%.6g},\"bytes_per_s\":%.6g,\"size_bytes\":{\"mean\":%.6g,\"min\":%zu,\"max\":%zu}}",
-                r.samples, r.rate_hz, r.period_min_s, r.period_max_s, r.period_mean_s, r.period_std_s,
-                r.bytes_per_s, r.size_mean_bytes, r.size_min_bytes, r.size_max_bytes);
+                r.samples, r.rate_hz, r.period_min_s, r.period_max_s, r.period_mean_s, r.period_std_s, r.bytes_per_s,
+                r.size_mean_bytes, r.size_min_bytes, r.size_max_bytes);
   return buf;
 }
 

@@ -15,13 +15,13 @@
 namespace rack::tools {
 
 struct StreamReport {
-  std::size_t samples = 0;      // in the window
-  double rate_hz = 0.0;         // (samples - 1) / time from the first to the last
-  double period_min_s = 0.0;    // between consecutive arrivals
+  std::size_t samples = 0;    // in the window
+  double rate_hz = 0.0;       // (samples - 1) / time from the first to the last
+  double period_min_s = 0.0;  // between consecutive arrivals
   double period_max_s = 0.0;
   double period_mean_s = 0.0;
-  double period_std_s = 0.0;    // population standard deviation
-  double bytes_per_s = 0.0;     // bytes of every sample but the first / time span
+  double period_std_s = 0.0;  // population standard deviation
+  double bytes_per_s = 0.0;   // bytes of every sample but the first / time span
   double size_mean_bytes = 0.0;
   std::size_t size_min_bytes = 0;
   std::size_t size_max_bytes = 0;
@@ -43,9 +43,9 @@ class StreamStats {
 };
 
 // Numbers for people: 3 significant digits and a unit that keeps them readable.
-[[nodiscard]] std::string seconds_text(double s);         // "98.7 ms", "1.50 s", "12.0 us"
-[[nodiscard]] std::string hertz_text(double hz);          // "10.0 Hz", "1.20 kHz"
-[[nodiscard]] std::string bytes_text(double bytes);       // "812 B", "1.25 KiB", "3.40 MiB"
+[[nodiscard]] std::string seconds_text(double s);    // "98.7 ms", "1.50 s", "12.0 us"
+[[nodiscard]] std::string hertz_text(double hz);     // "10.0 Hz", "1.20 kHz"
+[[nodiscard]] std::string bytes_text(double bytes);  // "812 B", "1.25 KiB", "3.40 MiB"
 
 // A latency percentile of the executor's histogram for people: "37.0 us", or
 // ">= 10 ms" when it lies in the open last bucket that starts at `open_from_ns`

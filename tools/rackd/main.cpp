@@ -120,8 +120,8 @@ void list_classes(const rack::ComponentRegistry& registry) {
     for (std::size_t i = 0; i < params.size(); ++i) {
       const auto& p = params.at(i);
       std::printf("    %-14s %-6s %s%s%s\n", p.name().c_str(), rack::describe(p.kind()),
-                  p.spec().required ? "(required) " : ("= " + p.value_text() + "  ").c_str(),
-                  p.spec().doc.c_str(), p.spec().component_ref ? " [component]" : "");
+                  p.spec().required ? "(required) " : ("= " + p.value_text() + "  ").c_str(), p.spec().doc.c_str(),
+                  p.spec().component_ref ? " [component]" : "");
     }
   }
   // Plug-in classes by their manifests: the libraries (MRPT, PCL, OpenCV) are not
@@ -292,8 +292,8 @@ class GdosReportSink final : public rack::rt::modeswitch::ReportSink {
     if (executor_ == nullptr) return;
     const auto source = rack::tims::parse_address(r.label);
     std::string line = std::string("mode switch ") + rack::rt::modeswitch::reason_name(r.reason) + " #" +
-                       std::to_string(r.sequence) + " in task " + std::string(r.task) + ": " +
-                       std::string(r.detail) + " (rack-backtrace on the report file gives the line)";
+                       std::to_string(r.sequence) + " in task " + std::string(r.task) + ": " + std::string(r.detail) +
+                       " (rack-backtrace on the report file gives the line)";
     executor_->publish_report(rack::gdos::Level::kWarning, line, source.value_or(rack::tims::Address()),
                               std::string(r.component));
   }
@@ -337,8 +337,14 @@ static int run_rackd(int argc, char** argv) {
       }
       return d;
     };
-    if (a == "-h" || a == "--help") { std::fputs(kUsage, stdout); return 0; }
-    if (a == "--version") { rack::print_version("rackd"); return 0; }
+    if (a == "-h" || a == "--help") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+    if (a == "--version") {
+      rack::print_version("rackd");
+      return 0;
+    }
     if (a == "--check") check = true;
     else if (a == "--list-classes") classes = true;
     else if (a == "--json") json = true;
@@ -346,12 +352,23 @@ static int run_rackd(int argc, char** argv) {
     else if (a == "--status") status_every = number("a number of seconds");
     else if (a == "--lcm") lcm_url = value("an LCM URL");
     else if (a == "--crash-dir") crash_dir = value("a directory");
-    else if (!a.empty() && a[0] == '-') { std::fprintf(stderr, "rackd: unknown option '%s'\n%s", a.c_str(), kUsage); return 2; }
-    else if (file.empty()) file = a;
-    else { std::fprintf(stderr, "rackd: one host file only ('%s' and '%s')\n", file.c_str(), a.c_str()); return 2; }
+    else if (!a.empty() && a[0] == '-') {
+      std::fprintf(stderr, "rackd: unknown option '%s'\n%s", a.c_str(), kUsage);
+      return 2;
+    } else if (file.empty()) file = a;
+    else {
+      std::fprintf(stderr, "rackd: one host file only ('%s' and '%s')\n", file.c_str(), a.c_str());
+      return 2;
+    }
   }
-  if (json && !classes) { std::fprintf(stderr, "rackd: --json goes with --list-classes\n"); return 2; }
-  if (file.empty() && !classes) { std::fprintf(stderr, "rackd: no host file given\n%s", kUsage); return 2; }
+  if (json && !classes) {
+    std::fprintf(stderr, "rackd: --json goes with --list-classes\n");
+    return 2;
+  }
+  if (file.empty() && !classes) {
+    std::fprintf(stderr, "rackd: no host file given\n%s", kUsage);
+    return 2;
+  }
   // Before the first thread: service threads get 1 MiB stacks (locked whole by
   // mlockall), not RLIMIT_STACK's 8 MiB.
   rack::rt::limit_default_thread_stack();
@@ -377,7 +394,8 @@ static int run_rackd(int argc, char** argv) {
   const rack::rt::RtCapabilities caps = rack::rt::probe_capabilities();
   // --check also makes sure that the files the parameters name exist; a start leaves
   // a missing one to its component (that one fails, the others run).
-  auto loaded = rack::load_host_file(file, registry, caps, rack::HostLoadOptions{.open_files = true, .check_paths = check});
+  auto loaded = rack::load_host_file(file, registry, caps,
+                                     rack::HostLoadOptions{.open_files = true, .check_paths = check});
   if (watch.stop_requested()) return stopped_during_startup(watch);
   if (!loaded.errors.empty()) {
     // A hostile file can hold thousands: the first kMaxShown say enough.
@@ -397,8 +415,8 @@ static int run_rackd(int argc, char** argv) {
   }
   DetectorStop detector_stop;
   const rack::HostSettings settings = loaded.host->settings;
-  std::fprintf(stderr, "rackd: host '%s' system %u, %zu components from %s\n", settings.host.c_str(),
-               settings.system, loaded.host->components.size(), file.c_str());
+  std::fprintf(stderr, "rackd: host '%s' system %u, %zu components from %s\n", settings.host.c_str(), settings.system,
+               loaded.host->components.size(), file.c_str());
   std::fprintf(stderr, "rackd: %s\n", caps.describe().c_str());
   if (!settings.housekeeping_cpus.empty()) {
     // Partitioning: from here on every thread this one starts (the mode-switch
@@ -408,8 +426,8 @@ static int run_rackd(int argc, char** argv) {
     const int rc = rack::rt::set_thread_affinity(0, settings.housekeeping_cpus);
     std::fprintf(stderr, "rackd: cpus: RT tasks on CPU %s, housekeeping on CPU %s%s%s\n",
                  rack::rt::cpu_list_string(settings.rt_cpus).c_str(),
-                 rack::rt::cpu_list_string(settings.housekeeping_cpus).c_str(), rc == 0 ? "" : "; WARNING: ",
-                 rc == 0 ? "" : std::strerror(rc));
+                 rack::rt::cpu_list_string(settings.housekeeping_cpus).c_str(),
+                 rc == 0 ? "" : "; WARNING: ", rc == 0 ? "" : std::strerror(rc));
   }
   const bool rt_ok = caps.sched_fifo && caps.memlock;
   if (settings.require_rt && (!rt_ok || !caps.preempt_rt)) {
@@ -487,8 +505,7 @@ static int run_rackd(int argc, char** argv) {
   for (const auto& w : executor.partition_warnings()) std::fprintf(stderr, "rackd: WARNING: %s\n", w.c_str());
   (void)executor.partition_threads();  // threads started before the main thread's affinity was set
   std::fprintf(stderr, "rackd: %s", executor.thread_report().c_str());
-  std::fprintf(stderr, "rackd: running%s%s; SIGINT or SIGTERM stops\n",
-               executor.transport() ? ", TiMS on " : "",
+  std::fprintf(stderr, "rackd: running%s%s; SIGINT or SIGTERM stops\n", executor.transport() ? ", TiMS on " : "",
                executor.transport() ? executor.transport()->url().c_str() : "");
 
   const int64_t start = rack::rt::monotonic_ns();

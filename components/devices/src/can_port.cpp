@@ -175,9 +175,8 @@ bool CanPort::set_filters(std::span<const can_filter> filters, CanError& error) 
   if (kind_ == CanKind::kSocketCan) {
     const rt::modeswitch::DeviceSetupScope setup;  // setsockopt: deliberate set-up in on()
     // No filters on a raw socket means "receive all"; an empty list must mean the same.
-    if (!filters.empty() &&
-        ::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
-                     static_cast<socklen_t>(filters.size() * sizeof(can_filter))) != 0) {
+    if (!filters.empty() && ::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
+                                         static_cast<socklen_t>(filters.size() * sizeof(can_filter))) != 0) {
       errno_text(error, "CAN_RAW_FILTER", "CAN socket");
       return false;
     }
@@ -272,13 +271,11 @@ IoResult CanPort::receive(can_frame& frame, int64_t timeout_ns) noexcept {
       return r;
     }
     if (n < 0) {
-      r.status = (errno == ENETDOWN || errno == ENODEV || errno == ECONNRESET) ? IoStatus::kClosed
-                                                                               : IoStatus::kError;
+      r.status = (errno == ENETDOWN || errno == ENODEV || errno == ECONNRESET) ? IoStatus::kClosed : IoStatus::kError;
       r.error = errno;
       return r;
     }
-    if (static_cast<std::size_t>(n) != sizeof frame || (msg.msg_flags & MSG_TRUNC) != 0 ||
-        frame.len > CAN_MAX_DLEN) {
+    if (static_cast<std::size_t>(n) != sizeof frame || (msg.msg_flags & MSG_TRUNC) != 0 || frame.len > CAN_MAX_DLEN) {
       ++counters_.malformed;  // a CAN FD frame, a short packet or a broken peer
       continue;
     }
@@ -329,9 +326,8 @@ IoResult CanPort::send(const can_frame& frame) noexcept {
   }
   ++counters_.send_failed;
   r.error = n < 0 ? errno : EMSGSIZE;
-  r.status = (r.error == EPIPE || r.error == ECONNRESET || r.error == ENOTCONN || r.error == ENODEV)
-                 ? IoStatus::kClosed
-                 : IoStatus::kError;
+  r.status = (r.error == EPIPE || r.error == ECONNRESET || r.error == ENOTCONN || r.error == ENODEV) ? IoStatus::kClosed
+                                                                                                     : IoStatus::kError;
   return r;
 }
 

@@ -44,8 +44,7 @@ SdoResult sdo_write_wait(CanPort& port, uint8_t node, uint16_t index, uint8_t su
 
 SdoResult sdo_read_wait(CanPort& port, uint8_t node, uint16_t index, uint8_t sub, uint32_t& value,
                         int64_t timeout_ns) noexcept {
-  return transfer(port, sdo_read(node, index, sub), node, index, sub, SdoResponse::Kind::kReadOk, &value,
-                  timeout_ns);
+  return transfer(port, sdo_read(node, index, sub), node, index, sub, SdoResponse::Kind::kReadOk, &value, timeout_ns);
 }
 
 bool power_up(CanPort& port, uint8_t node, int64_t timeout_ns) noexcept {

@@ -72,8 +72,8 @@ bool parse_uint(const char* s, std::size_t len, unsigned& out) noexcept {
 
 // ddmm.mmmm (lat) / dddmm.mmmm (lon) + hemisphere; at most max_deg (90 or 180):
 // "9614.038,N" has two valid digits of degrees but is no latitude (found by fuzz_nmea).
-bool parse_angle(const char* s, std::size_t len, const char* hemi, std::size_t hlen, int deg_digits,
-                 char pos, char neg, double& out) noexcept {
+bool parse_angle(const char* s, std::size_t len, const char* hemi, std::size_t hlen, int deg_digits, char pos, char neg,
+                 double& out) noexcept {
   if (len < static_cast<std::size_t>(deg_digits) + 2 || hlen != 1) return false;
   unsigned deg = 0;
   double minutes = 0.0;
@@ -267,8 +267,7 @@ NmeaParser::Sentence NmeaParser::parse_sentence(const char* s, std::size_t len) 
     unsigned mode = 0;
     if (!parse_uint(f.start[2], f.len[2], mode) || mode < 1 || mode > 3) return bad();
     n.mode = static_cast<uint8_t>(mode);
-    if (mode > 1 && (!parse_double(f.start[15], f.len[15], n.pdop) ||
-                     !parse_double(f.start[16], f.len[16], n.hdop) ||
+    if (mode > 1 && (!parse_double(f.start[15], f.len[15], n.pdop) || !parse_double(f.start[16], f.len[16], n.hdop) ||
                      !parse_double(f.start[17], f.len[17], n.vdop))) {
       return bad();
     }

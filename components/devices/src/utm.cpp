@@ -6,9 +6,9 @@
 namespace rack::devices {
 
 namespace {
-constexpr double kA = 6378137.0;              // WGS84 semi-major axis, m
-constexpr double kF = 1.0 / 298.257223563;    // WGS84 flattening
-constexpr double kK0 = 0.9996;                // UTM central scale factor
+constexpr double kA = 6378137.0;            // WGS84 semi-major axis, m
+constexpr double kF = 1.0 / 298.257223563;  // WGS84 flattening
+constexpr double kK0 = 0.9996;              // UTM central scale factor
 constexpr double kFalseEasting = 500000.0;
 constexpr double kFalseNorthingSouth = 10000000.0;
 constexpr double kDeg = std::numbers::pi / 180.0;

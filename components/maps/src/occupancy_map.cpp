@@ -19,8 +19,7 @@ namespace rack::maps {
 // ---- OccupancyMap -------------------------------------------------------------
 
 OccupancyMap::OccupancyMap(int width, int height, double resolution, double origin_x, double origin_y,
-                           double origin_yaw, std::vector<float> occupancy, double occupied_thresh,
-                           double free_thresh)
+                           double origin_yaw, std::vector<float> occupancy, double occupied_thresh, double free_thresh)
     : width_(width),
       height_(height),
       resolution_(resolution),
@@ -148,9 +147,7 @@ struct PgmReader {
   std::vector<MapError>& errors;
   std::size_t pos = 0;
 
-  void fail(std::size_t at, const std::string& message) {
-    errors.push_back({path, 0, static_cast<long>(at), message});
-  }
+  void fail(std::size_t at, const std::string& message) { errors.push_back({path, 0, static_cast<long>(at), message}); }
   // Skips whitespace and '#' comments (allowed between header fields).
   void skip_space() {
     while (pos < bytes.size()) {
@@ -244,9 +241,9 @@ std::optional<PgmImage> parse_pgm(const std::string& path, const std::string& by
     ++r.pos;
     // Checked before the raster is allocated: a header may promise anything.
     if (bytes.size() - r.pos < n) {
-      r.fail(static_cast<std::size_t>(bytes.size()),
-             "truncated: the raster needs " + std::to_string(n) + " bytes from byte " + std::to_string(r.pos) +
-                 ", the file has " + std::to_string(bytes.size() - r.pos));
+      r.fail(static_cast<std::size_t>(bytes.size()), "truncated: the raster needs " + std::to_string(n) +
+                                                         " bytes from byte " + std::to_string(r.pos) +
+                                                         ", the file has " + std::to_string(bytes.size() - r.pos));
       return std::nullopt;
     }
     img.pixels.resize(n);
@@ -314,7 +311,7 @@ struct YamlReader {
                         "free_thresh"});
       return std::nullopt;
     }
-    static const std::set<std::string> kKnown = {"image",           "resolution", "origin", "negate",
+    static const std::set<std::string> kKnown = {"image",           "resolution",  "origin", "negate",
                                                  "occupied_thresh", "free_thresh", "mode"};
     std::set<std::string> seen;
     for (auto it = root.begin(); it != root.end(); ++it) {
@@ -386,8 +383,7 @@ struct YamlReader {
 
 }  // namespace
 
-std::optional<MapYaml> parse_map_yaml(const std::string& name, const std::string& text,
-                                      std::vector<MapError>& errors) {
+std::optional<MapYaml> parse_map_yaml(const std::string& name, const std::string& text, std::vector<MapError>& errors) {
   const std::size_t before = errors.size();
   std::vector<MapError> mine;
   std::optional<MapYaml> m;

@@ -160,18 +160,18 @@ struct MclFilter::Impl {
   double ox = 0.0, oy = 0.0;
   double resolution = 0.0;
   int width = 0, height = 0;
-  std::vector<float> dist;   // m to the nearest occupied cell (capped later), row 0 at the bottom
+  std::vector<float> dist;        // m to the nearest occupied cell (capped later), row 0 at the bottom
   std::vector<uint8_t> occupied;  // 1: occupied cell
-  std::vector<float> field;  // log-likelihood of a point in each cell
-  float outside_ll = 0.0F;   // ... outside the map
-  MclOptions field_opt;      // the options `field` was built with
+  std::vector<float> field;       // log-likelihood of a point in each cell
+  float outside_ll = 0.0F;        // ... outside the map
+  MclOptions field_opt;           // the options `field` was built with
   std::vector<std::pair<int, int>> free_cells;
   mrpt::slam::CMonteCarloLocalization2D pdf{1};
-  std::vector<float> px, py;      // this scan's points (robot frame)
-  std::vector<double> log_lik;    // per particle, this update
-  std::vector<double> cumulative; // resampling
+  std::vector<float> px, py;       // this scan's points (robot frame)
+  std::vector<double> log_lik;     // per particle, this update
+  std::vector<double> cumulative;  // resampling
   std::vector<mrpt::math::TPose2D> drawn;
-  std::vector<uint32_t> order;    // resampling: source index of each new particle
+  std::vector<uint32_t> order;  // resampling: source index of each new particle
   std::unordered_set<uint64_t> bins;
   std::mt19937_64 rng;
   std::unique_ptr<Worker> worker;
@@ -185,8 +185,8 @@ struct MclFilter::Impl {
   double c_slow = 0.0, c_fast = 0.0;   // consistency averages (alpha_slow, alpha_fast)
 
   static bool same_field(const MclOptions& a, const MclOptions& b) {
-    return a.sigma_hit == b.sigma_hit && a.z_hit == b.z_hit && a.z_random == b.z_random &&
-           a.max_range == b.max_range && a.max_corr_distance == b.max_corr_distance;
+    return a.sigma_hit == b.sigma_hit && a.z_hit == b.z_hit && a.z_random == b.z_random && a.max_range == b.max_range &&
+           a.max_corr_distance == b.max_corr_distance;
   }
 
   void build_distance(const maps::OccupancyMap& map) {
@@ -220,7 +220,8 @@ struct MclFilter::Impl {
     }
     dist.resize(w * h);
     for (std::size_t i = 0; i < w * h; ++i) {
-      dist[i] = grid[i] >= kFar / 2 ? std::numeric_limits<float>::max() : static_cast<float>(std::sqrt(grid[i]) * resolution);
+      dist[i] = grid[i] >= kFar / 2 ? std::numeric_limits<float>::max()
+                                    : static_cast<float>(std::sqrt(grid[i]) * resolution);
     }
   }
 
@@ -295,7 +296,8 @@ struct MclFilter::Impl {
       for (auto& p : pdf.m_particles) {
         const double dx = incr.x() + sxy * n01(rng), dy = incr.y() + sxy * n01(rng);
         const double c = std::cos(p.d.phi), s = std::sin(p.d.phi);
-        p.d = mrpt::math::TPose2D(p.d.x + c * dx - s * dy, p.d.y + s * dx + c * dy, wrap(p.d.phi + incr.phi() + sphi * n01(rng)));
+        p.d = mrpt::math::TPose2D(p.d.x + c * dx - s * dy, p.d.y + s * dx + c * dy,
+                                  wrap(p.d.phi + incr.phi() + sphi * n01(rng)));
         p.log_w = 0.0;
       }
       return;

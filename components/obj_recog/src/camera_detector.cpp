@@ -27,17 +27,27 @@ struct NamedDictionary {
   int id;
 };
 constexpr NamedDictionary kDictionaries[] = {
-    {"DICT_4X4_50", cv::aruco::DICT_4X4_50},     {"DICT_4X4_100", cv::aruco::DICT_4X4_100},
-    {"DICT_4X4_250", cv::aruco::DICT_4X4_250},   {"DICT_4X4_1000", cv::aruco::DICT_4X4_1000},
-    {"DICT_5X5_50", cv::aruco::DICT_5X5_50},     {"DICT_5X5_100", cv::aruco::DICT_5X5_100},
-    {"DICT_5X5_250", cv::aruco::DICT_5X5_250},   {"DICT_5X5_1000", cv::aruco::DICT_5X5_1000},
-    {"DICT_6X6_50", cv::aruco::DICT_6X6_50},     {"DICT_6X6_100", cv::aruco::DICT_6X6_100},
-    {"DICT_6X6_250", cv::aruco::DICT_6X6_250},   {"DICT_6X6_1000", cv::aruco::DICT_6X6_1000},
-    {"DICT_7X7_50", cv::aruco::DICT_7X7_50},     {"DICT_7X7_100", cv::aruco::DICT_7X7_100},
-    {"DICT_7X7_250", cv::aruco::DICT_7X7_250},   {"DICT_7X7_1000", cv::aruco::DICT_7X7_1000},
+    {"DICT_4X4_50", cv::aruco::DICT_4X4_50},
+    {"DICT_4X4_100", cv::aruco::DICT_4X4_100},
+    {"DICT_4X4_250", cv::aruco::DICT_4X4_250},
+    {"DICT_4X4_1000", cv::aruco::DICT_4X4_1000},
+    {"DICT_5X5_50", cv::aruco::DICT_5X5_50},
+    {"DICT_5X5_100", cv::aruco::DICT_5X5_100},
+    {"DICT_5X5_250", cv::aruco::DICT_5X5_250},
+    {"DICT_5X5_1000", cv::aruco::DICT_5X5_1000},
+    {"DICT_6X6_50", cv::aruco::DICT_6X6_50},
+    {"DICT_6X6_100", cv::aruco::DICT_6X6_100},
+    {"DICT_6X6_250", cv::aruco::DICT_6X6_250},
+    {"DICT_6X6_1000", cv::aruco::DICT_6X6_1000},
+    {"DICT_7X7_50", cv::aruco::DICT_7X7_50},
+    {"DICT_7X7_100", cv::aruco::DICT_7X7_100},
+    {"DICT_7X7_250", cv::aruco::DICT_7X7_250},
+    {"DICT_7X7_1000", cv::aruco::DICT_7X7_1000},
     {"DICT_ARUCO_ORIGINAL", cv::aruco::DICT_ARUCO_ORIGINAL},
-    {"DICT_APRILTAG_16h5", cv::aruco::DICT_APRILTAG_16h5}, {"DICT_APRILTAG_25h9", cv::aruco::DICT_APRILTAG_25h9},
-    {"DICT_APRILTAG_36h10", cv::aruco::DICT_APRILTAG_36h10}, {"DICT_APRILTAG_36h11", cv::aruco::DICT_APRILTAG_36h11},
+    {"DICT_APRILTAG_16h5", cv::aruco::DICT_APRILTAG_16h5},
+    {"DICT_APRILTAG_25h9", cv::aruco::DICT_APRILTAG_25h9},
+    {"DICT_APRILTAG_36h10", cv::aruco::DICT_APRILTAG_36h10},
+    {"DICT_APRILTAG_36h11", cv::aruco::DICT_APRILTAG_36h11},
 };
 
 }  // namespace
@@ -68,7 +78,9 @@ CameraDetector::CameraDetector(const DetectorOptions& options) : impl_(std::make
   for (const auto& d : kDictionaries) {
     if (options.dictionary == d.name) dict = d.id;
   }
-  if (dict < 0) throw std::invalid_argument("unknown ArUco dictionary '" + options.dictionary + "' (e.g. DICT_4X4_50, DICT_6X6_250, DICT_APRILTAG_36h11)");
+  if (dict < 0)
+    throw std::invalid_argument("unknown ArUco dictionary '" + options.dictionary +
+                                "' (e.g. DICT_4X4_50, DICT_6X6_250, DICT_APRILTAG_36h11)");
   if (!(options.marker_length > 0.0)) throw std::invalid_argument("marker_length must be > 0");
   if (!(options.person_height > 0.0) || !(options.person_fraction > 0.0 && options.person_fraction <= 1.0)) {
     throw std::invalid_argument("person_height must be > 0 and person_fraction in (0, 1]");
@@ -83,7 +95,8 @@ CameraDetector::CameraDetector(const DetectorOptions& options) : impl_(std::make
 CameraDetector::~CameraDetector() = default;
 
 bool CameraDetector::check_frame(const CameraData& f, std::string& error) {
-  if (f.format != interfaces::kCameraRgb8 && f.format != interfaces::kCameraMono8 && f.format != interfaces::kCameraJpeg) {
+  if (f.format != interfaces::kCameraRgb8 && f.format != interfaces::kCameraMono8 &&
+      f.format != interfaces::kCameraJpeg) {
     error = "format " + std::to_string(f.format) + " is not RGB8 (1), MONO8 (2) or JPEG (3)";
     return false;
   }
@@ -98,8 +111,9 @@ bool CameraDetector::check_frame(const CameraData& f, std::string& error) {
   if (f.format != interfaces::kCameraJpeg) {
     const uint64_t need = uint64_t{f.width} * f.height * (f.format == interfaces::kCameraRgb8 ? 3U : 1U);
     if (need != f.bytes) {
-      error = std::string(f.format == interfaces::kCameraRgb8 ? "RGB8" : "MONO8") + " frame " + std::to_string(f.width) +
-              "x" + std::to_string(f.height) + " needs " + std::to_string(need) + " bytes, has " + std::to_string(f.bytes);
+      error = std::string(f.format == interfaces::kCameraRgb8 ? "RGB8" : "MONO8") + " frame " +
+              std::to_string(f.width) + "x" + std::to_string(f.height) + " needs " + std::to_string(need) +
+              " bytes, has " + std::to_string(f.bytes);
       return false;
     }
   }
@@ -124,8 +138,8 @@ bool CameraDetector::detect(const CameraData& f, const CameraIntrinsics& k0, Obj
       return false;
     }
     if (m.gray.cols != w || m.gray.rows != h) {
-      error = "JPEG decodes to " + std::to_string(m.gray.cols) + "x" + std::to_string(m.gray.rows) + ", the frame says " +
-              std::to_string(w) + "x" + std::to_string(h);
+      error = "JPEG decodes to " + std::to_string(m.gray.cols) + "x" + std::to_string(m.gray.rows) +
+              ", the frame says " + std::to_string(w) + "x" + std::to_string(h);
       return false;
     }
   }
@@ -134,8 +148,9 @@ bool CameraDetector::detect(const CameraData& f, const CameraIntrinsics& k0, Obj
   if (k.valid && (k.width != w || k.height != h)) {
     const double sx = static_cast<double>(w) / k.width, sy = static_cast<double>(h) / k.height;
     if (std::fabs(sx - sy) > 0.01 * sx) {
-      error = "frame " + std::to_string(w) + "x" + std::to_string(h) + " has another aspect ratio than the calibration (" +
-              std::to_string(k.width) + "x" + std::to_string(k.height) + ")";
+      error = "frame " + std::to_string(w) + "x" + std::to_string(h) +
+              " has another aspect ratio than the calibration (" + std::to_string(k.width) + "x" +
+              std::to_string(k.height) + ")";
       return false;
     }
     k.fx *= sx;
@@ -165,10 +180,12 @@ bool CameraDetector::detect(const CameraData& f, const CameraIntrinsics& k0, Obj
     m.corners.clear();
     cv::aruco::detectMarkers(m.gray, m.dictionary, m.corners, m.ids, m.parameters, m.rejected);
     if (!m.ids.empty() && k.valid) {
-      cv::aruco::estimatePoseSingleMarkers(m.corners, static_cast<float>(o.marker_length), camera, dist, m.rvecs, m.tvecs);
+      cv::aruco::estimatePoseSingleMarkers(m.corners, static_cast<float>(o.marker_length), camera, dist, m.rvecs,
+                                           m.tvecs);
     }
     for (std::size_t i = 0; i < m.ids.size(); ++i) {
-      if (!add(static_cast<uint32_t>(m.ids[i]), interfaces::kObjTypeFiducial, 1.0F, cv::boundingRect(m.corners[i]))) break;
+      if (!add(static_cast<uint32_t>(m.ids[i]), interfaces::kObjTypeFiducial, 1.0F, cv::boundingRect(m.corners[i])))
+        break;
       if (k.valid) {
         const cv::Vec3d& t = m.tvecs[i];
         cv::Matx33d r;
@@ -199,8 +216,8 @@ bool CameraDetector::detect(const CameraData& f, const CameraIntrinsics& k0, Obj
     m.hog.detectMultiScale(*img, m.boxes, m.weights, o.hog_threshold, cv::Size(8, 8), cv::Size(8, 8), o.hog_scale, 2.0);
     for (std::size_t i = 0; i < m.boxes.size(); ++i) {
       const cv::Rect& s = m.boxes[i];
-      const cv::Rect box(static_cast<int>(s.x / scale), static_cast<int>(s.y / scale), static_cast<int>(s.width / scale),
-                         static_cast<int>(s.height / scale));
+      const cv::Rect box(static_cast<int>(s.x / scale), static_cast<int>(s.y / scale),
+                         static_cast<int>(s.width / scale), static_cast<int>(s.height / scale));
       const double weight = i < m.weights.size() ? m.weights[i] : 0.0;
       if (!add(0, interfaces::kObjTypePerson, static_cast<float>(1.0 / (1.0 + std::exp(-weight))), box)) break;
       if (k.valid && box.height > 0) {
@@ -245,18 +262,23 @@ CameraIntrinsics CameraDetector::load_calibration(const std::string& path) {
   } catch (const cv::Exception& e) {
     throw std::runtime_error("calibration '" + path + "': " + e.what());
   }
-  if (km.rows != 3 || km.cols != 3) throw std::runtime_error("calibration '" + path + "': camera_matrix missing or not 3x3");
-  if (k.width <= 0 || k.height <= 0) throw std::runtime_error("calibration '" + path + "': image_width/image_height missing");
+  if (km.rows != 3 || km.cols != 3)
+    throw std::runtime_error("calibration '" + path + "': camera_matrix missing or not 3x3");
+  if (k.width <= 0 || k.height <= 0)
+    throw std::runtime_error("calibration '" + path + "': image_width/image_height missing");
   km.convertTo(km, CV_64F);
   k.fx = km.at<double>(0, 0);
   k.fy = km.at<double>(1, 1);
   k.cx = km.at<double>(0, 2);
   k.cy = km.at<double>(1, 2);
-  if (!(k.fx > 0.0) || !(k.fy > 0.0)) throw std::runtime_error("calibration '" + path + "': camera_matrix focal lengths must be > 0");
+  if (!(k.fx > 0.0) || !(k.fy > 0.0))
+    throw std::runtime_error("calibration '" + path + "': camera_matrix focal lengths must be > 0");
   if (!dm.empty()) {
     dm.convertTo(dm, CV_64F);
-    if (dm.total() < 4) throw std::runtime_error("calibration '" + path + "': distortion_coefficients needs 4 or 5 values");
-    for (std::size_t i = 0; i < std::min<std::size_t>(5, dm.total()); ++i) k.distortion[i] = dm.at<double>(static_cast<int>(i));
+    if (dm.total() < 4)
+      throw std::runtime_error("calibration '" + path + "': distortion_coefficients needs 4 or 5 values");
+    for (std::size_t i = 0; i < std::min<std::size_t>(5, dm.total()); ++i)
+      k.distortion[i] = dm.at<double>(static_cast<int>(i));
   }
   k.valid = true;
   return k;

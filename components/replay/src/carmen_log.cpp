@@ -38,10 +38,12 @@ class Fields {
     const std::string_view t = f_[pos_];
     const auto r = std::from_chars(t.data(), t.data() + t.size(), out);
     if (r.ec != std::errc{} || r.ptr != t.data() + t.size()) {
-      return fail(std::string(what) + " is not a number: '" + std::string(t) + "' (field " + std::to_string(pos_ + 1) + ")");
+      return fail(std::string(what) + " is not a number: '" + std::string(t) + "' (field " + std::to_string(pos_ + 1) +
+                  ")");
     }
     if (!std::isfinite(out)) {
-      return fail(std::string(what) + " is not finite: '" + std::string(t) + "' (field " + std::to_string(pos_ + 1) + ")");
+      return fail(std::string(what) + " is not finite: '" + std::string(t) + "' (field " + std::to_string(pos_ + 1) +
+                  ")");
     }
     ++pos_;
     return true;
@@ -64,8 +66,8 @@ class Fields {
     if (!number(v, what)) return false;
     if (v < 0 || v != std::floor(v) || v > static_cast<double>(max)) {
       --pos_;
-      return fail(std::string(what) + " must be a count 0.." + std::to_string(max) + ", got '" +
-                  std::string(f_[pos_]) + "' (field " + std::to_string(pos_ + 1) + ")");
+      return fail(std::string(what) + " must be a count 0.." + std::to_string(max) + ", got '" + std::string(f_[pos_]) +
+                  "' (field " + std::to_string(pos_ + 1) + ")");
     }
     out = static_cast<std::size_t>(v);
     return true;
@@ -115,8 +117,8 @@ CarmenLine parse_odom(const std::vector<std::string_view>& f, int line) {
   o.line = line;
   double accel = 0, logger = 0;
   r.number(o.x, "x") && r.number(o.y, "y") && r.number(o.phi, "theta") && r.number(o.tv, "tv") &&
-      r.number(o.rv, "rv") && r.number(accel, "accel") && r.number(o.time, "ipc_timestamp") &&
-      r.word("ipc_hostname") && r.number(logger, "logger_timestamp") && r.finish();
+      r.number(o.rv, "rv") && r.number(accel, "accel") && r.number(o.time, "ipc_timestamp") && r.word("ipc_hostname") &&
+      r.number(logger, "logger_timestamp") && r.finish();
   if (!r.ok()) return CarmenMalformed{r.reason()};
   return o;
 }
@@ -245,8 +247,9 @@ LoadLogResult parse_carmen_text(std::string_view text, const std::string& name, 
   std::stable_sort(result.log.scans.begin(), result.log.scans.end(),
                    [](const auto& a, const auto& b) { return a.time < b.time; });
   if (result.errors.empty() && result.log.odometry.empty() && result.log.scans.empty()) {
-    result.add_error({name, 0, "no ODOM, FLASER or ROBOTLASER1 line in " + std::to_string(result.lines) +
-                                          " lines: not a CARMEN log, or an empty one"});
+    result.add_error({name, 0,
+                      "no ODOM, FLASER or ROBOTLASER1 line in " + std::to_string(result.lines) +
+                          " lines: not a CARMEN log, or an empty one"});
   }
   return result;
 }
@@ -282,7 +285,10 @@ void LoadLogResult::add_error(LogError e) {
 double ReplayLog::first_time() const noexcept {
   double t = 0;
   bool any = false;
-  if (!odometry.empty()) { t = odometry.front().time; any = true; }
+  if (!odometry.empty()) {
+    t = odometry.front().time;
+    any = true;
+  }
   if (!scans.empty() && (!any || scans.front().time < t)) t = scans.front().time;
   return t;
 }

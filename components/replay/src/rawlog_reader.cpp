@@ -72,8 +72,8 @@ struct Builder {
   void add_scan(const mrpt::obs::CObservation2DRangeScan& o, double time, int index) {
     const std::size_t n = o.getScanSize();
     if (n < 2) {
-      out.add_error({out.log.source, 0, "record " + std::to_string(index) + ": 2-D scan with " +
-                                                   std::to_string(n) + " beams"});
+      out.add_error(
+          {out.log.source, 0, "record " + std::to_string(index) + ": 2-D scan with " + std::to_string(n) + " beams"});
       return;
     }
     ScanRecord s;
@@ -127,8 +127,7 @@ struct Builder {
     }
   }
 
-  void frame(const mrpt::obs::CActionCollection::Ptr& action, const mrpt::obs::CSensoryFrame::Ptr& sf,
-             int index) {
+  void frame(const mrpt::obs::CActionCollection::Ptr& action, const mrpt::obs::CSensoryFrame::Ptr& sf, int index) {
     if (action) {
       if (auto mv = action->getBestMovementEstimation()) {
         // A deserialised action may lack its pose PDF: then only the raw reading counts.
@@ -167,7 +166,7 @@ struct Builder {
 constexpr char kFrameProgress = 'P';
 constexpr char kFrameResult = 'D';
 constexpr uint64_t kChildAddressSpace = uint64_t{512} << 20;  // 512 MiB + 2x the data more than it inherits
-constexpr int kChildSeconds = 300;                           // CPU and wall time of the child
+constexpr int kChildSeconds = 300;                            // CPU and wall time of the child
 
 bool write_all(int fd, const void* data, std::size_t n) noexcept {
   const auto* p = static_cast<const char*>(data);
@@ -341,8 +340,8 @@ bool gunzip_bounded(const std::string& in, uint64_t max_out, std::string& out, s
       return false;
     }
     if (rc != Z_OK && rc != Z_BUF_ERROR) {
-      error = std::string("gzip data is corrupt at byte offset ") + std::to_string(pos) + " of the file: " +
-              (z.msg != nullptr ? z.msg : "zlib error " + std::to_string(rc));
+      error = std::string("gzip data is corrupt at byte offset ") + std::to_string(pos) +
+              " of the file: " + (z.msg != nullptr ? z.msg : "zlib error " + std::to_string(rc));
       inflateEnd(&z);
       out.clear();
       return false;
@@ -389,7 +388,8 @@ LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string&
   result.log.source = path;
   const std::string* data = &bytes;
   std::string inflated;
-  if (bytes.size() >= 2 && static_cast<unsigned char>(bytes[0]) == 0x1f && static_cast<unsigned char>(bytes[1]) == 0x8b) {
+  if (bytes.size() >= 2 && static_cast<unsigned char>(bytes[0]) == 0x1f &&
+      static_cast<unsigned char>(bytes[1]) == 0x8b) {
     std::string error;
     if (!gunzip_bounded(bytes, kMaxRawlogBytes, inflated, error)) {
       result.add_error({path, 0, error});
@@ -406,11 +406,12 @@ LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string&
   const std::size_t image_at = stop_at_images ? data->find("Image") : std::string::npos;
   const std::size_t usable = image_at == std::string::npos ? data->size() : image_at;
   const auto image_error = [&](int index, uint64_t offset) {
-    result.add_error({path, 0, "record " + std::to_string(index) + " at byte offset " + std::to_string(offset) +
-                                   " (uncompressed) holds an image (a class named *Image* at byte offset " +
-                                   std::to_string(image_at) +
-                                   "): rawlogs are read up to their first image (MRPT's JPEG decoder ends the "
-                                   "process on a corrupt one); remove the images (rawlog-edit --remove-label)"});
+    result.add_error({path, 0,
+                      "record " + std::to_string(index) + " at byte offset " + std::to_string(offset) +
+                          " (uncompressed) holds an image (a class named *Image* at byte offset " +
+                          std::to_string(image_at) +
+                          "): rawlogs are read up to their first image (MRPT's JPEG decoder ends the "
+                          "process on a corrupt one); remove the images (rawlog-edit --remove-label)"});
   };
   mrpt::io::CMemoryStream file;
   file.assignMemoryNotOwn(data->data(), usable);
@@ -433,8 +434,9 @@ LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string&
         image_error(index, offset);
         break;
       }
-      result.add_error({path, 0, "record " + std::to_string(index) + " truncated at byte offset " +
-                                            std::to_string(offset) + " (uncompressed)"});
+      result.add_error({path, 0,
+                        "record " + std::to_string(index) + " truncated at byte offset " + std::to_string(offset) +
+                            " (uncompressed)"});
       break;
     } catch (const std::exception& e) {
       // MRPT wraps an end of data inside a nested object in its own exception: the
@@ -442,11 +444,13 @@ LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string&
       if (usable != data->size() && file.getPosition() >= usable) {
         image_error(index, offset);
       } else if (file.getPosition() >= data->size()) {
-        result.add_error({path, 0, "record " + std::to_string(index) + " truncated at byte offset " +
-                                       std::to_string(offset) + " (uncompressed): the data ends inside it"});
+        result.add_error({path, 0,
+                          "record " + std::to_string(index) + " truncated at byte offset " + std::to_string(offset) +
+                              " (uncompressed): the data ends inside it"});
       } else {
-        result.add_error({path, 0, "record " + std::to_string(index) + " at byte offset " + std::to_string(offset) +
-                                       " (uncompressed) is unreadable: " + first_line(e.what())});
+        result.add_error({path, 0,
+                          "record " + std::to_string(index) + " at byte offset " + std::to_string(offset) +
+                              " (uncompressed) is unreadable: " + first_line(e.what())});
       }
       break;
     }
@@ -463,8 +467,9 @@ LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string&
         ++result.ignored;
       }
     } catch (const std::exception& e) {  // MRPT accessors check their own invariants
-      result.add_error({path, 0, "record " + std::to_string(index) + " at byte offset " + std::to_string(offset) +
-                                     " (uncompressed) is inconsistent: " + first_line(e.what())});
+      result.add_error({path, 0,
+                        "record " + std::to_string(index) + " at byte offset " + std::to_string(offset) +
+                            " (uncompressed) is inconsistent: " + first_line(e.what())});
       break;
     }
     ++index;
@@ -474,7 +479,6 @@ LoadLogResult parse_rawlog_unchecked(const std::string& path, const std::string&
   }
   return result;
 }
-
 
 int exit_code(int status) noexcept { return WIFEXITED(status) ? WEXITSTATUS(status) : -1; }
 
@@ -507,8 +511,8 @@ LoadLogResult parse_rawlog_isolated(const std::string& path, const std::string& 
       std::fclose(statm);
     }
     if (pages > 0) {
-      const uint64_t limit =
-          pages * static_cast<uint64_t>(::sysconf(_SC_PAGESIZE)) + kChildAddressSpace + 2 * uint64_t{bytes.size()};
+      const uint64_t limit = pages * static_cast<uint64_t>(::sysconf(_SC_PAGESIZE)) + kChildAddressSpace +
+                             2 * uint64_t{bytes.size()};
       const rlimit as{limit, limit};
       (void)::setrlimit(RLIMIT_AS, &as);
     }
@@ -537,7 +541,8 @@ LoadLogResult parse_rawlog_isolated(const std::string& path, const std::string& 
   bool timed_out = false, too_big = false;
   char chunk[65536];
   for (;;) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline -
+                                                                            std::chrono::steady_clock::now());
     if (left.count() <= 0) {
       timed_out = true;
       break;
@@ -589,13 +594,14 @@ LoadLogResult parse_rawlog_isolated(const std::string& path, const std::string& 
                                              std::to_string(offset) + " (uncompressed)"
                                        : "the first record";
   if (timed_out) {
-    result.add_error({path, 0, where + ": the rawlog reader took more than " + std::to_string(kChildSeconds) +
-                                   " s; stopped"});
+    result.add_error(
+        {path, 0, where + ": the rawlog reader took more than " + std::to_string(kChildSeconds) + " s; stopped"});
   } else if (too_big) {
     result.add_error({path, 0, "the rawlog decodes to more than " + std::to_string(max_bytes) + " bytes; refused"});
   } else if (WIFSIGNALED(status)) {
-    result.add_error({path, 0, where + ": MRPT's reader crashed on it (" + strsignal(WTERMSIG(status)) +
-                                   "): the data is corrupt; refused"});
+    result.add_error(
+        {path, 0,
+         where + ": MRPT's reader crashed on it (" + strsignal(WTERMSIG(status)) + "): the data is corrupt; refused"});
   } else if (!have_payload || exit_code(status) != 0) {
     std::string why = "exit " + std::to_string(exit_code(status));
     if (exit_code(status) == 2) why = "out of memory: a record claims more than the data can hold";

@@ -44,16 +44,40 @@ bool parse_uint(const std::string& s, uint64_t& v) {
 double decode(const unsigned char* p, const Field& f) {
   switch (f.type) {
     case 'F':
-      if (f.size == 4) { float v; std::memcpy(&v, p, 4); return v; }
-      { double v; std::memcpy(&v, p, 8); return v; }
+      if (f.size == 4) {
+        float v;
+        std::memcpy(&v, p, 4);
+        return v;
+      }
+      {
+        double v;
+        std::memcpy(&v, p, 8);
+        return v;
+      }
     case 'U':
       if (f.size == 1) return p[0];
-      if (f.size == 2) { uint16_t v; std::memcpy(&v, p, 2); return v; }
-      { uint32_t v; std::memcpy(&v, p, 4); return v; }
+      if (f.size == 2) {
+        uint16_t v;
+        std::memcpy(&v, p, 2);
+        return v;
+      }
+      {
+        uint32_t v;
+        std::memcpy(&v, p, 4);
+        return v;
+      }
     default:  // 'I'
       if (f.size == 1) return static_cast<int8_t>(p[0]);
-      if (f.size == 2) { int16_t v; std::memcpy(&v, p, 2); return v; }
-      { int32_t v; std::memcpy(&v, p, 4); return v; }
+      if (f.size == 2) {
+        int16_t v;
+        std::memcpy(&v, p, 2);
+        return v;
+      }
+      {
+        int32_t v;
+        std::memcpy(&v, p, 4);
+        return v;
+      }
   }
 }
 
@@ -139,7 +163,8 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
     } else if (key == "SIZE" || key == "TYPE" || key == "COUNT") {
       if (fields.empty()) return fail(line_no, key + " before FIELDS");
       if (n != fields.size()) {
-        return fail(line_no, key + " has " + std::to_string(n) + " entries, FIELDS has " + std::to_string(fields.size()));
+        return fail(line_no,
+                    key + " has " + std::to_string(n) + " entries, FIELDS has " + std::to_string(fields.size()));
       }
       for (std::size_t i = 0; i < n; ++i) {
         const std::string& v = t[i + 1];
@@ -167,14 +192,21 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
     } else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
       uint64_t u = 0;
       if (n != 1 || !parse_uint(t[1], u)) {
-        return fail(line_no, key + " must be one non-negative integer, got '" + (n ? t[1].substr(0, 40) : std::string()) + "'");
+        return fail(line_no,
+                    key + " must be one non-negative integer, got '" + (n ? t[1].substr(0, 40) : std::string()) + "'");
       }
       if (u > kMaxPcdPoints) {
-        return fail(line_no, key + " " + t[1] + " is more than the limit of " + std::to_string(kMaxPcdPoints) + " points");
+        return fail(line_no,
+                    key + " " + t[1] + " is more than the limit of " + std::to_string(kMaxPcdPoints) + " points");
       }
-      if (key == "WIDTH") { width = u; have_width = true; }
-      else if (key == "HEIGHT") height = u;
-      else { points = u; have_points = true; }
+      if (key == "WIDTH") {
+        width = u;
+        have_width = true;
+      } else if (key == "HEIGHT") height = u;
+      else {
+        points = u;
+        have_points = true;
+      }
     } else if (key == "VIEWPOINT") {
       if (n != 7) return fail(line_no, "VIEWPOINT needs 7 numbers (tx ty tz qw qx qy qz), got " + std::to_string(n));
     } else if (key == "DATA") {
@@ -199,7 +231,8 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
   }
   if (!have_points) points = width * height;
   if (points != width * height) {
-    return fail(data_line, "POINTS " + std::to_string(points) + " is not WIDTH x HEIGHT = " + std::to_string(width * height));
+    return fail(data_line,
+                "POINTS " + std::to_string(points) + " is not WIDTH x HEIGHT = " + std::to_string(width * height));
   }
   int ix = -1, iy = -1, iz = -1, ii = -1;
   // 64 bits, bounded per field (SIZE <= 8, COUNT <= 1e6, at most kMaxPcdFields): the
@@ -260,13 +293,15 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
   if (data == "binary_compressed") {
     // Two uint32 (compressed and raw size), then LZF data that holds the fields one
     // after another (all x, then all y, ...), not point by point.
-    if (have < 8) return fail(0, "binary_compressed data: " + std::to_string(have) + " bytes, no size header (truncated file?)");
+    if (have < 8)
+      return fail(0, "binary_compressed data: " + std::to_string(have) + " bytes, no size header (truncated file?)");
     uint32_t packed = 0, raw = 0;
     std::memcpy(&packed, contents.data() + pos, 4);
     std::memcpy(&raw, contents.data() + pos + 4, 4);
     if (raw != need) {
       return fail(0, "binary_compressed data: raw size " + std::to_string(raw) + ", the header needs " +
-                         std::to_string(points) + " points x " + std::to_string(offset) + " bytes = " + std::to_string(need));
+                         std::to_string(points) + " points x " + std::to_string(offset) +
+                         " bytes = " + std::to_string(need));
     }
     // LZF expands at most about 90 times (3 bytes for a 264-byte reference): a raw
     // size beyond that is a lie, refused before anything is allocated for it.
@@ -289,8 +324,8 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
                                            buf.data(), buf.size(), written);
     if (!why.empty()) return fail(0, "binary_compressed data: " + why + " (corrupt file?)");
     if (written != need) {
-      return fail(0, "binary_compressed data: decompresses to " + std::to_string(written) + " bytes, the header needs " +
-                         std::to_string(need));
+      return fail(0, "binary_compressed data: decompresses to " + std::to_string(written) +
+                         " bytes, the header needs " + std::to_string(need));
     }
     // Field f of point p: at points * (the bytes of the fields before f) + p * its own size.
     const auto column_of = [&](int index) -> const unsigned char* {
@@ -310,8 +345,9 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
   }
   if (data == "binary") {
     if (have < need) {
-      return fail(0, "binary data holds " + std::to_string(have) + " bytes, the header needs " + std::to_string(points) +
-                         " points x " + std::to_string(offset) + " bytes = " + std::to_string(need) + " (truncated file?)");
+      return fail(0, "binary data holds " + std::to_string(have) + " bytes, the header needs " +
+                         std::to_string(points) + " points x " + std::to_string(offset) +
+                         " bytes = " + std::to_string(need) + " (truncated file?)");
     }
     reserve_points(expect);
     const auto* base = reinterpret_cast<const unsigned char*>(contents.data() + pos);
@@ -358,7 +394,8 @@ bool parse_pcd(const std::string& name, const std::string& contents, PcdCloud& o
     keep(v[0], v[1], v[2], v[3]);
     ++p;
   }
-  if (p != points) return fail(line_no, "file ends after " + std::to_string(p) + " of " + std::to_string(points) + " points");
+  if (p != points)
+    return fail(line_no, "file ends after " + std::to_string(p) + " of " + std::to_string(points) + " points");
   return true;
 }
 

@@ -62,14 +62,16 @@ AddStatus Scan3dAssembler::add_scan(const interfaces::LadarData& scan, int64_t t
   for (uint32_t b = 0; b < n; ++b) {
     const double r = scan.range[b];
     if (!std::isfinite(r) || r <= 0.0 || r > max_range || r < min_range) continue;  // no echo / blind zone
-    const int64_t t = n > 1 ? time_ns + scan.duration_ns * static_cast<int64_t>(b) / static_cast<int64_t>(n - 1) : time_ns;
+    const int64_t t = n > 1 ? time_ns + scan.duration_ns * static_cast<int64_t>(b) / static_cast<int64_t>(n - 1)
+                            : time_ns;
     double theta = 0.0;
     if (drive_.value_at(t, config_.max_extrapolation_ns, theta) != components::SeriesLookup::kOk) continue;
     if (count_ >= capacity_) {
       ++dropped_;
       continue;
     }
-    const double bearing = static_cast<double>(scan.start_angle) + static_cast<double>(b) * static_cast<double>(scan.angle_step);
+    const double bearing = static_cast<double>(scan.start_angle) +
+                           static_cast<double>(b) * static_cast<double>(scan.angle_step);
     components::Vec3 p = components::scan3d_point(config_.mount, theta, bearing, r);
     if (compensate) {
       components::Pose2d pose;  // covered: checked above for the whole scan

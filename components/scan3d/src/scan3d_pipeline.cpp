@@ -34,7 +34,8 @@ const char* check_options(const PipelineOptions& o) noexcept {
   if (!(o.ground_max_height > 0.0)) return "ground_max_height must be > 0";
   if (o.ransac_iterations < 1) return "ransac_iterations must be >= 1";
   if (!(o.ceiling_height >= 0.0)) return "ceiling_height must be >= 0";
-  if (o.max_points == 0 || o.max_points > interfaces::kScan3dMaxPoints) return "max_points must be in 1..kScan3dMaxPoints";
+  if (o.max_points == 0 || o.max_points > interfaces::kScan3dMaxPoints)
+    return "max_points must be in 1..kScan3dMaxPoints";
   return nullptr;
 }
 
@@ -205,7 +206,8 @@ bool Scan3dPipeline::range_image(const interfaces::Scan3dData& scan, double sx, 
   pcl::PointCloud<pcl::PointXYZ> cloud;
   cloud.resize(n);
   for (uint32_t i = 0; i < n; ++i) cloud[i] = pcl::PointXYZ(scan.x[i], scan.y[i], scan.z[i]);
-  const Eigen::Affine3f pose(Eigen::Translation3f(static_cast<float>(sx), static_cast<float>(sy), static_cast<float>(sz)));
+  const Eigen::Affine3f pose(
+      Eigen::Translation3f(static_cast<float>(sx), static_cast<float>(sy), static_cast<float>(sz)));
   pcl::RangeImage image;
   image.createFromPointCloud(cloud, static_cast<float>(resolution), pcl::deg2rad(360.0F), pcl::deg2rad(180.0F), pose,
                              pcl::RangeImage::LASER_FRAME, 0.0F, 0.0F, 0);
@@ -237,7 +239,7 @@ bool Scan3dPipeline::range_image(const interfaces::Scan3dData& scan, double sx, 
   if (w > 1) direction(1, 0, az_next, el_dummy);
   const double step = std::remainder(az_next - az0, 2.0 * M_PI);
   const bool flip_x = w > 1 && step > 0.0;  // column 0 should have the largest azimuth
-  const bool flip_y = el0 < el1;           // row 0 should be the highest
+  const bool flip_y = el0 < el1;            // row 0 should be the highest
   for (uint32_t row = 0; row < h; ++row) {
     for (uint32_t col = 0; col < w; ++col) {
       const float r = image.getPoint(static_cast<int>(col), static_cast<int>(row)).range;

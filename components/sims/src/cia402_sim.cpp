@@ -187,7 +187,10 @@ void Cia402DriveSim::handle_sdo(Drive& d, const uint8_t* data) {
   };
   if ((cmd & 0xE0) == 0x20) {  // download (write)
     switch (index) {
-      case co::kObjHeartbeatTime: d.s.heartbeat_ms = static_cast<uint16_t>(value); d.next_heartbeat_ns = 0; break;
+      case co::kObjHeartbeatTime:
+        d.s.heartbeat_ms = static_cast<uint16_t>(value);
+        d.next_heartbeat_ns = 0;
+        break;
       case co::kObjTpdo1Comm:
       case co::kObjTpdo2Comm:
         if (sub != 2) return abort(co::kAbortNoObject);
@@ -216,9 +219,18 @@ void Cia402DriveSim::handle_sdo(Drive& d, const uint8_t* data) {
     uint32_t v = 0;
     uint8_t size = 4;
     switch (index) {
-      case co::kObjHeartbeatTime: v = d.s.heartbeat_ms; size = 2; break;
-      case co::kObjStatusword: v = d.s.statusword; size = 2; break;
-      case co::kObjModesOfOperation: v = static_cast<uint8_t>(d.s.mode); size = 1; break;
+      case co::kObjHeartbeatTime:
+        v = d.s.heartbeat_ms;
+        size = 2;
+        break;
+      case co::kObjStatusword:
+        v = d.s.statusword;
+        size = 2;
+        break;
+      case co::kObjModesOfOperation:
+        v = static_cast<uint8_t>(d.s.mode);
+        size = 1;
+        break;
       case co::kObjPositionActual: v = static_cast<uint32_t>(static_cast<int32_t>(std::lround(d.s.position))); break;
       case co::kObjVelocityActual: v = static_cast<uint32_t>(static_cast<int32_t>(std::lround(d.s.velocity))); break;
       default: return abort(co::kAbortNoObject);

@@ -57,26 +57,24 @@ std::string NmeaGpsSim::sentences(const Config& c, double lat, double lon, int64
   const double secs = static_cast<double>(tod % (60 * rt::kNsPerSec)) * 1e-9;
   std::snprintf(time, sizeof time, "%02d%02d%05.2f", static_cast<int>(tod / (3600 * rt::kNsPerSec)),
                 static_cast<int>(tod / (60 * rt::kNsPerSec) % 60), secs);
-  std::snprintf(date, sizeof date, "%02d%02d%02d", static_cast<int>(d), static_cast<int>(m),
-                static_cast<int>(y % 100));
+  std::snprintf(date, sizeof date, "%02d%02d%02d", static_cast<int>(d), static_cast<int>(m), static_cast<int>(y % 100));
   char ns_h = 'N', ew_h = 'E';
   const std::string la = angle(lat, 2, 'N', 'S', &ns_h);
   const std::string lo = angle(lon, 3, 'E', 'W', &ew_h);
   const std::string t = c.talker;
   char buf[256];
   std::string out;
-  std::snprintf(buf, sizeof buf, "%sGGA,%s,%s,%c,%s,%c,1,%02u,%.1f,%.1f,M,47.0,M,,", t.c_str(), time, la.c_str(),
-                ns_h, lo.c_str(), ew_h, c.satellites, c.hdop, c.altitude_m);
+  std::snprintf(buf, sizeof buf, "%sGGA,%s,%s,%c,%s,%c,1,%02u,%.1f,%.1f,M,47.0,M,,", t.c_str(), time, la.c_str(), ns_h,
+                lo.c_str(), ew_h, c.satellites, c.hdop, c.altitude_m);
   out += with_checksum(buf);
   const double knots = c.speed_mps * 3600.0 / 1852.0;
   std::snprintf(buf, sizeof buf, "%sRMC,%s,A,%s,%c,%s,%c,%.2f,%.1f,%s,,,A", t.c_str(), time, la.c_str(), ns_h,
                 lo.c_str(), ew_h, knots, c.course_deg, date);
   out += with_checksum(buf);
-  std::snprintf(buf, sizeof buf, "%sGSA,A,3,04,05,09,12,17,20,24,25,28,,,,%.1f,%.1f,%.1f", t.c_str(),
-                c.hdop * 1.6, c.hdop, c.hdop * 1.3);
+  std::snprintf(buf, sizeof buf, "%sGSA,A,3,04,05,09,12,17,20,24,25,28,,,,%.1f,%.1f,%.1f", t.c_str(), c.hdop * 1.6,
+                c.hdop, c.hdop * 1.3);
   out += with_checksum(buf);
-  std::snprintf(buf, sizeof buf, "%sVTG,%.1f,T,,M,%.2f,N,%.2f,K,A", t.c_str(), c.course_deg, knots,
-                c.speed_mps * 3.6);
+  std::snprintf(buf, sizeof buf, "%sVTG,%.1f,T,,M,%.2f,N,%.2f,K,A", t.c_str(), c.course_deg, knots, c.speed_mps * 3.6);
   out += with_checksum(buf);
   return out;
 }

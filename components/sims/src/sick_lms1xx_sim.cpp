@@ -69,15 +69,15 @@ std::string SickLms1xxSim::scan_telegram(const char* kind) {
   ++counter_;
   const auto us = static_cast<uint32_t>(rt::monotonic_ns() / 1000);
   std::string t = std::string(kind) + " LMDscandata 1 1 " + hex(0x1234567) + " 0 0 " + hex(counter_) + " " +
-                  hex(counter_) + " " + hex(us) + " " + hex(us + 100) + " 0 0 0 0 0 " +
-                  hex(config_.frequency_centihz) + " " + hex(1) + " 0 2 DIST1 3F800000 00000000 " +
-                  hex(static_cast<uint32_t>(config_.start_angle)) + " " + hex(config_.step) + " " + hex(config_.count);
+                  hex(counter_) + " " + hex(us) + " " + hex(us + 100) + " 0 0 0 0 0 " + hex(config_.frequency_centihz) +
+                  " " + hex(1) + " 0 2 DIST1 3F800000 00000000 " + hex(static_cast<uint32_t>(config_.start_angle)) +
+                  " " + hex(config_.step) + " " + hex(config_.count);
   for (uint32_t i = 0; i < config_.count; ++i) {
     t.push_back(' ');
     t.append(hex(static_cast<uint32_t>(std::lround(range_m(i) * 1000.0))));
   }
-  t += " RSSI1 3F800000 00000000 " + hex(static_cast<uint32_t>(config_.start_angle)) + " " + hex(config_.step) +
-       " " + hex(config_.count);
+  t += " RSSI1 3F800000 00000000 " + hex(static_cast<uint32_t>(config_.start_angle)) + " " + hex(config_.step) + " " +
+       hex(config_.count);
   for (uint32_t i = 0; i < config_.count; ++i) {
     t.push_back(' ');
     t.append(hex(200 + i % 50));

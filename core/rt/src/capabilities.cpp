@@ -86,8 +86,7 @@ RtCapabilities probe_capabilities() {
   RtCapabilities caps;
   caps.sched_fifo = try_fifo_thread();
   rlimit lim{};
-  caps.memlock = geteuid() == 0 ||
-                 (getrlimit(RLIMIT_MEMLOCK, &lim) == 0 && lim.rlim_cur == RLIM_INFINITY);
+  caps.memlock = geteuid() == 0 || (getrlimit(RLIMIT_MEMLOCK, &lim) == 0 && lim.rlim_cur == RLIM_INFINITY);
   utsname u{};
   if (uname(&u) == 0) caps.kernel = std::string(u.release) + " " + u.version;
   caps.preempt_rt = read_first_line("/sys/kernel/realtime") == "1" ||

@@ -233,11 +233,13 @@ bool check_kind(const std::string& path, bool (*is)(mode_t), const char* expecte
 }  // namespace
 
 bool check_char_device(const std::string& path, const char* what, std::string& error) {
-  return check_kind(path, [](mode_t m) { return S_ISCHR(m); }, "a character device", what, error);
+  return check_kind(
+      path, [](mode_t m) { return S_ISCHR(m); }, "a character device", what, error);
 }
 
 bool check_socket(const std::string& path, const char* what, std::string& error) {
-  return check_kind(path, [](mode_t m) { return S_ISSOCK(m); }, "a socket", what, error);
+  return check_kind(
+      path, [](mode_t m) { return S_ISSOCK(m); }, "a socket", what, error);
 }
 
 }  // namespace rack::rt

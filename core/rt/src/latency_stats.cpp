@@ -87,9 +87,18 @@ LatencySummary LatencyStats::summary() const noexcept {
   for (std::size_t i = 0; i < kBuckets; ++i) {
     cum += buckets_[i].load(std::memory_order_relaxed);
     const int64_t edge = std::min(static_cast<int64_t>(i + 1) * kBucketNs, s.max_ns);
-    if (!got50 && cum >= r50) { s.p50_ns = edge; got50 = true; }
-    if (!got99 && cum >= r99) { s.p99_ns = edge; got99 = true; }
-    if (cum >= r999) { s.p999_ns = edge; break; }
+    if (!got50 && cum >= r50) {
+      s.p50_ns = edge;
+      got50 = true;
+    }
+    if (!got99 && cum >= r99) {
+      s.p99_ns = edge;
+      got99 = true;
+    }
+    if (cum >= r999) {
+      s.p999_ns = edge;
+      break;
+    }
   }
   return s;
 }

@@ -22,8 +22,7 @@ std::string MemoryPolicyResult::describe() const {
     return "memory NOT locked: ThreadSanitizer build: mlockall and heap/stack pre-faulting are skipped";
   }
   if (locked) {
-    return "memory locked (mlockall), heap pre-faulted " +
-           std::to_string(prefaulted_heap_bytes / 1024) + " KiB";
+    return "memory locked (mlockall), heap pre-faulted " + std::to_string(prefaulted_heap_bytes / 1024) + " KiB";
   }
   return std::string("memory NOT locked: mlockall failed: ") + std::strerror(lock_errno);
 }

@@ -49,11 +49,11 @@ namespace {
 
 // ---------------------------------------------------------------- constants
 
-constexpr char kAllow = 0;   // SYSCALL_DISPATCH_FILTER_ALLOW
-constexpr char kBlock = 1;   // SYSCALL_DISPATCH_FILTER_BLOCK
-constexpr int kSysUserDispatch = 2;  // si_code of a SUD SIGSYS (asm-generic/siginfo.h)
-constexpr int kTrapPerf = 6;         // si_code of a perf sigtrap SIGTRAP
-constexpr uint32_t kTrapPerfAsync = 1;  // si_perf_flags: delivered late (SIGTRAP was blocked)
+constexpr char kAllow = 0;                                // SYSCALL_DISPATCH_FILTER_ALLOW
+constexpr char kBlock = 1;                                // SYSCALL_DISPATCH_FILTER_BLOCK
+constexpr int kSysUserDispatch = 2;                       // si_code of a SUD SIGSYS (asm-generic/siginfo.h)
+constexpr int kTrapPerf = 6;                              // si_code of a perf sigtrap SIGTRAP
+constexpr uint32_t kTrapPerfAsync = 1;                    // si_perf_flags: delivered late (SIGTRAP was blocked)
 constexpr uint64_t kPerfSigData = 0x5241434b4d535731ull;  // "RACKMSW1": our page-fault events
 constexpr int kMaxTasks = 256;
 constexpr int kMaxFrames = 48;
@@ -90,7 +90,7 @@ struct TaskSlot {
   // Written only by the owning thread and its own signal handlers (same thread:
   // volatile and signal fences are enough, no cross-thread ordering needed).
   volatile uint32_t cycle_reports = 0;
-  volatile bool xcpu_reported = false;  // one RLIMIT_RTTIME report per cycle
+  volatile bool xcpu_reported = false;    // one RLIMIT_RTTIME report per cycle
   volatile uint32_t framework_waits = 0;  // TrustedScope(may_block) in this cycle
   rusage ru_start{};
 };
@@ -113,7 +113,8 @@ uintptr_t g_sud_region = 0;  // glibc's signal restorer: the only place syscalls
 uint64_t g_allowed[kMaxSyscalls / 64] = {};
 uint64_t g_fd_calls[kMaxSyscalls / 64] = {};
 std::atomic<uint64_t> g_rt_fds[kMaxFds / 64] = {};
-struct sigaction g_old_sigsys{}, g_old_sigtrap{}, g_old_sigxcpu{};
+struct sigaction g_old_sigsys {
+}, g_old_sigtrap{}, g_old_sigxcpu{};
 struct sigaction g_old_crash[32]{};
 constexpr int kCrashSignals[] = {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT};
 bool g_crash_installed = false;
@@ -151,10 +152,10 @@ struct Record {
   char label[48] = {};
   int32_t tid = 0;
   int32_t signo = 0, code = 0;
-  int64_t nr = -1;          // syscall number, heap call kind, sub-reason
+  int64_t nr = -1;  // syscall number, heap call kind, sub-reason
   uint64_t args[6] = {};
-  uint64_t addr = 0;        // fault address, mutex address
-  int64_t value = 0;        // size, wait, periods, ...
+  uint64_t addr = 0;  // fault address, mutex address
+  int64_t value = 0;  // size, wait, periods, ...
   int64_t value2 = 0;
   uint16_t frames = 0;
   uintptr_t pc[kMaxFrames] = {};
@@ -170,8 +171,8 @@ struct Cell {
 };
 Cell g_ring[kRingSize];
 std::atomic<uint64_t> g_enqueue{0};
-uint64_t g_dequeue = 0;                     // owned by whoever holds g_consumer
-std::atomic<bool> g_consumer{false};        // the one consumer at a time
+uint64_t g_dequeue = 0;               // owned by whoever holds g_consumer
+std::atomic<bool> g_consumer{false};  // the one consumer at a time
 std::atomic<uint64_t> g_sequence{0};
 std::atomic<uint64_t> g_dropped{0};
 std::atomic<uint64_t> g_by_reason[kReasonCount] = {};
@@ -223,7 +224,7 @@ void unlock_consumer() noexcept { g_consumer.store(false, std::memory_order_rele
 // ---------------------------------------------------------------- modules
 
 struct Module {
-  uintptr_t base = 0;  // load bias (dlpi_addr)
+  uintptr_t base = 0;        // load bias (dlpi_addr)
   uintptr_t lo = 0, hi = 0;  // executable segments, absolute
   uint8_t build_id[32] = {};
   uint8_t build_id_len = 0;
@@ -231,7 +232,7 @@ struct Module {
 };
 Module g_modules[kMaxModules];
 std::atomic<int> g_module_count{0};  // entries below it are immutable
-int g_modules_written = 0;            // reporter (consumer) only
+int g_modules_written = 0;           // reporter (consumer) only
 
 int find_module(uintptr_t pc) noexcept {
   const int n = g_module_count.load(std::memory_order_acquire);
@@ -311,19 +312,28 @@ class Text {
   Text& u(uint64_t v) noexcept {
     char tmp[24];
     int n = 0;
-    do { tmp[n++] = static_cast<char>('0' + v % 10); v /= 10; } while (v != 0);
+    do {
+      tmp[n++] = static_cast<char>('0' + v % 10);
+      v /= 10;
+    } while (v != 0);
     while (n > 0) c(tmp[--n]);
     return *this;
   }
   Text& i(int64_t v) noexcept {
-    if (v < 0) { c('-'); return u(static_cast<uint64_t>(-(v + 1)) + 1); }
+    if (v < 0) {
+      c('-');
+      return u(static_cast<uint64_t>(-(v + 1)) + 1);
+    }
     return u(static_cast<uint64_t>(v));
   }
   Text& hex(uint64_t v, int min_digits = 1) noexcept {
     static constexpr char kDigits[] = "0123456789abcdef";
     char tmp[16];
     int n = 0;
-    do { tmp[n++] = kDigits[v & 15u]; v >>= 4; } while (v != 0 || n < min_digits);
+    do {
+      tmp[n++] = kDigits[v & 15u];
+      v >>= 4;
+    } while (v != 0 || n < min_digits);
     s("0x");
     while (n > 0) c(tmp[--n]);
     return *this;
@@ -393,7 +403,8 @@ void describe_record(const Record& r, Text& t) noexcept {
   switch (r.reason) {
     case Reason::kSyscall: {
       const char* name = syscall_name(r.nr);
-      if (name != nullptr) t.s(name); else t.s("syscall ").i(r.nr);
+      if (name != nullptr) t.s(name);
+      else t.s("syscall ").i(r.nr);
       t.c('(');
       for (int k = 0; k < 4; ++k) {
         if (k > 0) t.s(", ");
@@ -404,13 +415,10 @@ void describe_record(const Record& r, Text& t) noexcept {
         t.s(": a descriptor in its pollfd array is not a registered RT device");  // args[0] is the array
       } else if (fd_syscall(r.nr)) {
         t.s(": fd ").i(static_cast<int64_t>(r.args[0])).s(" is not a registered RT device");
-      }
-      else t.s(": not on the real-time allow-list");
+      } else t.s(": not on the real-time allow-list");
       return;
     }
-    case Reason::kFault:
-      t.s("page fault at ").hex(r.addr);
-      return;
+    case Reason::kFault: t.s("page fault at ").hex(r.addr); return;
     case Reason::kAlloc:
       t.s(heap_call_name(r.nr));
       if (r.nr != static_cast<int64_t>(detail::HeapCall::kFree) &&
@@ -421,11 +429,13 @@ void describe_record(const Record& r, Text& t) noexcept {
       return;
     case Reason::kPrioInv:
       if (r.nr == 0) {
-        t.s("pthread_mutex_lock(").hex(r.addr).s(") on a mutex without priority inheritance (kind ")
-            .hex(static_cast<uint64_t>(r.value)).c(')');
+        t.s("pthread_mutex_lock(")
+            .hex(r.addr)
+            .s(") on a mutex without priority inheritance (kind ")
+            .hex(static_cast<uint64_t>(r.value))
+            .c(')');
       } else {
-        t.s("waited ").i(r.value / 1000).s(" us for mutex ").hex(r.addr).s(" (threshold ")
-            .i(r.value2 / 1000).s(" us)");
+        t.s("waited ").i(r.value / 1000).s(" us for mutex ").hex(r.addr).s(" (threshold ").i(r.value2 / 1000).s(" us)");
       }
       return;
     case Reason::kWatchdog:
@@ -439,13 +449,14 @@ void describe_record(const Record& r, Text& t) noexcept {
       t.s("memory is not locked (VmLck: ").i(r.value).s(" kB) when the task started: page faults will hit it");
       return;
     case Reason::kRusage:
-      t.s("getrusage during the cycle: minor faults +").i(static_cast<int64_t>(r.args[0]))
-          .s(", major faults +").i(static_cast<int64_t>(r.args[1]))
-          .s(", voluntary context switches +").i(static_cast<int64_t>(r.args[2]));
+      t.s("getrusage during the cycle: minor faults +")
+          .i(static_cast<int64_t>(r.args[0]))
+          .s(", major faults +")
+          .i(static_cast<int64_t>(r.args[1]))
+          .s(", voluntary context switches +")
+          .i(static_cast<int64_t>(r.args[2]));
       return;
-    case Reason::kCrash:
-      t.s(signal_name(r.signo)).s(" (si_code ").i(r.code).s(") at address ").hex(r.addr);
-      return;
+    case Reason::kCrash: t.s(signal_name(r.signo)).s(" (si_code ").i(r.code).s(") at address ").hex(r.addr); return;
   }
 }
 
@@ -548,8 +559,8 @@ int current_tid() noexcept {
 }
 
 // Fills a record in place (ring cell or the crash handler's own).
-__attribute__((noinline)) void fill(Record& r, Reason reason, const ucontext_t* uc, int skip, int64_t nr, const uint64_t* args,
-          uint64_t addr, int64_t value, int64_t value2) noexcept {
+__attribute__((noinline)) void fill(Record& r, Reason reason, const ucontext_t* uc, int skip, int64_t nr,
+                                    const uint64_t* args, uint64_t addr, int64_t value, int64_t value2) noexcept {
   const TaskSlot* s = t_slot;
   r.sequence = g_sequence.fetch_add(1, std::memory_order_relaxed) + 1;
   r.time_ns = now_realtime();
@@ -570,9 +581,8 @@ __attribute__((noinline)) void fill(Record& r, Reason reason, const ucontext_t* 
 }
 
 // Records one report into the ring. Async-signal-safe. skip: detector frames above.
-__attribute__((noinline)) void record(Reason reason, const ucontext_t* uc, int skip, int64_t nr,
-                                      const uint64_t* args, uint64_t addr, int64_t value,
-                                      int64_t value2 = 0) noexcept {
+__attribute__((noinline)) void record(Reason reason, const ucontext_t* uc, int skip, int64_t nr, const uint64_t* args,
+                                      uint64_t addr, int64_t value, int64_t value2 = 0) noexcept {
   t_busy = t_busy + 1;
   std::atomic_signal_fence(std::memory_order_seq_cst);
   g_by_reason[static_cast<int>(reason)].fetch_add(1, std::memory_order_relaxed);
@@ -592,7 +602,7 @@ __attribute__((noinline)) void record(Reason reason, const ucontext_t* uc, int s
 
 std::mutex g_sinks_mutex;  // reporter thread and add_sink() (both non-RT)
 std::vector<std::shared_ptr<ReportSink>> g_sinks;
-uint64_t g_written = 0;            // reports written to the file (consumer only)
+uint64_t g_written = 0;             // reports written to the file (consumer only)
 int64_t g_stderr_window_start = 0;  // rate limit (consumer only)
 uint32_t g_stderr_in_window = 0;
 uint64_t g_stderr_suppressed = 0;
@@ -600,11 +610,11 @@ uint64_t g_stderr_suppressed = 0;
 // Aggregation of identical reports (Config::repeat_every_ns). Consumer only: a fixed
 // table, no allocation. Reports of sites beyond kMaxRepeatSites are written in full.
 struct RepeatSite {
-  uint64_t key = 0;        // report_key(); 0: free
-  uint64_t first = 0;      // the sequence number of the report written in full
-  uint64_t pending = 0;    // identical reports since the last line about it
-  uint64_t total = 0;      // all of them, the first included
-  int64_t due_ns = 0;      // monotonic: the next repeat line no earlier than this
+  uint64_t key = 0;      // report_key(); 0: free
+  uint64_t first = 0;    // the sequence number of the report written in full
+  uint64_t pending = 0;  // identical reports since the last line about it
+  uint64_t total = 0;    // all of them, the first included
+  int64_t due_ns = 0;    // monotonic: the next repeat line no earlier than this
 };
 constexpr std::size_t kMaxRepeatSites = 1024;
 RepeatSite g_repeat_sites[kMaxRepeatSites];
@@ -641,7 +651,8 @@ bool counted_as_repeat(const Record& r) noexcept {
     return true;
   }
   if (g_repeat_site_count < kMaxRepeatSites) {
-    g_repeat_sites[g_repeat_site_count++] = RepeatSite{key, r.sequence, 0, 1, monotonic_ns() + g_config.repeat_every_ns};
+    g_repeat_sites[g_repeat_site_count++] = RepeatSite{key, r.sequence, 0, 1,
+                                                       monotonic_ns() + g_config.repeat_every_ns};
   }
   return false;
 }
@@ -655,12 +666,25 @@ void write_repeats(bool all) noexcept {
     if (s.pending == 0 || (!all && now < s.due_ns)) continue;
     char buf[256];
     Text t(buf, sizeof buf);
-    t.s("repeat ").u(s.first).s(" count=").u(s.pending).s(" total=").u(s.total).s(" time_ns=").i(now_realtime()).c('\n');
+    t.s("repeat ")
+        .u(s.first)
+        .s(" count=")
+        .u(s.pending)
+        .s(" total=")
+        .u(s.total)
+        .s(" time_ns=")
+        .i(now_realtime())
+        .c('\n');
     write_all(g_report_fd, t.data(), t.size());
     if (g_config.to_stderr) {
       char head[384];
       Text h(head, sizeof head);
-      h.s("rack: MODE SWITCH report ").u(s.first).s(" repeated ").u(s.pending).s(" more time(s), ").u(s.total)
+      h.s("rack: MODE SWITCH report ")
+          .u(s.first)
+          .s(" repeated ")
+          .u(s.pending)
+          .s(" more time(s), ")
+          .u(s.total)
           .s(" in all");
       if (g_report_fd >= 0) h.s(" -- symbolize: rack-backtrace ").s(g_report_path);
       h.c('\n');
@@ -740,7 +764,10 @@ void drain_locked(bool sinks) noexcept {
       // New plug-in code in a backtrace: record its module first (not signal-safe,
       // hence only on the reporter thread).
       for (uint16_t k = 0; k < r.frames; ++k) {
-        if (find_module(r.pc[k]) < 0) { refresh_modules(); break; }
+        if (find_module(r.pc[k]) < 0) {
+          refresh_modules();
+          break;
+        }
       }
     }
     emit(r, sinks);
@@ -811,7 +838,10 @@ bool syscall_allowed(long nr, const uint64_t* a) noexcept {
     // Every descriptor in the pollfd array must be an RT device. The array is the
     // caller's and may be a bad pointer (the kernel would say EFAULT): read it with
     // process_vm_readv, which fails instead of faulting in this handler.
-    struct { int fd; short events, revents; } fds[64];
+    struct {
+      int fd;
+      short events, revents;
+    } fds[64];
     const uint64_t n = a[1];
     if (n == 0 || n > 64) return false;
     const iovec local{fds, n * sizeof fds[0]};
@@ -831,10 +861,19 @@ bool syscall_allowed(long nr, const uint64_t* a) noexcept {
 bool run_natively(long nr) noexcept {
 #if defined(__x86_64__)
   switch (nr) {
-    case SYS_rt_sigreturn: case SYS_rt_sigprocmask: case SYS_rt_sigsuspend: case SYS_sigaltstack:
-    case SYS_clone: case SYS_clone3: case SYS_fork: case SYS_vfork: case SYS_execve: case SYS_execveat:
-    case SYS_exit: case SYS_exit_group: case SYS_arch_prctl:
-      return true;
+    case SYS_rt_sigreturn:
+    case SYS_rt_sigprocmask:
+    case SYS_rt_sigsuspend:
+    case SYS_sigaltstack:
+    case SYS_clone:
+    case SYS_clone3:
+    case SYS_fork:
+    case SYS_vfork:
+    case SYS_execve:
+    case SYS_execveat:
+    case SYS_exit:
+    case SYS_exit_group:
+    case SYS_arch_prctl: return true;
     default: return false;
   }
 #else
@@ -908,8 +947,7 @@ void on_sigtrap(int sig, siginfo_t* info, void* ctx) {
   const int saved_errno = errno;
   const char saved = s->selector;
   s->selector = kAllow;
-  record(Reason::kFault, static_cast<ucontext_t*>(ctx), 0, -1, nullptr,
-         reinterpret_cast<uintptr_t>(info->si_addr), 0);
+  record(Reason::kFault, static_cast<ucontext_t*>(ctx), 0, -1, nullptr, reinterpret_cast<uintptr_t>(info->si_addr), 0);
   s->selector = saved;
   errno = saved_errno;
   std::atomic_signal_fence(std::memory_order_seq_cst);
@@ -953,8 +991,8 @@ void on_crash(int sig, siginfo_t* info, void* ctx) {
     write_all(STDERR_FILENO, t.data(), t.size());
   }
   static Record r;  // under g_crashing_tid
-  fill(r, Reason::kCrash, static_cast<ucontext_t*>(ctx), 0, -1, nullptr,
-       reinterpret_cast<uintptr_t>(info->si_addr), 0, 0);
+  fill(r, Reason::kCrash, static_cast<ucontext_t*>(ctx), 0, -1, nullptr, reinterpret_cast<uintptr_t>(info->si_addr), 0,
+       0);
   r.signo = sig;
   r.code = info->si_code;
   if (try_lock_consumer(200 * kNsPerMs)) {
@@ -967,7 +1005,7 @@ void on_crash(int sig, siginfo_t* info, void* ctx) {
   g_by_reason[static_cast<int>(Reason::kCrash)].fetch_add(1, std::memory_order_relaxed);
   // Die with the original signal: default action, and for a signal that was sent
   // (kill, raise, abort) send it again; a fault re-executes its instruction.
-  struct sigaction dfl{};
+  struct sigaction dfl {};
   dfl.sa_handler = SIG_DFL;
   sigemptyset(&dfl.sa_mask);
   sigaction(sig, &dfl, nullptr);
@@ -977,11 +1015,11 @@ void on_crash(int sig, siginfo_t* info, void* ctx) {
 void install(int sig, void (*fn)(int, siginfo_t*, void*), int extra_flags, struct sigaction* old) {
   // Already ours (start() after stop()): keep the handler saved the first time, or
   // chaining would call ourselves.
-  struct sigaction current{};
+  struct sigaction current {};
   if (sigaction(sig, nullptr, &current) == 0 && (current.sa_flags & SA_SIGINFO) != 0 && current.sa_sigaction == fn) {
     return;
   }
-  struct sigaction sa{};
+  struct sigaction sa {};
   sa.sa_sigaction = fn;
   sa.sa_flags = SA_SIGINFO | SA_RESTART | extra_flags;
   sigemptyset(&sa.sa_mask);
@@ -1041,15 +1079,14 @@ void build_allow_lists() {
   std::memset(g_fd_calls, 0, sizeof g_fd_calls);
   // Calls an RT task makes by design: waiting and waking (futex), periodic sleep,
   // clocks, and harmless identity calls.
-  for (const char* n : {"futex", "futex_waitv", "clock_nanosleep", "clock_gettime", "clock_getres",
-                        "gettimeofday", "time", "sched_yield", "getpid", "gettid", "getcpu",
-                        "rt_sigreturn", "restart_syscall", "getrusage"}) {
+  for (const char* n :
+       {"futex", "futex_waitv", "clock_nanosleep", "clock_gettime", "clock_getres", "gettimeofday", "time",
+        "sched_yield", "getpid", "gettid", "getcpu", "rt_sigreturn", "restart_syscall", "getrusage"}) {
     set_bit(g_allowed, syscall_number(n));
   }
   // Device I/O: allowed on file descriptors registered as RT devices.
-  for (const char* n : {"read", "write", "pread64", "pwrite64", "readv", "writev", "ioctl", "poll", "ppoll",
-                        "sendto", "recvfrom", "sendmsg", "recvmsg", "sendmmsg", "recvmmsg", "epoll_wait",
-                        "epoll_pwait"}) {
+  for (const char* n : {"read", "write", "pread64", "pwrite64", "readv", "writev", "ioctl", "poll", "ppoll", "sendto",
+                        "recvfrom", "sendmsg", "recvmsg", "sendmmsg", "recvmmsg", "epoll_wait", "epoll_pwait"}) {
     set_bit(g_fd_calls, syscall_number(n));
   }
   for (const auto& n : g_config.allow_syscalls) set_bit(g_allowed, syscall_number(n));
@@ -1159,8 +1196,15 @@ StartResult start(const Config& config) {
       result.report_path = path;
       char head[512];
       Text t(head, sizeof head);
-      t.s("RACK-MODESWITCH-REPORT 1 program=").s(config.program.c_str()).s(" pid=").i(getpid())
-          .s(" start_ns=").i(now_realtime()).s(" exe=").s(g_exe_path).c('\n');
+      t.s("RACK-MODESWITCH-REPORT 1 program=")
+          .s(config.program.c_str())
+          .s(" pid=")
+          .i(getpid())
+          .s(" start_ns=")
+          .i(now_realtime())
+          .s(" exe=")
+          .s(g_exe_path)
+          .c('\n');
       write_all(g_report_fd, t.data(), t.size());
       g_modules_written = 0;
       write_new_modules();
@@ -1232,8 +1276,9 @@ StartResult start(const Config& config) {
   // (a sanitizer build, a program that did not link them) nothing calls the hooks.
   const bool hooks = &rack_rt_hooks_linked != nullptr;
   if (!hooks && (config.allocations || config.locks)) {
-    result.notes.push_back("ALLOC, PRIOINV: skipped: the program is not linked with rack::rt_hooks "
-                           "(the interposers; left out of sanitizer builds)");
+    result.notes.push_back(
+        "ALLOC, PRIOINV: skipped: the program is not linked with rack::rt_hooks "
+        "(the interposers; left out of sanitizer builds)");
   }
   if (config.rttime_us > 0) {
     install(SIGXCPU, &on_sigxcpu, 0, &g_old_sigxcpu);
@@ -1397,7 +1442,10 @@ Verdict leave_cycle() noexcept {
     getrusage(RUSAGE_THREAD, &now);
     const uint64_t d[6] = {static_cast<uint64_t>(now.ru_minflt - s->ru_start.ru_minflt),
                            static_cast<uint64_t>(now.ru_majflt - s->ru_start.ru_majflt),
-                           static_cast<uint64_t>(now.ru_nvcsw - s->ru_start.ru_nvcsw), 0, 0, 0};
+                           static_cast<uint64_t>(now.ru_nvcsw - s->ru_start.ru_nvcsw),
+                           0,
+                           0,
+                           0};
     // A voluntary switch is expected when the cycle waited through the framework (an
     // RPC from on(), a contended PI lock); without such a wait something else blocked.
     // In a ThreadSanitizer build minor faults are its shadow memory's: not counted.
@@ -1483,8 +1531,7 @@ __attribute__((noinline)) int checked_mutex_lock(pthread_mutex_t* mutex, int (*r
   const int rc = real_lock(mutex);
   const int64_t waited = monotonic_ns() - t0;
   if (waited > g_config.lock_wait_ns) {
-    record(Reason::kPrioInv, nullptr, 2, 1, nullptr, reinterpret_cast<uintptr_t>(mutex), waited,
-           g_config.lock_wait_ns);
+    record(Reason::kPrioInv, nullptr, 2, 1, nullptr, reinterpret_cast<uintptr_t>(mutex), waited, g_config.lock_wait_ns);
   }
   return rc;
 }

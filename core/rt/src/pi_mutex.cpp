@@ -49,8 +49,7 @@ bool PiCondVar::wait_until(PiMutex& mutex, int64_t deadline_ns) noexcept {
   }
   // FUTEX_WAIT_BITSET takes an absolute timeout on CLOCK_MONOTONIC (without
   // FUTEX_CLOCK_REALTIME). EAGAIN: seq_ moved since we sampled it (a notify came).
-  const long r = ::syscall(SYS_futex, &seq_, FUTEX_WAIT_BITSET_PRIVATE, seen, timeout, nullptr,
-                           FUTEX_BITSET_MATCH_ANY);
+  const long r = ::syscall(SYS_futex, &seq_, FUTEX_WAIT_BITSET_PRIVATE, seen, timeout, nullptr, FUTEX_BITSET_MATCH_ANY);
   const bool timed_out = r != 0 && errno == ETIMEDOUT;
   waiters_.fetch_sub(1, std::memory_order_relaxed);
   mutex.lock();

@@ -12,8 +12,7 @@ namespace rack::rt {
 
 namespace {
 
-int create(pthread_t* handle, const ThreadConfig& config, bool realtime, void* (*fn)(void*),
-           void* arg) {
+int create(pthread_t* handle, const ThreadConfig& config, bool realtime, void* (*fn)(void*), void* arg) {
   pthread_attr_t attr;
   pthread_attr_init(&attr);
   const auto min_stack = static_cast<std::size_t>(PTHREAD_STACK_MIN);
@@ -67,8 +66,7 @@ void* Thread::trampoline(void* self) {
   return nullptr;
 }
 
-ThreadStart Thread::start(const ThreadConfig& config, std::function<void()> body,
-                          bool allow_fallback) {
+ThreadStart Thread::start(const ThreadConfig& config, std::function<void()> body, bool allow_fallback) {
   config_ = config;
   body_ = std::move(body);
   note_sanitizer_memory_policy();
@@ -81,9 +79,8 @@ ThreadStart Thread::start(const ThreadConfig& config, std::function<void()> body
   }
   if (rc != 0) {
     throw std::system_error(rc, std::generic_category(),
-                            "cannot start thread '" + config.name + "' (priority " +
-                                std::to_string(config.priority) + ", cpu " +
-                                std::to_string(config.cpu) + ")");
+                            "cannot start thread '" + config.name + "' (priority " + std::to_string(config.priority) +
+                                ", cpu " + std::to_string(config.cpu) + ")");
   }
   started_ = true;
   return how;

@@ -15,7 +15,7 @@ namespace {
 
 struct CounterData {
   int64_t count = 0;
-  double rate = 0.0;    // counts per second
+  double rate = 0.0;  // counts per second
   char label[16] = {};
   static constexpr auto fields() noexcept {
     return std::array{RACK_FIELD(CounterData, count), RACK_FIELD(CounterData, rate), RACK_FIELD(CounterData, label)};

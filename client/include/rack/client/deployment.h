@@ -42,9 +42,9 @@ inline constexpr std::size_t kNone = static_cast<std::size_t>(-1);
 inline constexpr std::size_t kMaxComponentsPerHost = 4096;
 
 struct Task {
-  int priority = 0;     // 1..99 SCHED_FIFO, 0 normal scheduling
-  int cpu = -1;         // -1: not pinned (the host's rt cpus, else any)
-  int line = 0;         // where the file gives it (0: the default)
+  int priority = 0;  // 1..99 SCHED_FIFO, 0 normal scheduling
+  int cpu = -1;      // -1: not pinned (the host's rt cpus, else any)
+  int line = 0;      // where the file gives it (0: the default)
   int column = 0;
 };
 
@@ -57,8 +57,8 @@ struct Param {
 
 struct Component {
   std::string name;
-  std::string impl;          // the host file's class ("ChassisSim")
-  std::string class_name;    // the addresses' class ("Chassis"); "" when unknown offline
+  std::string impl;        // the host file's class ("ChassisSim")
+  std::string class_name;  // the addresses' class ("Chassis"); "" when unknown offline
   int instance = 0;
   std::optional<uint32_t> address;  // raw TiMS address of the command mailbox, when known
   std::string address_text;         // "Chassis(1/0)", or "ChassisSim(1/0)?" when unknown
@@ -79,16 +79,16 @@ struct Network {
 
 struct Host {
   std::string file;
-  std::string host;             // "" when the file gives none (rackd takes the machine's)
+  std::string host;  // "" when the file gives none (rackd takes the machine's)
   int system = 0;
   int host_id = 0;
   std::string role = "executor";
   std::vector<Network> networks;  // empty: one network, lcm_url (or LCM's default)
   std::string lcm_url;
-  std::vector<int> rt_cpus;       // the `cpus:` partitioning (empty: none)
+  std::vector<int> rt_cpus;  // the `cpus:` partitioning (empty: none)
   std::vector<int> housekeeping_cpus;
   std::vector<Component> components;
-  std::vector<ConfigError> errors;  // what the reader met (file:line:col)
+  std::vector<ConfigError> errors;          // what the reader met (file:line:col)
   [[nodiscard]] std::string label() const;  // host, else the file's name
 };
 
@@ -125,8 +125,8 @@ struct PlacedTask {
 
 struct CpuGroup {
   std::size_t host = 0;
-  std::string cpus;  // "cpu 2" | "rt cpus 2,3" | "any cpu"
-  std::vector<PlacedTask> tasks;  // highest priority first
+  std::string cpus;                // "cpu 2" | "rt cpus 2,3" | "any cpu"
+  std::vector<PlacedTask> tasks;   // highest priority first
   std::vector<std::string> flags;  // configuration priority inversions, in words
 };
 
@@ -154,20 +154,20 @@ struct ClassInfo {
 
 // What the live view knows of a host and its components (rackctl graph --live).
 struct LiveHost {
-  bool answered = false;       // announced within the discovery window
-  int64_t seen_ms_ago = -1;    // -1: never
+  bool answered = false;     // announced within the discovery window
+  int64_t seen_ms_ago = -1;  // -1: never
 };
 struct LiveTask {
   bool answered = false;
-  std::string state;             // ENABLED | DISABLED | ERROR | NOT_AVAILABLE | no reply
-  double utilisation = -1.0;     // execution p50 / period (0..), -1 unknown
-  int64_t worst_latency_ns = -1; // the data task's worst wake-up latency, -1 unknown
+  std::string state;              // ENABLED | DISABLED | ERROR | NOT_AVAILABLE | no reply
+  double utilisation = -1.0;      // execution p50 / period (0..), -1 unknown
+  int64_t worst_latency_ns = -1;  // the data task's worst wake-up latency, -1 unknown
   int64_t exec_p50_ns = -1;
   int64_t period_ns = 0;
 };
 struct Live {
-  std::vector<LiveHost> hosts;                // per Deployment::hosts
-  std::vector<std::vector<LiveTask>> tasks;   // per host, per component
+  std::vector<LiveHost> hosts;               // per Deployment::hosts
+  std::vector<std::vector<LiveTask>> tasks;  // per host, per component
 };
 
 // Graphviz DOT: a cluster per system (robot) and host, a node per component (class,

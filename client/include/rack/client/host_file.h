@@ -20,8 +20,8 @@ inline constexpr std::size_t kMaxHostNesting = 32;          // maps and lists in
 
 struct ConfigError {
   std::string file;
-  int line = 0;     // 1-based; 0 when the error is about the whole file
-  int column = 0;   // 1-based
+  int line = 0;    // 1-based; 0 when the error is about the whole file
+  int column = 0;  // 1-based
   std::string message;
   [[nodiscard]] std::string str() const;  // "file:line:col: message"
 };

@@ -39,14 +39,14 @@
 namespace rack::client {
 
 struct SessionConfig {
-  std::string tool = "tool";  // this tool's name, in warnings and the key-file check
-  std::string lcm_url;        // "": default_lcm_url()
-  std::string key_file;       // "": unauthenticated links
-  int64_t timeout_ms = 2000;  // per attempt of a request
-  int64_t retries = 1;        // attempts after the first
-  int64_t discover_ms = 300;  // how long discovery waits for hosts
+  std::string tool = "tool";                    // this tool's name, in warnings and the key-file check
+  std::string lcm_url;                          // "": default_lcm_url()
+  std::string key_file;                         // "": unauthenticated links
+  int64_t timeout_ms = 2000;                    // per attempt of a request
+  int64_t retries = 1;                          // attempts after the first
+  int64_t discover_ms = 300;                    // how long discovery waits for hosts
   uint32_t reply_slot_bytes = 4 * 1024 * 1024;  // the largest reply (a camera frame: 0.9 MB)
-  bool streams = true;        // open the data (1) and fan-out (2) mailboxes
+  bool streams = true;                          // open the data (1) and fan-out (2) mailboxes
 };
 
 // $LCM_DEFAULT_URL when set and not empty, else rackd's default (tims::kDefaultLcmUrl).
@@ -94,7 +94,7 @@ class Session {
   // GET_CLASS: addresses such as Counter(2/0) for a class TiMS does not know. The
   // description's class name is returned beside it.
   std::optional<std::pair<tims::ComponentInfo, std::string>> find_by_class(const std::string& class_name,
-                                                                          uint8_t system, uint8_t instance);
+                                                                           uint8_t system, uint8_t instance);
 
   // The description of the class of the component at `component` (GET_CLASS, its
   // pages assembled and decoded), cached per system and class id: every component of
@@ -120,7 +120,7 @@ class Session {
   uint64_t fan_out(const std::vector<tims::Address>& dests, int8_t type, const AnswerWithBody& answer);
 
   static constexpr uint32_t kDataSlotSize = 1024 * 1024;  // a watch stream keeps up to 16 samples
-  static constexpr uint32_t kFanoutSlots = 64;             // fan-out: small replies, many at once
+  static constexpr uint32_t kFanoutSlots = 64;            // fan-out: small replies, many at once
   static constexpr uint32_t kFanoutSlotSize = 4096;
   static constexpr std::size_t kFanoutWindow = 24;
   static constexpr uint32_t kUplinkSlots = 32;

@@ -59,15 +59,15 @@
 
 namespace rack {
 
-inline constexpr std::size_t kClassPageBytes = 8192;             // bytes of description per CLASS reply
+inline constexpr std::size_t kClassPageBytes = 8192;  // bytes of description per CLASS reply
 inline constexpr std::size_t kMaxClassDescriptionBytes = 256 * 1024;
-inline constexpr std::size_t kMaxDescriptionName = 64;           // names: class, type, field, command, parameter, unit
-inline constexpr std::size_t kMaxDescriptionText = 1024;         // summaries, docs, default values, choices
-inline constexpr std::size_t kMaxDescriptionFields = 1024;       // per type
-inline constexpr std::size_t kMaxDescriptionCommands = 107;      // types 21..127
+inline constexpr std::size_t kMaxDescriptionName = 64;       // names: class, type, field, command, parameter, unit
+inline constexpr std::size_t kMaxDescriptionText = 1024;     // summaries, docs, default values, choices
+inline constexpr std::size_t kMaxDescriptionFields = 1024;   // per type
+inline constexpr std::size_t kMaxDescriptionCommands = 107;  // types 21..127
 inline constexpr std::size_t kMaxDescriptionParams = 512;
 inline constexpr std::size_t kMaxDescriptionChoices = 64;
-inline constexpr std::size_t kMaxDescriptionValueNames = 256;     // per field
+inline constexpr std::size_t kMaxDescriptionValueNames = 256;  // per field
 inline constexpr uint8_t kClassDescriptionVersion = 1;
 
 struct FieldDescription {
@@ -79,8 +79,8 @@ struct FieldDescription {
 };
 
 struct TypeDescription {
-  std::string name;  // "ChassisData"
-  uint32_t size = 0; // bytes
+  std::string name;   // "ChassisData"
+  uint32_t size = 0;  // bytes
   std::vector<FieldDescription> fields;
   bool operator==(const TypeDescription&) const = default;
   // The field table as tims::FieldDesc (names point into this description: keep it
@@ -103,9 +103,9 @@ struct ParameterDescription {
   static constexpr uint8_t kComponentRef = 0x04;
   std::string name;
   wire::ParamKind kind = wire::ParamKind::kInt;
-  uint8_t flags = 0;          // kRequired | kInitOnly | kComponentRef
-  std::string unit;           // "m/s"; empty: none
-  double min = 0.0;           // -inf/+inf: unbounded
+  uint8_t flags = 0;  // kRequired | kInitOnly | kComponentRef
+  std::string unit;   // "m/s"; empty: none
+  double min = 0.0;   // -inf/+inf: unbounded
   double max = 0.0;
   std::string default_value;  // the declared value as text
   std::string doc;
@@ -120,7 +120,7 @@ struct ValueNameDescription {
   bool operator==(const ValueNameDescription&) const = default;
 };
 struct FieldNamesDescription {
-  std::string field;  // a field of the class's data type
+  std::string field;     // a field of the class's data type
   bool address = false;  // holds a TiMS address: named as its component
   std::vector<ValueNameDescription> values;
   bool operator==(const FieldNamesDescription&) const = default;

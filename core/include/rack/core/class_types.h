@@ -30,9 +30,9 @@ struct FieldValueNames {
 };
 
 struct DataTypeInfo {
-  const char* type_name;                   // "ChassisData"
-  uint32_t size;                           // bytes of one sample (or body)
-  std::span<const tims::FieldDesc> fields;  // by offset; see tims::fields_of<T>
+  const char* type_name;                           // "ChassisData"
+  uint32_t size;                                   // bytes of one sample (or body)
+  std::span<const tims::FieldDesc> fields;         // by offset; see tims::fields_of<T>
   std::span<const FieldValueNames> value_names{};  // of a sample type's enum and address fields
 };
 

@@ -52,8 +52,8 @@ enum class DataTaskMode : uint8_t { kNone = 0, kPeriodic = 1, kTriggered = 2 };
 [[nodiscard]] const char* describe(DataTaskMode m) noexcept;
 
 struct TaskSettings {
-  int priority = 0;                     // 1..99 SCHED_FIFO, 0 normal
-  int cpu = -1;                         // -1: any
+  int priority = 0;  // 1..99 SCHED_FIFO, 0 normal
+  int cpu = -1;      // -1: any
   std::size_t stack_bytes = 256 * 1024;
   // Mode-switch detection for this task (off, warn, abort); unset: the host file's
   // modeswitch.mode, or off for a priority-0 task (normal scheduling is not real-time:
@@ -63,17 +63,17 @@ struct TaskSettings {
 
 // How the executor runs one component (from the host file).
 struct ComponentSettings {
-  std::string name;                     // the host file's name ("ladar_front")
-  std::string impl;                     // implementation class ("Generator")
-  tims::Address address;                // command mailbox: Class(sys/inst)
+  std::string name;       // the host file's name ("ladar_front")
+  std::string impl;       // implementation class ("Generator")
+  tims::Address address;  // command mailbox: Class(sys/inst)
   TaskSettings command_task{30, -1, 256 * 1024, std::nullopt};
   TaskSettings data_task{40, -1, 256 * 1024, std::nullopt};
-  int64_t period_ns = 0;                // periodic data task
+  int64_t period_ns = 0;  // periodic data task
   // Periodic data task: deadlines at whole multiples of period_ns on CLOCK_MONOTONIC
   // plus this (data_task.phase_ms, 0 <= phase < period); -1: one period after start.
   int64_t phase_ns = -1;
   int64_t data_timeout_ns = rt::kNsPerSec;  // triggered: loop() runs after this long without input
-  int64_t retry_ns = rt::kNsPerSec;     // ERROR back-off
+  int64_t retry_ns = rt::kNsPerSec;         // ERROR back-off
   int64_t rpc_timeout_ns = rt::kNsPerSec;   // cascading ON and other calls from hooks
   uint32_t rpc_retries = 0;                 // more attempts after a timeout (tims::RetryPolicy)
   uint32_t ring_size = 64;
@@ -139,27 +139,37 @@ class Component {
   // Levels: print (always), error, warning, info, detail; the threshold is the
   // parameter gdosLevel (host file, or `rackctl set-param NAME gdosLevel warning`).
   template <class... Args>
-  void log_print(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kPrint, f, a...); }
+  void log_print(gdos::Format<Args...> f, const Args&... a) const noexcept {
+    gdos::log(log_source_, gdos::Level::kPrint, f, a...);
+  }
   template <class... Args>
-  void log_error(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kError, f, a...); }
+  void log_error(gdos::Format<Args...> f, const Args&... a) const noexcept {
+    gdos::log(log_source_, gdos::Level::kError, f, a...);
+  }
   template <class... Args>
-  void log_warning(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kWarning, f, a...); }
+  void log_warning(gdos::Format<Args...> f, const Args&... a) const noexcept {
+    gdos::log(log_source_, gdos::Level::kWarning, f, a...);
+  }
   template <class... Args>
-  void log_info(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kInfo, f, a...); }
+  void log_info(gdos::Format<Args...> f, const Args&... a) const noexcept {
+    gdos::log(log_source_, gdos::Level::kInfo, f, a...);
+  }
   template <class... Args>
-  void log_detail(gdos::Format<Args...> f, const Args&... a) const noexcept { gdos::log(log_source_, gdos::Level::kDetail, f, a...); }
+  void log_detail(gdos::Format<Args...> f, const Args&... a) const noexcept {
+    gdos::log(log_source_, gdos::Level::kDetail, f, a...);
+  }
 
   // ---- hooks ----
-  virtual void init() {}                                   // non-RT: allocate; throw on failure
-  virtual HookResult on() { return HookResult::kOk; }      // switch the device/algorithm on
-  virtual void off() {}                                    // bounded time; never blocks long
+  virtual void init() {}                               // non-RT: allocate; throw on failure
+  virtual HookResult on() { return HookResult::kOk; }  // switch the device/algorithm on
+  virtual void off() {}                                // bounded time; never blocks long
   // Class-specific requests (type >= 21). Reply with reply()/reply_error().
   virtual CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) {
     (void)request;
     (void)body;
     return CommandResult::kUnknown;
   }
-  virtual void cleanup() {}                                // non-RT
+  virtual void cleanup() {}  // non-RT
   // The class's rules for its parameter values, in one place: what init() relies on
   // and SET_PARAM must keep (a mode of a fixed set, "x,y" text, min below max, ...).
   // Called by the host file loader once the file's values are in (a refusal is an
@@ -176,10 +186,18 @@ class Component {
   }
 
   // ---- declaration (constructor only) ----
-  Parameter& declare_int(const std::string& n, int64_t v, Parameter::Spec s = {}) { return params_.declare_int(n, v, std::move(s)); }
-  Parameter& declare_float(const std::string& n, double v, Parameter::Spec s = {}) { return params_.declare_float(n, v, std::move(s)); }
-  Parameter& declare_bool(const std::string& n, bool v, Parameter::Spec s = {}) { return params_.declare_bool(n, v, std::move(s)); }
-  Parameter& declare_string(const std::string& n, const std::string& v, Parameter::Spec s = {}) { return params_.declare_string(n, v, std::move(s)); }
+  Parameter& declare_int(const std::string& n, int64_t v, Parameter::Spec s = {}) {
+    return params_.declare_int(n, v, std::move(s));
+  }
+  Parameter& declare_float(const std::string& n, double v, Parameter::Spec s = {}) {
+    return params_.declare_float(n, v, std::move(s));
+  }
+  Parameter& declare_bool(const std::string& n, bool v, Parameter::Spec s = {}) {
+    return params_.declare_bool(n, v, std::move(s));
+  }
+  Parameter& declare_string(const std::string& n, const std::string& v, Parameter::Spec s = {}) {
+    return params_.declare_string(n, v, std::move(s));
+  }
   // A required string parameter naming another component (host-file name or
   // `Class(sys/inst)`); the executor resolves it and orders start and shutdown by it.
   Parameter& declare_component_ref(const std::string& n, const std::string& doc);
@@ -200,8 +218,7 @@ class Component {
   // ("on() failed" alone when no reason was given). The last reason before a failure
   // wins. RT-safe from the command and data tasks (copies under a PI mutex).
   void set_error_reason(const char* reason) noexcept;
-  void reply(const tims::MessageHeader& request, int8_t type,
-             std::span<const tims::ConstBuffer> body = {}) noexcept;
+  void reply(const tims::MessageHeader& request, int8_t type, std::span<const tims::ConstBuffer> body = {}) noexcept;
   template <tims::Payload T>
   void reply_with(const tims::MessageHeader& request, int8_t type, const T& body) noexcept {
     const tims::ConstBuffer part = tims::buffer_of(body);
@@ -225,21 +242,21 @@ class Component {
   // Framework internals (called by the executor).
   virtual void attach(tims::Router& router);  // settings_ already set by the loader
   void detach() noexcept;
-  bool run_init(std::string& error);      // non-RT; catches
-  void run_command_task() noexcept;       // the command task's body
-  void request_stop() noexcept;           // wakes every task of this component
-  void run_cleanup() noexcept;            // non-RT; catches
+  bool run_init(std::string& error);  // non-RT; catches
+  void run_command_task() noexcept;   // the command task's body
+  void request_stop() noexcept;       // wakes every task of this component
+  void run_cleanup() noexcept;        // non-RT; catches
 
   // Extension points for DataComponentBase.
   virtual bool handle_data_request(const tims::MessageHeader&, std::span<const std::byte>) noexcept { return false; }
-  virtual void leaving_enabled() noexcept {}    // before off(): stop the data task's loop
-  virtual void entered_enabled() noexcept {}    // after on() succeeded
+  virtual void leaving_enabled() noexcept {}  // before off(): stop the data task's loop
+  virtual void entered_enabled() noexcept {}  // after on() succeeded
   virtual void stop_data_task() noexcept {}
 
   void handle(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept;
   void handle_on(const tims::MessageHeader* request) noexcept;
   void handle_off() noexcept;
-  void go_error() noexcept;                  // ENABLED -> ERROR (loop or command failure)
+  void go_error() noexcept;  // ENABLED -> ERROR (loop or command failure)
   HookResult call_on() noexcept;
   void call_off() noexcept;
   void handle_get_param(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept;
@@ -282,7 +299,7 @@ class Component {
   std::atomic<bool> loop_failed_{false};
   mutable rt::PiMutex reason_mutex_;  // guards error_reason_, shown_reason_ (command and data task, GET_STATS)
   char error_reason_[96] = {};
-  char shown_reason_[96] = {};      // the reason of the present ERROR (GET_STATS); "" otherwise
+  char shown_reason_[96] = {};  // the reason of the present ERROR (GET_STATS); "" otherwise
   bool init_failed_ = false;
   char init_error_[120] = {};
   int64_t retry_at_ns_ = 0;

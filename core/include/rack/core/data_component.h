@@ -94,9 +94,7 @@ class DataComponentBase : public Component {
   // Declares an input mailbox (#3) for subscriptions; constructor only.
   void use_input_mailbox(uint32_t slot_size) { input_slot_size_ = slot_size; }
   [[nodiscard]] tims::Mailbox& input_mailbox() noexcept { return *input_mailbox_; }
-  [[nodiscard]] tims::Address input_address() const noexcept {
-    return address().with_mailbox(kInputMailbox);
-  }
+  [[nodiscard]] tims::Address input_address() const noexcept { return address().with_mailbox(kInputMailbox); }
   [[nodiscard]] tims::Endpoint& data_endpoint() noexcept { return *data_endpoint_; }
   [[nodiscard]] int64_t period_ns() const noexcept { return settings().period_ns; }
 
@@ -161,8 +159,8 @@ class DataComponentBase : public Component {
   void drain_input() noexcept;
   // A DATA message of `size` bytes from `header`'s source did not decode: count, log.
   void input_malformed(const tims::MessageHeader& header, std::size_t size) noexcept;
-  int64_t input_malformed_logged_ns_ = 0;   // data task only
-  int64_t last_good_input_ns_ = 0;          // data task only: input_silent()
+  int64_t input_malformed_logged_ns_ = 0;    // data task only
+  int64_t last_good_input_ns_ = 0;           // data task only: input_silent()
   uint64_t input_malformed_suppressed_ = 0;  // data task only
 
   struct Listener {
@@ -227,8 +225,8 @@ class DataComponentBase : public Component {
   std::unique_ptr<tims::Mailbox> data_reply_mailbox_;
   std::unique_ptr<tims::Endpoint> data_endpoint_;
   std::unique_ptr<tims::Mailbox> input_mailbox_;
-  std::vector<std::byte> scratch_;   // command task: GET_DATA copies
-  rt::PiMutex listeners_mutex_;      // command task adds/removes, data task sends
+  std::vector<std::byte> scratch_;  // command task: GET_DATA copies
+  rt::PiMutex listeners_mutex_;     // command task adds/removes, data task sends
   std::vector<Listener> listeners_;
   rt::LatencyStats stats_;
   rt::ExecTimeStats exec_stats_;  // data task: how long each loop() ran (GET_STATS exec_*)

@@ -58,8 +58,8 @@ class StartStopped : public std::runtime_error {
 };
 
 struct ExecutorOptions {
-  bool allow_rt_fallback = true;   // run SCHED_OTHER when SCHED_FIFO is refused
-  std::string lcm_url_override;    // replaces the host file's lcm_url when not empty
+  bool allow_rt_fallback = true;  // run SCHED_OTHER when SCHED_FIFO is refused
+  std::string lcm_url_override;   // replaces the host file's lcm_url when not empty
   // Executor events are always logged through GDOS; `log`, when set, also gets
   // each event's text (tests capture them this way).
   std::function<void(const std::string&)> log;
@@ -77,11 +77,11 @@ struct ExecutorOptions {
 
 struct ComponentView {
   Component* component = nullptr;
-  bool realtime = false;           // tasks run SCHED_FIFO
+  bool realtime = false;  // tasks run SCHED_FIFO
   std::string init_error;
-  bool attached = false;           // its mailboxes are in the router
-  bool init_called = false;        // start() ran its init() (cleanup() runs only then)
-  bool tasks_started = false;      // its command task runs (it can answer OFF)
+  bool attached = false;       // its mailboxes are in the router
+  bool init_called = false;    // start() ran its init() (cleanup() runs only then)
+  bool tasks_started = false;  // its command task runs (it can answer OFF)
 };
 
 class Executor {
@@ -155,7 +155,7 @@ class Executor {
   std::unique_ptr<tims::Endpoint> endpoint_;
   std::unique_ptr<tims::LcmTransport> transport_;
   std::unique_ptr<tims::AccessControl> access_;  // set in start() under gdos_mutex_ (gdos_pass reads it)
-  int64_t next_access_report_ns_ = 0;  // GDOS thread: denials are logged at most this often
+  int64_t next_access_report_ns_ = 0;            // GDOS thread: denials are logged at most this often
   std::vector<ComponentView> views_;
   std::vector<std::unique_ptr<rt::Thread>> threads_;
   bool started_ = false;
@@ -164,13 +164,13 @@ class Executor {
   gdos::Hub hub_;
   gdos::LogSource log_source_;
   std::unique_ptr<tims::GdosPublisher> gdos_publisher_;
-  std::mutex gdos_mutex_;               // one pass at a time; guards gdos_running_ with the cv
+  std::mutex gdos_mutex_;  // one pass at a time; guards gdos_running_ with the cv
   std::condition_variable gdos_cv_;
   bool gdos_running_ = false;
   std::thread gdos_thread_;
-  uint64_t gdos_errors_reported_ = 0;   // publish errors already reported
-  std::string gdos_out_;                // stderr text of one pass (GDOS thread)
-  bool gdos_to_stderr_ = true;          // gdos.stderr: auto: the current choice
+  uint64_t gdos_errors_reported_ = 0;  // publish errors already reported
+  std::string gdos_out_;               // stderr text of one pass (GDOS thread)
+  bool gdos_to_stderr_ = true;         // gdos.stderr: auto: the current choice
 
   // Task timeline (trace thread only, except the rings, which the tasks write).
   std::vector<std::unique_ptr<rt::trace::Ring>> trace_rings_;

@@ -56,8 +56,8 @@ namespace rack::gdos {
 // RACK's levels. Numerically ordered: a record passes when level <= threshold.
 enum class Level : uint8_t { kPrint = 0, kError = 1, kWarning = 2, kInfo = 3, kDetail = 4 };
 inline constexpr Level kDefaultLevel = Level::kInfo;
-[[nodiscard]] const char* describe(Level level) noexcept;          // "warning"
-[[nodiscard]] char letter(Level level) noexcept;                   // 'W'
+[[nodiscard]] const char* describe(Level level) noexcept;  // "warning"
+[[nodiscard]] char letter(Level level) noexcept;           // 'W'
 // "print", "error", "warning", "info", "detail"; nullopt otherwise. RT-safe.
 [[nodiscard]] std::optional<Level> parse_level(std::string_view text) noexcept;
 inline constexpr const char* kLevelNames = "print, error, warning, info, detail";
@@ -109,12 +109,12 @@ enum class FormatError : uint8_t {
   kOk,
   kTooFewArguments,
   kTooManyArguments,
-  kArgumentTypeMismatch,   // e.g. an int for %f, a double for %d, a long for %d
-  kUnsupportedArgument,    // a type GDOS cannot copy (a class, a scoped enum, ...)
-  kUnknownConversion,      // not a printf conversion, or %n / %m / %lc / %ls
-  kPositionalArgument,     // %1$d
-  kIncompleteConversion,   // a '%' at the end
-  kTooManyArguments16,     // more than kMaxArgs arguments
+  kArgumentTypeMismatch,  // e.g. an int for %f, a double for %d, a long for %d
+  kUnsupportedArgument,   // a type GDOS cannot copy (a class, a scoped enum, ...)
+  kUnknownConversion,     // not a printf conversion, or %n / %m / %lc / %ls
+  kPositionalArgument,    // %1$d
+  kIncompleteConversion,  // a '%' at the end
+  kTooManyArguments16,    // more than kMaxArgs arguments
 };
 
 inline constexpr std::size_t kMaxArgs = 16;
@@ -122,12 +122,12 @@ inline constexpr std::size_t kMaxArgs = 16;
 // One parsed conversion: where it is and what it consumes. constexpr: used at
 // compile time by the check and at run time by the formatter.
 struct Conversion {
-  std::size_t begin = 0;     // index of '%'
-  std::size_t end = 0;       // one past the conversion character
+  std::size_t begin = 0;  // index of '%'
+  std::size_t end = 0;    // one past the conversion character
   bool star_width = false;
   bool star_precision = false;
-  char length[3] = {};       // "", "h", "hh", "l", "ll", "L", "j", "z", "t", "q"
-  char conversion = 0;       // 'd', ..., or '%'
+  char length[3] = {};  // "", "h", "hh", "l", "ll", "L", "j", "z", "t", "q"
+  char conversion = 0;  // 'd', ..., or '%'
 };
 
 // Parses the conversion starting at fmt[pos] == '%'. false: malformed (err set).
@@ -135,39 +135,75 @@ constexpr bool parse_conversion(std::string_view fmt, std::size_t pos, Conversio
   c = Conversion{};
   c.begin = pos;
   std::size_t i = pos + 1;
-  if (i >= fmt.size()) { err = FormatError::kIncompleteConversion; return false; }
-  if (fmt[i] == '%') { c.conversion = '%'; c.end = i + 1; return true; }
+  if (i >= fmt.size()) {
+    err = FormatError::kIncompleteConversion;
+    return false;
+  }
+  if (fmt[i] == '%') {
+    c.conversion = '%';
+    c.end = i + 1;
+    return true;
+  }
   // Positional arguments: digits followed by '$'.
   {
     std::size_t j = i;
     while (j < fmt.size() && fmt[j] >= '0' && fmt[j] <= '9') ++j;
-    if (j > i && j < fmt.size() && fmt[j] == '$') { err = FormatError::kPositionalArgument; return false; }
+    if (j > i && j < fmt.size() && fmt[j] == '$') {
+      err = FormatError::kPositionalArgument;
+      return false;
+    }
   }
-  while (i < fmt.size() && (fmt[i] == '-' || fmt[i] == '+' || fmt[i] == ' ' || fmt[i] == '#' || fmt[i] == '0' ||
-                            fmt[i] == '\'')) {
+  while (i < fmt.size() &&
+         (fmt[i] == '-' || fmt[i] == '+' || fmt[i] == ' ' || fmt[i] == '#' || fmt[i] == '0' || fmt[i] == '\'')) {
     ++i;
   }
-  if (i < fmt.size() && fmt[i] == '*') { c.star_width = true; ++i; }
-  else while (i < fmt.size() && fmt[i] >= '0' && fmt[i] <= '9') ++i;
+  if (i < fmt.size() && fmt[i] == '*') {
+    c.star_width = true;
+    ++i;
+  } else
+    while (i < fmt.size() && fmt[i] >= '0' && fmt[i] <= '9') ++i;
   if (i < fmt.size() && fmt[i] == '.') {
     ++i;
-    if (i < fmt.size() && fmt[i] == '*') { c.star_precision = true; ++i; }
-    else while (i < fmt.size() && fmt[i] >= '0' && fmt[i] <= '9') ++i;
+    if (i < fmt.size() && fmt[i] == '*') {
+      c.star_precision = true;
+      ++i;
+    } else
+      while (i < fmt.size() && fmt[i] >= '0' && fmt[i] <= '9') ++i;
   }
   if (i < fmt.size()) {
     const char l = fmt[i];
     if ((l == 'h' || l == 'l') && i + 1 < fmt.size() && fmt[i + 1] == l) {
-      c.length[0] = l; c.length[1] = l; i += 2;
+      c.length[0] = l;
+      c.length[1] = l;
+      i += 2;
     } else if (l == 'h' || l == 'l' || l == 'L' || l == 'j' || l == 'z' || l == 't' || l == 'q') {
-      c.length[0] = l; ++i;
+      c.length[0] = l;
+      ++i;
     }
   }
-  if (i >= fmt.size()) { err = FormatError::kIncompleteConversion; return false; }
+  if (i >= fmt.size()) {
+    err = FormatError::kIncompleteConversion;
+    return false;
+  }
   const char conv = fmt[i];
   switch (conv) {
-    case 'd': case 'i': case 'u': case 'o': case 'x': case 'X': case 'c': case 's': case 'p':
-    case 'f': case 'F': case 'e': case 'E': case 'g': case 'G': case 'a': case 'A':
-      break;
+    case 'd':
+    case 'i':
+    case 'u':
+    case 'o':
+    case 'x':
+    case 'X':
+    case 'c':
+    case 's':
+    case 'p':
+    case 'f':
+    case 'F':
+    case 'e':
+    case 'E':
+    case 'g':
+    case 'G':
+    case 'a':
+    case 'A': break;
     default: err = FormatError::kUnknownConversion; return false;
   }
   if ((conv == 'c' || conv == 's' || conv == 'p') && c.length[0] != 0) {
@@ -198,10 +234,19 @@ constexpr FormatError check_format(std::string_view fmt, const ArgInfo* args, st
   if (count > kMaxArgs) return FormatError::kTooManyArguments16;
   std::size_t next = 0;
   auto take_int = [&](FormatError& e) {
-    if (next >= count) { e = FormatError::kTooFewArguments; return false; }
+    if (next >= count) {
+      e = FormatError::kTooFewArguments;
+      return false;
+    }
     const ArgInfo a = args[next++];
-    if (a.kind == ArgKind::kUnsupported) { e = FormatError::kUnsupportedArgument; return false; }
-    if (a.kind != ArgKind::kInt || a.size != 4) { e = FormatError::kArgumentTypeMismatch; return false; }
+    if (a.kind == ArgKind::kUnsupported) {
+      e = FormatError::kUnsupportedArgument;
+      return false;
+    }
+    if (a.kind != ArgKind::kInt || a.size != 4) {
+      e = FormatError::kArgumentTypeMismatch;
+      return false;
+    }
     return true;
   };
   for (std::size_t i = 0; i < fmt.size(); ++i) {
@@ -294,15 +339,15 @@ class LogSource;
 // strings a 2-byte length and the bytes). Native byte order: it never leaves the
 // process.
 struct RecordHeader {
-  const char* format = nullptr;   // a string literal (static storage)
+  const char* format = nullptr;       // a string literal (static storage)
   const LogSource* source = nullptr;  // null: `address` and `text` only
-  int64_t mono_ns = 0;            // CLOCK_MONOTONIC at the call
-  uint32_t address = 0;           // source address
-  uint32_t dropped_before = 0;    // records this ring dropped just before this one
-  uint16_t bytes = 0;             // payload bytes after the header
+  int64_t mono_ns = 0;                // CLOCK_MONOTONIC at the call
+  uint32_t address = 0;               // source address
+  uint32_t dropped_before = 0;        // records this ring dropped just before this one
+  uint16_t bytes = 0;                 // payload bytes after the header
   uint8_t level = 0;
   uint8_t nargs = 0;
-  uint8_t truncated = 0;          // a string argument was cut
+  uint8_t truncated = 0;  // a string argument was cut
   uint8_t reserved[3] = {};
 };
 inline constexpr std::size_t kPayloadBytes = kSlotBytes - sizeof(RecordHeader);
@@ -361,10 +406,10 @@ class LogRing {
   uint64_t capacity_;
   std::unique_ptr<std::byte[]> storage_;
   std::string owner_;
-  alignas(64) std::atomic<uint64_t> head_{0};   // written by the producer
-  uint32_t pending_drops_ = 0;                  // producer only
-  std::atomic<uint64_t> dropped_{0};            // producer writes (relaxed: a statistic)
-  alignas(64) std::atomic<uint64_t> tail_{0};   // written by the consumer
+  alignas(64) std::atomic<uint64_t> head_{0};  // written by the producer
+  uint32_t pending_drops_ = 0;                 // producer only
+  std::atomic<uint64_t> dropped_{0};           // producer writes (relaxed: a statistic)
+  alignas(64) std::atomic<uint64_t> tail_{0};  // written by the consumer
 };
 
 // Who logs: a component (its address, name and level), or the executor.
@@ -462,8 +507,14 @@ class Writer {
   void put_string(const char* s, std::size_t n) noexcept {
     // Kind, 2-byte length, bytes; what does not fit is cut (and flagged).
     std::size_t room = capacity_ - used_ - 3 - reserve_after_;  // never negative: fixed parts were reserved
-    if (n > kMaxStringBytes) { n = kMaxStringBytes; truncated_ = true; }
-    if (n > room) { n = room; truncated_ = true; }
+    if (n > kMaxStringBytes) {
+      n = kMaxStringBytes;
+      truncated_ = true;
+    }
+    if (n > room) {
+      n = room;
+      truncated_ = true;
+    }
     const auto len = static_cast<uint16_t>(n);
     out_[used_] = static_cast<std::byte>(ArgKind::kString);
     std::memcpy(out_ + used_ + 1, &len, 2);
@@ -511,10 +562,10 @@ consteval std::size_t total_fixed_bytes() {
 // ring). Strings are views: valid as long as the record or the argument is.
 struct Value {
   ArgKind kind = ArgKind::kUnsupported;
-  uint64_t bits = 0;          // kInt (sign- or zero-extended), kPointer, kAddress
-  double d = 0;               // kDouble
-  long double ld = 0;         // kLongDouble
-  std::string_view s;         // kString
+  uint64_t bits = 0;   // kInt (sign- or zero-extended), kPointer, kAddress
+  double d = 0;        // kDouble
+  long double ld = 0;  // kLongDouble
+  std::string_view s;  // kString
 };
 
 template <class T>
@@ -538,7 +589,8 @@ Value to_value(const T& value) noexcept {
     v.bits = reinterpret_cast<uint64_t>(static_cast<const volatile void*>(value));
   } else if constexpr (kInfo.kind == ArgKind::kString) {
     if constexpr (std::is_array_v<U>) v.s = std::string_view(value, strnlen(value, std::extent_v<U>));
-    else if constexpr (std::is_pointer_v<D>) v.s = value == nullptr ? std::string_view("(null)") : std::string_view(value);
+    else if constexpr (std::is_pointer_v<D>)
+      v.s = value == nullptr ? std::string_view("(null)") : std::string_view(value);
     else v.s = std::string_view(value);
   }
   return v;
@@ -552,8 +604,8 @@ void log_unbound(const LogSource& source, Level level, const char* format, const
 
 // Encodes one record into `ring`. RT-safe. false: the ring was full (counted).
 template <class... Args>
-bool write_record(LogRing& ring, const LogSource* source, tims::Address address, Level level,
-                  const char* format, const Args&... args) noexcept {
+bool write_record(LogRing& ring, const LogSource* source, tims::Address address, Level level, const char* format,
+                  const Args&... args) noexcept {
   static_assert(detail::total_fixed_bytes<Args...>() <= kPayloadBytes, "too many arguments for one GDOS record");
   std::byte* slot = ring.try_claim();
   if (slot == nullptr) return false;
@@ -618,11 +670,11 @@ bool decode_payload(const RecordHeader& header, const std::byte* payload, Value 
 // A formatted record, as sinks receive it.
 struct Record {
   Level level = Level::kInfo;
-  int64_t time_ns = 0;        // host clock (CLOCK_REALTIME)
+  int64_t time_ns = 0;  // host clock (CLOCK_REALTIME)
   int64_t mono_ns = 0;
-  uint64_t sequence = 0;      // per host, counts every record handed to the sinks
+  uint64_t sequence = 0;  // per host, counts every record handed to the sinks
   tims::Address source;
-  std::string_view name;      // source name ("" when unknown)
+  std::string_view name;  // source name ("" when unknown)
   uint32_t dropped_before = 0;
   std::string_view text;
 };
@@ -635,10 +687,10 @@ void append_line(const Record& r, std::string& out);
 // ---- the host's hub ----------------------------------------------------------
 
 struct HubCounters {
-  uint64_t records = 0;        // handed to the sinks
-  uint64_t dropped = 0;        // lost in full rings (all rings) and a full text queue
-  uint64_t malformed = 0;      // records whose arguments did not match their format
-  uint64_t unbound = 0;        // records from threads without a ring (formatted at once)
+  uint64_t records = 0;    // handed to the sinks
+  uint64_t dropped = 0;    // lost in full rings (all rings) and a full text queue
+  uint64_t malformed = 0;  // records whose arguments did not match their format
+  uint64_t unbound = 0;    // records from threads without a ring (formatted at once)
 };
 
 // All rings of one host, plus the queue of preformatted text; drained in time order

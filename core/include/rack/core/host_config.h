@@ -44,26 +44,25 @@ inline constexpr std::size_t kMaxNameLength = 31;           // component and net
 inline constexpr std::size_t kMaxChannelLength = 63;        // gdos.channel (LCM's channel name limit)
 inline constexpr double kMaxHostMilliseconds = 86'400'000;  // every *_ms key: at most a day
 
-
 // GDOS on this host (the `gdos:` map of a host file; configs/demo.yaml explains it).
 struct GdosSettings {
   gdos::Level level = gdos::kDefaultLevel;  // default gdosLevel of every component here
   enum class Stderr : uint8_t { kAlways, kAuto, kNever };
-  Stderr to_stderr = Stderr::kAlways;      // auto: only while no gdos viewer listens
-  uint32_t ring = 256;                      // records per task ring (rounded up to a power of 2)
-  int64_t drain_ns = 20 * rt::kNsPerMs;     // how often the GDOS thread drains the rings
-  bool lcm = true;                          // publish on LCM (needs the host's lcm: true)
-  std::string lcm_url;                      // "": the host's TiMS URL
+  Stderr to_stderr = Stderr::kAlways;    // auto: only while no gdos viewer listens
+  uint32_t ring = 256;                   // records per task ring (rounded up to a power of 2)
+  int64_t drain_ns = 20 * rt::kNsPerMs;  // how often the GDOS thread drains the rings
+  bool lcm = true;                       // publish on LCM (needs the host's lcm: true)
+  std::string lcm_url;                   // "": the host's TiMS URL
   std::string channel = "RACK_GDOS";
 };
 
 struct HostSettings {
   std::string file;
-  std::string host;               // host name (default: the machine's)
-  uint8_t system = 0;             // robot id: the system byte of every address here
-  uint8_t host_id = 0;            // instance of this host's Executor(sys/id) mailbox
-  bool require_rt = false;        // refuse to start without RT scheduling, locked memory, PREEMPT_RT
-  std::string lcm_url;            // TiMS/LCM network ("" with lcm: false)
+  std::string host;         // host name (default: the machine's)
+  uint8_t system = 0;       // robot id: the system byte of every address here
+  uint8_t host_id = 0;      // instance of this host's Executor(sys/id) mailbox
+  bool require_rt = false;  // refuse to start without RT scheduling, locked memory, PREEMPT_RT
+  std::string lcm_url;      // TiMS/LCM network ("" with lcm: false)
   bool lcm = true;
   // The `tims:` section (configs/two_robots/ shows every key). networks is empty
   // unless the file lists them; then lcm_url is not used.
@@ -73,9 +72,9 @@ struct HostSettings {
   int64_t expiry_ns = 3'000'000'000;
   uint32_t max_message_bytes = 4 * 1024 * 1024 + 4096;
   uint32_t large_slots = 4;
-  int receive_priority = 0;       // TiMS/LCM receive threads: 0 normal, else SCHED_FIFO (below control tasks)
+  int receive_priority = 0;  // TiMS/LCM receive threads: 0 normal, else SCHED_FIFO (below control tasks)
   std::size_t heap_prefault_bytes = 64u << 20;
-  int cpu_dma_latency_us = 0;     // PM QoS bound held while running; -1: leave to the system
+  int cpu_dma_latency_us = 0;  // PM QoS bound held while running; -1: leave to the system
   // Events per task in the task-timeline rings (`trace_ring_events:`, a power of two):
   // 32 bytes each, preallocated and locked at start for every task.
   std::size_t trace_ring_events = 4096;
@@ -135,8 +134,7 @@ struct HostLoadOptions {
 
 // load_host_file from text (tests, tools); `file` names it in error messages.
 // Decodes outside input: never throws for any text (every problem is an error).
-[[nodiscard]] LoadResult load_host_text(const std::string& text, const std::string& file,
-                                        ComponentRegistry& registry, const rt::RtCapabilities& caps,
-                                        const HostLoadOptions& options = {});
+[[nodiscard]] LoadResult load_host_text(const std::string& text, const std::string& file, ComponentRegistry& registry,
+                                        const rt::RtCapabilities& caps, const HostLoadOptions& options = {});
 
 }  // namespace rack

@@ -46,8 +46,8 @@ enum class PathRole : uint8_t {
 class Parameter {
  public:
   struct Spec {
-    std::string doc;           // one line, shown by rackctl params and --list-classes
-    bool required = false;     // the host file must give a value
+    std::string doc;        // one line, shown by rackctl params and --list-classes
+    bool required = false;  // the host file must give a value
     double min = -std::numeric_limits<double>::infinity();
     double max = std::numeric_limits<double>::infinity();
     bool component_ref = false;  // a string that names a component (dependency)
@@ -95,7 +95,7 @@ class Parameter {
   // given for a float converted). RT-safe.
   const char* check_wire(const wire::ParamRecord& record, wire::ParamRecord& value) const noexcept;
   void to_record(wire::ParamRecord& out) const noexcept;  // RT-safe
-  [[nodiscard]] std::string value_text() const;             // not RT-safe
+  [[nodiscard]] std::string value_text() const;           // not RT-safe
 
   // The folder a relative path resolves against (absolute; "": none), for a parameter
   // with Spec::path: the present value is resolved at once. Before the tasks start
@@ -168,8 +168,7 @@ class ParameterSet {
   Parameter& declare_int(const std::string& name, int64_t initial, Parameter::Spec spec = {});
   Parameter& declare_float(const std::string& name, double initial, Parameter::Spec spec = {});
   Parameter& declare_bool(const std::string& name, bool initial, Parameter::Spec spec = {});
-  Parameter& declare_string(const std::string& name, const std::string& initial,
-                            Parameter::Spec spec = {});
+  Parameter& declare_string(const std::string& name, const std::string& initial, Parameter::Spec spec = {});
 
   [[nodiscard]] Parameter* find(const char* name) noexcept;  // RT-safe (linear, no allocation)
   [[nodiscard]] const Parameter* find(const char* name) const noexcept;

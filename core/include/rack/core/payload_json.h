@@ -13,8 +13,8 @@ namespace rack {
 
 // {"field": value, ...}; arrays as JSON arrays, char arrays as strings. Converts
 // byte order first when `native` is false. Fields beyond `body` are left out.
-[[nodiscard]] std::string payload_to_json(std::span<const tims::FieldDesc> fields,
-                                          std::span<const std::byte> body, bool native);
+[[nodiscard]] std::string payload_to_json(std::span<const tims::FieldDesc> fields, std::span<const std::byte> body,
+                                          bool native);
 [[nodiscard]] std::string json_escape(const std::string& text);
 
 // Sets one field of a payload in host byte order from its text: integers and bools

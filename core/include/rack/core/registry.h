@@ -44,10 +44,10 @@ struct ComponentClass {
 
 // A plug-in class as its manifest names it (not loaded).
 struct PluginClassInfo {
-  std::string impl;      // "MCL"
-  std::string manifest;  // the manifest file
-  std::string library;   // the MODULE library it names (absolute)
-  std::string summary;   // one line
+  std::string impl;            // "MCL"
+  std::string manifest;        // the manifest file
+  std::string library;         // the MODULE library it names (absolute)
+  std::string summary;         // one line
   std::string interface_name;  // its TiMS class name ("Chassis"), if the manifest says
   // false (`lock_dependencies no`): the libraries the plug-in brings (MRPT for MCL)
   // run only in non-RT work, so rackd leaves them out of its locked memory.
@@ -109,6 +109,5 @@ class ComponentRegistry {
 // `interface NAME` lines; # comments). The library is made absolute against the manifest's directory. false
 // with `error` (file:line: what) when malformed. Not RT-safe.
 bool read_plugin_manifest(const std::string& path, PluginClassInfo& out, std::string& error);
-
 
 }  // namespace rack

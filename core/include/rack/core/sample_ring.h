@@ -42,16 +42,13 @@ class SampleRing {
   uint64_t write(int64_t time_ns, const void* payload) noexcept;
 
   // Reader: the sample for `time_ns` by the lookup rules. RT-safe.
-  RingLookup read(int64_t time_ns, int64_t max_ahead_ns, wire::SampleHeader& header,
-                  void* payload) const noexcept;
+  RingLookup read(int64_t time_ns, int64_t max_ahead_ns, wire::SampleHeader& header, void* payload) const noexcept;
   // Reader: sample number `sequence` if still held. RT-safe.
   bool read_sequence(uint64_t sequence, wire::SampleHeader& header, void* payload) const noexcept;
 
  private:
   static constexpr uint32_t kHeaderWords = 3;  // seq, time, sequence
-  uint64_t* slot(uint64_t sequence) const noexcept {
-    return words_.get() + (sequence % capacity_) * slot_words_;
-  }
+  uint64_t* slot(uint64_t sequence) const noexcept { return words_.get() + (sequence % capacity_) * slot_words_; }
   bool read_time(uint64_t sequence, int64_t& time) const noexcept;
 
   uint32_t capacity_;

@@ -25,23 +25,23 @@ namespace rack::trace {
 
 // ---------------------------------------------------------------- wire (TiMS)
 
-inline constexpr uint8_t kTraceMailbox = 2;     // local mailbox of the executor's address
-inline constexpr int8_t kTraceStart = 21;       // TraceStartRequest -> OK TraceStartReply | ERROR ErrorText
-inline constexpr int8_t kTraceRead = 22;        // TraceReadRequest -> OK TraceChunkHeader + bytes | ERROR
+inline constexpr uint8_t kTraceMailbox = 2;  // local mailbox of the executor's address
+inline constexpr int8_t kTraceStart = 21;    // TraceStartRequest -> OK TraceStartReply | ERROR ErrorText
+inline constexpr int8_t kTraceRead = 22;     // TraceReadRequest -> OK TraceChunkHeader + bytes | ERROR
 inline constexpr uint32_t kTraceChunkBytes = 32 * 1024;
 inline constexpr int64_t kMaxTraceDurationNs = 60'000'000'000;  // a minute: the JSON stays below ~100 MB
-inline constexpr std::size_t kMaxTraceEvents = 1'000'000;        // kept per trace; more are counted as dropped
+inline constexpr std::size_t kMaxTraceEvents = 1'000'000;       // kept per trace; more are counted as dropped
 
 struct TraceStartRequest {
   int64_t duration_ns = 0;  // (0, kMaxTraceDurationNs]
   char names[480] = {};     // component names separated by ',' or "all"; NUL-terminated
 };
 struct TraceStartReply {
-  uint32_t tasks = 0;       // tasks that record
+  uint32_t tasks = 0;  // tasks that record
   uint32_t reserved = 0;
 };
 struct TraceReadRequest {
-  uint64_t offset = 0;      // byte offset into the JSON
+  uint64_t offset = 0;  // byte offset into the JSON
 };
 enum class TraceState : uint32_t { kIdle = 0, kRecording = 1, kReady = 2 };
 struct TraceChunkHeader {
@@ -58,7 +58,7 @@ struct TraceChunkHeader {
 // `swapped`: the body is in the other byte order (its integers are swapped back).
 struct DecodedStart {
   bool ok = false;
-  std::string error;               // what is wrong, when !ok
+  std::string error;  // what is wrong, when !ok
   int64_t duration_ns = 0;
   std::vector<std::string> names;  // empty: every task
 };
@@ -74,10 +74,10 @@ struct DecodedRead {
 
 // The events of one task, as the trace thread collected them.
 struct TaskTrace {
-  std::string track;           // "mcl data task"
-  std::string component;       // "mcl"
-  uint32_t address = 0;        // the component's address
-  int tid = 0;                 // Linux thread id (the track's tid)
+  std::string track;      // "mcl data task"
+  std::string component;  // "mcl"
+  uint32_t address = 0;   // the component's address
+  int tid = 0;            // Linux thread id (the track's tid)
   int sort_index = 0;
   std::vector<rt::trace::Event> events;  // in time order
   uint64_t dropped = 0;
@@ -85,8 +85,8 @@ struct TaskTrace {
 
 struct TraceFormat {
   int pid = 0;
-  std::string process_name;    // "rackd host 'sim'"
-  int64_t origin_ns = 0;       // timestamps are microseconds since this
+  std::string process_name;  // "rackd host 'sim'"
+  int64_t origin_ns = 0;     // timestamps are microseconds since this
   int64_t duration_ns = 0;
   uint64_t dropped = 0;
   // An address's name for event names and arguments ("Ladar(0/1)"); a plain hex

@@ -17,19 +17,16 @@ namespace rack::wire {
 // GET_DATA request: time 0 = newest, else the sample nearest that host time.
 struct GetDataRequest {
   int64_t time_ns = 0;
-  static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(GetDataRequest, time_ns)};
-  }
+  static constexpr auto fields() noexcept { return std::array{RACK_FIELD(GetDataRequest, time_ns)}; }
 };
 
 // GET_CONT_DATA request: send every n-th sample to `mailbox`, n from the period.
 struct ContDataRequest {
-  int64_t period_ns = 0;   // 0: every sample
-  uint32_t mailbox = 0;    // where the samples go
+  int64_t period_ns = 0;  // 0: every sample
+  uint32_t mailbox = 0;   // where the samples go
   uint32_t reserved = 0;
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(ContDataRequest, period_ns),
-                                      RACK_FIELD(ContDataRequest, mailbox)};
+    return std::array{RACK_FIELD(ContDataRequest, period_ns), RACK_FIELD(ContDataRequest, mailbox)};
   }
 };
 
@@ -48,27 +45,22 @@ struct ContDataReply {
 struct StopContDataRequest {
   uint32_t mailbox = 0;
   uint32_t reserved = 0;
-  static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(StopContDataRequest, mailbox)};
-  }
+  static constexpr auto fields() noexcept { return std::array{RACK_FIELD(StopContDataRequest, mailbox)}; }
 };
 
 // Every DATA message body starts with this, followed by the class's sample.
 struct SampleHeader {
-  int64_t time_ns = 0;     // recording time (host clock)
-  uint64_t sequence = 0;   // per producer, counts every sample written
+  int64_t time_ns = 0;    // recording time (host clock)
+  uint64_t sequence = 0;  // per producer, counts every sample written
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(SampleHeader, time_ns),
-                                      RACK_FIELD(SampleHeader, sequence)};
+    return std::array{RACK_FIELD(SampleHeader, time_ns), RACK_FIELD(SampleHeader, sequence)};
   }
 };
 
 // ERROR reply body (optional): a NUL-terminated reason.
 struct ErrorText {
   char text[120] = {};
-  static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(ErrorText, text)};
-  }
+  static constexpr auto fields() noexcept { return std::array{RACK_FIELD(ErrorText, text)}; }
 };
 
 enum class ParamKind : uint8_t { kInt = 0, kFloat = 1, kBool = 2, kString = 3 };
@@ -78,24 +70,21 @@ inline constexpr std::size_t kParamStringLen = 128;
 // GET_PARAM request body (empty body: every parameter), SET_PARAM/PARAM record.
 struct ParamName {
   char name[kParamNameLen] = {};
-  static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(ParamName, name)};
-  }
+  static constexpr auto fields() noexcept { return std::array{RACK_FIELD(ParamName, name)}; }
 };
 
 struct ParamRecord {
   char name[kParamNameLen] = {};
-  uint8_t kind = 0;          // ParamKind
-  uint8_t flags = 0;         // bit 0: names a component (address reference)
+  uint8_t kind = 0;   // ParamKind
+  uint8_t flags = 0;  // bit 0: names a component (address reference)
   uint8_t reserved[6] = {};
   int64_t int_value = 0;     // kInt, kBool (0/1)
   double float_value = 0.0;  // kFloat
   char string_value[kParamStringLen] = {};
   static constexpr auto fields() noexcept {
-    return std::array{
-      RACK_FIELD(ParamRecord, name), RACK_FIELD(ParamRecord, kind), RACK_FIELD(ParamRecord, flags),
-      RACK_FIELD(ParamRecord, int_value), RACK_FIELD(ParamRecord, float_value),
-      RACK_FIELD(ParamRecord, string_value)};
+    return std::array{RACK_FIELD(ParamRecord, name),        RACK_FIELD(ParamRecord, kind),
+                      RACK_FIELD(ParamRecord, flags),       RACK_FIELD(ParamRecord, int_value),
+                      RACK_FIELD(ParamRecord, float_value), RACK_FIELD(ParamRecord, string_value)};
   }
 };
 
@@ -114,19 +103,19 @@ struct TaskStats {
 
 // STATS reply body.
 struct StatsReply {
-  uint8_t state = 0;           // ComponentState
-  uint8_t data_task = 0;       // 0 none, 1 periodic, 2 triggered
-  uint8_t faults_measured = 0; // bit 0: command task's page faults measured, bit 1: data task's
+  uint8_t state = 0;            // ComponentState
+  uint8_t data_task = 0;        // 0 none, 1 periodic, 2 triggered
+  uint8_t faults_measured = 0;  // bit 0: command task's page faults measured, bit 1: data task's
   uint8_t reserved[5] = {};
   int64_t period_ns = 0;
   TaskStats data;
-  uint64_t commands = 0;       // requests handled by the command task
-  uint64_t malformed = 0;      // requests rejected as malformed (answered ERROR)
-  uint64_t errors = 0;         // transitions into ERROR
-  uint64_t listeners = 0;      // current getContData listeners
-  uint64_t published = 0;      // samples written
-  uint64_t listener_drops = 0; // samples a listener's mailbox refused
-  uint64_t command_drops = 0;  // command mailbox drops + refusals
+  uint64_t commands = 0;        // requests handled by the command task
+  uint64_t malformed = 0;       // requests rejected as malformed (answered ERROR)
+  uint64_t errors = 0;          // transitions into ERROR
+  uint64_t listeners = 0;       // current getContData listeners
+  uint64_t published = 0;       // samples written
+  uint64_t listener_drops = 0;  // samples a listener's mailbox refused
+  uint64_t command_drops = 0;   // command mailbox drops + refusals
   uint64_t stale_replies = 0;
   // Page faults of each task since the end of its start-up (rack/rt/page_faults.h):
   // 0 is the target for an RT task; counted by a non-RT thread once a second.
@@ -136,10 +125,10 @@ struct StatsReply {
   uint64_t data_major_faults = 0;
   uint64_t access_denied = 0;  // messages to it that access control refused
   // Its data (input) mailbox (rack/tims/trusted_sources.h), refused before queuing:
-  uint64_t input_forged = 0;    // replies/notifications not from a subscribed producer
-  uint64_t input_requests = 0;  // requests sent into it (answered NOT_AVAILABLE, rate-limited)
-                                // or into its reply mailboxes #1, #2 (dropped)
-  uint64_t input_late = 0;      // messages of a producer unsubscribed just before (in flight)
+  uint64_t input_forged = 0;       // replies/notifications not from a subscribed producer
+  uint64_t input_requests = 0;     // requests sent into it (answered NOT_AVAILABLE, rate-limited)
+                                   // or into its reply mailboxes #1, #2 (dropped)
+  uint64_t input_late = 0;         // messages of a producer unsubscribed just before (in flight)
   uint64_t listeners_expired = 0;  // listeners dropped because their lease ran out
   // Execution time of the data task's cycles (how long loop() ran; periodic and
   // triggered tasks alike), from a fixed log-linear histogram (rack/rt/exec_time_stats.h,
@@ -153,25 +142,41 @@ struct StatsReply {
   // init()'s error); "" when it is not in ERROR.
   char error_reason[96] = {};
   static constexpr auto fields() noexcept {
-    return std::array{
-      RACK_FIELD(StatsReply, state), RACK_FIELD(StatsReply, data_task), RACK_FIELD(StatsReply, faults_measured),
-      RACK_FIELD(StatsReply, period_ns), RACK_FIELD(StatsReply, data.cycles),
-      RACK_FIELD(StatsReply, data.overruns), RACK_FIELD(StatsReply, data.samples),
-      RACK_FIELD(StatsReply, data.latency_min_ns), RACK_FIELD(StatsReply, data.latency_max_ns),
-      RACK_FIELD(StatsReply, data.latency_p50_ns), RACK_FIELD(StatsReply, data.latency_p99_ns),
-      RACK_FIELD(StatsReply, data.latency_p999_ns), RACK_FIELD(StatsReply, data.latency_mean_ns),
-      RACK_FIELD(StatsReply, commands), RACK_FIELD(StatsReply, malformed),
-      RACK_FIELD(StatsReply, errors), RACK_FIELD(StatsReply, listeners),
-      RACK_FIELD(StatsReply, published), RACK_FIELD(StatsReply, listener_drops),
-      RACK_FIELD(StatsReply, command_drops), RACK_FIELD(StatsReply, stale_replies),
-      RACK_FIELD(StatsReply, command_minor_faults), RACK_FIELD(StatsReply, command_major_faults),
-      RACK_FIELD(StatsReply, data_minor_faults), RACK_FIELD(StatsReply, data_major_faults),
-      RACK_FIELD(StatsReply, access_denied), RACK_FIELD(StatsReply, input_forged),
-      RACK_FIELD(StatsReply, input_requests), RACK_FIELD(StatsReply, input_late),
-      RACK_FIELD(StatsReply, listeners_expired),
-      RACK_FIELD(StatsReply, exec_samples), RACK_FIELD(StatsReply, exec_p50_ns),
-      RACK_FIELD(StatsReply, exec_p99_ns), RACK_FIELD(StatsReply, exec_max_ns),
-      RACK_FIELD(StatsReply, error_reason)};
+    return std::array{RACK_FIELD(StatsReply, state),
+                      RACK_FIELD(StatsReply, data_task),
+                      RACK_FIELD(StatsReply, faults_measured),
+                      RACK_FIELD(StatsReply, period_ns),
+                      RACK_FIELD(StatsReply, data.cycles),
+                      RACK_FIELD(StatsReply, data.overruns),
+                      RACK_FIELD(StatsReply, data.samples),
+                      RACK_FIELD(StatsReply, data.latency_min_ns),
+                      RACK_FIELD(StatsReply, data.latency_max_ns),
+                      RACK_FIELD(StatsReply, data.latency_p50_ns),
+                      RACK_FIELD(StatsReply, data.latency_p99_ns),
+                      RACK_FIELD(StatsReply, data.latency_p999_ns),
+                      RACK_FIELD(StatsReply, data.latency_mean_ns),
+                      RACK_FIELD(StatsReply, commands),
+                      RACK_FIELD(StatsReply, malformed),
+                      RACK_FIELD(StatsReply, errors),
+                      RACK_FIELD(StatsReply, listeners),
+                      RACK_FIELD(StatsReply, published),
+                      RACK_FIELD(StatsReply, listener_drops),
+                      RACK_FIELD(StatsReply, command_drops),
+                      RACK_FIELD(StatsReply, stale_replies),
+                      RACK_FIELD(StatsReply, command_minor_faults),
+                      RACK_FIELD(StatsReply, command_major_faults),
+                      RACK_FIELD(StatsReply, data_minor_faults),
+                      RACK_FIELD(StatsReply, data_major_faults),
+                      RACK_FIELD(StatsReply, access_denied),
+                      RACK_FIELD(StatsReply, input_forged),
+                      RACK_FIELD(StatsReply, input_requests),
+                      RACK_FIELD(StatsReply, input_late),
+                      RACK_FIELD(StatsReply, listeners_expired),
+                      RACK_FIELD(StatsReply, exec_samples),
+                      RACK_FIELD(StatsReply, exec_p50_ns),
+                      RACK_FIELD(StatsReply, exec_p99_ns),
+                      RACK_FIELD(StatsReply, exec_max_ns),
+                      RACK_FIELD(StatsReply, error_reason)};
   }
 };
 
@@ -192,37 +197,35 @@ struct StatsReply {
 // at most. A different bucket count changes the size, which read_payload refuses.
 inline constexpr std::size_t kLatencyBuckets = 40;
 inline constexpr std::array<int64_t, kLatencyBuckets> kLatencyLowerNs = {
-    0,         1'000,     2'000,     3'000,     4'000,     5'000,     6'000,     7'000,
-    8'000,     10'000,    12'000,    15'000,    20'000,    25'000,    30'000,    40'000,
-    50'000,    60'000,    80'000,    100'000,   120'000,   150'000,   200'000,   250'000,
-    300'000,   400'000,   500'000,   600'000,   800'000,   1'000'000, 1'200'000, 1'500'000,
-    2'000'000, 2'500'000, 3'000'000, 4'000'000, 5'000'000, 6'000'000, 8'000'000, 10'000'000};
+    0,         1'000,     2'000,     3'000,     4'000,     5'000,     6'000,     7'000,     8'000,     10'000,
+    12'000,    15'000,    20'000,    25'000,    30'000,    40'000,    50'000,    60'000,    80'000,    100'000,
+    120'000,   150'000,   200'000,   250'000,   300'000,   400'000,   500'000,   600'000,   800'000,   1'000'000,
+    1'200'000, 1'500'000, 2'000'000, 2'500'000, 3'000'000, 4'000'000, 5'000'000, 6'000'000, 8'000'000, 10'000'000};
 
 struct LatencyHistogram {
-  uint8_t data_task = 0;       // as StatsReply: 0 none (all counts 0), 1 periodic, 2 triggered
+  uint8_t data_task = 0;  // as StatsReply: 0 none (all counts 0), 1 periodic, 2 triggered
   uint8_t reserved[3] = {};
-  uint32_t bucket_count = 0;   // buckets in use (kLatencyBuckets); a client reads only these
+  uint32_t bucket_count = 0;  // buckets in use (kLatencyBuckets); a client reads only these
   int64_t period_ns = 0;
   uint64_t cycles = 0;
-  uint64_t overruns = 0;       // periods missed (skipped, never caught up)
-  uint64_t samples = 0;        // the sum of counts (one snapshot of the histogram)
+  uint64_t overruns = 0;  // periods missed (skipped, never caught up)
+  uint64_t samples = 0;   // the sum of counts (one snapshot of the histogram)
   int64_t min_ns = 0;
   int64_t max_ns = 0;
   int64_t mean_ns = 0;
-  int64_t p50_ns = 0;          // percentiles from the 1-us histogram (as GET_STATS)
+  int64_t p50_ns = 0;  // percentiles from the 1-us histogram (as GET_STATS)
   int64_t p99_ns = 0;
   int64_t p999_ns = 0;
   int64_t lower_ns[kLatencyBuckets] = {};
   uint64_t counts[kLatencyBuckets] = {};
   static constexpr auto fields() noexcept {
-    return std::array{
-      RACK_FIELD(LatencyHistogram, data_task), RACK_FIELD(LatencyHistogram, bucket_count),
-      RACK_FIELD(LatencyHistogram, period_ns), RACK_FIELD(LatencyHistogram, cycles),
-      RACK_FIELD(LatencyHistogram, overruns), RACK_FIELD(LatencyHistogram, samples),
-      RACK_FIELD(LatencyHistogram, min_ns), RACK_FIELD(LatencyHistogram, max_ns),
-      RACK_FIELD(LatencyHistogram, mean_ns), RACK_FIELD(LatencyHistogram, p50_ns),
-      RACK_FIELD(LatencyHistogram, p99_ns), RACK_FIELD(LatencyHistogram, p999_ns),
-      RACK_FIELD(LatencyHistogram, lower_ns), RACK_FIELD(LatencyHistogram, counts)};
+    return std::array{RACK_FIELD(LatencyHistogram, data_task), RACK_FIELD(LatencyHistogram, bucket_count),
+                      RACK_FIELD(LatencyHistogram, period_ns), RACK_FIELD(LatencyHistogram, cycles),
+                      RACK_FIELD(LatencyHistogram, overruns),  RACK_FIELD(LatencyHistogram, samples),
+                      RACK_FIELD(LatencyHistogram, min_ns),    RACK_FIELD(LatencyHistogram, max_ns),
+                      RACK_FIELD(LatencyHistogram, mean_ns),   RACK_FIELD(LatencyHistogram, p50_ns),
+                      RACK_FIELD(LatencyHistogram, p99_ns),    RACK_FIELD(LatencyHistogram, p999_ns),
+                      RACK_FIELD(LatencyHistogram, lower_ns),  RACK_FIELD(LatencyHistogram, counts)};
   }
 };
 

@@ -66,26 +66,26 @@ enum class AccessDefault : uint8_t { kOpen, kClosed };
 
 // One rule as configured (set-up form; the host file's `access: rules:`).
 struct AccessRuleConfig {
-  std::string name;                 // for counters and logs ("rule 3" when empty)
-  std::vector<AddressMask> to;      // at least one
-  std::vector<AddressMask> from;    // empty with from_local/from_network false: any source
+  std::string name;               // for counters and logs ("rule 3" when empty)
+  std::vector<AddressMask> to;    // at least one
+  std::vector<AddressMask> from;  // empty with from_local/from_network false: any source
   bool from_local = false;
   bool from_network = false;
-  bool only_local = false;          // and only messages sent inside this process (rackd's own)
-  bool any_type = true;             // false: only `types` (requests, and replies when listed)
-  std::bitset<256> types;           // index: type + 128
-  bool restricts_replies = false;   // `types` lists a type <= 0
+  bool only_local = false;         // and only messages sent inside this process (rackd's own)
+  bool any_type = true;            // false: only `types` (requests, and replies when listed)
+  std::bitset<256> types;          // index: type + 128
+  bool restricts_replies = false;  // `types` lists a type <= 0
   int max_priority = 255;
-  double rate = 0;                  // messages per second per source; 0: no limit
-  double burst = 0;                 // messages (0: max(1, rate / 10))
-  double bandwidth = 0;             // bytes per second per source; 0: no limit
-  double burst_bytes = 0;           // bytes (0: max(64 KiB, bandwidth / 10))
+  double rate = 0;         // messages per second per source; 0: no limit
+  double burst = 0;        // messages (0: max(1, rate / 10))
+  double bandwidth = 0;    // bytes per second per source; 0: no limit
+  double burst_bytes = 0;  // bytes (0: max(64 KiB, bandwidth / 10))
 };
 
 struct AccessConfig {
   AccessDefault default_policy = AccessDefault::kOpen;
   std::vector<AccessRuleConfig> rules;
-  uint32_t sources = 1024;          // per-source bucket entries (rounded up to a power of 2)
+  uint32_t sources = 1024;  // per-source bucket entries (rounded up to a power of 2)
 };
 
 struct AccessRuleCounters {
@@ -113,8 +113,8 @@ struct AccessDecision {
 class AccessControl {
  public:
   static constexpr std::size_t kMaxRules = 64;
-  static constexpr std::size_t kMaxMasks = 16;   // per `to` and per `from`
-  static constexpr std::size_t kProbe = 8;       // bucket table probes per look-up
+  static constexpr std::size_t kMaxMasks = 16;  // per `to` and per `from`
+  static constexpr std::size_t kProbe = 8;      // bucket table probes per look-up
   static constexpr std::size_t kNameLen = 32;
   static constexpr int64_t kRepliesPerSecond = 50;  // ERROR answers per rule (burst as many)
 
@@ -164,9 +164,9 @@ class AccessControl {
     bool restricts_replies = false;
     std::bitset<256> types;
     int max_priority = 255;
-    int64_t msg_interval_ns = 0;    // 0: no message limit
-    int64_t msg_tolerance_ns = 0;   // burst * interval
-    double byte_ns = 0;             // ns per byte; 0: no bandwidth limit
+    int64_t msg_interval_ns = 0;   // 0: no message limit
+    int64_t msg_tolerance_ns = 0;  // burst * interval
+    double byte_ns = 0;            // ns per byte; 0: no bandwidth limit
     int64_t byte_tolerance_ns = 0;
     // Counters (relaxed: independent statistics).
     std::atomic<uint64_t> allowed{0}, denied_type{0}, denied_priority{0}, denied_rate{0}, denied_bandwidth{0};

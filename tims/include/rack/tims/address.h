@@ -18,10 +18,8 @@ class Address {
  public:
   constexpr Address() noexcept = default;
   constexpr explicit Address(uint32_t raw) noexcept : raw_(raw) {}
-  static constexpr Address make(uint8_t system, uint8_t class_id, uint8_t instance,
-                                uint8_t mailbox = 0) noexcept {
-    return Address((uint32_t{system} << 24) | (uint32_t{class_id} << 16) |
-                   (uint32_t{instance} << 8) | mailbox);
+  static constexpr Address make(uint8_t system, uint8_t class_id, uint8_t instance, uint8_t mailbox = 0) noexcept {
+    return Address((uint32_t{system} << 24) | (uint32_t{class_id} << 16) | (uint32_t{instance} << 8) | mailbox);
   }
 
   [[nodiscard]] constexpr uint32_t raw() const noexcept { return raw_; }
@@ -68,11 +66,11 @@ inline constexpr uint8_t kScan2d = 0x1B;
 inline constexpr uint8_t kScan3d = 0x1C;
 inline constexpr uint8_t kObjRecog = 0x1D;
 inline constexpr uint8_t kMcl = 0x1E;
-inline constexpr uint8_t kGenerator = 0x40;  // demo: periodic producer
-inline constexpr uint8_t kMonitor = 0x41;    // demo: consumer with statistics
-inline constexpr uint8_t kProbe = 0x42;      // test component whose hooks can fail on demand
+inline constexpr uint8_t kGenerator = 0x40;       // demo: periodic producer
+inline constexpr uint8_t kMonitor = 0x41;         // demo: consumer with statistics
+inline constexpr uint8_t kProbe = 0x42;           // test component whose hooks can fail on demand
 inline constexpr uint8_t kModeSwitchDemo = 0x43;  // demo: triggers each mode-switch reason on demand
-inline constexpr uint8_t kEvaluator = 0x44;   // simulation: localisation error against the true pose
+inline constexpr uint8_t kEvaluator = 0x44;       // simulation: localisation error against the true pose
 inline constexpr uint8_t kFirstUser = 0x80;
 }  // namespace classes
 

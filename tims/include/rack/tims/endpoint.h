@@ -27,8 +27,8 @@ enum class CallStatus : uint8_t {
 
 struct CallResult {
   CallStatus status = CallStatus::kTimeout;
-  MessageHeader reply{};                    // valid when status == kOk
-  std::span<const std::byte> body;          // into the caller's buffer
+  MessageHeader reply{};            // valid when status == kOk
+  std::span<const std::byte> body;  // into the caller's buffer
   [[nodiscard]] bool ok() const noexcept { return status == CallStatus::kOk && reply.type == msg::kOk; }
 };
 
@@ -55,8 +55,8 @@ class Endpoint {
   [[nodiscard]] uint8_t priority() const noexcept { return priority_; }
 
   // Request/reply. `buffer` receives the reply (header included). RT-safe.
-  CallResult call(Address dest, int8_t type, std::span<const ConstBuffer> body,
-                  std::span<std::byte> buffer, int64_t timeout_ns) noexcept;
+  CallResult call(Address dest, int8_t type, std::span<const ConstBuffer> body, std::span<std::byte> buffer,
+                  int64_t timeout_ns) noexcept;
   CallResult call(Address dest, int8_t type, std::span<std::byte> buffer, int64_t timeout_ns) noexcept {
     return call(dest, type, std::span<const ConstBuffer>{}, buffer, timeout_ns);
   }
@@ -69,13 +69,13 @@ class Endpoint {
 
   // Request/reply with retries on timeout (see RetryPolicy). RT-safe; blocks at most
   // attempts * timeout_ns.
-  CallResult call_with_retry(Address dest, int8_t type, std::span<const ConstBuffer> body,
-                             std::span<std::byte> buffer, RetryPolicy policy) noexcept;
+  CallResult call_with_retry(Address dest, int8_t type, std::span<const ConstBuffer> body, std::span<std::byte> buffer,
+                             RetryPolicy policy) noexcept;
 
   // A message that expects no reply (or whose replies the caller reads itself).
   // Returns the sequence number used through `seq_out` when given. RT-safe.
-  SendStatus send(Address dest, int8_t type, std::span<const ConstBuffer> body,
-                  Address reply_to = Address(), uint8_t* seq_out = nullptr) noexcept;
+  SendStatus send(Address dest, int8_t type, std::span<const ConstBuffer> body, Address reply_to = Address(),
+                  uint8_t* seq_out = nullptr) noexcept;
 
   // Answers `request` (same sequence number, to its source). RT-safe.
   SendStatus reply(const MessageHeader& request, int8_t type, std::span<const ConstBuffer> body = {}) noexcept;

@@ -43,29 +43,30 @@ inline constexpr const char* kGdosListenerChannel = "RACK_GDOS_LISTENER";
 struct GdosRecord {
   std::string host;
   int32_t pid = 0;
-  uint32_t source = 0;        // TiMS address (bits)
-  std::string name;           // component name ("" if unknown)
-  uint8_t level = 0;          // 0 print .. 4 detail
-  int64_t time_ns = 0;        // host clock
+  uint32_t source = 0;  // TiMS address (bits)
+  std::string name;     // component name ("" if unknown)
+  uint8_t level = 0;    // 0 print .. 4 detail
+  int64_t time_ns = 0;  // host clock
   uint64_t sequence = 0;
   uint32_t dropped_before = 0;
   std::string text;
 };
 
 struct GdosPublisherConfig {
-  std::string url;                     // LCM URL
+  std::string url;  // LCM URL
   std::string channel = kGdosChannel;
-  std::string host;                    // host name in every batch
+  std::string host;  // host name in every batch
   int32_t pid = 0;
   std::size_t max_batch_bytes = 16 * 1024;  // well below LCM's fragmentation size
-  std::string key_file;                // "": batches unsigned
+  std::string key_file;                     // "": batches unsigned
 };
 
 struct GdosPublisherCounters {
   uint64_t records = 0;
   uint64_t batches = 0;
   uint64_t publish_errors = 0;
-  uint64_t refused = 0;  // datagrams the listener check refused: not LCM, LCM fragments, listener messages that do not decode
+  uint64_t refused =
+      0;  // datagrams the listener check refused: not LCM, LCM fragments, listener messages that do not decode
 };
 
 class GdosPublisher {
@@ -94,13 +95,13 @@ class GdosPublisher {
 struct GdosSubscriberCounters {
   uint64_t batches = 0;
   uint64_t records = 0;
-  uint64_t malformed = 0;   // undecodable batches on the channel (string lengths, counts, truncation)
+  uint64_t malformed = 0;          // undecodable batches on the channel (string lengths, counts, truncation)
   uint64_t bad_announcements = 0;  // TIMS_ANNOUNCE that do not decode (names are then not learnt)
   uint64_t bad_datagrams = 0;      // not LCM: short, wrong magic, channel name unterminated or too long
   uint64_t lcm_fragments = 0;      // LCM fragments (messages above 64 KB), refused: never sent by rackd
-  uint64_t lost = 0;        // sequence gaps (records lost between a host and us)
-  uint64_t auth_failed = 0; // with a key: batches/announcements unsigned, unknown key, bad MAC
-  uint64_t replayed = 0;    // with a key: seen before, or outside the time window
+  uint64_t lost = 0;               // sequence gaps (records lost between a host and us)
+  uint64_t auth_failed = 0;        // with a key: batches/announcements unsigned, unknown key, bad MAC
+  uint64_t replayed = 0;           // with a key: seen before, or outside the time window
 };
 
 class GdosSubscriber {

@@ -131,33 +131,33 @@ struct HostInfo {
 struct TransportCounters {
   uint64_t packets_in = 0;
   uint64_t packets_out = 0;
-  uint64_t messages_in = 0;      // whole TiMS messages received (after reassembly)
+  uint64_t messages_in = 0;  // whole TiMS messages received (after reassembly)
   uint64_t messages_out = 0;
-  uint64_t malformed = 0;        // dropped: the sum of the four malformed_* kinds below
-  uint64_t malformed_lcm = 0;       // not LCM: short, wrong magic, channel name unterminated or > 63 bytes
-  uint64_t malformed_packet = 0;    // TIMS: not a tims_packet, bad chunk fields, bad header or length, zstd
-  uint64_t malformed_announce = 0;  // TIMS_ANNOUNCE: does not decode (string length, count), fields out of range
-  uint64_t malformed_discover = 0;  // TIMS_DISCOVER: does not decode, hops out of range
-  uint64_t lcm_fragments = 0;       // LCM fragments (messages above 64 KB), refused: never RACK-RT's
-  uint64_t hosts_refused = 0;       // announcements of new hosts refused: the table is full (256)
-  uint64_t discovers_answered = 0;  // discover requests answered (at once, or after the interval)
+  uint64_t malformed = 0;             // dropped: the sum of the four malformed_* kinds below
+  uint64_t malformed_lcm = 0;         // not LCM: short, wrong magic, channel name unterminated or > 63 bytes
+  uint64_t malformed_packet = 0;      // TIMS: not a tims_packet, bad chunk fields, bad header or length, zstd
+  uint64_t malformed_announce = 0;    // TIMS_ANNOUNCE: does not decode (string length, count), fields out of range
+  uint64_t malformed_discover = 0;    // TIMS_DISCOVER: does not decode, hops out of range
+  uint64_t lcm_fragments = 0;         // LCM fragments (messages above 64 KB), refused: never RACK-RT's
+  uint64_t hosts_refused = 0;         // announcements of new hosts refused: the table is full (256)
+  uint64_t discovers_answered = 0;    // discover requests answered (at once, or after the interval)
   uint64_t discovers_suppressed = 0;  // discover requests that shared an answer due anyway (rate limit)
-  uint64_t forged = 0;           // dropped: source address not owned by the sending host
-  uint64_t not_for_us = 0;       // valid, for a mailbox not on this host
-  uint64_t forwarded = 0;        // relayed to another network (routers)
-  uint64_t not_available = 0;    // requests answered NOT_AVAILABLE by this authority
-  uint64_t sequence_gaps = 0;    // packets missing between consecutive packet numbers
-  uint64_t lost_messages = 0;    // chunked messages that never completed (reported)
+  uint64_t forged = 0;                // dropped: source address not owned by the sending host
+  uint64_t not_for_us = 0;            // valid, for a mailbox not on this host
+  uint64_t forwarded = 0;             // relayed to another network (routers)
+  uint64_t not_available = 0;         // requests answered NOT_AVAILABLE by this authority
+  uint64_t sequence_gaps = 0;         // packets missing between consecutive packet numbers
+  uint64_t lost_messages = 0;         // chunked messages that never completed (reported)
   uint64_t publish_errors = 0;
   uint64_t delivery_failed = 0;  // local mailbox refused (full, too large)
   uint64_t hosts_expired = 0;
   uint64_t subscriptions_failed = 0;  // ERRORs sent to local consumers of lost hosts
   uint64_t streams_stopped = 0;       // local producers told to stop streaming to lost hosts
   uint64_t compressed_out = 0;
-  uint64_t bytes_out = 0;        // TiMS bytes published (before compression)
-  uint64_t wire_bytes_out = 0;   // payload bytes on the wire (after compression)
-  uint64_t auth_failed = 0;      // dropped on a keyed network: unsigned, unknown key, bad MAC
-  uint64_t replayed = 0;         // dropped on a keyed network: sequence seen, or outside the time window
+  uint64_t bytes_out = 0;       // TiMS bytes published (before compression)
+  uint64_t wire_bytes_out = 0;  // payload bytes on the wire (after compression)
+  uint64_t auth_failed = 0;     // dropped on a keyed network: unsigned, unknown key, bad MAC
+  uint64_t replayed = 0;        // dropped on a keyed network: sequence seen, or outside the time window
 };
 
 struct LcmTransportConfig {
@@ -170,10 +170,10 @@ struct LcmTransportConfig {
   // Messages above uplink_slot_size go through a second uplink of a few large slots.
   uint32_t large_slots = 4;
   uint32_t max_message_bytes = 4 * 1024 * 1024 + 4096;  // largest message sent or accepted
-  uint32_t reassembly_slots = 4;  // large messages being received at once (per network)
-  int64_t announce_period_ns = 1'000'000'000;  // 0: only at start, on change, on request
-  int64_t expiry_ns = 3'000'000'000;           // a host silent this long is gone
-  int64_t reassembly_timeout_ns = 1'000'000'000;  // an incomplete message is lost after this
+  uint32_t reassembly_slots = 4;                        // large messages being received at once (per network)
+  int64_t announce_period_ns = 1'000'000'000;           // 0: only at start, on change, on request
+  int64_t expiry_ns = 3'000'000'000;                    // a host silent this long is gone
+  int64_t reassembly_timeout_ns = 1'000'000'000;        // an incomplete message is lost after this
   // After start (which asks every host to announce itself) the discovery table needs
   // this long to fill before this host may answer NOT_AVAILABLE for others.
   int64_t warmup_ns = 500'000'000;

@@ -29,11 +29,11 @@ namespace rack::tims {
 inline constexpr std::size_t kMaxLcmUrlLength = 256;
 
 struct LcmUrl {
-  std::string provider;     // udpm, mpudpm, memq, tcpq, file
-  std::string network;      // between "://" and "?" (udpm: "GROUP:PORT" as written)
-  uint32_t group = 0;       // udpm/mpudpm: the multicast group, host byte order
-  uint16_t port = 0;        // udpm/mpudpm/tcpq
-  int ttl = 0;              // udpm/mpudpm (LCM's default 0)
+  std::string provider;       // udpm, mpudpm, memq, tcpq, file
+  std::string network;        // between "://" and "?" (udpm: "GROUP:PORT" as written)
+  uint32_t group = 0;         // udpm/mpudpm: the multicast group, host byte order
+  uint16_t port = 0;          // udpm/mpudpm/tcpq
+  int ttl = 0;                // udpm/mpudpm (LCM's default 0)
   int64_t recv_buf_size = 0;  // udpm/mpudpm: 0 when not given (the kernel's default)
 };
 

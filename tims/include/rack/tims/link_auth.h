@@ -135,8 +135,7 @@ class LinkVerifier {
   // `size` includes the trailer; on kOk the payload is the first size - 48 bytes.
   // `now_ns`: CLOCK_REALTIME; `mono_ns`: CLOCK_MONOTONIC (entry ageing). Does not
   // allocate.
-  AuthResult verify(std::string_view channel, const uint8_t* data, std::size_t size, int64_t now_ns,
-                    int64_t mono_ns);
+  AuthResult verify(std::string_view channel, const uint8_t* data, std::size_t size, int64_t now_ns, int64_t mono_ns);
   // The sender of the last packet verify() looked at (for messages).
   [[nodiscard]] int64_t last_sender() const noexcept { return last_sender_; }
 

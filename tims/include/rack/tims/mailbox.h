@@ -57,20 +57,20 @@ enum class SendStatus : uint8_t {
 
 enum class RecvStatus : uint8_t {
   kOk,
-  kTimeout,    // nothing arrived before the timeout
-  kEmpty,      // non-blocking receive found nothing
-  kTooSmall,   // the message did not fit the buffer: it was consumed and counted
-  kClosed,     // the mailbox was closed (shutdown)
+  kTimeout,   // nothing arrived before the timeout
+  kEmpty,     // non-blocking receive found nothing
+  kTooSmall,  // the message did not fit the buffer: it was consumed and counted
+  kClosed,    // the mailbox was closed (shutdown)
 };
 
 struct MailboxCounters {
   uint64_t sent = 0;
   uint64_t received = 0;
-  uint64_t dropped = 0;      // queued messages dropped to make room
-  uint64_t refused = 0;      // sends refused because full
-  uint64_t too_large = 0;    // sends refused because larger than a slot
-  uint64_t truncated = 0;    // receives whose buffer was too small
-  uint64_t denied = 0;       // messages for it that access control refused (rack/tims/access.h)
+  uint64_t dropped = 0;    // queued messages dropped to make room
+  uint64_t refused = 0;    // sends refused because full
+  uint64_t too_large = 0;  // sends refused because larger than a slot
+  uint64_t truncated = 0;  // receives whose buffer was too small
+  uint64_t denied = 0;     // messages for it that access control refused (rack/tims/access.h)
 };
 
 class Mailbox {
@@ -107,8 +107,8 @@ class Mailbox {
 
   struct Peeked {
     RecvStatus status = RecvStatus::kEmpty;
-    const MessageHeader* header = nullptr;   // in the slot; valid until peek_end()
-    std::span<const std::byte> body;         // in the slot; valid until peek_end()
+    const MessageHeader* header = nullptr;  // in the slot; valid until peek_end()
+    std::span<const std::byte> body;        // in the slot; valid until peek_end()
   };
   // Zero-copy: the next message stays in its slot until peek_end(). One peek at a
   // time. RT-safe.
@@ -156,9 +156,7 @@ class Mailbox {
   int find_next_locked() const noexcept;  // highest priority, oldest; -1 if none
   // Waits (lock held) for a ready slot; returns its index or -1 with `status` set.
   int wait_ready_locked(int64_t timeout_ns, RecvStatus& status) noexcept;
-  std::byte* slot_data(int index) noexcept {
-    return storage_.get() + static_cast<std::size_t>(index) * slot_size_;
-  }
+  std::byte* slot_data(int index) noexcept { return storage_.get() + static_cast<std::size_t>(index) * slot_size_; }
   void free_slot(int index) noexcept;
 
   Address address_;
@@ -170,17 +168,16 @@ class Mailbox {
   rt::PiCondVar ready_cv_;
   uint64_t next_order_ = 0;
   uint32_t ready_count_ = 0;
-  uint32_t wakeups_ = 0;    // pending wake() calls
+  uint32_t wakeups_ = 0;  // pending wake() calls
   bool closed_ = false;
   int peeked_ = -1;
 
   // Counters: written under the mutex, read lock-free by tools (relaxed: statistics).
-  std::atomic<uint64_t> sent_{0}, received_{0}, dropped_{0}, refused_{0}, too_large_{0},
-      truncated_{0};
-  std::atomic<uint64_t> denied_{0};  // relaxed: a statistic, outside the mutex
+  std::atomic<uint64_t> sent_{0}, received_{0}, dropped_{0}, refused_{0}, too_large_{0}, truncated_{0};
+  std::atomic<uint64_t> denied_{0};                // relaxed: a statistic, outside the mutex
   std::atomic<TrustedSources*> trusted_{nullptr};  // release/acquire: the table is built before
-  std::atomic<bool> replies_only_{false};            // relaxed: set before traffic flows
-  std::atomic<uint64_t> refused_requests_{0};        // relaxed: a statistic
+  std::atomic<bool> replies_only_{false};          // relaxed: set before traffic flows
+  std::atomic<uint64_t> refused_requests_{0};      // relaxed: a statistic
 };
 
 }  // namespace rack::tims

@@ -48,8 +48,7 @@ inline constexpr uint8_t kFlagHeaderLittleEndian = 0x01;
 inline constexpr uint8_t kFlagBodyLittleEndian = 0x02;
 inline constexpr bool kHostLittleEndian = std::endian::native == std::endian::little;
 // Flags of a message made on this host.
-inline constexpr uint8_t kNativeFlags =
-    kHostLittleEndian ? (kFlagHeaderLittleEndian | kFlagBodyLittleEndian) : 0;
+inline constexpr uint8_t kNativeFlags = kHostLittleEndian ? (kFlagHeaderLittleEndian | kFlagBodyLittleEndian) : 0;
 
 // RACK's generic message numbers (DESIGN.md). Tools and tests rely on them.
 namespace msg {
@@ -63,9 +62,9 @@ inline constexpr int8_t kStopContData = 7;
 inline constexpr int8_t kGetNextData = 8;
 inline constexpr int8_t kGetParam = 9;
 inline constexpr int8_t kSetParam = 10;
-inline constexpr int8_t kGetStats = 11;      // RACK-RT: task timing statistics
-inline constexpr int8_t kGetLatency = 12;    // RACK-RT: the data task's wake-up latency histogram
-inline constexpr int8_t kGetClass = 13;      // RACK-RT: a page of the class description (rack/core/class_description.h)
+inline constexpr int8_t kGetStats = 11;    // RACK-RT: task timing statistics
+inline constexpr int8_t kGetLatency = 12;  // RACK-RT: the data task's wake-up latency histogram
+inline constexpr int8_t kGetClass = 13;    // RACK-RT: a page of the class description (rack/core/class_description.h)
 inline constexpr int8_t kFirstClassCommand = 21;
 // Executor requests (sent to Executor(sys/host)).
 inline constexpr int8_t kExecList = 21;
@@ -92,8 +91,7 @@ inline constexpr int8_t kFirstClassReply = -21;
 }  // namespace msg
 
 // Builds a header for a message made on this host. RT-safe.
-[[nodiscard]] constexpr MessageHeader make_header(Address dest, Address src, int8_t type,
-                                                  uint8_t priority, uint8_t seq,
+[[nodiscard]] constexpr MessageHeader make_header(Address dest, Address src, int8_t type, uint8_t priority, uint8_t seq,
                                                   std::size_t body_length) noexcept {
   MessageHeader h;
   h.flags = kNativeFlags;
@@ -109,17 +107,16 @@ inline constexpr int8_t kFirstClassReply = -21;
 // The reply header for `request`: destination is the request's source. RT-safe.
 [[nodiscard]] constexpr MessageHeader make_reply_header(const MessageHeader& request, int8_t type,
                                                         std::size_t body_length) noexcept {
-  return make_header(request.source(), request.destination(), type, request.priority,
-                     request.seq, body_length);
+  return make_header(request.source(), request.destination(), type, request.priority, request.seq, body_length);
 }
 
 [[nodiscard]] bool body_is_native(const MessageHeader& h) noexcept;
 
 enum class MessageError : uint8_t {
   kOk,
-  kTruncatedHeader,   // fewer than 16 bytes
-  kLengthMismatch,    // header length differs from the bytes received
-  kUnknownFlags,      // reserved flag bits set
+  kTruncatedHeader,  // fewer than 16 bytes
+  kLengthMismatch,   // header length differs from the bytes received
+  kUnknownFlags,     // reserved flag bits set
 };
 [[nodiscard]] const char* describe(MessageError e) noexcept;
 

@@ -35,10 +35,18 @@ struct FieldDesc {
 
 [[nodiscard]] constexpr uint32_t field_kind_size(FieldKind k) noexcept {
   switch (k) {
-    case FieldKind::kI8: case FieldKind::kU8: case FieldKind::kBool: case FieldKind::kChar: return 1;
-    case FieldKind::kI16: case FieldKind::kU16: return 2;
-    case FieldKind::kI32: case FieldKind::kU32: case FieldKind::kF32: return 4;
-    case FieldKind::kI64: case FieldKind::kU64: case FieldKind::kF64: return 8;
+    case FieldKind::kI8:
+    case FieldKind::kU8:
+    case FieldKind::kBool:
+    case FieldKind::kChar: return 1;
+    case FieldKind::kI16:
+    case FieldKind::kU16: return 2;
+    case FieldKind::kI32:
+    case FieldKind::kU32:
+    case FieldKind::kF32: return 4;
+    case FieldKind::kI64:
+    case FieldKind::kU64:
+    case FieldKind::kF64: return 8;
   }
   return 1;
 }
@@ -64,8 +72,8 @@ constexpr FieldKind field_kind_of() noexcept {
 template <typename M>
 constexpr FieldDesc make_field(const char* name, std::size_t offset) noexcept {
   if constexpr (std::is_array_v<M>) {
-    return FieldDesc{name, field_kind_of<std::remove_all_extents_t<M>>(),
-                     static_cast<uint32_t>(offset), static_cast<uint32_t>(std::extent_v<M>)};
+    return FieldDesc{name, field_kind_of<std::remove_all_extents_t<M>>(), static_cast<uint32_t>(offset),
+                     static_cast<uint32_t>(std::extent_v<M>)};
   } else {
     return FieldDesc{name, field_kind_of<M>(), static_cast<uint32_t>(offset), 1};
   }
@@ -87,9 +95,24 @@ inline void swap_fields(std::span<const FieldDesc> fields, std::byte* body, std:
       const std::size_t at = f.offset + std::size_t{i} * w;
       if (at + w > size) return;
       std::byte* p = body + at;
-      if (w == 2) { uint16_t v; std::memcpy(&v, p, 2); v = bswap(v); std::memcpy(p, &v, 2); }
-      if (w == 4) { uint32_t v; std::memcpy(&v, p, 4); v = bswap(v); std::memcpy(p, &v, 4); }
-      if (w == 8) { uint64_t v; std::memcpy(&v, p, 8); v = bswap(v); std::memcpy(p, &v, 8); }
+      if (w == 2) {
+        uint16_t v;
+        std::memcpy(&v, p, 2);
+        v = bswap(v);
+        std::memcpy(p, &v, 2);
+      }
+      if (w == 4) {
+        uint32_t v;
+        std::memcpy(&v, p, 4);
+        v = bswap(v);
+        std::memcpy(p, &v, 4);
+      }
+      if (w == 8) {
+        uint64_t v;
+        std::memcpy(&v, p, 8);
+        v = bswap(v);
+        std::memcpy(p, &v, 8);
+      }
     }
   }
 }
@@ -101,7 +124,7 @@ inline void swap_fields(std::span<const FieldDesc> fields, std::byte* body, std:
 // its field table (a member function, so offsetof sees the complete type).
 template <typename T>
 concept Payload = std::is_trivially_copyable_v<T> && requires {
-  { std::span<const FieldDesc>(T::fields()) };
+  {std::span<const FieldDesc>(T::fields())};
 };
 
 // The field table of a payload type, with static storage.
@@ -111,5 +134,4 @@ inline constexpr auto fields_of = T::fields();
 }  // namespace rack::tims
 
 // One field-table entry; the kind and element count come from the member's type.
-#define RACK_FIELD(Type, member) \
-  ::rack::tims::make_field<decltype(Type::member)>(#member, offsetof(Type, member))
+#define RACK_FIELD(Type, member) ::rack::tims::make_field<decltype(Type::member)>(#member, offsetof(Type, member))

@@ -115,11 +115,11 @@ class Router {
   std::array<Entry, kCapacity> table_{};
   std::atomic<Mailbox*> uplink_{nullptr};
   std::atomic<Mailbox*> large_uplink_{nullptr};
-  std::atomic<bool> system_shared_{false};  // relaxed: set before traffic flows
+  std::atomic<bool> system_shared_{false};       // relaxed: set before traffic flows
   std::atomic<AccessControl*> access_{nullptr};  // release/acquire: the table is built before
   // Statistics, relaxed: independent counters read by tools.
-  std::atomic<uint64_t> delivered_local_{0}, sent_uplink_{0}, not_available_{0}, unroutable_{0},
-      failed_{0}, denied_{0}, untrusted_{0};
+  std::atomic<uint64_t> delivered_local_{0}, sent_uplink_{0}, not_available_{0}, unroutable_{0}, failed_{0}, denied_{0},
+      untrusted_{0};
 };
 
 }  // namespace rack::tims

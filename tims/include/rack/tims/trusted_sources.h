@@ -41,9 +41,9 @@ namespace rack::tims {
 
 class TrustedSources {
  public:
-  static constexpr std::size_t kCapacity = 8;                       // producers per consumer
-  static constexpr int64_t kLateGraceNs = 2'000'000'000;            // in-flight after unsubscribe
-  static constexpr int64_t kAnswersPerSecond = 10;                  // NOT_AVAILABLE answers
+  static constexpr std::size_t kCapacity = 8;             // producers per consumer
+  static constexpr int64_t kLateGraceNs = 2'000'000'000;  // in-flight after unsubscribe
+  static constexpr int64_t kAnswersPerSecond = 10;        // NOT_AVAILABLE answers
 
   enum class Verdict : uint8_t {
     kAccept,   // from a trusted producer (or the owner): deliver
@@ -53,9 +53,9 @@ class TrustedSources {
   };
 
   struct Counters {
-    uint64_t forged = 0;     // refused: not from a trusted producer
-    uint64_t requests = 0;   // refused: a request sent into the data mailbox
-    uint64_t late = 0;       // refused: a retired producer's message still in flight
+    uint64_t forged = 0;       // refused: not from a trusted producer
+    uint64_t requests = 0;     // refused: a request sent into the data mailbox
+    uint64_t late = 0;         // refused: a retired producer's message still in flight
     uint32_t last_source = 0;  // the last forged message or request: its source
     int8_t last_type = 0;      // and its type
   };

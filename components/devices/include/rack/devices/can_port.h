@@ -45,7 +45,7 @@ namespace rack::devices {
 enum class CanKind : uint8_t { kNone, kSocketCan, kOther };
 
 struct CanCounters {
-  uint64_t received = 0;      // data frames delivered by receive()
+  uint64_t received = 0;  // data frames delivered by receive()
   uint64_t sent = 0;
   uint64_t error_frames = 0;  // CAN_ERR_FLAG frames seen
   uint64_t bus_off = 0;       // bus-off events

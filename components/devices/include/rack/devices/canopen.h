@@ -75,21 +75,19 @@ inline constexpr uint16_t kSwSwitchOnDisabled = 0x0040;  // mask 0x4F
 inline constexpr uint16_t kSwReadyToSwitchOn = 0x0021;
 inline constexpr uint16_t kSwSwitchedOn = 0x0023;
 inline constexpr uint16_t kSwOperationEnabled = 0x0027;
-inline constexpr uint16_t kSwFault = 0x0008;             // bit 3
-inline constexpr uint16_t kSwTargetReached = 0x0400;     // bit 10
-inline constexpr uint16_t kSwSetPointAck = 0x1000;       // bit 12 (profile position)
+inline constexpr uint16_t kSwFault = 0x0008;          // bit 3
+inline constexpr uint16_t kSwTargetReached = 0x0400;  // bit 10
+inline constexpr uint16_t kSwSetPointAck = 0x1000;    // bit 12 (profile position)
 
 // SDO abort codes (a few).
 inline constexpr uint32_t kAbortNoObject = 0x06020000;
 inline constexpr uint32_t kAbortUnsupported = 0x06010000;
 inline constexpr uint32_t kAbortTimeout = 0x05040000;
 
-[[nodiscard]] inline uint16_t get_u16(const uint8_t* p) noexcept {
-  return static_cast<uint16_t>(p[0] | (p[1] << 8));
-}
+[[nodiscard]] inline uint16_t get_u16(const uint8_t* p) noexcept { return static_cast<uint16_t>(p[0] | (p[1] << 8)); }
 [[nodiscard]] inline uint32_t get_u32(const uint8_t* p) noexcept {
-  return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8) |
-         (static_cast<uint32_t>(p[2]) << 16) | (static_cast<uint32_t>(p[3]) << 24);
+  return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8) | (static_cast<uint32_t>(p[2]) << 16) |
+         (static_cast<uint32_t>(p[3]) << 24);
 }
 inline void put_u16(uint8_t* p, uint16_t v) noexcept {
   p[0] = static_cast<uint8_t>(v);

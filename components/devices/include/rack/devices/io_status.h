@@ -19,8 +19,8 @@ enum class IoStatus : uint8_t {
 struct IoResult {
   IoStatus status = IoStatus::kError;
   std::size_t bytes = 0;
-  int error = 0;          // errno when status is kError / kClosed
-  int64_t stamp_ns = 0;   // receive time, host clock (CLOCK_REALTIME ns); 0 when nothing came
+  int error = 0;         // errno when status is kError / kClosed
+  int64_t stamp_ns = 0;  // receive time, host clock (CLOCK_REALTIME ns); 0 when nothing came
 };
 
 }  // namespace rack::devices

@@ -20,8 +20,8 @@ struct NmeaFix {
   double longitude_deg = 0.0;  // + east
   double altitude_m = 0.0;     // above mean sea level (GGA)
   double geoid_separation_m = 0.0;
-  double speed_mps = 0.0;      // over ground (RMC/VTG)
-  double course_deg = 0.0;     // over ground, clockwise from true north
+  double speed_mps = 0.0;   // over ground (RMC/VTG)
+  double course_deg = 0.0;  // over ground, clockwise from true north
   double hdop = 0.0, pdop = 0.0, vdop = 0.0;
   int64_t utc_ns = 0;          // UTC of the fix: date (RMC) + time; 0 until a date was seen
   int64_t time_of_day_ns = 0;  // UTC time of day of the last GGA/RMC
@@ -32,12 +32,12 @@ struct NmeaFix {
 };
 
 struct NmeaCounters {
-  uint64_t sentences = 0;        // accepted
+  uint64_t sentences = 0;  // accepted
   uint64_t checksum_errors = 0;
-  uint64_t malformed = 0;        // bad structure or field
-  uint64_t overlong = 0;         // no line end within kMaxSentence
-  uint64_t unknown = 0;          // valid but not GGA/RMC/GSA/VTG
-  uint64_t garbage_bytes = 0;    // bytes outside any sentence
+  uint64_t malformed = 0;      // bad structure or field
+  uint64_t overlong = 0;       // no line end within kMaxSentence
+  uint64_t unknown = 0;        // valid but not GGA/RMC/GSA/VTG
+  uint64_t garbage_bytes = 0;  // bytes outside any sentence
 };
 
 class NmeaParser {

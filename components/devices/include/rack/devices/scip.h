@@ -16,8 +16,8 @@
 
 namespace rack::devices::scip {
 
-inline constexpr std::size_t kMaxSteps = 1440;   // UTM-30LX: 1081 steps; 1440 covers 360 deg at 0.25
-inline constexpr std::size_t kMaxBlock = 8192;   // one response (a 1081-step scan is ~3.5 KB)
+inline constexpr std::size_t kMaxSteps = 1440;  // UTM-30LX: 1081 steps; 1440 covers 360 deg at 0.25
+inline constexpr std::size_t kMaxBlock = 8192;  // one response (a 1081-step scan is ~3.5 KB)
 
 [[nodiscard]] char checksum(const char* data, std::size_t len) noexcept;
 // Appends the 3-character encoding of v (< 2^18). Returns the characters written.
@@ -44,8 +44,8 @@ struct Counters {
   uint64_t responses = 0;
   uint64_t scans = 0;
   uint64_t checksum_errors = 0;
-  uint64_t malformed = 0;       // structure wrong, error status, counts that do not add up
-  uint64_t overflows = 0;       // a response longer than kMaxBlock (noise without empty lines)
+  uint64_t malformed = 0;  // structure wrong, error status, counts that do not add up
+  uint64_t overflows = 0;  // a response longer than kMaxBlock (noise without empty lines)
 };
 
 class Parser {

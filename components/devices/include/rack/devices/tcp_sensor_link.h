@@ -31,7 +31,7 @@ namespace rack::devices {
 struct TcpSensorConfig {
   std::string host = "127.0.0.1";  // IPv4 address or name (resolved by the link thread)
   uint16_t port = 0;
-  std::vector<uint8_t> greeting;   // sent after every connect
+  std::vector<uint8_t> greeting;  // sent after every connect
   std::size_t ring_bytes = 256 * 1024;
   int64_t connect_timeout_ns = 1'000'000'000;
   int64_t min_backoff_ns = 100'000'000;

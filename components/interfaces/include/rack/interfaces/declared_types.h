@@ -29,14 +29,18 @@ inline constexpr DataTypeInfo info(const char* name, std::span<const FieldValueN
 // (rackctl's "names" object), from the interface headers' constants.
 constexpr uint32_t u(PilotMode m) { return static_cast<uint32_t>(m); }
 constexpr uint32_t u(PilotStatus s) { return static_cast<uint32_t>(s); }
-inline constexpr ValueName kPilotModeNames[] = {
-    {u(PilotMode::kHold), "HOLD"}, {u(PilotMode::kFollowPath), "FOLLOW_PATH"}, {u(PilotMode::kDestination), "DESTINATION"}};
-inline constexpr ValueName kPilotStatusNames[] = {
-    {u(PilotStatus::kIdle), "IDLE"},         {u(PilotStatus::kDriving), "DRIVING"},
-    {u(PilotStatus::kReached), "REACHED"},   {u(PilotStatus::kBlocked), "BLOCKED"},
-    {u(PilotStatus::kNoPath), "NO_PATH"},    {u(PilotStatus::kPreempted), "PREEMPTED"},
-    {u(PilotStatus::kNoInput), "NO_INPUT"},  {u(PilotStatus::kPlanning), "PLANNING"},
-    {u(PilotStatus::kUnreachable), "UNREACHABLE"}};
+inline constexpr ValueName kPilotModeNames[] = {{u(PilotMode::kHold), "HOLD"},
+                                                {u(PilotMode::kFollowPath), "FOLLOW_PATH"},
+                                                {u(PilotMode::kDestination), "DESTINATION"}};
+inline constexpr ValueName kPilotStatusNames[] = {{u(PilotStatus::kIdle), "IDLE"},
+                                                  {u(PilotStatus::kDriving), "DRIVING"},
+                                                  {u(PilotStatus::kReached), "REACHED"},
+                                                  {u(PilotStatus::kBlocked), "BLOCKED"},
+                                                  {u(PilotStatus::kNoPath), "NO_PATH"},
+                                                  {u(PilotStatus::kPreempted), "PREEMPTED"},
+                                                  {u(PilotStatus::kNoInput), "NO_INPUT"},
+                                                  {u(PilotStatus::kPlanning), "PLANNING"},
+                                                  {u(PilotStatus::kUnreachable), "UNREACHABLE"}};
 inline constexpr FieldValueNames kPilotNames[] = {{"mode", kPilotModeNames}, {"status", kPilotStatusNames}};
 inline constexpr ValueName kGpsFixQualityNames[] = {{kGpsFixNone, "NONE"},
                                                     {kGpsFixGps, "GPS"},
@@ -45,7 +49,8 @@ inline constexpr ValueName kGpsFixQualityNames[] = {{kGpsFixNone, "NONE"},
                                                     {kGpsFixRtkFloat, "RTK_FLOAT"}};
 inline constexpr ValueName kGpsFixModeNames[] = {{1, "NONE"}, {2, "2D"}, {3, "3D"}};  // GSA's mode (devices.h)
 inline constexpr FieldValueNames kGpsNames[] = {{"fix_quality", kGpsFixQualityNames}, {"fix_mode", kGpsFixModeNames}};
-inline constexpr ValueName kCameraFormatNames[] = {{kCameraRgb8, "RGB8"}, {kCameraMono8, "MONO8"}, {kCameraJpeg, "JPEG"}};
+inline constexpr ValueName kCameraFormatNames[] = {
+    {kCameraRgb8, "RGB8"}, {kCameraMono8, "MONO8"}, {kCameraJpeg, "JPEG"}};
 inline constexpr FieldValueNames kCameraNames[] = {{"format", kCameraFormatNames}};
 inline constexpr ValueName kScan3dModeNames[] = {
     {kScan3dModeRoll, "ROLL"}, {kScan3dModePitch, "PITCH"}, {kScan3dModeYaw, "YAW"}, {kScan3dModeFile, "FILE"}};
@@ -88,11 +93,10 @@ inline constexpr DataTypeInfo kPilotDestinationBody = info<PilotDestination>("Pi
 inline constexpr DataTypeInfo kServoDriveMovePosBody = info<ServoDriveMovePos>("ServoDriveMovePos");
 inline constexpr DataTypeInfo kServoDriveMoveVelBody = info<ServoDriveMoveVel>("ServoDriveMoveVel");
 
-inline constexpr CommandInfo kGeneratorCommands[] = {
-    {"RESET", kGeneratorReset, nullptr, "the counter to 0"}};
-inline constexpr CommandInfo kProbeCommands[] = {
-    {"ECHO", kProbeEcho, &kInt64Body, "replies OK with the same body"},
-    {"THROW", kProbeThrow, nullptr, "command() throws: the component goes to ERROR"}};
+inline constexpr CommandInfo kGeneratorCommands[] = {{"RESET", kGeneratorReset, nullptr, "the counter to 0"}};
+inline constexpr CommandInfo kProbeCommands[] = {{"ECHO", kProbeEcho, &kInt64Body, "replies OK with the same body"},
+                                                 {"THROW", kProbeThrow, nullptr,
+                                                  "command() throws: the component goes to ERROR"}};
 inline constexpr CommandInfo kModeSwitchDemoCommands[] = {
     {"SYSCALL", kDemoSyscall, nullptr, "write() to /dev/null -> SYSCALL"},
     {"FAULT", kDemoFault, nullptr, "touch a page that is not resident -> FAULT"},
@@ -117,7 +121,8 @@ inline constexpr CommandInfo kMclCommands[] = {
     {"INIT", kMclInit, &kMclInitBody,
      "re-initialise around x, y, phi with sigma_xy (m), sigma_phi (rad); global=1: everywhere"}};
 inline constexpr CommandInfo kPathCommands[] = {
-    {"MAKE", kPathMake, &kPathMakeBody, "a path through count waypoints x=.., y=.. (comma lists); no fields: the parameter"}};
+    {"MAKE", kPathMake, &kPathMakeBody,
+     "a path through count waypoints x=.., y=.. (comma lists); no fields: the parameter"}};
 inline constexpr CommandInfo kPilotCommands[] = {
     {"SET_DESTINATION", kPilotSetDestination, &kPilotDestinationBody, "drive straight to x, y (m)"},
     {"FOLLOW_PATH", kPilotFollowPath, nullptr, "follow the Path component's path"},
@@ -133,6 +138,7 @@ inline constexpr DataTypeInfo kScan3dStoreDataBody = info<Scan3dStoreData>("Scan
 inline constexpr CommandInfo kScan3dCommands[] = {
     {"GET_RANGE_IMAGE", kScan3dGetRangeImage, &kScan3dRangeImageRequestBody,
      "range image of the newest scan (angular_resolution_deg; none: the parameter)"},
-    {"STORE_DATA", kScan3dStoreData, &kScan3dStoreDataBody, "write the newest scan as a PCD file (path; none: store_dir)"}};
+    {"STORE_DATA", kScan3dStoreData, &kScan3dStoreDataBody,
+     "write the newest scan as a PCD file (path; none: store_dir)"}};
 
 }  // namespace rack::interfaces::declared

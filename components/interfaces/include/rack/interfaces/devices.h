@@ -34,32 +34,44 @@ struct GpsData {
   double hdop = 0.0;
   double pdop = 0.0;
   double vdop = 0.0;
-  double utm_easting = 0.0;    // m, in utm_zone
-  double utm_northing = 0.0;   // m
-  double x = 0.0;              // m east of the origin (local frame)
-  double y = 0.0;              // m north of the origin
-  int64_t utc_ns = 0;          // the receiver's UTC for this epoch (0: no date yet)
-  uint32_t utm_zone = 0;       // 1..60
-  uint8_t utm_north = 1;       // hemisphere
-  uint8_t fix_quality = 0;     // kGpsFix*
-  uint8_t fix_mode = 1;        // 1 none, 2 2D, 3 3D (GSA)
-  uint8_t satellites = 0;      // used in the fix
+  double utm_easting = 0.0;   // m, in utm_zone
+  double utm_northing = 0.0;  // m
+  double x = 0.0;             // m east of the origin (local frame)
+  double y = 0.0;             // m north of the origin
+  int64_t utc_ns = 0;         // the receiver's UTC for this epoch (0: no date yet)
+  uint32_t utm_zone = 0;      // 1..60
+  uint8_t utm_north = 1;      // hemisphere
+  uint8_t fix_quality = 0;    // kGpsFix*
+  uint8_t fix_mode = 1;       // 1 none, 2 2D, 3 3D (GSA)
+  uint8_t satellites = 0;     // used in the fix
   // Driver counters since the component was created: accepted sentences and what was rejected.
   uint32_t sentences = 0;
   uint32_t checksum_errors = 0;
   uint32_t malformed = 0;
   uint32_t garbage_bytes = 0;
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(GpsData, latitude_deg), RACK_FIELD(GpsData, longitude_deg),
-                      RACK_FIELD(GpsData, altitude), RACK_FIELD(GpsData, speed),
-                      RACK_FIELD(GpsData, course_deg), RACK_FIELD(GpsData, hdop), RACK_FIELD(GpsData, pdop),
-                      RACK_FIELD(GpsData, vdop), RACK_FIELD(GpsData, utm_easting),
-                      RACK_FIELD(GpsData, utm_northing), RACK_FIELD(GpsData, x), RACK_FIELD(GpsData, y),
-                      RACK_FIELD(GpsData, utc_ns), RACK_FIELD(GpsData, utm_zone),
-                      RACK_FIELD(GpsData, utm_north), RACK_FIELD(GpsData, fix_quality),
-                      RACK_FIELD(GpsData, fix_mode), RACK_FIELD(GpsData, satellites),
-                      RACK_FIELD(GpsData, sentences), RACK_FIELD(GpsData, checksum_errors),
-                      RACK_FIELD(GpsData, malformed), RACK_FIELD(GpsData, garbage_bytes)};
+    return std::array{RACK_FIELD(GpsData, latitude_deg),
+                      RACK_FIELD(GpsData, longitude_deg),
+                      RACK_FIELD(GpsData, altitude),
+                      RACK_FIELD(GpsData, speed),
+                      RACK_FIELD(GpsData, course_deg),
+                      RACK_FIELD(GpsData, hdop),
+                      RACK_FIELD(GpsData, pdop),
+                      RACK_FIELD(GpsData, vdop),
+                      RACK_FIELD(GpsData, utm_easting),
+                      RACK_FIELD(GpsData, utm_northing),
+                      RACK_FIELD(GpsData, x),
+                      RACK_FIELD(GpsData, y),
+                      RACK_FIELD(GpsData, utc_ns),
+                      RACK_FIELD(GpsData, utm_zone),
+                      RACK_FIELD(GpsData, utm_north),
+                      RACK_FIELD(GpsData, fix_quality),
+                      RACK_FIELD(GpsData, fix_mode),
+                      RACK_FIELD(GpsData, satellites),
+                      RACK_FIELD(GpsData, sentences),
+                      RACK_FIELD(GpsData, checksum_errors),
+                      RACK_FIELD(GpsData, malformed),
+                      RACK_FIELD(GpsData, garbage_bytes)};
   }
 };
 
@@ -74,18 +86,18 @@ struct JoystickData {
   uint32_t buttons = 0;               // bit i: button i pressed
   uint32_t axis_count = 0;
   uint32_t button_count = 0;
-  uint32_t events = 0;                // js_events read since ON
-  uint32_t bad_events = 0;            // short reads, unknown types, out-of-range numbers
-  uint32_t moves_rejected = 0;        // MOVEs the chassis refused (another pilot is active)
-  double vx = 0.0;                    // m/s, the command sent to the chassis
-  double omega = 0.0;                 // rad/s
-  double free_ahead = -1.0;           // m free ahead in the corridor (obstacles), -1: not used
+  uint32_t events = 0;          // js_events read since ON
+  uint32_t bad_events = 0;      // short reads, unknown types, out-of-range numbers
+  uint32_t moves_rejected = 0;  // MOVEs the chassis refused (another pilot is active)
+  double vx = 0.0;              // m/s, the command sent to the chassis
+  double omega = 0.0;           // rad/s
+  double free_ahead = -1.0;     // m free ahead in the corridor (obstacles), -1: not used
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(JoystickData, axis), RACK_FIELD(JoystickData, buttons),
-                      RACK_FIELD(JoystickData, axis_count), RACK_FIELD(JoystickData, button_count),
-                      RACK_FIELD(JoystickData, events), RACK_FIELD(JoystickData, bad_events),
+    return std::array{RACK_FIELD(JoystickData, axis),           RACK_FIELD(JoystickData, buttons),
+                      RACK_FIELD(JoystickData, axis_count),     RACK_FIELD(JoystickData, button_count),
+                      RACK_FIELD(JoystickData, events),         RACK_FIELD(JoystickData, bad_events),
                       RACK_FIELD(JoystickData, moves_rejected), RACK_FIELD(JoystickData, vx),
-                      RACK_FIELD(JoystickData, omega), RACK_FIELD(JoystickData, free_ahead)};
+                      RACK_FIELD(JoystickData, omega),          RACK_FIELD(JoystickData, free_ahead)};
   }
 };
 
@@ -94,20 +106,20 @@ struct JoystickData {
 // on a CiA 402 drive in profile position mode. Positions in the axis' unit (metres or
 // radians, by the driver's counts_per_unit), relative to the home set by HOME.
 struct ServoDriveData {
-  double position = 0.0;  // unit
-  double velocity = 0.0;  // unit/s
-  double target = 0.0;    // the set-point being approached (unit)
-  uint16_t statusword = 0;   // CiA 402, for diagnostics
+  double position = 0.0;    // unit
+  double velocity = 0.0;    // unit/s
+  double target = 0.0;      // the set-point being approached (unit)
+  uint16_t statusword = 0;  // CiA 402, for diagnostics
   uint8_t target_reached = 0;
   uint8_t homed = 0;
-  uint32_t moves = 0;        // MOVE_POS/MOVE_VEL accepted since ON
-  uint32_t reached = 0;      // POSITION_REACHED notifications sent since ON
+  uint32_t moves = 0;    // MOVE_POS/MOVE_VEL accepted since ON
+  uint32_t reached = 0;  // POSITION_REACHED notifications sent since ON
   uint32_t pad_ = 0;
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(ServoDriveData, position), RACK_FIELD(ServoDriveData, velocity),
-                      RACK_FIELD(ServoDriveData, target), RACK_FIELD(ServoDriveData, statusword),
+    return std::array{RACK_FIELD(ServoDriveData, position),       RACK_FIELD(ServoDriveData, velocity),
+                      RACK_FIELD(ServoDriveData, target),         RACK_FIELD(ServoDriveData, statusword),
                       RACK_FIELD(ServoDriveData, target_reached), RACK_FIELD(ServoDriveData, homed),
-                      RACK_FIELD(ServoDriveData, moves), RACK_FIELD(ServoDriveData, reached)};
+                      RACK_FIELD(ServoDriveData, moves),          RACK_FIELD(ServoDriveData, reached)};
   }
 };
 // HOME (request, no body): the current position becomes the driver's home_position
@@ -149,24 +161,25 @@ inline constexpr uint8_t kCameraJpeg = 3;
 struct CameraData {
   uint32_t width = 0;
   uint32_t height = 0;
-  uint32_t bytes = 0;           // used bytes of data
-  uint32_t frame = 0;           // frames delivered since ON
-  uint32_t dropped = 0;         // frames the device gave that were never published (too slow)
-  uint32_t bad_frames = 0;      // frames the device failed to deliver or decode
-  uint8_t format = 0;           // kCamera*
-  uint8_t calibrated = 0;       // the fields below come from a calibration file
+  uint32_t bytes = 0;       // used bytes of data
+  uint32_t frame = 0;       // frames delivered since ON
+  uint32_t dropped = 0;     // frames the device gave that were never published (too slow)
+  uint32_t bad_frames = 0;  // frames the device failed to deliver or decode
+  uint8_t format = 0;       // kCamera*
+  uint8_t calibrated = 0;   // the fields below come from a calibration file
   uint8_t pad_[6] = {};
-  double fx = 0.0, fy = 0.0;    // focal lengths, pixels (of this image's size)
-  double cx = 0.0, cy = 0.0;    // principal point, pixels
-  double distortion[5] = {};    // k1 k2 p1 p2 k3 (OpenCV's model)
+  double fx = 0.0, fy = 0.0;  // focal lengths, pixels (of this image's size)
+  double cx = 0.0, cy = 0.0;  // principal point, pixels
+  double distortion[5] = {};  // k1 k2 p1 p2 k3 (OpenCV's model)
   uint8_t data[kCameraMaxBytes] = {};
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(CameraData, width), RACK_FIELD(CameraData, height), RACK_FIELD(CameraData, bytes),
-                      RACK_FIELD(CameraData, frame), RACK_FIELD(CameraData, dropped),
-                      RACK_FIELD(CameraData, bad_frames), RACK_FIELD(CameraData, format),
-                      RACK_FIELD(CameraData, calibrated), RACK_FIELD(CameraData, fx), RACK_FIELD(CameraData, fy),
-                      RACK_FIELD(CameraData, cx), RACK_FIELD(CameraData, cy), RACK_FIELD(CameraData, distortion),
-                      RACK_FIELD(CameraData, data)};
+    return std::array{RACK_FIELD(CameraData, width),      RACK_FIELD(CameraData, height),
+                      RACK_FIELD(CameraData, bytes),      RACK_FIELD(CameraData, frame),
+                      RACK_FIELD(CameraData, dropped),    RACK_FIELD(CameraData, bad_frames),
+                      RACK_FIELD(CameraData, format),     RACK_FIELD(CameraData, calibrated),
+                      RACK_FIELD(CameraData, fx),         RACK_FIELD(CameraData, fy),
+                      RACK_FIELD(CameraData, cx),         RACK_FIELD(CameraData, cy),
+                      RACK_FIELD(CameraData, distortion), RACK_FIELD(CameraData, data)};
   }
 };
 

@@ -33,11 +33,16 @@ struct PathData {
   float x[kPathMaxPoints] = {};  // m, map frame
   float y[kPathMaxPoints] = {};
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(PathData, waypoint_count), RACK_FIELD(PathData, point_count),
-                      RACK_FIELD(PathData, makes),          RACK_FIELD(PathData, rejected),
-                      RACK_FIELD(PathData, length),         RACK_FIELD(PathData, closed),
-                      RACK_FIELD(PathData, last_error),     RACK_FIELD(PathData, waypoint_x),
-                      RACK_FIELD(PathData, waypoint_y),     RACK_FIELD(PathData, x),
+    return std::array{RACK_FIELD(PathData, waypoint_count),
+                      RACK_FIELD(PathData, point_count),
+                      RACK_FIELD(PathData, makes),
+                      RACK_FIELD(PathData, rejected),
+                      RACK_FIELD(PathData, length),
+                      RACK_FIELD(PathData, closed),
+                      RACK_FIELD(PathData, last_error),
+                      RACK_FIELD(PathData, waypoint_x),
+                      RACK_FIELD(PathData, waypoint_y),
+                      RACK_FIELD(PathData, x),
                       RACK_FIELD(PathData, y)};
   }
 };
@@ -66,20 +71,20 @@ enum class PilotMode : uint8_t {
   kDestination = 2,  // driving to a destination (SET_DESTINATION)
 };
 enum class PilotStatus : uint8_t {
-  kIdle = 0,       // holding
+  kIdle = 0,  // holding
   kDriving = 1,
-  kReached = 2,    // at the destination / end of an open path
-  kBlocked = 3,    // an obstacle inside the safety margin: standing until it is gone
-  kNoPath = 4,     // following, but the Path has not published a path
-  kPreempted = 5,  // the chassis refused MOVE (another pilot took over): standing
-  kNoInput = 6,    // no recent Position (or Scan2D) data: standing
-  kPlanning = 7,   // waiting for the planned way to the destination (a cycle or two)
+  kReached = 2,      // at the destination / end of an open path
+  kBlocked = 3,      // an obstacle inside the safety margin: standing until it is gone
+  kNoPath = 4,       // following, but the Path has not published a path
+  kPreempted = 5,    // the chassis refused MOVE (another pilot took over): standing
+  kNoInput = 6,      // no recent Position (or Scan2D) data: standing
+  kPlanning = 7,     // waiting for the planned way to the destination (a cycle or two)
   kUnreachable = 8,  // no way to the destination on the map (GDOS and SET_DESTINATION say why): holding
 };
 struct PilotData {
   double target_x = 0.0;  // the destination (or the path's last point)
   double target_y = 0.0;
-  double pose_x = 0.0;    // the Position estimate the command was computed on
+  double pose_x = 0.0;  // the Position estimate the command was computed on
   double pose_y = 0.0;
   double pose_phi = 0.0;
   double distance_to_target = 0.0;  // m, straight line
@@ -96,14 +101,23 @@ struct PilotData {
   uint8_t status = 0;               // PilotStatus
   uint8_t pad_[2] = {};
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(PilotData, target_x),     RACK_FIELD(PilotData, target_y),
-                      RACK_FIELD(PilotData, pose_x),       RACK_FIELD(PilotData, pose_y),
-                      RACK_FIELD(PilotData, pose_phi),     RACK_FIELD(PilotData, distance_to_target),
-                      RACK_FIELD(PilotData, vx),           RACK_FIELD(PilotData, omega),
-                      RACK_FIELD(PilotData, obstacle_distance), RACK_FIELD(PilotData, speed_limit),
-                      RACK_FIELD(PilotData, path_index),   RACK_FIELD(PilotData, laps),
-                      RACK_FIELD(PilotData, moves_refused), RACK_FIELD(PilotData, blocked_cycles),
-                      RACK_FIELD(PilotData, bad_destinations), RACK_FIELD(PilotData, mode),         RACK_FIELD(PilotData, status)};
+    return std::array{RACK_FIELD(PilotData, target_x),
+                      RACK_FIELD(PilotData, target_y),
+                      RACK_FIELD(PilotData, pose_x),
+                      RACK_FIELD(PilotData, pose_y),
+                      RACK_FIELD(PilotData, pose_phi),
+                      RACK_FIELD(PilotData, distance_to_target),
+                      RACK_FIELD(PilotData, vx),
+                      RACK_FIELD(PilotData, omega),
+                      RACK_FIELD(PilotData, obstacle_distance),
+                      RACK_FIELD(PilotData, speed_limit),
+                      RACK_FIELD(PilotData, path_index),
+                      RACK_FIELD(PilotData, laps),
+                      RACK_FIELD(PilotData, moves_refused),
+                      RACK_FIELD(PilotData, blocked_cycles),
+                      RACK_FIELD(PilotData, bad_destinations),
+                      RACK_FIELD(PilotData, mode),
+                      RACK_FIELD(PilotData, status)};
   }
 };
 // SET_DESTINATION (request): drive to (x, y): along a planned way when the Pilot has a

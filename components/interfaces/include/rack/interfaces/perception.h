@@ -39,19 +39,19 @@ inline constexpr uint8_t kScan3dModeYaw = 2;
 inline constexpr uint8_t kScan3dModeFile = 3;  // played from PCD files
 // The sample's time is the sweep's first 2-D scan (a file's: when it was read).
 struct Scan3dData {
-  int64_t duration_ns = 0;    // the sweep: first to last 2-D scan (0 for a file)
-  uint32_t scan_number = 0;   // scans published since ON
-  uint32_t point_count = 0;   // points below
-  uint32_t raw_points = 0;    // points assembled before processing
+  int64_t duration_ns = 0;   // the sweep: first to last 2-D scan (0 for a file)
+  uint32_t scan_number = 0;  // scans published since ON
+  uint32_t point_count = 0;  // points below
+  uint32_t raw_points = 0;   // points assembled before processing
   uint32_t ground_points = 0;
   uint32_t object_points = 0;
   uint32_t ceiling_points = 0;
-  uint32_t ladar_scans = 0;   // 2-D scans in this sweep (0 for a file)
-  uint32_t bad_input = 0;     // inputs skipped since ON (malformed PCD files, empty or unusable ladar scans)
-  uint8_t mode = 0;           // kScan3dMode*
-  uint8_t ground_valid = 0;   // ground_* below hold a plane
+  uint32_t ladar_scans = 0;  // 2-D scans in this sweep (0 for a file)
+  uint32_t bad_input = 0;    // inputs skipped since ON (malformed PCD files, empty or unusable ladar scans)
+  uint8_t mode = 0;          // kScan3dMode*
+  uint8_t ground_valid = 0;  // ground_* below hold a plane
   uint8_t pad_[2] = {};
-  float process_ms = 0.0F;    // PCL processing time of this scan
+  float process_ms = 0.0F;  // PCL processing time of this scan
   // Ground plane a x + b y + c z + d = 0, robot frame, (a, b, c) unit with c > 0.
   float ground_a = 0.0F, ground_b = 0.0F, ground_c = 0.0F, ground_d = 0.0F;
   float x[kScan3dMaxPoints] = {};  // m, robot frame
@@ -60,16 +60,27 @@ struct Scan3dData {
   float intensity[kScan3dMaxPoints] = {};  // the ladar's (device units; 0 when none)
   uint8_t type[kScan3dMaxPoints] = {};     // kScanPoint* (rack/interfaces/robot.h)
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(Scan3dData, duration_ns), RACK_FIELD(Scan3dData, scan_number),
-                      RACK_FIELD(Scan3dData, point_count), RACK_FIELD(Scan3dData, raw_points),
-                      RACK_FIELD(Scan3dData, ground_points), RACK_FIELD(Scan3dData, object_points),
-                      RACK_FIELD(Scan3dData, ceiling_points), RACK_FIELD(Scan3dData, ladar_scans),
-                      RACK_FIELD(Scan3dData, bad_input), RACK_FIELD(Scan3dData, mode),
-                      RACK_FIELD(Scan3dData, ground_valid), RACK_FIELD(Scan3dData, process_ms),
-                      RACK_FIELD(Scan3dData, ground_a), RACK_FIELD(Scan3dData, ground_b),
-                      RACK_FIELD(Scan3dData, ground_c), RACK_FIELD(Scan3dData, ground_d),
-                      RACK_FIELD(Scan3dData, x), RACK_FIELD(Scan3dData, y), RACK_FIELD(Scan3dData, z),
-                      RACK_FIELD(Scan3dData, intensity), RACK_FIELD(Scan3dData, type)};
+    return std::array{RACK_FIELD(Scan3dData, duration_ns),
+                      RACK_FIELD(Scan3dData, scan_number),
+                      RACK_FIELD(Scan3dData, point_count),
+                      RACK_FIELD(Scan3dData, raw_points),
+                      RACK_FIELD(Scan3dData, ground_points),
+                      RACK_FIELD(Scan3dData, object_points),
+                      RACK_FIELD(Scan3dData, ceiling_points),
+                      RACK_FIELD(Scan3dData, ladar_scans),
+                      RACK_FIELD(Scan3dData, bad_input),
+                      RACK_FIELD(Scan3dData, mode),
+                      RACK_FIELD(Scan3dData, ground_valid),
+                      RACK_FIELD(Scan3dData, process_ms),
+                      RACK_FIELD(Scan3dData, ground_a),
+                      RACK_FIELD(Scan3dData, ground_b),
+                      RACK_FIELD(Scan3dData, ground_c),
+                      RACK_FIELD(Scan3dData, ground_d),
+                      RACK_FIELD(Scan3dData, x),
+                      RACK_FIELD(Scan3dData, y),
+                      RACK_FIELD(Scan3dData, z),
+                      RACK_FIELD(Scan3dData, intensity),
+                      RACK_FIELD(Scan3dData, type)};
   }
 };
 
@@ -88,8 +99,8 @@ struct Scan3dRangeImageRequest {
   }
 };
 struct Scan3dRangeImage {
-  uint32_t width = 0;     // columns: azimuth, from angle_left (left) to the right
-  uint32_t height = 0;    // rows: elevation, from angle_top (up) downwards
+  uint32_t width = 0;               // columns: azimuth, from angle_left (left) to the right
+  uint32_t height = 0;              // rows: elevation, from angle_top (up) downwards
   float angular_resolution = 0.0F;  // rad per pixel
   float angle_left = 0.0F;          // rad, azimuth of column 0 (robot frame, + left)
   float angle_top = 0.0F;           // rad, elevation of row 0 (+ up)
@@ -97,10 +108,14 @@ struct Scan3dRangeImage {
   int64_t scan_time_ns = 0;
   float range[kScan3dRangeImageMaxPixels] = {};  // m, row-major; 0: nothing seen in that direction
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(Scan3dRangeImage, width), RACK_FIELD(Scan3dRangeImage, height),
-                      RACK_FIELD(Scan3dRangeImage, angular_resolution), RACK_FIELD(Scan3dRangeImage, angle_left),
-                      RACK_FIELD(Scan3dRangeImage, angle_top), RACK_FIELD(Scan3dRangeImage, scan_number),
-                      RACK_FIELD(Scan3dRangeImage, scan_time_ns), RACK_FIELD(Scan3dRangeImage, range)};
+    return std::array{RACK_FIELD(Scan3dRangeImage, width),
+                      RACK_FIELD(Scan3dRangeImage, height),
+                      RACK_FIELD(Scan3dRangeImage, angular_resolution),
+                      RACK_FIELD(Scan3dRangeImage, angle_left),
+                      RACK_FIELD(Scan3dRangeImage, angle_top),
+                      RACK_FIELD(Scan3dRangeImage, scan_number),
+                      RACK_FIELD(Scan3dRangeImage, scan_time_ns),
+                      RACK_FIELD(Scan3dRangeImage, range)};
   }
 };
 
@@ -119,50 +134,63 @@ struct Scan3dStoreData {
 // marker id, or by a nearest-neighbour Kalman tracker); 0 until seen twice.
 inline constexpr uint32_t kObjRecogMaxObjects = 64;
 inline constexpr uint8_t kObjTypeUnknown = 0;
-inline constexpr uint8_t kObjTypeFiducial = 1;     // ArUco marker: id = marker id, full 3-D pose
-inline constexpr uint8_t kObjTypePerson = 2;       // HOG people detector: position from the box
-inline constexpr uint8_t kObjTypeLaserCluster = 3; // a tracked cluster of laser points
-inline constexpr uint8_t kObjFrameCamera = 0;      // camera optical frame (x right, y down, z forward)
-inline constexpr uint8_t kObjFrameRobot = 1;       // robot frame (x forward, y left, z up)
+inline constexpr uint8_t kObjTypeFiducial = 1;      // ArUco marker: id = marker id, full 3-D pose
+inline constexpr uint8_t kObjTypePerson = 2;        // HOG people detector: position from the box
+inline constexpr uint8_t kObjTypeLaserCluster = 3;  // a tracked cluster of laser points
+inline constexpr uint8_t kObjFrameCamera = 0;       // camera optical frame (x right, y down, z forward)
+inline constexpr uint8_t kObjFrameRobot = 1;        // robot frame (x forward, y left, z up)
 struct ObjRecogData {
   uint32_t object_count = 0;
-  uint32_t inputs = 0;        // images or scans processed since ON
-  uint32_t bad_input = 0;     // images or scans skipped since ON (wrong size or format, empty)
-  uint8_t frame = 0;          // kObjFrame*
+  uint32_t inputs = 0;     // images or scans processed since ON
+  uint32_t bad_input = 0;  // images or scans skipped since ON (wrong size or format, empty)
+  uint8_t frame = 0;       // kObjFrame*
   uint8_t pad_[3] = {};
-  float process_ms = 0.0F;    // time spent on this sample
+  float process_ms = 0.0F;  // time spent on this sample
   uint32_t pad2_ = 0;
-  uint32_t id[kObjRecogMaxObjects] = {};     // marker id, or track id
-  uint8_t type[kObjRecogMaxObjects] = {};    // kObjType*
+  uint32_t id[kObjRecogMaxObjects] = {};        // marker id, or track id
+  uint8_t type[kObjRecogMaxObjects] = {};       // kObjType*
   float probability[kObjRecogMaxObjects] = {};  // 0..1 (HOG: squashed SVM score)
-  float x[kObjRecogMaxObjects] = {};         // m, position (centre) in `frame`
+  float x[kObjRecogMaxObjects] = {};            // m, position (centre) in `frame`
   float y[kObjRecogMaxObjects] = {};
   float z[kObjRecogMaxObjects] = {};
-  float roll[kObjRecogMaxObjects] = {};      // rad, orientation (fiducials; 0 otherwise), ZYX Euler in `frame`
+  float roll[kObjRecogMaxObjects] = {};  // rad, orientation (fiducials; 0 otherwise), ZYX Euler in `frame`
   float pitch[kObjRecogMaxObjects] = {};
   float yaw[kObjRecogMaxObjects] = {};
-  float vx[kObjRecogMaxObjects] = {};        // m/s, in `frame` (laser: over ground, odometry-compensated)
+  float vx[kObjRecogMaxObjects] = {};  // m/s, in `frame` (laser: over ground, odometry-compensated)
   float vy[kObjRecogMaxObjects] = {};
   float vz[kObjRecogMaxObjects] = {};
-  float size_x[kObjRecogMaxObjects] = {};    // m, extent along the frame's axes
+  float size_x[kObjRecogMaxObjects] = {};  // m, extent along the frame's axes
   float size_y[kObjRecogMaxObjects] = {};
   float size_z[kObjRecogMaxObjects] = {};
-  int32_t image_x[kObjRecogMaxObjects] = {}; // pixels, bounding box in the image (camera only)
+  int32_t image_x[kObjRecogMaxObjects] = {};  // pixels, bounding box in the image (camera only)
   int32_t image_y[kObjRecogMaxObjects] = {};
   int32_t image_width[kObjRecogMaxObjects] = {};
   int32_t image_height[kObjRecogMaxObjects] = {};
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(ObjRecogData, object_count), RACK_FIELD(ObjRecogData, inputs),
-                      RACK_FIELD(ObjRecogData, bad_input), RACK_FIELD(ObjRecogData, frame),
-                      RACK_FIELD(ObjRecogData, process_ms), RACK_FIELD(ObjRecogData, id),
-                      RACK_FIELD(ObjRecogData, type), RACK_FIELD(ObjRecogData, probability),
-                      RACK_FIELD(ObjRecogData, x), RACK_FIELD(ObjRecogData, y), RACK_FIELD(ObjRecogData, z),
-                      RACK_FIELD(ObjRecogData, roll), RACK_FIELD(ObjRecogData, pitch),
-                      RACK_FIELD(ObjRecogData, yaw), RACK_FIELD(ObjRecogData, vx), RACK_FIELD(ObjRecogData, vy),
-                      RACK_FIELD(ObjRecogData, vz), RACK_FIELD(ObjRecogData, size_x),
-                      RACK_FIELD(ObjRecogData, size_y), RACK_FIELD(ObjRecogData, size_z),
-                      RACK_FIELD(ObjRecogData, image_x), RACK_FIELD(ObjRecogData, image_y),
-                      RACK_FIELD(ObjRecogData, image_width), RACK_FIELD(ObjRecogData, image_height)};
+    return std::array{RACK_FIELD(ObjRecogData, object_count),
+                      RACK_FIELD(ObjRecogData, inputs),
+                      RACK_FIELD(ObjRecogData, bad_input),
+                      RACK_FIELD(ObjRecogData, frame),
+                      RACK_FIELD(ObjRecogData, process_ms),
+                      RACK_FIELD(ObjRecogData, id),
+                      RACK_FIELD(ObjRecogData, type),
+                      RACK_FIELD(ObjRecogData, probability),
+                      RACK_FIELD(ObjRecogData, x),
+                      RACK_FIELD(ObjRecogData, y),
+                      RACK_FIELD(ObjRecogData, z),
+                      RACK_FIELD(ObjRecogData, roll),
+                      RACK_FIELD(ObjRecogData, pitch),
+                      RACK_FIELD(ObjRecogData, yaw),
+                      RACK_FIELD(ObjRecogData, vx),
+                      RACK_FIELD(ObjRecogData, vy),
+                      RACK_FIELD(ObjRecogData, vz),
+                      RACK_FIELD(ObjRecogData, size_x),
+                      RACK_FIELD(ObjRecogData, size_y),
+                      RACK_FIELD(ObjRecogData, size_z),
+                      RACK_FIELD(ObjRecogData, image_x),
+                      RACK_FIELD(ObjRecogData, image_y),
+                      RACK_FIELD(ObjRecogData, image_width),
+                      RACK_FIELD(ObjRecogData, image_height)};
   }
 };
 

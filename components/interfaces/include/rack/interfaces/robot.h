@@ -28,14 +28,14 @@ namespace rack::interfaces {
 // since the previous sample (odometry increments, robot frame of the previous
 // sample), the measured velocities, and who may drive.
 struct ChassisData {
-  double delta_x = 0.0;       // m, forward, since the previous sample
-  double delta_y = 0.0;       // m, left
-  double delta_phi = 0.0;     // rad
-  double vx = 0.0;            // m/s, measured
-  double vy = 0.0;            // m/s
-  double omega = 0.0;         // rad/s
-  double battery = 0.0;       // V (0: unknown)
-  uint32_t active_pilot = 0;  // raw tims::Address of the pilot allowed to MOVE; 0: none
+  double delta_x = 0.0;         // m, forward, since the previous sample
+  double delta_y = 0.0;         // m, left
+  double delta_phi = 0.0;       // rad
+  double vx = 0.0;              // m/s, measured
+  double vy = 0.0;              // m/s
+  double omega = 0.0;           // rad/s
+  double battery = 0.0;         // V (0: unknown)
+  uint32_t active_pilot = 0;    // raw tims::Address of the pilot allowed to MOVE; 0: none
   uint32_t watchdog_stops = 0;  // times the command watchdog stopped the robot since ON
   // Simulation only (ChassisSim): the true pose, for evaluating localisation. A real
   // chassis leaves truth_valid false and the pose zero.
@@ -49,13 +49,20 @@ struct ChassisData {
   uint32_t collisions = 0;
   uint32_t pad2_ = 0;
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(ChassisData, delta_x), RACK_FIELD(ChassisData, delta_y),
-                      RACK_FIELD(ChassisData, delta_phi), RACK_FIELD(ChassisData, vx),
-                      RACK_FIELD(ChassisData, vy), RACK_FIELD(ChassisData, omega),
-                      RACK_FIELD(ChassisData, battery), RACK_FIELD(ChassisData, active_pilot),
-                      RACK_FIELD(ChassisData, watchdog_stops), RACK_FIELD(ChassisData, truth_valid),
-                      RACK_FIELD(ChassisData, truth_x), RACK_FIELD(ChassisData, truth_y),
-                      RACK_FIELD(ChassisData, truth_phi), RACK_FIELD(ChassisData, collisions)};
+    return std::array{RACK_FIELD(ChassisData, delta_x),
+                      RACK_FIELD(ChassisData, delta_y),
+                      RACK_FIELD(ChassisData, delta_phi),
+                      RACK_FIELD(ChassisData, vx),
+                      RACK_FIELD(ChassisData, vy),
+                      RACK_FIELD(ChassisData, omega),
+                      RACK_FIELD(ChassisData, battery),
+                      RACK_FIELD(ChassisData, active_pilot),
+                      RACK_FIELD(ChassisData, watchdog_stops),
+                      RACK_FIELD(ChassisData, truth_valid),
+                      RACK_FIELD(ChassisData, truth_x),
+                      RACK_FIELD(ChassisData, truth_y),
+                      RACK_FIELD(ChassisData, truth_phi),
+                      RACK_FIELD(ChassisData, collisions)};
   }
 };
 
@@ -82,22 +89,22 @@ struct ChassisSetActivePilot {
 inline constexpr int8_t kChassisGetParams = 23;
 inline constexpr int8_t kChassisParamsReply = -21;
 struct ChassisParams {
-  double vx_max = 0.0;         // m/s
-  double vx_min = 0.0;         // m/s (slowest useful forward speed)
-  double omega_max = 0.0;      // rad/s
-  double acc_max = 0.0;        // m/s^2
-  double dec_max = 0.0;        // m/s^2 (braking)
-  double boundary_front = 0.0; // m, robot outline from the reference point
+  double vx_max = 0.0;          // m/s
+  double vx_min = 0.0;          // m/s (slowest useful forward speed)
+  double omega_max = 0.0;       // rad/s
+  double acc_max = 0.0;         // m/s^2
+  double dec_max = 0.0;         // m/s^2 (braking)
+  double boundary_front = 0.0;  // m, robot outline from the reference point
   double boundary_back = 0.0;
   double boundary_left = 0.0;
   double boundary_right = 0.0;
   double safety_margin = 0.0;  // m, kept free around the outline
   int64_t watchdog_ns = 0;     // the robot stops when no MOVE came for this long
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(ChassisParams, vx_max), RACK_FIELD(ChassisParams, vx_min),
-                      RACK_FIELD(ChassisParams, omega_max), RACK_FIELD(ChassisParams, acc_max),
-                      RACK_FIELD(ChassisParams, dec_max), RACK_FIELD(ChassisParams, boundary_front),
-                      RACK_FIELD(ChassisParams, boundary_back), RACK_FIELD(ChassisParams, boundary_left),
+    return std::array{RACK_FIELD(ChassisParams, vx_max),         RACK_FIELD(ChassisParams, vx_min),
+                      RACK_FIELD(ChassisParams, omega_max),      RACK_FIELD(ChassisParams, acc_max),
+                      RACK_FIELD(ChassisParams, dec_max),        RACK_FIELD(ChassisParams, boundary_front),
+                      RACK_FIELD(ChassisParams, boundary_back),  RACK_FIELD(ChassisParams, boundary_left),
                       RACK_FIELD(ChassisParams, boundary_right), RACK_FIELD(ChassisParams, safety_margin),
                       RACK_FIELD(ChassisParams, watchdog_ns)};
   }
@@ -120,9 +127,9 @@ struct LadarData {
   float intensity[kLadarMaxBeams] = {};  // device units (0 when none)
   static constexpr auto fields() noexcept {
     return std::array{RACK_FIELD(LadarData, duration_ns), RACK_FIELD(LadarData, max_range),
-                      RACK_FIELD(LadarData, min_range), RACK_FIELD(LadarData, start_angle),
-                      RACK_FIELD(LadarData, angle_step), RACK_FIELD(LadarData, beam_count),
-                      RACK_FIELD(LadarData, range), RACK_FIELD(LadarData, intensity)};
+                      RACK_FIELD(LadarData, min_range),   RACK_FIELD(LadarData, start_angle),
+                      RACK_FIELD(LadarData, angle_step),  RACK_FIELD(LadarData, beam_count),
+                      RACK_FIELD(LadarData, range),       RACK_FIELD(LadarData, intensity)};
   }
 };
 
@@ -133,15 +140,16 @@ struct OdometryData {
   double x = 0.0;
   double y = 0.0;
   double phi = 0.0;
-  double vx = 0.0;          // m/s
-  double omega = 0.0;       // rad/s
-  double distance = 0.0;    // m travelled since RESET (path length)
-  uint32_t resets = 0;      // RESETs since ON
+  double vx = 0.0;        // m/s
+  double omega = 0.0;     // rad/s
+  double distance = 0.0;  // m travelled since RESET (path length)
+  uint32_t resets = 0;    // RESETs since ON
   uint32_t pad_ = 0;
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(OdometryData, x), RACK_FIELD(OdometryData, y), RACK_FIELD(OdometryData, phi),
-                      RACK_FIELD(OdometryData, vx), RACK_FIELD(OdometryData, omega),
-                      RACK_FIELD(OdometryData, distance), RACK_FIELD(OdometryData, resets)};
+    return std::array{RACK_FIELD(OdometryData, x),     RACK_FIELD(OdometryData, y),
+                      RACK_FIELD(OdometryData, phi),   RACK_FIELD(OdometryData, vx),
+                      RACK_FIELD(OdometryData, omega), RACK_FIELD(OdometryData, distance),
+                      RACK_FIELD(OdometryData, resets)};
   }
 };
 // RESET (request, no body): the pose to zero. Reply OK.
@@ -154,16 +162,20 @@ struct PositionData {
   double x = 0.0;
   double y = 0.0;
   double phi = 0.0;
-  double var_x = 0.0;    // m^2
-  double var_y = 0.0;    // m^2
-  double var_phi = 0.0;  // rad^2
+  double var_x = 0.0;             // m^2
+  double var_y = 0.0;             // m^2
+  double var_phi = 0.0;           // rad^2
   int64_t reference_time_ns = 0;  // time of the last UPDATE's pose (0: never updated)
   uint32_t updates = 0;           // UPDATEs accepted since ON
   uint32_t pad_ = 0;
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(PositionData, x), RACK_FIELD(PositionData, y), RACK_FIELD(PositionData, phi),
-                      RACK_FIELD(PositionData, var_x), RACK_FIELD(PositionData, var_y),
-                      RACK_FIELD(PositionData, var_phi), RACK_FIELD(PositionData, reference_time_ns),
+    return std::array{RACK_FIELD(PositionData, x),
+                      RACK_FIELD(PositionData, y),
+                      RACK_FIELD(PositionData, phi),
+                      RACK_FIELD(PositionData, var_x),
+                      RACK_FIELD(PositionData, var_y),
+                      RACK_FIELD(PositionData, var_phi),
+                      RACK_FIELD(PositionData, reference_time_ns),
                       RACK_FIELD(PositionData, updates)};
   }
 };
@@ -181,8 +193,8 @@ struct PositionUpdate {
   double var_phi = 0.0;
   static constexpr auto fields() noexcept {
     return std::array{RACK_FIELD(PositionUpdate, time_ns), RACK_FIELD(PositionUpdate, x),
-                      RACK_FIELD(PositionUpdate, y), RACK_FIELD(PositionUpdate, phi),
-                      RACK_FIELD(PositionUpdate, var_x), RACK_FIELD(PositionUpdate, var_y),
+                      RACK_FIELD(PositionUpdate, y),       RACK_FIELD(PositionUpdate, phi),
+                      RACK_FIELD(PositionUpdate, var_x),   RACK_FIELD(PositionUpdate, var_y),
                       RACK_FIELD(PositionUpdate, var_phi)};
   }
 };
@@ -203,7 +215,7 @@ inline constexpr uint8_t kScanPointGround = 4;
 inline constexpr uint8_t kScanPointCeiling = 5;
 struct Scan2dData {
   int64_t duration_ns = 0;
-  float max_range = 0.0F;       // m
+  float max_range = 0.0F;  // m
   uint32_t point_count = 0;
   // Where the scan was taken in the odometry frame (Odometry at the scan's time), so a
   // consumer need not look it up; valid when odometry_valid.
@@ -212,18 +224,24 @@ struct Scan2dData {
   double odometry_phi = 0.0;
   uint8_t odometry_valid = 0;
   uint8_t pad_[7] = {};
-  float x[kScan2dMaxPoints] = {};      // m, robot frame
-  float y[kScan2dMaxPoints] = {};      // m
-  float range[kScan2dMaxPoints] = {};  // m, from the sensor (for sensor models)
+  float x[kScan2dMaxPoints] = {};        // m, robot frame
+  float y[kScan2dMaxPoints] = {};        // m
+  float range[kScan2dMaxPoints] = {};    // m, from the sensor (for sensor models)
   float bearing[kScan2dMaxPoints] = {};  // rad, from the sensor's axis, sensor frame
   uint8_t type[kScan2dMaxPoints] = {};
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(Scan2dData, duration_ns), RACK_FIELD(Scan2dData, max_range),
-                      RACK_FIELD(Scan2dData, point_count), RACK_FIELD(Scan2dData, odometry_x),
-                      RACK_FIELD(Scan2dData, odometry_y), RACK_FIELD(Scan2dData, odometry_phi),
-                      RACK_FIELD(Scan2dData, odometry_valid), RACK_FIELD(Scan2dData, x),
-                      RACK_FIELD(Scan2dData, y), RACK_FIELD(Scan2dData, range),
-                      RACK_FIELD(Scan2dData, bearing), RACK_FIELD(Scan2dData, type)};
+    return std::array{RACK_FIELD(Scan2dData, duration_ns),
+                      RACK_FIELD(Scan2dData, max_range),
+                      RACK_FIELD(Scan2dData, point_count),
+                      RACK_FIELD(Scan2dData, odometry_x),
+                      RACK_FIELD(Scan2dData, odometry_y),
+                      RACK_FIELD(Scan2dData, odometry_phi),
+                      RACK_FIELD(Scan2dData, odometry_valid),
+                      RACK_FIELD(Scan2dData, x),
+                      RACK_FIELD(Scan2dData, y),
+                      RACK_FIELD(Scan2dData, range),
+                      RACK_FIELD(Scan2dData, bearing),
+                      RACK_FIELD(Scan2dData, type)};
   }
 };
 
@@ -235,7 +253,7 @@ struct MclData {
   double x = 0.0;
   double y = 0.0;
   double phi = 0.0;
-  double covariance[9] = {};  // row-major 3x3 over (x, y, phi)
+  double covariance[9] = {};           // row-major 3x3 over (x, y, phi)
   int64_t scan_time_ns = 0;            // the scan this estimate is for
   uint32_t particle_count = 0;         // particles in the filter now
   uint32_t updates = 0;                // observation updates since ON or INIT
@@ -253,13 +271,21 @@ struct MclData {
   float fit = 0.0F;
   uint32_t pad2_ = 0;
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(MclData, x), RACK_FIELD(MclData, y), RACK_FIELD(MclData, phi),
-                      RACK_FIELD(MclData, covariance), RACK_FIELD(MclData, scan_time_ns),
-                      RACK_FIELD(MclData, particle_count), RACK_FIELD(MclData, updates),
-                      RACK_FIELD(MclData, effective_sample_size), RACK_FIELD(MclData, injected),
-                      RACK_FIELD(MclData, shown), RACK_FIELD(MclData, particle_x),
-                      RACK_FIELD(MclData, particle_y), RACK_FIELD(MclData, particle_phi),
-                      RACK_FIELD(MclData, particle_weight), RACK_FIELD(MclData, fit)};
+    return std::array{RACK_FIELD(MclData, x),
+                      RACK_FIELD(MclData, y),
+                      RACK_FIELD(MclData, phi),
+                      RACK_FIELD(MclData, covariance),
+                      RACK_FIELD(MclData, scan_time_ns),
+                      RACK_FIELD(MclData, particle_count),
+                      RACK_FIELD(MclData, updates),
+                      RACK_FIELD(MclData, effective_sample_size),
+                      RACK_FIELD(MclData, injected),
+                      RACK_FIELD(MclData, shown),
+                      RACK_FIELD(MclData, particle_x),
+                      RACK_FIELD(MclData, particle_y),
+                      RACK_FIELD(MclData, particle_phi),
+                      RACK_FIELD(MclData, particle_weight),
+                      RACK_FIELD(MclData, fit)};
   }
 };
 // INIT (request): re-initialise the filter around a pose with a spread (global = 1:
@@ -274,9 +300,8 @@ struct MclInit {
   uint8_t global = 0;
   uint8_t pad_[7] = {};
   static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(MclInit, x), RACK_FIELD(MclInit, y), RACK_FIELD(MclInit, phi),
-                      RACK_FIELD(MclInit, sigma_xy), RACK_FIELD(MclInit, sigma_phi),
-                      RACK_FIELD(MclInit, global)};
+    return std::array{RACK_FIELD(MclInit, x),        RACK_FIELD(MclInit, y),         RACK_FIELD(MclInit, phi),
+                      RACK_FIELD(MclInit, sigma_xy), RACK_FIELD(MclInit, sigma_phi), RACK_FIELD(MclInit, global)};
   }
 };
 

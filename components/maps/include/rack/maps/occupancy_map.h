@@ -33,10 +33,10 @@
 namespace rack::maps {
 
 // Limits of what load_map() reads (README "Maps").
-inline constexpr uint64_t kMaxMapYamlBytes = 1u << 20;      // the YAML file: 1 MiB
-inline constexpr uint64_t kMaxMapImageBytes = 256u << 20;   // the PGM file: 256 MiB
-inline constexpr long kMaxMapSide = 100000;                 // pixels per side
-inline constexpr uint64_t kMaxMapCells = uint64_t{1} << 26; // width x height: 64 Mi (e.g. 8192 x 8192)
+inline constexpr uint64_t kMaxMapYamlBytes = 1u << 20;       // the YAML file: 1 MiB
+inline constexpr uint64_t kMaxMapImageBytes = 256u << 20;    // the PGM file: 256 MiB
+inline constexpr long kMaxMapSide = 100000;                  // pixels per side
+inline constexpr uint64_t kMaxMapCells = uint64_t{1} << 26;  // width x height: 64 Mi (e.g. 8192 x 8192)
 
 enum class CellState : uint8_t { kFree = 0, kOccupied = 1, kUnknown = 2 };
 
@@ -90,16 +90,16 @@ class OccupancyMap {
   double origin_x_ = 0.0, origin_y_ = 0.0, origin_yaw_ = 0.0;
   double cos_yaw_ = 1.0, sin_yaw_ = 0.0;
   double occupied_thresh_ = 0.65, free_thresh_ = 0.196;
-  std::vector<float> occupancy_;   // row-major, row 0 = bottom
-  std::vector<CellState> state_;   // the same cells, classified
+  std::vector<float> occupancy_;  // row-major, row 0 = bottom
+  std::vector<CellState> state_;  // the same cells, classified
   std::size_t free_cells_ = 0;
   std::string source_;
 };
 
 struct MapError {
   std::string file;
-  int line = 0;          // YAML line (1-based), 0 when not about a line
-  long byte_offset = -1; // image byte offset, -1 when not about the image
+  int line = 0;           // YAML line (1-based), 0 when not about a line
+  long byte_offset = -1;  // image byte offset, -1 when not about the image
   std::string message;
   // "file:line: message", "file: byte N: message" or "file: message".
   [[nodiscard]] std::string str() const;

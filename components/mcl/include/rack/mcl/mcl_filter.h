@@ -55,27 +55,27 @@ struct MclOptions {
   // Particle count (KLD-sampling; Fox 2003). min == max: fixed size.
   uint32_t particles_min = 100;
   uint32_t particles_max = 2000;
-  double kld_bin_xy = 0.10;   // m
-  double kld_bin_phi = 0.087; // rad (5 deg)
-  double kld_delta = 0.02;    // KLD quantile (1 - delta)
-  double kld_epsilon = 0.05;  // KLD error bound
+  double kld_bin_xy = 0.10;    // m
+  double kld_bin_phi = 0.087;  // rad (5 deg)
+  double kld_delta = 0.02;     // KLD quantile (1 - delta)
+  double kld_epsilon = 0.05;   // KLD error bound
   // Likelihood field (Thrun): p(z) = z_hit * N(dist; sigma) + z_random / max_range.
-  double sigma_hit = 0.10;        // m
+  double sigma_hit = 0.10;  // m
   double z_hit = 0.95;
   double z_random = 0.05;
-  double max_range = 30.0;        // m (z_random's support)
-  double max_corr_distance = 0.5; // m: distances beyond count as this far
-  uint32_t beams = 60;            // points used per scan (evenly chosen); 0: all
-  double likelihood_power = 1.0;  // exponent on the scan likelihood (< 1 flattens)
+  double max_range = 30.0;         // m (z_random's support)
+  double max_corr_distance = 0.5;  // m: distances beyond count as this far
+  uint32_t beams = 60;             // points used per scan (evenly chosen); 0: all
+  double likelihood_power = 1.0;   // exponent on the scan likelihood (< 1 flattens)
   // Odometry motion model, MRPT's Gaussian model (CActionRobotMovement2D): for an
   // increment of d metres and a radians, std dev of x and y (robot frame)
   // max(odom_min_std_xy, a1 d + a2 a), of the heading max(odom_min_std_phi, a3 d + a4 a).
-  double odom_a1 = 0.20;          // m/m: translation noise per metre
-  double odom_a2 = 0.001;         // m/rad: translation noise per radian turned
-  double odom_a3 = 0.05;          // rad/m: rotation noise per metre (heading drift)
-  double odom_a4 = 0.05;          // rad/rad: rotation noise per radian
-  double odom_min_std_xy = 0.01;  // m
-  double odom_min_std_phi = 0.01; // rad
+  double odom_a1 = 0.20;           // m/m: translation noise per metre
+  double odom_a2 = 0.001;          // m/rad: translation noise per radian turned
+  double odom_a3 = 0.05;           // rad/m: rotation noise per metre (heading drift)
+  double odom_a4 = 0.05;           // rad/rad: rotation noise per radian
+  double odom_min_std_xy = 0.01;   // m
+  double odom_min_std_phi = 0.01;  // rad
   // The heavy tail: this fraction of the particles moves with odom_outlier_scale times
   // the noise above (0: MRPT's model alone).
   double odom_outlier_fraction = 0.10;
@@ -84,7 +84,7 @@ struct MclOptions {
   // Odometry RESET, a restarted driver): that one increment is dropped (the motion
   // before it is kept) instead of moving the particles (0: off). Far above any real
   // motion between two scans, an odometry catch-up after a stall included.
-  double odometry_jump = 5.0;     // m
+  double odometry_jump = 5.0;  // m
   // Update gating.
   double update_distance = 0.10;  // m of odometry travel
   double update_angle = 0.10;     // rad of odometry turn
@@ -135,18 +135,18 @@ struct MclPose {
 };
 
 struct MclEstimate {
-  MclPose pose;                 // mean of the particles (map frame)
-  double covariance[9] = {};    // row-major over (x, y, phi)
+  MclPose pose;               // mean of the particles (map frame)
+  double covariance[9] = {};  // row-major over (x, y, phi)
   uint32_t particles = 0;
-  float ess = 0.0F;             // effective sample size / particles, (0, 1]
-  uint32_t injected = 0;        // at the last filter update
-  uint64_t updates = 0;         // filter updates since the last init
+  float ess = 0.0F;                   // effective sample size / particles, (0, 1]
+  uint32_t injected = 0;              // at the last filter update
+  uint64_t updates = 0;               // filter updates since the last init
   double w_slow = 0.0, w_fast = 0.0;  // scan-fit averages (recovery)
-  double fit = 0.0;             // mean scan fit at the last update
-  double consistency = 0.0;     // fraction of the last scan's beams not through a wall at the estimate
-  uint32_t low_updates = 0;     // consecutive updates with w_fast < recovery_ratio * w_slow
-  uint64_t recoveries = 0;      // updates that injected (since the last init)
-  uint64_t odometry_jumps = 0;  // odometry discontinuities dropped (since construction)
+  double fit = 0.0;                   // mean scan fit at the last update
+  double consistency = 0.0;           // fraction of the last scan's beams not through a wall at the estimate
+  uint32_t low_updates = 0;           // consecutive updates with w_fast < recovery_ratio * w_slow
+  uint64_t recoveries = 0;            // updates that injected (since the last init)
+  uint64_t odometry_jumps = 0;        // odometry discontinuities dropped (since construction)
 };
 
 class MclFilter {

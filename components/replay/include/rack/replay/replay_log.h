@@ -18,17 +18,17 @@
 namespace rack::replay {
 
 struct OdometryRecord {
-  double time = 0.0;  // s
+  double time = 0.0;                   // s
   double x = 0.0, y = 0.0, phi = 0.0;  // odometry frame
   double tv = 0.0, rv = 0.0;           // m/s, rad/s as logged (0 when not)
   int line = 0;                        // source line (CARMEN) or record index (rawlog)
 };
 
 struct ScanRecord {
-  double time = 0.0;  // s
-  float start_angle = 0.0F;  // rad
-  float angle_step = 0.0F;   // rad
-  float max_range = 0.0F;    // m
+  double time = 0.0;               // s
+  float start_angle = 0.0F;        // rad
+  float angle_step = 0.0F;         // rad
+  float max_range = 0.0F;          // m
   std::vector<float> ranges;       // m (<= 0 or >= max_range: no echo)
   std::vector<float> intensities;  // empty when the log has none
   // Robot odometry pose when the scan was taken, if the line carries it.
@@ -40,9 +40,9 @@ struct ScanRecord {
 };
 
 struct ReplayLog {
-  std::string source;  // file name
-  std::vector<OdometryRecord> odometry;  // sorted by time
-  std::vector<ScanRecord> scans;         // sorted by time
+  std::string source;                                // file name
+  std::vector<OdometryRecord> odometry;              // sorted by time
+  std::vector<ScanRecord> scans;                     // sorted by time
   [[nodiscard]] double first_time() const noexcept;  // earliest record (0 when empty)
   [[nodiscard]] double last_time() const noexcept;
 };

@@ -32,7 +32,7 @@ inline constexpr uint64_t kMaxPcdFileBytes = 256u << 20;  // 256 MiB
 inline constexpr uint64_t kMaxPcdPoints = 10'000'000;
 inline constexpr std::size_t kMaxPcdFields = 1000;
 inline constexpr uint64_t kMaxPcdPointBytes = 65536;
-inline constexpr uint64_t kMaxPcdRawBytes = 256u << 20;   // 256 MiB
+inline constexpr uint64_t kMaxPcdRawBytes = 256u << 20;  // 256 MiB
 
 struct PcdCloud {
   std::vector<float> x, y, z, intensity;

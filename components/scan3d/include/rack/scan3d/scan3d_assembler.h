@@ -31,8 +31,8 @@ namespace rack::scan3d {
 
 struct AssemblerConfig {
   components::Scan3dMount mount;
-  double range_min = 0.05;    // m: closer echoes are the robot or the drive
-  double range_max = 0.0;     // m: 0: the ladar's own max_range
+  double range_min = 0.05;  // m: closer echoes are the robot or the drive
+  double range_max = 0.0;   // m: 0: the ladar's own max_range
   // How far past the drive's newest sample a beam may be and still use it (held).
   int64_t max_extrapolation_ns = 50'000'000;
   // Undo the robot's motion with the poses given to add_pose() (no extrapolation:
@@ -94,7 +94,7 @@ class Scan3dAssembler {
   AssemblerConfig config_;
   components::TimeSeries<1024> drive_;
   components::PoseSeries<256> poses_;
-  components::Pose2d anchor_;   // compensate_motion: the pose the points are relative to
+  components::Pose2d anchor_;  // compensate_motion: the pose the points are relative to
   bool in_end_frame_ = false;
   uint32_t capacity_;
   std::unique_ptr<float[]> x_, y_, z_, i_;

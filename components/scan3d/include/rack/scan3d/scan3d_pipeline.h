@@ -21,12 +21,12 @@
 namespace rack::scan3d {
 
 struct PipelineOptions {
-  double voxel_size = 0.05;         // m, voxel grid leaf (0: no downsampling)
-  int outlier_neighbours = 16;      // statistical outlier removal: k neighbours (0: off)
-  double outlier_std = 2.0;         // ... remove points whose mean distance is above mean + this * std dev
-  double ground_tolerance = 0.05;   // m, RANSAC inlier distance; points this close to the plane are ground
-  double ground_max_tilt = 0.2;     // rad, the plane's normal may be this far from vertical
-  double ground_max_height = 0.3;   // m, only points with |z| below this are ground candidates
+  double voxel_size = 0.05;        // m, voxel grid leaf (0: no downsampling)
+  int outlier_neighbours = 16;     // statistical outlier removal: k neighbours (0: off)
+  double outlier_std = 2.0;        // ... remove points whose mean distance is above mean + this * std dev
+  double ground_tolerance = 0.05;  // m, RANSAC inlier distance; points this close to the plane are ground
+  double ground_max_tilt = 0.2;    // rad, the plane's normal may be this far from vertical
+  double ground_max_height = 0.3;  // m, only points with |z| below this are ground candidates
   int ransac_iterations = 200;
   uint32_t ground_min_points = 30;  // fewer inliers: no ground plane
   double ceiling_height = 0.0;      // m above the ground plane; higher points are ceiling (0: no ceiling)

@@ -36,7 +36,7 @@ class Cia402DriveSim {
     int64_t tick_ns = 1'000'000;
   };
   struct DriveState {
-    uint8_t nmt = 0;           // canopen::kState*
+    uint8_t nmt = 0;  // canopen::kState*
     uint16_t statusword = 0;
     int8_t mode = 0;
     int32_t target_velocity = 0;  // counts/s

@@ -23,15 +23,15 @@ namespace rack::sims {
 class NmeaGpsSim {
  public:
   struct Config {
-    double latitude_deg = 52.3826;   // start (Hannover, Appelstrasse)
+    double latitude_deg = 52.3826;  // start (Hannover, Appelstrasse)
     double longitude_deg = 9.7177;
     double altitude_m = 55.0;
-    double speed_mps = 1.0;          // over ground
-    double course_deg = 90.0;        // clockwise from true north
-    int64_t period_ns = 100'000'000; // 10 Hz
+    double speed_mps = 1.0;           // over ground
+    double course_deg = 90.0;         // clockwise from true north
+    int64_t period_ns = 100'000'000;  // 10 Hz
     uint8_t satellites = 9;
     double hdop = 0.9;
-    std::string link;                // symlink to the pty slave ("" = none)
+    std::string link;  // symlink to the pty slave ("" = none)
     const char* talker = "GP";
   };
   enum class Fault : uint8_t { kNone, kBadChecksum, kGarbage, kSilent };

@@ -22,7 +22,7 @@ namespace rack::sims {
 class SickLms1xxSim {
  public:
   struct Config {
-    uint16_t port = 0;              // 0: any free port (see port())
+    uint16_t port = 0;  // 0: any free port (see port())
     uint32_t frequency_centihz = 5000;
     int32_t start_angle = -450000;  // 1/10000 deg, SICK frame (90 deg ahead)
     uint32_t step = 5000;           // 0.5 deg

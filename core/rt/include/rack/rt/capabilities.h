@@ -10,10 +10,10 @@
 namespace rack::rt {
 
 struct RtCapabilities {
-  bool sched_fifo = false;      // a SCHED_FIFO thread could be created
-  bool memlock = false;         // mlockall is allowed (CAP_IPC_LOCK or unlimited RLIMIT_MEMLOCK)
-  bool preempt_rt = false;      // /sys/kernel/realtime is 1
-  std::string kernel;           // uname release and version
+  bool sched_fifo = false;  // a SCHED_FIFO thread could be created
+  bool memlock = false;     // mlockall is allowed (CAP_IPC_LOCK or unlimited RLIMIT_MEMLOCK)
+  bool preempt_rt = false;  // /sys/kernel/realtime is 1
+  std::string kernel;       // uname release and version
   std::vector<int> online_cpus;
   [[nodiscard]] bool cpu_online(int cpu) const;
   [[nodiscard]] std::string describe() const;

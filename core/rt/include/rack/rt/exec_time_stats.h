@@ -31,8 +31,8 @@ struct ExecTimeSummary {
 
 class ExecTimeStats {
  public:
-  static constexpr std::size_t kSub = 32;                 // sub-buckets per power of two
-  static constexpr int kMaxBits = 41;                     // values up to 2^41 - 1 ns
+  static constexpr std::size_t kSub = 32;                             // sub-buckets per power of two
+  static constexpr int kMaxBits = 41;                                 // values up to 2^41 - 1 ns
   static constexpr std::size_t kBuckets = kSub * (kMaxBits - 5 + 1);  // 1184
 
   // Bucket of a value: the value itself below 64; above, its top 6 bits.
@@ -67,7 +67,8 @@ class ExecTimeStats {
     s.samples = n;
     s.max_ns = max_ns_.load(std::memory_order_relaxed);
     if (n == 0) return s;
-    s.mean_ns = static_cast<int64_t>(sum_ns_.load(std::memory_order_relaxed) / std::max<uint64_t>(1, samples_.load(std::memory_order_relaxed)));
+    s.mean_ns = static_cast<int64_t>(sum_ns_.load(std::memory_order_relaxed) /
+                                     std::max<uint64_t>(1, samples_.load(std::memory_order_relaxed)));
     const uint64_t at50 = (n + 1) / 2, at99 = n - n / 100;  // the ranks (1-based) of p50 and p99
     uint64_t seen = 0;
     bool have50 = false;

@@ -15,8 +15,8 @@ namespace rack::rt {
 
 struct LatencySummary {
   uint64_t cycles = 0;
-  uint64_t overruns = 0;     // periods missed (skipped, never caught up)
-  uint64_t samples = 0;      // latency samples in the histogram
+  uint64_t overruns = 0;  // periods missed (skipped, never caught up)
+  uint64_t samples = 0;   // latency samples in the histogram
   int64_t min_ns = 0;
   int64_t max_ns = 0;
   int64_t p50_ns = 0;
@@ -27,15 +27,15 @@ struct LatencySummary {
 
 class LatencyStats {
  public:
-  static constexpr int64_t kBucketNs = 1'000;     // 1 us resolution
+  static constexpr int64_t kBucketNs = 1'000;  // 1 us resolution
   // Buckets 0..9999: [i, i+1) us; bucket 10000: >= 10 ms (everything later), so that a
   // coarse view with an edge at 10 ms (GET_LATENCY) is exact.
   static constexpr std::size_t kBuckets = 10'001;
 
-  void record_latency(int64_t ns) noexcept;     // RT-safe, writer only
-  void record_cycle() noexcept;                 // RT-safe, writer only
-  void record_overruns(uint64_t n) noexcept;    // RT-safe, writer only
-  void reset() noexcept;                        // not while the writer runs
+  void record_latency(int64_t ns) noexcept;   // RT-safe, writer only
+  void record_cycle() noexcept;               // RT-safe, writer only
+  void record_overruns(uint64_t n) noexcept;  // RT-safe, writer only
+  void reset() noexcept;                      // not while the writer runs
 
   [[nodiscard]] LatencySummary summary() const noexcept;  // any thread; O(kBuckets)
   // Copies the bucket counts (index i: latency in [i, i+1) us; last: >= kBuckets-1 us).

@@ -29,8 +29,8 @@ namespace rack::rt {
 inline constexpr bool kThreadSanitizer = RACK_RT_THREAD_SANITIZER != 0;
 
 struct MemoryPolicyResult {
-  bool locked = false;      // mlockall(MCL_CURRENT | MCL_FUTURE) succeeded
-  int lock_errno = 0;       // errno of mlockall when it failed
+  bool locked = false;  // mlockall(MCL_CURRENT | MCL_FUTURE) succeeded
+  int lock_errno = 0;   // errno of mlockall when it failed
   std::size_t prefaulted_heap_bytes = 0;
   bool skipped_for_sanitizer = false;  // ThreadSanitizer build: nothing locked or pre-faulted
   [[nodiscard]] std::string describe() const;

@@ -113,11 +113,11 @@ struct Config {
   bool rusage = false;
   bool crash_handlers = true;
   bool to_stderr = true;
-  int64_t lock_wait_ns = 200'000;     // PRIOINV when a mutex wait in a cycle is longer
-  uint32_t watchdog_periods = 20;     // WATCHDOG when a cycle overruns by more (0: off)
-  int64_t rttime_us = 0;              // RLIMIT_RTTIME soft limit (0: off)
+  int64_t lock_wait_ns = 200'000;           // PRIOINV when a mutex wait in a cycle is longer
+  uint32_t watchdog_periods = 20;           // WATCHDOG when a cycle overruns by more (0: off)
+  int64_t rttime_us = 0;                    // RLIMIT_RTTIME soft limit (0: off)
   std::vector<std::string> allow_syscalls;  // added to the default allow-list
-  uint32_t stderr_per_second = 20;    // more reports than this go to the file only
+  uint32_t stderr_per_second = 20;          // more reports than this go to the file only
   // Identical reports (same reason, task, component, system call and backtrace) after
   // the first are counted, not written: the first in full, then at most one `repeat`
   // line per this period while it repeats (and at stop), so a fault that repeats each
@@ -139,11 +139,11 @@ struct ReportView {
   Reason reason = Reason::kSyscall;
   Mode mode = Mode::kWarn;
   int tid = 0;
-  int64_t time_ns = 0;          // CLOCK_REALTIME
-  std::string_view task;        // "demo:cmd"
-  std::string_view component;   // host-file name, "" when not a component task
-  std::string_view label;       // "ModeSwitchDemo(0/0)"
-  std::string_view detail;      // "write(5, 0x7f.., 12): fd 5 is not a registered RT device"
+  int64_t time_ns = 0;                // CLOCK_REALTIME
+  std::string_view task;              // "demo:cmd"
+  std::string_view component;         // host-file name, "" when not a component task
+  std::string_view label;             // "ModeSwitchDemo(0/0)"
+  std::string_view detail;            // "write(5, 0x7f.., 12): fd 5 is not a registered RT device"
   std::span<const uintptr_t> frames;  // call-site PCs, innermost first
 };
 
@@ -169,8 +169,8 @@ void stop();
 [[nodiscard]] bool running() noexcept;
 
 struct Counters {
-  uint64_t reports = 0;               // recorded
-  uint64_t dropped = 0;               // ring full
+  uint64_t reports = 0;  // recorded
+  uint64_t dropped = 0;  // ring full
   uint64_t by_reason[kReasonCount] = {};
 };
 [[nodiscard]] Counters counters() noexcept;  // any thread; RT-safe
@@ -178,10 +178,10 @@ struct Counters {
 // ---- tasks ------------------------------------------------------------------------
 
 struct TaskInfo {
-  std::string task;            // thread/task name, "demo:cmd"
-  std::string component;       // host-file name
-  std::string label;           // "ModeSwitchDemo(0/0)"
-  uint32_t address = 0;        // TiMS address (opaque here)
+  std::string task;       // thread/task name, "demo:cmd"
+  std::string component;  // host-file name
+  std::string label;      // "ModeSwitchDemo(0/0)"
+  uint32_t address = 0;   // TiMS address (opaque here)
   Mode mode = Mode::kWarn;
 };
 

@@ -17,17 +17,17 @@
 namespace rack::rt {
 
 struct ThreadConfig {
-  std::string name;                         // shown in top/ps; cut to 15 characters
-  int priority = 0;                         // 1..99: SCHED_FIFO; 0: SCHED_OTHER
-  int cpu = -1;                             // pin to this CPU; -1: any (or `cpus`)
-  std::size_t stack_bytes = 256 * 1024;     // pre-faulted at start
-  std::vector<int> cpus{};                  // with cpu -1: run on these CPUs; empty: any
+  std::string name;                      // shown in top/ps; cut to 15 characters
+  int priority = 0;                      // 1..99: SCHED_FIFO; 0: SCHED_OTHER
+  int cpu = -1;                          // pin to this CPU; -1: any (or `cpus`)
+  std::size_t stack_bytes = 256 * 1024;  // pre-faulted at start
+  std::vector<int> cpus{};               // with cpu -1: run on these CPUs; empty: any
 };
 
 enum class ThreadStart {
-  kRealTime,     // running with the requested SCHED_FIFO priority
-  kFallback,     // RT refused (EPERM) and fallback allowed: running SCHED_OTHER
-  kNormal,       // priority 0 was asked for
+  kRealTime,  // running with the requested SCHED_FIFO priority
+  kFallback,  // RT refused (EPERM) and fallback allowed: running SCHED_OTHER
+  kNormal,    // priority 0 was asked for
 };
 
 class Thread {

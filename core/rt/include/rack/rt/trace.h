@@ -27,24 +27,24 @@ namespace rack::rt::trace {
 
 enum class Kind : uint8_t {
   kNone = 0,
-  kWake,          // a periodic task woke up; value: the time it was due (ns)
-  kCycleStart,    // loop() or a command handler starts
-  kCycleEnd,      // it ended; value: 0 ok, 1 failed
-  kOverrun,       // value: periods missed
-  kModeSwitch,    // value: mode-switch reports recorded during the cycle
-  kSend,          // a message left this task; peer: destination, aux: type and seq
-  kReceive,       // a message reached this task; peer: source, aux: type and seq
+  kWake,        // a periodic task woke up; value: the time it was due (ns)
+  kCycleStart,  // loop() or a command handler starts
+  kCycleEnd,    // it ended; value: 0 ok, 1 failed
+  kOverrun,     // value: periods missed
+  kModeSwitch,  // value: mode-switch reports recorded during the cycle
+  kSend,        // a message left this task; peer: destination, aux: type and seq
+  kReceive,     // a message reached this task; peer: source, aux: type and seq
 };
 [[nodiscard]] const char* kind_name(Kind k) noexcept;
 
 struct Event {
-  int64_t time_ns = 0;   // CLOCK_MONOTONIC
-  int64_t value = 0;     // per Kind
-  uint32_t peer = 0;     // TiMS address (kSend, kReceive)
-  uint16_t aux = 0;      // kSend/kReceive: (uint8 type << 8) | seq
+  int64_t time_ns = 0;  // CLOCK_MONOTONIC
+  int64_t value = 0;    // per Kind
+  uint32_t peer = 0;    // TiMS address (kSend, kReceive)
+  uint16_t aux = 0;     // kSend/kReceive: (uint8 type << 8) | seq
   Kind kind = Kind::kNone;
   uint8_t reserved = 0;
-  uint32_t self = 0;     // kSend: the message's source; kReceive: its destination
+  uint32_t self = 0;  // kSend: the message's source; kReceive: its destination
 };
 static_assert(sizeof(Event) == 32);
 
