@@ -112,7 +112,6 @@ class Mcl final : public DataComponent<interfaces::MclData> {
   // Set by on(): re-initialise from the parameters before the next scan.
   // Release/acquire: the data task sees everything on() wrote before it.
   std::atomic<bool> reinit_{false};
-  bool filter_ran_ = false;
   uint32_t updates_since_init_ = 0;
   // report_localisation (data task only).
   enum class Localisation : uint8_t { kUnknown, kConverged, kLost, kUncertain };
