@@ -35,21 +35,6 @@ const std::string kRackctl = RACK_RACKCTL_PATH;
 const std::string kConfigs = RACK_CONFIGS_DIR;
 const std::string kFoxglove = RACK_FOXGLOVE_DIR;
 
-std::optional<std::string> find_program(const std::string& name) {
-  const char* path = std::getenv("PATH");
-  const std::string p = path != nullptr ? path : "/usr/bin:/bin";
-  std::size_t start = 0;
-  while (start <= p.size()) {
-    const auto end = p.find(':', start);
-    const std::string dir = p.substr(start, end == std::string::npos ? std::string::npos : end - start);
-    const std::string candidate = (dir.empty() ? "." : dir) + "/" + name;
-    if (access(candidate.c_str(), X_OK) == 0) return candidate;
-    if (end == std::string::npos) break;
-    start = end + 1;
-  }
-  return std::nullopt;
-}
-
 // The text after `prefix` up to the next space in `text` ("" when absent).
 std::string word_after(const std::string& text, const std::string& prefix) {
   const auto at = text.find(prefix);

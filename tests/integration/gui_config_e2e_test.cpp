@@ -28,33 +28,18 @@ namespace {
 
 using namespace std::chrono_literals;
 
-std::optional<std::string> on_path(const std::string& name) {
-  const char* path = std::getenv("PATH");
-  std::string p = path != nullptr ? path : "/usr/bin:/bin";
-  std::size_t start = 0;
-  while (start <= p.size()) {
-    const auto end = p.find(':', start);
-    const std::string dir = p.substr(start, end == std::string::npos ? std::string::npos : end - start);
-    const std::string candidate = (dir.empty() ? "." : dir) + "/" + name;
-    if (access(candidate.c_str(), X_OK) == 0) return candidate;
-    if (end == std::string::npos) break;
-    start = end + 1;
-  }
-  return std::nullopt;
-}
-
 TEST(GuiConfigE2eTest, EditsAHostFileWithTheValidatorInTheLoop) {
   Watchdog watchdog(150s, "GuiConfigE2eTest");
   const std::string web = RACK_GUI_WEB_DIR;
   const std::string artifacts = RACK_GUI_ARTIFACTS_DIR;
-  const auto node = on_path("node");
+  const auto node = find_program("node");
   const char* chromium_env = std::getenv("RACK_CHROMIUM");
   const std::string chromium = chromium_env != nullptr ? chromium_env : "/usr/bin/chromium";
   if (!node) GTEST_SKIP() << "node is not installed (Debian: apt-get install nodejs); scripts/setup.sh installs it";
   if (access(chromium.c_str(), X_OK) != 0) {
     GTEST_SKIP() << chromium << " is not installed (Debian: apt-get install chromium); scripts/setup.sh installs it";
   }
-  if (!on_path("dot"))
+  if (!find_program("dot"))
     GTEST_SKIP() << "graphviz's dot is not installed (apt-get install graphviz); scripts/setup.sh installs it";
   ASSERT_TRUE(std::filesystem::exists(web + "/node_modules/playwright-core"))
       << "playwright-core is missing: run scripts/setup.sh (npm ci in " << web << ")";

@@ -33,21 +33,6 @@ const std::string kConfigs = RACK_CONFIGS_DIR;
 const std::string kWeb = RACK_GUI_WEB_DIR;
 const std::string kArtifacts = RACK_GUI_ARTIFACTS_DIR;
 
-std::optional<std::string> find_program(const std::string& name) {
-  const char* path = std::getenv("PATH");
-  std::string p = path != nullptr ? path : "/usr/bin:/bin";
-  std::size_t start = 0;
-  while (start <= p.size()) {
-    const auto end = p.find(':', start);
-    const std::string dir = p.substr(start, end == std::string::npos ? std::string::npos : end - start);
-    const std::string candidate = (dir.empty() ? "." : dir) + "/" + name;
-    if (access(candidate.c_str(), X_OK) == 0) return candidate;
-    if (end == std::string::npos) break;
-    start = end + 1;
-  }
-  return std::nullopt;
-}
-
 class GuiE2eTest : public ::testing::Test {
  protected:
   GuiE2eTest() : watchdog_(150s, "GuiE2eTest") {}

@@ -279,6 +279,21 @@ std::filesystem::path TempDir::write(const std::string& name, const std::string&
   return p;
 }
 
+std::optional<std::string> find_program(const std::string& name) {
+  const char* path = std::getenv("PATH");
+  const std::string p = path != nullptr ? path : "/usr/bin:/bin";
+  std::size_t start = 0;
+  while (start <= p.size()) {
+    const auto end = p.find(':', start);
+    const std::string dir = p.substr(start, end == std::string::npos ? std::string::npos : end - start);
+    const std::string candidate = (dir.empty() ? "." : dir) + "/" + name;
+    if (access(candidate.c_str(), X_OK) == 0) return candidate;
+    if (end == std::string::npos) break;
+    start = end + 1;
+  }
+  return std::nullopt;
+}
+
 std::string read_file(const std::filesystem::path& path) {
   std::ifstream f(path);
   std::stringstream s;

@@ -111,4 +111,8 @@ class TempDir {
 
 std::string read_file(const std::filesystem::path& path);
 
+// The first executable `name` in $PATH (/usr/bin:/bin when PATH is unset), or nullopt:
+// tests that need an outside tool (node, dot) skip with the reason when it is missing.
+std::optional<std::string> find_program(const std::string& name);
+
 }  // namespace rack::test
