@@ -44,8 +44,11 @@
 // So that both sides run under the same conditions, this program holds it at 0 for
 // the whole run (default), or with --no-pm-qos holds nothing and passes
 // --default-system to cyclictest.
+#include <pthread.h>
+#include <sched.h>
 #include <signal.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -101,7 +104,14 @@ constexpr const char* kUsage =
     "                   (default: counted apart and left out of the figures, as cyclictest's\n"
     "                   set-up is not in its own)\n"
     "  --modeswitch-only syscalls|faults\n"
-    "                   with --modeswitch: only that detector (to tell their costs apart)\n";
+    "                   with --modeswitch: only that detector (to tell their costs apart)\n"
+    "  --bare-side      a third side in every round: a bare clock_nanosleep + clock_gettime\n"
+    "                   thread inside this process (same priority, CPU, phase and locked\n"
+    "                   memory as RACK-RT's task, no executor running), to tell what the\n"
+    "                   process costs from what the task's code costs\n"
+    "  --bare-lib       --bare-side, but the bare thread sleeps and reads the clock through\n"
+    "                   librack_rt (rt::sleep_until_monotonic, rt::monotonic_ns) as the\n"
+    "                   data task does\n";
 
 constexpr double kTargetP99 = 1.05;  // issue 20: median per-round ratio
 constexpr double kTargetP999 = 1.2;
@@ -124,6 +134,8 @@ struct Options {
   bool aligned = true;
   int phase_us = -1;  // this round's phase (set per round when aligned)
   bool verbose = false;
+  bool bare_side = false;
+  bool bare_lib = false;
 };
 
 // The background load: a shell command in its own process group, so that stopping it
@@ -325,6 +337,69 @@ void run_rack_segment(const Options& o, const rt::RtCapabilities& caps, int seco
   if (executor.any_fallback()) throw std::runtime_error("SCHED_FIFO was refused");
 }
 
+// The bare side: what cyclictest's loop does, in a thread of this process (its memory
+// locked and its libraries mapped as for the RACK-RT side, but no executor running).
+// If this side lies with cyclictest, a gap is the task's code; if with RACK-RT's task,
+// it is the process.
+void run_bare_segment(const Options& o, int seconds, Side& side) {
+  struct Ctx {
+    const Options* o;
+    int seconds;
+    Side* side;
+    std::string error;
+  } ctx{&o, seconds, &side, {}};
+  auto body = [](void* arg) -> void* {
+    auto& c = *static_cast<Ctx*>(arg);
+    const int64_t period = static_cast<int64_t>(c.o->interval_us) * rt::kNsPerUs;
+    int64_t now = rt::monotonic_ns();
+    int64_t next = now + period;
+    if (c.o->phase_us >= 0) {
+      const int64_t phase = static_cast<int64_t>(c.o->phase_us) * rt::kNsPerUs;
+      next = (now - phase) / period * period + phase + period;
+    }
+    const int64_t end = now + static_cast<int64_t>(c.seconds) * rt::kNsPerSec;
+    uint64_t* h = c.side->histogram.data();
+    int64_t max_ns = 0;
+    while (next < end) {
+      timespec woke{};
+      if (c.o->bare_lib) {  // the library's sleep and clock, as the data task calls them
+        rt::sleep_until_monotonic(next);
+        woke = rt::to_timespec(rt::monotonic_ns());
+      } else {
+        const timespec ts = rt::to_timespec(next);
+        while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+        }
+        clock_gettime(CLOCK_MONOTONIC, &woke);
+      }
+      const int64_t lat = std::max<int64_t>(0, rt::from_timespec(woke) - next);
+      max_ns = std::max(max_ns, lat);
+      h[std::min<std::size_t>(static_cast<std::size_t>(lat / rt::kNsPerUs), kBuckets - 1)] += 1;
+      c.side->cycles += 1;
+      next += period;
+      now = rt::from_timespec(woke);
+      if (now >= next) next += ((now - next) / period + 1) * period;  // skip missed periods, like cyclictest
+    }
+    c.side->max_ns = static_cast<double>(max_ns);
+    return nullptr;
+  };
+  pthread_attr_t attr;
+  pthread_attr_init(&attr);
+  pthread_attr_setinheritsched(&attr, PTHREAD_EXPLICIT_SCHED);
+  pthread_attr_setschedpolicy(&attr, SCHED_FIFO);
+  sched_param sp{};
+  sp.sched_priority = o.priority;
+  pthread_attr_setschedparam(&attr, &sp);
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  CPU_SET(static_cast<std::size_t>(o.cpu), &set);
+  pthread_attr_setaffinity_np(&attr, sizeof set, &set);
+  pthread_t th{};
+  const int rc = pthread_create(&th, &attr, body, &ctx);
+  pthread_attr_destroy(&attr);
+  if (rc != 0) throw std::runtime_error(std::string("bare side: pthread_create: ") + std::strerror(rc));
+  pthread_join(th, nullptr);
+}
+
 // Runs cyclictest and adds its histogram to `side`.
 void run_cyclictest_segment(const Options& o, int seconds, Side& side) {
   std::ostringstream cmd;
@@ -424,6 +499,8 @@ void parse(int argc, char** argv, Options& o) {
     else if (a == "--verbose") o.verbose = true;
     else if (a == "--modeswitch") o.modeswitch = true;
     else if (a == "--include-startup") o.include_startup = true;
+    else if (a == "--bare-side") o.bare_side = true;
+    else if (a == "--bare-lib") o.bare_side = o.bare_lib = true;
     else if (a == "--free-phase") o.aligned = false;
     else if (a == "--modeswitch-only") {
       o.modeswitch_only = next();
@@ -498,6 +575,8 @@ int main(int argc, char** argv) {
   rack_side.name = "rack-rt";
   Side ct_side;
   ct_side.name = "cyclictest";
+  Side bare_side;
+  bare_side.name = "bare";
   std::printf("bench_jitter: %d s per side on CPU %d, SCHED_FIFO %d, interval %d us, %d round(s), PM QoS %s\n",
               o.seconds, o.cpu, o.priority, o.interval_us, o.rounds,
               qos && qos->active() ? "held at 0 us" : "not held (cyclictest --default-system)");
@@ -517,15 +596,20 @@ int main(int argc, char** argv) {
       const int secs = r + 1 == o.rounds ? last : seg;
       if (o.aligned) o.phase_us = (2 * r + 1) * o.interval_us / (2 * o.rounds);
       phases.push_back(o.phase_us);
-      for (int k = 0; k < 2; ++k) {
-        const bool rack_now = (k == 0) == (r % 2 == 0);  // rack, ct, ct, rack, rack, ct, ...
-        Side& side = rack_now ? rack_side : ct_side;
+      const int sides = o.bare_side ? 3 : 2;
+      for (int k = 0; k < sides; ++k) {
+        // rack, ct, ct, rack, rack, ct, ...; with --bare-side the bare thread in the middle
+        const bool bare_now = o.bare_side && k == 1;
+        const int kk = o.bare_side && k == 2 ? 1 : k;
+        const bool rack_now = !bare_now && (kk == 0) == (r % 2 == 0);
+        Side& side = bare_now ? bare_side : rack_now ? rack_side : ct_side;
         side.loads.push_back(rack::bench::read_first_line("/proc/loadavg"));
         std::printf("bench_jitter: round %d: %s for %d s, phase %s (loadavg %s)\n", r + 1, side.name.c_str(), secs,
                     o.phase_us >= 0 ? (std::to_string(o.phase_us) + " us").c_str() : "free", side.loads.back().c_str());
         std::fflush(stdout);
         Side segment;
-        if (rack_now) run_rack_segment(o, caps, secs, segment);
+        if (bare_now) run_bare_segment(o, secs, segment);
+        else if (rack_now) run_rack_segment(o, caps, secs, segment);
         else run_cyclictest_segment(o, secs, segment);
         add_segment(side, segment);
         side.loads.push_back(rack::bench::read_first_line("/proc/loadavg"));
@@ -542,6 +626,7 @@ int main(int argc, char** argv) {
   }
   if (o.modeswitch) rt::modeswitch::stop();
   rack_side.p = rack::bench::percentiles_of_histogram(rack_side.histogram, rack_side.max_ns);
+  bare_side.p = rack::bench::percentiles_of_histogram(bare_side.histogram, bare_side.max_ns);
   ct_side.p = rack::bench::percentiles_of_histogram(ct_side.histogram, ct_side.max_ns);
   const RatioStats r99 = ratios(rack_side, ct_side, &Percentiles::p99_ns);
   const RatioStats r999 = ratios(rack_side, ct_side, &Percentiles::p999_ns);
@@ -555,7 +640,9 @@ int main(int argc, char** argv) {
               o.priority, o.cpu, o.seconds, o.load_name.c_str());
   std::printf("%-12s %10s %8s %8s %8s %8s %8s %10s %9s\n", "side (us)", "samples", "min", "p50", "p99", "p99.9", "max",
               "mean", "overruns");
-  for (const Side* s : {&rack_side, &ct_side}) {
+  std::vector<const Side*> shown{&rack_side, &ct_side};
+  if (o.bare_side) shown.push_back(&bare_side);
+  for (const Side* s : shown) {
     std::printf("%-12s %10llu %8.0f %8.0f %8.0f %8.0f %8.1f %10.1f %9llu\n", s->name.c_str(),
                 static_cast<unsigned long long>(s->p.samples), rack::bench::us(s->p.min_ns),
                 rack::bench::us(s->p.p50_ns), rack::bench::us(s->p.p99_ns), rack::bench::us(s->p.p999_ns),
@@ -595,6 +682,18 @@ int main(int argc, char** argv) {
       r99.per_round.size(), r99.median, r99.min, r99.max, kTargetP99, r99.median <= kTargetP99 ? "met" : "MISSED",
       r999.median, r999.min, r999.max, kTargetP999, r999.median <= kTargetP999 ? "met" : "MISSED", r50.median);
   print_coarse(rack_side, ct_side);
+  if (o.bare_side) {
+    const RatioStats b99 = ratios(bare_side, ct_side, &Percentiles::p99_ns);
+    const RatioStats b50 = ratios(bare_side, ct_side, &Percentiles::p50_ns);
+    const RatioStats rb99 = ratios(rack_side, bare_side, &Percentiles::p99_ns);
+    std::printf(
+        "bare side (cyclictest's loop in this process): median per-round ratio bare / cyclictest p50 %.2fx, "
+        "p99 %.2fx (range %.2f-%.2f); rack-rt / bare p99 %.2fx (range %.2f-%.2f); means rack-rt %.1f, bare %.1f, "
+        "cyclictest %.1f us\n",
+        b50.median, b99.median, b99.min, b99.max, rb99.median, rb99.min, rb99.max, rack::bench::us(rack_side.p.mean_ns),
+        rack::bench::us(bare_side.p.mean_ns), rack::bench::us(ct_side.p.mean_ns));
+    print_coarse(bare_side, ct_side);
+  }
   std::printf("bench_jitter: loadavg after: %s\n", load_after.c_str());
 
   if (!o.json.empty()) {
