@@ -6,9 +6,12 @@
 #     SUMMARY "Monte Carlo localisation ..."      # one line for --list-classes
 #     TYPE rack::components::Mcl                  # the Component subclass (the factory)
 #     HEADER mcl.h                                # declares TYPE (relative to the folder)
-#     [DATA rack::interfaces::declared::kMcl]     # its sample type (DataTypeInfo), if any
-#     [COMMANDS rack::interfaces::declared::kMclCommands]  # its class commands (CommandInfo[])
-#     [DECLARES header.h ...]                     # headers that declare DATA and COMMANDS
+#     [DATA rack::components::kMclType]           # its sample type (DataTypeInfo), if any
+#     [COMMANDS rack::components::kMclCommands]   # its class commands (CommandInfo[])
+#     [DECLARES mcl_types.h ...]                  # headers that declare DATA and COMMANDS:
+#                                                 # in the folder (relative to it), or an
+#                                                 # interface several folders share
+#                                                 # (rack/interfaces/declared_types.h)
 #     [SOURCES a.cpp ...]                         # relative to the folder
 #     [LIBS target ...]                           # linked PRIVATE
 #     [PLUGIN module]                             # a plug-in (below), else built in
@@ -57,6 +60,16 @@ function(rack_add_class)
   if(C_COMMANDS)
     set(commands "std::span<const rack::CommandInfo>(${C_COMMANDS})")
   endif()
+  # A DECLARES header in the folder is named relative to it (mcl_types.h); others by
+  # their include path (rack/interfaces/declared_types.h, shared interfaces).
+  set(declares "")
+  foreach(h IN LISTS C_DECLARES)
+    if(NOT IS_ABSOLUTE "${h}" AND EXISTS "${CMAKE_CURRENT_SOURCE_DIR}/${h}")
+      set(h "${CMAKE_CURRENT_SOURCE_DIR}/${h}")
+    endif()
+    list(APPEND declares "${h}")
+  endforeach()
+  set(C_DECLARES "${declares}")
   set(includes "#include \"${CMAKE_CURRENT_SOURCE_DIR}/${C_HEADER}\"\n")
   foreach(h IN LISTS C_DECLARES)
     string(APPEND includes "#include \"${h}\"\n")

@@ -1,0 +1,14 @@
+// Monitor's declaration (rack_add_class DATA in CMakeLists.txt): the sample type it
+// publishes (rack/interfaces/demo.h's MonitorData).
+//
+// Real-time contract: constant data; reading it is RT-safe.
+#pragma once
+
+#include "rack/core/class_types.h"
+#include "rack/interfaces/demo.h"
+
+namespace rack::components {
+
+inline constexpr DataTypeInfo kMonitorType = data_type_info<interfaces::MonitorData>("MonitorData");
+
+}  // namespace rack::components
