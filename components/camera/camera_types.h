@@ -13,6 +13,8 @@ namespace rack::components {
 inline constexpr ValueName kCameraFormatNames[] = {
     {interfaces::kCameraRgb8, "RGB8"}, {interfaces::kCameraMono8, "MONO8"}, {interfaces::kCameraJpeg, "JPEG"}};
 inline constexpr FieldValueNames kCameraNames[] = {{"format", kCameraFormatNames}};
-inline constexpr DataTypeInfo kCameraType = data_type_info<interfaces::CameraData>("CameraData", kCameraNames);
+inline constexpr FieldUnit kCameraUnits[] = {{"fx", "px"}, {"fy", "px"}, {"cx", "px"}, {"cy", "px"}};
+inline constexpr DataTypeInfo kCameraType = data_type_info<interfaces::CameraData>("CameraData", kCameraNames,
+                                                                                   kCameraUnits);
 
 }  // namespace rack::components

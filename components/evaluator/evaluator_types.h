@@ -10,6 +10,13 @@
 
 namespace rack::components {
 
-inline constexpr DataTypeInfo kEvaluatorType = data_type_info<interfaces::EvaluatorData>("EvaluatorData");
+inline constexpr FieldUnit kEvaluatorUnits[] = {{"distance", "m"},         {"position_error", "m"},
+                                                {"position_rms", "m"},     {"position_p95", "m"},
+                                                {"position_max", "m"},     {"position_heading_rms", "rad"},
+                                                {"mcl_error", "m"},        {"mcl_rms", "m"},
+                                                {"mcl_p95", "m"},          {"mcl_max", "m"},
+                                                {"mcl_heading_rms", "rad"}};
+inline constexpr DataTypeInfo kEvaluatorType = data_type_info<interfaces::EvaluatorData>("EvaluatorData", {},
+                                                                                         kEvaluatorUnits);
 
 }  // namespace rack::components

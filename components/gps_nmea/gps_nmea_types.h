@@ -16,6 +16,9 @@ inline constexpr ValueName kGpsFixQualityNames[] = {{interfaces::kGpsFixNone, "N
                                                     {interfaces::kGpsFixRtkFloat, "RTK_FLOAT"}};
 inline constexpr ValueName kGpsFixModeNames[] = {{1, "NONE"}, {2, "2D"}, {3, "3D"}};  // GSA's mode (devices.h)
 inline constexpr FieldValueNames kGpsNames[] = {{"fix_quality", kGpsFixQualityNames}, {"fix_mode", kGpsFixModeNames}};
-inline constexpr DataTypeInfo kGpsType = data_type_info<interfaces::GpsData>("GpsData", kGpsNames);
+inline constexpr FieldUnit kGpsUnits[] = {
+    {"latitude_deg", "deg"}, {"longitude_deg", "deg"}, {"altitude", "m"}, {"speed", "m/s"}, {"course_deg", "deg"},
+    {"utm_easting", "m"},    {"utm_northing", "m"},    {"x", "m"},        {"y", "m"},       {"utc_ns", "ns"}};
+inline constexpr DataTypeInfo kGpsType = data_type_info<interfaces::GpsData>("GpsData", kGpsNames, kGpsUnits);
 
 }  // namespace rack::components

@@ -9,6 +9,8 @@
 
 namespace rack::components {
 
-inline constexpr DataTypeInfo kJoystickType = data_type_info<interfaces::JoystickData>("JoystickData");
+inline constexpr FieldUnit kJoystickUnits[] = {{"vx", "m/s"}, {"omega", "rad/s"}, {"free_ahead", "m"}};
+inline constexpr DataTypeInfo kJoystickType = data_type_info<interfaces::JoystickData>("JoystickData", {},
+                                                                                       kJoystickUnits);
 
 }  // namespace rack::components

@@ -10,7 +10,10 @@
 
 namespace rack::components {
 
-inline constexpr DataTypeInfo kMclType = data_type_info<interfaces::MclData>("MclData");
+inline constexpr FieldUnit kMclUnits[] = {
+    {"x", "m"},          {"y", "m"},          {"phi", "rad"},         {"scan_time_ns", "ns"},
+    {"particle_x", "m"}, {"particle_y", "m"}, {"particle_phi", "rad"}};
+inline constexpr DataTypeInfo kMclType = data_type_info<interfaces::MclData>("MclData", {}, kMclUnits);
 inline constexpr DataTypeInfo kMclInitBody = data_type_info<interfaces::MclInit>("MclInit");
 inline constexpr CommandInfo kMclCommands[] = {
     {"INIT", interfaces::kMclInit, &kMclInitBody,

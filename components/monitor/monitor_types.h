@@ -9,6 +9,7 @@
 
 namespace rack::components {
 
-inline constexpr DataTypeInfo kMonitorType = data_type_info<interfaces::MonitorData>("MonitorData");
+inline constexpr FieldUnit kMonitorUnits[] = {{"latency_ns", "ns"}, {"latency_max_ns", "ns"}, {"real_period_ns", "ns"}};
+inline constexpr DataTypeInfo kMonitorType = data_type_info<interfaces::MonitorData>("MonitorData", {}, kMonitorUnits);
 
 }  // namespace rack::components

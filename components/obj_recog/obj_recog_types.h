@@ -13,6 +13,13 @@ namespace rack::components {
 inline constexpr ValueName kObjFrameNames[] = {{interfaces::kObjFrameCamera, "CAMERA"},
                                                {interfaces::kObjFrameRobot, "ROBOT"}};
 inline constexpr FieldValueNames kObjRecogNames[] = {{"frame", kObjFrameNames}};
-inline constexpr DataTypeInfo kObjRecogType = data_type_info<interfaces::ObjRecogData>("ObjRecogData", kObjRecogNames);
+inline constexpr FieldUnit kObjRecogUnits[] = {
+    {"process_ms", "ms"},  {"x", "m"},        {"y", "m"},        {"z", "m"},
+    {"roll", "rad"},       {"pitch", "rad"},  {"yaw", "rad"},    {"vx", "m/s"},
+    {"vy", "m/s"},         {"vz", "m/s"},     {"size_x", "m"},   {"size_y", "m"},
+    {"size_z", "m"},       {"image_x", "px"}, {"image_y", "px"}, {"image_width", "px"},
+    {"image_height", "px"}};
+inline constexpr DataTypeInfo kObjRecogType = data_type_info<interfaces::ObjRecogData>("ObjRecogData", kObjRecogNames,
+                                                                                       kObjRecogUnits);
 
 }  // namespace rack::components

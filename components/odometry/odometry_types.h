@@ -10,7 +10,10 @@
 
 namespace rack::components {
 
-inline constexpr DataTypeInfo kOdometryType = data_type_info<interfaces::OdometryData>("OdometryData");
+inline constexpr FieldUnit kOdometryUnits[] = {{"x", "m"},    {"y", "m"},         {"phi", "rad"},
+                                               {"vx", "m/s"}, {"omega", "rad/s"}, {"distance", "m"}};
+inline constexpr DataTypeInfo kOdometryType = data_type_info<interfaces::OdometryData>("OdometryData", {},
+                                                                                       kOdometryUnits);
 inline constexpr CommandInfo kOdometryCommands[] = {{"RESET", interfaces::kOdometryReset, nullptr, "the pose to zero"}};
 
 }  // namespace rack::components

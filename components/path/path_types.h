@@ -10,7 +10,9 @@
 
 namespace rack::components {
 
-inline constexpr DataTypeInfo kPathType = data_type_info<interfaces::PathData>("PathData");
+inline constexpr FieldUnit kPathUnits[] = {
+    {"length", "m"}, {"waypoint_x", "m"}, {"waypoint_y", "m"}, {"x", "m"}, {"y", "m"}};
+inline constexpr DataTypeInfo kPathType = data_type_info<interfaces::PathData>("PathData", {}, kPathUnits);
 inline constexpr DataTypeInfo kPathMakeBody = data_type_info<interfaces::PathMake>("PathMake");
 inline constexpr CommandInfo kPathCommands[] = {
     {"MAKE", interfaces::kPathMake, &kPathMakeBody,

@@ -32,7 +32,11 @@ inline constexpr ValueName kStatus[] = {{u(PilotStatus::kIdle), "IDLE"},
 }  // namespace pilot_names
 
 inline constexpr FieldValueNames kPilotNames[] = {{"mode", pilot_names::kMode}, {"status", pilot_names::kStatus}};
-inline constexpr DataTypeInfo kPilotType = data_type_info<interfaces::PilotData>("PilotData", kPilotNames);
+inline constexpr FieldUnit kPilotUnits[] = {{"target_x", "m"},     {"target_y", "m"},   {"pose_x", "m"},
+                                            {"pose_y", "m"},       {"pose_phi", "rad"}, {"distance_to_target", "m"},
+                                            {"vx", "m/s"},         {"omega", "rad/s"},  {"obstacle_distance", "m"},
+                                            {"speed_limit", "m/s"}};
+inline constexpr DataTypeInfo kPilotType = data_type_info<interfaces::PilotData>("PilotData", kPilotNames, kPilotUnits);
 inline constexpr DataTypeInfo kPilotDestinationBody = data_type_info<interfaces::PilotDestination>("PilotDestination");
 inline constexpr CommandInfo kPilotCommands[] = {
     {"SET_DESTINATION", interfaces::kPilotSetDestination, &kPilotDestinationBody, "drive straight to x, y (m)"},

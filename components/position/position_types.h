@@ -10,7 +10,15 @@
 
 namespace rack::components {
 
-inline constexpr DataTypeInfo kPositionType = data_type_info<interfaces::PositionData>("PositionData");
+inline constexpr FieldUnit kPositionUnits[] = {{"x", "m"},
+                                               {"y", "m"},
+                                               {"phi", "rad"},
+                                               {"var_x", "m^2"},
+                                               {"var_y", "m^2"},
+                                               {"var_phi", "rad^2"},
+                                               {"reference_time_ns", "ns"}};
+inline constexpr DataTypeInfo kPositionType = data_type_info<interfaces::PositionData>("PositionData", {},
+                                                                                       kPositionUnits);
 inline constexpr DataTypeInfo kPositionUpdateBody = data_type_info<interfaces::PositionUpdate>("PositionUpdate");
 inline constexpr CommandInfo kPositionCommands[] = {
     {"UPDATE", interfaces::kPositionUpdate, &kPositionUpdateBody, "the robot was at x, y, phi at time_ns (host time)"}};

@@ -15,7 +15,10 @@ inline constexpr ValueName kScan3dModeNames[] = {{interfaces::kScan3dModeRoll, "
                                                  {interfaces::kScan3dModeYaw, "YAW"},
                                                  {interfaces::kScan3dModeFile, "FILE"}};
 inline constexpr FieldValueNames kScan3dNames[] = {{"mode", kScan3dModeNames}};
-inline constexpr DataTypeInfo kScan3dType = data_type_info<interfaces::Scan3dData>("Scan3dData", kScan3dNames);
+inline constexpr FieldUnit kScan3dUnits[] = {
+    {"duration_ns", "ns"}, {"process_ms", "ms"}, {"x", "m"}, {"y", "m"}, {"z", "m"}};
+inline constexpr DataTypeInfo kScan3dType = data_type_info<interfaces::Scan3dData>("Scan3dData", kScan3dNames,
+                                                                                   kScan3dUnits);
 inline constexpr DataTypeInfo kScan3dRangeImageRequestBody = data_type_info<interfaces::Scan3dRangeImageRequest>(
     "Scan3dRangeImageRequest");
 inline constexpr DataTypeInfo kScan3dStoreDataBody = data_type_info<interfaces::Scan3dStoreData>("Scan3dStoreData");

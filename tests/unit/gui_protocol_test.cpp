@@ -386,10 +386,10 @@ TEST(GuiProtocolTest, CommandOpTakesANameAndAnObjectBody) {
 TEST(GuiProtocolTest, CommandBodyIsEncodedOnlyWhenEveryFieldFits) {
   TypeDescription t;
   t.name = "Body";
-  t.fields = {{"x", tims::FieldKind::kF64, 0, 1},
-              {"n", tims::FieldKind::kU8, 8, 1},
-              {"v", tims::FieldKind::kF32, 12, 3},
-              {"label", tims::FieldKind::kChar, 24, 8}};
+  t.fields = {{"x", tims::FieldKind::kF64, 0, 1, ""},
+              {"n", tims::FieldKind::kU8, 8, 1, ""},
+              {"v", tims::FieldKind::kF32, 12, 3, ""},
+              {"label", tims::FieldKind::kChar, 24, 8, ""}};
   t.size = 32;
   std::vector<std::byte> out;
   ASSERT_EQ(encode_command_body(nlohmann::json::parse(R"({"x":1.5,"n":7,"v":[1,2],"label":"ab"})"), &t, out), "");

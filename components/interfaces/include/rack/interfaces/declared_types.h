@@ -19,16 +19,30 @@
 namespace rack::interfaces::declared {
 
 template <typename T>
-inline constexpr DataTypeInfo info(const char* name, std::span<const FieldValueNames> value_names = {}) {
-  return data_type_info<T>(name, value_names);
+inline constexpr DataTypeInfo info(const char* name, std::span<const FieldValueNames> value_names = {},
+                                   std::span<const FieldUnit> units = {}) {
+  return data_type_info<T>(name, value_names, units);
 }
 
 // The pilot whose commands the chassis follows: a TiMS address (0: none).
 inline constexpr FieldValueNames kChassisNames[] = {{"active_pilot", {}, true}};
 
-inline constexpr DataTypeInfo kChassis = info<ChassisData>("ChassisData", kChassisNames);
-inline constexpr DataTypeInfo kLadar = info<LadarData>("LadarData");
-inline constexpr DataTypeInfo kScan2d = info<Scan2dData>("Scan2dData");
+// The units of the fields (rack/interfaces/robot.h's comments); the servo axis' unit is
+// its driver's (metres or radians), so ServoDriveData declares none.
+inline constexpr FieldUnit kChassisUnits[] = {{"delta_x", "m"},    {"delta_y", "m"}, {"delta_phi", "rad"},
+                                              {"vx", "m/s"},       {"vy", "m/s"},    {"omega", "rad/s"},
+                                              {"battery", "V"},    {"truth_x", "m"}, {"truth_y", "m"},
+                                              {"truth_phi", "rad"}};
+inline constexpr FieldUnit kLadarUnits[] = {{"duration_ns", "ns"},  {"max_range", "m"},    {"min_range", "m"},
+                                            {"start_angle", "rad"}, {"angle_step", "rad"}, {"range", "m"}};
+inline constexpr FieldUnit kScan2dUnits[] = {
+    {"duration_ns", "ns"},   {"max_range", "m"}, {"odometry_x", "m"}, {"odometry_y", "m"},
+    {"odometry_phi", "rad"}, {"x", "m"},         {"y", "m"},          {"range", "m"},
+    {"bearing", "rad"}};
+
+inline constexpr DataTypeInfo kChassis = info<ChassisData>("ChassisData", kChassisNames, kChassisUnits);
+inline constexpr DataTypeInfo kLadar = info<LadarData>("LadarData", {}, kLadarUnits);
+inline constexpr DataTypeInfo kScan2d = info<Scan2dData>("Scan2dData", {}, kScan2dUnits);
 inline constexpr DataTypeInfo kServoDrive = info<ServoDriveData>("ServoDriveData");
 
 // Bodies of class commands.
