@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "rack/components/builtin.h"
+#include "rack/components/class_ids.h"
 #include "rack/core/class_description.h"
 #include "rack/core/data_component.h"
 #include "rack/core/registry.h"
@@ -425,7 +426,7 @@ components:
   ASSERT_TRUE(decode_class_description(assembler.bytes(), d, error)) << error;
   EXPECT_EQ(d.impl, "Generator");
   EXPECT_EQ(d.class_name, "Generator");
-  EXPECT_EQ(d.class_id, tims::classes::kGenerator);
+  EXPECT_EQ(d.class_id, class_ids::kGenerator);
   ASSERT_TRUE(d.data.has_value());
   EXPECT_NE(d.find_parameter(Component::kLogLevelParam), nullptr);
   ASSERT_NE(d.find_parameter("frequency_hz"), nullptr);
