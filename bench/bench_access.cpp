@@ -38,6 +38,7 @@
 #include <vector>
 
 #include "bench_common.h"
+#include "rack/components/class_ids.h"
 #include "rack/rt/clock.h"
 #include "rack/rt/memory.h"
 #include "rack/rt/thread.h"
@@ -66,8 +67,8 @@ constexpr std::size_t kSmall = 64;
 constexpr std::size_t kLarge = 100 * 1024;
 constexpr int kBlock = 200;
 
-constexpr Address kDest = Address::make(0, tims::classes::kChassis, 0, 0);
-constexpr Address kSrc = Address::make(0, tims::classes::kPilot, 0, 0);
+constexpr Address kDest = Address::make(0, class_ids::kChassis, 0, 0);
+constexpr Address kSrc = Address::make(0, class_ids::kPilot, 0, 0);
 
 tims::AccessConfig sixteen_rules() {
   tims::AccessConfig c;
@@ -188,7 +189,7 @@ struct Side {
   tims::Mailbox box;
   std::unique_ptr<tims::LcmTransport> transport;
   Side(uint8_t system, const std::string& url, const std::string& key, std::size_t slot)
-      : router(system), box(Address::make(system, tims::classes::kProbe, 0, 0), 8, static_cast<uint32_t>(slot)) {
+      : router(system), box(Address::make(system, class_ids::kProbe, 0, 0), 8, static_cast<uint32_t>(slot)) {
     router.add(box);
     tims::LcmTransportConfig c;
     tims::NetworkConfig n;

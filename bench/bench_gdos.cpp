@@ -33,6 +33,7 @@
 
 #include "bench_common.h"
 #include "rack/components/builtin.h"
+#include "rack/components/class_ids.h"
 #include "rack/core/data_component.h"
 #include "rack/core/executor.h"
 #include "rack/core/gdos.h"
@@ -172,7 +173,7 @@ std::vector<RateResult> measure_rates(const Options& o, const std::string& url) 
   ComponentRegistry registry;
   ComponentClass cls;
   cls.impl = "FloodLogger";
-  cls.class_id = tims::classes::kGenerator;
+  cls.class_id = class_ids::kGenerator;
   cls.description = "bench";
   cls.make = [] { return std::unique_ptr<Component>(new FloodLogger()); };
   registry.add(std::move(cls));
@@ -320,8 +321,8 @@ int main(int argc, char** argv) {
   const std::string url = "udpm://239.255.76.67:" + std::to_string(o.port) + "?ttl=0";
 
   // Part 1.
-  const tims::Address dest = tims::Address::make(0, tims::classes::kPosition, 2);
-  gdos::LogSource src(tims::Address::make(0, tims::classes::kLadar, 1), "ladar", gdos::Level::kInfo);
+  const tims::Address dest = tims::Address::make(0, class_ids::kPosition, 2);
+  gdos::LogSource src(tims::Address::make(0, class_ids::kLadar, 1), "ladar", gdos::Level::kInfo);
   std::vector<CostResult> costs;
   char buf[256];
   costs.push_back(measure_cost(

@@ -46,6 +46,7 @@
 
 #include "bench_common.h"
 #include "rack/components/builtin.h"
+#include "rack/components/class_ids.h"
 #include "rack/core/executor.h"
 #include "rack/core/host_config.h"
 #include "rack/rt/capabilities.h"
@@ -339,7 +340,7 @@ constexpr uint32_t kLargeSlots = 8;
 struct TimsHost {
   TimsHost(uint8_t system, const std::string& url, tims::Compression c, uint32_t inbox_slot)
       : router(system),
-        inbox(tims::Address::make(system, tims::classes::kScan3d, 0, 3), kReceiverQueue, inbox_slot),
+        inbox(tims::Address::make(system, rack::class_ids::kScan3d, 0, 3), kReceiverQueue, inbox_slot),
         reply(tims::Address::make(system, tims::classes::kTool, 1, 1), 8, 64 * 1024) {
     tims::LcmTransportConfig cfg;
     tims::NetworkConfig n;
@@ -601,7 +602,7 @@ int main(int argc, char** argv) {
 
     // ------------------------------------------------------------ RPC
     tims::Endpoint ep(tool->router, tool->reply, 10);
-    const tims::Address gen = tims::Address::make(0, tims::classes::kGenerator, 0);
+    const tims::Address gen = tims::Address::make(0, rack::class_ids::kGenerator, 0);
     std::vector<std::byte> buf(64 * 1024);
     const std::vector<uint8_t> ping(64, 0x5a);
     std::vector<int64_t> rack_rt, lcm_rt;

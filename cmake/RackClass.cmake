@@ -6,14 +6,20 @@
 #     SUMMARY "Monte Carlo localisation ..."      # one line for --list-classes
 #     TYPE rack::components::Mcl                  # the Component subclass (the factory)
 #     HEADER mcl.h                                # declares TYPE (relative to the folder)
-#     [DATA rack::interfaces::declared::kMcl]     # its sample type (DataTypeInfo), if any
-#     [COMMANDS rack::interfaces::declared::kMclCommands]  # its class commands (CommandInfo[])
-#     [DECLARES header.h ...]                     # headers that declare DATA and COMMANDS
+#     [DATA rack::components::kMclType]           # its sample type (DataTypeInfo), if any
+#     [COMMANDS rack::components::kMclCommands]   # its class commands (CommandInfo[])
+#     [DECLARES mcl_types.h ...]                  # headers that declare DATA and COMMANDS:
+#                                                 # in the folder (relative to it), or an
+#                                                 # interface several folders share
+#                                                 # (rack/interfaces/declared_types.h)
 #     [SOURCES a.cpp ...]                         # relative to the folder
 #     [LIBS target ...]                           # linked PRIVATE
 #     [PLUGIN module]                             # a plug-in (below), else built in
-#     [UNLOCKED_DEPENDENCIES])                    # plug-in: its libraries run only in
+#     [UNLOCKED_DEPENDENCIES]                     # plug-in: its libraries run only in
 #                                                 # non-RT work; rackd leaves them unlocked
+#     [UNAVAILABLE "reason"])                     # cannot be built here (a library is
+#                                                 # missing): a warning with the reason; its
+#                                                 # id is still in class_ids.h
 #
 # Built-in classes are compiled into rack_components and registered by the generated
 # rack::components::register_builtin() (rack_generate_builtin_classes(), called once
@@ -23,6 +29,12 @@
 # <build>/plugins, which rackd searches when run from the build tree) with a manifest
 # <NAME>.rack-class per class, and installed to ${CMAKE_INSTALL_LIBDIR}/rack/plugins.
 # rackd loads a plug-in only when a host file names one of its classes.
+#
+# The TiMS class id of every class of the tree is generated into
+# rack/components/class_ids.h (target rack::class_ids; rack::components brings it):
+# rack::class_ids::k<TiMS class name> (kChassis, kScan2d for Scan2D, kMcl for MCL),
+# for code that addresses a class by number (tests, bench, rack-gui's panels). tims/
+# knows no class id but its own (kExecutor, kTool, kFirstUser).
 #
 # Each declaration is also recorded for the transitional class table that tools link
 # (rack::interfaces data_type_for_class/commands_for_class and the TiMS class names)
@@ -34,7 +46,8 @@ set(RACK_PLUGIN_BUILD_DIR "${CMAKE_BINARY_DIR}/plugins" CACHE INTERNAL "plug-ins
 set(RACK_PLUGIN_INSTALL_DIR "${CMAKE_INSTALL_FULL_LIBDIR}/rack/plugins" CACHE INTERNAL "installed plug-ins")
 
 function(rack_add_class)
-  cmake_parse_arguments(PARSE_ARGV 0 C "UNLOCKED_DEPENDENCIES" "NAME;ID;INTERFACE;SUMMARY;TYPE;HEADER;DATA;COMMANDS;PLUGIN;OUTPUT_DIR"
+  cmake_parse_arguments(PARSE_ARGV 0 C "UNLOCKED_DEPENDENCIES"
+                        "NAME;ID;INTERFACE;SUMMARY;TYPE;HEADER;DATA;COMMANDS;PLUGIN;OUTPUT_DIR;UNAVAILABLE"
                         "SOURCES;LIBS;DECLARES")
   foreach(required NAME ID TYPE HEADER SUMMARY)
     if(NOT C_${required})
@@ -48,6 +61,21 @@ function(rack_add_class)
   if(id_value LESS 3 OR id_value GREATER 254)
     message(FATAL_ERROR "rack_add_class(${C_NAME}): ID ${C_ID} must be 3..254 (1, 2 are the executor and tools)")
   endif()
+  # Its id for rack/components/class_ids.h (rack_generate_builtin_classes), named after
+  # its TiMS class name: classes of the tree only (a test's or an out-of-tree class
+  # declares its own).
+  if(NOT C_OUTPUT_DIR)
+    set(id_name "${C_INTERFACE}")
+    if(NOT id_name)
+      set(id_name "${C_NAME}")
+    endif()
+    file(RELATIVE_PATH folder "${PROJECT_SOURCE_DIR}" "${CMAKE_CURRENT_SOURCE_DIR}")
+    set_property(GLOBAL APPEND PROPERTY RACK_CLASS_IDS "${id_name}|${id_value}|${C_NAME}|${folder}")
+  endif()
+  if(C_UNAVAILABLE)
+    message(WARNING "${C_UNAVAILABLE}: the ${C_NAME} class is not built")
+    return()
+  endif()
   string(REPLACE "\"" "\\\"" summary "${C_SUMMARY}")
   set(data "nullptr")
   if(C_DATA)
@@ -57,6 +85,16 @@ function(rack_add_class)
   if(C_COMMANDS)
     set(commands "std::span<const rack::CommandInfo>(${C_COMMANDS})")
   endif()
+  # A DECLARES header in the folder is named relative to it (mcl_types.h); others by
+  # their include path (rack/interfaces/declared_types.h, shared interfaces).
+  set(declares "")
+  foreach(h IN LISTS C_DECLARES)
+    if(NOT IS_ABSOLUTE "${h}" AND EXISTS "${CMAKE_CURRENT_SOURCE_DIR}/${h}")
+      set(h "${CMAKE_CURRENT_SOURCE_DIR}/${h}")
+    endif()
+    list(APPEND declares "${h}")
+  endforeach()
+  set(C_DECLARES "${declares}")
   set(includes "#include \"${CMAKE_CURRENT_SOURCE_DIR}/${C_HEADER}\"\n")
   foreach(h IN LISTS C_DECLARES)
     string(APPEND includes "#include \"${h}\"\n")
@@ -173,6 +211,8 @@ endfunction()
 # rack::components::register_builtin() and the transitional class table, from every
 # declaration made so far. Called once, after the class folders are added.
 function(rack_generate_builtin_classes builtin_target table_target)
+  _rack_generate_class_ids()
+  target_link_libraries(${builtin_target} PUBLIC rack::class_ids)
   get_property(names GLOBAL PROPERTY RACK_BUILTIN_CLASSES)
   set(decls "")
   set(calls "")
@@ -255,4 +295,91 @@ std::span<const CommandInfo> commands_for_class(uint8_t class_id) noexcept {
 }  // namespace rack::interfaces
 " @ONLY)
   target_sources(${table_target} PRIVATE "${file}")
+endfunction()
+
+# kChassis for Chassis, kScan2d for Scan2D, kMcl for MCL: an upper-case letter that
+# follows an upper-case letter or a digit is lowered (the tree's constant names).
+function(_rack_id_constant out name)
+  string(LENGTH "${name}" n)
+  math(EXPR last "${n} - 1")
+  set(result "k")
+  set(after_upper FALSE)
+  foreach(i RANGE 0 ${last})
+    string(SUBSTRING "${name}" ${i} 1 c)
+    if(c MATCHES "[A-Z]")
+      if(after_upper)
+        string(TOLOWER "${c}" c)
+      endif()
+      set(after_upper TRUE)
+    elseif(c MATCHES "[0-9]")
+      set(after_upper TRUE)
+    else()
+      set(after_upper FALSE)
+    endif()
+    string(APPEND result "${c}")
+  endforeach()
+  set(${out} "${result}" PARENT_SCOPE)
+endfunction()
+
+# rack/components/class_ids.h from every rack_add_class of the tree: one constant per
+# TiMS class name (classes that share an interface share its id; a name with two ids,
+# or an id with two names, is an error here rather than at run time).
+function(_rack_generate_class_ids)
+  get_property(rows GLOBAL PROPERTY RACK_CLASS_IDS)
+  set(by_id "")
+  foreach(row IN LISTS rows)
+    string(REPLACE "|" ";" f "${row}")
+    list(GET f 0 name)
+    list(GET f 1 id)
+    list(GET f 2 impl)
+    list(GET f 3 folder)
+    if(DEFINED id_of_${name} AND NOT id_of_${name} EQUAL id)
+      message(FATAL_ERROR "rack_add_class(${impl}): ${name} has ID ${id} here and ${id_of_${name}} in ${folder_of_${name}}")
+    endif()
+    if(DEFINED name_of_${id} AND NOT name_of_${id} STREQUAL name)
+      message(FATAL_ERROR "rack_add_class(${impl}) in ${folder}: ID ${id} is ${name_of_${id}}'s already")
+    endif()
+    if(NOT DEFINED id_of_${name})
+      list(APPEND by_id "${id}")
+      set(id_of_${name} ${id})
+      set(name_of_${id} ${name})
+      set(folder_of_${name} ${folder})
+    endif()
+    list(APPEND impls_of_${name} "${impl}")
+    list(APPEND folders_of_${name} "${folder}")
+  endforeach()
+  list(SORT by_id COMPARE NATURAL)
+  set(lines "")
+  foreach(id IN LISTS by_id)
+    set(name "${name_of_${id}}")
+    _rack_id_constant(constant "${name}")
+    math(EXPR hex "${id}" OUTPUT_FORMAT HEXADECIMAL)
+    string(TOUPPER "${hex}" hex)
+    string(REPLACE "0X" "0x" hex "${hex}")
+    list(REMOVE_DUPLICATES folders_of_${name})
+    list(JOIN impls_of_${name} ", " impls)
+    list(JOIN folders_of_${name} " " folders)
+    string(APPEND lines "inline constexpr uint8_t ${constant} = ${hex};  // ${name}: ${impls} (${folders})\n")
+  endforeach()
+  set(dir "${CMAKE_BINARY_DIR}/rack_classes/include")
+  file(CONFIGURE OUTPUT "${dir}/rack/components/class_ids.h" CONTENT "// Generated by rack_generate_builtin_classes (cmake/RackClass.cmake) from the
+// rack_add_class declarations of the tree: the TiMS class id of each class name, for
+// code that addresses a class by number (tests, bench, rack-gui's panels). Classes
+// that share an interface (Chassis) share its id. tims/ knows no class but its own.
+//
+// Real-time contract: constants.
+#pragma once
+
+#include <cstdint>
+
+namespace rack::class_ids {
+
+${lines}
+}  // namespace rack::class_ids
+" @ONLY)
+  if(NOT TARGET rack_class_ids)
+    add_library(rack_class_ids INTERFACE)
+    add_library(rack::class_ids ALIAS rack_class_ids)
+    target_include_directories(rack_class_ids INTERFACE $<BUILD_INTERFACE:${dir}>)
+  endif()
 endfunction()

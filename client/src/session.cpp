@@ -202,7 +202,7 @@ const ClassDescription* Session::describe(tims::Address component) {
   while (!pages.complete()) {
     ClassPageRequest q;
     q.offset = pages.next_offset();
-    q.sections = kClassSectionValueNames;  // the names of enum values and address fields
+    q.sections = kClassSectionValueNames | kClassSectionFieldUnits;  // enum and address names, field units
     const tims::ConstBuffer part = tims::buffer_of(q);
     const tims::CallResult r = call(component.component(), msg::kGetClass,
                                     std::span<const tims::ConstBuffer>(&part, 1));

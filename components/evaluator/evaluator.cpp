@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "common/pose2d.h"
+#include "rack/components/class_ids.h"
 #include "rack/interfaces/robot.h"
 
 namespace rack::components {
@@ -134,12 +135,12 @@ bool Evaluator::take(const tims::MessageHeader& h, std::span<const std::byte> bo
     truth_[truth_next_] = last_truth_;
     truth_next_ = (truth_next_ + 1) % kTruthSlots;
     if (truth_count_ < kTruthSlots) ++truth_count_;
-  } else if (source_class == tims::classes::kPosition) {
+  } else if (source_class == class_ids::kPosition) {
     PositionData d;
     if (!read_sample(h, body, sh, d)) return false;
     got = true;
     evaluate(position_stats_, sh.time_ns, d.x, d.y, d.phi);
-  } else if (source_class == tims::classes::kMcl) {
+  } else if (source_class == class_ids::kMcl) {
     MclData d;
     if (!read_sample(h, body, sh, d)) return false;
     got = true;

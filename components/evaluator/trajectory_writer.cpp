@@ -13,6 +13,7 @@
 #include <stdexcept>
 
 #include "common/pose2d.h"
+#include "rack/components/class_ids.h"
 #include "rack/interfaces/robot.h"
 
 namespace rack::components {
@@ -166,11 +167,11 @@ bool TrajectoryWriter::take(const tims::MessageHeader& h, std::span<const std::b
   wire::SampleHeader sh;
   TimedPose p;
   const uint8_t cls = h.source().class_id();
-  if (cls == tims::classes::kMcl) {
+  if (cls == class_ids::kMcl) {
     MclData d;
     if (!read_sample(h, body, sh, d)) return false;
     p = {static_cast<double>(d.scan_time_ns != 0 ? d.scan_time_ns : sh.time_ns) * 1e-9, d.x, d.y, d.phi};
-  } else if (cls == tims::classes::kPosition) {
+  } else if (cls == class_ids::kPosition) {
     PositionData d;
     if (!read_sample(h, body, sh, d)) return false;
     p = {static_cast<double>(sh.time_ns) * 1e-9, d.x, d.y, d.phi};

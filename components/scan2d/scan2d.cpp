@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "common/pose2d.h"
+#include "rack/components/class_ids.h"
 
 namespace rack::components {
 
@@ -202,7 +203,7 @@ void Scan2d::release(bool flush) noexcept {
 // One DATA message of the input: a scan (held) or an odometry sample (kept).
 bool Scan2d::take(const tims::MessageHeader& h, std::span<const std::byte> body, bool& got_scan) noexcept {
   wire::SampleHeader sh;
-  if (h.source().class_id() == tims::classes::kOdometry && use_odometry_) {
+  if (h.source().class_id() == class_ids::kOdometry && use_odometry_) {
     OdometryData o;
     if (!read_sample(h, body, sh, o)) return false;
     if (std::isfinite(o.x) && std::isfinite(o.y) && std::isfinite(o.phi))

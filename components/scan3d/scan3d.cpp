@@ -9,6 +9,7 @@
 #include <iterator>
 #include <stdexcept>
 
+#include "rack/components/class_ids.h"
 #include "rack/scan3d/pcd_file.h"
 #include "rack/scan3d/scan3d_assembler.h"
 #include "rack/scan3d/scan3d_pipeline.h"
@@ -176,7 +177,7 @@ void Scan3d::init() {
     throw std::runtime_error("'odometry' compensates a ladar on a drive: it needs 'ladar' and 'servo', not 'pcd'");
   if (compensate_) {
     const uint8_t c = resolved(odometry_).class_id();
-    if (c != tims::classes::kOdometry && c != tims::classes::kPosition) {
+    if (c != class_ids::kOdometry && c != class_ids::kPosition) {
       throw std::runtime_error("odometry '" + odometry_.get_string() + "' is " + resolved(odometry_).str() +
                                ", neither an Odometry nor a Position component");
     }
@@ -488,7 +489,7 @@ HookResult Scan3d::loop_ladar(int64_t now) {
         decoded = read_sample(mh, body, sh, *ladar_in_);
       } else if (compensate_ && same_component(mh.source(), odometry)) {
         from = From::kOdometry;
-        if (odometry.class_id() == tims::classes::kPosition) {
+        if (odometry.class_id() == class_ids::kPosition) {
           PositionData p;
           decoded = read_sample(mh, body, sh, p);
           pose = components::Pose2d{p.x, p.y, p.phi};

@@ -69,6 +69,45 @@ std::string value_names_problem(const TypeDescription& data, const std::vector<F
   return "";
 }
 
+// Where the value-names section that starts at `at` ends in `encoded` (this file's own
+// encoding): `at` when it names no field (written only before the units, and never
+// served without them). RT-safe: a bounded walk, no allocation; bytes that do not
+// walk (not this encoder's) end it at the end of `encoded`.
+std::size_t value_names_end(std::span<const std::byte> encoded, std::size_t at) noexcept {
+  std::size_t i = at;
+  bool ok = true;
+  const auto u16 = [&]() -> std::size_t {
+    if (!ok || encoded.size() - i < 2) {
+      ok = false;
+      return 0;
+    }
+    const std::size_t v = std::to_integer<std::size_t>(encoded[i]) |
+                          (std::to_integer<std::size_t>(encoded[i + 1]) << 8);
+    i += 2;
+    return v;
+  };
+  const auto skip = [&](std::size_t n) {
+    if (!ok || encoded.size() - i < n) {
+      ok = false;
+      return;
+    }
+    i += n;
+  };
+  if (at > encoded.size()) return encoded.size();
+  const std::size_t named = u16();
+  if (!ok || named == 0) return at;
+  for (std::size_t f = 0; f < named && ok; ++f) {
+    skip(u16());  // the field's name
+    skip(1);      // flags
+    const std::size_t values = u16();
+    for (std::size_t v = 0; v < values && ok; ++v) {
+      skip(4);      // the value
+      skip(u16());  // its name
+    }
+  }
+  return ok ? i : encoded.size();
+}
+
 // ---------------------------------------------------------------- encoder
 
 class Writer {
@@ -339,8 +378,22 @@ std::vector<std::byte> encode_class_description(const ClassDescription& d, std::
     for (const auto& c : p.choices) w.str(c, kMaxDescriptionText, false, "choice");
   }
   if (base_size != nullptr) *base_size = w.bytes().size();
-  if (!d.value_names.empty()) {
+  std::size_t n_units = 0;
+  for (const auto& c : d.commands) {
+    if (!c.body) continue;
+    for (const auto& f : c.body->fields) {
+      if (!f.unit.empty())
+        throw std::invalid_argument("command '" + c.name + "': field '" + f.name + "' has a unit (data types only)");
+    }
+  }
+  if (d.data) {
+    for (const auto& f : d.data->fields) {
+      if (!f.unit.empty()) ++n_units;
+    }
+  }
+  if (!d.value_names.empty() || n_units > 0) {
     if (!d.data) throw std::invalid_argument("class '" + d.impl + "': value names without a data type");
+    // Empty only before the units (the decoder refuses an empty section at the end).
     w.count(d.value_names.size(), kMaxDescriptionFields, "fields with value names");
     for (std::size_t i = 0; i < d.value_names.size(); ++i) {
       const FieldNamesDescription& n = d.value_names[i];
@@ -353,6 +406,15 @@ std::vector<std::byte> encode_class_description(const ClassDescription& d, std::
         w.u32(v.value);
         w.str(v.name, kMaxDescriptionName, false, "value name");
       }
+    }
+  }
+  if (n_units > 0) {
+    w.count(n_units, kMaxDescriptionFields, "fields with units");
+    for (std::size_t i = 0; i < d.data->fields.size(); ++i) {
+      const FieldDescription& f = d.data->fields[i];
+      if (f.unit.empty()) continue;
+      w.u16(static_cast<uint16_t>(i));
+      w.str(f.unit, kMaxDescriptionName, false, "unit");
     }
   }
   if (w.bytes().size() > kMaxClassDescriptionBytes) {
@@ -449,7 +511,8 @@ bool decode_class_description(std::span<const std::byte> bytes, ClassDescription
     r.set_context("value names");
     if (!out.data) r.fail("value names in a class without a data type");
     const std::size_t n_named = r.count(kMaxDescriptionFields, "fields with value names");
-    if (!r.failed() && n_named == 0) r.fail("the section names no field (it is left out then)");
+    // Empty only when the units follow (otherwise the section is left out).
+    if (!r.failed() && n_named == 0 && r.left() == 0) r.fail("the section names no field (it is left out then)");
     for (std::size_t i = 0; i < n_named && !r.failed(); ++i) {
       r.set_context("value names " + std::to_string(i));
       FieldNamesDescription n;
@@ -469,6 +532,33 @@ bool decode_class_description(std::span<const std::byte> bytes, ClassDescription
       out.value_names.push_back(std::move(n));
       const std::string why = value_names_problem(*out.data, out.value_names, out.value_names.size() - 1);
       if (!why.empty()) r.fail(why);
+    }
+    r.set_context("");
+  }
+  // The field-units section, when the executor served it (asked for and declared).
+  if (!r.failed() && r.left() != 0) {
+    r.set_context("field units");
+    if (!out.data) r.fail("field units in a class without a data type");
+    const std::size_t n_units = r.count(kMaxDescriptionFields, "fields with units");
+    if (!r.failed() && n_units == 0) r.fail("the section gives no unit (it is left out then)");
+    std::size_t next = 0;  // fields in table order, each once: one encoding
+    for (std::size_t i = 0; i < n_units && !r.failed(); ++i) {
+      r.set_context("field units " + std::to_string(i));
+      const uint16_t field = r.u16("field index");
+      const std::string unit = r.str(kMaxDescriptionName, false, "unit");
+      if (r.failed()) break;
+      if (field < next || field >= out.data->fields.size()) {
+        r.fail("field index " + std::to_string(field) + " is not a field of '" + out.data->name + "' after the " +
+               (next == 0 ? std::string("start") : "previous one (" + std::to_string(next - 1) + ")") + " (" +
+               std::to_string(out.data->fields.size()) + " fields)");
+        break;
+      }
+      if (unit.empty()) {
+        r.fail("field '" + out.data->fields[field].name + "' has an empty unit");
+        break;
+      }
+      out.data->fields[field].unit = unit;
+      next = std::size_t{field} + 1;
     }
     r.set_context("");
   }
@@ -523,8 +613,13 @@ const char* class_page(std::span<const std::byte> encoded, std::size_t base_size
   }
   if (encoded.empty()) return "GET_CLASS: this component has no class description";
   // Without the optional sections for a client that does not ask for them.
-  const std::size_t total = (q.sections & kClassSectionValueNames) != 0 ? encoded.size()
-                                                                        : std::min(base_size, encoded.size());
+  const std::size_t base = std::min(base_size, encoded.size());
+  std::size_t total = base;
+  if ((q.sections & kClassSectionFieldUnits) != 0) {
+    total = encoded.size();
+  } else if ((q.sections & kClassSectionValueNames) != 0) {
+    total = value_names_end(encoded, base);
+  }
   if (q.offset >= total) return "GET_CLASS: offset past the end of the description";
   header.total = static_cast<uint32_t>(total);
   header.offset = q.offset;

@@ -328,7 +328,7 @@ TypeDescription describe_type(const DataTypeInfo& t) {
   TypeDescription out;
   out.name = t.type_name != nullptr ? t.type_name : "";
   out.size = t.size;
-  for (const tims::FieldDesc& f : t.fields) out.fields.push_back({f.name, f.kind, f.offset, f.count});
+  for (const tims::FieldDesc& f : t.fields) out.fields.push_back({f.name, f.kind, f.offset, f.count, {}});
   return out;
 }
 }  // namespace
@@ -342,6 +342,19 @@ ClassDescription describe_class(const ComponentClass& cls, const ParameterSet& p
   d.summary = cls.description;
   if (cls.data != nullptr) {
     d.data = describe_type(*cls.data);
+    for (const FieldUnit& u : cls.data->units) {
+      const std::string field = u.field != nullptr ? u.field : "";
+      FieldDescription* f = nullptr;
+      for (auto& c : d.data->fields) {
+        if (c.name == field) f = &c;
+      }
+      if (f == nullptr || !f->unit.empty()) {
+        throw std::invalid_argument("class '" + cls.impl + "': unit of field '" + field + "': '" + d.data->name +
+                                    (f == nullptr ? "' has no such field" : "' gives it a unit twice"));
+      }
+      f->unit = u.unit != nullptr ? u.unit : "";
+      if (f->unit.empty()) throw std::invalid_argument("class '" + cls.impl + "': field '" + field + "': empty unit");
+    }
     for (const FieldValueNames& n : cls.data->value_names) {
       FieldNamesDescription fd;
       fd.field = n.field != nullptr ? n.field : "";

@@ -22,6 +22,7 @@
 
 #include "../unit/test_support.h"
 #include "joystick/obstacle.h"
+#include "rack/components/class_ids.h"
 #include "rack/devices/canopen.h"
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/robot.h"
@@ -286,7 +287,7 @@ TEST_F(ChassisCanTest, OnlyTheActivePilotMovesAndVelocitiesAreClamped) {
   auto r = move(0.3, 0.0);
   EXPECT_EQ(r.type, msg::kError);
   EXPECT_NE(r.error_text().find("no active pilot"), std::string::npos) << r.error_text();
-  ASSERT_EQ(set_pilot(Address::make(0, tims::classes::kPilot, 7, 0).raw()).type, msg::kOk);
+  ASSERT_EQ(set_pilot(Address::make(0, class_ids::kPilot, 7, 0).raw()).type, msg::kOk);
   r = move(0.3, 0.0);
   EXPECT_EQ(r.type, msg::kError);
   EXPECT_NE(r.error_text().find("not the active pilot"), std::string::npos) << r.error_text();

@@ -62,7 +62,7 @@ const rack::TypeDescription& command_type() {
     using K = rack::tims::FieldKind;
     uint32_t offset = 0;
     const auto add = [&](const char* name, K kind, uint32_t count) {
-      t.fields.push_back({name, kind, offset, count});
+      t.fields.push_back({name, kind, offset, count, ""});
       offset += rack::tims::field_kind_size(kind) * count;
     };
     add("f64", K::kF64, 1);

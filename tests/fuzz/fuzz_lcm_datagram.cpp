@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <memory>
 
+#include "rack/components/class_ids.h"
 #include "rack/tims/lcm_transport.h"
 #include "rack/tims/mailbox.h"
 #include "rack/tims/router.h"
@@ -21,7 +22,7 @@ namespace {
 struct World {
   rack::tims::Router router{0};
   // A mailbox of this host (Generator(0/0)'s command mailbox): messages to it are delivered.
-  rack::tims::Mailbox inbox{rack::tims::Address::make(0, rack::tims::classes::kGenerator, 0), 64, 64 * 1024};
+  rack::tims::Mailbox inbox{rack::tims::Address::make(0, rack::class_ids::kGenerator, 0), 64, 64 * 1024};
   std::unique_ptr<rack::tims::LcmTransport> transport;
   World() {
     router.add(inbox);
@@ -33,8 +34,7 @@ struct World {
     rack::tims::HostInfo self;
     self.host = "fuzz";
     self.executor = rack::tims::Address::make(0, rack::tims::classes::kExecutor, 0);
-    self.components.push_back(
-        {rack::tims::Address::make(0, rack::tims::classes::kGenerator, 0), "generator", "Generator"});
+    self.components.push_back({rack::tims::Address::make(0, rack::class_ids::kGenerator, 0), "generator", "Generator"});
     transport->set_announcement(self);
   }
 };

@@ -193,7 +193,13 @@ named = (b"RKCD" + bytes([1, 0x91, 0, 0]) + cd_str("Counter") + cd_str("Counter"
          + cd_str("state") + b"\0" + struct.pack("<H", 3) + struct.pack("<I", 0) + cd_str("IDLE")
          + struct.pack("<I", 1) + cd_str("RUNNING") + struct.pack("<I", 7) + cd_str("2D")
          + cd_str("owner") + b"\1" + struct.pack("<H", 0))
+# With the optional field-units section after the value names (empty when the class
+# names no values): u16 count, then {u16 field index, str unit} in field order.
+units = (counter + struct.pack("<H", 0) + struct.pack("<H", 2) + struct.pack("<H", 0) + cd_str("1")
+         + struct.pack("<H", 1) + cd_str("1/s"))
+named_units = named + struct.pack("<H", 1) + struct.pack("<H", 1) + cd_str("1/s")
 write("class_description", [b"\0" + counter, b"\0" + empty, b"\1" + cd_pages(counter, 8192),
                             b"\1" + cd_pages(empty, 8192), b"\1" + cd_pages(counter, 100),
                             b"\1" + struct.pack("<HII", 8, 4, 0), b"\0" + named,
-                            b"\1" + cd_pages(named, 64)])
+                            b"\1" + cd_pages(named, 64), b"\0" + units, b"\0" + named_units,
+                            b"\1" + cd_pages(named_units, 48), b"\x05" + cd_pages(units, 8192)])

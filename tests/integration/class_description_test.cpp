@@ -116,8 +116,14 @@ TEST_F(ClassDescriptionTest, RackctlDrivesAPluginClassByItsDescription) {
   r = ctl({"classes", "it-describe"}, "1000");
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   EXPECT_TRUE(contains(r.out, "Counter(Counter) class 0x91 on it-describe (system 2)")) << r.out;
-  EXPECT_TRUE(contains(r.out, "data      CounterData (32 bytes): count:i64 rate:f64 label:char[16]")) << r.out;
+  EXPECT_TRUE(contains(r.out, "data      CounterData (32 bytes): count:i64 rate:f64(1/s) label:char[16]")) << r.out;
   EXPECT_TRUE(contains(r.out, "command   RESET 21 CounterReset (8 bytes): start:i64 - count on from `start`")) << r.out;
+  // The data fields' units as declared (the description's field-units section).
+  r = ctl({"classes", "it-describe", "--json"}, "1000");
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  j = parse_json(r.out);
+  ASSERT_TRUE(j && j->type == Json::Type::kArray && !j->array.empty()) << r.out;
+  EXPECT_EQ(j->array[0].at("units").at("rate").string, "1/s") << r.out;
   r = ctl({"list"}, "1000");
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   EXPECT_TRUE(contains(r.out, "Counter(2/0)")) << r.out;

@@ -28,6 +28,7 @@
 
 #include "mini_json.h"
 #include "process.h"
+#include "rack/components/class_ids.h"
 #include "rack/core/wire.h"
 #include "rack/tims/message.h"
 #include "rack/tims/router.h"
@@ -214,7 +215,7 @@ TEST_F(TimsInputTest, FloodOfMalformedPacketsIsDroppedCountedAndThePeriodicTaskK
     for (auto& b : v) b = static_cast<uint8_t>(rng());
     return v;
   };
-  const Address generator = Address::make(0, tims::classes::kGenerator, 0);
+  const Address generator = Address::make(0, class_ids::kGenerator, 0);
   const Address tool = Address::make(tims::kToolSystem, tims::classes::kTool, 0x77, 0x10);
   const std::vector<uint8_t> ok_request = tims_message(generator, tool, tims::msg::kGetStatus, 1, {}, true, true);
   uint64_t sent = 0;
@@ -300,7 +301,7 @@ TEST_F(TimsInputTest, OtherByteOrderIsConvertedOnReceipt) {
   tims::swap_fields(tims::fields_of<wire::ParamRecord>, reinterpret_cast<std::byte*>(&rec), sizeof rec);
   std::vector<uint8_t> body(sizeof rec);
   std::memcpy(body.data(), &rec, sizeof rec);
-  const Address generator = Address::make(0, tims::classes::kGenerator, 0);
+  const Address generator = Address::make(0, class_ids::kGenerator, 0);
   const Address tool = Address::make(tims::kToolSystem, tims::classes::kTool, 0x55, 0x20);
   const auto msg = tims_message(generator, tool, tims::msg::kSetParam, 7, body, false, false);
   RawLcm raw(bus_.port());
@@ -317,7 +318,7 @@ TEST_F(TimsInputTest, OtherByteOrderIsConvertedOnReceipt) {
 
 TEST_F(TimsInputTest, ChunkedMessageWithAMissingChunkIsReportedLost) {
   // 150 000 bytes in three chunks; the middle one never arrives.
-  const Address generator = Address::make(0, tims::classes::kGenerator, 0);
+  const Address generator = Address::make(0, class_ids::kGenerator, 0);
   const Address tool = Address::make(tims::kToolSystem, tims::classes::kTool, 0x66, 0x30);
   const auto msg = tims_message(generator, tool, tims::msg::kSetParam, 3, std::vector<uint8_t>(150000 - 16, 0), true,
                                 true);
@@ -343,8 +344,8 @@ TEST_F(TimsInputTest, ChunkedMessageForAnotherHostIsSkippedNotReportedLost) {
   // The first of three chunks of a DATA message for a mailbox this host does not have
   // (another host's, on a shared network): its header says so, the rest would be
   // dropped unassembled, and nothing is reported lost when the rest never comes.
-  const Address elsewhere = Address::make(0, tims::classes::kScan3d, 5, 3);
-  const Address producer = Address::make(0, tims::classes::kScan3d, 6, 0);
+  const Address elsewhere = Address::make(0, class_ids::kScan3d, 5, 3);
+  const Address producer = Address::make(0, class_ids::kScan3d, 6, 0);
   const auto msg = tims_message(elsewhere, producer, tims::msg::kData, 0, std::vector<uint8_t>(150000 - 16, 1), true,
                                 true);
   RawLcm raw(bus_.port());

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "process.h"
+#include "rack/components/class_ids.h"
 #include "rack/rt/clock.h"
 #include "rack/tims/endpoint.h"
 #include "rack/tims/lcm_transport.h"
@@ -87,7 +88,7 @@ class TimsLargeTest : public ::testing::Test {
   LcmBus bus_;
   tims::Router rx_router_{1};
   tims::Router tx_router_{2};
-  tims::Mailbox inbox_{Address::make(1, tims::classes::kScan3d, 0, 3), 4, kMax + 64};
+  tims::Mailbox inbox_{Address::make(1, class_ids::kScan3d, 0, 3), 4, kMax + 64};
   std::vector<std::byte> buffer_ = std::vector<std::byte>(kMax + 64);
   std::unique_ptr<tims::LcmTransport> receiver_, sender_;
   std::string warnings_;
@@ -165,7 +166,7 @@ TEST_F(TimsLargeTest, LargeMessagesForOtherHostsAreNotReassembled) {
   // 1 MiB of samples for a mailbox this receiver does not have (another host's, on a
   // shared network): recognised by its first chunk, the rest dropped unassembled.
   const auto body = random_body(1 << 20, 3);
-  const tims::MessageHeader h = tims::make_header(Address::make(1, tims::classes::kScan3d, 5, 3),
+  const tims::MessageHeader h = tims::make_header(Address::make(1, class_ids::kScan3d, 5, 3),
                                                   Address::make(2, tims::classes::kTool, 1, 1), tims::msg::kData, 1, 9,
                                                   body.size());
   const tims::ConstBuffer part{body.data(), body.size()};
@@ -187,7 +188,7 @@ TEST_F(TimsLargeTest, CompressedLargeMessagesForOtherHostsAreNotReassembled) {
   // Four random bits per byte: compresses to about half, still many chunks.
   auto body = random_body(1 << 20, 5);
   for (auto& b : body) b &= std::byte{0x0F};
-  const tims::MessageHeader h = tims::make_header(Address::make(1, tims::classes::kScan3d, 5, 3),
+  const tims::MessageHeader h = tims::make_header(Address::make(1, class_ids::kScan3d, 5, 3),
                                                   Address::make(2, tims::classes::kTool, 1, 1), tims::msg::kData, 1, 9,
                                                   body.size());
   const tims::ConstBuffer part{body.data(), body.size()};

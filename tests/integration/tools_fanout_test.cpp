@@ -30,6 +30,7 @@
 
 #include "mini_json.h"
 #include "process.h"
+#include "rack/components/class_ids.h"
 #include "rack/tims/message.h"
 #include "rack/tims/router.h"
 #include "rack_lcm/tims_packet.hpp"
@@ -160,7 +161,7 @@ class Flood {
     constexpr int kBurst = 20;
     const auto pause = std::chrono::microseconds(1'000'000LL * kBurst / rate);
     // A component of host 0 as the source of requests that another origin sends: forged.
-    const Address owned = Address::make(0, tims::classes::kGenerator, 0, 0);
+    const Address owned = Address::make(0, class_ids::kGenerator, 0, 0);
     int32_t seq = 1;
     while (!stop_ && sent_ < limit) {
       for (int i = 0; i < kBurst; ++i) {
@@ -169,7 +170,7 @@ class Flood {
           case 1: raw_.send("TIMS", bytes(rng() % 300)); break;                            // not a tims_packet
           case 2: raw_.send("TIMS", tims_packet(bytes(16), 0x0bad, seq, 1 << 30)); break;  // lying length
           case 3: {  // a request in the name of a component its host owns
-            const Address dest = Address::make(0, tims::classes::kGenerator, static_cast<uint8_t>(10 + rng() % 20), 0);
+            const Address dest = Address::make(0, class_ids::kGenerator, static_cast<uint8_t>(10 + rng() % 20), 0);
             raw_.send("TIMS", tims_packet(request(dest, owned, 3, static_cast<uint8_t>(seq)), 0x0bad, seq));
             break;
           }

@@ -26,6 +26,7 @@
 
 #include "mini_json.h"
 #include "process.h"
+#include "rack/components/class_ids.h"
 #include "rack/core/wire.h"
 #include "rack/rt/clock.h"
 #include "rack/tims/endpoint.h"
@@ -164,8 +165,8 @@ TEST_F(TrustTest, ForgedInputAndRequestsIntoDataMailboxesLeaveThePilotChainEnabl
   for (const auto& c : chain) ASSERT_EQ(state(c), "ENABLED") << c;
   double errors_before = 0;
   for (const auto& c : chain) errors_before += stat(c, "errors");
-  const Address position = Address::make(0, tims::classes::kPosition, 0);
-  const Address scan2d = Address::make(0, tims::classes::kScan2d, 0);
+  const Address position = Address::make(0, class_ids::kPosition, 0);
+  const Address scan2d = Address::make(0, class_ids::kScan2d, 0);
 
   Tool tool(bus_.url());
   // A sample the right size for Position's input (SampleHeader + OdometryData: six

@@ -20,6 +20,7 @@
 #include "obj_recog/laser_tracker.h"
 #include "obj_recog/obj_recog_camera.h"
 #include "obj_recog/obj_recog_laser.h"
+#include "rack/components/class_ids.h"
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/perception.h"
 #include "../unit/test_support.h"
@@ -292,7 +293,7 @@ components:
     params: {camera: camera, marker_length: 0.15, width: 640, height: 480}
 )",
                      [](ComponentRegistry& r) {
-                       r.add({"MarkerCamera", tims::classes::kCamera, "test: rendered ArUco frames",
+                       r.add({"MarkerCamera", class_ids::kCamera, "test: rendered ArUco frames",
                               [] { return std::make_unique<MarkerCamera>(); }});
                      });
   const tims::Address objects = host.address_of("objects");
@@ -333,7 +334,7 @@ components:
     params: {camera: camera}
 )",
                      [](ComponentRegistry& r) {
-                       r.add({"WrongTypeCamera", tims::classes::kCamera, "test: publishes ServoDriveData",
+                       r.add({"WrongTypeCamera", class_ids::kCamera, "test: publishes ServoDriveData",
                               [] { return std::make_unique<WrongTypeProducer>(); }});
                      },
                      /*capture_gdos=*/true);

@@ -17,6 +17,7 @@
 
 #include "../unit/test_support.h"
 #include "wrong_type_producer.h"
+#include "rack/components/class_ids.h"
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/perception.h"
 #include "rack/interfaces/robot.h"
@@ -248,7 +249,7 @@ components:
     params: {ladar: ladar, servo: servo, mode: pitch, silence_ms: 30000}
 )",
                      [](ComponentRegistry& r) {
-                       r.add({"WrongTypeLadar", tims::classes::kLadar, "test: publishes ServoDriveData",
+                       r.add({"WrongTypeLadar", class_ids::kLadar, "test: publishes ServoDriveData",
                               [] { return std::make_unique<WrongTypeProducer>(); }});
                      },
                      /*capture_gdos=*/true);
@@ -475,7 +476,7 @@ components:
              angle_max: 0.4, sweep_velocity: 1.0, silence_ms: 500}
 )",
                      [](ComponentRegistry& r) {
-                       r.add({"ControlledOdometry", tims::classes::kOdometry, "test: an odometry that can fall silent",
+                       r.add({"ControlledOdometry", class_ids::kOdometry, "test: an odometry that can fall silent",
                               [] { return std::make_unique<ControlledOdometry>(); }});
                      },
                      /*capture_gdos=*/true);
@@ -541,7 +542,7 @@ components:
     params: {ladar: ladar, servo: servo, odometry: servo}
 )",
                      [](ComponentRegistry& r) {
-                       r.add({"WrongTypeLadar", tims::classes::kLadar, "test: publishes ServoDriveData",
+                       r.add({"WrongTypeLadar", class_ids::kLadar, "test: publishes ServoDriveData",
                               [] { return std::make_unique<WrongTypeProducer>(); }});
                      });
   const tims::Address scan3d = host.address_of("scan3d");

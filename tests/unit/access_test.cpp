@@ -1,5 +1,6 @@
 // Access control (rule table, token buckets, router integration) and authenticated
 // links (key files, MAC, replay window, rotation).
+#include "rack/components/class_ids.h"
 #include "rack/tims/access.h"
 #include "rack/core/host_config.h"
 #include "rack/components/builtin.h"
@@ -35,9 +36,9 @@ using rack::LoadResult;
 namespace components = rack::components;
 namespace rt = rack::rt;
 
-constexpr Address kChassis = Address::make(0, classes::kChassis, 0, 0);
-constexpr Address kPilot = Address::make(0, classes::kPilot, 0, 0);
-constexpr Address kJoystick = Address::make(0, classes::kJoystick, 0, 0);
+constexpr Address kChassis = Address::make(0, class_ids::kChassis, 0, 0);
+constexpr Address kPilot = Address::make(0, class_ids::kPilot, 0, 0);
+constexpr Address kJoystick = Address::make(0, class_ids::kJoystick, 0, 0);
 constexpr Address kTool = Address::make(kToolSystem, classes::kTool, 7, 2);
 constexpr int8_t kMove = 21;
 constexpr int64_t kSec = 1'000'000'000;
@@ -222,7 +223,7 @@ TEST(AccessControlTest, ParsesAddressPatternsAndTypes) {
   EXPECT_FALSE(sys->matches(kTool));
   const auto cls = parse_address_mask("Pilot(0/*)");
   ASSERT_TRUE(cls);
-  EXPECT_TRUE(cls->matches(Address::make(0, classes::kPilot, 3, 5)));
+  EXPECT_TRUE(cls->matches(Address::make(0, class_ids::kPilot, 3, 5)));
   EXPECT_FALSE(cls->matches(kJoystick));
   const auto exact = parse_address_mask("Chassis(0/0)#1");
   ASSERT_TRUE(exact);
@@ -501,9 +502,9 @@ TEST_F(AccessHostFileTest, RulesResolveNamesPatternsAndTypes) {
   ASSERT_EQ(a.rules.size(), 1u);
   const auto& rule = a.rules[0];
   ASSERT_EQ(rule.to.size(), 1u);
-  EXPECT_TRUE(rule.to[0].matches(Address::make(0, classes::kGenerator, 0, 3)));
+  EXPECT_TRUE(rule.to[0].matches(Address::make(0, class_ids::kGenerator, 0, 3)));
   ASSERT_EQ(rule.from.size(), 2u);
-  EXPECT_TRUE(rule.from[0].matches(Address::make(0, classes::kMonitor, 0, 1)));
+  EXPECT_TRUE(rule.from[0].matches(Address::make(0, class_ids::kMonitor, 0, 1)));
   EXPECT_TRUE(rule.from_network);
   EXPECT_FALSE(rule.any_type);
   EXPECT_TRUE(rule.types.test(21 + 128));

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "rack/components/builtin.h"
+#include "rack/components/class_ids.h"
 #include "rack/core/class_description.h"
 #include "rack/core/data_component.h"
 #include "rack/core/registry.h"
@@ -33,12 +34,12 @@ ClassDescription sample_description() {
   d.summary = "test: counts, with a reset command";
   TypeDescription data{"CounterData",
                        24,
-                       {{"count", tims::FieldKind::kI64, 0, 1},
-                        {"rate", tims::FieldKind::kF64, 8, 1},
-                        {"label", tims::FieldKind::kChar, 16, 8}}};
+                       {{"count", tims::FieldKind::kI64, 0, 1, ""},
+                        {"rate", tims::FieldKind::kF64, 8, 1, ""},
+                        {"label", tims::FieldKind::kChar, 16, 8, ""}}};
   d.data = data;
   CommandDescription reset{"RESET", 21, "start counting again from `start`",
-                           TypeDescription{"CounterReset", 8, {{"start", tims::FieldKind::kI64, 0, 1}}}};
+                           TypeDescription{"CounterReset", 8, {{"start", tims::FieldKind::kI64, 0, 1, ""}}}};
   d.commands.push_back(reset);
   d.commands.push_back({"FREEZE", 22, "stop counting", std::nullopt});
   ParameterDescription step;
@@ -225,8 +226,8 @@ TEST(ClassDescriptionTest, PagesAssembleAndRefuseAnotherPage) {
 TEST(ClassDescriptionTest, ValueNamesAreServedToClientsThatAskForThem) {
   ClassDescription d = sample_description();
   d.data->size = 32;
-  d.data->fields.push_back({"state", tims::FieldKind::kU8, 24, 1});
-  d.data->fields.push_back({"owner", tims::FieldKind::kU32, 28, 1});
+  d.data->fields.push_back({"state", tims::FieldKind::kU8, 24, 1, ""});
+  d.data->fields.push_back({"owner", tims::FieldKind::kU32, 28, 1, ""});
   d.value_names = {{"state", false, {{0, "IDLE"}, {1, "RUNNING"}, {7, "2D"}}}, {"owner", true, {}}};
   std::size_t base = 0;
   const std::vector<std::byte> bytes = encode_class_description(d, &base);
@@ -265,13 +266,14 @@ TEST(ClassDescriptionTest, ValueNamesAreServedToClientsThatAskForThem) {
   q.sections = 0;
   EXPECT_NE(class_page(bytes, base, bytes_of(q), true, h, page), nullptr);
 
-  // Cut inside the section, a byte after it: refused with the place.
+  // Cut inside the section, a byte after it (where the field units would start):
+  // refused with the place.
   EXPECT_FALSE(decode_class_description(std::span(bytes).first(bytes.size() - 1), back, error));
   EXPECT_NE(error.find("value names 1 'owner'"), std::string::npos) << error;
   std::vector<std::byte> longer = bytes;
   longer.push_back(std::byte{0});
   EXPECT_FALSE(decode_class_description(longer, back, error));
-  EXPECT_NE(error.find("bytes after the end"), std::string::npos) << error;
+  EXPECT_NE(error.find("field units: ends inside"), std::string::npos) << error;
 
   // What cannot name values: refused by the encoder (the decoder applies the same rules).
   const auto refused = [&](std::vector<FieldNamesDescription> names, const std::string& why) {
@@ -297,6 +299,104 @@ TEST(ClassDescriptionTest, ValueNamesAreServedToClientsThatAskForThem) {
   no_data.data.reset();
   no_data.value_names = {{"state", false, {{0, "A"}}}};
   EXPECT_THROW((void)encode_class_description(no_data), std::invalid_argument);
+}
+
+// The units of the data fields (an optional section after the value names): served
+// only to a client that asks for them, with the value names; a client that asks only
+// for names, or none, gets the bytes it got before units.
+TEST(ClassDescriptionTest, FieldUnitsAreServedToClientsThatAskForThem) {
+  ClassDescription d = sample_description();
+  d.data->fields[1].unit = "1/s";
+  d.data->fields[0].unit = "m";
+  std::size_t base = 0;
+  const std::vector<std::byte> bytes = encode_class_description(d, &base);
+  ClassDescription back;
+  std::string error;
+  ASSERT_TRUE(decode_class_description(bytes, back, error)) << error;
+  EXPECT_EQ(back, d);
+  EXPECT_EQ(back.data->fields[1].unit, "1/s");
+  EXPECT_TRUE(back.value_names.empty());
+  // Without units: what a description without them encodes to, cut at the base.
+  ClassDescription plain = d;
+  for (auto& f : plain.data->fields) f.unit.clear();
+  EXPECT_EQ(encode_class_description(plain).size(), base);
+  ASSERT_TRUE(decode_class_description(std::span(bytes).first(base), back, error)) << error;
+  EXPECT_EQ(back, plain);
+
+  // The server: none, names only (the class names no values: the base), or all.
+  ClassPageRequest q;
+  ClassPageHeader h;
+  std::span<const std::byte> page;
+  ASSERT_EQ(class_page(bytes, base, bytes_of(q), true, h, page), nullptr);
+  EXPECT_EQ(h.total, base);
+  q.sections = kClassSectionValueNames;
+  ASSERT_EQ(class_page(bytes, base, bytes_of(q), true, h, page), nullptr);
+  EXPECT_EQ(h.total, base);
+  q.sections = kClassSectionFieldUnits;
+  ASSERT_EQ(class_page(bytes, base, bytes_of(q), true, h, page), nullptr);
+  EXPECT_EQ(h.total, bytes.size());
+
+  // With value names too: names-only clients get the names and no units.
+  ClassDescription named = d;
+  named.data->size = 32;
+  named.data->fields.push_back({"state", tims::FieldKind::kU8, 24, 1, "s"});  // a unit on an enum: allowed
+  named.value_names = {{"state", false, {{0, "IDLE"}, {1, "RUNNING"}}}};
+  const std::vector<std::byte> all = encode_class_description(named, &base);
+  ASSERT_TRUE(decode_class_description(all, back, error)) << error;
+  EXPECT_EQ(back, named);
+  q.sections = kClassSectionValueNames;
+  ASSERT_EQ(class_page(all, base, bytes_of(q), true, h, page), nullptr);
+  ASSERT_LT(h.total, all.size());
+  ClassDescription names_only;
+  ASSERT_TRUE(decode_class_description(std::span(all).first(h.total), names_only, error)) << error;
+  EXPECT_EQ(names_only.value_names, named.value_names);
+  for (const auto& f : names_only.data->fields) EXPECT_TRUE(f.unit.empty()) << f.name;
+  q.sections = kClassSectionValueNames | kClassSectionFieldUnits;
+  ASSERT_EQ(class_page(all, base, bytes_of(q), true, h, page), nullptr);
+  EXPECT_EQ(h.total, all.size());
+
+  // Malformed sections: refused with the place.
+  // At the base: the names section, empty (u16 0); then the units: u16 2, {u16 0, "m"}, {u16 1, "1/s"}.
+  std::size_t base_again = 0;
+  (void)encode_class_description(d, &base_again);
+  const std::size_t units_at = base_again;
+  ASSERT_EQ(bytes.size(), units_at + 2 + 2 + (2 + 2 + 1) + (2 + 2 + 3));
+  auto patched = [&](std::size_t at, std::initializer_list<uint8_t> with) {
+    std::vector<std::byte> b = bytes;
+    std::size_t i = at;
+    for (const uint8_t v : with) b[i++] = std::byte{v};
+    return b;
+  };
+  const auto refused = [&](const std::vector<std::byte>& b, const std::string& why) {
+    ClassDescription out;
+    std::string e;
+    EXPECT_FALSE(decode_class_description(b, out, e)) << why;
+    EXPECT_NE(e.find(why), std::string::npos) << e;
+  };
+  ASSERT_EQ(std::to_integer<int>(bytes[units_at]) | std::to_integer<int>(bytes[units_at + 1]), 0);  // no names
+  ASSERT_EQ(std::to_integer<int>(bytes[units_at + 2]), 2);                                          // two units
+  EXPECT_EQ(std::to_integer<int>(bytes[units_at + 4]), 0);  // the first: field 0
+  refused(patched(units_at + 4, {1, 0}), "field index 1 is not a field of 'CounterData' after the previous one");
+  refused(patched(units_at + 4, {9, 0}), "field index 9 is not a field");
+  refused(patched(units_at + 6, {0, 0}), "field 'count' has an empty unit");
+  std::vector<std::byte> cut = bytes;
+  cut.resize(units_at + 4);  // the names section's empty count, a units count, no units
+  refused(cut, "field units 0: ends inside field index");
+  cut.resize(units_at + 2);  // an empty names section and nothing after it
+  refused(cut, "names no field");
+  std::vector<std::byte> no_units = bytes;
+  no_units.resize(units_at + 4);
+  no_units[units_at + 2] = std::byte{0};
+  no_units[units_at + 3] = std::byte{0};
+  refused(no_units, "gives no unit");
+  std::vector<std::byte> longer = bytes;
+  longer.push_back(std::byte{0});
+  refused(longer, "bytes after the end");
+
+  // What the encoder refuses: units on a command's body (data types only).
+  ClassDescription body_unit = d;
+  body_unit.commands[0].body->fields[0].unit = "m";
+  EXPECT_THROW((void)encode_class_description(body_unit), std::invalid_argument);
 }
 
 // A running component answers GET_CLASS with its class's description.
@@ -326,7 +426,7 @@ components:
   ASSERT_TRUE(decode_class_description(assembler.bytes(), d, error)) << error;
   EXPECT_EQ(d.impl, "Generator");
   EXPECT_EQ(d.class_name, "Generator");
-  EXPECT_EQ(d.class_id, tims::classes::kGenerator);
+  EXPECT_EQ(d.class_id, class_ids::kGenerator);
   ASSERT_TRUE(d.data.has_value());
   EXPECT_NE(d.find_parameter(Component::kLogLevelParam), nullptr);
   ASSERT_NE(d.find_parameter("frequency_hz"), nullptr);
@@ -362,7 +462,7 @@ TEST(ClassDescriptionTest, EveryBuiltinClassIsDescribedAsDeclared) {
     while (!assembler.complete()) {
       ClassPageRequest q;
       q.offset = assembler.next_offset();
-      q.sections = kClassSectionValueNames;
+      q.sections = kClassSectionValueNames | kClassSectionFieldUnits;
       ClassPageHeader h;
       std::span<const std::byte> page;
       ASSERT_EQ(class_page(bytes, base, bytes_of(q), true, h, page), nullptr);
@@ -387,6 +487,21 @@ TEST(ClassDescriptionTest, EveryBuiltinClassIsDescribedAsDeclared) {
     for (std::size_t i = 0; i < declared_names; ++i) {
       EXPECT_EQ(back.value_names[i].field, cls->data->value_names[i].field);
       EXPECT_EQ(back.value_names[i].values.size(), cls->data->value_names[i].values.size());
+    }
+    // The units of its data fields, as declared.
+    std::size_t units = 0;
+    if (back.data) {
+      for (const auto& f : back.data->fields) {
+        if (!f.unit.empty()) ++units;
+      }
+    }
+    EXPECT_EQ(units, cls->data != nullptr ? cls->data->units.size() : 0);
+    if (cls->data != nullptr) {
+      for (const FieldUnit& u : cls->data->units) {
+        bool found = false;
+        for (const auto& f : back.data->fields) found = found || (f.name == u.field && f.unit == u.unit);
+        EXPECT_TRUE(found) << u.field << " (" << u.unit << ")";
+      }
     }
     ASSERT_EQ(back.parameters.size(), c->parameters().size());
     for (std::size_t i = 0; i < back.parameters.size(); ++i) {

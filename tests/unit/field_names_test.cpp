@@ -6,6 +6,8 @@
 
 #include "field_names.h"
 #include "rack/core/registry.h"
+#include "gps_nmea/gps_nmea_types.h"
+#include "pilot/pilot_types.h"
 #include "rack/interfaces/declared_types.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
@@ -20,7 +22,7 @@ std::span<const std::byte> bytes_of(const T& v) {
 }
 
 // The value names of a data type as its class's description carries them: declared
-// with the type (rack/interfaces/declared_types.h), through the encoder and decoder.
+// with the class (components/pilot/pilot_types.h), through the encoder and decoder.
 std::vector<FieldNamesDescription> described_names(const DataTypeInfo& type) {
   ComponentClass cls;
   cls.impl = "NamesTest";
@@ -35,7 +37,7 @@ std::vector<FieldNamesDescription> described_names(const DataTypeInfo& type) {
 }
 
 TEST(FieldNamesTest, PilotModeAndStatusByName) {
-  const auto names = described_names(interfaces::declared::kPilot);
+  const auto names = described_names(components::kPilotType);
   interfaces::PilotData d;
   d.mode = static_cast<uint8_t>(interfaces::PilotMode::kDestination);
   d.status = static_cast<uint8_t>(interfaces::PilotStatus::kBlocked);
@@ -66,13 +68,13 @@ TEST(FieldNamesTest, ClassesWithoutNamesAndShortSamplesHaveNoNames) {
   // The same layout without value names (a class that declares none): no names.
   EXPECT_EQ(field_names_json({}, tims::fields_of<interfaces::PilotData>, bytes_of(d), true), "");
   // A sample cut before the fields: nothing read past its end.
-  const auto names = described_names(interfaces::declared::kPilot);
+  const auto names = described_names(components::kPilotType);
   EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::PilotData>, bytes_of(d).first(8), true), "");
   ASSERT_EQ(names.size(), 2u);
   EXPECT_STREQ(names[1].name_of(2), "REACHED");
   EXPECT_EQ(names[1].name_of(200), nullptr);
   // GPS: names that are not identifiers ("2D").
-  const auto gps = described_names(interfaces::declared::kGps);
+  const auto gps = described_names(components::kGpsType);
   interfaces::GpsData g;
   g.fix_quality = interfaces::kGpsFixRtkFixed;
   g.fix_mode = 2;

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "gdos_view.h"
+#include "rack/components/class_ids.h"
 #include "rack/core/data_component.h"
 #include "rack/core/gdos.h"
 #include "rack/interfaces/demo.h"
@@ -81,7 +82,7 @@ TEST(GdosFormatCheckTest, RejectsWhatPrintfWouldMisread) {
 
 // ---------------------------------------------------------------- every conversion
 
-constexpr Address kLadar = Address::make(0, tims::classes::kLadar, 1);
+constexpr Address kLadar = Address::make(0, class_ids::kLadar, 1);
 
 // The ring path: encode as an RT task would, then decode and format as the GDOS
 // thread does.
@@ -191,7 +192,7 @@ TEST(GdosConversionTest, PointersStarsAndMixturesFormatLikePrintf) {
 }
 
 TEST(GdosConversionTest, AddressArgumentPrintsAsItsName) {
-  const Address a = Address::make(0, tims::classes::kLadar, 1);
+  const Address a = Address::make(0, class_ids::kLadar, 1);
   EXPECT_EQ(via_ring("to %s", a), "to Ladar(0/1)");
   EXPECT_EQ(via_ring("[%12s][%-12s][%.5s]", a, a, a), "[  Ladar(0/1)][Ladar(0/1)  ][Ladar]");
   EXPECT_EQ(via_ring("%s", a.with_mailbox(3)), "Ladar(0/1)#3");
@@ -360,7 +361,7 @@ class GdosExecutorTest : public ::testing::Test {
   void start(const std::string& yaml) {
     ComponentClass cls;
     cls.impl = "LogFlood";
-    cls.class_id = tims::classes::kGenerator;
+    cls.class_id = class_ids::kGenerator;
     cls.description = "test: floods its log";
     cls.make = [] { return std::unique_ptr<Component>(new LogFlood()); };
     registry_.add(std::move(cls));
@@ -428,8 +429,8 @@ class GdosExecutorTest : public ::testing::Test {
   std::vector<Rec> records_;
 };
 
-constexpr Address kFlood = Address::make(0, tims::classes::kGenerator, 1);
-constexpr Address kGen = Address::make(0, tims::classes::kGenerator, 2);
+constexpr Address kFlood = Address::make(0, class_ids::kGenerator, 1);
+constexpr Address kGen = Address::make(0, class_ids::kGenerator, 2);
 
 TEST_F(GdosExecutorTest, LevelFromHostFileAndAtRunTime) {
   test::Watchdog dog;

@@ -7,6 +7,7 @@
 #include <variant>
 
 #include "gui_protocol.h"
+#include "rack/components/class_ids.h"
 
 namespace rack::gui {
 namespace {
@@ -32,7 +33,7 @@ std::string refused(const std::string& text) {
 TEST(GuiProtocolTest, AcceptsEveryOp) {
   auto r = ok(R"j({"op":"switch","component":"Chassis(0/0)","on":true,"id":7})j");
   EXPECT_EQ(r.op, Op::kSwitch);
-  EXPECT_EQ(r.component, tims::Address::make(0, tims::classes::kChassis, 0));
+  EXPECT_EQ(r.component, tims::Address::make(0, class_ids::kChassis, 0));
   EXPECT_TRUE(r.on);
   ASSERT_TRUE(r.id.has_value());
   EXPECT_EQ(*r.id, 7);
@@ -43,7 +44,7 @@ TEST(GuiProtocolTest, AcceptsEveryOp) {
   EXPECT_FALSE(r.id.has_value());
 
   r = ok(R"j({"op":"get_params","component":"Pilot(1/2)"})j");
-  EXPECT_EQ(r.component, tims::Address::make(1, tims::classes::kPilot, 2));
+  EXPECT_EQ(r.component, tims::Address::make(1, class_ids::kPilot, 2));
 
   r = ok(R"j({"op":"set_param","component":"Pilot(0/0)","name":"vx_max","value":0.5})j");
   EXPECT_EQ(r.param_name, "vx_max");
@@ -68,7 +69,7 @@ TEST(GuiProtocolTest, AcceptsEveryOp) {
 TEST(GuiProtocolTest, ClassCommandsByNameWithTheirFieldsAsText) {
   auto r = ok(R"j({"op":"get_class","component":"Pilot(0/0)"})j");
   EXPECT_EQ(r.op, Op::kGetClass);
-  EXPECT_EQ(r.component, tims::Address::make(0, tims::classes::kPilot, 0));
+  EXPECT_EQ(r.component, tims::Address::make(0, class_ids::kPilot, 0));
   r = ok(
       R"j({"op":"command","component":"Pilot(0/0)","name":"SET_DESTINATION","fields":{"x":"2.5","y":-1,"z":0.25,"b":true}})j");
   EXPECT_EQ(r.op, Op::kCommand);
@@ -386,10 +387,10 @@ TEST(GuiProtocolTest, CommandOpTakesANameAndAnObjectBody) {
 TEST(GuiProtocolTest, CommandBodyIsEncodedOnlyWhenEveryFieldFits) {
   TypeDescription t;
   t.name = "Body";
-  t.fields = {{"x", tims::FieldKind::kF64, 0, 1},
-              {"n", tims::FieldKind::kU8, 8, 1},
-              {"v", tims::FieldKind::kF32, 12, 3},
-              {"label", tims::FieldKind::kChar, 24, 8}};
+  t.fields = {{"x", tims::FieldKind::kF64, 0, 1, ""},
+              {"n", tims::FieldKind::kU8, 8, 1, ""},
+              {"v", tims::FieldKind::kF32, 12, 3, ""},
+              {"label", tims::FieldKind::kChar, 24, 8, ""}};
   t.size = 32;
   std::vector<std::byte> out;
   ASSERT_EQ(encode_command_body(nlohmann::json::parse(R"({"x":1.5,"n":7,"v":[1,2],"label":"ab"})"), &t, out), "");

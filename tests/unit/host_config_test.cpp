@@ -1,5 +1,6 @@
 // Host file loading from text: every validation error names its line and key; a
 // valid file yields components in dependency order.
+#include "rack/components/class_ids.h"
 #include "rack/core/host_config.h"
 
 #include <gtest/gtest.h>
@@ -471,7 +472,7 @@ components:
   EXPECT_TRUE(h.dependencies[pos["probe"]].empty());
 
   const Component& gen = *h.components[pos["gen"]];
-  EXPECT_EQ(gen.address(), tims::Address::make(3, tims::classes::kGenerator, 1));
+  EXPECT_EQ(gen.address(), tims::Address::make(3, class_ids::kGenerator, 1));
   EXPECT_EQ(gen.settings().impl, "Generator");
   EXPECT_EQ(gen.settings().period_ns, 10 * rt::kNsPerMs);
   EXPECT_EQ(gen.settings().command_task.priority, 31);
@@ -481,7 +482,7 @@ components:
   EXPECT_DOUBLE_EQ(gen.parameters().find("amplitude")->get_float(), 2.5);
 
   const Component& mon = *h.components[pos["mon"]];
-  EXPECT_EQ(mon.address(), tims::Address::make(3, tims::classes::kMonitor, 4));
+  EXPECT_EQ(mon.address(), tims::Address::make(3, class_ids::kMonitor, 4));
   EXPECT_TRUE(mon.settings().autostart);
   EXPECT_EQ(mon.settings().retry_ns, 250 * rt::kNsPerMs);
   EXPECT_EQ(mon.settings().data_timeout_ns, 400 * rt::kNsPerMs);
@@ -489,7 +490,7 @@ components:
   EXPECT_EQ(mon.parameters().find("source")->get_string(), "gen");
 
   const Component& probe = *h.components[pos["probe"]];
-  EXPECT_EQ(probe.address(), tims::Address::make(3, tims::classes::kProbe, 0));
+  EXPECT_EQ(probe.address(), tims::Address::make(3, class_ids::kProbe, 0));
   EXPECT_EQ(probe.settings().ring_size, 10u);
   EXPECT_EQ(probe.parameters().find("label")->get_string(), "hello");
   EXPECT_EQ(probe.parameters().find("on_delay_ms")->get_int(), 5);

@@ -12,6 +12,7 @@
 #include <numeric>
 #include <vector>
 
+#include "rack/components/class_ids.h"
 #include "rack/core/data_component.h"
 #include "rack/interfaces/demo.h"
 #include "rack/rt/clock.h"
@@ -158,7 +159,7 @@ TEST(LatencyHistogramTest, ReplyReadsBackInBothByteOrders) {
     SCOPED_TRACE(little ? "little-endian peer" : "big-endian peer");
     const std::vector<std::byte> body = encode(want, little);
     tims::MessageHeader h = tims::make_header(Address::make(0, tims::classes::kTool, 1),
-                                              Address::make(0, tims::classes::kGenerator, 1), msg::kLatency, 0, 0,
+                                              Address::make(0, class_ids::kGenerator, 1), msg::kLatency, 0, 0,
                                               body.size());
     h.flags = static_cast<uint8_t>(tims::kFlagHeaderLittleEndian | (little ? tims::kFlagBodyLittleEndian : 0));
     wire::LatencyHistogram got;

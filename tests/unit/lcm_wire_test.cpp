@@ -11,6 +11,7 @@
 
 #include "gdos_view.h"
 #include "lcm_wire.h"
+#include "rack/components/class_ids.h"
 #include "rack/tims/gdos_lcm.h"
 #include "rack/tims/lcm_transport.h"
 #include "rack/tims/router.h"
@@ -321,7 +322,7 @@ class TopRouterTest : public ::testing::Test {
   }
   // A GET_STATUS from a tool to Generator(7/0), as a tims_packet in an LCM datagram.
   void request_to_unknown_robot() {
-    packet(Address::make(7, classes::kGenerator, 0), Address::make(kToolSystem, classes::kTool, 1, 0), 0x7001);
+    packet(Address::make(7, class_ids::kGenerator, 0), Address::make(kToolSystem, classes::kTool, 1, 0), 0x7001);
   }
   void packet(Address dest, Address src, int64_t origin) {
     const MessageHeader h = make_header(dest, src, msg::kGetStatus, 0, static_cast<uint8_t>(++seq), 0);
@@ -388,21 +389,21 @@ TEST_F(TopRouterTest, AJustStartedLowerOneIsCoveredUntilItsWarmUpHasPassed) {
 // one that changes the host's components does: a source is judged by its new owner.
 TEST_F(TopRouterTest, AChangedComponentListIsTakenOverByTheOwnersTable) {
   make(0);
-  const Address gen0 = Address::make(1, classes::kGenerator, 0), gen1 = Address::make(1, classes::kGenerator, 1);
+  const Address gen0 = Address::make(1, class_ids::kGenerator, 0), gen1 = Address::make(1, class_ids::kGenerator, 1);
   auto a = an_announce();  // origin 0x1234 owns Generator(1/0)
   a.system = 1;
   a.executor = static_cast<int32_t>(Address::make(1, classes::kExecutor, 3).raw());
   a.components[0].address = static_cast<int32_t>(gen0.raw());
   const Bytes first = datagram("TIMS_ANNOUNCE", encode(a));
   for (int i = 0; i < 3; ++i) transport->handle_datagram(first.data(), first.size());  // periodic: no change
-  packet(Address::make(1, classes::kMonitor, 0), gen0, 0x9999);                        // not from its owner
+  packet(Address::make(1, class_ids::kMonitor, 0), gen0, 0x9999);                      // not from its owner
   EXPECT_EQ(transport->counters().forged, 1u) << warnings;
   a.components[0].address = static_cast<int32_t>(gen1.raw());  // the host now runs Generator(1/1)
   const Bytes d = datagram("TIMS_ANNOUNCE", encode(a));
   transport->handle_datagram(d.data(), d.size());
-  packet(Address::make(1, classes::kMonitor, 0), gen0, 0x9999);  // nobody owns it now
+  packet(Address::make(1, class_ids::kMonitor, 0), gen0, 0x9999);  // nobody owns it now
   EXPECT_EQ(transport->counters().forged, 1u) << warnings;
-  packet(Address::make(1, classes::kMonitor, 0), gen1, 0x9999);
+  packet(Address::make(1, class_ids::kMonitor, 0), gen1, 0x9999);
   EXPECT_EQ(transport->counters().forged, 2u) << warnings;
   EXPECT_EQ(transport->counters().malformed, 0u) << warnings;
 }

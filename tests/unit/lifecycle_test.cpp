@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "rack/components/class_ids.h"
 #include "rack/interfaces/demo.h"
 #include "test_support.h"
 
@@ -573,7 +574,7 @@ TEST_F(LifecycleTest, MalformedRequestsGetErrorAndAreCounted) {
 TEST_F(LifecycleTest, RequestToAnUnknownComponentIsAnsweredNotAvailable) {
   Watchdog dog;
   start();
-  const auto r = host().call(Address::make(0, tims::classes::kProbe, 9), msg::kGetStatus);
+  const auto r = host().call(Address::make(0, class_ids::kProbe, 9), msg::kGetStatus);
   ASSERT_EQ(r.status, CallStatus::kOk);
   EXPECT_EQ(r.type, msg::kNotAvailable);
 }

@@ -13,6 +13,7 @@
 #include <mutex>
 
 #include "mcl_sim.h"
+#include "rack/components/class_ids.h"
 #include "rack/core/data_component.h"
 #include "rack/interfaces/robot.h"
 #include "rack/maps/occupancy_map.h"
@@ -124,9 +125,9 @@ class UpdateRecorder final : public Component {
 };
 
 void register_test_classes(ComponentRegistry& r) {
-  r.add({"SimScan2d", tims::classes::kScan2d, "test: scripted robot's scans",
-         [] { return std::make_unique<SimScan2d>(); }});
-  r.add({"UpdateRecorder", tims::classes::kPosition, "test: records Position UPDATEs",
+  r.add(
+      {"SimScan2d", class_ids::kScan2d, "test: scripted robot's scans", [] { return std::make_unique<SimScan2d>(); }});
+  r.add({"UpdateRecorder", class_ids::kPosition, "test: records Position UPDATEs",
          [] { return std::make_unique<UpdateRecorder>(); }});
 }
 

@@ -1,5 +1,6 @@
 // TiMS header encoding in both byte orders, body conversion by field table, and
 // address formatting/parsing.
+#include "rack/components/class_ids.h"
 #include "rack/tims/message.h"
 
 #include <gtest/gtest.h>
@@ -33,7 +34,7 @@ void put_le(std::byte* out, U v) {
 
 class MessageHeaderTest : public ::testing::Test {
  protected:
-  static constexpr Address kDest = Address::make(3, classes::kGenerator, 7, 2);
+  static constexpr Address kDest = Address::make(3, class_ids::kGenerator, 7, 2);
   static constexpr Address kSrc = Address::make(255, classes::kTool, 9, 1);
 
   // A 16-byte header followed by `body_len` zero bytes, header in the given order.
@@ -160,7 +161,7 @@ TEST_F(PayloadByteOrderTest, BigEndianGeneratorDataConvertsBack) {
   put_be(body.data() + offsetof(interfaces::GeneratorData, counter), static_cast<uint64_t>(want.counter));
 
   // The header says "body big-endian"; on a little-endian host that is not native.
-  MessageHeader h = make_header(Address::make(0, classes::kTool, 1), Address::make(0, classes::kGenerator, 1),
+  MessageHeader h = make_header(Address::make(0, classes::kTool, 1), Address::make(0, class_ids::kGenerator, 1),
                                 msg::kData, 0, 0, body.size());
   h.flags = kFlagHeaderLittleEndian;  // header LE, body BE
   const bool native = body_is_native(h);
@@ -230,7 +231,7 @@ TEST_F(PayloadByteOrderTest, ReadSampleConvertsAForeignDataMessage) {
   put_be(body.data() + 16, uint64_t{5});
   put_be(body.data() + 24, uint64_t{2});
   put_be(body.data() + 32, uint64_t{1});
-  MessageHeader h = make_header(Address::make(0, classes::kTool, 1), Address::make(0, classes::kProbe, 1), msg::kData,
+  MessageHeader h = make_header(Address::make(0, classes::kTool, 1), Address::make(0, class_ids::kProbe, 1), msg::kData,
                                 0, 0, kSize);
   h.flags = kHostLittleEndian ? kFlagHeaderLittleEndian : kFlagBodyLittleEndian;  // body foreign
   wire::SampleHeader sh;
@@ -249,31 +250,31 @@ TEST_F(PayloadByteOrderTest, ReadSampleConvertsAForeignDataMessage) {
 class AddressTest : public ::testing::Test {};
 
 TEST_F(AddressTest, FormatsKnownAndUnknownClasses) {
-  EXPECT_EQ(Address::make(0, classes::kGenerator, 1).str(), "Generator(0/1)");
-  EXPECT_EQ(Address::make(0, classes::kGenerator, 1, 3).str(), "Generator(0/1)#3");
+  EXPECT_EQ(Address::make(0, class_ids::kGenerator, 1).str(), "Generator(0/1)");
+  EXPECT_EQ(Address::make(0, class_ids::kGenerator, 1, 3).str(), "Generator(0/1)#3");
   EXPECT_EQ(Address::make(0, 0x99, 1).str(), "Class0x99(0/1)");
-  EXPECT_EQ(Address::make(254, classes::kScan2d, 255, 255).str(), "Scan2D(254/255)#255");
+  EXPECT_EQ(Address::make(254, class_ids::kScan2d, 255, 255).str(), "Scan2D(254/255)#255");
   char small[8];
-  Address::make(0, classes::kGenerator, 1).format(small, sizeof small);
+  Address::make(0, class_ids::kGenerator, 1).format(small, sizeof small);
   EXPECT_STREQ(small, "Generat");  // cut, still terminated
 }
 
 TEST_F(AddressTest, FieldsAndComponentAddress) {
-  const Address a = Address::make(5, classes::kLadar, 7, 3);
+  const Address a = Address::make(5, class_ids::kLadar, 7, 3);
   EXPECT_EQ(a.system(), 5);
-  EXPECT_EQ(a.class_id(), classes::kLadar);
+  EXPECT_EQ(a.class_id(), class_ids::kLadar);
   EXPECT_EQ(a.instance(), 7);
   EXPECT_EQ(a.mailbox(), 3);
-  EXPECT_EQ(a.component(), Address::make(5, classes::kLadar, 7, 0));
-  EXPECT_EQ(a.with_mailbox(9), Address::make(5, classes::kLadar, 7, 9));
+  EXPECT_EQ(a.component(), Address::make(5, class_ids::kLadar, 7, 0));
+  EXPECT_EQ(a.with_mailbox(9), Address::make(5, class_ids::kLadar, 7, 9));
 }
 
 TEST_F(AddressTest, ParseRoundTripsFormattedAddresses) {
   const Address samples[] = {
-      Address::make(0, classes::kGenerator, 1),
-      Address::make(0, classes::kGenerator, 1, 3),
+      Address::make(0, class_ids::kGenerator, 1),
+      Address::make(0, class_ids::kGenerator, 1, 3),
       Address::make(0, 0x99, 1),
-      Address::make(254, classes::kMonitor, 255, 255),
+      Address::make(254, class_ids::kMonitor, 255, 255),
       Address::make(255, classes::kTool, 0, 1),
       Address::make(0, 0, 0),
   };
@@ -282,8 +283,8 @@ TEST_F(AddressTest, ParseRoundTripsFormattedAddresses) {
     ASSERT_TRUE(parsed.has_value()) << a.str();
     EXPECT_EQ(*parsed, a) << a.str();
   }
-  EXPECT_EQ(parse_address("66(0/1)"), Address::make(0, classes::kProbe, 1));
-  EXPECT_EQ(parse_address("Class0x42(2/3)#4"), Address::make(2, classes::kProbe, 3, 4));
+  EXPECT_EQ(parse_address("66(0/1)"), Address::make(0, class_ids::kProbe, 1));
+  EXPECT_EQ(parse_address("Class0x42(2/3)#4"), Address::make(2, class_ids::kProbe, 3, 4));
 }
 
 TEST_F(AddressTest, ParseRejectsMalformedText) {
@@ -316,8 +317,8 @@ TEST_F(AddressTest, ParseRejectsMalformedText) {
 }
 
 TEST_F(AddressTest, ClassTableLooksUpBothWays) {
-  EXPECT_STREQ(class_name(classes::kProbe), "Probe");
-  EXPECT_EQ(class_id("Monitor"), classes::kMonitor);
+  EXPECT_STREQ(class_name(class_ids::kProbe), "Probe");
+  EXPECT_EQ(class_id("Monitor"), class_ids::kMonitor);
   EXPECT_EQ(class_name(0x99), nullptr);
   EXPECT_FALSE(class_id("Nope").has_value());
   EXPECT_FALSE(register_class_name(0x10, "Mine"));  // Chassis: declared by ChassisSim and others

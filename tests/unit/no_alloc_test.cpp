@@ -17,6 +17,7 @@
 #include <string>
 #include <thread>
 
+#include "rack/components/class_ids.h"
 #include "rack/core/class_description.h"
 #include "rack/core/gdos.h"
 #include "rack/interfaces/demo.h"
@@ -158,7 +159,7 @@ TEST_F(NoAllocationTest, RouterSend) {
     if (router.send(test::tag_header(kB, kA, 1), {tims::buffer_of(tag)}) != SendStatus::kOk) return false;
     if (b.receive(buf, Mailbox::kNonBlocking).status != RecvStatus::kOk) return false;
     // A request to nobody: answered NOT_AVAILABLE into a.
-    const auto req = tims::make_header(Address::make(0, tims::classes::kLadar, 9), kA, msg::kOn, 1, 1, 0);
+    const auto req = tims::make_header(Address::make(0, class_ids::kLadar, 9), kA, msg::kOn, 1, 1, 0);
     if (router.send(req, std::span<const ConstBuffer>{}) != SendStatus::kNotAvailable) return false;
     return a.receive(buf, Mailbox::kNonBlocking).status == RecvStatus::kOk;
   };
@@ -225,7 +226,7 @@ TEST_F(NoAllocationTest, RouterRefusesWhatADataMailboxDoesNotTrust) {
   // and a request are refused, the request answered NOT_AVAILABLE: no allocation.
   tims::Router router(0);
   Mailbox a(kA, 8, 256);
-  const Address producer = Address::make(0, tims::classes::kLadar, 1);
+  const Address producer = Address::make(0, class_ids::kLadar, 1);
   Mailbox input(kB.with_mailbox(3), 8, 256);
   tims::TrustedSources trusted(kB);
   input.set_trusted_sources(&trusted);
@@ -405,7 +406,7 @@ components:
     // The class description's first page (encoded before the tasks started).
     r = ep.call(gen, msg::kGetClass, class_page, buf, test::kCallTimeoutNs);
     bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kClass ? 0 : 1;
-    r = ep.call(Address::make(0, tims::classes::kLadar, 7), msg::kGetStatus, buf, test::kCallTimeoutNs);
+    r = ep.call(Address::make(0, class_ids::kLadar, 7), msg::kGetStatus, buf, test::kCallTimeoutNs);
     bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kNotAvailable ? 0 : 1;
     while (host.data_mailbox().receive(data, Mailbox::kNonBlocking).status == RecvStatus::kOk) ++streamed;
   };
@@ -613,8 +614,8 @@ TEST_F(NoAllocationTest, GdosLogCallsInAnRtTask) {
   // kind, with the ring filling up (drops) in between; nothing allocates.
   test::Watchdog dog;
   gdos::LogRing ring(16, "test task");
-  gdos::LogSource src(Address::make(0, tims::classes::kLadar, 1), "ladar", gdos::Level::kInfo);
-  const Address dest = Address::make(0, tims::classes::kPosition, 2);
+  gdos::LogSource src(Address::make(0, class_ids::kLadar, 1), "ladar", gdos::Level::kInfo);
+  const Address dest = Address::make(0, class_ids::kPosition, 2);
   const std::string name = "a std::string longer than the small-string buffer";
   uint64_t allocations = ~uint64_t{0};
   uint64_t written = 0;

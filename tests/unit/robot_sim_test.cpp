@@ -17,6 +17,7 @@
 #include "common/pose2d.h"
 #include "path/path.h"
 #include "pilot/pilot.h"
+#include "rack/components/class_ids.h"
 #include "rack/interfaces/demo.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
@@ -164,7 +165,7 @@ TEST_F(RobotSimTest, OnlyTheActivePilotMayMoveAndChangingPilotStopsTheRobot) {
   EXPECT_EQ(newest<ChassisData>(chassis).active_pilot, tool().component().raw());
 
   // Another pilot takes over: the robot stops, and our MOVEs are refused.
-  const Address other = Address::make(0, tims::classes::kPilot, 9);
+  const Address other = Address::make(0, class_ids::kPilot, 9);
   ASSERT_EQ(claim(chassis, other).type, msg::kOk);
   r = move(chassis, 0.5);
   EXPECT_EQ(r.type, msg::kError);

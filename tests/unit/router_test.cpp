@@ -1,4 +1,5 @@
 // Router (local delivery, unknown addresses, uplink) and Endpoint (RPC matching).
+#include "rack/components/class_ids.h"
 #include "rack/tims/router.h"
 
 #include <gtest/gtest.h>
@@ -20,9 +21,9 @@ class RouterTest : public ::testing::Test {
  protected:
   static constexpr uint8_t kSys = 0;
   static constexpr Address kClient = Address::make(kSys, classes::kTool, 1, 1);
-  static constexpr Address kServer = Address::make(kSys, classes::kProbe, 1, 0);
-  static constexpr Address kOther = Address::make(kSys, classes::kProbe, 2, 0);
-  static constexpr Address kUnknown = Address::make(kSys, classes::kGenerator, 9, 0);
+  static constexpr Address kServer = Address::make(kSys, class_ids::kProbe, 1, 0);
+  static constexpr Address kOther = Address::make(kSys, class_ids::kProbe, 2, 0);
+  static constexpr Address kUnknown = Address::make(kSys, class_ids::kGenerator, 9, 0);
 
   void SetUp() override {
     router_.add(client_box_);
@@ -97,7 +98,7 @@ TEST_F(RouterTest, RequestWhoseSourceIsAlsoUnknownEndsWithoutALoop) {
 
 TEST_F(RouterTest, OtherSystemsGoToTheUplink) {
   Mailbox uplink(Address::make(kSys, classes::kExecutor, 0, 7), 4, 512);
-  const Address remote = Address::make(3, classes::kLadar, 0, 0);
+  const Address remote = Address::make(3, class_ids::kLadar, 0, 0);
   const Tag t{5, 0};
   // Without an uplink a remote request is answered NOT_AVAILABLE like an unknown one.
   EXPECT_EQ(router_.send(test::tag_header(remote, kClient, 1, msg::kOn), {buffer_of(t)}), SendStatus::kNotAvailable);
@@ -124,7 +125,7 @@ TEST_F(RouterTest, DeliverLocalAnswersOnlyForItsOwnSystem) {
   EXPECT_EQ(router_.counters().not_available, 1u);
   ASSERT_EQ(client_box_.queued(), 1u);
   // Someone else's system: not ours to answer.
-  h = make_header(Address::make(9, classes::kLadar, 0), kClient, msg::kGetStatus, 1, 5, 0);
+  h = make_header(Address::make(9, class_ids::kLadar, 0), kClient, msg::kGetStatus, 1, 5, 0);
   std::memcpy(raw.data(), &h, sizeof h);
   EXPECT_EQ(router_.deliver_local(raw), SendStatus::kNotAvailable);
   EXPECT_EQ(router_.counters().not_available, 1u);
@@ -320,7 +321,7 @@ TEST_F(EndpointTest, ReplyLargerThanTheBufferIsReportedTooSmall) {
 
 TEST_F(EndpointTest, SendFailsWhenTheDestinationRefuses) {
   Endpoint client(router_, client_box_, 0);
-  Mailbox tiny(Address::make(kSys, classes::kProbe, 3, 0), 1, 64);
+  Mailbox tiny(Address::make(kSys, class_ids::kProbe, 3, 0), 1, 64);
   router_.add(tiny);
   const Tag t{1, 0};
   ASSERT_EQ(tiny.try_send(test::tag_header(tiny.address(), kClient, 200), {buffer_of(t)}), SendStatus::kOk);

@@ -13,6 +13,7 @@
 #include <cstring>
 #include <thread>
 
+#include "rack/components/class_ids.h"
 #include "rack/core/data_component.h"
 #include "rack/core/wire.h"
 #include "rack/interfaces/demo.h"
@@ -32,8 +33,8 @@ namespace msg = tims::msg;
 using Verdict = TrustedSources::Verdict;
 
 constexpr int64_t kSec = rt::kNsPerSec;
-const Address kOwner = Address::make(0, tims::classes::kMonitor, 1);
-const Address kLadar = Address::make(0, tims::classes::kLadar, 1);
+const Address kOwner = Address::make(0, class_ids::kMonitor, 1);
+const Address kLadar = Address::make(0, class_ids::kLadar, 1);
 const Address kTool = Address::make(tims::kToolSystem, tims::classes::kTool, 7, 2);
 
 tims::MessageHeader from(Address src, int8_t type, Address dest = kOwner.with_mailbox(3)) {
@@ -52,12 +53,12 @@ TEST(TrustedSourcesTest, AcceptsTheSubscribedProducersAndItsOwnerOnly) {
   EXPECT_EQ(t.check(from(kOwner.with_mailbox(1), -30), now), Verdict::kAccept) << "its own wake-up";
   EXPECT_EQ(t.check(from(kTool, msg::kData), now), Verdict::kForged);
   EXPECT_EQ(t.check(from(kTool, msg::kError), now), Verdict::kForged);
-  EXPECT_EQ(t.check(from(Address::make(0, tims::classes::kLadar, 2), msg::kData), now), Verdict::kForged)
+  EXPECT_EQ(t.check(from(Address::make(0, class_ids::kLadar, 2), msg::kData), now), Verdict::kForged)
       << "another instance of the same class";
   const auto c = t.counters();
   EXPECT_EQ(c.forged, 4u);
   EXPECT_EQ(c.requests, 0u);
-  EXPECT_EQ(c.last_source, Address::make(0, tims::classes::kLadar, 2).raw()) << "the last refusal is remembered";
+  EXPECT_EQ(c.last_source, Address::make(0, class_ids::kLadar, 2).raw()) << "the last refusal is remembered";
   EXPECT_EQ(c.last_type, msg::kData);
 }
 
@@ -93,16 +94,16 @@ TEST(TrustedSourcesTest, TheTableIsFixedAndReusesEntriesOnlyAfterTheGrace) {
   TrustedSources t(kOwner);
   const int64_t now = 100 * kSec;
   for (uint8_t i = 0; i < TrustedSources::kCapacity; ++i) {
-    ASSERT_TRUE(t.trust(Address::make(0, tims::classes::kLadar, i), now)) << int(i);
+    ASSERT_TRUE(t.trust(Address::make(0, class_ids::kLadar, i), now)) << int(i);
   }
-  ASSERT_TRUE(t.trust(Address::make(0, tims::classes::kLadar, 0), now)) << "again: the same entry";
-  const Address extra = Address::make(0, tims::classes::kCamera, 9);
+  ASSERT_TRUE(t.trust(Address::make(0, class_ids::kLadar, 0), now)) << "again: the same entry";
+  const Address extra = Address::make(0, class_ids::kCamera, 9);
   EXPECT_FALSE(t.trust(extra, now)) << "full";
-  t.retire(Address::make(0, tims::classes::kLadar, 3), now);
+  t.retire(Address::make(0, class_ids::kLadar, 3), now);
   EXPECT_FALSE(t.trust(extra, now + kSec)) << "a retired entry keeps its late messages apart for the grace";
   EXPECT_TRUE(t.trust(extra, now + TrustedSources::kLateGraceNs)) << "then it is reused";
   EXPECT_EQ(t.check(from(extra, msg::kData), now + 3 * kSec), Verdict::kAccept);
-  EXPECT_EQ(t.check(from(Address::make(0, tims::classes::kLadar, 3), msg::kData), now + 3 * kSec), Verdict::kForged);
+  EXPECT_EQ(t.check(from(Address::make(0, class_ids::kLadar, 3), msg::kData), now + 3 * kSec), Verdict::kForged);
   t.clear();
   EXPECT_EQ(t.check(from(extra, msg::kData), now + 3 * kSec), Verdict::kForged);
 }

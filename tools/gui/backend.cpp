@@ -18,6 +18,7 @@
 
 #include "gdos_view.h"
 #include "rack/client/session.h"
+#include "rack/components/class_ids.h"
 #include "rack/core/class_description.h"
 #include "rack/core/trace_session.h"
 #include "rack/core/parameters.h"
@@ -45,7 +46,6 @@ namespace {
 using nlohmann::json;
 using tims::Address;
 namespace msg = tims::msg;
-namespace classes = tims::classes;
 namespace ifc = rack::interfaces;
 namespace rtrace = rack::trace;
 
@@ -832,9 +832,9 @@ struct Backend::Impl {
       const ClassInfo* info = described(Address(raw));
       if (info == nullptr || !info->desc->data) continue;
       const uint32_t class_key = raw & 0xFFFF0000u;
-      const bool fast = cls == classes::kChassis || cls == classes::kPosition || cls == classes::kMcl ||
-                        cls == classes::kScan2d || cls == classes::kPilot || cls == classes::kLadar;
-      if (cls == classes::kCamera) {
+      const bool fast = cls == class_ids::kChassis || cls == class_ids::kPosition || cls == class_ids::kMcl ||
+                        cls == class_ids::kScan2d || cls == class_ids::kPilot || cls == class_ids::kLadar;
+      if (cls == class_ids::kCamera) {
         if (round % 5 == 0) poll_image(raw);  // once a second: 0.9 MB each
         continue;
       }
@@ -855,8 +855,8 @@ struct Backend::Impl {
         const auto sample = r->body.subspan(sizeof sh);
         if (sample.size() != type.desc->data->size) return;
         const Address a(raw);
-        if (a.class_id() == classes::kPosition) robots[comp.system].position_time_ns = sh.time_ns;
-        if (a.class_id() == classes::kChassis) {
+        if (a.class_id() == class_ids::kPosition) robots[comp.system].position_time_ns = sh.time_ns;
+        if (a.class_id() == class_ids::kChassis) {
           ifc::ChassisData cd;
           if (wire::read_payload(sample, r->native(), cd)) {
             robots[comp.system].claimed = cd.active_pilot == reply_mailbox.address().raw();
@@ -936,13 +936,13 @@ struct Backend::Impl {
       }
     };
     switch (cls) {
-      case classes::kLadar: cut("beam_count", {"range", "intensity"}); break;
-      case classes::kScan2d: cut("point_count", {"x", "y", "range", "bearing", "type"}); break;
-      case classes::kPath:
+      case class_ids::kLadar: cut("beam_count", {"range", "intensity"}); break;
+      case class_ids::kScan2d: cut("point_count", {"x", "y", "range", "bearing", "type"}); break;
+      case class_ids::kPath:
         cut("point_count", {"x", "y"});
         cut("waypoint_count", {"waypoint_x", "waypoint_y"});
         break;
-      case classes::kMcl: cut("shown", {"particle_x", "particle_y", "particle_phi", "particle_weight"}); break;
+      case class_ids::kMcl: cut("shown", {"particle_x", "particle_y", "particle_phi", "particle_weight"}); break;
       default: break;
     }
   }
@@ -1023,7 +1023,7 @@ struct Backend::Impl {
       }
       // The map the robot localises on: MCL's, else the simulators' `map` parameter.
       std::optional<Address> holder;
-      for (const uint8_t cls : {classes::kMcl, classes::kLadar, classes::kChassis}) {
+      for (const uint8_t cls : {class_ids::kMcl, class_ids::kLadar, class_ids::kChassis}) {
         if ((holder = find(s, cls))) break;
       }
       if (!holder) {
@@ -1192,7 +1192,7 @@ struct Backend::Impl {
         break;
       }
       case Op::kSetDestination: {
-        const auto pilot = find(r.system, classes::kPilot);
+        const auto pilot = find(r.system, class_ids::kPilot);
         if (!pilot) {
           result(client, r, false, "robot " + std::to_string(r.system) + " has no Pilot");
           break;
@@ -1209,7 +1209,7 @@ struct Backend::Impl {
         break;
       }
       case Op::kFollowPath: {
-        const auto pilot = find(r.system, classes::kPilot);
+        const auto pilot = find(r.system, class_ids::kPilot);
         if (!pilot) {
           result(client, r, false, "robot " + std::to_string(r.system) + " has no Pilot");
           break;
@@ -1302,8 +1302,8 @@ struct Backend::Impl {
   }
 
   void set_pose(uint64_t client, const Request& r) {
-    const auto position = find(r.system, classes::kPosition);
-    const auto mcl = find(r.system, classes::kMcl);
+    const auto position = find(r.system, class_ids::kPosition);
+    const auto mcl = find(r.system, class_ids::kMcl);
     if (!position && !mcl) {
       result(client, r, false, "robot " + std::to_string(r.system) + " has neither Position nor MCL");
       return;
@@ -1356,7 +1356,7 @@ struct Backend::Impl {
 
   void joystick(uint64_t client, const Request& r) {
     Robot& robot = robots[r.system];
-    const auto chassis = find(r.system, classes::kChassis);
+    const auto chassis = find(r.system, class_ids::kChassis);
     if (!chassis) {
       result(client, r, false, "robot " + std::to_string(r.system) + " has no Chassis");
       return;
@@ -1396,7 +1396,7 @@ struct Backend::Impl {
   }
 
   void send_move(uint8_t system, double vx, double omega) {
-    const auto chassis = find(system, classes::kChassis);
+    const auto chassis = find(system, class_ids::kChassis);
     if (!chassis) return;
     ifc::ChassisMove m;
     m.vx = vx;

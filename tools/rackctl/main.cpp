@@ -822,8 +822,18 @@ std::string type_text(const rack::TypeDescription& t) {
   for (const auto& f : t.fields) {
     out += " " + f.name + ":" + rack::describe(f.kind);
     if (f.count > 1) out += "[" + std::to_string(f.count) + "]";
+    if (!f.unit.empty()) out += "(" + f.unit + ")";  // as declared: vx:f64(m/s)
   }
   return out;
+}
+
+// The units of a type's fields as a JSON object ({"vx":"m/s"}; {} when none).
+std::string units_json(const rack::TypeDescription& t) {
+  std::string out = "{";
+  for (const auto& f : t.fields) {
+    if (!f.unit.empty()) out += (out.size() > 1 ? "," : "") + quoted(f.name) + ":" + quoted(f.unit);
+  }
+  return out + "}";
 }
 
 // Every class running on the hosts discovered (or on HOST): what it describes.
@@ -864,7 +874,8 @@ int cmd_classes(Session& s, const Options& o) {
               ",\"system\":" + std::to_string(where.first.system()) + ",\"class\":" + quoted(d->class_name) +
               ",\"impl\":" + quoted(d->impl) + ",\"class_id\":" + std::to_string(d->class_id) +
               ",\"summary\":" + quoted(d->summary) +
-              ",\"data\":" + (d->data ? quoted(type_text(*d->data)) : std::string("null")) + ",\"commands\":" + cmds +
+              ",\"data\":" + (d->data ? quoted(type_text(*d->data)) : std::string("null")) +
+              ",\"units\":" + (d->data ? units_json(*d->data) : std::string("{}")) + ",\"commands\":" + cmds +
               "],\"parameters\":" + params + "]}";
       continue;
     }
@@ -1603,10 +1614,11 @@ const std::vector<Command>& commands() {
        "Lists the component classes running on every host discovered (or on HOST, by\n"
        "its host name) as each class describes itself to tools (GET_CLASS): class\n"
        "name (the one in addresses) and implementation, TiMS class id, summary, data\n"
-       "type with its fields, commands with their body fields, parameters with docs,\n"
-       "units and ranges. rackctl needs no class compiled in: a plug-in class is\n"
-       "listed, printed (get-data, watch), addressed (Counter(2/0)) and sent commands\n"
-       "by name like a built-in one. --json: one JSON array.",
+       "type with its fields and their units (vx:f64(m/s)), commands with their body\n"
+       "fields, parameters with docs, units and ranges. rackctl needs no class\n"
+       "compiled in: a plug-in class is listed, printed (get-data, watch), addressed\n"
+       "(Counter(2/0)) and sent commands by name like a built-in one. --json: one JSON\n"
+       "array (\"units\": the data fields' units by field name).",
        cmd_classes},
       {"set-param",
        "set-param NAME KEY VALUE",

@@ -29,7 +29,8 @@ struct CounterReset {
 
 constexpr int8_t kCounterReset = 21;
 
-const rack::DataTypeInfo kCounterDataInfo = rack::data_type_info<CounterData>("CounterData");
+const rack::FieldUnit kCounterUnits[] = {{"rate", "1/s"}};  // tools show it (rackctl classes)
+const rack::DataTypeInfo kCounterDataInfo = rack::data_type_info<CounterData>("CounterData", {}, kCounterUnits);
 const rack::DataTypeInfo kCounterResetInfo = rack::data_type_info<CounterReset>("CounterReset");
 const std::array<rack::CommandInfo, 1> kCounterCommands = {
     rack::CommandInfo{"RESET", kCounterReset, &kCounterResetInfo, "count on from `start`"}};

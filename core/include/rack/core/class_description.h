@@ -24,6 +24,10 @@
 //   [value names: only when the request asks for them (ClassPageRequest.sections)
 //    and the class declares some]
 //   u16 n_named    { str field, u8 flags (1: address), u16 n_values { u32 value, str name } }
+//   [field units: only when the request asks for them (kClassSectionFieldUnits) and
+//    the data type declares some; the value-names section precedes them then, with
+//    n_named = 0 when the class names no values]
+//   u16 n_units    { u16 field (index into the data type's fields, increasing), str unit }
 //   type = str name, u32 size, u16 n_fields { str name, u8 kind, u32 offset, u32 count }
 //   str  = u16 length + bytes (no NUL)
 //
@@ -33,6 +37,10 @@
 // kClassSectionValueNames): a client that does not know it gets exactly the bytes it
 // always got (the description without it, with that length as `total`), and a client
 // that asks an executor that does not know it gets those too and decodes no names.
+// The field-units section (the units of the data type's fields, rack::FieldUnit)
+// follows it the same way (bit kClassSectionFieldUnits, which brings the value names
+// with it): a client that asks only for names, or an executor that predates units,
+// gives exactly the bytes it gave before units.
 //
 // The decoder is total: it is network input. Counts and lengths are bounded (kMax*),
 // strings hold no control characters (they are printed on terminals), names are
@@ -75,6 +83,7 @@ struct FieldDescription {
   tims::FieldKind kind = tims::FieldKind::kU8;
   uint32_t offset = 0;
   uint32_t count = 1;
+  std::string unit;  // "m/s"; empty: none. Data types only (the field-units section)
   bool operator==(const FieldDescription&) const = default;
 };
 
@@ -144,8 +153,8 @@ struct ClassDescription {
 
 // The bytes of a description. Throws std::invalid_argument when it breaks a limit the
 // decoder enforces (a class that a client would refuse is refused at registration).
-// `base_size`, when given, is set to the length of the description without the
-// value-names section (what a client that does not ask for it is served).
+// `base_size`, when given, is set to the length of the description without its
+// optional sections (what a client that does not ask for them is served).
 [[nodiscard]] std::vector<std::byte> encode_class_description(const ClassDescription& d,
                                                               std::size_t* base_size = nullptr);
 
@@ -159,6 +168,7 @@ struct ClassDescription {
 // `sections`: the optional sections the client reads (0 from clients that predate
 // them, which are served the description without them).
 inline constexpr uint32_t kClassSectionValueNames = 0x1;
+inline constexpr uint32_t kClassSectionFieldUnits = 0x2;  // with the value names
 struct ClassPageRequest {
   uint32_t offset = 0;
   uint32_t sections = 0;
@@ -196,6 +206,8 @@ class ClassPageAssembler {
 // and `page` (a span into `encoded`); nullptr on success, otherwise the reason
 // (malformed body, offset past the end). RT-safe (no allocation): the command task
 // serves pages with it.
+// The sections served: none, the value names (up to their end, which it finds by
+// walking them), or all (units asked).
 // `base_size`: the length of `encoded` without its optional sections (served when the
 // request does not ask for them).
 [[nodiscard]] const char* class_page(std::span<const std::byte> encoded, std::size_t base_size,

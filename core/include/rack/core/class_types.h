@@ -29,18 +29,27 @@ struct FieldValueNames {
   bool address = false;
 };
 
+// The unit of one field of a data type, which tools print beside its value and in the
+// class's description ("m", "rad", "m/s", "ms"; printable, at most 64 bytes).
+struct FieldUnit {
+  const char* field;  // the field's name in the type's field table
+  const char* unit;
+};
+
 struct DataTypeInfo {
   const char* type_name;                           // "ChassisData"
   uint32_t size;                                   // bytes of one sample (or body)
   std::span<const tims::FieldDesc> fields;         // by offset; see tims::fields_of<T>
   std::span<const FieldValueNames> value_names{};  // of a sample type's enum and address fields
+  std::span<const FieldUnit> units{};              // of a sample type's fields that have one
 };
 
 // The info of a struct that declares `static constexpr auto fields()` (RACK_FIELD),
-// with the value names of its enum and address fields, if any.
+// with the value names of its enum and address fields and the units of its fields, if any.
 template <typename T>
-constexpr DataTypeInfo data_type_info(const char* name, std::span<const FieldValueNames> value_names = {}) noexcept {
-  return DataTypeInfo{name, sizeof(T), std::span<const tims::FieldDesc>(tims::fields_of<T>), value_names};
+constexpr DataTypeInfo data_type_info(const char* name, std::span<const FieldValueNames> value_names = {},
+                                      std::span<const FieldUnit> units = {}) noexcept {
+  return DataTypeInfo{name, sizeof(T), std::span<const tims::FieldDesc>(tims::fields_of<T>), value_names, units};
 }
 
 // A class command as rackctl send names it.

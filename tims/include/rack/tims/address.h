@@ -1,6 +1,6 @@
 // TiMS addresses: 32 bits = system (8) | class (8) | instance (8) | local mailbox (8).
-// Local mailbox 0 is a component's command mailbox. Printed as `Ladar(0/1)`, or
-// `Ladar(0/1)#3` for local mailbox 3.
+// Local mailbox 0 is a component's command mailbox. Printed with its class's name
+// (register_class_name) as `Name(0/1)`, or `Name(0/1)#3` for local mailbox 3.
 //
 // Real-time contract: Address and format() are RT-safe; parse() and the class table
 // look-ups by name are RT-safe too (no allocation), but are meant for tools.
@@ -46,35 +46,17 @@ class Address {
 // (`Class0x42(0/1)` and `66(0/1)` are accepted). nullopt on malformed text.
 [[nodiscard]] std::optional<Address> parse_address(std::string_view text) noexcept;
 
-// Ids: the framework's own (kExecutor, kTool); the rest are TRANSITIONAL (tests, tools)
-// copies of the class declarations' ids (names: register_class_name, 0x80.. free).
+// The framework's own class ids. A component class's id is declared with the class
+// (rack_add_class in its folder; rack/components/class_ids.h has the tree's): tims/
+// knows no component class, only the names the registry gives it
+// (register_class_name).
 namespace classes {
-inline constexpr uint8_t kExecutor = 0x01;  // rackd itself
-inline constexpr uint8_t kTool = 0x02;      // rackctl, gdos and other tools
-inline constexpr uint8_t kChassis = 0x10;
-inline constexpr uint8_t kLadar = 0x11;
-inline constexpr uint8_t kCamera = 0x12;
-inline constexpr uint8_t kGps = 0x13;
-inline constexpr uint8_t kGyro = 0x14;
-inline constexpr uint8_t kJoystick = 0x15;
-inline constexpr uint8_t kOdometry = 0x16;
-inline constexpr uint8_t kServoDrive = 0x17;
-inline constexpr uint8_t kPath = 0x18;
-inline constexpr uint8_t kPilot = 0x19;
-inline constexpr uint8_t kPosition = 0x1A;
-inline constexpr uint8_t kScan2d = 0x1B;
-inline constexpr uint8_t kScan3d = 0x1C;
-inline constexpr uint8_t kObjRecog = 0x1D;
-inline constexpr uint8_t kMcl = 0x1E;
-inline constexpr uint8_t kGenerator = 0x40;       // demo: periodic producer
-inline constexpr uint8_t kMonitor = 0x41;         // demo: consumer with statistics
-inline constexpr uint8_t kProbe = 0x42;           // test component whose hooks can fail on demand
-inline constexpr uint8_t kModeSwitchDemo = 0x43;  // demo: triggers each mode-switch reason on demand
-inline constexpr uint8_t kEvaluator = 0x44;       // simulation: localisation error against the true pose
-inline constexpr uint8_t kFirstUser = 0x80;
+inline constexpr uint8_t kExecutor = 0x01;   // rackd itself
+inline constexpr uint8_t kTool = 0x02;       // rackctl, gdos and other tools
+inline constexpr uint8_t kFirstUser = 0x80;  // from here up: free for classes outside the tree
 }  // namespace classes
 
-// Name of a class id ("Ladar"), or nullptr when unknown. RT-safe.
+// Name of a class id (as registered), or nullptr when unknown. RT-safe.
 [[nodiscard]] const char* class_name(uint8_t class_id) noexcept;
 // Class id of a name, or nullopt. RT-safe.
 [[nodiscard]] std::optional<uint8_t> class_id(std::string_view name) noexcept;

@@ -187,7 +187,7 @@ struct LcmTransportConfig {
   int64_t replay_window_ns = 5'000'000'000;
   // Scheduling of the receive threads (one per network): 0 normal scheduling (as
   // every other transport thread); 1..98 SCHED_FIFO at that priority, BELOW every
-  // control task, so that a busy CPU (MCL, PCL, a build) cannot starve a large
+  // control task, so that a busy CPU (localisation, point clouds, a build) cannot starve a large
   // message's datagrams out of the socket buffer. Refused (no RT scheduling): a
   // warning, and the thread stays at normal scheduling.
   int receive_priority = 0;

@@ -2,11 +2,11 @@
 // the other byte order and tools can print it (rackctl's JSON). A payload type is a
 // trivially copyable struct with a field table:
 //
-//   struct GeneratorData {
+//   struct SineData {
 //     double value;
 //     int64_t counter;
 //     static constexpr auto fields() noexcept {
-//       return std::array{RACK_FIELD(GeneratorData, value), RACK_FIELD(GeneratorData, counter)};
+//       return std::array{RACK_FIELD(SineData, value), RACK_FIELD(SineData, counter)};
 //     }
 //   };
 //
