@@ -25,18 +25,16 @@
 #include <unistd.h>
 
 #include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <string>
-#include <thread>
+#include <functional>
 #include <vector>
 
 #include "bench_common.h"
+#include "cycle_bench.h"
 #include "rack/rt/clock.h"
-#include "rack/rt/memory.h"
 #include "rack/rt/modeswitch.h"
 #include "rack/rt/pi_mutex.h"
-#include "rack/rt/thread.h"
 
 namespace {
 
@@ -70,56 +68,36 @@ __attribute__((noinline)) void cycle_body(Shared& s, unsigned i, bool syscall) {
   if (syscall) (void)::syscall(SYS_getpid);  // direct, not through a framework call
 }
 
-void run_variant(Variant& v, Shared& shared, int cycles, int cpu, int priority) {
-  Thread t;
-  t.start(
-      {std::string("bench:") + v.name, priority, cpu, 256 * 1024},
-      [&] {
-        if (v.attach) ms::attach_current_thread(ms::TaskInfo{"bench", "bench", "Bench(0/0)", 0, v.mode});
-        for (int k = 0; k < 200; ++k) cycle_body(shared, static_cast<unsigned>(k), v.syscall);  // warm-up
-        for (int k = 0; k < cycles; ++k) {
-          const int64_t t0 = monotonic_ns();
-          if (v.window) ms::enter_cycle();
-          cycle_body(shared, static_cast<unsigned>(k), v.syscall);
-          if (v.window) (void)ms::leave_cycle();
-          v.samples.push_back(monotonic_ns() - t0);
-        }
-        if (v.attach) ms::detach_current_thread();
-      },
-      false);
-  t.join();
+void run_variant(Variant& v, Shared& shared, const rack::bench::CycleBenchOptions& o) {
+  rack::bench::run_on_bench_thread(v.name, o, [&] {
+    if (v.attach) ms::attach_current_thread(ms::TaskInfo{"bench", "bench", "Bench(0/0)", 0, v.mode});
+    for (int k = 0; k < 200; ++k) cycle_body(shared, static_cast<unsigned>(k), v.syscall);  // warm-up
+    for (int k = 0; k < o.cycles; ++k) {
+      const int64_t t0 = monotonic_ns();
+      if (v.window) ms::enter_cycle();
+      cycle_body(shared, static_cast<unsigned>(k), v.syscall);
+      if (v.window) (void)ms::leave_cycle();
+      v.samples.push_back(monotonic_ns() - t0);
+    }
+    if (v.attach) ms::detach_current_thread();
+  });
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  int cycles = 20000, rounds = 10, cpu = 1, priority = 80;
   bool rusage = false;
-  std::string json;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&] {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "%s needs a value\n", a.c_str());
-        std::exit(2);
-      }
-      return std::atoi(argv[++i]);
-    };
-    if (a == "--cycles") cycles = next();
-    else if (a == "--rounds") rounds = next();
-    else if (a == "--cpu") cpu = next();
-    else if (a == "--priority") priority = next();
-    else if (a == "--rusage") rusage = true;
-    else if (a == "--json" && i + 1 < argc) json = argv[++i];
-    else if (a == "-h" || a == "--help") {
-      std::puts("bench_modeswitch [--cycles N] [--rounds R] [--cpu C] [--priority P] [--rusage] [--json FILE]");
-      return 0;
-    } else {
-      std::fprintf(stderr, "unknown option %s\n", a.c_str());
-      return 2;
-    }
-  }
-  const auto mem = apply_memory_policy(64u << 20);
+  const rack::bench::CycleBenchOptions o = rack::bench::parse_cycle_bench_options(
+      argc, argv, {20000, 10, 1, 80, {}, {}},
+      "bench_modeswitch [--cycles N] [--rounds R] [--cpu C] [--priority P] [--rusage] [--json FILE]",
+      [&](const std::string& option, const std::function<int()>&) {
+        if (option != "--rusage") return false;
+        rusage = true;
+        return true;
+      });
+  const int cycles = o.cycles, rounds = o.rounds, cpu = o.cpu, priority = o.priority;
+  const std::string& json = o.json;
+  const auto mem = rack::bench::apply_cycle_bench_memory();
   ms::Config config;
   config.program = "bench_modeswitch";
   config.crash_dir = "/tmp/rack-bench-modeswitch";
@@ -138,7 +116,7 @@ int main(int argc, char** argv) {
   for (auto& v : variants) v.samples.reserve(static_cast<std::size_t>(cycles) * static_cast<std::size_t>(rounds));
   Shared shared;
   for (int r = 0; r < rounds; ++r) {
-    for (auto& v : variants) run_variant(v, shared, cycles, cpu, priority);
+    for (auto& v : variants) run_variant(v, shared, o);
   }
   const auto counts = ms::counters();
   ms::stop();

@@ -27,7 +27,7 @@
 #include <array>
 #include <atomic>
 #include <cstdio>
-#include <cstdlib>
+#include <functional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -36,9 +36,8 @@
 #include <sched.h>
 
 #include "bench_common.h"
+#include "cycle_bench.h"
 #include "rack/rt/clock.h"
-#include "rack/rt/memory.h"
-#include "rack/rt/thread.h"
 #include "rack/rt/trace.h"
 #include "rack/tims/mailbox.h"
 #include "rack/tims/message.h"
@@ -83,9 +82,9 @@ __attribute__((noinline)) int64_t cycle(Bus& bus, int64_t due, uint8_t seq) {
   return ended - woke;
 }
 
-void run_variant(Variant& v, Bus& bus, trace::Ring& ring, int cycles, int cpu, int drain_cpu, int priority) {
+void run_variant(Variant& v, Bus& bus, trace::Ring& ring, const rack::bench::CycleBenchOptions& o, int drain_cpu) {
   std::vector<int64_t> samples;
-  samples.reserve(static_cast<std::size_t>(cycles));
+  samples.reserve(static_cast<std::size_t>(o.cycles));
   std::atomic<bool> done{false};
   std::thread drainer;
   if (v.mode == Mode::kOn) {
@@ -106,25 +105,20 @@ void run_variant(Variant& v, Bus& bus, trace::Ring& ring, int cycles, int cpu, i
       }
     });
   }
-  Thread t;
-  t.start(
-      {std::string("bench:") + v.name, priority, cpu, 256 * 1024},
-      [&] {
-        trace::bind_thread_ring(v.mode == Mode::kReference ? nullptr : &ring);
-        ring.set_enabled(v.mode == Mode::kOn);
-        for (int k = 0; k < 500; ++k) (void)cycle(bus, monotonic_ns(), static_cast<uint8_t>(k));  // warm-up
-        for (int k = 0; k < cycles; ++k) {
-          samples.push_back(cycle(bus, monotonic_ns(), static_cast<uint8_t>(k)));
-          // A task's cycles are spaced by its period: a pause every 512 cycles
-          // (2560 events, within the ring's 4096) lets the drainer keep up, as it
-          // does in rackd, so that "on" measures recording, not the drop path.
-          if (k % 512 == 511) sleep_for(10 * kNsPerMs);
-        }
-        ring.set_enabled(false);
-        trace::bind_thread_ring(nullptr);
-      },
-      false);
-  t.join();
+  rack::bench::run_on_bench_thread(v.name, o, [&] {
+    trace::bind_thread_ring(v.mode == Mode::kReference ? nullptr : &ring);
+    ring.set_enabled(v.mode == Mode::kOn);
+    for (int k = 0; k < 500; ++k) (void)cycle(bus, monotonic_ns(), static_cast<uint8_t>(k));  // warm-up
+    for (int k = 0; k < o.cycles; ++k) {
+      samples.push_back(cycle(bus, monotonic_ns(), static_cast<uint8_t>(k)));
+      // A task's cycles are spaced by its period: a pause every 512 cycles
+      // (2560 events, within the ring's 4096) lets the drainer keep up, as it
+      // does in rackd, so that "on" measures recording, not the drop path.
+      if (k % 512 == 511) sleep_for(10 * kNsPerMs);
+    }
+    ring.set_enabled(false);
+    trace::bind_thread_ring(nullptr);
+  });
   done.store(true, std::memory_order_release);
   if (drainer.joinable()) drainer.join();
   v.pooled.insert(v.pooled.end(), samples.begin(), samples.end());
@@ -139,41 +133,23 @@ double median(std::vector<double> v) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int cycles = 20000, rounds = 7, cpu = 1, drain_cpu = 0, priority = 80;
-  std::string json;
-  std::string command_line;
-  for (int i = 0; i < argc; ++i) {
-    if (i > 0) command_line += ' ';
-    command_line += argv[i];
-  }
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&] {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "%s needs a value\n", a.c_str());
-        std::exit(2);
-      }
-      return std::atoi(argv[++i]);
-    };
-    if (a == "--cycles") cycles = next();
-    else if (a == "--rounds") rounds = next();
-    else if (a == "--cpu") cpu = next();
-    else if (a == "--drain-cpu") drain_cpu = next();
-    else if (a == "--priority") priority = next();
-    else if (a == "--json" && i + 1 < argc) json = argv[++i];
-    else if (a == "-h" || a == "--help") {
-      std::puts("bench_trace [--cycles N] [--rounds R] [--cpu C] [--drain-cpu C] [--priority P] [--json FILE]");
-      return 0;
-    } else {
-      std::fprintf(stderr, "unknown option %s\n", a.c_str());
-      return 2;
-    }
-  }
+  int drain_cpu = 0;
+  const rack::bench::CycleBenchOptions o = rack::bench::parse_cycle_bench_options(
+      argc, argv, {20000, 7, 1, 80, {}, {}},
+      "bench_trace [--cycles N] [--rounds R] [--cpu C] [--drain-cpu C] [--priority P] [--json FILE]",
+      [&](const std::string& option, const std::function<int()>& next_int) {
+        if (option != "--drain-cpu") return false;
+        drain_cpu = next_int();
+        return true;
+      });
+  const int cycles = o.cycles, rounds = o.rounds, cpu = o.cpu, priority = o.priority;
+  const std::string& json = o.json;
+  const std::string& command_line = o.command_line;
   if (cycles < 100 || rounds < 1) {
     std::fprintf(stderr, "--cycles at least 100, --rounds at least 1\n");
     return 2;
   }
-  const auto mem = apply_memory_policy(64u << 20);
+  const auto mem = rack::bench::apply_cycle_bench_memory();
   std::fprintf(stderr, "%s\n", mem.describe().c_str());
   Bus bus;
   trace::Ring ring(4096);
@@ -185,7 +161,7 @@ int main(int argc, char** argv) {
     // Alternate the order too, so that no variant always follows the same one.
     std::vector<Variant*> order = {&variants[0], &variants[1], &variants[2]};
     if (r % 2 == 1) std::reverse(order.begin(), order.end());
-    for (Variant* v : order) run_variant(*v, bus, ring, cycles, cpu, drain_cpu, priority);
+    for (Variant* v : order) run_variant(*v, bus, ring, o, drain_cpu);
     for (auto& v : variants) {
       v.ratio_p50.push_back(v.last.p50_ns / variants[0].last.p50_ns);
       v.ratio_p99.push_back(v.last.p99_ns / variants[0].last.p99_ns);

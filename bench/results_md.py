@@ -80,12 +80,18 @@ def load_env(path):
     return env
 
 
-def pct_row(label, p, fmt=us):
-    return (f"| {label} | {p.get('samples', '–')} | {fmt(p.get('min_ns'))} | {fmt(p.get('p50_ns'))} | "
-            f"{fmt(p.get('p90_ns'))} | {fmt(p.get('p99_ns'))} | {fmt(p.get('p999_ns'))} | {fmt(p.get('max_ns'))} |")
+def table_row(cells):
+    """One Markdown table row: | a | b | ... |"""
+    return "| " + " | ".join(str(x) for x in cells) + " |"
 
 
-PCT_HEAD = "| side | samples | min | p50 | p90 | p99 | p99.9 | max |\n|---|---|---|---|---|---|---|---|"
+def pct_cells(label, p, fmt=us):
+    """A side's percentiles as table cells: label, samples, min, p50, p90, p99, p99.9, max."""
+    return [label, p.get('samples', '–'), fmt(p.get('min_ns')), fmt(p.get('p50_ns')), fmt(p.get('p90_ns')),
+            fmt(p.get('p99_ns')), fmt(p.get('p999_ns')), fmt(p.get('max_ns'))]
+
+
+PCT_HEAD = ["side", "samples", "min", "p50", "p90", "p99", "p99.9", "max"]
 
 
 def strace_calls(path):
@@ -122,6 +128,30 @@ class Ctx:
 
     def w(self, line=""):
         self.out.append(line)
+
+    def table(self, head, rows):
+        """The one table writer: a head row, its rule, a row per list of cells (a blank
+        line after it is the caller's)."""
+        self.w(table_row(head))
+        self.w("|" + "---|" * len(head))
+        for r in rows:
+            self.w(table_row(r))
+
+    def end_section(self, key):
+        """A benchmark's load during its run and its exact command."""
+        self.conditions(key)
+        self.command_block([self.cmd(key)])
+
+    def section(self, key, title):
+        """A benchmark's heading and its results; None when it did not run (then the
+        section says so and ends)."""
+        d = self.data(key)
+        self.w(f"## {title}")
+        self.w("")
+        if d is None:
+            self.w(f"Not run: {self.skipped(key) or 'no results'}.")
+            self.w("")
+        return d
 
     def rel(self, text):
         return text.replace(self.root, "")
@@ -189,12 +219,8 @@ class Ctx:
 
 # ---- rpc ------------------------------------------------------------------------------
 def section_rpc(c, keys):
-    rpc = c.data("rpc")
-    c.w("## bench_rpc: RPC round trip inside one executor vs a raw ping-pong")
-    c.w("")
+    rpc = c.section("rpc", "bench_rpc: RPC round trip inside one executor vs a raw ping-pong")
     if rpc is None:
-        c.w(f"Not run: {c.skipped('rpc') or 'no results'}.")
-        c.w("")
         return
     c.w("A client thread (SCHED_FIFO, same priority as the command task) calls "
         "`tims::Endpoint::call(GET_STATUS)` on a Generator's command task in a `rack::Executor` "
@@ -220,14 +246,11 @@ def section_rpc(c, keys):
                  else f"across CPUs (client {m['client_cpu']}, server {m['server_cpu']})")
         c.w(f"### {place[0].upper() + place[1:]}")
         c.w("")
-        c.w("| mechanism | samples | min | p50 | p90 | p99 | p99.9 | max | vs futex p50 |")
-        c.w("|---|---|---|---|---|---|---|---|---|")
         base = mech.get("futex", {}).get("latency", {}).get("p50_ns")
-        for key in ("futex", "rack_rpc", "pi_condvar", "pi_futex"):
-            if key not in mech:
-                continue
-            lat = mech[key]["latency"]
-            c.w(pct_row(labels[key], lat, us2)[:-1] + f" {fx(ratio(lat['p50_ns'], base))} |")
+        c.table(["mechanism"] + PCT_HEAD[1:] + ["vs futex p50"],
+                [pct_cells(labels[key], mech[key]["latency"], us2)
+                 + [fx(ratio(mech[key]["latency"]["p50_ns"], base))]
+                 for key in ("futex", "rack_rpc", "pi_condvar", "pi_futex") if key in mech])
         c.w("")
         c.w(f"All figures in us. Ratio RACK-RT / futex: **p50 {m['ratio_p50']:.2f}x** "
             f"({verdict(m['ratio_p50'], rpc['target_ratio_p50'])}), p99 {m['ratio_p99']:.2f}x.")
@@ -252,8 +275,7 @@ def section_rpc(c, keys):
         c.w("**System calls per round trip** (same CPU, 2000 round trips under "
             "`strace -f -e trace=futex,clock_nanosleep`; thread start/stop adds a few):")
         c.w("")
-        c.w("| mechanism | futex calls / round trip | FUTEX_WAIT(_BITSET) | FUTEX_WAKE | FUTEX_UNLOCK_PI | FUTEX_LOCK_PI | clock_nanosleep (the gap) |")
-        c.w("|---|---|---|---|---|---|---|")
+        rows = []
         for key, label in (("futex", "raw futex ping-pong"), ("rack", "RACK-RT RPC"),
                            ("pi_condvar", "PI mutex + condvar"), ("pi_futex", "PI mutex + futex word")):
             k = calls.get(key, {})
@@ -261,9 +283,11 @@ def section_rpc(c, keys):
                 continue
             n = 2000.0
             wait = k.get("futex:FUTEX_WAIT", 0) + k.get("futex:FUTEX_WAIT_BITSET", 0)
-            c.w(f"| {label} | {k.get('futex', 0) / n:.2f} | {wait / n:.2f} | {k.get('futex:FUTEX_WAKE', 0) / n:.2f} | "
-                f"{k.get('futex:FUTEX_UNLOCK_PI', 0) / n:.2f} | {k.get('futex:FUTEX_LOCK_PI', 0) / n:.2f} | "
-                f"{k.get('clock_nanosleep', 0) / n:.2f} |")
+            rows.append([label, f"{k.get('futex', 0) / n:.2f}", f"{wait / n:.2f}",
+                         f"{k.get('futex:FUTEX_WAKE', 0) / n:.2f}", f"{k.get('futex:FUTEX_UNLOCK_PI', 0) / n:.2f}",
+                         f"{k.get('futex:FUTEX_LOCK_PI', 0) / n:.2f}", f"{k.get('clock_nanosleep', 0) / n:.2f}"])
+        c.table(["mechanism", "futex calls / round trip", "FUTEX_WAIT(_BITSET)", "FUTEX_WAKE", "FUTEX_UNLOCK_PI",
+                 "FUTEX_LOCK_PI", "clock_nanosleep (the gap)"], rows)
         c.w("")
     c.w("Why RACK-RT is slower where it is: a TiMS mailbox is a PI mutex plus `rt::PiCondVar` (a futex "
         "sequence word: no system call for a notify nobody waits for); every `Endpoint::call` waits with a "
@@ -358,11 +382,9 @@ def section_jitter(c, keys):
             c.w(f"Background load for both sides, started 2 s before and stopped after each measurement: "
                 f"`{c.rel(j['load_cmd'])}` (normal scheduling; rackd's own tasks at their host-file priorities).")
             c.w("")
-        c.w("| side | samples | min | p50 | p90 | p99 | p99.9 | max | mean |")
-        c.w("|---|---|---|---|---|---|---|---|---|")
-        for side, side_label in (("rack", "**RACK-RT data task**"), ("cyclictest", "cyclictest (reference)")):
-            lat = j["sides"][side]["latency"]
-            c.w(pct_row(side_label, lat) + f" {us(lat['mean_ns'])} |")
+        c.table(PCT_HEAD + ["mean"],
+                [pct_cells(side_label, j["sides"][side]["latency"]) + [us(j["sides"][side]["latency"]["mean_ns"])]
+                 for side, side_label in (("rack", "**RACK-RT data task**"), ("cyclictest", "cyclictest (reference)"))])
         c.w("")
         rr = j.get("round_ratios")
         # The verdict: the median of the per-round ratios (older results: the pooled ratio).
@@ -381,17 +403,19 @@ def section_jitter(c, keys):
             late_r = j["sides"]["rack"].get("late_1ms")
             late_c = j["sides"]["cyclictest"].get("late_1ms")
             phases = j.get("phase_us") if j.get("aligned") else None
-            extra_head = (" phase us |" if phases else "") + (" >= 1 ms late: RACK-RT / cyclictest |" if late_r else "")
-            c.w("| round |" + extra_head + " RACK-RT p99 | cyclictest p99 | ratio | RACK-RT p99.9 | cyclictest p99.9 | ratio |")
-            c.w("|---|" + "---|" * extra_head.count("|") + "---|---|---|---|---|---|")
+            extra_head = (["phase us"] if phases else []) + ([">= 1 ms late: RACK-RT / cyclictest"] if late_r else [])
             rounds_r, rounds_c = j["sides"]["rack"].get("rounds", []), j["sides"]["cyclictest"].get("rounds", [])
+            rows = []
             for i, (a, b) in enumerate(zip(rounds_r, rounds_c)):
-                extra = (f" {phases[i]} |" if phases and i < len(phases) else " – |" if phases else "")
+                extra = ([phases[i] if i < len(phases) else "–"] if phases else [])
                 if late_r:
-                    extra += (f" {late_r[i]} / {late_c[i]} |" if late_c and i < len(late_r) and i < len(late_c)
-                              else " – |")
-                c.w(f"| {i + 1} |{extra} {us(a['p99_ns'])} | {us(b['p99_ns'])} | {fx(ratio(a['p99_ns'], b['p99_ns']))} | "
-                    f"{us(a['p999_ns'])} | {us(b['p999_ns'])} | {fx(ratio(a['p999_ns'], b['p999_ns']))} |")
+                    extra.append(f"{late_r[i]} / {late_c[i]}" if late_c and i < len(late_r) and i < len(late_c)
+                                 else "–")
+                rows.append([i + 1] + extra + [us(a['p99_ns']), us(b['p99_ns']), fx(ratio(a['p99_ns'], b['p99_ns'])),
+                                               us(a['p999_ns']), us(b['p999_ns']),
+                                               fx(ratio(a['p999_ns'], b['p999_ns']))])
+            c.table(["round"] + extra_head + ["RACK-RT p99", "cyclictest p99", "ratio", "RACK-RT p99.9",
+                                              "cyclictest p99.9", "ratio"], rows)
             st = j.get("startup")
             if st:
                 c.w("")
@@ -409,12 +433,11 @@ def section_jitter(c, keys):
         hists = {s: dict((b, n) for b, n in j["sides"][s]["histogram_us"]) for s in ("rack", "cyclictest")}
         c.w("Histogram (counts per latency range, us):")
         c.w("")
-        c.w("| range | " + " | ".join(f"[{edges[i]}, {edges[i + 1]})" if i + 2 < len(edges) else f">= {edges[i]}"
-                                      for i in range(len(edges) - 1)) + " |")
-        c.w("|---|" + "---|" * (len(edges) - 1))
-        for s, side_label in (("rack", "RACK-RT"), ("cyclictest", "cyclictest")):
-            row = [str(sum(n for b, n in hists[s].items() if edges[i] <= b < edges[i + 1])) for i in range(len(edges) - 1)]
-            c.w(f"| {side_label} | " + " | ".join(row) + " |")
+        c.table(["range"] + [f"[{edges[i]}, {edges[i + 1]})" if i + 2 < len(edges) else f">= {edges[i]}"
+                             for i in range(len(edges) - 1)],
+                [[side_label] + [sum(n for b, n in hists[s].items() if edges[i] <= b < edges[i + 1])
+                                 for i in range(len(edges) - 1)]
+                 for s, side_label in (("rack", "RACK-RT"), ("cyclictest", "cyclictest"))])
         c.w("")
         path = plot_jitter(c, load, label, j) if c.plots else None
         if path:
@@ -465,12 +488,8 @@ def section_jitter(c, keys):
 
 # ---- modeswitch -------------------------------------------------------------------------
 def section_modeswitch(c, keys):
-    d = c.data("modeswitch")
-    c.w("## bench_modeswitch: mode-switch detection overhead vs the detector off")
-    c.w("")
+    d = c.section("modeswitch", "bench_modeswitch: mode-switch detection overhead vs the detector off")
     if d is None:
-        c.w(f"Not run: {c.skipped('modeswitch') or 'no results'}.")
-        c.w("")
         return
     c.w("What a task pays per cycle for the detector (issue 4), each variant beside the bare cycle in the same "
         "run, interleaved round by round on the same thread settings. The cycle: a PI mutex lock/unlock (as "
@@ -484,16 +503,16 @@ def section_modeswitch(c, keys):
              "+syscall ref": "cycle + one direct `getpid()`, not attached",
              "+syscall warn": "the same in a warn window (allowed, but trapped: SIGSYS round trip)"}
     by = {v["name"]: v["latency"] for v in d["variants"]}
-    c.w("| variant | p50 ns | p90 ns | p99 ns | p99.9 ns | max ns | minus reference p50 / p99 | ratio to reference p50 / p99 |")
-    c.w("|---|---|---|---|---|---|---|---|")
+    rows = []
     for v in d["variants"]:
         p, ref = v["latency"], by.get(v["reference"], {})
         same = v["name"] == v["reference"]
-        c.w(f"| {names.get(v['name'], v['name'])} | {p['p50_ns']:.0f} | {p['p90_ns']:.0f} | {p['p99_ns']:.0f} | "
-            f"{p['p999_ns']:.0f} | {p['max_ns']:.0f} | "
-            + ("– | 1.00x / 1.00x |" if same else
-               f"{p['p50_ns'] - ref['p50_ns']:+.0f} / {p['p99_ns'] - ref['p99_ns']:+.0f} ns | "
-               f"{fx(ratio(p['p50_ns'], ref['p50_ns']))} / {fx(ratio(p['p99_ns'], ref['p99_ns']))} |"))
+        rows.append([names.get(v['name'], v['name'])] + [f"{p[k]:.0f}" for k in ("p50_ns", "p90_ns", "p99_ns", "p999_ns", "max_ns")]
+                    + (["–", "1.00x / 1.00x"] if same else
+                       [f"{p['p50_ns'] - ref['p50_ns']:+.0f} / {p['p99_ns'] - ref['p99_ns']:+.0f} ns",
+                        f"{fx(ratio(p['p50_ns'], ref['p50_ns']))} / {fx(ratio(p['p99_ns'], ref['p99_ns']))}"]))
+    c.table(["variant", "p50 ns", "p90 ns", "p99 ns", "p99.9 ns", "max ns", "minus reference p50 / p99",
+             "ratio to reference p50 / p99"], rows)
     c.w("")
     warn, ref = by.get("warn"), by.get("reference")
     if warn and ref:
@@ -511,34 +530,30 @@ def section_modeswitch(c, keys):
         "component's code makes itself is trapped even when allowed (SUD has no kernel-side allow-list): the "
         "`getpid` rows show that price; RT code sleeps and waits through `rack::rt`, which is not trapped.")
     c.w("")
-    c.conditions("modeswitch")
-    c.command_block([c.cmd("modeswitch")])
+    c.end_section("modeswitch")
 
 
 # ---- gdos ---------------------------------------------------------------------------------
 def section_gdos(c, keys):
-    d = c.data("gdos")
-    c.w("## bench_gdos: GDOS log call vs snprintf, records per second vs direct publishing")
-    c.w("")
+    d = c.section("gdos", "bench_gdos: GDOS log call vs snprintf, records per second vs direct publishing")
     if d is None:
-        c.w(f"Not run: {c.skipped('gdos') or 'no results'}.")
-        c.w("")
         return
     c.w(f"Call cost: one SCHED_FIFO {d.get('priority', '?')} thread on CPU {d.get('cpu', '?')} alternates blocks "
         "of 256 samples of `gdos::log()` into its bound ring and of `snprintf()` of the same format and arguments "
         "into a 256-byte stack buffer (the reference); each sample is the time of 8 calls / 8. Target: a log call "
         "costs less than half of the snprintf it replaces (p50).")
     c.w("")
-    c.w("| message | GDOS p50 | GDOS p99 | GDOS max | snprintf p50 | snprintf p99 | snprintf max | ratio p50 | ratio p99 |")
-    c.w("|---|---|---|---|---|---|---|---|---|")
     worst = None
+    rows = []
     for x in d["cost"]:
         g, s = x["gdos"], x["snprintf"]
         r50 = ratio(g["p50_ns"], s["p50_ns"])
         worst = r50 if worst is None or (r50 is not None and r50 > worst) else worst
         fmt = f" `{x['format']}`" if x.get("format") else ""
-        c.w(f"| {x['label']}{fmt} | {g['p50_ns']:.0f} | {g['p99_ns']:.0f} | {g['max_ns']:.0f} | {s['p50_ns']:.0f} | "
-            f"{s['p99_ns']:.0f} | {s['max_ns']:.0f} | **{fx(r50)}** | {fx(ratio(g['p99_ns'], s['p99_ns']))} |")
+        rows.append([f"{x['label']}{fmt}"] + [f"{side[k]:.0f}" for side in (g, s) for k in ("p50_ns", "p99_ns", "max_ns")]
+                    + [f"**{fx(r50)}**", fx(ratio(g['p99_ns'], s['p99_ns']))])
+    c.table(["message", "GDOS p50", "GDOS p99", "GDOS max", "snprintf p50", "snprintf p99", "snprintf max", "ratio p50",
+             "ratio p99"], rows)
     c.w("")
     c.w("All figures in ns per call.")
     c.w("")
@@ -550,11 +565,10 @@ def section_gdos(c, keys):
             "cycle; GDOS thread every 10 ms; published on LCM (loopback, ttl=0); a subscriber in the same "
             "process counts arrivals.")
         c.w("")
-        c.w("| offered rate | offered | drained + published | dropped (ring full) | received | lost on LCM | delivered/s |")
-        c.w("|---|---|---|---|---|---|---|")
-        for r in d["rates"]:
-            per_s = r["received"] / r["seconds"] if r.get("seconds") else 0
-            c.w(f"| {r['rate']}/s | {r['offered']} | {r['drained']} | {r['dropped']} | {r['received']} | {r['lost']} | {per_s:.0f} |")
+        c.table(["offered rate", "offered", "drained + published", "dropped (ring full)", "received", "lost on LCM",
+                 "delivered/s"],
+                [[f"{r['rate']}/s", r['offered'], r['drained'], r['dropped'], r['received'], r['lost'],
+                  f"{r['received'] / r['seconds'] if r.get('seconds') else 0:.0f}"] for r in d["rates"]])
         c.w("")
     sus, direct = d.get("sustained_records_per_s"), d.get("direct_records_per_s")
     c.w(f"Sustained without loss: **{sus:.0f} records/s**; reference in the same run (one thread formatting "
@@ -566,18 +580,13 @@ def section_gdos(c, keys):
     c.w("")
     c.summary.append(("GDOS records/s without loss", "one host", f"{sus:.0f}/s", f"{direct:.0f}/s (direct snprintf + publish)",
                       fx(ratio(sus, direct)), "no target (informative)"))
-    c.conditions("gdos")
-    c.command_block([c.cmd("gdos")])
+    c.end_section("gdos")
 
 
 # ---- lcm ------------------------------------------------------------------------------------
 def section_lcm(c, keys):
-    d = c.data("lcm")
-    c.w("## bench_lcm: TiMS between two hosts vs raw LCM on the same URL")
-    c.w("")
+    d = c.section("lcm", "bench_lcm: TiMS between two hosts vs raw LCM on the same URL")
     if d is None:
-        c.w(f"Not run: {c.skipped('lcm') or 'no results'}.")
-        c.w("")
         return
     c.w(f"Two \"hosts\" = two network namespaces joined by a veth pair (MTU 1500), both on `{d.get('url', '?')}`; "
         "host A's threads on CPU 0, host B's on CPU 1 (as on two computers). RPC: `tims::Endpoint::call(GET_STATUS)` "
@@ -592,9 +601,7 @@ def section_lcm(c, keys):
     if t and l:
         c.w("RPC round trip, us:")
         c.w("")
-        c.w(PCT_HEAD)
-        c.w(pct_row("**TiMS RPC**", t))
-        c.w(pct_row("raw LCM ping (reference)", l))
+        c.table(PCT_HEAD, [pct_cells("**TiMS RPC**", t), pct_cells("raw LCM ping (reference)", l)])
         c.w("")
         r50, r99 = ratio(t["p50_ns"], l["p50_ns"]), ratio(t["p99_ns"], l["p99_ns"])
         c.w(f"Ratio TiMS / raw LCM: **p50 {fx(r50)}** ({verdict(r50, 1.15)}), p90 "
@@ -629,17 +636,16 @@ def section_lcm(c, keys):
         rounds = d.get("bulk_rounds")
         c.w(f"Bulk A -> B{f' ({rounds} rounds alternating; MB/s of the median round)' if rounds else ''}:")
         c.w("")
-        c.w("| size | mechanism | sent | received | lost | MB/s | bytes on the wire | vs its raw LCM reference |")
-        c.w("|---|---|---|---|---|---|---|---|")
+        rows = []
         for size in sorted({b["size"] for b in bulk}):
             for b in (b for b in bulk if b["size"] == size):
                 lost = b.get("sent", 0) - b.get("received", 0)
                 wire = b.get("wire_bytes")
                 ref = ref_of(b)
                 rel = "reference" if ref is None else f"{fx(ratio_of(b, ref)[0])} ({ref['mechanism']})"
-                c.w(f"| {size_text(size)} | {b['mechanism']} | {b.get('sent', '–')} | {b.get('received', '–')} | {lost} "
-                    f"({100 * b.get('loss', 0):.1f}%) | {b.get('mb_per_s', 0):.1f} | "
-                    f"{'–' if wire is None else f'{wire / 1e6:.1f} MB'} | {rel} |")
+                rows.append([size_text(size), b['mechanism'], b.get('sent', '–'), b.get('received', '–'),
+                             f"{lost} ({100 * b.get('loss', 0):.1f}%)", f"{b.get('mb_per_s', 0):.1f}",
+                             '–' if wire is None else f'{wire / 1e6:.1f} MB', rel])
             # Every TiMS mechanism in the summary, the compressed one too (the target holds
             # with and without compression).
             for tb in (b for b in bulk if b["size"] == size and b["mechanism"].startswith("TiMS")):
@@ -666,12 +672,13 @@ def section_lcm(c, keys):
                                    "thread -> destination mailbox (the hand-overs that keep RT tasks off the "
                                    "network) and copied twice more than LCM does; see the bench_lcm section below "
                                    "the marker for the profile.")
+        c.table(["size", "mechanism", "sent", "received", "lost", "MB/s", "bytes on the wire",
+                 "vs its raw LCM reference"], rows)
         c.w("")
         c.w("zstd level 1 runs at about 100-150 MB/s on this CPU: it is for slow links (Wi-Fi, 5-50 MB/s), not a "
             "veth; TiMS reports every message it loses (log line, `lost` counter), never delivers one in part.")
         c.w("")
-    c.conditions("lcm")
-    c.command_block([c.cmd("lcm")])
+    c.end_section("lcm")
 
 
 # ---- mcl ------------------------------------------------------------------------------------
@@ -707,12 +714,8 @@ def plot_mcl(c, rows):
 
 
 def section_mcl(c, keys):
-    d = c.data("mcl")
-    c.w("## bench_mcl: MCL update time vs MRPT alone, against the number of particles")
-    c.w("")
+    d = c.section("mcl", "bench_mcl: MCL update time vs MRPT alone, against the number of particles")
     if d is None:
-        c.w(f"Not run: {c.skipped('mcl') or 'no results'}.")
-        c.w("")
         return
     c.w("RACK-RT's MCL (`rack::mcl::MclFilter`, the core of the MCL component) and MRPT's own "
         "`CMonteCarloLocalization2D` driven directly as MRPT's pf-localization application drives it, with the same "
@@ -723,9 +726,8 @@ def section_mcl(c, keys):
         "CLOCK_MONOTONIC around one update call, SCHED_OTHER. RACK-RT's update also computes the mean, covariance, "
         "ESS and the scan-fit statistics for injection. Target: within 1.1x of MRPT alone.")
     c.w("")
-    c.w("| particles | RACK-RT p50 ms | p90 | p99 | MRPT p50 ms | p90 | p99 | ratio p50 | ratio p90 | median per-scan ratio |")
-    c.w("|---|---|---|---|---|---|---|---|---|---|")
     worst = None
+    rows = []
     for r in d["update"]:
         a, b = r["rack"], r["mrpt"]
         label = str(r["particles"]) if r["points"] == 0 else \
@@ -733,8 +735,10 @@ def section_mcl(c, keys):
         r50 = ratio(a["p50_ns"], b["p50_ns"])
         med = r["median_pair_ratio"]
         worst = med if worst is None or med > worst else worst
-        c.w(f"| {label} | {ms3(a['p50_ns'])} | {ms3(a['p90_ns'])} | {ms3(a['p99_ns'])} | {ms3(b['p50_ns'])} | "
-            f"{ms3(b['p90_ns'])} | {ms3(b['p99_ns'])} | {fx(r50)} | {fx(ratio(a['p90_ns'], b['p90_ns']))} | **{fx(med)}** |")
+        rows.append([label] + [ms3(side[k]) for side in (a, b) for k in ("p50_ns", "p90_ns", "p99_ns")]
+                    + [fx(r50), fx(ratio(a['p90_ns'], b['p90_ns'])), f"**{fx(med)}**"])
+    c.table(["particles", "RACK-RT p50 ms", "p90", "p99", "MRPT p50 ms", "p90", "p99", "ratio p50", "ratio p90",
+             "median per-scan ratio"], rows)
     c.w("")
     path = plot_mcl(c, d["update"]) if c.plots else None
     if path:
@@ -753,18 +757,13 @@ def section_mcl(c, keys):
         c.notes.append(f"MCL: {fx(worst)} MRPT alone at the worst particle count (target 1.1x): RACK-RT's update "
                        "does more per scan (mean, covariance, ESS, scan-fit statistics for the random injection "
                        "that MRPT lacks); with few particles that fixed part weighs most.")
-    c.conditions("mcl")
-    c.command_block([c.cmd("mcl")])
+    c.end_section("mcl")
 
 
 # ---- can ------------------------------------------------------------------------------------
 def section_can(c, keys):
-    d = c.data("can")
-    c.w("## bench_can: CAN frame round trip through CanPort vs a raw socket loop")
-    c.w("")
+    d = c.section("can", "bench_can: CAN frame round trip through CanPort vs a raw socket loop")
     if d is None:
-        c.w(f"Not run: {c.skipped('can') or 'no results'}.")
-        c.w("")
         return
     c.w(f"One classic CAN frame from a SCHED_FIFO client task to an echo task and back, transport "
         f"`{d.get('transport', '?')}` (this kernel has no AF_CAN: the socketpair carries `struct can_frame`, the path "
@@ -773,25 +772,25 @@ def section_can(c, keys):
         "\"raw-socket\" is `send()` and a blocking `recv()` on the same sockets. Mechanisms alternate in rounds. "
         "No target set in the issue; the ratio is reported.")
     c.w("")
-    c.w("| placement | mechanism | p50 us | p90 us | p99 us | p99.9 us | max us | ratio p50 | ratio p99 |")
-    c.w("|---|---|---|---|---|---|---|---|---|")
     refs = {r["placement"]: r["percentiles"] for r in d["results"] if r["mechanism"] == "raw-socket"}
+    rows = []
     for r in d["results"]:
         p, ref = r["percentiles"], refs.get(r["placement"], {})
-        c.w(f"| {r['placement']} | {r['mechanism']} | {us2(p['p50_ns'])} | {us2(p['p90_ns'])} | {us2(p['p99_ns'])} | "
-            f"{us2(p['p999_ns'])} | {us(p['max_ns'])} | {fx(ratio(p['p50_ns'], ref.get('p50_ns')))} | "
-            f"{fx(ratio(p['p99_ns'], ref.get('p99_ns')))} |")
+        rows.append([r['placement'], r['mechanism'], us2(p['p50_ns']), us2(p['p90_ns']), us2(p['p99_ns']),
+                     us2(p['p999_ns']), us(p['max_ns']), fx(ratio(p['p50_ns'], ref.get('p50_ns'))),
+                     fx(ratio(p['p99_ns'], ref.get('p99_ns')))])
         if r["mechanism"] != "raw-socket":
             c.summary.append((f"CAN frame round trip, p50", f"{r['placement']} CPU", f"{us2(p['p50_ns'])} us",
                               f"{us2(ref.get('p50_ns'))} us (raw socket)", fx(ratio(p['p50_ns'], ref.get('p50_ns'))),
                               "no target (informative)"))
+    c.table(["placement", "mechanism", "p50 us", "p90 us", "p99 us", "p99.9 us", "max us", "ratio p50", "ratio p99"],
+            rows)
     c.w("")
     c.w("On the same CPU CanPort pays one more system call per round trip (`ppoll` before `recvmsg`, because the "
         "receive is bounded by a timeout, which a blocking `recv` is not) and the timestamp control message; "
         "across CPUs both are dominated by waking the other virtual CPU.")
     c.w("")
-    c.conditions("can")
-    c.command_block([c.cmd("can")])
+    c.end_section("can")
 
 
 # ---- faults ---------------------------------------------------------------------------------
@@ -821,12 +820,8 @@ def parse_faults(path):
 
 
 def section_faults(c, keys):
-    d = c.data("faults")
-    c.w("## Page faults of RT tasks after start-up (rackd running configs/sim_mcl.yaml)")
-    c.w("")
+    d = c.section("faults", "Page faults of RT tasks after start-up (rackd running configs/sim_mcl.yaml)")
     if d is None:
-        c.w(f"Not run: {c.skipped('faults') or 'no results'}.")
-        c.w("")
         return
     rows = parse_faults(os.path.join(c.results, "faults.log"))
     c.w(f"rackd runs the simulated robot with MCL (configs/sim_mcl.yaml: chassis, ladar, odometry, Scan2D, "
@@ -843,13 +838,11 @@ def section_faults(c, keys):
         c.w("No page-fault lines in rackd's final status (see `faults.log`, `faults.stderr` in the results).")
         c.w("")
     else:
-        c.w("| component | task | scheduling | minor faults | major faults |")
-        c.w("|---|---|---|---|---|")
-        bad = []
-        for name, task, kind, mi, ma in rows:
-            c.w(f"| {name} | {task} | {kind} | {'–' if mi is None else mi} | {'–' if ma is None else ma} |")
-            if kind == "RT" and ((mi or 0) + (ma or 0)) > 0:
-                bad.append(f"{name} {task} ({mi} minor, {ma} major)")
+        c.table(["component", "task", "scheduling", "minor faults", "major faults"],
+                [[name, task, kind, '–' if mi is None else mi, '–' if ma is None else ma]
+                 for name, task, kind, mi, ma in rows])
+        bad = [f"{name} {task} ({mi} minor, {ma} major)" for name, task, kind, mi, ma in rows
+               if kind == "RT" and ((mi or 0) + (ma or 0)) > 0]
         c.w("")
         rt = [r for r in rows if r[2] == "RT"]
         total = sum((r[3] or 0) + (r[4] or 0) for r in rt)
@@ -867,12 +860,8 @@ def section_faults(c, keys):
 
 
 def section_footprint(c, keys):
-    d = c.data("footprint")
-    c.w("## Footprint: locked memory, shared objects, time to ENABLED (issue 19)")
-    c.w("")
+    d = c.section("footprint", "Footprint: locked memory, shared objects, time to ENABLED (issue 19)")
     if d is None:
-        c.w(f"Not run: {c.skipped('footprint') or 'no results'}.")
-        c.w("")
         return
     c.w("Each rackd runs the host file on its own LCM port until it says `running` (every autostart component "
         "switched on and ENABLED), then /proc is read. *plug-ins*: this build (heavy classes are plug-ins loaded by "
@@ -880,17 +869,14 @@ def section_footprint(c, keys):
         "into rackd). VmLck is the kernel's size of the locked mappings; *locked resident* the sum of smaps' Locked. "
         "Medians over the rounds (the two layouts alternate).")
     c.w("")
-    c.w("| layout | host file | VmLck MiB | locked resident MiB | VmRSS MiB | shared objects | threads | to ENABLED s |")
-    c.w("|---|---|---|---|---|---|---|---|")
-
     def med(case, key, div=1024.0, fmt="{:.1f}"):
         v = case.get(key)
         return "–" if not v else fmt.format(v["median"] / div)
-    for case in d["cases"]:
-        c.w(f"| {case['layout']} | {case['config'] or '–'} | {med(case, 'vmlck_kb')} | "
-            f"{med(case, 'locked_resident_kb')} | {med(case, 'vmrss_kb')} | "
-            f"{med(case, 'shared_objects', 1, '{:.0f}')} | {med(case, 'threads', 1, '{:.0f}')} | "
-            f"{med(case, 'time_to_enabled_s', 1, '{:.3f}')} |")
+    c.table(["layout", "host file", "VmLck MiB", "locked resident MiB", "VmRSS MiB", "shared objects", "threads",
+             "to ENABLED s"],
+            [[case['layout'], case['config'] or '–', med(case, 'vmlck_kb'), med(case, 'locked_resident_kb'),
+              med(case, 'vmrss_kb'), med(case, 'shared_objects', 1, '{:.0f}'), med(case, 'threads', 1, '{:.0f}'),
+              med(case, 'time_to_enabled_s', 1, '{:.3f}')] for case in d["cases"]])
     c.w("")
     c.w("Locked memory by kind of mapping (first round, KiB):")
     c.w("")
@@ -905,13 +891,9 @@ def section_footprint(c, keys):
 # ---- generic (a benchmark without a section function) ----------------------------------------
 def section_generic(c, keys):
     for k in keys:
-        d = c.data(k)
-        title = (d or {}).get("title", k)
-        c.w(f"## {title}")
-        c.w("")
+        title = (c.data(k) or {}).get("title", k)
+        d = c.section(k, title)
         if d is None:
-            c.w(f"Not run: {c.skipped(k) or 'no results'}.")
-            c.w("")
             continue
         if d.get("about"):
             c.w(d["about"])
@@ -924,9 +906,8 @@ def section_generic(c, keys):
             metric = cmp.get("metric", "p50_ns")
             c.w(f"### {cmp.get('name', '')}")
             c.w("")
-            c.w(PCT_HEAD)
-            c.w(pct_row(f"**{cmp.get('rack_label', 'RACK-RT')}**", rack))
-            c.w(pct_row(f"{cmp.get('reference_label', 'reference')} (reference)", ref))
+            c.table(PCT_HEAD, [pct_cells(f"**{cmp.get('rack_label', 'RACK-RT')}**", rack),
+                               pct_cells(f"{cmp.get('reference_label', 'reference')} (reference)", ref)])
             c.w("")
             r = ratio(rack.get(metric), ref.get(metric))
             target = cmp.get("target_ratio")
@@ -941,18 +922,13 @@ def section_generic(c, keys):
             c.w(f"- {n}")
         if d.get("notes"):
             c.w("")
-        c.conditions(k)
-        c.command_block([c.cmd(k)])
+        c.end_section(k)
 
 
 # ---- scan3d -----------------------------------------------------------------------------------
 def section_scan3d(c, keys):
-    d = c.data("scan3d")
-    c.w("## bench_scan3d: Scan3D processing per 3-D scan vs the same PCL pipeline called directly")
-    c.w("")
+    d = c.section("scan3d", "bench_scan3d: Scan3D processing per 3-D scan vs the same PCL pipeline called directly")
     if d is None:
-        c.w(f"Not run: {c.skipped('scan3d') or 'no results'}.")
-        c.w("")
         return
     c.w(f"{d.get('scans', '?')} synthetic scans of {d.get('points_per_scan', '?')} points (a room with boxes), "
         f"{d.get('points_after_processing', '?')} points after processing (voxel {d.get('voxel_m', '?')} m): "
@@ -961,11 +937,10 @@ def section_scan3d(c, keys):
         f"(differing: {d.get('results_differ', '?')}). CPU time of the calling thread is the figure that counts "
         "on a shared machine. No target in the issue; the ratio is reported.")
     c.w("")
-    c.w(PCT_HEAD)
-    c.w(pct_row("**Scan3D pipeline** (CPU time)", d["ours_cpu"]))
-    c.w(pct_row("PCL directly (CPU time, reference)", d["reference_cpu"]))
-    c.w(pct_row("Scan3D pipeline (wall)", d["ours"]))
-    c.w(pct_row("PCL directly (wall)", d["reference"]))
+    c.table(PCT_HEAD, [pct_cells("**Scan3D pipeline** (CPU time)", d["ours_cpu"]),
+                       pct_cells("PCL directly (CPU time, reference)", d["reference_cpu"]),
+                       pct_cells("Scan3D pipeline (wall)", d["ours"]),
+                       pct_cells("PCL directly (wall)", d["reference"])])
     c.w("")
     r = ratio(d["ours_cpu"]["p50_ns"], d["reference_cpu"]["p50_ns"])
     c.w(f"All figures in us. CPU-time ratio p50 **{fx(r)}**, p90 "
@@ -973,56 +948,50 @@ def section_scan3d(c, keys):
     c.w("")
     c.summary.append(("Scan3D processing per scan, CPU p50", "", f"{ms3(d['ours_cpu']['p50_ns'])} ms",
                       f"{ms3(d['reference_cpu']['p50_ns'])} ms (PCL directly)", fx(r), "no target (informative)"))
-    c.conditions("scan3d")
-    c.command_block([c.cmd("scan3d")])
+    c.end_section("scan3d")
 
 
 # ---- access -----------------------------------------------------------------------------------
 def section_access(c, keys):
-    d = c.data("access")
-    c.w("## bench_access: access control and authenticated links vs none")
-    c.w("")
+    d = c.section("access", "bench_access: access control and authenticated links vs none")
     if d is None:
-        c.w(f"Not run: {c.skipped('access') or 'no results'}.")
-        c.w("")
         return
     c.w("Per message: `Router::send` with 16 access rules (the matching one last) against no access section; "
         "MAC signing and verification (keyed BLAKE2b with sequence and time window, libsodium) against a memcpy of "
         "the payload; a TiMS RPC between two transports on a keyed and an unkeyed link; and a 1 kHz SCHED_FIFO "
         "task's wake-up latency while a flood of refused messages is checked, against the same task idle.")
     c.w("")
-    c.w("| what | size | with | without (reference) | ratio p50 |")
-    c.w("|---|---|---|---|---|")
+    rows = []
     for row in d.get("check", []):
         w, wo = row["with"], row["without"]
-        c.w(f"| policy check per send, p50 us | {row['label']} | {us2(w['p50_ns'])} | {us2(wo['p50_ns'])} | "
-            f"{fx(ratio(w['p50_ns'], wo['p50_ns']))} |")
+        rows.append(["policy check per send, p50 us", row['label'], us2(w['p50_ns']), us2(wo['p50_ns']),
+                     fx(ratio(w['p50_ns'], wo['p50_ns']))])
         c.summary.append((f"access check per send ({row['label']}), p50", "", f"{us2(w['p50_ns'])} us",
                           f"{us2(wo['p50_ns'])} us (no rules)", fx(ratio(w['p50_ns'], wo['p50_ns'])),
                           "no target (informative)"))
     for row in d.get("mac", []):
         for side in ("sign", "verify"):
             p, ref = row[side], row["memcpy"]
-            c.w(f"| MAC {side}, p50 us | {row['label']} | {us2(p['p50_ns'])} | {us2(ref['p50_ns'])} (memcpy) | "
-                f"{fx(ratio(p['p50_ns'], ref['p50_ns']))} |")
+            rows.append([f"MAC {side}, p50 us", row['label'], us2(p['p50_ns']), f"{us2(ref['p50_ns'])} (memcpy)",
+                         fx(ratio(p['p50_ns'], ref['p50_ns']))])
     for row in d.get("rpc", []):
         k, u = row["keyed"], row["unkeyed"]
         if k.get("samples", 0) == 0:
-            c.w(f"| RPC round trip, p50 us | {row['label']} | no reply (lost) | {us2(u['p50_ns'])} | - |")
+            rows.append(["RPC round trip, p50 us", row['label'], "no reply (lost)", us2(u['p50_ns']), "-"])
             continue
-        c.w(f"| RPC round trip keyed vs unkeyed, p50 us | {row['label']} | {us2(k['p50_ns'])} | {us2(u['p50_ns'])} | "
-            f"{fx(ratio(k['p50_ns'], u['p50_ns']))} |")
+        rows.append(["RPC round trip keyed vs unkeyed, p50 us", row['label'], us2(k['p50_ns']), us2(u['p50_ns']),
+                     fx(ratio(k['p50_ns'], u['p50_ns']))])
         c.summary.append((f"keyed TiMS RPC ({row['label']}), p50", "", f"{us2(k['p50_ns'])} us",
                           f"{us2(u['p50_ns'])} us (unkeyed)", fx(ratio(k['p50_ns'], u['p50_ns'])),
                           "no target (informative)"))
+    c.table(["what", "size", "with", "without (reference)", "ratio p50"], rows)
     c.w("")
     f = d.get("flood")
     if f:
         c.w(f"RT task under a refused flood ({f.get('checked', 0)} messages checked, {f.get('denied', 0)} refused):")
         c.w("")
-        c.w(PCT_HEAD)
-        c.w(pct_row("**1 kHz task, flood**", f["flood"]))
-        c.w(pct_row("1 kHz task, idle (reference)", f["idle"]))
+        c.table(PCT_HEAD, [pct_cells("**1 kHz task, flood**", f["flood"]),
+                           pct_cells("1 kHz task, idle (reference)", f["idle"])])
         c.w("")
         r = ratio(f["flood"]["p99_ns"], f["idle"]["p99_ns"])
         v = verdict(r, 1.2)
@@ -1030,8 +999,7 @@ def section_access(c, keys):
         c.w("")
         c.summary.append(("RT wake-up p99 under a refused flood", "", f"{us(f['flood']['p99_ns'])} us",
                           f"{us(f['idle']['p99_ns'])} us (idle)", fx(r), v))
-    c.conditions("access")
-    c.command_block([c.cmd("access")])
+    c.end_section("access")
 
 
 # Key (or prefix before '-') -> section function, in report order.
@@ -1113,10 +1081,7 @@ def main():
     w("")
     w("## Summary")
     w("")
-    w("| benchmark | case | RACK-RT | reference | ratio | target |")
-    w("|---|---|---|---|---|---|")
-    for row in c.summary:
-        w("| " + " | ".join(row) + " |")
+    c.table(["benchmark", "case", "RACK-RT", "reference", "ratio", "target"], c.summary)
     w("")
     if c.notes:
         w("**Where RACK-RT is slower or a target is missed, and why:**")

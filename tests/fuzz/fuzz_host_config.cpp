@@ -14,7 +14,7 @@
 // code compiled with clang and the sanitizers, the rest linked from a normal build
 // (build/, its libraries and their link line as rack_unit_tests has it):
 //   clang++-14 -std=c++20 -g -O1 -fsanitize=fuzzer-no-link,address,undefined -I... -c
-//       tests/fuzz/fuzz_host_config.cpp core/src/host_config.cpp core/src/parameters.cpp
+//       tests/fuzz/fuzz_host_config.cpp core/src/host_config*.cpp core/src/parameters.cpp
 //     tims/src/lcm_url.cpp components/pilot/pilot.cpp components/path/path.cpp
 //   clang++-14 -fsanitize=fuzzer,address,undefined *.o <rack_unit_tests' libraries> -o fuzz_host_config
 //   ./fuzz_host_config -max_total_time=600 -max_len=8192 CORPUS_DIR tests/fuzz/corpus/host_config

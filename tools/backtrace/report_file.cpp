@@ -1,37 +1,18 @@
 #include "report_file.h"
 
-#include <cerrno>
-#include <cstdlib>
+#include <climits>
+#include <cstdint>
 #include <iostream>
 #include <sstream>
 
 #include "rack/rt/input_file.h"
+#include "rack/rt/modeswitch_report.h"
 
 namespace rack::backtrace {
 
 namespace {
 
-bool starts_with(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
-
-// "key=value key=value ..." (values without spaces), from `pos`.
-std::map<std::string, std::string> key_values(const std::string& line, std::size_t pos) {
-  std::map<std::string, std::string> out;
-  std::istringstream in(line.substr(pos));
-  std::string word;
-  while (in >> word) {
-    const auto eq = word.find('=');
-    if (eq != std::string::npos) out[word.substr(0, eq)] = word.substr(eq + 1);
-  }
-  return out;
-}
-
-bool parse_u64(const std::string& text, uint64_t& out) {
-  if (text.empty()) return false;
-  char* end = nullptr;
-  errno = 0;
-  out = std::strtoull(text.c_str(), &end, 0);
-  return errno == 0 && end != nullptr && *end == '\0';
-}
+namespace format = rack::rt::modeswitch::report;
 
 }  // namespace
 
@@ -126,13 +107,20 @@ ReportFile parse(std::istream& in, const std::string& name) {
     return f;
   }
   n = 1;
-  if (!starts_with(line, "RACK-MODESWITCH-REPORT ")) {
-    errors.push_back(where(1) + ": not a RACK mode-switch report (expected 'RACK-MODESWITCH-REPORT 1 ...', got '" +
+  const std::string expected = std::string(format::kMagic) + " " + std::to_string(format::kVersion);
+  if (format::line_kind(line) != format::LineKind::kHeader) {
+    errors.push_back(where(1) + ": not a RACK mode-switch report (expected '" + expected + " ...', got '" +
                      line.substr(0, 60) + "')");
     return f;
   }
-  if (!starts_with(line, "RACK-MODESWITCH-REPORT 1 ")) {
-    errors.push_back(where(1) + ": report format version not understood (this tool reads version 1)");
+  format::HeaderLine head;
+  if (!format::parse(line, head)) {
+    errors.push_back(where(1) + ": malformed header line (expected '" + expected + " program=... pid=...')");
+    return f;
+  }
+  if (head.version != format::kVersion) {
+    errors.push_back(where(1) + ": report format version not understood (this tool reads version " +
+                     std::to_string(format::kVersion) + ")");
     return f;
   }
   f.header = line;
@@ -150,89 +138,96 @@ ReportFile parse(std::istream& in, const std::string& name) {
   while (std::getline(in, line)) {
     ++n;
     if (line.empty()) continue;
-    if (starts_with(line, "module ")) {
-      if (open) close_truncated("a module line follows it");
-      ModuleLine m;
-      const auto path_at = line.find(" path=");
-      const auto kv = key_values(line.substr(0, path_at), 7);
-      std::istringstream id(line.substr(7));
-      if (path_at == std::string::npos || !(id >> m.id) || !kv.count("base") || !parse_u64(kv.at("base"), m.base) ||
-          !kv.count("lo") || !parse_u64(kv.at("lo"), m.lo) || !kv.count("hi") || !parse_u64(kv.at("hi"), m.hi)) {
-        errors.push_back(where(n) + ": malformed module line");
-        continue;
+    switch (format::line_kind(line)) {
+      case format::LineKind::kModule: {
+        if (open) close_truncated("a module line follows it");
+        format::ModuleLine m;
+        if (!format::parse(line, m) || m.id < INT_MIN || m.id > INT_MAX) {
+          errors.push_back(where(n) + ": malformed module line");
+          continue;
+        }
+        f.modules.push_back({static_cast<int>(m.id), m.base, m.lo, m.hi, std::string(m.build_id), std::string(m.path)});
+        break;
       }
-      m.build_id = kv.count("build_id") && kv.at("build_id") != "-" ? kv.at("build_id") : "";
-      m.path = line.substr(path_at + 6);
-      f.modules.push_back(m);
-    } else if (starts_with(line, "report ")) {
-      if (open) close_truncated("the next report starts");
-      current = Report{};
-      current.fields = key_values(line, 7);
-      current.where = where(n);
-      std::istringstream seq(line.substr(7));
-      if (!(seq >> current.sequence) || !current.fields.count("reason") || !current.fields.count("frames") ||
-          !parse_u64(current.fields.at("frames"), expected_frames)) {
-        errors.push_back(where(n) + ": malformed report line");
-        continue;
+      case format::LineKind::kReport: {
+        if (open) close_truncated("the next report starts");
+        current = Report{};
+        current.where = where(n);
+        format::ReportLine r;
+        if (!format::parse(line, r)) {
+          errors.push_back(where(n) + ": malformed report line");
+          continue;
+        }
+        current.sequence = r.sequence;
+        expected_frames = r.frames;
+        format::for_each_field(std::string_view(line).substr(format::kReportWord.size()),
+                               [&](std::string_view key, std::string_view value) {
+                                 current.fields[std::string(key)] = std::string(value);
+                               });
+        open = true;
+        open_line = n;
+        break;
       }
-      open = true;
-      open_line = n;
-    } else if (starts_with(line, "detail ")) {
-      if (!open) {
-        errors.push_back(where(n) + ": 'detail' outside a report");
-        continue;
+      case format::LineKind::kDetail: {
+        std::string_view text;
+        if (!open || !format::parse_detail(line, text)) {
+          errors.push_back(where(n) + ": 'detail' outside a report");
+          continue;
+        }
+        current.detail = std::string(text);
+        break;
       }
-      current.detail = line.substr(7);
-    } else if (starts_with(line, "frame ")) {
-      if (!open) {
-        errors.push_back(where(n) + ": 'frame' outside a report");
-        continue;
+      case format::LineKind::kFrame: {
+        if (!open) {
+          errors.push_back(where(n) + ": 'frame' outside a report");
+          continue;
+        }
+        format::FrameLine fr;
+        if (!format::parse(line, fr) || fr.index != current.pcs.size()) {
+          errors.push_back(where(n) + ": malformed frame line (expected 'frame " + std::to_string(current.pcs.size()) +
+                           " 0x...')");
+          continue;
+        }
+        current.pcs.push_back(fr.pc);
+        break;
       }
-      std::istringstream fr(line.substr(6));
-      uint64_t index = 0;
-      std::string pc_text;
-      uint64_t pc = 0;
-      if (!(fr >> index >> pc_text) || !parse_u64(pc_text, pc) || index != current.pcs.size()) {
-        errors.push_back(where(n) + ": malformed frame line (expected 'frame " + std::to_string(current.pcs.size()) +
-                         " 0x...')");
-        continue;
-      }
-      current.pcs.push_back(pc);
-    } else if (starts_with(line, "end ")) {
-      uint64_t seq = 0;
-      if (!open || !parse_u64(line.substr(4), seq) || seq != current.sequence) {
-        errors.push_back(where(n) + ": 'end' without its report");
+      case format::LineKind::kEnd: {
+        uint64_t seq = 0;
+        if (!open || !format::parse_end(line, seq) || seq != current.sequence) {
+          errors.push_back(where(n) + ": 'end' without its report");
+          open = false;
+          continue;
+        }
+        if (current.pcs.size() != expected_frames) {
+          errors.push_back(where(open_line) + ": report " + std::to_string(seq) + " has " +
+                           std::to_string(current.pcs.size()) + " frames, its header says " +
+                           std::to_string(expected_frames));
+        } else {
+          by_sequence[current.sequence] = f.reports.size();
+          f.reports.push_back(current);
+        }
         open = false;
-        continue;
+        break;
       }
-      if (current.pcs.size() != expected_frames) {
-        errors.push_back(where(open_line) + ": report " + std::to_string(seq) + " has " +
-                         std::to_string(current.pcs.size()) + " frames, its header says " +
-                         std::to_string(expected_frames));
-      } else {
-        by_sequence[current.sequence] = f.reports.size();
-        f.reports.push_back(current);
+      case format::LineKind::kRepeat: {
+        // `repeat FIRST count=N ...`: N more reports identical to report FIRST.
+        if (open) close_truncated("a repeat line follows it");
+        format::RepeatLine r;
+        if (!format::parse(line, r)) {
+          errors.push_back(where(n) + ": malformed repeat line");
+          continue;
+        }
+        const auto at = by_sequence.find(r.first);
+        if (at != by_sequence.end()) {
+          uint64_t& repeats = f.reports[at->second].repeats;
+          repeats = r.count > UINT64_MAX - repeats ? UINT64_MAX : repeats + r.count;  // a hostile file saturates
+        } else {
+          errors.push_back(where(n) + ": repeat of report " + std::to_string(r.first) + ", which is not in the file");
+        }
+        break;
       }
-      open = false;
-    } else if (starts_with(line, "repeat ")) {
-      // `repeat FIRST count=N ...`: N more reports identical to report FIRST.
-      if (open) close_truncated("a repeat line follows it");
-      std::istringstream seq(line.substr(7));
-      uint64_t first = 0, count = 0;
-      const auto kv = key_values(line, 7);
-      if (!(seq >> first) || !kv.count("count") || !parse_u64(kv.at("count"), count)) {
-        errors.push_back(where(n) + ": malformed repeat line");
-        continue;
-      }
-      const auto at = by_sequence.find(first);
-      if (at != by_sequence.end()) {
-        uint64_t& repeats = f.reports[at->second].repeats;
-        repeats = count > UINT64_MAX - repeats ? UINT64_MAX : repeats + count;  // a hostile file saturates
-      } else {
-        errors.push_back(where(n) + ": repeat of report " + std::to_string(first) + ", which is not in the file");
-      }
-    } else {
-      errors.push_back(where(n) + ": unknown line '" + line.substr(0, 40) + "'");
+      case format::LineKind::kHeader:
+      case format::LineKind::kOther: errors.push_back(where(n) + ": unknown line '" + line.substr(0, 40) + "'"); break;
     }
   }
   if (open) close_truncated("the file ends: the process died while writing, or the file was cut");

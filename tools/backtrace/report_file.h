@@ -1,5 +1,6 @@
-// Reading mode-switch report files (written by rack::rt::modeswitch, format in
-// tools/backtrace/README.md). Separate from the symbolizer so the parser can be tested
+// Reading mode-switch report files (written by rack::rt::modeswitch; the format's one
+// definition, each line's writer and reader: rack/rt/modeswitch_report.h; described for
+// users in tools/backtrace/README.md). Separate from the symbolizer so the parser can be tested
 // without binaries.
 //
 // Real-time contract: a tool; nothing here is RT-safe.

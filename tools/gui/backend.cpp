@@ -30,6 +30,7 @@
 #include "rack/interfaces/robot.h"
 #include "rack/maps/occupancy_map.h"
 #include "rack/rt/clock.h"
+#include "rack/rt/modeswitch_report.h"
 #include "rack/tims/endpoint.h"
 #include "rack/tims/gdos_lcm.h"
 #include "rack/tims/lcm_transport.h"
@@ -48,6 +49,12 @@ using tims::Address;
 namespace msg = tims::msg;
 namespace ifc = rack::interfaces;
 namespace rtrace = rack::trace;
+using ReportLineKind = rt::modeswitch::report::LineKind;
+
+// The kind of the report file line bytes[at, nl) (rack/rt/modeswitch_report.h).
+ReportLineKind report_line_kind(const std::string& bytes, std::size_t at, std::size_t nl) {
+  return rt::modeswitch::report::line_kind(std::string_view(bytes).substr(at, nl - at));
+}
 
 constexpr uint32_t kSlotSize = 64 * 1024;  // the largest polled sample (Path) is ~17 KiB
 constexpr uint32_t kReplySlots = 256;      // a poll round asks every component at once
@@ -1624,7 +1631,7 @@ struct Backend::Impl {
     for (std::size_t at = st.done; at < bytes.size();) {
       const auto nl = bytes.find('\n', at);
       if (nl == std::string::npos) break;
-      if (bytes.compare(at, 4, "end ") == 0) cut = nl + 1;
+      if (report_line_kind(bytes, at, nl) == ReportLineKind::kEnd) cut = nl + 1;
       at = nl + 1;
     }
     if (flush_tail) cut = bytes.size();
@@ -1636,7 +1643,7 @@ struct Backend::Impl {
     for (std::size_t at = 0; at < st.done;) {
       auto nl = bytes.find('\n', at);
       if (nl == std::string::npos || nl >= st.done) nl = st.done;
-      if (at == 0 || bytes.compare(at, 7, "module ") == 0) input.append(bytes, at, nl - at);
+      if (at == 0 || report_line_kind(bytes, at, nl) == ReportLineKind::kModule) input.append(bytes, at, nl - at);
       input += '\n';
       at = nl + 1;
     }

@@ -33,6 +33,8 @@
 
 #include "rack/rt/clock.h"
 #include "rack/rt/memory.h"
+#include "rack/rt/modeswitch_report.h"
+#include "signal_text.h"
 
 #ifndef PR_SET_SYSCALL_USER_DISPATCH
 #define PR_SET_SYSCALL_USER_DISPATCH 59
@@ -292,63 +294,6 @@ int on_phdr(dl_phdr_info* info, size_t, void*) {
 // reporter only. Serialised by g_consumer or by start().
 void refresh_modules() { dl_iterate_phdr(&on_phdr, nullptr); }
 
-// ---------------------------------------------------------------- text (async-signal-safe)
-
-class Text {
- public:
-  Text(char* buf, std::size_t cap) : buf_(buf), cap_(cap) {}
-  Text& s(const char* t) noexcept {
-    while (t != nullptr && *t != '\0') c(*t++);
-    return *this;
-  }
-  Text& s(std::string_view t) noexcept {
-    for (char ch : t) c(ch);
-    return *this;
-  }
-  Text& c(char ch) noexcept {
-    if (len_ + 1 < cap_) buf_[len_++] = ch;
-    return *this;
-  }
-  Text& u(uint64_t v) noexcept {
-    char tmp[24];
-    int n = 0;
-    do {
-      tmp[n++] = static_cast<char>('0' + v % 10);
-      v /= 10;
-    } while (v != 0);
-    while (n > 0) c(tmp[--n]);
-    return *this;
-  }
-  Text& i(int64_t v) noexcept {
-    if (v < 0) {
-      c('-');
-      return u(static_cast<uint64_t>(-(v + 1)) + 1);
-    }
-    return u(static_cast<uint64_t>(v));
-  }
-  Text& hex(uint64_t v, int min_digits = 1) noexcept {
-    static constexpr char kDigits[] = "0123456789abcdef";
-    char tmp[16];
-    int n = 0;
-    do {
-      tmp[n++] = kDigits[v & 15u];
-      v >>= 4;
-    } while (v != 0 || n < min_digits);
-    s("0x");
-    while (n > 0) c(tmp[--n]);
-    return *this;
-  }
-  [[nodiscard]] std::size_t size() const noexcept { return len_; }
-  [[nodiscard]] const char* data() const noexcept { return buf_; }
-  [[nodiscard]] std::string_view view() const noexcept { return {buf_, len_}; }
-  void clear() noexcept { len_ = 0; }
-
- private:
-  char* buf_;
-  std::size_t cap_;
-  std::size_t len_ = 0;
-};
-
 // Writes everything, or gives up when `fd` stays unwritable for 200 ms (stderr may be
 // a pipe nobody reads: a crash handler must not hang on it). Async-signal-safe.
 void write_all(int fd, const char* p, std::size_t n) noexcept {
@@ -460,39 +405,59 @@ void describe_record(const Record& r, Text& t) noexcept {
   }
 }
 
-// The report block (file format: see tools/backtrace/README.md).
+// The report block (file format: rack/rt/modeswitch_report.h).
 void format_record(const Record& r, Text& t) noexcept {
-  t.s("report ").u(r.sequence).s(" reason=").s(reason_name(r.reason)).s(" mode=").s(mode_name(r.mode));
-  t.s(" task=").s(r.task[0] != '\0' ? r.task : "-");
-  t.s(" component=").s(r.component[0] != '\0' ? r.component : "-");
-  t.s(" label=").s(r.label[0] != '\0' ? r.label : "-");
-  t.s(" tid=").i(r.tid).s(" time_ns=").i(r.time_ns);
-  if (r.reason == Reason::kSyscall) t.s(" syscall=").i(r.nr);
-  if (r.reason == Reason::kCrash) t.s(" signal=").i(r.signo);
-  t.s(" frames=").u(r.frames).c('\n');
-  t.s("detail ");
+  report::ReportLine line;
+  line.sequence = r.sequence;
+  line.reason = reason_name(r.reason);
+  line.mode = mode_name(r.mode);
+  line.task = r.task;
+  line.component = r.component;
+  line.label = r.label;
+  line.tid = r.tid;
+  line.time_ns = r.time_ns;
+  line.has_syscall = r.reason == Reason::kSyscall;
+  line.syscall = r.nr;
+  line.has_signal = r.reason == Reason::kCrash;
+  line.signal = r.signo;
+  line.frames = r.frames;
+  t.append([&](char* at, std::size_t room) { return report::format(line, at, room); });
+  t.append(report::format_detail_start);
   describe_record(r, t);
   t.c('\n');
   for (uint16_t k = 0; k < r.frames; ++k) {
-    t.s("frame ").u(k).c(' ').hex(r.pc[k], 12);
+    report::FrameLine frame;
+    frame.index = k;
+    frame.pc = r.pc[k];
     const int m = find_module(r.pc[k]);
     if (m >= 0) {
       const char* path = g_modules[m].path;
       const char* base = std::strrchr(path, '/');
-      t.c(' ').s(base != nullptr ? base + 1 : path).c('+').hex(r.pc[k] - g_modules[m].base);
+      frame.module = base != nullptr ? base + 1 : path;
+      frame.offset = r.pc[k] - g_modules[m].base;
     }
-    t.c('\n');
+    t.append([&](char* at, std::size_t room) { return report::format(frame, at, room); });
   }
-  t.s("end ").u(r.sequence).c('\n');
+  t.append([&](char* at, std::size_t room) { return report::format_end(r.sequence, at, room); });
 }
 
 void format_module(int index, Text& t) noexcept {
   const Module& m = g_modules[index];
-  t.s("module ").i(index).s(" base=").hex(m.base).s(" lo=").hex(m.lo).s(" hi=").hex(m.hi).s(" build_id=");
   static constexpr char kDigits[] = "0123456789abcdef";
-  if (m.build_id_len == 0) t.c('-');
-  for (int k = 0; k < m.build_id_len; ++k) t.c(kDigits[m.build_id[k] >> 4]).c(kDigits[m.build_id[k] & 15u]);
-  t.s(" path=").s(m.path).c('\n');
+  char build_id[2 * sizeof m.build_id + 1];
+  std::size_t n = 0;
+  for (int k = 0; k < m.build_id_len && n + 2 < sizeof build_id; ++k) {
+    build_id[n++] = kDigits[m.build_id[k] >> 4];
+    build_id[n++] = kDigits[m.build_id[k] & 15u];
+  }
+  report::ModuleLine line;
+  line.id = index;
+  line.base = m.base;
+  line.lo = m.lo;
+  line.hi = m.hi;
+  line.build_id = std::string_view(build_id, n);
+  line.path = m.path;
+  t.append([&](char* at, std::size_t room) { return report::format(line, at, room); });
 }
 
 // Writes module lines the file has not seen yet. Consumer only.
@@ -666,15 +631,8 @@ void write_repeats(bool all) noexcept {
     if (s.pending == 0 || (!all && now < s.due_ns)) continue;
     char buf[256];
     Text t(buf, sizeof buf);
-    t.s("repeat ")
-        .u(s.first)
-        .s(" count=")
-        .u(s.pending)
-        .s(" total=")
-        .u(s.total)
-        .s(" time_ns=")
-        .i(now_realtime())
-        .c('\n');
+    const report::RepeatLine line{s.first, s.pending, s.total, now_realtime()};
+    t.append([&](char* at, std::size_t room) { return report::format(line, at, room); });
     write_all(g_report_fd, t.data(), t.size());
     if (g_config.to_stderr) {
       char head[384];
@@ -1196,15 +1154,12 @@ StartResult start(const Config& config) {
       result.report_path = path;
       char head[512];
       Text t(head, sizeof head);
-      t.s("RACK-MODESWITCH-REPORT 1 program=")
-          .s(config.program.c_str())
-          .s(" pid=")
-          .i(getpid())
-          .s(" start_ns=")
-          .i(now_realtime())
-          .s(" exe=")
-          .s(g_exe_path)
-          .c('\n');
+      report::HeaderLine line;
+      line.program = config.program;
+      line.pid = getpid();
+      line.start_ns = now_realtime();
+      line.exe = g_exe_path;
+      t.append([&](char* at, std::size_t room) { return report::format(line, at, room); });
       write_all(g_report_fd, t.data(), t.size());
       g_modules_written = 0;
       write_new_modules();
