@@ -143,7 +143,18 @@ class Executor {
   void pass_guarded() noexcept;
   void gdos_loop();
   bool send_command(Component& c, int8_t type, int64_t timeout_ns, std::string& why);
+  // start(), one step each, in this order (start_steps() calls them).
   void start_steps(const std::string& url);
+  void open_mailboxes(tims::Address self);
+  void start_gdos(const std::string& url, tims::Address self);
+  void install_access(tims::Address self);
+  void attach_components();
+  void init_components();
+  void start_tasks(ComponentView& v);
+  void join_network(const std::string& url, tims::Address self);
+  void start_trace_thread();
+  void log_started();
+  void autostart_components();
   void step(const std::string& what);  // phase + stop_requested check (start-up)
   void trace_loop();
   void trace_request(const tims::MessageHeader& h, std::span<const std::byte> body);
