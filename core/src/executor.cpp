@@ -7,6 +7,7 @@
 #include <dirent.h>
 #include <pthread.h>
 #include <sched.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -263,6 +264,7 @@ void Executor::start_steps(const std::string& url) {
   install_access(self);
   attach_components();
   init_components();
+  start_io_workers();
   step("starting the tasks");
   for (auto& v : views_) start_tasks(v);
   join_network(url, self);
@@ -351,8 +353,8 @@ void Executor::attach_components() {
 
 // init() of each component, in the host file's order; one that fails is in ERROR.
 void Executor::init_components() {
-  // Threads a component starts in init() (a driver's device I/O: TcpSensorLink, the
-  // camera's capture) are not real-time: they inherit the housekeeping CPUs.
+  // Threads a library starts in init() (OpenCV's, PCL's pools) are not real-time:
+  // they inherit the housekeeping CPUs.
   const HousekeepingAffinity housekeeping(views_, host_->settings);
   for (auto& v : views_) {
     step("init() of component '" + v.component->name() + "'");
@@ -362,6 +364,61 @@ void Executor::init_components() {
                                    " is in ERROR: init() failed: " + v.init_error);
     }
   }
+}
+
+// The I/O workers that components declared in init() (Component::add_io_worker):
+// non-RT threads of the executor, on the housekeeping CPUs, each with a log ring.
+void Executor::start_io_workers() {
+  const HostSettings& hs = host_->settings;
+  // Unpartitioned: off the CPUs that RT tasks are pinned to (threads inherit it).
+  const HousekeepingAffinity housekeeping(views_, hs);
+  for (auto& v : views_) {
+    Component& c = *v.component;
+    if (!v.init_called || c.init_failed_) continue;
+    for (const auto& w : c.io_workers_) {
+      step("starting I/O worker '" + w.name + "' of component '" + c.name() + "'");
+      auto worker = std::make_unique<IoWorkerThread>();
+      worker->stop = w.stop;
+      IoWorkerThread* self = worker.get();
+      gdos::LogRing* ring = &hub_.make_ring(hs.gdos.ring, c.name() + " I/O worker " + w.name);
+      io_workers_.push_back(std::move(worker));
+      (void)self->thread.start(
+          {w.name, 0, -1, 256 * 1024, hs.housekeeping_cpus},
+          [this, self, ring, &c, body = w.body, name = w.name] {
+            self->tid.store(static_cast<pid_t>(::syscall(SYS_gettid)), std::memory_order_release);
+            gdos::bind_thread_ring(ring);
+            std::string failure;
+            try {
+              body();
+            } catch (const std::exception& e) {
+              failure = e.what();
+            } catch (...) {
+              failure = "unknown exception";
+            }
+            if (!failure.empty()) {
+              hub_.publish_text(gdos::Level::kError, c.address(), c.name(),
+                                "I/O worker '" + name + "' ended: " + failure);
+            }
+          },
+          false);
+      // Its id for thread_report(): the worker sets it first thing (bounded wait).
+      for (int i = 0; i < 1000 && self->tid.load(std::memory_order_acquire) == 0; ++i) rt::sleep_for(rt::kNsPerMs);
+    }
+  }
+}
+
+// Stops every I/O worker (its stop function) and joins it; after the tasks ended.
+void Executor::stop_io_workers() noexcept {
+  for (auto& w : io_workers_) {
+    if (!w->thread.joinable()) continue;
+    try {
+      w->stop();
+    } catch (...) {
+      // A stop function that throws: the join below waits for the body as it is.
+    }
+    w->thread.join();
+  }
+  io_workers_.clear();
 }
 
 // The command task and (if it has one) the data task of one component, with the
@@ -544,6 +601,7 @@ void Executor::stop() {
   for (auto& v : views_) v.component->request_stop();
   for (auto& t : threads_) t->join();
   threads_.clear();
+  stop_io_workers();
   if (trace_mailbox_) {
     trace_mailbox_->close();
     if (trace_thread_.joinable()) trace_thread_.join();
@@ -832,6 +890,9 @@ std::string Executor::thread_report() const {
                                              : "OTHER";
     std::string role = "housekeeping";
     if (tid == getpid()) role = "housekeeping (main)";
+    for (const auto& w : io_workers_) {
+      if (w->tid.load(std::memory_order_acquire) == tid) role = "I/O worker, not RT";
+    }
     for (const auto& t : tasks) {
       if (t.tid == tid) role = t.what;
     }
