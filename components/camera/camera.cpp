@@ -8,7 +8,6 @@
 #include <opencv2/videoio.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -104,16 +103,19 @@ void Camera::init() {
     capture_->calibrated = true;
   }
   quit_ = false;
-  thread_ = std::thread([this] {
-    pthread_setname_np(pthread_self(), "camera-capture");
-    run();
-  });
+  // The capture blocks in OpenCV: an executor-owned I/O worker runs it (not RT).
+  add_io_worker(
+      "camera-capture", [this] { run(); },
+      [this] {
+        quit_.store(true, std::memory_order_release);
+        capturing_.store(false, std::memory_order_release);
+      });
 }
 
 void Camera::cleanup() {
+  // The executor has stopped and joined the capture worker before cleanup().
   quit_ = true;
   capturing_ = false;
-  if (thread_.joinable()) thread_.join();
 }
 
 HookResult Camera::on() {
@@ -162,7 +164,7 @@ void Camera::run() noexcept {
   while (!quit_.load(std::memory_order_acquire)) {
     if (!capturing_.load(std::memory_order_acquire)) {
       if (c.video.isOpened()) c.video.release();
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      rt::sleep_for(5 * rt::kNsPerMs);
       continue;
     }
     try {
@@ -263,7 +265,7 @@ void Camera::run() noexcept {
       c.back = previous & static_cast<uint8_t>(~kFresh);
       // Pace a file or sequence at the requested rate (a device paces itself).
       if (fps_.get_float() > 0 && c.video.get(cv::CAP_PROP_FRAME_COUNT) > 0) {
-        std::this_thread::sleep_for(std::chrono::microseconds(static_cast<int64_t>(1e6 / fps_.get_float())));
+        rt::sleep_for(static_cast<int64_t>(1e9 / fps_.get_float()));
       }
     } catch (const std::exception&) {
       bad_frames_.fetch_add(1, std::memory_order_relaxed);

@@ -1,8 +1,9 @@
 // Camera (class Camera): frames from OpenCV's VideoCapture: a V4L2 device ("/dev/video0"
 // or "0"), a video file, or an image sequence ("frames/img_%04d.png").
 //
-// OpenCV decodes and allocates, so it never runs in an RT task: a capture thread
-// (started in init(), capturing only while the component is ENABLED) opens the source,
+// OpenCV decodes and allocates, so it never runs in an RT task: a capture thread (an
+// I/O worker declared in init() and run by the executor on the housekeeping CPUs,
+// capturing only while the component is ENABLED) opens the source,
 // asks for the configured size and frame rate, converts each frame (RGB8, MONO8 or
 // JPEG, scaled down to fit CameraData), and hands it to loop() through a lock-free
 // triple buffer of preallocated CameraData. loop() (periodic, e.g. at the frame rate)
@@ -20,7 +21,6 @@
 
 #include <atomic>
 #include <memory>
-#include <thread>
 
 #include "rack/core/data_component.h"
 #include "rack/interfaces/devices.h"
@@ -68,7 +68,6 @@ class Camera final : public DataComponent<interfaces::CameraData> {
   std::atomic<uint32_t> bad_frames_{0}, delivered_{0}, ended_{0};
   uint32_t published_frames_ = 0;  // loop() only
   int64_t last_frame_ns_ = 0;      // loop() only
-  std::thread thread_;
 };
 
 }  // namespace rack::components

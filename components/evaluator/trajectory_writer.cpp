@@ -194,6 +194,7 @@ void TrajectoryWriter::finish() noexcept {
   if (reference_poses_.empty()) {
     std::snprintf(line, sizeof line, "%zu poses written to %s (no reference given)", poses_.size(),
                   file_.get_string().c_str());
+    log_info("%zu poses written to %s (no reference given)", poses_.size(), file_.get_string());
   } else {
     const TrajectoryError e = trajectory_error(poses_, reference_poses_, lost_threshold_.get_float(),
                                                max_gap_ms_.get_float() * 1e-3);
@@ -208,8 +209,15 @@ void TrajectoryWriter::finish() noexcept {
                   poses_.size(), file_.get_string().c_str(), reference_.get_string().c_str(), e.ate_rmse,
                   e.rotation_rmse * 180.0 / std::numbers::pi, e.lost, e.reference, lost_threshold_.get_float(),
                   e.max_error, e.reference - e.matched);
+    // The same words through GDOS, as arguments (a record holds each string whole up
+    // to gdos::kMaxStringBytes; one preformatted line of two paths might not fit).
+    log_info(
+        "%zu poses written to %s; against %s: ATE RMSE %.3f m, rotation RMSE %.2f deg, lost %zu of %zu reference "
+        "poses (> %.2f m), max error %.3f m, %zu unmatched",
+        poses_.size(), file_.get_string(), reference_.get_string(), e.ate_rmse,
+        e.rotation_rmse * 180.0 / std::numbers::pi, e.lost, e.reference, lost_threshold_.get_float(), e.max_error,
+        e.reference - e.matched);
   }
-  std::fprintf(stderr, "TrajectoryWriter '%s': %s\n", name().c_str(), line);
   {
     rt::PiLock lock(summary_mutex_);
     summary_ = line;

@@ -15,7 +15,7 @@
 // the estimate and the reference are in the same (map) frame.
 //
 // The input ends when the source leaves ENABLED (its ERROR) or sends nothing for the
-// data task's timeout_ms; then the file is flushed, the error printed to stderr and
+// data task's timeout_ms; then the file is flushed, the error logged (GDOS, info) and
 // shown in the status line (rackd --status, final status; `rackctl get-data`: the
 // EvaluatorData fields mcl_* and lost), and with exit_when_done rackd is asked to
 // stop (SIGTERM to its own process, as `kill` would). With LadarReplay's `pace`

@@ -26,12 +26,15 @@ void LadarSick::init() {
   c.port = static_cast<uint16_t>(port_.get_int());
   const std::string start = "\x02sEN LMDscandata 1\x03";  // continuous output after every connect
   c.greeting.assign(start.begin(), start.end());
-  link_.start(std::move(c));
+  link_.open(std::move(c));
+  // Connecting and reading block: an executor-owned I/O worker runs the link (not RT).
+  add_io_worker(
+      "tcp-sensor", [this] { link_.run(); }, [this] { link_.request_stop(); });
   // The port registered its descriptor(s) as RT devices when it opened: mode-switch
   // detection allows their I/O in this component's RT tasks.
 }
 
-void LadarSick::cleanup() { link_.stop(); }
+void LadarSick::cleanup() { link_.close(); }  // the executor has joined the link's worker
 
 HookResult LadarSick::on() {
   if (!link_.connected()) return HookResult::kError;  // the link thread keeps trying

@@ -1,9 +1,9 @@
 // LadarSick (class Ladar): a SICK LMS1xx (also LMS5xx, TiM5xx) over TCP, CoLa-A.
 //
-// The connection is kept by a non-RT link thread (rack/devices/tcp_sensor_link.h),
-// started in init(): it connects to host:port, sends "sEN LMDscandata 1" (continuous
-// output) after every connect, and reconnects with back-off when the scanner goes
-// away. loop() (periodic, shorter than the scan period) takes the bytes the thread
+// The connection is kept by a non-RT link (rack/devices/tcp_sensor_link.h) that runs
+// in an executor-owned I/O worker declared in init(): it connects to host:port, sends
+// "sEN LMDscandata 1" (continuous output) after every connect, and reconnects with
+// back-off when the scanner goes away. loop() (periodic, shorter than the scan period) takes the bytes the thread
 // buffered, parses LMDscandata telegrams and publishes each scan as LadarData:
 // DIST1 in metres (0: no echo), RSSI1 as intensity, angles turned from SICK's frame
 // (90 deg ahead) into the robot's (0 ahead, counter-clockwise), the sample time the

@@ -224,9 +224,8 @@ void Mcl::init() {
   out_ = std::make_unique<MclData>();
   xs_ = std::make_unique<float[]>(interfaces::kScan2dMaxPoints);
   ys_ = std::make_unique<float[]>(interfaces::kScan2dMaxPoints);
-  std::fprintf(stderr, "MCL '%s': map %s (%d x %d cells of %.3f m), particles %u..%u\n", name().c_str(), path.c_str(),
-               loaded.map->width(), loaded.map->height(), loaded.map->resolution(), options.particles_min,
-               options.particles_max);
+  log_info("map %s (%d x %d cells of %.3f m), particles %u..%u", path, loaded.map->width(), loaded.map->height(),
+           loaded.map->resolution(), options.particles_min, options.particles_max);
 }
 
 HookResult Mcl::on() {
@@ -317,10 +316,9 @@ HookResult Mcl::loop() {
     const Scan2dData& s = *scan_;
     if (s.odometry_valid == 0) {  // no motion model without odometry: wait for the next
       if (no_odometry_.fetch_add(1, std::memory_order_relaxed) == 0) {
-        std::fprintf(stderr,
-                     "MCL '%s': scans carry no odometry (odometry_valid 0); give the Scan2D component an "
-                     "'odometry' parameter. Such scans are skipped.\n",
-                     name().c_str());
+        log_warning(
+            "scans carry no odometry (odometry_valid 0); give the Scan2D component an 'odometry' parameter. Such "
+            "scans are skipped.");
       }
       return HookResult::kOk;
     }
@@ -357,7 +355,7 @@ HookResult Mcl::loop() {
       report_localisation(d);
     }
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "MCL '%s': update failed: %s\n", name().c_str(), e.what());
+    log_error("update failed: %s", e.what());
     return HookResult::kError;
   }
   return HookResult::kOk;

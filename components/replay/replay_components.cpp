@@ -68,7 +68,9 @@ ChassisReplay::ChassisReplay()
 ChassisReplay::~ChassisReplay() = default;
 
 void ChassisReplay::init() {
-  shared_ = replay::acquire_shared_log(log_.get_string(), speed_.get_float(), strict_.get_bool());
+  std::string skipped;
+  shared_ = replay::acquire_shared_log(log_.get_string(), speed_.get_float(), strict_.get_bool(), skipped);
+  if (!skipped.empty()) log_warning("replay: %s", skipped);
   const replay::ReplayLog& log = shared_->log();
   const std::string source = source_.get_string();  // auto, odom or laser (its Spec's choices)
   const bool use_odom = source == "odom" || (source == "auto" && !log.odometry.empty());
@@ -93,9 +95,8 @@ void ChassisReplay::init() {
     params_.vx_max = std::max(params_.vx_max, v);
     params_.omega_max = std::max(params_.omega_max, w);
   }
-  std::fprintf(stderr, "ChassisReplay '%s': %zu odometry records from %s (%s), %.1f s at speed %.2f\n", name().c_str(),
-               stream_.size(), log.source.c_str(), use_odom ? "odom" : "laser poses",
-               stream_.back().time - stream_.front().time, speed_.get_float());
+  log_info("%zu odometry records from %s (%s), %.1f s at speed %.2f", stream_.size(), log.source,
+           use_odom ? "odom" : "laser poses", stream_.back().time - stream_.front().time, speed_.get_float());
 }
 
 HookResult ChassisReplay::on() {
@@ -196,7 +197,9 @@ LadarReplay::LadarReplay()
 LadarReplay::~LadarReplay() = default;
 
 void LadarReplay::init() {
-  shared_ = replay::acquire_shared_log(log_.get_string(), speed_.get_float(), strict_.get_bool());
+  std::string skipped;
+  shared_ = replay::acquire_shared_log(log_.get_string(), speed_.get_float(), strict_.get_bool(), skipped);
+  if (!skipped.empty()) log_warning("replay: %s", skipped);
   const replay::ReplayLog& log = shared_->log();
   if (log.scans.empty()) throw std::runtime_error(log.source + ": no laser scans");
   for (const auto& s : log.scans) {
@@ -215,11 +218,11 @@ void LadarReplay::init() {
     throw std::runtime_error("parameter 'speed': 0 (as fast as possible) needs 'pace' (the component to wait for)");
   }
   const auto& s0 = log.scans.front();
-  std::fprintf(stderr,
-               "LadarReplay '%s': %zu scans from %s; %zu beams from %.3f rad step %.5f rad, max %.2f m; laser at "
-               "(%.3f, %.3f, %.3f) on the robot (give Scan2D this mounting)\n",
-               name().c_str(), log.scans.size(), log.source.c_str(), s0.ranges.size(), double{s0.start_angle},
-               double{s0.angle_step}, double{s0.max_range}, s0.laser_x, s0.laser_y, s0.laser_phi);
+  log_info(
+      "%zu scans from %s; %zu beams from %.3f rad step %.5f rad, max %.2f m; laser at (%.3f, %.3f, %.3f) on the robot "
+      "(give Scan2D this mounting)",
+      log.scans.size(), log.source, s0.ranges.size(), double{s0.start_angle}, double{s0.angle_step},
+      double{s0.max_range}, s0.laser_x, s0.laser_y, s0.laser_phi);
 }
 
 HookResult LadarReplay::on() {

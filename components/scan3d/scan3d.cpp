@@ -212,8 +212,7 @@ void Scan3d::init() {
   pending_ = std::make_unique<LadarData[]>(kPendingScans);
   ladar_in_ = std::make_unique<LadarData>();
   if (file_source_) {
-    std::fprintf(stderr, "Scan3D '%s': %zu PCD file(s) from %s, one every %.0f ms\n", name().c_str(), files_.size(),
-                 pcd.c_str(), pcd_period_ms_.get_float());
+    log_info("%zu PCD file(s) from %s, one every %.0f ms", files_.size(), pcd, pcd_period_ms_.get_float());
   }
 }
 

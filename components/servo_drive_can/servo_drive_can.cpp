@@ -41,15 +41,24 @@ double ServoDriveCan::to_unit(int32_t counts) const noexcept {
 HookResult ServoDriveCan::on() {
   can_.copy_string(spec_, sizeof spec_);
   node_id_ = static_cast<uint8_t>(node_.get_int());
-  std::string error;  // allocates only when opening fails
-  if (!port_.open(spec_, error)) return HookResult::kError;
+  // A missing bus fails here every retry: the error text goes into a fixed buffer (no
+  // allocation in the command task, failures included) and becomes the ERROR's reason.
+  devices::CanError error;
+  if (!port_.open(spec_, error)) {
+    set_error_reason(error.text);
+    return HookResult::kError;
+  }
   // The port registered its descriptor(s) as RT devices when it opened: mode-switch
   // detection allows their I/O in this component's RT tasks.
   const can_filter filters[] = {{co::kSdoTx + node_id_, CAN_SFF_MASK},
                                 {co::kTpdo1 + node_id_, CAN_SFF_MASK},
                                 {co::kTpdo2 + node_id_, CAN_SFF_MASK},
                                 {co::kHeartbeat + node_id_, CAN_SFF_MASK}};
-  if (!port_.set_filters(filters, error)) return HookResult::kError;
+  if (!port_.set_filters(filters, error)) {
+    set_error_reason(error.text);
+    port_.close();
+    return HookResult::kError;
+  }
   const auto timeout = static_cast<int64_t>(sdo_timeout_ms_.get_float() * 1e6);
   const double cpu = counts_per_unit_.get_float();
   const auto acc = static_cast<uint32_t>(std::lround(acceleration_.get_float() * cpu));

@@ -7,6 +7,7 @@
 
 #include <cstring>
 #include <exception>
+#include <stdexcept>
 
 namespace rack {
 
@@ -93,11 +94,17 @@ bool Component::run_init(std::string& error) {
     error = "unknown exception";
   }
   init_failed_ = true;
+  io_workers_.clear();  // what a failed init() declared does not run
   wire::copy_text(init_error_, ("init() failed: " + error).c_str());
   show_reason(init_error_);
   set_state(ComponentState::kError);
   bump(errors_);
   return false;
+}
+
+void Component::add_io_worker(const std::string& name, std::function<void()> body, std::function<void()> stop) {
+  if (!body || !stop) throw std::invalid_argument("add_io_worker('" + name + "'): needs a body and a stop");
+  io_workers_.push_back(IoWorker{name, std::move(body), std::move(stop)});
 }
 
 void Component::run_cleanup() noexcept {

@@ -7,6 +7,7 @@
 #include <dirent.h>
 #include <pthread.h>
 #include <sched.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -257,8 +258,26 @@ void Executor::start() {
 }
 
 void Executor::start_steps(const std::string& url) {
+  const Address self = Address::make(host_->settings.system, tims::classes::kExecutor, host_->settings.host_id, 1);
+  open_mailboxes(self);
+  start_gdos(url, self);  // first, so that everything from here on is logged
+  install_access(self);
+  attach_components();
+  init_components();
+  start_io_workers();
+  step("starting the tasks");
+  for (auto& v : views_) start_tasks(v);
+  join_network(url, self);
+  start_trace_thread();
+  log_started();
+  autostart_components();
+  // The start-up events are out before start() returns (rackd then says "running").
+  gdos_pass();
+}
+
+// The executor's own mailboxes: #1 for commands from main(), #2 for traces.
+void Executor::open_mailboxes(Address self) {
   const HostSettings& hs = host_->settings;
-  const Address self = Address::make(hs.system, tims::classes::kExecutor, hs.host_id, 1);
   mailbox_ = std::make_unique<tims::Mailbox>(self, 16, 64 * 1024);
   router_.add(*mailbox_);
   endpoint_ = std::make_unique<tims::Endpoint>(router_, *mailbox_, 1);
@@ -267,8 +286,11 @@ void Executor::start_steps(const std::string& url) {
       Address::make(hs.system, tims::classes::kExecutor, hs.host_id, trace::kTraceMailbox), 8, 1024);
   router_.add(*trace_mailbox_);
   trace_endpoint_ = std::make_unique<tims::Endpoint>(router_, *trace_mailbox_, 1);
+}
 
-  // GDOS first, so that everything from here on is logged.
+// The log service: this process's hub, its LCM publisher and the GDOS thread.
+void Executor::start_gdos(const std::string& url, Address self) {
+  const HostSettings& hs = host_->settings;
   log_source_.set_identity(self.component(), "rackd");
   gdos::Hub::set_process_hub(&hub_);
   if (hs.lcm && hs.gdos.lcm && !url.empty()) {
@@ -288,9 +310,13 @@ void Executor::start_steps(const std::string& url) {
     const HousekeepingAffinity housekeeping(views_, host_->settings);
     gdos_thread_ = std::thread([this] { gdos_loop(); });
   }
+}
 
+// Access control (the host file's `access:`), before any component is attached: no
+// message slips past the rules.
+void Executor::install_access(Address self) {
+  const HostSettings& hs = host_->settings;
   if (hs.access_configured) {
-    // Before any component is attached: no message slips past the rules.
     // rackd itself (its endpoint: autostart ON, OFF at shutdown; the transport's
     // STOP_CONT_DATA for lost hosts) is always allowed: a rule of its own, first,
     // matching only messages sent inside this process.
@@ -316,158 +342,235 @@ void Executor::start_steps(const std::string& url) {
         "access control: the host file has no 'access:' section: every source may send "
         "every message to every component here (see configs/access_control.yaml)");
   }
+}
+
+void Executor::attach_components() {
   for (auto& v : views_) {
     v.component->attach(router_);
     v.attached = true;
   }
-  {
-    // Threads a component starts in init() (a driver's device I/O: TcpSensorLink, the
-    // camera's capture) are not real-time: they inherit the housekeeping CPUs.
-    const HousekeepingAffinity housekeeping(views_, host_->settings);
-    for (auto& v : views_) {
-      step("init() of component '" + v.component->name() + "'");
-      v.init_called = true;
-      if (!v.component->run_init(v.init_error)) {
-        log(gdos::Level::kError, "component '" + v.component->name() + "' " + v.component->address().str() +
-                                     " is in ERROR: init() failed: " + v.init_error);
-      }
+}
+
+// init() of each component, in the host file's order; one that fails is in ERROR.
+void Executor::init_components() {
+  // Threads a library starts in init() (OpenCV's, PCL's pools) are not real-time:
+  // they inherit the housekeeping CPUs.
+  const HousekeepingAffinity housekeeping(views_, host_->settings);
+  for (auto& v : views_) {
+    step("init() of component '" + v.component->name() + "'");
+    v.init_called = true;
+    if (!v.component->run_init(v.init_error)) {
+      log(gdos::Level::kError, "component '" + v.component->name() + "' " + v.component->address().str() +
+                                   " is in ERROR: init() failed: " + v.init_error);
     }
   }
-  step("starting the tasks");
-  {
-    for (auto& v : views_) {
-      Component& c = *v.component;
-      const ComponentSettings& s = c.settings();
-      // Each task registers itself with the mode-switch detector (a no-op when
-      // rackd did not start it) before its first cycle.
-      auto watch = [&](const TaskSettings& t, const char* suffix) {
-        // A priority-0 task runs with normal scheduling: it is not real-time, so what it
-        // does (MCL allocates every update) is not a mode switch unless asked for.
-        const auto fallback = t.priority == 0 ? rt::modeswitch::Mode::kOff : hs.modeswitch.default_mode;
-        return rt::modeswitch::TaskInfo{c.name() + suffix, c.name(), c.address().str(), c.address().raw(),
-                                        t.modeswitch.value_or(fallback)};
-      };
-      // Partitioned (`cpus:`): a task without its own `cpu:` runs on the RT CPUs when
-      // it is real-time, on the housekeeping CPUs when it is not.
-      auto task_cpus = [&hs](const TaskSettings& t) {
-        return t.cpu >= 0 ? std::vector<int>{} : t.priority > 0 ? hs.rt_cpus : hs.housekeeping_cpus;
-      };
-      auto* cmd_trace = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(hs.trace_ring_events)).get();
-      trace_.add_task(c.name() + " command task", c.name(), c.address().raw(), cmd_trace);
-      auto cmd = std::make_unique<rt::Thread>();
-      gdos::LogRing* cmd_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " command task");
-      const auto how = cmd->start(
-          {c.name().substr(0, 11) + ":cmd", s.command_task.priority, s.command_task.cpu, s.command_task.stack_bytes,
-           task_cpus(s.command_task)},
-          [&c, cmd_ring, cmd_trace, info = watch(s.command_task, ":cmd")] {
-            gdos::bind_thread_ring(cmd_ring);
-            rt::trace::bind_thread_ring(cmd_trace);
-            rt::modeswitch::TaskAttachment attach(info);
-            c.command_faults_.mark_started();  // start-up ends here
-            c.run_command_task();
+}
+
+// The I/O workers that components declared in init() (Component::add_io_worker):
+// non-RT threads of the executor, on the housekeeping CPUs, each with a log ring.
+void Executor::start_io_workers() {
+  const HostSettings& hs = host_->settings;
+  // Unpartitioned: off the CPUs that RT tasks are pinned to (threads inherit it).
+  const HousekeepingAffinity housekeeping(views_, hs);
+  for (auto& v : views_) {
+    Component& c = *v.component;
+    if (!v.init_called || c.init_failed_) continue;
+    for (const auto& w : c.io_workers_) {
+      step("starting I/O worker '" + w.name + "' of component '" + c.name() + "'");
+      auto worker = std::make_unique<IoWorkerThread>();
+      worker->stop = w.stop;
+      IoWorkerThread* self = worker.get();
+      gdos::LogRing* ring = &hub_.make_ring(hs.gdos.ring, c.name() + " I/O worker " + w.name);
+      io_workers_.push_back(std::move(worker));
+      (void)self->thread.start(
+          {w.name, 0, -1, 256 * 1024, hs.housekeeping_cpus},
+          [this, self, ring, &c, body = w.body, name = w.name] {
+            self->tid.store(static_cast<pid_t>(::syscall(SYS_gettid)), std::memory_order_release);
+            gdos::bind_thread_ring(ring);
+            std::string failure;
+            try {
+              body();
+            } catch (const std::exception& e) {
+              failure = e.what();
+            } catch (...) {
+              failure = "unknown exception";
+            }
+            if (!failure.empty()) {
+              hub_.publish_text(gdos::Level::kError, c.address(), c.name(),
+                                "I/O worker '" + name + "' ended: " + failure);
+            }
           },
-          options_.allow_rt_fallback);
-      v.realtime = how == rt::ThreadStart::kRealTime;
-      v.tasks_started = true;
-      fallback_ = fallback_ || how == rt::ThreadStart::kFallback;
-      threads_.push_back(std::move(cmd));
-      if (auto* dc = dynamic_cast<DataComponentBase*>(&c); dc != nullptr && c.data_task_mode() != DataTaskMode::kNone) {
-        auto* data_trace = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(hs.trace_ring_events)).get();
-        trace_.add_task(c.name() + " data task", c.name(), c.address().raw(), data_trace);
-        auto data = std::make_unique<rt::Thread>();
-        gdos::LogRing* data_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " data task");
-        const auto how2 = data->start(
-            {c.name().substr(0, 10) + ":data", s.data_task.priority, s.data_task.cpu, s.data_task.stack_bytes,
-             task_cpus(s.data_task)},
-            [dc, data_ring, data_trace, info = watch(s.data_task, ":data")] {
-              gdos::bind_thread_ring(data_ring);
-              rt::trace::bind_thread_ring(data_trace);
-              rt::modeswitch::TaskAttachment attach(info);
-              static_cast<Component*>(dc)->data_faults_.mark_started();  // start-up ends here
-              dc->run_data_task();
-            },
-            options_.allow_rt_fallback);
-        fallback_ = fallback_ || how2 == rt::ThreadStart::kFallback;
-        threads_.push_back(std::move(data));
-      }
-    }
-    if (hs.lcm && (!url.empty() || !hs.networks.empty())) {
-      step("joining the TiMS network " + url);
-      tims::LcmTransportConfig tc;
-      tc.url = url;
-      tc.networks = hs.networks;
-      // --lcm replaces the first network's URL (tests and one-off runs).
-      if (!tc.networks.empty() && !options_.lcm_url_override.empty()) tc.networks.front().url = url;
-      tc.role = hs.role;
-      tc.announce_period_ns = hs.announce_period_ns;
-      tc.expiry_ns = hs.expiry_ns;
-      tc.max_message_bytes = hs.max_message_bytes;
-      tc.large_slots = hs.large_slots;
-      tc.receive_priority = hs.receive_priority;
-      tc.warn = [this](const std::string& s) { log(gdos::Level::kWarning, s); };
-      const HousekeepingAffinity housekeeping(views_, host_->settings);  // the transport's threads
-      tc.replay_window_ns = hs.replay_window_ns;
-      transport_ = std::make_unique<tims::LcmTransport>(router_, tc);
-      // Other hosts of this robot own the rest of its addresses: let the transport
-      // decide (discovery) instead of answering NOT_AVAILABLE here.
-      router_.set_system_shared(true);
-      tims::HostInfo info;
-      info.host = hs.host;
-      info.system = hs.system;
-      info.host_id = hs.host_id;
-      info.role = hs.role;
-      info.pid = static_cast<int32_t>(getpid());
-      info.executor = self.component();
-      for (const auto& v : views_) {
-        info.components.push_back({v.component->address(), v.component->name(), v.component->settings().impl});
-      }
-      transport_->set_announcement(std::move(info));
-      transport_->start();
-      // Autostarted components subscribe to other hosts: let discovery fill first
-      // (in steps, so that a stop request is not kept waiting). Only when one of
-      // them refers to a component that is not on this host: a host whose references
-      // are all its own (configs/demo.yaml) switches them on at once.
-      bool remote_refs = false;
-      for (const auto& v : views_) {
-        if (!v.component->settings().autostart) continue;
-        for (const auto& [param, target] : v.component->refs_) {
-          const bool local = std::any_of(views_.begin(), views_.end(), [&t = target](const auto& w) {
-            return w.component->address().component() == t.component();
-          });
-          remote_refs = remote_refs || !local;
-        }
-      }
-      if (remote_refs) {
-        for (const int64_t warm_at = rt::monotonic_ns() + tc.warmup_ns; rt::monotonic_ns() < warm_at;) {
-          step("waiting for the other hosts' announcements");
-          rt::sleep_for(10 * rt::kNsPerMs);
-        }
-        transport_->wait_until_warm();
-      }
+          false);
+      // Its id for thread_report(): the worker sets it first thing (bounded wait).
+      for (int i = 0; i < 1000 && self->tid.load(std::memory_order_acquire) == 0; ++i) rt::sleep_for(rt::kNsPerMs);
     }
   }
-  {
-    trace_.format().pid = static_cast<int>(getpid());
-    trace_.format().process_name = "rackd host '" + hs.host + "'";
-    // Names of this host's components by address (the rest: TiMS's own spelling).
-    std::vector<std::pair<uint32_t, std::string>> names;
-    for (const auto& v : views_) names.emplace_back(v.component->address().raw(), v.component->name());
-    trace_.format().address_name = [names](uint32_t raw) {
-      const Address a(raw);
-      for (const auto& [addr, name] : names) {
-        if (addr == a.component().raw()) return name + (a.raw() == addr ? "" : "#" + std::to_string(a.raw() & 0xFFu));
-      }
-      return a.str();
-    };
-    const HousekeepingAffinity housekeeping(views_, host_->settings);
-    trace_thread_ = std::thread([this] { trace_loop(); });
+}
+
+// Stops every I/O worker (its stop function) and joins it; after the tasks ended.
+void Executor::stop_io_workers() noexcept {
+  for (auto& w : io_workers_) {
+    if (!w->thread.joinable()) continue;
+    try {
+      w->stop();
+    } catch (...) {
+      // A stop function that throws: the join below waits for the body as it is.
+    }
+    w->thread.join();
   }
+  io_workers_.clear();
+}
+
+// The command task and (if it has one) the data task of one component, with the
+// priority, CPU and stack of the host file.
+void Executor::start_tasks(ComponentView& v) {
+  const HostSettings& hs = host_->settings;
+  Component& c = *v.component;
+  const ComponentSettings& s = c.settings();
+  // Each task registers itself with the mode-switch detector (a no-op when
+  // rackd did not start it) before its first cycle.
+  auto watch = [&](const TaskSettings& t, const char* suffix) {
+    // A priority-0 task runs with normal scheduling: it is not real-time, so what it
+    // does (MCL allocates every update) is not a mode switch unless asked for.
+    const auto fallback = t.priority == 0 ? rt::modeswitch::Mode::kOff : hs.modeswitch.default_mode;
+    return rt::modeswitch::TaskInfo{c.name() + suffix, c.name(), c.address().str(), c.address().raw(),
+                                    t.modeswitch.value_or(fallback)};
+  };
+  // Partitioned (`cpus:`): a task without its own `cpu:` runs on the RT CPUs when
+  // it is real-time, on the housekeeping CPUs when it is not.
+  auto task_cpus = [&hs](const TaskSettings& t) {
+    return t.cpu >= 0 ? std::vector<int>{} : t.priority > 0 ? hs.rt_cpus : hs.housekeeping_cpus;
+  };
+  auto* cmd_trace = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(hs.trace_ring_events)).get();
+  trace_.add_task(c.name() + " command task", c.name(), c.address().raw(), cmd_trace);
+  auto cmd = std::make_unique<rt::Thread>();
+  gdos::LogRing* cmd_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " command task");
+  const auto how = cmd->start(
+      {c.name().substr(0, 11) + ":cmd", s.command_task.priority, s.command_task.cpu, s.command_task.stack_bytes,
+       task_cpus(s.command_task)},
+      [&c, cmd_ring, cmd_trace, info = watch(s.command_task, ":cmd")] {
+        gdos::bind_thread_ring(cmd_ring);
+        rt::trace::bind_thread_ring(cmd_trace);
+        rt::modeswitch::TaskAttachment attach(info);
+        c.command_faults_.mark_started();  // start-up ends here
+        c.run_command_task();
+      },
+      options_.allow_rt_fallback);
+  v.realtime = how == rt::ThreadStart::kRealTime;
+  v.tasks_started = true;
+  fallback_ = fallback_ || how == rt::ThreadStart::kFallback;
+  threads_.push_back(std::move(cmd));
+  if (auto* dc = dynamic_cast<DataComponentBase*>(&c); dc != nullptr && c.data_task_mode() != DataTaskMode::kNone) {
+    auto* data_trace = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(hs.trace_ring_events)).get();
+    trace_.add_task(c.name() + " data task", c.name(), c.address().raw(), data_trace);
+    auto data = std::make_unique<rt::Thread>();
+    gdos::LogRing* data_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " data task");
+    const auto how2 = data->start(
+        {c.name().substr(0, 10) + ":data", s.data_task.priority, s.data_task.cpu, s.data_task.stack_bytes,
+         task_cpus(s.data_task)},
+        [dc, data_ring, data_trace, info = watch(s.data_task, ":data")] {
+          gdos::bind_thread_ring(data_ring);
+          rt::trace::bind_thread_ring(data_trace);
+          rt::modeswitch::TaskAttachment attach(info);
+          static_cast<Component*>(dc)->data_faults_.mark_started();  // start-up ends here
+          dc->run_data_task();
+        },
+        options_.allow_rt_fallback);
+    fallback_ = fallback_ || how2 == rt::ThreadStart::kFallback;
+    threads_.push_back(std::move(data));
+  }
+}
+
+// Joins the host's TiMS network (LCM) and announces this host's components.
+void Executor::join_network(const std::string& url, Address self) {
+  const HostSettings& hs = host_->settings;
+  if (hs.lcm && (!url.empty() || !hs.networks.empty())) {
+    step("joining the TiMS network " + url);
+    tims::LcmTransportConfig tc;
+    tc.url = url;
+    tc.networks = hs.networks;
+    // --lcm replaces the first network's URL (tests and one-off runs).
+    if (!tc.networks.empty() && !options_.lcm_url_override.empty()) tc.networks.front().url = url;
+    tc.role = hs.role;
+    tc.announce_period_ns = hs.announce_period_ns;
+    tc.expiry_ns = hs.expiry_ns;
+    tc.max_message_bytes = hs.max_message_bytes;
+    tc.large_slots = hs.large_slots;
+    tc.receive_priority = hs.receive_priority;
+    tc.warn = [this](const std::string& s) { log(gdos::Level::kWarning, s); };
+    const HousekeepingAffinity housekeeping(views_, host_->settings);  // the transport's threads
+    tc.replay_window_ns = hs.replay_window_ns;
+    transport_ = std::make_unique<tims::LcmTransport>(router_, tc);
+    // Other hosts of this robot own the rest of its addresses: let the transport
+    // decide (discovery) instead of answering NOT_AVAILABLE here.
+    router_.set_system_shared(true);
+    tims::HostInfo info;
+    info.host = hs.host;
+    info.system = hs.system;
+    info.host_id = hs.host_id;
+    info.role = hs.role;
+    info.pid = static_cast<int32_t>(getpid());
+    info.executor = self.component();
+    for (const auto& v : views_) {
+      info.components.push_back({v.component->address(), v.component->name(), v.component->settings().impl});
+    }
+    transport_->set_announcement(std::move(info));
+    transport_->start();
+    // Autostarted components subscribe to other hosts: let discovery fill first
+    // (in steps, so that a stop request is not kept waiting). Only when one of
+    // them refers to a component that is not on this host: a host whose references
+    // are all its own (configs/demo.yaml) switches them on at once.
+    bool remote_refs = false;
+    for (const auto& v : views_) {
+      if (!v.component->settings().autostart) continue;
+      for (const auto& [param, target] : v.component->refs_) {
+        const bool local = std::any_of(views_.begin(), views_.end(), [&t = target](const auto& w) {
+          return w.component->address().component() == t.component();
+        });
+        remote_refs = remote_refs || !local;
+      }
+    }
+    if (remote_refs) {
+      for (const int64_t warm_at = rt::monotonic_ns() + tc.warmup_ns; rt::monotonic_ns() < warm_at;) {
+        step("waiting for the other hosts' announcements");
+        rt::sleep_for(10 * rt::kNsPerMs);
+      }
+      transport_->wait_until_warm();
+    }
+  }
+}
+
+// The trace thread (TRACE_START, TRACE_READ on mailbox #2).
+void Executor::start_trace_thread() {
+  const HostSettings& hs = host_->settings;
+  trace_.format().pid = static_cast<int>(getpid());
+  trace_.format().process_name = "rackd host '" + hs.host + "'";
+  // Names of this host's components by address (the rest: TiMS's own spelling).
+  std::vector<std::pair<uint32_t, std::string>> names;
+  for (const auto& v : views_) names.emplace_back(v.component->address().raw(), v.component->name());
+  trace_.format().address_name = [names](uint32_t raw) {
+    const Address a(raw);
+    for (const auto& [addr, name] : names) {
+      if (addr == a.component().raw()) return name + (a.raw() == addr ? "" : "#" + std::to_string(a.raw() & 0xFFu));
+    }
+    return a.str();
+  };
+  const HousekeepingAffinity housekeeping(views_, host_->settings);
+  trace_thread_ = std::thread([this] { trace_loop(); });
+}
+
+void Executor::log_started() {
+  const HostSettings& hs = host_->settings;
   std::size_t realtime = 0;
   for (const auto& v : views_) realtime += v.realtime ? 1 : 0;
   log(gdos::Level::kInfo,
       "host '" + hs.host + "' started " + std::to_string(views_.size()) + " component(s), " + std::to_string(realtime) +
           " with SCHED_FIFO tasks" + (transport_ ? ", TiMS on " + transport_->url() : std::string(", no LCM")) +
           (gdos_publisher_ ? ", GDOS on " + gdos_publisher_->url() + " channel " + hs.gdos.channel : std::string()));
+}
+
+// ON to every component marked autostart, in the host file's (dependency) order.
+void Executor::autostart_components() {
   for (auto& v : views_) {
     Component& c = *v.component;
     if (!c.settings().autostart) continue;
@@ -479,8 +582,6 @@ void Executor::start_steps(const std::string& url) {
                                      " ms)");
     }
   }
-  // The start-up events are out before start() returns (rackd then says "running").
-  gdos_pass();
 }
 
 void Executor::stop() {
@@ -500,6 +601,7 @@ void Executor::stop() {
   for (auto& v : views_) v.component->request_stop();
   for (auto& t : threads_) t->join();
   threads_.clear();
+  stop_io_workers();
   if (trace_mailbox_) {
     trace_mailbox_->close();
     if (trace_thread_.joinable()) trace_thread_.join();
@@ -788,6 +890,9 @@ std::string Executor::thread_report() const {
                                              : "OTHER";
     std::string role = "housekeeping";
     if (tid == getpid()) role = "housekeeping (main)";
+    for (const auto& w : io_workers_) {
+      if (w->tid.load(std::memory_order_acquire) == tid) role = "I/O worker, not RT";
+    }
     for (const auto& t : tasks) {
       if (t.tid == tid) role = t.what;
     }

@@ -383,6 +383,27 @@ std::string read_exact(TcpSensorLink& link, std::size_t n) {
   return out;
 }
 
+// The link makes no thread (in rackd its run() is the component's I/O worker, in an
+// executor-owned thread): here the test gives it one.
+class LinkThread {
+ public:
+  LinkThread(TcpSensorLink& link, const TcpSensorConfig& config) : link_(link) {
+    link_.open(config);
+    thread_ = std::thread([this] { link_.run(); });
+  }
+  ~LinkThread() {
+    link_.request_stop();
+    thread_.join();
+    link_.close();
+  }
+  LinkThread(const LinkThread&) = delete;
+  LinkThread& operator=(const LinkThread&) = delete;
+
+ private:
+  TcpSensorLink& link_;
+  std::thread thread_;
+};
+
 TEST(TcpSensorLinkTest, SendsTheGreetingAndReconnectsAfterTheSensorGoesAway) {
   Watchdog w;
   auto server = std::make_unique<TestServer>();
@@ -393,7 +414,7 @@ TEST(TcpSensorLinkTest, SendsTheGreetingAndReconnectsAfterTheSensorGoesAway) {
   c.greeting = {'h', 'i'};
   c.min_backoff_ns = 20 * kMs;
   c.max_backoff_ns = 200 * kMs;
-  link.start(c);
+  const LinkThread running(link, c);
   int client = server->accept_one();
   ASSERT_GE(client, 0);
   char g[2];
@@ -420,7 +441,6 @@ TEST(TcpSensorLinkTest, SendsTheGreetingAndReconnectsAfterTheSensorGoesAway) {
   EXPECT_EQ(read_exact(link, 5), "scan2");
   EXPECT_EQ(link.connects(), 2U);
   EXPECT_EQ(link.disconnects(), 1U);
-  link.stop();
 }
 
 TEST(TcpSensorLinkTest, RequestedReconnectDropsTheConnection) {
@@ -430,7 +450,7 @@ TEST(TcpSensorLinkTest, RequestedReconnectDropsTheConnection) {
   TcpSensorConfig c;
   c.port = server.port();
   c.min_backoff_ns = 10 * kMs;
-  link.start(c);
+  const LinkThread running(link, c);
   ASSERT_GE(server.accept_one(), 0);
   ASSERT_TRUE(test::eventually([&] { return link.connected(); }));
   link.request_reconnect();
@@ -445,7 +465,7 @@ TEST(TcpSensorLinkTest, OverflowDropsAndCountsBytesInsteadOfBlocking) {
   TcpSensorConfig c;
   c.port = server.port();
   c.ring_bytes = 4096;
-  link.start(c);
+  const LinkThread running(link, c);
   const int client = server.accept_one();
   ASSERT_GE(client, 0);
   std::string big(20000, 'x');

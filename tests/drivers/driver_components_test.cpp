@@ -796,6 +796,9 @@ class ServoDriveCanTest : public ::testing::Test {
     sim_ = std::make_unique<sims::Cia402DriveSim>(sims::Cia402DriveSim::Config{{3}, 1'000'000});
     sim_->listen_unix(socket_);
     sim_->start();
+    start_host();
+  }
+  void start_host() {
     host_ = std::make_unique<HostUnderTest>(R"(system: 0
 lcm: false
 components:
@@ -908,6 +911,29 @@ TEST_F(ServoDriveCanTest, MoveAtVelocityStopsAtTheLimitAndASilentDriveIsAnError)
   sim_->set_silent(3, true);
   ASSERT_TRUE(host_->wait_status(servo_, msg::kError));
   sim_->set_silent(3, false);
+  EXPECT_TRUE(host_->wait_status(servo_, msg::kEnabled));
+}
+
+// A missing bus: on() fails through CanPort's CanError forms (no allocation in the
+// command task on the retries) and the ERROR's reason is the port's own words.
+TEST_F(ServoDriveCanTest, NoBusThenBus) {
+  Watchdog w;
+  host_->executor().stop();
+  host_->executor().router().remove(mailbox_->address());
+  host_.reset();
+  sim_.reset();
+  ::unlink(socket_.c_str());
+  start_host();
+  ASSERT_TRUE(host_->wait_status(servo_, msg::kError));
+  wire::StatsReply s;
+  ASSERT_TRUE(test::eventually([&] {
+    s = host_->stats(servo_);
+    return std::string(s.error_reason).find(": connect: No such file or directory") != std::string::npos;
+  })) << s.error_reason;
+  EXPECT_EQ(std::string(s.error_reason).rfind(socket_, 0), 0U) << "names the socket: " << s.error_reason;
+  sim_ = std::make_unique<sims::Cia402DriveSim>(sims::Cia402DriveSim::Config{{3}, 1'000'000});
+  sim_->listen_unix(socket_);
+  sim_->start();
   EXPECT_TRUE(host_->wait_status(servo_, msg::kEnabled));
 }
 

@@ -137,6 +137,32 @@ TEST_F(PartitionTest, EveryNonRtThreadRunsOnTheHousekeepingCpus) {
   EXPECT_EQ(rackd.wait_exit(20s), 0) << rackd.err();
 }
 
+// A driver's blocking device I/O (LadarSick's TCP link) runs in an executor-owned I/O
+// worker: on the housekeeping CPU, and the start-up listing says what it is.
+TEST_F(PartitionTest, ADriversIoWorkerRunsOnTheHousekeepingCpus) {
+  const auto file = dir_.write("part.yaml", host_file(bus_.url(), "cpus: {rt: 1, housekeeping: 0}\n") +
+                                                "  - name: sick\n"
+                                                "    class: LadarSick\n"
+                                                "    instance: 0\n"
+                                                "    data_task: {period_ms: 10}\n"
+                                                "    params: {host: 127.0.0.1, port: 9}\n");
+  Process rackd({kRackd, file.string()}, dir_.path(), "rackd");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 20s)) << rackd.err();
+  int workers = 0;
+  for (const auto& [tid, t] : threads_of(rackd.pid())) {
+    if (t.name != "tcp-sensor") continue;
+    ++workers;
+    EXPECT_EQ(t.cpus, "0") << "the I/O worker (" << tid << ") is not an RT task";
+  }
+  EXPECT_EQ(workers, 1) << "LadarSick's link runs in one I/O worker";
+  const std::string err = rackd.err();
+  const auto at = err.find("tcp-sensor");
+  ASSERT_NE(at, std::string::npos) << err;
+  EXPECT_NE(err.substr(at, err.find('\n', at) - at).find("I/O worker, not RT"), std::string::npos) << err;
+  rackd.signal(SIGTERM);
+  EXPECT_EQ(rackd.wait_exit(20s), 0) << rackd.err();
+}
+
 TEST_F(PartitionTest, WarnsWhenAnRtCpuAlsoServesHousekeeping) {
   const auto file = dir_.write("overlap.yaml", host_file(bus_.url(), "cpus: {rt: \"0-1\", housekeeping: [1]}\n"));
   Process rackd({kRackd, file.string(), "--duration", "1"}, dir_.path(), "rackd");

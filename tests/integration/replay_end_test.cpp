@@ -13,15 +13,12 @@
 #include <vector>
 
 #include "process.h"
+#include "shipped_host.h"
 
 namespace rack::test {
 namespace {
 
 using namespace std::chrono_literals;
-
-const std::string kRackd = RACK_RACKD_PATH;
-const std::string kRackctl = RACK_RACKCTL_PATH;
-const std::string kConfigs = RACK_CONFIGS_DIR;
 
 std::size_t count_of(const std::string& text, const std::string& part) {
   std::size_t n = 0;
@@ -31,15 +28,12 @@ std::size_t count_of(const std::string& text, const std::string& part) {
 
 TEST(ReplayEndTest, TheEndOfTheLogIsSaidOnceAndThePipelineStaysEnabled) {
   Watchdog watchdog(60s, "ReplayEndTest");
-  TempDir dir;
-  LcmBus bus;
+  RackdOnBus host;
   // The shipped host file, copied elsewhere (absolute paths), at 10x: 40 s of log in 4 s.
-  std::string host = read_file(kConfigs + "/replay_carmen.yaml");
-  host = std::regex_replace(host, std::regex("(log|map): (logs|maps)/"), "$1: " + kConfigs + "/$2/");
-  host = std::regex_replace(host, std::regex("speed: 1.0"), "speed: 10.0");
-  const std::string path = dir.write("replay.yaml", host).string();
-  Process rackd({kRackd, path, "--lcm", bus.url(), "--crash-dir", dir.path().string()}, dir.path(), "rackd");
-  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
+  const std::string text = std::regex_replace(shipped_host_text("replay_carmen.yaml"), std::regex("speed: 1.0"),
+                                              "speed: 10.0");
+  ASSERT_TRUE(host.start(host.write("replay.yaml", text), {"--crash-dir", host.dir().path().string()}));
+  Process& rackd = host.rackd();
   ASSERT_TRUE(rackd.wait_for_stderr("scans played from", 20s)) << rackd.err();
   ASSERT_TRUE(rackd.wait_for_stderr("odometry records played from", 10s)) << rackd.err();
   // Three of the old retry periods (1 s each) go by: nothing may fail in them.
@@ -54,10 +48,7 @@ TEST(ReplayEndTest, TheEndOfTheLogIsSaidOnceAndThePipelineStaysEnabled) {
   }
   // MCL says at info level when it has converged: once (from the INIT of ON).
   EXPECT_EQ(count_of(err, "MCL(0/0): converged at ("), 1u) << err;
-  const auto ctl = [&](std::vector<std::string> args) {
-    args.insert(args.begin(), {kRackctl, "--lcm", bus.url(), "--discover-ms", "3000"});
-    return run(args, 30s);
-  };
+  const auto ctl = [&](std::vector<std::string> args) { return host.ctl(std::move(args)); };
   for (const char* name : {"chassis", "ladar", "odometry", "scan2d", "mcl", "position"}) {
     const RunResult r = ctl({"status", name, "--json"});
     EXPECT_EQ(r.exit_code, 0) << r.describe();

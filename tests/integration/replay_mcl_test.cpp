@@ -18,6 +18,7 @@
 
 #include "mini_json.h"
 #include "process.h"
+#include "shipped_host.h"
 #include "rack/rt/memory.h"
 
 namespace rack::test {
@@ -25,8 +26,6 @@ namespace {
 
 using namespace std::chrono_literals;
 
-const std::string kRackd = RACK_RACKD_PATH;
-const std::string kRackctl = RACK_RACKCTL_PATH;
 const std::string kConfigs = RACK_CONFIGS_DIR;
 
 struct Truth {
@@ -57,15 +56,12 @@ std::map<double, Truth> read_truth(const std::string& log, double& last_scan_tim
 
 TEST(ReplayMclTest, ShippedLogLocalisesThroughTheWholePipeline) {
   Watchdog watchdog(100s, "ReplayMclTest");
-  TempDir dir;
-  LcmBus bus;
+  RackdOnBus host;
   // The shipped host file with absolute paths and 4x speed (40 s of log in 10 s).
-  std::string host = read_file(kConfigs + "/replay_carmen.yaml");
-  host = std::regex_replace(host, std::regex("(log|map|reference): (logs|maps)/"), "$1: " + kConfigs + "/$2/");
-  host = std::regex_replace(host, std::regex("speed: 1.0"), "speed: 4.0");
-  const std::string path = dir.write("replay.yaml", host).string();
-  Process rackd({kRackd, path, "--lcm", bus.url(), "--crash-dir", dir.path().string()}, dir.path(), "rackd");
-  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
+  const std::string text = std::regex_replace(shipped_host_text("replay_carmen.yaml"), std::regex("speed: 1.0"),
+                                              "speed: 4.0");
+  ASSERT_TRUE(host.start(host.write("replay.yaml", text), {"--crash-dir", host.dir().path().string()}));
+  Process& rackd = host.rackd();
   std::this_thread::sleep_for(11s);  // the log plays out
 
   double last_scan = 0;
@@ -73,7 +69,7 @@ TEST(ReplayMclTest, ShippedLogLocalisesThroughTheWholePipeline) {
   ASSERT_TRUE(truth.count(last_scan) == 1) << "no TRUEPOS at the last scan's time " << last_scan;
   const Truth end = truth.at(last_scan);
   auto estimate = [&](const std::string& name) {
-    const RunResult r = run({kRackctl, "--lcm", bus.url(), "--discover-ms", "3000", "get-data", name}, 30s);
+    const RunResult r = host.ctl({"get-data", name});
     EXPECT_EQ(r.exit_code, 0) << r.describe();
     const auto j = parse_json(r.out);
     const Json* d = j ? j->get("data") : nullptr;
@@ -84,14 +80,14 @@ TEST(ReplayMclTest, ShippedLogLocalisesThroughTheWholePipeline) {
   };
   // Every task reports its execution time, triggered ones too: MCL's update time.
   {
-    const RunResult r = run({kRackctl, "--lcm", bus.url(), "--discover-ms", "3000", "status", "mcl"}, 30s);
+    const RunResult r = host.ctl({"status", "mcl"});
     EXPECT_EQ(r.exit_code, 0) << r.describe();
     EXPECT_NE(r.out.find("triggered"), std::string::npos) << r.out;
     EXPECT_TRUE(std::regex_search(
         r.out,
         std::regex("execution time +p50 [0-9.]+ (ns|us|ms|s), p99 [0-9.]+ (ns|us|ms|s), max [0-9.]+ (ns|us|ms|s)")))
         << r.out;
-    const RunResult j = run({kRackctl, "--lcm", bus.url(), "--discover-ms", "3000", "status", "scan2d", "--json"}, 30s);
+    const RunResult j = host.ctl({"status", "scan2d", "--json"});
     const auto json = parse_json(j.out);
     const Json* exec = json ? json->get("execution_us") : nullptr;
     const Json* samples = exec != nullptr ? exec->get("samples") : nullptr;
@@ -144,15 +140,14 @@ std::vector<Pose> read_trajectory(const std::string& path) {
 // Runs configs/replay_carmen_mcl.yaml at `speed` (0: as fast as paced) until rackd
 // stops by itself (exit_when_done) and returns the trajectory written.
 std::vector<Pose> run_evaluation(const std::string& speed, std::string& err) {
-  TempDir dir;
-  LcmBus bus;
-  std::string host = read_file(kConfigs + "/replay_carmen_mcl.yaml");
-  host = std::regex_replace(host, std::regex("(log|map|reference): (logs|maps)/"), "$1: " + kConfigs + "/$2/");
-  host = std::regex_replace(host, std::regex("speed: 0 "), "speed: " + speed + " ");
-  const std::string out = (dir.path() / "trajectory.txt").string();
-  host = std::regex_replace(host, std::regex("file: /tmp/trajectory.txt"), "file: " + out);
-  const std::string path = dir.write("replay_mcl.yaml", host).string();
-  Process rackd({kRackd, path, "--lcm", bus.url(), "--crash-dir", dir.path().string()}, dir.path(), "rackd");
+  RackdOnBus host;
+  std::string text = std::regex_replace(shipped_host_text("replay_carmen_mcl.yaml"), std::regex("speed: 0 "),
+                                        "speed: " + speed + " ");
+  const std::string out = (host.dir().path() / "trajectory.txt").string();
+  text = std::regex_replace(text, std::regex("file: /tmp/trajectory.txt"), "file: " + out);
+  // It stops by itself (exit_when_done): no wait for "running".
+  EXPECT_TRUE(host.start(host.write("replay_mcl.yaml", text), {"--crash-dir", host.dir().path().string()}, false));
+  Process& rackd = host.rackd();
   const auto code = rackd.wait_exit(120s);
   err = rackd.err();
   EXPECT_EQ(code, std::optional<int>(0)) << "rackd did not stop by itself after the log\n" << err;

@@ -15,6 +15,7 @@
 
 #include "mini_json.h"
 #include "process.h"
+#include "shipped_host.h"
 
 namespace rack::test {
 namespace {
@@ -22,7 +23,6 @@ namespace {
 using namespace std::chrono_literals;
 
 const std::string kRackd = RACK_RACKD_PATH;
-const std::string kRackctl = RACK_RACKCTL_PATH;
 const std::string kConfigs = RACK_CONFIGS_DIR;
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
@@ -30,13 +30,6 @@ bool contains(const std::string& text, const std::string& part) { return text.fi
 class SimNavTest : public ::testing::Test {
  protected:
   SimNavTest() : watchdog_(100s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
-  void TearDown() override {
-    if (rackd_ && rackd_->running()) {
-      rackd_->signal(SIGTERM);
-      EXPECT_EQ(rackd_->wait_exit(30s), std::optional<int>(0)) << rackd_->err();
-    }
-  }
-
   // configs/sim_nav.yaml with its map paths made absolute (the shipped file names
   // them relative to its own folder, and the copy is written elsewhere), optionally
   // with the ladar's map replaced.
@@ -53,14 +46,10 @@ class SimNavTest : public ::testing::Test {
     return dir_.write("sim_nav.yaml", text).string();
   }
   void start(const std::string& path) {
-    rackd_ = std::make_unique<Process>(std::vector<std::string>{kRackd, path, "--lcm", bus_.url()}, dir_.path(),
-                                       "rackd");
-    ASSERT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
+    ASSERT_TRUE(host_.start(path));
+    rackd_ = &host_.rackd();
   }
-  RunResult ctl(std::vector<std::string> args) {
-    args.insert(args.begin(), {kRackctl, "--lcm", bus_.url(), "--discover-ms", "3000"});
-    return run(args, 30s);
-  }
+  RunResult ctl(std::vector<std::string> args) { return host_.ctl(std::move(args)); }
   // The `data` object of `rackctl get-data NAME`.
   std::optional<Json> data(const std::string& name) {
     const RunResult r = ctl({"get-data", name});
@@ -84,9 +73,9 @@ class SimNavTest : public ::testing::Test {
   }
 
   Watchdog watchdog_;
-  TempDir dir_;
-  LcmBus bus_;
-  std::unique_ptr<Process> rackd_;
+  RackdOnBus host_;  // stopped (SIGTERM, exit 0) when the test ends
+  const TempDir& dir_ = host_.dir();
+  Process* rackd_ = nullptr;  // once started
 };
 
 TEST_F(SimNavTest, TheShippedHostFilesAreValid) {
@@ -119,12 +108,7 @@ TEST_F(SimNavTest, TheMainJobsHostFileIsValidWhenMclIsBuiltIn) {
   const auto classes = run({kRackd, "--list-classes"}, 30s);
   ASSERT_EQ(classes.exit_code, 0) << classes.describe();
   if (!contains(classes.out, "MCL  (class ")) GTEST_SKIP() << "class MCL is not built into this rackd";
-  std::string text = read_file(kConfigs + "/sim_mcl.yaml");
-  const std::string rel = "map: maps/office.yaml";
-  for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1)) {
-    text.replace(at, rel.size(), "map: " + kConfigs + "/maps/office.yaml");
-  }
-  const auto r = run({kRackd, "--check", dir_.write("sim_mcl.yaml", text).string()}, 30s);
+  const auto r = run({kRackd, "--check", host_.write("sim_mcl.yaml", shipped_host_text("sim_mcl.yaml"))}, 30s);
   EXPECT_EQ(r.exit_code, 0) << r.describe();
 }
 

@@ -3,18 +3,17 @@
 // and parsed back: one track per task, cycles as complete events, wake-ups of the
 // periodic tasks, message hand-offs joined by flow events.
 #include <gtest/gtest.h>
-#include <signal.h>
 
 #include <chrono>
 #include <map>
 #include <memory>
-#include <optional>
 #include <set>
 #include <string>
 #include <vector>
 
 #include "mini_json.h"
 #include "process.h"
+#include "shipped_host.h"
 
 namespace rack::test {
 namespace {
@@ -22,8 +21,6 @@ namespace {
 using namespace std::chrono_literals;
 
 const std::string kRackd = RACK_RACKD_PATH;
-const std::string kRackctl = RACK_RACKCTL_PATH;
-const std::string kConfigs = RACK_CONFIGS_DIR;
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
@@ -34,33 +31,13 @@ class TraceTest : public ::testing::Test {
     const auto classes = run({kRackd, "--list-classes"}, 30s);
     ASSERT_EQ(classes.exit_code, 0) << classes.describe();
     if (!contains(classes.out, "MCL  (class ")) GTEST_SKIP() << "class MCL is not built into this rackd";
-    // sim_mcl.yaml with its map paths made absolute (the shipped file names them
-    // relative to the repository root).
-    std::string text = read_file(kConfigs + "/sim_mcl.yaml");
-    const std::string rel = "map: maps/office.yaml";
-    for (auto at = text.find(rel); at != std::string::npos; at = text.find(rel, at + 1)) {
-      text.replace(at, rel.size(), "map: " + kConfigs + "/maps/office.yaml");
-    }
-    const auto path = dir_.write("sim_mcl.yaml", text).string();
-    rackd_ = std::make_unique<Process>(std::vector<std::string>{kRackd, path, "--lcm", bus_.url()}, dir_.path(),
-                                       "rackd");
-    ASSERT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
+    ASSERT_TRUE(host_.start(host_.write("sim_mcl.yaml", shipped_host_text("sim_mcl.yaml"))));
   }
-  void TearDown() override {
-    if (rackd_ && rackd_->running()) {
-      rackd_->signal(SIGTERM);
-      EXPECT_EQ(rackd_->wait_exit(30s), std::optional<int>(0)) << rackd_->err();
-    }
-  }
-  RunResult ctl(std::vector<std::string> args) {
-    args.insert(args.begin(), {kRackctl, "--lcm", bus_.url(), "--discover-ms", "3000"});
-    return run(args, 30s);
-  }
+  RunResult ctl(std::vector<std::string> args) { return host_.ctl(std::move(args)); }
 
   Watchdog watchdog_;
-  TempDir dir_;
-  LcmBus bus_;
-  std::unique_ptr<Process> rackd_;
+  RackdOnBus host_;  // stopped (SIGTERM, exit 0) when the test ends
+  const TempDir& dir_ = host_.dir();
 };
 
 TEST_F(TraceTest, RecordsEveryTaskOfSimMclAndTheJsonReadsBack) {

@@ -128,27 +128,21 @@ components:
 namespace rack {
 namespace {
 
-// A component that starts a non-RT thread in init(), as drivers do for device I/O.
-// Test code (not RT: it makes a thread).
+// A component that declares a non-RT I/O worker in init(), as drivers do for device
+// I/O (components make no threads: the executor runs the worker).
 class ThreadInInit final : public Component {
- public:
-  ~ThreadInInit() override { cleanup(); }
-
  protected:
   void init() override {
-    thread_ = std::thread([this] {
-      pthread_setname_np(pthread_self(), "test-io");
-      while (!quit_.load()) std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    });
-  }
-  void cleanup() override {
-    quit_ = true;
-    if (thread_.joinable()) thread_.join();
+    add_io_worker(
+        "test-io",
+        [this] {
+          while (!quit_.load()) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        },
+        [this] { quit_ = true; });
   }
 
  private:
   std::atomic<bool> quit_{false};
-  std::thread thread_;
 };
 
 // The id of this process's thread named `name`, 0 when there is none.
@@ -170,8 +164,8 @@ cpu_set_t affinity_of(pid_t tid) {
   return set;
 }
 
-// The executor's own non-RT threads (here: the GDOS thread) and threads a component
-// starts in init() (device I/O) stay off a CPU that an RT
+// The executor's own non-RT threads (here: the GDOS thread and a component's I/O
+// worker, declared in init()) stay off a CPU that an RT
 // task is pinned to; the thread that started the executor gets its full set back.
 TEST(HousekeepingAffinityTest, GdosAndInitThreadsStayOffTheCpuOfAPinnedRtTask) {
   Watchdog watchdog;
@@ -195,7 +189,7 @@ components:
     class: ThreadInInit
 )",
                            [](ComponentRegistry& r) {
-                             r.add({"ThreadInInit", tims::classes::kFirstUser, "test: starts a thread in init()",
+                             r.add({"ThreadInInit", tims::classes::kFirstUser, "test: an I/O worker from init()",
                                     [] { return std::make_unique<ThreadInInit>(); }});
                            });
   const cpu_set_t after = affinity_of(0);
@@ -218,7 +212,7 @@ components:
   EXPECT_FALSE(CPU_ISSET(static_cast<std::size_t>(pinned), &g))
       << "GDOS thread may run on CPU " << pinned << ", where RT tasks are pinned";
   EXPECT_GE(CPU_COUNT(&g), 1);
-  // A thread the component started in init() (as a driver's device I/O thread).
+  // The I/O worker the component declared in init() (as a driver's device I/O).
   pid_t io = 0;
   ASSERT_TRUE(test::eventually([&] {
     io = thread_named("test-io");

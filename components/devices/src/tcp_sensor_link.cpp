@@ -21,13 +21,14 @@
 
 namespace rack::devices {
 
-TcpSensorLink::~TcpSensorLink() { stop(); }
+TcpSensorLink::~TcpSensorLink() { close(); }
 
-void TcpSensorLink::start(TcpSensorConfig config) {
-  stop();
+void TcpSensorLink::open(TcpSensorConfig config) {
+  close();
   config_ = std::move(config);
   capacity_ = std::max<std::size_t>(config_.ring_bytes, 4096);
   ring_ = std::make_unique<uint8_t[]>(capacity_);
+  receive_ = std::make_unique<uint8_t[]>(kReceiveBytes);
   head_.store(0);
   tail_.store(0);
   epoch_.store(0);
@@ -36,7 +37,7 @@ void TcpSensorLink::start(TcpSensorConfig config) {
   control_event_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
   if (data_event_ < 0 || control_event_ < 0) {
     const int e = errno;
-    stop();
+    close();
     throw std::system_error(e, std::generic_category(), "TcpSensorLink: eventfd");
   }
   // The RT side polls and reads data_event_ and wakes the I/O thread through
@@ -44,19 +45,15 @@ void TcpSensorLink::start(TcpSensorConfig config) {
   (void)rt::modeswitch::register_rt_device(data_event_);
   (void)rt::modeswitch::register_rt_device(control_event_);
   stop_.store(false);
-  thread_ = std::thread([this] {
-    pthread_setname_np(pthread_self(), "tcp-sensor");
-    run();
-  });
 }
 
-void TcpSensorLink::stop() noexcept {
-  if (thread_.joinable()) {
-    stop_.store(true, std::memory_order_release);
-    const uint64_t one = 1;
-    (void)::write(control_event_, &one, sizeof one);
-    thread_.join();
-  }
+void TcpSensorLink::request_stop() noexcept {
+  stop_.store(true, std::memory_order_release);
+  const uint64_t one = 1;
+  if (control_event_ >= 0) (void)::write(control_event_, &one, sizeof one);
+}
+
+void TcpSensorLink::close() noexcept {
   for (const int fd : {data_event_, control_event_}) {
     if (fd < 0) continue;
     rt::modeswitch::unregister_rt_device(fd);
@@ -140,8 +137,8 @@ void TcpSensorLink::push(const uint8_t* data, std::size_t n) noexcept {
 }
 
 void TcpSensorLink::run() noexcept {
+  if (control_event_ < 0 || data_event_ < 0) return;  // not open()
   int64_t backoff = config_.min_backoff_ns;
-  std::vector<uint8_t> buf(16 * 1024);
   while (!stop_.load(std::memory_order_acquire)) {
     reconnect_.store(false, std::memory_order_relaxed);
     const int fd = connect_once();
@@ -176,9 +173,9 @@ void TcpSensorLink::run() noexcept {
         (void)::read(control_event_, &v, sizeof v);
       }
       if ((p[0].revents & (POLLIN | POLLHUP | POLLERR)) != 0) {
-        const ssize_t n = ::recv(fd, buf.data(), buf.size(), MSG_DONTWAIT);
+        const ssize_t n = ::recv(fd, receive_.get(), kReceiveBytes, MSG_DONTWAIT);
         if (n > 0) {
-          push(buf.data(), static_cast<std::size_t>(n));
+          push(receive_.get(), static_cast<std::size_t>(n));
         } else if (n == 0 || (errno != EAGAIN && errno != EINTR)) {
           ok = false;
         }

@@ -1,7 +1,6 @@
 #include "shared_log.h"
 
 #include <cmath>
-#include <cstdio>
 #include <map>
 #include <mutex>
 #include <stdexcept>
@@ -24,7 +23,9 @@ int64_t SharedLog::host_time(double t) const noexcept {
 
 int64_t SharedLog::sample_time(double t) noexcept { return static_cast<int64_t>(std::llround(t * 1e9)); }
 
-std::shared_ptr<SharedLog> acquire_shared_log(const std::string& path, double speed, bool strict) {
+std::shared_ptr<SharedLog> acquire_shared_log(const std::string& path, double speed, bool strict,
+                                              std::string& skipped) {
+  skipped.clear();
   static std::mutex mutex;
   static std::map<std::string, std::weak_ptr<SharedLog>> logs;
   std::lock_guard lock(mutex);
@@ -45,8 +46,8 @@ std::shared_ptr<SharedLog> acquire_shared_log(const std::string& path, double sp
                              std::to_string(first) + " .. " + std::to_string(last));
   }
   if (!loaded.errors.empty()) {
-    std::fprintf(stderr, "replay: %zu malformed line(s) skipped (strict: false):\n%s\n", loaded.errors.size(),
-                 loaded.error_text(5).c_str());
+    skipped = std::to_string(loaded.errors.size()) + " malformed line(s) skipped (strict: false):\n" +
+              loaded.error_text(5);
   }
   auto shared = std::make_shared<SharedLog>(std::move(loaded), speed);
   logs[path] = shared;

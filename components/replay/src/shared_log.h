@@ -66,7 +66,9 @@ class SharedLog {
 // std::runtime_error with the file's errors (file:line: reason) when it does not load,
 // when its first record's time is not positive (sample time 0 means "newest" in a
 // GET_DATA), or when another component plays the same file at another speed. With
-// `strict` false, malformed lines are skipped (and reported to stderr) instead.
-std::shared_ptr<SharedLog> acquire_shared_log(const std::string& path, double speed, bool strict);
+// `strict` false, malformed lines are skipped instead: `skipped` then says which (the
+// first few, file:line: reason; filled only by the call that loaded the file, "" when
+// none were skipped), for the caller to log.
+std::shared_ptr<SharedLog> acquire_shared_log(const std::string& path, double speed, bool strict, std::string& skipped);
 
 }  // namespace rack::replay

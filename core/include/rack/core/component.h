@@ -26,6 +26,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -204,6 +205,16 @@ class Component {
   // Command mailbox slot size, if the class's commands carry large bodies.
   void set_command_slot_size(uint32_t bytes) { command_slot_size_ = bytes; }
 
+  // ---- I/O workers (init() only) ----
+  // Components never make threads (STYLE.md 3). Blocking device I/O (a TCP link, a
+  // camera's capture) runs in an I/O worker: the executor runs `body` in a non-RT
+  // thread of its own (SCHED_OTHER, on the housekeeping CPUs, rackd's thread listing
+  // names it "I/O worker"), with a log ring of its own, from after a successful
+  // init() until shutdown: then, after the tasks have ended, it calls `stop` (which
+  // must make `body` return soon; any thread) and joins the thread before cleanup().
+  // `name` is the thread's name (cut to 15 characters). Not RT-safe.
+  void add_io_worker(const std::string& name, std::function<void()> body, std::function<void()> stop);
+
   // ---- for hooks (RT-safe) ----
   // The address a component-ref parameter resolved to.
   [[nodiscard]] tims::Address resolved(const Parameter& ref) const noexcept;
@@ -280,6 +291,11 @@ class Component {
   gdos::LogSource log_source_;
   Parameter* log_level_param_ = nullptr;
   std::vector<std::pair<const Parameter*, tims::Address>> refs_;  // filled by the executor
+  struct IoWorker {
+    std::string name;
+    std::function<void()> body, stop;
+  };
+  std::vector<IoWorker> io_workers_;  // add_io_worker() in init(); the executor runs them
   uint32_t command_slot_size_ = 1024;
   tims::Router* router_ = nullptr;
   std::unique_ptr<tims::Mailbox> command_mailbox_;

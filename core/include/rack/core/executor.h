@@ -14,7 +14,11 @@
 // (gdos.lcm_url, channel gdos.channel). Executor events (start, init failures, ON,
 // OFF, ERROR, overruns, autostart failures) go the same way.
 //
-// CPUs: the executor's own non-RT threads (GDOS, the TiMS/LCM transport) are kept off
+// I/O workers: blocking device I/O that a component declared in init()
+// (Component::add_io_worker) runs in a non-RT thread of the executor on the
+// housekeeping CPUs, started after init(), stopped and joined after the tasks.
+//
+// CPUs: the executor's own non-RT threads (GDOS, the TiMS/LCM transport, I/O workers) are kept off
 // the CPUs that RT tasks are pinned to (`cpu:`), when another CPU is left. With the
 // host file's `cpus:` block (partitioning), RT tasks without a `cpu:` run on its `rt`
 // CPUs and everything else (non-RT tasks, the executor's threads, threads libraries
@@ -31,6 +35,7 @@
 // Thread-safety: start/stop from one thread; status() from any non-RT thread.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <functional>
 #include <memory>
@@ -143,7 +148,20 @@ class Executor {
   void pass_guarded() noexcept;
   void gdos_loop();
   bool send_command(Component& c, int8_t type, int64_t timeout_ns, std::string& why);
+  // start(), one step each, in this order (start_steps() calls them).
   void start_steps(const std::string& url);
+  void open_mailboxes(tims::Address self);
+  void start_gdos(const std::string& url, tims::Address self);
+  void install_access(tims::Address self);
+  void attach_components();
+  void init_components();
+  void start_io_workers();
+  void stop_io_workers() noexcept;
+  void start_tasks(ComponentView& v);
+  void join_network(const std::string& url, tims::Address self);
+  void start_trace_thread();
+  void log_started();
+  void autostart_components();
   void step(const std::string& what);  // phase + stop_requested check (start-up)
   void trace_loop();
   void trace_request(const tims::MessageHeader& h, std::span<const std::byte> body);
@@ -158,6 +176,13 @@ class Executor {
   int64_t next_access_report_ns_ = 0;            // GDOS thread: denials are logged at most this often
   std::vector<ComponentView> views_;
   std::vector<std::unique_ptr<rt::Thread>> threads_;
+  // The components' I/O workers (Component::add_io_worker): non-RT, housekeeping CPUs.
+  struct IoWorkerThread {
+    rt::Thread thread;
+    std::function<void()> stop;
+    std::atomic<pid_t> tid{0};  // set by the worker itself (release; thread_report acquires)
+  };
+  std::vector<std::unique_ptr<IoWorkerThread>> io_workers_;
   bool started_ = false;
   bool fallback_ = false;
 

@@ -1,7 +1,10 @@
 // TcpSensorLink: a TCP connection to a sensor (SICK scanners, GNSS receivers with an
-// Ethernet port) kept up by a non-RT thread, read by an RT task without blocking.
+// Ethernet port) kept up by run() in a non-RT thread, read by an RT task without
+// blocking. The link makes no thread: in rackd, run() is an I/O worker of the
+// component (Component::add_io_worker), in an executor-owned non-RT thread placed on
+// the housekeeping CPUs; a test may run it in a thread of its own.
 //
-// The link thread connects (with a timeout), sends the configured greeting (e.g. a
+// run() connects (with a timeout), sends the configured greeting (e.g. a
 // CoLa-A "start continuous output" telegram) after every connect, and copies what
 // arrives into a preallocated single-producer/single-consumer byte ring. When the
 // peer closes, the connection fails or the RT side asks for it (request_reconnect(),
@@ -10,10 +13,11 @@
 // Bytes that do not fit in the ring are dropped and counted (the RT side is too
 // slow; it must resynchronise on the protocol's frame markers).
 //
-// Real-time contract: start() and stop() are not RT-safe (they allocate and make or
-// join the thread: init()/cleanup()). read(), connected(), request_reconnect() and
-// the counters are RT-safe: the RT side only polls an eventfd and copies from the
-// ring. Single consumer: one RT thread calls read().
+// Real-time contract: open(), run() and close() are not RT-safe (they allocate, block
+// on the socket, close descriptors: init(), the I/O worker, cleanup()). read(),
+// connected(), request_reconnect(), request_stop() and the counters are RT-safe: the RT
+// side only polls an eventfd and copies from the ring. Single consumer: one RT thread
+// calls read(); one thread calls run().
 #pragma once
 
 #include <atomic>
@@ -21,7 +25,6 @@
 #include <memory>
 #include <span>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "rack/devices/io_status.h"
@@ -45,10 +48,16 @@ class TcpSensorLink {
   TcpSensorLink(const TcpSensorLink&) = delete;
   TcpSensorLink& operator=(const TcpSensorLink&) = delete;
 
-  // Starts the link thread (not RT-safe). Throws std::system_error when it cannot
-  // make the eventfds or the thread.
-  void start(TcpSensorConfig config);
-  void stop() noexcept;  // not RT-safe: joins the thread
+  // Allocates the ring and the eventfds (not RT-safe). Throws std::system_error when
+  // it cannot make the eventfds.
+  void open(TcpSensorConfig config);
+  // The link loop: connects, reads into the ring, reconnects; returns once
+  // request_stop() was called (within a poll wake-up). Blocks: a non-RT thread only.
+  void run() noexcept;
+  // Makes run() return (and a later run() return at once). RT-safe, any thread.
+  void request_stop() noexcept;
+  // Closes the eventfds; call when run() has returned (or never ran). Not RT-safe.
+  void close() noexcept;
 
   // Copies up to buf.size() buffered bytes, waiting up to timeout_ns when the ring is
   // empty. kTimeout when nothing arrived. kClosed (with nothing read) once after each
@@ -66,7 +75,6 @@ class TcpSensorLink {
   [[nodiscard]] uint64_t failed_connects() const noexcept { return failed_.load(std::memory_order_relaxed); }
 
  private:
-  void run() noexcept;
   int connect_once() noexcept;  // fd or -1
   void push(const uint8_t* data, std::size_t n) noexcept;
   void wake_reader() noexcept;
@@ -74,6 +82,8 @@ class TcpSensorLink {
 
   TcpSensorConfig config_;
   std::unique_ptr<uint8_t[]> ring_;
+  static constexpr std::size_t kReceiveBytes = 16 * 1024;
+  std::unique_ptr<uint8_t[]> receive_;  // run()'s recv() buffer (allocated by open())
   std::size_t capacity_ = 0;
   // SYNC POINT: the link thread writes bytes then head_ (release); the reader loads
   // head_ (acquire) then reads the bytes, and publishes tail_ (release) after copying
@@ -89,7 +99,6 @@ class TcpSensorLink {
   std::atomic<bool> reconnect_{false};
   std::atomic<bool> connected_{false};
   std::atomic<uint64_t> connects_{0}, disconnects_{0}, dropped_{0}, failed_{0};
-  std::thread thread_;
 };
 
 }  // namespace rack::devices

@@ -1,0 +1,198 @@
+// Components never make threads (issue 22 item 2, STYLE.md 3): blocking device I/O
+// runs in executor-owned I/O workers (Component::add_io_worker), and everything a
+// component says goes through GDOS. Checked here two ways: the sources under
+// components/ make no thread and print nothing to stderr/stdout, and the executor
+// runs a declared worker after init(), places it on the housekeeping CPUs, names it in
+// its thread listing and stops and joins it before cleanup().
+#include <gtest/gtest.h>
+#include <sched.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <set>
+#include <stdexcept>
+#include <string>
+
+#include "rack/rt/clock.h"
+#include "rack/rt/thread.h"
+#include "test_support.h"
+
+namespace rack {
+namespace {
+
+using test::HostUnderTest;
+using test::Watchdog;
+
+// ---- the sources ------------------------------------------------------------
+
+// Files under components/ that may make threads or print, each with the reason.
+const std::set<std::string> kAllowed = {
+    // The MCL filter library's likelihood helper (compute, not device I/O; MclFilter is
+    // also used outside rackd). Left for an executor compute worker (issue 22).
+    "components/mcl/src/mcl_filter.cpp",
+};
+
+// What a line of code (its comment cut off) must not do, and why.
+struct Rule {
+  std::regex pattern;
+  const char* why;
+};
+
+std::vector<std::string> offences_under(const std::filesystem::path& root, const std::vector<Rule>& rules) {
+  std::vector<std::string> out;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(root)) {
+    if (!entry.is_regular_file()) continue;
+    const std::string ext = entry.path().extension().string();
+    if (ext != ".cpp" && ext != ".h" && ext != ".hpp" && ext != ".cc") continue;
+    const std::string rel = std::filesystem::relative(entry.path(), RACK_SOURCE_DIR).string();
+    // Device simulators (tests' and benches' stand-ins for hardware), not components.
+    if (rel.rfind("components/sims/", 0) == 0 || kAllowed.count(rel) != 0) continue;
+    std::ifstream in(entry.path());
+    std::string line;
+    for (int n = 1; std::getline(in, line); ++n) {
+      if (const auto c = line.find("//"); c != std::string::npos) line.resize(c);
+      for (const auto& r : rules) {
+        if (std::regex_search(line, r.pattern)) out.push_back(rel + ":" + std::to_string(n) + ": " + r.why);
+      }
+    }
+  }
+  return out;
+}
+
+TEST(ComponentSourceTest, NoComponentMakesAThreadOrPrints) {
+  const std::filesystem::path root = std::filesystem::path(RACK_SOURCE_DIR) / "components";
+  ASSERT_TRUE(std::filesystem::is_directory(root)) << root;
+  const std::vector<Rule> rules = {
+      {std::regex(R"(std::j?thread\b|pthread_create)"),
+       "makes a thread (declare an I/O worker: Component::add_io_worker)"},
+      {std::regex(R"(\bstderr\b|\bstdout\b|std::cerr|std::cout|std::clog|(^|[^a-z_])printf\s*\(|(^|[^a-z_])puts\s*\()"),
+       "prints (log through GDOS: log_info, log_warning, log_error)"},
+  };
+  const auto found = offences_under(root, rules);
+  std::string all;
+  for (const auto& f : found) all += f + "\n";
+  EXPECT_TRUE(found.empty()) << all;
+}
+
+// The rules find what they are meant to find (a check that cannot fail proves nothing).
+TEST(ComponentSourceTest, TheRulesCatchThreadsAndPrints) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("rack-io-worker-rules-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "bad.cpp")
+      << "void f() {\n  std::thread t([] {});\n  std::fprintf(stderr, \"x\");\n"
+         "  printf(\"y\");\n  // std::thread in a comment is fine\n  snprintf(b, 1, \"z\");\n}\n";
+  const std::vector<Rule> rules = {
+      {std::regex(R"(std::j?thread\b|pthread_create)"), "thread"},
+      {std::regex(R"(\bstderr\b|(^|[^a-z_])printf\s*\()"), "print"},
+  };
+  const auto found = offences_under(dir, rules);
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(found.size(), 3U);
+  EXPECT_NE(found[0].find(":2: thread"), std::string::npos) << found[0];
+  EXPECT_NE(found[1].find(":3: print"), std::string::npos) << found[1];
+  EXPECT_NE(found[2].find(":4: print"), std::string::npos) << found[2];
+}
+
+// ---- the executor's I/O workers ------------------------------------------------
+
+// Declares one I/O worker in init() that runs until stopped, and records the order
+// of events; `fail_init` declares the worker and then throws.
+class IoWorkerComponent final : public Component {
+ public:
+  static inline std::atomic<int> running{0};               // bodies running now
+  static inline std::atomic<int> ran{0};                   // bodies that ran
+  static inline std::atomic<bool> body_at_cleanup{false};  // a body still ran when cleanup() came
+  explicit IoWorkerComponent(bool fail_init) : fail_init_(fail_init) {}
+
+ protected:
+  void init() override {
+    add_io_worker(
+        "test-io",
+        [this] {
+          running.fetch_add(1);
+          ran.fetch_add(1);
+          while (!stop_.load(std::memory_order_acquire)) rt::sleep_for(2 * rt::kNsPerMs);
+          running.fetch_sub(1);
+        },
+        [this] { stop_.store(true, std::memory_order_release); });
+    if (fail_init_) throw std::runtime_error("init fails after declaring a worker");
+  }
+  void cleanup() override { body_at_cleanup = body_at_cleanup || running.load() != 0; }
+
+ private:
+  bool fail_init_;
+  std::atomic<bool> stop_{false};
+};
+
+void register_io_classes(ComponentRegistry& r) {
+  r.add({"IoWorkerOk", tims::classes::kFirstUser, "test: declares an I/O worker",
+         [] { return std::make_unique<IoWorkerComponent>(false); }});
+  r.add({"IoWorkerFailingInit", static_cast<uint8_t>(tims::classes::kFirstUser + 1),
+         "test: declares an I/O worker, then init() throws", [] { return std::make_unique<IoWorkerComponent>(true); }});
+}
+
+std::string cpus_of_thread_named(const std::string& wanted, pid_t& tid) {
+  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(entry.path() / "comm");
+    std::string name;
+    std::getline(comm, name);
+    if (name != wanted) continue;
+    tid = static_cast<pid_t>(std::stoi(entry.path().filename().string()));
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    if (sched_getaffinity(tid, sizeof set, &set) != 0) return "?";
+    std::vector<int> cpus;
+    for (int c = 0; c < CPU_SETSIZE; ++c) {
+      if (CPU_ISSET(static_cast<std::size_t>(c), &set)) cpus.push_back(c);
+    }
+    return rt::cpu_list_string(cpus);
+  }
+  tid = 0;
+  return "";
+}
+
+TEST(IoWorkerTest, RunsAfterInitOnTheHousekeepingCpusAndEndsBeforeCleanup) {
+  Watchdog watchdog;
+  cpu_set_t before;
+  CPU_ZERO(&before);
+  ASSERT_EQ(sched_getaffinity(0, sizeof before, &before), 0);
+  if (!CPU_ISSET(0, &before) || !CPU_ISSET(1, &before)) GTEST_SKIP() << "needs CPUs 0 and 1 in this process's affinity";
+  IoWorkerComponent::running = 0;
+  IoWorkerComponent::ran = 0;
+  IoWorkerComponent::body_at_cleanup = false;
+  {
+    HostUnderTest host(R"(system: 0
+lcm: false
+cpus: {rt: 1, housekeeping: 0}
+components:
+  - name: io
+    class: IoWorkerOk
+    instance: 1
+  - name: broken
+    class: IoWorkerFailingInit
+    instance: 1
+)",
+                       register_io_classes);
+    ASSERT_TRUE(test::eventually([] { return IoWorkerComponent::running.load() == 1; }));
+    pid_t tid = 0;
+    EXPECT_EQ(cpus_of_thread_named("test-io", tid), "0") << "the worker runs on the housekeeping CPU only";
+    ASSERT_NE(tid, 0);
+    const std::string report = host.executor().thread_report();
+    const auto at = report.find("test-io");
+    ASSERT_NE(at, std::string::npos) << report;
+    const auto eol = report.find('\n', at);
+    EXPECT_NE(report.substr(at, eol - at).find("I/O worker, not RT"), std::string::npos) << report;
+    host.executor().stop();
+    EXPECT_EQ(IoWorkerComponent::running.load(), 0) << "stop() stopped and joined the worker";
+    EXPECT_FALSE(IoWorkerComponent::body_at_cleanup.load()) << "the worker ended before cleanup()";
+  }
+  EXPECT_EQ(IoWorkerComponent::ran.load(), 1) << "the worker of the component whose init() failed never ran";
+  (void)sched_setaffinity(0, sizeof before, &before);
+}
+
+}  // namespace
+}  // namespace rack
