@@ -163,7 +163,7 @@ TEST_F(PluginClassTest, ListClassesWithAHostFileDescribesItsPluginClasses) {
 
   const auto graph = run({kRackctl, "graph", "--format", "json", "--rackd", kRackd, host.string()}, 30s);
   ASSERT_EQ(graph.exit_code, 0) << graph.describe();
-  EXPECT_TRUE(contains(graph.out, R"("name":"counter","impl":"TestCounter","address":"TestCounter(0/0)")"))
+  EXPECT_TRUE(contains(graph.out, R"x("name":"counter","impl":"TestCounter","address":"TestCounter(0/0)")x"))
       << graph.out;
 }
 
