@@ -12,6 +12,7 @@
 #include <set>
 
 #include "rack/core/payload_json.h"
+#include "rack/core/wire.h"
 #include "rack/tims/address.h"
 #include "yaml_tree.h"
 
@@ -448,7 +449,9 @@ Deployment build(std::vector<Host> hosts, const std::vector<ClassInfo>* classes)
       if (ci == nullptr || ci->class_name.empty() || ci->class_name == c.class_name) continue;
       c.class_name = ci->class_name;
       const std::string where = "(" + std::to_string(host.system) + "/" + std::to_string(c.instance) + ")";
-      if (const auto id = tims::class_id(ci->class_name)) {
+      std::optional<uint8_t> id = tims::class_id(ci->class_name);
+      if (!id && ci->class_id > 0 && ci->class_id < 256) id = static_cast<uint8_t>(ci->class_id);  // a plug-in's
+      if (id) {
         c.address = tims::Address::make(static_cast<uint8_t>(host.system), *id, static_cast<uint8_t>(c.instance)).raw();
         c.address_text = ci->class_name + where;
       } else {
@@ -574,6 +577,75 @@ Deployment build(std::vector<Host> hosts, const std::vector<ClassInfo>* classes)
   return d;
 }
 
+const char* add_listeners(const Deployment& d, std::size_t h, std::size_t c, std::span<const std::byte> body,
+                          bool native, Live& live) {
+  if (h >= d.hosts.size() || c >= d.hosts[h].components.size()) return "no such component in the deployment";
+  wire::ListenersReply r;
+  if (const char* bad = wire::decode_listeners(body, native, r)) return bad;
+  if (live.listeners_known.size() < d.hosts.size()) live.listeners_known.resize(d.hosts.size());
+  auto& known = live.listeners_known[h];
+  if (known.size() < d.hosts[h].components.size()) known.resize(d.hosts[h].components.size(), false);
+  known[c] = true;
+  for (std::size_t i = 0; i < r.count; ++i) {
+    LiveFlow f;
+    f.producer_host = h;
+    f.producer = c;
+    f.listener = r.mailbox[i];
+    f.period_ns = r.listener_period_ns[i];
+    live.flows.push_back(f);
+  }
+  return nullptr;
+}
+
+void match_live_flows(const Deployment& d, Live& live) {
+  // The component at each command address (the listener's mailbox: same system,
+  // class and instance).
+  std::map<uint32_t, std::pair<std::size_t, std::size_t>> at;
+  for (std::size_t h = 0; h < d.hosts.size(); ++h) {
+    for (std::size_t c = 0; c < d.hosts[h].components.size(); ++c) {
+      if (const auto& a = d.hosts[h].components[c].address)
+        at.emplace(tims::Address(*a).component().raw(), std::pair{h, c});
+    }
+  }
+  live.flow_state.assign(d.flows.size(), -1);
+  for (std::size_t i = 0; i < d.flows.size(); ++i) {
+    const Flow& f = d.flows[i];
+    if (f.producer == kNone) continue;
+    if (f.producer_host < live.listeners_known.size() && f.producer < live.listeners_known[f.producer_host].size() &&
+        live.listeners_known[f.producer_host][f.producer]) {
+      live.flow_state[i] = 0;  // asked: runs only when a listener below is this flow
+    }
+  }
+  for (LiveFlow& lf : live.flows) {
+    lf.consumer_host = kNone;
+    lf.consumer = kNone;
+    lf.flow = kNone;
+    if (const auto it = at.find(tims::Address(lf.listener).component().raw()); it != at.end()) {
+      lf.consumer_host = it->second.first;
+      lf.consumer = it->second.second;
+    }
+    if (lf.consumer == kNone) continue;
+    for (std::size_t i = 0; i < d.flows.size(); ++i) {
+      const Flow& f = d.flows[i];
+      if (f.producer_host == lf.producer_host && f.producer == lf.producer && f.consumer_host == lf.consumer_host &&
+          f.consumer == lf.consumer) {
+        lf.flow = i;
+        live.flow_state[i] = 1;
+        break;
+      }
+    }
+  }
+}
+
+std::string listener_text(const Deployment& d, const LiveFlow& f) {
+  const std::string address = tims::Address(f.listener).str();
+  if (f.consumer == kNone || f.consumer_host >= d.hosts.size() ||
+      f.consumer >= d.hosts[f.consumer_host].components.size()) {
+    return address;
+  }
+  return d.hosts[f.consumer_host].components[f.consumer].name + " (" + address + ")";
+}
+
 std::string to_dot(const Deployment& d, const Live* live) {
   std::string
       s = "digraph deployment {\n  rankdir=LR;\n  compound=true;\n  node [shape=box, fontname=\"sans\", fontsize=10];\n"
@@ -635,8 +707,38 @@ std::string to_dot(const Deployment& d, const Live* live) {
       attrs = f.networks.size() > 1 ? ", color=blue, penwidth=2" : ", color=blue";
     }
     if (f.producer == kNone) attrs += ", style=dashed";
+    if (const std::size_t i = static_cast<std::size_t>(&f - d.flows.data());
+        live != nullptr && i < live->flow_state.size()) {
+      if (live->flow_state[i] == 1) {
+        label += "\nrunning";
+      } else if (live->flow_state[i] == 0) {
+        label += "\nnot running";
+        attrs += ", color=grey, fontcolor=grey, style=dotted";
+      }
+    }
     s += "  " + from + " -> c" + std::to_string(f.consumer_host) + "_" + std::to_string(f.consumer) + " [label=\"" +
          dot_escape(label) + "\"" + attrs + "];\n";
+  }
+  if (live != nullptr) {
+    std::map<uint32_t, std::size_t> outside;  // listener mailbox -> node number
+    for (const LiveFlow& lf : live->flows) {
+      if (lf.flow != kNone) continue;  // drawn above
+      std::string to;
+      if (lf.consumer != kNone) {
+        to = "c" + std::to_string(lf.consumer_host) + "_" + std::to_string(lf.consumer);
+      } else {
+        const auto [it, fresh] = outside.emplace(lf.listener, outside.size());
+        to = "l_" + std::to_string(it->second);
+        if (fresh) {
+          s += "  " + to + " [label=\"" + dot_escape(listener_text(d, lf)) +
+               "\\nnot in these host files (a tool?)\", style=dashed, color=darkgreen, fontcolor=darkgreen];\n";
+        }
+      }
+      std::string label = "live only";
+      if (lf.period_ns > 0) label += ", " + ms_text(lf.period_ns);
+      s += "  c" + std::to_string(lf.producer_host) + "_" + std::to_string(lf.producer) + " -> " + to + " [label=\"" +
+           dot_escape(label) + "\", color=darkgreen, fontcolor=darkgreen];\n";
+    }
   }
   s += "}\n";
   return s;
@@ -742,7 +844,27 @@ std::string to_json(const Deployment& d, const Live* live) {
          (f.producer == kNone ? std::string("null") : quoted(d.hosts[f.producer_host].label())) +
          ",\"period_ns\":" + std::to_string(f.period_ns) + ",\"networks\":[";
     for (std::size_t n = 0; n < f.networks.size(); ++n) s += (n == 0 ? "" : ",") + quoted(f.networks[n]);
-    s += "]}";
+    s += "]";
+    if (live != nullptr) {
+      const int state = i < live->flow_state.size() ? live->flow_state[i] : -1;
+      s += ",\"running\":" + std::string(state == 1 ? "true" : state == 0 ? "false" : "null");
+    }
+    s += "}";
+  }
+  if (live != nullptr) {
+    s += "],\"live_flows\":[";
+    for (std::size_t i = 0; i < live->flows.size(); ++i) {
+      const LiveFlow& lf = live->flows[i];
+      const bool placed = lf.consumer != kNone && lf.consumer_host < d.hosts.size();
+      s += (i == 0 ? "{" : ",{") + std::string("\"producer\":") +
+           quoted(d.hosts[lf.producer_host].components[lf.producer].name) +
+           ",\"producer_host\":" + quoted(d.hosts[lf.producer_host].label()) +
+           ",\"listener\":" + quoted(tims::Address(lf.listener).str()) + ",\"consumer\":" +
+           (placed ? quoted(d.hosts[lf.consumer_host].components[lf.consumer].name) : std::string("null")) +
+           ",\"consumer_host\":" + (placed ? quoted(d.hosts[lf.consumer_host].label()) : std::string("null")) +
+           ",\"period_ns\":" + std::to_string(lf.period_ns) + ",\"in_files\":" + (lf.flow != kNone ? "true" : "false") +
+           "}";
+    }
   }
   s += "],\"cpus\":[";
   for (std::size_t i = 0; i < d.cpus.size(); ++i) {

@@ -301,6 +301,11 @@ void Component::fill_stats(wire::StatsReply& out) const noexcept {
   out.data_major_faults = df.major;
 }
 
+void Component::fill_listeners(wire::ListenersReply& out) const noexcept {
+  out = wire::ListenersReply{};
+  out.data_task = static_cast<uint8_t>(data_task_mode());
+}
+
 void Component::fill_latency(wire::LatencyHistogram& out) const noexcept {
   out = wire::LatencyHistogram{};
   out.data_task = static_cast<uint8_t>(data_task_mode());
@@ -440,6 +445,12 @@ void Component::handle(const MessageHeader& h, std::span<const std::byte> body) 
       wire::StatsReply stats;
       fill_stats(stats);
       return reply_with(h, msg::kStats, stats);
+    }
+    case msg::kGetListeners: {
+      if (!body.empty()) return reject_malformed(h, "GET_LISTENERS takes no body");
+      wire::ListenersReply listeners;  // 792 bytes on the command task's stack
+      fill_listeners(listeners);
+      return reply_with(h, msg::kListeners, listeners);
     }
     case msg::kGetLatency: {
       if (!body.empty()) return reject_malformed(h, "GET_LATENCY takes no body");

@@ -451,6 +451,26 @@ void DataComponentBase::fill_stats(wire::StatsReply& out) const noexcept {
   out.listeners = n;
 }
 
+void DataComponentBase::fill_listeners(wire::ListenersReply& out) const noexcept {
+  Component::fill_listeners(out);
+  const int64_t own = effective_period_ns();
+  out.period_ns = own > 0 ? own : 0;
+  const int64_t now = rt::monotonic_ns();
+  auto* self = const_cast<DataComponentBase*>(this);
+  rt::PiLock lock(self->listeners_mutex_);
+  for (const auto& l : listeners_) {
+    if (!l.active || l.oneshot || lease_expired(l, now)) continue;
+    if (out.count < wire::kMaxListenerRecords) {
+      const std::size_t i = out.count++;
+      out.mailbox[i] = l.mailbox;
+      out.factor[i] = l.factor;
+      out.listener_period_ns[i] = out.period_ns * static_cast<int64_t>(l.factor);
+      out.renewed_ago_ns[i] = now > l.renewed_ns ? now - l.renewed_ns : 0;
+    }
+    ++out.total;
+  }
+}
+
 // GET_LATENCY's open bucket (>= 10 ms) is the 1-us histogram's last one.
 static_assert(wire::kLatencyLowerNs.back() ==
               static_cast<int64_t>(rt::LatencyStats::kBuckets - 1) * rt::LatencyStats::kBucketNs);

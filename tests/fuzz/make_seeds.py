@@ -203,3 +203,32 @@ write("class_description", [b"\0" + counter, b"\0" + empty, b"\1" + cd_pages(cou
                             b"\1" + struct.pack("<HII", 8, 4, 0), b"\0" + named,
                             b"\1" + cd_pages(named, 64), b"\0" + units, b"\0" + named_units,
                             b"\1" + cd_pages(named_units, 48), b"\x05" + cd_pages(units, 8192)])
+
+
+# GET_LISTENERS' reply (wire::ListenersReply, 792 bytes), after one byte: bit 0 the
+# body is in the host's (little-endian) byte order, bit 1 from the generator.
+def listeners(e, data_task, period_ns, entries, total=None):
+    n = len(entries)
+    total = n if total is None else total
+    pad = 32 - n
+    body = struct.pack(e + "B3xIII", data_task, n, total, 0) + struct.pack(e + "q", period_ns)
+    body += struct.pack(e + "32I", *([m for m, _, _, _ in entries] + [0] * pad))
+    body += struct.pack(e + "32I", *([f for _, f, _, _ in entries] + [0] * pad))
+    body += struct.pack(e + "32q", *([p for _, _, p, _ in entries] + [0] * pad))
+    body += struct.pack(e + "32q", *([a for _, _, _, a in entries] + [0] * pad))
+    return body
+
+
+monitor_in = (0 << 24) | (0x41 << 16) | (0 << 8) | 3  # Monitor(0/0)#3
+tool_data = (255 << 24) | (0x02 << 16) | (4 << 8) | 1  # Tool(255/4)#1
+ms = 1000000
+two = [(monitor_in, 1, 10 * ms, 2 * ms), (tool_data, 10, 100 * ms, 1500 * ms)]
+many = [((255 << 24) | (0x02 << 16) | (i << 8) | 1, 1 + i, (1 + i) * 10 * ms, i * ms) for i in range(32)]
+write("listeners", [b"\3" + listeners("<", 1, 10 * ms, []),
+                    b"\3" + listeners("<", 1, 10 * ms, two[:1]),
+                    b"\3" + listeners("<", 1, 10 * ms, two),
+                    b"\2" + listeners(">", 1, 10 * ms, two),
+                    b"\3" + listeners("<", 1, 10 * ms, many, 40),
+                    b"\1" + listeners("<", 0, 0, []),
+                    b"\3" + listeners("<", 2, 0, [(tool_data, 1, 0, 0)]),
+                    b"\3" + listeners("<", 1, 10 * ms, two)[:700]])

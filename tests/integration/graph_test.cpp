@@ -106,5 +106,69 @@ TEST(GraphTest, LiveShowsMeasurementsAndStaleHosts) {
   EXPECT_EQ(rackd.wait_exit(30s), std::optional<int>(0)) << rackd.err();
 }
 
+// Live flows from the producers' listener tables (GET_LISTENERS): with no host file,
+// the demo's own subscription (monitor <- generator, every 10th sample) is drawn from
+// what runs; a `rackctl watch` shows up as a flow no file declares while it runs and is
+// gone once it ended; with the host file, the file's flow is marked running.
+TEST(GraphTest, LiveFlowsComeFromTheRunningSubscriptions) {
+  Watchdog watchdog(90s, "GraphTest");
+  LcmBus bus;
+  TempDir dir;
+  Process rackd({kRackd, kConfigs + "/demo.yaml", "--lcm", bus.url()}, dir.path(), "rackd");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
+  auto graph = [&](std::vector<std::string> files, const std::string& format) {
+    std::vector<std::string> args{kRackctl, "--lcm",   bus.url(), "--discover-ms", "1000", "graph",
+                                  "--live", "--rackd", kRackd,    "--format",      format};
+    args.insert(args.end(), files.begin(), files.end());
+    return run(args, 30s);
+  };
+  // The monitor's input mailbox, every 10th sample of the generator's 10 ms.
+  const std::string monitor_flow = R"("consumer":"monitor","consumer_host":"demo","period_ns":100000000,)";
+  // The monitor subscribes once it and the generator are ENABLED (autostart).
+  std::string out;
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    const RunResult r = graph({}, "json");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    out = r.out;
+    if (out.find(monitor_flow) != std::string::npos) break;
+    std::this_thread::sleep_for(300ms);
+  }
+  EXPECT_NE(out.find(monitor_flow + R"("in_files":false})"), std::string::npos) << "no host file given: " << out;
+  EXPECT_EQ(out.find("Tool(255/"), std::string::npos) << out;
+
+  Process watch({kRackctl, "--lcm", bus.url(), "watch", "--period", "50", "generator"}, dir.path(), "watch");
+  ASSERT_TRUE(watch.wait_for_stderr("rackctl: watching", 20s)) << watch.err();
+  RunResult r = graph({}, "json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto tool = r.out.find(R"({"producer":"generator","producer_host":"demo","listener":"Tool(255/)");
+  ASSERT_NE(tool, std::string::npos) << r.out;
+  const std::string entry = r.out.substr(tool, r.out.find('}', tool) - tool + 1);
+  EXPECT_NE(entry.find(R"("consumer":null,"consumer_host":null,"period_ns":50000000,"in_files":false})"),
+            std::string::npos)
+      << entry;
+  // With the host file: its flow runs; the watch is the one flow it does not declare.
+  r = graph({kConfigs + "/demo.yaml"}, "json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find(R"("param":"source","target":"generator")"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(R"("networks":[],"running":true})"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(monitor_flow + R"("in_files":true})"), std::string::npos) << r.out;
+  r = graph({kConfigs + "/demo.yaml"}, "dot");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("source, 10 ms\nrunning"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("live only, 50 ms"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("not in these host files (a tool?)"), std::string::npos) << r.out;
+
+  // The watch ends (STOP_CONT_DATA): its flow is gone, the monitor's stays.
+  watch.signal(SIGINT);
+  EXPECT_EQ(watch.wait_exit(20s), std::optional<int>(0)) << watch.err();
+  r = graph({}, "json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out.find("Tool(255/"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(monitor_flow), std::string::npos) << r.out;
+  rackd.signal(SIGTERM);
+  EXPECT_EQ(rackd.wait_exit(30s), std::optional<int>(0)) << rackd.err();
+}
+
 }  // namespace
 }  // namespace rack::test

@@ -70,7 +70,7 @@ TEST(GuiConfigE2eTest, EditsAHostFileWithTheValidatorInTheLoop) {
 
   std::filesystem::create_directories(artifacts);
   const RunResult r = run({*node, web + "/e2e/config_e2e.mjs", "--url", url, "--chromium", chromium, "--shots",
-                           artifacts, "--file", "robot1_aux.yaml", "--live", "1"},
+                           artifacts, "--file", "robot1_aux.yaml", "--live", "1", "--padding", "900"},
                           120s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui.err();
@@ -85,6 +85,16 @@ TEST(GuiConfigE2eTest, EditsAHostFileWithTheValidatorInTheLoop) {
   const auto p = expected.find("data_task: {priority: 60,");
   ASSERT_NE(p, std::string::npos) << before;
   expected.replace(p, std::string("data_task: {priority: 60,").size(), "data_task: {priority: 65,");
+  const auto a = expected.find("params: {amplitude: 1.0, frequency_hz: 0.5}");
+  ASSERT_NE(a, std::string::npos) << before;
+  expected.replace(a, std::string("params: {amplitude: 1.0,").size(), "params: {amplitude: 1.5,");
+  // The one-line params edited in place; then 900 comment lines (above one WebSocket
+  // message: sent in parts).
+  for (int i = 0; i < 900; ++i) {
+    expected += "# padding " + std::to_string(i) +
+                ": a comment line that makes this host file larger than one WebSocket message\n";
+  }
+  EXPECT_GT(after.size(), 64u * 1024u);
   EXPECT_EQ(after, expected);
   // Nothing but the host files is left in the directory (the check's temporary files).
   std::size_t files = 0;

@@ -22,6 +22,7 @@ using namespace std::chrono_literals;
 
 const std::string kRackd = RACK_RACKD_PATH;
 const std::string kTestPlugins = RACK_TEST_PLUGIN_DIR;  // TestCounter (tests/integration/plugin_class)
+const std::string kRackctl = RACK_RACKCTL_PATH;
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
@@ -133,6 +134,37 @@ TEST_F(PluginClassTest, ABrokenPluginIsAnErrorWithTheClassAndTheLibrary) {
     EXPECT_TRUE(contains(r.err, "class '" + cls + "'")) << r.err;
     EXPECT_TRUE(contains(r.err, expect)) << r.err;
   }
+}
+
+// Plug-in classes offline (issue 25): `rackd --list-classes --json HOSTFILE` searches
+// the file's plugins: directories and describes the plug-in classes it names in full
+// (class id, parameters), so `rackctl graph` gives a plug-in component its address
+// (TestCounter(0/0), not a guess with '?') without a running rackd.
+TEST_F(PluginClassTest, ListClassesWithAHostFileDescribesItsPluginClasses) {
+  const auto host = dir_.write("counter.yaml", counter_host("plugins: [" + kTestPlugins + "]\n"));
+  const auto alone = run({kRackd, "--list-classes", "--json"}, 30s);
+  ASSERT_EQ(alone.exit_code, 0) << alone.describe();
+  EXPECT_FALSE(contains(alone.out, "TestCounter")) << "not in the tree's plug-in directory";
+  const auto listed = run({kRackd, "--list-classes", "--json", host.string()}, 30s);
+  ASSERT_EQ(listed.exit_code, 0) << listed.describe();
+  EXPECT_TRUE(contains(listed.out, R"({"impl":"TestCounter","class":"TestCounter","summary":"test: counts by 'step' )"))
+      << listed.out;
+  EXPECT_TRUE(contains(listed.out, R"("class_id":145,"plugin":true,"parameters":[)")) << listed.out;
+  EXPECT_TRUE(contains(listed.out, R"({"name":"step","kind":"int","unit":"","min":1,"max":1000,"default":"1")"))
+      << listed.out;
+  EXPECT_EQ(listed.out.find(R"("impl":"TestCounter")"), listed.out.rfind(R"("impl":"TestCounter")"))
+      << "listed once (described, not again by its manifest): " << listed.out;
+  // A file with errors still lists what loads, and says what is wrong on stderr.
+  const auto bad = dir_.write("bad.yaml", counter_host("plugins: [" + kTestPlugins + "]\n") + "bogus: 1\n");
+  const auto with_bad = run({kRackd, "--list-classes", "--json", bad.string()}, 30s);
+  ASSERT_EQ(with_bad.exit_code, 0) << with_bad.describe();
+  EXPECT_TRUE(contains(with_bad.out, R"("class_id":145,"plugin":true)")) << with_bad.out;
+  EXPECT_TRUE(contains(with_bad.err, "rackd: --list-classes: " + bad.string() + ":")) << with_bad.err;
+
+  const auto graph = run({kRackctl, "graph", "--format", "json", "--rackd", kRackd, host.string()}, 30s);
+  ASSERT_EQ(graph.exit_code, 0) << graph.describe();
+  EXPECT_TRUE(contains(graph.out, R"x("name":"counter","impl":"TestCounter","address":"TestCounter(0/0)")x"))
+      << graph.out;
 }
 
 }  // namespace

@@ -136,6 +136,73 @@ TEST_F(ConfigServiceTest, SavesOnlyWhatRackdAccepts) {
   EXPECT_EQ(slurp(root_ / "outside.yaml"), kValid);
 }
 
+// A host file above one WebSocket message (64 KiB): sent in parts (config_part), then
+// checked and saved as one text; parts out of order, an unknown or incomplete upload,
+// and a text above a host file's 1 MiB are refused and drop the upload.
+TEST_F(ConfigServiceTest, ATextAboveOneMessageIsSentInParts) {
+  const std::string file = (served_ / "host.yaml").string();
+  std::string big = kValid;
+  while (big.size() < 200 * 1024) big += "# padding: a comment line that makes the file larger than one message\n";
+  big.replace(big.find("priority: 60"), 12, "priority: 61");
+  constexpr std::size_t kPart = 48 * 1024;
+  const std::size_t n = (big.size() + kPart - 1) / kPart;
+  ASSERT_GE(n, 4u);
+  auto send = [&](const std::string& upload) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const json r = call({{"op", "config_part"},
+                           {"upload", upload},
+                           {"index", i},
+                           {"count", n},
+                           {"text", big.substr(i * kPart, kPart)}});
+      if (r["ok"] != true || r["received"] != i + 1) return r;
+    }
+    return json{{"ok", true}};
+  };
+  ASSERT_EQ(send("a1")["ok"], true);
+  const json checked = call({{"op", "config_check"}, {"file", file}, {"upload", "a1"}});
+  ASSERT_EQ(checked["ok"], true) << checked;
+  EXPECT_EQ(checked["valid"], true) << checked;
+  EXPECT_EQ(slurp(file), kValid) << "a check never writes";
+  const json again = call({{"op", "config_save"}, {"file", file}, {"upload", "a1"}});
+  EXPECT_EQ(again["ok"], false) << "an upload is used once: " << again;
+  ASSERT_EQ(send("a2")["ok"], true);
+  const json saved = call({{"op", "config_save"}, {"file", file}, {"upload", "a2"}});
+  ASSERT_EQ(saved["ok"], true) << saved;
+  EXPECT_EQ(saved["saved"], true) << saved;
+  EXPECT_EQ(slurp(file), big);
+  EXPECT_EQ(entries(), 2u);
+
+  // Out of order: refused, and the upload is gone.
+  ASSERT_EQ(call({{"op", "config_part"}, {"upload", "b"}, {"index", 0}, {"count", 3}, {"text", "x"}})["ok"], true);
+  const json skipped = call({{"op", "config_part"}, {"upload", "b"}, {"index", 2}, {"count", 3}, {"text", "y"}});
+  EXPECT_EQ(skipped["ok"], false);
+  EXPECT_NE(skipped["error"].get<std::string>().find("out of order (expected part 1 of 3)"), std::string::npos)
+      << skipped;
+  EXPECT_EQ(call({{"op", "config_part"}, {"upload", "b"}, {"index", 1}, {"count", 3}, {"text", "y"}})["ok"], false);
+  // Incomplete: refused.
+  ASSERT_EQ(call({{"op", "config_part"}, {"upload", "c"}, {"index", 0}, {"count", 2}, {"text", "x"}})["ok"], true);
+  const json incomplete = call({{"op", "config_save"}, {"file", file}, {"upload", "c"}});
+  EXPECT_EQ(incomplete["ok"], false);
+  EXPECT_NE(incomplete["error"].get<std::string>().find("incomplete (1 of 2 parts)"), std::string::npos) << incomplete;
+  // Above a host file's size: refused part by part before it grows further.
+  const std::string chunk(60 * 1024, '#');
+  json r;
+  for (std::size_t i = 0; i < 40; ++i) {
+    r = call({{"op", "config_part"}, {"upload", "d"}, {"index", i}, {"count", 40}, {"text", chunk}});
+    if (r["ok"] != true) break;
+  }
+  EXPECT_EQ(r["ok"], false);
+  EXPECT_NE(r["error"].get<std::string>().find("larger than a host file may be"), std::string::npos) << r;
+  // Bad ids and counts.
+  for (const json& bad : {json{{"op", "config_part"}, {"upload", "../x"}, {"index", 0}, {"count", 1}, {"text", ""}},
+                          json{{"op", "config_part"}, {"upload", "e"}, {"index", 0}, {"count", 0}, {"text", ""}},
+                          json{{"op", "config_part"}, {"upload", "e"}, {"index", -1}, {"count", 2}, {"text", ""}},
+                          json{{"op", "config_part"}, {"upload", "e"}, {"count", 2}, {"text", ""}}}) {
+    EXPECT_EQ(call(bad)["ok"], false) << bad;
+  }
+  EXPECT_EQ(slurp(file), big);
+}
+
 TEST_F(ConfigServiceTest, MalformedRequestsAreAnsweredNotActedOn) {
   for (const char* text : {"{", "[]", R"({"op":"config_nothing"})", R"({"op":"config_save","file":3,"text":"x"})",
                            R"({"op":"config_graph","dir":"/"})", R"({"op":"config_load"})"}) {

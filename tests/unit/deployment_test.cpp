@@ -3,10 +3,13 @@
 // rackctl alloc).
 #include <gtest/gtest.h>
 
+#include <span>
 #include <string>
 #include <vector>
 
 #include "rack/client/deployment.h"
+#include "rack/core/wire.h"
+#include "rack/tims/address.h"
 
 namespace rack::deploy {
 namespace {
@@ -246,6 +249,74 @@ TEST(DeploymentTest, LiveMarksStaleHostsAndMeasurements) {
   const std::string text = allocation_text(d, &live);
   EXPECT_NE(text.find("12.5%"), std::string::npos) << text;
   EXPECT_NE(text.find("r1-main (main.yaml, system 1)  STALE"), std::string::npos) << text;
+}
+
+// Live flows (GET_LISTENERS): a file's flow whose producer lists its consumer runs;
+// one whose producer answered without it does not; a listener no file places (a tool)
+// is a live-only flow to a box of its own; a reply that does not add up is refused.
+TEST(DeploymentTest, LiveFlowsFromListenersAreMatchedWithTheFiles) {
+  // The classes as rackd lists them, with their TiMS class ids (this program knows no
+  // class names: the addresses come from the ids alone, as for a plug-in's).
+  const std::vector<ClassInfo> classes{{"Generator", "Generator", true, {}, 0x40},
+                                       {"Monitor", "Monitor", true, {"source"}, 0x41}};
+  const Deployment d = build({read_host_text(R"Y(host: h
+system: 0
+components:
+  - {name: gen, class: Generator, instance: 0, data_task: {priority: 60, period_ms: 10}}
+  - {name: mon, class: Monitor, instance: 0, params: {source: gen}}
+  - {name: idle, class: Monitor, instance: 1, params: {source: gen}}
+)Y",
+                                             "h.yaml")},
+                             &classes);
+  EXPECT_EQ(d.hosts[0].components[1].address_text, "Monitor(0/0)");
+  ASSERT_EQ(d.flows.size(), 2u);
+  wire::ListenersReply r;
+  r.data_task = 1;
+  r.count = r.total = 2;
+  r.period_ns = 10'000'000;
+  r.mailbox[0] = tims::Address::make(0, tims::classes::kMonitor, 0, 3).raw();
+  r.factor[0] = 10;
+  r.listener_period_ns[0] = 100'000'000;
+  r.mailbox[1] = tims::Address::make(255, tims::classes::kTool, 4, 1).raw();
+  r.factor[1] = 5;
+  r.listener_period_ns[1] = 50'000'000;
+  Live live;
+  ASSERT_EQ(add_listeners(d, 0, 0, std::as_bytes(std::span(&r, 1)), true, live), nullptr);
+  match_live_flows(d, live);
+  ASSERT_EQ(live.flows.size(), 2u);
+  const std::size_t mon = d.flows[0].consumer == 1 ? 0 : 1;
+  EXPECT_EQ(live.flow_state[mon], 1) << "mon subscribes";
+  EXPECT_EQ(live.flow_state[1 - mon], 0) << "idle does not";
+  EXPECT_EQ(live.flows[0].flow, mon);
+  EXPECT_EQ(live.flows[0].consumer, 1u);
+  EXPECT_EQ(live.flows[1].flow, kNone);
+  EXPECT_EQ(live.flows[1].consumer, kNone);
+  EXPECT_EQ(listener_text(d, live.flows[0]).rfind("mon (", 0), 0u) << listener_text(d, live.flows[0]);
+  const std::string dot = to_dot(d, &live);
+  EXPECT_NE(dot.find("source, 10 ms\\nrunning"), std::string::npos) << dot;
+  EXPECT_NE(dot.find("source, 10 ms\\nnot running\", color=grey, fontcolor=grey, style=dotted"), std::string::npos)
+      << dot;
+  EXPECT_NE(dot.find("c0_0 -> l_0 [label=\"live only, 50 ms\""), std::string::npos) << dot;
+  const std::string json = to_json(d, &live);
+  EXPECT_NE(json.find("\"running\":true"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"running\":false"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"consumer\":null,\"consumer_host\":null,\"period_ns\":50000000,\"in_files\":false"),
+            std::string::npos)
+      << json;
+
+  // A producer not asked: its flows are unknown, neither running nor not.
+  Live none;
+  match_live_flows(d, none);
+  EXPECT_EQ(none.flow_state, (std::vector<int>{-1, -1}));
+  EXPECT_EQ(to_json(d, &none).find("\"running\":false"), std::string::npos);
+
+  r.factor[1] = 0;
+  Live bad;
+  const char* why = add_listeners(d, 0, 0, std::as_bytes(std::span(&r, 1)), true, bad);
+  ASSERT_NE(why, nullptr);
+  EXPECT_STREQ(why, "a listener's factor is 0");
+  EXPECT_TRUE(bad.flows.empty());
+  EXPECT_NE(add_listeners(d, 0, 7, std::as_bytes(std::span(&r, 1)), true, bad), nullptr) << "no component 7";
 }
 
 TEST(DeploymentTest, HostileTextNeverThrows) {

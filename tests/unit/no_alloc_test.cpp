@@ -403,6 +403,9 @@ components:
     // The periodic generator's histogram, added up into GET_LATENCY's buckets.
     r = ep.call(gen, msg::kGetLatency, buf, test::kCallTimeoutNs);
     bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kLatency ? 0 : 1;
+    // Who subscribes to the generator: the tool's data mailbox (GET_LISTENERS).
+    r = ep.call(gen, msg::kGetListeners, buf, test::kCallTimeoutNs);
+    bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kListeners ? 0 : 1;
     // The class description's first page (encoded before the tasks started).
     r = ep.call(gen, msg::kGetClass, class_page, buf, test::kCallTimeoutNs);
     bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kClass ? 0 : 1;

@@ -384,5 +384,89 @@ TEST_F(SubscriptionTest, ADeadListenerGivesWayToANewOneAfterItsLease) {
   EXPECT_EQ(host().status(mon_), msg::kEnabled);
 }
 
+// GET_LISTENERS lists who subscribes now: the monitor's input mailbox (from its host
+// file), then a tool's mailbox with the period it asked for, until STOP_CONT_DATA. A
+// component without a data task answers none; a body is refused as malformed.
+TEST_F(SubscriptionTest, GetListenersListsTheSubscribersAndTheirPeriods) {
+  Watchdog dog;
+  auto listeners = [&] {
+    const auto r = host().call(gen_, msg::kGetListeners);
+    EXPECT_EQ(r.type, msg::kListeners);
+    wire::ListenersReply rep;
+    const std::span<const std::byte> body(reinterpret_cast<const std::byte*>(r.body.data()), r.body.size());
+    const char* bad = wire::decode_listeners(body, true, rep);
+    EXPECT_EQ(bad, nullptr) << bad;
+    return rep;
+  };
+  wire::ListenersReply rep = listeners();
+  EXPECT_EQ(rep.data_task, 1u);
+  EXPECT_EQ(rep.period_ns, 10 * rt::kNsPerMs);
+  ASSERT_EQ(rep.count, 1u);
+  EXPECT_EQ(rep.total, 1u);
+  EXPECT_EQ(Address(rep.mailbox[0]), mon_.with_mailbox(DataComponentBase::kInputMailbox));
+  EXPECT_EQ(rep.factor[0], 1u);
+  EXPECT_EQ(rep.listener_period_ns[0], 10 * rt::kNsPerMs);
+
+  const Address box = host().data_mailbox().address();
+  wire::ContDataRequest req;
+  req.period_ns = 50 * rt::kNsPerMs;  // every fifth sample
+  req.mailbox = box.raw();
+  ASSERT_EQ(host().call_with(gen_, msg::kGetContData, req).type, msg::kContData);
+  rep = listeners();
+  ASSERT_EQ(rep.count, 2u);
+  std::size_t tool = rep.mailbox[0] == box.raw() ? 0 : 1;
+  EXPECT_EQ(rep.mailbox[tool], box.raw());
+  EXPECT_EQ(rep.factor[tool], 5u);
+  EXPECT_EQ(rep.listener_period_ns[tool], 50 * rt::kNsPerMs);
+  EXPECT_GE(rep.renewed_ago_ns[tool], 0);
+  EXPECT_LT(rep.renewed_ago_ns[tool], kLeaseMs * rt::kNsPerMs);
+
+  wire::StopContDataRequest stop;
+  stop.mailbox = box.raw();
+  ASSERT_EQ(host().call_with(gen_, msg::kStopContData, stop).type, msg::kOk);
+  rep = listeners();
+  ASSERT_EQ(rep.count, 1u);
+  EXPECT_EQ(Address(rep.mailbox[0]), mon_.with_mailbox(DataComponentBase::kInputMailbox));
+
+  const uint64_t x = 1;
+  EXPECT_EQ(host().call_with(gen_, msg::kGetListeners, x).type, msg::kError) << "GET_LISTENERS takes no body";
+}
+
+// A LISTENERS reply that does not add up is refused with the reason (the client's
+// check; fuzz_listeners drives the same decoder).
+TEST(ListenersReplyTest, TheDecoderRefusesWhatDoesNotAddUp) {
+  wire::ListenersReply r;
+  r.data_task = 1;
+  r.count = 1;
+  r.total = 1;
+  r.mailbox[0] = Address::make(0, tims::classes::kTool, 1, 1).raw();
+  r.factor[0] = 1;
+  auto decode = [](const wire::ListenersReply& in) -> std::string {
+    wire::ListenersReply out;
+    const char* bad = wire::decode_listeners(std::as_bytes(std::span(&in, 1)), true, out);
+    return bad == nullptr ? "" : bad;
+  };
+  EXPECT_EQ(decode(r), "");
+  wire::ListenersReply b = r;
+  b.count = 33;
+  b.total = 40;
+  EXPECT_EQ(decode(b), "count is above 32");
+  b = r;
+  b.total = 0;
+  EXPECT_EQ(decode(b), "count is above total");
+  b = r;
+  b.factor[0] = 0;
+  EXPECT_EQ(decode(b), "a listener's factor is 0");
+  b = r;
+  b.mailbox[0] = 0;
+  EXPECT_EQ(decode(b), "a listener's mailbox is 0");
+  b = r;
+  b.data_task = 0;
+  EXPECT_EQ(decode(b), "listeners without a data task");
+  wire::ListenersReply out;
+  const std::array<std::byte, 10> short_body{};
+  EXPECT_NE(wire::decode_listeners(short_body, true, out), nullptr);
+}
+
 }  // namespace
 }  // namespace rack

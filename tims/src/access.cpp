@@ -342,6 +342,8 @@ bool parse_message_type(const std::string& text, int8_t& out) noexcept {
       {"latency", msg::kLatency},
       {"get_class", msg::kGetClass},
       {"class", msg::kClass},
+      {"get_listeners", msg::kGetListeners},
+      {"listeners", msg::kListeners},
       {"ok", msg::kOk},
       {"error", msg::kError},
       {"timeout", msg::kTimeout},

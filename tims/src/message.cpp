@@ -22,6 +22,7 @@ const char* msg::name(int8_t type) noexcept {
     case kGetStats: return "GET_STATS";
     case kGetLatency: return "GET_LATENCY";
     case kGetClass: return "GET_CLASS";
+    case kGetListeners: return "GET_LISTENERS";
     case kOk: return "OK";
     case kError: return "ERROR";
     case kTimeout: return "TIMEOUT";
@@ -34,6 +35,7 @@ const char* msg::name(int8_t type) noexcept {
     case kStats: return "STATS";
     case kLatency: return "LATENCY";
     case kClass: return "CLASS";
+    case kListeners: return "LISTENERS";
     default: return nullptr;
   }
 }

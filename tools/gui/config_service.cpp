@@ -7,6 +7,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <cstdlib>
@@ -303,20 +305,27 @@ std::string ConfigService::handle(std::string_view text) {
       bool served = false;
       for (const auto& d : config_.dirs) served = served || d == dir;
       if (!served) return refuse("'" + dir + "' is not a directory rack-gui serves (--config)");
-      std::vector<std::string> problems;
+      std::vector<std::string> problems, paths;
       std::vector<rack::deploy::Host> hosts;
       for (const auto& path : rack::deploy::host_file_paths({dir}, problems)) {
-        if (valid_name(fs::path(path).filename().string())) hosts.push_back(rack::deploy::read_host(path));
+        if (!valid_name(fs::path(path).filename().string())) continue;
+        hosts.push_back(rack::deploy::read_host(path));
+        paths.push_back(path);
       }
-      // The classes' component references (rackd --list-classes --json), learnt once.
-      if (!class_info_) {
+      // The classes' component references (rackd --list-classes --json with the
+      // directory's host files: their plug-in classes too), learnt once per directory.
+      auto known = class_info_.find(dir);
+      if (known == class_info_.end()) {
         std::vector<rack::deploy::ClassInfo> classes;
         std::string why;
-        if (rack::tools::classes_from_rackd(rackd_program(), classes, why, config_.timeout_ms))
-          class_info_ = std::move(classes);
-        else r["classes_error"] = why + ": every parameter naming a component is taken for a flow";
+        if (rack::tools::classes_from_rackd(rackd_program(), classes, why, config_.timeout_ms, paths)) {
+          known = class_info_.emplace(dir, std::move(classes)).first;
+        } else {
+          r["classes_error"] = why + ": every parameter naming a component is taken for a flow";
+        }
       }
-      const rack::deploy::Deployment d = rack::deploy::build(std::move(hosts), class_info_ ? &*class_info_ : nullptr);
+      const rack::deploy::Deployment d = rack::deploy::build(std::move(hosts),
+                                                             known != class_info_.end() ? &known->second : nullptr);
       std::string dot = rack::deploy::to_dot(d);
       r["ok"] = true;
       r["deployment"] = json::parse(rack::deploy::to_json(d), nullptr, false);
@@ -367,7 +376,15 @@ std::string ConfigService::handle(std::string_view text) {
         else r["svg_error"] = "dot failed: " + svg.out.substr(0, 512);
       }
     } else if (op == "config_classes") {
-      const ChildResult c = run_child({rackd_program(), "--list-classes", "--json"}, "", false, config_.timeout_ms);
+      // With every served host file: the plug-in classes they name are described too.
+      std::vector<std::string> args{rackd_program(), "--list-classes", "--json"};
+      for (const auto& d : config_.dirs) {
+        std::vector<std::string> problems;
+        for (const auto& path : rack::deploy::host_file_paths({d}, problems)) {
+          if (valid_name(fs::path(path).filename().string())) args.push_back(path);
+        }
+      }
+      const ChildResult c = run_child(args, "", false, config_.timeout_ms);
       json classes = json::parse(c.out, nullptr, false);
       if (c.exit_code != 0 || !classes.is_array()) {
         return refuse("'" + rackd_program() + " --list-classes --json' failed (exit " + std::to_string(c.exit_code) +
@@ -385,9 +402,78 @@ std::string ConfigService::handle(std::string_view text) {
       r["ok"] = true;
       r["file"] = path;
       r["text"] = *bytes;
+    } else if (op == "config_part") {
+      // A text above one WebSocket message, in parts (config_service.h: uploads).
+      std::string upload, part;
+      const auto index = request.find("index");
+      const auto count = request.find("count");
+      if (!text_of("upload", upload) || !text_of("text", part) || index == request.end() ||
+          !index->is_number_unsigned() || count == request.end() || !count->is_number_unsigned()) {
+        return refuse("config_part needs \"upload\", \"index\", \"count\" and \"text\"");
+      }
+      if (upload.empty() || upload.size() > 32 || !std::all_of(upload.begin(), upload.end(), [](char c) {
+            return std::isalnum(static_cast<unsigned char>(c));
+          })) {
+        return refuse("config_part: \"upload\" is 1..32 letters or digits");
+      }
+      const auto i = index->get<uint64_t>();
+      const auto n = count->get<uint64_t>();
+      if (n == 0 || n > kMaxUploadParts) {
+        return refuse("config_part: \"count\" is 1.." + std::to_string(kMaxUploadParts));
+      }
+      auto it = uploads_.find(upload);
+      if (i == 0) {
+        if (it != uploads_.end()) uploads_.erase(it);
+        while (uploads_.size() >= kMaxUploads) {  // the oldest gives way
+          auto oldest = uploads_.begin();
+          for (auto u = uploads_.begin(); u != uploads_.end(); ++u) {
+            if (u->second.started < oldest->second.started) oldest = u;
+          }
+          uploads_.erase(oldest);
+        }
+        it = uploads_.emplace(upload, Upload{}).first;
+        it->second.count = n;
+        it->second.started = std::chrono::steady_clock::now();
+      } else if (it == uploads_.end()) {
+        return refuse("config_part: upload '" + upload + "' has no part 0 (or was dropped: at most " +
+                      std::to_string(kMaxUploads) + " at once)");
+      }
+      Upload& u = it->second;
+      if (n != u.count || i != u.received) {
+        const std::string why_not = "config_part: upload '" + upload + "': part " + std::to_string(i) + " of " +
+                                    std::to_string(n) + " out of order (expected part " + std::to_string(u.received) +
+                                    " of " + std::to_string(u.count) + "); the upload is dropped";
+        uploads_.erase(it);
+        return refuse(why_not);
+      }
+      if (u.text.size() + part.size() > rack::kMaxHostFileBytes) {
+        uploads_.erase(it);
+        return refuse("config_part: upload '" + upload + "' is larger than a host file may be (" +
+                      std::to_string(rack::kMaxHostFileBytes) + " bytes); the upload is dropped");
+      }
+      u.text += part;
+      ++u.received;
+      r["ok"] = true;
+      r["upload"] = upload;
+      r["received"] = u.received;
+      r["count"] = u.count;
     } else if (op == "config_check" || op == "config_save") {
-      std::string file, body, why;
-      if (!text_of("file", file) || !text_of("text", body)) return refuse(op + " needs \"file\" and \"text\"");
+      std::string file, body, why, upload;
+      if (text_of("upload", upload)) {
+        // The text sent in parts (config_part): complete, then used once.
+        const auto it = uploads_.find(upload);
+        if (it == uploads_.end()) return refuse(op + ": no upload '" + upload + "' (config_part first)");
+        if (it->second.received != it->second.count) {
+          const std::string got = std::to_string(it->second.received) + " of " + std::to_string(it->second.count);
+          uploads_.erase(it);
+          return refuse(op + ": upload '" + upload + "' is incomplete (" + got + " parts); the upload is dropped");
+        }
+        body = std::move(it->second.text);
+        uploads_.erase(it);
+        if (!text_of("file", file)) return refuse(op + " needs \"file\"");
+      } else if (!text_of("file", file) || !text_of("text", body)) {
+        return refuse(op + " needs \"file\" and \"text\" (or \"upload\", sent with config_part)");
+      }
       const std::string path = served_file(file, why);
       if (path.empty()) return refuse(why);
       if (body.size() > rack::kMaxHostFileBytes) return refuse("the text is larger than a host file may be");
@@ -440,7 +526,8 @@ std::string ConfigService::handle(std::string_view text) {
       }
     } else {
       return refuse("unknown op '" + op +
-                    "' (config_files, config_graph, config_classes, config_load, config_check, config_save)");
+                    "' (config_files, config_graph, config_classes, config_load, config_part, config_check, "
+                    "config_save)");
     }
   } catch (const std::exception& e) {
     return refuse(std::string("internal error: ") + e.what());

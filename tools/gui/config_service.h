@@ -11,10 +11,19 @@
 //   {"op":"config_graph","dir":D}                 D's deployment: JSON, DOT, SVG (graphviz), allocation
 //   {"op":"config_graph","dir":D,"live":true}     the same with what the network says (rackctl --live:
 //                                                 stale hosts, state, utilisation, worst wake-up latency)
-//   {"op":"config_classes"}                       `rackd --list-classes --json` (the editor's forms)
+//   {"op":"config_classes"}                       `rackd --list-classes --json` with every served host file
+//                                                 (the editor's forms; the plug-in classes they name described too)
 //   {"op":"config_load","file":F}                 F's text
 //   {"op":"config_check","file":F,"text":T}       rackd --check on T (as F): errors with line and column
 //   {"op":"config_save","file":F,"text":T}        the same, and T replaces F only when rackd accepts it
+//   {"op":"config_part","upload":U,"index":I,"count":N,"text":T}
+//                                                 part I (0..N-1, in order) of a text above one WebSocket
+//                                                 message (64 KiB); answered {"received":I+1}. Then
+//   {"op":"config_check"|"config_save","file":F,"upload":U}  uses the assembled text (once).
+//                                                 Uploads: U is 1..32 letters or digits; at most
+//                                                 kMaxUploads at once (the oldest gives way), N <=
+//                                                 kMaxUploadParts, the whole at most a host file's
+//                                                 1 MiB; a part out of order or too much drops it.
 //
 // What may be read and written: F names a file directly inside one of the served
 // directories (the path as config_files lists it), called *.yaml or *.yml, its name
@@ -32,11 +41,13 @@
 // Not RT code (a tool).
 #pragma once
 
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <functional>
 #include <mutex>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -62,6 +73,8 @@ struct ConfigServiceConfig {
 class ConfigService {
  public:
   static constexpr std::size_t kMaxQueued = 16;
+  static constexpr std::size_t kMaxUploads = 4;      // texts being sent in parts at once
+  static constexpr uint64_t kMaxUploadParts = 1024;  // parts of one text
   using Sink = std::function<void(uint64_t client, std::string message)>;
 
   ConfigService(ConfigServiceConfig config, Sink sink);
@@ -91,7 +104,17 @@ class ConfigService {
   std::condition_variable wake_;
   std::deque<std::pair<uint64_t, std::string>> queue_;
   bool stop_ = false;
-  std::optional<std::vector<rack::deploy::ClassInfo>> class_info_;  // the service thread's
+  // Per served directory (rackd --list-classes --json with its host files, so their
+  // plug-in classes are described): the service thread's.
+  std::map<std::string, std::vector<rack::deploy::ClassInfo>> class_info_;
+  // Texts sent in parts (config_part), by upload id: the service thread's.
+  struct Upload {
+    uint64_t count = 0;
+    uint64_t received = 0;
+    std::string text;
+    std::chrono::steady_clock::time_point started;
+  };
+  std::map<std::string, Upload> uploads_;
   std::thread thread_;
 };
 

@@ -40,6 +40,10 @@ bool parse_class_list(const std::string& json_text, std::vector<rack::deploy::Cl
     rack::deploy::ClassInfo ci;
     ci.impl = c["impl"].get<std::string>();
     if (c.contains("class") && c["class"].is_string()) ci.class_name = c["class"].get<std::string>();
+    if (const auto id = c.find("class_id"); id != c.end() && id->is_number_integer()) {
+      const auto v = id->get<int64_t>();
+      if (v > 0 && v < 256) ci.class_id = static_cast<int>(v);
+    }
     if (const auto p = c.find("parameters"); p != c.end() && p->is_array()) {
       ci.described = true;
       for (const auto& prm : *p) {
@@ -54,13 +58,17 @@ bool parse_class_list(const std::string& json_text, std::vector<rack::deploy::Cl
 }
 
 bool classes_from_rackd(const std::string& rackd, std::vector<rack::deploy::ClassInfo>& out, std::string& why,
-                        int timeout_ms) {
+                        int timeout_ms, const std::vector<std::string>& host_files) {
   int fds[2];
   if (::pipe2(fds, O_CLOEXEC) != 0) {
     why = std::string("pipe: ") + std::strerror(errno);
     return false;
   }
   std::vector<std::string> args{rackd, "--list-classes", "--json"};
+  for (const auto& f : host_files) {
+    if (!f.empty() && f[0] == '-') args.push_back("./" + f);  // a file, never an option
+    else args.push_back(f);
+  }
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);

@@ -19,8 +19,12 @@ namespace rack::tools {
 [[nodiscard]] bool parse_class_list(const std::string& json_text, std::vector<rack::deploy::ClassInfo>& out,
                                     std::string& why);
 
-// Runs `rackd --list-classes --json` (killed after `timeout_ms`) and parses it.
+// Runs `rackd --list-classes --json [HOSTFILE ...]` (killed after `timeout_ms`) and
+// parses it. With `host_files`, rackd also searches their `plugins:` directories and
+// describes the plug-in classes they name in full (their component references and
+// class names), which a rackd alone knows only by their manifests.
 [[nodiscard]] bool classes_from_rackd(const std::string& rackd, std::vector<rack::deploy::ClassInfo>& out,
-                                      std::string& why, int timeout_ms = 10000);
+                                      std::string& why, int timeout_ms = 10000,
+                                      const std::vector<std::string>& host_files = {});
 
 }  // namespace rack::tools

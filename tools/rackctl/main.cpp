@@ -122,6 +122,8 @@ commands:
   graph [--live] [--format dot|svg|json] FILE|DIR ...
                                 the deployment of these host files as a graph:
                                 hosts, components, tasks, data flows, networks
+                                (--live: the flows that run too; without FILE,
+                                what discovery finds)
   alloc [--live] [--json] FILE|DIR ...
                                 RT tasks per CPU of each host, priority
                                 inversions flagged (--live: utilisation, latency)
@@ -1298,8 +1300,41 @@ bool write_text_file(const std::string& path, const std::string& text) {
   return std::fclose(f) == 0 && ok;
 }
 
-// The deployment the arguments name (host files and directories of them).
-rack::deploy::Deployment read_deployment(const Options& o) {
+// The hosts discovery found, as a deployment without host files (graph/alloc --live
+// with no FILE): each host with its components' names, classes and addresses; no
+// parameters, so every flow drawn is a live one (GET_LISTENERS).
+std::vector<rack::deploy::Host> discovered_hosts(Session& s) {
+  std::vector<rack::deploy::Host> hosts;
+  for (const auto& info : s.discover([](const std::vector<tims::HostInfo>&) { return false; })) {
+    rack::deploy::Host h;
+    h.file = "discovery on " + (info.network.empty() ? s.url() : info.network);
+    h.host = info.host;
+    h.system = info.system;
+    h.host_id = info.host_id;
+    h.role = tims::describe(info.role);
+    for (const auto& ci : info.components) {
+      rack::deploy::Component c;
+      c.name = ci.name;
+      c.impl = ci.impl;
+      c.class_name = s.class_name(ci.address);
+      c.instance = ci.address.instance();
+      c.address = ci.address.component().raw();
+      c.address_text = rack::client::address_text(ci.address.component(), c.class_name);
+      h.components.push_back(std::move(c));
+    }
+    hosts.push_back(std::move(h));
+  }
+  if (hosts.empty()) fail(kExitUnavailable, "no host answered discovery on " + s.url() + " (and no host files given)");
+  return hosts;
+}
+
+// The deployment the arguments name (host files and directories of them); none with
+// --live: what discovery finds.
+rack::deploy::Deployment read_deployment(const Options& o, Session* s) {
+  if (o.args.empty()) {
+    if (s == nullptr) fail(kExitUsage, o.command + ": give host files or directories (or --live: what runs)");
+    return rack::deploy::build(discovered_hosts(*s));
+  }
   std::vector<std::string> errors;
   const auto paths = rack::deploy::host_file_paths(o.args, errors);
   for (const auto& e : errors) std::fprintf(stderr, "rackctl: %s\n", e.c_str());
@@ -1310,7 +1345,7 @@ rack::deploy::Deployment read_deployment(const Options& o) {
   std::vector<rack::deploy::ClassInfo> classes;
   std::string why;
   const std::string rackd = o.rackd.empty() ? rack::tools::rackd_beside_me() : o.rackd;
-  if (!rack::tools::classes_from_rackd(rackd, classes, why)) {
+  if (!rack::tools::classes_from_rackd(rackd, classes, why, 10000, paths)) {
     std::fprintf(stderr,
                  "rackctl: %s: cannot learn the classes (%s): every parameter naming a component is taken "
                  "for a flow\n",
@@ -1321,7 +1356,7 @@ rack::deploy::Deployment read_deployment(const Options& o) {
 }
 
 // What discovery and GET_STATS say of the deployment's hosts and components.
-rack::deploy::Live live_view(Session& s, const rack::deploy::Deployment& d) {
+rack::deploy::Live live_view(Session& s, const rack::deploy::Deployment& d, const std::string& command) {
   rack::deploy::Live live;
   live.hosts.resize(d.hosts.size());
   live.tasks.resize(d.hosts.size());
@@ -1345,6 +1380,19 @@ rack::deploy::Live live_view(Session& s, const rack::deploy::Deployment& d) {
       who.emplace_back(h, c);
     }
   }
+  // Who subscribes to whom (GET_LISTENERS): the data flows that run. A rackd from before
+  // GET_LISTENERS answers ERROR: its flows stay unknown (neither running nor not).
+  live.listeners_known.resize(d.hosts.size());
+  for (std::size_t h = 0; h < d.hosts.size(); ++h) live.listeners_known[h].assign(d.hosts[h].components.size(), false);
+  s.fan_out(dests, msg::kGetListeners, [&](std::size_t i, const MessageHeader& h, std::span<const std::byte> body) {
+    if (h.type != msg::kListeners) return;
+    const auto& [host, comp] = who[i];
+    if (const char* bad = rack::deploy::add_listeners(d, host, comp, body, tims::body_is_native(h), live)) {
+      std::fprintf(stderr, "rackctl: %s: %s: malformed LISTENERS reply (%zu bytes): %s\n", command.c_str(),
+                   d.hosts[host].components[comp].name.c_str(), body.size(), bad);
+    }
+  });
+  rack::deploy::match_live_flows(d, live);
   s.fan_out(dests, msg::kGetStats, [&](std::size_t i, const MessageHeader& h, std::span<const std::byte> body) {
     auto& t = live.tasks[who[i].first][who[i].second];
     t.answered = true;
@@ -1405,9 +1453,9 @@ int write_svg(const std::string& dot_text, const std::string& out) {
 }
 
 int run_graph(Session* s, const Options& o) {
-  const auto d = read_deployment(o);
+  const auto d = read_deployment(o, s);
   std::optional<rack::deploy::Live> live;
-  if (s != nullptr) live = live_view(*s, d);
+  if (s != nullptr) live = live_view(*s, d, o.command);
   const rack::deploy::Live* lp = live ? &*live : nullptr;
   for (const auto& h : d.hosts) {
     for (const auto& e : h.errors) std::fprintf(stderr, "rackctl: graph: %s\n", e.str().c_str());
@@ -1428,9 +1476,9 @@ int run_graph(Session* s, const Options& o) {
 }
 
 int run_alloc(Session* s, const Options& o) {
-  const auto d = read_deployment(o);
+  const auto d = read_deployment(o, s);
   std::optional<rack::deploy::Live> live;
-  if (s != nullptr) live = live_view(*s, d);
+  if (s != nullptr) live = live_view(*s, d, o.command);
   const rack::deploy::Live* lp = live ? &*live : nullptr;
   if (o.json) std::printf("%s\n", rack::deploy::to_json(d, lp).c_str());
   else std::fputs(rack::deploy::allocation_text(d, lp).c_str(), stdout);
@@ -1761,7 +1809,7 @@ const std::vector<Command>& commands() {
        cmd_trace},
       {"graph",
        "graph [--live] [--format dot|svg|json] [--out FILE] [--rackd PATH] FILE|DIR ...",
-       1,
+       0,
        256,
        {"--live", "--format", "--out", "--rackd"},
        "Draws a deployment from its host files (a directory: its *.yaml files): a\n"
@@ -1771,20 +1819,28 @@ const std::vector<Command>& commands() {
        "parameter, the producer's period and the networks the flow crosses (blue;\n"
        "thick when it goes through system routers). A flow is a parameter that its\n"
        "class declares as a component reference (the rackd beside rackctl, or\n"
-       "--rackd PATH, lists its classes as JSON) whose value names a component of\n"
+       "--rackd PATH, lists its classes as JSON, with the plug-in classes the files\n"
+       "name loaded from their plugins: directories) whose value names a component of\n"
        "the same file or is an address like Generator(1/0); an address\n"
        "no given file places is a dashed box. Errors of the reader are red\n"
        "notes with file:line:col (the full validation is rackd's own check); exit 1 then.\n"
        "--live adds what the network says: hosts that did not answer discovery are\n"
        "grey and dashed (STALE), each component its state, utilisation (execution\n"
-       "p50 / period) and worst wake-up latency (GET_STATS). Offline it needs no\n"
-       "network. --format svg runs graphviz's dot (apt-get install graphviz).\n"
+       "p50 / period) and worst wake-up latency (GET_STATS), and the data flows that\n"
+       "run: each producer's subscribers (GET_LISTENERS). A file's flow that does not\n"
+       "run is grey and dotted ('not running'), one that runs says 'running'; a\n"
+       "subscription no file declares is green ('live only', with its period), to\n"
+       "its listener's box (a tool's, e.g. a 'rackctl watch', when no file places it).\n"
+       "--live without FILE draws what discovery finds: every host and component that\n"
+       "answers, and its live flows. Offline it needs no network. --format svg runs\n"
+       "graphviz's dot (apt-get install graphviz).\n"
        "  rackctl graph configs/two_robots/ | dot -Tsvg > fleet.svg\n"
+       "  rackctl graph --live --format svg --out now.svg\n"
        "  rackctl graph --format svg --out fleet.svg configs/two_robots/",
        cmd_graph},
       {"alloc",
        "alloc [--live] [--json] [--rackd PATH] FILE|DIR ...",
-       1,
+       0,
        256,
        {"--live", "--json", "--rackd"},
        "Prints the allocation at a glance: per host and CPU (a task's 'cpu:', else the\n"

@@ -4,6 +4,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <condition_variable>
 #include <cstdio>
@@ -12,6 +13,7 @@
 #include <cstring>
 #include <iostream>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -49,12 +51,17 @@ options:
                      file's modeswitch.crash_dir (default /var/tmp/rack); the report
                      file is DIR/rackd-PID.report (removed at exit when empty);
                      symbolize it with rack-backtrace
-  --list-classes     print the built-in component classes and their parameters, and
+  --list-classes [HOSTFILE ...]
+                     print the built-in component classes and their parameters, and
                      the plug-in classes (by their manifests, without loading them),
-                     then exit
+                     then exit; with host files, their plugins: directories are
+                     searched too and the plug-in classes they name are loaded and
+                     described in full (parameters, component references), as
+                     rackctl graph and rack-gui's editor need them
   --json             with --list-classes: one JSON array, each class with its
-                     parameters (kind, unit, min, max, default, doc, choices,
+                     TiMS class id and parameters (kind, unit, min, max, default, doc, choices,
                      required, init_only, component_ref), as rack-gui's editor uses it
+                     (a plug-in class not loaded: impl, class, summary, no parameters)
   -h, --help         this text
   --version          the version (CMake project version, git describe)
 
@@ -110,12 +117,16 @@ file:line:col: message).
 )";
 
 void list_classes(const rack::ComponentRegistry& registry) {
-  std::printf("built-in classes:\n");
+  std::printf("built-in classes (and plug-in classes a host file given loaded):\n");
+  std::vector<std::string> manifest_problems;
+  const auto manifests = registry.plugin_classes(&manifest_problems);
   for (const auto* cls : registry.all()) {
     auto c = cls->make();
-    std::printf("%s  (class %s, data task: %s)\n  %s\n", cls->impl.c_str(),
+    const bool plugin = std::any_of(manifests.begin(), manifests.end(),
+                                    [&](const auto& p) { return p.impl == cls->impl; });
+    std::printf("%s  (class %s, data task: %s%s)\n  %s\n", cls->impl.c_str(),
                 rack::tims::class_name(cls->class_id) ? rack::tims::class_name(cls->class_id) : "?",
-                rack::describe(c->data_task_mode()), cls->description.c_str());
+                rack::describe(c->data_task_mode()), plugin ? ", plug-in, loaded" : "", cls->description.c_str());
     const auto& params = c->parameters();
     for (std::size_t i = 0; i < params.size(); ++i) {
       const auto& p = params.at(i);
@@ -156,12 +167,18 @@ void list_classes_json(const rack::ComponentRegistry& registry) {
   };
   std::string out = "[";
   bool first = true;
+  std::vector<std::string> problems;
+  const auto plugins = registry.plugin_classes(&problems);
+  std::set<std::string> loaded_plugins;  // described in full below: not again by their manifests
   for (const auto* cls : registry.all()) {
     auto c = cls->make();
     const rack::ClassDescription d = rack::describe_class(*cls, c->parameters());
+    const bool plugin = std::any_of(plugins.begin(), plugins.end(), [&](const auto& p) { return p.impl == d.impl; });
+    if (plugin) loaded_plugins.insert(d.impl);
     out += (first ? "" : ",") + std::string("{\"impl\":") + q(d.impl) + ",\"class\":" + q(d.class_name) +
            ",\"summary\":" + q(d.summary) + ",\"data_task\":" + q(rack::describe(c->data_task_mode())) +
-           ",\"plugin\":false,\"parameters\":[";
+           ",\"class_id\":" + std::to_string(cls->class_id) + ",\"plugin\":" + (plugin ? "true" : "false") +
+           ",\"parameters\":[";
     first = false;
     for (std::size_t i = 0; i < d.parameters.size(); ++i) {
       const auto& p = d.parameters[i];
@@ -180,8 +197,8 @@ void list_classes_json(const rack::ComponentRegistry& registry) {
     }
     out += "]}";
   }
-  std::vector<std::string> problems;
-  for (const auto& p : registry.plugin_classes(&problems)) {
+  for (const auto& p : plugins) {
+    if (loaded_plugins.count(p.impl) != 0) continue;
     out += (first ? "" : ",") + std::string("{\"impl\":") + q(p.impl) + ",\"class\":" + q(p.interface_name) +
            ",\"summary\":" + q(p.summary) + ",\"plugin\":true}";
     first = false;
@@ -316,6 +333,7 @@ static int run_rackd(int argc, char** argv) {
   sigaddset(&stop_signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
   std::string file, lcm_url, crash_dir;
+  std::vector<std::string> more_files;  // --list-classes: every host file after the first
   bool check = false, classes = false, json = false;
   double duration = -1, status_every = 0;
   for (int i = 1; i < argc; ++i) {
@@ -356,10 +374,11 @@ static int run_rackd(int argc, char** argv) {
       std::fprintf(stderr, "rackd: unknown option '%s'\n%s", a.c_str(), kUsage);
       return 2;
     } else if (file.empty()) file = a;
-    else {
-      std::fprintf(stderr, "rackd: one host file only ('%s' and '%s')\n", file.c_str(), a.c_str());
-      return 2;
-    }
+    else more_files.push_back(a);
+  }
+  if (!more_files.empty() && !classes) {
+    std::fprintf(stderr, "rackd: one host file only ('%s' and '%s')\n", file.c_str(), more_files[0].c_str());
+    return 2;
   }
   if (json && !classes) {
     std::fprintf(stderr, "rackd: --json goes with --list-classes\n");
@@ -378,6 +397,20 @@ static int run_rackd(int argc, char** argv) {
   rack::ComponentRegistry registry;
   rack::components::register_builtin(registry);
   if (classes) {
+    // The host files' plug-ins: their `plugins:` directories are searched and the
+    // plug-in classes they name are loaded, so that these are described in full.
+    // A file's errors do not stop the listing (a line each on stderr).
+    if (!file.empty()) more_files.insert(more_files.begin(), file);
+    const rack::rt::RtCapabilities caps = rack::rt::probe_capabilities();
+    for (const auto& f : more_files) {
+      const auto loaded = rack::load_host_file(f, registry, caps,
+                                               rack::HostLoadOptions{.open_files = true, .check_paths = false});
+      if (watch.stop_requested()) return stopped_during_startup(watch);
+      for (const auto& e : loaded.errors) {
+        std::fprintf(stderr, "rackd: --list-classes: %s (its classes are listed as far as they load)\n",
+                     e.str().c_str());
+      }
+    }
     if (json) list_classes_json(registry);
     else list_classes(registry);
     return 0;

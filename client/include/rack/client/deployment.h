@@ -31,6 +31,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -145,6 +146,7 @@ struct ClassInfo {
   std::string class_name;         // "Chassis"
   bool described = false;         // parameters known; false: a plug-in by its manifest
   std::vector<std::string> refs;  // its parameters that name a component
+  int class_id = -1;              // its TiMS class id (a plug-in's: TiMS here may not know it); -1 unknown
 };
 
 // Flows, networks crossed and the allocation of a set of hosts. Without `classes` (or
@@ -165,14 +167,48 @@ struct LiveTask {
   int64_t exec_p50_ns = -1;
   int64_t period_ns = 0;
 };
+// A subscription that runs (a producer's GET_LISTENERS, wire::ListenersReply): the
+// live data flow from producer to listener, whatever the host files say.
+struct LiveFlow {
+  std::size_t producer_host = 0;  // in Deployment::hosts
+  std::size_t producer = 0;
+  uint32_t listener = 0;              // raw TiMS address of the mailbox the samples go to
+  std::size_t consumer_host = kNone;  // the component that mailbox belongs to, when a host places it
+  std::size_t consumer = kNone;
+  int64_t period_ns = 0;     // what the listener gets (0: unknown, a triggered producer)
+  std::size_t flow = kNone;  // the Deployment::flows entry it is; kNone: not in the host files
+};
 struct Live {
   std::vector<LiveHost> hosts;               // per Deployment::hosts
   std::vector<std::vector<LiveTask>> tasks;  // per host, per component
+  std::vector<LiveFlow> flows;               // every listener the producers reported
+  // Per host, per component: its GET_LISTENERS answered (so a flow from it that is
+  // not among `flows` does not run now); false: not asked, or no usable answer.
+  std::vector<std::vector<bool>> listeners_known;
+  // Per Deployment::flows (after match_live_flows): 1 runs now, 0 does not (its
+  // producer answered GET_LISTENERS without it), -1 unknown.
+  std::vector<int> flow_state;
 };
+
+// Adds the listeners of the component `c` of host `h` from its LISTENERS reply body
+// (`native`: the body's byte order is this host's): nullptr, or what is wrong with the
+// body (wire::decode_listeners; then nothing is added). Decodes outside input.
+[[nodiscard]] const char* add_listeners(const Deployment& d, std::size_t h, std::size_t c,
+                                        std::span<const std::byte> body, bool native, Live& live);
+// Names the consumer of every live flow (the component whose address the listener's
+// mailbox is on) and matches live flows with the host files' flows (the same producer
+// and consumer): sets LiveFlow::flow and Live::flow_state.
+void match_live_flows(const Deployment& d, Live& live);
+// The text of a listener's mailbox: the component's name when a host places it
+// ("monitor (Monitor(0/0)#3)"), else its address ("Tool(255/4)#1").
+[[nodiscard]] std::string listener_text(const Deployment& d, const LiveFlow& f);
 
 // Graphviz DOT: a cluster per system (robot) and host, a node per component (class,
 // address, tasks), an edge per flow (parameter, period, networks crossed); errors in
 // red, unplaced producers dashed, stale hosts (live: did not answer) grey and dashed.
+// Live: a file's flow that does not run now is grey and dotted ("not running"); a
+// running flow no host file declares is green ("live only", with the listener's
+// period), to a box for its listener when no host places it (a tool's watch).
 [[nodiscard]] std::string to_dot(const Deployment& d, const Live* live = nullptr);
 // The allocation per CPU of each host as a table, flags included.
 [[nodiscard]] std::string allocation_text(const Deployment& d, const Live* live = nullptr);

@@ -112,6 +112,11 @@ class Component {
   // the fixed edges, counts all 0 without a data task). Any thread, RT-safe: no
   // allocation, O(rt::LatencyStats::kBuckets).
   virtual void fill_latency(wire::LatencyHistogram& out) const noexcept;
+  // Who subscribes to this component now (GET_LISTENERS, wire::ListenersReply): a data
+  // component's continuous listeners, none for a component without a data task. Any
+  // thread, RT-safe: no allocation; a data component reads its listener table under
+  // its priority-inheritance mutex (rt::PiMutex), O(max_listeners).
+  virtual void fill_listeners(wire::ListenersReply& out) const noexcept;
   // Class-specific progress for rackd's --status lines ("" for none): appended to
   // `out` as one short line. Called from rackd's main thread while the tasks run, so
   // it reads only atomics or other thread-safe state. Not RT-safe (it may allocate).

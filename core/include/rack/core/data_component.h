@@ -7,7 +7,8 @@
 //
 // Served by the framework from the command task: GET_DATA (ring lookup), GET_CONT_DATA
 // (listener with reduction factor n = round(requested period / own period); the reply
-// carries the real period and the lease), STOP_CONT_DATA, GET_NEXT_DATA (one-shot).
+// carries the real period and the lease), STOP_CONT_DATA, GET_NEXT_DATA (one-shot),
+// GET_LISTENERS (who subscribes now, wire::ListenersReply: the live data flows).
 // When the component leaves ENABLED, every listener gets an ERROR message and is
 // dropped.
 //
@@ -76,6 +77,10 @@ class DataComponentBase : public Component {
   [[nodiscard]] DataTaskMode data_task_mode() const noexcept override { return mode_; }
   void fill_stats(wire::StatsReply& out) const noexcept override;
   void fill_latency(wire::LatencyHistogram& out) const noexcept override;
+  // GET_LISTENERS: the continuous listeners whose lease runs (the first
+  // wire::kMaxListenerRecords of them), read under listeners_mutex_ (priority
+  // inheritance) without allocation: RT-safe, the command task answers it.
+  void fill_listeners(wire::ListenersReply& out) const noexcept override;
   [[nodiscard]] const SampleRing* ring() const noexcept { return ring_.get(); }
   [[nodiscard]] std::span<const tims::FieldDesc> payload_fields() const noexcept { return fields_; }
   [[nodiscard]] uint32_t payload_size() const noexcept { return payload_size_; }

@@ -245,6 +245,60 @@ struct LatencyHistogram {
   return nullptr;
 }
 
+// GET_LISTENERS' reply (LISTENERS): who subscribes to a data component (GET_CONT_DATA)
+// now, so that a tool draws the data flows that really run (rackctl graph --live)
+// beside the ones the host files declare. Entry i of the arrays (i < count) is one
+// continuous listener whose lease has not run out: the mailbox its samples go to (a
+// component's input mailbox, a tool's data mailbox), the reduction factor (every
+// factor-th sample) and the period it gets (factor x the producer's period; 0 for a
+// triggered producer that has not published twice yet), and how long ago it renewed.
+// One-shot requests (GET_NEXT_DATA) are not listed. `total` counts every such
+// listener; more than kMaxListenerRecords are cut (count < total). A component
+// without a data task answers count 0, data_task 0.
+inline constexpr std::size_t kMaxListenerRecords = 32;
+struct ListenersReply {
+  uint8_t data_task = 0;  // as StatsReply: 0 none, 1 periodic, 2 triggered
+  uint8_t reserved[3] = {};
+  uint32_t count = 0;                          // entries in use (<= kMaxListenerRecords)
+  uint32_t total = 0;                          // listeners at the time of the reply (>= count)
+  uint32_t reserved2 = 0;                      // 0
+  int64_t period_ns = 0;                       // the producer's period (periodic), else its last interval
+  uint32_t mailbox[kMaxListenerRecords] = {};  // raw TiMS address of the listener's mailbox
+  uint32_t factor[kMaxListenerRecords] = {};   // >= 1
+  int64_t listener_period_ns[kMaxListenerRecords] = {};
+  int64_t renewed_ago_ns[kMaxListenerRecords] = {};  // since its last GET_CONT_DATA (>= 0)
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(ListenersReply, data_task),
+                      RACK_FIELD(ListenersReply, count),
+                      RACK_FIELD(ListenersReply, total),
+                      RACK_FIELD(ListenersReply, period_ns),
+                      RACK_FIELD(ListenersReply, mailbox),
+                      RACK_FIELD(ListenersReply, factor),
+                      RACK_FIELD(ListenersReply, listener_period_ns),
+                      RACK_FIELD(ListenersReply, renewed_ago_ns)};
+  }
+};
+static_assert(sizeof(ListenersReply) == 792, "LISTENERS: a fixed layout on the wire");
+
+// What is wrong with a LISTENERS reply a client received, or nullptr when it is
+// usable: data_task 0..2, count <= kMaxListenerRecords and <= total, no listeners
+// without a data task, and each entry in use: a factor >= 1, periods and renewal
+// ages >= 0, a mailbox that is not 0. RT-safe.
+[[nodiscard]] inline const char* check_listeners_reply(const ListenersReply& r) noexcept {
+  if (r.data_task > 2) return "data_task is not 0..2";
+  if (r.count > kMaxListenerRecords) return "count is above 32";
+  if (r.count > r.total) return "count is above total";
+  if (r.data_task == 0 && r.total != 0) return "listeners without a data task";
+  if (r.period_ns < 0) return "period_ns is negative";
+  for (std::size_t i = 0; i < r.count; ++i) {
+    if (r.mailbox[i] == 0) return "a listener's mailbox is 0";
+    if (r.factor[i] == 0) return "a listener's factor is 0";
+    if (r.listener_period_ns[i] < 0) return "a listener's period is negative";
+    if (r.renewed_ago_ns[i] < 0) return "a listener's renewal age is negative";
+  }
+  return nullptr;
+}
+
 // Reads a payload from a body: exact size required, byte order converted when the
 // sender's differs. false: wrong size. RT-safe.
 template <tims::Payload T>
@@ -253,6 +307,14 @@ template <tims::Payload T>
   std::memcpy(&out, body.data(), sizeof(T));
   if (!native) tims::swap_fields(tims::fields_of<T>, reinterpret_cast<std::byte*>(&out), sizeof(T));
   return true;
+}
+
+// Decodes a LISTENERS body: nullptr with `out` filled, else what is wrong (the size,
+// or check_listeners_reply's answer). The fuzz harness' entry. RT-safe.
+[[nodiscard]] inline const char* decode_listeners(std::span<const std::byte> body, bool native,
+                                                  ListenersReply& out) noexcept {
+  if (!read_payload(body, native, out)) return "the body is not the size of a LISTENERS reply (792 bytes)";
+  return check_listeners_reply(out);
 }
 
 // Copies a NUL-terminated string into a fixed char array (always terminated). RT-safe.

@@ -2,13 +2,16 @@
 // driven by playwright-core), against a rack-gui started with --config DIR on a copy
 // of configs/two_robots/. Run by tests/integration/gui_config_e2e_test.cpp, or by hand:
 //
-//   node e2e/config_e2e.mjs --url http://127.0.0.1:8080/ --file robot1_aux.yaml [--live 1] [--shots DIR] [--chromium PATH]
+//   node e2e/config_e2e.mjs --url http://127.0.0.1:8080/ --file robot1_aux.yaml [--live 1] [--padding N] [--shots DIR] [--chromium PATH]
 //
 // Steps: the deployment graph of the directory is drawn (--live: and with what the
 // network says, robot1_aux.yaml's rackd running); FILE is opened; its data
 // task's priority set to 300 in the form shows rackd --check's error on its line and
-// Save stays disabled; 65 makes the file valid; Save writes it (the caller then runs
-// rackd --check on the file). Exit 0 when every step passed.
+// Save stays disabled; 65 makes the file valid; Save writes it; the form sets amplitude,
+// written in a one-line flow map (params: {...}), to 1.5 in place; --padding N: N
+// comment lines appended make the file larger than one WebSocket message, checked and
+// saved in parts (the caller then runs rackd --check on the file). Exit 0 when every
+// step passed.
 import { chromium } from 'playwright-core';
 import { mkdirSync } from 'node:fs';
 import { join } from 'node:path';
@@ -140,6 +143,48 @@ try {
   if (changed.length !== 1 || !/priority: 65/.test(changed[0])) throw new Error(`more than the priority changed: ${JSON.stringify(changed)}`);
   log(`saved ${file}`);
   await shot('config-saved.png');
+
+  // 5. A parameter written on one line (params: {amplitude: 1.0, frequency_hz: 0.5}):
+  // the form changes the value in place in the flow map, nothing else on the line.
+  const paramsLine = after.split('\n').findIndex((l) => /params: \{.*amplitude/.test(l));
+  if (paramsLine < 0) throw new Error('no one-line params with amplitude in the file');
+  await page.evaluate((line) => {
+    const ta = document.querySelector('[data-testid="cfg-text"]');
+    const at = ta.value.split('\n').slice(0, line).join('\n').length + 1;
+    ta.focus();
+    ta.setSelectionRange(at, at);
+    ta.dispatchEvent(new MouseEvent('click', { bubbles: true }));
+  }, paramsLine);
+  await until('the form', () => page.locator('[data-testid="cfg-form-param-amplitude"]').count());
+  if ((await page.inputValue('[data-testid="cfg-form-param-amplitude"]')) !== '1.0') throw new Error('the form does not show amplitude 1.0');
+  await page.fill('[data-testid="cfg-form-param-amplitude"]', '1.5');
+  await page.locator('[data-testid="cfg-form-param-amplitude"]').blur();
+  await until('valid after the one-line edit', async () => (await status()).startsWith('valid'));
+  const flowEdited = await page.inputValue('[data-testid="cfg-text"]');
+  const flowChanged = flowEdited.split('\n').filter((l, i) => l !== after.split('\n')[i]);
+  const expectedLine = after.split('\n')[paramsLine].replace('amplitude: 1.0', 'amplitude: 1.5');
+  if (flowChanged.length !== 1 || flowChanged[0] !== expectedLine) {
+    throw new Error(`the one-line edit changed ${JSON.stringify(flowChanged)}, expected ${JSON.stringify(expectedLine)}`);
+  }
+  log(`one-line params: ${flowChanged[0].trim()}`);
+
+  // 6. A file above one WebSocket message (64 KiB): checked and saved in parts.
+  if (args.padding) {
+    const lines = Number(args.padding);
+    await page.evaluate((n) => {
+      const ta = document.querySelector('[data-testid="cfg-text"]');
+      let pad = '';
+      for (let i = 0; i < n; i++) pad += `# padding ${i}: a comment line that makes this host file larger than one WebSocket message\n`;
+      ta.value += pad;
+      ta.dispatchEvent(new Event('input', { bubbles: true }));
+    }, lines);
+    const size = (await page.inputValue('[data-testid="cfg-text"]')).length;
+    await until('valid (sent in parts)', async () => (await status()).startsWith('valid'), 30000);
+    await until('Save enabled', async () => !(await page.locator('[data-testid="cfg-save"]').isDisabled()));
+    await page.click('[data-testid="cfg-save"]');
+    await until('saved in parts', async () => (await status()).startsWith('saved'), 30000);
+    log(`saved ${size} characters in parts`);
+  }
 } catch (e) {
   console.log(`FAILED: ${e.message}`);
   failed = true;

@@ -7,14 +7,18 @@
 //
 // Edits change the text in place (one value on one line), so comments and layout of
 // the file survive; the text itself can be edited freely too. The protocol
-// (config_files, config_graph, config_classes, config_load, config_check, config_save)
+// (config_files, config_graph, config_classes, config_load, config_part, config_check,
+// config_save)
 // is described in tools/gui/config_service.h.
 import { componentAt, setParam, setTaskPriority } from './yaml_edit.js';
 import { lineDiff } from './diff.js';
 
 import './config.css';
 
-const MAX_SEND = 60 * 1024;  // rack-gui refuses WebSocket messages over 64 KiB
+const MAX_SEND = 60 * 1024;  // rack-gui refuses WebSocket messages over 64 KiB: larger texts go in parts
+// Characters per part (config_part): at most 6 bytes each once in JSON (a \u00XX
+// escape), so a part stays under MAX_SEND whatever the text holds.
+const PART_CHARS = 8 * 1024;
 
 export function setupConfig(send) {
   const el = (tag, attrs = {}, text) => {
@@ -30,7 +34,7 @@ export function setupConfig(send) {
   view.innerHTML = `
     <div class="toolbar">
       <label>directory <select id="cfg-dir" data-testid="cfg-dir"></select></label>
-      <label title="what the network says: stale hosts, state, utilisation, worst wake-up latency (every 5 s)"><input type="checkbox" id="cfg-live" data-testid="cfg-live"> live</label>
+      <label title="what the network says: stale hosts, state, utilisation, worst wake-up latency, and the data flows that run (each producer's subscribers), every 5 s"><input type="checkbox" id="cfg-live" data-testid="cfg-live"> live</label>
       <label>host file <select id="cfg-file" data-testid="cfg-file"></select></label>
       <button id="cfg-save" data-testid="cfg-save" disabled>Save</button>
       <button id="cfg-revert" data-testid="cfg-revert">Revert</button>
@@ -39,6 +43,7 @@ export function setupConfig(send) {
     <div class="cfg-body">
       <div class="cfg-left">
         <div class="cfg-graph" data-testid="cfg-graph-box"><p class="hint">rack-gui --config DIR serves the host files of DIR here.</p></div>
+        <p id="cfg-flows" data-testid="cfg-flows" class="hint"></p>
         <h4>Allocation per CPU</h4>
         <pre id="cfg-alloc" data-testid="cfg-alloc" class="cfg-alloc"></pre>
       </div>
@@ -163,8 +168,37 @@ export function setupConfig(send) {
 
   function check() {
     if (!cs.file) return;
-    if (text.value.length > MAX_SEND) { status('the text is too large for the editor (60 KiB): edit the file itself', false); return; }
-    request({ op: 'config_check', file: cs.file, text: text.value });
+    sendText('config_check');
+  }
+
+  // config_check / config_save with the text on screen: in one message when it fits,
+  // else in parts (config_part, one at a time, each after the previous one's answer)
+  // and then the op names the upload. A part refused ends the upload (its error shows).
+  function sendText(op) {
+    const body = text.value;
+    const whole = { op, file: cs.file, text: body };
+    if (new TextEncoder().encode(JSON.stringify(whole)).length <= MAX_SEND) { request(whole); return; }
+    const parts = [];
+    for (let i = 0; i < body.length;) {
+      let end = Math.min(i + PART_CHARS, body.length);
+      const c = body.charCodeAt(end - 1);
+      if (end < body.length && c >= 0xd800 && c <= 0xdbff) end -= 1;  // never split a surrogate pair
+      parts.push(body.slice(i, end));
+      i = end;
+    }
+    const upload = Math.random().toString(36).slice(2, 10) + Date.now().toString(36);
+    const file = cs.file;
+    const sendPart = (i) => {
+      const obj = { op: 'config_part', upload, index: i, count: parts.length, text: parts[i] };
+      const id = send(obj);
+      if (id === null) return;
+      cs.pending.set(id, { ...obj, after: () => {
+        if (i + 1 < parts.length) { sendPart(i + 1); return; }
+        const last = send({ op, file, upload });
+        if (last !== null) cs.pending.set(last, whole);  // its answer is about this text
+      } });
+    };
+    sendPart(0);
   }
 
   // ------------------------------------------------------------ forms
@@ -251,7 +285,7 @@ export function setupConfig(send) {
   $('cfg-save').onclick = () => {
     if (!cs.file) return;
     status('saving…');
-    request({ op: 'config_save', file: cs.file, text: text.value });
+    sendText('config_save');
   };
   $('cfg-revert').onclick = () => { if (cs.file) { text.value = cs.disk; changed(); renderForm(); } };
 
@@ -305,6 +339,13 @@ export function setupConfig(send) {
       if (/error:|STALE/.test(line)) div.className = 'bad';
       alloc.appendChild(div);
     }
+    // Live: how the flows that run compare with the files' (green in the graph: runs
+    // but no file declares it; grey and dotted: declared but not running).
+    const lf = m.deployment?.live_flows;
+    const files = m.deployment?.flows || [];
+    $('cfg-flows').textContent = !Array.isArray(lf) ? ''
+      : `live flows: ${lf.length} running, ${lf.filter((f) => !f.in_files).length} of them in no host file; ` +
+        `${files.filter((f) => f.running === false).length} of the files' flows not running`;
     cs.deployment = m.deployment;
   }
 
@@ -345,6 +386,9 @@ export function setupConfig(send) {
         renderErrors();
         changed();
         renderForm();
+        break;
+      case 'config_part':
+        req?.after?.();
         break;
       case 'config_check':
       case 'config_save': {

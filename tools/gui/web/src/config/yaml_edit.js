@@ -1,8 +1,8 @@
 // Edits of a host file's text in place: one value on one line (or one inserted line),
 // so that comments and layout survive. Understands the layout the host files use
 // (configs/): a block list `components:` whose items are block maps or one-line flow
-// maps, tasks as `{priority: N, ...}` or a block, `params:` as a block map (a flow
-// map's values are shown, and edited in the text). Plain functions of the text: no DOM.
+// maps, tasks as `{priority: N, ...}` or a block, `params:` as a block map or a one-line
+// flow map (edited in place in the map). Plain functions of the text: no DOM.
 
 const indentOf = (line) => line.length - line.trimStart().length;
 const isBlank = (line) => /^\s*(#.*)?$/.test(line);
@@ -158,10 +158,101 @@ function replaceValue(line, value) {
   return kv ? kv.prefix + value + kv.suffix : line;
 }
 
-// Sets (or, with '', removes) parameter `prm` of `comp`: {text} or {error}.
+// The flow map `{...}` that opens at line[open]: its closing brace and its top-level
+// pairs, each {key, keyStart, valueStart, valueEnd} (positions in `line`; the value
+// trimmed), or null when it does not close on this line. Quotes ("..." with
+// backslash escapes, '...' with '') and nested maps and lists are skipped whole.
+export function flowMapAt(line, open) {
+  if (line[open] !== '{') return null;
+  const pairs = [];
+  let depth = 0, quote = null, start = open + 1;
+  const addPair = (endAt) => {
+    const raw = line.slice(start, endAt);
+    if (!raw.trim()) return;
+    let colon = -1, d = 0, q = null;
+    for (let i = 0; i < raw.length; i++) {
+      const ch = raw[i];
+      if (q) { if (q === '"' && ch === '\\') i++; else if (ch === q) q = null; continue; }
+      if (ch === '"' || ch === "'") q = ch;
+      else if (ch === '{' || ch === '[') d++;
+      else if (ch === '}' || ch === ']') d--;
+      else if (ch === ':' && d === 0 && (i + 1 === raw.length || /\s/.test(raw[i + 1]))) { colon = i; break; }
+    }
+    if (colon < 0) return;
+    const keyStart = start + raw.length - raw.trimStart().length;
+    let valueStart = start + colon + 1;
+    while (valueStart < endAt && /\s/.test(line[valueStart])) valueStart++;
+    let valueEnd = endAt;
+    while (valueEnd > valueStart && /\s/.test(line[valueEnd - 1])) valueEnd--;
+    pairs.push({ key: unquote(raw.slice(0, colon).trim()), keyStart, valueStart, valueEnd });
+  };
+  for (let i = open + 1; i < line.length; i++) {
+    const ch = line[i];
+    if (quote) {
+      if (quote === '"' && ch === '\\') i++;
+      else if (ch === quote) { if (quote === "'" && line[i + 1] === "'") i++; else quote = null; }
+      continue;
+    }
+    if (ch === '"' || ch === "'") quote = ch;
+    else if (ch === '{' || ch === '[') depth++;
+    else if ((ch === '}' || ch === ']') && depth > 0) depth--;
+    else if (ch === '}' && depth === 0) { addPair(i); return { close: i, pairs }; }
+    else if (ch === ',' && depth === 0) { addPair(i); start = i + 1; }
+  }
+  return null;
+}
+
+// Sets (or removes) `name` in the flow map `params: {...}` on line `index`: the value
+// replaced in place, a new pair appended before the closing brace, a removed pair
+// taken out with its comma; the rest of the line (other values, comments) as it was.
+function setFlowParam(lines, index, comp, name, v) {
+  const line = lines[index];
+  let open = -1;
+  if (comp.flow) {  // - {name: x, ..., params: {...}}
+    const outer = flowMapAt(line, line.indexOf('{'));
+    const p = outer?.pairs.find((x) => x.key === 'params');
+    if (!p) {
+      if (!outer || v === null) return outer ? { text: lines.join('\n') } : { error: `cannot read line ${index + 1}: edit the text` };
+      const before = line.slice(0, outer.close).replace(/\s+$/, '');
+      lines[index] = `${before}, params: {${name}: ${v}}${line.slice(before.length).replace(/^\s*/, '')}`;
+      return { text: lines.join('\n') };
+    }
+    open = p.valueStart;
+  } else {  // params: {...}
+    const kv = splitValue(line);
+    open = kv ? kv.prefix.length : -1;
+  }
+  const map = open >= 0 ? flowMapAt(line, open) : null;
+  if (!map) return { error: `the params on line ${index + 1} are not one {...} on that line: edit the text` };
+  const i = map.pairs.findIndex((x) => x.key === name);
+  if (v === null) {  // remove
+    if (i < 0) return { text: lines.join('\n') };
+    const pr = map.pairs[i];
+    let from = pr.keyStart, to = pr.valueEnd;
+    if (i + 1 < map.pairs.length) to = map.pairs[i + 1].keyStart;  // "a: 1, " up to the next key
+    else if (i > 0) from = map.pairs[i - 1].valueEnd;              // ", a: 1" after the previous value
+    lines[index] = line.slice(0, from) + line.slice(to);
+    return { text: lines.join('\n') };
+  }
+  if (i >= 0) {
+    const pr = map.pairs[i];
+    lines[index] = line.slice(0, pr.valueStart) + v + line.slice(pr.valueEnd);
+    return { text: lines.join('\n') };
+  }
+  const last = map.pairs[map.pairs.length - 1];
+  lines[index] = last
+    ? `${line.slice(0, last.valueEnd)}, ${name}: ${v}${line.slice(last.valueEnd)}`
+    : `${line.slice(0, map.close)}${name}: ${v}${line.slice(map.close)}`;
+  return { text: lines.join('\n') };
+}
+
+// Sets (or, with '', removes) parameter `prm` of `comp`: {text} or {error}. Parameters
+// written on one line (`params: {a: 1, b: 2}`, or a component written as one flow map)
+// are edited in place in that map.
 export function setParam(text, comp, prm, value) {
   const lines = text.split('\n');
-  if (comp.flow || comp.paramsFlow) return { error: `'${comp.name}' writes its params in one line ({...}): edit them in the text` };
+  if (comp.flow) return setFlowParam(lines, comp.start, comp, prm.name, value === '' ? null : yamlValue(prm, value));
+  if (comp.paramsFlow) return setFlowParam(lines, comp.paramsLine, comp, prm.name, value === '' ? null : yamlValue(prm, value));
   const have = comp.params[prm.name];
   if (value === '') {
     if (!have) return { text };
