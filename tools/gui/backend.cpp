@@ -1,13 +1,6 @@
 #include "backend.h"
 
-#include <poll.h>
-#include <signal.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <cerrno>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -15,8 +8,10 @@
 #include <optional>
 #include <set>
 #include <span>
+#include <utility>
 
-#include "gdos_view.h"
+#include "gdos_relay.h"
+#include "report_watcher.h"
 #include "rack/client/session.h"
 #include "rack/core/class_description.h"
 #include "rack/core/trace_session.h"
@@ -58,8 +53,16 @@ constexpr uint32_t kImageSlots = 2;
 constexpr int64_t kStaleNs = 1500 * rt::kNsPerMs;    // no status reply for this long: "no_reply"
 constexpr int64_t kDeadManNs = 400 * rt::kNsPerMs;   // joystick silent this long: MOVE 0
 constexpr int64_t kOnTimeoutNs = 6 * rt::kNsPerSec;  // ON is answered when on() has finished
-constexpr std::size_t kRecentLog = 500;              // GDOS records kept for new clients
 constexpr int kMapRetryRounds = 50;                  // a map that failed to load: try again later
+// Streams ("subscribe"): the samples of the subscribed components arrive in two
+// mailboxes of their own, drained every worker pass (10 ms at most): small samples
+// (chassis, odometry, position: 100 Hz each in sim_mcl) in 1024 slots of 4 KiB, the
+// others (ladar, scan2d, MCL: 25 Hz) in 128 of 64 KiB; each holds a second or more of
+// sim_mcl's streams while a pass is slow on a loaded machine. 12 MiB.
+constexpr uint32_t kSmallStreamSlots = 1024;
+constexpr uint32_t kSmallStreamSlotSize = 4096;
+constexpr uint32_t kStreamSlots = 128;
+constexpr int64_t kStreamRetryNs = rt::kNsPerSec;  // a refused subscription: asked again after this
 
 std::string address_text(Address a) { return a.str(); }
 
@@ -208,6 +211,22 @@ struct ClassInfo {
   bool failed = false;   // refused or malformed: not asked again
 };
 
+// A component's data stream that clients subscribed to ("subscribe"): one
+// GET_CONT_DATA subscription of the stream mailbox per component, shared by its
+// clients, renewed every lease / 4 and taken up again after the producer dropped it
+// (it left ENABLED, its host was lost) once the component is enabled again.
+struct Stream {
+  std::set<uint64_t> clients;
+  int64_t period_ns = 0;    // asked for: 0 every sample (the shortest a client asked)
+  bool active = false;      // the producer answered CONT_DATA and has not dropped it
+  bool pending = false;     // a GET_CONT_DATA is out
+  int64_t renew_at_ns = 0;  // the next renewal (0: none)
+  int64_t retry_at_ns = 0;  // after a refusal: not asked again before this
+  std::string why;          // why it is not streaming ("" when it is)
+  uint32_t mailbox = 0;     // where its samples go (small or large slots), fixed while it is open
+  std::vector<std::pair<uint64_t, Request>> waiting;  // subscribe requests answered by the next reply
+};
+
 struct Host {
   std::string name;
   uint8_t system = 0;
@@ -243,6 +262,8 @@ struct Backend::Impl {
         address_claim(tims::ToolAddressClaim::claim()),
         reply_mailbox(address_claim.mailbox(0), kReplySlots, kSlotSize),
         image_mailbox(address_claim.mailbox(1), kImageSlots, kImageSlotSize),
+        stream_mailbox(address_claim.mailbox(2), kStreamSlots, kSlotSize),
+        small_stream_mailbox(address_claim.mailbox(3), kSmallStreamSlots, kSmallStreamSlotSize),
         endpoint(router, reply_mailbox, kPriority),
         transport(router, transport_config(config)),
         buffer(kSlotSize),
@@ -250,11 +271,15 @@ struct Backend::Impl {
     if (!address_claim.warning().empty()) std::fprintf(stderr, "rack-gui: %s\n", address_claim.warning().c_str());
     router.add(reply_mailbox);
     router.add(image_mailbox);
+    router.add(stream_mailbox);
+    router.add(small_stream_mailbox);
   }
   ~Impl() {
     stop();
     router.remove(reply_mailbox.address());
     router.remove(image_mailbox.address());
+    router.remove(stream_mailbox.address());
+    router.remove(small_stream_mailbox.address());
   }
 
   static constexpr uint8_t kPriority = 10;
@@ -277,14 +302,22 @@ struct Backend::Impl {
     transport.start();
     running = true;
     worker = std::thread([this] { run_worker(); });
-    gdos_thread = std::thread([this] { run_gdos(); });
-    if (!config.reports_dir.empty()) reports_thread = std::thread([this] { run_reports(); });
+    gdos.start();
+    if (!config.reports_dir.empty()) reports.start();
   }
   void stop() {
     if (!running.exchange(false)) return;
     if (worker.joinable()) worker.join();
-    if (gdos_thread.joinable()) gdos_thread.join();
-    if (reports_thread.joinable()) reports_thread.join();
+    gdos.stop();
+    reports.stop();
+    // The producers stop streaming now rather than when their lease runs out.
+    for (const auto& [raw, st] : streams) {
+      if (st.mailbox == 0) continue;
+      wire::StopContDataRequest req;
+      req.mailbox = st.mailbox;
+      const tims::ConstBuffer part = tims::buffer_of(req);
+      (void)endpoint.send(Address(raw), msg::kStopContData, std::span<const tims::ConstBuffer>(&part, 1));
+    }
     transport.stop();
   }
 
@@ -351,6 +384,12 @@ struct Backend::Impl {
     for (auto img = image_mailbox.receive(image_buffer, tims::Mailbox::kNonBlocking);
          img.status == tims::RecvStatus::kOk; img = image_mailbox.receive(image_buffer, tims::Mailbox::kNonBlocking)) {
       dispatch(img, image_buffer);
+    }
+    for (tims::Mailbox* m : {&small_stream_mailbox, &stream_mailbox}) {
+      for (auto st = m->receive(buffer, tims::Mailbox::kNonBlocking); st.status == tims::RecvStatus::kOk;
+           st = m->receive(buffer, tims::Mailbox::kNonBlocking)) {
+        stream_sample(st, buffer);
+      }
     }
     const int64_t now = rt::monotonic_ns();
     std::vector<ReplyHandler> expired;
@@ -728,56 +767,79 @@ struct Backend::Impl {
     });
   }
 
-  // A class command by name, its body filled from the browser's fields through the
-  // class's own description (as `rackctl send NAME CMD field=value`).
-  void command(uint64_t client, const Request& r) {
+  // ------------------------------------------------------------ class commands
+  // A class command by the name its class description gives it, for both ops:
+  // "command" fills the body from text fields (as `rackctl send NAME CMD field=value`,
+  // the dashboard's command panel), "command_json" from a typed JSON body (programs:
+  // the Foxglove bridge's services, its player). One lookup of class and command, two
+  // body encoders; nothing is sent unless every field fits. The client gets a
+  // "command_result" (the reply's type and first bytes; the body sent, for "command")
+  // and the result.
+  //
+  // An encoder fills `body` (the command's body type, `type` nullptr: none) and returns
+  // the problem naming the field, or "".
+  using BodyEncoder = std::string (*)(const Request& r, const rack::TypeDescription* type,
+                                      std::vector<std::byte>& body);
+
+  static std::string text_fields_body(const Request& r, const rack::TypeDescription* type,
+                                      std::vector<std::byte>& body) {
+    if (type == nullptr) return r.fields.empty() ? std::string() : "it takes no fields";
+    const std::vector<tims::FieldDesc> table = type->field_table();
+    body.assign(type->size, std::byte{0});
+    for (const auto& [key, text] : r.fields) {
+      const tims::FieldDesc* field = nullptr;
+      for (const auto& f : table) {
+        if (key == f.name) field = &f;
+      }
+      const std::string why = field == nullptr ? "no such field in " + type->name
+                                               : rack::set_field_from_text(*field, body, text);
+      if (!why.empty()) return "field '" + key + "': " + why;
+    }
+    return "";
+  }
+  static std::string json_body(const Request& r, const rack::TypeDescription* type, std::vector<std::byte>& body) {
+    return encode_command_body(r.body, type, body);
+  }
+
+  void class_command(uint64_t client, const Request& r) {
+    const bool text_op = r.op == Op::kCommand;
+    const std::string& wanted = text_op ? r.command_name : r.command;
+    const BodyEncoder encode = text_op ? &Impl::text_fields_body : &Impl::json_body;
     const Address a = r.component;
     const auto ci = class_infos.find(a.raw() & 0xFFFF0000u);
     if (ci == class_infos.end() || !ci->second.desc) {
       (void)described(a);
       result(client, r, false,
-             address_text(a) + ": command " + r.command_name +
-                 ": its class description is not known yet (asked; try again)");
+             address_text(a) + ": command " + wanted +
+                 ": its class description is not known yet (asked; try again); nothing was sent");
       return;
     }
     const rack::ClassDescription& d = *ci->second.desc;
-    const rack::CommandDescription* info = d.find_command(r.command_name);
+    const rack::CommandDescription* info = d.find_command(wanted);
     if (info == nullptr) {
       std::string names;
       for (const auto& c : d.commands) names += (names.empty() ? "" : ", ") + c.name;
       result(client, r, false,
-             address_text(a) + ": class " + d.class_name + " has no command '" + r.command_name + "' (" +
+             address_text(a) + ": class " + d.class_name + " has no command '" + wanted + "' (" +
                  (names.empty() ? "it describes none" : "known: " + names) + "); nothing was sent");
       return;
     }
     auto body = std::make_shared<std::vector<std::byte>>();
-    std::string sent = "(no body)";
-    if (info->body) {
-      const std::vector<tims::FieldDesc> table = info->body->field_table();
-      body->assign(info->body->size, std::byte{0});
-      for (const auto& [key, text] : r.fields) {
-        const tims::FieldDesc* field = nullptr;
-        for (const auto& f : table) {
-          if (key == f.name) field = &f;
-        }
-        const std::string why = field == nullptr ? "no such field in " + info->body->name
-                                                 : rack::set_field_from_text(*field, *body, text);
-        if (!why.empty()) {
-          {
-            const std::lock_guard lock(counters_mutex);
-            ++counters.malformed;
-            ++counters.refused[static_cast<std::size_t>(Refusal::kBadValue)];
-          }
-          result(client, r, false,
-                 address_text(a) + ": " + info->name + " field '" + key + "': " + why + "; nothing was sent");
-          return;
-        }
+    const rack::TypeDescription* type = info->body ? &*info->body : nullptr;
+    const std::string why = encode(r, type, *body);
+    if (!why.empty()) {
+      {
+        const std::lock_guard lock(counters_mutex);
+        ++counters.malformed;
+        ++counters.refused[static_cast<std::size_t>(Refusal::kBadValue)];
       }
-      sent = rack::payload_to_json(table, *body, true);
-    } else if (!r.fields.empty()) {
-      result(client, r, false, address_text(a) + ": " + info->name + " takes no fields; nothing was sent");
+      result(client, r, false, address_text(a) + ": " + info->name + ": " + why + "; nothing was sent");
       return;
     }
+    // What was sent, for the dashboard's panel (a program knows what it sent: a
+    // played-back scan's body is not echoed 25 times a second).
+    std::string sent;
+    if (text_op) sent = type != nullptr ? rack::payload_to_json(type->field_table(), *body, true) : "(no body)";
     const tims::ConstBuffer part{body->data(), body->size()};
     const std::string name = info->name;
     request(a, info->type,
@@ -795,18 +857,18 @@ struct Backend::Impl {
                 hex += kHex[b & 15u];
               }
               const bool ok = rep->header.type == msg::kOk;
-              send_to(client,
-                      dump(json{{"type", "command_result"},
-                                {"id", r.id ? json(*r.id) : json(nullptr)},
-                                {"component", address_text(a)},
-                                {"command", name},
-                                {"sent", sent.front() == '{' ? json::parse(sent, nullptr, false) : json(nullptr)},
-                                {"reply", ok ? "OK" : "type " + std::to_string(rep->header.type)},
-                                {"reply_type", rep->header.type},
-                                {"body_bytes", rep->body.size()},
-                                {"body_hex", hex}}));
+              json m{{"type", "command_result"},
+                     {"id", r.id ? json(*r.id) : json(nullptr)},
+                     {"component", address_text(a)},
+                     {"command", name},
+                     {"sent", !sent.empty() && sent.front() == '{' ? json::parse(sent, nullptr, false) : json(nullptr)},
+                     {"reply", ok ? "OK" : "type " + std::to_string(rep->header.type)},
+                     {"reply_type", rep->header.type},
+                     {"body_bytes", rep->body.size()},
+                     {"body_hex", hex}};
+              send_to(client, dump(m));
               result(client, r, true,
-                     address_text(a) + ": " + name + " " + sent + ": " +
+                     address_text(a) + ": " + name + (sent.empty() ? "" : " " + sent) + ": " +
                          (ok ? std::string("OK") : "reply " + std::to_string(rep->header.type)));
             });
   }
@@ -831,7 +893,6 @@ struct Backend::Impl {
       const uint8_t cls = Address(raw).class_id();
       const ClassInfo* info = described(Address(raw));
       if (info == nullptr || !info->desc->data) continue;
-      const uint32_t class_key = raw & 0xFFFF0000u;
       const bool fast = cls == classes::kChassis || cls == classes::kPosition || cls == classes::kMcl ||
                         cls == classes::kScan2d || cls == classes::kPilot || cls == classes::kLadar;
       if (cls == classes::kCamera) {
@@ -841,47 +902,52 @@ struct Backend::Impl {
       if (!fast && round % 5 != 0) continue;
       c.data_pending = true;
       wire::GetDataRequest req;
-      request(Address(raw), msg::kGetData, req, [this, raw, class_key](const Reply* r) {
+      request(Address(raw), msg::kGetData, req, [this, raw](const Reply* r) {
         auto it = components.find(raw);
         if (it == components.end()) return;
         Component& comp = it->second;
         comp.data_pending = false;
-        const ClassInfo& type = class_infos[class_key];
-        wire::SampleHeader sh;
-        if (r == nullptr || r->header.type != msg::kData || r->body.size() < sizeof sh ||
-            !wire::read_payload(r->body.first(sizeof sh), r->native(), sh)) {
-          return;
-        }
-        const auto sample = r->body.subspan(sizeof sh);
-        if (sample.size() != type.desc->data->size) return;
-        const Address a(raw);
-        if (a.class_id() == classes::kPosition) robots[comp.system].position_time_ns = sh.time_ns;
-        if (a.class_id() == classes::kChassis) {
-          ifc::ChassisData cd;
-          if (wire::read_payload(sample, r->native(), cd)) {
-            robots[comp.system].claimed = cd.active_pilot == reply_mailbox.address().raw();
-          }
-        }
-        json data = json::parse(rack::payload_to_json(type.data_fields, sample, r->native()), nullptr, false);
-        if (data.is_discarded()) return;
-        trim_arrays(a.class_id(), data);
-        // Enums and addresses by name beside the raw values (as rackctl get-data).
-        json names = json::object();
-        const std::string names_text = rack::tools::field_names_json(type.desc->value_names, type.data_fields, sample,
-                                                                     r->native());
-        if (!names_text.empty()) names = json::parse(names_text, nullptr, false);
-        if (names.is_discarded()) names = json::object();
-        broadcast(dump(json{{"type", "data"},
-                            {"component", address_text(a)},
-                            {"name", comp.info.name},
-                            {"class", class_of(a)},
-                            {"system", comp.system},
-                            {"time_ns", sh.time_ns},
-                            {"sequence", sh.sequence},
-                            {"data", std::move(data)},
-                            {"names", std::move(names)}}));
+        if (r == nullptr || r->header.type != msg::kData) return;
+        if (auto m = data_message(raw, comp, r->header, r->body, false)) broadcast(std::move(*m));
       });
     }
+  }
+
+  // A DATA message's sample (SampleHeader, then the class's data type) as a "data"
+  // message for the browsers, decoded with the class description's field names;
+  // nullopt when it does not decode (wrong size, class not described).
+  std::optional<std::string> data_message(uint32_t raw, const Component& comp, const tims::MessageHeader& header,
+                                          std::span<const std::byte> body, bool stream) {
+    const auto ci = class_infos.find(raw & 0xFFFF0000u);
+    if (ci == class_infos.end() || !ci->second.desc || !ci->second.desc->data) return std::nullopt;
+    const ClassInfo& type = ci->second;
+    const bool native = tims::body_is_native(header);
+    wire::SampleHeader sh;
+    if (body.size() < sizeof sh || !wire::read_payload(body.first(sizeof sh), native, sh)) return std::nullopt;
+    const auto sample = body.subspan(sizeof sh);
+    if (sample.size() != type.desc->data->size) return std::nullopt;
+    const Address a(raw);
+    if (a.class_id() == classes::kPosition) robots[comp.system].position_time_ns = sh.time_ns;
+    if (a.class_id() == classes::kChassis) {
+      ifc::ChassisData cd;
+      if (wire::read_payload(sample, native, cd)) {
+        robots[comp.system].claimed = cd.active_pilot == reply_mailbox.address().raw();
+      }
+    }
+    json data = json::parse(rack::payload_to_json(type.data_fields, sample, native), nullptr, false);
+    if (data.is_discarded()) return std::nullopt;
+    trim_arrays(a.class_id(), data);
+    // Enums and addresses by name beside the raw values (as rackctl get-data).
+    json names = json::object();
+    const std::string names_text = rack::tools::field_names_json(type.desc->value_names, type.data_fields, sample,
+                                                                 native);
+    if (!names_text.empty()) names = json::parse(names_text, nullptr, false);
+    if (names.is_discarded()) names = json::object();
+    json m{{"type", "data"},          {"component", address_text(a)}, {"name", comp.info.name},
+           {"class", class_of(a)},    {"system", comp.system},        {"time_ns", sh.time_ns},
+           {"sequence", sh.sequence}, {"data", std::move(data)},      {"names", std::move(names)}};
+    if (stream) m["stream"] = true;
+    return dump(m);
   }
 
   // A camera's newest image, as {"type":"image",...} with the pixels (or JPEG) in base64.
@@ -1235,7 +1301,8 @@ struct Backend::Impl {
         }
         break;
       }
-      case Op::kCommand: command(client, r); break;
+      case Op::kCommand:
+      case Op::kCommandJson: class_command(client, r); break;
       case Op::kTrace: trace(client, r); break;
       case Op::kSetPose: set_pose(client, r); break;
       case Op::kJoystick: joystick(client, r); break;
@@ -1245,42 +1312,166 @@ struct Backend::Impl {
         result(client, r, true, "joystick released: robot stopped");
         break;
       }
-      case Op::kCommandJson: class_command(client, r); break;
+      case Op::kSubscribe: subscribe(client, r); break;
+      case Op::kUnsubscribe: {
+        const auto it = streams.find(r.component.raw());
+        const bool had = it != streams.end() && it->second.clients.erase(client) > 0;
+        if (had && it->second.clients.empty()) stop_stream(r.component.raw());
+        result(client, r, had,
+               address_text(r.component) + (had ? ": unsubscribed" : ": this client did not subscribe to it"));
+        break;
+      }
     }
   }
 
-  // A class command by name (Foxglove services, rack-foxglove's player): the body is
-  // encoded against the class description's type for it and sent only when it fits.
-  void class_command(uint64_t client, const Request& r) {
-    const Address a = r.component;
-    const auto it = class_infos.find(a.raw() & 0xFFFF0000u);
-    if (it == class_infos.end() || !it->second.desc) {
-      result(client, r, false, address_text(a) + ": its class description is not known (yet): no command sent");
+  // ------------------------------------------------------------ streams
+  // "subscribe": the client is added to the component's stream (opened when it is
+  // the first); answered when the producer answers (or at once when it streams already
+  // at the period asked for).
+  void subscribe(uint64_t client, const Request& r) {
+    const uint32_t raw = r.component.raw();
+    const auto [it, fresh] = streams.try_emplace(raw);
+    Stream& s = it->second;
+    const auto period = static_cast<int64_t>(std::llround(r.period_ms * 1e6));
+    const int64_t before = s.period_ns;
+    s.period_ns = fresh || s.clients.empty() ? period : std::min(s.period_ns, period);
+    s.clients.insert(client);
+    if (s.active && s.period_ns == before) {
+      result(client, r, true, address_text(r.component) + ": streaming");
       return;
     }
-    const rack::ClassDescription& d = *it->second.desc;
-    const rack::CommandDescription* c = d.find_command(r.command);
-    if (c == nullptr) {
-      std::string known;
-      for (const auto& k : d.commands) known += (known.empty() ? "" : ", ") + k.name;
-      result(client, r, false,
-             address_text(a) + ": class " + d.class_name + " has no command " + r.command +
-                 " (it has: " + (known.empty() ? "none" : known) + ")");
+    s.waiting.emplace_back(client, r);
+    s.retry_at_ns = 0;
+    open_stream(raw);
+  }
+
+  // GET_CONT_DATA into the stream mailbox: a new subscription, a renewal of its lease
+  // or a new period (the producer keeps one listener per mailbox).
+  void open_stream(uint32_t raw) {
+    Stream& s = streams[raw];
+    if (s.pending) return;
+    s.pending = true;
+    if (s.mailbox == 0) {
+      // Small samples to the mailbox of small slots; an undescribed class to the large.
+      const auto ci = class_infos.find(raw & 0xFFFF0000u);
+      const bool small = ci != class_infos.end() && ci->second.desc && ci->second.desc->data &&
+                         sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + ci->second.desc->data->size <=
+                             kSmallStreamSlotSize;
+      s.mailbox = (small ? small_stream_mailbox : stream_mailbox).address().raw();
+    }
+    wire::ContDataRequest req;
+    req.period_ns = s.period_ns;
+    req.mailbox = s.mailbox;
+    const Address a(raw);
+    request(a, msg::kGetContData, req, [this, raw, a, req](const Reply* rep) {
+      const auto it = streams.find(raw);
+      wire::ContDataReply cd;
+      const bool ok = rep != nullptr && rep->header.type == msg::kContData &&
+                      wire::read_payload(rep->body, rep->native(), cd);
+      if (it == streams.end()) {  // every client left meanwhile: stop it
+        if (ok) {
+          wire::StopContDataRequest stop;
+          stop.mailbox = req.mailbox;
+          request(a, msg::kStopContData, stop, [](const Reply*) {});
+        }
+        return;
+      }
+      Stream& st = it->second;
+      st.pending = false;
+      const int64_t now = rt::monotonic_ns();
+      std::string text;
+      if (ok) {
+        st.active = true;
+        st.why.clear();
+        st.renew_at_ns = cd.lease_ns > 0 ? now + cd.lease_ns / 4 : 0;
+        text = address_text(a) + ": streaming " +
+               (cd.period_ns > 0 && st.period_ns > 0
+                    ? "a sample every " + json(static_cast<double>(cd.period_ns) / 1e6).dump() + " ms"
+                    : std::string("every sample"));
+      } else {
+        st.active = false;
+        st.renew_at_ns = 0;
+        st.retry_at_ns = now + kStreamRetryNs;
+        st.why = failure(rep, "GET_CONT_DATA", a);
+        text = st.why + "; still subscribed: it streams once the component is enabled";
+      }
+      for (const auto& [client, asked] : std::exchange(st.waiting, {})) result(client, asked, ok, text);
+    });
+  }
+
+  void stop_stream(uint32_t raw) {
+    const auto it = streams.find(raw);
+    if (it == streams.end()) return;
+    if (it->second.mailbox != 0) {
+      wire::StopContDataRequest req;
+      req.mailbox = it->second.mailbox;
+      request(Address(raw), msg::kStopContData, req, [](const Reply*) {});  // best effort: it may be gone
+    }
+    streams.erase(it);
+  }
+
+  // Every poll round: renew the leases, take up streams the producers dropped.
+  void maintain_streams() {
+    const int64_t now = rt::monotonic_ns();
+    for (auto& [raw, s] : streams) {
+      if (s.pending) continue;
+      const auto c = components.find(raw);
+      const std::string state = c == components.end() ? "gone" : shown_state(c->second, now);
+      if (s.active) {
+        if (state != "enabled" && state != "no_reply") s.active = false;  // it went off: the ERROR may be lost
+        else if (s.renew_at_ns != 0 && now >= s.renew_at_ns) open_stream(raw);
+        continue;
+      }
+      if (state != "enabled" || now < s.retry_at_ns) continue;
+      const ClassInfo* info = described(Address(raw));
+      if (info == nullptr) continue;  // asked; the next round
+      const std::size_t bytes = info->desc->data
+                                    ? sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + info->desc->data->size
+                                    : 0;
+      if (bytes == 0 || bytes > kSlotSize) {
+        s.retry_at_ns = INT64_MAX;  // not streamed: no data, or a sample larger than a slot (camera images)
+        s.why = address_text(Address(raw)) + ": class " + info->desc->class_name +
+                (bytes == 0 ? std::string(" publishes no data")
+                            : " samples of " + std::to_string(bytes) + " bytes are larger than a stream slot (" +
+                                  std::to_string(kSlotSize) + "): only polled");
+        for (const auto& [client, req] : std::exchange(s.waiting, {})) result(client, req, false, s.why);
+        continue;
+      }
+      open_stream(raw);
+    }
+  }
+
+  // A message of the stream mailbox: a sample goes to the stream's clients; an ERROR
+  // (the producer left ENABLED, its host was lost) or the end of a replay's stream
+  // ends the subscription until maintain_streams() takes it up again.
+  void stream_sample(const tims::Mailbox::Received& got, std::span<const std::byte> buf) {
+    const uint32_t raw = got.header.source().component().raw();
+    const auto it = streams.find(raw);
+    if (it == streams.end()) return;  // unsubscribed: its STOP_CONT_DATA is on the way
+    Stream& s = it->second;
+    const auto body = buf.subspan(sizeof(tims::MessageHeader), got.length - sizeof(tims::MessageHeader));
+    if (got.header.type == msg::kError || got.header.type == msg::kEndOfStream) {
+      s.active = false;
+      s.renew_at_ns = 0;
+      s.retry_at_ns = rt::monotonic_ns() + kStreamRetryNs;
+      s.why = address_text(Address(raw)) +
+              (got.header.type == msg::kError ? ": stream ended: " + error_reason(body) : ": end of stream");
       return;
     }
-    std::vector<std::byte> body;
-    const std::string why = encode_command_body(r.body, c->body ? &*c->body : nullptr, body);
-    if (!why.empty()) {
-      result(client, r, false, address_text(a) + ": " + r.command + ": " + why + " (not sent)");
+    if (got.header.type != msg::kData) return;
+    const auto c = components.find(raw);
+    if (c == components.end()) return;
+    auto m = data_message(raw, c->second, got.header, body, true);
+    if (!m) {
+      const std::lock_guard lock(counters_mutex);
+      ++counters.bad_replies;
       return;
     }
-    const tims::ConstBuffer part{body.data(), body.size()};
-    const std::string name = r.command;
-    request(a, c->type, std::span<const tims::ConstBuffer>(&part, body.empty() ? 0 : 1), default_timeout(),
-            [this, client, r, a, name](const Reply* rep) {
-              const bool ok = rep != nullptr && rep->header.type == msg::kOk;
-              result(client, r, ok, ok ? address_text(a) + ": " + name + " done" : failure(rep, name, a));
-            });
+    {
+      const std::lock_guard lock(counters_mutex);
+      ++counters.streamed;
+    }
+    for (const uint64_t client : s.clients) send_to(client, *m);
   }
 
   void all_off_step(uint64_t client, const Request& r, std::shared_ptr<std::vector<Address>> order, std::size_t i,
@@ -1464,6 +1655,11 @@ struct Backend::Impl {
         for (auto& [s, robot] : robots) {
           if (robot.joystick_owner == c) stop_joystick(s);
         }
+        std::vector<uint32_t> idle;
+        for (auto& [raw, st] : streams) {
+          if (st.clients.erase(c) > 0 && st.clients.empty()) idle.push_back(raw);
+        }
+        for (const uint32_t raw : idle) stop_stream(raw);
       }
       for (auto& [client, req] : work) handle(client, req);
       check_dead_man();
@@ -1483,6 +1679,7 @@ struct Backend::Impl {
           poll_latency();
         }
         poll_data(round);
+        maintain_streams();
         poll_maps();
         std::string snapshot = components_message();
         {
@@ -1496,265 +1693,14 @@ struct Backend::Impl {
     }
   }
 
-  void run_gdos() {
-    std::unique_ptr<tims::GdosSubscriber> sub;
-    const std::string url = config.gdos_url.empty() ? config.lcm_url : config.gdos_url;
-    const std::string channel = config.gdos_channel.empty() ? tims::kGdosChannel : config.gdos_channel;
-    try {
-      // A keyed network's log is signed: the same key file verifies it (as `gdos --key-file`).
-      sub = std::make_unique<tims::GdosSubscriber>(url, channel, true, "rack-gui",
-                                                   url == config.lcm_url ? config.key_file : std::string());
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "rack-gui: GDOS: %s\n", e.what());
-      broadcast(dump(json{{"type", "notice"}, {"level", "error"}, {"text", std::string("GDOS: ") + e.what()}}));
-      return;
-    }
-    while (running.load()) {
-      std::vector<std::string> lines;
-      try {
-        sub->poll(100, [&](const tims::GdosRecord& r) {
-          std::string name = r.name;
-          if (name.empty()) name = sub->announced_name(r.source);
-          lines.push_back(gdos_view::json_line(r, name));
-        });
-      } catch (const std::exception& e) {
-        std::fprintf(stderr, "rack-gui: GDOS: %s\n", e.what());
-      }
-      const std::string w = sub->take_warnings();
-      if (!w.empty()) broadcast(dump(json{{"type", "notice"}, {"level", "warning"}, {"text", "GDOS: " + w}}));
-      if (lines.empty()) continue;
-      {
-        const std::lock_guard lock(greet_mutex);
-        for (const auto& l : lines) {
-          recent_log.push_back(l);
-          if (recent_log.size() > kRecentLog) recent_log.pop_front();
-        }
-      }
-      broadcast(gdos_message(lines.begin(), lines.end()));
-    }
-  }
-
-  // Every 2 s: the reports that were added to a report file since the last look are
-  // symbolized, and only those (rackd appends; a file of 1830 reports took 32 s to
-  // symbolize again whenever one was added). The new part goes to rack-backtrace with
-  // the file's header and module lines and the old reports blanked out, so its
-  // "file:line" references stay those of the real file. A report still being written
-  // (no `end` line yet) waits for the next look; one that stays incomplete for a whole
-  // look is passed on as it is (rack-backtrace then says it is truncated).
-  struct ReportFileState {
-    std::uintmax_t size = 0;
-    std::filesystem::file_time_type mtime;
-    std::size_t done = 0;    // bytes symbolized so far (whole lines)
-    bool tail_seen = false;  // an incomplete tail was there at the last look
-  };
-  void run_reports() {
-    std::map<std::string, ReportFileState> seen;
-    bool warned = false;
-    while (running.load()) {
-      std::error_code ec;
-      std::vector<std::filesystem::path> files;
-      for (std::filesystem::directory_iterator it(config.reports_dir, ec), end; !ec && it != end; it.increment(ec)) {
-        const auto name = it->path().filename().string();
-        if (name.rfind("rackd-", 0) == 0 && it->path().extension() == ".report") files.push_back(it->path());
-      }
-      if (ec && !warned && ec != std::errc::no_such_file_or_directory) {
-        std::fprintf(stderr, "rack-gui: reports: %s: %s\n", config.reports_dir.c_str(), ec.message().c_str());
-        warned = true;
-      }
-      bool changed = false;
-      for (const auto& f : files) {
-        if (!running.load()) break;
-        std::error_code e1, e2;
-        const auto size = std::filesystem::file_size(f, e1);
-        const auto mtime = std::filesystem::last_write_time(f, e2);
-        if (e1 || e2) continue;
-        auto& st = seen[f.string()];
-        const bool same = st.size == size && st.mtime == mtime;
-        if (same && (st.done >= size || !st.tail_seen)) {
-          if (st.done < size) st.tail_seen = true;  // complete it at the next look if it stays so
-          continue;
-        }
-        if (size < st.done) {  // cut or replaced: start again
-          st = ReportFileState{};
-          const std::lock_guard lock(greet_mutex);
-          report_texts.erase(f.string());
-        }
-        const bool flush_tail = same && st.tail_seen;
-        st.size = size;
-        st.mtime = mtime;
-        const std::size_t before = st.done;
-        const auto t0 = std::chrono::steady_clock::now();
-        const std::string added = symbolize_new(f.string(), st, flush_tail);
-        if (added.empty()) continue;
-        const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        std::fprintf(stderr, "rack-gui: reports: %s: bytes %zu..%zu symbolized in %.2f s\n", f.string().c_str(), before,
-                     st.done, took);
-        const std::lock_guard lock(greet_mutex);
-        std::string& text = report_texts[f.string()];
-        text += added;
-        if (text.size() > kMaxReportText) {
-          std::size_t cut = text.size() - kMaxReportText;
-          cut = text.find('\n', cut);
-          text = "(older reports left out here: rack-backtrace " + f.string() + " shows them all)\n" +
-                 (cut == std::string::npos ? std::string() : text.substr(cut + 1));
-        }
-        changed = true;
-      }
-      if (changed) broadcast(reports_message());
-      for (int i = 0; i < 20 && running.load(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-  }
-  static constexpr std::size_t kMaxReportText = 256 * 1024;  // per file: the newest reports
-
-  // The part of `file` after st.done up to its last complete report (or to its end
-  // when `flush_tail`), symbolized; st.done moves past it. "" when nothing new.
-  std::string symbolize_new(const std::string& file, ReportFileState& st, bool flush_tail) {
-    std::string bytes;
-    {
-      std::FILE* in = std::fopen(file.c_str(), "rb");
-      if (in == nullptr) return "";
-      char buf[65536];
-      std::size_t n = 0;
-      while ((n = std::fread(buf, 1, sizeof buf, in)) > 0 && bytes.size() < (64u << 20)) bytes.append(buf, n);
-      std::fclose(in);
-    }
-    if (bytes.size() <= st.done) return "";
-    // The end of the last complete report ("end N" line) after st.done.
-    std::size_t cut = st.done;
-    for (std::size_t at = st.done; at < bytes.size();) {
-      const auto nl = bytes.find('\n', at);
-      if (nl == std::string::npos) break;
-      if (bytes.compare(at, 4, "end ") == 0) cut = nl + 1;
-      at = nl + 1;
-    }
-    if (flush_tail) cut = bytes.size();
-    st.tail_seen = cut < bytes.size();
-    if (cut == st.done) return "";
-    // The header and module lines of the part already done, its other lines blank.
-    std::string input;
-    input.reserve(cut);
-    for (std::size_t at = 0; at < st.done;) {
-      auto nl = bytes.find('\n', at);
-      if (nl == std::string::npos || nl >= st.done) nl = st.done;
-      if (at == 0 || bytes.compare(at, 7, "module ") == 0) input.append(bytes, at, nl - at);
-      input += '\n';
-      at = nl + 1;
-    }
-    input.append(bytes, st.done, cut - st.done);
-    st.done = cut;
-    char tmp[] = "/tmp/rack-gui-report-XXXXXX";
-    const int fd = mkstemp(tmp);
-    if (fd < 0) return "rack-gui: cannot write a temporary file: " + std::string(std::strerror(errno)) + "\n";
-    bool written = true;
-    for (std::size_t off = 0; off < input.size();) {
-      const ssize_t w = ::write(fd, input.data() + off, input.size() - off);
-      if (w <= 0) {
-        written = false;
-        break;
-      }
-      off += static_cast<std::size_t>(w);
-    }
-    ::close(fd);
-    std::string out = written ? symbolize(tmp) : "rack-gui: cannot write a temporary file\n";
-    ::unlink(tmp);
-    // Its name in rack-backtrace's text is the real file's.
-    const std::string t = tmp;
-    for (auto at = out.find(t); at != std::string::npos; at = out.find(t, at + file.size()))
-      out.replace(at, t.size(), file);
-    return out;
-  }
-
-  std::string backtrace_program() const {
-    if (!config.backtrace_path.empty()) return config.backtrace_path;
-    std::error_code ec;
-    const auto self = std::filesystem::read_symlink("/proc/self/exe", ec).parent_path();
-    // Installed: beside rack-gui; in a build tree: tools/rack-backtrace next to tools/gui/.
-    for (const auto& candidate : {self / "rack-backtrace", self.parent_path() / "rack-backtrace"}) {
-      if (!ec && access(candidate.c_str(), X_OK) == 0) return candidate.string();
-    }
-    return "rack-backtrace";  // on PATH
-  }
-
-  // rack-backtrace FILE, its output (and errors), at most kMaxReportText. Its own
-  // process, read with a 100 ms poll: stop() ends it (SIGKILL) instead of waiting for
-  // it, so rack-gui exits promptly while a large file is being symbolized.
-  std::string symbolize(const std::string& file) const {
-    const std::string program = backtrace_program();
-    int pipe_fd[2];
-    if (pipe(pipe_fd) != 0) return "cannot run rack-backtrace: " + std::string(std::strerror(errno)) + "\n";
-    const pid_t pid = fork();
-    if (pid < 0) {
-      ::close(pipe_fd[0]);
-      ::close(pipe_fd[1]);
-      return "cannot run rack-backtrace: " + std::string(std::strerror(errno)) + "\n";
-    }
-    if (pid == 0) {
-      ::dup2(pipe_fd[1], 1);
-      ::dup2(pipe_fd[1], 2);
-      ::close(pipe_fd[0]);
-      ::close(pipe_fd[1]);
-      const char* argv[] = {program.c_str(), file.c_str(), nullptr};
-      ::execvp(argv[0], const_cast<char* const*>(argv));  // NOLINT: execvp's signature
-      std::fprintf(stderr, "cannot run %s: %s\n", program.c_str(), std::strerror(errno));
-      ::_exit(127);
-    }
-    ::close(pipe_fd[1]);
-    std::string out;
-    bool stopped = false;
-    for (;;) {
-      if (!running.load()) {
-        ::kill(pid, SIGKILL);
-        stopped = true;
-        break;
-      }
-      pollfd p{pipe_fd[0], POLLIN, 0};
-      const int ready = ::poll(&p, 1, 100);
-      if (ready < 0 && errno != EINTR) break;
-      if (ready <= 0) continue;
-      char buf[4096];
-      const ssize_t n = ::read(pipe_fd[0], buf, sizeof buf);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) break;
-      if (out.size() < kMaxReportText) out.append(buf, static_cast<std::size_t>(n));
-    }
-    ::close(pipe_fd[0]);
-    int status = 0;
-    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-    }
-    if (stopped) return "";
-    if (status != 0 && out.empty()) out = "rack-backtrace failed (status " + std::to_string(status) + ")\n";
-    return out;
-  }
-
-  std::string reports_message() {
-    json list = json::array();
-    const std::lock_guard lock(greet_mutex);
-    for (const auto& [file, text] : report_texts) list.push_back({{"file", file}, {"text", text}});
-    return dump(json{{"type", "reports"}, {"dir", config.reports_dir}, {"reports", list}});
-  }
-
-  template <typename It>
-  static std::string gdos_message(It first, It last) {
-    std::string m = "{\"type\":\"gdos\",\"records\":[";
-    for (It it = first; it != last; ++it) {
-      if (it != first) m += ',';
-      m += *it;
-    }
-    return m + "]}";
-  }
-
   void greet(uint64_t client) {
     send_to(client, dump(json{{"type", "hello"}, {"version", 1}, {"lcm", config.lcm_url}}));
     const std::lock_guard lock(greet_mutex);
     if (!last_components.empty()) send_to(client, last_components);
     for (const auto& [k, m] : class_messages) send_to(client, m);
     for (const auto& [s, m] : map_messages) send_to(client, m);
-    if (!recent_log.empty()) send_to(client, gdos_message(recent_log.begin(), recent_log.end()));
-    if (!report_texts.empty()) {
-      json list = json::array();
-      for (const auto& [file, text] : report_texts) list.push_back({{"file", file}, {"text", text}});
-      send_to(client, dump(json{{"type", "reports"}, {"dir", config.reports_dir}, {"reports", list}}));
-    }
+    if (std::string g = gdos.snapshot(); !g.empty()) send_to(client, std::move(g));
+    if (std::string r = reports.snapshot(); !r.empty()) send_to(client, std::move(r));
   }
 
   BackendConfig config;
@@ -1765,12 +1711,22 @@ struct Backend::Impl {
   tims::ToolAddressClaim address_claim;
   tims::Mailbox reply_mailbox;
   tims::Mailbox image_mailbox;
+  tims::Mailbox stream_mailbox;        // the samples of subscribed streams (mailbox 2)
+  tims::Mailbox small_stream_mailbox;  // their small samples (mailbox 3)
   tims::Endpoint endpoint;
   tims::LcmTransport transport;
   std::vector<std::byte> buffer;
   std::vector<std::byte> image_buffer;
   std::atomic<bool> running{false};
-  std::thread worker, gdos_thread, reports_thread;
+  std::thread worker;
+  // Every host's log, on a thread of its own (gdos_relay.h). A keyed network's log is
+  // signed: the same key file verifies it.
+  GdosRelay gdos{config.gdos_url.empty() ? config.lcm_url : config.gdos_url,
+                 config.gdos_channel.empty() ? std::string(tims::kGdosChannel) : config.gdos_channel,
+                 config.gdos_url.empty() || config.gdos_url == config.lcm_url ? config.key_file : std::string(),
+                 [this](std::string m) { broadcast(std::move(m)); }};
+  // The report files, symbolized on a thread of its own (report_watcher.h).
+  ReportWatcher reports{config.reports_dir, config.backtrace_path, [this](std::string m) { broadcast(std::move(m)); }};
 
   // Worker thread only.
   std::vector<Pending> pending;
@@ -1781,17 +1737,16 @@ struct Backend::Impl {
       deferred;  // worker thread only (defer())  // get_class before it is known
   std::map<std::string, Host> hosts;
   std::map<uint8_t, Robot> robots;
+  std::map<uint32_t, Stream> streams;  // by component address ("subscribe")
 
   std::mutex queue_mutex;  // server thread -> worker
   std::deque<std::pair<uint64_t, Request>> queue;
   std::vector<uint64_t> closed_clients;
 
-  std::mutex greet_mutex;  // worker and GDOS thread -> server thread (new clients)
+  std::mutex greet_mutex;  // worker thread -> server thread (new clients)
   std::string last_components;
   std::map<uint8_t, std::string> map_messages;
   std::map<uint32_t, std::string> class_messages;  // "class" messages by system and class id
-  std::deque<std::string> recent_log;
-  std::map<std::string, std::string> report_texts;  // report file -> rack-backtrace's output
 
   mutable std::mutex counters_mutex;
   Counters counters;
@@ -1837,6 +1792,9 @@ void Backend::submit(uint64_t client, std::string_view text) noexcept {
       const std::lock_guard lock(impl_->queue_mutex);
       if (impl_->queue.size() < kMaxQueuedRequests) {
         impl_->queue.emplace_back(client, std::get<Request>(std::move(parsed)));
+        // The worker waits for replies up to 10 ms at a time: woken, it takes the
+        // request now (a player's PUBLISH after PUBLISH need not wait that out).
+        impl_->reply_mailbox.wake();
         return;
       }
     }
@@ -1867,8 +1825,16 @@ void Backend::client_closed(uint64_t client) {
 void Backend::greet(uint64_t client) { impl_->greet(client); }
 
 Backend::Counters Backend::counters() const {
-  const std::lock_guard lock(impl_->counters_mutex);
-  return impl_->counters;
+  Counters c;
+  {
+    const std::lock_guard lock(impl_->counters_mutex);
+    c = impl_->counters;
+  }
+  for (const tims::Mailbox* m : {&impl_->stream_mailbox, &impl_->small_stream_mailbox}) {
+    const tims::MailboxCounters mc = m->counters();
+    c.stream_lost += mc.refused + mc.dropped + mc.too_large;
+  }
+  return c;
 }
 
 }  // namespace rack::gui
