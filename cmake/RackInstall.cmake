@@ -1,5 +1,6 @@
 # Everything `cmake --install` and `cpack` do (issue 19, item 5), in one place:
-#   bin/            rackd, rackctl, gdos, rack-gui, rack-backtrace, rack-devsim
+#   bin/            rackd, rackctl, gdos, rack-gui, rack-backtrace, rack-devsim,
+#                   rack-foxglove (a shell script: node on share/rack/foxglove)
 #   include/rack/   the public headers (rt, tims, client, core, interfaces)
 #   lib/            the libraries (rack::rt, rack::tims, rack::client, rack::core,
 #                   rack::interfaces)
@@ -9,10 +10,12 @@
 #   share/rack/configs/      the commented example host files
 #   share/rack/examples/     examples/out_of_tree_class
 #   share/rack-gui/web/      rack-gui's front end (when built: tools/gui/web, npm run build)
+#   share/rack/foxglove/     rack-foxglove (tools/foxglove: the scripts and their npm
+#                            packages, when npm ci ran); bin/rack-foxglove runs it with node
 #   lib/systemd/system/      rackd@.service (one host file per instance: /etc/rack/<i>.yaml)
 #   share/doc/rack_rt/       README.md
 # Install components: Runtime (programs, plug-ins, unit, configs), Development (headers,
-# libraries, CMake package, examples), Gui (rack-gui and its front end).
+# libraries, CMake package, examples), Gui (rack-gui and its front end, rack-foxglove).
 # Included at the end of the top CMakeLists.txt, after every target exists.
 include(CMakePackageConfigHelpers)
 
@@ -28,6 +31,21 @@ install(TARGETS rack-gui RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT G
 # The built front end: rack-gui serves <prefix>/share/rack-gui/web when the source
 # tree's web/dist is not there (OPTIONAL: absent until npm built it).
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/tools/gui/web/dist/ DESTINATION ${CMAKE_INSTALL_DATADIR}/rack-gui/web
+        COMPONENT Gui OPTIONAL)
+# rack-foxglove (Gui): the scripts, their lock file and the npm packages `npm ci` put in
+# tools/foxglove/node_modules (OPTIONAL: absent until scripts/setup.sh ran; the
+# installed bin/rack-foxglove then says so), and bin/rack-foxglove, which finds them
+# relative to itself (a relocated tree or a package works).
+set(RACK_FOXGLOVE_SHARE ${CMAKE_INSTALL_DATADIR}/rack/foxglove)
+file(RELATIVE_PATH RACK_FOXGLOVE_FROM_BIN ${CMAKE_INSTALL_PREFIX}/${CMAKE_INSTALL_BINDIR}
+     ${CMAKE_INSTALL_PREFIX}/${RACK_FOXGLOVE_SHARE})
+configure_file(${PROJECT_SOURCE_DIR}/tools/foxglove/rack-foxglove.sh.in ${PROJECT_BINARY_DIR}/rack-foxglove @ONLY)
+install(PROGRAMS ${PROJECT_BINARY_DIR}/rack-foxglove DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT Gui)
+install(FILES ${PROJECT_SOURCE_DIR}/tools/foxglove/rack-foxglove.mjs ${PROJECT_SOURCE_DIR}/tools/foxglove/package.json
+              ${PROJECT_SOURCE_DIR}/tools/foxglove/package-lock.json
+        DESTINATION ${RACK_FOXGLOVE_SHARE} COMPONENT Gui)
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/tools/foxglove/lib DESTINATION ${RACK_FOXGLOVE_SHARE} COMPONENT Gui)
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/tools/foxglove/node_modules DESTINATION ${RACK_FOXGLOVE_SHARE}
         COMPONENT Gui OPTIONAL)
 
 # Plug-ins: every target in RACK_PLUGIN_TARGETS (rack_add_plugin targets of the tree).

@@ -19,7 +19,8 @@ set(CPACK_GENERATOR DEB)
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_SECTION misc)
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
+# nodejs: rack-foxglove (the Foxglove bridge, MCAP recorder and player) runs on node.
 set(CPACK_DEBIAN_PACKAGE_RECOMMENDS
-    "cmake, g++, liblcm-dev, libzstd-dev, libsodium-dev, libyaml-dev, libyaml-cpp-dev, pkg-config")
+    "cmake, g++, liblcm-dev, libzstd-dev, libsodium-dev, libyaml-dev, libyaml-cpp-dev, pkg-config, nodejs")
 set(CPACK_DEBIAN_PACKAGE_SUGGESTS "rt-tests, can-utils")
 include(CPack)

@@ -18,8 +18,13 @@
 // previous sample's or whose body has the wrong size is rejected as malformed and
 // counted (GET_STATS), and the component keeps running.
 //
-// Classes: Scan2dPlayback (Scan2D: what MCL localises on; the scans carry the odometry
-// at their time, so no Odometry or Chassis is needed beside them).
+// Classes:
+//   - Scan2dPlayback (Scan2D: what MCL localises on; the scans carry the odometry at
+//     their time, so no Odometry or Chassis is needed beside them);
+//   - LadarPlayback and OdometryPlayback (Ladar, Odometry): the sensor and the motion
+//     as recorded at their full rate, so that a live Scan2D builds the scans (holding
+//     each until the played odometry at its time has come) and MCL runs its motion
+//     model on the recorded odometry (configs/replay_mcap_mcl.yaml).
 //
 // Real-time contract: command() is RT-safe (the sample is copied into a member; no
 // allocation); loop() does nothing.
@@ -70,5 +75,7 @@ class Playback : public DataComponent<T> {
 };
 
 class Scan2dPlayback final : public Playback<interfaces::Scan2dData> {};
+class LadarPlayback final : public Playback<interfaces::LadarData> {};
+class OdometryPlayback final : public Playback<interfaces::OdometryData> {};
 
 }  // namespace rack::components

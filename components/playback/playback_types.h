@@ -40,4 +40,16 @@ inline constexpr CommandInfo kScan2dPlaybackCommands[] = {
     {"PUBLISH", kPlaybackPublish, &kScan2dPlaybackBody,
      "publish this sample (time_ns as recorded, then the Scan2D fields) as if the recorded producer had"}};
 
+inline constexpr DataTypeInfo kLadarPlaybackBody = data_type_info<PlaybackSample<interfaces::LadarData>>(
+    "LadarPlaybackSample");
+inline constexpr CommandInfo kLadarPlaybackCommands[] = {
+    {"PUBLISH", kPlaybackPublish, &kLadarPlaybackBody,
+     "publish this sample (time_ns as recorded, then the Ladar fields) as if the recorded producer had"}};
+
+inline constexpr DataTypeInfo kOdometryPlaybackBody = data_type_info<PlaybackSample<interfaces::OdometryData>>(
+    "OdometryPlaybackSample");
+inline constexpr CommandInfo kOdometryPlaybackCommands[] = {
+    {"PUBLISH", kPlaybackPublish, &kOdometryPlaybackBody,
+     "publish this sample (time_ns as recorded, then the Odometry fields) as if the recorded producer had"}};
+
 }  // namespace rack::components

@@ -139,7 +139,12 @@ void check_request(const gui::Request& r) {
     case gui::Op::kAllOff:
     case gui::Op::kJoystickRelease:
     case gui::Op::kFollowPath: break;
-    case gui::Op::kGetClass: GUI_WS_CHECK(r.component.mailbox() == 0); break;
+    case gui::Op::kGetClass:
+    case gui::Op::kUnsubscribe: GUI_WS_CHECK(r.component.mailbox() == 0); break;
+    case gui::Op::kSubscribe:
+      GUI_WS_CHECK(r.component.mailbox() == 0);
+      GUI_WS_CHECK(r.period_ms >= 0.0 && r.period_ms <= gui::kMaxStreamPeriodMs);
+      break;
     case gui::Op::kCommand:
       GUI_WS_CHECK(r.component.mailbox() == 0);
       GUI_WS_CHECK(!r.command_name.empty() && r.command_name.size() <= gui::kMaxFieldName);

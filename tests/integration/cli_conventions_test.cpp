@@ -228,6 +228,29 @@ TEST_F(CliTest, CompletionOffersEveryOptionOfEachToolsHelp) {
   }
 }
 
+// rack-foxglove (tools/foxglove, node): its completion against its --help, the
+// bridge's options and play's.
+TEST_F(CliTest, CompletionOffersEveryOptionOfRackFoxglovesHelp) {
+  if (run({"/bin/bash", "-c", "true"}, 30s).exit_code != 0) GTEST_SKIP() << "no /bin/bash";
+  const auto node = find_program("node");
+  if (!node) GTEST_SKIP() << "node is not installed (Debian: apt-get install nodejs); scripts/setup.sh installs it";
+  const std::string script = std::string(RACK_SOURCE_DIR) + "/tools/foxglove/rack-foxglove.mjs";
+  const RunResult help = run({*node, script, "--help"}, 30s);
+  ASSERT_EQ(help.exit_code, 0) << help.describe() << " (npm ci in tools/foxglove: scripts/setup.sh)";
+  std::set<std::string> offered = complete("rack-foxglove --");
+  const auto play = complete("rack-foxglove play rec.mcap --");
+  offered.insert(play.begin(), play.end());
+  EXPECT_EQ(complete("rack-foxglove pl"), (std::set<std::string>{"play"}));
+  EXPECT_EQ(complete("rack-foxglove --compression l"), (std::set<std::string>{"lz4"}));
+  const auto options = long_options(help.out);
+  EXPECT_GE(options.size(), 15u) << help.out;
+  for (const auto& opt : options) EXPECT_EQ(offered.count(opt), 1u) << "completion does not offer " << opt;
+  for (const auto& opt : offered) {
+    EXPECT_NE(help.out.find(opt), std::string::npos)
+        << "completion offers " << opt << ", which --help does not mention";
+  }
+}
+
 TEST_F(CliTest, CompletionOfRackctlCommandsAndNames) {
   EXPECT_EQ(complete("rackctl h"), (std::set<std::string>{"hosts", "help", "hz"}));
   EXPECT_EQ(complete("rackctl help st"), (std::set<std::string>{"status"}));

@@ -5,7 +5,10 @@
 //     the expected channels, calls a service and reads and sets parameters
 //     (tools/foxglove/test/live_check.mjs);
 //   - the recorder's MCAP file is read record by record and through its index by the
-//     npm MCAP reader (@mcap/core; tools/foxglove/test/mcap_check.mjs).
+//     npm MCAP reader (@mcap/core; tools/foxglove/test/mcap_check.mjs), with zstd and
+//     lz4 chunks, and holds every sample of the streams it recorded;
+//   - a recording played back into MCL gives the recorded localisation;
+//   - rack-foxglove installed by `cmake --install` runs from the installed tree.
 //
 // Skips (with the reason) only when node is not installed; a missing `npm ci` in
 // tools/foxglove is a failure (scripts/setup.sh does it).
@@ -34,6 +37,8 @@ const std::string kGui = RACK_GUI_PATH;
 const std::string kRackctl = RACK_RACKCTL_PATH;
 const std::string kConfigs = RACK_CONFIGS_DIR;
 const std::string kFoxglove = RACK_FOXGLOVE_DIR;
+const std::string kCmake = RACK_CMAKE;
+const std::string kBinaryDir = RACK_BINARY_DIR;
 
 // The text after `prefix` up to the next space in `text` ("" when absent).
 std::string word_after(const std::string& text, const std::string& prefix) {
@@ -140,27 +145,14 @@ TEST_F(FoxgloveTest, RecorderWritesMcapThatTheMcapReaderChecksRecordByRecord) {
   ASSERT_EQ(rec.wait_exit(20s), std::optional<int>(0)) << rec.err();
   EXPECT_NE(rec.err().find("rack-foxglove: wrote "), std::string::npos) << rec.err();
 
-  const RunResult r = run({*node_,
-                           kFoxglove + "/test/mcap_check.mjs",
-                           file,
-                           "--compression",
-                           "zstd",
-                           "--min-messages",
-                           "50",
-                           "--topic",
-                           "/rack/0/map",
-                           "--topic",
-                           "/rack/0/ladar/scan",
-                           "--topic",
-                           "/rack/0/scan2d/points",
-                           "--topic",
-                           "/rack/0/mcl/pose",
-                           "--topic",
-                           "/rack/0/mcl/particles",
-                           "--topic",
-                           "/rack/0/chassis",
-                           "--topic",
-                           "/rack/gdos"},
+  const RunResult r = run({*node_, kFoxglove + "/test/mcap_check.mjs", file, "--compression", "zstd", "--min-messages",
+                           "50", "--topic", "/rack/0/map", "--topic", "/rack/0/ladar/scan", "--topic",
+                           "/rack/0/scan2d/points", "--topic", "/rack/0/mcl/pose", "--topic", "/rack/0/mcl/particles",
+                           "--topic", "/rack/0/chassis", "--topic", "/rack/gdos",
+                           // Every sample (sequence numbers without a gap, count = rate x
+                           // time): the chassis at 100 Hz, the ladar and scan2d at 25 Hz.
+                           "--every-sample", "/rack/0/chassis=100", "--every-sample", "/rack/0/ladar=25",
+                           "--every-sample", "/rack/0/scan2d=25"},
                           30s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe();
@@ -173,22 +165,31 @@ TEST_F(FoxgloveTest, RecorderWritesMcapThatTheMcapReaderChecksRecordByRecord) {
   EXPECT_EQ(cut.exit_code, 0) << cut.describe();
 }
 
-// Replay (issue 24, item 3): sim_mcl's scans recorded as MCAP, played back with
-// `rack-foxglove play` into a host where Scan2dPlayback stands in for Scan2D
-// (configs/replay_mcap_mcl.yaml); MCL there, initialised at the recorded pose, gives
-// the recorded localisation: every replayed estimate within 0.15 m and 0.05 rad of the
-// recorded MCL pose at the same scan time (measured: mean 0.014 m, max 0.046 m, max
-// 0.006 rad on an idle machine).
+// Replay (issue 24): sim_mcl's laser scans and odometry recorded as MCAP at their full
+// rate (lz4 chunks; the npm MCAP reader checks first that every sample is there),
+// played back with `rack-foxglove play` into a host where LadarPlayback and
+// OdometryPlayback stand in for the ladar and the odometry (configs/
+// replay_mcap_mcl.yaml): Scan2D builds the scans there with the recorded odometry at
+// their times, and MCL, initialised at the recorded pose, runs its motion model on it
+// and gives the recorded localisation: every replayed estimate within 0.15 m and
+// 0.05 rad of the recorded MCL pose at the same scan time.
 TEST_F(FoxgloveTest, ReplayIntoMclGivesTheRecordedLocalisation) {
   const std::string recorded = (dir_.path() / "sim.mcap").string();
   {
     const std::string gui_ws = start_robot_and_gui();
     const RunResult rec = run({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--no-server", "--record",
-                               recorded, "--topics", "^/rack/0/(scan2d|mcl|chassis)$", "--duration", "8"},
+                               recorded, "--topics", "^/rack/0/(ladar|odometry|mcl|chassis)$", "--compression", "lz4",
+                               "--duration", "8"},
                               30s);
     ASSERT_EQ(rec.exit_code, 0) << rec.describe();
     stop_robot_and_gui();
   }
+  const RunResult check = run({*node_, kFoxglove + "/test/mcap_check.mjs", recorded, "--compression", "lz4",
+                               "--min-messages", "100", "--every-sample", "/rack/0/ladar=25", "--every-sample",
+                               "/rack/0/odometry=100"},
+                              30s);
+  std::printf("%s", check.out.c_str());
+  ASSERT_EQ(check.exit_code, 0) << check.describe();
   const std::string gui_ws = start_robot_and_gui("replay_mcap_mcl.yaml");
   const std::string replayed = (dir_.path() / "replay.mcap").string();
   Process rec({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--no-server", "--record", replayed,
@@ -196,8 +197,8 @@ TEST_F(FoxgloveTest, ReplayIntoMclGivesTheRecordedLocalisation) {
               dir_.path(), "rack-foxglove-record");
   ASSERT_TRUE(rec.wait_for_stderr("rack-foxglove: recording", 15s)) << rec.err();
   const RunResult played = run({*node_, kFoxglove + "/rack-foxglove.mjs", "play", recorded, "--gui", gui_ws, "--topics",
-                                "^/rack/0/scan2d$", "--init-mcl", "mcl", "--speed", "2"},
-                               40s);
+                                "^/rack/0/(ladar|odometry)$", "--init-mcl", "mcl", "--speed", "2"},
+                               60s);
   std::printf("%s", played.err.c_str());
   ASSERT_EQ(played.exit_code, 0) << played.describe();
   EXPECT_NE(played.err.find("0 refused or skipped"), std::string::npos) << played.err;
@@ -210,6 +211,36 @@ TEST_F(FoxgloveTest, ReplayIntoMclGivesTheRecordedLocalisation) {
                           30s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrackd:\n" << rackd_->err();
+}
+
+// Installed (issue 24): `cmake --install` of the Gui component puts bin/rack-foxglove and
+// share/rack/foxglove (scripts and npm packages) in the prefix, with its bash
+// completion; the installed program runs from there (--version names the installed
+// packages, --help), whatever the working directory.
+TEST_F(FoxgloveTest, InstalledTreeRunsRackFoxglove) {
+  const auto prefix = dir_.path() / "prefix";
+  for (const char* component : {"Gui", "Unspecified"}) {
+    const RunResult r = run({kCmake, "--install", kBinaryDir, "--prefix", prefix.string(), "--component", component},
+                            90s);
+    ASSERT_EQ(r.exit_code, 0) << r.describe();
+  }
+  for (const char* file :
+       {"bin/rack-foxglove", "share/rack/foxglove/rack-foxglove.mjs", "share/rack/foxglove/lib/player.mjs",
+        "share/rack/foxglove/node_modules/@mcap/core/package.json",
+        "share/bash-completion/completions/rack-foxglove"}) {
+    EXPECT_TRUE(std::filesystem::exists(prefix / file)) << file;
+  }
+  const RunResult version = run({(prefix / "bin/rack-foxglove").string(), "--version"}, 30s);
+  EXPECT_EQ(version.exit_code, 0) << version.describe();
+  EXPECT_EQ(version.out.rfind("rack-foxglove ", 0), 0u) << version.out;
+  EXPECT_NE(version.out.find("@mcap/core"), std::string::npos) << version.out;
+  const RunResult help = run({(prefix / "bin/rack-foxglove").string(), "--help"}, 30s);
+  EXPECT_EQ(help.exit_code, 0) << help.describe();
+  EXPECT_NE(help.out.find("usage: rack-foxglove"), std::string::npos) << help.out;
+  // Its own refusal of a bad argument, from the installed scripts.
+  const RunResult bad = run({(prefix / "bin/rack-foxglove").string(), "--compression", "gzip", "--gui", "ws://x"}, 30s);
+  EXPECT_EQ(bad.exit_code, 1) << bad.describe();
+  EXPECT_NE(bad.err.find("--compression gzip"), std::string::npos) << bad.err;
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "rack/client/deployment.h"
+#include "rack/components/class_ids.h"
 #include "rack/core/wire.h"
 #include "rack/tims/address.h"
 
@@ -274,7 +275,7 @@ components:
   r.data_task = 1;
   r.count = r.total = 2;
   r.period_ns = 10'000'000;
-  r.mailbox[0] = tims::Address::make(0, tims::classes::kMonitor, 0, 3).raw();
+  r.mailbox[0] = tims::Address::make(0, class_ids::kMonitor, 0, 3).raw();
   r.factor[0] = 10;
   r.listener_period_ns[0] = 100'000'000;
   r.mailbox[1] = tims::Address::make(255, tims::classes::kTool, 4, 1).raw();

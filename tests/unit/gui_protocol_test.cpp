@@ -384,6 +384,27 @@ TEST(GuiProtocolTest, CommandOpTakesANameAndAnObjectBody) {
             std::string::npos);
 }
 
+TEST(GuiProtocolTest, SubscribeTakesAComponentAndAnOptionalPeriod) {
+  auto r = ok(R"j({"op":"subscribe","component":"Scan2D(0/0)","id":4})j");
+  EXPECT_EQ(r.op, Op::kSubscribe);
+  EXPECT_EQ(r.component, tims::Address::make(0, class_ids::kScan2d, 0));
+  EXPECT_EQ(r.period_ms, 0.0);  // every sample
+  r = ok(R"j({"op":"subscribe","component":"Chassis(1/0)","period_ms":100})j");
+  EXPECT_EQ(r.period_ms, 100.0);
+  r = ok(R"j({"op":"unsubscribe","component":"Chassis(1/0)"})j");
+  EXPECT_EQ(r.op, Op::kUnsubscribe);
+  EXPECT_EQ(r.component, tims::Address::make(1, class_ids::kChassis, 0));
+  EXPECT_NE(refused(R"j({"op":"subscribe","component":"Scan2D(0/0)","period_ms":-1})j").find("period_ms"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"subscribe","component":"Scan2D(0/0)","period_ms":1e9})j").find("period_ms"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"subscribe","component":"Scan2D(0/0)","period_ms":"0"})j").find("expected a number"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"subscribe","period_ms":0})j").find("missing key 'component'"), std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"unsubscribe","component":"Scan2D(0/0)","period_ms":0})j").find("unknown key"),
+            std::string::npos);
+}
+
 TEST(GuiProtocolTest, CommandBodyIsEncodedOnlyWhenEveryFieldFits) {
   TypeDescription t;
   t.name = "Body";

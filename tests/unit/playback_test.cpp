@@ -1,7 +1,8 @@
 // Scan2dPlayback (components/playback) in a real executor: a PUBLISH is published at
 // once with its recorded time and fields; a PUBLISH of the wrong size, with a time not
 // after the previous one's, or while the component is OFF is refused, the malformed
-// ones counted, and the component keeps publishing.
+// ones counted, and the component keeps publishing. LadarPlayback and OdometryPlayback
+// feed a live Scan2D, which builds the scan with the played odometry at its time.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -14,6 +15,8 @@
 namespace rack::test {
 namespace {
 
+using interfaces::LadarData;
+using interfaces::OdometryData;
 using interfaces::Scan2dData;
 namespace msg = tims::msg;
 
@@ -75,6 +78,65 @@ TEST(PlaybackTest, PublishesWhatItIsSentWithTheRecordedTimeAndRefusesTheRest) {
   ASSERT_EQ(next.type, msg::kData);
   std::memcpy(&sh, next.body.data(), sizeof sh);
   EXPECT_EQ(sh.time_ns, body->time_ns);
+}
+
+const char* kPipeline = R"(host: playback-pipeline-test
+system: 0
+components:
+  - name: ladar
+    class: LadarPlayback
+    instance: 0
+    data_task: {period_ms: 40, ring: 8}
+  - name: odometry
+    class: OdometryPlayback
+    instance: 0
+    data_task: {period_ms: 10, ring: 64}
+  - name: scan2d
+    class: Scan2D
+    instance: 0
+    data_task: {timeout_ms: 2000, ring: 8}
+    params:
+      ladar: ladar
+      odometry: odometry
+)";
+
+TEST(PlaybackTest, LadarAndOdometryPlaybackFeedALiveScan2dWithTheOdometryAtTheScansTime) {
+  Watchdog dog;
+  HostUnderTest host(kPipeline);
+  const tims::Address ladar = host.address_of("ladar");
+  const tims::Address odometry = host.address_of("odometry");
+  const tims::Address scan2d = host.address_of("scan2d");
+  ASSERT_EQ(host.call(scan2d, msg::kOn).type, msg::kOk);  // cascading ON: both playbacks
+  ASSERT_TRUE(host.wait_status(ladar, msg::kEnabled));
+  ASSERT_TRUE(host.wait_status(odometry, msg::kEnabled));
+
+  const int64_t t0 = 1'795'652'163'000'000'000;
+  components::PlaybackSample<OdometryData> odo;
+  odo.time_ns = t0;
+  odo.data.x = 1.0;
+  ASSERT_EQ(host.call_with(odometry, components::kPlaybackPublish, odo).type, msg::kOk);
+  // The scan 20 ms later: Scan2D holds it until odometry at or after its time comes.
+  auto scan = std::make_unique<components::PlaybackSample<LadarData>>();
+  scan->time_ns = t0 + 20'000'000;
+  scan->data.max_range = 20.0F;
+  scan->data.start_angle = -0.5F;
+  scan->data.angle_step = 0.5F;
+  scan->data.beam_count = 3;
+  scan->data.range[0] = scan->data.range[1] = scan->data.range[2] = 2.0F;
+  ASSERT_EQ(host.call_with(ladar, components::kPlaybackPublish, *scan).type, msg::kOk);
+  odo.time_ns = t0 + 40'000'000;
+  odo.data.x = 3.0;
+  odo.data.phi = 0.2;
+  ASSERT_EQ(host.call_with(odometry, components::kPlaybackPublish, odo).type, msg::kOk);
+
+  wire::SampleHeader sh;
+  auto out = std::make_unique<Scan2dData>();
+  ASSERT_TRUE(eventually([&] { return host.get_data(scan2d, sh, *out) && sh.time_ns == scan->time_ns; }))
+      << "no scan at the played time";
+  EXPECT_EQ(out->odometry_valid, 1u);
+  EXPECT_NEAR(out->odometry_x, 2.0, 1e-9);  // halfway between the two played poses
+  EXPECT_NEAR(out->odometry_phi, 0.1, 1e-9);
+  EXPECT_EQ(out->point_count, 3u);
 }
 
 }  // namespace

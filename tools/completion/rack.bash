@@ -1,5 +1,5 @@
 # bash completion for RACK-RT's tools: rackd, rackctl, gdos, rack-gui, rack-backtrace,
-# rack-devsim. Installed to share/bash-completion/completions (one link per tool, so
+# rack-devsim, rack-foxglove. Installed to share/bash-completion/completions (one link per tool, so
 # bash-completion loads it on first use); by hand: source tools/completion/rack.bash
 #
 # rackctl completes its commands and options, and component names (NAME) from a quick
@@ -182,9 +182,33 @@ _rack_devsim() {
   esac
 }
 
+_rack_foxglove() {
+  local cur=${COMP_WORDS[COMP_CWORD]} prev=${COMP_WORDS[COMP_CWORD-1]}
+  if ((COMP_CWORD == 1)) && [[ $cur != -* ]]; then
+    _rack_words "play"
+    return
+  fi
+  if [[ ${COMP_WORDS[1]} == play ]]; then
+    case $prev in
+      play) _rack_files '*.mcap'; return ;;
+      --gui|--speed|--topics|--init-mcl|--init-sigma-xy|--init-sigma-phi|--wait) return ;;
+    esac
+    _rack_words "--gui --speed --topics --init-mcl --init-sigma-xy --init-sigma-phi --wait --help"
+    return
+  fi
+  case $prev in
+    --record) _rack_files '*.mcap'; return ;;
+    --compression) _rack_words "zstd lz4 none"; return ;;
+    --gui|--port|--host|--topics|--duration|--period-ms) return ;;
+  esac
+  _rack_words "--gui --port --host --no-server --record --topics --compression --period-ms --polled --duration
+               --help --version"
+}
+
 complete -F _rackd rackd
 complete -F _rackctl rackctl
 complete -F _gdos gdos
 complete -F _rack_gui rack-gui
 complete -F _rack_backtrace rack-backtrace
 complete -F _rack_devsim rack-devsim
+complete -F _rack_foxglove rack-foxglove

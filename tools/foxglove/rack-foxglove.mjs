@@ -8,7 +8,7 @@ import fs from 'node:fs';
 import { WebSocket, WebSocketServer } from 'ws';
 import wsProtocol from '@foxglove/ws-protocol';
 
-import { Converter, kJsonEncoding, kSchemaEncoding, typeSchema } from './lib/convert.mjs';
+import { Converter, kJsonEncoding, kSchemaEncoding, topicsOf, typeSchema } from './lib/convert.mjs';
 import { openMcap, play } from './lib/player.mjs';
 import { Recorder } from './lib/recorder.mjs';
 
@@ -29,7 +29,11 @@ RACK-RT's robots in Foxglove, and recorded as MCAP. Takes everything from rack-g
   --record FILE        record into the MCAP file FILE (chunked, with a summary section)
   --topics REGEX       record only the topics REGEX matches (default: all), e.g.
                        '^/rack/0/(ladar|mcl)|^/rack/gdos'
-  --compression C      chunk compression: zstd (default) or none
+  --compression C      chunk compression: zstd (default), lz4 or none
+  --period-ms P        stream period of the components recorded or subscribed to in
+                       Foxglove (default 0: every sample the component publishes)
+  --polled             no streams: only the samples rack-gui polls (5 Hz for navigation
+                       classes, 1 Hz for the others)
   --duration S         stop after S seconds (default: run until SIGINT or SIGTERM)
   -h, --help           this text
   --version            rack-foxglove's version and its protocol and MCAP libraries'
@@ -52,8 +56,10 @@ Services (JSON): /rack/<system>/<name>/switch {"on":true}, /rack/<system>/all_of
   {"ok":..,"text":..}; a value that does not fit its field is refused, nothing sent.
 Parameters: "<address>.<parameter>", e.g. "Pilot(0/0).vx_max" (get and set).
 
-Data arrive at rack-gui's poll rate (5 Hz for navigation classes, 1 Hz for the others),
-not at every sample: rack-gui asks each component for its newest sample.
+Rates: every component whose channel a Foxglove client subscribes to, and every
+component a recording takes (--topics), is streamed at its full rate (or --period-ms)
+through rack-gui's "subscribe"; the others arrive at rack-gui's poll rate (5 Hz for
+navigation classes, 1 Hz for the others).
 
 play FILE: plays an MCAP recording of rack-foxglove back into a running host (through
 rack-gui): each recorded component channel /rack/<system>/<name> goes to the component
@@ -61,8 +67,8 @@ rack-gui): each recorded component channel /rack/<system>/<name> goes to the com
 one (host file: class Scan2dPlayback where Scan2D was; configs/replay_mcap_mcl.yaml).
 Every sample keeps its recorded time.
   --gui URL            rack-gui's WebSocket on the host's network (required)
-  --speed S            1: as recorded (default); 2: twice as fast; 0: each sample as soon
-                       as the previous one was acknowledged
+  --speed S            1: as recorded (default); 2: twice as fast; 0: as fast as the
+                       host acknowledges (at most 16 samples on the way at once)
   --topics REGEX       play only the channels REGEX matches, and wait until every one of
                        them has its playback component (default: every channel whose
                        component is a playback class)
@@ -78,7 +84,7 @@ when rack-gui cannot be reached, the arguments are wrong or (play) a sample was 
 
 function parseArgs(argv) {
   const o = { gui: '', port: 8765, host: '127.0.0.1', server: true, record: '', topics: null,
-              compression: 'zstd', duration: 0, play: '', speed: 1, initMcl: '', sigmaXy: 0.1, sigmaPhi: 0.05, waitS: 30 };
+              compression: 'zstd', duration: 0, periodMs: 0, polled: false, play: '', speed: 1, initMcl: '', sigmaXy: 0.1, sigmaPhi: 0.05, waitS: 30 };
   const positive = (v, name, min) => {
     const n = Number(v);
     if (!Number.isFinite(n) || n < min) throw new Error(`${name} ${v}: expected a number >= ${min}`);
@@ -116,8 +122,15 @@ function parseArgs(argv) {
       }
       case '--compression':
         o.compression = value(i++, a);
-        if (!['zstd', 'none'].includes(o.compression)) throw new Error(`--compression ${o.compression}: expected zstd or none`);
+        if (!['zstd', 'lz4', 'none'].includes(o.compression)) throw new Error(`--compression ${o.compression}: expected zstd, lz4 or none`);
         break;
+      case '--period-ms': {
+        const v = value(i++, a);
+        o.periodMs = Number(v);
+        if (!Number.isFinite(o.periodMs) || o.periodMs < 0 || o.periodMs > 60000) throw new Error(`--period-ms ${v}: expected 0..60000`);
+        break;
+      }
+      case '--polled': o.polled = true; break;
       case '--duration': {
         const v = value(i++, a);
         o.duration = Number(v);
@@ -203,27 +216,83 @@ class GuiLink {
   }
 }
 
+// The component streams this bridge takes through rack-gui ("subscribe"): each one
+// while anyone wants it (the recorder, a Foxglove channel's subscribers). While a
+// component's stream flows, its polled samples are left out (the stream has them all).
+class Streams {
+  constructor(link, periodMs, enabled, log) {
+    this.link = link;
+    this.periodMs = periodMs;
+    this.enabled = enabled;
+    this.log = log;
+    this.wanted = new Map();  // address -> Set(who)
+    this.lastStream = new Map();  // address -> Date.now() of its last stream sample
+    this.silentMs = Math.max(1000, 2 * periodMs);  // a stream this quiet is taken as not flowing
+  }
+
+  want(address, who) {
+    if (!this.enabled) return;
+    let s = this.wanted.get(address);
+    if (!s) {
+      s = new Set();
+      this.wanted.set(address, s);
+    }
+    const first = s.size === 0;
+    s.add(who);
+    if (first) {
+      this.link.request({ op: 'subscribe', component: address, period_ms: this.periodMs }).then((r) => {
+        if (!r.ok) this.log(`stream of ${address}: ${r.text}`);
+      });
+    }
+  }
+
+  drop(address, who) {
+    const s = this.wanted.get(address);
+    if (!s || !s.delete(who) || s.size > 0) return;
+    this.wanted.delete(address);
+    this.link.request({ op: 'unsubscribe', component: address });
+  }
+
+  // Whether a rack-gui message is passed on: a stream sample always (the producer
+  // sends each once, in order), a polled one while its component's stream is silent.
+  pass(m) {
+    if (m?.type !== 'data' || typeof m.component !== 'string') return true;
+    const now = Date.now();
+    if (m.stream === true) {
+      this.lastStream.set(m.component, now);
+      return true;
+    }
+    return now - (this.lastStream.get(m.component) ?? 0) >= this.silentMs;
+  }
+}
+
 const kObject = (properties, required) => JSON.stringify({ type: 'object', properties, required });
 const kNum = { type: 'number' };
 
 // The Foxglove side: channels advertised as topics first appear, latched messages
 // resent to a new subscriber, services and parameters carried out through rack-gui.
 class Bridge {
-  constructor(server, converter, link) {
+  constructor(server, converter, link, streams) {
     this.server = server;
     this.converter = converter;
     this.link = link;
-    this.channels = new Map();  // topic -> {id, last, latched}
+    this.streams = streams;
+    this.channels = new Map();  // topic -> {id, last, latched, component}
     this.services = new Map();  // service id -> handler(request) -> Promise<result>
     this.serviceNames = new Set();
     this.subscribed = new Set();
     server.on('subscribe', (id) => {
       this.subscribed.add(id);
       for (const c of this.channels.values()) {
-        if (c.id === id && c.latched && c.last) server.sendMessage(id, c.last.time, c.last.payload);
+        if (c.id !== id) continue;
+        if (c.latched && c.last) server.sendMessage(id, c.last.time, c.last.payload);
+        if (c.component) streams.want(c.component, `channel ${id}`);  // every sample from now on
       }
     });
-    server.on('unsubscribe', (id) => this.subscribed.delete(id));
+    server.on('unsubscribe', (id) => {
+      this.subscribed.delete(id);
+      for (const c of this.channels.values()) if (c.id === id && c.component) streams.drop(c.component, `channel ${id}`);
+    });
     server.on('serviceCallRequest', (req, conn) => this.call(req, conn));
     server.on('getParameters', (req, conn) => this.getParameters(req, conn));
     server.on('setParameters', (req, conn) => this.setParameters(req, conn));
@@ -248,7 +317,7 @@ class Bridge {
         topic: item.topic, encoding: kJsonEncoding, schemaName: item.schemaName,
         schema: JSON.stringify(item.schema), schemaEncoding: kSchemaEncoding,
       });
-      c = { id, latched: item.latched === true, last: null };
+      c = { id, latched: item.latched === true, last: null, component: item.component };
       this.channels.set(item.topic, c);
     }
     const payload = new TextEncoder().encode(JSON.stringify(item.message));
@@ -391,19 +460,34 @@ async function main() {
   let wss = null;
   let link = null;
   let lastRejected = 0;
+  let streams = null;
+  const recording = new Set();  // components the recorder streams
   const onMessage = (m) => {
+    if (streams && !streams.pass(m)) return;
     const items = converter.convert(m);
     if (converter.rejected !== lastRejected) {
       lastRejected = converter.rejected;
       console.error(`rack-foxglove: skipped a rack-gui message: ${converter.lastRejection} (${converter.rejected} so far)`);
     }
+    // A component the recorder streams is recorded from its stream only: every sample,
+    // once, in order (a polled sample before the stream flowed would stand apart).
+    const record = recorder && !(m?.type === 'data' && streams?.enabled && recording.has(m.component) && m.stream !== true);
     for (const item of items) {
       if (bridge) bridge.publish(item);
-      if (recorder) recorder.add(item);
+      if (record) recorder.add(item);
     }
     if (bridge && (m?.type === 'components' || m?.type === 'class')) bridge.updateServices();
+    // A recording streams every component whose topics it takes.
+    if (recorder && streams && m?.type === 'components') {
+      for (const c of converter.components.values()) {
+        if (recording.has(c.address) || !topicsOf(c.system, c.name, c.class).some((t) => recorder.wants(t))) continue;
+        recording.add(c.address);
+        streams.want(c.address, 'recorder');
+      }
+    }
   };
   link = new GuiLink(o.gui, onMessage);
+  streams = o.play ? null : new Streams(link, o.periodMs, !o.polled, (t) => console.error(`rack-foxglove: ${t}`));
   try {
     await link.connect();
   } catch (e) {
@@ -430,7 +514,7 @@ async function main() {
       capabilities: ['services', 'parameters'],
       supportedEncodings: [kJsonEncoding],
     });
-    bridge = new Bridge(server, converter, link);
+    bridge = new Bridge(server, converter, link, streams);
     wss = new WebSocketServer({ host: o.host, port: o.port, handleProtocols: (protocols) => server.handleProtocols(protocols) });
     wss.on('connection', (conn, req) => server.handleConnection(conn, `${req.socket.remoteAddress}:${req.socket.remotePort}`));
     await new Promise((resolve, reject) => {

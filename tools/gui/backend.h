@@ -15,17 +15,21 @@
 // told so.
 //
 // A reports thread symbolizes the report files in `reports_dir` with rack-backtrace
-// (a separate process, so libdw's work never delays the robots' state): only the
-// reports appended since its last look, and stop() kills a rack-backtrace still
-// running, so rack-gui exits promptly.
+// (report_watcher.h).
 //
 // Class descriptions (GET_CLASS) are passed to the browsers ("class" messages) for the
 // plots and the command panel; a "command" is encoded from the description as
 // `rackctl send` does; a "trace" runs TRACE_START/TRACE_READ on a host's executor as
 // `rackctl trace` does, its reads deferred to later rounds while the host records.
 //
-// A GDOS thread receives the log of every host (tims::GdosSubscriber) and passes it
-// on in batches; the last records are kept for browsers that connect later.
+// A "subscribe" opens a component's data stream (GET_CONT_DATA into a mailbox of its
+// own, at the producer's rate or a period): every sample goes to the clients that
+// subscribed, as a "data" message with "stream":true (tools/foxglove records them).
+// The subscription is renewed within its lease, taken up again when the producer
+// dropped it and is enabled again, and stopped when its last client leaves.
+//
+// A GDOS thread receives the log of every host and passes it on in batches; the last
+// records are kept for browsers that connect later (gdos_relay.h).
 //
 // Not RT code (a tool). Thread-safety: submit(), client_closed() and
 // snapshot_for_new_client() may be called from any thread; the sink is called from
@@ -100,6 +104,8 @@ class Backend {
     uint64_t requests = 0;                          // TiMS requests sent
     uint64_t timeouts = 0;                          // TiMS requests not answered in time
     uint64_t bad_replies = 0;                       // replies that did not decode (GET_LATENCY), not passed on
+    uint64_t streamed = 0;                          // stream samples passed on ("subscribe")
+    uint64_t stream_lost = 0;                       // stream samples lost: the stream mailboxes were full
   };
   [[nodiscard]] Counters counters() const;
 

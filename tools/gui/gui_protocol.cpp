@@ -18,7 +18,8 @@ using nlohmann::json;
 struct OpSpec {
   const char* name;
   Op op;
-  std::set<std::string> keys;  // required keys besides "op" (and the optional "id")
+  std::set<std::string> keys;      // required keys besides "op" (and the optional "id")
+  std::set<std::string> optional;  // keys that may be left out
 };
 
 const std::vector<OpSpec>& specs() {
@@ -36,6 +37,8 @@ const std::vector<OpSpec>& specs() {
       {"command", Op::kCommand, {"component", "name", "fields"}},
       {"trace", Op::kTrace, {"system", "host", "duration_s"}},
       {"command_json", Op::kCommandJson, {"component", "command", "body"}},
+      {"subscribe", Op::kSubscribe, {"component"}, {"period_ms"}},
+      {"unsubscribe", Op::kUnsubscribe, {"component"}},
   };
   return kSpecs;
 }
@@ -188,7 +191,7 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
   if (spec == nullptr) return ParseError{r.id, "unknown op '" + quote(op_text) + "'", Refusal::kBadOp};
   r.op = spec->op;
   for (const auto& [key, value] : msg.items()) {
-    if (key != "op" && key != "id" && spec->keys.count(key) == 0) {
+    if (key != "op" && key != "id" && spec->keys.count(key) == 0 && spec->optional.count(key) == 0) {
       return ParseError{r.id, std::string(spec->name) + ": unknown key '" + quote(key) + "'", Refusal::kBadKey};
     }
   }
@@ -207,7 +210,15 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
         break;
       }
       case Op::kGetParams:
-      case Op::kGetClass: r.component = component_of(msg); break;
+      case Op::kGetClass:
+      case Op::kUnsubscribe: r.component = component_of(msg); break;
+      case Op::kSubscribe:
+        r.component = component_of(msg);
+        if (msg.contains("period_ms")) {
+          r.period_ms = number(msg, "period_ms", kMaxStreamPeriodMs);
+          if (r.period_ms < 0.0) throw Bad{"key 'period_ms': 0 (every sample) or a period in ms"};
+        }
+        break;
       case Op::kCommand: {
         r.component = component_of(msg);
         const json& n = msg.at("name");

@@ -27,6 +27,13 @@
 //        body's fields by name (a field left out is 0; arrays as JSON arrays, char
 //        arrays as strings), checked against the description's field kinds and ranges
 //        (encode_command_body) before anything is sent
+//   {"op":"subscribe","component":"Scan2D(0/0)","period_ms":0}   the component's data
+//        stream (GET_CONT_DATA): every sample ("period_ms" 0 or left out) or one per
+//        period (0 < period_ms <= kMaxStreamPeriodMs, rounded by the producer to a
+//        multiple of its own), each as a "data" message with "stream":true to the
+//        clients that subscribed (not to the others); kept while the component is
+//        off or gone and taken up again when it is enabled
+//   {"op":"unsubscribe","component":"Scan2D(0/0)"}   ends this client's subscription
 //
 // Anything else is refused with a ParseError saying what and where (a byte offset for
 // JSON syntax, the key otherwise) and why (Refusal, which the server counts); the
@@ -77,6 +84,8 @@ enum class Op {
   kCommand,
   kTrace,
   kCommandJson,
+  kSubscribe,
+  kUnsubscribe,
 };
 [[nodiscard]] const char* op_name(Op op) noexcept;
 
@@ -87,13 +96,14 @@ inline constexpr int kMaxRequestDepth = 8;     // objects and arrays inside each
 inline constexpr std::size_t kMaxQuoted = 64;  // bytes of a client's text quoted back
 
 // Limits a browser may ask for; the chassis clamps to its own limits as well.
-inline constexpr double kMaxJoystickSpeed = 5.0;      // m/s
-inline constexpr double kMaxJoystickOmega = 10.0;     // rad/s
-inline constexpr double kMaxCoordinate = 1.0e6;       // m: anything larger is a mistake
-inline constexpr std::size_t kMaxCommandFields = 64;  // "fields" of a command
-inline constexpr std::size_t kMaxFieldName = 64;      // bytes of a field name
-inline constexpr std::size_t kMaxFieldText = 4096;    // bytes of a field's value text
-inline constexpr double kMaxTraceSeconds = 10.0;      // a live trace from the dashboard
+inline constexpr double kMaxJoystickSpeed = 5.0;       // m/s
+inline constexpr double kMaxJoystickOmega = 10.0;      // rad/s
+inline constexpr double kMaxCoordinate = 1.0e6;        // m: anything larger is a mistake
+inline constexpr std::size_t kMaxCommandFields = 64;   // "fields" of a command
+inline constexpr std::size_t kMaxFieldName = 64;       // bytes of a field name
+inline constexpr std::size_t kMaxFieldText = 4096;     // bytes of a field's value text
+inline constexpr double kMaxTraceSeconds = 10.0;       // a live trace from the dashboard
+inline constexpr double kMaxStreamPeriodMs = 60000.0;  // "period_ms" of a subscription
 
 struct Request {
   Op op = Op::kSwitch;
@@ -111,6 +121,7 @@ struct Request {
   double duration_s = 0.0;                                  // trace
   std::string command;                                      // command: the class command's name (upper case)
   nlohmann::json body;                                      // command: an object of field values, checked later
+  double period_ms = 0.0;                                   // subscribe: 0 = every sample
 };
 
 // Why a client message was refused (counted per reason by the server).

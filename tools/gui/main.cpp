@@ -268,10 +268,10 @@ int main(int argc, char** argv) {
     std::fprintf(
         stderr,
         "rack-gui: stopped; %llu request(s) sent, %llu not answered in time, %llu malformed client message(s)%s, "
-        "%llu malformed reply(ies)\n",
+        "%llu malformed reply(ies), %llu stream sample(s) passed on, %llu lost (rack-gui too slow)\n",
         static_cast<unsigned long long>(c.requests), static_cast<unsigned long long>(c.timeouts),
-        static_cast<unsigned long long>(c.malformed), by_reason.c_str(),
-        static_cast<unsigned long long>(c.bad_replies));
+        static_cast<unsigned long long>(c.malformed), by_reason.c_str(), static_cast<unsigned long long>(c.bad_replies),
+        static_cast<unsigned long long>(c.streamed), static_cast<unsigned long long>(c.stream_lost));
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rack-gui: %s\n", e.what());
     return 1;

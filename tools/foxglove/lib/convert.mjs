@@ -59,6 +59,17 @@ export function dataSchema(cls) {
   };
 }
 
+// The topics a component's data gives (onData below), to decide which streams a
+// recording with --topics needs.
+export function topicsOf(system, name, className) {
+  const base = `/rack/${system}/${name}`;
+  const extra = { Ladar: ['scan'], 'Scan2D': ['points'], Position: ['pose'], MCL: ['pose', 'particles'],
+                  Odometry: ['pose'], Path: ['path'] }[className] ?? [];
+  const out = [base, ...extra.map((e) => `${base}/${e}`)];
+  if (className === 'Position') out.push(`/rack/${system}/tf`);
+  return out;
+}
+
 export function stamp(ns) {
   const t = BigInt(ns);
   return { sec: Number(t / 1000000000n), nsec: Number(t % 1000000000n) };
@@ -149,7 +160,7 @@ export class Converter {
     const base = `/rack/${m.system}/${m.name}`;
     const time = BigInt(m.time_ns);
     const out = [{
-      topic: base, schemaName: `rack.${m.class}`, schema: dataSchema(cls), time,
+      topic: base, component: m.component, schemaName: `rack.${m.class}`, schema: dataSchema(cls), time,
       message: { component: m.component, time_ns: m.time_ns, sequence: m.sequence, data: m.data },
     }];
     const d = m.data;
@@ -228,6 +239,7 @@ export class Converter {
       default:
         break;
     }
+    for (const item of out) item.component = m.component;  // whose stream feeds it (not part of the message)
     return out;
   }
 

@@ -1,10 +1,10 @@
-// An MCAP recorder (@mcap/core's McapWriter): chunked, zstd-compressed chunks
-// (@foxglove/wasm-zstd) or uncompressed ones, with the summary section (schemas,
-// channels, statistics, chunk and message indexes) written by close().
+// An MCAP recorder (@mcap/core's McapWriter): chunked, zstd- or lz4-compressed chunks
+// (lib/codecs.mjs) or uncompressed ones, with the summary section (schemas, channels,
+// statistics, chunk and message indexes) written by close().
 import fs from 'node:fs';
 import { McapWriter } from '@mcap/core';
-import zstd from '@foxglove/wasm-zstd';
 
+import { chunkCompressor } from './codecs.mjs';
 import { kJsonEncoding, kSchemaEncoding } from './convert.mjs';
 
 // A file handle as McapWriter wants it (position and write).
@@ -23,16 +23,15 @@ class FileSink {
 }
 
 export class Recorder {
-  // options: {path, compression: 'zstd'|'none', topics: RegExp|null, chunkSize (bytes)}
+  // options: {path, compression: 'zstd'|'lz4'|'none', topics: RegExp|null, chunkSize (bytes)}
   static async open(options) {
-    const r = new Recorder(options);
-    if (options.compression === 'zstd') await zstd.isLoaded;
+    const r = new Recorder({ ...options, compressChunk: await chunkCompressor(options.compression ?? 'zstd') });
     await r.writer.start({ profile: '', library: 'rack-foxglove (@mcap/core)' });
     await r.writer.addMetadata({ name: 'rack', metadata: new Map([['source', options.source ?? '']]) });
     return r;
   }
 
-  constructor({ path, compression = 'zstd', topics = null, chunkSize = 1024 * 1024 }) {
+  constructor({ path, compressChunk, topics = null, chunkSize = 1024 * 1024 }) {
     this.path = path;
     this.topics = topics;
     this.sink = new FileSink(path);
@@ -43,9 +42,6 @@ export class Recorder {
     this.queue = Promise.resolve();
     this.lastTime = 0n;
     this.early = [];
-    const compressChunk = compression === 'zstd'
-      ? (data) => ({ compression: 'zstd', compressedData: zstd.compress(data, 3) })
-      : undefined;
     this.writer = new McapWriter({ writable: this.sink, chunkSize, compressChunk });
   }
 

@@ -2,7 +2,9 @@
 // rack-foxglove serving a running sim_mcl host (driven by tests/integration/
 // foxglove_test.cpp): the expected channels are advertised with their schemas, typed
 // messages arrive on them and match their schemas, a service answers and a malformed
-// call is refused, parameters are read and set.
+// call is refused, parameters are read and set; a subscribed channel comes at its
+// producer's full rate (the bridge streams what a Foxglove client subscribes to), not
+// at rack-gui's 5 Hz poll.
 //
 // usage: node live_check.mjs --url ws://127.0.0.1:PORT [--timeout S]
 // Prints one line per check ("ok ..." or "FAILED ..."); exit status 0 when all passed.
@@ -58,6 +60,7 @@ let resolveDone;
 const done = new Promise((r) => { resolveDone = r; });
 const pendingCalls = new Map();
 const pendingParams = new Map();
+const chassisSequences = [];  // the chassis samples' own sequence numbers, as they came
 
 client.on('serverInfo', (i) => { serverInfo = i; });
 client.on('error', (e) => fail(`client error: ${e.message}`));
@@ -81,6 +84,7 @@ client.on('message', ({ subscriptionId, timestamp, data }) => {
     return fail(`${c.topic}: not JSON: ${e.message}`);
   }
   if (c.topic === '/rack/0/mcl') lastMclPose = m.data;
+  if (c.topic === '/rack/0/chassis') chassisSequences.push(m.sequence);
   const n = (seen.get(c.topic) ?? 0) + 1;
   seen.set(c.topic, n);
   if (n > 3) return undefined;  // the first few of each are checked in full
@@ -193,6 +197,22 @@ if (why === 'timeout') {
     log(`ok hostile client refused with ${statuses.length} statuses`);
   } else {
     fail(`hostile client: statuses ${JSON.stringify(statuses)}`);
+  }
+  // Full rate: the chassis publishes at 100 Hz, the ladar at 25 Hz (configs/sim_mcl.yaml);
+  // rack-gui's poll would give 5 Hz. Over 2 s, and the chassis' sequence numbers in a row.
+  {
+    const ladar0 = seen.get('/rack/0/ladar/scan') ?? 0;
+    const chassisFrom = chassisSequences.length;
+    const t = Date.now();
+    await new Promise((r) => { setTimeout(r, 2000); });
+    const s = (Date.now() - t) / 1000;
+    const ladarHz = ((seen.get('/rack/0/ladar/scan') ?? 0) - ladar0) / s;
+    const seqs = chassisSequences.slice(chassisFrom);
+    const gaps = seqs.filter((q, i) => i > 0 && q !== seqs[i - 1] + 1).length;
+    const chassisHz = seqs.length / s;
+    const line = `ladar/scan ${ladarHz.toFixed(1)} Hz, chassis ${chassisHz.toFixed(1)} Hz (${seqs.length} samples, ${gaps} gap(s) in their sequence)`;
+    if (ladarHz > 15 && chassisHz > 60 && gaps === 0) log(`ok full rate: ${line}`);
+    else fail(`not the full rate: ${line}`);
   }
   const countBefore = [...seen.values()].reduce((a, b) => a + b, 0);
   await new Promise((r) => { setTimeout(r, 1500); });

@@ -5,13 +5,19 @@
 //     that matches its channel's schema), message indexes, metadata, the summary
 //     section (schemas, channels, statistics, chunk indexes, summary offsets), footer;
 //   - through the index (McapIndexedReader): the statistics count what the stream
-//     holds, per channel, and the indexed messages are the streamed ones.
+//     holds, per channel, and the indexed messages are the streamed ones;
+//   - --every-sample T=HZ: the component channel T holds every sample its producer
+//     published while it was recorded: the samples' own sequence numbers (each
+//     message's "sequence") run without a gap, and their count is the producer's rate
+//     HZ times the time between the first and the last sample (plus one), within 10 %
+//     (the producer's own overruns on a loaded machine).
 //
-// usage: node mcap_check.mjs FILE [--compression zstd|none] [--topic T]... [--min-messages N]
+// usage: node mcap_check.mjs FILE [--compression zstd|lz4|none] [--topic T]... [--min-messages N]
+//          [--every-sample T=HZ]...
 // Prints one line per check; exit status 0 when all passed.
 import fs from 'node:fs';
 import { McapIndexedReader, McapStreamReader } from '@mcap/core';
-import zstd from '@foxglove/wasm-zstd';
+import { decompressHandlers as codecs } from '../lib/codecs.mjs';
 
 import { matchesSchema } from './schema_check.mjs';
 
@@ -20,9 +26,14 @@ const file = args[0];
 let compression = 'zstd';
 let minMessages = 1;
 const topics = [];
+const everySample = new Map();  // topic -> producer rate (Hz)
 for (let i = 1; i < args.length; i += 2) {
   if (args[i] === '--compression') compression = args[i + 1] === 'none' ? '' : args[i + 1];
   else if (args[i] === '--topic') topics.push(args[i + 1]);
+  else if (args[i] === '--every-sample') {
+    const [t, hz] = args[i + 1].split('=');
+    everySample.set(t, Number(hz));
+  }
   else if (args[i] === '--min-messages') minMessages = Number(args[i + 1]);
   else {
     console.log(`unknown argument ${args[i]}`);
@@ -30,7 +41,7 @@ for (let i = 1; i < args.length; i += 2) {
   }
 }
 if (!file) {
-  console.log('usage: node mcap_check.mjs FILE [--compression zstd|none] [--topic T]... [--min-messages N]');
+  console.log('usage: node mcap_check.mjs FILE [--compression zstd|lz4|none] [--topic T]... [--min-messages N] [--every-sample T=HZ]...');
   process.exit(2);
 }
 
@@ -38,8 +49,9 @@ let failed = false;
 const ok = (s) => console.log(`ok ${s}`);
 const fail = (s) => { console.log(`FAILED ${s}`); failed = true; };
 
-await zstd.isLoaded;
-const decompressHandlers = { zstd: (data, size) => zstd.decompress(data, Number(size)) };
+// The chunks decompressed with the codecs @mcap/support gives the MCAP readers
+// (@foxglove/wasm-zstd, @foxglove/wasm-lz4).
+const decompressHandlers = await codecs();
 const bytes = new Uint8Array(fs.readFileSync(file));
 
 // ---- every record, in file order
@@ -50,6 +62,7 @@ const schemas = new Map();
 const channels = new Map();
 const perChannel = new Map();
 const streamed = [];
+const samples = new Map();  // topic (--every-sample) -> [{sequence, time_ns}]
 let inSummary = false;
 let record;
 try {
@@ -93,6 +106,10 @@ try {
         }
         const problem = matchesSchema(m, schemas.get(c.schemaId), `${c.topic} #${record.sequence}`);
         if (problem) fail(problem);
+        if (everySample.has(c.topic)) {
+          if (!samples.has(c.topic)) samples.set(c.topic, []);
+          samples.get(c.topic).push({ sequence: m.sequence, time_ns: m.time_ns });
+        }
         if (record.logTime <= 0n) fail(`${c.topic} #${record.sequence}: log time ${record.logTime}`);
         break;
       }
@@ -145,6 +162,24 @@ try {
   for (const t of topics) {
     const c = byTopic.get(t);
     if (!c || !perChannel.get(c.id)) fail(`no message on ${t}`);
+  }
+  for (const [t, hz] of everySample) {
+    const list = (samples.get(t) ?? []).sort((a, b) => a.sequence - b.sequence);
+    if (list.length < 2) {
+      fail(`--every-sample ${t}: ${list.length} samples`);
+      continue;
+    }
+    const gaps = [];
+    for (let i = 1; i < list.length; ++i) {
+      if (list[i].sequence !== list[i - 1].sequence + 1) gaps.push(`${list[i - 1].sequence}..${list[i].sequence}`);
+    }
+    const seconds = (list.at(-1).time_ns - list[0].time_ns) / 1e9;
+    const expected = seconds * hz + 1;
+    const line = `${t}: ${list.length} samples, sequence ${list[0].sequence}..${list.at(-1).sequence}, ` +
+                 `${seconds.toFixed(2)} s at ${hz} Hz: ${expected.toFixed(1)} expected`;
+    if (gaps.length > 0) fail(`${line}; ${gaps.length} gap(s): ${gaps.slice(0, 5).join(', ')}`);
+    else if (Math.abs(list.length - expected) > 0.1 * expected) fail(`${line}: the count is off by more than 10 % (overruns?)`);
+    else ok(`every sample: ${line}`);
   }
   for (const c of [...channels.values()].sort((a, b) => a.topic.localeCompare(b.topic))) {
     console.log(`   ${c.topic} ${r.schemasById.get(c.schemaId)?.name} ${perChannel.get(c.id) ?? 0} messages`);

@@ -1,0 +1,228 @@
+// rack-gui's backend: the samples the dashboard draws (polled), camera images, maps
+// (backend_impl.h).
+#include "backend_impl.h"
+#include "rack/components/class_ids.h"
+
+namespace rack::gui {
+
+void Backend::Impl::poll_data(uint64_t round) {
+  const int64_t now = rt::monotonic_ns();
+  for (auto& [raw, c] : components) {
+    if (c.data_pending || shown_state(c, now) != "enabled") continue;
+    const uint8_t cls = Address(raw).class_id();
+    const ClassInfo* info = described(Address(raw));
+    if (info == nullptr || !info->desc->data) continue;
+    const bool fast = cls == class_ids::kChassis || cls == class_ids::kPosition || cls == class_ids::kMcl ||
+                      cls == class_ids::kScan2d || cls == class_ids::kPilot || cls == class_ids::kLadar;
+    if (cls == class_ids::kCamera) {
+      if (round % 5 == 0) poll_image(raw);  // once a second: 0.9 MB each
+      continue;
+    }
+    if (!fast && round % 5 != 0) continue;
+    c.data_pending = true;
+    wire::GetDataRequest req;
+    request(Address(raw), msg::kGetData, req, [this, raw](const Reply* r) {
+      auto it = components.find(raw);
+      if (it == components.end()) return;
+      Component& comp = it->second;
+      comp.data_pending = false;
+      if (r == nullptr || r->header.type != msg::kData) return;
+      if (auto m = data_message(raw, comp, r->header, r->body, false)) broadcast(std::move(*m));
+    });
+  }
+}
+
+std::optional<std::string> Backend::Impl::data_message(uint32_t raw, const Component& comp,
+                                                       const tims::MessageHeader& header,
+                                                       std::span<const std::byte> body, bool stream) {
+  const auto ci = class_infos.find(raw & 0xFFFF0000u);
+  if (ci == class_infos.end() || !ci->second.desc || !ci->second.desc->data) return std::nullopt;
+  const ClassInfo& type = ci->second;
+  const bool native = tims::body_is_native(header);
+  wire::SampleHeader sh;
+  if (body.size() < sizeof sh || !wire::read_payload(body.first(sizeof sh), native, sh)) return std::nullopt;
+  const auto sample = body.subspan(sizeof sh);
+  if (sample.size() != type.desc->data->size) return std::nullopt;
+  const Address a(raw);
+  if (a.class_id() == class_ids::kPosition) robots[comp.system].position_time_ns = sh.time_ns;
+  if (a.class_id() == class_ids::kChassis) {
+    ifc::ChassisData cd;
+    if (wire::read_payload(sample, native, cd)) {
+      robots[comp.system].claimed = cd.active_pilot == reply_mailbox.address().raw();
+    }
+  }
+  json data = json::parse(rack::payload_to_json(type.data_fields, sample, native), nullptr, false);
+  if (data.is_discarded()) return std::nullopt;
+  trim_arrays(a.class_id(), data);
+  // Enums and addresses by name beside the raw values (as rackctl get-data).
+  json names = json::object();
+  const std::string names_text = rack::tools::field_names_json(type.desc->value_names, type.data_fields, sample,
+                                                               native);
+  if (!names_text.empty()) names = json::parse(names_text, nullptr, false);
+  if (names.is_discarded()) names = json::object();
+  json m{{"type", "data"},          {"component", address_text(a)}, {"name", comp.info.name},
+         {"class", class_of(a)},    {"system", comp.system},        {"time_ns", sh.time_ns},
+         {"sequence", sh.sequence}, {"data", std::move(data)},      {"names", std::move(names)}};
+  if (stream) m["stream"] = true;
+  return dump(m);
+}
+
+void Backend::Impl::poll_image(uint32_t raw) {
+  Component& c = components[raw];
+  c.data_pending = true;
+  wire::GetDataRequest req;
+  const tims::ConstBuffer part = tims::buffer_of(req);
+  request(
+      Address(raw), msg::kGetData, std::span<const tims::ConstBuffer>(&part, 1), default_timeout(),
+      [this, raw](const Reply* r) {
+        auto it = components.find(raw);
+        if (it == components.end()) return;
+        Component& comp = it->second;
+        comp.data_pending = false;
+        wire::SampleHeader sh;
+        auto img = std::make_unique<ifc::CameraData>();
+        if (r == nullptr || r->header.type != msg::kData || r->body.size() != sizeof sh + sizeof *img ||
+            !wire::read_payload(r->body.first(sizeof sh), r->native(), sh) ||
+            !wire::read_payload(r->body.subspan(sizeof sh), r->native(), *img)) {
+          return;
+        }
+        const std::size_t bytes = std::min<std::size_t>(img->bytes, sizeof img->data);
+        const char* format = img->format == ifc::kCameraRgb8    ? "rgb"
+                             : img->format == ifc::kCameraMono8 ? "mono"
+                             : img->format == ifc::kCameraJpeg  ? "jpeg"
+                                                                : "unknown";
+        broadcast(dump(json{{"type", "image"},
+                            {"component", address_text(Address(raw))},
+                            {"system", comp.system},
+                            {"time_ns", sh.time_ns},
+                            {"width", img->width},
+                            {"height", img->height},
+                            {"frame", img->frame},
+                            {"dropped", img->dropped},
+                            {"bad_frames", img->bad_frames},
+                            {"format", format},
+                            {"data", base64(std::vector<uint8_t>(img->data, img->data + bytes))}}));
+      },
+      image_mailbox.address());
+}
+
+void Backend::Impl::trim_arrays(uint8_t cls, json& d) {
+  const auto cut = [&d](const char* count, std::initializer_list<const char*> arrays) {
+    if (!d.contains(count) || !d[count].is_number_unsigned()) return;
+    const auto n = d[count].get<std::size_t>();
+    for (const char* a : arrays) {
+      if (d.contains(a) && d[a].is_array() && d[a].size() > n)
+        d[a].erase(d[a].begin() + static_cast<std::ptrdiff_t>(n), d[a].end());
+    }
+  };
+  switch (cls) {
+    case class_ids::kLadar: cut("beam_count", {"range", "intensity"}); break;
+    case class_ids::kScan2d: cut("point_count", {"x", "y", "range", "bearing", "type"}); break;
+    case class_ids::kPath:
+      cut("point_count", {"x", "y"});
+      cut("waypoint_count", {"waypoint_x", "waypoint_y"});
+      break;
+    case class_ids::kMcl: cut("shown", {"particle_x", "particle_y", "particle_phi", "particle_weight"}); break;
+    default: break;
+  }
+}
+
+void Backend::Impl::poll_maps() {
+  std::set<uint8_t> systems;
+  for (const auto& [raw, c] : components) systems.insert(c.system);
+  for (const uint8_t s : systems) {
+    Robot& robot = robots[s];
+    if (robot.map_sent || robot.map_pending) continue;
+    if (robot.map_retry > 0) {
+      --robot.map_retry;
+      continue;
+    }
+    if (const auto file = configured_map(s)) {
+      load_and_send_map(s, *file, "--map");
+      continue;
+    }
+    // The map the robot localises on: MCL's, else the simulators' `map` parameter.
+    std::optional<Address> holder;
+    for (const uint8_t cls : {class_ids::kMcl, class_ids::kLadar, class_ids::kChassis}) {
+      if ((holder = find(s, cls))) break;
+    }
+    if (!holder) {
+      robot.map_retry = kMapRetryRounds;
+      continue;
+    }
+    robot.map_pending = true;
+    wire::ParamName name;
+    wire::copy_text(name.name, "map");
+    const Address a = *holder;
+    request(a, msg::kGetParam, name, [this, s, a](const Reply* r) {
+      Robot& rb = robots[s];
+      rb.map_pending = false;
+      wire::ParamRecord p;
+      if (r == nullptr || r->header.type != msg::kParam || !wire::read_payload(r->body, r->native(), p) ||
+          static_cast<wire::ParamKind>(p.kind) != wire::ParamKind::kString) {
+        rb.map_retry = kMapRetryRounds;  // no `map` parameter (a real robot): try the next time
+        return;
+      }
+      const std::string file = param_text(p.string_value, sizeof p.string_value);
+      if (file.empty()) {
+        rb.map_retry = kMapRetryRounds;
+        return;
+      }
+      load_and_send_map(s, file, address_text(a) + " parameter 'map'");
+    });
+  }
+}
+
+std::optional<std::string> Backend::Impl::configured_map(uint8_t system) const {
+  std::optional<std::string> any;
+  for (const auto& m : config.maps) {
+    const auto eq = m.find('=');
+    if (eq == std::string::npos) {
+      any = m;
+    } else if (m.substr(0, eq) == std::to_string(system)) {
+      return m.substr(eq + 1);
+    }
+  }
+  return any;
+}
+
+void Backend::Impl::load_and_send_map(uint8_t system, const std::string& file, const std::string& from) {
+  Robot& robot = robots[system];
+  std::filesystem::path path(file);
+  if (path.is_relative()) path = std::filesystem::path(config.map_root) / path;
+  const auto loaded = maps::load_map(path.string());
+  if (!loaded.ok()) {
+    robot.map_retry = kMapRetryRounds * 5;
+    broadcast(
+        dump(json{{"type", "notice"},
+                  {"level", "error"},
+                  {"text", "map of robot " + std::to_string(system) + " (" + from + "): " + loaded.error_text()}}));
+    return;
+  }
+  const auto& m = *loaded.map;
+  std::vector<uint8_t> cells(static_cast<std::size_t>(m.width()) * static_cast<std::size_t>(m.height()));
+  for (int iy = 0; iy < m.height(); ++iy) {
+    for (int ix = 0; ix < m.width(); ++ix) {
+      cells[static_cast<std::size_t>(iy) * static_cast<std::size_t>(m.width()) +
+            static_cast<std::size_t>(ix)] = static_cast<uint8_t>(m.cell_state(ix, iy));
+    }
+  }
+  robot.map_message = dump(json{{"type", "map"},
+                                {"system", system},
+                                {"source", path.string()},
+                                {"width", m.width()},
+                                {"height", m.height()},
+                                {"resolution", m.resolution()},
+                                {"origin_x", m.origin_x()},
+                                {"origin_y", m.origin_y()},
+                                {"origin_yaw", m.origin_yaw()},
+                                {"cells", base64(cells)}});
+  robot.map_sent = true;
+  {
+    const std::lock_guard lock(greet_mutex);
+    map_messages[system] = robot.map_message;
+  }
+  broadcast(robot.map_message);
+}
+
+}  // namespace rack::gui
