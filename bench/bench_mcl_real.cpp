@@ -10,10 +10,11 @@
 // Per dataset and side: ATE RMSE (position error at every scan, RMS), lost poses (error
 // above 0.5 m), rotation RMSE, relative error between consecutive scans (mean of the
 // translation and rotation error of the estimated motion against the reference's),
-// recovery injections, update time (p50/p95). Then kidnapping on the real data: the
-// robot is carried from a third of the log to two thirds while its odometry goes on as
-// if it had driven one normal step; how far it travels until the estimate is within
-// 0.5 m again and stays (rack with its recovery; MRPT alone has none).
+// recovery injections, updates where the odometry check disagreed (rack), update time
+// (p50/p95). Then kidnapping on the real data: the robot is carried from a third of the
+// log to two thirds while its odometry goes on as if it had driven one normal step; how
+// far it travels until the estimate is within 0.5 m again and stays (rack with its
+// recovery; MRPT alone has none).
 //
 //   bench_mcl_real [--quick] [--seeds N] [--particles N] [--datasets a,b,...]
 //                  [--parts track,kidnap,global] [--global-seeds N] [--global-particles N]
@@ -25,7 +26,9 @@
 // recovery state); MCL_INJECT, MCL_RATIO, MCL_LOW, MCL_OUTLIER, MCL_OSCALE, MCL_A1,
 // MCL_A3, MCL_SIGMA, MCL_BEAMS, MCL_KLD_XY, MCL_KLD_PHI, MCL_KLD_EPS override the
 // option of that name on both sides; MCL_PMIN sets particles_min (KLD while tracking,
-// both sides); MCL_TRACE also traces the global part.
+// both sides); MCL_TRACE also traces the global part. MCL_CHECK, MCL_CHECK_FRAC,
+// MCL_CHECK_GOOD set odometry_check, odometry_check_fraction, odometry_check_goodness
+// (rack only: MRPT alone has no such check).
 //
 // Not RT code; needs no privileges.
 #include <algorithm>
@@ -107,6 +110,7 @@ struct Score {
   double se = 0, sr = 0, rel_t = 0, rel_r = 0, max_err = 0;
   std::vector<double> times;  // ms per update call
   uint64_t injections = 0;    // updates that injected
+  uint64_t scan_incr = 0;     // updates where the odometry check moved part of the particles by the scans' increment
   void add(const SimPose& e, const SimPose& t) {
     const double d = std::hypot(e.x - t.x, e.y - t.y);
     se += d * d;
@@ -153,6 +157,9 @@ MclOptions bench_options(uint32_t particles, uint64_t seed) {
   if (const char* v = std::getenv("MCL_KLD_XY")) o.kld_bin_xy = std::atof(v);
   if (const char* v = std::getenv("MCL_KLD_PHI")) o.kld_bin_phi = std::atof(v);
   if (const char* v = std::getenv("MCL_KLD_EPS")) o.kld_epsilon = std::atof(v);
+  if (const char* v = std::getenv("MCL_CHECK")) o.odometry_check = std::atof(v);
+  if (const char* v = std::getenv("MCL_CHECK_FRAC")) o.odometry_check_fraction = std::atof(v);
+  if (const char* v = std::getenv("MCL_CHECK_GOOD")) o.odometry_check_goodness = std::atof(v);
   if (const char* v = std::getenv("MCL_GLOBAL_K")) o.global_candidates = static_cast<uint32_t>(std::atoi(v));
   if (const char* v = std::getenv("MCL_PMIN"))
     o.particles_min = static_cast<uint32_t>(std::atoi(v));  // KLD in tracking
@@ -174,11 +181,13 @@ Score run_rack(const Data& d, const std::vector<DatasetStep>& steps, const MclOp
     if (ran) sc.times.push_back(b - a);
     const auto e = f.estimate();
     if (ran && e.injected > 0) ++sc.injections;
+    if (ran && e.odometry_disagreed) ++sc.scan_incr;
     const SimPose ep{e.pose.x, e.pose.y, e.pose.phi};
     if (std::getenv("MCL_TRACE") != nullptr) {
-      std::fprintf(stderr, "%zu err %.3f fit %.3f cons %.3f ratio %.3f low %u inj %u n %u odo_step %.2f\n", i,
-                   std::hypot(ep.x - s.truth.x, ep.y - s.truth.y), e.fit, e.consistency, e.w_fast / e.w_slow,
-                   e.low_updates, e.injected, e.particles,
+      std::fprintf(stderr, "%zu err %.3f dphi %.3f fit %.3f cons %.3f ratio %.3f low %u inj %u n %u%s odo_step %.2f\n",
+                   i, std::hypot(ep.x - s.truth.x, ep.y - s.truth.y), rack::test::angle_diff(ep.phi, s.truth.phi),
+                   e.fit, e.consistency, e.w_fast / e.w_slow, e.low_updates, e.injected, e.particles,
+                   ran && e.odometry_disagreed ? " scan-incr" : "",
                    i > 0 ? std::hypot(s.odometry.x - steps[i - 1].odometry.x, s.odometry.y - steps[i - 1].odometry.y)
                          : 0.0);
     }
@@ -232,7 +241,7 @@ struct Row {
 std::vector<Row> g_rows;
 
 void print_side(const std::string& dataset, const char* side, const std::vector<Score>& runs) {
-  std::vector<double> ate, rot, lost, rt, rr, inj, p50, p95;
+  std::vector<double> ate, rot, lost, rt, rr, inj, chk, p50, p95;
   std::size_t lost_total = 0;
   for (const auto& s : runs) {
     ate.push_back(s.ate());
@@ -242,13 +251,15 @@ void print_side(const std::string& dataset, const char* side, const std::vector<
     rt.push_back(s.rel_t / static_cast<double>(std::max<std::size_t>(s.rel_n, 1)));
     rr.push_back(s.rel_r / static_cast<double>(std::max<std::size_t>(s.rel_n, 1)) * kDeg);
     inj.push_back(static_cast<double>(s.injections));
+    chk.push_back(static_cast<double>(s.scan_incr));
     p50.push_back(s.pct(0.5));
     p95.push_back(s.pct(0.95));
   }
-  out("| %s | %s | %s | %s of %zu | %s | %s m, %s deg | %s | %s / %s |\n", dataset.c_str(), side,
+  const bool rack = std::string(side).find("RACK") != std::string::npos;
+  out("| %s | %s | %s | %s of %zu | %s | %s m, %s deg | %s | %s | %s / %s |\n", dataset.c_str(), side,
       range_text(ate, 3).c_str(), range_text(lost, 0).c_str(), runs[0].n, range_text(rot, 2).c_str(),
-      range_text(rt, 3).c_str(), range_text(rr, 2).c_str(), range_text(inj, 0).c_str(), range_text(p50, 2).c_str(),
-      range_text(p95, 2).c_str());
+      range_text(rt, 3).c_str(), range_text(rr, 2).c_str(), range_text(inj, 0).c_str(),
+      rack ? range_text(chk, 0).c_str() : "-", range_text(p50, 2).c_str(), range_text(p95, 2).c_str());
   g_rows.push_back({dataset, side, *std::max_element(ate.begin(), ate.end()), *std::max_element(rot.begin(), rot.end()),
                     lost_total});
 }
@@ -263,7 +274,7 @@ void part_track(const std::vector<Data>& sets, int seeds, uint32_t particles) {
       "figures are the range over the seeds.\n\n",
       MclOptions{}.beams, MclOptions{}.beams);
   out("| dataset | side | ATE RMSE m | lost (> 0.5 m) | rotation RMSE deg | relative error (consecutive scans) | "
-      "injections | update p50 / p95 ms |\n|---|---|---|---|---|---|---|---|\n");
+      "injections | odometry check disagreed | update p50 / p95 ms |\n|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& d : sets) {
     std::vector<Score> r, m;
     for (int seed = 1; seed <= seeds; ++seed) {

@@ -64,6 +64,12 @@ Mcl::Mcl()
       initial_sigma_phi_(declare_float("initial_sigma_phi", 0.2,
                                        {.doc = "spread (std dev, rad) around initial_pose", .min = 0.0, .max = 10.0})),
       global_(declare_bool("global", false, {.doc = "start with global localisation over the map's free space"})),
+      global_candidates_(declare_int(
+          "global_candidates", 5,
+          {.doc =
+               "global start: the first scan weighs this many times particles_max poses over the free space and keeps the particles_max that fit best (more: surer to find the place, one costlier update)",
+           .min = 1,
+           .max = 100})),
       update_distance_(declare_float("update_distance", 0.10,
                                      {.doc = "run the filter after this much travel (m)", .min = 0.0, .max = 100.0})),
       update_angle_(
@@ -118,6 +124,22 @@ Mcl::Mcl()
       odom_outlier_scale_(
           declare_float("odom_outlier_scale", 3.0,
                         {.doc = "motion model: noise factor for that fraction", .min = 1.0, .max = 1000.0})),
+      odometry_check_(declare_float(
+          "odometry_check", 2.0,
+          {.doc =
+               "odometry check: each update matches the scan against the previous update's (ICP); when that increment differs from the odometry's by more than this many motion-model std devs, part of the particles moves by the scan's increment (odometry that stalls and catches up; 0: off)",
+           .min = 0.0,
+           .max = 100.0})),
+      odometry_check_fraction_(declare_float(
+          "odometry_check_fraction", 0.5,
+          {.doc = "odometry check: share of the particles moved by the scan's increment when it disagrees",
+           .min = 0.0,
+           .max = 1.0})),
+      odometry_check_goodness_(
+          declare_float("odometry_check_goodness", 0.5,
+                        {.doc = "odometry check: least share of the scan's points the match must pair to be trusted",
+                         .min = 0.01,
+                         .max = 1.0})),
       recovery_ratio_(
           declare_float("recovery_ratio", 0.5,
                         {.doc = "recovery: lost when the short-term scan fit is below this times the long-term one ...",
@@ -185,6 +207,10 @@ mcl::MclOptions Mcl::read_options(const ParameterValues& v) const noexcept {
   o.odom_min_std_phi = v.get_float(odom_min_std_phi_);
   o.odom_outlier_fraction = v.get_float(odom_outlier_fraction_);
   o.odom_outlier_scale = v.get_float(odom_outlier_scale_);
+  o.odometry_check = v.get_float(odometry_check_);
+  o.odometry_check_fraction = v.get_float(odometry_check_fraction_);
+  o.odometry_check_goodness = v.get_float(odometry_check_goodness_);
+  o.global_candidates = static_cast<uint32_t>(v.get_int(global_candidates_));
   o.recovery_ratio = v.get_float(recovery_ratio_);
   o.recovery_consistency = v.get_float(recovery_consistency_);
   o.recovery_updates = static_cast<uint32_t>(v.get_int(recovery_updates_));

@@ -72,6 +72,7 @@ class Mcl final : public DataComponent<interfaces::MclData> {
   Parameter& initial_sigma_xy_;
   Parameter& initial_sigma_phi_;
   Parameter& global_;
+  Parameter& global_candidates_;
   Parameter& update_distance_;
   Parameter& update_angle_;
   Parameter& odometry_jump_;
@@ -87,6 +88,9 @@ class Mcl final : public DataComponent<interfaces::MclData> {
   Parameter& odom_min_std_phi_;
   Parameter& odom_outlier_fraction_;
   Parameter& odom_outlier_scale_;
+  Parameter& odometry_check_;
+  Parameter& odometry_check_fraction_;
+  Parameter& odometry_check_goodness_;
   Parameter& recovery_ratio_;
   Parameter& recovery_consistency_;
   Parameter& recovery_updates_;

@@ -202,6 +202,30 @@ TEST(MclComponentTest, LocalisesFromScan2dPublishesAndUpdatesPosition) {
       << "INIT did not restart the filter";
 }
 
+// global_candidates and the odometry check are parameters of the component: a host
+// file sets them, and a value out of range is refused at load with its name.
+TEST(MclComponentTest, GlobalCandidatesAndOdometryCheckAreParameters) {
+  Watchdog watchdog(std::chrono::seconds(60));
+  for (const char* bad : {"      global_candidates: 0\n", "      odometry_check_fraction: 2\n"}) {
+    try {
+      HostUnderTest host(host_yaml(kOffice, bad), register_test_classes);
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const std::runtime_error& e) {
+      const std::string name = std::string(bad).substr(6, std::string(bad).find(':') - 6);
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+  }
+  HostUnderTest host(host_yaml(kOffice,
+                               "      global_candidates: 3\n      odometry_check: 3\n"
+                               "      odometry_check_fraction: 0.3\n      odometry_check_goodness: 0.6\n"),
+                     register_test_classes);
+  const tims::Address mcl = host.address_of("mcl");
+  ASSERT_TRUE(host.wait_status(mcl, tims::msg::kEnabled)) << host.log();
+  wire::SampleHeader sh{};
+  auto data = std::make_unique<MclData>();
+  EXPECT_TRUE(eventually([&] { return host.get_data(mcl, sh, *data) && data->updates >= 3; })) << host.log();
+}
+
 TEST(MclComponentTest, MissingMapPutsOnlyMclInErrorWithTheFileName) {
   Watchdog watchdog;
   HostUnderTest host(host_yaml("/nonexistent/robot_map.yaml"), register_test_classes);

@@ -298,6 +298,70 @@ TEST_F(MclFilterTest, GlobalCandidatesAreAllWeighedOnceThenTheBestKept) {
   }
 }
 
+// The odometry check (scan-to-scan): the robot drives 0.8 m per scan; at one scan the
+// odometry read-out stalls (30 % of the step reported, the rest with the next scan, as
+// the real logs' odometry does). Particles moved by the odometry alone fall 0.56 m
+// behind at that scan, beyond what the motion model reaches; the scan matched against
+// the previous one sees the whole step and part of the particles follows it. With the
+// check (the default) the estimate stays within 0.2 m at the stalled scan and the
+// catch-up after it, and the check disagreed there; off (odometry_check 0) the estimate
+// is more than 0.3 m behind at the stalled scan. Out of range is refused by name.
+TEST_F(MclFilterTest, StalledOdometryReadOutIsFollowedByTheScanMatch) {
+  SimConfig cfg;
+  cfg.step = 0.8;
+  constexpr int kStall = 8;
+  for (const double check : {0.0, MclOptions{}.odometry_check}) {
+    MclOptions o = tracking_options(5);
+    o.odometry_check = check;
+    MclFilter f(*map_, o);
+    ScriptedRobot robot(*map_, cfg, 5);
+    robot.place({2.0, 8.0, 0.0});
+    f.init_pose({2.0, 8.0, 0.0}, 0.05, 0.02);
+    SimPose last{};
+    std::vector<double> err;
+    std::vector<bool> disagreed;
+    for (int i = 0; i <= kStall + 1 && !robot.step_towards(14.0, 8.0); ++i) {
+      const test::SimScan s = robot.scan();
+      SimPose od = robot.odometry();
+      if (i == kStall) {  // the stalled read-out: 30 % of the step since the last one
+        od = {last.x + 0.3 * (od.x - last.x), last.y + 0.3 * (od.y - last.y),
+              last.phi + 0.3 * test::angle_diff(od.phi, last.phi)};
+      }
+      last = od;
+      ASSERT_TRUE(f.update({od.x, od.y, od.phi}, s.xs, s.ys)) << "scan " << i;
+      const MclEstimate e = f.estimate();
+      err.push_back(std::hypot(e.pose.x - robot.truth().x, e.pose.y - robot.truth().y));
+      disagreed.push_back(e.odometry_disagreed);
+    }
+    ASSERT_EQ(err.size(), static_cast<std::size_t>(kStall + 2));
+    std::printf("odometry_check %.1f: error before the stall %.3f m, at it %.3f m, after %.3f m\n", check,
+                err[kStall - 1], err[kStall], err[kStall + 1]);
+    EXPECT_LT(err[kStall - 1], 0.15) << "check " << check;
+    if (check > 0) {
+      EXPECT_TRUE(disagreed[kStall]);
+      EXPECT_TRUE(disagreed[kStall + 1]);  // the catch-up: the odometry reports 1.36 m
+      EXPECT_LT(err[kStall], 0.2);
+      EXPECT_LT(err[kStall + 1], 0.2);
+      EXPECT_GE(f.estimate().odometry_disagreements, 2U);
+    } else {
+      EXPECT_GT(err[kStall], 0.3);
+      EXPECT_EQ(f.estimate().odometry_disagreements, 0U);
+    }
+  }
+  MclOptions o;
+  o.odometry_check = -1;
+  ASSERT_NE(check_options(o), nullptr);
+  EXPECT_NE(std::string(check_options(o)).find("odometry_check"), std::string::npos);
+  o = MclOptions{};
+  o.odometry_check_fraction = 1.5;
+  ASSERT_NE(check_options(o), nullptr);
+  EXPECT_NE(std::string(check_options(o)).find("odometry_check_fraction"), std::string::npos);
+  o = MclOptions{};
+  o.odometry_check_goodness = 0;
+  ASSERT_NE(check_options(o), nullptr);
+  EXPECT_NE(std::string(check_options(o)).find("odometry_check_goodness"), std::string::npos);
+}
+
 TEST_F(MclFilterTest, BadOptionsAreRejectedWithTheirName) {
   MclOptions o;
   o.particles_min = 500;

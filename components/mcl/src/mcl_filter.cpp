@@ -9,8 +9,10 @@
 #include <condition_variable>
 #include <functional>
 #include <limits>
+#include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/math/distributions.h>
 #include <mrpt/poses/CPose2D.h>
+#include <mrpt/slam/CICP.h>
 #include <mrpt/slam/CMonteCarloLocalization2D.h>
 #include <mutex>
 #include <numbers>
@@ -130,6 +132,13 @@ const char* check_options(const MclOptions& o) noexcept {
   if (!(o.odom_outlier_scale >= 1 && o.odom_outlier_scale <= 1000)) return "odom_outlier_scale must be in [1, 1000]";
   if (!(o.odometry_jump >= 0)) return "odometry_jump must be >= 0";
   if (!(o.update_distance >= 0 && o.update_angle >= 0)) return "update_distance and update_angle must be >= 0";
+  if (!(o.odometry_check >= 0 && o.odometry_check <= 100)) return "odometry_check must be in [0, 100]";
+  if (!(o.odometry_check_fraction >= 0 && o.odometry_check_fraction <= 1)) {
+    return "odometry_check_fraction must be in [0, 1]";
+  }
+  if (!(o.odometry_check_goodness > 0 && o.odometry_check_goodness <= 1)) {
+    return "odometry_check_goodness must be in (0, 1]";
+  }
   if (!(o.alpha_slow > 0 && o.alpha_slow < o.alpha_fast && o.alpha_fast <= 1)) {
     return "0 < alpha_slow < alpha_fast <= 1 is required";
   }
@@ -152,6 +161,18 @@ void validate(const MclOptions& o) {
 
 // Particles x points per update from which the likelihood is split over two threads.
 constexpr std::size_t kParallelMinLookups = 100'000;
+// The odometry check: scans with fewer echoes are not matched; denser ones are
+// subsampled evenly to this many points (the cost of ICP grows with them).
+constexpr std::size_t kCheckMinPoints = 20;
+constexpr std::size_t kCheckMaxPoints = 360;
+// The least heading disagreement the check acts on (rad, before odometry_check's factor).
+constexpr double kCheckMinPhi = 0.05;
+// How much better (mean log-likelihood per point) the scan must fit the map from the
+// last estimate moved by the scans' increment than by the odometry's for the check to
+// act. Real logs (bench_mcl_real, MCL_TRACE): the stalled read-outs gain 0.4-5.6; a
+// rotation where the simulated office repeats, which ICP took with 99 % of the points
+// paired, gained 0.04.
+constexpr double kCheckMinGain = 0.25;
 
 struct MclFilter::Impl {
   MclOptions opt;
@@ -183,6 +204,15 @@ struct MclFilter::Impl {
   mrpt::poses::CPose2D moved;          // odometry motion since the last filter update (jumps left out)
   MclEstimate est;                     // particles' estimate at the last update (shifted frame)
   double c_slow = 0.0, c_fast = 0.0;   // consistency averages (alpha_slow, alpha_fast)
+  // The odometry check: the scans (robot frame) of the previous and of this filter
+  // update, matched by ICP.
+  mrpt::slam::CICP icp;
+  mrpt::maps::CSimplePointsMap scans[2];
+  std::size_t prev_scan = 0;  // scans[prev_scan]: the previous update's
+  bool have_prev_scan = false;
+  std::vector<float> scan_x, scan_y;
+  bool use_scan_incr = false;      // this update: part of the particles moves by scan_incr
+  mrpt::poses::CPose2D scan_incr;  // the scan-to-scan increment (ICP)
 
   static bool same_field(const MclOptions& a, const MclOptions& b) {
     return a.sigma_hit == b.sigma_hit && a.z_hit == b.z_hit && a.z_random == b.z_random && a.max_range == b.max_range &&
@@ -240,6 +270,10 @@ struct MclFilter::Impl {
 
   void apply_options() {
     if (field.empty() || !same_field(opt, field_opt)) build_field();
+    icp.options.ICP_algorithm = mrpt::slam::icpClassic;
+    icp.options.thresholdDist = 1.0;  // m: pairs up to this far at first (a stalled read-out: 0.2-0.7 m short)
+    icp.options.skip_cov_calculation = true;
+    icp.options.skip_quality_calculation = true;
     if (opt.threads > 1 && !worker) worker = std::make_unique<Worker>();
     if (opt.threads == 1) worker.reset();
   }
@@ -285,8 +319,85 @@ struct MclFilter::Impl {
     for (std::size_t i = 0; i < m; ++i) pdf.m_particles[i].log_w += opt.likelihood_power * log_lik[i];
   }
 
+  // The motion model's std devs (x-y, heading) for an increment.
+  void motion_std(const mrpt::poses::CPose2D& m, double& sxy, double& sphi) const {
+    const double d = std::hypot(m.x(), m.y()), a = std::fabs(m.phi());
+    sxy = std::max(opt.odom_min_std_xy, opt.odom_a1 * d + opt.odom_a2 * a);
+    sphi = std::max(opt.odom_min_std_phi, opt.odom_a3 * d + opt.odom_a4 * a);
+  }
+
+  // Mean log-likelihood per point of this update's points (px, py) seen from the last
+  // estimate moved by `m`.
+  double fit_from_estimate(const mrpt::poses::CPose2D& m) const {
+    const mrpt::poses::CPose2D p = mrpt::poses::CPose2D(est.pose.x, est.pose.y, est.pose.phi) + m;
+    const double c = std::cos(p.phi()), sn = std::sin(p.phi()), inv = 1.0 / resolution;
+    double ll = 0.0;
+    for (std::size_t k = 0; k < px.size(); ++k) {
+      const double gx = (p.x() + c * px[k] - sn * py[k]) * inv, gy = (p.y() + sn * px[k] + c * py[k]) * inv;
+      ll += gx >= 0.0 && gy >= 0.0 && gx < width && gy < height
+                ? field[static_cast<std::size_t>(static_cast<int>(gy)) * static_cast<std::size_t>(width) +
+                        static_cast<std::size_t>(static_cast<int>(gx))]
+                : outside_ll;
+    }
+    return px.empty() ? 0.0 : ll / static_cast<double>(px.size());
+  }
+
+  // The odometry check (MclOptions::odometry_check): this scan matched against the
+  // previous update's, from the odometry increment `incr`. Sets use_scan_incr and
+  // scan_incr for predict(); keeps this scan for the next update's check.
+  void check_odometry(const mrpt::poses::CPose2D& incr, std::span<const float> xs, std::span<const float> ys) {
+    use_scan_incr = false;
+    est.odometry_disagreed = false;
+    const std::size_t n = std::min(xs.size(), ys.size());
+    const std::size_t want = std::min(n, kCheckMaxPoints);
+    scan_x.resize(want);
+    scan_y.resize(want);
+    for (std::size_t k = 0; k < want; ++k) {
+      const std::size_t i = want == n ? k : (k * n) / want;
+      scan_x[k] = xs[i];
+      scan_y[k] = ys[i];
+    }
+    auto& now = scans[1 - prev_scan];
+    now.setAllPoints(scan_x, scan_y);
+    // Trusted only while the scans fit the map as usual (the short-term fit not below
+    // recovery_ratio of the long-term): among a crowd or clutter ICP pairs people with
+    // people and its increment is the crowd's, not the robot's (FHW museum).
+    const bool fitting = est.w_slow <= 0.0 || est.w_fast >= opt.recovery_ratio * est.w_slow;
+    if (opt.odometry_check > 0.0 && have_prev_scan && want >= kCheckMinPoints && !move_only && fitting) {
+      try {
+        mrpt::slam::CICP::TReturnInfo info;
+        const auto match = icp.Align(&scans[prev_scan], &now, incr, info);
+        const mrpt::poses::CPose2D v = match->getMeanVal();
+        double sxy = 0, sphi = 0;
+        motion_std(v, sxy, sphi);  // the noise the odometry has if the scans' increment is the motion
+        // Floors: a disagreement within the likelihood field's width (sigma_hit), or a few
+        // degrees, the scan's weighting settles by itself (and ICP's own error is of that size).
+        sxy = std::max(sxy, opt.sigma_hit);
+        sphi = std::max(sphi, kCheckMinPhi);
+        const double dxy = std::hypot(v.x() - incr.x(), v.y() - incr.y());
+        const double dphi = std::fabs(wrap(v.phi() - incr.phi()));
+        // Acted on only when the scan also fits the map clearly better from the last
+        // estimate moved by the scans' increment than by the odometry's: ICP can settle
+        // in a wrong minimum with most points paired (a rotation where the walls repeat).
+        if (info.goodness >= opt.odometry_check_goodness &&
+            (dxy > opt.odometry_check * sxy || dphi > opt.odometry_check * sphi) &&
+            fit_from_estimate(v) - fit_from_estimate(incr) > kCheckMinGain) {
+          use_scan_incr = opt.odometry_check_fraction > 0.0;
+          scan_incr = v;
+          est.odometry_disagreed = true;
+          ++est.odometry_disagreements;
+        }
+      } catch (const std::exception&) {
+        // ICP failed on this pair (degenerate scans): no check for this update.
+      }
+    }
+    prev_scan = 1 - prev_scan;
+    have_prev_scan = want >= kCheckMinPoints;
+  }
+
   // KLD-sampling from the weighted particles, each moved by the odometry increment with
-  // the motion model's noise.
+  // the motion model's noise (or, for part of them after the odometry check disagreed,
+  // by the scans' increment).
   void predict(const mrpt::poses::CPose2D& incr) {
     const std::size_t m = pdf.m_particles.size();
     if (move_only) {  // the candidates of a global start: all equally likely, each kept
@@ -334,18 +445,22 @@ struct MclFilter::Impl {
         std::swap(order[j], order[pick(rng)]);
       }
     }
-    const double d = std::hypot(incr.x(), incr.y()), a = std::fabs(incr.phi());
-    const double sxy = std::max(opt.odom_min_std_xy, opt.odom_a1 * d + opt.odom_a2 * a);
-    const double sphi = std::max(opt.odom_min_std_phi, opt.odom_a3 * d + opt.odom_a4 * a);
+    double sxy = 0, sphi = 0, scan_sxy = 0, scan_sphi = 0;
+    motion_std(incr, sxy, sphi);
+    if (use_scan_incr) motion_std(scan_incr, scan_sxy, scan_sphi);
     bins.clear();
     drawn.clear();
     const double eps1 = 0.5 / opt.kld_epsilon;
     std::size_t nx = opt.particles_min;
     while (drawn.size() < std::max<std::size_t>(nx, opt.particles_min) && drawn.size() < total) {
       const auto& from = pdf.m_particles[order[drawn.size()]].d;
+      // (The extra draw only when the check disagreed: other updates draw as before.)
+      const bool by_scan = use_scan_incr && u(rng) < opt.odometry_check_fraction;
+      const mrpt::poses::CPose2D& mv = by_scan ? scan_incr : incr;
+      const double mxy = by_scan ? scan_sxy : sxy, mphi = by_scan ? scan_sphi : sphi;
       const double scale = u(rng) < opt.odom_outlier_fraction ? opt.odom_outlier_scale : 1.0;
-      const double dx = incr.x() + scale * sxy * n01(rng), dy = incr.y() + scale * sxy * n01(rng);
-      const double dphi = incr.phi() + scale * sphi * n01(rng);
+      const double dx = mv.x() + scale * mxy * n01(rng), dy = mv.y() + scale * mxy * n01(rng);
+      const double dphi = mv.phi() + scale * mphi * n01(rng);
       const double c = std::cos(from.phi), s = std::sin(from.phi);
       const mrpt::math::TPose2D to(from.x + c * dx - s * dy, from.y + s * dx + c * dy, wrap(from.phi + dphi));
       drawn.push_back(to);
@@ -406,9 +521,10 @@ struct MclFilter::Impl {
   void reset_particles(std::size_t n, bool global) {
     pdf.m_particles.resize(n);
     for (auto& p : pdf.m_particles) p.log_w = 0.0;
-    const uint64_t jumps = est.odometry_jumps;
+    const uint64_t jumps = est.odometry_jumps, disagreements = est.odometry_disagreements;
     est = MclEstimate{};
     est.odometry_jumps = jumps;
+    est.odometry_disagreements = disagreements;
     c_slow = c_fast = global ? 1.0 : 0.0;
     if (global) est.w_slow = est.w_fast = 1.0;
     force_update = true;
@@ -618,6 +734,7 @@ bool MclFilter::update(const MclPose& odometry, std::span<const float> xs, std::
     s.py[k] = ys[i];
   }
   const bool candidates = s.move_only;
+  s.check_odometry(incr, xs.first(n), ys.first(n));
   s.predict(incr);
   s.weigh_all();
   s.recover();

@@ -17,6 +17,9 @@
 //   plus a fraction `odom_outlier_fraction` of the particles moved with
 //   `odom_outlier_scale` times that noise, so that one odometry read-out that stalled or
 //   slipped (real odometry does) does not leave the whole cloud behind;
+// - an odometry check: the scan matched against the previous update's scan (ICP); when
+//   that increment disagrees with the odometry's beyond the motion model, part of the
+//   particles moves by the scan's increment (odometry that stalled for a read-out);
 // - recovery that tells a kidnap from a bad scan (see the options): random particles
 //   only after the scan fit stayed low for several updates;
 // - initialisation around a pose with a spread, or globally over the free space.
@@ -85,6 +88,27 @@ struct MclOptions {
   // before it is kept) instead of moving the particles (0: off). Far above any real
   // motion between two scans, an odometry catch-up after a stall included.
   double odometry_jump = 5.0;  // m
+  // The odometry check (scan-to-scan): each filter update also matches this scan
+  // against the scan of the previous filter update (MRPT's ICP, started from the
+  // odometry increment). When the match pairs at least odometry_check_goodness of the
+  // points and its increment differs from the odometry's by more than odometry_check
+  // standard deviations of the motion model (in x-y or in heading; the std devs of the
+  // scan's increment, at least sigma_hit and 0.05 rad: smaller disagreements the
+  // scan's weighting settles by itself), and the scan fits the map clearly better from
+  // the last estimate moved by the scan's increment than by the odometry's (by 0.25 in
+  // mean log-likelihood per point: ICP can settle in a wrong minimum where the walls
+  // repeat), a share odometry_check_fraction of the
+  // particles moves by the scan's increment instead (with the motion model's noise for
+  // it), the rest by the odometry's, and the scan weighs both. For odometry whose
+  // read-out stalls and then catches up (30-80 % of a step reported, the rest with the
+  // next one): no Gaussian motion model of sensible width covers those two scans, and
+  // the particles moved by the odometry alone fall behind. The check is skipped while
+  // the scans fit the map worse than usual (w_fast below recovery_ratio * w_slow, see
+  // the recovery below): among a crowd, ICP pairs people with people. Along a corridor
+  // ICP stays at the odometry's increment. 0: off.
+  double odometry_check = 2.0;           // std devs of the motion model
+  double odometry_check_fraction = 0.5;  // of the particles, moved by the scan's increment
+  double odometry_check_goodness = 0.5;  // share of the points ICP paired, (0, 1]
   // Update gating.
   double update_distance = 0.10;  // m of odometry travel
   double update_angle = 0.10;     // rad of odometry turn
@@ -147,6 +171,11 @@ struct MclEstimate {
   uint32_t low_updates = 0;           // consecutive updates with w_fast < recovery_ratio * w_slow
   uint64_t recoveries = 0;            // updates that injected (since the last init)
   uint64_t odometry_jumps = 0;        // odometry discontinuities dropped (since construction)
+  // The odometry check: updates whose scan-to-scan increment disagreed with the
+  // odometry (part of the particles moved by the scan's), since construction, and
+  // whether the last update was one.
+  uint64_t odometry_disagreements = 0;
+  bool odometry_disagreed = false;
 };
 
 class MclFilter {
