@@ -6,6 +6,7 @@
 #include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
+#include "rack/core/data_component.h"
 #include "rack/tims/lcm_url.h"
 #include "rack/tims/link_auth.h"
 
@@ -16,6 +17,7 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -204,6 +206,10 @@ struct HostLoader {
 
   void error(const YAML::Mark& mark, const std::string& message) {
     errors.push_back({file, mark.line + 1, mark.column + 1, message});
+  }
+  std::vector<ConfigError> warnings;
+  void warn(const YAML::Mark& mark, const std::string& message) {
+    warnings.push_back({file, mark.line + 1, mark.column + 1, message});
   }
 
   // What an error about a path adds when the file gave it relative.
@@ -608,6 +614,7 @@ struct HostLoader {
       return result;
     }
     result.host = std::move(host);
+    result.warnings = warnings;
     return result;
   }
 
@@ -1132,6 +1139,13 @@ struct HostLoader {
           get_positive_ms(dt, "timeout_ms", s.data_timeout_ns);
         }
       }
+      // data_task.timeout_ms of a class with declared inputs is the former name of its
+      // parameter silence_ms (docs/parameters.md): taken there, with a warning.
+      std::optional<std::pair<std::string, YAML::Node>> old_timeout;
+      const auto* consumer = dynamic_cast<const DataComponentBase*>(component.get());
+      if (dt && dt.IsMap() && dt["timeout_ms"] && consumer != nullptr && consumer->declares_inputs()) {
+        old_timeout.emplace("timeout_ms", dt["timeout_ms"]);
+      }
       // Parameters.
       Pending p{node, std::move(component), {}};
       ParameterSet& params = p.component->parameters();
@@ -1149,6 +1163,15 @@ struct HostLoader {
           for (auto it = pn.begin(); it != pn.end(); ++it) {
             const std::string key = it->first.Scalar();
             Parameter* param = params.find(key.c_str());
+            if (param == nullptr && (param = params.renamed(key)) != nullptr) {
+              warn(it->first.Mark(), "component '" + name + "': parameter '" + key + "' is now '" + param->name() +
+                                         "' (the old name still works; rename it: docs/parameters.md)");
+              if (pn[param->name()]) {
+                error(it->first.Mark(), "component '" + name + "': '" + key + "' and '" + param->name() +
+                                            "' are the same parameter (old and new name): give one");
+                continue;
+              }
+            }
             if (param == nullptr) {
               error(it->first.Mark(),
                     "unknown parameter '" + key + "' for class '" + impl + "' (known: " + params.names() + ")");
@@ -1162,11 +1185,19 @@ struct HostLoader {
               error(it->second.Mark(), *err);
               continue;
             }
-            given.insert(key);
+            given.insert(param->name());
             given_marks[param] = it->second.Mark();
             if (param->spec().component_ref) p.refs.emplace_back(param, it->second);
           }
         }
+      }
+      if (old_timeout && given.count("silence_ms") == 0) {
+        const YAML::Node v = old_timeout->second;
+        warn(v.Mark(), "component '" + name +
+                           "': data_task.timeout_ms is now the parameter silence_ms (params: {silence_ms: " +
+                           v.Scalar() + "}; the old name still works: docs/parameters.md)");
+        if (auto err = params.find("silence_ms")->set_from_text(v.Scalar())) error(v.Mark(), *err);
+        else given_marks[params.find("silence_ms")] = v.Mark();
       }
       // The host's default log level for components that do not set their own.
       if (given.count(Component::kLogLevelParam) == 0) {
@@ -1277,7 +1308,7 @@ std::string host_file_folder(const std::string& file) {
 
 LoadResult load_host_text(const std::string& text, const std::string& file, ComponentRegistry& registry,
                           const rt::RtCapabilities& caps, const HostLoadOptions& options) {
-  HostLoader loader{file, registry, caps, options, {}, {}, {}};
+  HostLoader loader{file, registry, caps, options, {}, {}, {}, {}};
   // Outside input: whatever escapes the checks (a yaml-cpp conversion that throws, an
   // allocation that fails) is one more error of this file, never an exception.
   LoadResult r;
@@ -1291,6 +1322,7 @@ LoadResult load_host_text(const std::string& text, const std::string& file, Comp
   // Messages quote the file's keys and values: they go to a terminal and a log as
   // clean text of bounded length, whatever the file held.
   for (auto& e : r.errors) e.message = clean_message(e.message);
+  for (auto& w : r.warnings) w.message = clean_message(w.message);
   return r;
 }
 
