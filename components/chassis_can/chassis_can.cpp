@@ -31,8 +31,8 @@ ChassisCan::ChassisCan()
       dec_max_(declare_float("dec_max", 2.0, {.doc = "m/s^2, the drives' profile deceleration", .min = 0.001})),
       watchdog_ms_(declare_float("watchdog_ms", 500.0,
                                  {.doc = "stop when no MOVE came for this long", .min = 1.0, .unit = "ms"})),
-      heartbeat_ms_(declare_int("heartbeat_ms", 100,
-                                {.doc = "drive heartbeat producer time", .min = 1, .max = 65535, .unit = "ms"})),
+      heartbeat_ms_(declare_float("heartbeat_ms", 100.0,
+                                  {.doc = "drive heartbeat producer time", .min = 1, .max = 65535, .unit = "ms"})),
       heartbeat_timeout_ms_(declare_float("heartbeat_timeout_ms", 350.0,
                                           {.doc = "a drive silent this long: ERROR, the other stops", .min = 1.0})),
       sdo_timeout_ms_(declare_float("sdo_timeout_ms", 100.0,
@@ -80,7 +80,8 @@ bool ChassisCan::configure(Drive& d) noexcept {
          sdo_write(d.node, co::kObjTargetVelocity, 0, 0, 4) &&
          sdo_write(d.node, co::kObjProfileAcceleration, 0, acc, 4) &&
          sdo_write(d.node, co::kObjProfileDeceleration, 0, dec, 4) &&
-         sdo_write(d.node, co::kObjHeartbeatTime, 0, static_cast<uint32_t>(heartbeat_ms_.get_int()), 2) &&
+         sdo_write(d.node, co::kObjHeartbeatTime, 0, static_cast<uint32_t>(std::lround(heartbeat_ms_.get_float())),
+                   2) &&
          sdo_write(d.node, co::kObjTpdo1Comm, 2, 1, 1) &&  // TPDO1 on every SYNC
          sdo_write(d.node, co::kObjTpdo2Comm, 2, 1, 1);    // TPDO2 on every SYNC
 }

@@ -32,8 +32,9 @@ ChassisSim::ChassisSim()
           declare_float("boundary_right", 0.25, {.doc = "m, outline to the right", .min = 0.0, .max = 10.0})),
       safety_margin_(declare_float(
           "safety_margin", 0.10, {.doc = "m, kept free around the outline (told to pilots)", .min = 0.0, .max = 5.0})),
-      watchdog_ms_(declare_int("watchdog_ms", 500,
-                               {.doc = "stop when no MOVE came for this long", .min = 10, .max = 60000, .unit = "ms"})),
+      watchdog_ms_(
+          declare_float("watchdog_ms", 500.0,
+                        {.doc = "stop when no MOVE came for this long", .min = 10, .max = 60000, .unit = "ms"})),
       noise_xy_(declare_float(
           "noise_xy", 0.02,
           {.doc = "odometry translation noise, m per sqrt(m) travelled (std-dev)", .min = 0.0, .max = 1.0})),
@@ -117,7 +118,7 @@ HookResult ChassisSim::loop() {
   {
     rt::PiLock lock(command_mutex_);
     const bool moving = command_.vx != 0.0 || command_.vy != 0.0 || command_.omega != 0.0;
-    if (moving && now - last_move_ns() > watchdog_ms_.get_int() * rt::kNsPerMs) {
+    if (moving && now - last_move_ns() > std::llround(watchdog_ms_.get_float() * 1e6)) {
       command_ = Velocity{};
       ++watchdog_stops_;
     }
@@ -217,7 +218,7 @@ ChassisParams ChassisSim::chassis_params() const noexcept {
   p.boundary_left = boundary_left_.get_float();
   p.boundary_right = boundary_right_.get_float();
   p.safety_margin = safety_margin_.get_float();
-  p.watchdog_ns = watchdog_ms_.get_int() * rt::kNsPerMs;
+  p.watchdog_ns = std::llround(watchdog_ms_.get_float() * 1e6);
   return p;
 }
 

@@ -4,7 +4,6 @@
 #include <cstdio>
 
 #include "common/pose2d.h"
-#include "rack/components/class_ids.h"
 #include "rack/interfaces/robot.h"
 
 namespace rack::components {
@@ -15,10 +14,6 @@ using interfaces::PositionData;
 
 namespace {
 constexpr int64_t kMatchWindowNs = 20 * rt::kNsPerMs;
-constexpr std::size_t kMaxPayload = sizeof(MclData) > sizeof(ChassisData)
-                                        ? (sizeof(MclData) > sizeof(PositionData) ? sizeof(MclData)
-                                                                                  : sizeof(PositionData))
-                                        : sizeof(ChassisData);
 }  // namespace
 
 void Evaluator::ErrorStats::add(double error, double heading_error) noexcept {
@@ -53,18 +48,14 @@ double Evaluator::ErrorStats::p95() const noexcept {
 
 Evaluator::Evaluator()
     : DataComponent(DataTaskMode::kTriggered),
-      chassis_(declare_component_ref("chassis", "the ChassisSim whose true pose (truth_x/y/phi) is the reference")),
-      position_(declare_string(
-          "position", "", {.doc = "Position component to evaluate (optional; empty: none)", .component_ref = true})),
-      mcl_(declare_string("mcl", "",
-                          {.doc = "MCL component to evaluate (optional; empty: none)", .component_ref = true})),
-      position_period_ms_(declare_float(
-          "position_period_ms", 100.0,
-          {.doc = "requested Position sample period (ms; 0: every sample; a triggered Position sends every sample)",
-           .min = 0.0,
-           .max = 60000.0})) {
-  use_input_mailbox(static_cast<uint32_t>(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + kMaxPayload + 64));
-}
+      chassis_(declare_input<ChassisData>("chassis",
+                                          {.doc = "the ChassisSim whose true pose (truth_x/y/phi) is the reference"})),
+      position_(declare_input<PositionData>("position", {.doc = "Position component to evaluate",
+                                                         .optional = true,
+                                                         .ask_period = true,
+                                                         .period_ms = 100.0,
+                                                         .watched = false})),
+      mcl_(declare_input<MclData>("mcl", {.doc = "MCL component to evaluate", .optional = true, .watched = false})) {}
 
 HookResult Evaluator::on() {
   truth_next_ = truth_count_ = 0;
@@ -72,27 +63,7 @@ HookResult Evaluator::on() {
   position_stats_ = ErrorStats{};
   mcl_stats_ = ErrorStats{};
   data_ = interfaces::EvaluatorData{};
-  const tims::Address chassis = resolved(chassis_);
-  if (switch_on(chassis) != HookResult::kOk) return HookResult::kError;  // cascading ON
-  if (subscribe(chassis, 0) != HookResult::kOk) return HookResult::kError;
-  // Position and MCL too (cascading ON: neither moves the robot; the pilot does).
-  const tims::Address position = resolved(position_);
-  if (position.raw() != 0 &&
-      (switch_on(position) != HookResult::kOk ||
-       subscribe(position, static_cast<int64_t>(position_period_ms_.get_float() * 1e6)) != HookResult::kOk)) {
-    return HookResult::kError;
-  }
-  const tims::Address mcl = resolved(mcl_);
-  if (mcl.raw() != 0 && (switch_on(mcl) != HookResult::kOk || subscribe(mcl, 0) != HookResult::kOk)) {
-    return HookResult::kError;
-  }
   return HookResult::kOk;
-}
-
-void Evaluator::off() {
-  unsubscribe(resolved(chassis_));
-  if (resolved(position_).raw() != 0) unsubscribe(resolved(position_));
-  if (resolved(mcl_).raw() != 0) unsubscribe(resolved(mcl_));
 }
 
 const Evaluator::Truth* Evaluator::truth_at(int64_t time_ns) const noexcept {
@@ -118,51 +89,32 @@ void Evaluator::evaluate(ErrorStats& stats, int64_t time_ns, double x, double y,
   stats.add(std::hypot(x - t->x, y - t->y), std::abs(normalize_angle(phi - t->phi)));
 }
 
-// One DATA message of the input: the chassis' true pose, Position's or MCL's estimate.
-// false when a known source's body does not decode (counted by next_input).
-bool Evaluator::take(const tims::MessageHeader& h, std::span<const std::byte> body, uint8_t chassis_class,
-                     bool& got) noexcept {
-  wire::SampleHeader sh;
-  const uint8_t source_class = h.source().class_id();
-  if (source_class == chassis_class) {
-    ChassisData c;
-    if (!read_sample(h, body, sh, c)) return false;
-    if (c.truth_valid == 0) return true;
-    got = true;
+// One sample of an input: the chassis' true pose, Position's or MCL's estimate.
+bool Evaluator::take(const InputPort& from) noexcept {
+  if (&from == &chassis_) {
+    const ChassisData& c = chassis_.value();
+    if (c.truth_valid == 0) return false;
     if (have_last_truth_) data_.distance += std::hypot(c.truth_x - last_truth_.x, c.truth_y - last_truth_.y);
-    last_truth_ = Truth{sh.time_ns, c.truth_x, c.truth_y, c.truth_phi};
+    last_truth_ = Truth{chassis_.time_ns(), c.truth_x, c.truth_y, c.truth_phi};
     have_last_truth_ = true;
     truth_[truth_next_] = last_truth_;
     truth_next_ = (truth_next_ + 1) % kTruthSlots;
     if (truth_count_ < kTruthSlots) ++truth_count_;
-  } else if (source_class == class_ids::kPosition) {
-    PositionData d;
-    if (!read_sample(h, body, sh, d)) return false;
-    got = true;
-    evaluate(position_stats_, sh.time_ns, d.x, d.y, d.phi);
-  } else if (source_class == class_ids::kMcl) {
-    MclData d;
-    if (!read_sample(h, body, sh, d)) return false;
-    got = true;
-    evaluate(mcl_stats_, d.scan_time_ns != 0 ? d.scan_time_ns : sh.time_ns, d.x, d.y, d.phi);
+  } else if (&from == &position_) {
+    const PositionData& d = position_.value();
+    evaluate(position_stats_, position_.time_ns(), d.x, d.y, d.phi);
+  } else {
+    const MclData& d = mcl_.value();
+    evaluate(mcl_stats_, d.scan_time_ns != 0 ? d.scan_time_ns : mcl_.time_ns(), d.x, d.y, d.phi);
   }
   return true;
 }
 
 HookResult Evaluator::loop() {
   bool got = false;
-  const uint8_t chassis_class = resolved(chassis_).class_id();
-  for (;;) {
-    tims::MessageHeader header;
-    const Input in = next_input(header, [&](const tims::MessageHeader& h, std::span<const std::byte> body) {
-      return take(h, body, chassis_class, got);
-    });
-    if (in == Input::kNone) break;
-    if (in == Input::kError) return HookResult::kError;  // a stream's producer left ENABLED: re-subscribe on retry
-  }
-  if (!got) {  // nothing usable: an error once the chassis has been silent for data_timeout
-    return input_silent() ? HookResult::kError : HookResult::kOk;
-  }
+  const Received r = receive([&](const InputPort& from) { got = take(from) || got; });
+  if (r.failed) return HookResult::kError;  // a producer left ENABLED, or the chassis fell silent: retry
+  if (!got) return HookResult::kOk;
   data_.position_samples = position_stats_.n;
   data_.position_error = position_stats_.last;
   data_.position_rms = position_stats_.rms();

@@ -5,8 +5,9 @@
 // progress on rackd's --status lines and its result at exit, and what
 // `rackctl get-data evaluator` answers.
 //
-// Triggered by its input mailbox, subscribed to the chassis (every sample), Position
-// and MCL (cascading ON for all three; none of them moves the robot). Truth samples are kept in a fixed ring of the last 2 s; an estimate is
+// Triggered by its declared inputs: the chassis (every sample; its silence for
+// silence_ms is an ERROR), Position (position_period_ms) and MCL, optional (cascading
+// ON for all three; none of them moves the robot). Truth samples are kept in a fixed ring of the last 2 s; an estimate is
 // compared with the truth sample nearest its time (within 20 ms).
 //
 // Real-time contract: on(), off() and loop() are RT-safe (fixed arrays, no
@@ -19,6 +20,7 @@
 
 #include "rack/core/data_component.h"
 #include "rack/interfaces/evaluation.h"
+#include "rack/interfaces/robot.h"
 
 namespace rack::components {
 
@@ -29,7 +31,6 @@ class Evaluator final : public DataComponent<interfaces::EvaluatorData> {
 
  protected:
   HookResult on() override;
-  void off() override;
   HookResult loop() override;  // RT, triggered by the three streams
 
  private:
@@ -56,12 +57,12 @@ class Evaluator final : public DataComponent<interfaces::EvaluatorData> {
  private:
   const Truth* truth_at(int64_t time_ns) const noexcept;
   void evaluate(ErrorStats& stats, int64_t time_ns, double x, double y, double phi) noexcept;
-  bool take(const tims::MessageHeader& h, std::span<const std::byte> body, uint8_t chassis_class, bool& got) noexcept;
+  // One sample of an input; true when it counts (a truth sample, an estimate).
+  bool take(const InputPort& from) noexcept;
 
-  Parameter& chassis_;
-  Parameter& position_;
-  Parameter& mcl_;
-  Parameter& position_period_ms_;
+  InputOf<interfaces::ChassisData>& chassis_;
+  InputOf<interfaces::PositionData>& position_;
+  InputOf<interfaces::MclData>& mcl_;
 
   static constexpr std::size_t kTruthSlots = 256;  // 2.5 s of a 100 Hz chassis
   std::array<Truth, kTruthSlots> truth_{};

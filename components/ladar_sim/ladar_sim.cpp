@@ -19,7 +19,8 @@ LadarSim::LadarSim()
                            .required = true,
                            .init_only = true,
                            .path = PathRole::kInput})),
-      chassis_(declare_component_ref("chassis", "the simulated Chassis whose true pose the scans are rendered from")),
+      chassis_(declare_input<ChassisData>(
+          "chassis", {.doc = "the simulated Chassis whose true pose the scans are rendered from", .watched = false})),
       mount_x_(declare_float("mount_x", 0.0,
                              {.doc = "m, sensor position in the robot frame (forward)", .min = -10.0, .max = 10.0})),
       mount_y_(declare_float("mount_y", 0.0,
@@ -35,12 +36,10 @@ LadarSim::LadarSim()
       noise_sigma_(
           declare_float("noise_sigma", 0.01, {.doc = "m, std-dev of gaussian range noise", .min = 0.0, .max = 10.0})),
       seed_(declare_int("seed", 2, {.doc = "seed of the noise generator", .min = 0, .max = 1e15, .init_only = true})),
-      silence_ms_(declare_int(
-          "silence_ms", 1000,
-          {.doc = "ERROR when the chassis sent no pose for this long", .min = 10, .max = 60000, .unit = "ms"})),
-      servo_(declare_string("servo", "",
-                            {.doc = "3-D: the ServoDrive that turns the ladar (empty: a fixed 2-D ladar)",
-                             .component_ref = true})),
+      servo_(declare_input<interfaces::ServoDriveData>(
+          "servo", {.doc = "3-D: the ServoDrive that turns the ladar (empty: a fixed 2-D ladar)",
+                    .optional = true,
+                    .watched = false})),
       scan_mode_(declare_string("scan_mode", "pitch",
                                 {.doc = "3-D: how the drive turns the scan plane (as Scan3D's mode)",
                                  .choices = {"roll", "pitch", "yaw"},
@@ -49,9 +48,7 @@ LadarSim::LadarSim()
                              {.doc = "3-D: m, the ladar's centre above the floor", .min = 0.0, .max = 100.0})),
       ceiling_height_(
           declare_float("ceiling_height", 2.5,
-                        {.doc = "3-D: m, the ceiling (0: none); walls reach up to it", .min = 0.0, .max = 1000.0})) {
-  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(ChassisData) + 64);
-}
+                        {.doc = "3-D: m, the ceiling (0: none); walls reach up to it", .min = 0.0, .max = 1000.0})) {}
 
 void LadarSim::init() {
   const std::string path = map_.get_string();
@@ -59,7 +56,7 @@ void LadarSim::init() {
   if (!loaded.ok()) throw std::runtime_error("map: " + loaded.error_text());
   map_data_ = std::move(loaded.map);
   rng_.seed(static_cast<uint64_t>(seed_.get_int()));
-  three_d_ = !servo_.get_string().empty();
+  three_d_ = !servo_.source_parameter().get_string().empty();
   const std::string mode = scan_mode_.get_string();
   mode_id_ = mode == "roll"  ? interfaces::kScan3dModeRoll
              : mode == "yaw" ? interfaces::kScan3dModeYaw
@@ -89,47 +86,30 @@ HookResult LadarSim::on() {
   published_time_ns_ = 0;
   last_truth_mono_ns_ = rt::monotonic_ns();
   servo_angle_.clear();
-  const tims::Address chassis = resolved(chassis_);
-  if (switch_on(chassis) != HookResult::kOk) return HookResult::kError;
-  if (three_d_) {
-    const tims::Address servo = resolved(servo_);
-    if (switch_on(servo) != HookResult::kOk || subscribe(servo, 0) != HookResult::kOk) return HookResult::kError;
-  }
-  return subscribe(chassis, 0);
-}
-
-void LadarSim::off() {
-  unsubscribe(resolved(chassis_));
-  if (three_d_) unsubscribe(resolved(servo_));
+  return HookResult::kOk;
 }
 
 HookResult LadarSim::loop() {
   const int64_t now = rt::monotonic_ns();
-  const tims::Address servo = three_d_ ? resolved(servo_).with_mailbox(0) : tims::Address();
-  for (;;) {  // keep the newest true pose (and, in 3-D, every drive angle)
-    tims::MessageHeader header;
-    const Input in = next_input(header, [&](const tims::MessageHeader& h, std::span<const std::byte> body) {
-      wire::SampleHeader sh;
-      if (three_d_ && h.source().with_mailbox(0) == servo) {
-        interfaces::ServoDriveData d;
-        if (!read_sample(h, body, sh, d)) return false;
-        if (std::isfinite(d.position)) servo_angle_.push(sh.time_ns, d.position);
-        return true;
-      }
-      ChassisData c;
-      if (!read_sample(h, body, sh, c)) return false;
-      if (c.truth_valid != 0) {
-        truth_ = Pose2d{c.truth_x, c.truth_y, c.truth_phi};
-        truth_time_ns_ = sh.time_ns;
-        last_truth_mono_ns_ = now;
-        have_truth_ = true;
-      }
-      return true;
-    });
-    if (in == Input::kNone) break;
-    if (in == Input::kError) return HookResult::kError;  // the chassis (or the drive) left ENABLED
+  // The newest true pose (and, in 3-D, every drive angle).
+  const Received got = receive([&](const InputPort& from) {
+    if (&from == &servo_) {
+      if (std::isfinite(servo_.value().position)) servo_angle_.push(servo_.time_ns(), servo_.value().position);
+      return;
+    }
+    const ChassisData& c = chassis_.value();
+    if (c.truth_valid != 0) {
+      truth_ = Pose2d{c.truth_x, c.truth_y, c.truth_phi};
+      truth_time_ns_ = chassis_.time_ns();
+      last_truth_mono_ns_ = now;
+      have_truth_ = true;
+    }
+  });
+  if (got.failed) return HookResult::kError;  // the chassis (or the drive) left ENABLED
+  if (now - last_truth_mono_ns_ > silence_ns()) {
+    set_error_reason("the chassis sent no true pose for silence_ms");
+    return HookResult::kError;
   }
-  if (now - last_truth_mono_ns_ > silence_ms_.get_int() * rt::kNsPerMs) return HookResult::kError;
   // Nothing to render from yet, or no new pose since the last scan (one scan per pose).
   if (!have_truth_ || truth_time_ns_ == published_time_ns_) return HookResult::kOk;
   double theta = 0.0;

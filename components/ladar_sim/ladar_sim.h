@@ -28,6 +28,7 @@
 #include "common/pose2d.h"
 #include "common/time_series.h"
 #include "rack/core/data_component.h"
+#include "rack/interfaces/devices.h"
 #include "rack/interfaces/robot.h"
 #include "rack/maps/occupancy_map.h"
 
@@ -40,12 +41,13 @@ class LadarSim final : public DataComponent<interfaces::LadarData> {
  protected:
   void init() override;
   HookResult on() override;
-  void off() override;
   HookResult loop() override;  // RT, periodic
 
  private:
   Parameter& map_;
-  Parameter& chassis_;
+  // Declared inputs: the chassis (every sample; no true pose for silence_ms: ERROR) and,
+  // in 3-D, the drive.
+  InputOf<interfaces::ChassisData>& chassis_;
   Parameter& mount_x_;
   Parameter& mount_y_;
   Parameter& mount_phi_;
@@ -55,8 +57,7 @@ class LadarSim final : public DataComponent<interfaces::LadarData> {
   Parameter& range_max_;
   Parameter& noise_sigma_;
   Parameter& seed_;
-  Parameter& silence_ms_;
-  Parameter& servo_;
+  InputOf<interfaces::ServoDriveData>& servo_;
   Parameter& scan_mode_;
   Parameter& mount_z_;
   Parameter& ceiling_height_;

@@ -44,13 +44,12 @@ Mcl::Mcl()
            .required = true,
            .init_only = true,
            .path = PathRole::kInput})),
-      scan2d_(declare_component_ref("scan2d", "the Scan2D component whose scans (with odometry) MCL uses")),
+      scan2d_(declare_input<Scan2dData>("scan2d", {.doc = "the Scan2D component whose scans (with odometry) MCL uses",
+                                                   .ask_period = true,
+                                                   .old_period_name = "period_ms"})),
       position_(declare_string("position", "",
                                {.doc = "Position component to send UPDATE to (optional; empty: none)",
                                 .component_ref = true})),
-      period_ms_(
-          declare_float("period_ms", 0.0,
-                        {.doc = "requested scan period (0: every scan)", .min = 0.0, .max = 60000.0, .unit = "ms"})),
       particles_min_(
           declare_int("particles_min", 100, {.doc = "KLD-sampling: fewest particles", .min = 1, .max = 1e6})),
       particles_max_(
@@ -246,7 +245,6 @@ void Mcl::init() {
   // initial_pose and the filter's options were checked (check_parameters, before init()).
   const mcl::MclOptions options = read_options();
   filter_ = std::make_unique<mcl::MclFilter>(*loaded.map, options);
-  scan_ = std::make_unique<Scan2dData>();
   out_ = std::make_unique<MclData>();
   xs_ = std::make_unique<float[]>(interfaces::kScan2dMaxPoints);
   ys_ = std::make_unique<float[]>(interfaces::kScan2dMaxPoints);
@@ -255,14 +253,9 @@ void Mcl::init() {
 }
 
 HookResult Mcl::on() {
-  const tims::Address source = resolved(scan2d_);
-  if (switch_on(source) != HookResult::kOk) return HookResult::kError;  // cascading ON
   reinit_.store(true, std::memory_order_release);
-  const auto period = static_cast<int64_t>(period_ms_.get_float() * 1e6);
-  return subscribe(source, period);
+  return HookResult::kOk;
 }
-
-void Mcl::off() { unsubscribe(resolved(scan2d_)); }
 
 CommandResult Mcl::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
   if (request.type != interfaces::kMclInit) return CommandResult::kUnknown;
@@ -276,26 +269,14 @@ CommandResult Mcl::command(const tims::MessageHeader& request, std::span<const s
     reject_malformed(request, "INIT: pose must be finite and spreads >= 0");
     return CommandResult::kHandled;
   }
-  {
-    rt::PiLock lock(init_mutex_);
-    pending_init_ = init;
-    init_pending_ = true;
-  }
+  init_.post(init);
   reply(request, tims::msg::kOk);
   return CommandResult::kHandled;
 }
 
 bool Mcl::apply_init() {
-  bool have = false;
   interfaces::MclInit init;
-  {
-    rt::PiLock lock(init_mutex_);
-    if (init_pending_) {
-      init = pending_init_;
-      init_pending_ = false;
-      have = true;
-    }
-  }
+  bool have = init_.take(init);
   if (reinit_.exchange(false, std::memory_order_acquire) && !have) {
     // ON: from the parameters (they may have been changed with SET_PARAM).
     filter_->set_options(read_options());
@@ -321,25 +302,16 @@ bool Mcl::apply_init() {
 }
 
 HookResult Mcl::loop() {
-  bool got = false;
-  wire::SampleHeader sh{};
-  for (;;) {
-    // Only the newest scan counts: the odometry in each scan is absolute, so skipping
-    // older ones loses nothing but keeps MCL from lagging behind.
-    wire::SampleHeader this_sh{};
-    const Input in = next_sample(this_sh, *scan_);
-    if (in == Input::kNone) break;
-    if (in == Input::kError) return HookResult::kError;  // Scan2D left ENABLED: re-subscribe on retry
-    sh = this_sh;
-    got = true;
-  }
-  if (!got) {  // nothing usable: an error once the source has been silent for data_timeout
-    return input_silent() ? HookResult::kError : HookResult::kOk;
-  }
+  // Only the newest scan counts: the odometry in each scan is absolute, so skipping
+  // older ones loses nothing but keeps MCL from lagging behind.
+  const Received r = receive([](const InputPort&) {});
+  if (r.failed) return HookResult::kError;  // Scan2D left ENABLED or fell silent: re-subscribe on retry
+  if (r.samples == 0) return HookResult::kOk;
+  const wire::SampleHeader sh = scan2d_.sample_header();
   scans_.fetch_add(1, std::memory_order_relaxed);
   try {
     if (!apply_init()) return HookResult::kError;
-    const Scan2dData& s = *scan_;
+    const Scan2dData& s = scan2d_.value();
     if (s.odometry_valid == 0) {  // no motion model without odometry: wait for the next
       if (no_odometry_.fetch_add(1, std::memory_order_relaxed) == 0) {
         log_warning(

@@ -22,6 +22,7 @@
 #include <memory>
 
 #include "rack/core/data_component.h"
+#include "rack/core/handoff.h"
 #include "rack/interfaces/robot.h"
 #include "rack/rt/pi_mutex.h"
 
@@ -48,7 +49,6 @@ class Mcl final : public DataComponent<interfaces::MclData> {
   void init() override;  // loads the map, builds the filter (non-RT)
   [[nodiscard]] bool check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept override;
   HookResult on() override;
-  void off() override;
   HookResult loop() override;  // NOT RT-safe: the filter allocates (MRPT)
   CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override;
 
@@ -63,9 +63,8 @@ class Mcl final : public DataComponent<interfaces::MclData> {
   void report_localisation(const interfaces::MclData& d) noexcept;
 
   Parameter& map_;
-  Parameter& scan2d_;
+  InputOf<interfaces::Scan2dData>& scan2d_;  // only the newest scan counts
   Parameter& position_;
-  Parameter& period_ms_;
   Parameter& particles_min_;
   Parameter& particles_max_;
   Parameter& initial_pose_;
@@ -105,14 +104,10 @@ class Mcl final : public DataComponent<interfaces::MclData> {
 
   std::unique_ptr<mcl::MclFilter> filter_;
   // Samples are large: kept here, not on the data task's stack.
-  std::unique_ptr<interfaces::Scan2dData> scan_;
   std::unique_ptr<interfaces::MclData> out_;
   std::unique_ptr<float[]> xs_, ys_;
 
-  // INIT from the command task to the data task (PI mutex: the command task is RT).
-  rt::PiMutex init_mutex_;
-  interfaces::MclInit pending_init_{};
-  bool init_pending_ = false;  // guarded by init_mutex_
+  Handoff<interfaces::MclInit> init_;  // INIT from the command task to the data task
   // Set by on(): re-initialise from the parameters before the next scan.
   // Release/acquire: the data task sees everything on() wrote before it.
   std::atomic<bool> reinit_{false};

@@ -1,5 +1,6 @@
-// Monitor: a consumer (demo). Switches on its source (cascading ON), subscribes with
-// getContData, and publishes what it saw: samples received, gaps, latency.
+// Monitor: a consumer (demo). Its declared input `source` (a Generator, asked for a
+// sample every source_period_ms) is switched on and subscribed to by the framework;
+// it publishes what it saw: samples received, gaps, latency.
 #pragma once
 
 #include "rack/core/data_component.h"
@@ -13,12 +14,10 @@ class Monitor final : public DataComponent<interfaces::MonitorData> {
 
  protected:
   HookResult on() override;
-  void off() override;
   HookResult loop() override;  // RT, triggered by the input mailbox
 
  private:
-  Parameter& source_;
-  Parameter& period_ms_;
+  InputOf<interfaces::GeneratorData>& source_;
   interfaces::MonitorData stats_{};
   uint64_t last_sequence_ = 0;
   uint64_t step_ = 0;

@@ -10,7 +10,8 @@ using interfaces::Scan2dData;
 
 ObjRecogLaser::ObjRecogLaser()
     : DataComponent(DataTaskMode::kTriggered),
-      scan2d_(declare_component_ref("scan2d", "the Scan2D component whose scans are clustered and tracked")),
+      scan2d_(
+          declare_input<Scan2dData>("scan2d", {.doc = "the Scan2D component whose scans are clustered and tracked"})),
       cluster_gap_(
           declare_float("cluster_gap", 0.25,
                         {.doc = "m, neighbouring points closer than this form one cluster", .min = 0.01, .max = 10.0})),
@@ -31,9 +32,7 @@ ObjRecogLaser::ObjRecogLaser()
           declare_float("measurement_std", 0.05, {.doc = "m, noise of a cluster's centre", .min = 1e-4, .max = 10.0})),
       dynamic_min_speed_(
           declare_float("dynamic_min_speed", 0.25,
-                        {.doc = "m/s, informational: the speed Scan2D calls dynamic", .min = 0.0, .max = 100.0})) {
-  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(Scan2dData) + 64);
-}
+                        {.doc = "m/s, informational: the speed Scan2D calls dynamic", .min = 0.0, .max = 100.0})) {}
 
 HookResult ObjRecogLaser::on() {
   TrackerOptions o;
@@ -49,12 +48,8 @@ HookResult ObjRecogLaser::on() {
   tracker_.set_options(o);
   tracker_.reset();
   out_ = ObjRecogData{};
-  const tims::Address source = resolved(scan2d_);
-  if (switch_on(source) != HookResult::kOk) return HookResult::kError;
-  return subscribe(source, 0);
+  return HookResult::kOk;
 }
-
-void ObjRecogLaser::off() { unsubscribe(resolved(scan2d_)); }
 
 void ObjRecogLaser::fill(const LaserTracker& tracker, ObjRecogData& out) noexcept {
   const Pose2d& robot = tracker.robot_pose();
@@ -89,31 +84,25 @@ void ObjRecogLaser::fill(const LaserTracker& tracker, ObjRecogData& out) noexcep
 }
 
 HookResult ObjRecogLaser::loop() {
-  bool got = false;
-  for (;;) {
-    wire::SampleHeader sh;
-    const Input in = next_sample(sh, scan_);  // a DATA message of another size: counted as malformed
-    if (in == Input::kNone) break;
-    if (in == Input::kError) return HookResult::kError;  // the Scan2D left ENABLED: re-subscribe on retry
-    got = true;
+  const Received r = receive([&](const InputPort&) {
+    const Scan2dData& scan = scan2d_.value();
     const int64_t t0 = rt::monotonic_ns();
-    if (scan_.point_count == 0 || scan_.point_count > interfaces::kScan2dMaxPoints) {
+    if (scan.point_count == 0 || scan.point_count > interfaces::kScan2dMaxPoints) {
       ++out_.bad_input;
       if (out_.bad_input == 1 || out_.bad_input % 100 == 0) {
-        log_warning("skipped an empty or malformed scan (%u points); %u so far", scan_.point_count, out_.bad_input);
+        log_warning("skipped an empty or malformed scan (%u points); %u so far", scan.point_count, out_.bad_input);
       }
-      continue;
+      return;
     }
-    const Pose2d robot = scan_.odometry_valid != 0 ? Pose2d{scan_.odometry_x, scan_.odometry_y, scan_.odometry_phi}
-                                                   : Pose2d{};
-    tracker_.update(scan_, robot, sh.time_ns);
+    const Pose2d robot = scan.odometry_valid != 0 ? Pose2d{scan.odometry_x, scan.odometry_y, scan.odometry_phi}
+                                                  : Pose2d{};
+    tracker_.update(scan, robot, scan2d_.time_ns());
     ++out_.inputs;
     fill(tracker_, out_);
     out_.process_ms = static_cast<float>(rt::monotonic_ns() - t0) * 1e-6F;
-    publish(out_, sh.time_ns);
-  }
-  // Nothing usable (a renewal's reply, a refused wake-up): an error only once silent.
-  return got || !input_silent() ? HookResult::kOk : HookResult::kError;  // else the Scan2D fell silent
+    publish(out_, scan2d_.time_ns());
+  });
+  return r.failed ? HookResult::kError : HookResult::kOk;  // the Scan2D left ENABLED or fell silent
 }
 
 }  // namespace rack::components

@@ -28,11 +28,10 @@ class ObjRecogLaser final : public DataComponent<interfaces::ObjRecogData> {
 
  protected:
   HookResult on() override;
-  void off() override;
   HookResult loop() override;  // RT, triggered by Scan2dData
 
  private:
-  Parameter& scan2d_;
+  InputOf<interfaces::Scan2dData>& scan2d_;
   Parameter& cluster_gap_;
   Parameter& cluster_min_points_;
   Parameter& cluster_max_size_;
@@ -43,7 +42,6 @@ class ObjRecogLaser final : public DataComponent<interfaces::ObjRecogData> {
   Parameter& measurement_std_;
   Parameter& dynamic_min_speed_;
   LaserTracker tracker_;
-  interfaces::Scan2dData scan_{};
   interfaces::ObjRecogData out_{};
 };
 

@@ -7,34 +7,22 @@ namespace rack::components {
 using interfaces::ChassisData;
 
 Odometry::Odometry()
-    : DataComponent(DataTaskMode::kTriggered), chassis_(declare_component_ref("chassis", "the Chassis to integrate")) {
-  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(ChassisData) + 64);
-}
+    : DataComponent(DataTaskMode::kTriggered),
+      // every sample (no period asked): increments must not be skipped
+      chassis_(declare_input<ChassisData>("chassis", {.doc = "the Chassis to integrate"})) {}
 
 HookResult Odometry::on() {
   odo_ = interfaces::OdometryData{};
-  resets_applied_ = reset_requests_.load(std::memory_order_relaxed);
-  const tims::Address chassis = resolved(chassis_);
-  if (switch_on(chassis) != HookResult::kOk) return HookResult::kError;  // cascading ON
-  return subscribe(chassis, 0);                                          // every sample: increments must not be skipped
+  resets_.clear();
+  return HookResult::kOk;
 }
 
-void Odometry::off() { unsubscribe(resolved(chassis_)); }
-
 HookResult Odometry::loop() {
-  bool got = false;
-  for (;;) {
-    wire::SampleHeader sh;
-    ChassisData c;
-    const Input in = next_sample(sh, c);
-    if (in == Input::kNone) break;
-    if (in == Input::kError) return HookResult::kError;  // the chassis left ENABLED: re-subscribe on retry
-    got = true;
-    const uint32_t requested = reset_requests_.load(std::memory_order_relaxed);
-    if (requested != resets_applied_) {
+  const Received r = receive([&](const InputPort&) {
+    const ChassisData& c = chassis_.value();
+    if (uint32_t resets = 0; resets_.take(resets)) {
       odo_.x = odo_.y = odo_.phi = odo_.distance = 0.0;
-      odo_.resets += requested - resets_applied_;
-      resets_applied_ = requested;
+      odo_.resets += resets;
     }
     if (std::isfinite(c.delta_x) && std::isfinite(c.delta_y) && std::isfinite(c.delta_phi)) {
       const Pose2d pose = compose(Pose2d{odo_.x, odo_.y, odo_.phi}, Pose2d{c.delta_x, c.delta_y, c.delta_phi});
@@ -45,10 +33,9 @@ HookResult Odometry::loop() {
     }
     odo_.vx = c.vx;
     odo_.omega = c.omega;
-    publish(odo_, sh.time_ns);
-  }
-  // Nothing usable: an error once the chassis has been silent for data_timeout.
-  return got || !input_silent() ? HookResult::kOk : HookResult::kError;
+    publish(odo_, chassis_.time_ns());
+  });
+  return r.failed ? HookResult::kError : HookResult::kOk;
 }
 
 CommandResult Odometry::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
@@ -57,7 +44,7 @@ CommandResult Odometry::command(const tims::MessageHeader& request, std::span<co
     reject_malformed(request, "RESET takes no body");
     return CommandResult::kHandled;
   }
-  reset_requests_.fetch_add(1, std::memory_order_relaxed);
+  resets_.post([](uint32_t& n) { ++n; });
   reply(request, tims::msg::kOk);
   return CommandResult::kHandled;
 }

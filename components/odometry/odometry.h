@@ -7,10 +7,11 @@
 // Real-time contract: on(), off(), loop() and command() are RT-safe.
 #pragma once
 
-#include <atomic>
+#include <cstdint>
 
 #include "common/pose2d.h"
 #include "rack/core/data_component.h"
+#include "rack/core/handoff.h"
 #include "rack/interfaces/robot.h"
 
 namespace rack::components {
@@ -21,17 +22,13 @@ class Odometry final : public DataComponent<interfaces::OdometryData> {
 
  protected:
   HookResult on() override;
-  void off() override;
   HookResult loop() override;  // RT, triggered by ChassisData
   CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override;
 
  private:
-  Parameter& chassis_;
+  InputOf<interfaces::ChassisData>& chassis_;
   interfaces::OdometryData odo_{};
-  // RESETs asked for by the command task, applied by the data task (relaxed counter:
-  // the data task compares it with what it applied; the pose itself is its own).
-  std::atomic<uint32_t> reset_requests_{0};
-  uint32_t resets_applied_ = 0;
+  Handoff<uint32_t> resets_;  // RESETs asked for (command task), applied by the data task
 };
 
 }  // namespace rack::components

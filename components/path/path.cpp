@@ -224,21 +224,15 @@ HookResult Path::on() {
   make_rejected_.store(0, std::memory_order_relaxed);
   last_text_[0] = '\x01';  // differs from any parameter text: the loop makes the path at once
   last_closed_ = closed_.get_bool();
-  rt::PiLock lock(mutex_);
-  has_pending_ = false;
+  made_.clear();
   return HookResult::kOk;
 }
 
 HookResult Path::loop() {
   bool publish_now = false;
-  {
-    rt::PiLock lock(mutex_);
-    if (has_pending_) {
-      std::memcpy(&current_, &pending_, sizeof current_);
-      has_pending_ = false;
-      publish_now = true;
-      ++makes_;
-    }
+  if (made_.take(current_)) {
+    publish_now = true;
+    ++makes_;
   }
   char text[wire::kParamStringLen];
   waypoints_.copy_string(text, sizeof text);
@@ -289,11 +283,7 @@ CommandResult Path::command(const tims::MessageHeader& request, std::span<const 
     reply_with(request, tims::msg::kError, text);
     return CommandResult::kHandled;
   }
-  {
-    rt::PiLock lock(mutex_);
-    std::memcpy(&pending_, &scratch_, sizeof pending_);
-    has_pending_ = true;
-  }
+  made_.post(scratch_);
   reply(request, tims::msg::kOk);  // published by the data task within one period
   return CommandResult::kHandled;
 }

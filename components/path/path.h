@@ -17,8 +17,8 @@
 #include <atomic>
 
 #include "rack/core/data_component.h"
+#include "rack/core/handoff.h"
 #include "rack/interfaces/navigation.h"
-#include "rack/rt/pi_mutex.h"
 
 namespace rack::components {
 
@@ -49,9 +49,7 @@ class Path final : public DataComponent<interfaces::PathData> {
   Parameter& closed_;
   Parameter& resolution_;
 
-  rt::PiMutex mutex_;               // guards pending_, has_pending_
-  interfaces::PathData pending_{};  // made by MAKE, published by the data task
-  bool has_pending_ = false;
+  Handoff<interfaces::PathData> made_;    // made by MAKE, published by the data task
   interfaces::PathData scratch_{};        // command task: MAKE builds here first
   mutable interfaces::PathData check_{};  // check_parameters (command task, or set-up before it runs)
 

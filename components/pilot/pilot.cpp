@@ -23,8 +23,6 @@ using interfaces::PositionData;
 using interfaces::Scan2dData;
 
 namespace {
-constexpr uint32_t kInputSlot = sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) +
-                                (sizeof(Scan2dData) > sizeof(PathData) ? sizeof(Scan2dData) : sizeof(PathData)) + 64;
 uint8_t u8(PilotMode m) noexcept { return static_cast<uint8_t>(m); }
 uint8_t u8(PilotStatus s) noexcept { return static_cast<uint8_t>(s); }
 }  // namespace
@@ -32,9 +30,14 @@ uint8_t u8(PilotStatus s) noexcept { return static_cast<uint8_t>(s); }
 Pilot::Pilot()
     : DataComponent(DataTaskMode::kPeriodic),
       chassis_(declare_component_ref("chassis", "the Chassis to drive")),
-      position_(declare_component_ref("position", "the Position estimate to steer on")),
-      scan2d_(declare_component_ref("scan2d", "the Scan2D whose points limit the speed")),
-      path_(declare_string("path", "", {.doc = "optional Path to follow", .component_ref = true})),
+      position_(declare_input<PositionData>("position", {.doc = "the Position estimate to steer on",
+                                                         .watched = false,
+                                                         .silence_ms = 500.0,
+                                                         .old_silence_name = "input_timeout_ms"})),
+      scan2d_(
+          declare_input<Scan2dData>("scan2d", {.doc = "the Scan2D whose points limit the speed", .watched = false})),
+      path_(declare_input<PathData>(
+          "path", {.doc = "Path to follow", .optional = true, .watched = false, .fail_on_error = false})),
       mode_(declare_string("mode", "path",
                            {.doc = "at ON: 'path' (follow the Path) or 'hold' (stand)", .choices = {"path", "hold"}})),
       destination_(
@@ -55,9 +58,6 @@ Pilot::Pilot()
       brake_fraction_(
           declare_float("brake_fraction", 0.5,
                         {.doc = "plan braking with this fraction of the chassis' dec_max", .min = 0.05, .max = 1.0})),
-      input_timeout_ms_(declare_int(
-          "input_timeout_ms", 500,
-          {.doc = "stand when Position or Scan2D data is older than this", .min = 10, .max = 60000, .unit = "ms"})),
       map_(declare_string(
           "map", "",
           {.doc =
@@ -69,13 +69,12 @@ Pilot::Pilot()
                                   .min = 0.0,
                                   .max = 5.0,
                                   .unit = "m"})),
-      replan_blocked_ms_(declare_int(
-          "replan_blocked_ms", 2000,
+      replan_blocked_ms_(declare_float(
+          "replan_blocked_ms", 2000.0,
           {.doc = "plan again round what the scanner sees after standing BLOCKED this long on a planned way (0: never)",
            .min = 0,
            .max = 600000,
            .unit = "ms"})) {
-  use_input_mailbox(kInputSlot);
   set_command_slot_size(sizeof(tims::MessageHeader) + sizeof(PlanRequest) + 64);
 }
 
@@ -122,9 +121,7 @@ bool Pilot::parse_destination(const char* text, double& x, double& y) const noex
 
 HookResult Pilot::on() {
   const tims::Address chassis = resolved(chassis_);
-  const tims::Address position = resolved(position_);
-  const tims::Address scan = resolved(scan2d_);
-  const tims::Address path = resolved(path_);
+  const tims::Address path = path_.source();
   data_ = PilotData{};
   have_path_ = path_fresh_ = have_scan_ = false;
   have_plan_ = plan_fresh_ = plan_asked_ = join_path_ = false;
@@ -135,11 +132,8 @@ HookResult Pilot::on() {
     rt::PiLock lock(mutex_);
     request_ = Request::kNone;
   }
-  // Cascading ON: everything this pilot reads or drives.
-  if (switch_on(chassis) != HookResult::kOk || switch_on(position) != HookResult::kOk ||
-      switch_on(scan) != HookResult::kOk || (path.raw() != 0 && switch_on(path) != HookResult::kOk)) {
-    return HookResult::kError;
-  }
+  // Cascading ON of the chassis it drives (its inputs are on and subscribed already).
+  if (switch_on(chassis) != HookResult::kOk) return HookResult::kError;
   // The outline, margin and limits the chassis reports.
   auto& ep = command_endpoint();
   const auto r = ep.call(chassis, interfaces::kChassisGetParams, std::span<std::byte>(rpc_buffer_),
@@ -160,14 +154,12 @@ HookResult Pilot::on() {
     set_error_reason("the chassis refused SET_ACTIVE_PILOT");
     return HookResult::kError;
   }
-  if (subscribe(position, 0) != HookResult::kOk || subscribe(scan, 0) != HookResult::kOk) return HookResult::kError;
   if (path.raw() != 0) {
-    if (subscribe(path, 0) != HookResult::kOk) return HookResult::kError;
     // A path made before we subscribed is not sent again: fetch the newest.
     const auto pr = ep.call(path, tims::msg::kGetData, std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
     wire::SampleHeader sh;
     if (pr.status == tims::CallStatus::kOk && pr.reply.type == tims::msg::kData &&
-        read_sample(pr.reply, pr.body, sh, path_data_) && path_data_.point_count >= 2) {
+        read_sample(pr.reply, pr.body, sh, path_.value()) && path_.value().point_count >= 2) {
       have_path_ = path_fresh_ = true;
     }
   }
@@ -199,9 +191,6 @@ void Pilot::off() {
     (void)ep.call(chassis, interfaces::kChassisSetActivePilot, interfaces::ChassisSetActivePilot{},
                   std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
   }
-  unsubscribe(resolved(position_));
-  unsubscribe(resolved(scan2d_));
-  if (resolved(path_).raw() != 0) unsubscribe(resolved(path_));
 }
 
 Pilot::Clearance Pilot::clearance(const Scan2dData& scan, const Outline& o) noexcept {
@@ -221,44 +210,19 @@ Pilot::Clearance Pilot::clearance(const Scan2dData& scan, const Outline& o) noex
   return c;
 }
 
-void Pilot::handle_input(int64_t now) noexcept {
-  const tims::Address position = resolved(position_);
-  const tims::Address scan = resolved(scan2d_);
-  const tims::Address path = resolved(path_);
-  for (;;) {
-    tims::MessageHeader header;
-    const Input in = next_input(header, [&](const tims::MessageHeader& h, std::span<const std::byte> body) {
-      const tims::Address src = h.source().component();
-      wire::SampleHeader sh;
-      if (src == position) {
-        if (!read_sample(h, body, sh, position_data_)) return false;
-        position_mono_ns_ = now;
-      } else if (src == scan) {
-        if (!read_sample(h, body, sh, scan_)) return false;
-        scan_mono_ns_ = now;
-        have_scan_ = true;
-      } else if (path.raw() != 0 && src == path) {
-        if (!read_sample(h, body, sh, path_data_)) return false;
-        have_path_ = path_data_.point_count >= 2;
-        path_fresh_ = true;
-      }
-      return true;  // a late sample of a former source: not malformed, just not ours now
-    });
-    if (in == Input::kNone) break;
-    if (in == Input::kError) {
-      // A source left ENABLED: its data stops; the timeouts below make the robot stand.
-      // (The subscription is gone: the pilot goes to ERROR and re-subscribes on retry.)
-      const tims::Address src = header.source().component();
-      if (src == position) position_mono_ns_ = -1;
-      if (src == scan) scan_mono_ns_ = -1;
-      if (src == position || src == scan) {
-        char reason[96];
-        src.format(reason, sizeof reason);
-        wire::append_text(reason, src == position ? " (position) left ENABLED" : " (scan2d) left ENABLED");
-        set_error_reason(reason);
-      }
+bool Pilot::handle_input(int64_t now) noexcept {
+  const Received r = receive([&](const InputPort& from) {
+    if (&from == &position_) {
+      position_mono_ns_ = now;
+    } else if (&from == &scan2d_) {
+      scan_mono_ns_ = now;
+      have_scan_ = true;
+    } else {
+      have_path_ = path_.value().point_count >= 2;
+      path_fresh_ = true;
     }
-  }
+  });
+  return r.failed;  // position or scan2d left ENABLED: their data stopped (the reason is set)
 }
 
 bool Pilot::path_goal(const PathData& p, bool& fresh, const Pose2d& pose, double& gx, double& gy,
@@ -353,8 +317,7 @@ void Pilot::send_move(double vx, double omega) noexcept {
 
 HookResult Pilot::loop() {
   const int64_t now = rt::monotonic_ns();
-  handle_input(now);
-  if (position_mono_ns_ < 0 || scan_mono_ns_ < 0) return HookResult::kError;  // a source went away
+  if (handle_input(now)) return HookResult::kError;  // a source went away: re-subscribed on retry
 
   // New orders: commands first, then a changed `destination` parameter.
   bool reclaim = false;
@@ -419,10 +382,10 @@ HookResult Pilot::loop() {
     std::memcpy(last_destination_, text, sizeof text);
     double x = 0.0, y = 0.0;
     if (text[0] == '\0') {
-      data_.mode = u8(resolved(path_).raw() != 0 ? PilotMode::kFollowPath : PilotMode::kHold);
+      data_.mode = u8(path_.configured() ? PilotMode::kFollowPath : PilotMode::kHold);
       path_fresh_ = true;
       reclaim = true;
-      log_info("destination \"\": %s", resolved(path_).raw() != 0 ? "following the path" : "holding");
+      log_info("destination \"\": %s", path_.configured() ? "following the path" : "holding");
     } else if (parse_destination(text, x, y)) {
       data_.mode = u8(PilotMode::kDestination);
       data_.target_x = x;
@@ -448,10 +411,10 @@ HookResult Pilot::loop() {
     return HookResult::kOk;
   }
 
-  const int64_t timeout = input_timeout_ms_.get_int() * rt::kNsPerMs;
+  const int64_t timeout = silence_ns();
   const bool fresh = position_mono_ns_ > 0 && now - position_mono_ns_ <= timeout && have_scan_ &&
                      now - scan_mono_ns_ <= timeout;
-  const Pose2d pose{position_data_.x, position_data_.y, position_data_.phi};
+  const Pose2d pose{position_.value().x, position_.value().y, position_.value().phi};
   data_.pose_x = pose.x;
   data_.pose_y = pose.y;
   data_.pose_phi = pose.phi;
@@ -459,7 +422,7 @@ HookResult Pilot::loop() {
   data_.vx = data_.omega = 0.0;
 
   // The obstacle speed limit from the newest scan.
-  const Clearance c = have_scan_ ? clearance(scan_, outline_) : Clearance{};
+  const Clearance c = have_scan_ ? clearance(scan2d_.value(), outline_) : Clearance{};
   data_.obstacle_distance = c.free_ahead;
   const double brake = brake_fraction_.get_float() * limits_.dec_max;
   // Keep the margin, and allow for one cycle of travel before the next scan is seen.
@@ -482,7 +445,7 @@ HookResult Pilot::loop() {
     double gx = data_.target_x, gy = data_.target_y, remaining = 0.0;
     bool going = true;
     if (mode == PilotMode::kFollowPath) {
-      going = path_goal(path_data_, path_fresh_, pose, gx, gy, remaining);
+      going = path_goal(path_.value(), path_fresh_, pose, gx, gy, remaining);
     } else if (have_plan_) {
       going = path_goal(plan_data_, plan_fresh_, pose, gx, gy, remaining);
       data_.target_x = plan_data_.x[plan_data_.point_count - 1];
@@ -532,7 +495,7 @@ HookResult Pilot::loop() {
         }
         data_.status = u8(PilotStatus::kBlocked);
         ++data_.blocked_cycles;
-        const int64_t replan_ns = replan_blocked_ms_.get_int() * rt::kNsPerMs;
+        const int64_t replan_ns = std::llround(replan_blocked_ms_.get_float() * 1e6);
         if (have_plan_ && mode == PilotMode::kDestination && replan_ns > 0 && now - blocked_since_ns_ >= replan_ns &&
             !plan_asked_) {
           log_info("BLOCKED for %lld ms: planning again round what the scanner sees",
@@ -571,11 +534,11 @@ void Pilot::ask_for_plan(const Pose2d& pose, bool replan) noexcept {
   r.replan = replan ? 1 : 0;
   if (replan && have_scan_) {
     // The scan points near the robot, in the map frame (the map lacks them).
-    const uint32_t n = std::min(scan_.point_count, interfaces::kScan2dMaxPoints);
+    const uint32_t n = std::min(scan2d_.value().point_count, interfaces::kScan2dMaxPoints);
     const double c = std::cos(pose.phi), s = std::sin(pose.phi);
     for (uint32_t i = 0; i < n && r.obstacles < kPlanObstacles; i += 2) {
-      if (scan_.type[i] == interfaces::kScanPointMaxRange) continue;
-      const double x = scan_.x[i], y = scan_.y[i];
+      if (scan2d_.value().type[i] == interfaces::kScanPointMaxRange) continue;
+      const double x = scan2d_.value().x[i], y = scan2d_.value().y[i];
       if (std::hypot(x, y) > 2.0) continue;
       r.ox[r.obstacles] = static_cast<float>(pose.x + c * x - s * y);
       r.oy[r.obstacles] = static_cast<float>(pose.y + s * x + c * y);
@@ -637,7 +600,7 @@ CommandResult Pilot::command(const tims::MessageHeader& request, std::span<const
       log_info("SET_DESTINATION (%.2f, %.2f) from %s", d.x, d.y, request.source());
       if (planner_.has_map() && state() == ComponentState::kEnabled) {
         // Plan now from the newest estimate, so that a destination with no way is refused.
-        const auto pr = command_endpoint().call(resolved(position_), tims::msg::kGetData,
+        const auto pr = command_endpoint().call(resolved(position_.source_parameter()), tims::msg::kGetData,
                                                 std::span<std::byte>(rpc_buffer_), settings().rpc_timeout_ns);
         wire::SampleHeader sh;
         PositionData pos;
@@ -672,7 +635,7 @@ CommandResult Pilot::command(const tims::MessageHeader& request, std::span<const
         reject_malformed(request, "FOLLOW_PATH and HOLD take no body");
         return CommandResult::kHandled;
       }
-      if (request.type == interfaces::kPilotFollowPath && resolved(path_).raw() == 0) {
+      if (request.type == interfaces::kPilotFollowPath && resolved(path_.source_parameter()).raw() == 0) {
         reply_error(request, "FOLLOW_PATH: no 'path' component configured");
         return CommandResult::kHandled;
       }

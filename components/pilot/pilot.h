@@ -94,7 +94,8 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
   // nullptr on success, else the reason.
   const char* plan_way(const PlanRequest& r) noexcept;
   void ask_for_plan(const Pose2d& pose, bool replan) noexcept;  // data task
-  void handle_input(int64_t now) noexcept;
+  // Takes the inputs' samples; true when a source (position, scan2d) left ENABLED.
+  [[nodiscard]] bool handle_input(int64_t now) noexcept;
   [[nodiscard]] bool parse_destination(const char* text, double& x, double& y) const noexcept;
   // Steering towards `goal` (map frame); fills vx/omega in data_. `final_distance`
   // is how far the robot still has to go (braking), < 0 for an endless path.
@@ -105,9 +106,11 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
   void send_move(double vx, double omega) noexcept;
 
   Parameter& chassis_;
-  Parameter& position_;
-  Parameter& scan2d_;
-  Parameter& path_;
+  // Declared inputs: stale after silence_ms (the robot stands, status NO_INPUT); a
+  // position or scan2d ERROR fails the pilot (re-subscribed on retry), a path's not.
+  InputOf<interfaces::PositionData>& position_;
+  InputOf<interfaces::Scan2dData>& scan2d_;
+  InputOf<interfaces::PathData>& path_;
   Parameter& mode_;
   Parameter& destination_;
   Parameter& vx_max_;
@@ -116,7 +119,6 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
   Parameter& goal_tolerance_;
   Parameter& turn_in_place_deg_;
   Parameter& brake_fraction_;
-  Parameter& input_timeout_ms_;
   Parameter& map_;
   Parameter& plan_margin_;
   Parameter& replan_blocked_ms_;
@@ -138,9 +140,6 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
 
   // Data task.
   interfaces::PilotData data_{};
-  interfaces::PositionData position_data_{};
-  interfaces::Scan2dData scan_{};
-  interfaces::PathData path_data_{};
   // Destination mode drives along the line from where the robot was when it got the
   // destination (pure pursuit on that line, so it arrives straight, e.g. through a door).
   double line_x_ = 0.0, line_y_ = 0.0;

@@ -10,7 +10,7 @@ using interfaces::PositionUpdate;
 
 Position::Position()
     : DataComponent(DataTaskMode::kTriggered),
-      odometry_(declare_component_ref("odometry", "the Odometry whose motion carries the pose forward")),
+      odometry_(declare_input<OdometryData>("odometry", {.doc = "the Odometry whose motion carries the pose forward"})),
       initial_x_(declare_float("initial_x", 0.0, {.doc = "m, pose at ON (map frame) until the first UPDATE"})),
       initial_y_(declare_float("initial_y", 0.0, {.doc = "m, pose at ON (map frame)"})),
       initial_phi_(declare_float("initial_phi", 0.0, {.doc = "rad, heading at ON", .min = -7.0, .max = 7.0})),
@@ -22,9 +22,7 @@ Position::Position()
                                   {.doc = "m^2 of x and y variance added per metre driven", .min = 0.0, .max = 10.0})),
       var_phi_per_m_(
           declare_float("var_phi_per_m", 0.0005,
-                        {.doc = "rad^2 of heading variance added per metre driven", .min = 0.0, .max = 10.0})) {
-  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(OdometryData) + 64);
-}
+                        {.doc = "rad^2 of heading variance added per metre driven", .min = 0.0, .max = 10.0})) {}
 
 HookResult Position::on() {
   {
@@ -44,22 +42,13 @@ HookResult Position::on() {
       reference_.var_phi = initial_var_phi_.get_float();
     }
   }
-  const tims::Address odo = resolved(odometry_);
-  if (switch_on(odo) != HookResult::kOk) return HookResult::kError;
-  return subscribe(odo, 0);
+  return HookResult::kOk;
 }
 
-void Position::off() { unsubscribe(resolved(odometry_)); }
-
 HookResult Position::loop() {
-  bool got = false;
-  for (;;) {
-    wire::SampleHeader sh;
-    OdometryData o;
-    const Input in = next_sample(sh, o);
-    if (in == Input::kNone) break;
-    if (in == Input::kError) return HookResult::kError;  // the odometry left ENABLED
-    got = true;
+  const Received r = receive([&](const InputPort&) {
+    const OdometryData& o = odometry_.value();
+    const int64_t time_ns = odometry_.time_ns();
     odometry_resets_.store(o.resets, std::memory_order_relaxed);
     const Pose2d odo{o.x, o.y, o.phi};
     Reference ref;
@@ -68,7 +57,7 @@ HookResult Position::loop() {
       if (reference_.time_ns == 0) {  // first sample after ON: anchor the initial pose here
         reference_.odometry = odo;
         reference_.distance = o.distance;
-        reference_.time_ns = sh.time_ns;
+        reference_.time_ns = time_ns;
         reference_.resets = o.resets;
       } else if (reference_.resets != o.resets) {
         // RESET: the odometry restarted from zero just before this sample's increment,
@@ -93,11 +82,10 @@ HookResult Position::loop() {
     last_.var_phi = ref.var_phi + var_phi_per_m_.get_float() * travelled;
     last_.reference_time_ns = ref.updates == 0 ? 0 : ref.time_ns;
     last_.updates = ref.updates;
-    publish(last_, sh.time_ns);
+    publish(last_, time_ns);
     published_ = true;
-  }
-  // Nothing usable (a renewal's reply, a refused wake-up): an error only once silent.
-  return got || !input_silent() ? HookResult::kOk : HookResult::kError;  // else the odometry fell silent
+  });
+  return r.failed ? HookResult::kError : HookResult::kOk;  // the odometry left ENABLED or fell silent
 }
 
 void Position::handle_update(const tims::MessageHeader& request, std::span<const std::byte> body) noexcept {
@@ -115,7 +103,7 @@ void Position::handle_update(const tims::MessageHeader& request, std::span<const
   wire::GetDataRequest get;
   get.time_ns = u.time_ns;
   alignas(8) std::byte buf[sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(OdometryData) + 160];
-  const auto r = command_endpoint().call(resolved(odometry_), tims::msg::kGetData, get, std::span<std::byte>(buf),
+  const auto r = command_endpoint().call(odometry_.source(), tims::msg::kGetData, get, std::span<std::byte>(buf),
                                          settings().rpc_timeout_ns);
   wire::SampleHeader sh;
   OdometryData o;

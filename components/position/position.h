@@ -32,7 +32,6 @@ class Position final : public DataComponent<interfaces::PositionData> {
 
  protected:
   HookResult on() override;
-  void off() override;
   HookResult loop() override;  // RT, triggered by OdometryData
   CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override;
 
@@ -48,7 +47,7 @@ class Position final : public DataComponent<interfaces::PositionData> {
   };
   void handle_update(const tims::MessageHeader& request, std::span<const std::byte> body) noexcept;
 
-  Parameter& odometry_;
+  InputOf<interfaces::OdometryData>& odometry_;
   Parameter& initial_x_;
   Parameter& initial_y_;
   Parameter& initial_phi_;

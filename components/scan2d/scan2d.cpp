@@ -5,7 +5,6 @@
 #include <cstdio>
 
 #include "common/pose2d.h"
-#include "rack/components/class_ids.h"
 
 namespace rack::components {
 
@@ -15,9 +14,9 @@ using interfaces::Scan2dData;
 
 Scan2d::Scan2d()
     : DataComponent(DataTaskMode::kTriggered),
-      ladar_(declare_component_ref("ladar", "the Ladar whose scans to convert")),
-      odometry_(declare_string(
-          "odometry", "", {.doc = "optional Odometry: fills odometry_* at each scan's time", .component_ref = true})),
+      odometry_(declare_input<OdometryData>(
+          "odometry", {.doc = "Odometry: fills odometry_* at each scan's time", .optional = true, .watched = false})),
+      ladar_(declare_input<LadarData>("ladar", {.doc = "the Ladar whose scans to convert"})),
       mount_x_(declare_float("mount_x", 0.0,
                              {.doc = "m, sensor position in the robot frame (forward)", .min = -10.0, .max = 10.0})),
       mount_y_(declare_float("mount_y", 0.0,
@@ -50,9 +49,7 @@ Scan2d::Scan2d()
            .min = 0.0,
            .max = 600000.0,
            .unit = "ms"})),
-      held_(std::make_unique<LadarData[]>(kHeld)) {
-  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(LadarData) + 64);
-}
+      held_(std::make_unique<LadarData[]>(kHeld)) {}
 
 Scan2d::OdometryCounts Scan2d::odometry_counts() const noexcept {
   OdometryCounts c;
@@ -62,7 +59,7 @@ Scan2d::OdometryCounts Scan2d::odometry_counts() const noexcept {
 }
 
 void Scan2d::describe_status(std::string& out) const {
-  if (odometry_.get_string().empty()) return;
+  if (odometry_.source_parameter().get_string().empty()) return;
   const OdometryCounts c = odometry_counts();
   char line[200];
   std::snprintf(line, sizeof line, "odometry per scan: %llu interpolated (never extrapolated), %llu missing",
@@ -129,21 +126,8 @@ HookResult Scan2d::on() {
   held_head_ = held_count_ = 0;
   odometry_interpolated_.store(0, std::memory_order_relaxed);
   odometry_missing_.store(0, std::memory_order_relaxed);
-  last_scan_rx_ns_ = rt::monotonic_ns();
-  const tims::Address ladar = resolved(ladar_);
-  const tims::Address odo = resolved(odometry_);
-  use_odometry_ = odo.raw() != 0;
-  // Odometry first: every sample from before the first scan on.
-  if (use_odometry_ && (switch_on(odo) != HookResult::kOk || subscribe(odo, 0) != HookResult::kOk)) {
-    return HookResult::kError;
-  }
-  if (switch_on(ladar) != HookResult::kOk) return HookResult::kError;
-  return subscribe(ladar, 0);
-}
-
-void Scan2d::off() {
-  unsubscribe(resolved(ladar_));
-  if (use_odometry_) unsubscribe(resolved(odometry_));
+  use_odometry_ = odometry_.configured();
+  return HookResult::kOk;
 }
 
 void Scan2d::convert_and_publish(const LadarData& ladar, int64_t time_ns) noexcept {
@@ -200,49 +184,30 @@ void Scan2d::release(bool flush) noexcept {
   }
 }
 
-// One DATA message of the input: a scan (held) or an odometry sample (kept).
-bool Scan2d::take(const tims::MessageHeader& h, std::span<const std::byte> body, bool& got_scan) noexcept {
-  wire::SampleHeader sh;
-  if (h.source().class_id() == class_ids::kOdometry && use_odometry_) {
-    OdometryData o;
-    if (!read_sample(h, body, sh, o)) return false;
+// One sample of the input: a scan (held) or an odometry sample (kept).
+void Scan2d::take(const InputPort& from) noexcept {
+  if (&from == &odometry_) {
+    const OdometryData& o = odometry_.value();
     if (std::isfinite(o.x) && std::isfinite(o.y) && std::isfinite(o.phi))
-      (void)poses_.push(sh.time_ns, Pose2d{o.x, o.y, o.phi});
-    return true;
+      (void)poses_.push(odometry_.time_ns(), Pose2d{o.x, o.y, o.phi});
+    return;
   }
   if (held_count_ == kHeld) release(false);  // cannot happen (release() makes room), but never overwrite
   const std::size_t slot = (held_head_ + held_count_) % kHeld;
-  if (!read_sample(h, body, sh, held_[slot])) return false;
-  held_time_ns_[slot] = sh.time_ns;
-  held_arrival_ns_[slot] = rt::monotonic_ns();
+  held_[slot] = ladar_.value();
+  held_time_ns_[slot] = ladar_.time_ns();
+  held_arrival_ns_[slot] = ladar_.received_ns();
   ++held_count_;
-  got_scan = true;
-  last_scan_rx_ns_ = held_arrival_ns_[slot];
   release(false);  // makes room when full; the rest waits for the odometry below
-  return true;
 }
 
 HookResult Scan2d::loop() {
-  bool got_scan = false;
-  for (;;) {
-    tims::MessageHeader header;
-    const Input in = next_input(header, [&](const tims::MessageHeader& h, std::span<const std::byte> body) {
-      return take(h, body, got_scan);
-    });
-    if (in == Input::kNone) break;
-    if (in == Input::kError) {  // the ladar or the odometry left ENABLED
-      release(true);
-      return HookResult::kError;
-    }
-  }
-  release(false);
-  // The ladar fell silent (inputs that ended, a replay at the end of its log, are
-  // quiet, not failing).
-  if (!got_scan && !inputs_ended() && rt::monotonic_ns() - last_scan_rx_ns_ >= settings().data_timeout_ns) {
+  const Received r = receive([&](const InputPort& from) { take(from); });
+  if (r.failed) {  // the ladar or the odometry left ENABLED, or the ladar fell silent
     release(true);
-    set_error_reason("the ladar fell silent: no scan within data_task timeout_ms");
     return HookResult::kError;
   }
+  release(false);
   return HookResult::kOk;
 }
 

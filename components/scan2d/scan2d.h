@@ -63,19 +63,20 @@ class Scan2d final : public DataComponent<interfaces::Scan2dData> {
 
  protected:
   HookResult on() override;
-  void off() override;
   HookResult loop() override;  // RT, triggered by LadarData and OdometryData
 
  private:
   static constexpr std::size_t kHeld = 8;  // scans waiting for their odometry
-  bool take(const tims::MessageHeader& h, std::span<const std::byte> body, bool& got_scan) noexcept;
+  void take(const InputPort& from) noexcept;
   // Publishes the held scans whose odometry is there (or will never come); `flush`:
   // all of them, without odometry where none is there.
   void release(bool flush) noexcept;
   void convert_and_publish(const interfaces::LadarData& ladar, int64_t time_ns) noexcept;
 
-  Parameter& ladar_;
-  Parameter& odometry_;
+  // Declared in this order: the odometry is subscribed first (every sample from
+  // before the first scan on).
+  InputOf<interfaces::OdometryData>& odometry_;
+  InputOf<interfaces::LadarData>& ladar_;
   Parameter& mount_x_;
   Parameter& mount_y_;
   Parameter& mount_phi_;
@@ -98,7 +99,6 @@ class Scan2d final : public DataComponent<interfaces::Scan2dData> {
   int64_t held_arrival_ns_[kHeld] = {};
   std::size_t held_head_ = 0, held_count_ = 0;
   bool use_odometry_ = false;
-  int64_t last_scan_rx_ns_ = 0;  // monotonic; set by on() before the data task runs loop()
   // Relaxed counters: each on its own, read by status and tests.
   std::atomic<uint64_t> odometry_interpolated_{0}, odometry_missing_{0};
 };

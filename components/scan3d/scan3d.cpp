@@ -120,11 +120,11 @@ Scan3d::Scan3d()
                          .max = 3.6e6,
                          .unit = "ms"})),
       pcd_loop_(declare_bool("pcd_loop", true, {.doc = "PCD source: start again after the last file"})),
-      silence_ms_(declare_int("silence_ms", 2000,
-                              {.doc = "ERROR when the ladar, the drive or the odometry sent nothing for this long",
-                               .min = 10,
-                               .max = 600000,
-                               .unit = "ms"})),
+      silence_ms_(declare_float("silence_ms", 2000.0,
+                                {.doc = "ERROR when the ladar, the drive or the odometry sent nothing for this long",
+                                 .min = 10,
+                                 .max = 600000,
+                                 .unit = "ms"})),
       sweep_timeout_s_(declare_float("sweep_timeout_s", 30.0,
                                      {.doc = "ERROR when the drive does not reach a sweep's end within this",
                                       .min = 0.1,
@@ -547,17 +547,17 @@ HookResult Scan3d::loop_ladar(int64_t now) {
     pending_time_[slot] = sh.time_ns;
     ++pending_count_;
   }
-  const int64_t silence = silence_ms_.get_int() * rt::kNsPerMs;
+  const int64_t silence = std::llround(silence_ms_.get_float() * 1e6);
   if (now - last_ladar_mono_ > silence) {
-    log_error("the ladar %s sent no scan for %lld ms", ladar, static_cast<long long>(silence_ms_.get_int()));
+    log_error("the ladar %s sent no scan for %lld ms", ladar, static_cast<long long>(silence / rt::kNsPerMs));
     return HookResult::kError;
   }
   if (now - last_drive_mono_ > silence) {
-    log_error("the drive %s sent no position for %lld ms", servo, static_cast<long long>(silence_ms_.get_int()));
+    log_error("the drive %s sent no position for %lld ms", servo, static_cast<long long>(silence / rt::kNsPerMs));
     return HookResult::kError;
   }
   if (compensate_ && now - last_pose_mono_ > silence) {
-    log_error("the odometry %s sent no pose for %lld ms", odometry, static_cast<long long>(silence_ms_.get_int()));
+    log_error("the odometry %s sent no pose for %lld ms", odometry, static_cast<long long>(silence / rt::kNsPerMs));
     return HookResult::kError;
   }
   if (!have_drive_) return HookResult::kOk;
@@ -582,7 +582,7 @@ HookResult Scan3d::loop_ladar(int64_t now) {
         log_error(
             "the odometry %s has no pose for the ladar scan at %lld ns: its newest pose is %lld ms older (silence_ms %lld)",
             odometry, static_cast<long long>(pending_time_[slot]), static_cast<long long>(lag / rt::kNsPerMs),
-            static_cast<long long>(silence_ms_.get_int()));
+            static_cast<long long>(silence / rt::kNsPerMs));
         return HookResult::kError;
       }
       break;

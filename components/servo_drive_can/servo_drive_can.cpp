@@ -26,8 +26,8 @@ ServoDriveCan::ServoDriveCan()
       position_max_(declare_float("position_max", 1.0, {.doc = "unit, upper soft limit (from home)"})),
       home_position_(
           declare_float("home_position", 0.0, {.doc = "unit, the position HOME assigns to where the axis is"})),
-      heartbeat_ms_(declare_int("heartbeat_ms", 100,
-                                {.doc = "drive heartbeat producer time", .min = 1, .max = 65535, .unit = "ms"})),
+      heartbeat_ms_(declare_float("heartbeat_ms", 100.0,
+                                  {.doc = "drive heartbeat producer time", .min = 1, .max = 65535, .unit = "ms"})),
       heartbeat_timeout_ms_(declare_float("heartbeat_timeout_ms", 350.0,
                                           {.doc = "drive silent this long: ERROR", .min = 1.0, .unit = "ms"})),
       sdo_timeout_ms_(declare_float("sdo_timeout_ms", 100.0,
@@ -71,7 +71,7 @@ HookResult ServoDriveCan::on() {
       !w(co::kObjModesOfOperation, 0, static_cast<uint8_t>(co::kModeProfilePosition), 1) ||
       !w(co::kObjProfileAcceleration, 0, acc, 4) || !w(co::kObjProfileDeceleration, 0, acc, 4) ||
       !w(co::kObjProfileVelocity, 0, vel, 4) ||
-      !w(co::kObjHeartbeatTime, 0, static_cast<uint32_t>(heartbeat_ms_.get_int()), 2) ||
+      !w(co::kObjHeartbeatTime, 0, static_cast<uint32_t>(std::lround(heartbeat_ms_.get_float())), 2) ||
       !w(co::kObjTpdo1Comm, 2, 1, 1) || !w(co::kObjTpdo2Comm, 2, 1, 1) ||
       co::sdo_read_wait(port_, node_id_, co::kObjPositionActual, 0, position, timeout) != co::SdoResult::kOk ||
       !w(co::kObjTargetPosition, 0, position, 4) ||  // hold where it is

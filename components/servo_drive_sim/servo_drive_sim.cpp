@@ -33,7 +33,7 @@ HookResult ServoDriveSim::on() {
 CommandResult ServoDriveSim::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
   switch (request.type) {
     case interfaces::kServoDriveHome:
-      home_pending_.store(true, std::memory_order_release);
+      home_.post(true);
       reply(request, tims::msg::kOk);
       return CommandResult::kHandled;
     case interfaces::kServoDriveMovePos: {
@@ -47,13 +47,11 @@ CommandResult ServoDriveSim::command(const tims::MessageHeader& request, std::sp
         reply_error(request, "MOVE_POS: target outside [position_min, position_max]");
         return CommandResult::kHandled;
       }
-      move_target_.store(m.position, std::memory_order_relaxed);
-      move_velocity_.store(m.velocity > 0.0 ? std::min(m.velocity, max_velocity_.get_float())
-                                            : max_velocity_.get_float(),
-                           std::memory_order_relaxed);
-      move_is_velocity_.store(false, std::memory_order_relaxed);
-      move_requester_.store(request.src, std::memory_order_relaxed);
-      pending_.store(true, std::memory_order_release);
+      Move move;
+      move.target = m.position;
+      move.velocity = m.velocity > 0.0 ? std::min(m.velocity, max_velocity_.get_float()) : max_velocity_.get_float();
+      move.requester = request.src;
+      move_.post(move);
       moves_.fetch_add(1, std::memory_order_relaxed);
       reply(request, tims::msg::kOk);
       return CommandResult::kHandled;
@@ -64,11 +62,10 @@ CommandResult ServoDriveSim::command(const tims::MessageHeader& request, std::sp
         reject_malformed(request, "MOVE_VEL: body must be a ServoDriveMoveVel with a finite velocity");
         return CommandResult::kHandled;
       }
-      vel_command_.store(std::clamp(m.velocity, -max_velocity_.get_float(), max_velocity_.get_float()),
-                         std::memory_order_relaxed);
-      move_is_velocity_.store(true, std::memory_order_relaxed);
-      move_requester_.store(0, std::memory_order_relaxed);
-      pending_.store(true, std::memory_order_release);
+      Move move;
+      move.vel_command = std::clamp(m.velocity, -max_velocity_.get_float(), max_velocity_.get_float());
+      move.is_velocity = true;
+      move_.post(move);
       moves_.fetch_add(1, std::memory_order_relaxed);
       reply(request, tims::msg::kOk);
       return CommandResult::kHandled;
@@ -82,23 +79,23 @@ HookResult ServoDriveSim::loop() {
   const double dt = std::clamp(static_cast<double>(now - last_ns_) * 1e-9, 0.0, 0.5);
   last_ns_ = now;
   const double lo = position_min_.get_float(), hi = position_max_.get_float();
-  if (home_pending_.exchange(false, std::memory_order_acquire)) {
+  if (bool home = false; home_.take(home)) {
     position_ = home_position_.get_float();
     target_ = position_;
     velocity_ = 0.0;
     moving_ = false;
   }
-  if (pending_.exchange(false, std::memory_order_acquire)) {
-    velocity_mode_ = move_is_velocity_.load(std::memory_order_relaxed);
+  if (Move move; move_.take(move)) {
+    velocity_mode_ = move.is_velocity;
     if (velocity_mode_) {
-      const double v = vel_command_.load(std::memory_order_relaxed);
+      const double v = move.vel_command;
       speed_ = std::fabs(v);
       target_ = v > 0.0 ? hi : v < 0.0 ? lo : position_;
     } else {
-      target_ = move_target_.load(std::memory_order_relaxed);
-      speed_ = move_velocity_.load(std::memory_order_relaxed);
+      target_ = move.target;
+      speed_ = move.velocity;
     }
-    notify_ = move_requester_.load(std::memory_order_relaxed);
+    notify_ = move.requester;
     moving_ = true;
   }
   // Trapezoidal profile towards target_: accelerate to speed_, brake in time to stop there.

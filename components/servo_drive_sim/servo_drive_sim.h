@@ -12,6 +12,7 @@
 #include <atomic>
 
 #include "rack/core/data_component.h"
+#include "rack/core/handoff.h"
 #include "rack/interfaces/devices.h"
 
 namespace rack::components {
@@ -33,15 +34,16 @@ class ServoDriveSim final : public DataComponent<interfaces::ServoDriveData> {
   Parameter& position_max_;
   Parameter& home_position_;
 
-  // Command task -> data task. SYNC POINT: the command task writes the move's values,
-  // then sets pending_ (release); loop() takes pending_ (acquire) and reads them.
-  std::atomic<bool> pending_{false};
-  std::atomic<double> move_target_{0.0};
-  std::atomic<double> move_velocity_{0.0};  // > 0: position move at this speed
-  std::atomic<double> vel_command_{0.0};    // MOVE_VEL (when move_is_velocity_)
-  std::atomic<bool> move_is_velocity_{false};
-  std::atomic<uint32_t> move_requester_{0};
-  std::atomic<bool> home_pending_{false};
+  // Command task -> data task: the newest move, and HOME.
+  struct Move {
+    double target = 0.0;       // MOVE_POS
+    double velocity = 0.0;     // > 0: position move at this speed
+    double vel_command = 0.0;  // MOVE_VEL (when is_velocity)
+    bool is_velocity = false;
+    uint32_t requester = 0;  // told POSITION_REACHED (MOVE_POS)
+  };
+  Handoff<Move> move_;
+  Handoff<bool> home_;
   std::atomic<double> position_reading_{0.0};  // loop() -> HOME (relaxed: a reading)
   std::atomic<uint32_t> moves_{0};
 

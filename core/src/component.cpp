@@ -130,6 +130,7 @@ void Component::report_loop_failure() noexcept {
 }
 
 HookResult Component::call_on() noexcept {
+  if (before_on() != HookResult::kOk) return HookResult::kError;  // off() still runs (rule 3)
   try {
     return on();
   } catch (...) {
@@ -143,6 +144,7 @@ void Component::call_off() noexcept {
   } catch (...) {
     // off() must not fail; if it throws we are leaving ENABLED anyway.
   }
+  after_off();
 }
 
 void Component::handle_on(const MessageHeader* request) noexcept {

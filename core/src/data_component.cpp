@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <climits>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 namespace rack {
 
@@ -110,6 +112,8 @@ void DataComponentBase::leaving_enabled() noexcept {
 }
 
 void DataComponentBase::entered_enabled() noexcept {
+  const int64_t now = rt::monotonic_ns();
+  for (auto& port : inputs_) port->received_ns_ = now;    // silence counts from ENABLED
   stream_ended_.store(false, std::memory_order_release);  // a new stream
   inputs_ended_reported_ = false;                         // the data task is gated off until loop_enabled_
   loop_enabled_.store(true, std::memory_order_seq_cst);
@@ -189,6 +193,111 @@ void DataComponentBase::unsubscribe(Address producer) noexcept {
   req.mailbox = input_address().raw();
   alignas(8) std::byte buf[256];
   (void)command_endpoint().call(source, msg::kStopContData, req, std::span<std::byte>(buf), settings().rpc_timeout_ns);
+}
+
+Parameter& DataComponentBase::declare_input_source(const std::string& name, const InputSpec& spec) {
+  if (spec.optional)
+    return declare_string(name, "", {.doc = spec.doc + " (optional; \"\": none)", .component_ref = true});
+  return declare_component_ref(name, spec.doc);
+}
+
+void DataComponentBase::add_input(std::unique_ptr<InputPort> port, const InputSpec& spec, std::size_t payload_size) {
+  if (inputs_.size() >= kMaxSubscriptions) {
+    throw std::invalid_argument("declare_input '" + port->name() + "': more than " + std::to_string(kMaxSubscriptions) +
+                                " inputs");
+  }
+  if (spec.ask_period) {
+    const std::string period = port->name() + "_period_ms";
+    port->period_param_ = &declare_float(period, spec.period_ms,
+                                         {.doc = "the sample period asked of " + port->name() + " (0: every sample)",
+                                          .min = 0.0,
+                                          .max = 3.6e6,
+                                          .unit = "ms"});
+    if (spec.old_period_name != nullptr) parameters().add_old_name(spec.old_period_name, period);
+  }
+  if (silence_ == nullptr) {
+    silence_ = &declare_float("silence_ms", spec.silence_ms,
+                              {.doc = "a watched input (source) that sends nothing this long has gone silent",
+                               .min = 1.0,
+                               .max = 3.6e6,
+                               .unit = "ms"});
+  }
+  if (spec.old_silence_name != nullptr) parameters().add_old_name(spec.old_silence_name, "silence_ms");
+  // A slot holds a sample of this input, and a producer's ERROR with its reason (wider
+  // than a small sample's DATA: a slot too small for it would lose the ERROR).
+  const std::size_t body = std::max(sizeof(wire::SampleHeader) + payload_size, sizeof(wire::ErrorText));
+  const auto slot = static_cast<uint32_t>(sizeof(tims::MessageHeader) + body + 64);
+  if (slot > input_slot_size_) input_slot_size_ = slot;
+  inputs_.push_back(std::move(port));
+}
+
+int64_t DataComponentBase::silence_ns() const noexcept {
+  return silence_ != nullptr ? std::llround(silence_->get_float() * 1e6) : 0;
+}
+
+HookResult DataComponentBase::before_on() noexcept {
+  const int64_t now = rt::monotonic_ns();
+  for (auto& port : inputs_) {
+    InputPort& in = *port;
+    in.source_ = resolved(in.source_param_);
+    in.granted_period_ns_ = 0;
+    in.received_ns_ = now;
+    in.samples_ = 0;
+    in.header_ = wire::SampleHeader{};
+    if (!in.configured()) continue;
+    if (in.cascade_on_ && switch_on(in.source_) != HookResult::kOk) return HookResult::kError;
+    const int64_t period = in.period_param_ != nullptr ? std::llround(in.period_param_->get_float() * 1e6) : 0;
+    if (subscribe(in.source_, period, &in.granted_period_ns_) != HookResult::kOk) return HookResult::kError;
+  }
+  return HookResult::kOk;
+}
+
+void DataComponentBase::after_off() noexcept {
+  for (auto& s : subscriptions_) {
+    if (s.active) unsubscribe(s.producer);
+  }
+}
+
+InputPort* DataComponentBase::input_from(Address source) noexcept {
+  for (auto& port : inputs_) {
+    if (port->configured() && port->source_ == source) return port.get();
+  }
+  return nullptr;
+}
+
+bool DataComponentBase::take_input(InputPort& port, const MessageHeader& h, std::span<const std::byte> body) noexcept {
+  if (!port.decode(h, body)) return false;
+  port.received_ns_ = rt::monotonic_ns();
+  ++port.samples_;
+  return true;
+}
+
+bool DataComponentBase::subscription_ended(Address producer) const noexcept {
+  for (const auto& s : subscriptions_) {
+    if (s.active && s.producer == producer) return s.ended;
+  }
+  return false;
+}
+
+bool DataComponentBase::watched_input_silent() noexcept {
+  const int64_t limit = silence_ns();
+  const int64_t now = rt::monotonic_ns();
+  for (const auto& port : inputs_) {
+    const InputPort& in = *port;
+    if (!in.configured() || !in.watched_ || subscription_ended(in.source_)) continue;
+    const int64_t silent = now - in.received_ns_;
+    if (silent < limit) continue;
+    // The reason of the ERROR this leads to (snprintf of integers allocates nothing).
+    char source[40];
+    in.source_.format(source, sizeof source);
+    char reason[192];  // set_error_reason keeps what fits
+    std::snprintf(reason, sizeof reason, "%s (input %s) sent nothing for %lld ms (silence_ms %lld)", source,
+                  in.name().c_str(), static_cast<long long>(silent / rt::kNsPerMs),
+                  static_cast<long long>(limit / rt::kNsPerMs));
+    set_error_reason(reason);
+    return true;
+  }
+  return false;
 }
 
 void DataComponentBase::note_input_error(const MessageHeader& header) noexcept {
@@ -607,10 +716,13 @@ void DataComponentBase::run_data_task() noexcept {
   }
   // Triggered: loop() runs when input arrives, or when data_timeout passes without
   // any (so a component notices a silent source). Wake-ups without input do not count.
-  const int64_t timeout = settings().data_timeout_ns;
+  int64_t timeout = settings().data_timeout_ns;
   bool was_enabled = false;
   int64_t deadline = 0;
   while (!stopping()) {
+    // Declared inputs: loop() runs at least every silence_ms (SET_PARAM may change it),
+    // so that a silent source is noticed in time.
+    if (const int64_t silence = silence_ns(); silence > 0) timeout = std::min(settings().data_timeout_ns, silence);
     if (!input_mailbox_) {
       rt::sleep_for(timeout);
       run_one_cycle();

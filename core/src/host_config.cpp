@@ -91,6 +91,7 @@ LoadResult HostLoader::load(const std::string& text) {
     return result;
   }
   result.host = std::move(host);
+  result.warnings = warnings;
   return result;
 }
 
@@ -109,7 +110,7 @@ std::string host_file_folder(const std::string& file) {
 
 LoadResult load_host_text(const std::string& text, const std::string& file, ComponentRegistry& registry,
                           const rt::RtCapabilities& caps, const HostLoadOptions& options) {
-  HostLoader loader{file, registry, caps, options, {}, {}, {}};
+  HostLoader loader{file, registry, caps, options, {}, {}, {}, {}};
   // Outside input: whatever escapes the checks (a yaml-cpp conversion that throws, an
   // allocation that fails) is one more error of this file, never an exception.
   LoadResult r;
@@ -123,6 +124,7 @@ LoadResult load_host_text(const std::string& text, const std::string& file, Comp
   // Messages quote the file's keys and values: they go to a terminal and a log as
   // clean text of bounded length, whatever the file held.
   for (auto& e : r.errors) e.message = clean_host_message(e.message);
+  for (auto& w : r.warnings) w.message = clean_host_message(w.message);
   return r;
 }
 

@@ -2,8 +2,12 @@
 // parameters, then the references between them resolved into a start order.
 #include "host_loader.h"
 
+#include "rack/core/data_component.h"
+
 #include <cmath>
 #include <functional>
+#include <optional>
+#include <utility>
 
 namespace rack {
 
@@ -130,6 +134,13 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
         get_positive_ms(dt, "timeout_ms", s.data_timeout_ns);
       }
     }
+    // data_task.timeout_ms of a class with declared inputs is the former name of its
+    // parameter silence_ms (docs/parameters.md): taken there, with a warning.
+    std::optional<std::pair<std::string, YAML::Node>> old_timeout;
+    const auto* consumer = dynamic_cast<const DataComponentBase*>(component.get());
+    if (dt && dt.IsMap() && dt["timeout_ms"] && consumer != nullptr && consumer->declares_inputs()) {
+      old_timeout.emplace("timeout_ms", dt["timeout_ms"]);
+    }
     // Parameters.
     Pending p{node, std::move(component), {}};
     ParameterSet& params = p.component->parameters();
@@ -147,6 +158,15 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
         for (auto it = pn.begin(); it != pn.end(); ++it) {
           const std::string key = it->first.Scalar();
           Parameter* param = params.find(key.c_str());
+          if (param == nullptr && (param = params.renamed(key)) != nullptr) {
+            warn(it->first.Mark(), "component '" + name + "': parameter '" + key + "' is now '" + param->name() +
+                                       "' (the old name still works; rename it: docs/parameters.md)");
+            if (pn[param->name()]) {
+              error(it->first.Mark(), "component '" + name + "': '" + key + "' and '" + param->name() +
+                                          "' are the same parameter (old and new name): give one");
+              continue;
+            }
+          }
           if (param == nullptr) {
             error(it->first.Mark(),
                   "unknown parameter '" + key + "' for class '" + impl + "' (known: " + params.names() + ")");
@@ -160,11 +180,19 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
             error(it->second.Mark(), *err);
             continue;
           }
-          given.insert(key);
+          given.insert(param->name());
           given_marks[param] = it->second.Mark();
           if (param->spec().component_ref) p.refs.emplace_back(param, it->second);
         }
       }
+    }
+    if (old_timeout && given.count("silence_ms") == 0) {
+      const YAML::Node v = old_timeout->second;
+      warn(v.Mark(), "component '" + name +
+                         "': data_task.timeout_ms is now the parameter silence_ms (params: {silence_ms: " +
+                         v.Scalar() + "}; the old name still works: docs/parameters.md)");
+      if (auto err = params.find("silence_ms")->set_from_text(v.Scalar())) error(v.Mark(), *err);
+      else given_marks[params.find("silence_ms")] = v.Mark();
     }
     // The host's default log level for components that do not set their own.
     if (given.count(Component::kLogLevelParam) == 0) {

@@ -12,6 +12,10 @@ void HostLoader::error(const YAML::Mark& mark, const std::string& message) {
   errors.push_back({file, mark.line + 1, mark.column + 1, message});
 }
 
+void HostLoader::warn(const YAML::Mark& mark, const std::string& message) {
+  warnings.push_back({file, mark.line + 1, mark.column + 1, message});
+}
+
 // Checks that a map has only known keys; reports each unknown one.
 void HostLoader::check_keys(const YAML::Node& map, const std::set<std::string>& known, const std::string& where) {
   for (auto it = map.begin(); it != map.end(); ++it) {

@@ -40,6 +40,7 @@ struct HostLoader {
   const rt::RtCapabilities& caps;
   HostLoadOptions options;
   std::vector<ConfigError> errors;
+  std::vector<ConfigError> warnings;
   // The host file's folder, absolute: every relative path the file holds (plug-ins,
   // key files, crash_dir, parameters with a Parameter::Spec::path) is taken from here.
   std::string base_dir;
@@ -75,6 +76,7 @@ struct HostLoader {
 
   // host_config_values.cpp: a key's value checked and converted, errors with their position
   void error(const YAML::Mark& mark, const std::string& message);
+  void warn(const YAML::Mark& mark, const std::string& message);
   void check_keys(const YAML::Node& map, const std::set<std::string>& known, const std::string& where);
   bool get_int_range(const YAML::Node& map, const char* key, int64_t lo, int64_t hi, int64_t& out,
                      const std::string& what);

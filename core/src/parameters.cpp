@@ -368,6 +368,21 @@ const Parameter* ParameterSet::find(const char* name) const noexcept {
   return const_cast<ParameterSet*>(this)->find(name);
 }
 
+void ParameterSet::add_old_name(const std::string& old_name, const std::string& new_name) {
+  if (find(old_name.c_str()) != nullptr || find(new_name.c_str()) == nullptr) {
+    throw std::invalid_argument("old parameter name '" + old_name + "' for '" + new_name +
+                                "': the old name is in use or the new one is not declared");
+  }
+  old_names_.emplace_back(old_name, new_name);
+}
+
+Parameter* ParameterSet::renamed(const std::string& old_name) noexcept {
+  for (const auto& [from, to] : old_names_) {
+    if (from == old_name) return find(to.c_str());
+  }
+  return nullptr;
+}
+
 std::string ParameterSet::names() const {
   std::string s;
   for (const auto& p : params_) {

@@ -117,8 +117,8 @@ def main_file(i):
             network("fleet", FLEET_URL, "fleet") +
             "components:\n"
             f"  - name: r{i}-nav\n    class: Monitor\n    instance: 0\n    autostart: true\n    retry_ms: 500\n"
-            "    command_task: {priority: 30}\n    data_task: {priority: 50, timeout_ms: 1000}\n"
-            f"    params: {{source: \"Generator({i}/0)\", period_ms: 0}}\n"
+            "    command_task: {priority: 30}\n    data_task: {priority: 50}\n"
+            f"    params: {{source: \"Generator({i}/0)\", source_period_ms: 0, silence_ms: 1000}}\n"
             f"  - name: r{i}-odometry\n    class: Generator\n    instance: 1\n    autostart: true\n"
             "    command_task: {priority: 30}\n    data_task: {priority: 55, period_ms: 50}\n"
             "    params: {amplitude: 1.0, frequency_hz: 0.2}\n")

@@ -73,7 +73,7 @@ class GdosViewerTest : public ::testing::Test {
            "    instance: 0\n"
            "    autostart: true\n"
            "    data_task: {priority: 50}\n"
-           "    params: {source: generator, period_ms: 100}\n";
+           "    params: {source: generator, source_period_ms: 100}\n";
   }
   std::unique_ptr<Process> start_rackd(const std::string& to_stderr, const std::string& host = "gdos-host",
                                        int system = 0) {

@@ -317,8 +317,8 @@ components:
     class: Monitor
     instance: 0
     autostart: true
-    data_task: {priority: 50, timeout_ms: 2000}
-    params: {source: generator, period_ms: 100}
+    data_task: {priority: 50}
+    params: {source: generator, source_period_ms: 100, silence_ms: 2000}
 )";
 
 class HostileNetTest : public ::testing::Test {

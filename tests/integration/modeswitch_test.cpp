@@ -293,14 +293,14 @@ components:
     class: Monitor
     instance: 0
     autostart: true
-    data_task: {priority: 50, timeout_ms: 1000}
-    params: {source: generator, period_ms: 0}
+    data_task: {priority: 50}
+    params: {source: generator, source_period_ms: 0, silence_ms: 1000}
   - name: monitor2
     class: Monitor
     instance: 1
     autostart: true
-    data_task: {priority: 50, timeout_ms: 1000}
-    params: {source: generator, period_ms: 10}
+    data_task: {priority: 50}
+    params: {source: generator, source_period_ms: 10, silence_ms: 1000}
   - name: probe
     class: Probe
     instance: 0

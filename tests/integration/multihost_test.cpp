@@ -72,8 +72,8 @@ std::string consumer_host(const std::string& url, int host_id, int instance) {
     retry_ms: 300
     rpc_timeout_ms: 500
     command_task: {priority: 30}
-    data_task: {priority: 50, timeout_ms: 60000}
-    params: {source: "Generator(0/0)", period_ms: 0}
+    data_task: {priority: 50}
+    params: {source: "Generator(0/0)", source_period_ms: 0, silence_ms: 60000}
 )yaml";
 }
 

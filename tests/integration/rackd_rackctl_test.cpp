@@ -218,7 +218,8 @@ const MalformedCase kMalformed[] = {
      "",
      "'priority' must be"},
     {"missing_required_parameter",
-     {{"      source: generator", "      period_ms: 100"}, {"  - name: monitor", "  - name: monitor  # <-- error"}},
+     {{"      source: generator", "      source_period_ms: 100"},
+      {"  - name: monitor", "  - name: monitor  # <-- error"}},
      "",
      "missing required parameter 'source'"},
     {"unknown_parameter",
@@ -500,7 +501,7 @@ TEST_F(RackdDemoTest, SetParamRejectsUnparsableValue) {
   EXPECT_EQ(r.exit_code, 2) << r.describe();
   EXPECT_TRUE(contains(r.err, "abc")) << r.describe();
   EXPECT_TRUE(contains(r.err, "amplitude")) << r.describe();
-  const RunResult b = ctl({"set-param", "monitor", "period_ms", "true"});
+  const RunResult b = ctl({"set-param", "monitor", "source_period_ms", "true"});
   EXPECT_EQ(b.exit_code, 2) << b.describe();
 }
 

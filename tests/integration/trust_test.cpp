@@ -237,8 +237,7 @@ components:
     class: Monitor
     instance: 0
     autostart: true
-    data_task: {timeout_ms: 500}
-    params: {source: generator, period_ms: 10}
+    params: {source: generator, source_period_ms: 10, silence_ms: 500}
 )")
             .string());
   ASSERT_TRUE(eventually([&] { return state("monitor") == "ENABLED"; }, 30s)) << rackd_->err();
@@ -321,8 +320,7 @@ TEST_F(TrustTest, AConsumerOnAnotherHostKeepsItsLeaseByRenewing) {
     class: Monitor
     instance: 0
     autostart: true
-    data_task: {timeout_ms: 1000}
-    params: {source: Generator(0/0), period_ms: 10}
+    params: {source: Generator(0/0), source_period_ms: 10, silence_ms: 1000}
 )"))
                                                                           .string()},
                                      dir_.path(), "rackd-b");

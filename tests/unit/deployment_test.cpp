@@ -141,7 +141,7 @@ TEST(DeploymentTest, FlowByNameInOneFileAndNotForPlainValues) {
 components:
   - {name: gen, class: Generator, data_task: {priority: 40, period_ms: 5}}
   - {name: cam, class: Camera, params: {source: /dev/video0}}
-  - {name: mon, class: Monitor, instance: 2, data_task: {priority: 45}, params: {source: gen, period_ms: 0}}
+  - {name: mon, class: Monitor, instance: 2, data_task: {priority: 45}, params: {source: gen, source_period_ms: 0}}
 )Y",
                                              "a.yaml")});
   ASSERT_EQ(d.flows.size(), 1u);

@@ -65,8 +65,7 @@ components:
   - name: mon
     class: Monitor
     autostart: true
-    data_task: {timeout_ms: 1000}
-    params: {source: gen}
+    params: {source: gen, silence_ms: 1000}
 )");
   const auto mon = h.address_of("mon");
   const auto gen = h.address_of("gen");

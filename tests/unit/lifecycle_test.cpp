@@ -54,8 +54,7 @@ components:
     autostart: )" +
            std::string(monitor_autostart ? "true" : "false") +
            R"(
-    data_task: {timeout_ms: 1000}
-    params: {source: gen, period_ms: 50}
+    params: {source: gen, source_period_ms: 50, silence_ms: 1000}
 )";
     }
     return y;
@@ -613,8 +612,7 @@ components:
     class: Monitor
     instance: 1
     retry_ms: 60000
-    data_task: {timeout_ms: 1000}
-    params: {source: probe, period_ms: 50}
+    params: {source: probe, source_period_ms: 50, silence_ms: 1000}
 )",
                            {}, /*capture_gdos=*/true);
   const Address mon = host.address_of("mon");

@@ -142,8 +142,9 @@ components:
   - name: mcl
     class: MCL
     autostart: true
-    data_task: {priority: 0, timeout_ms: 2000}
+    data_task: {priority: 0}
     params:
+      silence_ms: 2000
       map: )" +
          map + R"(
       scan2d: scans

@@ -275,7 +275,7 @@ components:
     class: Monitor
     instance: 1
     autostart: true
-    params: {source: gen, period_ms: 5}
+    params: {source: gen, source_period_ms: 5}
 )");
   const Address gen = host.address_of("gen");
   const Address mon = host.address_of("mon");
@@ -519,12 +519,12 @@ components:
   - name: odometry
     class: Odometry
     instance: 0
-    data_task: {priority: 44, timeout_ms: 1000, ring: 500}
+    data_task: {priority: 44, ring: 500}
     params: {chassis: chassis}
   - name: position
     class: Position
     instance: 0
-    data_task: {priority: 43, timeout_ms: 1000, ring: 100}
+    data_task: {priority: 43, ring: 100}
     params: {odometry: odometry, initial_x: 3.0, initial_y: 7.0}
   - name: ladar
     class: LadarSim
@@ -535,7 +535,7 @@ components:
   - name: scan2d
     class: Scan2D
     instance: 0
-    data_task: {priority: 41, timeout_ms: 1000, ring: 10}
+    data_task: {priority: 41, ring: 10}
     params: {ladar: ladar, odometry: odometry, mount_x: 0.2, median: 3}
   - name: path
     class: Path

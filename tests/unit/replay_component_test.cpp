@@ -103,10 +103,10 @@ class ReplayComponentTest : public ::testing::Test {
       << "  - name: ladar\n    class: LadarReplay\n    data_task: {priority: 40, period_ms: 2, ring: 100}\n"
          "    params: {log: \""
       << log << "\", speed: " << speed << pace << "}\n"
-      << "  - name: odometry\n    class: Odometry\n    data_task: {priority: 39, timeout_ms: 5000, ring: 500}\n"
-         "    params: {chassis: chassis}\n"
-         "  - name: scan2d\n    class: Scan2D\n    data_task: {priority: 38, timeout_ms: 5000, ring: 100, input_slots: 128}\n"
-         "    params: {ladar: ladar, odometry: odometry}\n";
+      << "  - name: odometry\n    class: Odometry\n    data_task: {priority: 39, ring: 500}\n"
+         "    params: {chassis: chassis, silence_ms: 5000}\n"
+         "  - name: scan2d\n    class: Scan2D\n    data_task: {priority: 38, ring: 100, input_slots: 128}\n"
+         "    params: {ladar: ladar, odometry: odometry, silence_ms: 5000}\n";
     return y.str();
   }
   // Plays the interleaved log through Scan2D at `speed` and returns the odometry each

@@ -57,12 +57,12 @@ std::string odometry_position_yaml(const std::string& position_params = "") {
   return R"(  - name: odometry
     class: Odometry
     instance: 0
-    data_task: {priority: 44, timeout_ms: 1000, ring: 1000}
+    data_task: {priority: 44, ring: 1000}
     params: {chassis: chassis}
   - name: position
     class: Position
     instance: 0
-    data_task: {priority: 43, timeout_ms: 1000, ring: 200}
+    data_task: {priority: 43, ring: 200}
     params: {odometry: odometry)" +
          position_params + R"(}
 )";
@@ -79,7 +79,7 @@ std::string ladar_scan_yaml(const std::string& map, const std::string& ladar_par
   - name: scan2d
     class: Scan2D
     instance: 0
-    data_task: {priority: 41, timeout_ms: 1000, ring: 10}
+    data_task: {priority: 41, ring: 10}
     params: {ladar: ladar, odometry: odometry)" +
          scan_params + R"(}
 )";

@@ -206,8 +206,7 @@ components:
     instance: 1
     retry_ms: 100
     autostart: true
-    data_task: {timeout_ms: 1000}
-    params: {source: gen, period_ms: 10}
+    params: {source: gen, source_period_ms: 10, silence_ms: 1000}
 )");
     gen_ = host_->address_of("gen");
     mon_ = host_->address_of("mon");

@@ -430,6 +430,8 @@ static int run_rackd(int argc, char** argv) {
   auto loaded = rack::load_host_file(file, registry, caps,
                                      rack::HostLoadOptions{.open_files = true, .check_paths = check});
   if (watch.stop_requested()) return stopped_during_startup(watch);
+  // Warnings (a parameter by its former name): said, then the host starts.
+  for (const auto& w : loaded.warnings) std::fprintf(stderr, "%s (warning)\n", w.str().c_str());
   if (!loaded.errors.empty()) {
     // A hostile file can hold thousands: the first kMaxShown say enough.
     constexpr std::size_t kMaxShown = 50;

@@ -15,6 +15,40 @@
 //   any ------shutdown--------------------> off() if ENABLED, then cleanup()
 //   init() throws: the component stays in ERROR for good; ON is answered ERROR.
 //
+// The lifecycle contract: what a hook may rely on (and what it must not redo).
+//
+//  1. Threads. The constructor, init() and cleanup() run in the executor's main
+//     thread (not RT: allocate, open files, throw on failure). on(), off(),
+//     command() and check_parameters() run in the command task; loop() runs in the
+//     data task (DataComponentBase). The command task never runs on()/off() while
+//     loop() runs: loop() is gated off before off() and only gated on after on()
+//     returned kOk, so the two tasks never touch the component's state at once
+//     across ON and OFF. command() may run while loop() runs: share state through a
+//     Handoff (rack/core/handoff.h) or atomics.
+//  2. Order. init() once, before anything else; then any number of on()/off()
+//     rounds; cleanup() once at shutdown (after off() if the component was ENABLED).
+//     init() throwing: the component stays in ERROR for good, on() never runs.
+//  3. off() runs after every on() that was called, whether it returned kOk, kError
+//     or threw: a failed on() is undone by off() at once (so off() must cope with an
+//     on() that stopped halfway), and an ENABLED component's off() runs when it
+//     leaves ENABLED (OFF, loop()/command() failure, shutdown). off() also runs when
+//     ON failed in the framework's own step before on() (a declared input's source
+//     did not switch on or refused the subscription).
+//  4. What the framework does by itself, so that hooks must not: for every declared
+//     input (DataComponentBase::declare_input) it switches the source on (cascading
+//     ON) and subscribes BEFORE on(), and unsubscribes AFTER off(); every other
+//     subscription still active after off() (subscribe() by hand) is stopped too. It
+//     drops every listener with an ERROR when the component leaves ENABLED, drains
+//     stale input while the component is not ENABLED, renews subscription leases,
+//     retries on() every retry_ms in ERROR (re-subscribing), detects a declared
+//     input's silence (the parameter silence_ms) and a producer's ERROR, and passes
+//     END_OF_STREAM on.
+//  5. Failure. on()/loop()/command() say why with set_error_reason() before returning
+//     kError; an exception counts as kError. One component's failure affects that
+//     component only.
+//  6. Parameters are filled and checked (check_parameters) before init(); SET_PARAM
+//     may change a value at any time unless its Spec says init_only.
+//
 // A data component's listeners get an ERROR message and are dropped whenever it
 // leaves ENABLED. An exception or error in one component affects that component only.
 //
@@ -268,6 +302,10 @@ class Component {
   virtual void leaving_enabled() noexcept {}  // before off(): stop the data task's loop
   virtual void entered_enabled() noexcept {}  // after on() succeeded
   virtual void stop_data_task() noexcept {}
+  // Around on() and off() (contract rules 3 and 4): before_on() runs before on() (a
+  // failure skips on() but not off()), after_off() after every off(). Command task.
+  virtual HookResult before_on() noexcept { return HookResult::kOk; }
+  virtual void after_off() noexcept {}
 
   void handle(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept;
   void handle_on(const tims::MessageHeader* request) noexcept;

@@ -50,17 +50,42 @@
 // that expires are dropped sooner, by the transport's STOP_CONT_DATA
 // (rack/tims/lcm_transport.h).
 //
+// Declared inputs: a consumer declares each stream it reads in its constructor,
+//
+//   chassis_(declare_input<interfaces::ChassisData>("chassis", {.doc = "the Chassis to integrate"}))
+//
+// which declares the component-ref parameter `chassis` (optional ones may be ""),
+// with InputSpec::ask_period the parameter `chassis_period_ms` (the period asked of
+// the source; 0: every sample), once per component the parameter `silence_ms`, and
+// sizes the input mailbox. The framework then, on every ON (also a retry after
+// ERROR), switches each configured source on and subscribes, in declaration order,
+// before on(); unsubscribes after off(); and loop() takes what arrived with
+//
+//   const Received r = receive([&](const InputPort& in) { ... chassis_.value() ... });
+//   if (r.failed) return HookResult::kError;
+//
+// which calls the handler once per sample, in arrival order across inputs, with the
+// input it came from (its value() and sample_header() hold the sample). A sample that
+// does not decode as its input's type is counted and logged (GET_STATS malformed),
+// never delivered. r.failed: a producer sent ERROR (it left ENABLED; InputSpec::
+// fail_on_error), or a watched input sent nothing for silence_ms (an END_OF_STREAM is
+// not silence); the error reason is set. A triggered data task wakes at least every
+// silence_ms so that silence is noticed without input.
+//
 // Real-time contract: loop() runs in the data task (RT): no allocation, no non-PI
 // locks, no printing, no blocking system calls. publish(), input_mailbox(),
-// data_endpoint() and read_sample() are RT-safe. subscribe()/unsubscribe() are
-// RT-safe and meant for on()/off() (command task).
+// data_endpoint(), read_sample(), receive() and the InputPort accessors are RT-safe.
+// subscribe()/unsubscribe() are RT-safe and meant for on()/off() (command task).
+// declare_input() is for the constructor only (it allocates).
 #pragma once
 
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "rack/core/component.h"
@@ -71,6 +96,100 @@
 #include "rack/tims/trusted_sources.h"
 
 namespace rack {
+
+// Reads a DATA message body (SampleHeader + T), converting byte order when the
+// sender's differs. false when the size is wrong. RT-safe.
+template <tims::Payload T>
+[[nodiscard]] bool read_sample(const tims::MessageHeader& h, std::span<const std::byte> body,
+                               wire::SampleHeader& header, T& out) noexcept {
+  if (body.size() != sizeof(wire::SampleHeader) + sizeof(T)) return false;
+  std::memcpy(&header, body.data(), sizeof header);
+  std::memcpy(&out, body.data() + sizeof header, sizeof(T));
+  if (!tims::body_is_native(h)) {
+    tims::swap_fields(tims::fields_of<wire::SampleHeader>, reinterpret_cast<std::byte*>(&header), sizeof header);
+    tims::swap_fields(tims::fields_of<T>, reinterpret_cast<std::byte*>(&out), sizeof(T));
+  }
+  return true;
+}
+
+// What a declared input is (DataComponentBase::declare_input).
+struct InputSpec {
+  std::string doc;            // the source parameter's doc: what the source is
+  bool optional = false;      // the parameter may be "" (the default): no such input then
+  bool cascade_on = true;     // switch the source on before subscribing (cascading ON)
+  bool ask_period = false;    // declare "<name>_period_ms": the period asked of the source
+  double period_ms = 0.0;     // its default (0: every sample)
+  bool watched = true;        // silent for silence_ms: receive() fails (the component ERRORs)
+  bool fail_on_error = true;  // the source's ERROR (it left ENABLED) fails receive()
+  // The default of the component's silence_ms (the first declaration that declares it).
+  double silence_ms = 1000.0;
+  // Former names of the parameters, accepted with a warning (docs/parameters.md).
+  const char* old_period_name = nullptr;   // of "<name>_period_ms"
+  const char* old_silence_name = nullptr;  // of "silence_ms"
+};
+
+// One declared input. The framework fills it; the component reads it from loop()
+// (data task). RT-safe accessors.
+class InputPort {
+ public:
+  virtual ~InputPort() = default;
+  InputPort(const InputPort&) = delete;
+  InputPort& operator=(const InputPort&) = delete;
+  [[nodiscard]] const std::string& name() const noexcept { return source_param_.name(); }
+  // The parameter that names the source (any thread: parameters are thread-safe).
+  [[nodiscard]] const Parameter& source_parameter() const noexcept { return source_param_; }
+  // The source it subscribes to (resolved at ON); raw() == 0: an optional input not
+  // configured. Valid from before on() on.
+  [[nodiscard]] tims::Address source() const noexcept { return source_; }
+  [[nodiscard]] bool configured() const noexcept { return source_.raw() != 0; }
+  // The period the source granted (its CONT_DATA reply), 0 when it did not say.
+  [[nodiscard]] int64_t granted_period_ns() const noexcept { return granted_period_ns_; }
+  // The newest sample's header (time, sequence) and its arrival (monotonic ns; ON
+  // before the first sample). Data task.
+  [[nodiscard]] const wire::SampleHeader& sample_header() const noexcept { return header_; }
+  [[nodiscard]] int64_t time_ns() const noexcept { return header_.time_ns; }
+  [[nodiscard]] int64_t received_ns() const noexcept { return received_ns_; }
+  [[nodiscard]] uint64_t samples() const noexcept { return samples_; }  // since ON
+
+ protected:
+  InputPort(Parameter& source, const InputSpec& spec) noexcept
+      : source_param_(source),
+        cascade_on_(spec.cascade_on),
+        watched_(spec.watched),
+        fail_on_error_(spec.fail_on_error) {}
+  // Decodes a DATA body into the port's sample; false: the wrong size.
+  virtual bool decode(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept = 0;
+  wire::SampleHeader header_{};
+
+ private:
+  friend class DataComponentBase;
+  Parameter& source_param_;
+  Parameter* period_param_ = nullptr;
+  bool cascade_on_;
+  bool watched_;
+  bool fail_on_error_;
+  tims::Address source_;
+  int64_t granted_period_ns_ = 0;
+  int64_t received_ns_ = 0;
+  uint64_t samples_ = 0;
+};
+
+// A declared input of samples of type T. The sample lives here (allocated at
+// construction: large scans stay off the data task's stack).
+template <tims::Payload T>
+class InputOf final : public InputPort {
+ public:
+  InputOf(Parameter& source, const InputSpec& spec) : InputPort(source, spec), value_(std::make_unique<T>()) {}
+  // The newest sample (data task). Mutable: loop() may work on it in place.
+  [[nodiscard]] const T& value() const noexcept { return *value_; }
+  [[nodiscard]] T& value() noexcept { return *value_; }
+
+ private:
+  bool decode(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept override {
+    return read_sample(h, body, header_, *value_);
+  }
+  std::unique_ptr<T> value_;
+};
 
 class DataComponentBase : public Component {
  public:
@@ -85,6 +204,9 @@ class DataComponentBase : public Component {
   [[nodiscard]] std::span<const tims::FieldDesc> payload_fields() const noexcept { return fields_; }
   [[nodiscard]] uint32_t payload_size() const noexcept { return payload_size_; }
   [[nodiscard]] const rt::LatencyStats& data_task_stats() const noexcept { return stats_; }
+  // The class declares its inputs (declare_input): the framework subscribes them and
+  // owns the parameter silence_ms (the host file loader maps data_task.timeout_ms there).
+  [[nodiscard]] bool declares_inputs() const noexcept { return !inputs_.empty(); }
 
   // Local mailbox numbers of a data component.
   static constexpr uint8_t kDataReplyMailbox = 2;
@@ -151,8 +273,47 @@ class DataComponentBase : public Component {
   void unsubscribe(tims::Address producer) noexcept;
   static constexpr std::size_t kMaxSubscriptions = tims::TrustedSources::kCapacity;
 
+  // ---- declared inputs (see "Declared inputs" above) ----
+  // Constructor only (allocates): declares the source parameter `name` (and the
+  // period and silence parameters the spec asks for) and sizes the input mailbox.
+  template <tims::Payload T>
+  InputOf<T>& declare_input(const std::string& name, const InputSpec& spec) {
+    Parameter& source = declare_input_source(name, spec);
+    auto port = std::make_unique<InputOf<T>>(source, spec);
+    InputOf<T>& out = *port;
+    add_input(std::move(port), spec, sizeof(T));
+    return out;
+  }
+  // What receive() found.
+  struct Received {
+    uint32_t samples = 0;  // delivered to the handler
+    bool failed = false;   // a producer's ERROR, or a watched input silent: return kError (reason set)
+  };
+  // Takes every message in the input mailbox and calls `on_sample(const InputPort&)`
+  // for each sample that decoded, in arrival order; stops at a producer's ERROR
+  // (InputSpec::fail_on_error; otherwise it is skipped). Then checks the watched
+  // inputs' silence. Data task (loop()); RT-safe when `on_sample` is.
+  template <typename OnSample>
+  [[nodiscard]] Received receive(OnSample&& on_sample) noexcept;
+  // The component's silence limit (the parameter silence_ms), 0 without declared inputs.
+  [[nodiscard]] int64_t silence_ns() const noexcept;
+
  private:
   friend class Executor;
+
+  Parameter& declare_input_source(const std::string& name, const InputSpec& spec);
+  void add_input(std::unique_ptr<InputPort> port, const InputSpec& spec, std::size_t payload_size);
+  HookResult before_on() noexcept override;  // declared inputs: cascading ON, subscribe
+  void after_off() noexcept override;        // every subscription still active: stop it
+  [[nodiscard]] InputPort* input_from(tims::Address source) noexcept;
+  // The data task's input step for one DATA message of a declared input's source.
+  [[nodiscard]] bool take_input(InputPort& port, const tims::MessageHeader& h,
+                                std::span<const std::byte> body) noexcept;
+  // A watched input silent for silence_ms (sets the error reason). Data task.
+  [[nodiscard]] bool watched_input_silent() noexcept;
+  [[nodiscard]] bool subscription_ended(tims::Address producer) const noexcept;
+  std::vector<std::unique_ptr<InputPort>> inputs_;
+  Parameter* silence_ = nullptr;
 
   void attach(tims::Router& router) override;
   bool handle_data_request(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept override;
@@ -262,21 +423,6 @@ class DataComponent : public DataComponentBase {
   uint64_t publish(const T& sample, int64_t time_ns) noexcept { return publish_bytes(&sample, time_ns); }
 };
 
-// Reads a DATA message body (SampleHeader + T), converting byte order when the
-// sender's differs. false when the size is wrong. RT-safe.
-template <tims::Payload T>
-[[nodiscard]] bool read_sample(const tims::MessageHeader& h, std::span<const std::byte> body,
-                               wire::SampleHeader& header, T& out) noexcept {
-  if (body.size() != sizeof(wire::SampleHeader) + sizeof(T)) return false;
-  std::memcpy(&header, body.data(), sizeof header);
-  std::memcpy(&out, body.data() + sizeof header, sizeof(T));
-  if (!tims::body_is_native(h)) {
-    tims::swap_fields(tims::fields_of<wire::SampleHeader>, reinterpret_cast<std::byte*>(&header), sizeof header);
-    tims::swap_fields(tims::fields_of<T>, reinterpret_cast<std::byte*>(&out), sizeof(T));
-  }
-  return true;
-}
-
 template <typename Take>
 DataComponentBase::Input DataComponentBase::next_input(tims::MessageHeader& header, Take&& take) noexcept {
   for (;;) {
@@ -307,6 +453,37 @@ DataComponentBase::Input DataComponentBase::next_input(tims::MessageHeader& head
     }
     return Input::kData;
   }
+}
+
+template <typename OnSample>
+DataComponentBase::Received DataComponentBase::receive(OnSample&& on_sample) noexcept {
+  Received r;
+  for (;;) {
+    tims::MessageHeader header;
+    InputPort* port = nullptr;
+    bool decoded = false;
+    const Input in = next_input(header, [&](const tims::MessageHeader& h, std::span<const std::byte> body) {
+      port = input_from(h.source().component());
+      if (port == nullptr) return true;  // a late sample of a former source: not ours now, not malformed
+      decoded = take_input(*port, h, body);
+      return decoded;
+    });
+    if (in == Input::kNone) break;
+    if (in == Input::kError) {
+      const InputPort* from = input_from(header.source().component());
+      if (from == nullptr || from->fail_on_error_) {
+        r.failed = true;  // the reason is set (next_input): the retry re-subscribes
+        return r;
+      }
+      continue;
+    }
+    if (port != nullptr && decoded) {
+      ++r.samples;
+      on_sample(static_cast<const InputPort&>(*port));
+    }
+  }
+  if (watched_input_silent()) r.failed = true;
+  return r;
 }
 
 template <tims::Payload T>

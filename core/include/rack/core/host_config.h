@@ -108,6 +108,9 @@ struct LoadedHost {
 struct LoadResult {
   std::unique_ptr<LoadedHost> host;  // null when errors is not empty
   std::vector<ConfigError> errors;
+  // What loads but should change: a parameter given by its former name (file, line,
+  // key and the new name; docs/parameters.md). rackd prints them and starts.
+  std::vector<ConfigError> warnings;
 };
 
 struct HostLoadOptions {

@@ -15,6 +15,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "rack/core/wire.h"
@@ -177,9 +178,17 @@ class ParameterSet {
   [[nodiscard]] const Parameter& at(std::size_t i) const noexcept { return params_[i]; }
   [[nodiscard]] std::string names() const;  // "a, b, c" for error messages
 
+  // A former name of a parameter (docs/parameters.md): the host file loader accepts
+  // it with a warning that names the file, line, key and the new name, so that host
+  // files written before the rename keep working. Declaration only; not RT-safe.
+  void add_old_name(const std::string& old_name, const std::string& new_name);
+  // The parameter that `old_name` was renamed to, or nullptr. Not RT-safe.
+  [[nodiscard]] Parameter* renamed(const std::string& old_name) noexcept;
+
  private:
   Parameter& add(const std::string& name, ParamKind kind, Parameter::Spec spec);
-  std::deque<Parameter> params_;  // stable addresses
+  std::deque<Parameter> params_;                                // stable addresses
+  std::vector<std::pair<std::string, std::string>> old_names_;  // (old, new)
 };
 
 }  // namespace rack

@@ -1,0 +1,161 @@
+// Declared inputs (DataComponentBase::declare_input), the command-to-data Handoff and
+// the parameters' former names: the framework switches a declared source on and
+// subscribes before on(), unsubscribes after off() (also after a failed ON),
+// re-subscribes on the retry after ERROR, fails the consumer when a watched source is
+// silent for silence_ms, and the host loader takes a parameter by its old name with a
+// warning that names the file, line, key and new name.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <string>
+
+#include "rack/components/builtin.h"
+#include "rack/core/handoff.h"
+#include "rack/core/host_config.h"
+#include "rack/interfaces/demo.h"
+#include "test_support.h"
+
+namespace rack {
+namespace {
+
+using interfaces::MonitorData;
+using test::HostUnderTest;
+using test::Watchdog;
+using tims::Address;
+namespace msg = tims::msg;
+
+// A generator and a monitor of it; the monitor retries ON every `retry_ms`.
+std::string host_yaml(const std::string& monitor_params, int retry_ms = 100) {
+  return R"(system: 0
+lcm: false
+components:
+  - name: gen
+    class: Generator
+    instance: 1
+    retry_ms: 100
+    data_task: {period_ms: 10, ring: 64}
+  - name: mon
+    class: Monitor
+    instance: 1
+    retry_ms: )" +
+         std::to_string(retry_ms) + R"(
+    params: {source: gen)" +
+         monitor_params + R"(}
+)";
+}
+
+uint64_t listeners(HostUnderTest& host, Address a) { return host.stats(a).listeners; }
+
+TEST(DeclaredInputTest, SubscribedBeforeOnAndUnsubscribedAfterOff) {
+  Watchdog dog;
+  HostUnderTest host(host_yaml(", source_period_ms: 20"));
+  const Address gen = host.address_of("gen");
+  const Address mon = host.address_of("mon");
+  EXPECT_EQ(host.status(gen), msg::kDisabled);
+  ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
+  EXPECT_EQ(host.status(gen), msg::kEnabled) << "cascading ON of the declared source";
+  EXPECT_EQ(listeners(host, gen), 1u) << "subscribed when ON was answered";
+  MonitorData d{};
+  wire::SampleHeader sh;
+  ASSERT_TRUE(test::eventually([&] { return host.get_data(mon, sh, d) && d.received >= 3; }));
+  EXPECT_EQ(d.real_period_ns, 20 * rt::kNsPerMs) << "the period the source granted reaches on()";
+  ASSERT_EQ(host.call(mon, msg::kOff).type, msg::kOk);
+  EXPECT_EQ(listeners(host, gen), 0u) << "unsubscribed by the framework when OFF was answered";
+}
+
+TEST(DeclaredInputTest, ProducerErrorFailsAndTheRetryResubscribes) {
+  Watchdog dog;
+  HostUnderTest host(host_yaml("", 1000));  // the reason is read before the retry
+  const Address gen = host.address_of("gen");
+  const Address mon = host.address_of("mon");
+  ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
+  ASSERT_EQ(host.call(gen, msg::kOff).type, msg::kOk);
+  ASSERT_TRUE(host.wait_status(mon, msg::kError)) << host.log();
+  EXPECT_NE(std::strstr(host.stats(mon).error_reason, "left ENABLED"), nullptr) << host.stats(mon).error_reason;
+  // The retry (every retry_ms) switches the source on again and subscribes again.
+  ASSERT_TRUE(host.wait_status(mon, msg::kEnabled)) << host.log();
+  EXPECT_EQ(host.status(gen), msg::kEnabled);
+  EXPECT_TRUE(test::eventually([&] { return listeners(host, gen) == 1u; }));
+}
+
+TEST(DeclaredInputTest, WatchedSourceSilentForSilenceMsFails) {
+  Watchdog dog;
+  // One sample a second asked of the source, silence after 200 ms: ERROR.
+  HostUnderTest host(host_yaml(", source_period_ms: 1500, silence_ms: 200", 60000));
+  const Address mon = host.address_of("mon");
+  ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
+  ASSERT_TRUE(host.wait_status(mon, msg::kError, std::chrono::milliseconds(5000))) << host.log();
+  const std::string reason = host.stats(mon).error_reason;
+  EXPECT_NE(reason.find("sent nothing for"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("silence_ms 200"), std::string::npos) << reason;
+}
+
+TEST(DeclaredInputTest, OldParameterNamesLoadWithAWarning) {
+  ComponentRegistry registry;
+  components::register_builtin(registry);
+  rt::RtCapabilities caps;
+  caps.online_cpus = {0, 1};
+  const std::string text = R"(system: 0
+lcm: false
+components:
+  - name: gen
+    class: Generator
+    data_task: {period_ms: 10}
+  - name: mon
+    class: Monitor
+    data_task: {timeout_ms: 400}
+    params:
+      source: gen
+      period_ms: 50
+)";
+  const LoadResult r = load_host_text(text, "old.yaml", registry, caps);
+  ASSERT_TRUE(r.errors.empty()) << r.errors.front().str();
+  ASSERT_EQ(r.warnings.size(), 2u);
+  std::string all;
+  for (const auto& w : r.warnings) all += w.str() + "\n";
+  EXPECT_NE(all.find("old.yaml:12:7: component 'mon': parameter 'period_ms' is now 'source_period_ms'"),
+            std::string::npos)
+      << all;
+  EXPECT_NE(all.find("old.yaml:9:"), std::string::npos) << all;
+  EXPECT_NE(all.find("component 'mon': data_task.timeout_ms is now the parameter silence_ms"), std::string::npos)
+      << all;
+  const Component* mon = nullptr;
+  for (const auto& c : r.host->components) {
+    if (c->name() == "mon") mon = c.get();
+  }
+  ASSERT_NE(mon, nullptr);
+  EXPECT_DOUBLE_EQ(mon->parameters().find("source_period_ms")->get_float(), 50.0);
+  EXPECT_DOUBLE_EQ(mon->parameters().find("silence_ms")->get_float(), 400.0);
+
+  // The old and the new name together: which one holds? Neither: an error.
+  const std::string both = text + "      source_period_ms: 60\n";
+  const LoadResult b = load_host_text(both, "both.yaml", registry, caps);
+  ASSERT_FALSE(b.errors.empty());
+  EXPECT_NE(b.errors.front().str().find("'period_ms' and 'source_period_ms' are the same parameter"), std::string::npos)
+      << b.errors.front().str();
+}
+
+TEST(HandoffTest, TheNewestRequestWinsAndCountsAddUp) {
+  Handoff<int> latest;
+  int v = 0;
+  EXPECT_FALSE(latest.take(v));
+  latest.post(1);
+  latest.post(2);
+  ASSERT_TRUE(latest.take(v));
+  EXPECT_EQ(v, 2);
+  EXPECT_FALSE(latest.take(v)) << "taken once";
+
+  Handoff<uint32_t> count;
+  count.post([](uint32_t& n) { ++n; });
+  count.post([](uint32_t& n) { ++n; });
+  uint32_t n = 0;
+  ASSERT_TRUE(count.take(n));
+  EXPECT_EQ(n, 2u);
+  count.post([](uint32_t& k) { ++k; });
+  count.clear();
+  EXPECT_FALSE(count.take(n)) << "cleared";
+  EXPECT_FALSE(count.pending());
+}
+
+}  // namespace
+}  // namespace rack
