@@ -24,21 +24,21 @@ struct OpSpec {
 
 const std::vector<OpSpec>& specs() {
   static const std::vector<OpSpec> kSpecs = {
-      {"switch", Op::kSwitch, {"component", "on"}},
-      {"all_off", Op::kAllOff, {"system"}},
-      {"get_params", Op::kGetParams, {"component"}},
-      {"set_param", Op::kSetParam, {"component", "name", "value"}},
-      {"set_destination", Op::kSetDestination, {"system", "x", "y"}},
-      {"set_pose", Op::kSetPose, {"system", "x", "y", "phi"}},
-      {"joystick", Op::kJoystick, {"system", "vx", "omega"}},
-      {"joystick_release", Op::kJoystickRelease, {"system"}},
-      {"follow_path", Op::kFollowPath, {"system"}},
-      {"get_class", Op::kGetClass, {"component"}},
-      {"command", Op::kCommand, {"component", "name", "fields"}},
-      {"trace", Op::kTrace, {"system", "host", "duration_s"}},
-      {"command_json", Op::kCommandJson, {"component", "command", "body"}},
+      {"switch", Op::kSwitch, {"component", "on"}, {}},
+      {"all_off", Op::kAllOff, {"system"}, {}},
+      {"get_params", Op::kGetParams, {"component"}, {}},
+      {"set_param", Op::kSetParam, {"component", "name", "value"}, {}},
+      {"set_destination", Op::kSetDestination, {"system", "x", "y"}, {}},
+      {"set_pose", Op::kSetPose, {"system", "x", "y", "phi"}, {}},
+      {"joystick", Op::kJoystick, {"system", "vx", "omega"}, {}},
+      {"joystick_release", Op::kJoystickRelease, {"system"}, {}},
+      {"follow_path", Op::kFollowPath, {"system"}, {}},
+      {"get_class", Op::kGetClass, {"component"}, {}},
+      {"command", Op::kCommand, {"component", "name", "fields"}, {}},
+      {"trace", Op::kTrace, {"system", "host", "duration_s"}, {}},
+      {"command_json", Op::kCommandJson, {"component", "command", "body"}, {}},
       {"subscribe", Op::kSubscribe, {"component"}, {"period_ms"}},
-      {"unsubscribe", Op::kUnsubscribe, {"component"}},
+      {"unsubscribe", Op::kUnsubscribe, {"component"}, {}},
   };
   return kSpecs;
 }
