@@ -164,7 +164,8 @@ TEST(DriverNoAllocTest, TcpLinkReadAndColaParsing) {
   cfg.port = sim.port();
   const std::string start = "\x02sEN LMDscandata 1\x03";
   cfg.greeting.assign(start.begin(), start.end());
-  link.start(cfg);
+  link.open(cfg);
+  std::thread runner([&link] { link.run(); });  // in rackd: the component's I/O worker
   auto parser = std::make_unique<cola::Parser>();
   std::vector<uint8_t> buf(8192);
   ASSERT_TRUE(test::eventually([&] { return link.connected(); }));
@@ -176,7 +177,9 @@ TEST(DriverNoAllocTest, TcpLinkReadAndColaParsing) {
   }
   EXPECT_EQ(c.stop(), 0U);
   EXPECT_GT(parser->counters().scans, 5U);
-  link.stop();
+  link.request_stop();
+  runner.join();
+  link.close();
   sim.stop();
 }
 
