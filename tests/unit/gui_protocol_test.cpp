@@ -32,7 +32,10 @@ std::string refused(const std::string& text) {
 TEST(GuiProtocolTest, AcceptsEveryOp) {
   auto r = ok(R"j({"op":"switch","component":"Chassis(0/0)","on":true,"id":7})j");
   EXPECT_EQ(r.op, Op::kSwitch);
-  EXPECT_EQ(r.component, tims::Address::make(0, tims::classes::kChassis, 0));
+  // A component class by name (rack-gui links no class): system and instance here,
+  // the class resolved by the backend against the classes' descriptions.
+  EXPECT_EQ(r.component, tims::Address::make(0, 0, 0));
+  EXPECT_EQ(r.component_class, "Chassis");
   EXPECT_TRUE(r.on);
   ASSERT_TRUE(r.id.has_value());
   EXPECT_EQ(*r.id, 7);
@@ -43,7 +46,21 @@ TEST(GuiProtocolTest, AcceptsEveryOp) {
   EXPECT_FALSE(r.id.has_value());
 
   r = ok(R"j({"op":"get_params","component":"Pilot(1/2)"})j");
-  EXPECT_EQ(r.component, tims::Address::make(1, tims::classes::kPilot, 2));
+  EXPECT_EQ(r.component, tims::Address::make(1, 0, 2));
+  EXPECT_EQ(r.component_class, "Pilot");
+  // A class TiMS names, or a class id: the whole address, no name to resolve.
+  r = ok(R"j({"op":"get_params","component":"Class0x91(2/0)"})j");
+  EXPECT_EQ(r.component, tims::Address::make(2, 0x91, 0));
+  EXPECT_EQ(r.component_class, "");
+  r = ok(R"j({"op":"get_params","component":"Executor(1/0)"})j");
+  EXPECT_EQ(r.component, tims::Address::make(1, tims::classes::kExecutor, 0));
+  EXPECT_EQ(r.component_class, "");
+  EXPECT_NE(refused(R"j({"op":"get_params","component":"Counter(2/0)#1"})j").find("names a mailbox"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"get_params","component":"Coun-ter(2/0)"})j").find("is not an address"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"get_params","component":"Counter(2/256)"})j").find("is not an address"),
+            std::string::npos);
 
   r = ok(R"j({"op":"set_param","component":"Pilot(0/0)","name":"vx_max","value":0.5})j");
   EXPECT_EQ(r.param_name, "vx_max");
@@ -68,7 +85,8 @@ TEST(GuiProtocolTest, AcceptsEveryOp) {
 TEST(GuiProtocolTest, ClassCommandsByNameWithTheirFieldsAsText) {
   auto r = ok(R"j({"op":"get_class","component":"Pilot(0/0)"})j");
   EXPECT_EQ(r.op, Op::kGetClass);
-  EXPECT_EQ(r.component, tims::Address::make(0, tims::classes::kPilot, 0));
+  EXPECT_EQ(r.component, tims::Address::make(0, 0, 0));
+  EXPECT_EQ(r.component_class, "Pilot");
   r = ok(
       R"j({"op":"command","component":"Pilot(0/0)","name":"SET_DESTINATION","fields":{"x":"2.5","y":-1,"z":0.25,"b":true}})j");
   EXPECT_EQ(r.op, Op::kCommand);

@@ -15,18 +15,15 @@
 #include <optional>
 #include <set>
 #include <span>
+#include <string_view>
 
 #include "gdos_view.h"
 #include "rack/client/session.h"
 #include "rack/core/class_description.h"
-#include "rack/core/trace_session.h"
 #include "rack/core/parameters.h"
+#include "rack/core/trace_session.h"
 #include "rack/core/payload_json.h"
 #include "rack/core/wire.h"
-#include "rack/interfaces/data_types.h"
-#include "rack/interfaces/devices.h"
-#include "rack/interfaces/navigation.h"
-#include "rack/interfaces/robot.h"
 #include "rack/maps/occupancy_map.h"
 #include "rack/rt/clock.h"
 #include "rack/tims/endpoint.h"
@@ -45,23 +42,20 @@ namespace {
 using nlohmann::json;
 using tims::Address;
 namespace msg = tims::msg;
-namespace classes = tims::classes;
-namespace ifc = rack::interfaces;
 namespace rtrace = rack::trace;
 
 constexpr uint32_t kSlotSize = 64 * 1024;  // the largest polled sample (Path) is ~17 KiB
 constexpr uint32_t kReplySlots = 256;      // a poll round asks every component at once
 // Camera images (0.9 MB): their replies go to a mailbox of their own with large slots.
-constexpr uint32_t kImageSlotSize = static_cast<uint32_t>(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) +
-                                                          sizeof(rack::interfaces::CameraData));
+// rack-gui links no class: the image's size is its class description's (a camera
+// whose samples do not fit is shown without its image, and says so once).
+constexpr uint32_t kImageSlotSize = 2 * 1024 * 1024;
 constexpr uint32_t kImageSlots = 2;
 constexpr int64_t kStaleNs = 1500 * rt::kNsPerMs;    // no status reply for this long: "no_reply"
 constexpr int64_t kDeadManNs = 400 * rt::kNsPerMs;   // joystick silent this long: MOVE 0
 constexpr int64_t kOnTimeoutNs = 6 * rt::kNsPerSec;  // ON is answered when on() has finished
 constexpr std::size_t kRecentLog = 500;              // GDOS records kept for new clients
 constexpr int kMapRetryRounds = 50;                  // a map that failed to load: try again later
-
-std::string address_text(Address a) { return a.str(); }
 
 std::string class_text(Address a) {
   const char* c = tims::class_name(a.class_id());
@@ -70,6 +64,17 @@ std::string class_text(Address a) {
   std::snprintf(buf, sizeof buf, "Class0x%02x", a.class_id());
   return buf;
 }
+
+// Class names of the panels: rack-gui links no class and finds the components it
+// drives (the joystick's chassis, the pilot of a destination, ...) by the class name
+// their descriptions give, and sends their commands by name through those
+// descriptions (Impl::send_command).
+constexpr const char* kChassis = "Chassis";
+constexpr const char* kPilot = "Pilot";
+constexpr const char* kPosition = "Position";
+constexpr const char* kMcl = "MCL";
+constexpr const char* kLadar = "Ladar";
+constexpr const char* kCamera = "Camera";
 
 std::string base64(const std::vector<uint8_t>& in) {
   static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -134,8 +139,9 @@ json type_json(const rack::TypeDescription& t) {
   return {{"name", t.name}, {"size", t.size}, {"fields", std::move(fields)}};
 }
 
+// `component`: the address text of the component asked about (a reply to get_class).
 std::string class_message(uint8_t system, const rack::ClassDescription& d,
-                          std::optional<Address> component = std::nullopt) {
+                          const std::optional<std::string>& component = std::nullopt) {
   json commands = json::array();
   for (const auto& c : d.commands) {
     commands.push_back({{"name", c.name},
@@ -163,7 +169,7 @@ std::string class_message(uint8_t system, const rack::ClassDescription& d,
          {"data", d.data ? type_json(*d.data) : json(nullptr)},
          {"commands", std::move(commands)},
          {"parameters", std::move(params)}};
-  if (component) m["component"] = address_text(component->component());
+  if (component) m["component"] = *component;
   return dump(m);
 }
 
@@ -370,7 +376,7 @@ struct Backend::Impl {
   }
 
   // Describes a failed or refused reply for the user.
-  static std::string failure(const Reply* r, const std::string& what, Address dest) {
+  std::string failure(const Reply* r, const std::string& what, Address dest) const {
     if (r == nullptr) return address_text(dest) + ": no reply to " + what + " in time (host gone or busy?)";
     if (r->header.type == msg::kNotAvailable) return address_text(dest) + ": not available (no such component running)";
     if (r->header.type == msg::kError) return address_text(dest) + ": " + what + " refused: " + error_reason(r->body);
@@ -467,6 +473,9 @@ struct Backend::Impl {
           default: return;
         }
         comp.last_reply_ns = rt::monotonic_ns();
+        // Its class by name (the list, addresses, the panels' components) as soon as
+        // it answers: rack-gui links no class.
+        if (comp.state != "not_available") (void)described(Address(raw));
       });
     }
   }
@@ -595,6 +604,7 @@ struct Backend::Impl {
       {
         const std::lock_guard lock(greet_mutex);
         class_messages[key] = message;
+        class_names[key] = info.desc->class_name;
       }
       broadcast(std::move(message));
     });
@@ -608,7 +618,7 @@ struct Backend::Impl {
     class_waiters.erase(it);
     for (const auto& [client, r] : waiting) {
       if (d != nullptr) {
-        send_to(client, class_message(r.component.system(), *d, r.component));
+        send_to(client, class_message(r.component.system(), *d, address_text(r.component)));
         result(client, r, true, address_text(r.component) + ": class " + d->class_name + " described");
       } else {
         result(client, r, false, address_text(a.component()) + ": " + why);
@@ -811,10 +821,8 @@ struct Backend::Impl {
             });
   }
 
-  // The name of a's class: TiMS' name, else its description's, else Class0xNN.
-  // Addresses stay in TiMS' form (Class0x91(2/0) for a class TiMS does not name): the
-  // dashboard sends them back in its requests, which gui_protocol parses without the
-  // descriptions; "class" carries the described name beside them.
+  // The name of a's class: TiMS' name (the executor's, tools'), else its
+  // description's, else Class0xNN (not described yet).
   std::string class_of(Address a) const {
     if (tims::class_name(a.class_id()) == nullptr) {
       const auto it = class_infos.find(a.raw() & 0xFFFF0000u);
@@ -822,19 +830,45 @@ struct Backend::Impl {
     }
     return class_text(a);
   }
+  // An address as the page shows it and sends it back: its class by name (Counter(2/0),
+  // a plug-in's as a built-in's); resolve_component() reads it.
+  std::string address_text(Address a) const { return rack::client::address_text(a, class_of(a)); }
+
+  // A request's component given by a class name TiMS does not know (every component
+  // class: rack-gui links none), as the page sends it: the component at that system
+  // and instance whose class describes itself with that name (or implementation
+  // name). False, with the client answered, when none is known (yet).
+  bool resolve_component(uint64_t client, Request& r) {
+    if (r.component_class.empty()) return true;
+    for (const auto& [raw, c] : components) {
+      const Address a(raw);
+      if (a.system() != r.component.system() || a.instance() != r.component.instance()) continue;
+      if (class_of(a) == r.component_class || c.info.impl == r.component_class) {
+        r.component = a;
+        r.component_class.clear();
+        return true;
+      }
+    }
+    result(client, r, false,
+           r.component_class + "(" + std::to_string(r.component.system()) + "/" +
+               std::to_string(r.component.instance()) +
+               "): no component of that class is known at that system and instance (yet: its class is described "
+               "when it first answers)");
+    return false;
+  }
   // Data the dashboard draws: the navigation classes every round, other classes with
   // a data type every `slow` rounds.
   void poll_data(uint64_t round) {
     const int64_t now = rt::monotonic_ns();
     for (auto& [raw, c] : components) {
       if (c.data_pending || shown_state(c, now) != "enabled") continue;
-      const uint8_t cls = Address(raw).class_id();
       const ClassInfo* info = described(Address(raw));
       if (info == nullptr || !info->desc->data) continue;
       const uint32_t class_key = raw & 0xFFFF0000u;
-      const bool fast = cls == classes::kChassis || cls == classes::kPosition || cls == classes::kMcl ||
-                        cls == classes::kScan2d || cls == classes::kPilot || cls == classes::kLadar;
-      if (cls == classes::kCamera) {
+      const std::string& cls = info->desc->class_name;
+      const bool fast = cls == kChassis || cls == kPosition || cls == kMcl || cls == "Scan2D" || cls == kPilot ||
+                        cls == kLadar;
+      if (cls == kCamera) {
         if (round % 5 == 0) poll_image(raw);  // once a second: 0.9 MB each
         continue;
       }
@@ -855,20 +889,23 @@ struct Backend::Impl {
         const auto sample = r->body.subspan(sizeof sh);
         if (sample.size() != type.desc->data->size) return;
         const Address a(raw);
-        if (a.class_id() == classes::kPosition) robots[comp.system].position_time_ns = sh.time_ns;
-        if (a.class_id() == classes::kChassis) {
-          ifc::ChassisData cd;
-          if (wire::read_payload(sample, r->native(), cd)) {
-            robots[comp.system].claimed = cd.active_pilot == reply_mailbox.address().raw();
-          }
-        }
+        const std::string& sample_class = type.desc->class_name;
         json data = json::parse(rack::payload_to_json(type.data_fields, sample, r->native()), nullptr, false);
         if (data.is_discarded()) return;
-        trim_arrays(a.class_id(), data);
-        // Enums and addresses by name beside the raw values (as rackctl get-data).
+        if (sample_class == kPosition) robots[comp.system].position_time_ns = sh.time_ns;
+        // Whether the joystick is the chassis' active pilot (a field of its data).
+        if (sample_class == kChassis && data.contains("active_pilot") && data["active_pilot"].is_number_unsigned()) {
+          robots[comp.system].claimed = data["active_pilot"].get<uint64_t>() == reply_mailbox.address().raw();
+        }
+        trim_arrays(sample_class, data);
+        // Enums and addresses by name beside the raw values (as rackctl get-data);
+        // an address by the name its class describes (Pilot(0/0)).
         json names = json::object();
-        const std::string names_text = rack::tools::field_names_json(type.desc->value_names, type.data_fields, sample,
-                                                                     r->native());
+        const std::string names_text = rack::tools::field_names_json(
+            type.desc->value_names, type.data_fields, sample, r->native(), [this](Address named) {
+              (void)described(named);  // its class name for the next sample, when not known yet
+              return address_text(named);
+            });
         if (!names_text.empty()) names = json::parse(names_text, nullptr, false);
         if (names.is_discarded()) names = json::object();
         broadcast(dump(json{{"type", "data"},
@@ -897,36 +934,54 @@ struct Backend::Impl {
           if (it == components.end()) return;
           Component& comp = it->second;
           comp.data_pending = false;
+          // The image's fields by name through the camera class's description
+          // (CameraData: width, height, bytes used of `data`, format by its value name).
+          const auto ci = class_infos.find(raw & 0xFFFF0000u);
           wire::SampleHeader sh;
-          auto img = std::make_unique<ifc::CameraData>();
-          if (r == nullptr || r->header.type != msg::kData || r->body.size() != sizeof sh + sizeof *img ||
-              !wire::read_payload(r->body.first(sizeof sh), r->native(), sh) ||
-              !wire::read_payload(r->body.subspan(sizeof sh), r->native(), *img)) {
+          if (r == nullptr || r->header.type != msg::kData || ci == class_infos.end() || !ci->second.desc ||
+              !ci->second.desc->data || r->body.size() != sizeof sh + ci->second.desc->data->size ||
+              !wire::read_payload(r->body.first(sizeof sh), r->native(), sh)) {
             return;
           }
-          const std::size_t bytes = std::min<std::size_t>(img->bytes, sizeof img->data);
-          const char* format = img->format == ifc::kCameraRgb8    ? "rgb"
-                               : img->format == ifc::kCameraMono8 ? "mono"
-                               : img->format == ifc::kCameraJpeg  ? "jpeg"
-                                                                  : "unknown";
+          const auto sample = r->body.subspan(sizeof sh);
+          const auto& fields = ci->second.data_fields;
+          const auto number = [&](const char* name) -> uint64_t {
+            const tims::FieldDesc* f = rack::tools::find_field(fields, name);
+            return f != nullptr ? rack::tools::unsigned_field(*f, sample, r->native()).value_or(0) : 0;
+          };
+          const tims::FieldDesc* pixels = rack::tools::find_field(fields, "data");
+          if (pixels == nullptr || pixels->kind != tims::FieldKind::kU8 || pixels->offset > sample.size() ||
+              sample.size() - pixels->offset < pixels->count) {
+            return;
+          }
+          const std::size_t bytes = std::min<std::size_t>(number("bytes"), pixels->count);
+          std::string format = "unknown";
+          const auto format_value = static_cast<uint32_t>(number("format"));
+          for (const auto& n : ci->second.desc->value_names) {
+            const char* text = n.field == "format" ? n.name_of(format_value) : nullptr;
+            if (text == nullptr) continue;
+            const std::string_view v = text;
+            format = v == "RGB8" ? "rgb" : v == "MONO8" ? "mono" : v == "JPEG" ? "jpeg" : "unknown";
+          }
+          const auto* data = reinterpret_cast<const uint8_t*>(sample.data() + pixels->offset);
           broadcast(dump(json{{"type", "image"},
                               {"component", address_text(Address(raw))},
                               {"system", comp.system},
                               {"time_ns", sh.time_ns},
-                              {"width", img->width},
-                              {"height", img->height},
-                              {"frame", img->frame},
-                              {"dropped", img->dropped},
-                              {"bad_frames", img->bad_frames},
+                              {"width", number("width")},
+                              {"height", number("height")},
+                              {"frame", number("frame")},
+                              {"dropped", number("dropped")},
+                              {"bad_frames", number("bad_frames")},
                               {"format", format},
-                              {"data", base64(std::vector<uint8_t>(img->data, img->data + bytes))}}));
+                              {"data", base64(std::vector<uint8_t>(data, data + bytes))}}));
         },
         image_mailbox.address());
   }
 
   // Fixed-capacity arrays are sent only up to their count (a scan of 541 beams, not
   // 1081 slots): a fifth of the bytes on a robot's Wi-Fi or SSH tunnel.
-  static void trim_arrays(uint8_t cls, json& d) {
+  static void trim_arrays(const std::string& cls, json& d) {
     const auto cut = [&d](const char* count, std::initializer_list<const char*> arrays) {
       if (!d.contains(count) || !d[count].is_number_unsigned()) return;
       const auto n = d[count].get<std::size_t>();
@@ -935,16 +990,13 @@ struct Backend::Impl {
           d[a].erase(d[a].begin() + static_cast<std::ptrdiff_t>(n), d[a].end());
       }
     };
-    switch (cls) {
-      case classes::kLadar: cut("beam_count", {"range", "intensity"}); break;
-      case classes::kScan2d: cut("point_count", {"x", "y", "range", "bearing", "type"}); break;
-      case classes::kPath:
-        cut("point_count", {"x", "y"});
-        cut("waypoint_count", {"waypoint_x", "waypoint_y"});
-        break;
-      case classes::kMcl: cut("shown", {"particle_x", "particle_y", "particle_phi", "particle_weight"}); break;
-      default: break;
+    if (cls == kLadar) cut("beam_count", {"range", "intensity"});
+    if (cls == "Scan2D") cut("point_count", {"x", "y", "range", "bearing", "type"});
+    if (cls == "Path") {
+      cut("point_count", {"x", "y"});
+      cut("waypoint_count", {"waypoint_x", "waypoint_y"});
     }
+    if (cls == kMcl) cut("shown", {"particle_x", "particle_y", "particle_phi", "particle_weight"});
   }
 
   std::string components_message() const {
@@ -988,15 +1040,15 @@ struct Backend::Impl {
     return dump(json{{"type", "components"}, {"robots", robots_j}});
   }
 
-  // The first component of a class in a robot (lowest instance), preferring one that
-  // answers.
-  std::optional<Address> find(uint8_t system, uint8_t cls) const {
+  // The first component of a class (by the name its description gives) in a robot
+  // (lowest instance), preferring one that answers.
+  std::optional<Address> find(uint8_t system, std::string_view cls) const {
     std::optional<Address> best;
     bool best_alive = false;
     const int64_t now = rt::monotonic_ns();
     for (const auto& [raw, c] : components) {
       const Address a(raw);
-      if (a.system() != system || a.class_id() != cls) continue;
+      if (a.system() != system || class_of(a) != cls) continue;
       const bool alive = shown_state(c, now) == "enabled";
       if (!best || (alive && !best_alive)) {
         best = a;
@@ -1023,7 +1075,7 @@ struct Backend::Impl {
       }
       // The map the robot localises on: MCL's, else the simulators' `map` parameter.
       std::optional<Address> holder;
-      for (const uint8_t cls : {classes::kMcl, classes::kLadar, classes::kChassis}) {
+      for (const char* cls : {kMcl, kLadar, kChassis}) {
         if ((holder = find(s, cls))) break;
       }
       if (!holder) {
@@ -1192,41 +1244,41 @@ struct Backend::Impl {
         break;
       }
       case Op::kSetDestination: {
-        const auto pilot = find(r.system, classes::kPilot);
+        const auto pilot = find(r.system, kPilot);
         if (!pilot) {
           result(client, r, false, "robot " + std::to_string(r.system) + " has no Pilot");
           break;
         }
-        ifc::PilotDestination d;
-        d.x = r.x;
-        d.y = r.y;
         const Address a = *pilot;
-        request(a, ifc::kPilotSetDestination, d, [this, client, r, a](const Reply* rep) {
-          const bool ok = rep != nullptr && rep->header.type == msg::kOk;
-          if (ok) release_joystick(r.system);  // the Pilot takes the chassis back
-          result(client, r, ok, ok ? address_text(a) + ": destination set" : failure(rep, "SET_DESTINATION", a));
-        });
+        const std::string why = send_command(
+            a, "SET_DESTINATION", json{{"x", r.x}, {"y", r.y}}, [this, client, r, a](const Reply* rep) {
+              const bool ok = rep != nullptr && rep->header.type == msg::kOk;
+              if (ok) release_joystick(r.system);  // the Pilot takes the chassis back
+              result(client, r, ok, ok ? address_text(a) + ": destination set" : failure(rep, "SET_DESTINATION", a));
+            });
+        if (!why.empty()) result(client, r, false, why);
         break;
       }
       case Op::kFollowPath: {
-        const auto pilot = find(r.system, classes::kPilot);
+        const auto pilot = find(r.system, kPilot);
         if (!pilot) {
           result(client, r, false, "robot " + std::to_string(r.system) + " has no Pilot");
           break;
         }
         const Address a = *pilot;
-        request(a, ifc::kPilotFollowPath, [this, client, r, a](const Reply* rep) {
+        const std::string why = send_command(a, "FOLLOW_PATH", json::object(), [this, client, r, a](const Reply* rep) {
           const bool ok = rep != nullptr && rep->header.type == msg::kOk;
           if (ok) release_joystick(r.system);
           result(client, r, ok, ok ? address_text(a) + ": following the path" : failure(rep, "FOLLOW_PATH", a));
         });
+        if (!why.empty()) result(client, r, false, why);
         break;
       }
       case Op::kGetClass: {
         const Address a = r.component;
         const ClassInfo* info = described(a);
         if (info != nullptr) {
-          send_to(client, class_message(a.system(), *info->desc, a));
+          send_to(client, class_message(a.system(), *info->desc, address_text(a)));
           result(client, r, true, address_text(a) + ": class " + info->desc->class_name + " described");
         } else if (class_infos[a.raw() & 0xFFFF0000u].failed) {
           result(client, r, false, address_text(a) + ": its class description could not be read (see rack-gui's log)");
@@ -1247,6 +1299,29 @@ struct Backend::Impl {
       }
       case Op::kCommandJson: class_command(client, r); break;
     }
+  }
+
+  // The class command `name` of the component at `a`, its body's fields by name from
+  // `fields` (through the class's description: rack-gui links no class, so the
+  // panels send Pilot's SET_DESTINATION or the chassis' MOVE as any plug-in's command).
+  // "" when it was sent (`done` gets the reply), else why nothing was sent.
+  std::string send_command(Address a, const std::string& name, const json& fields, ReplyHandler done) {
+    const auto it = class_infos.find(a.raw() & 0xFFFF0000u);
+    if (it == class_infos.end() || !it->second.desc) {
+      (void)described(a);
+      return address_text(a) + ": " + name + ": its class description is not known yet (asked; try again)";
+    }
+    const rack::ClassDescription& d = *it->second.desc;
+    const rack::CommandDescription* c = d.find_command(name);
+    if (c == nullptr) return address_text(a) + ": class " + d.class_name + " describes no command " + name;
+    std::vector<std::byte> body;
+    const std::string why = encode_command_body(fields, c->body ? &*c->body : nullptr, body);
+    if (!why.empty()) return address_text(a) + ": " + name + ": " + why + " (not sent)";
+    const tims::ConstBuffer part{body.data(), body.size()};
+    // The body is copied into the mailbox by send(): a local is fine.
+    request(a, c->type, std::span<const tims::ConstBuffer>(&part, body.empty() ? 0 : 1), default_timeout(),
+            std::move(done));
+    return "";
   }
 
   // A class command by name (Foxglove services, rack-foxglove's player): the body is
@@ -1302,8 +1377,8 @@ struct Backend::Impl {
   }
 
   void set_pose(uint64_t client, const Request& r) {
-    const auto position = find(r.system, classes::kPosition);
-    const auto mcl = find(r.system, classes::kMcl);
+    const auto position = find(r.system, kPosition);
+    const auto mcl = find(r.system, kMcl);
     if (!position && !mcl) {
       result(client, r, false, "robot " + std::to_string(r.system) + " has neither Position nor MCL");
       return;
@@ -1313,18 +1388,14 @@ struct Backend::Impl {
         result(client, r, true, done);
         return;
       }
-      ifc::MclInit init;
-      init.x = r.x;
-      init.y = r.y;
-      init.phi = r.phi;
-      init.sigma_xy = 0.3;
-      init.sigma_phi = 0.2;
       const Address a = *mcl;
-      request(a, ifc::kMclInit, init, [this, client, r, a, done](const Reply* rep) {
+      const json init{{"x", r.x}, {"y", r.y}, {"phi", r.phi}, {"sigma_xy", 0.3}, {"sigma_phi", 0.2}};
+      const std::string why = send_command(a, "INIT", init, [this, client, r, a, done](const Reply* rep) {
         const bool ok = rep != nullptr && rep->header.type == msg::kOk;
         result(client, r, ok,
                ok ? done + (done.empty() ? "" : "; ") + address_text(a) + " re-initialised" : failure(rep, "INIT", a));
       });
+      if (!why.empty()) result(client, r, false, done + (done.empty() ? "" : "; ") + why);
     };
     if (!position) {
       init_mcl("");
@@ -1337,26 +1408,23 @@ struct Backend::Impl {
     }
     // UPDATE refers to a time: the newest Position sample's, which the robot's
     // odometry certainly holds (this tool's clock need not be the robot's).
-    ifc::PositionUpdate u;
-    u.time_ns = t;
-    u.x = r.x;
-    u.y = r.y;
-    u.phi = r.phi;
-    u.var_x = u.var_y = 0.3 * 0.3;
-    u.var_phi = 0.2 * 0.2;
+    const json update{{"time_ns", t},        {"x", r.x},           {"y", r.y},
+                      {"phi", r.phi},        {"var_x", 0.3 * 0.3}, {"var_y", 0.3 * 0.3},
+                      {"var_phi", 0.2 * 0.2}};
     const Address a = *position;
-    request(a, ifc::kPositionUpdate, u, [this, client, r, a, init_mcl](const Reply* rep) {
+    const std::string why = send_command(a, "UPDATE", update, [this, client, r, a, init_mcl](const Reply* rep) {
       if (rep == nullptr || rep->header.type != msg::kOk) {
         result(client, r, false, failure(rep, "UPDATE", a));
         return;
       }
       init_mcl(address_text(a) + " updated");
     });
+    if (!why.empty()) result(client, r, false, why);
   }
 
   void joystick(uint64_t client, const Request& r) {
     Robot& robot = robots[r.system];
-    const auto chassis = find(r.system, classes::kChassis);
+    const auto chassis = find(r.system, kChassis);
     if (!chassis) {
       result(client, r, false, "robot " + std::to_string(r.system) + " has no Chassis");
       return;
@@ -1375,11 +1443,10 @@ struct Backend::Impl {
     if (!robot.claimed) {
       // Become the chassis' active pilot (the Pilot, if any, is preempted and stands).
       robot.claim_pending = true;
-      ifc::ChassisSetActivePilot claim;
-      claim.pilot = reply_mailbox.address().raw();
       const Address a = *chassis;
       const uint8_t s = r.system;
-      request(a, ifc::kChassisSetActivePilot, claim, [this, client, r, a, s](const Reply* rep) {
+      const json claim{{"pilot", reply_mailbox.address().raw()}};
+      const std::string why = send_command(a, "SET_ACTIVE_PILOT", claim, [this, client, r, a, s](const Reply* rep) {
         Robot& rb = robots[s];
         rb.claim_pending = false;
         if (rep == nullptr || rep->header.type != msg::kOk) {
@@ -1390,27 +1457,33 @@ struct Backend::Impl {
         result(client, r, true, address_text(a) + ": the joystick is the active pilot");
         send_move(s, rb.want_vx, rb.want_omega);
       });
+      if (!why.empty()) {
+        robot.claim_pending = false;
+        result(client, r, false, why);
+      }
       return;
     }
     send_move(r.system, r.vx, r.omega);
   }
 
   void send_move(uint8_t system, double vx, double omega) {
-    const auto chassis = find(system, classes::kChassis);
+    const auto chassis = find(system, kChassis);
     if (!chassis) return;
-    ifc::ChassisMove m;
-    m.vx = vx;
-    m.omega = omega;
     const Address a = *chassis;
-    request(a, ifc::kChassisMove, m, [this, system, a](const Reply* rep) {
-      if (rep != nullptr && rep->header.type == msg::kOk) return;
-      Robot& robot = robots[system];
-      robot.claimed = false;  // taken over by another pilot: claim again on the next command
-      if (robot.joystick_owner != 0) {
-        send_to(robot.joystick_owner,
-                dump(json{{"type", "notice"}, {"level", "warning"}, {"text", failure(rep, "MOVE", a)}}));
-      }
-    });
+    const std::string why = send_command(
+        a, "MOVE", json{{"vx", vx}, {"omega", omega}}, [this, system, a](const Reply* rep) {
+          if (rep != nullptr && rep->header.type == msg::kOk) return;
+          Robot& robot = robots[system];
+          robot.claimed = false;  // taken over by another pilot: claim again on the next command
+          if (robot.joystick_owner != 0) {
+            send_to(robot.joystick_owner,
+                    dump(json{{"type", "notice"}, {"level", "warning"}, {"text", failure(rep, "MOVE", a)}}));
+          }
+        });
+    const Robot& robot = robots[system];
+    if (!why.empty() && robot.joystick_owner != 0) {
+      send_to(robot.joystick_owner, dump(json{{"type", "notice"}, {"level", "warning"}, {"text", why}}));
+    }
   }
 
   void stop_joystick(uint8_t system) {
@@ -1465,7 +1538,9 @@ struct Backend::Impl {
           if (robot.joystick_owner == c) stop_joystick(s);
         }
       }
-      for (auto& [client, req] : work) handle(client, req);
+      for (auto& [client, req] : work) {
+        if (resolve_component(client, req)) handle(client, req);
+      }
       check_dead_man();
       run_deferred();
 
@@ -1515,7 +1590,13 @@ struct Backend::Impl {
         sub->poll(100, [&](const tims::GdosRecord& r) {
           std::string name = r.name;
           if (name.empty()) name = sub->announced_name(r.source);
-          lines.push_back(gdos_view::json_line(r, name));
+          std::string cls;  // the source's class as it describes itself (described())
+          {
+            const std::lock_guard lock(greet_mutex);
+            const auto it = class_names.find(r.source & 0xFFFF0000u);
+            if (it != class_names.end()) cls = it->second;
+          }
+          lines.push_back(gdos_view::json_line(r, name, cls));
         });
       } catch (const std::exception& e) {
         std::fprintf(stderr, "rack-gui: GDOS: %s\n", e.what());
@@ -1790,6 +1871,7 @@ struct Backend::Impl {
   std::string last_components;
   std::map<uint8_t, std::string> map_messages;
   std::map<uint32_t, std::string> class_messages;  // "class" messages by system and class id
+  std::map<uint32_t, std::string> class_names;     // described class names (the GDOS thread's sources)
   std::deque<std::string> recent_log;
   std::map<std::string, std::string> report_texts;  // report file -> rack-backtrace's output
 
