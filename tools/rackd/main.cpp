@@ -12,6 +12,7 @@
 #include <cstring>
 #include <iostream>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -49,9 +50,11 @@ options:
                      file's modeswitch.crash_dir (default /var/tmp/rack); the report
                      file is DIR/rackd-PID.report (removed at exit when empty);
                      symbolize it with rack-backtrace
-  --list-classes     print the built-in component classes and their parameters, and
+  --list-classes [FILE]
+                     print the built-in component classes and their parameters, and
                      the plug-in classes (by their manifests, without loading them),
-                     then exit
+                     then exit; with a host file, also the classes of the plug-in
+                     libraries its 'plugins:' names (loaded), with their parameters
   --json             with --list-classes: one JSON array, each class with its
                      parameters (kind, unit, min, max, default, doc, choices,
                      required, init_only, component_ref), as rack-gui's editor uses it
@@ -109,19 +112,29 @@ during start-up), 2 usage error or invalid host file (each problem printed as
 file:line:col: message).
 )";
 
-void list_classes(const rack::ComponentRegistry& registry) {
-  std::printf("built-in classes:\n");
-  for (const auto* cls : registry.all()) {
-    auto c = cls->make();
-    std::printf("%s  (class %s, data task: %s)\n  %s\n", cls->impl.c_str(),
-                rack::tims::class_name(cls->class_id) ? rack::tims::class_name(cls->class_id) : "?",
-                rack::describe(c->data_task_mode()), cls->description.c_str());
-    const auto& params = c->parameters();
-    for (std::size_t i = 0; i < params.size(); ++i) {
-      const auto& p = params.at(i);
-      std::printf("    %-14s %-6s %s%s%s\n", p.name().c_str(), rack::describe(p.kind()),
-                  p.spec().required ? "(required) " : ("= " + p.value_text() + "  ").c_str(), p.spec().doc.c_str(),
-                  p.spec().component_ref ? " [component]" : "");
+// `builtin`: the classes compiled into rackd; the others in the registry came from
+// the plug-ins that the host file `file` names (--list-classes FILE).
+void list_classes(const rack::ComponentRegistry& registry, const std::set<std::string>& builtin,
+                  const std::string& file) {
+  for (const bool compiled_in : {true, false}) {
+    bool first = true;
+    for (const auto* cls : registry.all()) {
+      if ((builtin.count(cls->impl) != 0) != compiled_in) continue;
+      if (first) std::printf(compiled_in ? "built-in classes:\n" : "classes of the plug-ins %s names:\n", file.c_str());
+      first = false;
+      auto c = cls->make();
+      // The class name of its addresses: TiMS' (registered by the class), else its own.
+      const char* name = rack::tims::class_name(cls->class_id);
+      std::printf("%s  (class %s, data task: %s)\n  %s\n", cls->impl.c_str(),
+                  name != nullptr ? name : cls->impl.c_str(), rack::describe(c->data_task_mode()),
+                  cls->description.c_str());
+      const auto& params = c->parameters();
+      for (std::size_t i = 0; i < params.size(); ++i) {
+        const auto& p = params.at(i);
+        std::printf("    %-14s %-6s %s%s%s\n", p.name().c_str(), rack::describe(p.kind()),
+                    p.spec().required ? "(required) " : ("= " + p.value_text() + "  ").c_str(), p.spec().doc.c_str(),
+                    p.spec().component_ref ? " [component]" : "");
+      }
     }
   }
   // Plug-in classes by their manifests: the libraries (MRPT, PCL, OpenCV) are not
@@ -132,6 +145,7 @@ void list_classes(const rack::ComponentRegistry& registry) {
   for (const auto& d : registry.plugin_dirs()) dirs += (dirs.empty() ? "" : ":") + d;
   std::printf("plug-in classes (loaded when a host file names them; searched: %s):\n", dirs.c_str());
   for (const auto& p : plugins) {
+    if (registry.find(p.impl) != nullptr) continue;  // loaded for the host file: listed above
     std::printf("%s  (class %s, plug-in %s)\n  %s\n", p.impl.c_str(),
                 p.interface_name.empty() ? "?" : p.interface_name.c_str(), p.library.c_str(), p.summary.c_str());
   }
@@ -141,7 +155,7 @@ void list_classes(const rack::ComponentRegistry& registry) {
 // --list-classes --json: the same as one JSON array, each class as it describes itself
 // to tools (rack/core/class_description.h), for programs (rack-gui's host-file editor
 // builds its forms from it). Plug-in classes: name, class and summary only.
-void list_classes_json(const rack::ComponentRegistry& registry) {
+void list_classes_json(const rack::ComponentRegistry& registry, const std::set<std::string>& builtin) {
   const auto q = [](const std::string& s) {
     std::string out(1, '"');
     out += rack::json_escape(s);
@@ -161,7 +175,7 @@ void list_classes_json(const rack::ComponentRegistry& registry) {
     const rack::ClassDescription d = rack::describe_class(*cls, c->parameters());
     out += (first ? "" : ",") + std::string("{\"impl\":") + q(d.impl) + ",\"class\":" + q(d.class_name) +
            ",\"summary\":" + q(d.summary) + ",\"data_task\":" + q(rack::describe(c->data_task_mode())) +
-           ",\"plugin\":false,\"parameters\":[";
+           ",\"plugin\":" + (builtin.count(d.impl) != 0 ? "false" : "true") + ",\"parameters\":[";
     first = false;
     for (std::size_t i = 0; i < d.parameters.size(); ++i) {
       const auto& p = d.parameters[i];
@@ -182,6 +196,7 @@ void list_classes_json(const rack::ComponentRegistry& registry) {
   }
   std::vector<std::string> problems;
   for (const auto& p : registry.plugin_classes(&problems)) {
+    if (registry.find(p.impl) != nullptr) continue;  // loaded for the host file: listed above
     out += (first ? "" : ",") + std::string("{\"impl\":") + q(p.impl) + ",\"class\":" + q(p.interface_name) +
            ",\"summary\":" + q(p.summary) + ",\"plugin\":true}";
     first = false;
@@ -378,8 +393,24 @@ static int run_rackd(int argc, char** argv) {
   rack::ComponentRegistry registry;
   rack::components::register_builtin(registry);
   if (classes) {
-    if (json) list_classes_json(registry);
-    else list_classes(registry);
+    std::set<std::string> builtin;
+    for (const auto* c : registry.all()) builtin.insert(c->impl);
+    // With a host file: the plug-in libraries its `plugins:` names are loaded and
+    // their classes listed in full (a class built outside the tree has no manifest:
+    // it is known by its library only), its plug-in folders searched for manifests.
+    if (!file.empty()) {
+      const auto loaded = rack::load_host_file(file, registry, rack::rt::probe_capabilities());
+      if (!loaded.errors.empty()) {
+        for (std::size_t i = 0; i < loaded.errors.size() && i < 50; ++i) {
+          std::fprintf(stderr, "%s\n", loaded.errors[i].str().c_str());
+        }
+        std::fprintf(stderr, "rackd: %zu error(s) in %s; its plug-ins' classes cannot be listed\n",
+                     loaded.errors.size(), file.c_str());
+        return 2;
+      }
+    }
+    if (json) list_classes_json(registry, builtin);
+    else list_classes(registry, builtin, file);
     return 0;
   }
 
