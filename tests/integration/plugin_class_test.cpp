@@ -75,7 +75,7 @@ TEST_F(PluginClassTest, ToolsLinkTheClientLibraryNotTheExecutor) {
   }
   // rackctl and gdos read host files with libyaml (rack/client/host_file.h), not
   // yaml-cpp (rack-gui reads occupancy maps' YAML through rack::maps).
-  for (const std::string tool : {std::string(RACK_RACKCTL_PATH), std::string(RACK_GDOS_PATH)}) {
+  for (const std::string& tool : {std::string(RACK_RACKCTL_PATH), std::string(RACK_GDOS_PATH)}) {
     const auto ldd = run({"/usr/bin/ldd", tool}, 30s);
     EXPECT_FALSE(contains(ldd.out, "libyaml-cpp")) << tool << ":\n" << ldd.out;
   }
