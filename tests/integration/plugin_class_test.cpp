@@ -56,7 +56,7 @@ TEST_F(PluginClassTest, RackdLinksNoHeavyLibrary) {
 // from its description. ldd lists the shared objects the loader maps (transitively);
 // nm the functions linked in statically (rack_components is a static library).
 TEST_F(PluginClassTest, ToolsLinkTheClientLibraryNotTheExecutor) {
-  for (const std::string tool :
+  for (const std::string& tool :
        {std::string(RACK_RACKCTL_PATH), std::string(RACK_GDOS_PATH), std::string(RACK_GUI_PATH)}) {
     const auto ldd = run({"/usr/bin/ldd", tool}, 30s);
     ASSERT_EQ(ldd.exit_code, 0) << ldd.describe();
