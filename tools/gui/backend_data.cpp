@@ -164,7 +164,18 @@ void Backend::Impl::poll_maps() {
       if ((holder = find(s, cls))) break;
     }
     if (!holder) {
-      robot.map_retry = kMapRetryRounds;
+      // The holders are found by their described class names: while a component of
+      // the robot is not described yet (it has not answered), look again next round.
+      bool all_described = true;
+      for (const auto& [raw, c] : components) {
+        if (c.system != s) continue;
+        const auto ci = class_infos.find(raw & 0xFFFF0000u);
+        if (tims::class_name(Address(raw).class_id()) == nullptr &&
+            (ci == class_infos.end() || (!ci->second.desc && !ci->second.failed))) {
+          all_described = false;
+        }
+      }
+      if (all_described) robot.map_retry = kMapRetryRounds;
       continue;
     }
     robot.map_pending = true;
