@@ -178,14 +178,24 @@ std::optional<std::pair<tims::ComponentInfo, std::string>> Session::find_by_clas
                                                                                   uint8_t system, uint8_t instance) {
   std::optional<std::pair<tims::ComponentInfo, std::string>> found;
   discover([&](const std::vector<tims::HostInfo>& hosts) {
+    // Every component at that system and instance (Chassis(0/0), Ladar(0/0), ...):
+    // their classes described at once, so that one that does not answer costs one
+    // shared deadline, not one timeout each.
+    std::vector<tims::ComponentInfo> candidates;
+    std::vector<tims::Address> addresses;
     for (const auto& h : hosts) {
       for (const auto& c : h.components) {
         if (c.address.system() != system || c.address.instance() != instance) continue;
-        const ClassDescription* d = describe(c.address);
-        if (d != nullptr && (d->class_name == class_name || d->impl == class_name)) {
-          found = std::make_pair(c, d->class_name);
-          return true;
-        }
+        candidates.push_back(c);
+        addresses.push_back(c.address.component());
+      }
+    }
+    describe_all(addresses);
+    for (const auto& c : candidates) {
+      const ClassDescription* d = describe(c.address);
+      if (d != nullptr && (d->class_name == class_name || d->impl == class_name)) {
+        found = std::make_pair(c, d->class_name);
+        return true;
       }
     }
     return false;
@@ -195,10 +205,10 @@ std::optional<std::pair<tims::ComponentInfo, std::string>> Session::find_by_clas
 
 const ClassDescription* Session::describe(tims::Address component) {
   const uint32_t key = component.raw() & 0xFFFF0000u;
-  if (const auto it = classes_.find(key); it != classes_.end()) return it->second ? &*it->second : nullptr;
-  std::optional<ClassDescription>& slot = classes_[key];
+  if (const auto it = classes_.find(key); it != classes_.end()) return it->second.desc ? &*it->second.desc : nullptr;
   ClassPageAssembler pages;
   std::string error;
+  bool unanswered = false;
   while (!pages.complete()) {
     ClassPageRequest q;
     q.offset = pages.next_offset();
@@ -208,6 +218,7 @@ const ClassDescription* Session::describe(tims::Address component) {
                                     std::span<const tims::ConstBuffer>(&part, 1));
     if (r.status != tims::CallStatus::kOk) {
       error = std::string("no reply to GET_CLASS: ") + tims::describe(r.status);
+      unanswered = r.status == tims::CallStatus::kTimeout;
     } else if (r.reply.type != msg::kClass) {
       error = std::string("GET_CLASS answered ") + reply_name(r.reply.type) +
               (r.reply.type == msg::kError ? ": " + error_reason(r.body) : std::string());
@@ -216,6 +227,76 @@ const ClassDescription* Session::describe(tims::Address component) {
     }
     break;
   }
+  return finish_description(component, pages, std::move(error), unanswered);
+}
+
+void Session::describe_all(const std::vector<tims::Address>& components) {
+  struct Want {
+    tims::Address component;
+    ClassPageAssembler pages;
+    std::string error;
+    bool unanswered = false;
+    bool done = false;
+    ClassPageRequest request;
+  };
+  std::vector<Want> want;
+  for (const tims::Address a : components) {
+    const uint32_t key = a.raw() & 0xFFFF0000u;
+    if (classes_.count(key) != 0) continue;
+    if (std::any_of(want.begin(), want.end(),
+                    [key](const Want& w) { return (w.component.raw() & 0xFFFF0000u) == key; }))
+      continue;
+    want.push_back(Want{a.component(), {}, {}, false, false, {}});
+  }
+  if (want.empty()) return;
+  const int64_t deadline = rt::monotonic_ns() + timeout_ns() * (config_.retries + 1);
+  for (;;) {
+    // One round: the next page of every description still incomplete.
+    std::vector<std::size_t> asked;
+    std::vector<tims::Address> dests;
+    for (std::size_t i = 0; i < want.size(); ++i) {
+      if (want[i].done) continue;
+      want[i].request.offset = want[i].pages.next_offset();
+      want[i].request.sections = kClassSectionValueNames;
+      asked.push_back(i);
+      dests.push_back(want[i].component);
+    }
+    if (asked.empty()) break;
+    std::vector<tims::ConstBuffer> parts;
+    for (const std::size_t i : asked) parts.push_back(tims::buffer_of(want[i].request));
+    std::vector<bool> answered(asked.size(), false);
+    (void)fan_out(
+        dests, msg::kGetClass, [&parts](std::size_t k) { return std::span<const tims::ConstBuffer>(&parts[k], 1); },
+        [&](std::size_t k, const tims::MessageHeader& h, std::span<const std::byte> body) {
+          answered[k] = true;
+          Want& w = want[asked[k]];
+          if (h.type != msg::kClass) {
+            w.error = std::string("GET_CLASS answered ") + reply_name(h.type) +
+                      (h.type == msg::kError ? ": " + error_reason(body) : std::string());
+            w.done = true;
+          } else if (!w.pages.add(body, tims::body_is_native(h), w.error)) {
+            w.done = true;
+          } else if (w.pages.complete()) {
+            w.done = true;
+          }
+        },
+        deadline);
+    for (std::size_t k = 0; k < asked.size(); ++k) {
+      if (answered[k]) continue;
+      Want& w = want[asked[k]];
+      w.error = "no reply to GET_CLASS within " + std::to_string(config_.timeout_ms) + " ms x " +
+                std::to_string(config_.retries + 1) + " attempt(s)";
+      w.unanswered = true;
+      w.done = true;
+    }
+  }
+  for (Want& w : want) (void)finish_description(w.component, w.pages, std::move(w.error), w.unanswered);
+}
+
+const ClassDescription* Session::finish_description(tims::Address component, const ClassPageAssembler& pages,
+                                                    std::string error, bool unanswered) {
+  ClassEntry& slot = classes_[component.raw() & 0xFFFF0000u];
+  slot.unanswered = unanswered;
   ClassDescription d;
   if (error.empty() && !decode_class_description(pages.bytes(), d, error)) error = "class description: " + error;
   if (!error.empty()) {
@@ -227,8 +308,18 @@ const ClassDescription* Session::describe(tims::Address component) {
                  component.component().str().c_str(), d.class_id);
     return nullptr;
   }
-  slot = std::move(d);
-  return &*slot;
+  slot.desc = std::move(d);
+  return &*slot.desc;
+}
+
+const ClassDescription* Session::described(tims::Address component) const {
+  const auto it = classes_.find(component.raw() & 0xFFFF0000u);
+  return it != classes_.end() && it->second.desc ? &*it->second.desc : nullptr;
+}
+
+bool Session::class_unanswered(tims::Address component) const {
+  const auto it = classes_.find(component.raw() & 0xFFFF0000u);
+  return it != classes_.end() && it->second.unanswered;
 }
 
 std::string Session::class_name(tims::Address a) {
@@ -252,6 +343,12 @@ uint64_t Session::fan_out(const std::vector<tims::Address>& dests, int8_t type, 
 }
 
 uint64_t Session::fan_out(const std::vector<tims::Address>& dests, int8_t type, const AnswerWithBody& answer) {
+  return fan_out(
+      dests, type, [](std::size_t) { return std::span<const tims::ConstBuffer>(); }, answer, INT64_MAX);
+}
+
+uint64_t Session::fan_out(const std::vector<tims::Address>& dests, int8_t type, const BodyOf& body_of,
+                          const AnswerWithBody& answer, int64_t deadline_ns) {
   if (!fanout_mailbox_) throw std::logic_error("rack::client::Session: no fan-out mailbox without `streams`");
   struct Pending {
     std::vector<uint8_t> seqs;  // of every attempt so far
@@ -266,7 +363,8 @@ uint64_t Session::fan_out(const std::vector<tims::Address>& dests, int8_t type, 
   std::vector<std::byte> buf(kFanoutSlotSize);
   for (;;) {
     int64_t now = rt::monotonic_ns();
-    int64_t earliest = INT64_MAX;
+    if (now >= deadline_ns) return retries;  // what is still unanswered stays so
+    int64_t earliest = deadline_ns;
     bool waiting = false;
     for (std::size_t i = 0; i < p.size(); ++i) {
       auto& r = p[i];
@@ -283,7 +381,7 @@ uint64_t Session::fan_out(const std::vector<tims::Address>& dests, int8_t type, 
         // Back-pressure: the uplink drops its oldest message when full.
         (void)transport_.wait_uplink(kUplinkSlots / 2, timeout_ns());
         uint8_t seq = 0;
-        const auto st = fanout_endpoint_->send(dests[i], type, {}, tims::Address(), &seq);
+        const auto st = fanout_endpoint_->send(dests[i], type, body_of(i), tims::Address(), &seq);
         if (!r.seqs.empty()) ++retries;
         r.seqs.push_back(seq);
         now = rt::monotonic_ns();

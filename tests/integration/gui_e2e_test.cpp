@@ -221,17 +221,27 @@ TEST_F(GuiE2eTest, DashboardPanelsInChromium) {
 
   Process rackd({kRackd, host_file(), "--lcm", bus_.url()}, dir_.path(), "rackd");
   ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
-  // Robot 2: one Generator, stopped cleanly by panels.mjs.
+  // Robot 2: one Generator, and a Counter (a plug-in class that neither rack-gui nor
+  // the page is built with: its view comes from its class description), stopped
+  // cleanly by panels.mjs.
   const std::string robot2 = dir_.write("robot2.yaml",
                                         "host: robot2-gen\n"
                                         "system: 2\n"
                                         "lcm: true\n"
+                                        "plugins: [" RACK_COUNTER_PLUGIN_PATH
+                                        "]\n"
                                         "components:\n"
                                         "  - name: generator\n"
                                         "    class: Generator\n"
                                         "    instance: 0\n"
                                         "    autostart: true\n"
-                                        "    data_task: {period_ms: 100}\n")
+                                        "    data_task: {period_ms: 100}\n"
+                                        "  - name: counter\n"
+                                        "    class: Counter\n"
+                                        "    instance: 0\n"
+                                        "    autostart: true\n"
+                                        "    data_task: {period_ms: 100}\n"
+                                        "    params: {label: plug-in}\n")
                                  .string();
   Process gen({kRackd, robot2, "--lcm", bus_.url()}, dir_.path(), "rackd-robot2");
   ASSERT_TRUE(gen.wait_for_stderr("rackd: running", 30s)) << gen.err();
@@ -255,7 +265,7 @@ TEST_F(GuiE2eTest, DashboardPanelsInChromium) {
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui->err();
   for (const char* shot :
-       {"panels-empty.png", "panels-plots.png", "panels-commands.png", "panels-map-follow.png",
+       {"panels-empty.png", "panels-plots.png", "panels-commands.png", "panels-plugin.png", "panels-map-follow.png",
         "panels-map-resized.png", "panels-phone-map.png", "panels-phone-plots.png", "panels-host-gone.png"}) {
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(kArtifacts) / shot)) << shot;
   }

@@ -21,6 +21,7 @@
 
 #include "http_server.h"
 #include "process.h"
+#include "ws_client.h"
 
 namespace rack::test {
 namespace {
@@ -46,33 +47,6 @@ std::pair<int, std::string> get(uint16_t port, const std::string& target) {
   http::read(s, buf, res);
   return {static_cast<int>(res.result_int()), res.body()};
 }
-
-struct WsClient {
-  net::io_context ioc;
-  websocket::stream<beast::tcp_stream> ws{ioc};
-  explicit WsClient(uint16_t port) {
-    beast::get_lowest_layer(ws).connect(tcp::endpoint(net::ip::make_address("127.0.0.1"), port));
-    beast::get_lowest_layer(ws).expires_after(10s);
-    ws.handshake("127.0.0.1", "/ws");
-  }
-  // The next text message; "" when the connection closed (or timed out).
-  std::string read() {
-    beast::flat_buffer buf;
-    beast::error_code ec;
-    ws.read(buf, ec);
-    return ec ? "" : beast::buffers_to_string(buf.data());
-  }
-  // The next message of `type`, skipping the periodic ones.
-  nlohmann::json read_type(const std::string& type) {
-    for (int i = 0; i < 200; ++i) {
-      const std::string m = read();
-      if (m.empty()) return nullptr;
-      auto j = nlohmann::json::parse(m, nullptr, false);
-      if (!j.is_discarded() && j.value("type", "") == type) return j;
-    }
-    return nullptr;
-  }
-};
 
 class HttpServerTest : public ::testing::Test {
  protected:
@@ -192,12 +166,24 @@ TEST(RackGuiServerTest, RefusesMalformedMessagesAndReportsUnansweredRequests) {
   refused(R"j({"op":"joystick","system":0,"vx":1e9,"omega":0})j", "key 'vx'");
   refused(R"j({"op":"drive_fast","system":0})j", "unknown op 'drive_fast'");
 
-  c.ws.write(net::buffer(std::string(R"j({"op":"switch","component":"Chassis(7/0)","on":false,"id":9})j")));
+  // A class by name (rack-gui links no class: names come from the descriptions) that
+  // no component there describes: answered at once, nothing sent.
+  c.ws.write(net::buffer(std::string(R"j({"op":"switch","component":"Chassis(7/0)","on":false,"id":8})j")));
+  const auto unknown = c.read_type("result");
+  ASSERT_TRUE(unknown.is_object());
+  EXPECT_EQ(unknown["id"], 8);
+  EXPECT_EQ(unknown["ok"], false);
+  EXPECT_NE(unknown["text"].get<std::string>().find("Chassis(7/0): no component of that class"), std::string::npos)
+      << unknown.dump();
+  // By class id (the form of an address whose class is not described): sent, and
+  // reported as not answered.
+  c.ws.write(net::buffer(std::string(R"j({"op":"switch","component":"Class0x10(7/0)","on":false,"id":9})j")));
   const auto result = c.read_type("result");
   ASSERT_TRUE(result.is_object());
   EXPECT_EQ(result["id"], 9);
   EXPECT_EQ(result["ok"], false);
-  EXPECT_NE(result["text"].get<std::string>().find("Chassis(7/0)"), std::string::npos) << result.dump();
+  EXPECT_NE(result["text"].get<std::string>().find("Class0x10(7/0): no reply to OFF"), std::string::npos)
+      << result.dump();
 
   gui.signal(SIGTERM);
   EXPECT_EQ(gui.wait_exit(10s), std::optional<int>(0)) << gui.err();
@@ -385,9 +371,9 @@ TEST(RackGuiServerTest, PluginClassDataHasItsFieldNames) {
   for (int i = 0; i < 50 && !data.is_object(); ++i) {
     const auto j = c.read_type("data");
     ASSERT_TRUE(j.is_object()) << "no data message: " << gui.err();
-    // Its address in TiMS' form (the dashboard sends it back in requests), its class
-    // by the described name.
-    if (j.value("component", "") == "Class0x91(2/0)") data = j;
+    // Its address with its class by the described name (the dashboard sends it back
+    // in requests, and rack-gui finds the component by that name).
+    if (j.value("component", "") == "Counter(2/0)") data = j;
   }
   ASSERT_TRUE(data.is_object()) << gui.err();
   EXPECT_EQ(data["class"], "Counter") << data.dump();
@@ -395,6 +381,17 @@ TEST(RackGuiServerTest, PluginClassDataHasItsFieldNames) {
   EXPECT_EQ(data["data"]["label"], "hello") << data.dump();
   EXPECT_TRUE(data["data"]["count"].is_number()) << data.dump();
   EXPECT_TRUE(data["data"]["rate"].is_number()) << data.dump();
+  // Requests by that address: its parameters, and switching it off.
+  c.send({{"op", "get_params"}, {"component", "Counter(2/0)"}, {"id", 1}});
+  const auto params = c.read_type("params");
+  ASSERT_TRUE(params.is_object()) << gui.err();
+  EXPECT_EQ(params["component"], "Counter(2/0)") << params.dump();
+  c.send({{"op", "switch"}, {"component", "Counter(2/0)"}, {"on", false}, {"id", 2}});
+  nlohmann::json off;
+  for (int i = 0; i < 20 && !(off.is_object() && off.value("id", 0) == 2); ++i) off = c.read_type("result");
+  ASSERT_TRUE(off.is_object()) << gui.err();
+  EXPECT_EQ(off["ok"], true) << off.dump();
+  EXPECT_EQ(off["text"], "Counter(2/0) off") << off.dump();
   gui.signal(SIGTERM);
   EXPECT_EQ(gui.wait_exit(10s), std::optional<int>(0)) << gui.err();
 }

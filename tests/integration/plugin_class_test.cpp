@@ -52,6 +52,36 @@ TEST_F(PluginClassTest, RackdLinksNoHeavyLibrary) {
   }
 }
 
+// Issue 19 item 4: the tools link the client library (protocol, session, discovery,
+// key files), not the executor, its class table or a class: they learn every class
+// from its description. ldd lists the shared objects the loader maps (transitively);
+// nm the functions linked in statically (rack_components is a static library).
+TEST_F(PluginClassTest, ToolsLinkTheClientLibraryNotTheExecutor) {
+  for (const std::string& tool :
+       {std::string(RACK_RACKCTL_PATH), std::string(RACK_GDOS_PATH), std::string(RACK_GUI_PATH)}) {
+    const auto ldd = run({"/usr/bin/ldd", tool}, 30s);
+    ASSERT_EQ(ldd.exit_code, 0) << ldd.describe();
+    ASSERT_TRUE(contains(ldd.out, "librack_tims")) << "ldd output not as expected:\n" << ldd.out;
+    for (const char* lib :
+         {"librack_core.", "librack_interfaces.", "librack_devices.", "libmrpt", "libpcl_", "libopencv"}) {
+      EXPECT_FALSE(contains(ldd.out, lib)) << tool << " links " << lib << ":\n" << ldd.out;
+    }
+    const auto nm = run({"/usr/bin/nm", "-C", "--defined-only", tool}, 30s);
+    ASSERT_EQ(nm.exit_code, 0) << nm.describe();
+    ASSERT_TRUE(contains(nm.out, "rack::client::Session")) << tool << ": nm output not as expected";
+    for (const char* symbol : {"rack::Executor::", "rack::ComponentRegistry::", "rack::components::register_builtin",
+                               "rack::interfaces::"}) {
+      EXPECT_FALSE(contains(nm.out, symbol)) << tool << " has " << symbol << " linked in";
+    }
+  }
+  // rackctl and gdos read host files with libyaml (rack/client/host_file.h), not
+  // yaml-cpp (rack-gui reads occupancy maps' YAML through rack::maps).
+  for (const std::string& tool : {std::string(RACK_RACKCTL_PATH), std::string(RACK_GDOS_PATH)}) {
+    const auto ldd = run({"/usr/bin/ldd", tool}, 30s);
+    EXPECT_FALSE(contains(ldd.out, "libyaml-cpp")) << tool << ":\n" << ldd.out;
+  }
+}
+
 TEST_F(PluginClassTest, ListClassesNamesThePluginClassesWithoutLoadingThem) {
   const auto r = run({kRackd, "--list-classes"}, 30s);
   ASSERT_EQ(r.exit_code, 0) << r.describe();

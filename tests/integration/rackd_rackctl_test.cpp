@@ -288,7 +288,13 @@ TEST_F(RackctlTest, WithoutRackdEverythingIsNotAvailable) {
   RunResult r = ctl({"status", "generator"}, "300");
   EXPECT_EQ(r.exit_code, 3) << r.describe();
   EXPECT_TRUE(contains(r.err, "generator")) << r.describe();
+  // rackctl knows no class: Generator(0/0) is the component whose class describes
+  // itself so, and nothing answers discovery to say which that is.
   r = ctl({"--timeout", "300", "status", "Generator(0/0)"});
+  EXPECT_EQ(r.exit_code, 3) << r.describe();
+  EXPECT_TRUE(contains(r.err, "no component of a class named 'Generator' at system 0, instance 0 answered discovery"))
+      << r.describe();
+  r = ctl({"--timeout", "300", "status", "Class0x10(0/0)"});  // by class id: sent, not answered
   EXPECT_EQ(r.exit_code, 3) << r.describe();
   EXPECT_TRUE(contains(r.err, "no reply")) << r.describe();
   r = ctl({"list"}, "300");

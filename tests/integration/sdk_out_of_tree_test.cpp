@@ -5,10 +5,17 @@
 // the component driven by the installed rackctl: list, params, set-param, get-data,
 // and its class commands.
 //
-// rackctl is built with no Counter in it: it learns the class from the description the
-// component serves (GET_CLASS), so the address reads Counter(0/0), the data has its
-// field names, the parameters their docs, and the commands go by name; the installed
-// gdos selects and names its log records the same way.
+// No tool is built with Counter (nor with any other class: they link the client
+// library only): each learns the class from the description the component serves
+// (GET_CLASS), exactly as it learns a built-in one. Checked for the plug-in, as a
+// user of the installed tree meets it (issue 19 item 3):
+//   - `rackd --list-classes host.yaml` lists it with its parameters' docs;
+//   - rackctl: `list` and every reply name it Counter(0/0), and that address is
+//     accepted; JSON data has its field names; `params` its docs; commands go by
+//     name with field=value bodies;
+//   - gdos selects and names its log records by that address;
+//   - rack-gui (the dashboard's server) sends its data with field names under that
+//     address, takes requests for that address, and sends its commands by name.
 #include <gtest/gtest.h>
 #include <signal.h>
 
@@ -23,6 +30,7 @@
 
 #include "mini_json.h"
 #include "process.h"
+#include "ws_client.h"
 
 namespace rack::test {
 namespace {
@@ -70,14 +78,15 @@ class SdkOutOfTreeTest : public ::testing::Test {
 };
 
 TEST_F(SdkOutOfTreeTest, ExampleClassBuiltFromTheInstalledTreeRunsInRackd) {
-  // 1. Install the programs and the SDK (not the GUI: its front end is optional).
-  for (const char* component : {"Runtime", "Development"}) {
+  // 1. Install the programs, the SDK and rack-gui (its front end is optional: the
+  // test reads what its server sends).
+  for (const char* component : {"Runtime", "Development", "Gui"}) {
     const RunResult r = run(
         {kCmake, "--install", RACK_BINARY_DIR, "--prefix", prefix().string(), "--component", component}, 60s);
     ASSERT_EQ(r.exit_code, 0) << r.describe();
   }
   for (const char* file :
-       {"bin/rackd", "bin/rackctl", "include/rack/core/component.h", "include/rack/client/host_file.h",
+       {"bin/rackd", "bin/rackctl", "bin/rack-gui", "include/rack/core/component.h", "include/rack/client/host_file.h",
         "lib/cmake/rack/rackConfig.cmake", "lib/cmake/rack/rackConfigVersion.cmake", "lib/cmake/rack/RackPlugin.cmake",
         "share/rack/examples/out_of_tree_class/CMakeLists.txt", "share/rack/configs/demo.yaml",
         "lib/systemd/system/rackd@.service"}) {
@@ -122,8 +131,15 @@ TEST_F(SdkOutOfTreeTest, ExampleClassBuiltFromTheInstalledTreeRunsInRackd) {
                                                        "    instance: 0\n    autostart: true\n"
                                                        "    data_task: {period_ms: 10}\n"
                                                        "    params: {step: 2, start: 1000}\n");
-  const RunResult classes = run({(prefix() / "bin/rackd").string(), "--check", host.string()}, 30s);
+  const RunResult checked = run({(prefix() / "bin/rackd").string(), "--check", host.string()}, 30s);
+  ASSERT_EQ(checked.exit_code, 0) << checked.describe();
+  // --list-classes with the host file: the class of the library it names, with its
+  // parameters, as the built-in classes are listed.
+  const RunResult classes = run({(prefix() / "bin/rackd").string(), "--list-classes", host.string()}, 30s);
   ASSERT_EQ(classes.exit_code, 0) << classes.describe();
+  EXPECT_TRUE(contains(classes.out, "Counter  (class Counter, data task: periodic)")) << classes.out;
+  EXPECT_TRUE(contains(classes.out, "example: a counter built outside the tree")) << classes.out;
+  EXPECT_TRUE(contains(classes.out, "added to the count every period")) << classes.out;
   Process rackd({(prefix() / "bin/rackd").string(), host.string(), "--lcm", bus_.url()}, dir_.path(), "rackd");
   ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
 
@@ -135,6 +151,24 @@ TEST_F(SdkOutOfTreeTest, ExampleClassBuiltFromTheInstalledTreeRunsInRackd) {
   EXPECT_EQ(status->at("state").string, "ENABLED") << r.out;
   EXPECT_EQ(status->at("data_task").string, "periodic") << r.out;
   EXPECT_EQ(status->at("component").string, "Counter(0/0)") << r.out;
+
+  // `list` names its class (from its description: rackctl links no class table).
+  r = ctl({"list", "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(contains(r.out, R"j("address":"Counter(0/0)","name":"counter","class":"Counter","impl":"Counter")j"))
+      << r.out;
+  r = ctl({"list"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(contains(r.out, "Counter(0/0)")) << r.out;
+  EXPECT_FALSE(contains(r.out, "Class0x")) << r.out;
+  // Its address as an argument, and its data by field name.
+  r = ctl({"get-data", "Counter(0/0)"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  const auto sample = parse_json(r.out);
+  ASSERT_TRUE(sample.has_value()) << r.out;
+  EXPECT_EQ(sample->at("component").string, "Counter(0/0)") << r.out;
+  ASSERT_NE(sample->get("data"), nullptr) << r.out;
+  EXPECT_NE(sample->at("data").get("step"), nullptr) << r.out;
 
   r = ctl({"params", "counter"});
   ASSERT_EQ(r.exit_code, 0) << r.describe();
@@ -173,6 +207,48 @@ TEST_F(SdkOutOfTreeTest, ExampleClassBuiltFromTheInstalledTreeRunsInRackd) {
   ASSERT_TRUE(record.has_value()) << gdos.out();
   EXPECT_EQ(record->at("source").string, "Counter(0/0)") << gdos.out();
   EXPECT_EQ(record->at("name").string, "counter") << gdos.out();
+
+  // 6. The installed rack-gui (built with no class either): the dashboard's data view
+  // of the component, under its address by class name, and its commands by name.
+  fs::create_directories(dir_.path() / "web");
+  (void)dir_.write("web/index.html", "<html></html>");
+  Process gui({(prefix() / "bin/rack-gui").string(), "--port", "0", "--lcm", bus_.url(), "--web",
+               (dir_.path() / "web").string(), "--reports", "", "--poll-ms", "100"},
+              dir_.path(), "rack-gui");
+  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
+  WsClient ws(served_port(gui.err()));
+  nlohmann::json data;
+  for (int i = 0; i < 100 && !data.is_object(); ++i) {
+    const auto j = ws.read_type("data");
+    ASSERT_TRUE(j.is_object()) << "no data message: " << gui.err();
+    if (j.value("component", "") == "Counter(0/0)") data = j;
+  }
+  ASSERT_TRUE(data.is_object()) << gui.err();
+  EXPECT_EQ(data["class"], "Counter") << data.dump();
+  EXPECT_EQ(data["name"], "counter") << data.dump();
+  ASSERT_TRUE(data["data"].is_object()) << data.dump();
+  EXPECT_TRUE(data["data"]["count"].is_number()) << data.dump();
+  EXPECT_TRUE(data["data"]["step"].is_number()) << data.dump();
+  // The commands panel: the class's commands by name, ADD with its field.
+  ws.send({{"op", "get_class"}, {"component", "Counter(0/0)"}, {"id", 1}});
+  const auto cls = ws.read_type("class");
+  ASSERT_TRUE(cls.is_object()) << gui.err();
+  EXPECT_EQ(cls["component"], "Counter(0/0)") << cls.dump();
+  EXPECT_TRUE(contains(cls["commands"].dump(), R"("name":"ADD")")) << cls.dump();
+  const int64_t before = count().value_or(0);
+  ws.send({{"op", "command"},
+           {"component", "Counter(0/0)"},
+           {"name", "ADD"},
+           {"fields", {{"amount", "100000"}}},
+           {"id", 2}});
+  nlohmann::json added;
+  for (int i = 0; i < 50 && !(added.is_object() && added.value("id", 0) == 2); ++i) added = ws.read_type("result");
+  ASSERT_TRUE(added.is_object()) << gui.err();
+  EXPECT_EQ(added["ok"], true) << added.dump();
+  EXPECT_TRUE(contains(added["text"].get<std::string>(), "Counter(0/0): ADD")) << added.dump();
+  EXPECT_GE(count().value_or(0), before + 100000);
+  gui.signal(SIGTERM);
+  EXPECT_EQ(gui.wait_exit(10s), std::optional<int>(0)) << gui.err();
 
   rackd.signal(SIGTERM);
   EXPECT_EQ(rackd.wait_exit(30s), std::optional<int>(0)) << rackd.err();

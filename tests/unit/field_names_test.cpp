@@ -1,8 +1,10 @@
 // rackctl's names of enum and address fields, beside the raw values of a sample.
 #include <gtest/gtest.h>
 
+#include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "field_names.h"
 #include "rack/core/registry.h"
@@ -61,6 +63,46 @@ TEST(FieldNamesTest, ActivePilotAsAnAddressInEitherByteOrder) {
   d.active_pilot = 0;
   EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::ChassisData>, bytes_of(d), true),
             "{\"active_pilot\":\"none\"}");
+}
+
+// The tools link no class: they name an address field's component by the class that
+// component describes, through their own namer, which gets the component's command
+// address (not the mailbox the field holds).
+TEST(FieldNamesTest, AddressFieldsThroughTheToolsNamer) {
+  const auto names = described_names(interfaces::declared::kChassis);
+  interfaces::ChassisData d;
+  d.active_pilot = tims::Address::make(2, 0x91, 1, 3).raw();  // a plug-in's mailbox 3
+  std::vector<tims::Address> asked;
+  const AddressNamer namer = [&asked](tims::Address a) {
+    asked.push_back(a);
+    return std::string("Counter(") + std::to_string(a.system()) + "/" + std::to_string(a.instance()) + ")";
+  };
+  EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::ChassisData>, bytes_of(d), true, namer),
+            "{\"active_pilot\":\"Counter(2/1)\"}");
+  ASSERT_EQ(asked.size(), 1u);
+  EXPECT_EQ(asked[0], tims::Address::make(2, 0x91, 1));
+  d.active_pilot = 0;  // none: the namer is not asked
+  EXPECT_EQ(field_names_json(names, tims::fields_of<interfaces::ChassisData>, bytes_of(d), true, namer),
+            "{\"active_pilot\":\"none\"}");
+  EXPECT_EQ(asked.size(), 1u);
+}
+
+// Fields read by name (rack-gui's camera image and the chassis' active pilot).
+TEST(FieldNamesTest, UnsignedFieldsByName) {
+  interfaces::ChassisData d;
+  d.active_pilot = 0x00190203u;
+  const auto fields = tims::fields_of<interfaces::ChassisData>;
+  const tims::FieldDesc* f = find_field(fields, "active_pilot");
+  ASSERT_NE(f, nullptr);
+  EXPECT_EQ(unsigned_field(*f, bytes_of(d), true), std::optional<uint64_t>(0x00190203u));
+  d.active_pilot = __builtin_bswap32(0x00190203u);
+  EXPECT_EQ(unsigned_field(*f, bytes_of(d), false), std::optional<uint64_t>(0x00190203u));
+  EXPECT_EQ(find_field(fields, "no_such_field"), nullptr);
+  // Outside a short sample, or a floating-point field: nothing read.
+  EXPECT_EQ(unsigned_field(*f, bytes_of(d).first(f->offset + 2), true), std::nullopt);
+  const tims::FieldDesc* vx = find_field(fields, "vx");
+  ASSERT_NE(vx, nullptr);
+  EXPECT_EQ(unsigned_field(*vx, bytes_of(d), true), std::nullopt);
 }
 
 TEST(FieldNamesTest, ClassesWithoutNamesAndShortSamplesHaveNoNames) {

@@ -7,7 +7,6 @@
 #include <variant>
 
 #include "gui_protocol.h"
-#include "rack/components/class_ids.h"
 
 namespace rack::gui {
 namespace {
@@ -33,7 +32,10 @@ std::string refused(const std::string& text) {
 TEST(GuiProtocolTest, AcceptsEveryOp) {
   auto r = ok(R"j({"op":"switch","component":"Chassis(0/0)","on":true,"id":7})j");
   EXPECT_EQ(r.op, Op::kSwitch);
-  EXPECT_EQ(r.component, tims::Address::make(0, class_ids::kChassis, 0));
+  // A component class by name (rack-gui links no class): system and instance here,
+  // the class resolved by the backend against the classes' descriptions.
+  EXPECT_EQ(r.component, tims::Address::make(0, 0, 0));
+  EXPECT_EQ(r.component_class, "Chassis");
   EXPECT_TRUE(r.on);
   ASSERT_TRUE(r.id.has_value());
   EXPECT_EQ(*r.id, 7);
@@ -44,7 +46,21 @@ TEST(GuiProtocolTest, AcceptsEveryOp) {
   EXPECT_FALSE(r.id.has_value());
 
   r = ok(R"j({"op":"get_params","component":"Pilot(1/2)"})j");
-  EXPECT_EQ(r.component, tims::Address::make(1, class_ids::kPilot, 2));
+  EXPECT_EQ(r.component, tims::Address::make(1, 0, 2));
+  EXPECT_EQ(r.component_class, "Pilot");
+  // A class TiMS names, or a class id: the whole address, no name to resolve.
+  r = ok(R"j({"op":"get_params","component":"Class0x91(2/0)"})j");
+  EXPECT_EQ(r.component, tims::Address::make(2, 0x91, 0));
+  EXPECT_EQ(r.component_class, "");
+  r = ok(R"j({"op":"get_params","component":"Executor(1/0)"})j");
+  EXPECT_EQ(r.component, tims::Address::make(1, tims::classes::kExecutor, 0));
+  EXPECT_EQ(r.component_class, "");
+  EXPECT_NE(refused(R"j({"op":"get_params","component":"Counter(2/0)#1"})j").find("names a mailbox"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"get_params","component":"Coun-ter(2/0)"})j").find("is not an address"),
+            std::string::npos);
+  EXPECT_NE(refused(R"j({"op":"get_params","component":"Counter(2/256)"})j").find("is not an address"),
+            std::string::npos);
 
   r = ok(R"j({"op":"set_param","component":"Pilot(0/0)","name":"vx_max","value":0.5})j");
   EXPECT_EQ(r.param_name, "vx_max");
@@ -69,7 +85,8 @@ TEST(GuiProtocolTest, AcceptsEveryOp) {
 TEST(GuiProtocolTest, ClassCommandsByNameWithTheirFieldsAsText) {
   auto r = ok(R"j({"op":"get_class","component":"Pilot(0/0)"})j");
   EXPECT_EQ(r.op, Op::kGetClass);
-  EXPECT_EQ(r.component, tims::Address::make(0, class_ids::kPilot, 0));
+  EXPECT_EQ(r.component, tims::Address::make(0, 0, 0));
+  EXPECT_EQ(r.component_class, "Pilot");
   r = ok(
       R"j({"op":"command","component":"Pilot(0/0)","name":"SET_DESTINATION","fields":{"x":"2.5","y":-1,"z":0.25,"b":true}})j");
   EXPECT_EQ(r.op, Op::kCommand);
@@ -387,13 +404,15 @@ TEST(GuiProtocolTest, CommandOpTakesANameAndAnObjectBody) {
 TEST(GuiProtocolTest, SubscribeTakesAComponentAndAnOptionalPeriod) {
   auto r = ok(R"j({"op":"subscribe","component":"Scan2D(0/0)","id":4})j");
   EXPECT_EQ(r.op, Op::kSubscribe);
-  EXPECT_EQ(r.component, tims::Address::make(0, class_ids::kScan2d, 0));
-  EXPECT_EQ(r.period_ms, 0.0);  // every sample
+  EXPECT_EQ(r.component, tims::Address::make(0, 0, 0));
+  EXPECT_EQ(r.component_class, "Scan2D");  // resolved by the backend, as every component class
+  EXPECT_EQ(r.period_ms, 0.0);             // every sample
   r = ok(R"j({"op":"subscribe","component":"Chassis(1/0)","period_ms":100})j");
   EXPECT_EQ(r.period_ms, 100.0);
   r = ok(R"j({"op":"unsubscribe","component":"Chassis(1/0)"})j");
   EXPECT_EQ(r.op, Op::kUnsubscribe);
-  EXPECT_EQ(r.component, tims::Address::make(1, class_ids::kChassis, 0));
+  EXPECT_EQ(r.component, tims::Address::make(1, 0, 0));
+  EXPECT_EQ(r.component_class, "Chassis");
   EXPECT_NE(refused(R"j({"op":"subscribe","component":"Scan2D(0/0)","period_ms":-1})j").find("period_ms"),
             std::string::npos);
   EXPECT_NE(refused(R"j({"op":"subscribe","component":"Scan2D(0/0)","period_ms":1e9})j").find("period_ms"),

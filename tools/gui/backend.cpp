@@ -1,7 +1,6 @@
 // rack-gui's backend (backend.h, backend_impl.h): the worker thread, TiMS requests and
 // their replies, the browsers' requests (handle) and the public Backend.
 #include "backend_impl.h"
-#include "rack/components/class_ids.h"
 
 namespace rack::gui {
 
@@ -51,7 +50,7 @@ void Backend::Impl::receive_replies(int64_t wait_ns) {
   for (auto& done : expired) done(nullptr);
 }
 
-std::string Backend::Impl::failure(const Reply* r, const std::string& what, Address dest) {
+std::string Backend::Impl::failure(const Reply* r, const std::string& what, Address dest) const {
   if (r == nullptr) return address_text(dest) + ": no reply to " + what + " in time (host gone or busy?)";
   if (r->header.type == msg::kNotAvailable) return address_text(dest) + ": not available (no such component running)";
   if (r->header.type == msg::kError) return address_text(dest) + ": " + what + " refused: " + error_reason(r->body);
@@ -162,41 +161,41 @@ void Backend::Impl::handle(uint64_t client, const Request& r) {
       break;
     }
     case Op::kSetDestination: {
-      const auto pilot = find(r.system, class_ids::kPilot);
+      const auto pilot = find(r.system, kPilot);
       if (!pilot) {
         result(client, r, false, "robot " + std::to_string(r.system) + " has no Pilot");
         break;
       }
-      ifc::PilotDestination d;
-      d.x = r.x;
-      d.y = r.y;
       const Address a = *pilot;
-      request(a, ifc::kPilotSetDestination, d, [this, client, r, a](const Reply* rep) {
-        const bool ok = rep != nullptr && rep->header.type == msg::kOk;
-        if (ok) release_joystick(r.system);  // the Pilot takes the chassis back
-        result(client, r, ok, ok ? address_text(a) + ": destination set" : failure(rep, "SET_DESTINATION", a));
-      });
+      const std::string why = send_command(
+          a, "SET_DESTINATION", json{{"x", r.x}, {"y", r.y}}, [this, client, r, a](const Reply* rep) {
+            const bool ok = rep != nullptr && rep->header.type == msg::kOk;
+            if (ok) release_joystick(r.system);  // the Pilot takes the chassis back
+            result(client, r, ok, ok ? address_text(a) + ": destination set" : failure(rep, "SET_DESTINATION", a));
+          });
+      if (!why.empty()) result(client, r, false, why);
       break;
     }
     case Op::kFollowPath: {
-      const auto pilot = find(r.system, class_ids::kPilot);
+      const auto pilot = find(r.system, kPilot);
       if (!pilot) {
         result(client, r, false, "robot " + std::to_string(r.system) + " has no Pilot");
         break;
       }
       const Address a = *pilot;
-      request(a, ifc::kPilotFollowPath, [this, client, r, a](const Reply* rep) {
+      const std::string why = send_command(a, "FOLLOW_PATH", json::object(), [this, client, r, a](const Reply* rep) {
         const bool ok = rep != nullptr && rep->header.type == msg::kOk;
         if (ok) release_joystick(r.system);
         result(client, r, ok, ok ? address_text(a) + ": following the path" : failure(rep, "FOLLOW_PATH", a));
       });
+      if (!why.empty()) result(client, r, false, why);
       break;
     }
     case Op::kGetClass: {
       const Address a = r.component;
       const ClassInfo* info = described(a);
       if (info != nullptr) {
-        send_to(client, class_message(a.system(), *info->desc, a));
+        send_to(client, class_message(a.system(), *info->desc, address_text(a)));
         result(client, r, true, address_text(a) + ": class " + info->desc->class_name + " described");
       } else if (class_infos[a.raw() & 0xFFFF0000u].failed) {
         result(client, r, false, address_text(a) + ": its class description could not be read (see rack-gui's log)");
@@ -251,7 +250,9 @@ void Backend::Impl::run_worker() {
       }
       for (const uint32_t raw : idle) stop_stream(raw);
     }
-    for (auto& [client, req] : work) handle(client, req);
+    for (auto& [client, req] : work) {
+      if (resolve_component(client, req)) handle(client, req);
+    }
     check_dead_man();
     run_deferred();
 

@@ -1,7 +1,6 @@
 // rack-gui's backend: class commands (one handler, two body encoders), live traces,
 // all off, set pose, the joystick (backend_impl.h).
 #include "backend_impl.h"
-#include "rack/components/class_ids.h"
 
 namespace rack::gui {
 
@@ -190,6 +189,26 @@ void Backend::Impl::class_command(uint64_t client, const Request& r) {
           });
 }
 
+std::string Backend::Impl::send_command(Address a, const std::string& name, const json& fields, ReplyHandler done) {
+  const auto it = class_infos.find(a.raw() & 0xFFFF0000u);
+  if (it == class_infos.end() || !it->second.desc) {
+    (void)described(a);
+    return address_text(a) + ": " + name + ": its class description is not known yet (asked; try again)";
+  }
+  const rack::ClassDescription& d = *it->second.desc;
+  const rack::CommandDescription* c = d.find_command(name);
+  if (c == nullptr) return address_text(a) + ": class " + d.class_name + " describes no command " + name;
+  // The same encoder as "command_json" (json_body): nothing is sent unless every field fits.
+  std::vector<std::byte> body;
+  const std::string why = encode_command_body(fields, c->body ? &*c->body : nullptr, body);
+  if (!why.empty()) return address_text(a) + ": " + name + ": " + why + " (not sent)";
+  const tims::ConstBuffer part{body.data(), body.size()};
+  // The body is copied into the mailbox by send(): a local is fine.
+  request(a, c->type, std::span<const tims::ConstBuffer>(&part, body.empty() ? 0 : 1), default_timeout(),
+          std::move(done));
+  return "";
+}
+
 void Backend::Impl::all_off_step(uint64_t client, const Request& r, std::shared_ptr<std::vector<Address>> order,
                                  std::size_t i, std::shared_ptr<std::vector<std::string>> failures) {
   if (i >= order->size()) {
@@ -209,8 +228,8 @@ void Backend::Impl::all_off_step(uint64_t client, const Request& r, std::shared_
 }
 
 void Backend::Impl::set_pose(uint64_t client, const Request& r) {
-  const auto position = find(r.system, class_ids::kPosition);
-  const auto mcl = find(r.system, class_ids::kMcl);
+  const auto position = find(r.system, kPosition);
+  const auto mcl = find(r.system, kMcl);
   if (!position && !mcl) {
     result(client, r, false, "robot " + std::to_string(r.system) + " has neither Position nor MCL");
     return;
@@ -220,18 +239,14 @@ void Backend::Impl::set_pose(uint64_t client, const Request& r) {
       result(client, r, true, done);
       return;
     }
-    ifc::MclInit init;
-    init.x = r.x;
-    init.y = r.y;
-    init.phi = r.phi;
-    init.sigma_xy = 0.3;
-    init.sigma_phi = 0.2;
     const Address a = *mcl;
-    request(a, ifc::kMclInit, init, [this, client, r, a, done](const Reply* rep) {
+    const json init{{"x", r.x}, {"y", r.y}, {"phi", r.phi}, {"sigma_xy", 0.3}, {"sigma_phi", 0.2}};
+    const std::string why = send_command(a, "INIT", init, [this, client, r, a, done](const Reply* rep) {
       const bool ok = rep != nullptr && rep->header.type == msg::kOk;
       result(client, r, ok,
              ok ? done + (done.empty() ? "" : "; ") + address_text(a) + " re-initialised" : failure(rep, "INIT", a));
     });
+    if (!why.empty()) result(client, r, false, done + (done.empty() ? "" : "; ") + why);
   };
   if (!position) {
     init_mcl("");
@@ -244,26 +259,23 @@ void Backend::Impl::set_pose(uint64_t client, const Request& r) {
   }
   // UPDATE refers to a time: the newest Position sample's, which the robot's
   // odometry certainly holds (this tool's clock need not be the robot's).
-  ifc::PositionUpdate u;
-  u.time_ns = t;
-  u.x = r.x;
-  u.y = r.y;
-  u.phi = r.phi;
-  u.var_x = u.var_y = 0.3 * 0.3;
-  u.var_phi = 0.2 * 0.2;
+  const json update{{"time_ns", t},        {"x", r.x},           {"y", r.y},
+                    {"phi", r.phi},        {"var_x", 0.3 * 0.3}, {"var_y", 0.3 * 0.3},
+                    {"var_phi", 0.2 * 0.2}};
   const Address a = *position;
-  request(a, ifc::kPositionUpdate, u, [this, client, r, a, init_mcl](const Reply* rep) {
+  const std::string why = send_command(a, "UPDATE", update, [this, client, r, a, init_mcl](const Reply* rep) {
     if (rep == nullptr || rep->header.type != msg::kOk) {
       result(client, r, false, failure(rep, "UPDATE", a));
       return;
     }
     init_mcl(address_text(a) + " updated");
   });
+  if (!why.empty()) result(client, r, false, why);
 }
 
 void Backend::Impl::joystick(uint64_t client, const Request& r) {
   Robot& robot = robots[r.system];
-  const auto chassis = find(r.system, class_ids::kChassis);
+  const auto chassis = find(r.system, kChassis);
   if (!chassis) {
     result(client, r, false, "robot " + std::to_string(r.system) + " has no Chassis");
     return;
@@ -282,11 +294,10 @@ void Backend::Impl::joystick(uint64_t client, const Request& r) {
   if (!robot.claimed) {
     // Become the chassis' active pilot (the Pilot, if any, is preempted and stands).
     robot.claim_pending = true;
-    ifc::ChassisSetActivePilot claim;
-    claim.pilot = reply_mailbox.address().raw();
     const Address a = *chassis;
     const uint8_t s = r.system;
-    request(a, ifc::kChassisSetActivePilot, claim, [this, client, r, a, s](const Reply* rep) {
+    const json claim{{"pilot", reply_mailbox.address().raw()}};
+    const std::string why = send_command(a, "SET_ACTIVE_PILOT", claim, [this, client, r, a, s](const Reply* rep) {
       Robot& rb = robots[s];
       rb.claim_pending = false;
       if (rep == nullptr || rep->header.type != msg::kOk) {
@@ -297,27 +308,33 @@ void Backend::Impl::joystick(uint64_t client, const Request& r) {
       result(client, r, true, address_text(a) + ": the joystick is the active pilot");
       send_move(s, rb.want_vx, rb.want_omega);
     });
+    if (!why.empty()) {
+      robot.claim_pending = false;
+      result(client, r, false, why);
+    }
     return;
   }
   send_move(r.system, r.vx, r.omega);
 }
 
 void Backend::Impl::send_move(uint8_t system, double vx, double omega) {
-  const auto chassis = find(system, class_ids::kChassis);
+  const auto chassis = find(system, kChassis);
   if (!chassis) return;
-  ifc::ChassisMove m;
-  m.vx = vx;
-  m.omega = omega;
   const Address a = *chassis;
-  request(a, ifc::kChassisMove, m, [this, system, a](const Reply* rep) {
-    if (rep != nullptr && rep->header.type == msg::kOk) return;
-    Robot& robot = robots[system];
-    robot.claimed = false;  // taken over by another pilot: claim again on the next command
-    if (robot.joystick_owner != 0) {
-      send_to(robot.joystick_owner,
-              dump(json{{"type", "notice"}, {"level", "warning"}, {"text", failure(rep, "MOVE", a)}}));
-    }
-  });
+  const std::string why = send_command(
+      a, "MOVE", json{{"vx", vx}, {"omega", omega}}, [this, system, a](const Reply* rep) {
+        if (rep != nullptr && rep->header.type == msg::kOk) return;
+        Robot& robot = robots[system];
+        robot.claimed = false;  // taken over by another pilot: claim again on the next command
+        if (robot.joystick_owner != 0) {
+          send_to(robot.joystick_owner,
+                  dump(json{{"type", "notice"}, {"level", "warning"}, {"text", failure(rep, "MOVE", a)}}));
+        }
+      });
+  const Robot& robot = robots[system];
+  if (!why.empty() && robot.joystick_owner != 0) {
+    send_to(robot.joystick_owner, dump(json{{"type", "notice"}, {"level", "warning"}, {"text", why}}));
+  }
 }
 
 void Backend::Impl::stop_joystick(uint8_t system) {

@@ -1,7 +1,6 @@
 // rack-gui's backend: the samples the dashboard draws (polled), camera images, maps
 // (backend_impl.h).
 #include "backend_impl.h"
-#include "rack/components/class_ids.h"
 
 namespace rack::gui {
 
@@ -9,12 +8,12 @@ void Backend::Impl::poll_data(uint64_t round) {
   const int64_t now = rt::monotonic_ns();
   for (auto& [raw, c] : components) {
     if (c.data_pending || shown_state(c, now) != "enabled") continue;
-    const uint8_t cls = Address(raw).class_id();
     const ClassInfo* info = described(Address(raw));
     if (info == nullptr || !info->desc->data) continue;
-    const bool fast = cls == class_ids::kChassis || cls == class_ids::kPosition || cls == class_ids::kMcl ||
-                      cls == class_ids::kScan2d || cls == class_ids::kPilot || cls == class_ids::kLadar;
-    if (cls == class_ids::kCamera) {
+    const std::string& cls = info->desc->class_name;
+    const bool fast = cls == kChassis || cls == kPosition || cls == kMcl || cls == kScan2d || cls == kPilot ||
+                      cls == kLadar;
+    if (cls == kCamera) {
       if (round % 5 == 0) poll_image(raw);  // once a second: 0.9 MB each
       continue;
     }
@@ -44,20 +43,23 @@ std::optional<std::string> Backend::Impl::data_message(uint32_t raw, const Compo
   const auto sample = body.subspan(sizeof sh);
   if (sample.size() != type.desc->data->size) return std::nullopt;
   const Address a(raw);
-  if (a.class_id() == class_ids::kPosition) robots[comp.system].position_time_ns = sh.time_ns;
-  if (a.class_id() == class_ids::kChassis) {
-    ifc::ChassisData cd;
-    if (wire::read_payload(sample, native, cd)) {
-      robots[comp.system].claimed = cd.active_pilot == reply_mailbox.address().raw();
-    }
-  }
+  const std::string& sample_class = type.desc->class_name;
   json data = json::parse(rack::payload_to_json(type.data_fields, sample, native), nullptr, false);
   if (data.is_discarded()) return std::nullopt;
-  trim_arrays(a.class_id(), data);
-  // Enums and addresses by name beside the raw values (as rackctl get-data).
+  if (sample_class == kPosition) robots[comp.system].position_time_ns = sh.time_ns;
+  // Whether the joystick is the chassis' active pilot (a field of its data).
+  if (sample_class == kChassis && data.contains("active_pilot") && data["active_pilot"].is_number_unsigned()) {
+    robots[comp.system].claimed = data["active_pilot"].get<uint64_t>() == reply_mailbox.address().raw();
+  }
+  trim_arrays(sample_class, data);
+  // Enums and addresses by name beside the raw values (as rackctl get-data); an
+  // address by the name its class describes (Pilot(0/0)).
   json names = json::object();
-  const std::string names_text = rack::tools::field_names_json(type.desc->value_names, type.data_fields, sample,
-                                                               native);
+  const std::string names_text = rack::tools::field_names_json(
+      type.desc->value_names, type.data_fields, sample, native, [this](Address named) {
+        (void)described(named);  // its class name for the next sample, when not known yet
+        return address_text(named);
+      });
   if (!names_text.empty()) names = json::parse(names_text, nullptr, false);
   if (names.is_discarded()) names = json::object();
   json m{{"type", "data"},          {"component", address_text(a)}, {"name", comp.info.name},
@@ -79,34 +81,52 @@ void Backend::Impl::poll_image(uint32_t raw) {
         if (it == components.end()) return;
         Component& comp = it->second;
         comp.data_pending = false;
+        // The image's fields by name through the camera class's description
+        // (CameraData: width, height, bytes used of `data`, format by its value name).
+        const auto ci = class_infos.find(raw & 0xFFFF0000u);
         wire::SampleHeader sh;
-        auto img = std::make_unique<ifc::CameraData>();
-        if (r == nullptr || r->header.type != msg::kData || r->body.size() != sizeof sh + sizeof *img ||
-            !wire::read_payload(r->body.first(sizeof sh), r->native(), sh) ||
-            !wire::read_payload(r->body.subspan(sizeof sh), r->native(), *img)) {
+        if (r == nullptr || r->header.type != msg::kData || ci == class_infos.end() || !ci->second.desc ||
+            !ci->second.desc->data || r->body.size() != sizeof sh + ci->second.desc->data->size ||
+            !wire::read_payload(r->body.first(sizeof sh), r->native(), sh)) {
           return;
         }
-        const std::size_t bytes = std::min<std::size_t>(img->bytes, sizeof img->data);
-        const char* format = img->format == ifc::kCameraRgb8    ? "rgb"
-                             : img->format == ifc::kCameraMono8 ? "mono"
-                             : img->format == ifc::kCameraJpeg  ? "jpeg"
-                                                                : "unknown";
+        const auto sample = r->body.subspan(sizeof sh);
+        const auto& fields = ci->second.data_fields;
+        const auto number = [&](const char* name) -> uint64_t {
+          const tims::FieldDesc* f = rack::tools::find_field(fields, name);
+          return f != nullptr ? rack::tools::unsigned_field(*f, sample, r->native()).value_or(0) : 0;
+        };
+        const tims::FieldDesc* pixels = rack::tools::find_field(fields, "data");
+        if (pixels == nullptr || pixels->kind != tims::FieldKind::kU8 || pixels->offset > sample.size() ||
+            sample.size() - pixels->offset < pixels->count) {
+          return;
+        }
+        const std::size_t bytes = std::min<std::size_t>(number("bytes"), pixels->count);
+        std::string format = "unknown";
+        const auto format_value = static_cast<uint32_t>(number("format"));
+        for (const auto& n : ci->second.desc->value_names) {
+          const char* text = n.field == "format" ? n.name_of(format_value) : nullptr;
+          if (text == nullptr) continue;
+          const std::string_view v = text;
+          format = v == "RGB8" ? "rgb" : v == "MONO8" ? "mono" : v == "JPEG" ? "jpeg" : "unknown";
+        }
+        const auto* data = reinterpret_cast<const uint8_t*>(sample.data() + pixels->offset);
         broadcast(dump(json{{"type", "image"},
                             {"component", address_text(Address(raw))},
                             {"system", comp.system},
                             {"time_ns", sh.time_ns},
-                            {"width", img->width},
-                            {"height", img->height},
-                            {"frame", img->frame},
-                            {"dropped", img->dropped},
-                            {"bad_frames", img->bad_frames},
+                            {"width", number("width")},
+                            {"height", number("height")},
+                            {"frame", number("frame")},
+                            {"dropped", number("dropped")},
+                            {"bad_frames", number("bad_frames")},
                             {"format", format},
-                            {"data", base64(std::vector<uint8_t>(img->data, img->data + bytes))}}));
+                            {"data", base64(std::vector<uint8_t>(data, data + bytes))}}));
       },
       image_mailbox.address());
 }
 
-void Backend::Impl::trim_arrays(uint8_t cls, json& d) {
+void Backend::Impl::trim_arrays(const std::string& cls, json& d) {
   const auto cut = [&d](const char* count, std::initializer_list<const char*> arrays) {
     if (!d.contains(count) || !d[count].is_number_unsigned()) return;
     const auto n = d[count].get<std::size_t>();
@@ -115,16 +135,13 @@ void Backend::Impl::trim_arrays(uint8_t cls, json& d) {
         d[a].erase(d[a].begin() + static_cast<std::ptrdiff_t>(n), d[a].end());
     }
   };
-  switch (cls) {
-    case class_ids::kLadar: cut("beam_count", {"range", "intensity"}); break;
-    case class_ids::kScan2d: cut("point_count", {"x", "y", "range", "bearing", "type"}); break;
-    case class_ids::kPath:
-      cut("point_count", {"x", "y"});
-      cut("waypoint_count", {"waypoint_x", "waypoint_y"});
-      break;
-    case class_ids::kMcl: cut("shown", {"particle_x", "particle_y", "particle_phi", "particle_weight"}); break;
-    default: break;
+  if (cls == kLadar) cut("beam_count", {"range", "intensity"});
+  if (cls == kScan2d) cut("point_count", {"x", "y", "range", "bearing", "type"});
+  if (cls == kPath) {
+    cut("point_count", {"x", "y"});
+    cut("waypoint_count", {"waypoint_x", "waypoint_y"});
   }
+  if (cls == kMcl) cut("shown", {"particle_x", "particle_y", "particle_phi", "particle_weight"});
 }
 
 void Backend::Impl::poll_maps() {
@@ -143,11 +160,22 @@ void Backend::Impl::poll_maps() {
     }
     // The map the robot localises on: MCL's, else the simulators' `map` parameter.
     std::optional<Address> holder;
-    for (const uint8_t cls : {class_ids::kMcl, class_ids::kLadar, class_ids::kChassis}) {
+    for (const char* cls : {kMcl, kLadar, kChassis}) {
       if ((holder = find(s, cls))) break;
     }
     if (!holder) {
-      robot.map_retry = kMapRetryRounds;
+      // The holders are found by their described class names: while a component of
+      // the robot is not described yet (it has not answered), look again next round.
+      bool all_described = true;
+      for (const auto& [raw, c] : components) {
+        if (c.system != s) continue;
+        const auto ci = class_infos.find(raw & 0xFFFF0000u);
+        if (tims::class_name(Address(raw).class_id()) == nullptr &&
+            (ci == class_infos.end() || (!ci->second.desc && !ci->second.failed))) {
+          all_described = false;
+        }
+      }
+      if (all_described) robot.map_retry = kMapRetryRounds;
       continue;
     }
     robot.map_pending = true;

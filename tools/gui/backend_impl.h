@@ -20,6 +20,7 @@
 #include <optional>
 #include <set>
 #include <span>
+#include <string_view>
 #include <utility>
 
 #include "gdos_relay.h"
@@ -30,10 +31,6 @@
 #include "rack/core/parameters.h"
 #include "rack/core/payload_json.h"
 #include "rack/core/wire.h"
-#include "rack/interfaces/data_types.h"
-#include "rack/interfaces/devices.h"
-#include "rack/interfaces/navigation.h"
-#include "rack/interfaces/robot.h"
 #include "rack/maps/occupancy_map.h"
 #include "rack/rt/clock.h"
 #include "rack/tims/endpoint.h"
@@ -54,15 +51,14 @@ namespace backend_detail {
 using nlohmann::json;
 using tims::Address;
 namespace msg = tims::msg;
-namespace classes = tims::classes;
-namespace ifc = rack::interfaces;
 namespace rtrace = rack::trace;
 
 constexpr uint32_t kSlotSize = 64 * 1024;  // the largest polled sample (Path) is ~17 KiB
 constexpr uint32_t kReplySlots = 256;      // a poll round asks every component at once
 // Camera images (0.9 MB): their replies go to a mailbox of their own with large slots.
-constexpr uint32_t kImageSlotSize = static_cast<uint32_t>(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) +
-                                                          sizeof(rack::interfaces::CameraData));
+// rack-gui links no class: the image's size is its class description's (a camera
+// whose samples do not fit is shown without its image).
+constexpr uint32_t kImageSlotSize = 2 * 1024 * 1024;
 constexpr uint32_t kImageSlots = 2;
 constexpr int64_t kStaleNs = 1500 * rt::kNsPerMs;    // no status reply for this long: "no_reply"
 constexpr int64_t kDeadManNs = 400 * rt::kNsPerMs;   // joystick silent this long: MOVE 0
@@ -78,8 +74,6 @@ constexpr uint32_t kSmallStreamSlotSize = 4096;
 constexpr uint32_t kStreamSlots = 128;
 constexpr int64_t kStreamRetryNs = rt::kNsPerSec;  // a refused subscription: asked again after this
 
-inline std::string address_text(Address a) { return a.str(); }
-
 inline std::string class_text(Address a) {
   const char* c = tims::class_name(a.class_id());
   if (c != nullptr) return c;
@@ -87,6 +81,19 @@ inline std::string class_text(Address a) {
   std::snprintf(buf, sizeof buf, "Class0x%02x", a.class_id());
   return buf;
 }
+
+// Class names of the panels: rack-gui links no class and finds the components it
+// drives (the joystick's chassis, the pilot of a destination, ...) by the class name
+// their descriptions give, and sends their commands by name through those
+// descriptions (Impl::send_command).
+constexpr const char* kChassis = "Chassis";
+constexpr const char* kPilot = "Pilot";
+constexpr const char* kPosition = "Position";
+constexpr const char* kMcl = "MCL";
+constexpr const char* kLadar = "Ladar";
+constexpr const char* kCamera = "Camera";
+constexpr const char* kScan2d = "Scan2D";
+constexpr const char* kPath = "Path";
 
 inline std::string base64(const std::vector<uint8_t>& in) {
   static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -151,8 +158,9 @@ inline json type_json(const rack::TypeDescription& t) {
   return {{"name", t.name}, {"size", t.size}, {"fields", std::move(fields)}};
 }
 
+// `component`: the address text of the component asked about (a reply to get_class).
 inline std::string class_message(uint8_t system, const rack::ClassDescription& d,
-                                 std::optional<Address> component = std::nullopt) {
+                                 const std::optional<std::string>& component = std::nullopt) {
   json commands = json::array();
   for (const auto& c : d.commands) {
     commands.push_back({{"name", c.name},
@@ -180,7 +188,7 @@ inline std::string class_message(uint8_t system, const rack::ClassDescription& d
          {"data", d.data ? type_json(*d.data) : json(nullptr)},
          {"commands", std::move(commands)},
          {"parameters", std::move(params)}};
-  if (component) m["component"] = address_text(component->component());
+  if (component) m["component"] = *component;
   return dump(m);
 }
 
@@ -381,7 +389,7 @@ struct Backend::Impl {
   void receive_replies(int64_t wait_ns);
 
   // Describes a failed or refused reply for the user.
-  static std::string failure(const Reply* r, const std::string& what, Address dest);
+  std::string failure(const Reply* r, const std::string& what, Address dest) const;
 
   // ------------------------------------------------------------ discovery and state
   void refresh_hosts();
@@ -439,11 +447,24 @@ struct Backend::Impl {
 
   void class_command(uint64_t client, const Request& r);
 
-  // The name of a's class: TiMS' name, else its description's, else Class0xNN.
-  // Addresses stay in TiMS' form (Class0x91(2/0) for a class TiMS does not name): the
-  // dashboard sends them back in its requests, which gui_protocol parses without the
-  // descriptions; "class" carries the described name beside them.
+  // The class command `name` of the component at `a`, its body's fields by name from
+  // `fields` (through the class's description: rack-gui links no class, so the
+  // panels send Pilot's SET_DESTINATION or the chassis' MOVE as any plug-in's command).
+  // "" when it was sent (`done` gets the reply), else why nothing was sent.
+  std::string send_command(Address a, const std::string& name, const json& fields, ReplyHandler done);
+
+  // The name of a's class: TiMS' name (the executor's, tools'), else its
+  // description's, else Class0xNN (not described yet).
   std::string class_of(Address a) const;
+  // An address as the page shows it and sends it back: its class by name (Counter(2/0),
+  // a plug-in's as a built-in's); resolve_component() reads it.
+  std::string address_text(Address a) const { return rack::client::address_text(a, class_of(a)); }
+
+  // A request's component given by a class name TiMS does not know (every component
+  // class: rack-gui links none), as the page sends it: the component at that system
+  // and instance whose class describes itself with that name (or implementation
+  // name). False, with the client answered, when none is known (yet).
+  bool resolve_component(uint64_t client, Request& r);
   // Data the dashboard draws: the navigation classes every round, other classes with
   // a data type every `slow` rounds.
   void poll_data(uint64_t round);
@@ -459,13 +480,13 @@ struct Backend::Impl {
 
   // Fixed-capacity arrays are sent only up to their count (a scan of 541 beams, not
   // 1081 slots): a fifth of the bytes on a robot's Wi-Fi or SSH tunnel.
-  static void trim_arrays(uint8_t cls, json& d);
+  static void trim_arrays(const std::string& cls, json& d);
 
   std::string components_message() const;
 
-  // The first component of a class in a robot (lowest instance), preferring one that
-  // answers.
-  std::optional<Address> find(uint8_t system, uint8_t cls) const;
+  // The first component of a class (by the name its description gives) in a robot
+  // (lowest instance), preferring one that answers.
+  std::optional<Address> find(uint8_t system, std::string_view cls) const;
 
   // ------------------------------------------------------------ maps
   void poll_maps();

@@ -90,6 +90,9 @@ void Backend::Impl::poll_status() {
         default: return;
       }
       comp.last_reply_ns = rt::monotonic_ns();
+      // Its class by name (the list, addresses, the panels' components) as soon as
+      // it answers: rack-gui links no class.
+      if (comp.state != "not_available") (void)described(Address(raw));
     });
   }
 }
@@ -212,6 +215,7 @@ const ClassInfo* Backend::Impl::described(Address a) {
       const std::lock_guard lock(greet_mutex);
       class_messages[key] = message;
     }
+    gdos.set_class_name(key, info.desc->class_name);  // the log's sources by that name
     broadcast(std::move(message));
   });
   return nullptr;
@@ -225,7 +229,7 @@ void Backend::Impl::answer_class_waiters(uint32_t key, Address a, const rack::Cl
   class_waiters.erase(it);
   for (const auto& [client, r] : waiting) {
     if (d != nullptr) {
-      send_to(client, class_message(r.component.system(), *d, r.component));
+      send_to(client, class_message(r.component.system(), *d, address_text(r.component)));
       result(client, r, true, address_text(r.component) + ": class " + d->class_name + " described");
     } else {
       result(client, r, false, address_text(a.component()) + ": " + why);
@@ -239,6 +243,24 @@ std::string Backend::Impl::class_of(Address a) const {
     if (it != class_infos.end() && it->second.desc) return it->second.desc->class_name;
   }
   return class_text(a);
+}
+
+bool Backend::Impl::resolve_component(uint64_t client, Request& r) {
+  if (r.component_class.empty()) return true;
+  for (const auto& [raw, c] : components) {
+    const Address a(raw);
+    if (a.system() != r.component.system() || a.instance() != r.component.instance()) continue;
+    if (class_of(a) == r.component_class || c.info.impl == r.component_class) {
+      r.component = a;
+      r.component_class.clear();
+      return true;
+    }
+  }
+  result(client, r, false,
+         r.component_class + "(" + std::to_string(r.component.system()) + "/" + std::to_string(r.component.instance()) +
+             "): no component of that class is known at that system and instance (yet: its class is described "
+             "when it first answers)");
+  return false;
 }
 
 std::string Backend::Impl::components_message() const {
@@ -281,13 +303,13 @@ std::string Backend::Impl::components_message() const {
   return dump(json{{"type", "components"}, {"robots", robots_j}});
 }
 
-std::optional<Address> Backend::Impl::find(uint8_t system, uint8_t cls) const {
+std::optional<Address> Backend::Impl::find(uint8_t system, std::string_view cls) const {
   std::optional<Address> best;
   bool best_alive = false;
   const int64_t now = rt::monotonic_ns();
   for (const auto& [raw, c] : components) {
     const Address a(raw);
-    if (a.system() != system || a.class_id() != cls) continue;
+    if (a.system() != system || class_of(a) != cls) continue;
     const bool alive = shown_state(c, now) == "enabled";
     if (!best || (alive && !best_alive)) {
       best = a;

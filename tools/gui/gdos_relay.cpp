@@ -55,6 +55,11 @@ std::string GdosRelay::snapshot() const {
   return recent_.empty() ? std::string() : gdos_message(recent_.begin(), recent_.end());
 }
 
+void GdosRelay::set_class_name(uint32_t key, std::string name) {
+  const std::lock_guard lock(mutex_);
+  class_names_[key] = std::move(name);
+}
+
 void GdosRelay::run() {
   std::unique_ptr<tims::GdosSubscriber> sub;
   try {
@@ -71,7 +76,13 @@ void GdosRelay::run() {
       sub->poll(100, [&](const tims::GdosRecord& r) {
         std::string name = r.name;
         if (name.empty()) name = sub->announced_name(r.source);
-        lines.push_back(gdos_view::json_line(r, name));
+        std::string cls;  // the source's class as it describes itself (set_class_name)
+        {
+          const std::lock_guard lock(mutex_);
+          const auto it = class_names_.find(r.source & 0xFFFF0000u);
+          if (it != class_names_.end()) cls = it->second;
+        }
+        lines.push_back(gdos_view::json_line(r, name, cls));
       });
     } catch (const std::exception& e) {
       std::fprintf(stderr, "rack-gui: GDOS: %s\n", e.what());

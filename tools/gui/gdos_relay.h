@@ -12,7 +12,9 @@
 #include <atomic>
 #include <cstddef>
 #include <deque>
+#include <cstdint>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -34,6 +36,9 @@ class GdosRelay {
   void stop();
   // The recent records as one "gdos" message ("" when there are none).
   [[nodiscard]] std::string snapshot() const;
+  // The class name that sources of `key` (system << 24 | class id << 16) describe
+  // (rack-gui links no class: its backend learns them by GET_CLASS). Any thread.
+  void set_class_name(uint32_t key, std::string name);
 
  private:
   void run();
@@ -44,8 +49,9 @@ class GdosRelay {
   const Publish publish_;
   std::atomic<bool> running_{false};
   std::thread thread_;
-  mutable std::mutex mutex_;        // recent_: the relay's thread -> snapshot()
-  std::deque<std::string> recent_;  // JSON records, oldest first
+  mutable std::mutex mutex_;                     // recent_: the relay's thread -> snapshot()
+  std::deque<std::string> recent_;               // JSON records, oldest first
+  std::map<uint32_t, std::string> class_names_;  // under mutex_ (set_class_name)
 };
 
 }  // namespace rack::gui

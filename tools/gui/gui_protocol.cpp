@@ -1,5 +1,6 @@
 #include "gui_protocol.h"
 
+#include "rack/client/session.h"  // parse_named_address
 #include "rack/core/payload_json.h"
 
 #include <algorithm>
@@ -7,6 +8,8 @@
 #include <cstring>
 #include <limits>
 #include <set>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 namespace rack::gui {
@@ -103,14 +106,26 @@ uint8_t system_of(const json& msg) {
   return static_cast<uint8_t>(*s);
 }
 
-tims::Address component_of(const json& msg) {
+// The address, and the class name when TiMS does not know it (every component class:
+// the backend resolves it against the classes' descriptions).
+std::pair<tims::Address, std::string> component_of(const json& msg) {
   const json& v = msg.at("component");
   if (!v.is_string()) throw Bad{"key 'component': expected an address text such as Chassis(0/0), got " + type_of(v)};
   const auto& text = v.get_ref<const std::string&>();
-  const auto a = text.size() <= kMaxQuoted ? tims::parse_address(text) : std::nullopt;
+  std::optional<tims::Address> a;
+  std::string cls;
+  if (text.size() <= kMaxQuoted) {
+    a = tims::parse_address(text);
+    if (!a) {
+      if (auto named = client::parse_named_address(text)) {
+        cls = std::move(named->first);
+        a = named->second;
+      }
+    }
+  }
   if (!a) throw Bad{"key 'component': '" + quote(text) + "' is not an address such as Chassis(0/0)"};
   if (a->mailbox() != 0) throw Bad{"key 'component': '" + quote(text) + "' names a mailbox, not a component"};
-  return *a;
+  return {*a, cls};
 }
 
 // JSON text -> value, refusing what the protocol never needs: deep nesting (bounded
@@ -203,7 +218,7 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
   try {
     switch (r.op) {
       case Op::kSwitch: {
-        r.component = component_of(msg);
+        std::tie(r.component, r.component_class) = component_of(msg);
         const json& on = msg.at("on");
         if (!on.is_boolean()) throw Bad{"key 'on': expected true or false, got " + type_of(on)};
         r.on = on.get<bool>();
@@ -211,16 +226,16 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
       }
       case Op::kGetParams:
       case Op::kGetClass:
-      case Op::kUnsubscribe: r.component = component_of(msg); break;
+      case Op::kUnsubscribe: std::tie(r.component, r.component_class) = component_of(msg); break;
       case Op::kSubscribe:
-        r.component = component_of(msg);
+        std::tie(r.component, r.component_class) = component_of(msg);
         if (msg.contains("period_ms")) {
           r.period_ms = number(msg, "period_ms", kMaxStreamPeriodMs);
           if (r.period_ms < 0.0) throw Bad{"key 'period_ms': 0 (every sample) or a period in ms"};
         }
         break;
       case Op::kCommand: {
-        r.component = component_of(msg);
+        std::tie(r.component, r.component_class) = component_of(msg);
         const json& n = msg.at("name");
         if (!n.is_string()) throw Bad{"key 'name': expected a command name, got " + type_of(n)};
         r.command_name = n.get<std::string>();
@@ -259,7 +274,7 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
         break;
       }
       case Op::kSetParam: {
-        r.component = component_of(msg);
+        std::tie(r.component, r.component_class) = component_of(msg);
         const json& n = msg.at("name");
         if (!n.is_string()) throw Bad{"key 'name': expected a string, got " + type_of(n)};
         r.param_name = n.get<std::string>();
@@ -310,7 +325,7 @@ std::variant<Request, ParseError> parse_checked(std::string_view text) {
         r.omega = number(msg, "omega", kMaxJoystickOmega);
         break;
       case Op::kCommandJson: {
-        r.component = component_of(msg);
+        std::tie(r.component, r.component_class) = component_of(msg);
         const json& c = msg.at("command");
         if (!c.is_string()) throw Bad{"key 'command': expected a command name such as INIT, got " + type_of(c)};
         const auto& name = c.get_ref<const std::string&>();

@@ -107,8 +107,12 @@ inline constexpr double kMaxStreamPeriodMs = 60000.0;  // "period_ms" of a subsc
 
 struct Request {
   Op op = Op::kSwitch;
-  std::optional<int64_t> id;                                // echoed in the result
-  tims::Address component;                                  // switch, get_params, set_param (command mailbox)
+  std::optional<int64_t> id;  // echoed in the result
+  tims::Address component;    // switch, get_params, set_param (command mailbox)
+  // The class name of `component` when TiMS does not know it (a component class:
+  // Chassis(0/0), Counter(2/0)); `component` then has class id 0 and the backend
+  // finds the component by the name its class describes. Empty: `component` is whole.
+  std::string component_class;
   uint8_t system = 0;                                       // robot-wide ops
   bool on = false;                                          // switch
   std::string param_name;                                   // set_param

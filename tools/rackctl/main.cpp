@@ -276,10 +276,20 @@ class Session : public rack::client::Session {
   explicit Session(const Options& o) : rack::client::Session(session_config(o)), options_(o) {}
 
   // The class name of `t`'s addresses from its description, when TiMS has no name
-  // for its class id (a class rackctl was not built with).
+  // for its class id: every component class (rackctl is built with none). A
+  // component that does not answer GET_CLASS at all would not answer the command's
+  // request either (its command task answers both): that ends the command now,
+  // after one wait, not two.
   void name_class(Target& t) {
     if (!t.class_name.empty() || tims::class_name(t.address.class_id()) != nullptr) return;
-    if (const rack::ClassDescription* d = describe(t.address)) t.class_name = d->class_name;
+    if (const rack::ClassDescription* d = describe(t.address)) {
+      t.class_name = d->class_name;
+    } else if (class_unanswered(t.address)) {
+      fail(kExitUnavailable, format("%s: no reply to GET_CLASS within %lld ms, %lld attempt(s) (is its rackd "
+                                    "running on %s?)",
+                                    t.label().c_str(), static_cast<long long>(options_.timeout_ms),
+                                    static_cast<long long>(options_.retries + 1), url().c_str()));
+    }
   }
 
   // NAME (host-file name) or address -> the component's command mailbox.
@@ -364,9 +374,6 @@ const char* state_name(int8_t reply_type) {
   }
 }
 
-// The class name of `a`: TiMS' name, else the one its class describes (GET_CLASS,
-// cached), else Class0xNN.
-std::string class_of(Session& s, Address a) { return s.class_name(a); }
 std::string class_label(const std::string& cls, const std::string& impl) {
   return impl.empty() ? cls : cls + "(" + impl + ")";
 }
@@ -405,7 +412,22 @@ int cmd_list(Session& s, const Options& o) {
                  rows.size() - answered, rows.size(), static_cast<long long>(o.retries + 1),
                  static_cast<long long>(o.timeout_ms));
   }
-  for (auto& r : rows) r.cls = class_of(s, r.info.address);
+  // Class names from the descriptions (rackctl is built with no class), every class
+  // at once (one shared deadline), asked of components that answered GET_STATUS: a
+  // component that did not answer costs no second wait, and is named by its class
+  // when another component of that class answered (else Class0xNN).
+  std::vector<Address> answering;
+  for (const auto& r : rows) {
+    if (r.state != "no reply") answering.push_back(r.info.address.component());
+  }
+  s.describe_all(answering);
+  for (auto& r : rows) {
+    const rack::ClassDescription* d = s.described(r.info.address);
+    const char* tims_name = tims::class_name(r.info.address.class_id());
+    r.cls = tims_name != nullptr ? tims_name
+            : d != nullptr       ? d->class_name
+                                 : format("Class0x%02x", r.info.address.class_id());
+  }
   if (o.json) {
     std::string out = "[";
     for (std::size_t i = 0; i < rows.size(); ++i) {
@@ -853,6 +875,9 @@ int cmd_classes(Session& s, const Options& o) {
                                         : format("no host '%s' with components answered discovery within %lld ms on %s",
                                                  only.c_str(), static_cast<long long>(o.discover_ms), s.url().c_str()));
   }
+  std::vector<Address> components;
+  for (const auto& [key, where] : seen) components.push_back(where.first);
+  s.describe_all(components);  // every class at once: one deadline for those that do not answer
   std::string json = "[";
   std::size_t undescribed = 0;
   for (const auto& [key, where] : seen) {
@@ -1006,7 +1031,7 @@ int cmd_set_param(Session& s, const Options& o) {
 
 // One DATA body (SampleHeader + sample) as a JSON line.
 // `d`: the class's description (nullptr or no data type: unknown, printed as hex).
-std::string sample_json(const Target& t, const rack::ClassDescription* d, const MessageHeader& h,
+std::string sample_json(Session& s, const Target& t, const rack::ClassDescription* d, const MessageHeader& h,
                         std::span<const std::byte> body) {
   const rack::TypeDescription* type = d != nullptr && d->data ? &*d->data : nullptr;
   wire::SampleHeader sh;
@@ -1020,8 +1045,12 @@ std::string sample_json(const Target& t, const rack::ClassDescription* d, const 
   if (type != nullptr && type->size == sample.size()) {
     j += ",\"data\":" + rack::payload_to_json(type->field_table(), sample, tims::body_is_native(h));
     // Enum and address fields by name beside their raw values (field_names.h).
+    // An address field names its component by the class that component describes
+    // (GET_CLASS, once per class).
     const std::string names = rack::tools::field_names_json(d->value_names, type->field_table(), sample,
-                                                            tims::body_is_native(h));
+                                                            tims::body_is_native(h), [&s](Address a) {
+                                                              return address_text(a, s.class_name(a));
+                                                            });
     if (!names.empty()) j += ",\"names\":" + names;
   } else {
     std::string hex;
@@ -1045,7 +1074,7 @@ int cmd_get_data(Session& s, const Options& o) {
   const MessageHeader reply = r.reply;
   const std::vector<std::byte> body(r.body.begin(), r.body.end());
   const rack::ClassDescription* d = s.describe(t.address);
-  std::printf("%s\n", sample_json(t, d, reply, body).c_str());
+  std::printf("%s\n", sample_json(s, t, d, reply, body).c_str());
   return kExitOk;
 }
 
@@ -1140,7 +1169,7 @@ int cmd_watch(Session& s, const Options& o) {
                      rep.period_ns > 0 ? double_text(static_cast<double>(rep.period_ns) / 1e6).c_str() : "unknown");
       },
       [&](int64_t, const MessageHeader& h, std::span<const std::byte> body, std::size_t) {
-        const std::string line = sample_json(t, described, h, body);
+        const std::string line = sample_json(s, t, described, h, body);
         if (std::printf("%s\n", line.c_str()) < 0 || std::fflush(stdout) != 0) return false;  // stdout closed
         return !(o.count > 0 && ++received >= o.count);
       },
@@ -1584,7 +1613,10 @@ const std::vector<Command>& commands() {
        "The requests go out together, at most 24 outstanding; one not answered within\n"
        "--timeout is sent again (--retries times). STATE is ENABLED, DISABLED, ERROR,\n"
        "or 'no reply' when no attempt was answered (their number is printed on\n"
-       "stderr). --json prints one JSON array instead.",
+       "stderr). CLASS is the name each class describes itself with (GET_CLASS to one\n"
+       "answering component per class, all at once, within one --timeout x attempts):\n"
+       "rackctl is built with no class. A component that did not answer shows as\n"
+       "Class0xNN unless another of its class did. --json prints one JSON array instead.",
        cmd_list},
       {"hosts",
        "hosts [--json]",

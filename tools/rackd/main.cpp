@@ -125,7 +125,7 @@ void list_classes(const rack::ComponentRegistry& registry) {
     const bool plugin = std::any_of(manifests.begin(), manifests.end(),
                                     [&](const auto& p) { return p.impl == cls->impl; });
     std::printf("%s  (class %s, data task: %s%s)\n  %s\n", cls->impl.c_str(),
-                rack::tims::class_name(cls->class_id) ? rack::tims::class_name(cls->class_id) : "?",
+                rack::tims::class_name(cls->class_id) ? rack::tims::class_name(cls->class_id) : cls->impl.c_str(),
                 rack::describe(c->data_task_mode()), plugin ? ", plug-in, loaded" : "", cls->description.c_str());
     const auto& params = c->parameters();
     for (std::size_t i = 0; i < params.size(); ++i) {

@@ -101,6 +101,20 @@ class Session {
   // a class describes it alike. nullptr when the component does not answer it (an
   // older rackd, no such host) or its description is refused (the reason on stderr, once).
   const ClassDescription* describe(tims::Address component);
+  // The descriptions of the classes of `components`, all at once: GET_CLASS to the
+  // first component of each system and class not cached yet, the pages of every class
+  // in parallel rounds (fan-out), within one deadline of (retries + 1) x timeout for
+  // all of them, then cached as describe() caches them. Pass the components that
+  // answer first: a class whose component does not answer by the deadline is cached
+  // as not described (its name on stderr, once), and costs no other wait.
+  void describe_all(const std::vector<tims::Address>& components);
+  // The cached description of `component`'s class (describe(), describe_all()); never
+  // asks. nullptr: not asked yet, or not described.
+  [[nodiscard]] const ClassDescription* described(tims::Address component) const;
+  // True when the last GET_CLASS to `component`'s class got no reply at all (as
+  // opposed to a refusal or a malformed description): its command task does not
+  // answer, so neither will the next request to it.
+  [[nodiscard]] bool class_unanswered(tims::Address component) const;
   // The class name of `a`: TiMS' name, else the one its class describes (cached),
   // else Class0xNN.
   std::string class_name(tims::Address a);
@@ -121,12 +135,27 @@ class Session {
 
   static constexpr uint32_t kDataSlotSize = 1024 * 1024;  // a watch stream keeps up to 16 samples
   static constexpr uint32_t kFanoutSlots = 64;            // fan-out: small replies, many at once
-  static constexpr uint32_t kFanoutSlotSize = 4096;
+  // A CLASS page (kClassPageBytes and its header) fits: describe_all() fans out too.
+  static constexpr uint32_t kFanoutSlotSize = 16 * 1024;
   static constexpr std::size_t kFanoutWindow = 24;
   static constexpr uint32_t kUplinkSlots = 32;
 
  private:
   static tims::LcmTransportConfig transport_config(const SessionConfig& c);
+  // fan_out with a body per destination (`body_of(i)`, empty: none) that gives up on
+  // what is still unanswered at `deadline_ns` (monotonic; INT64_MAX: none).
+  using BodyOf = std::function<std::span<const tims::ConstBuffer>(std::size_t)>;
+  uint64_t fan_out(const std::vector<tims::Address>& dests, int8_t type, const BodyOf& body_of,
+                   const AnswerWithBody& answer, int64_t deadline_ns);
+  // A description's pages assembled (or `error`): decoded, checked and cached under
+  // `component`'s system and class.
+  const ClassDescription* finish_description(tims::Address component, const ClassPageAssembler& pages,
+                                             std::string error, bool unanswered);
+
+  struct ClassEntry {
+    std::optional<ClassDescription> desc;  // nullopt: not described (refused, malformed, no reply)
+    bool unanswered = false;               // no reply to GET_CLASS at all
+  };
 
   SessionConfig config_;
   // This tool's mailbox addresses, held by no other tool while it runs.
@@ -139,7 +168,7 @@ class Session {
   std::unique_ptr<tims::Endpoint> fanout_endpoint_;
   tims::LcmTransport transport_;
   std::vector<std::byte> buffer_;
-  std::map<uint32_t, std::optional<ClassDescription>> classes_;  // system | class id << 16
+  std::map<uint32_t, ClassEntry> classes_;  // system | class id << 16
 };
 
 }  // namespace rack::client

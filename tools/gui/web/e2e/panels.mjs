@@ -7,9 +7,10 @@
 //
 //   node e2e/panels.mjs --url URL --empty-url URL2 --stop-pid PID [--shots DIR] [--chromium PATH]
 //
-// URL: a rack-gui with configs/sim_mcl.yaml's robot 0 and a robot 2 (one Generator)
-// whose rackd is PID; it is stopped cleanly (SIGTERM) at the end and must leave the
-// list (rack-gui --forget-s). URL2: a rack-gui on a network where no robot runs.
+// URL: a rack-gui with configs/sim_mcl.yaml's robot 0 and a robot 2 (one Generator,
+// one Counter of a plug-in: tests/integration/plugin/counter_plugin.cpp) whose rackd
+// is PID; it is stopped cleanly (SIGTERM) at the end and must leave the list
+// (rack-gui --forget-s). URL2: a rack-gui on a network where no robot runs.
 import { chromium } from 'playwright-core';
 import { mkdirSync } from 'node:fs';
 import { join } from 'node:path';
@@ -138,6 +139,22 @@ try {
     return /^Pilot\(0\/0\) \(\d+\)$/.test(t) ? t : null;
   }, 5000);
   log(`numbers: chassis active_pilot '${pilotText}'`);
+
+  // 3b. A plug-in class (robot 2's Counter: neither rack-gui nor this page is built
+  // with it, nor with any class): its address by its class name, its data table by
+  // field name and its commands' forms, all from its class description.
+  await page.locator('[data-testid="comp-counter"] .name').click();
+  const count = await until('the plug-in\'s data table', async () => {
+    const t = await page.locator('[data-testid="data-table"] [data-field="count"]').textContent().catch(() => '');
+    return t !== '' ? t : null;
+  }, 10000);
+  const label = await page.locator('[data-testid="data-table"] [data-field="label"]').textContent();
+  const head = await page.locator('#d-head').textContent();
+  if (!head.includes('Counter(2/0)')) throw new Error(`the plug-in's heading reads '${head}'`);
+  if (!label.includes('plug-in')) throw new Error(`the plug-in's label field reads '${label}'`);
+  await page.locator('[data-testid="cmd-RESET"]').waitFor({ timeout: 10000 });
+  log(`plug-in: ${head.trim()}; count ${count}, label '${label}'; command RESET offered`);
+  await shot(page, 'panels-plugin.png');
 
   // 4. The map: legend with a toggle per layer, scale bar, cursor coordinates,
   // visible particles, follow mode, refit on resize, and the joystick beside it.

@@ -589,7 +589,7 @@ function onData(m) {
   plots.onData(m);
   if (m.class === 'Chassis' && m.system === st.view.system) {
     const c = m.data;
-    $('chassis-box').textContent = `vx ${c.vx.toFixed(2)} m/s  ω ${(c.omega * 180 / Math.PI).toFixed(0)}°/s\nbattery ${c.battery ? c.battery.toFixed(1) + ' V' : 'n/a'}\npilot ${pilotName(c.active_pilot)}\nwatchdog stops ${c.watchdog_stops}`;
+    $('chassis-box').textContent = `vx ${c.vx.toFixed(2)} m/s  ω ${(c.omega * 180 / Math.PI).toFixed(0)}°/s\nbattery ${c.battery ? c.battery.toFixed(1) + ' V' : 'n/a'}\npilot ${pilotName(c.active_pilot, m.names?.active_pilot)}\nwatchdog stops ${c.watchdog_stops}`;
   }
   if (st.selected === m.component && document.querySelector('#view-details.active')) renderDetails();
 }
@@ -597,17 +597,16 @@ setInterval(() => {
   const c = st.view.system !== null ? findData(st.view.system, 'Chassis') : null;
   if (c && isStale(c, performance.now())) $('chassis-box').textContent = 'chassis: no data (not answering)';
 }, 500);
-function pilotName(raw) {
+// The chassis' active pilot by its component name: rack-gui names the address field
+// through the chassis class's description (m.names.active_pilot: "Pilot(0/0)", a
+// tool's "Tool(254/N)"), as the list addresses components; no class ids here.
+function pilotName(raw, named) {
   if (!raw) return 'none';
-  const sys = raw >>> 24, cls = (raw >>> 16) & 255, inst = (raw >>> 8) & 255;
-  for (const c of st.comps.values()) {
-    const [, s, i] = /\((\d+)\/(\d+)\)/.exec(c.address) ?? [];
-    if (Number(s) === sys && Number(i) === inst && classIdMatches(c, cls)) return c.name;
-  }
-  return cls === 2 ? 'this dashboard (joystick)' : `0x${raw.toString(16)}`;
+  const c = named ? st.comps.get(named) : null;
+  if (c) return c.name;
+  if (named?.startsWith('Tool(')) return 'this dashboard (joystick)';
+  return named ?? `0x${raw.toString(16)}`;
 }
-const CLASS_IDS = { Chassis: 0x10, Ladar: 0x11, Camera: 0x12, Joystick: 0x15, Pilot: 0x19 };
-function classIdMatches(c, id) { return CLASS_IDS[c.class] === id; }
 
 function resizeMap() {
   const r = canvas.getBoundingClientRect();
