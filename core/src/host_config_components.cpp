@@ -189,8 +189,8 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
     if (old_timeout && given.count("silence_ms") == 0) {
       const YAML::Node v = old_timeout->second;
       warn(v.Mark(), "component '" + name +
-                         "': data_task.timeout_ms is now the parameter silence_ms (params: {silence_ms: " +
-                         v.Scalar() + "}; the old name still works: docs/parameters.md)");
+                         "': data_task.timeout_ms is now the parameter silence_ms (params: {silence_ms: " + v.Scalar() +
+                         "}; the old name still works: docs/parameters.md)");
       if (auto err = params.find("silence_ms")->set_from_text(v.Scalar())) error(v.Mark(), *err);
       else given_marks[params.find("silence_ms")] = v.Mark();
     }

@@ -155,7 +155,7 @@ TEST(GraphTest, LiveFlowsComeFromTheRunningSubscriptions) {
   EXPECT_NE(r.out.find(monitor_flow + R"("in_files":true})"), std::string::npos) << r.out;
   r = graph({kConfigs + "/demo.yaml"}, "dot");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("source, 10 ms\nrunning"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(R"(source, 10 ms\nrunning)"), std::string::npos) << r.out;  // DOT: a \n in the label
   EXPECT_NE(r.out.find("live only, 50 ms"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("not in these host files (a tool?)"), std::string::npos) << r.out;
 
