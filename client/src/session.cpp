@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <set>
 #include <stdexcept>
 
 #include "rack/rt/clock.h"
@@ -198,6 +199,31 @@ std::optional<std::pair<tims::ComponentInfo, std::string>> Session::find_by_clas
         return true;
       }
     }
+    // None there: the class's id from a component of that class anywhere else (ids are
+    // one per class name), so that the address is known and a request to it is
+    // answered by the network (NOT_AVAILABLE) rather than by a wait here.
+    std::vector<tims::Address> elsewhere;
+    std::vector<tims::ComponentInfo> others;
+    std::set<uint32_t> keys;
+    for (const auto& h : hosts) {
+      for (const auto& c : h.components) {
+        if (keys.insert(c.address.raw() & 0xFFFF0000u).second) {
+          others.push_back(c);
+          elsewhere.push_back(c.address.component());
+        }
+      }
+    }
+    describe_all(elsewhere);
+    for (const auto& c : others) {
+      const ClassDescription* d = describe(c.address);
+      if (d != nullptr && (d->class_name == class_name || d->impl == class_name)) {
+        tims::ComponentInfo there;
+        there.address = tims::Address::make(system, c.address.class_id(), instance);
+        there.impl = c.impl;
+        found = std::make_pair(there, d->class_name);
+        return true;
+      }
+    }
     return false;
   });
   return found;
@@ -257,7 +283,7 @@ void Session::describe_all(const std::vector<tims::Address>& components) {
     for (std::size_t i = 0; i < want.size(); ++i) {
       if (want[i].done) continue;
       want[i].request.offset = want[i].pages.next_offset();
-      want[i].request.sections = kClassSectionValueNames;
+      want[i].request.sections = kClassSectionValueNames | kClassSectionFieldUnits;  // as describe()
       asked.push_back(i);
       dests.push_back(want[i].component);
     }

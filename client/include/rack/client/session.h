@@ -92,7 +92,9 @@ class Session {
   // The component at system `system`, instance `instance` whose class describes
   // itself as `class_name` (its class or implementation name), by discovery and
   // GET_CLASS: addresses such as Counter(2/0) for a class TiMS does not know. The
-  // description's class name is returned beside it.
+  // description's class name is returned beside it. When no component of that class
+  // runs there, the address is made from the class id of one that runs elsewhere (a
+  // request to it is then answered NOT_AVAILABLE by the network).
   std::optional<std::pair<tims::ComponentInfo, std::string>> find_by_class(const std::string& class_name,
                                                                            uint8_t system, uint8_t instance);
 
