@@ -230,7 +230,9 @@ struct ClassInfo {
   std::vector<tims::FieldDesc> data_fields;  // desc->data's field table (names point into desc)
   rack::ClassPageAssembler pages;
   bool pending = false;  // a page request is out
-  bool failed = false;   // refused or malformed: not asked again
+  bool failed = false;   // refused or malformed: asked again only after kClassRetryNs
+  int64_t failed_ns = 0;
+  bool failure_said = false;  // the failure written to stderr (once)
 };
 
 // A component's data stream that clients subscribed to ("subscribe"): one

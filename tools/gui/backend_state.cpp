@@ -173,7 +173,15 @@ const ClassInfo* Backend::Impl::described(Address a) {
   const uint32_t key = a.raw() & 0xFFFF0000u;
   ClassInfo& ci = class_infos[key];
   if (ci.desc) return &ci;
-  if (ci.pending || ci.failed) return nullptr;
+  if (ci.pending) return nullptr;
+  // A refusal (a component asked while it was still starting) is asked again after a
+  // while, never every round and never given up for good.
+  constexpr int64_t kClassRetryNs = 2 * rt::kNsPerSec;
+  if (ci.failed) {
+    if (rt::monotonic_ns() - ci.failed_ns < kClassRetryNs) return nullptr;
+    ci.failed = false;
+    ci.pages = rack::ClassPageAssembler{};
+  }
   ci.pending = true;
   rack::ClassPageRequest q;
   q.offset = ci.pages.next_offset();
@@ -198,13 +206,17 @@ const ClassInfo* Backend::Impl::described(Address a) {
     if (error.empty() && d.class_id != a.class_id()) error = "describes another class id";
     if (!error.empty()) {
       info.failed = true;
+      info.failed_ns = rt::monotonic_ns();
       answer_class_waiters(key, a, nullptr, "its class description could not be read: " + error);
       {
         const std::lock_guard lock(counters_mutex);
         ++counters.bad_replies;
       }
-      std::fprintf(stderr, "rack-gui: %s: GET_CLASS: %s (its data is not shown)\n", address_text(a).c_str(),
-                   error.c_str());
+      if (!info.failure_said) {  // said once; it is asked again every kClassRetryNs
+        info.failure_said = true;
+        std::fprintf(stderr, "rack-gui: %s: GET_CLASS: %s (its data is not shown until it answers)\n",
+                     address_text(a).c_str(), error.c_str());
+      }
       return;
     }
     info.desc = std::move(d);
