@@ -1,5 +1,7 @@
 #include "rack/core/executor.h"
 
+#include <functional>
+
 #include <algorithm>
 
 #include "rack/tims/lcm_url.h"
@@ -441,43 +443,35 @@ void Executor::start_tasks(ComponentView& v) {
   auto task_cpus = [&hs](const TaskSettings& t) {
     return t.cpu >= 0 ? std::vector<int>{} : t.priority > 0 ? hs.rt_cpus : hs.housekeeping_cpus;
   };
-  auto* cmd_trace = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(hs.trace_ring_events)).get();
-  trace_.add_task(c.name() + " command task", c.name(), c.address().raw(), cmd_trace);
-  auto cmd = std::make_unique<rt::Thread>();
-  gdos::LogRing* cmd_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " command task");
-  const auto how = cmd->start(
-      {c.name().substr(0, 11) + ":cmd", s.command_task.priority, s.command_task.cpu, s.command_task.stack_bytes,
-       task_cpus(s.command_task)},
-      [&c, cmd_ring, cmd_trace, info = watch(s.command_task, ":cmd")] {
-        gdos::bind_thread_ring(cmd_ring);
-        rt::trace::bind_thread_ring(cmd_trace);
-        rt::modeswitch::TaskAttachment attach(info);
-        c.command_faults_.mark_started();  // start-up ends here
-        c.run_command_task();
-      },
-      options_.allow_rt_fallback);
-  v.realtime = how == rt::ThreadStart::kRealTime;
-  v.tasks_started = true;
-  fallback_ = fallback_ || how == rt::ThreadStart::kFallback;
-  threads_.push_back(std::move(cmd));
-  if (auto* dc = dynamic_cast<DataComponentBase*>(&c); dc != nullptr && c.data_task_mode() != DataTaskMode::kNone) {
-    auto* data_trace = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(hs.trace_ring_events)).get();
-    trace_.add_task(c.name() + " data task", c.name(), c.address().raw(), data_trace);
-    auto data = std::make_unique<rt::Thread>();
-    gdos::LogRing* data_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " data task");
-    const auto how2 = data->start(
-        {c.name().substr(0, 10) + ":data", s.data_task.priority, s.data_task.cpu, s.data_task.stack_bytes,
-         task_cpus(s.data_task)},
-        [dc, data_ring, data_trace, info = watch(s.data_task, ":data")] {
-          gdos::bind_thread_ring(data_ring);
-          rt::trace::bind_thread_ring(data_trace);
+  // One task's thread: its trace ring and GDOS ring, registered with the mode-switch
+  // detector before `run`'s first cycle; the start-up ends at faults.mark_started().
+  auto start_task = [&](const char* kind, const std::string& thread_name, const TaskSettings& t, const char* suffix,
+                        rt::TaskFaults& faults, std::function<void()> run) {
+    auto* ring = trace_rings_.emplace_back(std::make_unique<rt::trace::Ring>(hs.trace_ring_events)).get();
+    trace_.add_task(c.name() + " " + kind, c.name(), c.address().raw(), ring);
+    auto thread = std::make_unique<rt::Thread>();
+    gdos::LogRing* log_ring = &hub_.make_ring(hs.gdos.ring, c.name() + " " + kind);
+    const auto how = thread->start(
+        {thread_name, t.priority, t.cpu, t.stack_bytes, task_cpus(t)},
+        [log_ring, ring, &faults, run = std::move(run), info = watch(t, suffix)] {
+          gdos::bind_thread_ring(log_ring);
+          rt::trace::bind_thread_ring(ring);
           rt::modeswitch::TaskAttachment attach(info);
-          static_cast<Component*>(dc)->data_faults_.mark_started();  // start-up ends here
-          dc->run_data_task();
+          faults.mark_started();  // start-up ends here
+          run();
         },
         options_.allow_rt_fallback);
-    fallback_ = fallback_ || how2 == rt::ThreadStart::kFallback;
-    threads_.push_back(std::move(data));
+    fallback_ = fallback_ || how == rt::ThreadStart::kFallback;
+    threads_.push_back(std::move(thread));
+    return how;
+  };
+  const auto how = start_task("command task", c.name().substr(0, 11) + ":cmd", s.command_task, ":cmd",
+                              c.command_faults_, [&c] { c.run_command_task(); });
+  v.realtime = how == rt::ThreadStart::kRealTime;
+  v.tasks_started = true;
+  if (auto* dc = dynamic_cast<DataComponentBase*>(&c); dc != nullptr && c.data_task_mode() != DataTaskMode::kNone) {
+    (void)start_task("data task", c.name().substr(0, 10) + ":data", s.data_task, ":data", c.data_faults_,
+                     [dc] { dc->run_data_task(); });
   }
 }
 
