@@ -111,7 +111,10 @@ constexpr const char* kUsage =
     "                   process costs from what the task's code costs\n"
     "  --bare-lib       --bare-side, but the bare thread sleeps and reads the clock through\n"
     "                   librack_rt (rt::sleep_until_monotonic, rt::monotonic_ns) as the\n"
-    "                   data task does\n";
+    "                   data task does\n"
+    "  --bare-touch KB  --bare-side, and after each wake-up the bare thread reads and writes\n"
+    "                   KB KiB of its own locked memory (a stand-in for a cycle's work), to\n"
+    "                   tell how much a cycle's cache footprint moves the next wake-up\n";
 
 constexpr double kTargetP99 = 1.05;  // issue 20: median per-round ratio
 constexpr double kTargetP999 = 1.2;
@@ -136,6 +139,7 @@ struct Options {
   bool verbose = false;
   bool bare_side = false;
   bool bare_lib = false;
+  int bare_touch_kib = 0;  // --bare-touch: KiB written after each bare wake-up
 };
 
 // The background load: a shell command in its own process group, so that stopping it
@@ -347,7 +351,12 @@ void run_bare_segment(const Options& o, int seconds, Side& side) {
     int seconds;
     Side* side;
     std::string error;
-  } ctx{&o, seconds, &side, {}};
+    unsigned char* touch;  // --bare-touch: written after each wake-up (nullptr: none)
+    std::size_t touch_bytes;
+  };
+  // Allocated and written here, before the thread starts (memory is locked: no fault later).
+  std::vector<unsigned char> touch(static_cast<std::size_t>(o.bare_touch_kib) * 1024, 1);
+  Ctx ctx{&o, seconds, &side, {}, touch.empty() ? nullptr : touch.data(), touch.size()};
   auto body = [](void* arg) -> void* {
     auto& c = *static_cast<Ctx*>(arg);
     const int64_t period = static_cast<int64_t>(c.o->interval_us) * rt::kNsPerUs;
@@ -375,6 +384,11 @@ void run_bare_segment(const Options& o, int seconds, Side& side) {
       max_ns = std::max(max_ns, lat);
       h[std::min<std::size_t>(static_cast<std::size_t>(lat / rt::kNsPerUs), kBuckets - 1)] += 1;
       c.side->cycles += 1;
+      // A cycle's work stand-in: one read-modify-write per cache line of the buffer.
+      for (std::size_t i = 0; i < c.touch_bytes; i += 64) {
+        c.touch[i] = static_cast<unsigned char>(c.touch[i] + 1);
+      }
+      asm volatile("" ::: "memory");  // the stores are the point: keep them
       next += period;
       now = rt::from_timespec(woke);
       if (now >= next) next += ((now - next) / period + 1) * period;  // skip missed periods, like cyclictest
@@ -501,6 +515,11 @@ void parse(int argc, char** argv, Options& o) {
     else if (a == "--include-startup") o.include_startup = true;
     else if (a == "--bare-side") o.bare_side = true;
     else if (a == "--bare-lib") o.bare_side = o.bare_lib = true;
+    else if (a == "--bare-touch") {
+      o.bare_side = true;
+      o.bare_touch_kib = std::stoi(next());
+      if (o.bare_touch_kib < 0 || o.bare_touch_kib > 65536) throw std::invalid_argument("--bare-touch takes 0..65536 KiB");
+    }
     else if (a == "--free-phase") o.aligned = false;
     else if (a == "--modeswitch-only") {
       o.modeswitch_only = next();
