@@ -76,7 +76,9 @@ Every sample keeps its recorded time.
                        channel /rack/<system>/NAME) of the first played sample's time
   --init-sigma-xy M    its spread (default 0.1 m)
   --init-sigma-phi R   (default 0.05 rad)
-  --wait S             wait this long for the host's components (default 30 s)
+  --wait S             wait this long for the host's components to be listed, described
+                       and enabled (default 30 s; the host may start after the player);
+                       what is missing is said after 1 s, and at the end
 
 Exit status: 0 after SIGINT, SIGTERM or --duration (play: every sample acknowledged); 1
 when rack-gui cannot be reached, the arguments are wrong or (play) a sample was refused;

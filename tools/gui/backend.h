@@ -10,6 +10,12 @@
 //               discovery: it is kept in the list, never shown with its last state);
 //   "not_available": the network answered NOT_AVAILABLE for it.
 //
+// A component's address text (in "components", "data", "class" messages) names its
+// class by number, Class0x11(0/0), until its class description has come, and by the
+// name the description gives, Ladar(0/0), after (rack-gui links no class): a client
+// takes each "components" message as the whole list (it lists every component), and
+// follows a component it chose by robot, host and name. Requests may carry either form.
+//
 // A host that the network no longer announces is kept (its components "no_reply") for
 // host_forget_ms, then removed from the list with its components, and the browsers are
 // told so.

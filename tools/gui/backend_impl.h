@@ -366,12 +366,26 @@ struct Backend::Impl {
       done(nullptr);
       return;
     }
-    // An older request to the same mailbox with the same sequence number (after 256
-    // sends) would take this reply: it has long timed out, drop it.
-    pending.erase(std::remove_if(pending.begin(), pending.end(),
-                                 [&](const Pending& p) { return p.dest == dest && p.seq == seq; }),
-                  pending.end());
+    // An older request to the same mailbox with the same sequence number (256 sends
+    // ago) would take this reply: it is given up now, its handler told "no reply" as at
+    // its deadline. Dropped without a word, it left its flag (status_pending,
+    // ClassInfo::pending, a stream's pending) set for good: a player's 250 PUBLISH a
+    // second wrap the sequence numbers within one reply timeout.
+    std::vector<ReplyHandler> displaced;
+    for (auto it = pending.begin(); it != pending.end();) {
+      if (it->dest == dest && it->seq == seq) {
+        displaced.push_back(std::move(it->done));
+        it = pending.erase(it);
+      } else {
+        ++it;
+      }
+    }
     pending.push_back(Pending{dest, seq, rt::monotonic_ns() + timeout_ns, std::move(done)});
+    if (!displaced.empty()) {
+      const std::lock_guard lock(counters_mutex);
+      counters.timeouts += displaced.size();
+    }
+    for (auto& d : displaced) d(nullptr);
   }
   void request(Address dest, int8_t type, ReplyHandler done, int64_t timeout_ns = 0) {
     request(dest, type, {}, timeout_ns > 0 ? timeout_ns : default_timeout(), std::move(done));

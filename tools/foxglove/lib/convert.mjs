@@ -132,17 +132,28 @@ export class Converter {
     return [];
   }
 
+  // Each "components" message lists every component rack-gui knows (all robots, every
+  // round): it replaces the list. Merged into it instead, a component's first entry
+  // stayed for good: rack-gui lists a component under its class number,
+  // Class0x11(0/0), until its class description arrives and under its class name,
+  // Ladar(0/0), after, so a client that connected before the description kept an
+  // entry of an undescribed class ahead of the described one (the player then waited
+  // for a class that never came: FoxgloveTest.ReplayIntoMclGivesTheRecordedLocalisation
+  // in CI under load).
   onComponents(m) {
     if (!Array.isArray(m.robots)) return this.reject('components message without robots');
+    const components = new Map();
+    const list = (v) => (Array.isArray(v) ? v : []);  // (a malformed entry lists nothing, never throws)
     for (const r of m.robots) {
-      for (const h of r?.hosts ?? []) {
-        for (const c of h?.components ?? []) {
+      for (const h of list(r?.hosts)) {
+        for (const c of list(h?.components)) {
           if (typeof c?.address !== 'string') continue;
-          this.components.set(c.address, { address: c.address, name: c.name, class: c.class, impl: c.impl,
-                                           system: r.system, state: c.state });
+          components.set(c.address, { address: c.address, name: c.name, class: c.class, impl: c.impl,
+                                      system: r.system, state: c.state });
         }
       }
     }
+    this.components = components;
     return [];
   }
 

@@ -88,23 +88,60 @@ export async function play(options, link, converter, log) {
     }
     return null;
   };
-  const deadline = Date.now() + options.waitS * 1000;
+  // A component listed before its class is described (rack-gui lists it as
+  // Class0xNN(s/i) until then): rack-gui is asked for the class ("get_class", answered
+  // when the description arrives), and its refusal is the reason shown.
+  const asked = new Map();  // address -> {at: Date.now(), why: rack-gui's refusal ('' while asked or described)}
+  const describe = (comp) => {
+    const a = asked.get(comp.address);
+    if (a && (a.why === '' || Date.now() - a.at < 2000)) return a.why;
+    asked.set(comp.address, { at: Date.now(), why: '' });
+    link.request({ op: 'get_class', component: comp.address }).then((r) => {
+      asked.set(comp.address, { at: Date.now(), why: r.ok ? '' : r.text });
+    });
+    return a?.why ?? '';
+  };
+  const reason = (t) => {
+    if (!t) return 'no component of that name';
+    if (!t.known) {
+      const why = describe(t.comp);
+      return `its class ${t.comp.class} is not described yet${why ? ` (rack-gui: ${why})` : ''}`;
+    }
+    if (!t.publish) return `${t.comp.class} takes no PUBLISH (not a playback class)`;
+    return `state ${t.comp.state}`;
+  };
+  const waitStart = Date.now();
+  const deadline = waitStart + options.waitS * 1000;
+  let waitingSaid = false;
   let targets;
   for (;;) {
     targets = new Map();
-    let pending = '';
+    const notReady = [];  // "<topic>: <why>" of every channel without its component ready
     for (const [id, ch] of channels) {
       const t = target(ch);
       if (t && t.publish && t.comp.state === 'enabled') targets.set(id, t.comp);
-      else if (options.topics) pending = `${ch.topic}: ${!t ? 'no component of that name' : !t.known ? 'class not described yet' : !t.publish ? `${t.comp.class} takes no PUBLISH (not a playback class)` : `state ${t.comp.state}`}`;
+      else notReady.push(`${ch.topic}: ${reason(t)}`);
     }
-    const mcl = options.initMcl ? [...converter.components.values()].find((c) => c.name === options.initMcl) : null;
-    const mclReady = !options.initMcl || (mcl && mcl.state === 'enabled' && converter.classOf(mcl.system, mcl.class));
-    if (targets.size > 0 && !pending && mclReady) break;
+    // Without --topics, a channel whose component is not a playback class is left out.
+    const pending = options.topics ? notReady : [];
+    let mclWhy = '';
+    if (options.initMcl) {
+      const mcl = [...converter.components.values()].find((c) => c.name === options.initMcl);
+      if (!mcl) mclWhy = 'no component of that name';
+      else if (!converter.classOf(mcl.system, mcl.class)) mclWhy = reason({ comp: mcl, known: false });
+      else if (mcl.state !== 'enabled') mclWhy = `state ${mcl.state}`;
+    }
+    if (targets.size > 0 && pending.length === 0 && !mclWhy) break;
+    const why = [...(targets.size === 0 ? notReady : pending), ...(mclWhy ? [`--init-mcl ${options.initMcl}: ${mclWhy}`] : [])];
     if (Date.now() > deadline) {
       throw new Error(targets.size === 0
-        ? `no recorded channel has a playback component of its name running in the host (${[...channels.values()].map((c) => c.topic).join(', ') || 'no component channels in the file'})${pending ? `; ${pending}` : ''}`
-        : pending || `MCL '${options.initMcl}' is not enabled in the host`);
+        ? `no recorded channel has a playback component of its name running in the host (${[...channels.values()].map((c) => c.topic).join(', ') || 'no component channels in the file'})${why.length ? `: ${why.join('; ')}` : ''}`
+        : `not every channel's component is ready after ${options.waitS} s: ${why.join('; ')}`);
+    }
+    // Said once, when rack-gui's first lists have come and still lack something.
+    if (!waitingSaid && Date.now() - waitStart >= 1000) {
+      waitingSaid = true;
+      log(`waiting up to ${options.waitS} s for the host's components: ${why.join('; ') || 'none listed yet'}`);
     }
     await sleep(200);
   }

@@ -78,7 +78,10 @@ try {
 
   // 2. Plots: fields from the class description; a live series that grows.
   await page.locator('[data-testid="tab-plots"]').click();
-  const addr = (cls, sys = 0) => page.evaluate(([c, s]) => [...window.__rack.comps.values()].find((x) => x.class === c && x.system === s)?.address, [cls, sys]);
+  // (A component is listed as Class0xNN(s/i) until rack-gui has its class description:
+  // under load that can be a few rounds after it answers.)
+  const addr = (cls, sys = 0) => until(`a ${cls} of robot ${sys} listed by its class name`, () => page.evaluate(([c, s]) =>
+    [...window.__rack.comps.values()].find((x) => x.class === c && x.system === s)?.address, [cls, sys]), 10000);
   const chassisAddr = await addr('Chassis');
   await page.locator('[data-testid="plot-component"]').selectOption(chassisAddr);
   await until('the chassis\' numeric fields from its class description', () => page.evaluate(() =>

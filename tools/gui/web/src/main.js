@@ -26,6 +26,7 @@ const st = {
   classes: new Map(),    // address -> its class description ("class" message)
   images: new Map(),     // camera address -> latest "image" message
   selected: null,        // address shown in the details view
+  selectedKey: null,     // its robot|host|name: followed when rack-gui renames its address
   log: [],               // GDOS records
   reports: [],           // mode-switch / crash reports from GDOS
   reportFiles: [],       // report files symbolized by rack-backtrace
@@ -141,7 +142,18 @@ function onComponents(m) {
   st.comps.clear();
   for (const r of m.robots) {
     for (const h of r.hosts) {
-      for (const c of h.components) st.comps.set(c.address, { ...c, system: r.system, host: h.host });
+      for (const c of h.components) st.comps.set(c.address, { ...c, system: r.system, host: h.host, hostKey: h.key });
+    }
+  }
+  // rack-gui lists a component under its class number (Class0x19(0/0)) until its class
+  // description comes, and under its class name (Pilot(0/0)) after: a component chosen
+  // before that stays chosen under its new address (else its view and command panel
+  // never came: GuiE2eTest.DashboardPanelsInChromium under CI load).
+  if (st.selected && !st.comps.has(st.selected) && st.selectedKey) {
+    const moved = [...st.comps.values()].find((c) => componentKey(c) === st.selectedKey);
+    if (moved) {
+      st.selected = moved.address;
+      send({ op: 'get_params', component: moved.address });
     }
   }
   // Redrawn only when something shown changed: a redraw between mouse-down and
@@ -254,8 +266,12 @@ $('tl-record').onclick = () => {
 for (const b of document.querySelectorAll('#tabs button')) b.onclick = () => showView(b.dataset.view);
 
 // ---------------------------------------------------------------- details: parameters, timing, class views
+// A component's identity across the address renames of onComponents: its robot, host and name.
+function componentKey(c) { return `${c.system}|${c.hostKey}|${c.name}`; }
 function selectComponent(address) {
   st.selected = address;
+  const c = st.comps.get(address);
+  st.selectedKey = c ? componentKey(c) : null;
   send({ op: 'get_params', component: address });
   showView('details');
 }
