@@ -166,6 +166,59 @@ TEST_F(PluginClassTest, ABrokenPluginIsAnErrorWithTheClassAndTheLibrary) {
   }
 }
 
+// A stale plug-in (built against other RACK-RT headers) is refused before any of its
+// code runs (rack/core/plugin_abi.h), with the file, the ABI it was built for and the
+// one rackd expects; an unstamped one (built before stamps) alike. As with any other
+// bad plug-in the host file is refused (exit 2, its errors counted), whether the file
+// names the library or a manifest leads to it.
+TEST_F(PluginClassTest, AStalePluginIsRefusedBeforeItsCodeRuns) {
+  const auto listing = run({kRackd, "--list-classes"}, 30s);
+  ASSERT_EQ(listing.exit_code, 0) << listing.describe();
+  const std::string marker = "plug-ins must be built for plug-in ABI ";
+  const auto at = listing.out.find(marker);
+  ASSERT_NE(at, std::string::npos) << listing.out;
+  const std::string expected = listing.out.substr(at + marker.size(),
+                                                  listing.out.find(" (rack/", at) - at - marker.size());
+  ASSERT_EQ(expected.size(), std::string("0123456789abcdef (RACK-RT 0.1.0)").size()) << expected;
+
+  const std::string foreign = RACK_FOREIGN_PLUGIN_PATH;
+  const std::string unstamped = RACK_UNSTAMPED_PLUGIN_PATH;
+  for (const auto& [lib, built_for] : std::vector<std::pair<std::string, std::string>>{
+           {foreign, "was built for plug-in ABI 0123456789abcdef (RACK-RT 0.0.1)"},
+           {unstamped, "carries no ABI stamp"}}) {
+    // The library named in `plugins:`, beside a good component.
+    const auto host = dir_.write("stale.yaml", "host: it-stale\nsystem: 0\nplugins: [" + lib +
+                                                   "]\ncomponents:\n  - name: gen\n    class: Generator\n"
+                                                   "    instance: 0\n    data_task: {period_ms: 10}\n");
+    for (const bool check : {true, false}) {
+      std::vector<std::string> args{kRackd, host.string()};
+      if (check) args.insert(args.begin() + 1, "--check");
+      const auto r = run(args, 30s);
+      EXPECT_EQ(r.exit_code, 2) << r.describe();
+      EXPECT_TRUE(contains(r.err, host.string() + ":3:")) << "the plugins: entry: " << r.err;
+      EXPECT_TRUE(contains(r.err, "plug-in " + lib + " " + built_for)) << r.err;
+      EXPECT_TRUE(contains(r.err, "this rackd expects ABI " + expected)) << r.err;
+      EXPECT_TRUE(contains(r.err, "1 error(s) in " + host.string())) << r.err;
+      EXPECT_FALSE(contains(r.err, "its code ran")) << "dlopen ran the plug-in's constructor: " << r.err;
+    }
+    // Found by class name through a manifest: the error names the class too.
+    dir_.write("StaleClass.rack-class", "class StaleClass\nlibrary " + lib + "\n");
+    const auto by_name = dir_.write("by_name.yaml", "host: it-stale\nsystem: 0\nplugins: [" + dir_.path().string() +
+                                                        "]\ncomponents:\n  - name: old\n    class: StaleClass\n"
+                                                        "    instance: 0\n");
+    const auto r = run({kRackd, "--check", by_name.string()}, 30s);
+    EXPECT_EQ(r.exit_code, 2) << r.describe();
+    EXPECT_TRUE(contains(r.err, "class 'StaleClass'")) << r.err;
+    EXPECT_TRUE(contains(r.err, built_for)) << r.err;
+    EXPECT_TRUE(contains(r.err, "this rackd expects ABI " + expected)) << r.err;
+    EXPECT_FALSE(contains(r.err, "its code ran")) << r.err;
+  }
+  // The in-tree plug-in carries rackd's stamp (readelf -n shows the note).
+  const auto notes = run({"/usr/bin/readelf", "-n", kTestPlugins + "/librack_plugin_test_counter.so"}, 30s);
+  ASSERT_EQ(notes.exit_code, 0) << notes.describe();
+  EXPECT_TRUE(contains(notes.out, "RACK")) << notes.out;
+}
+
 // Plug-in classes offline (issue 25): `rackd --list-classes --json HOSTFILE` searches
 // the file's plugins: directories and describes the plug-in classes it names in full
 // (class id, parameters), so `rackctl graph` gives a plug-in component its address
