@@ -1330,10 +1330,15 @@ bool write_text_file(const std::string& path, const std::string& text) {
 }
 
 // The hosts discovery found, as a deployment without host files (graph/alloc --live
-// with no FILE): each host with its components' names, classes and addresses; no
-// parameters, so every flow drawn is a live one (GET_LISTENERS).
+// with no FILE): each host with its components' names, classes and addresses, and
+// whether each has a data task and its period (GET_STATS); no parameters, so every
+// flow drawn is a live one (GET_LISTENERS). The tasks' priorities and CPUs are in the
+// host files only (neither discovery nor GET_STATS carries them): they are marked not
+// known (Host::tasks_known), not shown as the defaults.
 std::vector<rack::deploy::Host> discovered_hosts(Session& s) {
   std::vector<rack::deploy::Host> hosts;
+  std::vector<Address> dests;
+  std::vector<std::pair<std::size_t, std::size_t>> who;
   for (const auto& info : s.discover([](const std::vector<tims::HostInfo>&) { return false; })) {
     rack::deploy::Host h;
     h.file = "discovery on " + (info.network.empty() ? s.url() : info.network);
@@ -1341,6 +1346,7 @@ std::vector<rack::deploy::Host> discovered_hosts(Session& s) {
     h.system = info.system;
     h.host_id = info.host_id;
     h.role = tims::describe(info.role);
+    h.tasks_known = false;
     for (const auto& ci : info.components) {
       rack::deploy::Component c;
       c.name = ci.name;
@@ -1349,11 +1355,22 @@ std::vector<rack::deploy::Host> discovered_hosts(Session& s) {
       c.instance = ci.address.instance();
       c.address = ci.address.component().raw();
       c.address_text = rack::client::address_text(ci.address.component(), c.class_name);
+      c.command_task = {-1, -1, 0, 0};
+      c.data_task = {-1, -1, 0, 0};
+      dests.push_back(ci.address.component());
+      who.emplace_back(hosts.size(), h.components.size());
       h.components.push_back(std::move(c));
     }
     hosts.push_back(std::move(h));
   }
   if (hosts.empty()) fail(kExitUnavailable, "no host answered discovery on " + s.url() + " (and no host files given)");
+  s.fan_out(dests, msg::kGetStats, [&](std::size_t i, const MessageHeader& h, std::span<const std::byte> body) {
+    wire::StatsReply st;
+    if (h.type != msg::kStats || !wire::read_payload(body, tims::body_is_native(h), st)) return;
+    auto& c = hosts[who[i].first].components[who[i].second];
+    c.has_data_task = st.data_task != 0;
+    c.period_ns = st.period_ns;
+  });
   return hosts;
 }
 
@@ -1881,8 +1898,11 @@ const std::vector<Command>& commands() {
        "'!': a consumer's data task above its producer's on one CPU, and two data\n"
        "tasks with the same priority on one CPU. --live adds each data task's\n"
        "measured utilisation (execution p50 / period), worst wake-up latency and\n"
-       "state, and marks hosts that did not answer discovery as STALE. --json: the\n"
-       "deployment as one JSON object (what 'graph --format json' prints). Exit 1\n"
+       "state, and marks hosts that did not answer discovery as STALE. --live without\n"
+       "FILE lists what discovery finds: every component's tasks (a data task and its\n"
+       "period from GET_STATS) with priority '?' and 'priority and cpu not known', as\n"
+       "only the host files say them. --json: the deployment as one JSON object (what\n"
+       "'graph --format json' prints; a priority or cpu not known is null). Exit 1\n"
        "when a host file has errors.",
        cmd_alloc},
       {"help", "help [COMMAND]", 0, 1, {}, "Prints the usage, or a command's help.", cmd_help},
