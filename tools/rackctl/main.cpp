@@ -1031,8 +1031,12 @@ int cmd_set_param(Session& s, const Options& o) {
 
 // One DATA body (SampleHeader + sample) as a JSON line.
 // `d`: the class's description (nullptr or no data type: unknown, printed as hex).
+// `wait_for_names` false (a stream): an address field of a class not described yet is
+// printed as Class0xNN(s/i) and its description asked without waiting (describe_later;
+// the stream's loop polls it), so that a component that does not answer GET_CLASS
+// never holds up the samples.
 std::string sample_json(Session& s, const Target& t, const rack::ClassDescription* d, const MessageHeader& h,
-                        std::span<const std::byte> body) {
+                        std::span<const std::byte> body, bool wait_for_names = true) {
   const rack::TypeDescription* type = d != nullptr && d->data ? &*d->data : nullptr;
   wire::SampleHeader sh;
   if (body.size() < sizeof sh || !wire::read_payload(body.first(sizeof sh), tims::body_is_native(h), sh)) {
@@ -1047,10 +1051,12 @@ std::string sample_json(Session& s, const Target& t, const rack::ClassDescriptio
     // Enum and address fields by name beside their raw values (field_names.h).
     // An address field names its component by the class that component describes
     // (GET_CLASS, once per class).
-    const std::string names = rack::tools::field_names_json(d->value_names, type->field_table(), sample,
-                                                            tims::body_is_native(h), [&s](Address a) {
-                                                              return address_text(a, s.class_name(a));
-                                                            });
+    const std::string names = rack::tools::field_names_json(
+        d->value_names, type->field_table(), sample, tims::body_is_native(h), [&s, wait_for_names](Address a) {
+          if (wait_for_names) return address_text(a, s.class_name(a));
+          if (tims::class_name(a.class_id()) == nullptr && s.described(a) == nullptr) s.describe_later({a});
+          return address_text(a, s.known_class_name(a));
+        });
     if (!names.empty()) j += ",\"names\":" + names;
   } else {
     std::string hex;
@@ -1160,7 +1166,13 @@ void stream_samples(Session& s, const Target& t, double period_ms, Subscribed su
 
 int cmd_watch(Session& s, const Options& o) {
   const Target t = s.resolve(o.args[0]);
+  // Its own class: asked before the subscription (no sample waits for it); when it
+  // does not answer (said on stderr), the samples are printed raw (data_hex).
   const rack::ClassDescription* described = s.describe(t.address);
+  if (described == nullptr) {
+    std::fprintf(stderr, "rackctl: watch: %s: its class is not described: samples are printed as data_hex\n",
+                 t.label().c_str());
+  }
   int64_t received = 0;
   stream_samples(
       s, t, o.period_ms,
@@ -1169,11 +1181,15 @@ int cmd_watch(Session& s, const Options& o) {
                      rep.period_ns > 0 ? double_text(static_cast<double>(rep.period_ns) / 1e6).c_str() : "unknown");
       },
       [&](int64_t, const MessageHeader& h, std::span<const std::byte> body, std::size_t) {
-        const std::string line = sample_json(s, t, described, h, body);
+        // Components its address fields name: described without waiting (see sample_json).
+        const std::string line = sample_json(s, t, described, h, body, false);
         if (std::printf("%s\n", line.c_str()) < 0 || std::fflush(stdout) != 0) return false;  // stdout closed
         return !(o.count > 0 && ++received >= o.count);
       },
-      [](int64_t) { return true; });
+      [&](int64_t) {
+        s.poll_descriptions();  // never waits; one that gives up says so on stderr
+        return true;
+      });
   return kExitOk;
 }
 
@@ -1749,7 +1765,11 @@ const std::vector<Command>& commands() {
        "N samples. SIGINT/SIGTERM stop it too (exit 0). The producer going off: exit 1.\n"
        "The producer's stream ending (a replay at the end of its log): exit 0.\n"
        "No sample for 5 s: exit 3. The subscription is a lease (the producer's\n"
-       "lease_ms): renewed every lease / 4, so a killed watch frees its slot in time.",
+       "lease_ms): renewed every lease / 4, so a killed watch frees its slot in time.\n"
+       "Address fields name the component by its class (GET_CLASS, asked without\n"
+       "holding up the samples): Class0xNN(s/i) until the description arrives, and\n"
+       "for good when that component does not answer within --timeout x attempts\n"
+       "(said once on stderr); the watch goes on either way.",
        cmd_watch},
       {"send",
        "send NAME CMD [FIELD=VALUE ...] [--i64 N]",
