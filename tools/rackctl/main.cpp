@@ -126,7 +126,8 @@ commands:
                                 what discovery finds)
   alloc [--live] [--json] FILE|DIR ...
                                 RT tasks per CPU of each host, priority
-                                inversions flagged (--live: utilisation, latency)
+                                inversions flagged (--live: utilisation, latency;
+                                without FILE, what discovery finds, priorities '?')
   help [COMMAND]                this text, or a command's
 
 NAME is a component's name from its host file (found by discovery), or an address

@@ -36,8 +36,9 @@ namespace {
 
 constexpr const char* kUsage = R"(usage: rackd [options] HOSTFILE.yaml
 
-Runs the components listed in a host file (see configs/demo.yaml for every key)
-until SIGINT or SIGTERM, then switches them OFF in reverse dependency order.
+Runs the components listed in a host file (configs/demo.yaml shows every key; an
+installed tree has it in <prefix>/share/rack/configs) until SIGINT or SIGTERM, then
+switches them OFF in reverse dependency order.
 
 options:
   --check            validate the host file and exit (nothing is started); also
