@@ -11,7 +11,14 @@ nothing but wake up).
 
     bench/footprint.py --rackd BUILD/tools/rackd [--before OTHER/tools/rackd
                        [--before-root OTHER_SOURCE_TREE]]
-                       [--rounds N] [--configs demo.yaml,sim_mcl.yaml] --json OUT
+                       [--rounds N] [--configs configs/demo.yaml,configs/sim_mcl.yaml]
+                       --json OUT
+
+--configs: host files, comma-separated. A relative one is looked up in the source tree
+the rackd runs from (this one; --before-root for the reference), then in that tree's
+configs/, then from the current directory; an absolute one is taken as given. So
+`demo.yaml`, `configs/demo.yaml` and the path of any host file all work, and the
+reference runs its own tree's file of that name.
 
 Needs root (mlockall, SCHED_FIFO); runs each rackd on its own LCM port (ttl=0).
 Where the locked memory goes is broken down from /proc/PID/smaps for the first
@@ -76,6 +83,20 @@ def locked_breakdown(pid):
 
 def threads(pid):
     return len(os.listdir(f"/proc/{pid}/task"))
+
+
+def resolve_config(config, root):
+    """The host file `config` names for a rackd of source tree `root`: an absolute path as
+    given; a relative one in `root`, else in root/configs/, else from the current directory."""
+    tried = []
+    for cand in ([config] if os.path.isabs(config) else
+                 [os.path.join(root, config), os.path.join(root, "configs", config), os.path.abspath(config)]):
+        if cand in tried:
+            continue
+        tried.append(cand)
+        if os.path.isfile(cand):
+            return cand
+    raise SystemExit(f"footprint.py: no host file '{config}' (tried {', '.join(tried)})")
 
 
 def run_rackd(rackd, config, port, settle_s, breakdown, root=ROOT):
@@ -152,7 +173,9 @@ def main():
     ap.add_argument("--before", help="the reference rackd (today's layout)")
     ap.add_argument("--before-root", help="the source tree whose configs/ the reference runs (default: this one)")
     ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--configs", default="configs/demo.yaml,configs/sim_mcl.yaml")
+    ap.add_argument("--configs", default="configs/demo.yaml,configs/sim_mcl.yaml",
+                    help="host files, comma-separated: a path, or a name in the tree's configs/ "
+                         "(demo.yaml); default %(default)s")
     ap.add_argument("--settle", type=float, default=1.0, help="seconds after 'running' before reading /proc")
     ap.add_argument("--json", required=True)
     a = ap.parse_args()
@@ -160,7 +183,11 @@ def main():
     layouts = [("plug-ins", os.path.abspath(a.rackd), ROOT)]
     if a.before:
         layouts.append(("before", os.path.abspath(a.before), os.path.abspath(a.before_root or ROOT)))
-    configs = a.configs.split(",")
+    configs = [c for c in a.configs.split(",") if c]
+    # Every host file found before anything runs (a typo fails at once, not after rounds).
+    for _, _, root in layouts:
+        for cfg in configs:
+            resolve_config(cfg, root)
     samples = {}  # (layout, config) -> [sample]
     port = 7720
     for r in range(a.rounds):
@@ -168,7 +195,7 @@ def main():
         for name, rackd, root in order:
             for cfg in configs:
                 port += 1
-                s = run_rackd(rackd, cfg, port, a.settle, breakdown=(r == 0), root=root)
+                s = run_rackd(rackd, resolve_config(cfg, root), port, a.settle, breakdown=(r == 0), root=root)
                 samples.setdefault((name, cfg), []).append(s)
                 print(f"round {r + 1} {name:8} {cfg:22} VmLck {s['vmlck_kb'] / 1024:7.1f} MiB  "
                       f"VmRSS {s['vmrss_kb'] / 1024:7.1f} MiB  {s['shared_objects']:3} .so  "

@@ -156,6 +156,7 @@ rack::ComponentClass rack_class_${C_NAME}() {
     # fails the build instead.
     target_link_options(${module} PRIVATE -Wl,--no-undefined)
     target_link_libraries(${module} PRIVATE rack::core)
+    rack_plugin_abi_note(${module})  # its ABI stamp (cmake/RackPlugin.cmake)
     if(COMMAND rack_set_warnings)
       rack_set_warnings(${module})
     endif()

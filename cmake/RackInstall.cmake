@@ -6,7 +6,8 @@
 #                   rack::interfaces)
 #   lib/rack/plugins/        component-class plug-ins (RACK_INSTALL_PLUGINDIR)
 #   lib/cmake/rack/          rackConfig.cmake, rackConfigVersion.cmake, rackTargets.cmake,
-#                            RackPlugin.cmake (rack_add_plugin)
+#                            RackPlugin.cmake (rack_add_plugin), rack_plugin_abi_note.cpp
+#                            (the ABI stamp of the installed headers, rack/core/plugin_abi.h)
 #   share/rack/configs/      the commented example host files
 #   share/rack/examples/     examples/out_of_tree_class
 #   share/rack-gui/web/      rack-gui's front end (when built: tools/gui/web, npm run build)
@@ -109,7 +110,7 @@ configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/rackConfig.cmake.in
 write_basic_package_version_file(${PROJECT_BINARY_DIR}/rackConfigVersion.cmake
                                  COMPATIBILITY SameMinorVersion)
 install(FILES ${PROJECT_BINARY_DIR}/rackConfig.cmake ${PROJECT_BINARY_DIR}/rackConfigVersion.cmake
-              ${PROJECT_SOURCE_DIR}/cmake/RackPlugin.cmake
+              ${PROJECT_SOURCE_DIR}/cmake/RackPlugin.cmake ${RACK_PLUGIN_ABI_NOTE_SOURCE}
         DESTINATION ${RACK_INSTALL_CMAKEDIR} COMPONENT Development)
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/examples/ DESTINATION ${CMAKE_INSTALL_DATADIR}/rack/examples
         COMPONENT Development)

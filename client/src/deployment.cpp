@@ -243,7 +243,22 @@ std::string dot_escape(const std::string& s) {
 
 std::string quoted(const std::string& s) { return "\"" + json_escape(s) + "\""; }
 
+// A priority in JSON: null when not known.
+std::string priority_json(int priority) { return priority < 0 ? std::string("null") : std::to_string(priority); }
+// A task's cpu in JSON: -1 not pinned, null when not known (Host::tasks_known).
+std::string cpu_json(const Host& h, const Task& t) {
+  return h.tasks_known ? std::to_string(t.cpu) : std::string("null");
+}
+
+// What a host found by discovery alone cannot say (its tasks' priorities and CPUs are
+// in its host file; discovery and GET_STATS do not carry them).
+constexpr const char* kTasksNotKnown = "priority and cpu not known without the host file";
+
+// "30", or "?" when not known.
+std::string priority_text(int priority) { return priority < 0 ? std::string("?") : std::to_string(priority); }
+
 std::string cpu_label(const Host& h, const Task& t) {
+  if (!h.tasks_known) return kTasksNotKnown;
   if (t.cpu >= 0) return "cpu " + std::to_string(t.cpu);
   if (t.priority > 0 && !h.rt_cpus.empty()) {
     std::string s = "rt cpus ";
@@ -254,9 +269,14 @@ std::string cpu_label(const Host& h, const Task& t) {
 }
 
 std::string task_text(const Host& h, const Component& c) {
-  std::string s = "cmd p" + std::to_string(c.command_task.priority) + " " + cpu_label(h, c.command_task);
+  if (!h.tasks_known) {
+    std::string s = "tasks: priority and cpu not known";
+    if (c.has_data_task) s += c.period_ns > 0 ? "\ndata task every " + ms_text(c.period_ns) : "\ndata task triggered";
+    return s;
+  }
+  std::string s = "cmd p" + priority_text(c.command_task.priority) + " " + cpu_label(h, c.command_task);
   if (c.has_data_task) {
-    s += "\ndata p" + std::to_string(c.data_task.priority) + " " + cpu_label(h, c.data_task);
+    s += "\ndata p" + priority_text(c.data_task.priority) + " " + cpu_label(h, c.data_task);
     s += c.period_ns > 0 ? ", every " + ms_text(c.period_ns) : ", triggered";
   }
   return s;
@@ -530,8 +550,9 @@ Deployment build(std::vector<Host> hosts, const std::vector<ClassInfo>* classes)
     std::map<std::string, CpuGroup> groups;
     for (std::size_t c = 0; c < host.components.size(); ++c) {
       const Component& comp = host.components[c];
+      // A host whose priorities are not known: every task, under one label.
       const auto place = [&](const Task& t, bool data) {
-        if (t.priority <= 0) return;
+        if (host.tasks_known && t.priority <= 0) return;
         CpuGroup& g = groups[cpu_label(host, t)];
         g.host = h;
         g.cpus = cpu_label(host, t);
@@ -541,6 +562,10 @@ Deployment build(std::vector<Host> hosts, const std::vector<ClassInfo>* classes)
       if (comp.has_data_task) place(comp.data_task, true);
     }
     for (auto& [label, g] : groups) {
+      if (!host.tasks_known) {  // nothing to compare: no flags
+        d.cpus.push_back(std::move(g));
+        continue;
+      }
       // Several CPUs (or any): the tasks share one only when the others are busy.
       const bool one_cpu = label.rfind("cpu ", 0) == 0 || (label.rfind("rt cpus ", 0) == 0 && host.rt_cpus.size() == 1);
       const std::string where = one_cpu ? " on " + label : " on " + label + " (not pinned: when they share a CPU)";
@@ -756,7 +781,9 @@ std::string allocation_text(const Deployment& d, const Live* live) {
     for (const CpuGroup& g : d.cpus) {
       if (g.host != h) continue;
       any = true;
-      s += "  " + g.cpus + "\n";
+      s += "  " + g.cpus;
+      if (!host.tasks_known) s += " (discovery does not carry them: rackctl alloc --live FILE|DIR ... shows them)";
+      s += "\n";
       char line[256];
       std::snprintf(line, sizeof line, "    %-4s %-20s %-5s %-10s", "PRIO", "COMPONENT", "TASK", "PERIOD");
       s += line;
@@ -764,7 +791,7 @@ std::string allocation_text(const Deployment& d, const Live* live) {
       for (const PlacedTask& t : g.tasks) {
         const Component& c = host.components[t.component];
         const std::string period = !t.data ? "-" : t.period_ns > 0 ? ms_text(t.period_ns) : "triggered";
-        std::snprintf(line, sizeof line, "    %-4d %-20s %-5s %-10s", t.priority, c.name.c_str(),
+        std::snprintf(line, sizeof line, "    %-4s %-20s %-5s %-10s", priority_text(t.priority).c_str(), c.name.c_str(),
                       t.data ? "data" : "cmd", period.c_str());
         s += line;
         if (const LiveTask* lt = live_task(live, h, t.component); lt != nullptr && t.data) {
@@ -815,12 +842,11 @@ std::string to_json(const Deployment& d, const Live* live) {
       const Component& comp = host.components[c];
       s += (c == 0 ? "{" : ",{") + std::string("\"name\":") + quoted(comp.name) + ",\"impl\":" + quoted(comp.impl) +
            ",\"address\":" + quoted(comp.address_text) + ",\"line\":" + std::to_string(comp.line) +
-           ",\"command_task\":{\"priority\":" + std::to_string(comp.command_task.priority) +
-           ",\"cpu\":" + std::to_string(comp.command_task.cpu) + "}";
+           ",\"command_task\":{\"priority\":" + priority_json(comp.command_task.priority) +
+           ",\"cpu\":" + cpu_json(host, comp.command_task) + "}";
       if (comp.has_data_task) {
-        s += ",\"data_task\":{\"priority\":" + std::to_string(comp.data_task.priority) +
-             ",\"cpu\":" + std::to_string(comp.data_task.cpu) + ",\"period_ns\":" + std::to_string(comp.period_ns) +
-             "}";
+        s += ",\"data_task\":{\"priority\":" + priority_json(comp.data_task.priority) +
+             ",\"cpu\":" + cpu_json(host, comp.data_task) + ",\"period_ns\":" + std::to_string(comp.period_ns) + "}";
       }
       if (const LiveTask* t = live_task(live, h, c)) {
         s += ",\"live\":{\"state\":" + quoted(t->state) +
@@ -875,7 +901,7 @@ std::string to_json(const Deployment& d, const Live* live) {
       const PlacedTask& p = g.tasks[t];
       s += (t == 0 ? "{" : ",{") + std::string("\"component\":") +
            quoted(d.hosts[g.host].components[p.component].name) + ",\"task\":" + quoted(p.data ? "data" : "command") +
-           ",\"priority\":" + std::to_string(p.priority) + ",\"period_ns\":" + std::to_string(p.period_ns) + "}";
+           ",\"priority\":" + priority_json(p.priority) + ",\"period_ns\":" + std::to_string(p.period_ns) + "}";
     }
     s += "],\"flags\":[";
     for (std::size_t f = 0; f < g.flags.size(); ++f) s += (f == 0 ? "" : ",") + quoted(g.flags[f]);

@@ -338,6 +338,95 @@ const ClassDescription* Session::finish_description(tims::Address component, con
   return &*slot.desc;
 }
 
+std::string Session::known_class_name(tims::Address a) const {
+  if (const char* cls = tims::class_name(a.class_id())) return cls;
+  if (const ClassDescription* d = described(a)) return d->class_name;
+  char text[16];
+  std::snprintf(text, sizeof text, "Class0x%02x", a.class_id());
+  return text;
+}
+
+void Session::ask_next_page(Asking& a) {
+  a.request.offset = a.pages.next_offset();
+  a.request.sections = kClassSectionValueNames | kClassSectionFieldUnits;  // as describe()
+  const tims::ConstBuffer part = tims::buffer_of(a.request);
+  uint8_t seq = 0;
+  // Not even queued counts as an attempt too: its deadline passes like any other.
+  (void)fanout_endpoint_->send(a.component, msg::kGetClass, std::span<const tims::ConstBuffer>(&part, 1),
+                               tims::Address(), &seq);
+  a.seqs.push_back(seq);
+  ++a.attempts;
+  a.deadline_ns = rt::monotonic_ns() + timeout_ns();
+}
+
+void Session::describe_later(const std::vector<tims::Address>& components) {
+  if (!fanout_mailbox_) throw std::logic_error("rack::client::Session: no fan-out mailbox without `streams`");
+  for (const tims::Address a : components) {
+    const uint32_t key = a.raw() & 0xFFFF0000u;
+    if (classes_.count(key) != 0) continue;
+    if (std::any_of(asking_.begin(), asking_.end(),
+                    [key](const Asking& w) { return (w.component.raw() & 0xFFFF0000u) == key; }))
+      continue;
+    asking_.push_back(Asking{a.component(), {}, {}, {}, 0, 0});
+    ask_next_page(asking_.back());
+  }
+}
+
+std::size_t Session::poll_descriptions() {
+  if (asking_.empty()) return 0;
+  std::vector<std::byte> buf(kFanoutSlotSize);
+  std::vector<std::pair<std::size_t, std::string>> ended;  // index, error ("" = complete)
+  for (;;) {
+    const auto got = fanout_mailbox_->receive(buf, tims::Mailbox::kNonBlocking);
+    if (got.status != tims::RecvStatus::kOk) break;
+    for (std::size_t i = 0; i < asking_.size(); ++i) {
+      Asking& a = asking_[i];
+      if (got.header.source() != a.component ||
+          std::find(a.seqs.begin(), a.seqs.end(), got.header.seq) == a.seqs.end() ||
+          std::any_of(ended.begin(), ended.end(), [i](const auto& e) { return e.first == i; })) {
+        continue;
+      }
+      const std::size_t have = std::min(got.length, buf.size());
+      const std::size_t skip = std::min(have, sizeof(tims::MessageHeader));
+      const std::span<const std::byte> body(buf.data() + skip, have - skip);
+      std::string error;
+      if (got.header.type != msg::kClass) {
+        error = std::string("GET_CLASS answered ") + reply_name(got.header.type) +
+                (got.header.type == msg::kError ? ": " + error_reason(body) : std::string());
+      } else if (a.pages.add(body, tims::body_is_native(got.header), error) && !a.pages.complete()) {
+        a.seqs.clear();
+        a.attempts = 0;
+        ask_next_page(a);
+        break;
+      }
+      ended.emplace_back(i, std::move(error));
+      break;
+    }
+    // Anything else: a duplicate (a reply to an earlier attempt) or stray: dropped.
+  }
+  const int64_t now = rt::monotonic_ns();
+  for (std::size_t i = 0; i < asking_.size(); ++i) {
+    Asking& a = asking_[i];
+    if (now < a.deadline_ns || std::any_of(ended.begin(), ended.end(), [i](const auto& e) { return e.first == i; })) {
+      continue;
+    }
+    if (a.attempts < static_cast<uint32_t>(config_.retries + 1)) {
+      ask_next_page(a);
+      continue;
+    }
+    ended.emplace_back(i, "no reply to GET_CLASS within " + std::to_string(config_.timeout_ms) + " ms x " +
+                              std::to_string(config_.retries + 1) + " attempt(s)");
+  }
+  // Finished ones leave the list (from the back, so the indices stay valid).
+  std::sort(ended.begin(), ended.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
+  for (auto& [i, error] : ended) {
+    const bool unanswered = error.rfind("no reply", 0) == 0;
+    (void)finish_description(asking_[i].component, asking_[i].pages, std::move(error), unanswered);
+    asking_.erase(asking_.begin() + static_cast<std::ptrdiff_t>(i));
+  }
+  return asking_.size();
+}
+
 const ClassDescription* Session::described(tims::Address component) const {
   const auto it = classes_.find(component.raw() & 0xFFFF0000u);
   return it != classes_.end() && it->second.desc ? &*it->second.desc : nullptr;

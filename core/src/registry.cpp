@@ -1,5 +1,6 @@
 #include "rack/core/registry.h"
 
+#include "rack/core/plugin_abi.h"
 #include "rack/rt/input_file.h"
 #include "rack/tims/address.h"
 
@@ -194,13 +195,17 @@ std::set<std::string> loaded_objects() {
 void ComponentRegistry::load_plugin(const std::string& path, bool lock_dependencies) {
   if (std::find(plugin_paths_.begin(), plugin_paths_.end(), path) != plugin_paths_.end()) return;
   // dlopen() would wait for ever on a FIFO and map whatever a device gives: a plug-in
-  // is a regular file (a path without '/' is dlopen's to search, as before).
-  if (path.find('/') != std::string::npos) {
-    std::string refused;
-    if (!rt::check_regular_file(path, kMaxPluginBytes, "plug-in", refused)) {
-      throw std::runtime_error("cannot load plug-in: " + refused);
-    }
+  // is a regular file. Its ABI stamp is checked before dlopen() runs any of its code
+  // (rack/core/plugin_abi.h), so it is named by a path (dlopen's own search would
+  // load a file this check has not read).
+  if (path.find('/') == std::string::npos) {
+    throw std::runtime_error("cannot load plug-in '" + path + "': give its path (with a '/', e.g. ./" + path + ")");
   }
+  std::string refused;
+  if (!rt::check_regular_file(path, kMaxPluginBytes, "plug-in", refused)) {
+    throw std::runtime_error("cannot load plug-in: " + refused);
+  }
+  if (!plugin_abi::check_plugin(path, kMaxPluginBytes, refused)) throw std::runtime_error(refused);
   const std::set<std::string> before = lock_dependencies ? std::set<std::string>{} : loaded_objects();
   void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (handle == nullptr) throw std::runtime_error(std::string("cannot load plug-in: ") + dlerror());

@@ -106,6 +106,40 @@ TEST(GraphTest, LiveShowsMeasurementsAndStaleHosts) {
   EXPECT_EQ(rackd.wait_exit(30s), std::optional<int>(0)) << rackd.err();
 }
 
+// `alloc --live` without host files: discovery and GET_STATS say which tasks run (a
+// data task and its period), not their priorities or CPUs (those are in the host files),
+// so it says it does not know them instead of printing the defaults (30 and 40).
+TEST(GraphTest, LiveAllocWithoutHostFilesSaysWhatItDoesNotKnow) {
+  Watchdog watchdog(60s, "GraphTest");
+  LcmBus bus;
+  TempDir dir;
+  Process rackd({kRackd, kConfigs + "/demo.yaml", "--lcm", bus.url()}, dir.path(), "rackd");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
+  const RunResult r = run({kRackctl, "--lcm", bus.url(), "--discover-ms", "1500", "alloc", "--live"}, 30s);
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_NE(r.out.find("  priority and cpu not known without the host file (discovery does not carry them"),
+            std::string::npos)
+      << r.out;
+  // The generator's data task, its period from GET_STATS, its priority '?'.
+  EXPECT_NE(r.out.find("    ?    generator            data  10 ms      "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("    ?    generator            cmd   -          "), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("    30   "), std::string::npos) << "a default shown as what runs: " << r.out;
+  EXPECT_EQ(r.out.find("    40   "), std::string::npos) << "a default shown as what runs: " << r.out;
+  const RunResult j = run({kRackctl, "--lcm", bus.url(), "--discover-ms", "1500", "alloc", "--live", "--json"}, 30s);
+  ASSERT_EQ(j.exit_code, 0) << j.describe();
+  EXPECT_NE(j.out.find(R"("command_task":{"priority":null,"cpu":null},"data_task":{"priority":null,"cpu":null,)"
+                       R"("period_ns":10000000})"),
+            std::string::npos)
+      << j.out;
+  // With the host file the priorities are the file's.
+  const RunResult f = run(
+      {kRackctl, "--lcm", bus.url(), "--discover-ms", "1500", "alloc", "--live", kConfigs + "/demo.yaml"}, 30s);
+  ASSERT_EQ(f.exit_code, 0) << f.describe();
+  EXPECT_EQ(f.out.find("not known"), std::string::npos) << f.out;
+  rackd.signal(SIGTERM);
+  EXPECT_EQ(rackd.wait_exit(30s), std::optional<int>(0)) << rackd.err();
+}
+
 // Live flows from the producers' listener tables (GET_LISTENERS): with no host file,
 // the demo's own subscription (monitor <- generator, every 10th sample) is drawn from
 // what runs; a `rackctl watch` shows up as a flow no file declares while it runs and is

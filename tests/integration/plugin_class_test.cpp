@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "process.h"
+#include "rack/components/class_ids.h"
 
 namespace rack::test {
 namespace {
@@ -164,6 +165,114 @@ TEST_F(PluginClassTest, ABrokenPluginIsAnErrorWithTheClassAndTheLibrary) {
     EXPECT_TRUE(contains(r.err, "class '" + cls + "'")) << r.err;
     EXPECT_TRUE(contains(r.err, expect)) << r.err;
   }
+}
+
+// A stale plug-in (built against other RACK-RT headers) is refused before any of its
+// code runs (rack/core/plugin_abi.h), with the file, the ABI it was built for and the
+// one rackd expects; an unstamped one (built before stamps) alike. As with any other
+// bad plug-in the host file is refused (exit 2, its errors counted), whether the file
+// names the library or a manifest leads to it.
+TEST_F(PluginClassTest, AStalePluginIsRefusedBeforeItsCodeRuns) {
+  const auto listing = run({kRackd, "--list-classes"}, 30s);
+  ASSERT_EQ(listing.exit_code, 0) << listing.describe();
+  const std::string marker = "plug-ins must be built for plug-in ABI ";
+  const auto at = listing.out.find(marker);
+  ASSERT_NE(at, std::string::npos) << listing.out;
+  const std::string expected = listing.out.substr(at + marker.size(),
+                                                  listing.out.find(" (rack/", at) - at - marker.size());
+  ASSERT_EQ(expected.size(), std::string("0123456789abcdef (RACK-RT 0.1.0)").size()) << expected;
+
+  const std::string foreign = RACK_FOREIGN_PLUGIN_PATH;
+  const std::string unstamped = RACK_UNSTAMPED_PLUGIN_PATH;
+  for (const auto& [lib, built_for] : std::vector<std::pair<std::string, std::string>>{
+           {foreign, "was built for plug-in ABI 0123456789abcdef (RACK-RT 0.0.1)"},
+           {unstamped, "carries no ABI stamp"}}) {
+    // The library named in `plugins:`, beside a good component.
+    const auto host = dir_.write("stale.yaml", "host: it-stale\nsystem: 0\nplugins: [" + lib +
+                                                   "]\ncomponents:\n  - name: gen\n    class: Generator\n"
+                                                   "    instance: 0\n    data_task: {period_ms: 10}\n");
+    for (const bool check : {true, false}) {
+      std::vector<std::string> args{kRackd, host.string()};
+      if (check) args.insert(args.begin() + 1, "--check");
+      const auto r = run(args, 30s);
+      EXPECT_EQ(r.exit_code, 2) << r.describe();
+      EXPECT_TRUE(contains(r.err, host.string() + ":3:")) << "the plugins: entry: " << r.err;
+      EXPECT_TRUE(contains(r.err, "plug-in " + lib + " " + built_for)) << r.err;
+      EXPECT_TRUE(contains(r.err, "this rackd expects ABI " + expected)) << r.err;
+      EXPECT_TRUE(contains(r.err, "1 error(s) in " + host.string())) << r.err;
+      EXPECT_FALSE(contains(r.err, "its code ran")) << "dlopen ran the plug-in's constructor: " << r.err;
+    }
+    // Found by class name through a manifest: the error names the class too.
+    dir_.write("StaleClass.rack-class", "class StaleClass\nlibrary " + lib + "\n");
+    const auto by_name = dir_.write("by_name.yaml", "host: it-stale\nsystem: 0\nplugins: [" + dir_.path().string() +
+                                                        "]\ncomponents:\n  - name: old\n    class: StaleClass\n"
+                                                        "    instance: 0\n");
+    const auto r = run({kRackd, "--check", by_name.string()}, 30s);
+    EXPECT_EQ(r.exit_code, 2) << r.describe();
+    EXPECT_TRUE(contains(r.err, "class 'StaleClass'")) << r.err;
+    EXPECT_TRUE(contains(r.err, built_for)) << r.err;
+    EXPECT_TRUE(contains(r.err, "this rackd expects ABI " + expected)) << r.err;
+    EXPECT_FALSE(contains(r.err, "its code ran")) << r.err;
+  }
+  // The in-tree plug-in carries rackd's stamp (readelf -n shows the note).
+  const auto notes = run({"/usr/bin/readelf", "-n", kTestPlugins + "/librack_plugin_test_counter.so"}, 30s);
+  ASSERT_EQ(notes.exit_code, 0) << notes.describe();
+  EXPECT_TRUE(contains(notes.out, "RACK")) << notes.out;
+}
+
+// rackctl watch names an address field by the class of the component it names
+// (GET_CLASS), asked without holding up the samples: when that component does not
+// answer (a Probe whose command task is busy in a slow on()), every sample still comes
+// in order (the old watch waited for the reply inside the stream, and the 16-slot data
+// mailbox dropped what arrived meanwhile), the field prints as Class0x42(0/0), and the
+// watch says once that the class went undescribed.
+TEST_F(PluginClassTest, WatchDoesNotWaitForAComponentThatDoesNotDescribeItsClass) {
+  LcmBus bus;
+  const uint32_t peer = uint32_t{rack::class_ids::kProbe} << 16;  // Probe(0/0)
+  const auto host = dir_.write("peer.yaml", "host: it-peer\nsystem: 0\nheap_prefault_mib: 8\nplugins: [" +
+                                                kTestPlugins +
+                                                "]\ncomponents:\n  - name: counter\n    class: TestCounter\n"
+                                                "    instance: 0\n    autostart: true\n"
+                                                "    data_task: {period_ms: 20}\n    params: {peer: " +
+                                                std::to_string(peer) +
+                                                "}\n  - name: stuck\n    class: Probe\n    instance: 0\n"
+                                                "    data_task: {period_ms: 100}\n    params: {on_delay_ms: 6000}\n");
+  Process rackd({kRackd, host.string(), "--lcm", bus.url()}, dir_.path(), "counter");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 20s)) << rackd.err();
+  // ON keeps the probe's command task in on() for 6 s: wait until it stops answering.
+  Process on({kRackctl, "--lcm", bus.url(), "--timeout", "10000", "on", "stuck"}, dir_.path(), "on");
+  bool busy = false;
+  for (int i = 0; i < 50 && !busy; ++i) {
+    busy = run({kRackctl, "--lcm", bus.url(), "--timeout", "200", "--retries", "0", "status", "stuck"}, 20s)
+               .exit_code == 3;
+  }
+  ASSERT_TRUE(busy) << "the probe kept answering";
+  // 100 samples at 50 Hz (2 s); the probe's GET_CLASS gives up after 1 s, meanwhile
+  // 50 samples arrive: more than the data mailbox holds.
+  const auto r = run(
+      {kRackctl, "--lcm", bus.url(), "--timeout", "1000", "--retries", "0", "watch", "counter", "--count", "100"}, 30s);
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  std::vector<long long> sequences;
+  std::size_t named = 0;
+  std::size_t from = 0;
+  while (from < r.out.size()) {
+    const auto end = r.out.find('\n', from);
+    const std::string line = r.out.substr(from, end == std::string::npos ? std::string::npos : end - from);
+    from = end == std::string::npos ? r.out.size() : end + 1;
+    const auto at = line.find("\"sequence\":");
+    ASSERT_NE(at, std::string::npos) << line;
+    sequences.push_back(std::stoll(line.substr(at + 11)));
+    if (contains(line, R"x("names":{"peer":"Class0x42(0/0)"})x")) ++named;
+  }
+  ASSERT_EQ(sequences.size(), 100u) << r.out;
+  for (std::size_t i = 1; i < sequences.size(); ++i) {
+    EXPECT_EQ(sequences[i], sequences[i - 1] + 1) << "a sample lost after sample " << i << ":\n" << r.out;
+  }
+  EXPECT_EQ(named, 100u) << r.out;
+  EXPECT_TRUE(contains(r.err, "no reply to GET_CLASS within 1000 ms x 1 attempt(s)")) << r.err;
+  EXPECT_EQ(on.wait_exit(20s), std::optional<int>(0)) << on.err();
+  rackd.signal(SIGTERM);
+  EXPECT_EQ(rackd.wait_exit(20s), std::optional<int>(0)) << rackd.err();
 }
 
 // Plug-in classes offline (issue 25): `rackd --list-classes --json HOSTFILE` searches

@@ -126,7 +126,8 @@ commands:
                                 what discovery finds)
   alloc [--live] [--json] FILE|DIR ...
                                 RT tasks per CPU of each host, priority
-                                inversions flagged (--live: utilisation, latency)
+                                inversions flagged (--live: utilisation, latency;
+                                without FILE, what discovery finds, priorities '?')
   help [COMMAND]                this text, or a command's
 
 NAME is a component's name from its host file (found by discovery), or an address
@@ -1031,8 +1032,12 @@ int cmd_set_param(Session& s, const Options& o) {
 
 // One DATA body (SampleHeader + sample) as a JSON line.
 // `d`: the class's description (nullptr or no data type: unknown, printed as hex).
+// `wait_for_names` false (a stream): an address field of a class not described yet is
+// printed as Class0xNN(s/i) and its description asked without waiting (describe_later;
+// the stream's loop polls it), so that a component that does not answer GET_CLASS
+// never holds up the samples.
 std::string sample_json(Session& s, const Target& t, const rack::ClassDescription* d, const MessageHeader& h,
-                        std::span<const std::byte> body) {
+                        std::span<const std::byte> body, bool wait_for_names = true) {
   const rack::TypeDescription* type = d != nullptr && d->data ? &*d->data : nullptr;
   wire::SampleHeader sh;
   if (body.size() < sizeof sh || !wire::read_payload(body.first(sizeof sh), tims::body_is_native(h), sh)) {
@@ -1047,10 +1052,12 @@ std::string sample_json(Session& s, const Target& t, const rack::ClassDescriptio
     // Enum and address fields by name beside their raw values (field_names.h).
     // An address field names its component by the class that component describes
     // (GET_CLASS, once per class).
-    const std::string names = rack::tools::field_names_json(d->value_names, type->field_table(), sample,
-                                                            tims::body_is_native(h), [&s](Address a) {
-                                                              return address_text(a, s.class_name(a));
-                                                            });
+    const std::string names = rack::tools::field_names_json(
+        d->value_names, type->field_table(), sample, tims::body_is_native(h), [&s, wait_for_names](Address a) {
+          if (wait_for_names) return address_text(a, s.class_name(a));
+          if (tims::class_name(a.class_id()) == nullptr && s.described(a) == nullptr) s.describe_later({a});
+          return address_text(a, s.known_class_name(a));
+        });
     if (!names.empty()) j += ",\"names\":" + names;
   } else {
     std::string hex;
@@ -1160,7 +1167,13 @@ void stream_samples(Session& s, const Target& t, double period_ms, Subscribed su
 
 int cmd_watch(Session& s, const Options& o) {
   const Target t = s.resolve(o.args[0]);
+  // Its own class: asked before the subscription (no sample waits for it); when it
+  // does not answer (said on stderr), the samples are printed raw (data_hex).
   const rack::ClassDescription* described = s.describe(t.address);
+  if (described == nullptr) {
+    std::fprintf(stderr, "rackctl: watch: %s: its class is not described: samples are printed as data_hex\n",
+                 t.label().c_str());
+  }
   int64_t received = 0;
   stream_samples(
       s, t, o.period_ms,
@@ -1169,11 +1182,15 @@ int cmd_watch(Session& s, const Options& o) {
                      rep.period_ns > 0 ? double_text(static_cast<double>(rep.period_ns) / 1e6).c_str() : "unknown");
       },
       [&](int64_t, const MessageHeader& h, std::span<const std::byte> body, std::size_t) {
-        const std::string line = sample_json(s, t, described, h, body);
+        // Components its address fields name: described without waiting (see sample_json).
+        const std::string line = sample_json(s, t, described, h, body, false);
         if (std::printf("%s\n", line.c_str()) < 0 || std::fflush(stdout) != 0) return false;  // stdout closed
         return !(o.count > 0 && ++received >= o.count);
       },
-      [](int64_t) { return true; });
+      [&](int64_t) {
+        s.poll_descriptions();  // never waits; one that gives up says so on stderr
+        return true;
+      });
   return kExitOk;
 }
 
@@ -1330,10 +1347,15 @@ bool write_text_file(const std::string& path, const std::string& text) {
 }
 
 // The hosts discovery found, as a deployment without host files (graph/alloc --live
-// with no FILE): each host with its components' names, classes and addresses; no
-// parameters, so every flow drawn is a live one (GET_LISTENERS).
+// with no FILE): each host with its components' names, classes and addresses, and
+// whether each has a data task and its period (GET_STATS); no parameters, so every
+// flow drawn is a live one (GET_LISTENERS). The tasks' priorities and CPUs are in the
+// host files only (neither discovery nor GET_STATS carries them): they are marked not
+// known (Host::tasks_known), not shown as the defaults.
 std::vector<rack::deploy::Host> discovered_hosts(Session& s) {
   std::vector<rack::deploy::Host> hosts;
+  std::vector<Address> dests;
+  std::vector<std::pair<std::size_t, std::size_t>> who;
   for (const auto& info : s.discover([](const std::vector<tims::HostInfo>&) { return false; })) {
     rack::deploy::Host h;
     h.file = "discovery on " + (info.network.empty() ? s.url() : info.network);
@@ -1341,6 +1363,7 @@ std::vector<rack::deploy::Host> discovered_hosts(Session& s) {
     h.system = info.system;
     h.host_id = info.host_id;
     h.role = tims::describe(info.role);
+    h.tasks_known = false;
     for (const auto& ci : info.components) {
       rack::deploy::Component c;
       c.name = ci.name;
@@ -1349,11 +1372,22 @@ std::vector<rack::deploy::Host> discovered_hosts(Session& s) {
       c.instance = ci.address.instance();
       c.address = ci.address.component().raw();
       c.address_text = rack::client::address_text(ci.address.component(), c.class_name);
+      c.command_task = {-1, -1, 0, 0};
+      c.data_task = {-1, -1, 0, 0};
+      dests.push_back(ci.address.component());
+      who.emplace_back(hosts.size(), h.components.size());
       h.components.push_back(std::move(c));
     }
     hosts.push_back(std::move(h));
   }
   if (hosts.empty()) fail(kExitUnavailable, "no host answered discovery on " + s.url() + " (and no host files given)");
+  s.fan_out(dests, msg::kGetStats, [&](std::size_t i, const MessageHeader& h, std::span<const std::byte> body) {
+    wire::StatsReply st;
+    if (h.type != msg::kStats || !wire::read_payload(body, tims::body_is_native(h), st)) return;
+    auto& c = hosts[who[i].first].components[who[i].second];
+    c.has_data_task = st.data_task != 0;
+    c.period_ns = st.period_ns;
+  });
   return hosts;
 }
 
@@ -1732,7 +1766,11 @@ const std::vector<Command>& commands() {
        "N samples. SIGINT/SIGTERM stop it too (exit 0). The producer going off: exit 1.\n"
        "The producer's stream ending (a replay at the end of its log): exit 0.\n"
        "No sample for 5 s: exit 3. The subscription is a lease (the producer's\n"
-       "lease_ms): renewed every lease / 4, so a killed watch frees its slot in time.",
+       "lease_ms): renewed every lease / 4, so a killed watch frees its slot in time.\n"
+       "Address fields name the component by its class (GET_CLASS, asked without\n"
+       "holding up the samples): Class0xNN(s/i) until the description arrives, and\n"
+       "for good when that component does not answer within --timeout x attempts\n"
+       "(said once on stderr); the watch goes on either way.",
        cmd_watch},
       {"send",
        "send NAME CMD [FIELD=VALUE ...] [--i64 N]",
@@ -1881,8 +1919,11 @@ const std::vector<Command>& commands() {
        "'!': a consumer's data task above its producer's on one CPU, and two data\n"
        "tasks with the same priority on one CPU. --live adds each data task's\n"
        "measured utilisation (execution p50 / period), worst wake-up latency and\n"
-       "state, and marks hosts that did not answer discovery as STALE. --json: the\n"
-       "deployment as one JSON object (what 'graph --format json' prints). Exit 1\n"
+       "state, and marks hosts that did not answer discovery as STALE. --live without\n"
+       "FILE lists what discovery finds: every component's tasks (a data task and its\n"
+       "period from GET_STATS) with priority '?' and 'priority and cpu not known', as\n"
+       "only the host files say them. --json: the deployment as one JSON object (what\n"
+       "'graph --format json' prints; a priority or cpu not known is null). Exit 1\n"
        "when a host file has errors.",
        cmd_alloc},
       {"help", "help [COMMAND]", 0, 1, {}, "Prints the usage, or a command's help.", cmd_help},

@@ -22,6 +22,7 @@
 #include "rack/core/executor.h"
 #include "rack/core/host_config.h"
 #include "rack/core/payload_json.h"
+#include "rack/core/plugin_abi.h"
 #include "rack/core/registry.h"
 #include "rack/rt/capabilities.h"
 #include "rack/rt/clock.h"
@@ -35,8 +36,9 @@ namespace {
 
 constexpr const char* kUsage = R"(usage: rackd [options] HOSTFILE.yaml
 
-Runs the components listed in a host file (see configs/demo.yaml for every key)
-until SIGINT or SIGTERM, then switches them OFF in reverse dependency order.
+Runs the components listed in a host file (configs/demo.yaml shows every key; an
+installed tree has it in <prefix>/share/rack/configs) until SIGINT or SIGTERM, then
+switches them OFF in reverse dependency order.
 
 options:
   --check            validate the host file and exit (nothing is started); also
@@ -90,7 +92,10 @@ them: found by class name as CLASS.rack-class in the host file's `plugins:`
 directories, then RACK_PLUGIN_PATH (':'-separated), then the build tree's (only
 for a rackd of the build tree), then the installed plug-in directory beside this
 rackd (../lib/rack/plugins) and the configured prefix's. A missing or broken plug-in is an error naming the
-class and the directories searched (also with --check).
+class and the directories searched (also with --check). A plug-in built against
+other RACK-RT headers (an older or newer SDK) is refused before any of its code
+runs, with the ABI it was built for and the one this rackd expects (--list-classes
+prints it): rebuild it against this RACK-RT (README, "Plug-ins and the ABI stamp").
 
 Paths in a host file (plug-ins, key_file, crash_dir, maps, logs, calibration and
 output files in parameters) are relative to the host file's folder, not to the
@@ -118,6 +123,8 @@ file:line:col: message).
 
 void list_classes(const rack::ComponentRegistry& registry) {
   std::printf("built-in classes (and plug-in classes a host file given loaded):\n");
+  std::printf("plug-ins must be built for plug-in %s (rack/core/plugin_abi.h)\n",
+              rack::plugin_abi::describe_stamp(rack::plugin_abi::rackd_stamp()).c_str());
   std::vector<std::string> manifest_problems;
   const auto manifests = registry.plugin_classes(&manifest_problems);
   for (const auto* cls : registry.all()) {

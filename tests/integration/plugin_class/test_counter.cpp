@@ -4,11 +4,14 @@ namespace rack::test_counter {
 
 TestCounter::TestCounter()
     : DataComponent(DataTaskMode::kPeriodic),
-      step_(declare_int("step", 1, {.doc = "added to the count every period", .min = 1, .max = 1000})) {}
+      step_(declare_int("step", 1, {.doc = "added to the count every period", .min = 1, .max = 1000})),
+      peer_(declare_int("peer", 0, {.doc = "a raw TiMS address, published in 'peer'", .min = 0, .max = 4294967295.0})) {
+}
 
 HookResult TestCounter::loop() {
   CounterData d;
   d.count = count_.fetch_add(step_.get_int(), std::memory_order_relaxed) + step_.get_int();
+  d.peer = static_cast<uint32_t>(peer_.get_int());
   publish(d, rt::host_time_ns());
   return HookResult::kOk;
 }

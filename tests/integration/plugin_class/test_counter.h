@@ -16,10 +16,15 @@ namespace rack::test_counter {
 
 struct CounterData {
   int64_t count = 0;
-  static constexpr auto fields() noexcept { return std::array{RACK_FIELD(CounterData, count)}; }
+  uint32_t peer = 0;  // the `peer` parameter: a raw TiMS address, which tools name by its class
+  uint32_t spare = 0;
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(CounterData, count), RACK_FIELD(CounterData, peer), RACK_FIELD(CounterData, spare)};
+  }
 };
 inline constexpr int8_t kReset = 21;
-inline constexpr DataTypeInfo kCounterType = data_type_info<CounterData>("CounterData");
+inline constexpr FieldValueNames kCounterNames[] = {{"peer", {}, true}};
+inline constexpr DataTypeInfo kCounterType = data_type_info<CounterData>("CounterData", kCounterNames);
 inline constexpr CommandInfo kCounterCommands[] = {{"RESET", kReset, nullptr, "the count to 0"}};
 
 class TestCounter final : public DataComponent<CounterData> {
@@ -32,6 +37,7 @@ class TestCounter final : public DataComponent<CounterData> {
 
  private:
   Parameter& step_;
+  Parameter& peer_;
   std::atomic<int64_t> count_{0};
 };
 

@@ -43,7 +43,7 @@ inline constexpr std::size_t kNone = static_cast<std::size_t>(-1);
 inline constexpr std::size_t kMaxComponentsPerHost = 4096;
 
 struct Task {
-  int priority = 0;  // 1..99 SCHED_FIFO, 0 normal scheduling
+  int priority = 0;  // 1..99 SCHED_FIFO, 0 normal scheduling, -1 not known (Host::tasks_known)
   int cpu = -1;      // -1: not pinned (the host's rt cpus, else any)
   int line = 0;      // where the file gives it (0: the default)
   int column = 0;
@@ -86,6 +86,10 @@ struct Host {
   std::string role = "executor";
   std::vector<Network> networks;  // empty: one network, lcm_url (or LCM's default)
   std::string lcm_url;
+  // false: a host found by discovery without its host file (rackctl graph/alloc --live
+  // with no FILE): its components' tasks have priority -1 and cpu -1, drawn and listed
+  // as not known rather than as the defaults.
+  bool tasks_known = true;
   std::vector<int> rt_cpus;  // the `cpus:` partitioning (empty: none)
   std::vector<int> housekeeping_cpus;
   std::vector<Component> components;

@@ -120,6 +120,20 @@ class Session {
   // The class name of `a`: TiMS' name, else the one its class describes (cached),
   // else Class0xNN.
   std::string class_name(tims::Address a);
+  // The class name of `a` without asking: TiMS' name, else the cached description's,
+  // else Class0xNN.
+  [[nodiscard]] std::string known_class_name(tims::Address a) const;
+
+  // Descriptions without waiting, for a stream that must not stall (rackctl watch):
+  // describe_later() sends GET_CLASS for each class of `components` that is neither
+  // cached nor being asked, and returns at once; poll_descriptions() never waits: it
+  // takes the CLASS pages that arrived, asks for the next pages, and gives up on a
+  // class after retries + 1 attempts of timeout each without a reply (then cached as
+  // not described, with a line on stderr naming the component, as describe() does).
+  // Returns how many classes are still being asked. They use the fan-out mailbox: not
+  // while a fan_out() or describe_all() runs (replies of either would be dropped).
+  void describe_later(const std::vector<tims::Address>& components);
+  std::size_t poll_descriptions();
 
   // A request with --retries retries of --timeout each; the reply's body points into
   // buffer() until the next call.
@@ -154,6 +168,18 @@ class Session {
   const ClassDescription* finish_description(tims::Address component, const ClassPageAssembler& pages,
                                              std::string error, bool unanswered);
 
+  // A description being asked by describe_later(): its next page's request and the
+  // sequence numbers of that page's attempts.
+  struct Asking {
+    tims::Address component;
+    ClassPageAssembler pages;
+    ClassPageRequest request;
+    std::vector<uint8_t> seqs;
+    uint32_t attempts = 0;  // of the current page
+    int64_t deadline_ns = 0;
+  };
+  void ask_next_page(Asking& a);
+
   struct ClassEntry {
     std::optional<ClassDescription> desc;  // nullopt: not described (refused, malformed, no reply)
     bool unanswered = false;               // no reply to GET_CLASS at all
@@ -171,6 +197,7 @@ class Session {
   tims::LcmTransport transport_;
   std::vector<std::byte> buffer_;
   std::map<uint32_t, ClassEntry> classes_;  // system | class id << 16
+  std::vector<Asking> asking_;              // describe_later()
 };
 
 }  // namespace rack::client

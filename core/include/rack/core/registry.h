@@ -64,8 +64,10 @@ class ComponentRegistry {
 
   // Loads a plug-in (dlopen) and calls its
   //   extern "C" void rack_register_components(rack::ComponentRegistry&);
-  // Throws std::runtime_error with dlerror()'s text. A library loaded before is
-  // not loaded again.
+  // `path` names the file (with a '/'). Before dlopen() its ABI stamp is checked
+  // (rack/core/plugin_abi.h: refused when it is not this rackd's). Throws
+  // std::runtime_error with the reason (the file, the ABI it was built for and the one
+  // expected, or dlerror()'s text). A library loaded before is not loaded again.
   void load_plugin(const std::string& path) { load_plugin(path, true); }
 
   // The class `impl`: registered, or else loaded from the plug-in whose manifest
