@@ -38,6 +38,137 @@ using test::Watchdog;
 using tims::Address;
 namespace msg = tims::msg;
 
+// ---- the sources ------------------------------------------------------------
+
+struct PlumbingRule {
+  const char* name;
+  std::regex pattern;
+  const char* why;
+  // Files (relative to the source tree) that may match, each with the reason.
+  std::map<std::string, std::string> allowed;
+};
+
+std::vector<PlumbingRule> plumbing_rules() {
+  return {
+      {"input loop",
+       std::regex(R"(\b(next_input|next_sample|input_silent|peek_end)\s*\(|\bpeek\s*\()"),
+       "reads its input mailbox by hand (declare_input, then receive() in loop())",
+       {}},
+      {"subscription",
+       std::regex(R"(\b(un)?subscribe\s*\(|\buse_input_mailbox\s*\()"),
+       "subscribes by hand (declare_input: the framework switches the source on, subscribes before on() and "
+       "unsubscribes after off())",
+       {}},
+      {"hand-off",
+       std::regex(R"(\brt::Pi(Mutex|Lock)\b|\bstd::(mutex|lock_guard|unique_lock|scoped_lock)\b)"),
+       "shares state between its tasks under a lock of its own (Handoff<T>, rack/core/handoff.h)",
+       {
+           {"components/evaluator/trajectory_writer.h", "the status line for rackd's main thread, not a hand-off"},
+           {"components/evaluator/trajectory_writer.cpp", "the status line for rackd's main thread, not a hand-off"},
+           {"components/mcl/src/mcl_filter.cpp", "the filter library's likelihood helper (issue 22 item 2)"},
+           {"components/replay/src/shared_log.cpp", "the process's table of shared logs, filled by init()"},
+           {"components/modeswitch_demo/modeswitch_demo.h", "shows a lock without priority inheritance on purpose"},
+           {"components/modeswitch_demo/modeswitch_demo.cpp", "shows a lock without priority inheritance on purpose"},
+           {"components/modeswitch_demo/modeswitch_demo_types.h", "names that lock in its command table's text"},
+       }},
+  };
+}
+
+// The offences under `root` as "path:line: rule: why", and the allowed files that
+// matched (so an allowance that is no longer needed is noticed).
+std::vector<std::string> plumbing_offences(const std::filesystem::path& root, const std::filesystem::path& base,
+                                           const std::vector<PlumbingRule>& rules,
+                                           std::set<std::string>* allowed_hits = nullptr) {
+  std::vector<std::string> out;
+  std::vector<std::filesystem::path> files;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(root)) {
+    const std::string ext = entry.path().extension().string();
+    if (entry.is_regular_file() && (ext == ".cpp" || ext == ".h" || ext == ".hpp" || ext == ".cc")) {
+      files.push_back(entry.path());
+    }
+  }
+  std::sort(files.begin(), files.end());
+  for (const auto& path : files) {
+    const std::string rel = std::filesystem::relative(path, base).string();
+    // Device simulators (tests' and benches' stand-ins for hardware), not components.
+    if (rel.rfind("components/sims/", 0) == 0) continue;
+    std::ifstream in(path);
+    std::string line;
+    for (int n = 1; std::getline(in, line); ++n) {
+      if (const auto c = line.find("//"); c != std::string::npos) line.resize(c);
+      for (const auto& r : rules) {
+        if (!std::regex_search(line, r.pattern)) continue;
+        if (r.allowed.count(rel) != 0) {
+          if (allowed_hits != nullptr) allowed_hits->insert(std::string(r.name) + " " + rel);
+          continue;
+        }
+        out.push_back(rel + ":" + std::to_string(n) + ": " + r.name + ": " + r.why);
+      }
+    }
+  }
+  return out;
+}
+
+TEST(ComponentSourceTest, NoComponentReadsItsInputsOrHandsOffByHand) {
+  const std::filesystem::path base = RACK_SOURCE_DIR;
+  const std::filesystem::path root = base / "components";
+  ASSERT_TRUE(std::filesystem::is_directory(root)) << root;
+  const auto rules = plumbing_rules();
+  std::set<std::string> allowed_hits;
+  const auto found = plumbing_offences(root, base, rules, &allowed_hits);
+  std::string all;
+  for (const auto& f : found) all += f + "\n";
+  EXPECT_TRUE(found.empty()) << all;
+  // Every allowance is still needed: a file that no longer matches leaves the list.
+  for (const auto& r : rules) {
+    for (const auto& [file, why] : r.allowed) {
+      EXPECT_EQ(allowed_hits.count(std::string(r.name) + " " + file), 1u)
+          << file << " is allowed a " << r.name << " (" << why << ") but has none: take it off the list";
+    }
+  }
+}
+
+// The rules find what they are meant to find (a check that cannot fail proves nothing).
+TEST(ComponentSourceTest, ThePlumbingRulesCatchAHandWrittenLoopSubscriptionAndHandoff) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("rack-plumbing-rules-" + std::to_string(::getpid()));
+  const std::filesystem::path comp = dir / "components" / "thing";
+  std::filesystem::create_directories(comp);
+  std::filesystem::create_directories(dir / "components" / "sims");
+  std::ofstream(comp / "thing.cpp") << "HookResult Thing::on() {\n"
+                                       "  return subscribe(source, 0);\n"  // 2
+                                       "}\n"
+                                       "HookResult Thing::loop() {\n"
+                                       "  const auto p = input_mailbox().peek(kNonBlocking);\n"  // 5
+                                       "  input_mailbox().peek_end();\n"                         // 6
+                                       "  const Input in = next_input(h, take);\n"               // 7
+                                       "  // next_input( in a comment is fine, so is unsubscribe(x)\n"
+                                       "  const Received r = receive([&](const InputPort&) {});\n"
+                                       "  (void)port_.receive(frame, 0);\n"
+                                       "  rt::PiLock lock(mutex_);\n"  // 11
+                                       "}\n"
+                                       "void Thing::off() { unsubscribe(resolved(source_)); }\n";  // 13
+  std::ofstream(comp / "thing.h") << "  rt::PiMutex mutex_;\n  Handoff<Move> move_;\n";            // 1
+  std::ofstream(comp / "allowed.h") << "  std::mutex status_mutex_;\n";
+  std::ofstream(dir / "components" / "sims" / "device_sim.cpp") << "std::lock_guard lock(m);\n";
+  auto rules = plumbing_rules();
+  rules[2].allowed = {{"components/thing/allowed.h", "test"}};
+  std::set<std::string> allowed_hits;
+  const auto found = plumbing_offences(dir / "components", dir, rules, &allowed_hits);
+  std::filesystem::remove_all(dir);
+  std::string all;
+  for (const auto& f : found) all += f + "\n";
+  ASSERT_EQ(found.size(), 7u) << all;
+  EXPECT_EQ(found[0].rfind("components/thing/thing.cpp:2: subscription:", 0), 0u) << all;
+  EXPECT_EQ(found[1].rfind("components/thing/thing.cpp:5: input loop:", 0), 0u) << all;
+  EXPECT_EQ(found[2].rfind("components/thing/thing.cpp:6: input loop:", 0), 0u) << all;
+  EXPECT_EQ(found[3].rfind("components/thing/thing.cpp:7: input loop:", 0), 0u) << all;
+  EXPECT_EQ(found[4].rfind("components/thing/thing.cpp:11: hand-off:", 0), 0u) << all;
+  EXPECT_EQ(found[5].rfind("components/thing/thing.cpp:13: subscription:", 0), 0u) << all;
+  EXPECT_EQ(found[6].rfind("components/thing/thing.h:1: hand-off:", 0), 0u) << all;
+  EXPECT_EQ(allowed_hits, std::set<std::string>{"hand-off components/thing/allowed.h"});
+}
+
 // ---- InputOneOf, Received::errors, malformed counts ------------------------------
 
 // Publishes a MonitorData every cycle (another sample type than Generator's).
