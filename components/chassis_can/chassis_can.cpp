@@ -128,8 +128,8 @@ HookResult ChassisCan::on() {
     d.started_ns = d.last_heartbeat_ns;
     d.operational = false;
   }
-  target_vx_.store(0.0, std::memory_order_relaxed);
-  target_omega_.store(0.0, std::memory_order_relaxed);
+  command_velocity(Velocity{});  // the data task is idle: its target too
+  target_ = Velocity{};
   reset_pilot();  // a chassis switched on has no driver until one sets itself active
   watchdog_stops_.store(0, std::memory_order_relaxed);
   watchdog_tripped_ = true;  // stopped until the first MOVE
@@ -185,8 +185,9 @@ void ChassisCan::handle_frame(const can_frame& f, int64_t now) noexcept {
 HookResult ChassisCan::loop() {
   const int64_t now = rt::monotonic_ns();
   // Command watchdog.
-  double vx = target_vx_.load(std::memory_order_relaxed);
-  double omega = target_omega_.load(std::memory_order_relaxed);
+  (void)take_velocity(target_);
+  double vx = target_.vx;
+  double omega = target_.omega;
   const auto watchdog_ns = static_cast<int64_t>(watchdog_ms_.get_float() * 1e6);
   if (now - last_move_ns() > watchdog_ns) {
     if (!watchdog_tripped_ && (vx != 0.0 || omega != 0.0)) {
@@ -301,11 +302,6 @@ interfaces::ChassisParams ChassisCan::chassis_params() const noexcept {
   p.safety_margin = safety_margin_.get_float();
   p.watchdog_ns = static_cast<int64_t>(watchdog_ms_.get_float() * 1e6);
   return p;
-}
-
-void ChassisCan::command_velocity(const Velocity& v) noexcept {
-  target_vx_.store(v.vx, std::memory_order_relaxed);
-  target_omega_.store(v.omega, std::memory_order_relaxed);
 }
 
 }  // namespace rack::components

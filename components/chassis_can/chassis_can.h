@@ -44,7 +44,6 @@ class ChassisCan final : public ChassisBase {
   HookResult loop() override;  // RT
   // MOVE, SET_ACTIVE_PILOT, GET_PARAMS: ChassisBase (vy is always 0 here).
   [[nodiscard]] interfaces::ChassisParams chassis_params() const noexcept override;
-  void command_velocity(const Velocity& v) noexcept override;
 
  private:
   struct Drive {
@@ -105,10 +104,7 @@ class ChassisCan final : public ChassisBase {
   char spec_[128] = {};
   uint32_t missed_syncs_ = 0;
 
-  // Written by the command task (MOVE, SET_ACTIVE_PILOT), read by loop(). Relaxed:
-  // each is a value on its own; a MOVE torn between vx and omega lasts one cycle.
-  std::atomic<double> target_vx_{0.0};
-  std::atomic<double> target_omega_{0.0};
+  Velocity target_;  // loop(): the newest MOVE (take_velocity); on() zeroes it
   std::atomic<uint32_t> watchdog_stops_{0};
   bool watchdog_tripped_ = false;  // loop() only
   std::atomic<uint8_t> fault_{0};  // the last Fault (for status and tests)

@@ -83,15 +83,10 @@ double ChassisSim::ramp(double current, double target, double acc, double dec, d
 
 double ChassisSim::gauss(double sigma) noexcept { return sigma > 0.0 ? sigma * normal_(rng_) : 0.0; }
 
-void ChassisSim::command_velocity(const Velocity& v) noexcept {
-  rt::PiLock lock(command_mutex_);
-  command_ = v;
-}
-
 HookResult ChassisSim::on() {
   // The pose is the world's: it survives OFF/ON (only init() places the robot).
   command_velocity(Velocity{});
-  measured_ = Velocity{};
+  command_ = measured_ = Velocity{};
   reset_pilot();
   last_loop_ns_ = 0;
   watchdog_stops_ = 0;
@@ -114,16 +109,13 @@ HookResult ChassisSim::loop() {
   if (last_loop_ns_ != 0) dt = std::clamp(static_cast<double>(now - last_loop_ns_) * 1e-9, 0.0, 10.0 * dt);
   last_loop_ns_ = now;
 
-  Velocity target;
-  {
-    rt::PiLock lock(command_mutex_);
-    const bool moving = command_.vx != 0.0 || command_.vy != 0.0 || command_.omega != 0.0;
-    if (moving && now - last_move_ns() > std::llround(watchdog_ms_.get_float() * 1e6)) {
-      command_ = Velocity{};
-      ++watchdog_stops_;
-    }
-    target = command_;
+  (void)take_velocity(command_);
+  const bool moving = command_.vx != 0.0 || command_.vy != 0.0 || command_.omega != 0.0;
+  if (moving && now - last_move_ns() > std::llround(watchdog_ms_.get_float() * 1e6)) {
+    command_ = Velocity{};
+    ++watchdog_stops_;
   }
+  const Velocity target = command_;
   const double acc = acc_max_.get_float();
   const double dec = dec_max_.get_float();
   const double wacc = omega_acc_max_.get_float();

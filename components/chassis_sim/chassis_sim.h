@@ -27,7 +27,6 @@
 #include "rack/core/data_component.h"
 #include "rack/interfaces/robot.h"
 #include "rack/maps/occupancy_map.h"
-#include "rack/rt/pi_mutex.h"
 
 namespace rack::components {
 
@@ -47,7 +46,6 @@ class ChassisSim final : public ChassisBase {
   // MOVE, SET_ACTIVE_PILOT, GET_PARAMS: ChassisBase.
   [[nodiscard]] interfaces::ChassisParams chassis_params() const noexcept override;
   [[nodiscard]] double vy_max() const noexcept override;
-  void command_velocity(const Velocity& v) noexcept override;
 
  private:
   [[nodiscard]] double gauss(double sigma) noexcept;
@@ -80,10 +78,8 @@ class ChassisSim final : public ChassisBase {
 
   std::optional<maps::OccupancyMap> map_data_;  // loaded in init(), immutable after
 
-  rt::PiMutex command_mutex_;  // guards command_ (command task writes, data task reads)
-  Velocity command_;
-
-  // Data task state.
+  // Data task state (on() sets it while the data task is idle).
+  Velocity command_;  // the newest MOVE (take_velocity), or a stop by the watchdog
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};
   Velocity measured_;

@@ -22,6 +22,7 @@
 #include <span>
 
 #include "rack/core/data_component.h"
+#include "rack/core/handoff.h"
 #include "rack/interfaces/robot.h"
 
 namespace rack::components {
@@ -42,8 +43,10 @@ class ChassisBase : public DataComponent<interfaces::ChassisData> {
   // The sideways limit (m/s); 0 (the default): a differential drive. RT-safe.
   [[nodiscard]] virtual double vy_max() const noexcept { return 0.0; }
   // The velocity the drive should now run at: an accepted MOVE (clamped) or a stop
-  // because the active pilot changed. Called by the command task. RT-safe.
-  virtual void command_velocity(const Velocity& v) noexcept = 0;
+  // because the active pilot changed (command task), handed to the data task, which
+  // takes the newest with take_velocity() (false, `v` untouched: none since). RT-safe.
+  void command_velocity(const Velocity& v) noexcept { velocity_.post(v); }
+  [[nodiscard]] bool take_velocity(Velocity& v) noexcept { return velocity_.take(v); }
 
   // For on(): no active pilot, and the watchdog counts from now. RT-safe.
   void reset_pilot() noexcept;
@@ -61,6 +64,7 @@ class ChassisBase : public DataComponent<interfaces::ChassisData> {
   // the published sample.
   std::atomic<int64_t> last_move_ns_{0};
   std::atomic<uint32_t> active_pilot_{0};
+  Handoff<Velocity> velocity_;  // command task -> data task
 };
 
 }  // namespace rack::components

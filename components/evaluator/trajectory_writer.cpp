@@ -13,7 +13,6 @@
 #include <stdexcept>
 
 #include "common/pose2d.h"
-#include "rack/components/class_ids.h"
 #include "rack/interfaces/robot.h"
 
 namespace rack::components {
@@ -22,7 +21,6 @@ using interfaces::MclData;
 using interfaces::PositionData;
 
 namespace {
-constexpr std::size_t kMaxPayload = sizeof(MclData) > sizeof(PositionData) ? sizeof(MclData) : sizeof(PositionData);
 constexpr double kSameTime = 1e-6;  // s: an estimate this close to a reference pose is at its time
 }  // namespace
 
@@ -105,7 +103,10 @@ std::vector<TimedPose> read_trajectory_file(const std::string& path) {
 
 TrajectoryWriter::TrajectoryWriter()
     : DataComponent(DataTaskMode::kTriggered),
-      source_(declare_component_ref("source", "the MCL (or Position) whose estimates to write")),
+      // Its ERROR or silence ends the input (the trajectory is complete): no failure.
+      source_(declare_input<MclData, PositionData>("source", {.doc = "the MCL (or Position) whose estimates to write",
+                                                              .watched = false,
+                                                              .fail_on_error = false})),
       file_(declare_string(
           "file", "",
           {.doc = "output file: one 't x y theta' line per estimate (relative: to the host file's folder)",
@@ -124,9 +125,7 @@ TrajectoryWriter::TrajectoryWriter()
                                  .unit = "ms"})),
       exit_when_done_(declare_bool(
           "exit_when_done", false,
-          {.doc = "stop rackd (SIGTERM to its process) when the input has ended and the error is printed"})) {
-  use_input_mailbox(static_cast<uint32_t>(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + kMaxPayload + 64));
-}
+          {.doc = "stop rackd (SIGTERM to its process) when the input has ended and the error is printed"})) {}
 
 TrajectoryWriter::~TrajectoryWriter() {
   if (out_ != nullptr) std::fclose(out_);
@@ -141,18 +140,12 @@ void TrajectoryWriter::init() {
   const std::string path = file_.get_string();
   out_ = std::fopen(path.c_str(), "w");
   if (out_ == nullptr) throw std::runtime_error(path + ": cannot write: " + std::strerror(errno));
-  std::fprintf(out_, "# t x y theta (s, m, m, rad): estimates of %s\n", source_.get_string().c_str());
+  std::fprintf(out_, "# t x y theta (s, m, m, rad): estimates of %s\n",
+               source_.source_parameter().get_string().c_str());
   poses_.reserve(1 << 16);
 }
 
-HookResult TrajectoryWriter::on() {
-  const tims::Address source = resolved(source_);
-  if (switch_on(source) != HookResult::kOk) return HookResult::kError;  // cascading ON
-  return subscribe(source, 0);                                          // every estimate
-}
-
-void TrajectoryWriter::off() {
-  unsubscribe(resolved(source_));
+void TrajectoryWriter::off() {  // the source is unsubscribed after it (declared input)
   if (out_ != nullptr) std::fflush(out_);
 }
 
@@ -163,28 +156,20 @@ void TrajectoryWriter::cleanup() {
   }
 }
 
-bool TrajectoryWriter::take(const tims::MessageHeader& h, std::span<const std::byte> body, bool& got) noexcept {
-  wire::SampleHeader sh;
+void TrajectoryWriter::take() noexcept {
   TimedPose p;
-  const uint8_t cls = h.source().class_id();
-  if (cls == class_ids::kMcl) {
-    MclData d;
-    if (!read_sample(h, body, sh, d)) return false;
-    p = {static_cast<double>(d.scan_time_ns != 0 ? d.scan_time_ns : sh.time_ns) * 1e-9, d.x, d.y, d.phi};
-  } else if (cls == class_ids::kPosition) {
-    PositionData d;
-    if (!read_sample(h, body, sh, d)) return false;
-    p = {static_cast<double>(sh.time_ns) * 1e-9, d.x, d.y, d.phi};
+  if (source_.holds<MclData>()) {
+    const MclData& d = source_.value<MclData>();
+    p = {static_cast<double>(d.scan_time_ns != 0 ? d.scan_time_ns : source_.time_ns()) * 1e-9, d.x, d.y, d.phi};
   } else {
-    return false;
+    const PositionData& d = source_.value<PositionData>();
+    p = {static_cast<double>(source_.time_ns()) * 1e-9, d.x, d.y, d.phi};
   }
-  got = true;
-  if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.phi)) return true;
-  if (!poses_.empty() && p.t <= poses_.back().t) return true;  // not newer: written already
+  if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.phi)) return;
+  if (!poses_.empty() && p.t <= poses_.back().t) return;  // not newer: written already
   if (!poses_.empty()) data_.distance += std::hypot(p.x - poses_.back().x, p.y - poses_.back().y);
   poses_.push_back(p);
   if (out_ != nullptr) std::fprintf(out_, "%.6f %.6f %.6f %.6f\n", p.t, p.x, p.y, p.phi);
-  return true;
 }
 
 void TrajectoryWriter::finish() noexcept {
@@ -227,19 +212,9 @@ void TrajectoryWriter::finish() noexcept {
 }
 
 HookResult TrajectoryWriter::loop() {
-  bool got = false;
-  bool ended = false;
-  for (;;) {
-    tims::MessageHeader header;
-    const Input in = next_input(header, [&](const tims::MessageHeader& h, std::span<const std::byte> body) {
-      return take(h, body, got);
-    });
-    if (in == Input::kNone) break;
-    if (in == Input::kError) {  // the source left ENABLED: the input has ended
-      ended = true;
-      break;
-    }
-  }
+  const Received r = receive([&](const InputPort&) { take(); });
+  const bool got = r.samples > 0;
+  const bool ended = r.errors > 0;        // the source left ENABLED: the input has ended
   if (finished_) return HookResult::kOk;  // done; stays ENABLED and quiet
   if (got && !poses_.empty()) {
     if (out_ != nullptr) std::fflush(out_);
@@ -252,7 +227,8 @@ HookResult TrajectoryWriter::loop() {
   }
   // The end of the input: its source left ENABLED, ended its stream (a replay at the
   // end of its log), or fell silent.
-  if (ended || inputs_ended() || (!got && !poses_.empty() && input_silent())) finish();
+  const bool silent = rt::monotonic_ns() - source_.received_ns() >= silence_ns();
+  if (ended || inputs_ended() || (!got && !poses_.empty() && silent)) finish();
   return HookResult::kOk;
 }
 

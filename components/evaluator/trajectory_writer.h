@@ -14,8 +14,8 @@
 // interpolation of the two around it (heading the shorter way round). No alignment:
 // the estimate and the reference are in the same (map) frame.
 //
-// The input ends when the source leaves ENABLED (its ERROR) or sends nothing for the
-// data task's timeout_ms; then the file is flushed, the error logged (GDOS, info) and
+// The input ends when the source (a declared input) leaves ENABLED (its ERROR), ends
+// its stream, or sends nothing for silence_ms; then the file is flushed, the error logged (GDOS, info) and
 // shown in the status line (rackd --status, final status; `rackctl get-data`: the
 // EvaluatorData fields mcl_* and lost), and with exit_when_done rackd is asked to
 // stop (SIGTERM to its own process, as `kill` would). With LadarReplay's `pace`
@@ -37,6 +37,7 @@
 
 #include "rack/core/data_component.h"
 #include "rack/interfaces/evaluation.h"
+#include "rack/interfaces/robot.h"
 #include "rack/rt/pi_mutex.h"
 
 namespace rack::components {
@@ -76,16 +77,15 @@ class TrajectoryWriter final : public DataComponent<interfaces::EvaluatorData> {
 
  protected:
   void init() override;
-  HookResult on() override;
   void off() override;
   HookResult loop() override;  // NOT RT-safe (file output)
   void cleanup() override;
 
  private:
-  bool take(const tims::MessageHeader& h, std::span<const std::byte> body, bool& got) noexcept;
+  void take() noexcept;  // the source's newest estimate: into the file and the trajectory
   void finish() noexcept;
 
-  Parameter& source_;
+  InputOneOf<interfaces::MclData, interfaces::PositionData>& source_;
   Parameter& file_;
   Parameter& reference_;
   Parameter& lost_threshold_;

@@ -12,7 +12,8 @@ Generator::Generator()
       offset_(declare_float("offset", 0.0, {.doc = "added to every value"})) {}
 
 HookResult Generator::on() {
-  counter_.store(0, std::memory_order_relaxed);
+  resets_.clear();
+  counter_ = 0;
   start_ns_ = rt::monotonic_ns();
   return HookResult::kOk;
 }
@@ -22,8 +23,8 @@ HookResult Generator::loop() {
   interfaces::GeneratorData d;
   d.value = amplitude_.get_float() * std::sin(2.0 * std::numbers::pi * frequency_.get_float() * t) +
             offset_.get_float();
-  // Relaxed: the counter is this task's; RESET only needs to land eventually.
-  d.counter = counter_.fetch_add(1, std::memory_order_relaxed) + 1;
+  if (uint32_t resets = 0; resets_.take(resets)) counter_ = 0;
+  d.counter = ++counter_;
   publish(d, rt::host_time_ns());
   return HookResult::kOk;
 }
@@ -34,7 +35,7 @@ CommandResult Generator::command(const tims::MessageHeader& request, std::span<c
     reject_malformed(request, "RESET takes no body");
     return CommandResult::kHandled;
   }
-  counter_.store(0, std::memory_order_relaxed);
+  resets_.post([](uint32_t& n) { ++n; });
   reply(request, tims::msg::kOk);
   return CommandResult::kHandled;
 }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "rack/core/data_component.h"
+#include "rack/core/handoff.h"
 #include "rack/interfaces/demo.h"
 
 namespace rack::components {
@@ -20,7 +21,8 @@ class Generator final : public DataComponent<interfaces::GeneratorData> {
   Parameter& amplitude_;
   Parameter& frequency_;
   Parameter& offset_;
-  std::atomic<int64_t> counter_{0};  // loop() writes; RESET (command task) zeroes
+  Handoff<uint32_t> resets_;  // RESETs asked for (command task); loop() zeroes the counter
+  int64_t counter_ = 0;       // data task (on() zeroes it while the data task is idle)
   int64_t start_ns_ = 0;
 };
 

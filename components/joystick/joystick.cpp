@@ -33,22 +33,16 @@ Joystick::Joystick()
           declare_float("deadband", 0.05, {.doc = "axis values below this count as zero", .min = 0.0, .max = 0.9})),
       speed_scale_(declare_float("speed_scale", 0.5,
                                  {.doc = "fraction of the chassis vx_max at full stick", .min = 0.0, .max = 1.0})),
-      obstacles_(declare_string("obstacles", "",
-                                {.doc = "Scan2D or Ladar whose scans limit the forward speed (empty: none)",
-                                 .required = false,
-                                 .component_ref = true})),
+      // Its silence is judged by obstacle_timeout_ms (no forward motion), not an ERROR.
+      obstacles_(declare_input<interfaces::Scan2dData, interfaces::LadarData>(
+          "obstacles", {.doc = "Scan2D or Ladar whose scans limit the forward speed",
+                        .optional = true,
+                        .watched = false,
+                        .silence_param = SilenceParam::kNone})),
       slow_distance_(declare_float("slow_distance", 1.0,
                                    {.doc = "m of free space ahead below which forward speed is reduced", .min = 0.01})),
       obstacle_timeout_ms_(
-          declare_float("obstacle_timeout_ms", 500.0, {.doc = "no scan this long: no forward motion", .min = 1.0})) {
-  // Scans arrive here (a Scan2dData is the largest payload accepted).
-  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(interfaces::Scan2dData) + 128);
-}
-
-void Joystick::init() {
-  scan2d_ = std::make_unique<interfaces::Scan2dData>();
-  ladar_ = std::make_unique<interfaces::LadarData>();
-}
+          declare_float("obstacle_timeout_ms", 500.0, {.doc = "no scan this long: no forward motion", .min = 1.0})) {}
 
 Joystick::~Joystick() { close_device(); }
 
@@ -109,42 +103,23 @@ HookResult Joystick::on() {
                         sizeof limits_);
     }
   }
-  obstacles_address_ = resolved(obstacles_);
-  free_ahead_ = 0.0;
-  obstacles_lost_ = false;
-  last_obstacles_ns_ = rt::monotonic_ns();
-  if (obstacles_address_.raw() != 0) {
-    if (switch_on(obstacles_address_) != HookResult::kOk) return HookResult::kError;
-    if (subscribe(obstacles_address_, 0) != HookResult::kOk) return HookResult::kError;
-  }
+  free_ahead_ = 0.0;  // the obstacles' source is on and subscribed already (declared input)
   return HookResult::kOk;
 }
 
-void Joystick::take_obstacles() noexcept {
-  if (chassis_address_.raw() == 0) return;
+bool Joystick::take_obstacles() noexcept {
   const double front = limits_.boundary_front + limits_.safety_margin;
   const double half = std::fmax(limits_.boundary_left, limits_.boundary_right) + limits_.safety_margin;
-  for (;;) {
-    tims::MessageHeader header;
-    const Input in = next_input(header, [&](const tims::MessageHeader& h, std::span<const std::byte> body) {
-      wire::SampleHeader sh;
-      if (read_sample(h, body, sh, *scan2d_)) {
-        free_ahead_ = obstacle::free_ahead(*scan2d_, front, half);
-      } else if (read_sample(h, body, sh, *ladar_)) {
-        free_ahead_ = obstacle::free_ahead(*ladar_, front, half);
-      } else {
-        return false;  // neither a Scan2D nor a Ladar sample
-      }
-      last_obstacles_ns_ = rt::monotonic_ns();
-      return true;
-    });
-    if (in == Input::kNone) break;
-    if (in == Input::kError) obstacles_lost_ = true;  // the source left ENABLED
-  }
+  const Received r = receive([&](const InputPort&) {
+    if (chassis_address_.raw() == 0) return;  // no outline to look ahead of
+    free_ahead_ = obstacles_.holds<interfaces::Scan2dData>()
+                      ? obstacle::free_ahead(obstacles_.value<interfaces::Scan2dData>(), front, half)
+                      : obstacle::free_ahead(obstacles_.value<interfaces::LadarData>(), front, half);
+  });
+  return !r.failed;  // failed: the source left ENABLED
 }
 
 void Joystick::off() {
-  if (obstacles_address_.raw() != 0) unsubscribe(obstacles_address_);
   if (chassis_address_.raw() != 0) {
     // Stop and release: bounded calls; the chassis may already be gone.
     const interfaces::ChassisMove stop{};
@@ -192,10 +167,9 @@ HookResult Joystick::loop() {
   }
   state_.vx = state_.omega = 0.0;
   state_.free_ahead = -1.0;
-  if (obstacles_address_.raw() != 0) {
-    take_obstacles();
-    if (obstacles_lost_) return HookResult::kError;  // off() stops the robot; on() re-subscribes
-    const bool stale = static_cast<double>(rt::monotonic_ns() - last_obstacles_ns_) >
+  if (obstacles_.configured()) {
+    if (!take_obstacles()) return HookResult::kError;  // off() stops the robot; the retry re-subscribes
+    const bool stale = static_cast<double>(rt::monotonic_ns() - obstacles_.received_ns()) >
                        obstacle_timeout_ms_.get_float() * 1e6;
     state_.free_ahead = stale ? 0.0 : std::fmin(free_ahead_, 1e3);
   }

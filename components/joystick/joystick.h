@@ -10,11 +10,12 @@
 // `deadband`, and zero unless the dead-man button is held (deadman_button >= 0).
 // off() stops the robot and releases the chassis.
 //
-// With `obstacles` set (a Scan2D or Ladar component) it subscribes to its scans and
-// limits forward speed by the free distance ahead in the robot's corridor (the chassis
-// outline plus its safety margin): full speed at `slow_distance` or more, zero at the
-// outline. No scan for obstacle_timeout_ms allows no forward motion (fail safe); the
-// source leaving ENABLED puts the joystick in ERROR (and stops the robot).
+// With `obstacles` set (a Scan2D or Ladar component: a declared input, switched on and
+// subscribed before on()) it limits forward speed by the free distance ahead in the
+// robot's corridor (the chassis outline plus its safety margin): full speed at
+// `slow_distance` or more, zero at the outline. No scan for obstacle_timeout_ms allows
+// no forward motion (fail safe); the source leaving ENABLED puts the joystick in ERROR
+// (and stops the robot).
 //
 // Bad input: short events, unknown event types and out-of-range axis/button numbers
 // are counted (bad_events) and ignored. A device that disappears (unplugged: ENODEV,
@@ -27,7 +28,6 @@
 #include <linux/joystick.h>
 
 #include <array>
-#include <memory>
 
 #include "rack/core/data_component.h"
 #include "rack/interfaces/devices.h"
@@ -46,9 +46,9 @@ class Joystick final : public DataComponent<interfaces::JoystickData> {
   HookResult loop() override;  // RT
 
  private:
-  void init() override;
   void apply(const js_event& e) noexcept;
-  void take_obstacles() noexcept;
+  // Takes the obstacle scans that arrived (free_ahead_); false: their source left ENABLED.
+  [[nodiscard]] bool take_obstacles() noexcept;
   void close_device() noexcept;
 
   Parameter& device_;
@@ -58,7 +58,7 @@ class Joystick final : public DataComponent<interfaces::JoystickData> {
   Parameter& deadman_button_;
   Parameter& deadband_;
   Parameter& speed_scale_;
-  Parameter& obstacles_;
+  InputOneOf<interfaces::Scan2dData, interfaces::LadarData>& obstacles_;
   Parameter& slow_distance_;
   Parameter& obstacle_timeout_ms_;
   int fd_ = -1;
@@ -69,12 +69,7 @@ class Joystick final : public DataComponent<interfaces::JoystickData> {
   interfaces::ChassisParams limits_{};
   tims::Address chassis_address_;
   std::array<std::byte, 512> reply_{};
-  tims::Address obstacles_address_;
-  std::unique_ptr<interfaces::Scan2dData> scan2d_;  // allocated in init()
-  std::unique_ptr<interfaces::LadarData> ladar_;    // allocated in init()
   double free_ahead_ = 0.0;
-  int64_t last_obstacles_ns_ = 0;
-  bool obstacles_lost_ = false;
 };
 
 }  // namespace rack::components

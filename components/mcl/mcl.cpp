@@ -181,7 +181,6 @@ Mcl::Mcl()
       position_max_std_(declare_float(
           "position_max_std", 0.5,
           {.doc = "send Position UPDATE only when the position std dev is below this (m)", .min = 0.0, .max = 1e3})) {
-  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(Scan2dData) + 128);
   set_command_slot_size(1024);
 }
 

@@ -14,10 +14,9 @@ using interfaces::ObjRecogData;
 
 ObjRecogCamera::ObjRecogCamera()
     : DataComponent(DataTaskMode::kTriggered),
-      camera_(declare_component_ref("camera", "the Camera whose images are searched")),
-      period_ms_(
-          declare_float("period_ms", 0.0,
-                        {.doc = "requested image period (0: every image)", .min = 0.0, .max = 60000.0, .unit = "ms"})),
+      camera_(declare_input<CameraData>("camera", {.doc = "the Camera whose images are searched",
+                                                   .ask_period = true,
+                                                   .old_period_name = "period_ms"})),
       calibration_(declare_string("calibration", "",
                                   {.doc = "OpenCV calibration file (empty: the calibration in the Camera's frames)",
                                    .init_only = true,
@@ -45,9 +44,7 @@ ObjRecogCamera::ObjRecogCamera()
                                     .init_only = true})),
       person_gate_(declare_float(
           "person_gate", 0.7,
-          {.doc = "m, a person this close to one in the previous image is the same", .min = 0.01, .max = 100.0})) {
-  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(CameraData) + 64);
-}
+          {.doc = "m, a person this close to one in the previous image is the same", .min = 0.01, .max = 100.0})) {}
 
 ObjRecogCamera::~ObjRecogCamera() = default;
 
@@ -66,20 +63,15 @@ void ObjRecogCamera::init() {
   }
   const std::string calib = calibration_.get_string();
   if (!calib.empty()) file_intrinsics_ = std::make_unique<CameraIntrinsics>(CameraDetector::load_calibration(calib));
-  frame_ = std::make_unique<CameraData>();
   out_ = std::make_unique<ObjRecogData>();
   prev_ = std::make_unique<ObjRecogData>();
 }
 
-HookResult ObjRecogCamera::on() {
+HookResult ObjRecogCamera::on() {  // the camera is on and subscribed already (declared input)
   prev_->object_count = 0;
   bad_ = inputs_ = 0;
-  const tims::Address source = resolved(camera_);
-  if (switch_on(source) != HookResult::kOk) return HookResult::kError;
-  return subscribe(source, static_cast<int64_t>(period_ms_.get_float() * 1e6));
+  return HookResult::kOk;
 }
-
-void ObjRecogCamera::off() { unsubscribe(resolved(camera_)); }
 
 void ObjRecogCamera::count_bad(const std::string& why) {
   ++bad_;
@@ -119,30 +111,17 @@ void ObjRecogCamera::follow(const ObjRecogData& prev, int64_t prev_time_ns, ObjR
 }
 
 HookResult ObjRecogCamera::loop() {
-  bool got = false;
+  // Only the newest image counts: recognition must not lag behind the camera. A DATA
+  // message of the wrong size for CameraData is skipped (logged and counted in
+  // GET_STATS malformed by the input path) and counted as bad input here.
+  const uint64_t malformed_before = camera_.malformed();
   wire::SampleHeader sh{};
-  for (;;) {  // only the newest image counts: recognition must not lag behind the camera
-    tims::MessageHeader h;
-    wire::SampleHeader this_sh{};
-    bool decoded = false;
-    const Input in = next_input(h, [&](const tims::MessageHeader& mh, std::span<const std::byte> body) {
-      decoded = read_sample(mh, body, this_sh, *frame_);
-      return decoded;  // false: logged and counted (GET_STATS malformed) by next_input
-    });
-    if (in == Input::kNone) break;
-    if (in == Input::kError) return HookResult::kError;  // the camera left ENABLED: re-subscribe on retry
-    if (!decoded) {
-      ++bad_;  // a DATA message of the wrong size for CameraData
-      continue;
-    }
-    sh = this_sh;
-    got = true;
-  }
-  if (!got) {  // nothing usable: an error once the camera has been silent for data_timeout
-    return input_silent() ? HookResult::kError : HookResult::kOk;
-  }
+  const Received r = receive([&](const InputPort& in) { sh = in.sample_header(); });
+  bad_ += static_cast<uint32_t>(camera_.malformed() - malformed_before);
+  if (r.failed) return HookResult::kError;  // the camera left ENABLED or fell silent: re-subscribed on retry
+  if (r.samples == 0) return HookResult::kOk;
   const auto start = std::chrono::steady_clock::now();
-  const CameraData& f = *frame_;
+  const CameraData& f = camera_.value();
   const int64_t want_w = width_.get_int(), want_h = height_.get_int();
   if ((want_w > 0 && f.width != static_cast<uint64_t>(want_w)) ||
       (want_h > 0 && f.height != static_cast<uint64_t>(want_h))) {

@@ -17,7 +17,8 @@
 // `height` (when given), a JPEG that does not decode, a size with another aspect
 // ratio than the calibration. A calibration file that cannot be read is a
 // configuration error: init() fails and the component stays in ERROR with the file
-// and key. The Camera going silent for data_timeout puts it in ERROR (on() retries).
+// and key. The Camera (a declared input: camera, camera_period_ms) going silent for
+// silence_ms puts it in ERROR (on() retries).
 //
 // Scheduling: OpenCV allocates: run the DATA task at priority 0 (normal scheduling),
 // as MCL's; loop() is NOT RT-safe. on()/off() only exchange messages.
@@ -48,14 +49,12 @@ class ObjRecogCamera final : public DataComponent<interfaces::ObjRecogData> {
  protected:
   void init() override;
   HookResult on() override;
-  void off() override;
   HookResult loop() override;  // NOT RT-safe: OpenCV
 
  private:
   void count_bad(const std::string& why);
 
-  Parameter& camera_;
-  Parameter& period_ms_;
+  InputOf<interfaces::CameraData>& camera_;  // the newest frame is its value()
   Parameter& calibration_;
   Parameter& width_;
   Parameter& height_;
@@ -69,7 +68,6 @@ class ObjRecogCamera final : public DataComponent<interfaces::ObjRecogData> {
 
   std::unique_ptr<CameraDetector> detector_;
   std::unique_ptr<CameraIntrinsics> file_intrinsics_;
-  std::unique_ptr<interfaces::CameraData> frame_;
   std::unique_ptr<interfaces::ObjRecogData> out_, prev_;
   int64_t prev_time_ns_ = 0;
   uint32_t next_person_id_ = 1000;

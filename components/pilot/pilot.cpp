@@ -128,10 +128,7 @@ HookResult Pilot::on() {
   blocked_since_ns_ = 0;
   destination_writes_ = destination_.write_count();
   position_mono_ns_ = scan_mono_ns_ = 0;
-  {
-    rt::PiLock lock(mutex_);
-    request_ = Request::kNone;
-  }
+  orders_.clear();  // orders given while OFF do not count
   // Cascading ON of the chassis it drives (its inputs are on and subscribed already).
   if (switch_on(chassis) != HookResult::kOk) return HookResult::kError;
   // The outline, margin and limits the chassis reports.
@@ -321,9 +318,9 @@ HookResult Pilot::loop() {
 
   // New orders: commands first, then a changed `destination` parameter.
   bool reclaim = false;
-  {
-    rt::PiLock lock(mutex_);
-    switch (request_) {
+  if (orders_.take(order_)) {
+    const Order& o = order_;
+    switch (o.kind) {
       case Request::kNone: break;
       case Request::kFollowPath:
         data_.mode = u8(PilotMode::kFollowPath);
@@ -335,17 +332,17 @@ HookResult Pilot::loop() {
         break;
       case Request::kDestination:
         data_.mode = u8(PilotMode::kDestination);
-        data_.target_x = request_x_;
-        data_.target_y = request_y_;
+        data_.target_x = o.x;
+        data_.target_y = o.y;
         line_pending_ = true;
         have_plan_ = false;  // planned on a later cycle (when there is a map)
         plan_asked_ = false;
         break;
       case Request::kPlanned:
         data_.mode = u8(PilotMode::kDestination);
-        data_.target_x = request_x_;
-        data_.target_y = request_y_;
-        std::memcpy(&plan_data_, &plan_pending_, sizeof plan_data_);
+        data_.target_x = o.x;
+        data_.target_y = o.y;
+        std::memcpy(&plan_data_, &o.plan, sizeof plan_data_);
         have_plan_ = plan_fresh_ = true;
         plan_asked_ = false;
         blocked_since_ns_ = 0;
@@ -354,7 +351,7 @@ HookResult Pilot::loop() {
         plan_asked_ = false;
         blocked_since_ns_ = 0;
         // No way even on the map alone: stand. (Round obstacles only: try again later.)
-        if (request_x_ == data_.target_x && request_y_ == data_.target_y && !have_plan_) {
+        if (o.x == data_.target_x && o.y == data_.target_y && !have_plan_) {
           if (join_path_) {  // no way back to the path now: follow it (blocked) and try again later
             join_path_ = false;
             data_.mode = u8(PilotMode::kFollowPath);
@@ -366,10 +363,8 @@ HookResult Pilot::loop() {
         }
         break;
     }
-    if (request_ != Request::kNone && request_ != Request::kPlanned && request_ != Request::kPlanFailed)
-      join_path_ = false;
-    reclaim = request_ != Request::kNone && request_ != Request::kPlanFailed;
-    request_ = Request::kNone;
+    if (o.kind != Request::kNone && o.kind != Request::kPlanned && o.kind != Request::kPlanFailed) join_path_ = false;
+    reclaim = o.kind != Request::kNone && o.kind != Request::kPlanFailed;
   }
   // The `destination` parameter: every SET_PARAM is an order (also "" after a
   // SET_DESTINATION, when the text itself did not change).
@@ -551,6 +546,15 @@ void Pilot::ask_for_plan(const Pose2d& pose, bool replan) noexcept {
   plan_asked_ns_ = rt::monotonic_ns();
 }
 
+void Pilot::give_order(Request kind, double x, double y, const interfaces::PathData* plan) noexcept {
+  orders_.post([&](Order& o) {  // the newest order wins
+    o.kind = kind;
+    o.x = x;
+    o.y = y;
+    if (plan != nullptr) std::memcpy(&o.plan, plan, sizeof o.plan);
+  });
+}
+
 const char* Pilot::plan_way(const PlanRequest& r) noexcept {
   planner_.clear_obstacles();
   const double radius = plan_radius_ + plan_margin_.get_float();
@@ -562,11 +566,7 @@ const char* Pilot::plan_way(const PlanRequest& r) noexcept {
   if (const char* why = Path::make_path(w, 0.1, plan_scratch_)) return why;
   log_info("way to (%.2f, %.2f) planned: %.1f m, %u waypoints, %u cells searched%s", r.gx, r.gy, result.length, w.count,
            result.expanded, result.start_moved ? " (the robot stands too near a wall: it backs out first)" : "");
-  rt::PiLock lock(mutex_);
-  std::memcpy(&plan_pending_, &plan_scratch_, sizeof plan_pending_);
-  request_ = Request::kPlanned;
-  request_x_ = r.gx;
-  request_y_ = r.gy;
+  give_order(Request::kPlanned, r.gx, r.gy, &plan_scratch_);
   return nullptr;
 }
 
@@ -584,10 +584,7 @@ CommandResult Pilot::command(const tims::MessageHeader& request, std::span<const
         } else {
           log_warning("destination (%.2f, %.2f) unreachable: %s", r.gx, r.gy, why);
         }
-        rt::PiLock lock(mutex_);
-        request_ = Request::kPlanFailed;
-        request_x_ = r.gx;
-        request_y_ = r.gy;
+        give_order(Request::kPlanFailed, r.gx, r.gy);
       }
       return CommandResult::kHandled;  // no reply: the data task does not wait
     }
@@ -623,10 +620,7 @@ CommandResult Pilot::command(const tims::MessageHeader& request, std::span<const
           break;  // planned: handed to the data task
         }
       }
-      rt::PiLock lock(mutex_);
-      request_ = Request::kDestination;
-      request_x_ = d.x;
-      request_y_ = d.y;
+      give_order(Request::kDestination, d.x, d.y);
       break;
     }
     case interfaces::kPilotFollowPath:
@@ -640,8 +634,7 @@ CommandResult Pilot::command(const tims::MessageHeader& request, std::span<const
         return CommandResult::kHandled;
       }
       log_info("%s from %s", request.type == interfaces::kPilotHold ? "HOLD" : "FOLLOW_PATH", request.source());
-      rt::PiLock lock(mutex_);
-      request_ = request.type == interfaces::kPilotHold ? Request::kHold : Request::kFollowPath;
+      give_order(request.type == interfaces::kPilotHold ? Request::kHold : Request::kFollowPath);
       break;
     }
     default: return CommandResult::kUnknown;

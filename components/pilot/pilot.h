@@ -37,7 +37,7 @@
 // GDOS (info): commands received, destinations planned or refused, BLOCKED (once per
 // stop), replanning.
 //
-// Threads: commands (command task) hand requests to the data task under a PI mutex.
+// Threads: commands (command task) hand orders to the data task through a Handoff.
 // Plans run in the command task (a few ms, no allocation): the data task asks for one
 // with a message to its own command mailbox (kPlanSelf), never plans itself.
 // Real-time contract: on(), off(), loop() and command() are RT-safe; init() allocates
@@ -49,9 +49,9 @@
 #include "common/pose2d.h"
 #include "path/planner.h"
 #include "rack/core/data_component.h"
+#include "rack/core/handoff.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
-#include "rack/rt/pi_mutex.h"
 
 namespace rack::components {
 
@@ -93,6 +93,8 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
   // Command task: plans from (x, y) to (gx, gy) and hands the way to the data task.
   // nullptr on success, else the reason.
   const char* plan_way(const PlanRequest& r) noexcept;
+  // Command task: hands an order to the data task (the newest wins); kPlanned with the way.
+  void give_order(Request kind, double x = 0.0, double y = 0.0, const interfaces::PathData* plan = nullptr) noexcept;
   void ask_for_plan(const Pose2d& pose, bool replan) noexcept;  // data task
   // Takes the inputs' samples; true when a source (position, scan2d) left ENABLED.
   [[nodiscard]] bool handle_input(int64_t now) noexcept;
@@ -129,10 +131,13 @@ class Pilot final : public DataComponent<interfaces::PilotData> {
   interfaces::PathData plan_scratch_{};
 
   // Command task -> data task.
-  rt::PiMutex mutex_;
-  Request request_ = Request::kNone;
-  double request_x_ = 0.0, request_y_ = 0.0;
-  interfaces::PathData plan_pending_{};  // with kPlanned
+  struct Order {
+    Request kind = Request::kNone;
+    double x = 0.0, y = 0.0;    // the destination
+    interfaces::PathData plan;  // with kPlanned: the way there
+  };
+  Handoff<Order> orders_;
+  Order order_;  // data task: the order taken
 
   // Set in on() (before the data task runs loop()), read by the data task.
   interfaces::ChassisParams limits_{};

@@ -24,23 +24,20 @@ Position::Position()
           declare_float("var_phi_per_m", 0.0005,
                         {.doc = "rad^2 of heading variance added per metre driven", .min = 0.0, .max = 10.0})) {}
 
-HookResult Position::on() {
-  {
-    rt::PiLock lock(mutex_);
-    reference_ = Reference{};
-    if (published_) {
-      // Switched on again (e.g. after its odometry went away and came back): the robot
-      // is where it was last seen, not at the initial pose. Motion while off is lost.
-      reference_.pose = Pose2d{last_.x, last_.y, last_.phi};
-      reference_.var_x = last_.var_x;
-      reference_.var_y = last_.var_y;
-      reference_.var_phi = last_.var_phi;
-    } else {
-      reference_.pose = Pose2d{initial_x_.get_float(), initial_y_.get_float(),
-                               normalize_angle(initial_phi_.get_float())};
-      reference_.var_x = reference_.var_y = initial_var_xy_.get_float();
-      reference_.var_phi = initial_var_phi_.get_float();
-    }
+HookResult Position::on() {  // the data task is idle: its state may be set here
+  update_.clear();
+  reference_ = Reference{};
+  if (published_) {
+    // Switched on again (e.g. after its odometry went away and came back): the robot
+    // is where it was last seen, not at the initial pose. Motion while off is lost.
+    reference_.pose = Pose2d{last_.x, last_.y, last_.phi};
+    reference_.var_x = last_.var_x;
+    reference_.var_y = last_.var_y;
+    reference_.var_phi = last_.var_phi;
+  } else {
+    reference_.pose = Pose2d{initial_x_.get_float(), initial_y_.get_float(), normalize_angle(initial_phi_.get_float())};
+    reference_.var_x = reference_.var_y = initial_var_xy_.get_float();
+    reference_.var_phi = initial_var_phi_.get_float();
   }
   return HookResult::kOk;
 }
@@ -51,27 +48,27 @@ HookResult Position::loop() {
     const int64_t time_ns = odometry_.time_ns();
     odometry_resets_.store(o.resets, std::memory_order_relaxed);
     const Pose2d odo{o.x, o.y, o.phi};
-    Reference ref;
-    {
-      rt::PiLock lock(mutex_);
-      if (reference_.time_ns == 0) {  // first sample after ON: anchor the initial pose here
-        reference_.odometry = odo;
-        reference_.distance = o.distance;
-        reference_.time_ns = time_ns;
-        reference_.resets = o.resets;
-      } else if (reference_.resets != o.resets) {
-        // RESET: the odometry restarted from zero just before this sample's increment,
-        // so the previous pose is the new frame's origin (nothing of this step is lost).
-        reference_.pose = Pose2d{last_.x, last_.y, last_.phi};
-        reference_.var_x = last_.var_x;
-        reference_.var_y = last_.var_y;
-        reference_.var_phi = last_.var_phi;
-        reference_.odometry = Pose2d{};
-        reference_.distance = 0.0;
-        reference_.resets = o.resets;
-      }
-      ref = reference_;
+    if (Reference u; update_.take(u)) {  // UPDATEs since the last sample: the newest, counted
+      u.updates += reference_.updates;
+      reference_ = u;
     }
+    if (reference_.time_ns == 0) {  // first sample after ON: anchor the initial pose here
+      reference_.odometry = odo;
+      reference_.distance = o.distance;
+      reference_.time_ns = time_ns;
+      reference_.resets = o.resets;
+    } else if (reference_.resets != o.resets) {
+      // RESET: the odometry restarted from zero just before this sample's increment,
+      // so the previous pose is the new frame's origin (nothing of this step is lost).
+      reference_.pose = Pose2d{last_.x, last_.y, last_.phi};
+      reference_.var_x = last_.var_x;
+      reference_.var_y = last_.var_y;
+      reference_.var_phi = last_.var_phi;
+      reference_.odometry = Pose2d{};
+      reference_.distance = 0.0;
+      reference_.resets = o.resets;
+    }
+    const Reference& ref = reference_;
     const Pose2d pose = compose(ref.pose, between(ref.odometry, odo));
     const double travelled = std::abs(o.distance - ref.distance);
     last_.x = pose.x;
@@ -128,18 +125,17 @@ void Position::handle_update(const tims::MessageHeader& request, std::span<const
   // The ring holds the nearest sample; carry it to the exact time with its velocities.
   const double dt = static_cast<double>(u.time_ns - sh.time_ns) * 1e-9;
   const Pose2d odo = compose(Pose2d{o.x, o.y, o.phi}, integrate_twist(o.vx, 0.0, o.omega, dt));
-  {
-    rt::PiLock lock(mutex_);
-    reference_.pose = Pose2d{u.x, u.y, normalize_angle(u.phi)};
-    reference_.odometry = odo;
-    reference_.distance = o.distance;
-    reference_.var_x = u.var_x;
-    reference_.var_y = u.var_y;
-    reference_.var_phi = u.var_phi;
-    reference_.time_ns = u.time_ns;
-    reference_.resets = o.resets;
-    ++reference_.updates;
-  }
+  update_.post([&](Reference& ref) {  // the data task takes it with the next odometry sample
+    ref.pose = Pose2d{u.x, u.y, normalize_angle(u.phi)};
+    ref.odometry = odo;
+    ref.distance = o.distance;
+    ref.var_x = u.var_x;
+    ref.var_y = u.var_y;
+    ref.var_phi = u.var_phi;
+    ref.time_ns = u.time_ns;
+    ref.resets = o.resets;
+    ++ref.updates;  // UPDATEs since the data task last took one
+  });
   reply(request, tims::msg::kOk);
 }
 

@@ -13,16 +13,17 @@
 // An odometry RESET re-anchors at the current pose; an UPDATE for a time before the
 // last RESET is refused (its odometry frame is gone).
 //
-// Threads: the command task (UPDATE) and the data task share the reference under a
-// PI mutex. Real-time contract: on(), off(), loop() and command() are RT-safe.
+// Threads: the command task (UPDATE) hands the new reference to the data task (a
+// Handoff), which applies it at the next odometry sample. Real-time contract: on(),
+// off(), loop() and command() are RT-safe.
 #pragma once
 
 #include <atomic>
 
 #include "common/pose2d.h"
 #include "rack/core/data_component.h"
+#include "rack/core/handoff.h"
 #include "rack/interfaces/robot.h"
-#include "rack/rt/pi_mutex.h"
 
 namespace rack::components {
 
@@ -56,8 +57,8 @@ class Position final : public DataComponent<interfaces::PositionData> {
   Parameter& var_xy_per_m_;
   Parameter& var_phi_per_m_;
 
-  rt::PiMutex mutex_;  // guards reference_
-  Reference reference_;
+  Handoff<Reference> update_;  // UPDATE (command task) -> the data task
+  Reference reference_;        // data task (on() sets it while the data task is idle)
   // The odometry's RESET count in its newest sample (data task writes; the command
   // task refuses UPDATEs from an older frame). Relaxed: a one-sample lag is harmless.
   std::atomic<uint32_t> odometry_resets_{0};

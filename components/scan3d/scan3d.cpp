@@ -23,29 +23,33 @@ using interfaces::Scan3dData;
 using interfaces::ServoDriveData;
 
 namespace {
-bool same_component(tims::Address a, tims::Address b) noexcept { return a.with_mailbox(0) == b.with_mailbox(0); }
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 }  // namespace
 
 Scan3d::Scan3d()
     : DataComponent(DataTaskMode::kTriggered),
-      ladar_(declare_string("ladar", "",
-                            {.doc = "the Ladar whose 2-D scans are assembled (with servo; empty: pcd)",
-                             .component_ref = true})),
-      servo_(declare_string("servo", "",
-                            {.doc = "the ServoDrive that turns the ladar (with ladar)", .component_ref = true})),
-      odometry_(declare_string(
-          "odometry", "",
-          {.doc =
-               "optional, with ladar+servo: an Odometry or Position component; its poses undo the robot's motion during a sweep (points in the robot frame at the sweep's end, the scan stamped with that time)",
-           .component_ref = true})),
-      odometry_period_ms_(declare_float(
-          "odometry_period_ms", 0.0,
-          {.doc =
-               "requested period of the odometry's pose stream (0: every pose); the last 256 poses must cover a sweep's processing time",
-           .min = 0.0,
-           .max = 1000.0,
-           .unit = "ms"})),
+      // Declared inputs (none configured with pcd). Their silence is checked in loop()
+      // (each source by name, also a pose that covers no scan) against silence_ms,
+      // Scan3D's own parameter before the inputs were declared: data_task.timeout_ms
+      // stays the triggered task's wake-up.
+      ladar_(
+          declare_input<LadarData>("ladar", {.doc = "the Ladar whose 2-D scans are assembled (with servo; empty: pcd)",
+                                             .optional = true,
+                                             .watched = false,
+                                             .silence_ms = 2000.0,
+                                             .silence_param = SilenceParam::kSilenceMsOnly})),
+      servo_(declare_input<ServoDriveData>("servo", {.doc = "the ServoDrive that turns the ladar (with ladar)",
+                                                     .optional = true,
+                                                     .ask_period = true,
+                                                     .watched = false})),
+      // The last 256 poses must cover a sweep's processing time (odometry_period_ms).
+      odometry_(declare_input<OdometryData, PositionData>(
+          "odometry",
+          {.doc = "with ladar+servo: an Odometry or Position component; its poses undo the robot's motion during a "
+                  "sweep (points in the robot frame at the sweep's end, the scan stamped with that time)",
+           .optional = true,
+           .ask_period = true,
+           .watched = false})),
       pcd_(declare_string(
           "pcd", "",
           {.doc = "instead of ladar+servo: a PCD file, or a directory whose *.pcd files are played in name order",
@@ -70,11 +74,6 @@ Scan3d::Scan3d()
       angle_tolerance_(
           declare_float("angle_tolerance", 0.01,
                         {.doc = "rad, the drive is at a sweep's end when this close", .min = 1e-5, .max = 1.0})),
-      servo_period_ms_(declare_float("servo_period_ms", 0.0,
-                                     {.doc = "requested period of the drive's position stream (0: every sample)",
-                                      .min = 0.0,
-                                      .max = 1000.0,
-                                      .unit = "ms"})),
       range_min_(
           declare_float("range_min", 0.05,
                         {.doc = "m, closer echoes are dropped (the robot, the drive)", .min = 0.0, .max = 1000.0})),
@@ -120,17 +119,11 @@ Scan3d::Scan3d()
                          .max = 3.6e6,
                          .unit = "ms"})),
       pcd_loop_(declare_bool("pcd_loop", true, {.doc = "PCD source: start again after the last file"})),
-      silence_ms_(declare_float("silence_ms", 2000.0,
-                                {.doc = "ERROR when the ladar, the drive or the odometry sent nothing for this long",
-                                 .min = 10,
-                                 .max = 600000,
-                                 .unit = "ms"})),
       sweep_timeout_s_(declare_float("sweep_timeout_s", 30.0,
                                      {.doc = "ERROR when the drive does not reach a sweep's end within this",
                                       .min = 0.1,
                                       .max = 3600.0,
                                       .unit = "s"})) {
-  use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(LadarData) + 64);
   set_command_slot_size(sizeof(tims::MessageHeader) + sizeof(interfaces::Scan3dStoreData) + 64);
 }
 
@@ -163,8 +156,8 @@ bool Scan3d::check_parameters(const ParameterValues& values, ParameterProblem& p
 
 void Scan3d::init() {
   const std::string pcd = pcd_.get_string();
-  const bool have_ladar = !ladar_.get_string().empty();
-  const bool have_servo = !servo_.get_string().empty();
+  const bool have_ladar = !ladar_.source_parameter().get_string().empty();
+  const bool have_servo = !servo_.source_parameter().get_string().empty();
   if (!pcd.empty() && (have_ladar || have_servo)) {
     throw std::runtime_error("give either 'pcd' or both 'ladar' and 'servo', not both");
   }
@@ -172,13 +165,14 @@ void Scan3d::init() {
     throw std::runtime_error("give either 'pcd' (files) or both 'ladar' and 'servo' (a ladar on a drive)");
   }
   file_source_ = !pcd.empty();
-  compensate_ = !odometry_.get_string().empty();
+  const Parameter& odometry = odometry_.source_parameter();
+  compensate_ = !odometry.get_string().empty();
   if (file_source_ && compensate_)
     throw std::runtime_error("'odometry' compensates a ladar on a drive: it needs 'ladar' and 'servo', not 'pcd'");
   if (compensate_) {
-    const uint8_t c = resolved(odometry_).class_id();
+    const uint8_t c = resolved(odometry).class_id();
     if (c != class_ids::kOdometry && c != class_ids::kPosition) {
-      throw std::runtime_error("odometry '" + odometry_.get_string() + "' is " + resolved(odometry_).str() +
+      throw std::runtime_error("odometry '" + odometry.get_string() + "' is " + resolved(odometry).str() +
                                ", neither an Odometry nor a Position component");
     }
   }
@@ -210,7 +204,6 @@ void Scan3d::init() {
   out_ = std::make_unique<Scan3dData>();
   image_ = std::make_unique<interfaces::Scan3dRangeImage>();
   pending_ = std::make_unique<LadarData[]>(kPendingScans);
-  ladar_in_ = std::make_unique<LadarData>();
   if (file_source_) {
     log_info("%zu PCD file(s) from %s, one every %.0f ms", files_.size(), pcd, pcd_period_ms_.get_float());
   }
@@ -232,21 +225,17 @@ bool Scan3d::move_drive(double target) noexcept {
   m.position = target;
   m.velocity = sweep_velocity_.get_float();
   alignas(8) std::byte buf[512];
-  const auto r = data_endpoint().call(resolved(servo_), interfaces::kServoDriveMovePos, m, std::span<std::byte>(buf),
+  const auto r = data_endpoint().call(servo_.source(), interfaces::kServoDriveMovePos, m, std::span<std::byte>(buf),
                                       settings().rpc_timeout_ns);
   if (!r.ok()) {
-    log_error("the drive %s refused MOVE_POS to %.3f rad (not homed, or outside its limits?)", resolved(servo_),
-              target);
+    log_error("the drive %s refused MOVE_POS to %.3f rad (not homed, or outside its limits?)", servo_.source(), target);
     return false;
   }
   return true;
 }
 
-HookResult Scan3d::on() {
-  {
-    rt::PiLock lock(requests_mutex_);
-    request_count_ = 0;  // requests left from before an OFF: their callers gave up
-  }
+HookResult Scan3d::on() {  // the ladar, the drive and the odometry are on and subscribed already
+  requests_.clear();       // requests left from before an OFF: their callers gave up
   pending_head_ = pending_count_ = 0;
   have_drive_ = false;
   phase_ = Phase::kToStart;
@@ -269,24 +258,8 @@ HookResult Scan3d::on() {
   c.range_max = range_max_.get_float();
   c.compensate_motion = compensate_;
   assembler_->set_config(c);
-  const tims::Address servo = resolved(servo_);
-  const tims::Address ladar = resolved(ladar_);
-  const tims::Address odometry = compensate_ ? resolved(odometry_) : tims::Address();
-  if (switch_on(servo) != HookResult::kOk || switch_on(ladar) != HookResult::kOk) return HookResult::kError;
-  if (compensate_ && switch_on(odometry) != HookResult::kOk) return HookResult::kError;
-  if (subscribe(servo, static_cast<int64_t>(servo_period_ms_.get_float() * 1e6)) != HookResult::kOk)
-    return HookResult::kError;
-  if (subscribe(ladar, 0) != HookResult::kOk) {
-    unsubscribe(servo);
-    return HookResult::kError;
-  }
-  if (compensate_ &&
-      subscribe(odometry, static_cast<int64_t>(odometry_period_ms_.get_float() * 1e6)) != HookResult::kOk) {
-    unsubscribe(ladar);
-    unsubscribe(servo);
-    return HookResult::kError;
-  }
   // To the start of the first sweep.
+  const tims::Address servo = servo_.source();
   interfaces::ServoDriveMovePos m;
   m.position = sweep_from_;
   m.velocity = sweep_velocity_.get_float();
@@ -295,17 +268,9 @@ HookResult Scan3d::on() {
                                          settings().rpc_timeout_ns);
   if (!r.ok()) {
     log_error("the drive %s refused MOVE_POS to %.3f rad (not homed, or outside its limits?)", servo, sweep_from_);
-    off();  // every subscription made above
-    return HookResult::kError;
+    return HookResult::kError;  // the framework unsubscribes
   }
   return HookResult::kOk;
-}
-
-void Scan3d::off() {
-  if (file_source_) return;
-  unsubscribe(resolved(ladar_));
-  unsubscribe(resolved(servo_));
-  if (compensate_) unsubscribe(resolved(odometry_));
 }
 
 CommandResult Scan3d::command(const tims::MessageHeader& request, std::span<const std::byte> body) {
@@ -331,16 +296,19 @@ CommandResult Scan3d::command(const tims::MessageHeader& request, std::span<cons
       return CommandResult::kHandled;
     }
   }
-  {
-    rt::PiLock lock(requests_mutex_);
-    if (request_count_ >= kMaxRequests) {
-      reply_error(request, "busy: 4 range-image/store requests are waiting");
-      return CommandResult::kHandled;
+  bool busy = false;
+  requests_.post([&](Requests& q) {
+    if (q.count < kMaxRequests) {
+      q.item[q.count++] = r;
+    } else {
+      busy = true;
     }
-    requests_[request_count_++] = r;
+  });
+  if (busy) {
+    reply_error(request, "busy: 4 range-image/store requests are waiting");
+    return CommandResult::kHandled;
   }
-  // Wake the data task (it serves the request after its current work).
-  (void)command_endpoint().send(input_address(), kWake, {});
+  wake_loop();  // the data task serves it after its current work
   return CommandResult::kHandled;
 }
 
@@ -352,16 +320,10 @@ void Scan3d::reply_error_from_data(const tims::MessageHeader& request, const std
 }
 
 void Scan3d::serve_requests() {
-  Request taken[kMaxRequests];
-  std::size_t n = 0;
-  {
-    rt::PiLock lock(requests_mutex_);
-    n = request_count_;
-    std::copy(requests_, requests_ + n, taken);
-    request_count_ = 0;
-  }
-  for (std::size_t i = 0; i < n; ++i) {
-    const Request& r = taken[i];
+  Requests taken;
+  if (!requests_.take(taken)) return;
+  for (std::size_t i = 0; i < taken.count; ++i) {
+    const Request& r = taken.item[i];
     if (!have_scan_) {
       reply_error_from_data(r.header, "no scan yet");
       continue;
@@ -441,11 +403,7 @@ HookResult Scan3d::loop() {
 }
 
 HookResult Scan3d::loop_files(int64_t now) {
-  for (;;) {  // only wake-ups arrive here
-    const auto p = input_mailbox().peek(tims::Mailbox::kNonBlocking);
-    if (p.status != tims::RecvStatus::kOk) break;
-    input_mailbox().peek_end();
-  }
+  (void)receive([](const InputPort&) {});  // no input is configured: only wake-ups arrive
   if (now < next_file_mono_) return HookResult::kOk;
   next_file_mono_ = std::max(next_file_mono_ + static_cast<int64_t>(pcd_period_ms_.get_float() * 1e6), now);
   if (next_file_ >= files_.size()) {
@@ -468,86 +426,76 @@ HookResult Scan3d::loop_files(int64_t now) {
   return HookResult::kOk;
 }
 
-HookResult Scan3d::loop_ladar(int64_t now) {
-  const tims::Address servo = resolved(servo_);
-  const tims::Address ladar = resolved(ladar_);
-  const tims::Address odometry = compensate_ ? resolved(odometry_) : tims::Address();
-  for (;;) {
-    tims::MessageHeader h;
-    wire::SampleHeader sh;
-    ServoDriveData d;
-    components::Pose2d pose;
-    enum class From : uint8_t { kOther, kDrive, kLadar, kOdometry } from = From::kOther;
-    bool decoded = true;
-    const Input in = next_input(h, [&](const tims::MessageHeader& mh, std::span<const std::byte> body) {
-      if (same_component(mh.source(), servo)) {
-        from = From::kDrive;
-        decoded = read_sample(mh, body, sh, d);
-      } else if (same_component(mh.source(), ladar)) {
-        from = From::kLadar;
-        decoded = read_sample(mh, body, sh, *ladar_in_);
-      } else if (compensate_ && same_component(mh.source(), odometry)) {
-        from = From::kOdometry;
-        if (odometry.class_id() == class_ids::kPosition) {
-          PositionData p;
-          decoded = read_sample(mh, body, sh, p);
-          pose = components::Pose2d{p.x, p.y, p.phi};
-        } else {
-          OdometryData o;
-          decoded = read_sample(mh, body, sh, o);
-          pose = components::Pose2d{o.x, o.y, o.phi};
-        }
-      }
-      return decoded;  // false: logged and counted (GET_STATS malformed) by next_input
-    });
-    if (in == Input::kNone) break;
-    if (in == Input::kError) {
-      log_error("%s left ENABLED", h.source());
-      return HookResult::kError;
-    }
-    if (from == From::kOther) continue;
-    if (!decoded) {
-      count_bad(from == From::kDrive      ? BadKind::kDrive
-                : from == From::kOdometry ? BadKind::kPose
-                                          : BadKind::kLadarScan,
-                nullptr);
-      continue;
-    }
-    if (from == From::kOdometry) {
-      if (!std::isfinite(pose.x) || !std::isfinite(pose.y) || !std::isfinite(pose.phi)) {
-        count_bad(BadKind::kPose, "x, y or phi is not a finite number");
-        continue;
-      }
-      (void)assembler_->add_pose(sh.time_ns, pose);  // an older or repeated pose is ignored
-      last_pose_mono_ = now;
-      continue;
-    }
-    if (from == From::kDrive) {
-      if (!std::isfinite(d.position)) {
-        count_bad(BadKind::kDrive, "position is not a finite number");
-        continue;
-      }
-      assembler_->add_drive_sample(sh.time_ns, d.position);
-      drive_ = d;
-      drive_time_ns_ = sh.time_ns;
-      have_drive_ = true;
-      last_drive_mono_ = now;
-      continue;
-    }
-    last_ladar_mono_ = now;
-    newest_ladar_ns_ = std::max(newest_ladar_ns_, sh.time_ns);
-    if (phase_ != Phase::kSweeping || sh.time_ns < sweep_start_ns_) continue;  // between sweeps
-    if (pending_count_ == kPendingScans) {  // the drive lags far behind: drop the oldest
-      pending_head_ = (pending_head_ + 1) % kPendingScans;
-      --pending_count_;
-      dropped_scans_.fetch_add(1, std::memory_order_relaxed);
-    }
-    const std::size_t slot = (pending_head_ + pending_count_) % kPendingScans;
-    pending_[slot] = *ladar_in_;
-    pending_time_[slot] = sh.time_ns;
-    ++pending_count_;
+void Scan3d::count_malformed(const InputPort& in, uint64_t before, BadKind kind) noexcept {
+  for (uint64_t n = in.malformed() - before; n > 0; --n) count_bad(kind, nullptr);
+}
+
+void Scan3d::take_pose(int64_t now) noexcept {
+  components::Pose2d pose;
+  if (odometry_.holds<PositionData>()) {
+    const PositionData& p = odometry_.value<PositionData>();
+    pose = components::Pose2d{p.x, p.y, p.phi};
+  } else {
+    const OdometryData& o = odometry_.value<OdometryData>();
+    pose = components::Pose2d{o.x, o.y, o.phi};
   }
-  const int64_t silence = std::llround(silence_ms_.get_float() * 1e6);
+  if (!std::isfinite(pose.x) || !std::isfinite(pose.y) || !std::isfinite(pose.phi)) {
+    count_bad(BadKind::kPose, "x, y or phi is not a finite number");
+    return;
+  }
+  (void)assembler_->add_pose(odometry_.time_ns(), pose);  // an older or repeated pose is ignored
+  last_pose_mono_ = now;
+}
+
+void Scan3d::take_drive(int64_t now) noexcept {
+  const ServoDriveData& d = servo_.value();
+  if (!std::isfinite(d.position)) {
+    count_bad(BadKind::kDrive, "position is not a finite number");
+    return;
+  }
+  assembler_->add_drive_sample(servo_.time_ns(), d.position);
+  drive_ = d;
+  drive_time_ns_ = servo_.time_ns();
+  have_drive_ = true;
+  last_drive_mono_ = now;
+}
+
+void Scan3d::take_scan(int64_t now) noexcept {
+  const int64_t time_ns = ladar_.time_ns();
+  last_ladar_mono_ = now;
+  newest_ladar_ns_ = std::max(newest_ladar_ns_, time_ns);
+  if (phase_ != Phase::kSweeping || time_ns < sweep_start_ns_) return;  // between sweeps
+  if (pending_count_ == kPendingScans) {                                // the drive lags far behind: drop the oldest
+    pending_head_ = (pending_head_ + 1) % kPendingScans;
+    --pending_count_;
+    dropped_scans_.fetch_add(1, std::memory_order_relaxed);
+  }
+  const std::size_t slot = (pending_head_ + pending_count_) % kPendingScans;
+  pending_[slot] = ladar_.value();
+  pending_time_[slot] = time_ns;
+  ++pending_count_;
+}
+
+HookResult Scan3d::loop_ladar(int64_t now) {
+  const tims::Address servo = servo_.source();
+  const tims::Address ladar = ladar_.source();
+  const tims::Address odometry = odometry_.source();  // 0 without compensation
+  const uint64_t malformed_before[] = {ladar_.malformed(), servo_.malformed(), odometry_.malformed()};
+  const Received r = receive([&](const InputPort& in) {
+    if (&in == &odometry_) {
+      take_pose(now);
+    } else if (&in == &servo_) {
+      take_drive(now);
+    } else {
+      take_scan(now);
+    }
+  });
+  // A DATA message that did not decode (logged and counted as malformed by the input path).
+  count_malformed(ladar_, malformed_before[0], BadKind::kLadarScan);
+  count_malformed(servo_, malformed_before[1], BadKind::kDrive);
+  count_malformed(odometry_, malformed_before[2], BadKind::kPose);
+  if (r.failed) return HookResult::kError;  // a source left ENABLED (the error reason names it)
+  const int64_t silence = silence_ns();
   if (now - last_ladar_mono_ > silence) {
     log_error("the ladar %s sent no scan for %lld ms", ladar, static_cast<long long>(silence / rt::kNsPerMs));
     return HookResult::kError;

@@ -3,8 +3,8 @@
 // (voxel grid, statistical outlier removal, RANSAC ground plane, point types) and
 // published as Scan3dData (rack/interfaces/perception.h).
 //
-// Ladar + ServoDrive: on() switches both on (cascading ON), subscribes to both, and
-// sends the drive to angle_min. Then it sweeps: MOVE_POS to angle_max, and every
+// Ladar + ServoDrive (declared inputs: the framework switches both on and subscribes
+// before on()): on() sends the drive to angle_min. Then it sweeps: MOVE_POS to angle_max, and every
 // ladar scan taken during the sweep is placed in 3-D with the drive's angle at each
 // beam's time, interpolated in the drive's position stream (a scan waits in a small
 // queue until the drive has reported a position after its end). When the drive
@@ -30,8 +30,9 @@
 // pcd_period_ms, looping if pcd_loop): each file is one scan.
 //
 // Commands: GET_RANGE_IMAGE (kScan3dGetRangeImage) and STORE_DATA (kScan3dStoreData)
-// for the newest scan; the command task queues them and the data task serves them
-// (PCL and file I/O never run in the command task).
+// for the newest scan; the command task hands them to the data task (a Handoff of up
+// to 4) and wakes it, and the data task serves them (PCL and file I/O never run in the
+// command task).
 //
 // Bad input, each counted in Scan3dData.bad_input and logged (the first of each kind,
 // then every 100th with the count), and SKIPPED, because one bad scan or file says
@@ -40,7 +41,7 @@
 // drive position or odometry pose that is not finite, a scan older than the odometry's
 // 256 poses. A DATA message that does not decode (wrong size
 // for its producer's type) is also counted as malformed in GET_STATS and logged by
-// the data task's input path (DataComponentBase::next_input). A
+// the data task's input path (DataComponentBase::receive). A
 // ladar, drive or odometry that falls silent for silence_ms (for the odometry also:
 // whose newest pose is more than silence_ms older than a waiting 2-D scan, so that no
 // pose covers its beams), or a drive that does not finish a sweep within
@@ -58,10 +59,10 @@
 #include <vector>
 
 #include "rack/core/data_component.h"
+#include "rack/core/handoff.h"
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/perception.h"
 #include "rack/interfaces/robot.h"
-#include "rack/rt/pi_mutex.h"
 
 namespace rack::scan3d {
 class Scan3dAssembler;
@@ -85,7 +86,6 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
   void init() override;  // reads the parameters, lists the PCD files, allocates (non-RT)
   [[nodiscard]] bool check_parameters(const ParameterValues& values, ParameterProblem& problem) const noexcept override;
   HookResult on() override;
-  void off() override;
   HookResult loop() override;  // NOT RT-safe: PCL and file I/O
   CommandResult command(const tims::MessageHeader& request, std::span<const std::byte> body) override;
 
@@ -97,17 +97,25 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
     interfaces::Scan3dStoreData store{};
   };
   static constexpr std::size_t kMaxRequests = 4;
+  struct Requests {
+    Request item[kMaxRequests];
+    std::size_t count = 0;
+  };
   static constexpr std::size_t kPendingScans = 16;
-  // A notification the command task sends to the input mailbox to wake the data task.
-  static constexpr int8_t kWake = -30;
 
   // The pipeline's options from the parameters (`v`: the values to check). RT-safe.
   [[nodiscard]] scan3d::PipelineOptions read_options(const ParameterValues& v = {}) const noexcept;
   enum class BadKind : uint8_t { kPcdFile, kLadarScan, kSweep, kDrive, kPose };
   static constexpr std::size_t kBadKinds = 5;
   // Counts one bad input of `kind`; logs `detail` (rate-limited) unless it is null
-  // (a DATA message that did not decode: next_input has logged it).
+  // (a DATA message that did not decode: the input path has logged it).
   void count_bad(BadKind kind, const char* detail) noexcept;
+  // Counts the DATA messages of `in` that did not decode since it had `before`.
+  void count_malformed(const InputPort& in, uint64_t before, BadKind kind) noexcept;
+  // One sample of each input, as receive() delivers it (`now`: the loop's start).
+  void take_pose(int64_t now) noexcept;
+  void take_drive(int64_t now) noexcept;
+  void take_scan(int64_t now) noexcept;
   HookResult loop_ladar(int64_t now);
   HookResult loop_files(int64_t now);
   bool move_drive(double target) noexcept;
@@ -116,10 +124,9 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
   void serve_requests();
   void reply_error_from_data(const tims::MessageHeader& request, const std::string& reason) noexcept;
 
-  Parameter& ladar_;
-  Parameter& servo_;
-  Parameter& odometry_;
-  Parameter& odometry_period_ms_;
+  InputOf<interfaces::LadarData>& ladar_;
+  InputOf<interfaces::ServoDriveData>& servo_;
+  InputOneOf<interfaces::OdometryData, interfaces::PositionData>& odometry_;
   Parameter& pcd_;
   Parameter& mode_;
   Parameter& mount_x_;
@@ -129,7 +136,6 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
   Parameter& angle_max_;
   Parameter& sweep_velocity_;
   Parameter& angle_tolerance_;
-  Parameter& servo_period_ms_;
   Parameter& range_min_;
   Parameter& range_max_;
   Parameter& voxel_size_;
@@ -144,7 +150,6 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
   Parameter& store_dir_;
   Parameter& pcd_period_ms_;
   Parameter& pcd_loop_;
-  Parameter& silence_ms_;
   Parameter& sweep_timeout_s_;
 
   uint8_t mode_id_ = interfaces::kScan3dModePitch;
@@ -158,7 +163,6 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
   std::unique_ptr<interfaces::LadarData[]> pending_;  // ladar scans waiting for the drive
   int64_t pending_time_[kPendingScans] = {};
   std::size_t pending_head_ = 0, pending_count_ = 0;
-  std::unique_ptr<interfaces::LadarData> ladar_in_;
 
   // Data task state.
   Phase phase_ = Phase::kToStart;
@@ -179,9 +183,7 @@ class Scan3d final : public DataComponent<interfaces::Scan3dData> {
   uint64_t bad_kinds_[kBadKinds] = {};  // per BadKind, for rate-limited logging
 
   // Command task -> data task: GET_RANGE_IMAGE / STORE_DATA requests.
-  rt::PiMutex requests_mutex_;
-  Request requests_[kMaxRequests];
-  std::size_t request_count_ = 0;  // guarded by requests_mutex_
+  Handoff<Requests> requests_;
 
   // Status for other threads (relaxed: counters and readings).
   std::atomic<uint64_t> published_scans_{0}, bad_input_{0}, dropped_scans_{0};

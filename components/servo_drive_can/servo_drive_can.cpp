@@ -85,7 +85,7 @@ HookResult ServoDriveCan::on() {
   last_heartbeat_ns_ = rt::monotonic_ns();
   nmt_left_operational_ = false;
   setpoint_high_ = moving_ = false;
-  pending_.store(false, std::memory_order_relaxed);
+  move_.clear();
   moves_.store(0, std::memory_order_relaxed);
   out_ = interfaces::ServoDriveData{};
   return HookResult::kOk;
@@ -125,11 +125,10 @@ HookResult ServoDriveCan::loop() {
   }
   // The set-point handshake: raise bit 4 with a new target; drop it once acknowledged.
   uint16_t cw = co::kCwEnableOperation;
-  if (pending_.exchange(false, std::memory_order_acquire)) {
-    target_counts_ = move_target_.load(std::memory_order_relaxed);
-    notify_ = move_requester_.load(std::memory_order_relaxed);
-    if (port_.send(co::rpdo2_profile_velocity(node_id_, move_velocity_.load(std::memory_order_relaxed))).status ==
-        IoStatus::kClosed) {
+  if (Move m; move_.take(m)) {
+    target_counts_ = m.target;
+    notify_ = m.requester;
+    if (port_.send(co::rpdo2_profile_velocity(node_id_, m.velocity)).status == IoStatus::kClosed) {
       return HookResult::kError;
     }
     if (setpoint_high_) {
@@ -196,10 +195,8 @@ bool ServoDriveCan::request_move(double target_unit, double velocity_unit, uint3
   const double cpu = counts_per_unit_.get_float();
   const double counts = (target_unit - home_position_.get_float()) * cpu + home_offset_.load(std::memory_order_relaxed);
   if (!std::isfinite(counts) || std::fabs(counts) > 2.0e9) return false;
-  move_target_.store(static_cast<int32_t>(std::lround(counts)), std::memory_order_relaxed);
-  move_velocity_.store(static_cast<uint32_t>(std::lround(std::fabs(velocity_unit) * cpu)), std::memory_order_relaxed);
-  move_requester_.store(requester, std::memory_order_relaxed);
-  pending_.store(true, std::memory_order_release);
+  move_.post(Move{static_cast<int32_t>(std::lround(counts)),
+                  static_cast<uint32_t>(std::lround(std::fabs(velocity_unit) * cpu)), requester});
   moves_.fetch_add(1, std::memory_order_relaxed);
   return true;
 }

@@ -17,6 +17,7 @@
 #include <atomic>
 
 #include "rack/core/data_component.h"
+#include "rack/core/handoff.h"
 #include "rack/devices/can_port.h"
 #include "rack/interfaces/devices.h"
 
@@ -64,12 +65,13 @@ class ServoDriveCan final : public DataComponent<interfaces::ServoDriveData> {
   uint32_t notify_ = 0;  // who gets POSITION_REACHED
   interfaces::ServoDriveData out_{};
 
-  // Command task -> data task. SYNC POINT: the command task writes the move's values,
-  // then sets pending_ (release); loop() takes pending_ (acquire) and reads them.
-  std::atomic<bool> pending_{false};
-  std::atomic<int32_t> move_target_{0};
-  std::atomic<uint32_t> move_velocity_{0};
-  std::atomic<uint32_t> move_requester_{0};
+  // Command task -> data task: the newest move asked for.
+  struct Move {
+    int32_t target = 0;      // counts
+    uint32_t velocity = 0;   // counts/s
+    uint32_t requester = 0;  // who gets POSITION_REACHED
+  };
+  Handoff<Move> move_;
   // Position of the drive (counts) that is home; written by HOME (command task),
   // read by loop(). Relaxed: a single value.
   std::atomic<int32_t> home_offset_{0};

@@ -19,6 +19,9 @@ namespace msg = tims::msg;
 namespace {
 void bump(std::atomic<uint64_t>& c) noexcept { c.fetch_add(1, std::memory_order_relaxed); }
 uint8_t message_priority(int p) noexcept { return static_cast<uint8_t>(p < 0 ? 0 : (p > 255 ? 255 : p)); }
+// wake_loop()'s notification: a reply type between the framework's (down to -14) and
+// the classes' (from -21 down), which no one answers with.
+constexpr int8_t kWakeLoop = -20;
 }  // namespace
 
 DataComponentBase::DataComponentBase(DataTaskMode mode, uint32_t payload_size, std::span<const tims::FieldDesc> fields)
@@ -183,6 +186,12 @@ HookResult DataComponentBase::subscribe(Address producer, int64_t period_ns, int
   return HookResult::kOk;
 }
 
+void DataComponentBase::wake_loop() noexcept {
+  // A notification to its own input mailbox (trusted: this component): it wakes a
+  // triggered data task, and next_input() skips it (not DATA, ERROR or END_OF_STREAM).
+  if (input_mailbox_) (void)command_endpoint().send(input_address(), kWakeLoop, {});
+}
+
 void DataComponentBase::unsubscribe(Address producer) noexcept {
   const Address source = producer.component();
   for (auto& s : subscriptions_) {
@@ -215,12 +224,18 @@ void DataComponentBase::add_input(std::unique_ptr<InputPort> port, const InputSp
                                           .unit = "ms"});
     if (spec.old_period_name != nullptr) parameters().add_old_name(spec.old_period_name, period);
   }
-  if (silence_ == nullptr) {
+  if (spec.silence_param == SilenceParam::kNone) {
+    if (spec.watched) {
+      throw std::invalid_argument("declare_input '" + port->name() +
+                                  "': a watched input needs silence_ms (SilenceParam::kNone is for unwatched ones)");
+    }
+  } else if (silence_ == nullptr) {
     silence_ = &declare_float("silence_ms", spec.silence_ms,
                               {.doc = "a watched input (source) that sends nothing this long has gone silent",
                                .min = 1.0,
                                .max = 3.6e6,
                                .unit = "ms"});
+    timeout_is_silence_ = spec.silence_param == SilenceParam::kSilenceMs;
   }
   if (spec.old_silence_name != nullptr) parameters().add_old_name(spec.old_silence_name, "silence_ms");
   // A slot holds a sample of this input, and a producer's ERROR with its reason (wider
@@ -243,6 +258,7 @@ HookResult DataComponentBase::before_on() noexcept {
     in.granted_period_ns_ = 0;
     in.received_ns_ = now;
     in.samples_ = 0;
+    in.malformed_ = 0;
     in.header_ = wire::SampleHeader{};
     if (!in.configured()) continue;
     if (in.cascade_on_ && switch_on(in.source_) != HookResult::kOk) return HookResult::kError;
@@ -266,7 +282,10 @@ InputPort* DataComponentBase::input_from(Address source) noexcept {
 }
 
 bool DataComponentBase::take_input(InputPort& port, const MessageHeader& h, std::span<const std::byte> body) noexcept {
-  if (!port.decode(h, body)) return false;
+  if (!port.decode(h, body)) {
+    ++port.malformed_;
+    return false;
+  }
   port.received_ns_ = rt::monotonic_ns();
   ++port.samples_;
   return true;

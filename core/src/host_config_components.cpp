@@ -135,10 +135,11 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
       }
     }
     // data_task.timeout_ms of a class with declared inputs is the former name of its
-    // parameter silence_ms (docs/parameters.md): taken there, with a warning.
+    // parameter silence_ms (docs/parameters.md): taken there, with a warning (not for
+    // a class whose silence_ms is older than its declared inputs: SilenceParam).
     std::optional<std::pair<std::string, YAML::Node>> old_timeout;
     const auto* consumer = dynamic_cast<const DataComponentBase*>(component.get());
-    if (dt && dt.IsMap() && dt["timeout_ms"] && consumer != nullptr && consumer->declares_inputs()) {
+    if (dt && dt.IsMap() && dt["timeout_ms"] && consumer != nullptr && consumer->timeout_is_silence()) {
       old_timeout.emplace("timeout_ms", dt["timeout_ms"]);
     }
     // Parameters.

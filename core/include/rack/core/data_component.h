@@ -69,8 +69,15 @@
 // does not decode as its input's type is counted and logged (GET_STATS malformed),
 // never delivered. r.failed: a producer sent ERROR (it left ENABLED; InputSpec::
 // fail_on_error), or a watched input sent nothing for silence_ms (an END_OF_STREAM is
-// not silence); the error reason is set. A triggered data task wakes at least every
-// silence_ms so that silence is noticed without input.
+// not silence); the error reason is set. r.errors: producers of inputs that do not
+// fail on an ERROR left ENABLED (a trajectory writer's source: its input has ended). A
+// triggered data task wakes at least every silence_ms so that silence is noticed
+// without input. A source that sends one of several types is declared with them all,
+//
+//   obstacles_(declare_input<Scan2dData, LadarData>("obstacles", {...}))   // InputOneOf
+//   if (obstacles_.holds<LadarData>()) use(obstacles_.value<LadarData>());
+//
+// A class with a silence limit of its own keeps it (InputSpec::silence_param).
 //
 // Real-time contract: loop() runs in the data task (RT): no allocation, no non-PI
 // locks, no printing, no blocking system calls. publish(), input_mailbox(),
@@ -79,6 +86,7 @@
 // declare_input() is for the constructor only (it allocates).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -86,6 +94,8 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <tuple>
+#include <type_traits>
 #include <vector>
 
 #include "rack/core/component.h"
@@ -112,6 +122,17 @@ template <tims::Payload T>
   return true;
 }
 
+// Where a component's silence limit comes from (InputSpec::silence_param). The first
+// declaration that declares silence_ms decides what the host file's data_task.timeout_ms
+// means for the class.
+enum class SilenceParam : uint8_t {
+  kSilenceMs,      // the parameter silence_ms; data_task.timeout_ms is its former name (loaded with a warning)
+  kSilenceMsOnly,  // silence_ms; data_task.timeout_ms stays the triggered task's wake-up (the class had a
+                   // silence_ms of its own before it declared its inputs: Scan3D)
+  kNone,           // no parameter from this input (it must not be watched): the class judges its silence
+                   // by a parameter of its own (Joystick's obstacle_timeout_ms)
+};
+
 // What a declared input is (DataComponentBase::declare_input).
 struct InputSpec {
   std::string doc;            // the source parameter's doc: what the source is
@@ -123,6 +144,7 @@ struct InputSpec {
   bool fail_on_error = true;  // the source's ERROR (it left ENABLED) fails receive()
   // The default of the component's silence_ms (the first declaration that declares it).
   double silence_ms = 1000.0;
+  SilenceParam silence_param = SilenceParam::kSilenceMs;
   // Former names of the parameters, accepted with a warning (docs/parameters.md).
   const char* old_period_name = nullptr;   // of "<name>_period_ms"
   const char* old_silence_name = nullptr;  // of "silence_ms"
@@ -150,6 +172,9 @@ class InputPort {
   [[nodiscard]] int64_t time_ns() const noexcept { return header_.time_ns; }
   [[nodiscard]] int64_t received_ns() const noexcept { return received_ns_; }
   [[nodiscard]] uint64_t samples() const noexcept { return samples_; }  // since ON
+  // DATA messages from its source that did not decode (wrong size), since ON: each is
+  // also counted in GET_STATS malformed and logged (at most once a second). Data task.
+  [[nodiscard]] uint64_t malformed() const noexcept { return malformed_; }
 
  protected:
   InputPort(Parameter& source, const InputSpec& spec) noexcept
@@ -172,6 +197,7 @@ class InputPort {
   int64_t granted_period_ns_ = 0;
   int64_t received_ns_ = 0;
   uint64_t samples_ = 0;
+  uint64_t malformed_ = 0;
 };
 
 // A declared input of samples of type T. The sample lives here (allocated at
@@ -191,6 +217,72 @@ class InputOf final : public InputPort {
   std::unique_ptr<T> value_;
 };
 
+namespace detail {
+template <typename... Ts>
+constexpr bool sizes_differ() noexcept {
+  constexpr std::size_t kSizes[] = {sizeof(Ts)...};
+  for (std::size_t i = 0; i < sizeof...(Ts); ++i) {
+    for (std::size_t j = i + 1; j < sizeof...(Ts); ++j) {
+      if (kSizes[i] == kSizes[j]) return false;
+    }
+  }
+  return true;
+}
+}  // namespace detail
+
+// A declared input whose source sends samples of one of several types (Joystick's
+// obstacles: a Scan2D's or a Ladar's scans; Scan3D's odometry: an Odometry's or a
+// Position's poses). A sample is taken as the type whose size it has (the sizes
+// differ: checked at compile time); one of no type's size is malformed. holds<T>()
+// says which type the newest sample is, value<T>() holds the newest sample of type T.
+// Each sample lives here (allocated at construction). Data task; RT-safe.
+template <tims::Payload... Ts>
+class InputOneOf final : public InputPort {
+  static_assert(sizeof...(Ts) >= 2, "an input of one type is an InputOf<T>");
+  static_assert(detail::sizes_differ<Ts...>(), "the types of an InputOneOf must differ in size");
+
+ public:
+  InputOneOf(Parameter& source, const InputSpec& spec) : InputPort(source, spec), values_(std::make_unique<Ts>()...) {}
+  template <typename T>
+  [[nodiscard]] bool holds() const noexcept {
+    static_assert(index_of<T>() < sizeof...(Ts), "T is not one of the input's types");
+    return held_ == index_of<T>();
+  }
+  template <typename T>
+  [[nodiscard]] const T& value() const noexcept {
+    return *std::get<std::unique_ptr<T>>(values_);
+  }
+  template <typename T>
+  [[nodiscard]] T& value() noexcept {
+    return *std::get<std::unique_ptr<T>>(values_);
+  }
+
+ private:
+  template <typename T>
+  static constexpr std::size_t index_of() noexcept {
+    constexpr bool kSame[] = {std::is_same_v<T, Ts>...};
+    for (std::size_t i = 0; i < sizeof...(Ts); ++i) {
+      if (kSame[i]) return i;
+    }
+    return sizeof...(Ts);
+  }
+  bool decode(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept override {
+    return (decode_as<Ts>(h, body) || ...);
+  }
+  template <typename T>
+  bool decode_as(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept {
+    if (!read_sample(h, body, header_, value<T>())) return false;
+    held_ = index_of<T>();
+    return true;
+  }
+  std::tuple<std::unique_ptr<Ts>...> values_;
+  std::size_t held_ = sizeof...(Ts);  // none yet
+};
+
+// The port declare_input<T, More...> makes: InputOf<T>, or InputOneOf<T, More...>.
+template <tims::Payload T, tims::Payload... More>
+using InputFor = std::conditional_t<sizeof...(More) == 0, InputOf<T>, InputOneOf<T, More...>>;
+
 class DataComponentBase : public Component {
  public:
   [[nodiscard]] DataTaskMode data_task_mode() const noexcept override { return mode_; }
@@ -205,8 +297,11 @@ class DataComponentBase : public Component {
   [[nodiscard]] uint32_t payload_size() const noexcept { return payload_size_; }
   [[nodiscard]] const rt::LatencyStats& data_task_stats() const noexcept { return stats_; }
   // The class declares its inputs (declare_input): the framework subscribes them and
-  // owns the parameter silence_ms (the host file loader maps data_task.timeout_ms there).
+  // owns the parameter silence_ms.
   [[nodiscard]] bool declares_inputs() const noexcept { return !inputs_.empty(); }
+  // The host file's data_task.timeout_ms is the former name of this class's silence_ms
+  // (SilenceParam::kSilenceMs): the host file loader maps it there, with a warning.
+  [[nodiscard]] bool timeout_is_silence() const noexcept { return silence_ != nullptr && timeout_is_silence_; }
 
   // Local mailbox numbers of a data component.
   static constexpr uint8_t kDataReplyMailbox = 2;
@@ -267,6 +362,10 @@ class DataComponentBase : public Component {
   // ENABLED. kError (logged) without an input mailbox, with kMaxSubscriptions
   // producers already, or when the producer refuses or does not answer.
   HookResult subscribe(tims::Address producer, int64_t period_ns, int64_t* real_period_ns = nullptr) noexcept;
+  // Command task: makes a triggered data task run loop() soon, without input (after a
+  // Handoff::post() that loop() should see at once: a request it answers). RT-safe.
+  void wake_loop() noexcept;
+
   // From off(): STOP_CONT_DATA (best effort: the producer may be gone); no more
   // renewals, and the producer's messages are no longer trusted (late ones are
   // dropped quietly for a grace period).
@@ -276,18 +375,23 @@ class DataComponentBase : public Component {
   // ---- declared inputs (see "Declared inputs" above) ----
   // Constructor only (allocates): declares the source parameter `name` (and the
   // period and silence parameters the spec asks for) and sizes the input mailbox.
-  template <tims::Payload T>
-  InputOf<T>& declare_input(const std::string& name, const InputSpec& spec) {
+  // declare_input<T> gives an InputOf<T>; with more types, declare_input<A, B> an
+  // InputOneOf<A, B> (a source that sends one of them).
+  template <tims::Payload T, tims::Payload... More>
+  InputFor<T, More...>& declare_input(const std::string& name, const InputSpec& spec) {
     Parameter& source = declare_input_source(name, spec);
-    auto port = std::make_unique<InputOf<T>>(source, spec);
-    InputOf<T>& out = *port;
-    add_input(std::move(port), spec, sizeof(T));
+    auto port = std::make_unique<InputFor<T, More...>>(source, spec);
+    InputFor<T, More...>& out = *port;
+    add_input(std::move(port), spec, std::max({sizeof(T), sizeof(More)...}));
     return out;
   }
   // What receive() found.
   struct Received {
     uint32_t samples = 0;  // delivered to the handler
     bool failed = false;   // a producer's ERROR, or a watched input silent: return kError (reason set)
+    // ERRORs of inputs that do not fail on them (InputSpec::fail_on_error false),
+    // skipped: those producers left ENABLED and their subscriptions are over.
+    uint32_t errors = 0;
   };
   // Takes every message in the input mailbox and calls `on_sample(const InputPort&)`
   // for each sample that decoded, in arrival order; stops at a producer's ERROR
@@ -314,6 +418,7 @@ class DataComponentBase : public Component {
   [[nodiscard]] bool subscription_ended(tims::Address producer) const noexcept;
   std::vector<std::unique_ptr<InputPort>> inputs_;
   Parameter* silence_ = nullptr;
+  bool timeout_is_silence_ = true;
 
   void attach(tims::Router& router) override;
   bool handle_data_request(const tims::MessageHeader& h, std::span<const std::byte> body) noexcept override;
@@ -475,6 +580,7 @@ DataComponentBase::Received DataComponentBase::receive(OnSample&& on_sample) noe
         r.failed = true;  // the reason is set (next_input): the retry re-subscribes
         return r;
       }
+      ++r.errors;
       continue;
     }
     if (port != nullptr && decoded) {

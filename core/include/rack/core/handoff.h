@@ -13,6 +13,11 @@
 //   reset_.post([](uint32_t& n) { ++n; });                 // command(): requests add up
 //   if (interfaces::MclInit i; init_.take(i)) apply(i);    // loop()
 //
+// A triggered data task runs loop() only when input arrives: after a post() that
+// loop() should see at once (a request it answers), the command task also calls
+// DataComponentBase::wake_loop(). A value the data task keeps using (a velocity set
+// point) is taken into the data task's own copy: `(void)velocity_.take(current_)`.
+//
 // Real-time contract: post(), take(), pending() and clear() are RT-safe (no
 // allocation; a PI mutex held for a copy of T) from any task. T must be copyable
 // without allocating (a trivially copyable payload, a number).
