@@ -103,9 +103,14 @@ struct MclOptions {
   // read-out stalls and then catches up (30-80 % of a step reported, the rest with the
   // next one): no Gaussian motion model of sensible width covers those two scans, and
   // the particles moved by the odometry alone fall behind. The check is skipped while
-  // the scans fit the map worse than usual (w_fast below recovery_ratio * w_slow, see
-  // the recovery below): among a crowd, ICP pairs people with people. Along a corridor
-  // ICP stays at the odometry's increment. 0: off.
+  // the scans fit the map worse than usual (w_fast below recovery_ratio times the
+  // long-term fit since the estimate converged, see the recovery below): among a crowd,
+  // ICP pairs people with people; and while the estimate has not converged (position
+  // std dev above 0.5 m or heading's above 0.3 rad: after a global start the mean lies
+  // between look-alike places, and the map test means nothing). ICP is not run when
+  // its answer could not count: when the scan already fits from the odometry's
+  // increment within 0.25 per point of a perfect fit. Scans are matched with at most
+  // 180 points. Along a corridor ICP stays at the odometry's increment. 0: off.
   double odometry_check = 2.0;           // std devs of the motion model
   double odometry_check_fraction = 0.5;  // of the particles, moved by the scan's increment
   double odometry_check_goodness = 0.5;  // share of the points ICP paired, (0, 1]
