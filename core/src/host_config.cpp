@@ -8,34 +8,46 @@
 
 namespace rack {
 
+HostLoader::HostLoader(HostReport& report, ComponentRegistry& registry, const rt::RtCapabilities& caps,
+                       const HostLoadOptions& options)
+    : HostValueReader(report),
+      registry_(registry),
+      options_(options),
+      base_dir_(host_file_folder(report.file)),
+      text_(report),
+      tasks_(report, caps, base_dir_),
+      cpus_(report, caps),
+      network_(report, base_dir_, options_),
+      access_(report, component_addresses_),
+      paths_(report, registry, base_dir_, options_) {}
+
 LoadResult HostLoader::load(const std::string& text) {
   LoadResult result;
   YAML::Node root;
-  if (!check_text(text) || !check_events(text)) {
-    result.errors = errors;
+  if (!text_.check_text(text) || !text_.check_events(text)) {
+    result.errors = report_.errors;
     return result;
   }
   try {
     root = YAML::Load(text);
   } catch (const YAML::Exception& e) {
     error(e.mark, "YAML syntax: " + e.msg);
-    result.errors = errors;
+    result.errors = report_.errors;
     return result;
   }
   if (!root || root.IsNull()) {
-    errors.push_back({file, 0, 0, "empty host file (expected a map with 'components')"});
-    result.errors = errors;
+    report_.errors.push_back({report_.file, 0, 0, "empty host file (expected a map with 'components')"});
+    result.errors = report_.errors;
     return result;
   }
   if (!root.IsMap()) {
     error(root.Mark(), "a host file is a map (host, system, components, ...)");
-    result.errors = errors;
+    result.errors = report_.errors;
     return result;
   }
   auto host = std::make_unique<LoadedHost>();
   HostSettings& hs = host->settings;
-  hs.file = file;
-  base_dir = host_file_folder(file);
+  hs.file = report_.file;
   check_keys(root,
              {"host", "system", "host_id", "require_rt", "lcm", "lcm_url", "heap_prefault_mib", "cpu_dma_latency_us",
               "trace_ring_events", "cpus", "plugins", "modeswitch", "components", "gdos", "tims", "access"},
@@ -71,27 +83,27 @@ LoadResult HostLoader::load(const std::string& text) {
       hs.trace_ring_events = static_cast<std::size_t>(v);
     }
   }
-  if (const YAML::Node cpus = root["cpus"]) read_cpus(cpus, hs);
-  if (const YAML::Node ms = root["modeswitch"]) read_modeswitch(ms, hs.modeswitch);
-  if (const YAML::Node t = root["tims"]) load_tims(t, hs, root["lcm_url"].IsDefined());
-  if (const YAML::Node plugins = root["plugins"]) read_plugins(plugins, hs);
-  if (const YAML::Node g = root["gdos"]) read_gdos(g, hs.gdos);
+  if (const YAML::Node cpus = root["cpus"]) cpus_.read_cpus(cpus, hs);
+  if (const YAML::Node ms = root["modeswitch"]) tasks_.read_modeswitch(ms, hs.modeswitch);
+  if (const YAML::Node t = root["tims"]) network_.load_tims(t, hs, root["lcm_url"].IsDefined());
+  if (const YAML::Node plugins = root["plugins"]) paths_.read_plugins(plugins, hs);
+  if (const YAML::Node g = root["gdos"]) network_.read_gdos(g, hs.gdos);
   const YAML::Node comps = root["components"];
   if (!comps) {
-    errors.push_back({file, 0, 0, "missing 'components' (the list of components to run)"});
+    report_.errors.push_back({report_.file, 0, 0, "missing 'components' (the list of components to run)"});
   } else if (!comps.IsSequence()) {
     error(comps.Mark(), "'components' must be a list");
   } else {
     load_components(comps, *host);
   }
-  if (const YAML::Node a = root["access"]) read_access(a, *host);
-  check_receive_priority(root, *host);
-  if (!errors.empty()) {
-    result.errors = errors;
+  if (const YAML::Node a = root["access"]) access_.read_access(a, *host);
+  cpus_.check_receive_priority(root, *host);
+  if (!report_.errors.empty()) {
+    result.errors = report_.errors;
     return result;
   }
   result.host = std::move(host);
-  result.warnings = warnings;
+  result.warnings = report_.warnings;
   return result;
 }
 
@@ -110,7 +122,8 @@ std::string host_file_folder(const std::string& file) {
 
 LoadResult load_host_text(const std::string& text, const std::string& file, ComponentRegistry& registry,
                           const rt::RtCapabilities& caps, const HostLoadOptions& options) {
-  HostLoader loader{file, registry, caps, options, {}, {}, {}, {}};
+  HostReport report{file, {}, {}};
+  HostLoader loader(report, registry, caps, options);
   // Outside input: whatever escapes the checks (a yaml-cpp conversion that throws, an
   // allocation that fails) is one more error of this file, never an exception.
   LoadResult r;
@@ -118,7 +131,7 @@ LoadResult load_host_text(const std::string& text, const std::string& file, Comp
     r = loader.load(text);
   } catch (const std::exception& e) {
     r.host.reset();
-    r.errors = loader.errors;
+    r.errors = report.errors;
     r.errors.push_back({file, 0, 0, std::string("cannot load the host file: ") + e.what()});
   }
   // Messages quote the file's keys and values: they go to a terminal and a log as

@@ -48,16 +48,16 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
     // A class that is not built in is looked up as a plug-in by its name and loaded
     // (only when files may be opened: --check does, a fuzz run does not).
     std::string why;
-    const ComponentClass* cls = options.open_files ? registry.resolve(impl, why) : registry.find(impl);
+    const ComponentClass* cls = options_.open_files ? registry_.resolve(impl, why) : registry_.find(impl);
     if (cls == nullptr) {
       error(node["class"].Mark(),
-            why.empty() ? "unknown component class '" + impl + "' (known: " + registry.names() + ")" : why);
+            why.empty() ? "unknown component class '" + impl + "' (known: " + registry_.names() + ")" : why);
       continue;
     }
     ComponentSettings s;
     s.name = name;
     s.impl = impl;
-    s.base_dir = base_dir;
+    s.base_dir = base_dir_;
     int64_t instance = 0;
     get_int_range(node, "instance", 0, 255, instance, "an instance number 0..255");
     s.address = tims::Address::make(host.settings.system, cls->class_id, static_cast<uint8_t>(instance));
@@ -88,7 +88,7 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
     if (const YAML::Node ct = node["command_task"]) {
       if (!ct.IsMap()) error(ct.Mark(), "'command_task' must be a map (priority, cpu, stack_kib, slots)");
       else {
-        read_task(ct, s.command_task, "command_task", {"slots"});
+        tasks_.read_task(ct, s.command_task, "command_task", {"slots"});
         int64_t slots = 0;
         if (get_int_range(ct, "slots", 1, 4096, slots, "a slot count")) s.command_slots = static_cast<uint32_t>(slots);
       }
@@ -107,7 +107,7 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
       std::set<std::string> extra{"ring", "max_listeners", "lease_ms"};
       if (mode == DataTaskMode::kPeriodic) extra.insert({"period_ms", "phase_ms"});
       else extra.insert({"timeout_ms", "input_slots"});
-      read_task(dt, s.data_task, "data_task of a " + std::string(describe(mode)) + " class", extra, 0);
+      tasks_.read_task(dt, s.data_task, "data_task of a " + std::string(describe(mode)) + " class", extra, 0);
       int64_t n = 0;
       if (get_int_range(dt, "ring", 2, 1'000'000, n, "a sample count")) s.ring_size = static_cast<uint32_t>(n);
       if (get_int_range(dt, "max_listeners", 1, 1024, n, "a listener count"))
@@ -148,7 +148,7 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
     // Relative paths in parameters (declared defaults and the file's values) are the
     // host file's folder's.
     for (std::size_t i = 0; i < params.size(); ++i) {
-      if (auto err = params.at(i).set_base_dir(base_dir)) error(node.Mark(), "component '" + name + "': " + *err);
+      if (auto err = params.at(i).set_base_dir(base_dir_)) error(node.Mark(), "component '" + name + "': " + *err);
     }
     std::set<std::string> given;
     std::map<const Parameter*, YAML::Mark> given_marks;
@@ -207,7 +207,7 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
               "component '" + name + "': missing required parameter '" + prm.name() + "' (" + prm.spec().doc + ")");
       }
     }
-    if (options.check_paths) check_parameter_paths(node, name, params, given_marks);
+    if (options_.check_paths) paths_.check_parameter_paths(node, name, params, given_marks);
     // The class's own rules for its values (what init() and SET_PARAM check too).
     if (ParameterProblem problem; !p.component->check_parameters(ParameterValues(), problem)) {
       const auto at = problem.parameter != nullptr ? given_marks.find(problem.parameter) : given_marks.end();
@@ -225,7 +225,7 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
       continue;
     }
     p.component->settings_ = s;
-    component_addresses[name] = s.address;
+    component_addresses_[name] = s.address;
     by_name[name] = pending.size();
     by_address[s.address.raw()] = pending.size();
     pending.push_back(std::move(p));
@@ -278,7 +278,7 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
   for (std::size_t i = 0; i < pending.size(); ++i) {
     if (!visit(i)) break;
   }
-  if (!errors.empty()) return;
+  if (!report_.errors.empty()) return;
   std::vector<std::size_t> position(pending.size());
   for (std::size_t k = 0; k < order.size(); ++k) position[order[k]] = k;
   host.dependencies.assign(order.size(), {});

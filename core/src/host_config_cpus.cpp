@@ -8,11 +8,11 @@ namespace rack {
 
 // A CPU set: a number, a list of numbers, or a cpulist text ("0-1,3"); every CPU
 // online. Returns false (with an error at the node) otherwise.
-bool HostLoader::read_cpu_set(const YAML::Node& node, const std::string& key, std::vector<int>& out) {
+bool CpuPartition::read_cpu_set(const YAML::Node& node, const std::string& key, std::vector<int>& out) {
   const auto add = [&](int64_t c) {
-    if (c < 0 || c >= CPU_SETSIZE || !caps.cpu_online(static_cast<int>(c))) {
+    if (c < 0 || c >= CPU_SETSIZE || !caps_.cpu_online(static_cast<int>(c))) {
       std::string online;
-      for (int o : caps.online_cpus) {
+      for (int o : caps_.online_cpus) {
         if (!online.empty()) online += ',';
         online += std::to_string(o);
       }
@@ -77,7 +77,7 @@ bool HostLoader::read_cpu_set(const YAML::Node& node, const std::string& key, st
 }
 
 // The `cpus:` block: rt and housekeeping CPU sets (configs/partitioned.yaml).
-void HostLoader::read_cpus(const YAML::Node& node, HostSettings& hs) {
+void CpuPartition::read_cpus(const YAML::Node& node, HostSettings& hs) {
   if (!node.IsMap()) {
     error(node.Mark(), "'cpus' must be a map (rt, housekeeping)");
     return;
@@ -93,7 +93,7 @@ void HostLoader::read_cpus(const YAML::Node& node, HostSettings& hs) {
   if (hk_node && !read_cpu_set(hk_node, "housekeeping", hk_set)) return;
   const auto rest = [&](const std::vector<int>& other) {
     std::vector<int> r;
-    for (int c : caps.online_cpus) {
+    for (int c : caps_.online_cpus) {
       if (std::find(other.begin(), other.end(), c) == other.end()) r.push_back(c);
     }
     return r;
@@ -112,7 +112,7 @@ void HostLoader::read_cpus(const YAML::Node& node, HostSettings& hs) {
 // The network's receive threads must never preempt a real-time task of a component
 // (DESIGN: RT tasks never wait for the network): tims.receive_priority stays below
 // every SCHED_FIFO task's priority.
-void HostLoader::check_receive_priority(const YAML::Node& root, const LoadedHost& host) {
+void CpuPartition::check_receive_priority(const YAML::Node& root, const LoadedHost& host) {
   const int rx = host.settings.receive_priority;
   if (rx == 0) return;
   for (const auto& c : host.components) {

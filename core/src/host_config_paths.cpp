@@ -10,15 +10,15 @@
 namespace rack {
 
 // What an error about a path adds when the file gave it relative.
-std::string HostLoader::relative_note(const std::string& given) const {
+std::string HostPaths::relative_note(const std::string& given) const {
   if (given.empty() || given.front() == '/') return {};
-  return " ('" + given + "' is relative to the host file's folder, " + base_dir + ")";
+  return " ('" + given + "' is relative to the host file's folder, " + base_dir_ + ")";
 }
 
 // --check: the files and folders a component's parameters name exist (what init()
 // or the first STORE_DATA would otherwise find out after the start).
-void HostLoader::check_parameter_paths(const YAML::Node& node, const std::string& name, const ParameterSet& params,
-                                       const std::map<const Parameter*, YAML::Mark>& marks) {
+void HostPaths::check_parameter_paths(const YAML::Node& node, const std::string& name, const ParameterSet& params,
+                                      const std::map<const Parameter*, YAML::Mark>& marks) {
   for (std::size_t i = 0; i < params.size(); ++i) {
     const Parameter& prm = params.at(i);
     const PathRole role = prm.spec().path;
@@ -50,7 +50,7 @@ void HostLoader::check_parameter_paths(const YAML::Node& node, const std::string
 
 // The `plugins:` list: a directory is searched for plug-in classes by name, a file is
 // loaded now (only when files may be opened).
-void HostLoader::read_plugins(const YAML::Node& plugins, HostSettings& hs) {
+void HostPaths::read_plugins(const YAML::Node& plugins, HostSettings& hs) {
   if (!plugins.IsSequence()) {
     error(plugins.Mark(), "'plugins' must be a list of plug-in directories or shared library paths");
   } else {
@@ -63,8 +63,8 @@ void HostLoader::read_plugins(const YAML::Node& plugins, HostSettings& hs) {
         error(p.Mark(), "a plug-in path must not be empty");
         continue;
       }
-      if (!options.open_files) continue;
-      const std::string path = resolve_path(base_dir, p.Scalar());
+      if (!options_.open_files) continue;
+      const std::string path = resolve_path(base_dir_, p.Scalar());
       // A directory is searched for plug-in classes by name (<Class>.rack-class,
       // loaded only when a component names the class); a file is loaded now.
       struct stat st {};
@@ -74,12 +74,12 @@ void HostLoader::read_plugins(const YAML::Node& plugins, HostSettings& hs) {
         continue;
       }
       if (S_ISDIR(st.st_mode)) {
-        registry.add_plugin_dir(path);
+        registry_.add_plugin_dir(path);
         hs.plugins.push_back(path);
         continue;
       }
       try {
-        registry.load_plugin(path);
+        registry_.load_plugin(path);
         hs.plugins.push_back(path);
       } catch (const std::exception& e) {
         error(p.Mark(), e.what());

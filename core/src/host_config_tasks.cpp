@@ -7,7 +7,7 @@ namespace rack {
 // min_priority 0 (data tasks only) means normal scheduling (SCHED_OTHER): for heavy,
 // allocating components such as MCL that must not compete with the control tasks.
 // Command tasks stay SCHED_FIFO: they answer ON/OFF and must stay responsive.
-void HostLoader::read_task(const YAML::Node& node, TaskSettings& task, const std::string& where,
+void TaskReader::read_task(const YAML::Node& node, TaskSettings& task, const std::string& where,
                            const std::set<std::string>& extra_keys, int64_t min_priority) {
   std::set<std::string> keys{"priority", "cpu", "stack_kib", "modeswitch"};
   keys.insert(extra_keys.begin(), extra_keys.end());
@@ -20,9 +20,9 @@ void HostLoader::read_task(const YAML::Node& node, TaskSettings& task, const std
   }
   if (node["cpu"]) {
     if (get(node, "cpu", v, "a CPU number")) {
-      if (v < 0 || v >= CPU_SETSIZE || !caps.cpu_online(static_cast<int>(v))) {
+      if (v < 0 || v >= CPU_SETSIZE || !caps_.cpu_online(static_cast<int>(v))) {
         std::string online;
-        for (int c : caps.online_cpus) {
+        for (int c : caps_.online_cpus) {
           // Not `(empty ? "" : ",") + to_string(c)`: GCC 12 warns (-Wrestrict) on that
           // form once this function is compiled on its own.
           if (!online.empty()) online += ',';
@@ -40,7 +40,7 @@ void HostLoader::read_task(const YAML::Node& node, TaskSettings& task, const std
   if (node["modeswitch"]) task.modeswitch = get_mode(node, "modeswitch");
 }
 
-std::optional<rt::modeswitch::Mode> HostLoader::get_mode(const YAML::Node& map, const char* key) {
+std::optional<rt::modeswitch::Mode> TaskReader::get_mode(const YAML::Node& map, const char* key) {
   std::string text;
   if (!get(map, key, text, "off, warn or abort")) return std::nullopt;
   const auto mode = rt::modeswitch::parse_mode(text);
@@ -49,7 +49,7 @@ std::optional<rt::modeswitch::Mode> HostLoader::get_mode(const YAML::Node& map, 
 }
 
 // The host file's `modeswitch:` block (configs/modeswitch_demo.yaml documents it).
-void HostLoader::read_modeswitch(const YAML::Node& node, rt::modeswitch::Config& c) {
+void TaskReader::read_modeswitch(const YAML::Node& node, rt::modeswitch::Config& c) {
   if (!node.IsMap()) {
     error(node.Mark(), "'modeswitch' must be a map (mode, abort, crash_dir, ...)");
     return;
@@ -72,7 +72,7 @@ void HostLoader::read_modeswitch(const YAML::Node& node, rt::modeswitch::Config&
   }
   if (get(node, "crash_dir", text, "a directory")) {
     if (text.empty()) error(node["crash_dir"].Mark(), "'crash_dir' must not be empty");
-    else c.crash_dir = resolve_path(base_dir, text);
+    else c.crash_dir = resolve_path(base_dir_, text);
   }
   get(node, "crash_handlers", c.crash_handlers, "true or false");
   get(node, "syscalls", c.syscalls, "true or false");

@@ -182,11 +182,11 @@ class HostFileEvents final : public YAML::EventHandler {
 
 // The raw bytes, before YAML sees them: size, NUL bytes, UTF-8, control characters
 // (tab, newline and carriage return aside). False: not parsed at all.
-bool HostLoader::check_text(std::string_view text) {
+bool HostTextCheck::check_text(std::string_view text) {
   if (text.size() > kMaxHostFileBytes) {
-    errors.push_back({file, 0, 0,
-                      "the host file has " + std::to_string(text.size()) + " bytes: at most " +
-                          std::to_string(kMaxHostFileBytes) + " are read"});
+    report_.errors.push_back({report_.file, 0, 0,
+                              "the host file has " + std::to_string(text.size()) + " bytes: at most " +
+                                  std::to_string(kMaxHostFileBytes) + " are read"});
     return false;
   }
   int line = 1, column = 1;
@@ -198,7 +198,8 @@ bool HostLoader::check_text(std::string_view text) {
     else if (cp == 0) why = "a NUL byte";
     else if (is_control(cp) && cp != '\r') why = "a control character (" + code_point_text(cp) + ")";
     if (!why.empty()) {
-      errors.push_back({file, line, column, why + ": a host file is UTF-8 text without control characters"});
+      report_.errors.push_back(
+          {report_.file, line, column, why + ": a host file is UTF-8 text without control characters"});
       return false;
     }
     if (cp == '\n') {
@@ -214,10 +215,10 @@ bool HostLoader::check_text(std::string_view text) {
 
 // The event pass (HostFileEvents) and the rule of one document. False: the first
 // document is not YAML.
-bool HostLoader::check_events(const std::string& text) {
+bool HostTextCheck::check_events(const std::string& text) {
   std::istringstream in(text);
   YAML::Parser parser(in);
-  HostFileEvents events(file, errors);
+  HostFileEvents events(report_.file, report_.errors);
   try {
     parser.HandleNextDocument(events);
   } catch (const YAML::Exception& e) {

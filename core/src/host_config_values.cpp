@@ -8,16 +8,16 @@
 
 namespace rack {
 
-void HostLoader::error(const YAML::Mark& mark, const std::string& message) {
-  errors.push_back({file, mark.line + 1, mark.column + 1, message});
+void HostValueReader::error(const YAML::Mark& mark, const std::string& message) {
+  report_.errors.push_back({report_.file, mark.line + 1, mark.column + 1, message});
 }
 
-void HostLoader::warn(const YAML::Mark& mark, const std::string& message) {
-  warnings.push_back({file, mark.line + 1, mark.column + 1, message});
+void HostValueReader::warn(const YAML::Mark& mark, const std::string& message) {
+  report_.warnings.push_back({report_.file, mark.line + 1, mark.column + 1, message});
 }
 
 // Checks that a map has only known keys; reports each unknown one.
-void HostLoader::check_keys(const YAML::Node& map, const std::set<std::string>& known, const std::string& where) {
+void HostValueReader::check_keys(const YAML::Node& map, const std::set<std::string>& known, const std::string& where) {
   for (auto it = map.begin(); it != map.end(); ++it) {
     const std::string key = it->first.Scalar();
     if (known.count(key) == 0) {
@@ -28,8 +28,8 @@ void HostLoader::check_keys(const YAML::Node& map, const std::set<std::string>& 
   }
 }
 
-bool HostLoader::get_int_range(const YAML::Node& map, const char* key, int64_t lo, int64_t hi, int64_t& out,
-                               const std::string& what) {
+bool HostValueReader::get_int_range(const YAML::Node& map, const char* key, int64_t lo, int64_t hi, int64_t& out,
+                                    const std::string& what) {
   int64_t v = 0;
   if (!get(map, key, v, what)) return false;
   if (v < lo || v > hi) {
@@ -41,7 +41,7 @@ bool HostLoader::get_int_range(const YAML::Node& map, const char* key, int64_t l
   return true;
 }
 
-bool HostLoader::get_positive_ms(const YAML::Node& map, const char* key, int64_t& out_ns) {
+bool HostValueReader::get_positive_ms(const YAML::Node& map, const char* key, int64_t& out_ns) {
   double ms = 0;
   if (!get(map, key, ms, "a number of milliseconds")) return false;
   if (!(ms > 0) || !std::isfinite(ms)) {
@@ -62,7 +62,7 @@ bool HostLoader::get_positive_ms(const YAML::Node& map, const char* key, int64_t
 }
 
 // A name: 1..max ASCII letters, digits, '_', '-' (and '.' where `dots`).
-bool HostLoader::valid_name(const std::string& n, std::size_t max, bool dots) {
+bool HostValueReader::valid_name(const std::string& n, std::size_t max, bool dots) {
   if (n.empty() || n.size() > max) return false;
   for (char c : n) {
     const bool letter = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9');
@@ -73,14 +73,14 @@ bool HostLoader::valid_name(const std::string& n, std::size_t max, bool dots) {
 
 // A name as it may be shown in a message: cut to 40 characters, non-ASCII and
 // control bytes as '?' (the message itself must stay clean text).
-std::string HostLoader::printable(const std::string& n) {
+std::string HostValueReader::printable(const std::string& n) {
   std::string out;
   for (char c : n.substr(0, 40)) out += (c >= 0x20 && c < 0x7f) ? c : '?';
   if (n.size() > 40) out += "...(" + std::to_string(n.size()) + " bytes)";
   return out;
 }
 
-void HostLoader::check_url(const YAML::Node& map, const char* key, const std::string& url) {
+void HostValueReader::check_url(const YAML::Node& map, const char* key, const std::string& url) {
   if (const auto u = tims::parse_lcm_url(url); !u.ok())
     error(map[key].Mark(), std::string("'") + key + "': " + u.error);
 }

@@ -1,17 +1,34 @@
-// LcmTransport: authenticated links (link_auth.h): received payloads verified and
-// their trailer stripped, published ones signed, key files reloaded when they change.
-#include "lcm_transport_impl.h"
+// One network's authentication: received payloads verified and their trailer
+// stripped, published ones signed, key files reloaded when they change
+// (lcm_transport_auth.h, rack/tims/link_auth.h).
+#include "lcm_transport_auth.h"
 
+#include <stdexcept>
+
+#include "lcm_transport_packet.h"
 #include "rack/rt/clock.h"
+#include "rack_lcm/discover_request.hpp"
+#include "rack_lcm/host_announce.hpp"
 
 namespace rack::tims {
 
 using namespace lcm_detail;
 
-// A payload on one of our channels: on a keyed network, verifies and strips its
-// trailer (false: dropped, counted, logged); elsewhere, passes it on. Receive threads.
-bool LcmTransport::Impl::authentic(Network& n, std::string_view channel, const uint8_t* d, std::size_t& size) {
-  if (!n.verifier) {
+LinkAuth::LinkAuth(const NetworkConfig& config, int64_t origin, int64_t replay_window_ns) {
+  if (config.key_file.empty()) return;
+  try {
+    keys_ = std::make_unique<KeyRing>(config.key_file);
+  } catch (const std::exception& e) {
+    throw std::runtime_error("network '" + config.name + "': " + e.what());
+  }
+  signer_ = std::make_unique<LinkSigner>(*keys_, origin);
+  verifier_ = std::make_unique<LinkVerifier>(*keys_, replay_window_ns);
+  scratch_.reserve(4096);
+}
+
+bool LinkAuth::accept(std::string_view channel, const uint8_t* d, std::size_t& size, NetworkLog& log) {
+  TransportStats& stats = log.stats();
+  if (!verifier_) {
     // A signed packet on a network without a key here: this host lacks the key
     // (refused, with a message that says so, instead of half-working on what LCM's
     // decoders would accept). Recognised by a trailer right after the packet's end.
@@ -31,51 +48,44 @@ bool LcmTransport::Impl::authentic(Network& n, std::string_view channel, const u
       is_signed = used > 0 && signed_after(static_cast<std::size_t>(used));
     }
     if (is_signed) {
-      bump(malformed);
-      bump(channel == kAnnounceChannel   ? malformed_announce
-           : channel == kDiscoverChannel ? malformed_discover
-                                         : malformed_packet);
-      warn("unkeyed " + n.config.name, [&] {
-        return "TiMS/LCM: dropped a signed packet on network '" + n.config.name + "' (" + n.config.url +
+      bump(stats.malformed);
+      bump(channel == kAnnounceChannel   ? stats.malformed_announce
+           : channel == kDiscoverChannel ? stats.malformed_discover
+                                         : stats.malformed_packet);
+      log.warn("unkeyed " + log.name(), [&] {
+        return "TiMS/LCM: dropped a signed packet on network '" + log.name() + "' (" + log.url() +
                "), which has no key_file here: give this host the network's key file";
       });
       return false;
     }
     return true;
   }
-  const AuthResult r = n.verifier->verify(channel, d, size, rt::host_time_ns(), rt::monotonic_ns());
+  const AuthResult r = verifier_->verify(channel, d, size, rt::host_time_ns(), rt::monotonic_ns());
   if (r == AuthResult::kOk) {
     size -= kAuthTrailerBytes;
     return true;
   }
   const bool replay = is_replay(r);
-  bump(replay ? replayed : auth_failed);
-  const int64_t from = n.verifier->last_sender();
-  warn((replay ? "replayed " : "auth ") + n.config.name, [&] {
-    return "TiMS/LCM: dropped a packet on network '" + n.config.name + "' (" + n.config.url + ", key file " +
-           n.keys->path() + ") channel " + std::string(channel) +
-           (from != 0 ? " from origin " + origin_text(from) : "") + ": " + describe(r);
+  bump(replay ? stats.replayed : stats.auth_failed);
+  const int64_t from = verifier_->last_sender();
+  log.warn((replay ? "replayed " : "auth ") + log.name(), [&] {
+    return "TiMS/LCM: dropped a packet on network '" + log.name() + "' (" + log.url() + ", key file " + keys_->path() +
+           ") channel " + std::string(channel) + (from != 0 ? " from origin " + origin_text(from) : "") + ": " +
+           describe(r);
   });
   return false;
 }
 
-// Publishes raw bytes on `n`, signed on a keyed network: `buf` must have
-// kAuthTrailerBytes of room after `len`. Caller holds n.publish_mutex.
-int LcmTransport::Impl::publish_raw(Network& n, const char* channel, uint8_t* buf, std::size_t len) {
-  if (n.signer) {
-    n.signer->sign(channel, buf, len, buf + len, rt::host_time_ns());
-    len += kAuthTrailerBytes;
-  }
-  return n.lcm->publish(channel, buf, static_cast<unsigned>(len));
+void LinkAuth::sign(std::string_view channel, uint8_t* buf, std::size_t& len) {
+  if (!signer_) return;
+  signer_->sign(channel, buf, len, buf + len, rt::host_time_ns());
+  len += kAuthTrailerBytes;
 }
 
-// Maintenance thread: re-reads changed key files.
-void LcmTransport::Impl::reload_keys() {
-  for (auto& n : networks) {
-    if (!n->keys) continue;
-    const std::string m = n->keys->check_reload();
-    if (!m.empty()) warn("keys " + m, [&] { return "TiMS/LCM: network '" + n->config.name + "': " + m; });
-  }
+void LinkAuth::reload(NetworkLog& log) {
+  if (!keys_) return;
+  const std::string m = keys_->check_reload();
+  if (!m.empty()) log.warn("keys " + m, [&] { return "TiMS/LCM: network '" + log.name() + "': " + m; });
 }
 
 }  // namespace rack::tims
