@@ -3,7 +3,9 @@
 // a tool mailbox (test_support.h), on the shipped office map.
 //
 // Timing-sensitive tests (watchdog, driving) have "Tolerant" in their names: their
-// margins are generous, and each threaded test has a watchdog.
+// margins are generous, and each threaded test has a watchdog. They run stepped on a
+// virtual clock now (the fixture's start()), so they no longer depend on the machine's
+// load; the names stay (ctest's history, other branches).
 #include <gtest/gtest.h>
 
 #include <cmath>
