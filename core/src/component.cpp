@@ -478,41 +478,58 @@ void Component::handle(const MessageHeader& h, std::span<const std::byte> body) 
   reply_with(h, msg::kError, text);
 }
 
-void Component::run_command_task() noexcept {
-  const std::span<std::byte> buffer(command_buffer_);
-  while (!stopping()) {
-    int64_t timeout = tims::Mailbox::kForever;
-    if (state() == ComponentState::kError && !init_failed_) {
-      timeout = retry_at_ns_ - rt::monotonic_ns();
-      if (timeout < 0) timeout = 0;
-    }
-    const auto r = command_mailbox_->receive(buffer, timeout);
-    if (r.status == tims::RecvStatus::kClosed) break;
-    if (loop_failed_.exchange(false, std::memory_order_acq_rel)) go_error();
-    switch (r.status) {
-      case tims::RecvStatus::kOk: {
-        // One command is one cycle of the command task: the mode-switch window.
-        rt::modeswitch::enter_cycle();
-        rt::trace::record(rt::trace::Kind::kCycleStart);
-        handle(r.header, buffer.subspan(sizeof(MessageHeader), r.length - sizeof(MessageHeader)));
-        rt::trace::record(rt::trace::Kind::kCycleEnd);
-        const rt::modeswitch::Verdict verdict = rt::modeswitch::leave_cycle();
-        if (verdict.reports > 0) rt::trace::record(rt::trace::Kind::kModeSwitch, verdict.reports);
-        if (verdict.abort) go_error();  // abort mode: the component goes to ERROR
-        break;
-      }
-      case tims::RecvStatus::kTooSmall:
-        if (r.header.is_request()) reject_malformed(r.header, "request larger than the command buffer");
-        break;
-      case tims::RecvStatus::kTimeout:
-      case tims::RecvStatus::kEmpty:
-      case tims::RecvStatus::kClosed: break;
-    }
-    if (state() == ComponentState::kError && !init_failed_ && rt::monotonic_ns() >= retry_at_ns_) {
+int64_t Component::command_wait_ns() const noexcept {
+  if (state() != ComponentState::kError || init_failed_) return tims::Mailbox::kForever;
+  const int64_t left = retry_at_ns_ - rt::monotonic_ns();
+  return left < 0 ? 0 : left;
+}
+
+void Component::command_pass(const tims::Mailbox::Received& r) noexcept {
+  if (loop_failed_.exchange(false, std::memory_order_acq_rel)) go_error();
+  switch (r.status) {
+    case tims::RecvStatus::kOk: {
+      // One command is one cycle of the command task: the mode-switch window.
       rt::modeswitch::enter_cycle();
-      handle_on(nullptr);  // back-off elapsed: retry
-      if (rt::modeswitch::leave_cycle().abort) go_error();
+      rt::trace::record(rt::trace::Kind::kCycleStart);
+      handle(
+          r.header,
+          std::span<const std::byte>(command_buffer_).subspan(sizeof(MessageHeader), r.length - sizeof(MessageHeader)));
+      rt::trace::record(rt::trace::Kind::kCycleEnd);
+      const rt::modeswitch::Verdict verdict = rt::modeswitch::leave_cycle();
+      if (verdict.reports > 0) rt::trace::record(rt::trace::Kind::kModeSwitch, verdict.reports);
+      if (verdict.abort) go_error();  // abort mode: the component goes to ERROR
+      break;
     }
+    case tims::RecvStatus::kTooSmall:
+      if (r.header.is_request()) reject_malformed(r.header, "request larger than the command buffer");
+      break;
+    case tims::RecvStatus::kTimeout:
+    case tims::RecvStatus::kEmpty:
+    case tims::RecvStatus::kClosed: break;
+  }
+  if (state() == ComponentState::kError && !init_failed_ && rt::monotonic_ns() >= retry_at_ns_) {
+    rt::modeswitch::enter_cycle();
+    handle_on(nullptr);  // back-off elapsed: retry
+    if (rt::modeswitch::leave_cycle().abort) go_error();
+  }
+}
+
+void Component::run_command_task() noexcept {
+  while (!stopping()) {
+    const auto r = command_mailbox_->receive(command_buffer_, command_wait_ns());
+    if (r.status == tims::RecvStatus::kClosed) break;
+    command_pass(r);
+  }
+}
+
+bool Component::step_commands() noexcept {
+  bool any = false;
+  for (;;) {
+    const auto r = command_mailbox_->receive(command_buffer_, tims::Mailbox::kNonBlocking);
+    if (r.status == tims::RecvStatus::kClosed) return any;
+    command_pass(r);  // also with nothing received: a loop failure, a retry that is due
+    if (r.status != tims::RecvStatus::kOk && r.status != tims::RecvStatus::kTooSmall) return any;
+    any = true;
   }
 }
 

@@ -685,94 +685,165 @@ void DataComponentBase::input_malformed(const tims::MessageHeader& header, std::
   input_malformed_suppressed_ = 0;
 }
 
-void DataComponentBase::run_data_task() noexcept {
+// ---- the data task's loop: one body for the thread and for a stepped executor ----
+
+void DataComponentBase::begin_data_task() noexcept {
+  const int64_t now = rt::monotonic_ns();
   if (mode_ == DataTaskMode::kPeriodic) {
     const int64_t period = settings().period_ns;
-    int64_t next = rt::monotonic_ns() + period;
-    if (const int64_t phase = settings().phase_ns; phase >= 0) {  // phase_ms: on the clock's grid
-      const int64_t now = rt::monotonic_ns();
-      next = (now - phase) / period * period + phase + period;  // the first grid point after now
+    periodic_ = PeriodicState{};
+    periodic_.next = now + period;
+    if (const int64_t phase = settings().phase_ns; phase >= 0) {          // phase_ms: on the clock's grid
+      periodic_.next = (now - phase) / period * period + phase + period;  // the first grid point after now
     }
-    // Overruns are reported through GDOS at most once a second, with the count since
-    // the last report (a task that overruns every cycle must not flood its ring).
-    uint64_t unreported = 0;
-    int64_t next_report = 0;
+    return;
+  }
+  triggered_ = TriggeredState{};
+  triggered_.timeout = settings().data_timeout_ns;
+  triggered_.deadline = now + triggered_.timeout;
+}
+
+void DataComponentBase::periodic_cycle() noexcept {
+  PeriodicState& p = periodic_;
+  const int64_t period = settings().period_ns;
+  stats_.record_latency(rt::monotonic_ns() - p.next);
+  rt::trace::record(rt::trace::Kind::kWake, p.next);
+  const int64_t cycle_start = rt::monotonic_ns();
+  run_one_cycle();
+  report_refused_input();
+  stats_.record_cycle();
+  p.next += period;
+  const int64_t now = rt::monotonic_ns();
+  if (now >= p.next) {  // overrun: skip the missed deadlines, never burst to catch up
+    const int64_t missed = (now - p.next) / period + 1;
+    p.next += missed * period;
+    stats_.record_overruns(static_cast<uint64_t>(missed));
+    rt::modeswitch::note_overrun(static_cast<uint64_t>(missed), now - cycle_start);  // WATCHDOG
+    rt::trace::record_at(now, rt::trace::Kind::kOverrun, missed);
+    p.unreported += static_cast<uint64_t>(missed);
+  }
+  // Overruns are reported through GDOS at most once a second, with the count since
+  // the last report (a task that overruns every cycle must not flood its ring).
+  if (p.unreported > 0 && now >= p.next_report) {
+    log_warning("overrun: %llu period(s) of %lld us missed since the last report",
+                static_cast<unsigned long long>(p.unreported), static_cast<long long>(period / rt::kNsPerUs));
+    p.unreported = 0;
+    p.next_report = now + rt::kNsPerSec;
+  }
+}
+
+DataComponentBase::TriggeredPlan DataComponentBase::triggered_plan() noexcept {
+  TriggeredState& t = triggered_;
+  // Declared inputs: loop() runs at least every silence_ms (SET_PARAM may change it),
+  // so that a silent source is noticed in time.
+  if (const int64_t silence = silence_ns(); silence > 0) t.timeout = std::min(settings().data_timeout_ns, silence);
+  if (!input_mailbox_) return {TriggeredPlan::kSleep, t.deadline};
+  report_refused_input();
+  if (!loop_enabled_.load(std::memory_order_seq_cst)) {
+    t.was_enabled = false;
+    drain_input();
+    return {TriggeredPlan::kGatedOff, rt::monotonic_ns() + t.timeout};
+  }
+  if (!t.was_enabled) {  // just enabled: the timeout starts now
+    t.was_enabled = true;
+    t.deadline = rt::monotonic_ns() + t.timeout;
+    last_good_input_ns_ = rt::monotonic_ns();
+  }
+  // Wake up for the next renewal too (a silent producer must not let the lease lapse).
+  return {TriggeredPlan::kWaitInput, std::min(t.deadline, next_renewal_ns_.load(std::memory_order_relaxed))};
+}
+
+bool DataComponentBase::triggered_after(const TriggeredPlan& plan, bool got) noexcept {
+  TriggeredState& t = triggered_;
+  switch (plan.what) {
+    case TriggeredPlan::kGatedOff: return false;
+    case TriggeredPlan::kWaitInput:
+      if (!got && rt::monotonic_ns() < t.deadline) {  // woken without input: renewal due, or a wake()
+        renew_gated();
+        return false;
+      }
+      break;
+    case TriggeredPlan::kSleep: break;
+  }
+  run_one_cycle();
+  stats_.record_cycle();
+  t.deadline = rt::monotonic_ns() + t.timeout;
+  return true;
+}
+
+void DataComponentBase::run_data_task() noexcept {
+  begin_data_task();
+  if (mode_ == DataTaskMode::kPeriodic) {
     while (!stopping()) {
       // Renewals due before the next cycle (a period longer than a quarter lease): in
       // between, so that a slow consumer keeps its subscriptions. Each renewal moves
       // next_renewal_ns_ past now, so this ends.
       for (int64_t r = next_renewal_ns_.load(std::memory_order_relaxed);
-           r < next && !stopping() && loop_enabled_.load(std::memory_order_seq_cst);
+           r < periodic_.next && !stopping() && loop_enabled_.load(std::memory_order_seq_cst);
            r = next_renewal_ns_.load(std::memory_order_relaxed)) {
         rt::sleep_until_monotonic(r);
         renew_gated();
       }
-      rt::sleep_until_monotonic(next);
-      stats_.record_latency(rt::monotonic_ns() - next);
-      rt::trace::record(rt::trace::Kind::kWake, next);
-      const int64_t cycle_start = rt::monotonic_ns();
-      run_one_cycle();
-      report_refused_input();
-      stats_.record_cycle();
-      next += period;
-      const int64_t now = rt::monotonic_ns();
-      if (now >= next) {  // overrun: skip the missed deadlines, never burst to catch up
-        const int64_t missed = (now - next) / period + 1;
-        next += missed * period;
-        stats_.record_overruns(static_cast<uint64_t>(missed));
-        rt::modeswitch::note_overrun(static_cast<uint64_t>(missed), now - cycle_start);  // WATCHDOG
-        rt::trace::record_at(now, rt::trace::Kind::kOverrun, missed);
-        unreported += static_cast<uint64_t>(missed);
-      }
-      if (unreported > 0 && now >= next_report) {
-        log_warning("overrun: %llu period(s) of %lld us missed since the last report",
-                    static_cast<unsigned long long>(unreported), static_cast<long long>(period / rt::kNsPerUs));
-        unreported = 0;
-        next_report = now + rt::kNsPerSec;
-      }
+      rt::sleep_until_monotonic(periodic_.next);
+      periodic_cycle();
     }
     return;
   }
   // Triggered: loop() runs when input arrives, or when data_timeout passes without
   // any (so a component notices a silent source). Wake-ups without input do not count.
-  int64_t timeout = settings().data_timeout_ns;
-  bool was_enabled = false;
-  int64_t deadline = 0;
   while (!stopping()) {
-    // Declared inputs: loop() runs at least every silence_ms (SET_PARAM may change it),
-    // so that a silent source is noticed in time.
-    if (const int64_t silence = silence_ns(); silence > 0) timeout = std::min(settings().data_timeout_ns, silence);
-    if (!input_mailbox_) {
-      rt::sleep_for(timeout);
-      run_one_cycle();
-      stats_.record_cycle();
-      continue;
+    const TriggeredPlan plan = triggered_plan();
+    bool got = false;
+    switch (plan.what) {
+      case TriggeredPlan::kSleep: rt::sleep_until_monotonic(plan.until_ns); break;
+      case TriggeredPlan::kGatedOff: (void)input_mailbox_->wait(triggered_.timeout); break;
+      case TriggeredPlan::kWaitInput: {
+        const int64_t left = plan.until_ns - rt::monotonic_ns();
+        got = left > 0 && input_mailbox_->wait(left);
+        break;
+      }
     }
-    report_refused_input();
-    if (!loop_enabled_.load(std::memory_order_seq_cst)) {
-      was_enabled = false;
-      drain_input();
-      input_mailbox_->wait(timeout);
-      continue;
-    }
-    if (!was_enabled) {  // just enabled: the timeout starts now
-      was_enabled = true;
-      deadline = rt::monotonic_ns() + timeout;
-      last_good_input_ns_ = rt::monotonic_ns();
-    }
-    // Wake up for the next renewal too (a silent producer must not let the lease lapse).
-    const int64_t wake = std::min(deadline, next_renewal_ns_.load(std::memory_order_relaxed));
-    const int64_t left = wake - rt::monotonic_ns();
-    const bool got = left > 0 && input_mailbox_->wait(left);
     if (stopping()) break;
-    if (!got && rt::monotonic_ns() < deadline) {  // woken without input: renewal due, or a wake()
-      renew_gated();
-      continue;
-    }
-    run_one_cycle();
-    stats_.record_cycle();
-    deadline = rt::monotonic_ns() + timeout;
+    (void)triggered_after(plan, got);
   }
+}
+
+bool DataComponentBase::step_data() noexcept {
+  const int64_t now = rt::monotonic_ns();
+  if (mode_ == DataTaskMode::kPeriodic) {
+    // As the thread does between cycles: a renewal due before the next deadline.
+    if (const int64_t r = next_renewal_ns_.load(std::memory_order_relaxed);
+        r <= now && r < periodic_.next && loop_enabled_.load(std::memory_order_seq_cst)) {
+      renew_gated();
+    }
+    if (now < periodic_.next) return false;
+    periodic_cycle();
+    return true;
+  }
+  const TriggeredPlan plan = triggered_plan();
+  switch (plan.what) {
+    case TriggeredPlan::kGatedOff: return false;
+    case TriggeredPlan::kSleep: return now >= plan.until_ns && triggered_after(plan, false);
+    case TriggeredPlan::kWaitInput: {
+      const bool got = input_mailbox_->queued() > 0;
+      if (!got && now < plan.until_ns) return false;
+      return triggered_after(plan, got);
+    }
+  }
+  return false;
+}
+
+int64_t DataComponentBase::next_data_step_ns() const noexcept {
+  const int64_t renewal = loop_enabled_.load(std::memory_order_seq_cst)
+                              ? next_renewal_ns_.load(std::memory_order_relaxed)
+                              : INT64_MAX;
+  if (mode_ == DataTaskMode::kPeriodic) return std::min(periodic_.next, renewal);
+  if (!input_mailbox_) return triggered_.deadline;
+  if (!loop_enabled_.load(std::memory_order_seq_cst)) {  // gated off: a pass only drains stale input
+    return input_mailbox_->queued() > 0 ? rt::monotonic_ns() : INT64_MAX;
+  }
+  if (!triggered_.was_enabled || input_mailbox_->queued() > 0) return rt::monotonic_ns();
+  return std::min(triggered_.deadline, renewal);
 }
 
 }  // namespace rack

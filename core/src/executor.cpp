@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "rack/core/stepper.h"
 #include "rack/tims/lcm_url.h"
 
 #include <dirent.h>
@@ -426,6 +427,7 @@ void Executor::stop_io_workers() noexcept {
 // The command task and (if it has one) the data task of one component, with the
 // priority, CPU and stack of the host file.
 void Executor::start_tasks(ComponentView& v) {
+  if (options_.stepped) return add_stepped_task(v);
   const HostSettings& hs = host_->settings;
   Component& c = *v.component;
   const ComponentSettings& s = c.settings();
@@ -595,6 +597,7 @@ void Executor::stop() {
   for (auto& v : views_) v.component->request_stop();
   for (auto& t : threads_) t->join();
   threads_.clear();
+  stepped_.clear();
   stop_io_workers();
   if (trace_mailbox_) {
     trace_mailbox_->close();

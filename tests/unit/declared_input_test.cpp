@@ -20,6 +20,7 @@ namespace {
 
 using interfaces::MonitorData;
 using test::HostUnderTest;
+using test::Stepping;
 using test::Watchdog;
 using tims::Address;
 namespace msg = tims::msg;
@@ -46,9 +47,13 @@ components:
 
 uint64_t listeners(HostUnderTest& host, Address a) { return host.stats(a).listeners; }
 
+// The DeclaredInputTest hosts are stepped (rack/core/stepper.h): waiting for a condition
+// moves the virtual clock to the first instant it holds, within this much of it.
+constexpr int64_t kLimit = 10 * rt::kNsPerSec;
+
 TEST(DeclaredInputTest, SubscribedBeforeOnAndUnsubscribedAfterOff) {
   Watchdog dog;
-  HostUnderTest host(host_yaml(", source_period_ms: 20"));
+  HostUnderTest host(host_yaml(", source_period_ms: 20"), {}, false, Stepping::kStepped);
   const Address gen = host.address_of("gen");
   const Address mon = host.address_of("mon");
   EXPECT_EQ(host.status(gen), msg::kDisabled);
@@ -57,7 +62,7 @@ TEST(DeclaredInputTest, SubscribedBeforeOnAndUnsubscribedAfterOff) {
   EXPECT_EQ(listeners(host, gen), 1u) << "subscribed when ON was answered";
   MonitorData d{};
   wire::SampleHeader sh;
-  ASSERT_TRUE(test::eventually([&] { return host.get_data(mon, sh, d) && d.received >= 3; }));
+  ASSERT_TRUE(host.stepper().run_until([&] { return host.get_data(mon, sh, d) && d.received >= 3; }, kLimit));
   EXPECT_EQ(d.real_period_ns, 20 * rt::kNsPerMs) << "the period the source granted reaches on()";
   ASSERT_EQ(host.call(mon, msg::kOff).type, msg::kOk);
   EXPECT_EQ(listeners(host, gen), 0u) << "unsubscribed by the framework when OFF was answered";
@@ -65,26 +70,27 @@ TEST(DeclaredInputTest, SubscribedBeforeOnAndUnsubscribedAfterOff) {
 
 TEST(DeclaredInputTest, ProducerErrorFailsAndTheRetryResubscribes) {
   Watchdog dog;
-  HostUnderTest host(host_yaml("", 1000));  // the reason is read before the retry
+  HostUnderTest host(host_yaml("", 1000), {}, false, Stepping::kStepped);  // the reason is read before the retry
   const Address gen = host.address_of("gen");
   const Address mon = host.address_of("mon");
   ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
   ASSERT_EQ(host.call(gen, msg::kOff).type, msg::kOk);
-  ASSERT_TRUE(host.wait_status(mon, msg::kError)) << host.log();
+  ASSERT_TRUE(host.stepper().run_until([&] { return host.status(mon) == msg::kError; }, kLimit)) << host.log();
   EXPECT_NE(std::strstr(host.stats(mon).error_reason, "left ENABLED"), nullptr) << host.stats(mon).error_reason;
   // The retry (every retry_ms) switches the source on again and subscribes again.
-  ASSERT_TRUE(host.wait_status(mon, msg::kEnabled)) << host.log();
+  ASSERT_TRUE(host.stepper().run_until([&] { return host.status(mon) == msg::kEnabled; }, kLimit)) << host.log();
   EXPECT_EQ(host.status(gen), msg::kEnabled);
-  EXPECT_TRUE(test::eventually([&] { return listeners(host, gen) == 1u; }));
+  EXPECT_TRUE(host.stepper().run_until([&] { return listeners(host, gen) == 1u; }, kLimit));
 }
 
 TEST(DeclaredInputTest, WatchedSourceSilentForSilenceMsFails) {
   Watchdog dog;
   // One sample a second asked of the source, silence after 200 ms: ERROR.
-  HostUnderTest host(host_yaml(", source_period_ms: 1500, silence_ms: 200", 60000));
+  HostUnderTest host(host_yaml(", source_period_ms: 1500, silence_ms: 200", 60000), {}, false, Stepping::kStepped);
   const Address mon = host.address_of("mon");
   ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
-  ASSERT_TRUE(host.wait_status(mon, msg::kError, std::chrono::milliseconds(5000))) << host.log();
+  ASSERT_TRUE(host.stepper().run_until([&] { return host.status(mon) == msg::kError; }, 5 * rt::kNsPerSec))
+      << host.log();
   const std::string reason = host.stats(mon).error_reason;
   EXPECT_NE(reason.find("sent nothing for"), std::string::npos) << reason;
   EXPECT_NE(reason.find("silence_ms 200"), std::string::npos) << reason;

@@ -18,6 +18,7 @@ using interfaces::GeneratorData;
 using interfaces::MonitorData;
 using interfaces::ProbeData;
 using test::HostUnderTest;
+using test::Stepping;
 using test::Watchdog;
 using tims::Address;
 using tims::CallStatus;
@@ -60,9 +61,14 @@ components:
     return y;
   }
 
+  // Stepped (rack/core/stepper.h) unless a test asks for threads: the tasks run on a
+  // virtual clock, so a back-off of 100 ms is exactly 100 ms of it, and waiting for a
+  // condition moves the clock to the first instant it holds instead of polling.
   void start(const std::string& probe_params = "", int retry_ms = 100, bool monitor = false,
-             bool monitor_autostart = false) {
-    host_ = std::make_unique<HostUnderTest>(host_yaml(probe_params, retry_ms, monitor, monitor_autostart));
+             bool monitor_autostart = false, Stepping stepping = Stepping::kStepped) {
+    stepping_ = stepping;
+    host_ = std::make_unique<HostUnderTest>(host_yaml(probe_params, retry_ms, monitor, monitor_autostart), nullptr,
+                                            false, stepping);
     probe_ = host_->address_of("probe");
     gen_ = host_->address_of("gen");
     if (monitor) mon_ = host_->address_of("mon");
@@ -73,12 +79,23 @@ components:
   }
 
   HostUnderTest& host() { return *host_; }
+  // Until `pred` holds, at most `limit_ns` (virtual time when stepped, real time polled
+  // with threads). Returns whether it held.
+  bool until(const std::function<bool()>& pred, int64_t limit_ns = 10 * rt::kNsPerSec) {
+    if (stepping_ == Stepping::kStepped) return host_->stepper().run_until(pred, limit_ns);
+    return test::eventually(pred, std::chrono::milliseconds(limit_ns / rt::kNsPerMs));
+  }
+  // Lets `ms` pass: the tasks run that long (virtual time when stepped).
+  void pause(int ms) {
+    if (stepping_ == Stepping::kStepped) (void)host_->stepper().run_for(ms * rt::kNsPerMs);
+    else std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+  }
 
   // Waits for a sample of `dest` newer than `after` (sequence), up to 10 s.
   template <typename T>
   std::optional<std::pair<wire::SampleHeader, T>> next_sample(Address dest, int64_t after = -1) {
     std::optional<std::pair<wire::SampleHeader, T>> out;
-    test::eventually([&] {
+    until([&] {
       wire::SampleHeader h;
       T s;
       if (!host_->get_data(dest, h, s)) return false;
@@ -94,9 +111,14 @@ components:
     wire::SampleHeader sample;
     std::string body;
   };
-  // The next message in the tool's data mailbox.
+  // The next message in the tool's data mailbox, within `timeout_ns` (of virtual time
+  // when stepped).
   std::optional<Streamed> receive_streamed(int64_t timeout_ns = test::kCallTimeoutNs) {
     alignas(8) std::array<std::byte, 1024> buf{};
+    if (stepping_ == Stepping::kStepped && timeout_ns > 0) {
+      (void)until([&] { return host_->data_mailbox().queued() > 0; }, timeout_ns);
+      timeout_ns = tims::Mailbox::kNonBlocking;
+    }
     const auto r = host_->data_mailbox().receive(buf, timeout_ns);
     if (r.status != tims::RecvStatus::kOk) return std::nullopt;
     Streamed s;
@@ -112,6 +134,7 @@ components:
   }
 
   std::unique_ptr<HostUnderTest> host_;
+  Stepping stepping_ = Stepping::kStepped;
   Address probe_, gen_, mon_;
 };
 
@@ -147,11 +170,11 @@ TEST_F(LifecycleTest, FailingOnGoesToErrorThenRetriesUntilOnSucceeds) {
   EXPECT_NE(on.error_text().find("on() failed"), std::string::npos) << on.error_text();
   EXPECT_EQ(host().status(probe_), msg::kError);
   // Retries keep failing while fail_on is set (ERROR -> ERROR).
-  std::this_thread::sleep_for(std::chrono::milliseconds(350));
+  pause(350);
   EXPECT_EQ(host().status(probe_), msg::kError);
   // Fix the cause: the next retry switches it on with nobody asking.
   EXPECT_EQ(host().set_bool(probe_, "fail_on", false).type, msg::kOk);
-  EXPECT_TRUE(host().wait_status(probe_, msg::kEnabled));
+  EXPECT_TRUE(until([&] { return host().status(probe_) == msg::kEnabled; }));
   const auto s = next_sample<ProbeData>(probe_);
   ASSERT_TRUE(s.has_value());
   EXPECT_GE(s->second.on_calls, 3) << "the first ON, at least one failed retry, the good retry";
@@ -166,10 +189,10 @@ TEST_F(LifecycleTest, ThrowingOnGoesToErrorThenRetriesUntilOnSucceeds) {
   ASSERT_EQ(on.status, CallStatus::kOk);
   EXPECT_EQ(on.type, msg::kError);
   EXPECT_EQ(host().status(probe_), msg::kError);
-  std::this_thread::sleep_for(std::chrono::milliseconds(350));
+  pause(350);
   EXPECT_EQ(host().status(probe_), msg::kError);
   EXPECT_EQ(host().set_bool(probe_, "throw_on", false).type, msg::kOk);
-  EXPECT_TRUE(host().wait_status(probe_, msg::kEnabled));
+  EXPECT_TRUE(until([&] { return host().status(probe_) == msg::kEnabled; }));
   const auto s = next_sample<ProbeData>(probe_);
   ASSERT_TRUE(s.has_value());
   EXPECT_GE(s->second.on_calls, 3);
@@ -200,17 +223,17 @@ TEST_P(LoopFailureTest, EnabledGoesToErrorWhenLoopFailsAndRetries) {
   EXPECT_EQ(host().set_bool(probe_, knob, true).type, msg::kOk);
   // ENABLED -> ERROR, then each retry switches it on and the loop fails again: every
   // entry into ERROR is counted, so two entries prove a retry happened.
-  EXPECT_TRUE(test::eventually([&] { return host().stats(probe_).errors >= 2; })) << knob;
+  EXPECT_TRUE(until([&] { return host().stats(probe_).errors >= 2; })) << knob;
   EXPECT_NE(host().status(probe_), msg::kDisabled);
 
   EXPECT_EQ(host().set_bool(probe_, knob, false).type, msg::kOk);
-  EXPECT_TRUE(host().wait_status(probe_, msg::kEnabled)) << "retry after the back-off";
+  EXPECT_TRUE(until([&] { return host().status(probe_) == msg::kEnabled; })) << "retry after the back-off";
   // It stays up now, and the samples show off() ran when it left ENABLED and on() ran again.
   const auto after = next_sample<ProbeData>(probe_, static_cast<int64_t>(before->first.sequence));
   ASSERT_TRUE(after.has_value());
   EXPECT_GE(after->second.off_calls, 1);
   EXPECT_GE(after->second.on_calls, 2);
-  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  pause(150);
   EXPECT_EQ(host().status(probe_), msg::kEnabled);
 }
 
@@ -224,7 +247,7 @@ TEST_F(LifecycleTest, OffFromErrorDisablesAndStopsRetries) {
   EXPECT_EQ(host().status(probe_), msg::kDisabled);
   // Were it still retrying, it would switch on now that on() can succeed.
   EXPECT_EQ(host().set_bool(probe_, "fail_on", false).type, msg::kOk);
-  std::this_thread::sleep_for(std::chrono::milliseconds(400));
+  pause(400);
   EXPECT_EQ(host().status(probe_), msg::kDisabled);
 }
 
@@ -263,7 +286,7 @@ TEST_F(LifecycleTest, FailedInitIsErrorForGoodAndOthersKeepWorking) {
   const auto set = host().set_bool(probe_, "fail_init", false);
   EXPECT_EQ(set.type, msg::kError);
   EXPECT_NE(set.error_text().find("read at start only"), std::string::npos) << set.error_text();
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  pause(300);
   EXPECT_EQ(host().status(probe_), msg::kError);
   EXPECT_EQ(host().call(probe_, msg::kOn).type, msg::kError);
   for (const auto& v : host().executor().components()) {
@@ -386,7 +409,9 @@ TEST_F(LifecycleTest, GetContDataIsRefusedWhenNotEnabled) {
 
 TEST_F(LifecycleTest, GetNextDataAnswersWithTheNextSample) {
   Watchdog dog;
-  start();
+  // Threads: the call waits for the next cycle, which a stepped executor only runs
+  // when the test steps it (after the call has returned).
+  start("", 100, false, false, Stepping::kThreads);
   ASSERT_EQ(host().call(gen_, msg::kOn).type, msg::kOk);
   const auto newest = next_sample<GeneratorData>(gen_);
   ASSERT_TRUE(newest.has_value());
@@ -436,7 +461,7 @@ TEST_F(LifecycleTest, MonitorSwitchesItsSourceOnByCascadingOn) {
   EXPECT_EQ(host().status(mon_), msg::kEnabled);
   EXPECT_EQ(host().stats(gen_).listeners, 1u);
   std::optional<std::pair<wire::SampleHeader, MonitorData>> seen;
-  ASSERT_TRUE(test::eventually([&] {
+  ASSERT_TRUE(until([&] {
     seen = next_sample<MonitorData>(mon_);
     return seen && seen->second.received >= 3;
   }));
@@ -457,9 +482,9 @@ TEST_F(LifecycleTest, ConsumerRecoversWhenItsProducerGoesOff) {
   EXPECT_EQ(host().status(gen_), msg::kEnabled);
   EXPECT_EQ(host().call(gen_, msg::kOff).type, msg::kOk);
   // The monitor gets ERROR from the producer and leaves ENABLED ...
-  EXPECT_TRUE(test::eventually([&] { return host().stats(mon_).errors >= 1; }));
+  EXPECT_TRUE(until([&] { return host().stats(mon_).errors >= 1; }));
   // ... then its retry switches the producer on again.
-  EXPECT_TRUE(host().wait_status(mon_, msg::kEnabled));
+  EXPECT_TRUE(until([&] { return host().status(mon_) == msg::kEnabled; }));
   EXPECT_EQ(host().status(gen_), msg::kEnabled);
 }
 
@@ -479,9 +504,9 @@ TEST_F(LifecycleTest, ConsumerCountsAndSkipsAMalformedSample) {
   ASSERT_EQ(host().endpoint().send(mon_.with_mailbox(DataComponentBase::kInputMailbox), msg::kData,
                                    std::span<const tims::ConstBuffer>(&part, 1), /*reply_to=*/gen_),
             tims::SendStatus::kOk);
-  EXPECT_TRUE(test::eventually([&] { return host().stats(mon_).malformed == before + 1; }));
+  EXPECT_TRUE(until([&] { return host().stats(mon_).malformed == before + 1; }));
   const uint64_t cycles = host().stats(mon_).data.cycles;
-  EXPECT_TRUE(test::eventually([&] { return host().stats(mon_).data.cycles > cycles + 3; })) << "still consuming";
+  EXPECT_TRUE(until([&] { return host().stats(mon_).data.cycles > cycles + 3; })) << "still consuming";
   EXPECT_EQ(host().status(mon_), msg::kEnabled);
   // The junk woke the data task with nothing usable: skipped, not taken for a silent
   // source (that is an error only after data_timeout without a good sample).

@@ -3,7 +3,9 @@
 // a tool mailbox (test_support.h), on the shipped office map.
 //
 // Timing-sensitive tests (watchdog, driving) have "Tolerant" in their names: their
-// margins are generous, and each threaded test has a watchdog.
+// margins are generous, and each threaded test has a watchdog. They run stepped on a
+// virtual clock now (the fixture's start()), so they no longer depend on the machine's
+// load; the names stay (ctest's history, other branches).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -34,6 +36,7 @@ using interfaces::OdometryData;
 using interfaces::PilotData;
 using interfaces::PositionData;
 using test::HostUnderTest;
+using test::Stepping;
 using test::Watchdog;
 using tims::Address;
 namespace msg = tims::msg;
@@ -94,9 +97,26 @@ struct Sample {
   ChassisData data;
 };
 
+// Stepped (rack/core/stepper.h) unless a test asks for threads: the components run on a
+// virtual clock, so "drive for 500 ms" is exactly 50 chassis cycles, and waiting for a
+// condition moves the clock to the first instant it holds instead of polling.
 class RobotSimTest : public ::testing::Test {
  protected:
-  void start(const std::string& yaml) { host_ = std::make_unique<HostUnderTest>(yaml); }
+  void start(const std::string& yaml, Stepping stepping = Stepping::kStepped) {
+    stepping_ = stepping;
+    host_ = std::make_unique<HostUnderTest>(yaml, nullptr, false, stepping);
+  }
+  // Until `pred` holds, at most `limit` (virtual time when stepped, real time polled
+  // with threads). Returns whether it held.
+  bool until(const std::function<bool()>& pred, std::chrono::milliseconds limit = std::chrono::milliseconds(10000)) {
+    if (stepping_ == Stepping::kStepped) return h().stepper().run_until(pred, limit.count() * rt::kNsPerMs);
+    return test::eventually(pred, limit);
+  }
+  // Lets `ms` pass: the tasks run that long (virtual time when stepped).
+  void pause(int ms) {
+    if (stepping_ == Stepping::kStepped) (void)h().stepper().run_for(ms * rt::kNsPerMs);
+    else std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+  }
   void TearDown() override {
     if (host_ && HasFailure()) std::fprintf(stderr, "executor log:\n%s", host_->log().c_str());
     host_.reset();
@@ -107,7 +127,7 @@ class RobotSimTest : public ::testing::Test {
   T newest(Address a, wire::SampleHeader* header = nullptr) {
     T d{};
     wire::SampleHeader sh;
-    EXPECT_TRUE(test::eventually([&] { return h().get_data(a, sh, d); })) << "no data from " << a.str();
+    EXPECT_TRUE(until([&] { return h().get_data(a, sh, d); })) << "no data from " << a.str();
     if (header != nullptr) *header = sh;
     return d;
   }
@@ -116,7 +136,7 @@ class RobotSimTest : public ::testing::Test {
   T newer_than(Address a, int64_t after_ns, wire::SampleHeader* header = nullptr) {
     T d{};
     wire::SampleHeader sh;
-    EXPECT_TRUE(test::eventually([&] { return h().get_data(a, sh, d) && sh.time_ns > after_ns; }));
+    EXPECT_TRUE(until([&] { return h().get_data(a, sh, d) && sh.time_ns > after_ns; }));
     if (header != nullptr) *header = sh;
     return d;
   }
@@ -135,6 +155,7 @@ class RobotSimTest : public ::testing::Test {
   Address tool() { return h().endpoint().address(); }
 
   std::unique_ptr<HostUnderTest> host_;
+  Stepping stepping_ = Stepping::kStepped;
 };
 
 // ---------------------------------------------------------------- ChassisSim
@@ -161,7 +182,7 @@ TEST_F(RobotSimTest, OnlyTheActivePilotMayMoveAndChangingPilotStopsTheRobot) {
 
   ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
   ASSERT_EQ(move(chassis, 0.5).type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).vx > 0.45; }));
+  ASSERT_TRUE(until([&] { return newest<ChassisData>(chassis).vx > 0.45; }));
   EXPECT_EQ(newest<ChassisData>(chassis).active_pilot, tool().component().raw());
 
   // Another pilot takes over: the robot stops, and our MOVEs are refused.
@@ -170,7 +191,7 @@ TEST_F(RobotSimTest, OnlyTheActivePilotMayMoveAndChangingPilotStopsTheRobot) {
   r = move(chassis, 0.5);
   EXPECT_EQ(r.type, msg::kError);
   EXPECT_NE(r.error_text().find("not the active pilot"), std::string::npos) << r.error_text();
-  ASSERT_TRUE(test::eventually([&] {
+  ASSERT_TRUE(until([&] {
     const auto d = newest<ChassisData>(chassis);
     return d.vx == 0.0 && d.omega == 0.0;
   }));
@@ -186,26 +207,44 @@ TEST_F(RobotSimTest, WatchdogStopsTheRobotWhenMovesStopTolerant) {
   ASSERT_EQ(h().call(chassis, msg::kOn).type, msg::kOk);
   ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
 
-  // MOVEs every 20 ms (25x inside the 500 ms watchdog): the robot keeps driving.
-  const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(1000);
-  while (std::chrono::steady_clock::now() < end) {
+  // MOVEs every 20 ms (25x inside the 500 ms watchdog) for 1 s: the robot keeps driving.
+  for (int i = 0; i < 50; ++i) {
     ASSERT_EQ(move(chassis, 0.4, 0.1).type, msg::kOk);
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    pause(20);
   }
   auto d = newest<ChassisData>(chassis);
   EXPECT_GT(d.vx, 0.3);
   EXPECT_EQ(d.watchdog_stops, 0u);
 
   // MOVEs stop: within the watchdog time (plus braking) the robot stands, once counted.
-  ASSERT_TRUE(test::eventually([&] {
+  ASSERT_TRUE(until([&] {
     const auto s = newest<ChassisData>(chassis);
     return s.vx == 0.0 && s.omega == 0.0;
   }));
   d = newest<ChassisData>(chassis);
   EXPECT_EQ(d.watchdog_stops, 1u);
   // Standing still is not a watchdog event.
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  pause(700);
   EXPECT_EQ(newest<ChassisData>(chassis).watchdog_stops, 1u);
+}
+
+// On the virtual clock the watchdog is exact: the first cycle more than watchdog_ms
+// after the last MOVE stops the robot, not one before.
+TEST_F(RobotSimTest, WatchdogStopsTheRobotAtTheFirstCycleAfterWatchdogMs) {
+  Watchdog dog;
+  start(host(chassis_yaml("", 500)));  // a 10 ms period: cycles at +10, +20, ... ms
+  const Address chassis = h().address_of("chassis");
+  ASSERT_EQ(h().call(chassis, msg::kOn).type, msg::kOk);
+  ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
+  ASSERT_EQ(move(chassis, 0.4).type, msg::kOk);  // at +0 ms
+  pause(500);
+  auto d = newest<ChassisData>(chassis);
+  EXPECT_GT(d.vx, 0.0);
+  EXPECT_EQ(d.watchdog_stops, 0u) << "500 ms after the MOVE is not more than watchdog_ms";
+  pause(10);
+  d = newest<ChassisData>(chassis);
+  EXPECT_EQ(d.watchdog_stops, 1u) << "the cycle at +510 ms";
+  EXPECT_LT(d.vx, 0.4) << "braking";
 }
 
 TEST_F(RobotSimTest, ChassisRejectsMalformedMovesAndReportsItsParameters) {
@@ -231,7 +270,7 @@ TEST_F(RobotSimTest, ChassisRejectsMalformedMovesAndReportsItsParameters) {
 
   // Commands beyond the limits are clamped.
   ASSERT_EQ(move(chassis, 5.0).type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).vx > 0.69; }));
+  ASSERT_TRUE(until([&] { return newest<ChassisData>(chassis).vx > 0.69; }));
   EXPECT_LE(newest<ChassisData>(chassis).vx, 0.7 + 1e-9);
 }
 
@@ -244,7 +283,7 @@ TEST_F(RobotSimTest, ChassisStopsAtWallsOfTheMapTolerant) {
   ASSERT_EQ(h().call(chassis, msg::kOn).type, msg::kOk);
   ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
   ASSERT_EQ(move(chassis, 1.0).type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).collisions > 0; }));
+  ASSERT_TRUE(until([&] { return newest<ChassisData>(chassis).collisions > 0; }));
   const auto d = newest<ChassisData>(chassis);
   EXPECT_EQ(d.vx, 0.0);
   // The front (0.3 m ahead) stops short of the wall's first cell (9.90), never
@@ -265,10 +304,10 @@ TEST_F(RobotSimTest, OdometryIntegratesTheIncrementsAndResets) {
   ASSERT_EQ(h().status(chassis), msg::kEnabled);
   ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
   ASSERT_EQ(move(chassis, 0.5, 0.5).type, msg::kOk);  // an arc of radius 1 m
-  std::this_thread::sleep_for(std::chrono::milliseconds(800));
+  pause(800);
   ASSERT_EQ(move(chassis, 0.0, 0.0).type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(until([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
+  pause(50);
   const auto c = newest<ChassisData>(chassis);
   const auto o = newest<OdometryData>(odometry);
   // Without noise the odometry is the true motion from the start pose (0, 0, 0).
@@ -282,7 +321,7 @@ TEST_F(RobotSimTest, OdometryIntegratesTheIncrementsAndResets) {
   EXPECT_NEAR(o.distance, o.phi, 1e-6);
 
   ASSERT_EQ(h().call(odometry, interfaces::kOdometryReset).type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] { return newest<OdometryData>(odometry).resets == 1; }));
+  ASSERT_TRUE(until([&] { return newest<OdometryData>(odometry).resets == 1; }));
   const auto z = newest<OdometryData>(odometry);
   EXPECT_EQ(z.x, 0.0);
   EXPECT_EQ(z.y, 0.0);
@@ -305,13 +344,13 @@ TEST_F(RobotSimTest, PositionUpdateUsesTheOdometryAtTheUpdatesTimeTolerant) {
 
   // Drive straight at 0.5 m/s; remember an odometry sample half-way.
   ASSERT_EQ(move(chassis, 0.5).type, msg::kOk);
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  pause(500);
   wire::SampleHeader mid_header;
   const auto mid = newest<OdometryData>(odometry, &mid_header);
-  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  pause(600);
   ASSERT_EQ(move(chassis, 0.0).type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(until([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
+  pause(50);
   const auto now = newest<OdometryData>(odometry);
   const double since = now.x - mid.x;  // driven after the update's time
   ASSERT_GT(since, 0.2) << "the test needs motion after the update's time";
@@ -329,7 +368,7 @@ TEST_F(RobotSimTest, PositionUpdateUsesTheOdometryAtTheUpdatesTimeTolerant) {
   // Standing still now, the pose is the update moved on by what was driven since then
   // (north, in the updated frame), not the update itself.
   const auto p = newer_than<PositionData>(position, mid_header.time_ns + 1);
-  ASSERT_TRUE(test::eventually([&] { return newest<PositionData>(position).updates == 1; }));
+  ASSERT_TRUE(until([&] { return newest<PositionData>(position).updates == 1; }));
   const auto q = newest<PositionData>(position);
   EXPECT_NEAR(q.x, 10.0, 1e-3);
   EXPECT_NEAR(q.y, 5.0 + since, 1e-3) << "the odometry at the update's time must be used, not now's";
@@ -359,16 +398,16 @@ TEST_F(RobotSimTest, PositionSwitchedOnAgainContinuesFromItsLastPose) {
   ASSERT_EQ(h().call(position, msg::kOn).type, msg::kOk);
   ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
   ASSERT_EQ(move(chassis, 0.5).type, msg::kOk);
-  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  pause(600);
   ASSERT_EQ(move(chassis, 0.0).type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(until([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
+  pause(50);
   wire::SampleHeader before_header;
   const auto before = newest<PositionData>(position, &before_header);
   ASSERT_GT(before.x, 1.1);
   // The odometry goes away (the position follows it into ERROR) and comes back at zero.
   ASSERT_EQ(h().call(odometry, msg::kOff).type, msg::kOk);
-  ASSERT_TRUE(h().wait_status(position, msg::kError));
+  ASSERT_TRUE(until([&] { return h().status(position) == msg::kError; }));
   ASSERT_EQ(h().call(position, msg::kOn).type, msg::kOk);
   // Samples made after the restart (the rings still hold the old ones).
   const auto after = newer_than<PositionData>(position, before_header.time_ns);
@@ -389,13 +428,13 @@ TEST_F(RobotSimTest, OdometryResetDoesNotMoveThePositionTolerant) {
   ASSERT_NEAR(newest<PositionData>(position).x, 1.0, 1e-9);
   ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
   ASSERT_EQ(move(chassis, 0.5).type, msg::kOk);
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  pause(500);
   ASSERT_EQ(h().call(odometry, interfaces::kOdometryReset).type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] { return newest<OdometryData>(odometry).resets == 1; }));
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_TRUE(until([&] { return newest<OdometryData>(odometry).resets == 1; }));
+  pause(300);
   ASSERT_EQ(move(chassis, 0.0).type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(until([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
+  pause(50);
   // The odometry restarted near zero; the position kept counting from (1, 2).
   const auto c = newest<ChassisData>(chassis);
   const auto p = newest<PositionData>(position);
@@ -532,7 +571,7 @@ TEST_F(RobotSimTest, ScansCarryTheOdometryOfTheirOwnTimeWhileDrivingTolerant) {
   ASSERT_EQ(h().call(scan2d, msg::kOn).type, msg::kOk);
   ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
   ASSERT_EQ(move(chassis, 0.8, 0.2).type, msg::kOk);
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));  // up to speed
+  pause(700);  // up to speed
   // Each scan's odometry is the motion up to the scan's own time: without noise it
   // equals the true pose at that time relative to the start. A scan paired with the
   // odometry of another moment would be off by 0.8 m/s x the time difference.
@@ -579,7 +618,7 @@ TEST_F(RobotSimTest, MissingMapPutsOnlyTheLadarInErrorWithTheFileName) {
   ASSERT_EQ(h().call(h().address_of("position"), msg::kOn).type, msg::kOk);
   wire::SampleHeader sh;
   interfaces::GeneratorData g;
-  EXPECT_TRUE(test::eventually([&] { return h().get_data(gen, sh, g) && g.counter > 3; }));
+  EXPECT_TRUE(until([&] { return h().get_data(gen, sh, g) && g.counter > 3; }));
   EXPECT_EQ(h().status(h().address_of("chassis")), msg::kEnabled);
 }
 
@@ -680,7 +719,7 @@ TEST_F(RobotSimTest, PathPublishesOnMakeAndRejectsMalformedWaypoints) {
   m.count = 2;
   m.x[1] = 5.0;
   ASSERT_EQ(h().call_with(path, interfaces::kPathMake, m).type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] { return newest<interfaces::PathData>(path).makes == 2; }));
+  ASSERT_TRUE(until([&] { return newest<interfaces::PathData>(path).makes == 2; }));
   p = newest<interfaces::PathData>(path);
   EXPECT_EQ(p.waypoint_count, 2u);
   EXPECT_NEAR(p.length, 5.0, 1e-3);
@@ -800,7 +839,7 @@ TEST_F(RobotSimTest, PilotReachesADestinationInTheMapWithoutTouchingWallsToleran
   ASSERT_EQ(h().call_with(pilot, interfaces::kPilotSetDestination, dest).type, msg::kOk);
   double min_clearance = 1e9;
   const auto drive_until_reached = [&] {
-    return test::eventually(
+    return until(
         [&] {
           min_clearance = std::min(min_clearance, outline_clearance(map, newest<ChassisData>(chassis)));
           const auto p = newest<PilotData>(pilot);
@@ -823,7 +862,7 @@ TEST_F(RobotSimTest, PilotReachesADestinationInTheMapWithoutTouchingWallsToleran
   EXPECT_EQ(newest<PilotData>(pilot).moves_refused, 0u);
   // OFF stops the robot and releases the chassis.
   ASSERT_EQ(h().call(pilot, msg::kOff).type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] {
+  ASSERT_TRUE(until([&] {
     const auto d = newest<ChassisData>(chassis);
     return d.vx == 0.0 && d.active_pilot == 0;
   }));
@@ -839,10 +878,10 @@ TEST_F(RobotSimTest, PilotStopsBeforeAnObstacleInItsWayTolerant) {
   ASSERT_EQ(h().call(pilot, msg::kOn).type, msg::kOk);
   const interfaces::PilotDestination dest{7.5, 3.0};
   ASSERT_EQ(h().call_with(pilot, interfaces::kPilotSetDestination, dest).type, msg::kOk);
-  ASSERT_TRUE(test::eventually(
-      [&] { return newest<PilotData>(pilot).status == static_cast<uint8_t>(interfaces::PilotStatus::kBlocked); },
-      std::chrono::milliseconds(20000)));
-  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
+  ASSERT_TRUE(
+      until([&] { return newest<PilotData>(pilot).status == static_cast<uint8_t>(interfaces::PilotStatus::kBlocked); },
+            std::chrono::milliseconds(20000)));
+  ASSERT_TRUE(until([&] { return newest<ChassisData>(chassis).vx == 0.0; }));
   const auto c = newest<ChassisData>(chassis);
   EXPECT_EQ(c.collisions, 0u);
   // The front (0.3 m ahead of the reference point) stays off the wall (6.05).
@@ -862,9 +901,9 @@ TEST_F(RobotSimTest, PilotFollowsThePathAndAnotherPilotPreemptsIt) {
   const Address pilot = h().address_of("pilot");
   const Address chassis = h().address_of("chassis");
   ASSERT_EQ(h().call(pilot, msg::kOn).type, msg::kOk);
-  ASSERT_TRUE(test::eventually(
-      [&] { return newest<PilotData>(pilot).status == static_cast<uint8_t>(interfaces::PilotStatus::kReached); },
-      std::chrono::milliseconds(25000)));
+  ASSERT_TRUE(
+      until([&] { return newest<PilotData>(pilot).status == static_cast<uint8_t>(interfaces::PilotStatus::kReached); },
+            std::chrono::milliseconds(25000)));
   const auto c = newest<ChassisData>(chassis);
   EXPECT_NEAR(c.truth_x, 8.0, 0.3);
   EXPECT_NEAR(c.truth_y, 8.0, 0.3);
@@ -872,13 +911,13 @@ TEST_F(RobotSimTest, PilotFollowsThePathAndAnotherPilotPreemptsIt) {
 
   // The tool takes the chassis: the pilot's next MOVE is refused and it stands.
   ASSERT_EQ(claim(chassis, tool()).type, msg::kOk);
-  ASSERT_TRUE(test::eventually(
+  ASSERT_TRUE(until(
       [&] { return newest<PilotData>(pilot).status == static_cast<uint8_t>(interfaces::PilotStatus::kPreempted); }));
   EXPECT_GE(newest<PilotData>(pilot).moves_refused, 1u);
   EXPECT_EQ(newest<ChassisData>(chassis).active_pilot, tool().component().raw());
   // Told where to go again, it takes the chassis back.
   ASSERT_EQ(h().call(pilot, interfaces::kPilotFollowPath).type, msg::kOk);
-  ASSERT_TRUE(test::eventually([&] { return newest<ChassisData>(chassis).active_pilot == pilot.raw(); }));
+  ASSERT_TRUE(until([&] { return newest<ChassisData>(chassis).active_pilot == pilot.raw(); }));
 }
 
 }  // namespace

@@ -187,6 +187,9 @@ TEST(SubscriptionLeaseConfigTest, LeaseMsIsReadAndRangeChecked) {
   }
 }
 
+// Stepped (rack/core/stepper.h): leases, renewals and expiries run on a virtual clock,
+// so "4 leases" is exactly that much of it, and waiting for a message moves the clock
+// to the first instant one is there.
 class SubscriptionTest : public ::testing::Test {
  protected:
   static constexpr int64_t kLeaseMs = 300;
@@ -200,23 +203,29 @@ components:
     instance: 1
     retry_ms: 100
     data_task: {period_ms: 10, ring: 200, max_listeners: 2, lease_ms: )" +
-                                            std::to_string(kLeaseMs) + R"(}
+                                                std::to_string(kLeaseMs) + R"(}
   - name: mon
     class: Monitor
     instance: 1
     retry_ms: 100
     autostart: true
     params: {source: gen, source_period_ms: 10, silence_ms: 1000}
-)");
+)",
+                                            nullptr, false, test::Stepping::kStepped);
     gen_ = host_->address_of("gen");
     mon_ = host_->address_of("mon");
-    ASSERT_TRUE(host_->wait_status(mon_, msg::kEnabled));
+    ASSERT_TRUE(until([&] { return host_->status(mon_) == msg::kEnabled; }));
   }
   void TearDown() override {
     if (host_ && HasFailure()) std::fprintf(stderr, "executor log:\n%s", host_->log().c_str());
     host_.reset();
   }
   HostUnderTest& host() { return *host_; }
+  // Until `pred` holds, at most `limit` of virtual time. Returns whether it held.
+  bool until(const std::function<bool()>& pred, std::chrono::milliseconds limit = 10000ms) {
+    return host_->stepper().run_until(pred, limit.count() * rt::kNsPerMs);
+  }
+  void pause(int64_t ms) { (void)host_->stepper().run_for(ms * rt::kNsPerMs); }
 
   // GET_CONT_DATA for `mailbox`; the reply's type, and its lease when CONT_DATA.
   int8_t subscribe(Address mailbox, int64_t* lease_ns = nullptr) {
@@ -231,18 +240,20 @@ components:
     }
     return r.type;
   }
-  // Reads `box` until a message of `type` arrives (true) or `limit` passes.
-  static bool receive_type(tims::Mailbox& box, int8_t type, std::chrono::milliseconds limit,
-                           std::string* text = nullptr) {
+  // Reads `box` until a message of `type` arrives (true) or `limit` of virtual time passes.
+  bool receive_type(tims::Mailbox& box, int8_t type, std::chrono::milliseconds limit, std::string* text = nullptr) {
     std::byte buf[2048];
-    const auto end = std::chrono::steady_clock::now() + limit;
-    while (std::chrono::steady_clock::now() < end) {
-      const auto r = box.receive(buf, 20 * rt::kNsPerMs);
-      if (r.status != tims::RecvStatus::kOk || r.header.type != type) continue;
-      if (text != nullptr) *text = reinterpret_cast<const char*>(buf + sizeof(tims::MessageHeader));
-      return true;
-    }
-    return false;
+    return until(
+        [&] {
+          for (;;) {
+            const auto r = box.receive(buf, tims::Mailbox::kNonBlocking);
+            if (r.status != tims::RecvStatus::kOk) return false;
+            if (r.header.type != type) continue;
+            if (text != nullptr) *text = reinterpret_cast<const char*>(buf + sizeof(tims::MessageHeader));
+            return true;
+          }
+        },
+        limit);
   }
   uint64_t monitor_received() {
     wire::SampleHeader sh;
@@ -277,7 +288,7 @@ TEST_F(SubscriptionTest, ForgedDataAndErrorAreRefusedAndCounted) {
   EXPECT_EQ(after.errors, before.errors) << "a forged ERROR is not its producer's";
   EXPECT_EQ(host().status(mon_), msg::kEnabled);
   const uint64_t received = monitor_received();
-  EXPECT_TRUE(test::eventually([&] { return monitor_received() > received + 5; })) << "still taking samples";
+  EXPECT_TRUE(until([&] { return monitor_received() > received + 5; })) << "still taking samples";
   EXPECT_EQ(host().stats(mon_).errors, before.errors);
 }
 
@@ -296,7 +307,7 @@ TEST_F(SubscriptionTest, ARequestIntoTheDataMailboxIsAnsweredNotAvailable) {
   EXPECT_EQ(after.errors, before.errors);
   EXPECT_EQ(host().status(mon_), msg::kEnabled);
   const uint64_t received = monitor_received();
-  EXPECT_TRUE(test::eventually([&] { return monitor_received() > received + 5; })) << "still taking samples";
+  EXPECT_TRUE(until([&] { return monitor_received() > received + 5; })) << "still taking samples";
 }
 
 // A request into a reply mailbox (the command task's #1, the data task's #2) is
@@ -333,7 +344,7 @@ TEST_F(SubscriptionTest, AListenerThatDoesNotRenewIsDroppedAfterItsLease) {
   EXPECT_NE(why.find("lease expired"), std::string::npos) << why;
   EXPECT_EQ(host().stats(gen_).listeners, 1u) << "the monitor's";
   EXPECT_GE(host().stats(gen_).listeners_expired, 1u);
-  std::this_thread::sleep_for(std::chrono::milliseconds(4 * kLeaseMs));
+  pause(4 * kLeaseMs);
   EXPECT_EQ(host().stats(mon_).errors, errors) << "the monitor renewed its lease all along";
   EXPECT_EQ(host().status(mon_), msg::kEnabled);
   EXPECT_EQ(host().stats(gen_).listeners, 1u);
@@ -345,9 +356,8 @@ TEST_F(SubscriptionTest, RenewingFromTheSameMailboxKeepsOneListener) {
   Watchdog dog;
   const Address box = host().data_mailbox().address();
   ASSERT_EQ(subscribe(box), msg::kContData);
-  const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(4 * kLeaseMs);
-  while (std::chrono::steady_clock::now() < end) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(kLeaseMs / 4));
+  for (int i = 0; i < 16; ++i) {  // 4 leases
+    pause(kLeaseMs / 4);
     ASSERT_EQ(subscribe(box), msg::kContData);
     EXPECT_EQ(host().stats(gen_).listeners, 2u) << "the monitor and this one";
   }
@@ -377,7 +387,7 @@ TEST_F(SubscriptionTest, ADeadListenerGivesWayToANewOneAfterItsLease) {
     ~Remove() { r.remove(a); }
   } remove{host().executor().router(), other.address()};
   EXPECT_EQ(subscribe(other.address()), msg::kError) << "too many listeners while the lease runs";
-  ASSERT_TRUE(test::eventually([&] { return subscribe(other.address()) == msg::kContData; }, 5000ms));
+  ASSERT_TRUE(until([&] { return subscribe(other.address()) == msg::kContData; }, 5000ms));
   EXPECT_TRUE(receive_type(other, msg::kData, 2000ms)) << "the new subscriber gets samples";
   EXPECT_EQ(host().stats(gen_).listeners, 2u);
   EXPECT_EQ(host().status(mon_), msg::kEnabled);

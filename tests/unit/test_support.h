@@ -14,6 +14,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <stdexcept>
 #include <string>
 #include <thread>
 
@@ -21,6 +22,7 @@
 #include "rack/core/executor.h"
 #include "rack/core/host_config.h"
 #include "rack/core/registry.h"
+#include "rack/core/stepper.h"
 #include "rack/rt/capabilities.h"
 #include "rack/rt/clock.h"
 #include "rack/tims/endpoint.h"
@@ -93,6 +95,13 @@ inline bool eventually(const std::function<bool()>& pred,
   }
 }
 
+// How a HostUnderTest runs its components' tasks.
+enum class Stepping : uint8_t {
+  kThreads,  // as rackd does: a thread per task, real time
+  kStepped,  // no task threads, a virtual clock (rack/core/stepper.h): requests are
+             // answered when sent, data tasks run under stepper() (run_for, step)
+};
+
 // An executor built from host-file text, plus a tool mailbox in the same process
 // (Tool(sys/1)#1 for replies, Tool(sys/1)#2 for streamed data) that the test drives
 // the components from.
@@ -103,8 +112,11 @@ class HostUnderTest {
   // `extra` registers test-only component classes beside the built-in ones.
   // `capture_gdos`: the components' GDOS lines go to gdos_log() as well (the sink
   // allocates in the GDOS thread: not for the no-allocation tests).
+  // `stepping`: kStepped installs an rt::VirtualClock (at rt::VirtualClock's default
+  // start) for the host's lifetime and makes the executor stepped (`lcm: false` hosts).
   explicit HostUnderTest(const std::string& yaml, const std::function<void(ComponentRegistry&)>& extra = {},
-                         bool capture_gdos = false) {
+                         bool capture_gdos = false, Stepping stepping = Stepping::kThreads) {
+    if (stepping == Stepping::kStepped) clock_ = std::make_unique<rt::VirtualClock>();
     components::register_builtin(registry_);
     if (extra) extra(registry_);
     auto loaded = load_host_text(yaml, "test.yaml", registry_, rt::probe_capabilities());
@@ -124,6 +136,7 @@ class HostUnderTest {
         gdos::append_line(r, gdos_log_);
       };
     }
+    options.stepped = stepping == Stepping::kStepped;
     executor_ = std::make_unique<Executor>(std::move(loaded.host), std::move(options));
     const uint8_t sys = executor_->settings().system;
     reply_mailbox_ = std::make_unique<tims::Mailbox>(tims::Address::make(sys, tims::classes::kTool, 1, 1), 16,
@@ -133,6 +146,7 @@ class HostUnderTest {
     executor_->router().add(*data_mailbox_);
     endpoint_ = std::make_unique<tims::Endpoint>(executor_->router(), *reply_mailbox_, 10);
     executor_->start();
+    if (clock_) stepper_ = std::make_unique<Stepper>(*executor_);
   }
   ~HostUnderTest() {
     // The executor's components may still send to the tool mailboxes until stopped.
@@ -144,6 +158,12 @@ class HostUnderTest {
   HostUnderTest& operator=(const HostUnderTest&) = delete;
 
   Executor& executor() { return *executor_; }
+  // Stepping::kStepped only: the stepper and its virtual clock.
+  Stepper& stepper() {
+    if (!stepper_) throw std::logic_error("HostUnderTest: not stepped (Stepping::kStepped)");
+    return *stepper_;
+  }
+  rt::VirtualClock& clock() { return stepper().clock(); }
   tims::Endpoint& endpoint() { return *endpoint_; }
   tims::Mailbox& data_mailbox() { return *data_mailbox_; }
   std::string log() {
@@ -238,8 +258,10 @@ class HostUnderTest {
   }
 
  private:
+  std::unique_ptr<rt::VirtualClock> clock_;  // first: it outlives the executor's stop()
   ComponentRegistry registry_;
   std::unique_ptr<Executor> executor_;
+  std::unique_ptr<Stepper> stepper_;
   std::unique_ptr<tims::Mailbox> reply_mailbox_;
   std::unique_ptr<tims::Mailbox> data_mailbox_;
   std::unique_ptr<tims::Endpoint> endpoint_;

@@ -44,9 +44,10 @@ CallResult Endpoint::call(Address dest, int8_t type, std::span<const ConstBuffer
   }
   // kNotAvailable, kDenied: the router already queued a NOT_AVAILABLE or ERROR reply
   // for us; read it.
-  const int64_t deadline = rt::monotonic_ns() + timeout_ns;
+  // The real clock: the wait below is the kernel's (a virtual clock does not move while we wait).
+  const int64_t deadline = rt::os_monotonic_ns() + timeout_ns;
   for (;;) {
-    const int64_t left = deadline - rt::monotonic_ns();
+    const int64_t left = deadline - rt::os_monotonic_ns();
     if (left <= 0) {
       result.status = CallStatus::kTimeout;
       return result;

@@ -42,7 +42,7 @@ Mailbox::~Mailbox() = default;
 
 int64_t Mailbox::deadline_for(int64_t timeout_ns) const noexcept {
   if (timeout_ns < 0) return -1;
-  return rt::monotonic_ns() + timeout_ns;
+  return rt::os_monotonic_ns() + timeout_ns;  // the futex waits on the real clock (never a virtual one)
 }
 
 int Mailbox::find_next_locked() const noexcept {

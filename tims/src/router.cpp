@@ -138,6 +138,9 @@ SendStatus Router::send(const MessageHeader& header, std::span<const ConstBuffer
     if (!trusted(header, *local)) return SendStatus::kDenied;
     const SendStatus s = local->try_send(header, body);
     bump(delivered(s) ? delivered_local_ : failed_);
+    if (DeliveryHook* hook = local->delivery_hook(); hook != nullptr && delivered(s)) [[unlikely]] {
+      hook->delivered(*local);  // a stepped executor serves it now (rack/core/stepper.h)
+    }
     return s;
   }
   if (is_remote(dest) || system_shared_.load(std::memory_order_relaxed)) {

@@ -286,6 +286,8 @@ class Component {
 
  private:
   friend class Executor;
+  friend class Stepper;
+  friend struct SteppedTask;
   friend struct HostLoader;
   friend class DataComponentBase;
 
@@ -293,9 +295,19 @@ class Component {
   virtual void attach(tims::Router& router);  // settings_ already set by the loader
   void detach() noexcept;
   bool run_init(std::string& error);  // non-RT; catches
-  void run_command_task() noexcept;   // the command task's body
-  void request_stop() noexcept;       // wakes every task of this component
-  void run_cleanup() noexcept;        // non-RT; catches
+  void run_command_task() noexcept;   // the command task's body: command_pass() per wake-up
+  // One pass of the command task, the thread's and a stepped executor's: a failed
+  // loop() (to ERROR), the message `r` if one came (kOk: in command_buffer_), then the
+  // retry of on() in ERROR when its back-off has passed. Command task (RT-safe).
+  void command_pass(const tims::Mailbox::Received& r) noexcept;
+  // How long the command task may wait for a message: until the next retry in ERROR,
+  // for ever otherwise. RT-safe.
+  [[nodiscard]] int64_t command_wait_ns() const noexcept;
+  // Stepped executors (rack/core/stepper.h): command_pass() for every queued message
+  // without waiting (at least one pass, for a due retry). true: a message was handled.
+  bool step_commands() noexcept;
+  void request_stop() noexcept;  // wakes every task of this component
+  void run_cleanup() noexcept;   // non-RT; catches
 
   // Extension points for DataComponentBase.
   virtual bool handle_data_request(const tims::MessageHeader&, std::span<const std::byte>) noexcept { return false; }

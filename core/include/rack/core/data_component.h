@@ -3,7 +3,8 @@
 // The data task is either periodic (clock_nanosleep on absolute CLOCK_MONOTONIC
 // deadlines; overruns counted and skipped, never caught up in a burst) or triggered
 // (woken by messages in its input mailbox, or after data_timeout without any). It
-// calls loop() only while the component is ENABLED.
+// calls loop() only while the component is ENABLED. A stepped executor (tests,
+// rack/core/stepper.h) runs the same loop body without the waits, on a virtual clock.
 //
 // Served by the framework from the command task: GET_DATA (ring lookup), GET_CONT_DATA
 // (listener with reduction factor n = round(requested period / own period); the reply
@@ -404,6 +405,7 @@ class DataComponentBase : public Component {
 
  private:
   friend class Executor;
+  friend class Stepper;
 
   Parameter& declare_input_source(const std::string& name, const InputSpec& spec);
   void add_input(std::unique_ptr<InputPort> port, const InputSpec& spec, std::size_t payload_size);
@@ -425,7 +427,39 @@ class DataComponentBase : public Component {
   void leaving_enabled() noexcept override;
   void entered_enabled() noexcept override;
   void stop_data_task() noexcept override;
+  // The data task. The thread (run_data_task) and a stepped executor (step_data,
+  // rack/core/stepper.h) run the same pieces: begin_data_task() once, then for a
+  // periodic task periodic_cycle() at each deadline, for a triggered one
+  // triggered_plan() (what to wait for, until when) and triggered_after() (a cycle
+  // when input came or the deadline passed). Data task (RT-safe).
   void run_data_task() noexcept;
+  void begin_data_task() noexcept;
+  void periodic_cycle() noexcept;
+  struct TriggeredPlan {
+    enum What : uint8_t { kWaitInput, kSleep, kGatedOff } what;  // kSleep: no input mailbox
+    int64_t until_ns;                                            // monotonic
+  };
+  [[nodiscard]] TriggeredPlan triggered_plan() noexcept;
+  bool triggered_after(const TriggeredPlan& plan, bool got) noexcept;  // true: loop() ran
+  // Stepped executors: one pass of the data task at the present (virtual) time, without
+  // waiting: a periodic task runs one cycle when its deadline has come, a triggered
+  // one when input waits or its timeout has passed. true: a cycle ran.
+  bool step_data() noexcept;
+  // When step_data() next has something to do (monotonic ns; INT64_MAX: nothing until
+  // a command or input comes). For stepped executors.
+  [[nodiscard]] int64_t next_data_step_ns() const noexcept;
+  struct PeriodicState {
+    int64_t next = 0;         // the next deadline
+    uint64_t unreported = 0;  // overruns not reported yet
+    int64_t next_report = 0;  // overruns are reported at most once a second
+  };
+  struct TriggeredState {
+    int64_t timeout = 0;  // data_timeout, or silence_ms when shorter
+    bool was_enabled = false;
+    int64_t deadline = 0;  // loop() runs by then without input
+  };
+  PeriodicState periodic_;    // data task only
+  TriggeredState triggered_;  // data task only
   void run_one_cycle() noexcept;
   void drain_input() noexcept;
   // A DATA message of `size` bytes from `header`'s source did not decode: count, log.

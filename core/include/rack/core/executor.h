@@ -31,6 +31,9 @@
 // (rackd:trace, not RT, on the housekeeping CPUs) answers TRACE_START and TRACE_READ
 // on Executor(sys/host_id)#2 (rack/core/trace_session.h, `rackctl trace`).
 //
+// Stepped (ExecutorOptions::stepped, tests): no task threads; requests are served as
+// they are sent and a Stepper runs the data tasks on a virtual clock (rack/core/stepper.h).
+//
 // Real-time contract: not RT-safe; call from the main (non-RT) thread.
 // Thread-safety: start/stop from one thread; status() from any non-RT thread.
 #pragma once
@@ -78,6 +81,11 @@ struct ExecutorOptions {
   // Told what start() does next ("init() of component 'mcl'"), for rackd's message
   // when a signal comes during start-up. Main thread.
   std::function<void(const std::string&)> phase;
+  // Stepped (tests; rack/core/stepper.h): no task threads. The command tasks serve a
+  // request in the sender's thread as it is sent, the data tasks run when a Stepper
+  // steps them, on the rt::VirtualClock the test installed before start(). For hosts
+  // without LCM (`lcm: false`).
+  bool stepped = false;
 };
 
 struct ComponentView {
@@ -88,6 +96,8 @@ struct ComponentView {
   bool init_called = false;    // start() ran its init() (cleanup() runs only then)
   bool tasks_started = false;  // its command task runs (it can answer OFF)
 };
+
+struct SteppedTask;  // rack/core/stepper.h
 
 class Executor {
  public:
@@ -143,6 +153,7 @@ class Executor {
   void flush_log();
 
  private:
+  friend class Stepper;
   void log(gdos::Level level, const std::string& line);
   void gdos_pass();
   void pass_guarded() noexcept;
@@ -158,6 +169,7 @@ class Executor {
   void start_io_workers();
   void stop_io_workers() noexcept;
   void start_tasks(ComponentView& v);
+  void add_stepped_task(ComponentView& v);  // ExecutorOptions::stepped: no threads (stepper.cpp)
   void join_network(const std::string& url, tims::Address self);
   void start_trace_thread();
   void log_started();
@@ -176,6 +188,7 @@ class Executor {
   int64_t next_access_report_ns_ = 0;            // GDOS thread: denials are logged at most this often
   std::vector<ComponentView> views_;
   std::vector<std::unique_ptr<rt::Thread>> threads_;
+  std::vector<std::unique_ptr<SteppedTask>> stepped_;  // ExecutorOptions::stepped: the tasks without threads
   // The components' I/O workers (Component::add_io_worker): non-RT, housekeeping CPUs.
   struct IoWorkerThread {
     rt::Thread thread;

@@ -29,6 +29,17 @@
 namespace rack::tims {
 
 class TrustedSources;
+class Mailbox;
+
+// Told of every message the router delivers into a mailbox, in the sender's thread,
+// after the message is queued and no lock is held. A stepped executor
+// (rack/core/stepper.h) serves a component's command mailbox this way, so that a
+// request is answered before the sender waits for the reply; nothing else sets one.
+class DeliveryHook {
+ public:
+  virtual ~DeliveryHook() = default;
+  virtual void delivered(Mailbox& mailbox) noexcept = 0;
+};
 
 struct ConstBuffer {
   const void* data = nullptr;
@@ -136,6 +147,10 @@ class Mailbox {
   // mailbox's registration. Not RT-safe to set; trusted_sources() is (lock-free).
   void set_trusted_sources(TrustedSources* trusted) noexcept { trusted_.store(trusted, std::memory_order_release); }
   [[nodiscard]] TrustedSources* trusted_sources() const noexcept { return trusted_.load(std::memory_order_acquire); }
+  // The hook the router calls after each delivery here (nullptr: none, the default).
+  // Set before traffic flows; `hook` outlives its use. Any thread; RT-safe (atomic).
+  void set_delivery_hook(DeliveryHook* hook) noexcept { hook_.store(hook, std::memory_order_release); }
+  [[nodiscard]] DeliveryHook* delivery_hook() const noexcept { return hook_.load(std::memory_order_acquire); }
   // A reply mailbox (an endpoint's): the router refuses every request for it, silently
   // (a reply mailbox answers nothing, and an answer would let a flood reflect), and
   // counts it here. Set before traffic flows. RT-safe, lock-free.
@@ -176,6 +191,7 @@ class Mailbox {
   std::atomic<uint64_t> sent_{0}, received_{0}, dropped_{0}, refused_{0}, too_large_{0}, truncated_{0};
   std::atomic<uint64_t> denied_{0};                // relaxed: a statistic, outside the mutex
   std::atomic<TrustedSources*> trusted_{nullptr};  // release/acquire: the table is built before
+  std::atomic<DeliveryHook*> hook_{nullptr};       // release/acquire: the hook is built before
   std::atomic<bool> replies_only_{false};          // relaxed: set before traffic flows
   std::atomic<uint64_t> refused_requests_{0};      // relaxed: a statistic
 };

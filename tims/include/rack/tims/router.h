@@ -21,6 +21,9 @@
 // reply or notification not from a trusted producer is refused; both are counted by
 // the TrustedSources (and in RouterCounters::untrusted), never queued. A request for a
 // reply mailbox (Mailbox::set_replies_only) is refused silently and counted there.
+// After a local delivery by send(), the mailbox's DeliveryHook, if it has one (a
+// stepped executor's command mailboxes only, rack/core/stepper.h), runs in the
+// sender's thread; without one the cost is one atomic load.
 //
 // Real-time contract: find() and send() are RT-safe and lock-free on the look-up
 // (a PI-locked mailbox send follows). add()/remove()/set_uplink() are not RT-safe
