@@ -107,6 +107,12 @@ void Component::add_io_worker(const std::string& name, std::function<void()> bod
   io_workers_.push_back(IoWorker{name, std::move(body), std::move(stop)});
 }
 
+ComputeWorker& Component::add_compute_worker(const std::string& name) {
+  if (name.empty()) throw std::invalid_argument("add_compute_worker: needs a name");
+  compute_workers_.push_back(ComputeWorkerDecl{name, std::make_unique<ComputeWorker>()});
+  return *compute_workers_.back().worker;
+}
+
 void Component::run_cleanup() noexcept {
   try {
     cleanup();
