@@ -39,8 +39,10 @@ Joystick::Joystick()
                                  .component_ref = true})),
       slow_distance_(declare_float("slow_distance", 1.0,
                                    {.doc = "m of free space ahead below which forward speed is reduced", .min = 0.01})),
-      obstacle_timeout_ms_(
-          declare_float("obstacle_timeout_ms", 500.0, {.doc = "no scan this long: no forward motion", .min = 1.0})) {
+      silence_ms_(declare_float(
+          "silence_ms", 500.0,
+          {.doc = "no scan from obstacles this long: no forward motion", .min = 1.0, .max = 3.6e6, .unit = "ms"})) {
+  parameters().add_old_name("obstacle_timeout_ms", "silence_ms");  // docs/parameters.md
   // Scans arrive here (a Scan2dData is the largest payload accepted).
   use_input_mailbox(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + sizeof(interfaces::Scan2dData) + 128);
 }
@@ -195,8 +197,7 @@ HookResult Joystick::loop() {
   if (obstacles_address_.raw() != 0) {
     take_obstacles();
     if (obstacles_lost_) return HookResult::kError;  // off() stops the robot; on() re-subscribes
-    const bool stale = static_cast<double>(rt::monotonic_ns() - last_obstacles_ns_) >
-                       obstacle_timeout_ms_.get_float() * 1e6;
+    const bool stale = static_cast<double>(rt::monotonic_ns() - last_obstacles_ns_) > silence_ms_.get_float() * 1e6;
     state_.free_ahead = stale ? 0.0 : std::fmin(free_ahead_, 1e3);
   }
   if (chassis_address_.raw() != 0) {

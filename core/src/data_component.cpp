@@ -215,6 +215,9 @@ void DataComponentBase::add_input(std::unique_ptr<InputPort> port, const InputSp
                                           .unit = "ms"});
     if (spec.old_period_name != nullptr) parameters().add_old_name(spec.old_period_name, period);
   }
+  // A class that declared silence_ms itself (Joystick's, before its inputs were
+  // declared) keeps it: one silence_ms per component.
+  if (silence_ == nullptr) silence_ = parameters().find("silence_ms");
   if (silence_ == nullptr) {
     silence_ = &declare_float("silence_ms", spec.silence_ms,
                               {.doc = "a watched input (source) that sends nothing this long has gone silent",
