@@ -41,6 +41,7 @@
 
 #include "bench_common.h"
 #include "mcl_reference.h"
+#include "mcl_worker.h"
 #include "mcl_sim.h"
 #include "rack/components/builtin.h"
 #include "rack/core/data_component.h"
@@ -155,7 +156,7 @@ std::vector<UpdateResult> bench_update_time(const rack::maps::OccupancyMap& map,
     std::vector<int64_t> rack_t, ref_t;
     std::vector<double> pair_ratio;
     for (int round = 0; round < 2; ++round) {
-      MclFilter f(map, o);
+      MclFilter f(map, o, rack::bench::mcl_compute_worker());
       f.init_pose({steps[0].truth.x, steps[0].truth.y, steps[0].truth.phi}, 0.1, 0.05);
       MrptReference ref(map, o);
       ref.set_decimation(c.decimation);
@@ -272,7 +273,7 @@ void bench_accuracy(const rack::maps::OccupancyMap& map, bool quick) {
     const auto steps = record(map, static_cast<uint64_t>(seed));
     MclOptions o;
     o.seed = static_cast<uint64_t>(seed);
-    MclFilter f(map, o);
+    MclFilter f(map, o, rack::bench::mcl_compute_worker());
     f.init_pose({steps[0].truth.x + 0.1, steps[0].truth.y - 0.1, steps[0].truth.phi + 0.05}, 0.2, 0.1);
     mrpt::random::getRandomGenerator().randomize(static_cast<uint32_t>(seed));
     MclOptions ro = o;
@@ -341,7 +342,7 @@ void bench_recovery(const rack::maps::OccupancyMap& map, bool quick) {
           o.particles_min = 300;
           o.particles_max = 8000;
           const auto steps = record(map, seed);
-          MclFilter f(map, o);
+          MclFilter f(map, o, rack::bench::mcl_compute_worker());
           f.init_global();
           at.push_back(travel_to_converge(f, steps, 0, 0.3));
         } else {
@@ -370,7 +371,7 @@ void bench_recovery(const rack::maps::OccupancyMap& map, bool quick) {
                                             first_odo);
             s.odometry = {p.x(), p.y(), p.phi()};
           }
-          MclFilter f(map, o);
+          MclFilter f(map, o, rack::bench::mcl_compute_worker());
           f.init_pose({2.0, 8.0, 0.0}, 0.1, 0.05);
           for (const auto& s : before)
             (void)f.update({s.odometry.x, s.odometry.y, s.odometry.phi}, s.scan.xs, s.scan.ys);
@@ -468,7 +469,8 @@ void bench_latency(const rack::maps::OccupancyMap& map, const std::vector<Step>&
     o.update_angle = 0;
     o.seed = 3;
     while (!stop) {
-      MclFilter f(map, o);  // re-created each pass: allocation churn, as after an INIT
+      MclFilter f(map, o,
+                  rack::bench::mcl_compute_worker());  // re-created each pass: allocation churn, as after an INIT
       f.init_pose({steps[0].truth.x, steps[0].truth.y, steps[0].truth.phi}, 0.1, 0.05);
       for (std::size_t i = 0; i < steps.size() && !stop; ++i) {
         const auto& s = steps[i];

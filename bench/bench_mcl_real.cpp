@@ -47,6 +47,7 @@
 
 #include "mcl_dataset.h"
 #include "mcl_reference.h"
+#include "mcl_worker.h"
 #include "mcl_sim.h"
 #include "rack/maps/occupancy_map.h"
 #include "rack/mcl/mcl_filter.h"
@@ -183,7 +184,7 @@ MclOptions bench_options(uint32_t particles, uint64_t seed) {
 // Runs rack's filter over the steps (init around the first reference pose).
 Score run_rack(const Data& d, const std::vector<DatasetStep>& steps, const MclOptions& o) {
   Score sc;
-  MclFilter f(*d.map, o);
+  MclFilter f(*d.map, o, rack::bench::mcl_compute_worker());
   const SimPose& t0 = steps[0].truth;
   f.init_pose({t0.x, t0.y, t0.phi}, 0.2, 0.1);
   SimPose prev_e{}, prev_t{};
@@ -383,7 +384,7 @@ void part_kidnap(const std::vector<Data>& sets, int seeds, uint32_t particles) {
       std::vector<SimPose> er, em;
       std::size_t lost_r = 0, lost_m = 0;
       {
-        MclFilter f(*d.map, o);
+        MclFilter f(*d.map, o, rack::bench::mcl_compute_worker());
         f.init_pose({steps[0].truth.x, steps[0].truth.y, steps[0].truth.phi}, 0.2, 0.1);
         for (std::size_t i = 0; i < steps.size(); ++i) {
           (void)f.update({steps[i].odometry.x, steps[i].odometry.y, steps[i].odometry.phi}, steps[i].scan.xs,
@@ -440,7 +441,7 @@ void part_global(const std::vector<Data>& sets, int seeds, uint32_t particles_ma
       std::vector<SimPose> er, em;
       std::size_t nr = 0, nm = 0;
       {
-        MclFilter f(*d.map, o);
+        MclFilter f(*d.map, o, rack::bench::mcl_compute_worker());
         f.init_global();
         for (const auto& s : steps) {
           (void)f.update({s.odometry.x, s.odometry.y, s.odometry.phi}, s.scan.xs, s.scan.ys);

@@ -59,11 +59,14 @@ Camera::Camera()
                                   {.doc = "OpenCV calibration file (camera_matrix, distortion_coefficients)",
                                    .init_only = true,
                                    .path = PathRole::kInput})),
-      timeout_ms_(
-          declare_float("timeout_ms", 2000.0,
-                        {.doc = "ERROR when no frame came for this long (and on() waits this long for the source)",
-                         .min = 1.0,
-                         .unit = "ms"})) {}
+      device_timeout_ms_(declare_float(
+          "device_timeout_ms", 2000.0,
+          {.doc = "ERROR when the source delivered no frame for this long (and on() waits this long for it)",
+           .min = 1.0,
+           .max = 3.6e6,
+           .unit = "ms"})) {
+  parameters().add_old_name("timeout_ms", "device_timeout_ms");  // docs/parameters.md
+}
 
 Camera::~Camera() { cleanup(); }
 
@@ -126,7 +129,7 @@ HookResult Camera::on() {
   published_frames_ = 0;
   capturing_.store(true, std::memory_order_release);
   // Wait (bounded) for the capture thread to open the source.
-  const auto timeout = static_cast<int64_t>(timeout_ms_.get_float() * 1e6);
+  const auto timeout = static_cast<int64_t>(device_timeout_ms_.get_float() * 1e6);
   const int64_t end = rt::monotonic_ns() + timeout;
   while (open_state_.load(std::memory_order_acquire) == 0 && rt::monotonic_ns() < end) rt::sleep_for(rt::kNsPerMs);
   if (open_state_.load(std::memory_order_acquire) != 1) {
@@ -152,7 +155,7 @@ HookResult Camera::loop() {
     return HookResult::kOk;
   }
   if (ended_.load(std::memory_order_acquire) != 0) return HookResult::kError;  // the file ended
-  if (static_cast<double>(rt::monotonic_ns() - last_frame_ns_) > timeout_ms_.get_float() * 1e6) {
+  if (static_cast<double>(rt::monotonic_ns() - last_frame_ns_) > device_timeout_ms_.get_float() * 1e6) {
     return HookResult::kError;  // the source stopped delivering
   }
   return HookResult::kOk;

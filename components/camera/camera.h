@@ -13,7 +13,7 @@
 // is published with every frame, scaled to the frame's size.
 //
 // Bad input: a source that cannot be opened, frames that fail to decode, a file that
-// ends (without `loop`), or no frame for timeout_ms: counted, and ERROR; on() retries.
+// ends (without `loop`), or no frame for device_timeout_ms: counted, and ERROR; on() retries.
 //
 // Real-time contract: loop() only swaps an atomic index and publishes a preallocated
 // sample; on()/off() only set atomics and wait (bounded) for the capture thread.
@@ -51,7 +51,7 @@ class Camera final : public DataComponent<interfaces::CameraData> {
   Parameter& jpeg_quality_;
   Parameter& loop_file_;
   Parameter& calibration_;
-  Parameter& timeout_ms_;
+  Parameter& device_timeout_ms_;  // formerly timeout_ms
 
   std::unique_ptr<Capture> capture_;
   // Triple buffer: the capture thread fills buffers_[back], then exchanges it with

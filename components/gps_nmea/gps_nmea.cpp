@@ -14,12 +14,17 @@ GpsNmea::GpsNmea()
           {.doc = "serial device of the receiver (/dev/ttyUSB0)", .required = true, .path = PathRole::kDevice})),
       baud_(declare_int("baud", 9600,
                         {.doc = "baud rate (4800, 9600, 38400, 115200, ...)", .min = 1200, .max = 4000000})),
-      timeout_ms_(declare_float("timeout_ms", 2000.0,
-                                {.doc = "ERROR when no valid position sentence came for this long", .min = 1.0})),
+      device_timeout_ms_(declare_float("device_timeout_ms", 2000.0,
+                                       {.doc = "ERROR when the receiver sent no valid position sentence for this long",
+                                        .min = 1.0,
+                                        .max = 3.6e6,
+                                        .unit = "ms"})),
       origin_lat_(declare_float("origin_latitude_deg", 0.0,
                                 {.doc = "local frame origin (0/0: the first fix)", .min = -90.0, .max = 90.0})),
       origin_lon_(declare_float("origin_longitude_deg", 0.0,
-                                {.doc = "local frame origin (0/0: the first fix)", .min = -180.0, .max = 180.0})) {}
+                                {.doc = "local frame origin (0/0: the first fix)", .min = -180.0, .max = 180.0})) {
+  parameters().add_old_name("timeout_ms", "device_timeout_ms");  // docs/parameters.md
+}
 
 HookResult GpsNmea::on() {
   device_.copy_string(path_, sizeof path_);
@@ -120,9 +125,9 @@ HookResult GpsNmea::loop() {
     publish(d, stamp);
     return HookResult::kOk;
   }
-  if (static_cast<double>(now - last_position_ns_) > timeout_ms_.get_float() * 1e6) {
+  if (static_cast<double>(now - last_position_ns_) > device_timeout_ms_.get_float() * 1e6) {
     log_error("%s: no position sentence for %.0f ms; reopening", static_cast<const char*>(path_),
-              timeout_ms_.get_float());
+              device_timeout_ms_.get_float());
     return HookResult::kError;
   }
   return HookResult::kOk;

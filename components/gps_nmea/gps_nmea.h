@@ -7,8 +7,9 @@
 // Parameters (rackd --list-classes prints them):
 //   device         the serial device ("/dev/ttyUSB0"; a udev symlink is better)
 //   baud           4800 .. 921600 (receivers: 4800 or 9600 by default, u-blox 9600)
-//   timeout_ms     no valid position sentence for this long: ERROR (then on() retries,
-//                  reopening the device: a replugged receiver comes back by itself)
+//   device_timeout_ms   no valid position sentence for this long: ERROR (then on()
+//                  retries, reopening the device: a replugged receiver comes back by
+//                  itself); formerly timeout_ms
 //   origin_latitude_deg / origin_longitude_deg   the local frame's origin; both 0:
 //                  the first fix after ON becomes the origin
 //
@@ -44,7 +45,7 @@ class GpsNmea final : public DataComponent<interfaces::GpsData> {
 
   Parameter& device_;
   Parameter& baud_;
-  Parameter& timeout_ms_;
+  Parameter& device_timeout_ms_;  // formerly timeout_ms
   Parameter& origin_lat_;
   Parameter& origin_lon_;
   devices::SerialPort port_;

@@ -33,7 +33,7 @@ Joystick::Joystick()
           declare_float("deadband", 0.05, {.doc = "axis values below this count as zero", .min = 0.0, .max = 0.9})),
       speed_scale_(declare_float("speed_scale", 0.5,
                                  {.doc = "fraction of the chassis vx_max at full stick", .min = 0.0, .max = 1.0})),
-      // Its silence is judged by obstacle_timeout_ms (no forward motion), not an ERROR.
+      // Its silence is judged by silence_ms (no forward motion), not an ERROR.
       obstacles_(declare_input<interfaces::Scan2dData, interfaces::LadarData>(
           "obstacles", {.doc = "Scan2D or Ladar whose scans limit the forward speed",
                         .optional = true,
@@ -41,8 +41,11 @@ Joystick::Joystick()
                         .silence_param = SilenceParam::kNone})),
       slow_distance_(declare_float("slow_distance", 1.0,
                                    {.doc = "m of free space ahead below which forward speed is reduced", .min = 0.01})),
-      obstacle_timeout_ms_(
-          declare_float("obstacle_timeout_ms", 500.0, {.doc = "no scan this long: no forward motion", .min = 1.0})) {}
+      silence_ms_(declare_float(
+          "silence_ms", 500.0,
+          {.doc = "no scan from obstacles this long: no forward motion", .min = 1.0, .max = 3.6e6, .unit = "ms"})) {
+  parameters().add_old_name("obstacle_timeout_ms", "silence_ms");  // docs/parameters.md
+}
 
 Joystick::~Joystick() { close_device(); }
 
@@ -169,8 +172,8 @@ HookResult Joystick::loop() {
   state_.free_ahead = -1.0;
   if (obstacles_.configured()) {
     if (!take_obstacles()) return HookResult::kError;  // off() stops the robot; the retry re-subscribes
-    const bool stale = static_cast<double>(rt::monotonic_ns() - obstacles_.received_ns()) >
-                       obstacle_timeout_ms_.get_float() * 1e6;
+    const bool stale =
+        static_cast<double>(rt::monotonic_ns() - obstacles_.received_ns()) > silence_ms_.get_float() * 1e6;
     state_.free_ahead = stale ? 0.0 : std::fmin(free_ahead_, 1e3);
   }
   if (chassis_address_.raw() != 0) {

@@ -13,8 +13,8 @@
 // With `obstacles` set (a Scan2D or Ladar component: a declared input, switched on and
 // subscribed before on()) it limits forward speed by the free distance ahead in the
 // robot's corridor (the chassis outline plus its safety margin): full speed at
-// `slow_distance` or more, zero at the outline. No scan for obstacle_timeout_ms allows
-// no forward motion (fail safe); the source leaving ENABLED puts the joystick in ERROR
+// `slow_distance` or more, zero at the outline. No scan for silence_ms allows no
+// forward motion (fail safe); the source leaving ENABLED puts the joystick in ERROR
 // (and stops the robot).
 //
 // Bad input: short events, unknown event types and out-of-range axis/button numbers
@@ -60,7 +60,7 @@ class Joystick final : public DataComponent<interfaces::JoystickData> {
   Parameter& speed_scale_;
   InputOneOf<interfaces::Scan2dData, interfaces::LadarData>& obstacles_;
   Parameter& slow_distance_;
-  Parameter& obstacle_timeout_ms_;
+  Parameter& silence_ms_;  // formerly obstacle_timeout_ms
   int fd_ = -1;
   char path_[256] = {};
   interfaces::JoystickData state_{};

@@ -16,8 +16,14 @@ LadarHokuyo::LadarHokuyo()
       baud_(declare_int("baud", 115200, {.doc = "baud rate (ignored by USB-ACM models)", .min = 1200, .max = 4000000})),
       cluster_(
           declare_int("cluster", 1, {.doc = "steps merged into one beam (1: full resolution)", .min = 1, .max = 99})),
-      timeout_ms_(declare_float("timeout_ms", 500.0,
-                                {.doc = "ERROR when no valid scan came for this long", .min = 1.0, .unit = "ms"})) {}
+      device_timeout_ms_(declare_float(
+          "device_timeout_ms", 500.0,
+          {.doc = "ERROR when the device sent no valid scan for this long (also its replies' deadline, plus 0.5 s)",
+           .min = 1.0,
+           .max = 3.6e6,
+           .unit = "ms"})) {
+  parameters().add_old_name("timeout_ms", "device_timeout_ms");  // docs/parameters.md
+}
 
 void LadarHokuyo::init() {
   parser_ = std::make_unique<scip::Parser>();
@@ -36,7 +42,8 @@ bool LadarHokuyo::transact(const char* command, scip::Parser::Event until) noexc
     bool done = false;
     bool error = false;
   } w{until, command};
-  const int64_t deadline = rt::monotonic_ns() + static_cast<int64_t>(timeout_ms_.get_float() * 1e6) + rt::kNsPerSec / 2;
+  const int64_t deadline = rt::monotonic_ns() + static_cast<int64_t>(device_timeout_ms_.get_float() * 1e6) +
+                           rt::kNsPerSec / 2;
   while (!w.done && !w.error) {
     const int64_t left = deadline - rt::monotonic_ns();
     if (left <= 0) return false;
@@ -139,8 +146,8 @@ HookResult LadarHokuyo::loop() {
         &seen);
     if (seen.scan) last_scan_ns_ = rt::monotonic_ns();
   }
-  if (static_cast<double>(rt::monotonic_ns() - last_scan_ns_) > timeout_ms_.get_float() * 1e6) {
-    log_error("%s: no scan for %.0f ms; reopening", static_cast<const char*>(path_), timeout_ms_.get_float());
+  if (static_cast<double>(rt::monotonic_ns() - last_scan_ns_) > device_timeout_ms_.get_float() * 1e6) {
+    log_error("%s: no scan for %.0f ms; reopening", static_cast<const char*>(path_), device_timeout_ms_.get_float());
     return HookResult::kError;
   }
   return HookResult::kOk;

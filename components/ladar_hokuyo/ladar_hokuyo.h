@@ -10,7 +10,7 @@
 // (the read time minus the scan's duration), angles counter-clockwise with 0 ahead.
 //
 // Bad input: lines with wrong checksums, garbage and truncated responses are
-// counted and dropped (never a partial scan). No scan for timeout_ms, or a device
+// counted and dropped (never a partial scan). No scan for device_timeout_ms, or a device
 // that disappears, puts the component in ERROR; on() retries and reopens it.
 //
 // Real-time contract: loop() does non-blocking read()s on the open tty and parsing
@@ -44,7 +44,7 @@ class LadarHokuyo final : public DataComponent<interfaces::LadarData> {
   Parameter& device_;
   Parameter& baud_;
   Parameter& cluster_;
-  Parameter& timeout_ms_;
+  Parameter& device_timeout_ms_;  // formerly timeout_ms
   devices::SerialPort port_;
   std::unique_ptr<devices::scip::Parser> parser_;  // ~15 KB: allocated in init()
   std::unique_ptr<interfaces::LadarData> sample_;  // ~9 KB: allocated in init()

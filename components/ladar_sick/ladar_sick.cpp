@@ -13,10 +13,13 @@ LadarSick::LadarSick()
           "host", "",
           {.doc = "scanner IPv4 address (factory default 192.168.0.1)", .required = true, .init_only = true})),
       port_(declare_int("port", 2111, {.doc = "CoLa-A TCP port", .min = 1, .max = 65535, .init_only = true})),
-      timeout_ms_(declare_float("timeout_ms", 500.0,
-                                {.doc = "ERROR when no valid scan came for this long", .min = 1.0, .unit = "ms"})),
+      device_timeout_ms_(declare_float(
+          "device_timeout_ms", 500.0,
+          {.doc = "ERROR when the scanner sent no valid scan for this long", .min = 1.0, .max = 3.6e6, .unit = "ms"})),
       max_range_(
-          declare_float("max_range", 20.0, {.doc = "m, the model's range (LMS111: 20, LMS151: 50)", .min = 0.1})) {}
+          declare_float("max_range", 20.0, {.doc = "m, the model's range (LMS111: 20, LMS151: 50)", .min = 0.1})) {
+  parameters().add_old_name("timeout_ms", "device_timeout_ms");  // docs/parameters.md
+}
 
 void LadarSick::init() {
   parser_ = std::make_unique<cola::Parser>();
@@ -91,7 +94,7 @@ HookResult LadarSick::loop() {
         &seen);
     if (seen.scan) last_scan_ns_ = rt::monotonic_ns();
   }
-  if (static_cast<double>(rt::monotonic_ns() - last_scan_ns_) > timeout_ms_.get_float() * 1e6) {
+  if (static_cast<double>(rt::monotonic_ns() - last_scan_ns_) > device_timeout_ms_.get_float() * 1e6) {
     link_.request_reconnect();  // a connected but mute scanner: start over
     return HookResult::kError;
   }

@@ -10,7 +10,7 @@
 // receive time minus one scan period.
 //
 // Bad input: truncated or malformed telegrams and garbage are counted and dropped.
-// A lost connection or no scan for timeout_ms puts the component in ERROR (and asks
+// A lost connection or no scan for device_timeout_ms puts the component in ERROR (and asks
 // the link to reconnect); on() succeeds again once the link is connected.
 //
 // Real-time contract: loop() only copies from the link's ring (eventfd + memcpy) and
@@ -43,7 +43,7 @@ class LadarSick final : public DataComponent<interfaces::LadarData> {
 
   Parameter& host_;
   Parameter& port_;
-  Parameter& timeout_ms_;
+  Parameter& device_timeout_ms_;  // formerly timeout_ms
   Parameter& max_range_;
   devices::TcpSensorLink link_;
   std::unique_ptr<devices::cola::Parser> parser_;  // ~45 KB: allocated in init()

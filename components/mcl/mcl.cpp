@@ -171,9 +171,10 @@ Mcl::Mcl()
       threads_(declare_int(
           "threads", 2,
           {.doc =
-               "threads evaluating the scan likelihood (1 or 2: one helper thread, normal scheduling, for updates of at least 100000 particles x points)",
+               "threads evaluating the scan likelihood (1 or 2: the data task and a compute worker with its priority and CPUs, for updates of at least 100000 particles x points)",
            .min = 1,
-           .max = 2})),
+           .max = 2,
+           .init_only = true})),
       seed_(declare_int("seed", 0, {.doc = "random seed (0: from the clock)", .min = 0, .max = 4294967295.0})),
       show_particles_(declare_int(
           "show_particles", 100,
@@ -243,7 +244,10 @@ void Mcl::init() {
   if (!loaded.ok()) throw std::runtime_error("map: " + loaded.error_text());
   // initial_pose and the filter's options were checked (check_parameters, before init()).
   const mcl::MclOptions options = read_options();
-  filter_ = std::make_unique<mcl::MclFilter>(*loaded.map, options);
+  // The likelihood's second thread: the executor's, beside the data task (its priority
+  // and CPUs); threads is read here only (init_only).
+  ComputeWorker* worker = options.threads > 1 ? &add_compute_worker("likelihood") : nullptr;
+  filter_ = std::make_unique<mcl::MclFilter>(*loaded.map, options, worker);
   out_ = std::make_unique<MclData>();
   xs_ = std::make_unique<float[]>(interfaces::kScan2dMaxPoints);
   ys_ = std::make_unique<float[]>(interfaces::kScan2dMaxPoints);

@@ -15,7 +15,10 @@
 // Scheduling: MRPT allocates in every update, so give the data task priority 0
 // (normal scheduling) or a low SCHED_FIFO priority below every control task. The
 // command task stays real-time: on(), off() and command() only exchange messages and
-// flags (RT-safe); all filter work happens in loop(), which is NOT RT-safe.
+// flags (RT-safe); all filter work happens in loop(), which is NOT RT-safe. With
+// threads 2 (the default) a large update's likelihood is shared with an executor-owned
+// compute worker (Component::add_compute_worker) that runs with the data task's
+// priority and on its CPUs: rackd's thread listing shows it as '<name>:likelihood'.
 #pragma once
 
 #include <atomic>

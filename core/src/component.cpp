@@ -107,6 +107,12 @@ void Component::add_io_worker(const std::string& name, std::function<void()> bod
   io_workers_.push_back(IoWorker{name, std::move(body), std::move(stop)});
 }
 
+ComputeWorker& Component::add_compute_worker(const std::string& name) {
+  if (name.empty()) throw std::invalid_argument("add_compute_worker: needs a name");
+  compute_workers_.push_back(ComputeWorkerDecl{name, std::make_unique<ComputeWorker>()});
+  return *compute_workers_.back().worker;
+}
+
 void Component::run_cleanup() noexcept {
   try {
     cleanup();
@@ -334,6 +340,7 @@ void Component::handle_get_param(const MessageHeader& h, std::span<const std::by
   }
   name.name[sizeof name.name - 1] = '\0';
   const Parameter* p = params_.find(name.name);
+  if (p == nullptr) p = params_.renamed(name.name);  // a former name: the record says the new one
   if (p == nullptr) {
     wire::ErrorText text;
     wire::copy_text(text.text, "unknown parameter '");
@@ -354,6 +361,8 @@ void Component::handle_set_param(const MessageHeader& h, std::span<const std::by
   }
   record.name[sizeof record.name - 1] = '\0';
   Parameter* p = params_.find(record.name);
+  // A former name (docs/parameters.md) works as in the host file, with a warning.
+  const bool old_name = p == nullptr && (p = params_.renamed(record.name)) != nullptr;
   wire::ErrorText text;
   if (p == nullptr) {
     wire::copy_text(text.text, "unknown parameter '");
@@ -405,7 +414,19 @@ void Component::handle_set_param(const MessageHeader& h, std::span<const std::by
         break;
     }
   }
-  reply(h, msg::kOk);
+  if (!old_name) {
+    reply(h, msg::kOk);
+    return;
+  }
+  // OK, with the warning as its text (tools print it; older tools ignore the body).
+  log_warning("SET_PARAM from %s by the old name '%s': the parameter is now '%s' (rename it: docs/parameters.md)",
+              h.source(), record.name, p->name().c_str());
+  wire::copy_text(text.text, "parameter '");
+  wire::append_text(text.text, record.name);
+  wire::append_text(text.text, "' is now '");
+  wire::append_text(text.text, p->name().c_str());
+  wire::append_text(text.text, "' (the old name still works; rename it: docs/parameters.md)");
+  reply_with(h, msg::kOk, text);
 }
 
 void Component::handle_get_class(const MessageHeader& h, std::span<const std::byte> body) noexcept {

@@ -224,6 +224,9 @@ void DataComponentBase::add_input(std::unique_ptr<InputPort> port, const InputSp
                                           .unit = "ms"});
     if (spec.old_period_name != nullptr) parameters().add_old_name(spec.old_period_name, period);
   }
+  // A class that declared silence_ms itself (Joystick's, for an input it watches by
+  // hand) keeps it: one silence_ms per component.
+  if (spec.silence_param != SilenceParam::kNone && silence_ == nullptr) silence_ = parameters().find("silence_ms");
   if (spec.silence_param == SilenceParam::kNone) {
     if (spec.watched) {
       throw std::invalid_argument("declare_input '" + port->name() +

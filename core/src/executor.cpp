@@ -268,6 +268,7 @@ void Executor::start_steps(const std::string& url) {
   attach_components();
   init_components();
   start_io_workers();
+  start_compute_workers();
   step("starting the tasks");
   for (auto& v : views_) start_tasks(v);
   join_network(url, self);
@@ -410,6 +411,50 @@ void Executor::start_io_workers() {
   }
 }
 
+// The compute workers that components declared in init() (Component::add_compute_worker):
+// each serves its component's data task, which waits for it, so it runs with that
+// task's priority and on its CPUs (component.h), with a log ring of its own. Started
+// before the tasks, so that the first cycle finds it serving.
+void Executor::start_compute_workers() {
+  const HostSettings& hs = host_->settings;
+  for (auto& v : views_) {
+    Component& c = *v.component;
+    if (!v.init_called || c.init_failed_) continue;
+    const ComponentSettings& s = c.settings();
+    const TaskSettings& t = c.data_task_mode() != DataTaskMode::kNone ? s.data_task : s.command_task;
+    for (auto& w : c.compute_workers_) {
+      step("starting compute worker '" + w.name + "' of component '" + c.name() + "'");
+      auto worker = std::make_unique<IoWorkerThread>();
+      ComputeWorker* served = w.worker.get();
+      worker->stop = [served] { served->stop(); };
+      worker->priority = t.priority;
+      IoWorkerThread* self = worker.get();
+      gdos::LogRing* ring = &hub_.make_ring(hs.gdos.ring, c.name() + " compute worker " + w.name);
+      compute_workers_.push_back(std::move(worker));
+      // The data task's placement: its `cpu:`, else (partitioned) the RT CPUs for an RT
+      // task and the housekeeping CPUs for a non-RT one, else any CPU.
+      const std::vector<int> cpus = t.cpu >= 0       ? std::vector<int>{}
+                                    : t.priority > 0 ? hs.rt_cpus
+                                                     : hs.housekeeping_cpus;
+      const auto how = self->thread.start(
+          {c.name().substr(0, 10) + ":" + w.name, t.priority, t.cpu, 256 * 1024, cpus},
+          [self, ring, served] {
+            self->tid.store(static_cast<pid_t>(::syscall(SYS_gettid)), std::memory_order_release);
+            gdos::bind_thread_ring(ring);
+            served->serve();
+          },
+          options_.allow_rt_fallback);
+      fallback_ = fallback_ || how == rt::ThreadStart::kFallback;
+      if (t.cpu >= 0) {
+        log(gdos::Level::kWarning, "component '" + c.name() + "': compute worker '" + w.name +
+                                       "' shares the data task's one CPU (cpu: " + std::to_string(t.cpu) +
+                                       "): no parallel work; give the data task no cpu: to let it use two");
+      }
+      for (int i = 0; i < 1000 && self->tid.load(std::memory_order_acquire) == 0; ++i) rt::sleep_for(rt::kNsPerMs);
+    }
+  }
+}
+
 // Stops every I/O worker (its stop function) and joins it; after the tasks ended.
 void Executor::stop_io_workers() noexcept {
   for (auto& w : io_workers_) {
@@ -422,6 +467,12 @@ void Executor::stop_io_workers() noexcept {
     w->thread.join();
   }
   io_workers_.clear();
+  for (auto& w : compute_workers_) {
+    if (!w->thread.joinable()) continue;
+    w->stop();  // ComputeWorker::stop: noexcept
+    w->thread.join();
+  }
+  compute_workers_.clear();
 }
 
 // The command task and (if it has one) the data task of one component, with the
@@ -890,6 +941,11 @@ std::string Executor::thread_report() const {
     for (const auto& w : io_workers_) {
       if (w->tid.load(std::memory_order_acquire) == tid) role = "I/O worker, not RT";
     }
+    for (const auto& w : compute_workers_) {
+      if (w->tid.load(std::memory_order_acquire) == tid) {
+        role = w->priority > 0 ? "compute worker, RT" : "compute worker, not RT";
+      }
+    }
     for (const auto& t : tasks) {
       if (t.tid == tid) role = t.what;
     }
@@ -912,6 +968,8 @@ std::vector<std::string> Executor::partition_threads() {
     tasks.push_back(c.command_task_faults().tid());
     if (c.data_task_mode() != DataTaskMode::kNone) tasks.push_back(c.data_task_faults().tid());
   }
+  // Compute workers run where their data task runs (start_compute_workers): not moved.
+  for (const auto& w : compute_workers_) tasks.push_back(w->tid.load(std::memory_order_acquire));
   // A task that has not marked its start-up yet cannot be told from a helper thread:
   // try again at the next call rather than move an RT task.
   if (std::find(tasks.begin(), tasks.end(), 0) != tasks.end()) return moved;

@@ -112,8 +112,8 @@ void HostLoader::load_components(const YAML::Node& comps, LoadedHost& host) {
       if (get_int_range(dt, "ring", 2, 1'000'000, n, "a sample count")) s.ring_size = static_cast<uint32_t>(n);
       if (get_int_range(dt, "max_listeners", 1, 1024, n, "a listener count"))
         s.max_listeners = static_cast<uint32_t>(n);
-      if (get_int_range(dt, "lease_ms", 100, 86'400'000, n, "a lease of 100..86400000 ms")) {
-        s.lease_ns = n * rt::kNsPerMs;
+      if (int64_t ns = 0; get_ms_range(dt, "lease_ms", 100, 86'400'000, ns, "a lease in milliseconds")) {
+        s.lease_ns = ns;
       }
       if (get_int_range(dt, "input_slots", 1, 4096, n, "a slot count")) s.input_slots = static_cast<uint32_t>(n);
       if (mode == DataTaskMode::kPeriodic) {

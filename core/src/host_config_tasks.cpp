@@ -86,9 +86,12 @@ void TaskReader::read_modeswitch(const YAML::Node& node, rt::modeswitch::Config&
   if (get_int_range(node, "watchdog_periods", 0, 1'000'000, v, "a number of periods (0: off)")) {
     c.watchdog_periods = static_cast<uint32_t>(v);
   }
-  if (get_int_range(node, "rttime_ms", 0, 3'600'000, v, "milliseconds (0: off)")) c.rttime_us = v * 1000;
-  if (get_int_range(node, "repeat_ms", 0, 86'400'000, v, "milliseconds (0: every report in full)")) {
-    c.repeat_every_ns = v * 1'000'000;
+  // Milliseconds as floats, as every *_ms (docs/parameters.md).
+  if (int64_t ns = 0; get_ms_range(node, "rttime_ms", 0, 3'600'000, ns, "milliseconds, 0: off")) {
+    c.rttime_us = ns / 1000;
+  }
+  if (int64_t ns = 0; get_ms_range(node, "repeat_ms", 0, 86'400'000, ns, "milliseconds, 0: every report in full")) {
+    c.repeat_every_ns = ns;
   }
   if (get_int_range(node, "stderr_per_second", 0, 1'000'000, v, "a report count")) {
     c.stderr_per_second = static_cast<uint32_t>(v);

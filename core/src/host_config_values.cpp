@@ -61,6 +61,20 @@ bool HostValueReader::get_positive_ms(const YAML::Node& map, const char* key, in
   return true;
 }
 
+bool HostLoader::get_ms_range(const YAML::Node& map, const char* key, double lo_ms, double hi_ms, int64_t& out_ns,
+                              const std::string& what) {
+  double ms = 0;
+  if (!get(map, key, ms, what)) return false;
+  if (!std::isfinite(ms) || ms < lo_ms || ms > hi_ms) {
+    error(map[key].Mark(), std::string("'") + key + "' = " + map[key].Scalar() + " is outside " +
+                               std::to_string(static_cast<int64_t>(lo_ms)) + ".." +
+                               std::to_string(static_cast<int64_t>(hi_ms)) + " (" + what + ")");
+    return false;
+  }
+  out_ns = static_cast<int64_t>(std::llround(ms * 1e6));
+  return true;
+}
+
 // A name: 1..max ASCII letters, digits, '_', '-' (and '.' where `dots`).
 bool HostValueReader::valid_name(const std::string& n, std::size_t max, bool dots) {
   if (n.empty() || n.size() > max) return false;

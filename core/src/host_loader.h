@@ -76,6 +76,10 @@ class HostValueReader {
   bool get_int_range(const YAML::Node& map, const char* key, int64_t lo, int64_t hi, int64_t& out,
                      const std::string& what);
   bool get_positive_ms(const YAML::Node& map, const char* key, int64_t& out_ns);
+  // A duration in milliseconds (a float, as every *_ms: docs/parameters.md) in
+  // lo_ms..hi_ms, to nanoseconds.
+  bool get_ms_range(const YAML::Node& map, const char* key, double lo_ms, double hi_ms, int64_t& out_ns,
+                    const std::string& what);
   static bool valid_name(const std::string& n, std::size_t max = kMaxNameLength, bool dots = false);
   static std::string printable(const std::string& n);
   void check_url(const YAML::Node& map, const char* key, const std::string& url);

@@ -376,9 +376,9 @@ void ParameterSet::add_old_name(const std::string& old_name, const std::string& 
   old_names_.emplace_back(old_name, new_name);
 }
 
-Parameter* ParameterSet::renamed(const std::string& old_name) noexcept {
+Parameter* ParameterSet::renamed(const char* old_name) noexcept {
   for (const auto& [from, to] : old_names_) {
-    if (from == old_name) return find(to.c_str());
+    if (std::strncmp(from.c_str(), old_name, wire::kParamNameLen) == 0) return find(to.c_str());
   }
   return nullptr;
 }

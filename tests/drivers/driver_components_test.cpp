@@ -84,7 +84,7 @@ components:
     params:
       device: )" + c.link + R"(
       baud: 115200
-      timeout_ms: 300
+      device_timeout_ms: 300
       origin_latitude_deg: )" + std::to_string(c.latitude_deg) +
                                             R"(
       origin_longitude_deg: )" + std::to_string(c.longitude_deg) +
@@ -140,7 +140,7 @@ TEST_F(GpsNmeaTest, WrongChecksumsAndSilenceAreErrorsAndItRecovers) {
   Watchdog w;
   ASSERT_TRUE(host_->wait_status(gps_, msg::kEnabled));
   sim_->set_fault(sims::NmeaGpsSim::Fault::kBadChecksum);
-  ASSERT_TRUE(host_->wait_status(gps_, msg::kError)) << "no valid sentence for timeout_ms";
+  ASSERT_TRUE(host_->wait_status(gps_, msg::kError)) << "no valid sentence for device_timeout_ms";
   sim_->set_fault(sims::NmeaGpsSim::Fault::kNone);
   ASSERT_TRUE(host_->wait_status(gps_, msg::kEnabled)) << "on() retries and the receiver talks again";
   GpsData d;
@@ -539,7 +539,7 @@ TEST_F(JoystickTest, ForwardSpeedIsLimitedByTheFreeSpaceAheadInALadarScan) {
     retry_ms: 100
     data_task: {period_ms: 10, ring: 8}
     params:
-      device: )" + c.link + "\n      timeout_ms: 300\n");
+      device: )" + c.link + "\n      device_timeout_ms: 300\n");
   ASSERT_TRUE(host_->wait_status(joystick_, msg::kEnabled));
   event(JS_EVENT_AXIS, 1, -32767);  // full forward: 0.5 m/s without obstacles
   // Free ahead: 2.0 m - boundary_front 0.3 - safety_margin 0.1 = 1.6 m; over 3.2 m: half.
@@ -629,7 +629,7 @@ components:
     data_task: {period_ms: 10, ring: 16}
     params:
       device: )" + c.link + R"(
-      timeout_ms: 300
+      device_timeout_ms: 300
 )");
     ladar_ = host_->address_of("ladar");
   }
@@ -679,7 +679,7 @@ TEST_F(LadarHokuyoTest, CorruptScansAreDroppedThenErrorAndRecovery) {
   for (const auto fault : {sims::HokuyoScipSim::Fault::kBadChecksum, sims::HokuyoScipSim::Fault::kGarbage,
                            sims::HokuyoScipSim::Fault::kSilent}) {
     sim_->set_fault(fault);
-    ASSERT_TRUE(host_->wait_status(ladar_, msg::kError)) << "no valid scan for timeout_ms";
+    ASSERT_TRUE(host_->wait_status(ladar_, msg::kError)) << "no valid scan for device_timeout_ms";
     sim_->set_fault(sims::HokuyoScipSim::Fault::kNone);
     ASSERT_TRUE(host_->wait_status(ladar_, msg::kEnabled)) << "on() restarted the output";
     ASSERT_TRUE(test::eventually([&] { return host_->get_data(ladar_, h, *d); }));
@@ -719,7 +719,7 @@ components:
     params:
       host: 127.0.0.1
       port: )" + std::to_string(port_) + R"(
-      timeout_ms: 300
+      device_timeout_ms: 300
 )");
     ladar_ = host_->address_of("ladar");
   }

@@ -396,5 +396,47 @@ TEST(RackGuiServerTest, PluginClassDataHasItsFieldNames) {
   EXPECT_EQ(gui.wait_exit(10s), std::optional<int>(0)) << gui.err();
 }
 
+// The dashboard's parameter editor (op set_param) takes a parameter's former name as
+// the host file does (docs/parameters.md): the new one is set, and the result says so.
+TEST(RackGuiServerTest, SetParamByAFormerNameSetsTheNewOneWithAWarning) {
+  Watchdog watchdog(60s, "RackGuiServerTest.FormerName");
+  TempDir dir;
+  LcmBus bus;
+  std::filesystem::create_directories(dir.path() / "web");
+  dir.write("web/index.html", "<html></html>");
+  const auto host = dir.write("monitor.yaml",
+                              "host: gui-former\nsystem: 3\nheap_prefault_mib: 0\ncomponents:\n"
+                              "  - name: gen\n    class: Generator\n    instance: 0\n"
+                              "    data_task: {period_ms: 10}\n"
+                              "  - name: mon\n    class: Monitor\n    instance: 0\n"
+                              "    autostart: true\n    params: {source: gen}\n");
+  Process rackd({RACK_RACKD_PATH, host.string(), "--lcm", bus.url()}, dir.path(), "rackd");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
+  Process gui({RACK_GUI_PATH, "--port", "0", "--lcm", bus.url(), "--web", (dir.path() / "web").string(), "--reports",
+               "", "--poll-ms", "100"},
+              dir.path(), "rack-gui");
+  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
+  const std::string err = gui.err();
+  const auto colon = err.find(':', err.find("http://127.0.0.1") + 10);
+  WsClient c(static_cast<uint16_t>(std::stoi(err.substr(colon + 1))));
+  bool described = false;  // the monitor's data came with its class's name: rack-gui knows it
+  for (int i = 0; i < 100 && !described; ++i) {
+    const auto j = c.read_type("data");
+    ASSERT_TRUE(j.is_object()) << "no data message: " << gui.err();
+    described = j.value("component", "") == "Monitor(3/0)";
+  }
+  ASSERT_TRUE(described) << gui.err();
+  c.send({{"op", "set_param"}, {"component", "Monitor(3/0)"}, {"name", "period_ms"}, {"value", 50}, {"id", 7}});
+  nlohmann::json set;
+  for (int i = 0; i < 20 && !(set.is_object() && set.value("id", 0) == 7); ++i) set = c.read_type("result");
+  ASSERT_TRUE(set.is_object()) << gui.err();
+  EXPECT_EQ(set["ok"], true) << set.dump();
+  const std::string text = set.value("text", "");
+  EXPECT_NE(text.find("Monitor(3/0): source_period_ms = 50"), std::string::npos) << text;
+  EXPECT_NE(text.find("warning: parameter 'period_ms' is now 'source_period_ms'"), std::string::npos) << text;
+  gui.signal(SIGTERM);
+  EXPECT_EQ(gui.wait_exit(10s), std::optional<int>(0)) << gui.err();
+}
+
 }  // namespace
 }  // namespace rack::test

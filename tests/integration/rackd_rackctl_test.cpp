@@ -517,6 +517,30 @@ TEST_F(RackdDemoTest, SetParamUnknownParameterIsRefused) {
   EXPECT_TRUE(contains(r.err, "unknown parameter 'nosuch'")) << r.describe();
 }
 
+// A parameter's former name works as in the host file (docs/parameters.md): the new
+// parameter is set, and a warning on stderr names it.
+TEST_F(RackdDemoTest, SetParamByAFormerNameSetsTheNewOneWithAWarning) {
+  RunResult r = ctl({"set-param", "monitor", "period_ms", "50"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(contains(r.out, "source_period_ms = 50")) << r.describe();
+  EXPECT_TRUE(contains(r.err, "warning: parameter 'period_ms' is now 'source_period_ms'")) << r.describe();
+  r = ctl({"params", "monitor", "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  const auto params = parse_json(r.out);
+  ASSERT_TRUE(params.has_value()) << r.out;
+  bool seen = false;
+  for (const auto& p : params->array) {
+    if (p.at("name").string != "source_period_ms") continue;
+    seen = true;
+    EXPECT_EQ(p.at("value").number, 50.0);
+  }
+  EXPECT_TRUE(seen) << r.out;
+  // By its own name: no warning.
+  r = ctl({"set-param", "monitor", "source_period_ms", "100"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_FALSE(contains(r.err, "warning")) << r.describe();
+}
+
 TEST_F(RackdDemoTest, SetParamOutOfRangeShowsTheComponentsReason) {
   // frequency_hz is declared 0..1e4: the component answers ERROR with its reason.
   const RunResult r = ctl({"set-param", "generator", "frequency_hz", "-1"});

@@ -141,6 +141,99 @@ components:
       << b.errors.front().str();
 }
 
+// A former name works in GET_PARAM and SET_PARAM (rackctl set-param, rack-gui's
+// parameter editor) as in the host file: the new parameter is read and set, and
+// SET_PARAM's OK and the component's log name the new name.
+TEST(DeclaredInputTest, OldParameterNamesWorkInSetParamWithAWarning) {
+  Watchdog dog;
+  HostUnderTest host(host_yaml(""), {}, true);
+  const Address mon = host.address_of("mon");
+  wire::ParamName name;
+  wire::copy_text(name.name, "period_ms");
+  const auto got = host.call_with(mon, msg::kGetParam, name);
+  ASSERT_EQ(got.type, msg::kParam) << got.error_text();
+  wire::ParamRecord record;
+  ASSERT_EQ(got.body.size(), sizeof record);
+  std::memcpy(&record, got.body.data(), sizeof record);
+  EXPECT_STREQ(record.name, "source_period_ms") << "GET_PARAM by the old name answers with the new one";
+
+  const auto set = host.set_param(mon, "period_ms", wire::ParamKind::kFloat, 0, 50.0);
+  ASSERT_EQ(set.type, msg::kOk) << set.error_text();
+  EXPECT_NE(set.error_text().find("parameter 'period_ms' is now 'source_period_ms' (the old name still works"),
+            std::string::npos)
+      << set.error_text();
+  EXPECT_DOUBLE_EQ(host.executor().find("mon")->parameters().find("source_period_ms")->get_float(), 50.0);
+  const auto plain = host.set_param(mon, "source_period_ms", wire::ParamKind::kFloat, 0, 60.0);
+  EXPECT_EQ(plain.type, msg::kOk);
+  EXPECT_TRUE(plain.body.empty()) << "no warning by the new name";
+  EXPECT_TRUE(test::eventually([&] {
+    host.executor().flush_log();
+    return host.gdos_log().find("by the old name 'period_ms': the parameter is now 'source_period_ms'") !=
+           std::string::npos;
+  })) << host.gdos_log();
+  const auto unknown = host.set_param(mon, "no_such_ms", wire::ParamKind::kFloat, 0, 1.0);
+  EXPECT_EQ(unknown.type, msg::kError);
+  EXPECT_NE(unknown.error_text().find("unknown parameter 'no_such_ms'"), std::string::npos) << unknown.error_text();
+}
+
+// The timeouts that had names of their own (docs/parameters.md): a scan source's
+// silence is silence_ms (Joystick), a device that sends nothing is device_timeout_ms
+// (the drivers); the old names load with the warning. Every *_ms is a float, lease_ms too.
+TEST(DeclaredInputTest, JoystickAndDriverTimeoutsLoadByTheirOldNames) {
+  ComponentRegistry registry;
+  components::register_builtin(registry);
+  rt::RtCapabilities caps;
+  caps.online_cpus = {0, 1};
+  const std::string text = R"(system: 0
+lcm: false
+components:
+  - name: stick
+    class: Joystick
+    data_task: {period_ms: 20, lease_ms: 2500.5}
+    params: {obstacle_timeout_ms: 300}
+  - name: hokuyo
+    class: LadarHokuyo
+    data_task: {period_ms: 25}
+    params: {device: /dev/ttyACM0, timeout_ms: 700}
+  - name: sick
+    class: LadarSick
+    instance: 1
+    data_task: {period_ms: 25}
+    params: {host: 192.168.0.1, timeout_ms: 600}
+  - name: gps
+    class: GpsNmea
+    data_task: {period_ms: 100}
+    params: {device: /dev/ttyUSB0, timeout_ms: 2500}
+)";
+  const LoadResult r = load_host_text(text, "old.yaml", registry, caps);
+  ASSERT_TRUE(r.errors.empty()) << r.errors.front().str();
+  std::string all;
+  for (const auto& w : r.warnings) all += w.str() + "\n";
+  EXPECT_EQ(r.warnings.size(), 4u) << all;
+  EXPECT_NE(all.find("component 'stick': parameter 'obstacle_timeout_ms' is now 'silence_ms'"), std::string::npos)
+      << all;
+  for (const char* c : {"hokuyo", "sick", "gps"}) {
+    EXPECT_NE(all.find(std::string("component '") + c + "': parameter 'timeout_ms' is now 'device_timeout_ms'"),
+              std::string::npos)
+        << all;
+  }
+  const auto value = [&](const std::string& component, const char* param) {
+    for (const auto& c : r.host->components) {
+      if (c->name() == component) return c->parameters().find(param)->get_float();
+    }
+    return -1.0;
+  };
+  EXPECT_DOUBLE_EQ(value("stick", "silence_ms"), 300.0);
+  EXPECT_DOUBLE_EQ(value("hokuyo", "device_timeout_ms"), 700.0);
+  EXPECT_DOUBLE_EQ(value("sick", "device_timeout_ms"), 600.0);
+  EXPECT_DOUBLE_EQ(value("gps", "device_timeout_ms"), 2500.0);
+  for (const auto& c : r.host->components) {
+    if (c->name() == "stick") {
+      EXPECT_EQ(c->settings().lease_ns, 2'500'500'000) << "lease_ms is a float";
+    }
+  }
+}
+
 TEST(HandoffTest, TheNewestRequestWinsAndCountsAddUp) {
   Handoff<int> latest;
   int v = 0;

@@ -3,9 +3,12 @@
 // component says goes through GDOS. Checked here two ways: the sources under
 // components/ make no thread and print nothing to stderr/stdout, and the executor
 // runs a declared worker after init(), places it on the housekeeping CPUs, names it in
-// its thread listing and stops and joins it before cleanup().
+// its thread listing and stops and joins it before cleanup(). A compute worker
+// (Component::add_compute_worker, MCL's likelihood) runs where its data task runs, and
+// without a serving thread its jobs run on the poster's thread.
 #include <gtest/gtest.h>
 #include <sched.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -15,7 +18,11 @@
 #include <set>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
+#include "rack/core/compute_worker.h"
+#include "rack/core/data_component.h"
+#include "rack/interfaces/demo.h"
 #include "rack/rt/clock.h"
 #include "rack/rt/thread.h"
 #include "test_support.h"
@@ -28,12 +35,9 @@ using test::Watchdog;
 
 // ---- the sources ------------------------------------------------------------
 
-// Files under components/ that may make threads or print, each with the reason.
-const std::set<std::string> kAllowed = {
-    // The MCL filter library's likelihood helper (compute, not device I/O; MclFilter is
-    // also used outside rackd). Left for an executor compute worker (issue 22).
-    "components/mcl/src/mcl_filter.cpp",
-};
+// Files under components/ that may make threads or print, each with the reason. None:
+// MCL's likelihood thread is an executor-owned compute worker now.
+const std::set<std::string> kAllowed = {};
 
 // What a line of code (its comment cut off) must not do, and why.
 struct Rule {
@@ -67,7 +71,8 @@ TEST(ComponentSourceTest, NoComponentMakesAThreadOrPrints) {
   ASSERT_TRUE(std::filesystem::is_directory(root)) << root;
   const std::vector<Rule> rules = {
       {std::regex(R"(std::j?thread\b|pthread_create)"),
-       "makes a thread (declare an I/O worker: Component::add_io_worker)"},
+       "makes a thread (declare an I/O worker, Component::add_io_worker, or a compute worker, "
+       "Component::add_compute_worker)"},
       {std::regex(R"(\bstderr\b|\bstdout\b|std::cerr|std::cout|std::clog|(^|[^a-z_])printf\s*\(|(^|[^a-z_])puts\s*\()"),
        "prints (log through GDOS: log_info, log_warning, log_error)"},
   };
@@ -191,6 +196,125 @@ components:
     EXPECT_FALSE(IoWorkerComponent::body_at_cleanup.load()) << "the worker ended before cleanup()";
   }
   EXPECT_EQ(IoWorkerComponent::ran.load(), 1) << "the worker of the component whose init() failed never ran";
+  (void)sched_setaffinity(0, sizeof before, &before);
+}
+
+// ---- compute workers -----------------------------------------------------------
+
+TEST(ComputeWorkerTest, WithoutAServingThreadTheJobRunsOnThePoster) {
+  ComputeWorker worker;
+  EXPECT_TRUE(worker.wait()) << "nothing posted: nothing to wait for";
+  pid_t ran_on = 0;
+  auto job = [&ran_on] { ran_on = static_cast<pid_t>(::syscall(SYS_gettid)); };
+  worker.post(job);
+  EXPECT_TRUE(worker.wait());
+  EXPECT_EQ(ran_on, static_cast<pid_t>(::syscall(SYS_gettid)));
+  EXPECT_EQ(worker.jobs_inline(), 1u);
+  auto throws = [] { throw std::runtime_error("job fails"); };
+  worker.post(throws);
+  EXPECT_FALSE(worker.wait()) << "a job that threw is reported, not passed on";
+  worker.stop();  // stopped before any thread served it: still runs jobs on the poster
+  worker.post(job);
+  EXPECT_TRUE(worker.wait());
+  EXPECT_EQ(worker.jobs_inline(), 3u);
+}
+
+TEST(ComputeWorkerTest, AServingThreadRunsEachJobAndStopsAfterIt) {
+  Watchdog watchdog;
+  ComputeWorker worker;
+  std::thread server([&worker] { worker.serve(); });
+  ASSERT_TRUE(test::eventually([&] { return worker.serving(); }));
+  std::atomic<pid_t> ran_on{0};
+  std::atomic<int> runs{0};
+  auto job = [&] {
+    ran_on = static_cast<pid_t>(::syscall(SYS_gettid));
+    rt::sleep_for(rt::kNsPerMs);
+    runs.fetch_add(1);
+  };
+  for (int i = 0; i < 20; ++i) {
+    worker.post(job);
+    ASSERT_TRUE(worker.wait());
+    ASSERT_EQ(runs.load(), i + 1) << "wait() returned before the job did";
+  }
+  EXPECT_NE(ran_on.load(), static_cast<pid_t>(::syscall(SYS_gettid)));
+  worker.post(job);  // posted before stop(): still runs
+  worker.stop();
+  EXPECT_TRUE(worker.wait());
+  server.join();
+  EXPECT_EQ(runs.load(), 21);
+  EXPECT_FALSE(worker.serving());
+  EXPECT_EQ(worker.jobs_served(), 21u);
+  EXPECT_EQ(worker.jobs_inline(), 0u);
+}
+
+// A data component that declares a compute worker in init() and hands it a job every
+// cycle; records the thread each job ran on and whether the worker was still served
+// when cleanup() came.
+class ComputeWorkerComponent final : public DataComponent<interfaces::GeneratorData> {
+ public:
+  static inline std::atomic<pid_t> job_tid{0};
+  static inline std::atomic<pid_t> loop_tid{0};
+  static inline std::atomic<int> jobs{0};
+  static inline std::atomic<bool> served_at_cleanup{false};
+  ComputeWorkerComponent() : DataComponent(DataTaskMode::kPeriodic) {}
+
+ protected:
+  void init() override { worker_ = &add_compute_worker("calc"); }
+  HookResult loop() override {
+    loop_tid = static_cast<pid_t>(::syscall(SYS_gettid));
+    auto job = [] {
+      job_tid = static_cast<pid_t>(::syscall(SYS_gettid));
+      jobs.fetch_add(1);
+    };
+    worker_->post(job);
+    return worker_->wait() ? HookResult::kOk : HookResult::kError;
+  }
+  void cleanup() override { served_at_cleanup = worker_->serving(); }
+
+ private:
+  ComputeWorker* worker_ = nullptr;
+};
+
+TEST(ComputeWorkerTest, TheExecutorRunsItWhereTheDataTaskRunsAndJoinsItBeforeCleanup) {
+  Watchdog watchdog;
+  cpu_set_t before;
+  CPU_ZERO(&before);
+  ASSERT_EQ(sched_getaffinity(0, sizeof before, &before), 0);
+  if (!CPU_ISSET(0, &before) || !CPU_ISSET(1, &before)) GTEST_SKIP() << "needs CPUs 0 and 1 in this process's affinity";
+  ComputeWorkerComponent::jobs = 0;
+  ComputeWorkerComponent::served_at_cleanup = true;
+  {
+    // A non-RT data task (priority 0): with partitioning, on the housekeeping CPU.
+    HostUnderTest host(R"(system: 0
+lcm: false
+cpus: {rt: 1, housekeeping: 0}
+components:
+  - name: cw
+    class: ComputeWorkerTest
+    instance: 1
+    autostart: true
+    data_task: {priority: 0, period_ms: 5}
+)",
+                       [](ComponentRegistry& r) {
+                         r.add({"ComputeWorkerTest", tims::classes::kFirstUser, "test: declares a compute worker",
+                                [] { return std::make_unique<ComputeWorkerComponent>(); }});
+                       });
+    ASSERT_TRUE(test::eventually([] { return ComputeWorkerComponent::jobs.load() >= 5; })) << host.log();
+    pid_t tid = 0;
+    EXPECT_EQ(cpus_of_thread_named("cw:calc", tid), "0") << "the data task's CPUs: the housekeeping CPU";
+    ASSERT_NE(tid, 0);
+    EXPECT_EQ(ComputeWorkerComponent::job_tid.load(), tid) << "the jobs ran on the worker's thread";
+    EXPECT_NE(ComputeWorkerComponent::loop_tid.load(), tid);
+    EXPECT_EQ(sched_getscheduler(tid), SCHED_OTHER) << "the data task's priority 0: normal scheduling";
+    const std::string report = host.executor().thread_report();
+    const auto at = report.find("cw:calc");
+    ASSERT_NE(at, std::string::npos) << report;
+    EXPECT_NE(report.substr(at, report.find('\n', at) - at).find("compute worker, not RT"), std::string::npos)
+        << report;
+    host.executor().stop();
+    EXPECT_FALSE(ComputeWorkerComponent::served_at_cleanup.load()) << "the worker ended before cleanup()";
+    EXPECT_EQ(cpus_of_thread_named("cw:calc", tid), "") << "joined";
+  }
   (void)sched_setaffinity(0, sizeof before, &before);
 }
 

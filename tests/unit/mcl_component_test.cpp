@@ -185,6 +185,13 @@ TEST(MclComponentTest, LocalisesFromScan2dPublishesAndUpdatesPosition) {
   EXPECT_LE(data->shown, 100U);  // show_particles default
   EXPECT_GT(data->covariance[0], 0.0);
   EXPECT_GT(data->fit, 0.5F);
+  // The likelihood's second thread (threads 2) is the executor's compute worker, with
+  // the data task's scheduling (priority 0 here).
+  const std::string threads = host.executor().thread_report();
+  const auto at = threads.find("mcl:likelihood");
+  ASSERT_NE(at, std::string::npos) << threads;
+  EXPECT_NE(threads.substr(at, threads.find('\n', at) - at).find("compute worker, not RT"), std::string::npos)
+      << threads;
 
   ASSERT_TRUE(eventually([&] { return position->updates() > 3; })) << "no Position UPDATE";
   const PositionUpdate u = position->last();

@@ -6,9 +6,11 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "mcl_sim.h"
+#include "rack/core/compute_worker.h"
 #include "rack/maps/occupancy_map.h"
 #include "rack/mcl/mcl_filter.h"
 
@@ -189,6 +191,41 @@ TEST_F(MclFilterTest, NoInjectionWhileTrackingWell) {
     if (f.update({od.x, od.y, od.phi}, s.xs, s.ys) && i > 20) injected += f.estimate().injected;
   }
   EXPECT_EQ(injected, 0U);
+}
+
+// The likelihood's second thread is a compute worker the filter is given (the MCL
+// component's is the executor's): it takes half of every large update, and the
+// estimates are the very same as with the caller's thread alone.
+TEST_F(MclFilterTest, AComputeWorkerSharesTheLikelihoodAndChangesNoEstimate) {
+  MclOptions o = tracking_options(7);
+  o.particles_min = o.particles_max = 2000;  // x every echo: above the 100 000 look-ups that split
+  o.beams = 0;
+  o.update_distance = o.update_angle = 0.0;  // every scan an update
+  ComputeWorker worker;
+  std::thread server([&worker] { worker.serve(); });
+  MclFilter shared(*map_, o, &worker);
+  MclFilter alone(*map_, o);
+  ScriptedRobot robot(*map_, SimConfig{}, 7);
+  robot.place({kTour[0].first, kTour[0].second, 0.0});
+  shared.init_pose({kTour[0].first + 0.1, kTour[0].second - 0.1, 0.05}, 0.2, 0.1);
+  alone.init_pose({kTour[0].first + 0.1, kTour[0].second - 0.1, 0.05}, 0.2, 0.1);
+  int updates = 0;
+  for (int guard = 0; guard < 40 && !robot.step_towards(kTour[1].first, kTour[1].second); ++guard) {
+    const test::SimScan s = robot.scan();
+    const SimPose odo = robot.odometry();
+    ASSERT_EQ(shared.update({odo.x, odo.y, odo.phi}, s.xs, s.ys), alone.update({odo.x, odo.y, odo.phi}, s.xs, s.ys));
+    const MclEstimate a = shared.estimate(), b = alone.estimate();
+    ASSERT_EQ(a.pose.x, b.pose.x) << "update " << updates;
+    ASSERT_EQ(a.pose.y, b.pose.y) << "update " << updates;
+    ASSERT_EQ(a.pose.phi, b.pose.phi) << "update " << updates;
+    ASSERT_EQ(a.particles, b.particles);
+    ++updates;
+  }
+  worker.stop();
+  server.join();
+  EXPECT_EQ(updates, 40);
+  EXPECT_GE(worker.jobs_served(), 40u) << "the worker's thread took half of each update";
+  EXPECT_EQ(worker.jobs_inline(), 0u);
 }
 
 TEST_F(MclFilterTest, UpdatesAreGatedByTravelAndTurn) {

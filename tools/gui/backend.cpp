@@ -151,10 +151,20 @@ void Backend::Impl::handle(uint64_t client, const Request& r) {
                      rack::describe(static_cast<wire::ParamKind>(p.kind)) + "): " + bad + "; nothing was sent");
           return;
         }
-        request(a, msg::kSetParam, p, [this, client, r, a, p](const Reply* rep2) {
+        // By the name given: a former name (docs/parameters.md) works as in the host
+        // file, and the component's OK then carries the warning that names the new one.
+        const std::string now = param_text(p.name, sizeof p.name);
+        wire::ParamRecord sent = p;
+        wire::copy_text(sent.name, r.param_name.c_str());
+        request(a, msg::kSetParam, sent, [this, client, r, a, p, now](const Reply* rep2) {
           const bool ok = rep2 != nullptr && rep2->header.type == msg::kOk;
+          std::string warning;
+          if (ok && !rep2->body.empty()) {
+            const auto* text = reinterpret_cast<const char*>(rep2->body.data());
+            warning = " (warning: " + param_text(text, rep2->body.size()) + ")";
+          }
           result(client, r, ok,
-                 ok ? address_text(a) + ": " + r.param_name + " = " + dump(param_json(p)["value"])
+                 ok ? address_text(a) + ": " + now + " = " + dump(param_json(p)["value"]) + warning
                     : failure(rep2, "SET_PARAM " + r.param_name, a));
         });
       });

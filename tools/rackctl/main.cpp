@@ -1024,9 +1024,16 @@ int cmd_set_param(Session& s, const Options& o) {
       fail(kExitError,
            format("%s: parameter '%s' has an unknown kind %u", t.label().c_str(), key.c_str(), record.kind));
   }
+  // A former name (docs/parameters.md): GET_PARAM answered with the new name's record;
+  // SET_PARAM goes by the name given, so that the component says so in its log, and its
+  // OK carries the warning.
+  const std::string now = param_name(record);
+  wire::copy_text(record.name, key.c_str());
   r = s.call(t, msg::kSetParam, record);
   Session::expect(t, r, msg::kOk, "SET_PARAM");
-  std::printf("%s: %s = %s\n", t.label().c_str(), key.c_str(), param_value(record).c_str());
+  if (!r.body.empty())
+    std::fprintf(stderr, "rackctl: %s: warning: %s\n", t.label().c_str(), error_reason(r.body).c_str());
+  std::printf("%s: %s = %s\n", t.label().c_str(), now.c_str(), param_value(record).c_str());
   return kExitOk;
 }
 
@@ -1742,7 +1749,8 @@ const std::vector<Command>& commands() {
        "Sets one runtime parameter. VALUE is parsed as the parameter's kind (int,\n"
        "float, bool as true|false|1|0, string); a value that does not parse is a\n"
        "usage error (exit 2). The component's refusal (unknown parameter, out of\n"
-       "range) is printed with exit 1.",
+       "range) is printed with exit 1. A parameter's former name (docs/parameters.md)\n"
+       "still works: the new name is set, and a warning on stderr names it.",
        cmd_set_param},
       {"get-data",
        "get-data NAME [--time T]",

@@ -1,13 +1,8 @@
 #include "rack/mcl/mcl_filter.h"
 
-#include <pthread.h>
-#include <sched.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <condition_variable>
-#include <functional>
 #include <iterator>
 #include <limits>
 #include <mrpt/maps/CSimplePointsMap.h>
@@ -15,12 +10,13 @@
 #include <mrpt/poses/CPose2D.h>
 #include <mrpt/slam/CICP.h>
 #include <mrpt/slam/CMonteCarloLocalization2D.h>
-#include <mutex>
 #include <numbers>
 #include <random>
-#include <thread>
+#include <stdexcept>
 #include <unordered_set>
 #include <vector>
+
+#include "rack/core/compute_worker.h"
 
 namespace rack::mcl {
 
@@ -60,59 +56,6 @@ void edt_1d(const std::vector<double>& f, std::vector<double>& d, std::vector<in
     at(d, q) = double(q - p) * (q - p) + at(f, p);
   }
 }
-
-// A helper thread that runs one job at a time for the filter (the likelihood of the
-// second half of the particles). Non-RT: mutex and condition variable.
-class Worker {
- public:
-  Worker() : thread_([this] { run(); }) {}
-  ~Worker() {
-    {
-      std::lock_guard lock(m_);
-      quit_ = true;
-    }
-    cv_.notify_all();
-    thread_.join();
-  }
-  Worker(const Worker&) = delete;
-  Worker& operator=(const Worker&) = delete;
-  template <typename F>
-  void start(F&& f) {
-    {
-      std::lock_guard lock(m_);
-      job_ = std::forward<F>(f);
-      busy_ = true;
-    }
-    cv_.notify_all();
-  }
-  void wait() {
-    std::unique_lock lock(m_);
-    cv_.wait(lock, [this] { return !busy_; });
-  }
-
- private:
-  void run() {
-    // Normal scheduling whatever the creating thread had: this is bulk work and must
-    // never compete with the executor's SCHED_FIFO tasks.
-    const sched_param normal{};
-    (void)pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
-    std::unique_lock lock(m_);
-    for (;;) {
-      cv_.wait(lock, [this] { return busy_ || quit_; });
-      if (quit_) return;
-      lock.unlock();
-      job_();
-      lock.lock();
-      busy_ = false;
-      cv_.notify_all();
-    }
-  }
-  std::mutex m_;
-  std::condition_variable cv_;
-  std::function<void()> job_;
-  bool busy_ = false, quit_ = false;
-  std::thread thread_;
-};
 
 }  // namespace
 
@@ -209,7 +152,7 @@ struct MclFilter::Impl {
   std::vector<uint32_t> order;  // resampling: source index of each new particle
   std::unordered_set<uint64_t> bins;
   std::mt19937_64 rng;
-  std::unique_ptr<Worker> worker;
+  ComputeWorker* worker = nullptr;  // the likelihood's second thread (threads 2); not owned
 
   bool force_update = true;
   bool move_only = false;  // the next update moves the particles without resampling (after init_global)
@@ -297,8 +240,6 @@ struct MclFilter::Impl {
     icp.options.thresholdDist = 1.0;  // m: pairs up to this far at first (a stalled read-out: 0.2-0.7 m short)
     icp.options.skip_cov_calculation = true;
     icp.options.skip_quality_calculation = true;
-    if (opt.threads > 1 && !worker) worker = std::make_unique<Worker>();
-    if (opt.threads == 1) worker.reset();
   }
 
   // Log-likelihood of the current points for particles [begin, end).
@@ -331,11 +272,12 @@ struct MclFilter::Impl {
     // look-ups (1000 particles x 60 points: 0.1-0.2 ms on this machine) the hand-over
     // and wait cost more than half the work saves, and on a loaded machine the wait
     // for a second thread to be scheduled is what sets the update's p95 (bench/RESULTS.md).
-    if (worker && m >= 64 && m * px.size() >= kParallelMinLookups) {
+    if (worker != nullptr && opt.threads > 1 && m >= 64 && m * px.size() >= kParallelMinLookups) {
       const std::size_t half = m / 2;
-      worker->start([this, half, m] { weigh(half, m); });
+      auto second_half = [this, half, m] { weigh(half, m); };
+      worker->post(second_half);
       weigh(0, half);
-      worker->wait();
+      if (!worker->wait()) throw std::runtime_error("MCL: the likelihood's compute worker failed");
     } else {
       weigh(0, m);
     }
@@ -742,10 +684,12 @@ struct MclFilter::Impl {
   }
 };
 
-MclFilter::MclFilter(const maps::OccupancyMap& map, const MclOptions& options) : impl_(std::make_unique<Impl>()) {
+MclFilter::MclFilter(const maps::OccupancyMap& map, const MclOptions& options, ComputeWorker* worker)
+    : impl_(std::make_unique<Impl>()) {
   validate(options);
   Impl& s = *impl_;
   s.opt = options;
+  s.worker = worker;
   if (map.width() <= 0 || map.height() <= 0 || !(map.resolution() > 0)) {
     throw std::invalid_argument("MCL: the map is empty");
   }

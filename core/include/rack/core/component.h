@@ -24,7 +24,9 @@
 //     loop() runs: loop() is gated off before off() and only gated on after on()
 //     returned kOk, so the two tasks never touch the component's state at once
 //     across ON and OFF. command() may run while loop() runs: share state through a
-//     Handoff (rack/core/handoff.h) or atomics.
+//     Handoff (rack/core/handoff.h) or atomics. A job that loop() posts to a compute
+//     worker (add_compute_worker) runs in the worker's thread until loop()'s wait()
+//     returns; an I/O worker's body (add_io_worker) runs beside every hook.
 //  2. Order. init() once, before anything else; then any number of on()/off()
 //     rounds; cleanup() once at shutdown (after off() if the component was ENABLED).
 //     init() throwing: the component stays in ERROR for good, on() never runs.
@@ -67,6 +69,7 @@
 #include <string>
 #include <vector>
 
+#include "rack/core/compute_worker.h"
 #include "rack/core/gdos.h"
 #include "rack/core/parameters.h"
 #include "rack/core/wire.h"
@@ -254,6 +257,22 @@ class Component {
   // `name` is the thread's name (cut to 15 characters). Not RT-safe.
   void add_io_worker(const std::string& name, std::function<void()> body, std::function<void()> stop);
 
+  // ---- compute workers (init() only) ----
+  // A second thread for the data task's bulk computation (MCL's scan likelihood),
+  // owned by the executor (rack/core/compute_worker.h: the data task posts one job at a
+  // time and waits for it). It serves the data task, which waits for it, so it runs
+  // where the data task may run and as urgently: the executor gives it the data task's
+  // priority (0: normal scheduling) and CPUs (its `cpu:`, or else the partition's RT
+  // CPUs for an RT task and the housekeeping CPUs for a non-RT one; a data task pinned
+  // to one CPU shares it with its worker, which then brings no parallelism: rackd says
+  // so). It starts after a successful init(), before the tasks, with a log ring of its
+  // own, and is stopped and joined after the tasks ended, before cleanup(). The
+  // thread's name is the component's name (cut to 10 characters), ':' and `name` (cut
+  // to 15 in all); rackd's thread listing shows it as a compute worker. Without an
+  // executor (a component made by a test) no thread serves it and a job runs on the
+  // poster's thread. The worker lives as long as the component. Not RT-safe.
+  ComputeWorker& add_compute_worker(const std::string& name);
+
   // ---- for hooks (RT-safe) ----
   // The address a component-ref parameter resolved to.
   [[nodiscard]] tims::Address resolved(const Parameter& ref) const noexcept;
@@ -351,6 +370,11 @@ class Component {
     std::function<void()> body, stop;
   };
   std::vector<IoWorker> io_workers_;  // add_io_worker() in init(); the executor runs them
+  struct ComputeWorkerDecl {
+    std::string name;
+    std::unique_ptr<ComputeWorker> worker;
+  };
+  std::vector<ComputeWorkerDecl> compute_workers_;  // add_compute_worker() in init(); the executor serves them
   uint32_t command_slot_size_ = 1024;
   tims::Router* router_ = nullptr;
   std::unique_ptr<tims::Mailbox> command_mailbox_;

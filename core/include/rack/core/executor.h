@@ -17,6 +17,10 @@
 // I/O workers: blocking device I/O that a component declared in init()
 // (Component::add_io_worker) runs in a non-RT thread of the executor on the
 // housekeeping CPUs, started after init(), stopped and joined after the tasks.
+// Compute workers (Component::add_compute_worker, rack/core/compute_worker.h): a
+// second thread for a data task's bulk computation, with that task's priority and
+// CPUs, started after init() and before the tasks, stopped and joined with the I/O
+// workers, before cleanup().
 //
 // CPUs: the executor's own non-RT threads (GDOS, the TiMS/LCM transport, I/O workers) are kept off
 // the CPUs that RT tasks are pinned to (`cpu:`), when another CPU is left. With the
@@ -167,7 +171,8 @@ class Executor {
   void attach_components();
   void init_components();
   void start_io_workers();
-  void stop_io_workers() noexcept;
+  void start_compute_workers();
+  void stop_io_workers() noexcept;  // and the compute workers
   void start_tasks(ComponentView& v);
   void add_stepped_task(ComponentView& v);  // ExecutorOptions::stepped: no threads (stepper.cpp)
   void join_network(const std::string& url, tims::Address self);
@@ -189,13 +194,17 @@ class Executor {
   std::vector<ComponentView> views_;
   std::vector<std::unique_ptr<rt::Thread>> threads_;
   std::vector<std::unique_ptr<SteppedTask>> stepped_;  // ExecutorOptions::stepped: the tasks without threads
-  // The components' I/O workers (Component::add_io_worker): non-RT, housekeeping CPUs.
+  // The components' I/O workers (Component::add_io_worker): non-RT, housekeeping CPUs;
+  // and their compute workers (Component::add_compute_worker): the data task's priority
+  // and CPUs.
   struct IoWorkerThread {
     rt::Thread thread;
     std::function<void()> stop;
     std::atomic<pid_t> tid{0};  // set by the worker itself (release; thread_report acquires)
+    int priority = 0;           // compute workers: the data task's
   };
   std::vector<std::unique_ptr<IoWorkerThread>> io_workers_;
+  std::vector<std::unique_ptr<IoWorkerThread>> compute_workers_;
   bool started_ = false;
   bool fallback_ = false;
 

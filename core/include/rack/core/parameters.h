@@ -180,10 +180,14 @@ class ParameterSet {
 
   // A former name of a parameter (docs/parameters.md): the host file loader accepts
   // it with a warning that names the file, line, key and the new name, so that host
-  // files written before the rename keep working. Declaration only; not RT-safe.
+  // files written before the rename keep working; GET_PARAM and SET_PARAM (rackctl
+  // set-param, rack-gui) take it too, SET_PARAM with a warning in its OK reply and in
+  // the log. Declaration only; not RT-safe.
   void add_old_name(const std::string& old_name, const std::string& new_name);
-  // The parameter that `old_name` was renamed to, or nullptr. Not RT-safe.
-  [[nodiscard]] Parameter* renamed(const std::string& old_name) noexcept;
+  // The parameter that `old_name` was renamed to, or nullptr. RT-safe (linear, no
+  // allocation).
+  [[nodiscard]] Parameter* renamed(const char* old_name) noexcept;
+  [[nodiscard]] Parameter* renamed(const std::string& old_name) noexcept { return renamed(old_name.c_str()); }
 
  private:
   Parameter& add(const std::string& name, ParamKind kind, Parameter::Spec spec);

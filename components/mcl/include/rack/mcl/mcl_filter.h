@@ -6,7 +6,8 @@
 // weighted old ones (a low-variance draw, taken in random order; the KLD bins count the
 // drawn source poses, the posterior's support, as AMCL does), each moved by the
 // odometry increment plus noise (the motion model below), then weighs each by the scan
-// (the likelihood field below), split over `threads` threads, then the recovery test.
+// (the likelihood field below), split over `threads` threads (the caller's and a compute
+// worker), then the recovery test.
 // What this class adds over MRPT's filter:
 // - the map conversion from rack::maps::OccupancyMap (free/occupied/unknown cells);
 // - robot-frame scan points as the observation (Scan2D output: any bearings, no
@@ -38,9 +39,11 @@
 // Coordinates: map frame of the OccupancyMap (origin applied); odometry poses are in
 // the odometry frame and only their increments are used.
 //
-// Real-time contract: nothing here is RT-safe (allocates; with threads > 1 hands work to
-// a helper thread made at construction, normal scheduling, and waits for it); run it in
-// a non-RT (priority 0) or low-priority task. Thread-safety: one thread per instance.
+// Real-time contract: nothing here is RT-safe (allocates; with threads > 1 hands half of
+// the likelihood to a compute worker, rack/core/compute_worker.h, and waits for it); run
+// it in a non-RT (priority 0) or low-priority task. The filter makes no thread: the
+// worker is the caller's (the MCL component's is the executor's,
+// Component::add_compute_worker). Thread-safety: one thread per instance.
 // Draws come from the instance's own generator (seed), so instances are independent.
 #pragma once
 
@@ -51,6 +54,10 @@
 #include <string>
 
 #include "rack/maps/occupancy_map.h"
+
+namespace rack {
+class ComputeWorker;
+}  // namespace rack
 
 namespace rack::mcl {
 
@@ -146,9 +153,10 @@ struct MclOptions {
   // issue 18): within 2x MRPT alone's travel in 9-10 of 10 seeds on each real log
   // (1: seattle 5-7), the simulated office within 15 m in 18 of 20 seeds (1: 16).
   uint32_t global_candidates = 5;
-  // Threads evaluating the likelihood (1: the caller's only; 2: one helper thread, used
-  // for an update of at least 100 000 particles x points, below which its wake-up
-  // costs more than it saves).
+  // Threads evaluating the likelihood (1: the caller's only; 2: the caller's and the
+  // compute worker given to the constructor, used for an update of at least 100 000
+  // particles x points, below which its wake-up costs more than it saves; without a
+  // worker, or one that no thread serves, the caller's thread does all of it).
   uint32_t threads = 2;
   // Random seed for this filter's draws (0: from the clock).
   uint64_t seed = 0;
@@ -188,8 +196,9 @@ class MclFilter {
   // Converts the map (throws std::invalid_argument when it has no free cell or a
   // rotated origin, which MRPT's axis-aligned grid cannot represent). Starts with
   // particles_max poses uniformly over the free space (no candidates round: call
-  // init_global() or init_pose() before the first update).
-  MclFilter(const maps::OccupancyMap& map, const MclOptions& options);
+  // init_global() or init_pose() before the first update). `worker`: the likelihood's
+  // second thread for threads 2 (not owned; it must outlive the filter); nullptr: none.
+  MclFilter(const maps::OccupancyMap& map, const MclOptions& options, ComputeWorker* worker = nullptr);
   ~MclFilter();
   MclFilter(const MclFilter&) = delete;
   MclFilter& operator=(const MclFilter&) = delete;
