@@ -65,7 +65,6 @@ std::vector<PlumbingRule> plumbing_rules() {
        {
            {"components/evaluator/trajectory_writer.h", "the status line for rackd's main thread, not a hand-off"},
            {"components/evaluator/trajectory_writer.cpp", "the status line for rackd's main thread, not a hand-off"},
-           {"components/mcl/src/mcl_filter.cpp", "the filter library's likelihood helper (issue 22 item 2)"},
            {"components/replay/src/shared_log.cpp", "the process's table of shared logs, filled by init()"},
            {"components/modeswitch_demo/modeswitch_demo.h", "shows a lock without priority inheritance on purpose"},
            {"components/modeswitch_demo/modeswitch_demo.cpp", "shows a lock without priority inheritance on purpose"},
