@@ -61,8 +61,8 @@ bool HostValueReader::get_positive_ms(const YAML::Node& map, const char* key, in
   return true;
 }
 
-bool HostLoader::get_ms_range(const YAML::Node& map, const char* key, double lo_ms, double hi_ms, int64_t& out_ns,
-                              const std::string& what) {
+bool HostValueReader::get_ms_range(const YAML::Node& map, const char* key, double lo_ms, double hi_ms, int64_t& out_ns,
+                                   const std::string& what) {
   double ms = 0;
   if (!get(map, key, ms, what)) return false;
   if (!std::isfinite(ms) || ms < lo_ms || ms > hi_ms) {
