@@ -518,9 +518,9 @@ void parse(int argc, char** argv, Options& o) {
     else if (a == "--bare-touch") {
       o.bare_side = true;
       o.bare_touch_kib = std::stoi(next());
-      if (o.bare_touch_kib < 0 || o.bare_touch_kib > 65536) throw std::invalid_argument("--bare-touch takes 0..65536 KiB");
-    }
-    else if (a == "--free-phase") o.aligned = false;
+      if (o.bare_touch_kib < 0 || o.bare_touch_kib > 65536)
+        throw std::invalid_argument("--bare-touch takes 0..65536 KiB");
+    } else if (a == "--free-phase") o.aligned = false;
     else if (a == "--modeswitch-only") {
       o.modeswitch_only = next();
       if (o.modeswitch_only != "syscalls" && o.modeswitch_only != "faults") {

@@ -172,8 +172,8 @@ HookResult Joystick::loop() {
   state_.free_ahead = -1.0;
   if (obstacles_.configured()) {
     if (!take_obstacles()) return HookResult::kError;  // off() stops the robot; the retry re-subscribes
-    const bool stale =
-        static_cast<double>(rt::monotonic_ns() - obstacles_.received_ns()) > silence_ms_.get_float() * 1e6;
+    const bool stale = static_cast<double>(rt::monotonic_ns() - obstacles_.received_ns()) >
+                       silence_ms_.get_float() * 1e6;
     state_.free_ahead = stale ? 0.0 : std::fmin(free_ahead_, 1e3);
   }
   if (chassis_address_.raw() != 0) {
