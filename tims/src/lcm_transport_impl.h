@@ -88,7 +88,7 @@ struct LcmTransport::Impl {
     int send_packet(uint8_t* buf, std::size_t len) override;
     // MessageSink: the transport's routing.
     bool wants(const std::byte* head, std::size_t size) override;
-    void take_message(std::byte* msg, uint32_t len, int64_t msg_origin, int32_t message_seq, int8_t hops) override;
+    void take_message(std::byte* msg, uint32_t len, int64_t msg_origin, int32_t msg_seq, int8_t hops) override;
   };
 
   Impl(Router& r, LcmTransportConfig c);

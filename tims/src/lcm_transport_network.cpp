@@ -52,9 +52,9 @@ int LcmTransport::Impl::Network::send_packet(uint8_t* buf, std::size_t len) {
 
 bool LcmTransport::Impl::Network::wants(const std::byte* head, std::size_t size) { return impl.wants(head, size); }
 
-void LcmTransport::Impl::Network::take_message(std::byte* msg, uint32_t len, int64_t msg_origin, int32_t message_seq,
+void LcmTransport::Impl::Network::take_message(std::byte* msg, uint32_t len, int64_t msg_origin, int32_t msg_seq,
                                                int8_t hops) {
-  impl.handle_message(*this, msg, len, msg_origin, message_seq, hops);
+  impl.handle_message(*this, msg, len, msg_origin, msg_seq, hops);
 }
 
 // Reads one datagram from our own socket; false when there is none. A datagram
