@@ -34,6 +34,7 @@
 
 #include "bench_common.h"
 #include "cycle_bench.h"
+#include "cycle_bus.h"
 #include "rack/rt/clock.h"
 #include "rack/tims/mailbox.h"
 #include "rack/tims/message.h"
@@ -55,15 +56,7 @@ struct Variant {
   Percentiles last, last_read;                           // this round's
 };
 
-struct Bus {
-  tims::Router router{0};
-  tims::Mailbox sink{tims::Address::make(0, tims::classes::kTool, 2, 1), 8, 256};
-  tims::Address self = tims::Address::make(0, tims::classes::kTool, 1, 1);
-  std::array<std::byte, 64> sample{};
-  alignas(8) std::array<std::byte, 256> buffer{};
-  Bus() { router.add(sink); }
-  ~Bus() { router.remove(sink.address()); }
-};
+using Bus = rack::bench::CycleBus;
 
 // The measuring clock: the same inline read for every variant.
 inline int64_t stopwatch() noexcept {

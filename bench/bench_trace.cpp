@@ -37,6 +37,7 @@
 
 #include "bench_common.h"
 #include "cycle_bench.h"
+#include "cycle_bus.h"
 #include "rack/rt/clock.h"
 #include "rack/rt/trace.h"
 #include "rack/tims/mailbox.h"
@@ -59,15 +60,7 @@ struct Variant {
   Percentiles last;                          // this round's
 };
 
-struct Bus {
-  tims::Router router{0};
-  tims::Mailbox sink{tims::Address::make(0, tims::classes::kTool, 2, 1), 8, 256};
-  tims::Address self = tims::Address::make(0, tims::classes::kTool, 1, 1);
-  std::array<std::byte, 64> sample{};
-  alignas(8) std::array<std::byte, 256> buffer{};
-  Bus() { router.add(sink); }
-  ~Bus() { router.remove(sink.address()); }
-};
+using Bus = rack::bench::CycleBus;
 
 __attribute__((noinline)) int64_t cycle(Bus& bus, int64_t due, uint8_t seq) {
   const int64_t woke = monotonic_ns();
