@@ -66,6 +66,10 @@ bool scan_notes(std::span<const std::byte> head, uint64_t offset, uint64_t size,
         why = at(desc_at) + "the ABI stamp is empty or not printable text";
         return false;
       }
+      if (len == descsz) {  // a stamp is NUL-terminated inside its descriptor (1..63 characters)
+        why = at(desc_at) + "the ABI stamp has no terminating NUL within its " + std::to_string(descsz) + " bytes";
+        return false;
+      }
       if (!stamp.empty() && stamp != std::string(text, len)) {
         why = at(pos) + "two different ABI stamps ('" + stamp + "', '" + std::string(text, len) + "')";
         return false;
