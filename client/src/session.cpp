@@ -35,6 +35,40 @@ std::optional<uint8_t> small_number(std::string_view t) {
   return v <= 255 ? std::optional<uint8_t>(static_cast<uint8_t>(v)) : std::nullopt;
 }
 
+// Descriptions are cached per class on each system: the address's system and class.
+uint32_t class_key(tims::Address a) { return a.raw() & 0xFFFF0000u; }
+
+// Whether `list` (Asking or describe_all's wants) already holds a component of `key`'s class.
+template <typename List>
+bool class_listed(const List& list, uint32_t key) {
+  return std::any_of(list.begin(), list.end(), [key](const auto& w) { return class_key(w.component) == key; });
+}
+
+// The request for the next page of `pages`, with enum and address names and field units.
+ClassPageRequest next_page_request(const ClassPageAssembler& pages) {
+  ClassPageRequest q;
+  q.offset = pages.next_offset();
+  q.sections = kClassSectionValueNames | kClassSectionFieldUnits;
+  return q;
+}
+
+// One reply to GET_CLASS, added to `pages`: true when the description wants another
+// page; false when it is complete, or ended with `error` (a refusal or a bad page).
+bool take_class_page(ClassPageAssembler& pages, const tims::MessageHeader& h, std::span<const std::byte> body,
+                     std::string& error) {
+  if (h.type != msg::kClass) {
+    error = std::string("GET_CLASS answered ") + reply_name(h.type) +
+            (h.type == msg::kError ? ": " + error_reason(body) : std::string());
+    return false;
+  }
+  return pages.add(body, tims::body_is_native(h), error) && !pages.complete();
+}
+
+std::string no_class_reply(const SessionConfig& c) {
+  return "no reply to GET_CLASS within " + std::to_string(c.timeout_ms) + " ms x " + std::to_string(c.retries + 1) +
+         " attempt(s)";
+}
+
 }  // namespace
 
 std::string default_lcm_url() {
@@ -207,7 +241,7 @@ std::optional<std::pair<tims::ComponentInfo, std::string>> Session::find_by_clas
     std::set<uint32_t> keys;
     for (const auto& h : hosts) {
       for (const auto& c : h.components) {
-        if (keys.insert(c.address.raw() & 0xFFFF0000u).second) {
+        if (keys.insert(class_key(c.address)).second) {
           others.push_back(c);
           elsewhere.push_back(c.address.component());
         }
@@ -230,25 +264,21 @@ std::optional<std::pair<tims::ComponentInfo, std::string>> Session::find_by_clas
 }
 
 const ClassDescription* Session::describe(tims::Address component) {
-  const uint32_t key = component.raw() & 0xFFFF0000u;
-  if (const auto it = classes_.find(key); it != classes_.end()) return it->second.desc ? &*it->second.desc : nullptr;
+  if (const auto it = classes_.find(class_key(component)); it != classes_.end()) {
+    return it->second.desc ? &*it->second.desc : nullptr;
+  }
   ClassPageAssembler pages;
   std::string error;
   bool unanswered = false;
   while (!pages.complete()) {
-    ClassPageRequest q;
-    q.offset = pages.next_offset();
-    q.sections = kClassSectionValueNames | kClassSectionFieldUnits;  // enum and address names, field units
+    const ClassPageRequest q = next_page_request(pages);
     const tims::ConstBuffer part = tims::buffer_of(q);
     const tims::CallResult r = call(component.component(), msg::kGetClass,
                                     std::span<const tims::ConstBuffer>(&part, 1));
     if (r.status != tims::CallStatus::kOk) {
       error = std::string("no reply to GET_CLASS: ") + tims::describe(r.status);
       unanswered = r.status == tims::CallStatus::kTimeout;
-    } else if (r.reply.type != msg::kClass) {
-      error = std::string("GET_CLASS answered ") + reply_name(r.reply.type) +
-              (r.reply.type == msg::kError ? ": " + error_reason(r.body) : std::string());
-    } else if (pages.add(r.body, tims::body_is_native(r.reply), error)) {
+    } else if (take_class_page(pages, r.reply, r.body, error)) {
       continue;
     }
     break;
@@ -267,11 +297,7 @@ void Session::describe_all(const std::vector<tims::Address>& components) {
   };
   std::vector<Want> want;
   for (const tims::Address a : components) {
-    const uint32_t key = a.raw() & 0xFFFF0000u;
-    if (classes_.count(key) != 0) continue;
-    if (std::any_of(want.begin(), want.end(),
-                    [key](const Want& w) { return (w.component.raw() & 0xFFFF0000u) == key; }))
-      continue;
+    if (const uint32_t key = class_key(a); classes_.count(key) != 0 || class_listed(want, key)) continue;
     want.push_back(Want{a.component(), {}, {}, false, false, {}});
   }
   if (want.empty()) return;
@@ -282,8 +308,7 @@ void Session::describe_all(const std::vector<tims::Address>& components) {
     std::vector<tims::Address> dests;
     for (std::size_t i = 0; i < want.size(); ++i) {
       if (want[i].done) continue;
-      want[i].request.offset = want[i].pages.next_offset();
-      want[i].request.sections = kClassSectionValueNames | kClassSectionFieldUnits;  // as describe()
+      want[i].request = next_page_request(want[i].pages);
       asked.push_back(i);
       dests.push_back(want[i].component);
     }
@@ -296,22 +321,13 @@ void Session::describe_all(const std::vector<tims::Address>& components) {
         [&](std::size_t k, const tims::MessageHeader& h, std::span<const std::byte> body) {
           answered[k] = true;
           Want& w = want[asked[k]];
-          if (h.type != msg::kClass) {
-            w.error = std::string("GET_CLASS answered ") + reply_name(h.type) +
-                      (h.type == msg::kError ? ": " + error_reason(body) : std::string());
-            w.done = true;
-          } else if (!w.pages.add(body, tims::body_is_native(h), w.error)) {
-            w.done = true;
-          } else if (w.pages.complete()) {
-            w.done = true;
-          }
+          if (!take_class_page(w.pages, h, body, w.error)) w.done = true;
         },
         deadline);
     for (std::size_t k = 0; k < asked.size(); ++k) {
       if (answered[k]) continue;
       Want& w = want[asked[k]];
-      w.error = "no reply to GET_CLASS within " + std::to_string(config_.timeout_ms) + " ms x " +
-                std::to_string(config_.retries + 1) + " attempt(s)";
+      w.error = no_class_reply(config_);
       w.unanswered = true;
       w.done = true;
     }
@@ -321,7 +337,7 @@ void Session::describe_all(const std::vector<tims::Address>& components) {
 
 const ClassDescription* Session::finish_description(tims::Address component, const ClassPageAssembler& pages,
                                                     std::string error, bool unanswered) {
-  ClassEntry& slot = classes_[component.raw() & 0xFFFF0000u];
+  ClassEntry& slot = classes_[class_key(component)];
   slot.unanswered = unanswered;
   ClassDescription d;
   if (error.empty() && !decode_class_description(pages.bytes(), d, error)) error = "class description: " + error;
@@ -347,8 +363,7 @@ std::string Session::known_class_name(tims::Address a) const {
 }
 
 void Session::ask_next_page(Asking& a) {
-  a.request.offset = a.pages.next_offset();
-  a.request.sections = kClassSectionValueNames | kClassSectionFieldUnits;  // as describe()
+  a.request = next_page_request(a.pages);
   const tims::ConstBuffer part = tims::buffer_of(a.request);
   uint8_t seq = 0;
   // Not even queued counts as an attempt too: its deadline passes like any other.
@@ -362,11 +377,7 @@ void Session::ask_next_page(Asking& a) {
 void Session::describe_later(const std::vector<tims::Address>& components) {
   if (!fanout_mailbox_) throw std::logic_error("rack::client::Session: no fan-out mailbox without `streams`");
   for (const tims::Address a : components) {
-    const uint32_t key = a.raw() & 0xFFFF0000u;
-    if (classes_.count(key) != 0) continue;
-    if (std::any_of(asking_.begin(), asking_.end(),
-                    [key](const Asking& w) { return (w.component.raw() & 0xFFFF0000u) == key; }))
-      continue;
+    if (const uint32_t key = class_key(a); classes_.count(key) != 0 || class_listed(asking_, key)) continue;
     asking_.push_back(Asking{a.component(), {}, {}, {}, 0, 0});
     ask_next_page(asking_.back());
   }
@@ -390,10 +401,7 @@ std::size_t Session::poll_descriptions() {
       const std::size_t skip = std::min(have, sizeof(tims::MessageHeader));
       const std::span<const std::byte> body(buf.data() + skip, have - skip);
       std::string error;
-      if (got.header.type != msg::kClass) {
-        error = std::string("GET_CLASS answered ") + reply_name(got.header.type) +
-                (got.header.type == msg::kError ? ": " + error_reason(body) : std::string());
-      } else if (a.pages.add(body, tims::body_is_native(got.header), error) && !a.pages.complete()) {
+      if (take_class_page(a.pages, got.header, body, error)) {
         a.seqs.clear();
         a.attempts = 0;
         ask_next_page(a);
@@ -414,8 +422,7 @@ std::size_t Session::poll_descriptions() {
       ask_next_page(a);
       continue;
     }
-    ended.emplace_back(i, "no reply to GET_CLASS within " + std::to_string(config_.timeout_ms) + " ms x " +
-                              std::to_string(config_.retries + 1) + " attempt(s)");
+    ended.emplace_back(i, no_class_reply(config_));
   }
   // Finished ones leave the list (from the back, so the indices stay valid).
   std::sort(ended.begin(), ended.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
@@ -428,12 +435,12 @@ std::size_t Session::poll_descriptions() {
 }
 
 const ClassDescription* Session::described(tims::Address component) const {
-  const auto it = classes_.find(component.raw() & 0xFFFF0000u);
+  const auto it = classes_.find(class_key(component));
   return it != classes_.end() && it->second.desc ? &*it->second.desc : nullptr;
 }
 
 bool Session::class_unanswered(tims::Address component) const {
-  const auto it = classes_.find(component.raw() & 0xFFFF0000u);
+  const auto it = classes_.find(class_key(component));
   return it != classes_.end() && it->second.unanswered;
 }
 
