@@ -79,12 +79,15 @@ using rack::bench::Percentiles;
 namespace rt = rack::rt;
 
 constexpr const char* kUsage =
-    "usage: bench_jitter [--seconds D] [--cpu N] [--json FILE] [--priority P] [--interval-us I]\n"
+    "usage: bench_jitter [--seconds D] [--cpu N] [--command-cpu N] [--json FILE] [--priority P] [--interval-us I]\n"
     "                    [--rounds R] [--cyclictest PATH] [--no-pm-qos] [--load-cmd CMD]\n"
     "                    [--load-name NAME] [--modeswitch] [--include-startup] [--free-phase]\n"
     "                    [--verbose]\n"
     "  --seconds D      measured seconds per side (default 30)\n"
     "  --cpu N          CPU of the periodic task on both sides (default: highest online CPU)\n"
+    "  --command-cpu N  CPU of the Generator's command task (SCHED_FIFO 30, blocked while\n"
+    "                   measured; default: the --cpu of the data task, as a host file that\n"
+    "                   pins a component to one CPU does)\n"
     "  --json FILE      write machine-readable results (with both histograms)\n"
     "  --priority P     SCHED_FIFO priority (default 80)\n"
     "  --interval-us I  period (default 1000 = 1 kHz)\n"
@@ -123,6 +126,7 @@ constexpr std::size_t kBuckets = rt::LatencyStats::kBuckets;  // 10000 x 1 us + 
 struct Options {
   int seconds = 30;
   int cpu = -1;
+  int command_cpu = -1;  // the Generator's command task (default: --cpu)
   std::string json;
   int priority = 80;
   int interval_us = 1000;
@@ -276,7 +280,7 @@ std::string host_text(const Options& o) {
        "    instance: 0\n"
        "    autostart: true\n"
        "    command_task: {priority: 30, cpu: "
-    << o.cpu
+    << (o.command_cpu >= 0 ? o.command_cpu : o.cpu)
     << "}\n"
        "    data_task: {priority: "
     << o.priority << ", cpu: " << o.cpu << ", period_ms: " << static_cast<double>(o.interval_us) / 1000.0;
@@ -502,6 +506,7 @@ void parse(int argc, char** argv, Options& o) {
     };
     if (a == "--seconds") o.seconds = std::stoi(next());
     else if (a == "--cpu") o.cpu = std::stoi(next());
+    else if (a == "--command-cpu") o.command_cpu = std::stoi(next());
     else if (a == "--json") o.json = next();
     else if (a == "--priority") o.priority = std::stoi(next());
     else if (a == "--interval-us") o.interval_us = std::stoi(next());
@@ -600,6 +605,8 @@ int main(int argc, char** argv) {
               o.seconds, o.cpu, o.priority, o.interval_us, o.rounds,
               qos && qos->active() ? "held at 0 us" : "not held (cyclictest --default-system)");
   std::printf("bench_jitter: mode-switch detection %s\n", o.modeswitch ? "on (as rackd)" : "off");
+  std::printf("bench_jitter: RACK-RT's command task (SCHED_FIFO 30, blocked while measured) on CPU %d\n",
+              o.command_cpu >= 0 ? o.command_cpu : o.cpu);
   std::printf("bench_jitter: phase: %s\n", o.aligned ? "both sides of a round on the same grid of the clock "
                                                        "(phase_ms / --secaligned), walked across the interval"
                                                      : "free (--free-phase: each segment where it starts)");
@@ -719,10 +726,10 @@ int main(int argc, char** argv) {
     std::ostringstream j;
     j << "{\n  \"benchmark\": \"jitter\",\n  \"command\": \"" << rack::bench::json_escape(command_line)
       << "\",\n  \"machine\": " << rack::bench::json_machine() << ",\n  \"seconds\": " << o.seconds
-      << ", \"cpu\": " << o.cpu << ", \"priority\": " << o.priority << ", \"interval_us\": " << o.interval_us
-      << ", \"rounds\": " << o.rounds << ", \"load_name\": \"" << rack::bench::json_escape(o.load_name)
-      << "\", \"load_cmd\": \"" << rack::bench::json_escape(o.load_cmd)
-      << "\", \"modeswitch\": " << (o.modeswitch ? "true" : "false")
+      << ", \"cpu\": " << o.cpu << ", \"command_cpu\": " << (o.command_cpu >= 0 ? o.command_cpu : o.cpu)
+      << ", \"priority\": " << o.priority << ", \"interval_us\": " << o.interval_us << ", \"rounds\": " << o.rounds
+      << ", \"load_name\": \"" << rack::bench::json_escape(o.load_name) << "\", \"load_cmd\": \""
+      << rack::bench::json_escape(o.load_cmd) << "\", \"modeswitch\": " << (o.modeswitch ? "true" : "false")
       << ", \"include_startup\": " << (o.include_startup ? "true" : "false")
       << ", \"aligned\": " << (o.aligned ? "true" : "false") << ", \"phase_us\": [";
     for (std::size_t i = 0; i < phases.size(); ++i) j << (i ? ", " : "") << phases[i];
