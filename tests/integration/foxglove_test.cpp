@@ -130,6 +130,8 @@ class FoxgloveTest : public ::testing::Test {
     stop_robot_and_gui();
   }
 
+  void replay_into_mcl(const std::string& host_file, const std::string& played_topics);
+
   void stop_robot_and_gui() {
     for (auto* p : {&gui_, &rackd_}) {
       if (!*p) continue;
@@ -214,36 +216,34 @@ TEST_F(FoxgloveTest, RecorderWritesMcapThatTheMcapReaderChecksRecordByRecord) {
   EXPECT_EQ(cut.exit_code, 0) << cut.describe();
 }
 
-// Replay (issue 24): sim_mcl's laser scans and odometry recorded as MCAP at their full
-// rate (lz4 chunks; the npm MCAP reader checks first that every sample is there),
-// played back with `rack-foxglove play` into a host where LadarPlayback and
-// OdometryPlayback stand in for the ladar and the odometry (configs/
-// replay_mcap_mcl.yaml): Scan2D builds the scans there with the recorded odometry at
-// their times, and MCL, initialised at the recorded pose, runs its motion model on it
-// and gives the recorded localisation: every replayed estimate within 0.15 m and
-// 0.05 rad of the recorded MCL pose at the same scan time.
-TEST_F(FoxgloveTest, ReplayIntoMclGivesTheRecordedLocalisation) {
+// Replay (issue 24): sim_mcl's laser scans, chassis and odometry recorded as MCAP at
+// their full rate (lz4 chunks; the npm MCAP reader checks first that every sample is
+// there), played back with `rack-foxglove play` into a host of playback classes and
+// live components, and MCL, initialised at the recorded pose, gives the recorded
+// localisation: every replayed estimate within 0.15 m and 0.05 rad of the recorded MCL
+// pose at the same scan time. `host_file` and `played` (the channels played) say which.
+void FoxgloveTest::replay_into_mcl(const std::string& host_file, const std::string& played_topics) {
   const std::string recorded = (dir_.path() / "sim.mcap").string();
   ASSERT_NO_FATAL_FAILURE(record_scans_and_odometry(recorded, "8"));
   const RunResult check = run({*node_, kFoxglove + "/test/mcap_check.mjs", recorded, "--compression", "lz4",
                                "--min-messages", "100", "--every-sample", "/rack/0/ladar=25", "--every-sample",
-                               "/rack/0/odometry=100"},
+                               "/rack/0/odometry=100", "--every-sample", "/rack/0/chassis=100"},
                               30s);
   std::printf("%s", check.out.c_str());
   ASSERT_EQ(check.exit_code, 0) << check.describe();
-  const std::string gui_ws = start_robot_and_gui("replay_mcap_mcl.yaml");
+  const std::string gui_ws = start_robot_and_gui(host_file);
   const std::string replayed = (dir_.path() / "replay.mcap").string();
   Process rec({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--no-server", "--record", replayed,
                "--topics", "^/rack/0/mcl$"},
               dir_.path(), "rack-foxglove-record");
   ASSERT_TRUE(rec.wait_for_stderr("rack-foxglove: recording", 15s)) << rec.err();
   const RunResult played = run({*node_, kFoxglove + "/rack-foxglove.mjs", "play", recorded, "--gui", gui_ws, "--topics",
-                                "^/rack/0/(ladar|odometry)$", "--init-mcl", "mcl", "--speed", "2"},
+                                played_topics, "--init-mcl", "mcl", "--speed", "2"},
                                60s);
   std::printf("%s", played.err.c_str());
   ASSERT_EQ(played.exit_code, 0) << played.describe() << "\nrack-foxglove (recording):\n" << rec.err() << logs();
   EXPECT_NE(played.err.find("0 refused or skipped"), std::string::npos) << played.err;
-  std::this_thread::sleep_for(1s);  // the last estimates polled
+  std::this_thread::sleep_for(1s);  // the last estimates streamed
   rec.signal(SIGTERM);
   ASSERT_EQ(rec.wait_exit(15s), std::optional<int>(0)) << rec.err() << logs();
 
@@ -252,6 +252,20 @@ TEST_F(FoxgloveTest, ReplayIntoMclGivesTheRecordedLocalisation) {
                           30s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << logs();
+}
+
+// The recorded laser and odometry (configs/replay_mcap_mcl.yaml: LadarPlayback and
+// OdometryPlayback; Scan2D builds the scans there with the played odometry at their
+// times, and MCL runs its motion model on it).
+TEST_F(FoxgloveTest, ReplayIntoMclGivesTheRecordedLocalisation) {
+  replay_into_mcl("replay_mcap_mcl.yaml", "^/rack/0/(ladar|odometry)$");
+}
+
+// As the CARMEN replay drivers: the recorded chassis and laser
+// (configs/replay_mcap_chassis_mcl.yaml: ChassisPlayback and LadarPlayback); Odometry
+// integrates the played chassis' increments live, and Scan2D and MCL run on it.
+TEST_F(FoxgloveTest, ChassisAndLaserReplayedIntoOdometryAndMclGiveTheRecordedLocalisation) {
+  replay_into_mcl("replay_mcap_chassis_mcl.yaml", "^/rack/0/(chassis|ladar)$");
 }
 
 // The converter's list of components (tools/foxglove/test/convert_check.mjs): each

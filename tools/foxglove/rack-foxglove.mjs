@@ -75,7 +75,8 @@ rack-gui): each recorded component channel /rack/<system>/<name> goes to the com
 one: ChassisPlayback, LadarPlayback, OdometryPlayback, Scan2dPlayback, PositionPlayback,
 MclPlayback, PathPlayback, ServoDrivePlayback or GeneratorPlayback (host files:
 configs/replay_mcap_sim.yaml plays every stream of sim_mcl, configs/replay_mcap_mcl.yaml
-runs MCL on the played laser and odometry). Every sample keeps its recorded time and
+runs MCL on the played laser and odometry, configs/replay_mcap_chassis_mcl.yaml on the
+played laser and chassis). Every sample keeps its recorded time and
 fields. The file is read and checked whole first: a malformed one (not MCAP, cut short
 before its first message, a corrupt chunk, ...) is refused with what is wrong and at
 which byte, exit status 2; a channel of a schema no RACK class records is named and
