@@ -26,11 +26,11 @@ struct PlaybackSample {
   int64_t time_ns = 0;
   T data{};
   static constexpr auto fields() noexcept {
-    constexpr auto inner = tims::fields_of<T>;
-    std::array<tims::FieldDesc, inner.size() + 1> out{};
+    constexpr auto kInner = tims::fields_of<T>;
+    std::array<tims::FieldDesc, kInner.size() + 1> out{};
     out[0] = RACK_FIELD(PlaybackSample, time_ns);
-    for (std::size_t i = 0; i < inner.size(); ++i) {
-      out[i + 1] = inner[i];
+    for (std::size_t i = 0; i < kInner.size(); ++i) {
+      out[i + 1] = kInner[i];
       out[i + 1].offset += static_cast<uint32_t>(offsetof(PlaybackSample, data));
     }
     return out;
