@@ -87,13 +87,14 @@ class FoxgloveTest : public ::testing::Test {
     EXPECT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
   }
 
-  // rack-gui on the test's bus; returns its WebSocket URL.
-  std::string start_gui() {
+  // rack-gui on the test's bus (`lcm_options` appended to its LCM URL); returns its
+  // WebSocket URL.
+  std::string start_gui(const std::string& lcm_options = "") {
     // (rack-gui serves a front end; the bridge needs none: a placeholder page.)
     std::filesystem::create_directories(dir_.path() / "web");
     const auto web = dir_.write("web/index.html", "<!doctype html><title>rack-gui</title>\n").parent_path();
-    gui_.emplace(std::vector<std::string>{kGui, "--port", "0", "--lcm", bus_.url(), "--web", web.string(), "--reports",
-                                          ""},
+    gui_.emplace(std::vector<std::string>{kGui, "--port", "0", "--lcm", bus_.url() + lcm_options, "--web", web.string(),
+                                          "--reports", ""},
                  dir_.path(), "rack-gui");
     EXPECT_TRUE(gui_->wait_for_stderr("rack-gui: serving http://", 15s)) << gui_->err();
     const std::string http = word_after(gui_->err(), "rack-gui: serving ");
@@ -403,6 +404,59 @@ TEST_F(FoxgloveTest, PlayerRefusesMalformedRecordingsSayingWhatAndWhere) {
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe();
   EXPECT_NE(r.out.find("all checks passed"), std::string::npos) << r.out;
+}
+
+// A camera (issue 24): rack-gui's images (polled once a second: a camera's samples are
+// larger than a stream slot) as foxglove.RawImage on /rack/0/camera/image, seen by
+// Foxglove's WebSocket client with the frames' pixels (tools/foxglove/test/
+// image_check.mjs), and recorded: the npm MCAP reader finds them in the file.
+TEST_F(FoxgloveTest, CameraImagesAreRawImagesLiveAndRecorded) {
+  std::filesystem::create_directories(dir_.path() / "frames");
+  for (int i = 0; i < 5; ++i) {
+    std::string ppm = "P6\n64 48\n255\n";
+    for (int y = 0; y < 48; ++y) {
+      for (int x = 0; x < 64; ++x) {
+        ppm += static_cast<char>(x * 4);
+        ppm += static_cast<char>(y * 5);
+        ppm += static_cast<char>(i * 50);
+      }
+    }
+    char name[32];
+    std::snprintf(name, sizeof name, "frames/img_%03d.ppm", i);
+    (void)dir_.write(name, ppm);
+  }
+  const std::string host = dir_.write("camera.yaml",
+                                      "host: camera-test\n"
+                                      "system: 0\n"
+                                      "lcm: true\n"
+                                      "components:\n"
+                                      "  - name: camera\n"
+                                      "    class: Camera\n"
+                                      "    instance: 0\n"
+                                      "    autostart: true\n"
+                                      "    data_task: {period_ms: 100, ring: 4}\n"
+                                      "    params: {source: " +
+                                          (dir_.path() / "frames/img_%03d.ppm").string() + ", loop: true, fps: 10}\n")
+                               .string();
+  rackd_.emplace(std::vector<std::string>{kRackd, host, "--lcm", bus_.url()}, dir_.path(), "rackd");
+  ASSERT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
+  // A 0.9 MB image is ~16 datagrams at once: a receive buffer that holds them (as
+  // GuiE2eTest's rack-gui; README: TiMS over LCM).
+  const std::string gui_ws = start_gui("&recv_buf_size=4194304");
+  const std::string file = (dir_.path() / "camera.mcap").string();
+  Process bridge({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--port", "0", "--record", file},
+                 dir_.path(), "rack-foxglove");
+  ASSERT_TRUE(bridge.wait_for_stderr("(Foxglove WebSocket)", 15s)) << bridge.err();
+  const std::string url = word_after(bridge.err(), "rack-foxglove: serving ");
+  const RunResult r = run({*node_, kFoxglove + "/test/image_check.mjs", "--url", url, "--timeout", "30"}, 45s);
+  std::printf("%s", r.out.c_str());
+  EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-foxglove:\n" << bridge.err() << logs();
+  bridge.signal(SIGTERM);
+  ASSERT_EQ(bridge.wait_exit(15s), std::optional<int>(0)) << bridge.err();
+  const RunResult check = run({*node_, kFoxglove + "/test/mcap_check.mjs", file, "--topic", "/rack/0/camera/image"},
+                              30s);
+  std::printf("%s", check.out.c_str());
+  EXPECT_EQ(check.exit_code, 0) << check.describe();
 }
 
 // Installed (issue 24): `cmake --install` of the Gui component puts bin/rack-foxglove and

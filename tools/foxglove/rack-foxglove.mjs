@@ -51,6 +51,8 @@ Channels (JSON encoding, JSON schemas):
   /rack/<system>/<name>/path       Path as foxglove.PosesInFrame
   /rack/<system>/map               the occupancy map as foxglove.Grid
   /rack/<system>/tf                Position as foxglove.FrameTransforms (map -> base_link)
+  /rack/<system>/<name>/image      Camera as foxglove.RawImage (rgb8, mono8) or
+                                   foxglove.CompressedImage (jpeg), polled once a second
   /rack/gdos                       every host's GDOS log as foxglove.Log
 Services (JSON): /rack/<system>/<name>/switch {"on":true}, /rack/<system>/all_off {},
   /rack/<system>/set_destination {"x":..,"y":..}, /rack/<system>/set_pose {"x":..,"y":..,"phi":..},

@@ -17,6 +17,10 @@
 //   /rack/<system>/map               the occupancy map: foxglove.Grid (0 free, 1 occupied,
 //                                    2 unknown), frame "map"
 //   /rack/<system>/tf                Position: foxglove.FrameTransforms map -> base_link
+//   /rack/<system>/<name>/image      Camera (rack-gui's "image" messages, polled once a
+//                                    second: its 0.9 MB samples are not streamed):
+//                                    foxglove.RawImage (rgb8, mono8) or
+//                                    foxglove.CompressedImage (jpeg), frame "<name>"
 //   /rack/gdos                       every host's GDOS log: foxglove.Log
 //
 // A message from rack-gui that does not have the expected shape is skipped and counted
@@ -74,7 +78,7 @@ export function dataSchema(cls) {
 export function topicsOf(system, name, className) {
   const base = `/rack/${system}/${name}`;
   const extra = { Ladar: ['scan'], 'Scan2D': ['points'], Position: ['pose', 'estimate'], MCL: ['pose', 'estimate', 'particles'],
-                  Odometry: ['pose'], Path: ['path'] }[className] ?? [];
+                  Odometry: ['pose'], Path: ['path'], Camera: ['image'] }[className] ?? [];
   const out = [base, ...extra.map((e) => `${base}/${e}`)];
   if (className === 'Position') out.push(`/rack/${system}/tf`);
   return out;
@@ -125,6 +129,7 @@ export class Converter {
       case 'data': return this.onData(m);
       case 'map': return this.onMap(m);
       case 'gdos': return this.onGdos(m);
+      case 'image': return this.onImage(m);
       default: return [];
     }
   }
@@ -300,6 +305,33 @@ export class Converter {
         data: m.cells,
       },
     }];
+  }
+
+  // A camera image: raw (rgb, mono) or JPEG, the pixels base64 as rack-gui sends them.
+  onImage(m) {
+    if (typeof m.component !== 'string' || !Number.isInteger(m.system) || !isInt(m.time_ns) ||
+        !Number.isInteger(m.width) || !Number.isInteger(m.height) || typeof m.format !== 'string' ||
+        typeof m.data !== 'string') {
+      return this.reject('image message without component, system, time_ns, width, height, format or data');
+    }
+    const comp = this.components.get(m.component);
+    if (!comp) return [];  // not listed yet: its name is not known
+    const topic = `/rack/${m.system}/${comp.name}/image`;
+    const time = BigInt(m.time_ns);
+    const timestamp = stamp(m.time_ns);
+    if (m.format === 'jpeg') {
+      return [{ topic, component: m.component, schemaName: 'foxglove.CompressedImage', schema: schemas.CompressedImage, time,
+                message: { timestamp, frame_id: comp.name, data: m.data, format: 'jpeg' } }];
+    }
+    const channels = { rgb: 3, mono: 1 }[m.format];
+    if (!channels) return this.reject(`${m.component}: image format '${m.format}' (expected rgb, mono or jpeg)`);
+    const bytes = Buffer.from(m.data, 'base64').length;
+    if (bytes !== m.width * m.height * channels) {
+      return this.reject(`${m.component}: image of ${bytes} bytes, expected ${m.width}x${m.height}x${channels}`);
+    }
+    return [{ topic, component: m.component, schemaName: 'foxglove.RawImage', schema: schemas.RawImage, time,
+              message: { timestamp, frame_id: comp.name, width: m.width, height: m.height,
+                         encoding: m.format === 'rgb' ? 'rgb8' : 'mono8', step: m.width * channels, data: m.data } }];
   }
 
   onGdos(m) {
