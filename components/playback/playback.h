@@ -24,7 +24,15 @@
 //   - LadarPlayback and OdometryPlayback (Ladar, Odometry): the sensor and the motion
 //     as recorded at their full rate, so that a live Scan2D builds the scans (holding
 //     each until the played odometry at its time has come) and MCL runs its motion
-//     model on the recorded odometry (configs/replay_mcap_mcl.yaml).
+//     model on the recorded odometry (configs/replay_mcap_mcl.yaml);
+//   - ChassisPlayback (Chassis: an Odometry integrates its increments, as the CARMEN
+//     replay's ChassisReplay feeds it), PositionPlayback (Position: the Pilot, Scan3D
+//     and the evaluators take it), MclPlayback (MCL: the evaluators and the trajectory
+//     writer), PathPlayback (Path: the Pilot), ServoDrivePlayback (ServoDrive: Scan3D,
+//     LadarSim) and GeneratorPlayback (Generator: the Monitor): every class whose data
+//     a component of the tree takes as an input (its declare_input), so that any
+//     recorded stream plays into a host. Not Camera: its samples (0.9 MB) are not
+//     streamed to a recorder (larger than rack-gui's stream slots).
 //
 // Real-time contract: command() is RT-safe (the sample is copied into a member; no
 // allocation); loop() does nothing.
@@ -32,6 +40,9 @@
 
 #include "playback_types.h"
 #include "rack/core/data_component.h"
+#include "rack/interfaces/demo.h"
+#include "rack/interfaces/devices.h"
+#include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
 
 namespace rack::components {
@@ -77,5 +88,11 @@ class Playback : public DataComponent<T> {
 class Scan2dPlayback final : public Playback<interfaces::Scan2dData> {};
 class LadarPlayback final : public Playback<interfaces::LadarData> {};
 class OdometryPlayback final : public Playback<interfaces::OdometryData> {};
+class ChassisPlayback final : public Playback<interfaces::ChassisData> {};
+class PositionPlayback final : public Playback<interfaces::PositionData> {};
+class MclPlayback final : public Playback<interfaces::MclData> {};
+class PathPlayback final : public Playback<interfaces::PathData> {};
+class ServoDrivePlayback final : public Playback<interfaces::ServoDriveData> {};
+class GeneratorPlayback final : public Playback<interfaces::GeneratorData> {};
 
 }  // namespace rack::components

@@ -8,6 +8,8 @@
 //     npm MCAP reader (@mcap/core; tools/foxglove/test/mcap_check.mjs), with zstd and
 //     lz4 chunks, and holds every sample of the streams it recorded;
 //   - a recording played back into MCL gives the recorded localisation;
+//   - every recorded class plays back sample for sample (time to the ns, every field);
+//   - the player refuses a malformed MCAP file saying what and where;
 //   - rack-foxglove installed by `cmake --install` runs from the installed tree.
 //
 // Skips (with the reason) only when node is not installed; a missing `npm ci` in
@@ -16,6 +18,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -48,6 +51,15 @@ std::string word_after(const std::string& text, const std::string& prefix) {
   return text.substr(from, text.find_first_of(" \n", from) - from);
 }
 
+// The integer just before `suffix` in `text` (-1 when absent): "3 not answered" -> 3.
+long count_before(const std::string& text, const std::string& suffix) {
+  const auto at = text.find(suffix);
+  if (at == std::string::npos || at == 0) return -1;
+  auto from = at;
+  while (from > 0 && std::isdigit(static_cast<unsigned char>(text[from - 1])) != 0) --from;
+  return from == at ? -1 : std::stol(text.substr(from, at - from));
+}
+
 class FoxgloveTest : public ::testing::Test {
  protected:
   FoxgloveTest() : watchdog_(110s, "FoxgloveTest") {}
@@ -75,13 +87,14 @@ class FoxgloveTest : public ::testing::Test {
     EXPECT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
   }
 
-  // rack-gui on the test's bus; returns its WebSocket URL.
-  std::string start_gui() {
+  // rack-gui on the test's bus (`lcm_options` appended to its LCM URL); returns its
+  // WebSocket URL.
+  std::string start_gui(const std::string& lcm_options = "") {
     // (rack-gui serves a front end; the bridge needs none: a placeholder page.)
     std::filesystem::create_directories(dir_.path() / "web");
     const auto web = dir_.write("web/index.html", "<!doctype html><title>rack-gui</title>\n").parent_path();
-    gui_.emplace(std::vector<std::string>{kGui, "--port", "0", "--lcm", bus_.url(), "--web", web.string(), "--reports",
-                                          ""},
+    gui_.emplace(std::vector<std::string>{kGui, "--port", "0", "--lcm", bus_.url() + lcm_options, "--web", web.string(),
+                                          "--reports", ""},
                  dir_.path(), "rack-gui");
     EXPECT_TRUE(gui_->wait_for_stderr("rack-gui: serving http://", 15s)) << gui_->err();
     const std::string http = word_after(gui_->err(), "rack-gui: serving ");
@@ -117,6 +130,8 @@ class FoxgloveTest : public ::testing::Test {
     ASSERT_EQ(rec.exit_code, 0) << rec.describe() << logs();
     stop_robot_and_gui();
   }
+
+  void replay_into_mcl(const std::string& host_file, const std::string& played_topics);
 
   void stop_robot_and_gui() {
     for (auto* p : {&gui_, &rackd_}) {
@@ -174,16 +189,23 @@ TEST_F(FoxgloveTest, RecorderWritesMcapThatTheMcapReaderChecksRecordByRecord) {
   EXPECT_EQ(set.exit_code, 0) << set.describe();
   ASSERT_EQ(rec.wait_exit(20s), std::optional<int>(0)) << rec.err();
   EXPECT_NE(rec.err().find("rack-foxglove: wrote "), std::string::npos) << rec.err();
+  EXPECT_NE(rec.err().find(" 0 stream sample(s) lost on the way, 0 dropped by the recorder"), std::string::npos)
+      << rec.err();
 
-  const RunResult r = run({*node_, kFoxglove + "/test/mcap_check.mjs", file, "--compression", "zstd", "--min-messages",
-                           "50", "--topic", "/rack/0/map", "--topic", "/rack/0/ladar/scan", "--topic",
-                           "/rack/0/scan2d/points", "--topic", "/rack/0/mcl/pose", "--topic", "/rack/0/mcl/particles",
-                           "--topic", "/rack/0/chassis", "--topic", "/rack/gdos",
-                           // Every sample (sequence numbers without a gap, count = rate x
-                           // time): the chassis at 100 Hz, the ladar and scan2d at 25 Hz.
-                           "--every-sample", "/rack/0/chassis=100", "--every-sample", "/rack/0/ladar=25",
-                           "--every-sample", "/rack/0/scan2d=25"},
-                          30s);
+  const RunResult r = run(
+      {*node_, kFoxglove + "/test/mcap_check.mjs", file, "--compression", "zstd", "--min-messages", "50", "--topic",
+       "/rack/0/map", "--topic", "/rack/0/ladar/scan", "--topic", "/rack/0/scan2d/points", "--topic",
+       "/rack/0/mcl/pose", "--topic", "/rack/0/mcl/particles", "--topic", "/rack/0/chassis", "--topic", "/rack/gdos",
+       // Every sample (sequence numbers without a gap, count = rate x
+       // time within two samples, the recorder's own count: none
+       // lost): the chassis at 100 Hz, the ladar and scan2d at 25 Hz.
+       "--every-sample", "/rack/0/chassis=100", "--every-sample", "/rack/0/ladar=25", "--every-sample",
+       "/rack/0/scan2d=25",
+       // Logged at the producers' times: each scan at the ladar's scan
+       // time, and each scan MCL used (its data's scan_time_ns) is a
+       // recorded scan at that time, to the ns.
+       "--same-times", "/rack/0/scan2d=/rack/0/ladar", "--scan-times", "/rack/0/mcl=/rack/0/scan2d"},
+      30s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe();
   EXPECT_NE(r.out.find("all checks passed"), std::string::npos) << r.out;
@@ -195,36 +217,34 @@ TEST_F(FoxgloveTest, RecorderWritesMcapThatTheMcapReaderChecksRecordByRecord) {
   EXPECT_EQ(cut.exit_code, 0) << cut.describe();
 }
 
-// Replay (issue 24): sim_mcl's laser scans and odometry recorded as MCAP at their full
-// rate (lz4 chunks; the npm MCAP reader checks first that every sample is there),
-// played back with `rack-foxglove play` into a host where LadarPlayback and
-// OdometryPlayback stand in for the ladar and the odometry (configs/
-// replay_mcap_mcl.yaml): Scan2D builds the scans there with the recorded odometry at
-// their times, and MCL, initialised at the recorded pose, runs its motion model on it
-// and gives the recorded localisation: every replayed estimate within 0.15 m and
-// 0.05 rad of the recorded MCL pose at the same scan time.
-TEST_F(FoxgloveTest, ReplayIntoMclGivesTheRecordedLocalisation) {
+// Replay (issue 24): sim_mcl's laser scans, chassis and odometry recorded as MCAP at
+// their full rate (lz4 chunks; the npm MCAP reader checks first that every sample is
+// there), played back with `rack-foxglove play` into a host of playback classes and
+// live components, and MCL, initialised at the recorded pose, gives the recorded
+// localisation: every replayed estimate within 0.15 m and 0.05 rad of the recorded MCL
+// pose at the same scan time. `host_file` and `played` (the channels played) say which.
+void FoxgloveTest::replay_into_mcl(const std::string& host_file, const std::string& played_topics) {
   const std::string recorded = (dir_.path() / "sim.mcap").string();
   ASSERT_NO_FATAL_FAILURE(record_scans_and_odometry(recorded, "8"));
   const RunResult check = run({*node_, kFoxglove + "/test/mcap_check.mjs", recorded, "--compression", "lz4",
                                "--min-messages", "100", "--every-sample", "/rack/0/ladar=25", "--every-sample",
-                               "/rack/0/odometry=100"},
+                               "/rack/0/odometry=100", "--every-sample", "/rack/0/chassis=100"},
                               30s);
   std::printf("%s", check.out.c_str());
   ASSERT_EQ(check.exit_code, 0) << check.describe();
-  const std::string gui_ws = start_robot_and_gui("replay_mcap_mcl.yaml");
+  const std::string gui_ws = start_robot_and_gui(host_file);
   const std::string replayed = (dir_.path() / "replay.mcap").string();
   Process rec({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--no-server", "--record", replayed,
                "--topics", "^/rack/0/mcl$"},
               dir_.path(), "rack-foxglove-record");
   ASSERT_TRUE(rec.wait_for_stderr("rack-foxglove: recording", 15s)) << rec.err();
   const RunResult played = run({*node_, kFoxglove + "/rack-foxglove.mjs", "play", recorded, "--gui", gui_ws, "--topics",
-                                "^/rack/0/(ladar|odometry)$", "--init-mcl", "mcl", "--speed", "2"},
+                                played_topics, "--init-mcl", "mcl", "--speed", "2"},
                                60s);
   std::printf("%s", played.err.c_str());
   ASSERT_EQ(played.exit_code, 0) << played.describe() << "\nrack-foxglove (recording):\n" << rec.err() << logs();
   EXPECT_NE(played.err.find("0 refused or skipped"), std::string::npos) << played.err;
-  std::this_thread::sleep_for(1s);  // the last estimates polled
+  std::this_thread::sleep_for(1s);  // the last estimates streamed
   rec.signal(SIGTERM);
   ASSERT_EQ(rec.wait_exit(15s), std::optional<int>(0)) << rec.err() << logs();
 
@@ -233,6 +253,20 @@ TEST_F(FoxgloveTest, ReplayIntoMclGivesTheRecordedLocalisation) {
                           30s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << logs();
+}
+
+// The recorded laser and odometry (configs/replay_mcap_mcl.yaml: LadarPlayback and
+// OdometryPlayback; Scan2D builds the scans there with the played odometry at their
+// times, and MCL runs its motion model on it).
+TEST_F(FoxgloveTest, ReplayIntoMclGivesTheRecordedLocalisation) {
+  replay_into_mcl("replay_mcap_mcl.yaml", "^/rack/0/(ladar|odometry)$");
+}
+
+// As the CARMEN replay drivers: the recorded chassis and laser
+// (configs/replay_mcap_chassis_mcl.yaml: ChassisPlayback and LadarPlayback); Odometry
+// integrates the played chassis' increments live, and Scan2D and MCL run on it.
+TEST_F(FoxgloveTest, ChassisAndLaserReplayedIntoOdometryAndMclGiveTheRecordedLocalisation) {
+  replay_into_mcl("replay_mcap_chassis_mcl.yaml", "^/rack/0/(chassis|ladar)$");
 }
 
 // The converter's list of components (tools/foxglove/test/convert_check.mjs): each
@@ -271,6 +305,158 @@ TEST_F(FoxgloveTest, PlayerStartedBeforeItsHostFollowsTheComponentsOnceDescribed
   EXPECT_NE(err.find("playing /rack/0/ladar into Ladar(0/0) (LadarPlayback)"), std::string::npos) << err;
   EXPECT_NE(err.find("playing /rack/0/odometry into Odometry(0/0) (OdometryPlayback)"), std::string::npos) << err;
   EXPECT_NE(err.find("; 0 refused or skipped"), std::string::npos) << err;
+}
+
+// Every class plays back (issue 24): sim_mcl's chassis, odometry, ladar, scan2d,
+// position, path and MCL recorded at their full rate (the path made again while
+// recorded: it is published when made), played with `rack-foxglove play --speed 0`
+// into configs/replay_mcap_sim.yaml, where a playback class stands in for each
+// (ChassisPlayback, OdometryPlayback, LadarPlayback, Scan2dPlayback, PositionPlayback,
+// PathPlayback, MclPlayback), and that host recorded again: the npm MCAP reader finds
+// the recorded samples of every channel in the replay, in order, at their recorded time
+// to the nanosecond and with every field the same (tools/foxglove/test/
+// roundtrip_check.mjs). TiMS runs over LCM (UDP): on a loaded machine a datagram is
+// lost now and then, and each such sample is counted (by the player: not answered; by
+// the replay's recorder: a gap in the sequence numbers). The check allows exactly those
+// as missing, and at most 1 % of the samples; none refused.
+TEST_F(FoxgloveTest, EveryRecordedClassPlaysBackSampleForSample) {
+  const std::string topics = "^/rack/0/(chassis|odometry|ladar|scan2d|position|path|mcl)$";
+  const std::vector<std::string> components = {"Chassis(0/0)",  "Odometry(0/0)", "Ladar(0/0)", "Scan2D(0/0)",
+                                               "Position(0/0)", "Path(0/0)",     "MCL(0/0)"};
+  // The recorder's line once rack-gui streams a component to it.
+  const auto wait_streaming = [&](Process& rec) {
+    for (const auto& c : components) {
+      ASSERT_TRUE(rec.wait_for_stderr("stream of " + c + ": " + c + ": streaming", 20s)) << rec.err() << logs();
+    }
+  };
+  const std::string recorded = (dir_.path() / "sim.mcap").string();
+  {
+    const std::string gui_ws = start_robot_and_gui();
+    Process rec({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--no-server", "--record", recorded,
+                 "--topics", topics, "--duration", "5"},
+                dir_.path(), "rack-foxglove-record");
+    ASSERT_NO_FATAL_FAILURE(wait_streaming(rec));
+    const RunResult set = run({kRackctl, "--lcm", bus_.url(), "--discover-ms", "2000", "set-param", "path", "waypoints",
+                               "4,7.2; 12,7.6; 20,7.2; 21.5,8; 20,8.8; 12,8.4; 4,8.8; 2.5,8.1"},
+                              20s);
+    EXPECT_EQ(set.exit_code, 0) << set.describe();
+    ASSERT_EQ(rec.wait_exit(30s), std::optional<int>(0)) << rec.err() << logs();
+    stop_robot_and_gui();
+  }
+  const std::string gui_ws = start_robot_and_gui("replay_mcap_sim.yaml");
+  const std::string replayed = (dir_.path() / "replay.mcap").string();
+  Process rec({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--no-server", "--record", replayed,
+               "--topics", topics},
+              dir_.path(), "rack-foxglove-record");
+  ASSERT_NO_FATAL_FAILURE(wait_streaming(rec));
+  const RunResult played = run({*node_, kFoxglove + "/rack-foxglove.mjs", "play", recorded, "--gui", gui_ws, "--topics",
+                                topics, "--speed", "0"},
+                               60s);
+  std::printf("%s", played.err.c_str());
+  const long samples = count_before(played.err, " samples in ");
+  const long unanswered = count_before(played.err, " not answered");
+  ASSERT_TRUE(played.exit_code == 0 || (played.exit_code == 1 && unanswered > 0))
+      << played.describe() << "\nrack-foxglove (recording):\n"
+      << rec.err() << logs();
+  EXPECT_NE(played.err.find("; 0 refused or skipped"), std::string::npos) << played.err;
+  std::this_thread::sleep_for(1s);  // the last samples on their way to the recorder
+  rec.signal(SIGTERM);
+  ASSERT_EQ(rec.wait_exit(15s), std::optional<int>(0)) << rec.err() << logs();
+  const long lost = count_before(rec.err(), " stream sample(s) lost on the way");
+  ASSERT_GE(lost, 0) << rec.err();
+  ASSERT_GE(unanswered, 0) << played.err;
+  EXPECT_LE(100 * (lost + unanswered), samples) << "more than 1 % lost on the way\n" << played.err << rec.err();
+
+  std::vector<std::string> check{*node_,
+                                 kFoxglove + "/test/roundtrip_check.mjs",
+                                 recorded,
+                                 replayed,
+                                 "--allow-missing",
+                                 std::to_string(lost + unanswered)};
+  for (const char* t : {"chassis", "odometry", "ladar", "scan2d", "position", "path", "mcl"}) {
+    check.insert(check.end(), {"--topic", std::string("/rack/0/") + t});
+  }
+  const RunResult r = run(check, 30s);
+  std::printf("%s", r.out.c_str());
+  EXPECT_EQ(r.exit_code, 0) << r.describe() << logs();
+}
+
+// The recorder on its own (tools/foxglove/test/recorder_check.mjs): each message
+// logged at its sample's time to the nanosecond; samples lost on the way (gaps in a
+// stream's sequence numbers) and dropped by a recorder that cannot keep up counted,
+// said and kept in the file (Metadata "rack.recorder"). No robot needed.
+TEST_F(FoxgloveTest, RecorderLogsSampleTimesToTheNanosecondAndCountsWhatItLoses) {
+  const RunResult r = run({*node_, kFoxglove + "/test/recorder_check.mjs", dir_.path().string()}, 60s);
+  std::printf("%s", r.out.c_str());
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_NE(r.out.find("all checks passed"), std::string::npos) << r.out;
+}
+
+// The player given malformed MCAP files (tools/foxglove/test/malformed_check.mjs):
+// wrong magic, empty, cut in the header and in the first chunk, a corrupt chunk, an
+// unknown compression, a huge chunk or record length, and channels of schemas it does
+// not know: each refused before rack-gui is joined (exit 2), saying what and where
+// (byte offset, record), without a stack trace, within the check's 30 s; then 300
+// seeded random mutations through its reader, each read or refused, nothing thrown
+// otherwise.
+TEST_F(FoxgloveTest, PlayerRefusesMalformedRecordingsSayingWhatAndWhere) {
+  const RunResult r = run({*node_, kFoxglove + "/test/malformed_check.mjs", dir_.path().string()}, 90s);
+  std::printf("%s", r.out.c_str());
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_NE(r.out.find("all checks passed"), std::string::npos) << r.out;
+}
+
+// A camera (issue 24): rack-gui's images (polled once a second: a camera's samples are
+// larger than a stream slot) as foxglove.RawImage on /rack/0/camera/image, seen by
+// Foxglove's WebSocket client with the frames' pixels (tools/foxglove/test/
+// image_check.mjs), and recorded: the npm MCAP reader finds them in the file.
+TEST_F(FoxgloveTest, CameraImagesAreRawImagesLiveAndRecorded) {
+  std::filesystem::create_directories(dir_.path() / "frames");
+  for (int i = 0; i < 5; ++i) {
+    std::string ppm = "P6\n64 48\n255\n";
+    for (int y = 0; y < 48; ++y) {
+      for (int x = 0; x < 64; ++x) {
+        ppm += static_cast<char>(x * 4);
+        ppm += static_cast<char>(y * 5);
+        ppm += static_cast<char>(i * 50);
+      }
+    }
+    char name[32];
+    std::snprintf(name, sizeof name, "frames/img_%03d.ppm", i);
+    (void)dir_.write(name, ppm);
+  }
+  const std::string host = dir_.write("camera.yaml",
+                                      "host: camera-test\n"
+                                      "system: 0\n"
+                                      "lcm: true\n"
+                                      "components:\n"
+                                      "  - name: camera\n"
+                                      "    class: Camera\n"
+                                      "    instance: 0\n"
+                                      "    autostart: true\n"
+                                      "    data_task: {period_ms: 100, ring: 4}\n"
+                                      "    params: {source: " +
+                                          (dir_.path() / "frames/img_%03d.ppm").string() + ", loop: true, fps: 10}\n")
+                               .string();
+  rackd_.emplace(std::vector<std::string>{kRackd, host, "--lcm", bus_.url()}, dir_.path(), "rackd");
+  ASSERT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
+  // A 0.9 MB image is ~16 datagrams at once: a receive buffer that holds them (as
+  // GuiE2eTest's rack-gui; README: TiMS over LCM).
+  const std::string gui_ws = start_gui("&recv_buf_size=4194304");
+  const std::string file = (dir_.path() / "camera.mcap").string();
+  Process bridge({*node_, kFoxglove + "/rack-foxglove.mjs", "--gui", gui_ws, "--port", "0", "--record", file},
+                 dir_.path(), "rack-foxglove");
+  ASSERT_TRUE(bridge.wait_for_stderr("(Foxglove WebSocket)", 15s)) << bridge.err();
+  const std::string url = word_after(bridge.err(), "rack-foxglove: serving ");
+  const RunResult r = run({*node_, kFoxglove + "/test/image_check.mjs", "--url", url, "--timeout", "30"}, 45s);
+  std::printf("%s", r.out.c_str());
+  EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-foxglove:\n" << bridge.err() << logs();
+  bridge.signal(SIGTERM);
+  ASSERT_EQ(bridge.wait_exit(15s), std::optional<int>(0)) << bridge.err();
+  const RunResult check = run({*node_, kFoxglove + "/test/mcap_check.mjs", file, "--topic", "/rack/0/camera/image"},
+                              30s);
+  std::printf("%s", check.out.c_str());
+  EXPECT_EQ(check.exit_code, 0) << check.describe();
 }
 
 // Installed (issue 24): `cmake --install` of the Gui component puts bin/rack-foxglove and

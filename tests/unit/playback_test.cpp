@@ -3,6 +3,8 @@
 // after the previous one's, or while the component is OFF is refused, the malformed
 // ones counted, and the component keeps publishing. LadarPlayback and OdometryPlayback
 // feed a live Scan2D, which builds the scan with the played odometry at its time.
+// Every other playback class (Chassis, Position, MCL, Path, ServoDrive, Generator)
+// publishes what it is sent, fields and time as sent.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -137,6 +139,73 @@ TEST(PlaybackTest, LadarAndOdometryPlaybackFeedALiveScan2dWithTheOdometryAtTheSc
   EXPECT_NEAR(out->odometry_x, 2.0, 1e-9);  // halfway between the two played poses
   EXPECT_NEAR(out->odometry_phi, 0.1, 1e-9);
   EXPECT_EQ(out->point_count, 3u);
+}
+
+const char* kEveryClass = R"(host: playback-classes-test
+system: 0
+components:
+  - {name: chassis, class: ChassisPlayback, instance: 0, data_task: {period_ms: 100, ring: 8}}
+  - {name: position, class: PositionPlayback, instance: 0, data_task: {period_ms: 100, ring: 8}}
+  - {name: mcl, class: MclPlayback, instance: 0, data_task: {period_ms: 100, ring: 8}}
+  - {name: path, class: PathPlayback, instance: 0, data_task: {period_ms: 100, ring: 4}}
+  - {name: servo, class: ServoDrivePlayback, instance: 0, data_task: {period_ms: 100, ring: 8}}
+  - {name: generator, class: GeneratorPlayback, instance: 0, data_task: {period_ms: 100, ring: 8}}
+)";
+
+// One PUBLISH of `sample` into the playback component `name` (switched on first): the
+// sample it then gives (GET_DATA) is the one sent, at the time sent, byte for byte.
+template <typename T>
+void expect_played(HostUnderTest& host, const char* name, const T& sample, int64_t time_ns) {
+  SCOPED_TRACE(name);
+  const tims::Address a = host.address_of(name);
+  ASSERT_EQ(host.call(a, msg::kOn).type, msg::kOk);
+  auto body = std::make_unique<components::PlaybackSample<T>>();
+  body->time_ns = time_ns;
+  body->data = sample;
+  ASSERT_EQ(host.call_with(a, components::kPlaybackPublish, *body).type, msg::kOk);
+  wire::SampleHeader sh;
+  auto got = std::make_unique<T>();
+  ASSERT_TRUE(host.get_data(a, sh, *got));
+  EXPECT_EQ(sh.time_ns, time_ns);
+  EXPECT_EQ(std::memcmp(got.get(), &sample, sizeof(T)), 0) << "the published sample differs from the one sent";
+}
+
+TEST(PlaybackTest, EveryInputClassHasAPlaybackThatPublishesWhatItIsSent) {
+  Watchdog dog;
+  HostUnderTest host(kEveryClass);
+  const int64_t t = 1'795'652'163'482'672'641;  // odd: the exact time, not a rounded one
+  interfaces::ChassisData chassis{};
+  chassis.delta_x = 0.004;
+  chassis.vx = 0.4;
+  chassis.truth_valid = 1;
+  chassis.truth_x = 4.5;
+  expect_played(host, "chassis", chassis, t);
+  interfaces::PositionData position{};
+  position.x = 4.25;
+  position.phi = -0.5;
+  position.reference_time_ns = t - 1;
+  position.updates = 7;
+  expect_played(host, "position", position, t + 1);
+  auto mcl = std::make_unique<interfaces::MclData>();
+  mcl->x = 12.5;
+  mcl->scan_time_ns = t - 3;
+  mcl->shown = 2;
+  mcl->particle_x[1] = 1.5F;
+  mcl->particle_weight[1] = 0.5F;
+  expect_played(host, "mcl", *mcl, t + 2);
+  auto path = std::make_unique<interfaces::PathData>();
+  path->point_count = 3;
+  path->x[2] = 20.0F;
+  path->y[2] = 7.5F;
+  path->last_error[0] = 'x';
+  expect_played(host, "path", *path, t + 3);
+  interfaces::ServoDriveData servo{};
+  servo.position = 0.75;
+  expect_played(host, "servo", servo, t + 4);
+  interfaces::GeneratorData generator{};
+  generator.value = -2.5;
+  generator.counter = 41;
+  expect_played(host, "generator", generator, t + 5);
 }
 
 }  // namespace

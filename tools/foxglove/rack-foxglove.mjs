@@ -9,7 +9,8 @@ import { WebSocket, WebSocketServer } from 'ws';
 import wsProtocol from '@foxglove/ws-protocol';
 
 import { Converter, kJsonEncoding, kSchemaEncoding, topicsOf, typeSchema } from './lib/convert.mjs';
-import { openMcap, play } from './lib/player.mjs';
+import { parseExact, stringifyExact } from './lib/exact_json.mjs';
+import { MalformedMcap, openMcap, play, playableChannels } from './lib/player.mjs';
 import { Recorder } from './lib/recorder.mjs';
 
 const { FoxgloveServer } = wsProtocol;
@@ -44,10 +45,14 @@ Channels (JSON encoding, JSON schemas):
   /rack/<system>/<name>/scan       Ladar as foxglove.LaserScan
   /rack/<system>/<name>/points     Scan2D as foxglove.PointCloud (frame base_link)
   /rack/<system>/<name>/pose       Position, MCL, Odometry as foxglove.PoseInFrame (frame map)
+  /rack/<system>/<name>/estimate   Position, MCL as foxglove.Odometry: the pose with its
+                                   covariance (x, y, yaw of the 6x6), frame map
   /rack/<system>/<name>/particles  MCL's particles as foxglove.PosesInFrame
   /rack/<system>/<name>/path       Path as foxglove.PosesInFrame
   /rack/<system>/map               the occupancy map as foxglove.Grid
   /rack/<system>/tf                Position as foxglove.FrameTransforms (map -> base_link)
+  /rack/<system>/<name>/image      Camera as foxglove.RawImage (rgb8, mono8) or
+                                   foxglove.CompressedImage (jpeg), polled once a second
   /rack/gdos                       every host's GDOS log as foxglove.Log
 Services (JSON): /rack/<system>/<name>/switch {"on":true}, /rack/<system>/all_off {},
   /rack/<system>/set_destination {"x":..,"y":..}, /rack/<system>/set_pose {"x":..,"y":..,"phi":..},
@@ -61,11 +66,23 @@ component a recording takes (--topics), is streamed at its full rate (or --perio
 through rack-gui's "subscribe"; the others arrive at rack-gui's poll rate (5 Hz for
 navigation classes, 1 Hz for the others).
 
+Recording: each message is logged at its sample's own time (the producer's time_ns, to
+the nanosecond), never at the time it came. Samples lost on the way (gaps in a stream's
+sequence numbers) and messages the recorder could not write as fast as they came are
+counted, said when it stops and kept in the file (Metadata "rack.recorder").
+
 play FILE: plays an MCAP recording of rack-foxglove back into a running host (through
 rack-gui): each recorded component channel /rack/<system>/<name> goes to the component
 <name> of that system, which must be of a playback class standing in for the recorded
-one (host file: class Scan2dPlayback where Scan2D was; configs/replay_mcap_mcl.yaml).
-Every sample keeps its recorded time.
+one: ChassisPlayback, LadarPlayback, OdometryPlayback, Scan2dPlayback, PositionPlayback,
+MclPlayback, PathPlayback, ServoDrivePlayback or GeneratorPlayback (host files:
+configs/replay_mcap_sim.yaml plays every stream of sim_mcl, configs/replay_mcap_mcl.yaml
+runs MCL on the played laser and odometry, configs/replay_mcap_chassis_mcl.yaml on the
+played laser and chassis). Every sample keeps its recorded time and
+fields. The file is read and checked whole first: a malformed one (not MCAP, cut short
+before its first message, a corrupt chunk, ...) is refused with what is wrong and at
+which byte, exit status 2; a channel of a schema no RACK class records is named and
+not played.
   --gui URL            rack-gui's WebSocket on the host's network (required)
   --speed S            1: as recorded (default); 2: twice as fast; 0: as fast as the
                        host acknowledges (at most 16 samples on the way at once)
@@ -81,8 +98,9 @@ Every sample keeps its recorded time.
                        what is missing is said after 1 s, and at the end
 
 Exit status: 0 after SIGINT, SIGTERM or --duration (play: every sample acknowledged); 1
-when rack-gui cannot be reached, the arguments are wrong or (play) a sample was refused;
-2 when the recording cannot be written or read.`;
+when rack-gui cannot be reached, the arguments are wrong or (play) a sample was refused
+or not answered (counted apart: lost on the way, TiMS being UDP on a loaded machine);
+2 when the recording cannot be written, or (play) is malformed or holds nothing to play.`;
 
 function parseArgs(argv) {
   const o = { gui: '', port: 8765, host: '127.0.0.1', server: true, record: '', topics: null,
@@ -173,7 +191,8 @@ class GuiLink {
       this.ws.on('message', (data, binary) => {
         if (binary) return;
         let m;
-        try { m = JSON.parse(data.toString('utf8')); } catch { return; }
+        // Exact: a sample's time_ns (ns since the epoch) is past what a number holds.
+        try { m = parseExact(data.toString('utf8')); } catch { return; }
         // A request's answer: its result, or rack-gui's refusal of it (an error with its id).
         if ((m?.type === 'result' || m?.type === 'error') && this.pending.has(m.id)) {
           const p = this.pending.get(m.id);
@@ -196,10 +215,10 @@ class GuiLink {
     return new Promise((resolve) => {
       const timer = setTimeout(() => {
         this.pending.delete(id);
-        resolve({ ok: false, text: `rack-gui did not answer in ${timeoutMs} ms` });
+        resolve({ ok: false, timeout: true, text: `rack-gui did not answer in ${timeoutMs} ms` });
       }, timeoutMs);
       this.pending.set(id, { resolve, timer });
-      this.ws.send(JSON.stringify({ ...body, id }));
+      this.ws.send(stringifyExact({ ...body, id }));
     });
   }
 
@@ -241,11 +260,20 @@ class Streams {
     }
     const first = s.size === 0;
     s.add(who);
-    if (first) {
-      this.link.request({ op: 'subscribe', component: address, period_ms: this.periodMs }).then((r) => {
-        if (!r.ok) this.log(`stream of ${address}: ${r.text}`);
-      });
-    }
+    if (first) this.subscribe(address, 0);
+  }
+
+  // Asks rack-gui for the stream; said either way: "Ladar(0/0): streaming every sample"
+  // once rack-gui has it (a recording holds every sample from then on), or why not.
+  // rack-gui keeps a refused subscription and streams once the component is enabled,
+  // without telling: asked again every second until it says it streams (a subscribe of
+  // a stream that flows is answered at once), so that the line comes when it does.
+  subscribe(address, attempt) {
+    if (!this.wanted.has(address)) return;
+    this.link.request({ op: 'subscribe', component: address, period_ms: this.periodMs }).then((r) => {
+      if (r.ok || attempt === 0) this.log(`stream of ${address}: ${r.text}`);
+      if (!r.ok && this.wanted.has(address)) setTimeout(() => this.subscribe(address, attempt + 1), 1000).unref();
+    });
   }
 
   drop(address, who) {
@@ -322,7 +350,7 @@ class Bridge {
       c = { id, latched: item.latched === true, last: null, component: item.component };
       this.channels.set(item.topic, c);
     }
-    const payload = new TextEncoder().encode(JSON.stringify(item.message));
+    const payload = new TextEncoder().encode(stringifyExact(item.message));
     if (c.latched) c.last = { time: item.time, payload };
     if (this.subscribed.has(c.id)) this.server.sendMessage(c.id, item.time, payload);
   }
@@ -441,11 +469,20 @@ async function main() {
   const converter = new Converter();
   let reader = null;
   if (o.play) {
+    // Every record is read and checked before rack-gui is joined: a malformed file is
+    // refused (exit 2) with what is wrong and where, before anything is played.
     try {
       reader = await openMcap(o.play);
       if (reader.truncated) console.error(`rack-foxglove: play ${o.play}: ${reader.truncated}`);
     } catch (e) {
-      console.error(`rack-foxglove: play ${o.play}: not a readable MCAP file: ${e.message}`);
+      console.error(`rack-foxglove: play ${o.play}: refused: ${e.message}`);
+      return 2;
+    }
+    const { playable, refused } = playableChannels(reader, o.topics);
+    for (const why of refused) console.error(`rack-foxglove: play ${o.play}: not played: ${why}`);
+    if (playable.size === 0) {
+      console.error(`rack-foxglove: play ${o.play}: refused: no channel to play${o.topics ? ` among those --topics takes` : ''} ` +
+                    `(a component channel /rack/<system>/<name> with a rack.<Class> JSON schema, as rack-foxglove records)`);
       return 2;
     }
   }
@@ -478,6 +515,12 @@ async function main() {
       if (bridge) bridge.publish(item);
       if (record) recorder.add(item);
     }
+    // Each stream sample's sequence number: the recorder counts the gaps (samples lost
+    // on the way to it).
+    // (--period-ms: the producer leaves samples out on purpose; no gaps counted.)
+    if (record && o.periodMs === 0 && m?.type === 'data' && m.stream === true && items.length > 0) {
+      recorder.sample(items[0].topic, m.sequence);
+    }
     if (bridge && (m?.type === 'components' || m?.type === 'class')) bridge.updateServices();
     // A recording streams every component whose topics it takes.
     if (recorder && streams && m?.type === 'components') {
@@ -503,11 +546,11 @@ async function main() {
       const r = await play({ reader, speed: o.speed, topics: o.topics, initMcl: o.initMcl, sigmaXy: o.sigmaXy,
                              sigmaPhi: o.sigmaPhi, waitS: o.waitS }, link, converter, log);
       link.ws.close();
-      return r.refused === 0 ? 0 : 1;
+      return r.refused === 0 && r.unanswered === 0 ? 0 : 1;
     } catch (e) {
-      log(`play ${o.play}: ${e.message}`);
+      log(`play ${o.play}: ${e instanceof MalformedMcap ? 'refused: ' : ''}${e.message}`);
       link.ws.close();
-      return 1;
+      return e instanceof MalformedMcap ? 2 : 1;
     }
   }
   if (o.server) {
@@ -542,7 +585,9 @@ async function main() {
       if (recorder) {
         try {
           await recorder.close();
-          console.error(`rack-foxglove: wrote ${recorder.messages} messages on ${recorder.channels.size} channels to ${o.record}`);
+          console.error(`rack-foxglove: wrote ${recorder.messages} messages on ${recorder.channels.size} channels to ${o.record}; ` +
+                        `${recorder.lost()} stream sample(s) lost on the way, ${recorder.dropped} dropped by the recorder`);
+          for (const line of recorder.lostReport()) console.error(`rack-foxglove: ${line}`);
         } catch (e) {
           console.error(`rack-foxglove: ${o.record}: ${e.message}`);
           return 2;

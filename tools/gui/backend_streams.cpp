@@ -24,6 +24,19 @@ void Backend::Impl::subscribe(uint64_t client, const Request& r) {
 void Backend::Impl::open_stream(uint32_t raw) {
   Stream& s = streams[raw];
   if (s.pending) return;
+  // A class whose samples are larger than a stream slot (a camera's 0.9 MB) is never
+  // streamed: asked, it would send every sample to be dropped here (megabytes a second
+  // that crowd out the polls). Known once described; maintain_streams says the same.
+  if (const auto ci = class_infos.find(raw & 0xFFFF0000u);
+      ci != class_infos.end() && ci->second.desc && ci->second.desc->data &&
+      sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + ci->second.desc->data->size > kSlotSize) {
+    s.retry_at_ns = INT64_MAX;
+    s.why = address_text(Address(raw)) + ": class " + ci->second.desc->class_name + " samples of " +
+            std::to_string(sizeof(tims::MessageHeader) + sizeof(wire::SampleHeader) + ci->second.desc->data->size) +
+            " bytes are larger than a stream slot (" + std::to_string(kSlotSize) + "): only polled";
+    for (const auto& [client, req] : std::exchange(s.waiting, {})) result(client, req, false, s.why);
+    return;
+  }
   s.pending = true;
   if (s.mailbox == 0) {
     // Small samples to the mailbox of small slots; an undescribed class to the large.

@@ -8,16 +8,30 @@
 //   /rack/<system>/<name>/points     Scan2D: foxglove.PointCloud (frame "base_link"; its
 //                                    points are filtered, not evenly spaced in angle)
 //   /rack/<system>/<name>/pose       Position, MCL, Odometry: foxglove.PoseInFrame ("map")
+//   /rack/<system>/<name>/estimate   Position, MCL: foxglove.Odometry, the pose with its
+//                                    covariance (6x6 over x, y, z and the rotations
+//                                    about x, y, z: RACK's x, y, phi entries in it,
+//                                    the rest zero), frame "map", body "base_link"
 //   /rack/<system>/<name>/particles  MCL: foxglove.PosesInFrame (the particles shown)
 //   /rack/<system>/<name>/path       Path: foxglove.PosesInFrame (the planned path)
 //   /rack/<system>/map               the occupancy map: foxglove.Grid (0 free, 1 occupied,
 //                                    2 unknown), frame "map"
 //   /rack/<system>/tf                Position: foxglove.FrameTransforms map -> base_link
+//   /rack/<system>/<name>/image      Camera (rack-gui's "image" messages, polled once a
+//                                    second: its 0.9 MB samples are not streamed):
+//                                    foxglove.RawImage (rgb8, mono8) or
+//                                    foxglove.CompressedImage (jpeg), frame "<name>"
 //   /rack/gdos                       every host's GDOS log: foxglove.Log
 //
 // A message from rack-gui that does not have the expected shape is skipped and counted
 // (Converter.rejected, with the last reason), never thrown: the bridge keeps running.
+//
+// rack-gui's messages come parsed by lib/exact_json.mjs: a sample's time_ns (and any
+// other integer past 2^53) is a BigInt, so that the times recorded are the producer's
+// to the nanosecond; the messages made here are written with its stringifyExact.
 import schemas from '@foxglove/schemas/jsonschema.js';
+
+import { isInt } from './exact_json.mjs';
 
 export const kJsonEncoding = 'json';
 export const kSchemaEncoding = 'jsonschema';
@@ -63,8 +77,8 @@ export function dataSchema(cls) {
 // recording with --topics needs.
 export function topicsOf(system, name, className) {
   const base = `/rack/${system}/${name}`;
-  const extra = { Ladar: ['scan'], 'Scan2D': ['points'], Position: ['pose'], MCL: ['pose', 'particles'],
-                  Odometry: ['pose'], Path: ['path'] }[className] ?? [];
+  const extra = { Ladar: ['scan'], 'Scan2D': ['points'], Position: ['pose', 'estimate'], MCL: ['pose', 'estimate', 'particles'],
+                  Odometry: ['pose'], Path: ['path'], Camera: ['image'] }[className] ?? [];
   const out = [base, ...extra.map((e) => `${base}/${e}`)];
   if (className === 'Position') out.push(`/rack/${system}/tf`);
   return out;
@@ -115,6 +129,7 @@ export class Converter {
       case 'data': return this.onData(m);
       case 'map': return this.onMap(m);
       case 'gdos': return this.onGdos(m);
+      case 'image': return this.onImage(m);
       default: return [];
     }
   }
@@ -163,7 +178,7 @@ export class Converter {
 
   onData(m) {
     if (typeof m.component !== 'string' || typeof m.name !== 'string' || typeof m.class !== 'string' ||
-        !Number.isInteger(m.system) || !Number.isInteger(m.time_ns) || m.data === null || typeof m.data !== 'object') {
+        !Number.isInteger(m.system) || !isInt(m.time_ns) || m.data === null || typeof m.data !== 'object') {
       return this.reject('data message without component, name, class, system, time_ns or data');
     }
     const cls = this.classOf(m.system, m.class);
@@ -216,6 +231,22 @@ export class Converter {
             topic: `${base}/pose`, schemaName: 'foxglove.PoseInFrame', schema: schemas.PoseInFrame, time,
             message: { timestamp: ts, frame_id: 'map', pose: pose(d.x, d.y, d.phi) },
           });
+          // The pose with its covariance (x, y, phi of RACK's 3x3 in the 6x6 of x, y, z,
+          // roll, pitch, yaw); the Odometry class gives no covariance.
+          const cov3 = m.class === 'MCL' && nums(d.covariance) && d.covariance.length === 9
+            ? d.covariance.map((v) => v ?? 0)
+            : m.class === 'Position' && isNum(d.var_x) && isNum(d.var_y) && isNum(d.var_phi)
+              ? [d.var_x, 0, 0, 0, d.var_y, 0, 0, 0, d.var_phi] : null;
+          if (cov3) {
+            const at = [0, 1, 5];  // x, y, yaw in the 6x6
+            const cov6 = new Array(36).fill(0);
+            for (let i = 0; i < 3; ++i) for (let j = 0; j < 3; ++j) cov6[6 * at[i] + at[j]] = cov3[3 * i + j];
+            out.push({
+              topic: `${base}/estimate`, schemaName: 'foxglove.Odometry', schema: schemas.Odometry, time,
+              message: { timestamp: ts, frame_id: 'map', body_frame_id: 'base_link', pose: pose(d.x, d.y, d.phi),
+                         pose_covariance: cov6 },
+            });
+          }
           if (m.class === 'Position') {
             out.push({
               topic: `/rack/${m.system}/tf`, schemaName: 'foxglove.FrameTransforms', schema: schemas.FrameTransforms, time,
@@ -276,11 +307,38 @@ export class Converter {
     }];
   }
 
+  // A camera image: raw (rgb, mono) or JPEG, the pixels base64 as rack-gui sends them.
+  onImage(m) {
+    if (typeof m.component !== 'string' || !Number.isInteger(m.system) || !isInt(m.time_ns) ||
+        !Number.isInteger(m.width) || !Number.isInteger(m.height) || typeof m.format !== 'string' ||
+        typeof m.data !== 'string') {
+      return this.reject('image message without component, system, time_ns, width, height, format or data');
+    }
+    const comp = this.components.get(m.component);
+    if (!comp) return [];  // not listed yet: its name is not known
+    const topic = `/rack/${m.system}/${comp.name}/image`;
+    const time = BigInt(m.time_ns);
+    const timestamp = stamp(m.time_ns);
+    if (m.format === 'jpeg') {
+      return [{ topic, component: m.component, schemaName: 'foxglove.CompressedImage', schema: schemas.CompressedImage, time,
+                message: { timestamp, frame_id: comp.name, data: m.data, format: 'jpeg' } }];
+    }
+    const channels = { rgb: 3, mono: 1 }[m.format];
+    if (!channels) return this.reject(`${m.component}: image format '${m.format}' (expected rgb, mono or jpeg)`);
+    const bytes = Buffer.from(m.data, 'base64').length;
+    if (bytes !== m.width * m.height * channels) {
+      return this.reject(`${m.component}: image of ${bytes} bytes, expected ${m.width}x${m.height}x${channels}`);
+    }
+    return [{ topic, component: m.component, schemaName: 'foxglove.RawImage', schema: schemas.RawImage, time,
+              message: { timestamp, frame_id: comp.name, width: m.width, height: m.height,
+                         encoding: m.format === 'rgb' ? 'rgb8' : 'mono8', step: m.width * channels, data: m.data } }];
+  }
+
   onGdos(m) {
     if (!Array.isArray(m.records)) return this.reject('gdos message without records');
     const out = [];
     for (const r of m.records) {
-      if (r === null || typeof r !== 'object' || !Number.isInteger(r.time_ns) || typeof r.text !== 'string') {
+      if (r === null || typeof r !== 'object' || !isInt(r.time_ns) || typeof r.text !== 'string') {
         this.reject('GDOS record without time_ns or text');
         continue;
       }

@@ -39,6 +39,10 @@ const expected = {
                                                           Math.abs(Math.hypot(m.pose.orientation.z, m.pose.orientation.w) - 1) < 1e-6],
   '/rack/0/mcl/pose': ['foxglove.PoseInFrame', (m) => m.frame_id === 'map' && Number.isFinite(m.pose.position.x)],
   '/rack/0/mcl/particles': ['foxglove.PosesInFrame', (m) => m.poses.length > 0],
+  // The pose with its covariance: MCL's x, y and phi entries in the 6x6 (x, y, yaw).
+  '/rack/0/mcl/estimate': ['foxglove.Odometry', (m) => m.frame_id === 'map' && m.body_frame_id === 'base_link' &&
+                                                      m.pose_covariance.length === 36 && m.pose_covariance[0] > 0 &&
+                                                      m.pose_covariance[7] > 0 && m.pose_covariance[35] > 0],
   '/rack/0/tf': ['foxglove.FrameTransforms', (m) => m.transforms[0].parent_frame_id === 'map' && m.transforms[0].child_frame_id === 'base_link'],
   '/rack/0/chassis': ['rack.Chassis', (m) => m.component === 'Chassis(0/0)' && typeof m.data.vx === 'number' && m.time_ns > 0],
   '/rack/0/mcl': ['rack.MCL', (m) => Array.isArray(m.data.covariance) && m.data.covariance.length === 9],
