@@ -21,7 +21,6 @@
 #include <string>
 #include <vector>
 
-#include "rack/components/builtin.h"
 #include "rack/core/data_component.h"
 #include "rack/core/host_config.h"
 #include "rack/interfaces/demo.h"
@@ -335,16 +334,14 @@ class SilenceConsumer final : public DataComponent<MonitorData> {
 };
 
 TEST(SilenceParamTest, TheClassSaysWhatTimeoutMsMeansAndAnInputMayDeclareNoSilence) {
-  ComponentRegistry registry;
-  components::register_builtin(registry);
-  registry.add({"SilenceFromTimeout", tims::classes::kFirstUser, "test",
-                [] { return std::make_unique<SilenceConsumer<SilenceParam::kSilenceMs, true>>(); }});
-  registry.add({"SilenceOnly", static_cast<uint8_t>(tims::classes::kFirstUser + 1), "test",
-                [] { return std::make_unique<SilenceConsumer<SilenceParam::kSilenceMsOnly, true>>(); }});
-  registry.add({"NoSilence", static_cast<uint8_t>(tims::classes::kFirstUser + 2), "test",
-                [] { return std::make_unique<SilenceConsumer<SilenceParam::kNone, false>>(); }});
-  rt::RtCapabilities caps;
-  caps.online_cpus = {0, 1};
+  test::HostFileLoader loader([](ComponentRegistry& registry) {
+    registry.add({"SilenceFromTimeout", tims::classes::kFirstUser, "test",
+                  [] { return std::make_unique<SilenceConsumer<SilenceParam::kSilenceMs, true>>(); }});
+    registry.add({"SilenceOnly", static_cast<uint8_t>(tims::classes::kFirstUser + 1), "test",
+                  [] { return std::make_unique<SilenceConsumer<SilenceParam::kSilenceMsOnly, true>>(); }});
+    registry.add({"NoSilence", static_cast<uint8_t>(tims::classes::kFirstUser + 2), "test",
+                  [] { return std::make_unique<SilenceConsumer<SilenceParam::kNone, false>>(); }});
+  });
   const std::string text = R"(system: 0
 lcm: false
 components:
@@ -364,10 +361,9 @@ components:
     data_task: {timeout_ms: 400}
     params: {source: gen}
 )";
-  const LoadResult r = load_host_text(text, "silence.yaml", registry, caps);
+  const LoadResult r = loader.load(text, "silence.yaml");
   ASSERT_TRUE(r.errors.empty()) << r.errors.front().str();
-  std::string warnings;
-  for (const auto& w : r.warnings) warnings += w.str() + "\n";
+  const std::string warnings = test::text_of(r.warnings);
   ASSERT_EQ(r.warnings.size(), 1u) << warnings;
   EXPECT_NE(warnings.find("component 'a': data_task.timeout_ms is now the parameter silence_ms"), std::string::npos)
       << warnings;
