@@ -5,7 +5,8 @@
 // runs a declared worker after init(), places it on the housekeeping CPUs, names it in
 // its thread listing and stops and joins it before cleanup(). A compute worker
 // (Component::add_compute_worker, MCL's likelihood) runs where its data task runs, and
-// without a serving thread its jobs run on the poster's thread.
+// without a serving thread (a stepped executor starts none) its jobs run on the
+// poster's thread.
 #include <gtest/gtest.h>
 #include <sched.h>
 #include <sys/syscall.h>
@@ -330,6 +331,36 @@ TEST(ComputeWorkerTest, TheExecutorRunsItWhereTheDataTaskRunsAndJoinsItBeforeCle
     host.executor().stop();
     EXPECT_FALSE(ComputeWorkerComponent::served_at_cleanup.load()) << "the worker ended before cleanup()";
     EXPECT_EQ(cpus_of_thread_named("cw:calc", tid), "") << "joined";
+  }
+}
+
+// A stepped executor (rack/core/stepper.h) starts no thread for the worker: the job
+// runs inside the step that posts it, on the stepping thread, and start-up waits for
+// no worker thread (which would move the virtual clock).
+TEST(ComputeWorkerTest, ASteppedExecutorRunsEachJobInsideTheStepThatPostsIt) {
+  Watchdog watchdog;
+  ComputeWorkerComponent::jobs = 0;
+  ComputeWorkerComponent::job_tid = 0;
+  ComputeWorkerComponent::served_at_cleanup = true;
+  {
+    HostUnderTest host(compute_worker_yaml(),
+                       test::one_class<ComputeWorkerComponent>("ComputeWorkerTest", "test: declares a compute worker"),
+                       false, test::Stepping::kStepped);
+    Stepper& s = host.stepper();
+    EXPECT_EQ(s.now_ns(), rt::VirtualClock::kDefaultStartNs) << "start-up moved the virtual clock";
+    ASSERT_EQ(host.status(host.address_of("cw")), tims::msg::kEnabled) << host.log();
+    s.advance(5 * rt::kNsPerMs);
+    ASSERT_TRUE(s.step("cw"));
+    EXPECT_EQ(ComputeWorkerComponent::jobs.load(), 1) << "the job ran inside the step";
+    const auto self = static_cast<pid_t>(::syscall(SYS_gettid));
+    EXPECT_EQ(ComputeWorkerComponent::job_tid.load(), self) << "on the stepping thread";
+    EXPECT_EQ(ComputeWorkerComponent::loop_tid.load(), self);
+    EXPECT_EQ(s.run_for(20 * rt::kNsPerMs), 4u);
+    EXPECT_EQ(ComputeWorkerComponent::jobs.load(), 5) << "one job a cycle, each done when its step returned";
+    const std::string report = host.executor().thread_report();
+    EXPECT_EQ(report.find("cw:calc"), std::string::npos) << "no worker thread\n" << report;
+    host.executor().stop();
+    EXPECT_FALSE(ComputeWorkerComponent::served_at_cleanup.load());
   }
 }
 
