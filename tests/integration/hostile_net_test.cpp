@@ -353,15 +353,6 @@ class HostileNetTest : public ::testing::Test {
     const Json* v = j ? j->get(key) : nullptr;
     return v != nullptr && v->is_string() ? v->string : "";
   }
-  template <typename Pred>
-  static bool eventually(Pred pred, std::chrono::milliseconds bound = 20s) {
-    const auto deadline = std::chrono::steady_clock::now() + bound;
-    while (!pred()) {
-      if (std::chrono::steady_clock::now() >= deadline) return false;
-      std::this_thread::sleep_for(50ms);
-    }
-    return true;
-  }
   long long refused(const std::string& key) { return status_counter(rackd_->out(), "TiMS/LCM refused:", key); }
   // Waits for a status line printed after now (rackd prints one a second).
   void next_status_line() {

@@ -111,6 +111,19 @@ class TempDir {
 
 std::string read_file(const std::filesystem::path& path);
 
+// Polls `pred` every 50 ms until it holds (true) or `bound` has passed (false). The
+// integration tests wait for real processes this way; the bound only turns a hang into
+// a failure (generous by design, never a timing assertion).
+template <typename Pred>
+bool eventually(Pred pred, std::chrono::milliseconds bound = std::chrono::seconds(20)) {
+  const auto deadline = std::chrono::steady_clock::now() + bound;
+  for (;;) {
+    if (pred()) return true;
+    if (std::chrono::steady_clock::now() >= deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
 // The first executable `name` in $PATH (/usr/bin:/bin when PATH is unset), or nullopt:
 // tests that need an outside tool (node, dot) skip with the reason when it is missing.
 std::optional<std::string> find_program(const std::string& name);

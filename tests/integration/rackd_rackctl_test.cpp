@@ -85,16 +85,6 @@ class IntegrationTest : public ::testing::Test {
     const Json* s = j ? j->get("state") : nullptr;
     return s != nullptr && s->is_string() ? s->string : "";
   }
-  // Polls until `pred` holds (true) or the bound passes (false).
-  template <typename Pred>
-  bool eventually(Pred pred, std::chrono::milliseconds bound = kSettleLimit) {
-    const auto deadline = std::chrono::steady_clock::now() + bound;
-    for (;;) {
-      if (pred()) return true;
-      if (std::chrono::steady_clock::now() >= deadline) return false;
-      std::this_thread::sleep_for(50ms);
-    }
-  }
 
   Watchdog watchdog_;
   TempDir dir_;
