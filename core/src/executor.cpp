@@ -416,6 +416,11 @@ void Executor::start_io_workers() {
 // task's priority and on its CPUs (component.h), with a log ring of its own. Started
 // before the tasks, so that the first cycle finds it serving.
 void Executor::start_compute_workers() {
+  // Stepped (stepper.h): no thread serves them, so each job runs inside the step that
+  // posts it, on the stepping thread, when the data task waits for it (ComputeWorker::
+  // wait() runs it through ComputeWorker::run, the call a serving thread makes). A
+  // thread here would also move the virtual clock while start-up waits for its id.
+  if (options_.stepped) return;
   const HostSettings& hs = host_->settings;
   for (auto& v : views_) {
     Component& c = *v.component;

@@ -97,15 +97,6 @@ class AccessTest : public ::testing::Test {
     const auto v = r.out.find("\"value\":", at);
     return std::strtod(r.out.c_str() + v + 8, nullptr);
   }
-  template <typename Pred>
-  bool eventually(Pred pred, std::chrono::milliseconds bound = 20s) {
-    const auto deadline = std::chrono::steady_clock::now() + bound;
-    for (;;) {
-      if (pred()) return true;
-      if (std::chrono::steady_clock::now() >= deadline) return false;
-      std::this_thread::sleep_for(100ms);
-    }
-  }
 
   Watchdog watchdog_;
   TempDir dir_;

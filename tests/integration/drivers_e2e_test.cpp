@@ -33,15 +33,6 @@ class DriversEndToEndTest : public ::testing::Test {
     if (r.exit_code != 0) return std::nullopt;
     return parse_json(r.out.substr(0, r.out.find('\n')));
   }
-  template <typename Pred>
-  bool eventually(Pred pred, std::chrono::milliseconds bound = 20s) {
-    const auto end = std::chrono::steady_clock::now() + bound;
-    while (std::chrono::steady_clock::now() < end) {
-      if (pred()) return true;
-      std::this_thread::sleep_for(100ms);
-    }
-    return false;
-  }
 
   Watchdog watchdog_;
   LcmBus bus_;

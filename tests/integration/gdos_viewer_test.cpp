@@ -98,15 +98,6 @@ class GdosViewerTest : public ::testing::Test {
     args.insert(args.begin(), {kRackctl, "--lcm", bus_.url(), "--discover-ms", "3000"});
     return run(args, kCommandLimit);
   }
-  template <typename Pred>
-  bool eventually(Pred pred, std::chrono::milliseconds bound = kSettleLimit) {
-    const auto deadline = std::chrono::steady_clock::now() + bound;
-    for (;;) {
-      if (pred()) return true;
-      if (std::chrono::steady_clock::now() >= deadline) return false;
-      std::this_thread::sleep_for(50ms);
-    }
-  }
   // The viewer's JSON lines, parsed (a line that does not parse is a failure).
   std::vector<Json> records(const std::string& out) {
     std::vector<Json> v;

@@ -32,13 +32,8 @@ TEST(GuiConfigE2eTest, EditsAHostFileWithTheValidatorInTheLoop) {
   Watchdog watchdog(150s, "GuiConfigE2eTest");
   const std::string web = RACK_GUI_WEB_DIR;
   const std::string artifacts = RACK_GUI_ARTIFACTS_DIR;
-  const auto node = find_program("node");
-  const char* chromium_env = std::getenv("RACK_CHROMIUM");
-  const std::string chromium = chromium_env != nullptr ? chromium_env : "/usr/bin/chromium";
-  if (!node) GTEST_SKIP() << "node is not installed (Debian: apt-get install nodejs); scripts/setup.sh installs it";
-  if (access(chromium.c_str(), X_OK) != 0) {
-    GTEST_SKIP() << chromium << " is not installed (Debian: apt-get install chromium); scripts/setup.sh installs it";
-  }
+  const BrowserTools browser = find_browser_tools();
+  if (!browser.missing.empty()) GTEST_SKIP() << browser.missing;
   if (!find_program("dot"))
     GTEST_SKIP() << "graphviz's dot is not installed (apt-get install graphviz); scripts/setup.sh installs it";
   ASSERT_TRUE(std::filesystem::exists(web + "/node_modules/playwright-core"))
@@ -63,14 +58,12 @@ TEST(GuiConfigE2eTest, EditsAHostFileWithTheValidatorInTheLoop) {
   Process gui({RACK_GUI_PATH, "--port", "0", "--lcm", bus.url(), "--web", web + "/dist", "--reports", "", "--config",
                fleet.string(), "--rackd", RACK_RACKD_PATH},
               dir.path(), "rack-gui");
-  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
-  const std::string err = gui.err();
-  const auto at = err.find("http://");
-  const std::string url = err.substr(at, err.find(' ', at) - at);
+  const std::string url = served_url(gui);
+  ASSERT_FALSE(url.empty()) << gui.err();
 
   std::filesystem::create_directories(artifacts);
-  const RunResult r = run({*node, web + "/e2e/config_e2e.mjs", "--url", url, "--chromium", chromium, "--shots",
-                           artifacts, "--file", "robot1_aux.yaml", "--live", "1", "--padding", "900"},
+  const RunResult r = run({browser.node, web + "/e2e/config_e2e.mjs", "--url", url, "--chromium", browser.chromium,
+                           "--shots", artifacts, "--file", "robot1_aux.yaml", "--live", "1", "--padding", "900"},
                           120s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui.err();

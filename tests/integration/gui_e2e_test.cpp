@@ -101,13 +101,8 @@ class GuiE2eTest : public ::testing::Test {
 };
 
 TEST_F(GuiE2eTest, DashboardOperatesTheSimulatedRobotInChromium) {
-  const auto node = find_program("node");
-  const char* chromium_env = std::getenv("RACK_CHROMIUM");
-  const std::string chromium = chromium_env != nullptr ? chromium_env : "/usr/bin/chromium";
-  if (!node) GTEST_SKIP() << "node is not installed (Debian: apt-get install nodejs); scripts/setup.sh installs it";
-  if (access(chromium.c_str(), X_OK) != 0) {
-    GTEST_SKIP() << chromium << " is not installed (Debian: apt-get install chromium); scripts/setup.sh installs it";
-  }
+  const BrowserTools browser = find_browser_tools();
+  if (!browser.missing.empty()) GTEST_SKIP() << browser.missing;
   ASSERT_TRUE(std::filesystem::exists(kWeb + "/node_modules/playwright-core"))
       << "playwright-core is missing: run scripts/setup.sh (npm ci in " << kWeb << ")";
   ASSERT_TRUE(std::filesystem::exists(kWeb + "/dist/index.html"))
@@ -127,14 +122,13 @@ TEST_F(GuiE2eTest, DashboardOperatesTheSimulatedRobotInChromium) {
   Process gui({kGui, "--port", "0", "--lcm", bus_.url() + "&recv_buf_size=4194304", "--web", kWeb + "/dist",
                "--reports", crash_dir},
               dir_.path(), "rack-gui");
-  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
-  const std::string err = gui.err();
-  const auto at = err.find("http://");
-  const std::string url = err.substr(at, err.find(' ', at) - at);
+  const std::string url = served_url(gui);
+  ASSERT_FALSE(url.empty()) << gui.err();
 
   std::filesystem::create_directories(kArtifacts);
-  const RunResult r = run({*node, kWeb + "/e2e/e2e.mjs", "--url", url, "--chromium", chromium, "--shots", kArtifacts,
-                           "--rackd-pid", std::to_string(rackd.pid()), "--gui-pid", std::to_string(gui.pid())},
+  const RunResult r = run({browser.node, kWeb + "/e2e/e2e.mjs", "--url", url, "--chromium", browser.chromium, "--shots",
+                           kArtifacts, "--rackd-pid", std::to_string(rackd.pid()), "--gui-pid",
+                           std::to_string(gui.pid())},
                           120s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui.err();
@@ -207,13 +201,8 @@ TEST_F(GuiE2eTest, ReportsAreSymbolizedIncrementally) {
 // a phone's viewport, and the honest empty and stale states (tools/gui/web/e2e/panels.mjs).
 // Screenshots: panels-*.png beside the other test's.
 TEST_F(GuiE2eTest, DashboardPanelsInChromium) {
-  const auto node = find_program("node");
-  const char* chromium_env = std::getenv("RACK_CHROMIUM");
-  const std::string chromium = chromium_env != nullptr ? chromium_env : "/usr/bin/chromium";
-  if (!node) GTEST_SKIP() << "node is not installed (Debian: apt-get install nodejs); scripts/setup.sh installs it";
-  if (access(chromium.c_str(), X_OK) != 0) {
-    GTEST_SKIP() << chromium << " is not installed (Debian: apt-get install chromium); scripts/setup.sh installs it";
-  }
+  const BrowserTools browser = find_browser_tools();
+  if (!browser.missing.empty()) GTEST_SKIP() << browser.missing;
   ASSERT_TRUE(std::filesystem::exists(kWeb + "/node_modules/uplot"))
       << "uplot is missing: run scripts/setup.sh (npm ci in " << kWeb << ")";
   ASSERT_TRUE(std::filesystem::exists(kWeb + "/dist/index.html"))
@@ -249,18 +238,17 @@ TEST_F(GuiE2eTest, DashboardPanelsInChromium) {
     auto p = std::make_unique<Process>(std::vector<std::string>{kGui, "--port", "0", "--lcm", lcm, "--web",
                                                                 kWeb + "/dist", "--reports", "", "--forget-s", "3"},
                                        dir_.path(), label);
-    EXPECT_TRUE(p->wait_for_stderr("rack-gui: serving http://", 15s)) << p->err();
-    const std::string err = p->err();
-    const auto at = err.find("http://");
-    return std::make_pair(std::move(p), err.substr(at, err.find(' ', at) - at));
+    std::string url = served_url(*p);
+    EXPECT_FALSE(url.empty()) << p->err();
+    return std::make_pair(std::move(p), std::move(url));
   };
   auto [gui, url] = serve(bus_.url(), "rack-gui");
   LcmBus empty_bus;  // nobody runs here
   auto [empty_gui, empty_url] = serve(empty_bus.url(), "rack-gui-empty");
 
   std::filesystem::create_directories(kArtifacts);
-  const RunResult r = run({*node, kWeb + "/e2e/panels.mjs", "--url", url, "--empty-url", empty_url, "--chromium",
-                           chromium, "--shots", kArtifacts, "--stop-pid", std::to_string(gen.pid())},
+  const RunResult r = run({browser.node, kWeb + "/e2e/panels.mjs", "--url", url, "--empty-url", empty_url, "--chromium",
+                           browser.chromium, "--shots", kArtifacts, "--stop-pid", std::to_string(gen.pid())},
                           120s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui->err();
@@ -281,13 +269,8 @@ TEST_F(GuiE2eTest, DashboardPanelsInChromium) {
 // DashboardPanelsInChromium's click on the pilot once left a view of an address that
 // was gone (its command panel never appeared).
 TEST_F(GuiE2eTest, ComponentChosenBeforeItsClassIsDescribedKeepsItsView) {
-  const auto node = find_program("node");
-  const char* chromium_env = std::getenv("RACK_CHROMIUM");
-  const std::string chromium = chromium_env != nullptr ? chromium_env : "/usr/bin/chromium";
-  if (!node) GTEST_SKIP() << "node is not installed (Debian: apt-get install nodejs); scripts/setup.sh installs it";
-  if (access(chromium.c_str(), X_OK) != 0) {
-    GTEST_SKIP() << chromium << " is not installed (Debian: apt-get install chromium); scripts/setup.sh installs it";
-  }
+  const BrowserTools browser = find_browser_tools();
+  if (!browser.missing.empty()) GTEST_SKIP() << browser.missing;
   ASSERT_TRUE(std::filesystem::exists(kWeb + "/dist/index.html"))
       << "the front end is not built: run scripts/setup.sh (npm run build in " << kWeb << ")";
   const std::string robot = dir_.write("robot2.yaml",
@@ -308,11 +291,9 @@ TEST_F(GuiE2eTest, ComponentChosenBeforeItsClassIsDescribedKeepsItsView) {
   Process gui({kGui, "--port", "0", "--lcm", bus_.url(), "--web", kWeb + "/dist", "--reports", "", "--poll-ms",
                "10000"},
               dir_.path(), "rack-gui");
-  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
-  const std::string err = gui.err();
-  const auto at = err.find("http://");
-  const std::string url = err.substr(at, err.find(' ', at) - at);
-  const RunResult r = run({*node, kWeb + "/e2e/renamed.mjs", "--url", url, "--chromium", chromium}, 90s);
+  const std::string url = served_url(gui);
+  ASSERT_FALSE(url.empty()) << gui.err();
+  const RunResult r = run({browser.node, kWeb + "/e2e/renamed.mjs", "--url", url, "--chromium", browser.chromium}, 90s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui.err();
   EXPECT_NE(r.out.find("all checks passed"), std::string::npos) << r.out;

@@ -48,6 +48,16 @@ std::pair<int, std::string> get(uint16_t port, const std::string& target) {
   return {static_cast<int>(res.result_int()), res.body()};
 }
 
+// The real rack-gui's command line: a free port, an empty web root in `dir`, no crash
+// reports, then `args`.
+std::vector<std::string> gui_command(const TempDir& dir, const std::vector<std::string>& args) {
+  std::filesystem::create_directories(dir.path() / "web");
+  dir.write("web/index.html", "<html></html>");
+  std::vector<std::string> cmd{RACK_GUI_PATH, "--port", "0", "--web", (dir.path() / "web").string(), "--reports", ""};
+  cmd.insert(cmd.end(), args.begin(), args.end());
+  return cmd;
+}
+
 class HttpServerTest : public ::testing::Test {
  protected:
   HttpServerTest() : watchdog_(60s, "HttpServerTest") {
@@ -142,15 +152,9 @@ TEST(RackGuiServerTest, RefusesMalformedMessagesAndReportsUnansweredRequests) {
   Watchdog watchdog(60s, "RackGuiServerTest");
   TempDir dir;
   LcmBus bus;
-  std::filesystem::create_directories(dir.path() / "web");
-  dir.write("web/index.html", "<html></html>");
-  Process gui({RACK_GUI_PATH, "--port", "0", "--lcm", bus.url(), "--web", (dir.path() / "web").string(), "--reports",
-               "", "--timeout-ms", "300"},
-              dir.path(), "rack-gui");
-  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
-  const std::string err = gui.err();
-  const auto colon = err.find(':', err.find("http://127.0.0.1") + 10);
-  const auto port = static_cast<uint16_t>(std::stoi(err.substr(colon + 1)));
+  Process gui(gui_command(dir, {"--lcm", bus.url(), "--timeout-ms", "300"}), dir.path(), "rack-gui");
+  const uint16_t port = port_of(served_url(gui));
+  ASSERT_NE(port, 0) << gui.err();
 
   WsClient c(port);
   EXPECT_EQ(c.read_type("hello")["version"], 1);
@@ -200,15 +204,9 @@ TEST(RackGuiServerTest, HostileMessagesAreRefusedWithAReasonCountedAndNeverStall
   Watchdog watchdog(90s, "RackGuiServerTest.Hostile");
   TempDir dir;
   LcmBus bus;
-  std::filesystem::create_directories(dir.path() / "web");
-  dir.write("web/index.html", "<html></html>");
-  Process gui({RACK_GUI_PATH, "--port", "0", "--lcm", bus.url(), "--web", (dir.path() / "web").string(), "--reports",
-               "", "--timeout-ms", "300"},
-              dir.path(), "rack-gui");
-  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
-  const std::string err = gui.err();
-  const auto colon = err.find(':', err.find("http://127.0.0.1") + 10);
-  const auto port = static_cast<uint16_t>(std::stoi(err.substr(colon + 1)));
+  Process gui(gui_command(dir, {"--lcm", bus.url(), "--timeout-ms", "300"}), dir.path(), "rack-gui");
+  const uint16_t port = port_of(served_url(gui));
+  ASSERT_NE(port, 0) << gui.err();
 
   WsClient c(port);
   EXPECT_EQ(c.read_type("hello")["version"], 1);
@@ -286,8 +284,6 @@ TEST(RackGuiServerTest, SeesAKeyedHostOnlyWithItsKeyFile) {
   Watchdog watchdog(90s, "RackGuiServerTest.Keyed");
   TempDir dir;
   LcmBus bus;
-  std::filesystem::create_directories(dir.path() / "web");
-  dir.write("web/index.html", "<html></html>");
   const auto key = dir.write("link.key", std::string(64, 'b') + "\n");
   std::filesystem::permissions(key, std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
   const auto host = dir.write("keyed.yaml",
@@ -302,18 +298,15 @@ TEST(RackGuiServerTest, SeesAKeyedHostOnlyWithItsKeyFile) {
 
   // The components rack-gui reports within `limit` (names), from one rack-gui run.
   const auto components_seen = [&](std::vector<std::string> args, std::chrono::seconds limit) {
-    std::vector<std::string> cmd{RACK_GUI_PATH, "--port", "0",         "--web", (dir.path() / "web").string(),
-                                 "--reports",   "",       "--poll-ms", "100"};
-    cmd.insert(cmd.end(), args.begin(), args.end());
-    Process gui(cmd, dir.path(), "rack-gui");
+    args.insert(args.begin(), {"--poll-ms", "100"});
+    Process gui(gui_command(dir, args), dir.path(), "rack-gui");
     std::vector<std::string> names;
-    if (!gui.wait_for_stderr("rack-gui: serving http://", 15s)) {
+    const uint16_t port = port_of(served_url(gui));
+    if (port == 0) {
       ADD_FAILURE() << gui.err();
       return names;
     }
-    const std::string err = gui.err();
-    const auto colon = err.find(':', err.find("http://127.0.0.1") + 10);
-    WsClient c(static_cast<uint16_t>(std::stoi(err.substr(colon + 1))));
+    WsClient c(port);
     const auto deadline = std::chrono::steady_clock::now() + limit;
     while (names.empty() && std::chrono::steady_clock::now() < deadline) {
       const auto j = c.read_type("components");
@@ -350,8 +343,6 @@ TEST(RackGuiServerTest, PluginClassDataHasItsFieldNames) {
   Watchdog watchdog(60s, "RackGuiServerTest.PluginClass");
   TempDir dir;
   LcmBus bus;
-  std::filesystem::create_directories(dir.path() / "web");
-  dir.write("web/index.html", "<html></html>");
   const auto host = dir.write("counter.yaml", std::string("host: gui-describe\nsystem: 2\nheap_prefault_mib: 0\n") +
                                                   "plugins: [" + RACK_COUNTER_PLUGIN_PATH +
                                                   "]\ncomponents:\n"
@@ -360,13 +351,10 @@ TEST(RackGuiServerTest, PluginClassDataHasItsFieldNames) {
                                                   "    params: {label: hello}\n");
   Process rackd({RACK_RACKD_PATH, host.string(), "--lcm", bus.url()}, dir.path(), "rackd");
   ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
-  Process gui({RACK_GUI_PATH, "--port", "0", "--lcm", bus.url(), "--web", (dir.path() / "web").string(), "--reports",
-               "", "--poll-ms", "100"},
-              dir.path(), "rack-gui");
-  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
-  const std::string err = gui.err();
-  const auto colon = err.find(':', err.find("http://127.0.0.1") + 10);
-  WsClient c(static_cast<uint16_t>(std::stoi(err.substr(colon + 1))));
+  Process gui(gui_command(dir, {"--lcm", bus.url(), "--poll-ms", "100"}), dir.path(), "rack-gui");
+  const uint16_t port = port_of(served_url(gui));
+  ASSERT_NE(port, 0) << gui.err();
+  WsClient c(port);
   nlohmann::json data;
   for (int i = 0; i < 50 && !data.is_object(); ++i) {
     const auto j = c.read_type("data");
@@ -402,8 +390,6 @@ TEST(RackGuiServerTest, SetParamByAFormerNameSetsTheNewOneWithAWarning) {
   Watchdog watchdog(60s, "RackGuiServerTest.FormerName");
   TempDir dir;
   LcmBus bus;
-  std::filesystem::create_directories(dir.path() / "web");
-  dir.write("web/index.html", "<html></html>");
   const auto host = dir.write("monitor.yaml",
                               "host: gui-former\nsystem: 3\nheap_prefault_mib: 0\ncomponents:\n"
                               "  - name: gen\n    class: Generator\n    instance: 0\n"
@@ -412,13 +398,10 @@ TEST(RackGuiServerTest, SetParamByAFormerNameSetsTheNewOneWithAWarning) {
                               "    autostart: true\n    params: {source: gen}\n");
   Process rackd({RACK_RACKD_PATH, host.string(), "--lcm", bus.url()}, dir.path(), "rackd");
   ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
-  Process gui({RACK_GUI_PATH, "--port", "0", "--lcm", bus.url(), "--web", (dir.path() / "web").string(), "--reports",
-               "", "--poll-ms", "100"},
-              dir.path(), "rack-gui");
-  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://", 15s)) << gui.err();
-  const std::string err = gui.err();
-  const auto colon = err.find(':', err.find("http://127.0.0.1") + 10);
-  WsClient c(static_cast<uint16_t>(std::stoi(err.substr(colon + 1))));
+  Process gui(gui_command(dir, {"--lcm", bus.url(), "--poll-ms", "100"}), dir.path(), "rack-gui");
+  const uint16_t port = port_of(served_url(gui));
+  ASSERT_NE(port, 0) << gui.err();
+  WsClient c(port);
   bool described = false;  // the monitor's data came with its class's name: rack-gui knows it
   for (int i = 0; i < 100 && !described; ++i) {
     const auto j = c.read_type("data");

@@ -28,6 +28,8 @@
 
 #include "mini_json.h"
 #include "process.h"
+#include "raw_lcm.h"
+#include "shipped_host.h"
 #include "rack_lcm/discover_request.hpp"
 #include "rack_lcm/gdos_batch.hpp"
 #include "rack_lcm/gdos_listener.hpp"
@@ -38,84 +40,18 @@ namespace rack::test {
 namespace {
 
 using namespace std::chrono_literals;
-using Bytes = std::vector<uint8_t>;
 
-const std::string kRackd = RACK_RACKD_PATH;
-const std::string kRackctl = RACK_RACKCTL_PATH;
 const std::string kGdos = RACK_GDOS_PATH;
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 void put8(Bytes& d, uint8_t v) { d.push_back(v); }
-void put32(Bytes& d, uint32_t v) {
-  for (int i = 3; i >= 0; --i) d.push_back(static_cast<uint8_t>(v >> (8 * i)));
-}
-void put64(Bytes& d, uint64_t v) {
-  for (int i = 7; i >= 0; --i) d.push_back(static_cast<uint8_t>(v >> (8 * i)));
-}
 // An lcm-gen string with the length field given (the bytes that follow are `text`).
 void put_string(Bytes& d, int32_t length, const std::string& text = "") {
   put32(d, static_cast<uint32_t>(length));
   d.insert(d.end(), text.begin(), text.end());
 }
 void put_string(Bytes& d, const std::string& s) { put_string(d, static_cast<int32_t>(s.size() + 1), s + '\0'); }
-
-// Raw datagrams to the bus's group and port, in LCM's framing or in none.
-class RawLcm {
- public:
-  explicit RawLcm(int port) {
-    fd_ = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    if (fd_ < 0) throw std::runtime_error("socket");
-    const unsigned char ttl = 0, loop = 1;  // stays on this machine, reaches our own stack
-    setsockopt(fd_, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl);
-    setsockopt(fd_, IPPROTO_IP, IP_MULTICAST_LOOP, &loop, sizeof loop);
-    to_.sin_family = AF_INET;
-    to_.sin_port = htons(static_cast<uint16_t>(port));
-    inet_pton(AF_INET, "239.255.76.67", &to_.sin_addr);
-  }
-  ~RawLcm() { close(fd_); }
-  RawLcm(const RawLcm&) = delete;
-  RawLcm& operator=(const RawLcm&) = delete;
-
-  // "LC02", sequence number, channel, NUL, payload (lcm_udpm.c).
-  void send(const std::string& channel, const Bytes& payload) {
-    Bytes d;
-    put32(d, 0x4c433032u);
-    put32(d, seq_++);
-    d.insert(d.end(), channel.begin(), channel.end());
-    d.push_back(0);
-    d.insert(d.end(), payload.begin(), payload.end());
-    send_raw(d);
-  }
-  // "LC03": a fragment of a message of `total` bytes (lcm_udpm.c's layout), with
-  // whatever fields are given; the first fragment carries the channel.
-  void send_fragment(uint32_t msg_seq, uint32_t total, uint32_t offset, uint16_t number, uint16_t count,
-                     const std::string& channel, std::size_t bytes) {
-    Bytes d;
-    put32(d, 0x4c433033u);
-    put32(d, msg_seq);
-    put32(d, total);
-    put32(d, offset);
-    d.push_back(static_cast<uint8_t>(number >> 8));
-    d.push_back(static_cast<uint8_t>(number));
-    d.push_back(static_cast<uint8_t>(count >> 8));
-    d.push_back(static_cast<uint8_t>(count));
-    if (number == 0) {
-      d.insert(d.end(), channel.begin(), channel.end());
-      d.push_back(0);
-    }
-    d.resize(d.size() + bytes, 0xA5);
-    send_raw(d);
-  }
-  void send_raw(const Bytes& d) {
-    (void)sendto(fd_, d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&to_), sizeof to_);
-  }
-
- private:
-  int fd_ = -1;
-  sockaddr_in to_{};
-  uint32_t seq_ = 0;
-};
 
 // ---- the payloads (tims/lcm/*.lcm), field by field, so that any field can lie ----
 
@@ -325,21 +261,10 @@ class HostileNetTest : public ::testing::Test {
  protected:
   HostileNetTest() : watchdog_(110s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
   void SetUp() override {
-    const auto path = dir_.write("host.yaml", kHost);
-    rackd_ = std::make_unique<Process>(
-        std::vector<std::string>{kRackd, path.string(), "--lcm", bus_.url(), "--status", "1"}, dir_.path(), "rackd");
-    ASSERT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
+    ASSERT_TRUE(host_.start(host_.write("host.yaml", kHost), {"--status", "1"}));
+    rackd_ = &host_.rackd();
   }
-  void TearDown() override {
-    if (rackd_ && rackd_->running()) {
-      rackd_->signal(SIGTERM);
-      EXPECT_EQ(rackd_->wait_exit(30s), std::optional<int>(0)) << rackd_->err();
-    }
-  }
-  RunResult ctl(std::vector<std::string> args) {
-    args.insert(args.begin(), {kRackctl, "--lcm", bus_.url(), "--discover-ms", "1500"});
-    return run(args, 30s);
-  }
+  RunResult ctl(std::vector<std::string> args) { return host_.ctl(std::move(args), "1500"); }
   std::optional<Json> status(const std::string& name) {
     const RunResult r = ctl({"status", name, "--json"});
     if (r.exit_code != 0) return std::nullopt;
@@ -352,15 +277,6 @@ class HostileNetTest : public ::testing::Test {
   static std::string text(const std::optional<Json>& j, const std::string& key) {
     const Json* v = j ? j->get(key) : nullptr;
     return v != nullptr && v->is_string() ? v->string : "";
-  }
-  template <typename Pred>
-  static bool eventually(Pred pred, std::chrono::milliseconds bound = 20s) {
-    const auto deadline = std::chrono::steady_clock::now() + bound;
-    while (!pred()) {
-      if (std::chrono::steady_clock::now() >= deadline) return false;
-      std::this_thread::sleep_for(50ms);
-    }
-    return true;
   }
   long long refused(const std::string& key) { return status_counter(rackd_->out(), "TiMS/LCM refused:", key); }
   // Waits for a status line printed after now (rackd prints one a second).
@@ -390,9 +306,10 @@ class HostileNetTest : public ::testing::Test {
   }
 
   Watchdog watchdog_;
-  TempDir dir_;
-  LcmBus bus_;
-  std::unique_ptr<Process> rackd_;
+  RackdOnBus host_;  // rackd --status 1; stopped (SIGTERM, exit 0) when the test ends
+  const TempDir& dir_ = host_.dir();
+  const LcmBus& bus_ = host_.bus();
+  Process* rackd_ = nullptr;  // once started
 };
 
 TEST_F(HostileNetTest, EveryKindOfHostileDatagramIsRefusedCountedAndRackdKeepsItsRate) {

@@ -134,15 +134,6 @@ class MultiHostTest : public ::testing::Test {
     const Json* v = j ? j->get(key) : nullptr;
     return v != nullptr && v->is_number() ? v->number : -1;
   }
-  template <typename Pred>
-  bool eventually(Pred pred, std::chrono::milliseconds bound = kSettleLimit) {
-    const auto deadline = std::chrono::steady_clock::now() + bound;
-    for (;;) {
-      if (pred()) return true;
-      if (std::chrono::steady_clock::now() >= deadline) return false;
-      std::this_thread::sleep_for(100ms);
-    }
-  }
   // The monitor's received-sample count grows (data flows across hosts).
   bool receiving(int from, const std::string& monitor) {
     const double before = number_of(from, monitor, "cycles");

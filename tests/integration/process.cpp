@@ -294,6 +294,38 @@ std::optional<std::string> find_program(const std::string& name) {
   return std::nullopt;
 }
 
+BrowserTools find_browser_tools() {
+  BrowserTools t;
+  const char* chromium = std::getenv("RACK_CHROMIUM");
+  t.chromium = chromium != nullptr ? chromium : "/usr/bin/chromium";
+  if (const auto node = find_program("node")) {
+    t.node = *node;
+  } else {
+    t.missing = "node is not installed (Debian: apt-get install nodejs); scripts/setup.sh installs it";
+    return t;
+  }
+  if (access(t.chromium.c_str(), X_OK) != 0) {
+    t.missing = t.chromium + " is not installed (Debian: apt-get install chromium); scripts/setup.sh installs it";
+  }
+  return t;
+}
+
+std::string served_url(Process& gui, std::chrono::milliseconds timeout) {
+  const std::string said = "rack-gui: serving ";
+  if (!gui.wait_for_stderr(said + "http://", timeout)) return "";
+  const std::string err = gui.err();
+  const auto at = err.find(said) + said.size();
+  return err.substr(at, err.find_first_of(" \n", at) - at);
+}
+
+uint16_t port_of(const std::string& url) {
+  const auto host = url.find("://");
+  const auto colon = url.find(':', host == std::string::npos ? 0 : host + 3);
+  if (host == std::string::npos || colon == std::string::npos) return 0;
+  const long port = std::strtol(url.c_str() + colon + 1, nullptr, 10);
+  return port > 0 && port <= 65535 ? static_cast<uint16_t>(port) : 0;
+}
+
 std::string read_file(const std::filesystem::path& path) {
   std::ifstream f(path);
   std::stringstream s;

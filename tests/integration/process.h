@@ -9,6 +9,7 @@
 #include <sys/types.h>
 
 #include <chrono>
+#include <cstdint>
 #include <condition_variable>
 #include <filesystem>
 #include <mutex>
@@ -111,8 +112,36 @@ class TempDir {
 
 std::string read_file(const std::filesystem::path& path);
 
+// Polls `pred` every 50 ms until it holds (true) or `bound` has passed (false). The
+// integration tests wait for real processes this way; the bound only turns a hang into
+// a failure (generous by design, never a timing assertion).
+template <typename Pred>
+bool eventually(Pred pred, std::chrono::milliseconds bound = std::chrono::seconds(20)) {
+  const auto deadline = std::chrono::steady_clock::now() + bound;
+  for (;;) {
+    if (pred()) return true;
+    if (std::chrono::steady_clock::now() >= deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
 // The first executable `name` in $PATH (/usr/bin:/bin when PATH is unset), or nullopt:
 // tests that need an outside tool (node, dot) skip with the reason when it is missing.
 std::optional<std::string> find_program(const std::string& name);
+
+// What the browser tests need (Playwright's scripts run by node, driving Chromium):
+// node from $PATH and Chromium ($RACK_CHROMIUM, else /usr/bin/chromium).
+struct BrowserTools {
+  std::string node;      // its path, when installed
+  std::string chromium;  // the path tried
+  std::string missing;   // why a test must skip (what is not installed); empty: both are there
+};
+BrowserTools find_browser_tools();
+
+// The address rack-gui serves on, once its stderr says "rack-gui: serving http://..."
+// within `timeout`: "http://HOST:PORT/" as printed; "" when it did not say so.
+std::string served_url(Process& gui, std::chrono::milliseconds timeout = std::chrono::seconds(15));
+// The port of an "http://HOST:PORT/..." address (0 when it names none).
+uint16_t port_of(const std::string& url);
 
 }  // namespace rack::test

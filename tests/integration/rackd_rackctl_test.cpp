@@ -85,16 +85,6 @@ class IntegrationTest : public ::testing::Test {
     const Json* s = j ? j->get("state") : nullptr;
     return s != nullptr && s->is_string() ? s->string : "";
   }
-  // Polls until `pred` holds (true) or the bound passes (false).
-  template <typename Pred>
-  bool eventually(Pred pred, std::chrono::milliseconds bound = kSettleLimit) {
-    const auto deadline = std::chrono::steady_clock::now() + bound;
-    for (;;) {
-      if (pred()) return true;
-      if (std::chrono::steady_clock::now() >= deadline) return false;
-      std::this_thread::sleep_for(50ms);
-    }
-  }
 
   Watchdog watchdog_;
   TempDir dir_;
@@ -316,6 +306,20 @@ class RackdDemoTest : public IntegrationTest {
       EXPECT_EQ(code, std::optional<int>(0)) << rackd_->err();
     }
   }
+  // `component`'s parameter `name` as `rackctl params --json` gives it; nullopt when
+  // rackctl fails (a failure of the test too) or does not list it.
+  std::optional<double> param_value(const std::string& component, const std::string& name) {
+    const RunResult r = ctl({"params", component, "--json"});
+    EXPECT_EQ(r.exit_code, 0) << r.describe();
+    const auto params = parse_json(r.out);
+    EXPECT_TRUE(params.has_value()) << r.out;
+    if (params) {
+      for (const auto& p : params->array) {
+        if (p.at("name").string == name) return p.at("value").number;
+      }
+    }
+    return std::nullopt;
+  }
   std::unique_ptr<Process> rackd_;
 };
 
@@ -470,17 +474,7 @@ TEST_F(RackdDemoTest, ParamsAndSetParam) {
 
   r = ctl({"set-param", "generator", "amplitude", "5"});
   ASSERT_EQ(r.exit_code, 0) << r.describe();
-  r = ctl({"params", "generator", "--json"});
-  ASSERT_EQ(r.exit_code, 0) << r.describe();
-  const auto params = parse_json(r.out);
-  ASSERT_TRUE(params.has_value()) << r.out;
-  bool seen = false;
-  for (const auto& p : params->array) {
-    if (p.at("name").string != "amplitude") continue;
-    seen = true;
-    EXPECT_EQ(p.at("value").number, 5.0);
-  }
-  EXPECT_TRUE(seen) << r.out;
+  EXPECT_EQ(param_value("generator", "amplitude"), std::optional<double>(5.0));
   r = ctl({"get-data", "generator"});
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   const auto sample = parse_json(r.out);
@@ -524,17 +518,7 @@ TEST_F(RackdDemoTest, SetParamByAFormerNameSetsTheNewOneWithAWarning) {
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   EXPECT_TRUE(contains(r.out, "source_period_ms = 50")) << r.describe();
   EXPECT_TRUE(contains(r.err, "warning: parameter 'period_ms' is now 'source_period_ms'")) << r.describe();
-  r = ctl({"params", "monitor", "--json"});
-  ASSERT_EQ(r.exit_code, 0) << r.describe();
-  const auto params = parse_json(r.out);
-  ASSERT_TRUE(params.has_value()) << r.out;
-  bool seen = false;
-  for (const auto& p : params->array) {
-    if (p.at("name").string != "source_period_ms") continue;
-    seen = true;
-    EXPECT_EQ(p.at("value").number, 50.0);
-  }
-  EXPECT_TRUE(seen) << r.out;
+  EXPECT_EQ(param_value("monitor", "source_period_ms"), std::optional<double>(50.0));
   // By its own name: no warning.
   r = ctl({"set-param", "monitor", "source_period_ms", "100"});
   ASSERT_EQ(r.exit_code, 0) << r.describe();

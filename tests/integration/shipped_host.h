@@ -1,7 +1,8 @@
 // The prelude that the integration tests of the shipped host files share (trace,
 // sim_nav, replay_end, replay_mcl): a copy of configs/NAME with its data paths made
 // absolute, the real rackd on it on a private LCM bus, the real rackctl on the same
-// bus, and a clean stop (SIGTERM, exit status 0) at the end.
+// bus, and a clean stop (SIGTERM, exit status 0) at the end. RackdOnBus serves tests of
+// a host file of their own the same way (tims_input, hostile_net).
 #pragma once
 
 #include <gtest/gtest.h>
@@ -56,9 +57,10 @@ class RackdOnBus {
     }
     return ::testing::AssertionFailure() << "rackd did not say 'rackd: running':\n" << rackd_->err();
   }
-  // rackctl on the same bus (discovery bounded to 3 s), to completion within 30 s.
-  RunResult ctl(std::vector<std::string> args) const {
-    args.insert(args.begin(), {RACK_RACKCTL_PATH, "--lcm", bus_.url(), "--discover-ms", "3000"});
+  // rackctl on the same bus (discovery bounded to `discover_ms`), to completion within
+  // 30 s.
+  RunResult ctl(std::vector<std::string> args, const std::string& discover_ms = "3000") const {
+    args.insert(args.begin(), {RACK_RACKCTL_PATH, "--lcm", bus_.url(), "--discover-ms", discover_ms});
     return run(args, std::chrono::seconds(30));
   }
 

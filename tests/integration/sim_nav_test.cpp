@@ -62,14 +62,10 @@ class SimNavTest : public ::testing::Test {
     const auto d = data(name);
     return d && d->at(field).is_number() ? d->at(field).number : -1e9;
   }
+  // The robot's waits: process.h's, with room for a robot driving across the map.
   template <typename Pred>
-  bool eventually(Pred pred, std::chrono::milliseconds bound = 30s) {
-    const auto deadline = std::chrono::steady_clock::now() + bound;
-    for (;;) {
-      if (pred()) return true;
-      if (std::chrono::steady_clock::now() >= deadline) return false;
-      std::this_thread::sleep_for(100ms);
-    }
+  static bool eventually(Pred pred, std::chrono::milliseconds bound = 30s) {
+    return test::eventually(pred, bound);
   }
 
   Watchdog watchdog_;

@@ -28,6 +28,8 @@
 
 #include "mini_json.h"
 #include "process.h"
+#include "raw_lcm.h"
+#include "shipped_host.h"
 #include "rack/components/class_ids.h"
 #include "rack/core/wire.h"
 #include "rack/tims/message.h"
@@ -40,9 +42,6 @@ namespace {
 using namespace std::chrono_literals;
 using tims::Address;
 
-const std::string kRackd = RACK_RACKD_PATH;
-const std::string kRackctl = RACK_RACKCTL_PATH;
-
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 double number(const std::optional<Json>& j, const std::string& key) {
@@ -53,49 +52,6 @@ std::string text(const std::optional<Json>& j, const std::string& key) {
   const Json* v = j ? j->get(key) : nullptr;
   return v != nullptr && v->is_string() ? v->string : "";
 }
-
-// Writes datagrams in LCM's short-message framing: "LC02", sequence number,
-// channel, NUL, payload (lcm_udpm.c).
-class RawLcm {
- public:
-  explicit RawLcm(int port) {
-    fd_ = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    if (fd_ < 0) throw std::runtime_error("socket");
-    const unsigned char ttl = 0, loop = 1;  // stays on this machine, reaches our own stack
-    setsockopt(fd_, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl);
-    setsockopt(fd_, IPPROTO_IP, IP_MULTICAST_LOOP, &loop, sizeof loop);
-    to_.sin_family = AF_INET;
-    to_.sin_port = htons(static_cast<uint16_t>(port));
-    inet_pton(AF_INET, "239.255.76.67", &to_.sin_addr);
-  }
-  ~RawLcm() { close(fd_); }
-  RawLcm(const RawLcm&) = delete;
-  RawLcm& operator=(const RawLcm&) = delete;
-
-  void send(const std::string& channel, const std::vector<uint8_t>& payload) {
-    std::vector<uint8_t> d;
-    put32(d, 0x4c433032u);
-    put32(d, seq_++);
-    d.insert(d.end(), channel.begin(), channel.end());
-    d.push_back(0);
-    d.insert(d.end(), payload.begin(), payload.end());
-    send_raw(d);
-  }
-  void send_raw(const std::vector<uint8_t>& d) {
-    (void)sendto(fd_, d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&to_), sizeof to_);
-  }
-  static void put32(std::vector<uint8_t>& d, uint32_t v) {
-    for (int i = 3; i >= 0; --i) d.push_back(static_cast<uint8_t>(v >> (8 * i)));
-  }
-  static void put64(std::vector<uint8_t>& d, uint64_t v) {
-    for (int i = 7; i >= 0; --i) d.push_back(static_cast<uint8_t>(v >> (8 * i)));
-  }
-
- private:
-  int fd_ = -1;
-  sockaddr_in to_{};
-  uint32_t seq_ = 0;
-};
 
 struct Chunk {
   int64_t origin = 0x5eed;
@@ -113,17 +69,17 @@ struct Chunk {
 // A tims_packet (see tims/lcm/rack_tims.lcm), fields as given.
 std::vector<uint8_t> packet(const Chunk& c, const std::vector<uint8_t>& data) {
   std::vector<uint8_t> p;
-  RawLcm::put64(p, c.fingerprint);
-  RawLcm::put64(p, static_cast<uint64_t>(c.origin));
-  RawLcm::put64(p, 0);  // relay
-  RawLcm::put32(p, static_cast<uint32_t>(c.packet_seq));
-  RawLcm::put32(p, static_cast<uint32_t>(c.message_seq));
-  RawLcm::put32(p, static_cast<uint32_t>(c.total));
-  RawLcm::put32(p, static_cast<uint32_t>(c.encoded));
-  RawLcm::put32(p, static_cast<uint32_t>(c.offset));
+  put64(p, c.fingerprint);
+  put64(p, static_cast<uint64_t>(c.origin));
+  put64(p, 0);  // relay
+  put32(p, static_cast<uint32_t>(c.packet_seq));
+  put32(p, static_cast<uint32_t>(c.message_seq));
+  put32(p, static_cast<uint32_t>(c.total));
+  put32(p, static_cast<uint32_t>(c.encoded));
+  put32(p, static_cast<uint32_t>(c.offset));
   p.push_back(static_cast<uint8_t>(c.encoding));
   p.push_back(static_cast<uint8_t>(c.hops));
-  RawLcm::put32(p, static_cast<uint32_t>(c.size.value_or(static_cast<int32_t>(data.size()))));
+  put32(p, static_cast<uint32_t>(c.size.value_or(static_cast<int32_t>(data.size()))));
   p.insert(p.end(), data.begin(), data.end());
   return p;
 }
@@ -168,21 +124,10 @@ class TimsInputTest : public ::testing::Test {
  protected:
   TimsInputTest() : watchdog_(100s, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}
   void SetUp() override {
-    const auto path = dir_.write("host.yaml", kHost);
-    rackd_ = std::make_unique<Process>(
-        std::vector<std::string>{kRackd, path.string(), "--lcm", bus_.url(), "--status", "1"}, dir_.path(), "rackd");
-    ASSERT_TRUE(rackd_->wait_for_stderr("rackd: running", 30s)) << rackd_->err();
+    ASSERT_TRUE(host_.start(host_.write("host.yaml", kHost), {"--status", "1"}));
+    rackd_ = &host_.rackd();
   }
-  void TearDown() override {
-    if (rackd_ && rackd_->running()) {
-      rackd_->signal(SIGTERM);
-      EXPECT_EQ(rackd_->wait_exit(30s), std::optional<int>(0)) << rackd_->err();
-    }
-  }
-  RunResult ctl(std::vector<std::string> args) {
-    args.insert(args.begin(), {kRackctl, "--lcm", bus_.url(), "--discover-ms", "3000"});
-    return run(args, 30s);
-  }
+  RunResult ctl(std::vector<std::string> args) { return host_.ctl(std::move(args)); }
   std::optional<Json> status(const std::string& name) {
     const RunResult r = ctl({"status", name, "--json"});
     if (r.exit_code != 0) return std::nullopt;
@@ -197,9 +142,10 @@ class TimsInputTest : public ::testing::Test {
   }
 
   Watchdog watchdog_;
-  TempDir dir_;
-  LcmBus bus_;
-  std::unique_ptr<Process> rackd_;
+  RackdOnBus host_;  // rackd --status 1; stopped (SIGTERM, exit 0) when the test ends
+  const TempDir& dir_ = host_.dir();
+  const LcmBus& bus_ = host_.bus();
+  Process* rackd_ = nullptr;  // once started
 };
 
 TEST_F(TimsInputTest, FloodOfMalformedPacketsIsDroppedCountedAndThePeriodicTaskKeepsItsRate) {
@@ -254,8 +200,8 @@ TEST_F(TimsInputTest, FloodOfMalformedPacketsIsDroppedCountedAndThePeriodicTaskK
       raw.send("TIMS", message_packet(tims_message(generator, tool, 99, 2, {}, true, true), 0x4444, seq));
       // Announcement claiming two billion components; discover request of noise.
       std::vector<uint8_t> ann;
-      RawLcm::put64(ann, 0x1122334455667788ULL);
-      RawLcm::put32(ann, 0x7FFFFFFF);
+      put64(ann, 0x1122334455667788ULL);
+      put32(ann, 0x7FFFFFFF);
       raw.send("TIMS_ANNOUNCE", ann);
       raw.send("TIMS_DISCOVER", random_bytes(64));
       raw.send_raw(random_bytes(200));  // not even LCM

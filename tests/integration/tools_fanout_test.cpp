@@ -30,6 +30,7 @@
 
 #include "mini_json.h"
 #include "process.h"
+#include "raw_lcm.h"
 #include "rack/components/class_ids.h"
 #include "rack/tims/message.h"
 #include "rack/tims/router.h"
@@ -69,61 +70,22 @@ std::string host_file(int host) {
   return t;
 }
 
-// Datagrams in LCM's short-message framing ("LC02", sequence, channel, NUL, payload).
-class RawLcm {
- public:
-  explicit RawLcm(int port) {
-    fd_ = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    if (fd_ < 0) throw std::runtime_error("socket");
-    const unsigned char ttl = 0, loop = 1;
-    setsockopt(fd_, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl);
-    setsockopt(fd_, IPPROTO_IP, IP_MULTICAST_LOOP, &loop, sizeof loop);
-    to_.sin_family = AF_INET;
-    to_.sin_port = htons(static_cast<uint16_t>(port));
-    inet_pton(AF_INET, "239.255.76.67", &to_.sin_addr);
-  }
-  ~RawLcm() { close(fd_); }
-  RawLcm(const RawLcm&) = delete;
-  RawLcm& operator=(const RawLcm&) = delete;
-
-  void send(const std::string& channel, const std::vector<uint8_t>& payload) {
-    std::vector<uint8_t> d;
-    put(d, 0x4c433032u, 4);
-    put(d, seq_++, 4);
-    d.insert(d.end(), channel.begin(), channel.end());
-    d.push_back(0);
-    d.insert(d.end(), payload.begin(), payload.end());
-    send_raw(d);
-  }
-  void send_raw(const std::vector<uint8_t>& d) {
-    (void)sendto(fd_, d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&to_), sizeof to_);
-  }
-  static void put(std::vector<uint8_t>& d, uint64_t v, int bytes) {
-    for (int i = bytes - 1; i >= 0; --i) d.push_back(static_cast<uint8_t>(v >> (8 * i)));
-  }
-
- private:
-  int fd_ = -1;
-  sockaddr_in to_{};
-  uint32_t seq_ = 0;
-};
-
 // One tims_packet holding a whole TiMS message (see tims/lcm/rack_tims.lcm).
 std::vector<uint8_t> tims_packet(const std::vector<uint8_t>& message, int64_t origin, int32_t seq,
                                  int32_t total_override = -1) {
   std::vector<uint8_t> p;
-  RawLcm::put(p, static_cast<uint64_t>(rack_lcm::tims_packet::getHash()), 8);
-  RawLcm::put(p, static_cast<uint64_t>(origin), 8);
-  RawLcm::put(p, 0, 8);  // relay
-  RawLcm::put(p, static_cast<uint32_t>(seq), 4);
-  RawLcm::put(p, static_cast<uint32_t>(seq), 4);
+  put64(p, static_cast<uint64_t>(rack_lcm::tims_packet::getHash()));
+  put64(p, static_cast<uint64_t>(origin));
+  put64(p, 0);  // relay
+  put32(p, static_cast<uint32_t>(seq));
+  put32(p, static_cast<uint32_t>(seq));
   const auto total = static_cast<uint32_t>(total_override >= 0 ? total_override : static_cast<int32_t>(message.size()));
-  RawLcm::put(p, total, 4);
-  RawLcm::put(p, total, 4);
-  RawLcm::put(p, 0, 4);  // offset
-  p.push_back(0);        // encoding
-  p.push_back(0);        // hops
-  RawLcm::put(p, message.size(), 4);
+  put32(p, total);
+  put32(p, total);
+  put32(p, 0);     // offset
+  p.push_back(0);  // encoding
+  p.push_back(0);  // hops
+  put32(p, static_cast<uint32_t>(message.size()));
   p.insert(p.end(), message.begin(), message.end());
   return p;
 }

@@ -46,16 +46,6 @@ const std::string kConfigs = RACK_CONFIGS_DIR;
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
-template <typename Pred>
-bool eventually(Pred pred, std::chrono::milliseconds bound) {
-  const auto deadline = std::chrono::steady_clock::now() + bound;
-  for (;;) {
-    if (pred()) return true;
-    if (std::chrono::steady_clock::now() >= deadline) return false;
-    std::this_thread::sleep_for(100ms);
-  }
-}
-
 // A TiMS node of the tool system on the bus, as rackctl is, that sends what the test
 // asks (any type, any destination mailbox) from its own address.
 class Tool {

@@ -21,7 +21,6 @@
 #include <string>
 #include <vector>
 
-#include "rack/components/builtin.h"
 #include "rack/core/data_component.h"
 #include "rack/core/host_config.h"
 #include "rack/interfaces/demo.h"
@@ -34,6 +33,7 @@ namespace {
 using interfaces::GeneratorData;
 using interfaces::MonitorData;
 using test::HostUnderTest;
+using test::Stepping;
 using test::Watchdog;
 using tims::Address;
 namespace msg = tims::msg;
@@ -266,15 +266,20 @@ components:
 )";
 }
 
+// The InputOneOfTest hosts are stepped (rack/core/stepper.h): waiting for a condition
+// moves the virtual clock to the first instant it holds, within this much of it.
+constexpr int64_t kLimit = 10 * rt::kNsPerSec;
+
 TEST(InputOneOfTest, EachSampleIsTakenAsTheTypeOfItsSize) {
   Watchdog dog;
   for (const char* cls : {"Generator", "MonitorLikeProducer"}) {
-    HostUnderTest host(either_yaml(cls), register_either);
+    HostUnderTest host(either_yaml(cls), register_either, false, Stepping::kStepped);
     const Address either = host.address_of("either");
-    ASSERT_TRUE(host.wait_status(either, msg::kEnabled)) << host.log();
+    ASSERT_EQ(host.status(either), msg::kEnabled) << host.log();
     MonitorData d{};
     wire::SampleHeader sh;
-    ASSERT_TRUE(test::eventually([&] { return host.get_data(either, sh, d) && d.received + d.gaps >= 5; }))
+    ASSERT_TRUE(
+        host.stepper().run_until([&] { return host.get_data(either, sh, d) && d.received + d.gaps >= 5; }, kLimit))
         << cls << "\n"
         << host.log();
     if (std::string(cls) == "Generator") {
@@ -289,12 +294,13 @@ TEST(InputOneOfTest, EachSampleIsTakenAsTheTypeOfItsSize) {
 
 TEST(InputOneOfTest, ASampleOfNoTypesSizeIsMalformedAndCountedOnTheInput) {
   Watchdog dog;
-  HostUnderTest host(either_yaml("WrongSizeProducer"), register_either);
+  HostUnderTest host(either_yaml("WrongSizeProducer"), register_either, false, Stepping::kStepped);
   const Address either = host.address_of("either");
-  ASSERT_TRUE(host.wait_status(either, msg::kEnabled)) << host.log();
+  ASSERT_EQ(host.status(either), msg::kEnabled) << host.log();
   MonitorData d{};
   wire::SampleHeader sh;
-  ASSERT_TRUE(test::eventually([&] { return host.get_data(either, sh, d) && d.latency_ns >= 3; })) << host.log();
+  ASSERT_TRUE(host.stepper().run_until([&] { return host.get_data(either, sh, d) && d.latency_ns >= 3; }, kLimit))
+      << host.log();
   EXPECT_EQ(d.received + d.gaps, 0u) << "nothing delivered";
   EXPECT_GE(host.stats(either).malformed, 3u) << "and counted in GET_STATS";
   EXPECT_EQ(host.status(either), msg::kEnabled);
@@ -302,14 +308,15 @@ TEST(InputOneOfTest, ASampleOfNoTypesSizeIsMalformedAndCountedOnTheInput) {
 
 TEST(InputOneOfTest, TheErrorOfAnInputThatDoesNotFailOnItIsCountedNotFatal) {
   Watchdog dog;
-  HostUnderTest host(either_yaml("Generator"), register_either);
+  HostUnderTest host(either_yaml("Generator"), register_either, false, Stepping::kStepped);
   const Address src = host.address_of("src");
   const Address either = host.address_of("either");
-  ASSERT_TRUE(host.wait_status(either, msg::kEnabled)) << host.log();
+  ASSERT_EQ(host.status(either), msg::kEnabled) << host.log();
   ASSERT_EQ(host.call(src, msg::kOff).type, msg::kOk);
   MonitorData d{};
   wire::SampleHeader sh;
-  ASSERT_TRUE(test::eventually([&] { return host.get_data(either, sh, d) && d.latency_max_ns == 1; })) << host.log();
+  ASSERT_TRUE(host.stepper().run_until([&] { return host.get_data(either, sh, d) && d.latency_max_ns == 1; }, kLimit))
+      << host.log();
   EXPECT_EQ(host.status(either), msg::kEnabled) << "fail_on_error false: the consumer stays ENABLED";
 }
 
@@ -335,16 +342,14 @@ class SilenceConsumer final : public DataComponent<MonitorData> {
 };
 
 TEST(SilenceParamTest, TheClassSaysWhatTimeoutMsMeansAndAnInputMayDeclareNoSilence) {
-  ComponentRegistry registry;
-  components::register_builtin(registry);
-  registry.add({"SilenceFromTimeout", tims::classes::kFirstUser, "test",
-                [] { return std::make_unique<SilenceConsumer<SilenceParam::kSilenceMs, true>>(); }});
-  registry.add({"SilenceOnly", static_cast<uint8_t>(tims::classes::kFirstUser + 1), "test",
-                [] { return std::make_unique<SilenceConsumer<SilenceParam::kSilenceMsOnly, true>>(); }});
-  registry.add({"NoSilence", static_cast<uint8_t>(tims::classes::kFirstUser + 2), "test",
-                [] { return std::make_unique<SilenceConsumer<SilenceParam::kNone, false>>(); }});
-  rt::RtCapabilities caps;
-  caps.online_cpus = {0, 1};
+  test::HostFileLoader loader([](ComponentRegistry& registry) {
+    registry.add({"SilenceFromTimeout", tims::classes::kFirstUser, "test",
+                  [] { return std::make_unique<SilenceConsumer<SilenceParam::kSilenceMs, true>>(); }});
+    registry.add({"SilenceOnly", static_cast<uint8_t>(tims::classes::kFirstUser + 1), "test",
+                  [] { return std::make_unique<SilenceConsumer<SilenceParam::kSilenceMsOnly, true>>(); }});
+    registry.add({"NoSilence", static_cast<uint8_t>(tims::classes::kFirstUser + 2), "test",
+                  [] { return std::make_unique<SilenceConsumer<SilenceParam::kNone, false>>(); }});
+  });
   const std::string text = R"(system: 0
 lcm: false
 components:
@@ -364,10 +369,9 @@ components:
     data_task: {timeout_ms: 400}
     params: {source: gen}
 )";
-  const LoadResult r = load_host_text(text, "silence.yaml", registry, caps);
+  const LoadResult r = loader.load(text, "silence.yaml");
   ASSERT_TRUE(r.errors.empty()) << r.errors.front().str();
-  std::string warnings;
-  for (const auto& w : r.warnings) warnings += w.str() + "\n";
+  const std::string warnings = test::text_of(r.warnings);
   ASSERT_EQ(r.warnings.size(), 1u) << warnings;
   EXPECT_NE(warnings.find("component 'a': data_task.timeout_ms is now the parameter silence_ms"), std::string::npos)
       << warnings;

@@ -9,7 +9,6 @@
 #include <cstring>
 #include <string>
 
-#include "rack/components/builtin.h"
 #include "rack/core/handoff.h"
 #include "rack/core/host_config.h"
 #include "rack/interfaces/demo.h"
@@ -19,31 +18,12 @@ namespace rack {
 namespace {
 
 using interfaces::MonitorData;
+using test::generator_monitor_yaml;
 using test::HostUnderTest;
 using test::Stepping;
 using test::Watchdog;
 using tims::Address;
 namespace msg = tims::msg;
-
-// A generator and a monitor of it; the monitor retries ON every `retry_ms`.
-std::string host_yaml(const std::string& monitor_params, int retry_ms = 100) {
-  return R"(system: 0
-lcm: false
-components:
-  - name: gen
-    class: Generator
-    instance: 1
-    retry_ms: 100
-    data_task: {period_ms: 10, ring: 64}
-  - name: mon
-    class: Monitor
-    instance: 1
-    retry_ms: )" +
-         std::to_string(retry_ms) + R"(
-    params: {source: gen)" +
-         monitor_params + R"(}
-)";
-}
 
 uint64_t listeners(HostUnderTest& host, Address a) { return host.stats(a).listeners; }
 
@@ -53,7 +33,7 @@ constexpr int64_t kLimit = 10 * rt::kNsPerSec;
 
 TEST(DeclaredInputTest, SubscribedBeforeOnAndUnsubscribedAfterOff) {
   Watchdog dog;
-  HostUnderTest host(host_yaml(", source_period_ms: 20"), {}, false, Stepping::kStepped);
+  HostUnderTest host(generator_monitor_yaml(", source_period_ms: 20"), {}, false, Stepping::kStepped);
   const Address gen = host.address_of("gen");
   const Address mon = host.address_of("mon");
   EXPECT_EQ(host.status(gen), msg::kDisabled);
@@ -70,7 +50,8 @@ TEST(DeclaredInputTest, SubscribedBeforeOnAndUnsubscribedAfterOff) {
 
 TEST(DeclaredInputTest, ProducerErrorFailsAndTheRetryResubscribes) {
   Watchdog dog;
-  HostUnderTest host(host_yaml("", 1000), {}, false, Stepping::kStepped);  // the reason is read before the retry
+  HostUnderTest host(generator_monitor_yaml("", 1000), {}, false,
+                     Stepping::kStepped);  // the reason is read before the retry
   const Address gen = host.address_of("gen");
   const Address mon = host.address_of("mon");
   ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
@@ -86,7 +67,8 @@ TEST(DeclaredInputTest, ProducerErrorFailsAndTheRetryResubscribes) {
 TEST(DeclaredInputTest, WatchedSourceSilentForSilenceMsFails) {
   Watchdog dog;
   // One sample a second asked of the source, silence after 200 ms: ERROR.
-  HostUnderTest host(host_yaml(", source_period_ms: 1500, silence_ms: 200", 60000), {}, false, Stepping::kStepped);
+  HostUnderTest host(generator_monitor_yaml(", source_period_ms: 1500, silence_ms: 200", 60000), {}, false,
+                     Stepping::kStepped);
   const Address mon = host.address_of("mon");
   ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
   ASSERT_TRUE(host.stepper().run_until([&] { return host.status(mon) == msg::kError; }, 5 * rt::kNsPerSec))
@@ -97,10 +79,7 @@ TEST(DeclaredInputTest, WatchedSourceSilentForSilenceMsFails) {
 }
 
 TEST(DeclaredInputTest, OldParameterNamesLoadWithAWarning) {
-  ComponentRegistry registry;
-  components::register_builtin(registry);
-  rt::RtCapabilities caps;
-  caps.online_cpus = {0, 1};
+  test::HostFileLoader loader;
   const std::string text = R"(system: 0
 lcm: false
 components:
@@ -114,28 +93,24 @@ components:
       source: gen
       period_ms: 50
 )";
-  const LoadResult r = load_host_text(text, "old.yaml", registry, caps);
+  const LoadResult r = loader.load(text, "old.yaml");
   ASSERT_TRUE(r.errors.empty()) << r.errors.front().str();
   ASSERT_EQ(r.warnings.size(), 2u);
-  std::string all;
-  for (const auto& w : r.warnings) all += w.str() + "\n";
+  const std::string all = test::text_of(r.warnings);
   EXPECT_NE(all.find("old.yaml:12:7: component 'mon': parameter 'period_ms' is now 'source_period_ms'"),
             std::string::npos)
       << all;
   EXPECT_NE(all.find("old.yaml:9:"), std::string::npos) << all;
   EXPECT_NE(all.find("component 'mon': data_task.timeout_ms is now the parameter silence_ms"), std::string::npos)
       << all;
-  const Component* mon = nullptr;
-  for (const auto& c : r.host->components) {
-    if (c->name() == "mon") mon = c.get();
-  }
+  const Component* mon = test::component_named(r, "mon");
   ASSERT_NE(mon, nullptr);
   EXPECT_DOUBLE_EQ(mon->parameters().find("source_period_ms")->get_float(), 50.0);
   EXPECT_DOUBLE_EQ(mon->parameters().find("silence_ms")->get_float(), 400.0);
 
   // The old and the new name together: which one holds? Neither: an error.
   const std::string both = text + "      source_period_ms: 60\n";
-  const LoadResult b = load_host_text(both, "both.yaml", registry, caps);
+  const LoadResult b = loader.load(both, "both.yaml");
   ASSERT_FALSE(b.errors.empty());
   EXPECT_NE(b.errors.front().str().find("'period_ms' and 'source_period_ms' are the same parameter"), std::string::npos)
       << b.errors.front().str();
@@ -146,7 +121,7 @@ components:
 // SET_PARAM's OK and the component's log name the new name.
 TEST(DeclaredInputTest, OldParameterNamesWorkInSetParamWithAWarning) {
   Watchdog dog;
-  HostUnderTest host(host_yaml(""), {}, true);
+  HostUnderTest host(generator_monitor_yaml(""), {}, true, Stepping::kStepped);  // SET_PARAM's log line: at once
   const Address mon = host.address_of("mon");
   wire::ParamName name;
   wire::copy_text(name.name, "period_ms");
@@ -166,11 +141,10 @@ TEST(DeclaredInputTest, OldParameterNamesWorkInSetParamWithAWarning) {
   const auto plain = host.set_param(mon, "source_period_ms", wire::ParamKind::kFloat, 0, 60.0);
   EXPECT_EQ(plain.type, msg::kOk);
   EXPECT_TRUE(plain.body.empty()) << "no warning by the new name";
-  EXPECT_TRUE(test::eventually([&] {
-    host.executor().flush_log();
-    return host.gdos_log().find("by the old name 'period_ms': the parameter is now 'source_period_ms'") !=
-           std::string::npos;
-  })) << host.gdos_log();
+  host.executor().flush_log();
+  EXPECT_NE(host.gdos_log().find("by the old name 'period_ms': the parameter is now 'source_period_ms'"),
+            std::string::npos)
+      << host.gdos_log();
   const auto unknown = host.set_param(mon, "no_such_ms", wire::ParamKind::kFloat, 0, 1.0);
   EXPECT_EQ(unknown.type, msg::kError);
   EXPECT_NE(unknown.error_text().find("unknown parameter 'no_such_ms'"), std::string::npos) << unknown.error_text();
@@ -180,10 +154,7 @@ TEST(DeclaredInputTest, OldParameterNamesWorkInSetParamWithAWarning) {
 // silence is silence_ms (Joystick), a device that sends nothing is device_timeout_ms
 // (the drivers); the old names load with the warning. Every *_ms is a float, lease_ms too.
 TEST(DeclaredInputTest, JoystickAndDriverTimeoutsLoadByTheirOldNames) {
-  ComponentRegistry registry;
-  components::register_builtin(registry);
-  rt::RtCapabilities caps;
-  caps.online_cpus = {0, 1};
+  test::HostFileLoader loader;
   const std::string text = R"(system: 0
 lcm: false
 components:
@@ -205,10 +176,9 @@ components:
     data_task: {period_ms: 100}
     params: {device: /dev/ttyUSB0, timeout_ms: 2500}
 )";
-  const LoadResult r = load_host_text(text, "old.yaml", registry, caps);
+  const LoadResult r = loader.load(text, "old.yaml");
   ASSERT_TRUE(r.errors.empty()) << r.errors.front().str();
-  std::string all;
-  for (const auto& w : r.warnings) all += w.str() + "\n";
+  const std::string all = test::text_of(r.warnings);
   EXPECT_EQ(r.warnings.size(), 4u) << all;
   EXPECT_NE(all.find("component 'stick': parameter 'obstacle_timeout_ms' is now 'silence_ms'"), std::string::npos)
       << all;
@@ -218,20 +188,16 @@ components:
         << all;
   }
   const auto value = [&](const std::string& component, const char* param) {
-    for (const auto& c : r.host->components) {
-      if (c->name() == component) return c->parameters().find(param)->get_float();
-    }
-    return -1.0;
+    const Component* c = test::component_named(r, component);
+    return c != nullptr ? c->parameters().find(param)->get_float() : -1.0;
   };
   EXPECT_DOUBLE_EQ(value("stick", "silence_ms"), 300.0);
   EXPECT_DOUBLE_EQ(value("hokuyo", "device_timeout_ms"), 700.0);
   EXPECT_DOUBLE_EQ(value("sick", "device_timeout_ms"), 600.0);
   EXPECT_DOUBLE_EQ(value("gps", "device_timeout_ms"), 2500.0);
-  for (const auto& c : r.host->components) {
-    if (c->name() == "stick") {
-      EXPECT_EQ(c->settings().lease_ns, 2'500'500'000) << "lease_ms is a float";
-    }
-  }
+  const Component* stick = test::component_named(r, "stick");
+  ASSERT_NE(stick, nullptr);
+  EXPECT_EQ(stick->settings().lease_ns, 2'500'500'000) << "lease_ms is a float";
 }
 
 TEST(HandoffTest, TheNewestRequestWinsAndCountsAddUp) {

@@ -5,7 +5,8 @@
 // runs a declared worker after init(), places it on the housekeeping CPUs, names it in
 // its thread listing and stops and joins it before cleanup(). A compute worker
 // (Component::add_compute_worker, MCL's likelihood) runs where its data task runs, and
-// without a serving thread its jobs run on the poster's thread.
+// without a serving thread (a stepped executor starts none) its jobs run on the
+// poster's thread.
 #include <gtest/gtest.h>
 #include <sched.h>
 #include <sys/syscall.h>
@@ -140,6 +141,27 @@ void register_io_classes(ComponentRegistry& r) {
          "test: declares an I/O worker, then init() throws", [] { return std::make_unique<IoWorkerComponent>(true); }});
 }
 
+// This process's CPU affinity, put back when the guard goes: a host with `cpus:`
+// partitioning moves the threads of the process it runs in, the test's own too.
+class AffinityGuard {
+ public:
+  AffinityGuard() {
+    CPU_ZERO(&before_);
+    ok_ = sched_getaffinity(0, sizeof before_, &before_) == 0;
+  }
+  ~AffinityGuard() {
+    if (ok_) (void)sched_setaffinity(0, sizeof before_, &before_);
+  }
+  AffinityGuard(const AffinityGuard&) = delete;
+  AffinityGuard& operator=(const AffinityGuard&) = delete;
+  // CPUs 0 and 1 are both in it (what a `cpus: {rt: 1, housekeeping: 0}` host needs).
+  [[nodiscard]] bool has_cpus_0_and_1() const { return ok_ && CPU_ISSET(0, &before_) && CPU_ISSET(1, &before_); }
+
+ private:
+  cpu_set_t before_;
+  bool ok_ = false;
+};
+
 std::string cpus_of_thread_named(const std::string& wanted, pid_t& tid) {
   for (const auto& entry : std::filesystem::directory_iterator("/proc/self/task")) {
     std::ifstream comm(entry.path() / "comm");
@@ -162,10 +184,8 @@ std::string cpus_of_thread_named(const std::string& wanted, pid_t& tid) {
 
 TEST(IoWorkerTest, RunsAfterInitOnTheHousekeepingCpusAndEndsBeforeCleanup) {
   Watchdog watchdog;
-  cpu_set_t before;
-  CPU_ZERO(&before);
-  ASSERT_EQ(sched_getaffinity(0, sizeof before, &before), 0);
-  if (!CPU_ISSET(0, &before) || !CPU_ISSET(1, &before)) GTEST_SKIP() << "needs CPUs 0 and 1 in this process's affinity";
+  const AffinityGuard affinity;
+  if (!affinity.has_cpus_0_and_1()) GTEST_SKIP() << "needs CPUs 0 and 1 in this process's affinity";
   IoWorkerComponent::running = 0;
   IoWorkerComponent::ran = 0;
   IoWorkerComponent::body_at_cleanup = false;
@@ -196,7 +216,6 @@ components:
     EXPECT_FALSE(IoWorkerComponent::body_at_cleanup.load()) << "the worker ended before cleanup()";
   }
   EXPECT_EQ(IoWorkerComponent::ran.load(), 1) << "the worker of the component whose init() failed never ran";
-  (void)sched_setaffinity(0, sizeof before, &before);
 }
 
 // ---- compute workers -----------------------------------------------------------
@@ -275,30 +294,28 @@ class ComputeWorkerComponent final : public DataComponent<interfaces::GeneratorD
   ComputeWorker* worker_ = nullptr;
 };
 
-TEST(ComputeWorkerTest, TheExecutorRunsItWhereTheDataTaskRunsAndJoinsItBeforeCleanup) {
-  Watchdog watchdog;
-  cpu_set_t before;
-  CPU_ZERO(&before);
-  ASSERT_EQ(sched_getaffinity(0, sizeof before, &before), 0);
-  if (!CPU_ISSET(0, &before) || !CPU_ISSET(1, &before)) GTEST_SKIP() << "needs CPUs 0 and 1 in this process's affinity";
-  ComputeWorkerComponent::jobs = 0;
-  ComputeWorkerComponent::served_at_cleanup = true;
-  {
-    // A non-RT data task (priority 0): with partitioning, on the housekeeping CPU.
-    HostUnderTest host(R"(system: 0
-lcm: false
-cpus: {rt: 1, housekeeping: 0}
-components:
+// One ComputeWorkerComponent 'cw', switched on at start, its data task not RT (priority
+// 0) every 5 ms; `head` goes before `components:`.
+std::string compute_worker_yaml(const std::string& head = "") {
+  return "system: 0\nlcm: false\n" + head + R"(components:
   - name: cw
     class: ComputeWorkerTest
     instance: 1
     autostart: true
     data_task: {priority: 0, period_ms: 5}
-)",
-                       [](ComponentRegistry& r) {
-                         r.add({"ComputeWorkerTest", tims::classes::kFirstUser, "test: declares a compute worker",
-                                [] { return std::make_unique<ComputeWorkerComponent>(); }});
-                       });
+)";
+}
+
+TEST(ComputeWorkerTest, TheExecutorRunsItWhereTheDataTaskRunsAndJoinsItBeforeCleanup) {
+  Watchdog watchdog;
+  const AffinityGuard affinity;
+  if (!affinity.has_cpus_0_and_1()) GTEST_SKIP() << "needs CPUs 0 and 1 in this process's affinity";
+  ComputeWorkerComponent::jobs = 0;
+  ComputeWorkerComponent::served_at_cleanup = true;
+  {
+    // A non-RT data task (priority 0): with partitioning, on the housekeeping CPU.
+    HostUnderTest host(compute_worker_yaml("cpus: {rt: 1, housekeeping: 0}\n"),
+                       test::one_class<ComputeWorkerComponent>("ComputeWorkerTest", "test: declares a compute worker"));
     ASSERT_TRUE(test::eventually([] { return ComputeWorkerComponent::jobs.load() >= 5; })) << host.log();
     pid_t tid = 0;
     EXPECT_EQ(cpus_of_thread_named("cw:calc", tid), "0") << "the data task's CPUs: the housekeeping CPU";
@@ -315,7 +332,36 @@ components:
     EXPECT_FALSE(ComputeWorkerComponent::served_at_cleanup.load()) << "the worker ended before cleanup()";
     EXPECT_EQ(cpus_of_thread_named("cw:calc", tid), "") << "joined";
   }
-  (void)sched_setaffinity(0, sizeof before, &before);
+}
+
+// A stepped executor (rack/core/stepper.h) starts no thread for the worker: the job
+// runs inside the step that posts it, on the stepping thread, and start-up waits for
+// no worker thread (which would move the virtual clock).
+TEST(ComputeWorkerTest, ASteppedExecutorRunsEachJobInsideTheStepThatPostsIt) {
+  Watchdog watchdog;
+  ComputeWorkerComponent::jobs = 0;
+  ComputeWorkerComponent::job_tid = 0;
+  ComputeWorkerComponent::served_at_cleanup = true;
+  {
+    HostUnderTest host(compute_worker_yaml(),
+                       test::one_class<ComputeWorkerComponent>("ComputeWorkerTest", "test: declares a compute worker"),
+                       false, test::Stepping::kStepped);
+    Stepper& s = host.stepper();
+    EXPECT_EQ(s.now_ns(), rt::VirtualClock::kDefaultStartNs) << "start-up moved the virtual clock";
+    ASSERT_EQ(host.status(host.address_of("cw")), tims::msg::kEnabled) << host.log();
+    s.advance(5 * rt::kNsPerMs);
+    ASSERT_TRUE(s.step("cw"));
+    EXPECT_EQ(ComputeWorkerComponent::jobs.load(), 1) << "the job ran inside the step";
+    const auto self = static_cast<pid_t>(::syscall(SYS_gettid));
+    EXPECT_EQ(ComputeWorkerComponent::job_tid.load(), self) << "on the stepping thread";
+    EXPECT_EQ(ComputeWorkerComponent::loop_tid.load(), self);
+    EXPECT_EQ(s.run_for(20 * rt::kNsPerMs), 4u);
+    EXPECT_EQ(ComputeWorkerComponent::jobs.load(), 5) << "one job a cycle, each done when its step returned";
+    const std::string report = host.executor().thread_report();
+    EXPECT_EQ(report.find("cw:calc"), std::string::npos) << "no worker thread\n" << report;
+    host.executor().stop();
+    EXPECT_FALSE(ComputeWorkerComponent::served_at_cleanup.load());
+  }
 }
 
 }  // namespace

@@ -323,10 +323,7 @@ components:
     autostart: true
     data_task: {period_ms: 10, phase_ms: 6}
 )",
-                     [](ComponentRegistry& r) {
-                       r.add({"WakeRecorder", tims::classes::kFirstUser, "test: keeps its wake-up times",
-                              [] { return std::make_unique<WakeRecorder>(); }});
-                     });
+                     test::one_class<WakeRecorder>("WakeRecorder", "test: keeps its wake-up times"));
   auto* early = dynamic_cast<WakeRecorder*>(host.executor().find("early"));
   auto* late = dynamic_cast<WakeRecorder*>(host.executor().find("late"));
   ASSERT_NE(early, nullptr);

@@ -621,7 +621,9 @@ namespace rack {
 namespace {
 
 // Every ERROR names its cause, through cascades: the ON answer and the GDOS error line
-// of a consumer whose producer fails on(), and of one whose producer went OFF.
+// of a consumer whose producer fails on(), and of one whose producer went OFF. Stepped
+// (rack/core/stepper.h): each line is in the log once the request or step that made it
+// has returned and the log is flushed.
 TEST(ErrorReasonTest, ACascadeNamesTheProducerAndItsReason) {
   Watchdog dog;
   test::HostUnderTest host(R"(system: 0
@@ -639,17 +641,18 @@ components:
     retry_ms: 60000
     params: {source: probe, source_period_ms: 50, silence_ms: 1000}
 )",
-                           {}, /*capture_gdos=*/true);
+                           {}, /*capture_gdos=*/true, test::Stepping::kStepped);
   const Address mon = host.address_of("mon");
   const Address probe = host.address_of("probe");
+  const auto gdos_log = [&] {
+    host.executor().flush_log();
+    return host.gdos_log();
+  };
   const auto on = host.call(mon, msg::kOn);
   ASSERT_EQ(on.type, msg::kError);
   EXPECT_NE(on.error_text().find("on() failed: Probe(0/1) is in ERROR: on() failed"), std::string::npos)
       << on.error_text();
-  EXPECT_TRUE(test::eventually([&] {
-    const std::string log = host.gdos_log();
-    return log.find("Probe(0/1) is in ERROR") != std::string::npos;
-  })) << host.gdos_log();
+  EXPECT_NE(gdos_log().find("Probe(0/1) is in ERROR"), std::string::npos) << host.gdos_log();
   // GET_STATS (rackctl status) carries it while the ERROR lasts.
   EXPECT_NE(std::string(host.stats(mon).error_reason).find("Probe(0/1) is in ERROR"), std::string::npos)
       << host.stats(mon).error_reason;
@@ -658,18 +661,15 @@ components:
   ASSERT_EQ(host.set_bool(probe, "fail_on", false).type, msg::kOk);
   ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
   ASSERT_EQ(host.call(probe, msg::kOff).type, msg::kOk);
-  EXPECT_TRUE(test::eventually([&] {
-    return host.gdos_log().find("ENABLED -> ERROR (Probe(0/1) left ENABLED") != std::string::npos;
-  })) << host.gdos_log();
+  EXPECT_TRUE(host.stepper().step("mon")) << "the monitor's data task takes the producer's ERROR";
+  EXPECT_NE(gdos_log().find("ENABLED -> ERROR (Probe(0/1) left ENABLED"), std::string::npos) << host.gdos_log();
   EXPECT_NE(std::string(host.stats(mon).error_reason).find("left ENABLED"), std::string::npos);
   // ON (from ERROR, at once) switches the producer on again: no reason is shown any more.
   ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
   EXPECT_STREQ(host.stats(mon).error_reason, "");
   // A parameter change is an info event.
   ASSERT_EQ(host.set_bool(probe, "fail_loop", false).type, msg::kOk);
-  EXPECT_TRUE(test::eventually([&] {
-    return host.gdos_log().find("SET_PARAM fail_loop = false") != std::string::npos;
-  })) << host.gdos_log();
+  EXPECT_NE(gdos_log().find("SET_PARAM fail_loop = false"), std::string::npos) << host.gdos_log();
 }
 
 }  // namespace

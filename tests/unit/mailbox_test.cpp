@@ -5,6 +5,8 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
+#include <functional>
 #include <thread>
 #include <vector>
 
@@ -40,6 +42,19 @@ class MailboxTest : public ::testing::Test {
     std::vector<uint32_t> ids;
     for (uint32_t id = recv_id(m); id != UINT32_MAX; id = recv_id(m)) ids.push_back(id);
     return ids;
+  }
+  // What a receive(kForever) in another thread returns when `release` (called once
+  // that thread had time to block in it) wakes it.
+  static RecvStatus blocked_receive_released_by(Mailbox& m, const std::function<void()>& release) {
+    std::atomic<int> status{-1};
+    std::thread reader([&] {
+      alignas(8) std::array<std::byte, 128> buf{};
+      status = static_cast<int>(m.receive(buf, Mailbox::kForever).status);
+    });
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    release();
+    reader.join();
+    return static_cast<RecvStatus>(status.load());
   }
 };
 
@@ -233,29 +248,13 @@ TEST_F(MailboxTest, CloseRefusesSendsDrainsQueueThenReportsClosed) {
 TEST_F(MailboxTest, CloseWakesABlockedReceiver) {
   Watchdog dog;
   Mailbox m(kSelf, 4, 128);
-  std::atomic<int> status{-1};
-  std::thread reader([&] {
-    alignas(8) std::array<std::byte, 128> buf{};
-    status = static_cast<int>(m.receive(buf, Mailbox::kForever).status);
-  });
-  std::this_thread::sleep_for(std::chrono::milliseconds(30));
-  m.close();
-  reader.join();
-  EXPECT_EQ(status.load(), static_cast<int>(RecvStatus::kClosed));
+  EXPECT_EQ(blocked_receive_released_by(m, [&] { m.close(); }), RecvStatus::kClosed);
 }
 
 TEST_F(MailboxTest, WakeReturnsABlockedReceiverWithoutAMessage) {
   Watchdog dog;
   Mailbox m(kSelf, 4, 128);
-  std::atomic<int> status{-1};
-  std::thread reader([&] {
-    alignas(8) std::array<std::byte, 128> buf{};
-    status = static_cast<int>(m.receive(buf, Mailbox::kForever).status);
-  });
-  std::this_thread::sleep_for(std::chrono::milliseconds(30));
-  m.wake();
-  reader.join();
-  EXPECT_EQ(status.load(), static_cast<int>(RecvStatus::kTimeout));
+  EXPECT_EQ(blocked_receive_released_by(m, [&] { m.wake(); }), RecvStatus::kTimeout);
   EXPECT_EQ(m.counters().received, 0u);
 
   // wait() returns too, and says nothing is queued.

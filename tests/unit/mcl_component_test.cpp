@@ -2,6 +2,11 @@
 // ON), localises from its scans, publishes MclData, sends Position UPDATE, takes INIT,
 // and a bad map puts it (only it) in ERROR with the file and line.
 //
+// The executor is stepped (rack/core/stepper.h): the scans come at virtual times and
+// the likelihood's compute worker runs its share inside MCL's step, so every run sees
+// the same scans and the same estimates. Only the test of the worker's thread runs
+// the executor's threads.
+//
 // The Scan2D source is a test component class (SimScan2d) that drives the scripted
 // robot of mcl_sim.h through the office map and publishes real Scan2dData samples with
 // the odometry at each scan's time; UpdateRecorder is a Position class that answers
@@ -15,6 +20,7 @@
 #include "mcl_sim.h"
 #include "rack/components/class_ids.h"
 #include "rack/core/data_component.h"
+#include "rack/core/stepper.h"
 #include "rack/interfaces/robot.h"
 #include "rack/maps/occupancy_map.h"
 #include "test_support.h"
@@ -27,6 +33,10 @@ using interfaces::PositionUpdate;
 using interfaces::Scan2dData;
 
 const std::string kOffice = std::string(RACK_SOURCE_DIR) + "/configs/maps/office.yaml";
+
+// Waiting for a condition moves the virtual clock to the first instant it holds, within
+// this much of it.
+constexpr int64_t kLimit = 60 * rt::kNsPerSec;
 
 // Test code: allocates in loop() (ray casting into vectors); runs at priority 0.
 class SimScan2d final : public DataComponent<Scan2dData> {
@@ -163,9 +173,10 @@ components:
 
 TEST(MclComponentTest, LocalisesFromScan2dPublishesAndUpdatesPosition) {
   Watchdog watchdog(std::chrono::seconds(60));
-  HostUnderTest host(host_yaml(kOffice), register_test_classes);
+  HostUnderTest host(host_yaml(kOffice), register_test_classes, false, Stepping::kStepped);
+  Stepper& s = host.stepper();
   const tims::Address mcl = host.address_of("mcl");
-  ASSERT_TRUE(host.wait_status(mcl, tims::msg::kEnabled)) << host.log();
+  ASSERT_EQ(host.status(mcl), tims::msg::kEnabled) << host.log();         // autostart: served at start()
   EXPECT_EQ(host.status(host.address_of("scans")), tims::msg::kEnabled);  // cascading ON
   auto* sim = dynamic_cast<SimScan2d*>(host.executor().find("scans"));
   auto* position = dynamic_cast<UpdateRecorder*>(host.executor().find("position"));
@@ -174,7 +185,7 @@ TEST(MclComponentTest, LocalisesFromScan2dPublishesAndUpdatesPosition) {
 
   wire::SampleHeader sh{};
   auto data = std::make_unique<MclData>();
-  ASSERT_TRUE(eventually([&] { return host.get_data(mcl, sh, *data) && data->updates >= 15; }))
+  ASSERT_TRUE(s.run_until([&] { return host.get_data(mcl, sh, *data) && data->updates >= 15; }, kLimit))
       << "MCL did not update: " << host.log();
   SimPose truth;
   ASSERT_TRUE(sim->truth_at(data->scan_time_ns, truth)) << "MclData.scan_time_ns is not a scan's time";
@@ -185,15 +196,8 @@ TEST(MclComponentTest, LocalisesFromScan2dPublishesAndUpdatesPosition) {
   EXPECT_LE(data->shown, 100U);  // show_particles default
   EXPECT_GT(data->covariance[0], 0.0);
   EXPECT_GT(data->fit, 0.5F);
-  // The likelihood's second thread (threads 2) is the executor's compute worker, with
-  // the data task's scheduling (priority 0 here).
-  const std::string threads = host.executor().thread_report();
-  const auto at = threads.find("mcl:likelihood");
-  ASSERT_NE(at, std::string::npos) << threads;
-  EXPECT_NE(threads.substr(at, threads.find('\n', at) - at).find("compute worker, not RT"), std::string::npos)
-      << threads;
 
-  ASSERT_TRUE(eventually([&] { return position->updates() > 3; })) << "no Position UPDATE";
+  ASSERT_TRUE(s.run_until([&] { return position->updates() > 3; }, kLimit)) << "no Position UPDATE";
   const PositionUpdate u = position->last();
   SimPose at_update;
   ASSERT_TRUE(sim->truth_at(u.time_ns, at_update)) << "UPDATE's time is not a scan's time";
@@ -206,8 +210,21 @@ TEST(MclComponentTest, LocalisesFromScan2dPublishesAndUpdatesPosition) {
   EXPECT_EQ(host.call_with(mcl, interfaces::kMclInit, init).type, tims::msg::kOk);
   EXPECT_EQ(host.call(mcl, interfaces::kMclInit, &init, 8).type, tims::msg::kError);
   EXPECT_EQ(host.status(mcl), tims::msg::kEnabled);
-  ASSERT_TRUE(eventually([&] { return host.get_data(mcl, sh, *data) && data->updates <= 2; }))
+  ASSERT_TRUE(s.run_until([&] { return host.get_data(mcl, sh, *data) && data->updates <= 2; }, kLimit))
       << "INIT did not restart the filter";
+}
+
+// The likelihood's second thread (threads 2) is the executor's compute worker, with
+// the data task's scheduling (priority 0 here). With the executor's threads: a stepped
+// executor starts no worker thread.
+TEST(MclComponentTest, TheLikelihoodWorkerIsAnExecutorThreadWithTheDataTasksScheduling) {
+  Watchdog watchdog;
+  HostUnderTest host(host_yaml(kOffice), register_test_classes);
+  const std::string threads = host.executor().thread_report();
+  const auto at = threads.find("mcl:likelihood");
+  ASSERT_NE(at, std::string::npos) << threads;
+  EXPECT_NE(threads.substr(at, threads.find('\n', at) - at).find("compute worker, not RT"), std::string::npos)
+      << threads;
 }
 
 // global_candidates and the odometry check are parameters of the component: a host
@@ -226,21 +243,24 @@ TEST(MclComponentTest, GlobalCandidatesAndOdometryCheckAreParameters) {
   HostUnderTest host(host_yaml(kOffice,
                                "      global_candidates: 3\n      odometry_check: 3\n"
                                "      odometry_check_fraction: 0.3\n      odometry_check_goodness: 0.6\n"),
-                     register_test_classes);
+                     register_test_classes, false, Stepping::kStepped);
   const tims::Address mcl = host.address_of("mcl");
-  ASSERT_TRUE(host.wait_status(mcl, tims::msg::kEnabled)) << host.log();
+  ASSERT_EQ(host.status(mcl), tims::msg::kEnabled) << host.log();
   wire::SampleHeader sh{};
   auto data = std::make_unique<MclData>();
-  EXPECT_TRUE(eventually([&] { return host.get_data(mcl, sh, *data) && data->updates >= 3; })) << host.log();
+  EXPECT_TRUE(host.stepper().run_until([&] { return host.get_data(mcl, sh, *data) && data->updates >= 3; }, kLimit))
+      << host.log();
 }
 
 TEST(MclComponentTest, MissingMapPutsOnlyMclInErrorWithTheFileName) {
   Watchdog watchdog;
-  HostUnderTest host(host_yaml("/nonexistent/robot_map.yaml"), register_test_classes);
+  HostUnderTest host(host_yaml("/nonexistent/robot_map.yaml"), register_test_classes, false, Stepping::kStepped);
   const tims::Address mcl = host.address_of("mcl");
-  ASSERT_TRUE(host.wait_status(mcl, tims::msg::kError)) << host.log();
+  ASSERT_EQ(host.status(mcl), tims::msg::kError) << host.log();
   EXPECT_NE(host.log().find("/nonexistent/robot_map.yaml"), std::string::npos) << host.log();
-  EXPECT_TRUE(host.wait_status(host.address_of("gen"), tims::msg::kEnabled)) << host.log();
+  EXPECT_EQ(host.status(host.address_of("gen")), tims::msg::kEnabled) << host.log();
+  (void)host.stepper().run_for(100 * rt::kNsPerMs);
+  EXPECT_EQ(host.stats(host.address_of("gen")).data.cycles, 10u) << "the rest runs: a 10 ms task, 100 ms";
   const auto on = host.call(mcl, tims::msg::kOn);
   EXPECT_EQ(on.type, tims::msg::kError);  // ERROR for good: init() failed
 }
@@ -255,10 +275,10 @@ TEST(MclComponentTest, MalformedMapNamesFileAndLine) {
     out << "image: office.pgm\nresolution: fast\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\n"
            "free_thresh: 0.196\n";
   }
-  HostUnderTest host(host_yaml(yaml.string()), register_test_classes);
-  ASSERT_TRUE(host.wait_status(host.address_of("mcl"), tims::msg::kError)) << host.log();
+  HostUnderTest host(host_yaml(yaml.string()), register_test_classes, false, Stepping::kStepped);
+  ASSERT_EQ(host.status(host.address_of("mcl")), tims::msg::kError) << host.log();
   EXPECT_NE(host.log().find(yaml.string() + ":2"), std::string::npos) << host.log();
-  EXPECT_TRUE(host.wait_status(host.address_of("gen"), tims::msg::kEnabled)) << host.log();
+  EXPECT_EQ(host.status(host.address_of("gen")), tims::msg::kEnabled) << host.log();
   std::filesystem::remove_all(dir);
 }
 

@@ -13,6 +13,7 @@
 #include <atomic>
 #include <cerrno>
 #include <cstdlib>
+#include <functional>
 #include <new>
 #include <string>
 #include <thread>
@@ -83,6 +84,19 @@ class NoAllocationTest : public ::testing::Test {
   static constexpr int kRounds = 500;
   static constexpr Address kA = Address::make(0, tims::classes::kTool, 1, 1);
   static constexpr Address kB = Address::make(0, tims::classes::kTool, 2, 1);
+
+  // `round(i)` does one round of the work and says whether it went right: kWarmUp
+  // rounds first (each must), then kRounds under an AllocationCounter, in which every
+  // round goes right and nothing allocates.
+  static void expect_rounds_allocate_nothing(const std::function<bool(int)>& round) {
+    for (int i = 0; i < kWarmUp; ++i) ASSERT_TRUE(round(i)) << "warm-up round " << i;
+    int failures = 0;
+    AllocationCounter counter;
+    for (int i = 0; i < kRounds; ++i) failures += round(i) ? 0 : 1;
+    const uint64_t allocations = counter.stop();
+    EXPECT_EQ(failures, 0);
+    EXPECT_EQ(allocations, 0u);
+  }
 };
 
 TEST_F(NoAllocationTest, CounterSeesAllocations) {
@@ -139,13 +153,7 @@ TEST_F(NoAllocationTest, MailboxSendReceivePeek) {
     }
     return m.receive(buf, 1000).status == RecvStatus::kTimeout;  // timed wait path
   };
-  for (int i = 0; i < kWarmUp; ++i) ASSERT_TRUE(round(i));
-  int failures = 0;
-  AllocationCounter counter;
-  for (int i = 0; i < kRounds; ++i) failures += round(i) ? 0 : 1;
-  const uint64_t allocations = counter.stop();
-  EXPECT_EQ(failures, 0);
-  EXPECT_EQ(allocations, 0u);
+  expect_rounds_allocate_nothing(round);
 }
 
 TEST_F(NoAllocationTest, RouterSend) {
@@ -155,7 +163,7 @@ TEST_F(NoAllocationTest, RouterSend) {
   router.add(b);
   alignas(8) std::array<std::byte, 256> buf{};
   const test::Tag tag{2, 0};
-  auto round = [&] {
+  auto round = [&](int) {
     if (router.send(test::tag_header(kB, kA, 1), {tims::buffer_of(tag)}) != SendStatus::kOk) return false;
     if (b.receive(buf, Mailbox::kNonBlocking).status != RecvStatus::kOk) return false;
     // A request to nobody: answered NOT_AVAILABLE into a.
@@ -163,13 +171,7 @@ TEST_F(NoAllocationTest, RouterSend) {
     if (router.send(req, std::span<const ConstBuffer>{}) != SendStatus::kNotAvailable) return false;
     return a.receive(buf, Mailbox::kNonBlocking).status == RecvStatus::kOk;
   };
-  for (int i = 0; i < kWarmUp; ++i) ASSERT_TRUE(round());
-  int failures = 0;
-  AllocationCounter counter;
-  for (int i = 0; i < kRounds; ++i) failures += round() ? 0 : 1;
-  const uint64_t allocations = counter.stop();
-  EXPECT_EQ(failures, 0);
-  EXPECT_EQ(allocations, 0u);
+  expect_rounds_allocate_nothing(round);
   router.remove(kA);
   router.remove(kB);
 }
@@ -194,7 +196,7 @@ TEST_F(NoAllocationTest, RouterSendThroughAccessControl) {
   router.set_access(&access);
   alignas(8) std::array<std::byte, 256> buf{};
   int answers = 0;
-  auto round = [&] {
+  auto round = [&](int) {
     // ON: the first per second passes, the rest hit the rate limit; OFF: wrong type.
     for (const int8_t type : {msg::kOn, msg::kOff}) {
       const auto h = tims::make_header(kB, kA, type, 1, 1, 0);
@@ -206,13 +208,7 @@ TEST_F(NoAllocationTest, RouterSendThroughAccessControl) {
     while (a.receive(buf, Mailbox::kNonBlocking).status == RecvStatus::kOk) ++answers;
     return true;
   };
-  for (int i = 0; i < kWarmUp; ++i) ASSERT_TRUE(round());
-  int failures = 0;
-  AllocationCounter counter;
-  for (int i = 0; i < kRounds; ++i) failures += round() ? 0 : 1;
-  const uint64_t allocations = counter.stop();
-  EXPECT_EQ(failures, 0);
-  EXPECT_EQ(allocations, 0u);
+  expect_rounds_allocate_nothing(round);
   EXPECT_GT(access.counters()[0].denied_rate, 0u);
   EXPECT_EQ(access.counters()[0].denied_type, static_cast<uint64_t>(kWarmUp + kRounds));
   EXPECT_GT(answers, 0);
@@ -235,7 +231,7 @@ TEST_F(NoAllocationTest, RouterRefusesWhatADataMailboxDoesNotTrust) {
   ASSERT_TRUE(trusted.trust(producer, rt::monotonic_ns()));
   alignas(8) std::array<std::byte, 256> buf{};
   const test::Tag tag{3, 0};
-  auto round = [&] {
+  auto round = [&](int) {
     if (router.send(test::tag_header(input.address(), producer, 1), {tims::buffer_of(tag)}) != SendStatus::kOk) {
       return false;
     }
@@ -248,13 +244,7 @@ TEST_F(NoAllocationTest, RouterRefusesWhatADataMailboxDoesNotTrust) {
     }
     return input.receive(buf, Mailbox::kNonBlocking).status == RecvStatus::kOk;
   };
-  for (int i = 0; i < kWarmUp; ++i) ASSERT_TRUE(round());
-  int failures = 0;
-  AllocationCounter counter;
-  for (int i = 0; i < kRounds; ++i) failures += round() ? 0 : 1;
-  const uint64_t allocations = counter.stop();
-  EXPECT_EQ(failures, 0);
-  EXPECT_EQ(allocations, 0u);
+  expect_rounds_allocate_nothing(round);
   EXPECT_EQ(trusted.counters().forged, static_cast<uint64_t>(kWarmUp + kRounds));
   router.remove(kA);
   router.remove(input.address());

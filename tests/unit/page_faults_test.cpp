@@ -188,10 +188,7 @@ components:
   - name: io
     class: ThreadInInit
 )",
-                           [](ComponentRegistry& r) {
-                             r.add({"ThreadInInit", tims::classes::kFirstUser, "test: an I/O worker from init()",
-                                    [] { return std::make_unique<ThreadInInit>(); }});
-                           });
+                           test::one_class<ThreadInInit>("ThreadInInit", "test: an I/O worker from init()"));
   const cpu_set_t after = affinity_of(0);
   EXPECT_TRUE(CPU_EQUAL(&before, &after)) << "the starting thread's affinity was not restored";
   // Find the GDOS thread by name among this process's threads.

@@ -104,13 +104,15 @@ components:
 
 TEST(PlaybackTest, LadarAndOdometryPlaybackFeedALiveScan2dWithTheOdometryAtTheScansTime) {
   Watchdog dog;
-  HostUnderTest host(kPipeline);
+  // Stepped (rack/core/stepper.h): requests are answered when sent, and waiting for the
+  // scan moves the virtual clock to the first instant it is there.
+  HostUnderTest host(kPipeline, {}, false, test::Stepping::kStepped);
   const tims::Address ladar = host.address_of("ladar");
   const tims::Address odometry = host.address_of("odometry");
   const tims::Address scan2d = host.address_of("scan2d");
   ASSERT_EQ(host.call(scan2d, msg::kOn).type, msg::kOk);  // cascading ON: both playbacks
-  ASSERT_TRUE(host.wait_status(ladar, msg::kEnabled));
-  ASSERT_TRUE(host.wait_status(odometry, msg::kEnabled));
+  ASSERT_EQ(host.status(ladar), msg::kEnabled);
+  ASSERT_EQ(host.status(odometry), msg::kEnabled);
 
   const int64_t t0 = 1'795'652'163'000'000'000;
   components::PlaybackSample<OdometryData> odo;
@@ -133,7 +135,8 @@ TEST(PlaybackTest, LadarAndOdometryPlaybackFeedALiveScan2dWithTheOdometryAtTheSc
 
   wire::SampleHeader sh;
   auto out = std::make_unique<Scan2dData>();
-  ASSERT_TRUE(eventually([&] { return host.get_data(scan2d, sh, *out) && sh.time_ns == scan->time_ns; }))
+  ASSERT_TRUE(host.stepper().run_until([&] { return host.get_data(scan2d, sh, *out) && sh.time_ns == scan->time_ns; },
+                                       10 * rt::kNsPerSec))
       << "no scan at the played time";
   EXPECT_EQ(out->odometry_valid, 1u);
   EXPECT_NEAR(out->odometry_x, 2.0, 1e-9);  // halfway between the two played poses

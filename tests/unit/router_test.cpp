@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <functional>
 #include <stdexcept>
 #include <thread>
 
@@ -170,6 +171,18 @@ class EndpointTest : public RouterTest {
       respond(r.header);
     });
   }
+  // A call whose request is answered only with `answer(request)`, sent back to the
+  // caller: it times out, and the answer is counted as a stale reply (not taken).
+  void expect_answer_not_taken_for_the_reply(const std::function<MessageHeader(const MessageHeader&)>& answer) {
+    Endpoint client(router_, client_box_, 5);
+    auto t = serve_one([&](const MessageHeader& req) {
+      EXPECT_EQ(router_.send(answer(req), std::span<const ConstBuffer>{}), SendStatus::kOk);
+    });
+    const auto r = client.call(kServer, msg::kOn, buf_, 300 * rt::kNsPerMs);
+    t.join();
+    EXPECT_EQ(r.status, CallStatus::kTimeout);
+    EXPECT_EQ(client.stale_replies(), 1u);
+  }
 };
 
 TEST_F(EndpointTest, CallGetsTheMatchingReplyWithItsBody) {
@@ -257,30 +270,16 @@ TEST_F(EndpointTest, RetriesStopAtTheLastAttemptAndNeverAfterAReply) {
 
 TEST_F(EndpointTest, ReplyFromTheWrongSourceIsNotAccepted) {
   Watchdog dog;
-  Endpoint client(router_, client_box_, 5);
-  auto t = serve_one([&](const MessageHeader& req) {
-    // Right sequence number, but it comes from another component.
-    const MessageHeader fake = make_header(req.source(), kOther, msg::kOk, req.priority, req.seq, 0);
-    EXPECT_EQ(router_.send(fake, std::span<const ConstBuffer>{}), SendStatus::kOk);
-  });
-  const auto r = client.call(kServer, msg::kOn, buf_, 300 * rt::kNsPerMs);
-  t.join();
-  EXPECT_EQ(r.status, CallStatus::kTimeout);
-  EXPECT_EQ(client.stale_replies(), 1u);
+  // Right sequence number, but it comes from another component.
+  expect_answer_not_taken_for_the_reply(
+      [](const MessageHeader& req) { return make_header(req.source(), kOther, msg::kOk, req.priority, req.seq, 0); });
 }
 
 TEST_F(EndpointTest, RequestEchoedBackIsNotTakenForAReply) {
   Watchdog dog;
-  Endpoint client(router_, client_box_, 5);
-  auto t = serve_one([&](const MessageHeader& req) {
-    // Same source and sequence, but a request type.
-    const MessageHeader echo = make_header(req.source(), kServer, msg::kOn, req.priority, req.seq, 0);
-    EXPECT_EQ(router_.send(echo, std::span<const ConstBuffer>{}), SendStatus::kOk);
-  });
-  const auto r = client.call(kServer, msg::kOn, buf_, 300 * rt::kNsPerMs);
-  t.join();
-  EXPECT_EQ(r.status, CallStatus::kTimeout);
-  EXPECT_EQ(client.stale_replies(), 1u);
+  // Same source and sequence, but a request type.
+  expect_answer_not_taken_for_the_reply(
+      [](const MessageHeader& req) { return make_header(req.source(), kServer, msg::kOn, req.priority, req.seq, 0); });
 }
 
 TEST_F(EndpointTest, CallTimesOutWhenNobodyServesTheMailbox) {

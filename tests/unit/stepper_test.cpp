@@ -17,6 +17,7 @@ namespace {
 
 using interfaces::GeneratorData;
 using interfaces::MonitorData;
+using test::generator_monitor_yaml;
 using test::HostUnderTest;
 using test::Stepping;
 using test::Watchdog;
@@ -51,28 +52,9 @@ TEST(VirtualClockTest, ClockReadsAndSleepsFollowItWhileItIsInstalled) {
   EXPECT_GE(rt::os_monotonic_ns(), a);
 }
 
-// A generator (10 ms) and a monitor of it (triggered, every sample).
-std::string host_yaml(const std::string& monitor_params = "", int retry_ms = 100) {
-  return R"(system: 0
-lcm: false
-components:
-  - name: gen
-    class: Generator
-    instance: 1
-    data_task: {period_ms: 10, ring: 64}
-  - name: mon
-    class: Monitor
-    instance: 1
-    retry_ms: )" +
-         std::to_string(retry_ms) + R"(
-    params: {source: gen)" +
-         monitor_params + R"(}
-)";
-}
-
 TEST(StepperTest, RequestsAreAnsweredAtOnceWithoutTaskThreads) {
   Watchdog dog;
-  HostUnderTest host(host_yaml(), {}, false, Stepping::kStepped);
+  HostUnderTest host(generator_monitor_yaml(), {}, false, Stepping::kStepped);
   const int64_t t0 = host.stepper().now_ns();
   const Address gen = host.address_of("gen");
   const Address mon = host.address_of("mon");
@@ -88,7 +70,7 @@ TEST(StepperTest, RequestsAreAnsweredAtOnceWithoutTaskThreads) {
 
 TEST(StepperTest, APeriodicTaskRunsOneCycleAtEachDeadline) {
   Watchdog dog;
-  HostUnderTest host(host_yaml(), {}, false, Stepping::kStepped);
+  HostUnderTest host(generator_monitor_yaml(), {}, false, Stepping::kStepped);
   Stepper& s = host.stepper();
   const Address gen = host.address_of("gen");
   ASSERT_EQ(host.call(gen, msg::kOn).type, msg::kOk);
@@ -120,7 +102,7 @@ TEST(StepperTest, APeriodicTaskRunsOneCycleAtEachDeadline) {
 
 TEST(StepperTest, ATriggeredTaskRunsWhenASampleWaits) {
   Watchdog dog;
-  HostUnderTest host(host_yaml(), {}, false, Stepping::kStepped);
+  HostUnderTest host(generator_monitor_yaml(), {}, false, Stepping::kStepped);
   Stepper& s = host.stepper();
   const Address mon = host.address_of("mon");
   ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
@@ -146,7 +128,8 @@ TEST(StepperTest, ATriggeredTaskRunsWhenASampleWaits) {
 TEST(StepperTest, SilenceIsNoticedExactlyAfterSilenceMs) {
   Watchdog dog;
   // One sample every 1.5 s asked of the source, silence after 200 ms.
-  HostUnderTest host(host_yaml(", source_period_ms: 1500, silence_ms: 200", 60000), {}, false, Stepping::kStepped);
+  HostUnderTest host(generator_monitor_yaml(", source_period_ms: 1500, silence_ms: 200", 60000), {}, false,
+                     Stepping::kStepped);
   Stepper& s = host.stepper();
   const Address mon = host.address_of("mon");
   ASSERT_EQ(host.call(mon, msg::kOn).type, msg::kOk);
@@ -160,7 +143,7 @@ TEST(StepperTest, SilenceIsNoticedExactlyAfterSilenceMs) {
 
 TEST(StepperTest, TheRetryInErrorComesExactlyAfterRetryMs) {
   Watchdog dog;
-  HostUnderTest host(host_yaml("", 100), {}, false, Stepping::kStepped);
+  HostUnderTest host(generator_monitor_yaml("", 100), {}, false, Stepping::kStepped);
   Stepper& s = host.stepper();
   const Address gen = host.address_of("gen");
   const Address mon = host.address_of("mon");
@@ -183,7 +166,7 @@ TEST(StepperTest, TheRetryInErrorComesExactlyAfterRetryMs) {
 
 TEST(StepperTest, RunUntilStopsAtTheFirstInstantThePredicateHolds) {
   Watchdog dog;
-  HostUnderTest host(host_yaml(), {}, false, Stepping::kStepped);
+  HostUnderTest host(generator_monitor_yaml(), {}, false, Stepping::kStepped);
   Stepper& s = host.stepper();
   const Address gen = host.address_of("gen");
   const int64_t t0 = s.now_ns();
@@ -198,7 +181,7 @@ TEST(StepperTest, RunUntilStopsAtTheFirstInstantThePredicateHolds) {
 
 TEST(StepperTest, AStepperNeedsASteppedExecutor) {
   Watchdog dog;
-  HostUnderTest threaded(host_yaml());
+  HostUnderTest threaded(generator_monitor_yaml());
   EXPECT_THROW(Stepper{threaded.executor()}, std::logic_error);
 }
 

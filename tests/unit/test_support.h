@@ -1,5 +1,6 @@
 // Helpers shared by the unit tests: a watchdog for threaded tests, a small
-// message body with an id, and an in-process executor driven by messages.
+// message body with an id, the generator-and-monitor host, a host-file loader with
+// the built-in classes, and an in-process executor driven by messages.
 //
 // Nothing here is RT-safe; it is test code.
 #pragma once
@@ -17,6 +18,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "rack/components/builtin.h"
 #include "rack/core/executor.h"
@@ -95,6 +97,75 @@ inline bool eventually(const std::function<bool()>& pred,
   }
 }
 
+// The host of the declared-input and stepper tests, without LCM: a generator `gen`
+// (10 ms, ring 64) and a monitor `mon` of it (triggered: every sample), both instance
+// 1 and retrying ON every 100 ms (the monitor every `retry_ms`). `monitor_params`
+// follows `source: gen` in the monitor's params (", silence_ms: 200").
+inline std::string generator_monitor_yaml(const std::string& monitor_params = "", int retry_ms = 100) {
+  return R"(system: 0
+lcm: false
+components:
+  - name: gen
+    class: Generator
+    instance: 1
+    retry_ms: 100
+    data_task: {period_ms: 10, ring: 64}
+  - name: mon
+    class: Monitor
+    instance: 1
+    retry_ms: )" +
+         std::to_string(retry_ms) + R"(
+    params: {source: gen)" +
+         monitor_params + R"(}
+)";
+}
+
+// HostUnderTest's (or HostFileLoader's) `extra` for one test class: `T`, made by its
+// default constructor, registered by `name` with class id kFirstUser.
+template <class T>
+std::function<void(ComponentRegistry&)> one_class(const char* name, const char* doc) {
+  return [name, doc](ComponentRegistry& r) {
+    r.add({name, tims::classes::kFirstUser, doc, [] { return std::make_unique<T>(); }});
+  };
+}
+
+// A load's errors or warnings, one a line (file:line:col: message), for assertion
+// messages and searches.
+inline std::string text_of(const std::vector<ConfigError>& list) {
+  std::string out;
+  for (const auto& e : list) out += e.str() + "\n";
+  return out;
+}
+
+// The component `name` of a loaded host, or nullptr.
+inline const Component* component_named(const LoadResult& r, const std::string& name) {
+  if (!r.host) return nullptr;
+  for (const auto& c : r.host->components) {
+    if (c->name() == name) return c.get();
+  }
+  return nullptr;
+}
+
+// Host-file text loaded as rackd loads it, with the built-in classes (and those
+// `extra` registers) on a machine whose CPUs 0 and 1 are online, and nothing started:
+// for tests of what the loader takes, warns about and refuses.
+class HostFileLoader {
+ public:
+  explicit HostFileLoader(const std::function<void(ComponentRegistry&)>& extra = {}) {
+    components::register_builtin(registry_);
+    if (extra) extra(registry_);
+    caps_.online_cpus = {0, 1};
+  }
+  // `file` is the name the errors and warnings give.
+  LoadResult load(const std::string& text, const std::string& file) {
+    return load_host_text(text, file, registry_, caps_);
+  }
+
+ private:
+  ComponentRegistry registry_;
+  rt::RtCapabilities caps_;
+};
+
 // How a HostUnderTest runs its components' tasks.
 enum class Stepping : uint8_t {
   kThreads,  // as rackd does: a thread per task, real time
@@ -120,11 +191,7 @@ class HostUnderTest {
     components::register_builtin(registry_);
     if (extra) extra(registry_);
     auto loaded = load_host_text(yaml, "test.yaml", registry_, rt::probe_capabilities());
-    if (!loaded.errors.empty()) {
-      std::string all;
-      for (const auto& e : loaded.errors) all += e.str() + "\n";
-      throw std::runtime_error("host file rejected:\n" + all);
-    }
+    if (!loaded.errors.empty()) throw std::runtime_error("host file rejected:\n" + text_of(loaded.errors));
     ExecutorOptions options;
     options.log = [this](const std::string& line) {
       std::lock_guard lock(log_mutex_);

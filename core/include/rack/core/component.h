@@ -269,7 +269,7 @@ class Component {
   // own, and is stopped and joined after the tasks ended, before cleanup(). The
   // thread's name is the component's name (cut to 10 characters), ':' and `name` (cut
   // to 15 in all); rackd's thread listing shows it as a compute worker. Without an
-  // executor (a component made by a test) no thread serves it and a job runs on the
+  // executor, or in a stepped one (stepper.h), no thread serves it: a job runs on the
   // poster's thread. The worker lives as long as the component. Not RT-safe.
   ComputeWorker& add_compute_worker(const std::string& name);
 

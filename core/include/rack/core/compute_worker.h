@@ -13,10 +13,10 @@
 //   if (!worker.wait()) ... // half() has returned (false: it threw)
 //
 // The job is referenced, not copied: it must live until wait() returns. When no thread
-// serves the worker (code outside an executor that started none, a worker not started
-// yet or already stopped), wait() runs the job on the poster's thread: the result is
-// the same, only not in parallel. Nothing here ever waits for a thread that is not
-// there.
+// serves the worker (code outside an executor, a stepped executor: rack/core/stepper.h,
+// a worker not started yet or already stopped), wait() runs the job on the poster's
+// thread: the result is the same, only not in parallel. Nothing here ever waits for a
+// thread that is not there.
 //
 // Real-time contract: post() and wait() are RT-safe (no allocation; a priority-
 // inheritance mutex and a futex condition variable, rack/rt/pi_mutex.h); wait()

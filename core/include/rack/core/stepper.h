@@ -30,10 +30,17 @@
 // tests/unit/test_support.h: HostUnderTest(yaml, {}, false, Stepping::kStepped) does
 // the above and offers stepper(). README "Testing components: the stepping executor".
 //
+// Compute workers (Component::add_compute_worker, MCL's likelihood) get no thread:
+// a job the data task posts runs inside that step, on the stepping thread, when the
+// data task waits for it (ComputeWorker::wait() runs it through the same call a
+// serving thread makes), so the step returns with the job done.
+//
 // What differs from the threads: a command for a component whose data task is in
 // loop() at that moment (a loop() that calls its own component) waits until loop()
 // returns, so such a call times out (real time: rpc_timeout). Messages over LCM are
-// not served synchronously: use `lcm: false`.
+// not served synchronously: use `lcm: false`. A compute worker's job runs after the
+// poster's own share of the work instead of beside it (the same result, not in
+// parallel); rackd's thread listing has no compute worker to show.
 //
 // Real-time contract: test code, not RT-safe (and single-threaded: one thread steps,
 // sends and moves the clock). The passes it runs are the tasks' RT code.
