@@ -77,4 +77,7 @@ cmake --build "$build" -j"$(nproc)"
 # player, on npm's maintained packages (@foxglove/ws-protocol, @mcap/core, ...), pinned
 # by its package-lock.json.
 (cd tools/foxglove && npm ci --no-audit --no-fund)
+# The trace test's loader (tests/trace_check): Chrome DevTools' trace engine, which
+# reads rackctl trace's files as the Performance panel does; pinned by package-lock.json.
+(cd tests/trace_check && npm ci --no-audit --no-fund)
 echo "setup: built in $build/"

@@ -980,10 +980,24 @@ std::vector<std::string> Executor::partition_threads() {
   if (std::find(tasks.begin(), tasks.end(), 0) != tasks.end()) return moved;
   for (const pid_t tid : own_threads()) {
     if (std::find(tasks.begin(), tasks.end(), tid) != tasks.end()) continue;
-    if (thread_cpus(tid) == hs.housekeeping_cpus) continue;
-    if (rt::set_thread_affinity(tid, hs.housekeeping_cpus) == 0) {
-      moved.push_back(std::to_string(tid) + " (" + thread_name(tid) + ")");
+    std::string what;
+    if (thread_cpus(tid) != hs.housekeeping_cpus && rt::set_thread_affinity(tid, hs.housekeeping_cpus) == 0) {
+      what = "moved to the housekeeping CPUs";
     }
+    // A thread that an RT task (or a library it called) started inherits its
+    // SCHED_FIFO priority as well as its CPUs: it is not an RT task, and at that
+    // priority it would hold up housekeeping (the transport, GDOS).
+    const int policy = sched_getscheduler(tid);
+    if (policy == SCHED_FIFO || policy == SCHED_RR) {
+      sched_param was{};
+      (void)sched_getparam(tid, &was);
+      const sched_param other{};
+      if (sched_setscheduler(tid, SCHED_OTHER, &other) == 0) {
+        what += std::string(what.empty() ? "" : ", ") + (policy == SCHED_FIFO ? "SCHED_FIFO " : "SCHED_RR ") +
+                std::to_string(was.sched_priority) + " (inherited) lowered to SCHED_OTHER";
+      }
+    }
+    if (!what.empty()) moved.push_back(std::to_string(tid) + " (" + thread_name(tid) + "): " + what);
   }
   return moved;
 }

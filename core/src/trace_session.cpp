@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <cinttypes>
 #include <climits>
+#include <cstddef>
 #include <cstdint>
-#include <iterator>
 #include <cstdio>
+#include <iterator>
 #include <cstring>
+#include <functional>
 #include <map>
+#include <queue>
 #include <tuple>
 
 #include "rack/core/payload_json.h"
@@ -63,6 +66,79 @@ DecodedRead decode_read(std::span<const std::byte> body, bool swapped) {
   }
   std::memcpy(&req, body.data(), sizeof req);
   d.offset = swapped ? __builtin_bswap64(req.offset) : req.offset;
+  d.ok = true;
+  return d;
+}
+
+DecodedChunk decode_chunk(std::span<const std::byte> body, bool swapped, uint64_t offset, uint64_t total) {
+  DecodedChunk d;
+  TraceChunkHeader& h = d.header;
+  const auto fail = [&](std::size_t at, const std::string& what) {
+    d.error = "TRACE_READ reply, byte " + std::to_string(at) + ": " + what;
+    return d;
+  };
+  if (body.size() < sizeof h) {
+    return fail(body.size(), "the reply ends after " + std::to_string(body.size()) + " bytes, inside its " +
+                                 std::to_string(sizeof h) + "-byte header");
+  }
+  std::memcpy(&h, body.data(), sizeof h);
+  if (swapped) {
+    h.state = __builtin_bswap32(h.state);
+    h.length = __builtin_bswap32(h.length);
+    h.offset = __builtin_bswap64(h.offset);
+    h.total = __builtin_bswap64(h.total);
+    h.dropped = __builtin_bswap64(h.dropped);
+    h.remaining_ns = static_cast<int64_t>(__builtin_bswap64(static_cast<uint64_t>(h.remaining_ns)));
+  }
+  const std::size_t room = body.size() - sizeof h;
+  switch (static_cast<TraceState>(h.state)) {
+    case TraceState::kIdle:
+    case TraceState::kRecording:
+      if (h.length != 0)
+        return fail(offsetof(TraceChunkHeader, length),
+                    std::to_string(h.length) + " bytes of JSON before the trace is ready");
+      if (room != 0) return fail(sizeof h, std::to_string(room) + " stray bytes after the header");
+      if (h.remaining_ns < 0 || h.remaining_ns > kMaxTraceDurationNs) {
+        return fail(offsetof(TraceChunkHeader, remaining_ns), "time left " + std::to_string(h.remaining_ns) +
+                                                                  " ns is out of range (0 .. " +
+                                                                  std::to_string(kMaxTraceDurationNs) + ")");
+      }
+      break;
+    case TraceState::kReady:
+      if (h.total > kMaxTraceJsonBytes) {
+        return fail(offsetof(TraceChunkHeader, total), "a trace of " + std::to_string(h.total) +
+                                                           " bytes is over the limit of " +
+                                                           std::to_string(kMaxTraceJsonBytes));
+      }
+      if (total != 0 && h.total != total) {
+        return fail(offsetof(TraceChunkHeader, total), "the trace's size changed from " + std::to_string(total) +
+                                                           " to " + std::to_string(h.total) + " bytes");
+      }
+      if (h.offset != offset) {
+        return fail(offsetof(TraceChunkHeader, offset),
+                    "chunk at offset " + std::to_string(h.offset) + ", asked for " + std::to_string(offset));
+      }
+      if (h.length > room) {
+        return fail(offsetof(TraceChunkHeader, length),
+                    "a chunk of " + std::to_string(h.length) + " bytes, but the reply holds " + std::to_string(room));
+      }
+      if (h.length < room)
+        return fail(sizeof h + h.length, std::to_string(room - h.length) + " stray bytes after the chunk");
+      if (h.offset > h.total || h.length > h.total - h.offset) {
+        return fail(offsetof(TraceChunkHeader, length), "a chunk of " + std::to_string(h.length) + " bytes at offset " +
+                                                            std::to_string(h.offset) + " runs past the trace's " +
+                                                            std::to_string(h.total) + " bytes");
+      }
+      if (h.length == 0 && h.offset < h.total) {
+        return fail(offsetof(TraceChunkHeader, length), "an empty chunk at offset " + std::to_string(h.offset) +
+                                                            " before the end (" + std::to_string(h.total) + " bytes)");
+      }
+      d.bytes = body.subspan(sizeof h, h.length);
+      break;
+    default:
+      return fail(offsetof(TraceChunkHeader, state),
+                  "unknown state " + std::to_string(h.state) + " (0 idle, 1 recording, 2 ready)");
+  }
   d.ok = true;
   return d;
 }
@@ -187,31 +263,57 @@ std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFor
     w.raw(",\"args\":{\"sort_index\":" + std::to_string(t.sort_index) + "}");
     w.end();
     if (t.dropped > 0) {
-      w.begin("i", "events dropped (ring full)", "trace", t.tid);
+      w.begin("I", "events dropped (ring full)", "trace", t.tid);
       w.ts("ts", f.origin_ns);
       w.raw(",\"s\":\"t\",\"args\":{\"dropped\":" + std::to_string(t.dropped) + "}");
       w.end();
     }
   }
-  for (const auto& t : tasks) {
-    const bool data_task = t.track.size() >= 9 && t.track.compare(t.track.size() - 9, 9, "data task") == 0;
-    const std::string cycle_name = data_task ? "loop" : "command";
+  // The tasks' events merged in time order (each task's are in order already): Chrome
+  // DevTools binds a flow to its send and receive instants in the order of the file,
+  // and draws the arrow from the first to the second.
+  struct Cursor {
+    std::size_t next = 0;
     int64_t start_ns = -1;
     int64_t due_ns = -1;
     int64_t wake_ns = -1;
-    for (const auto& e : t.events) {
+  };
+  std::vector<Cursor> cursors(tasks.size());
+  using Head = std::pair<int64_t, std::size_t>;  // (time, task)
+  std::priority_queue<Head, std::vector<Head>, std::greater<>> heads;
+  for (std::size_t ti = 0; ti < tasks.size(); ++ti) {
+    if (!tasks[ti].events.empty()) heads.emplace(tasks[ti].events.front().time_ns, ti);
+  }
+  while (!heads.empty()) {
+    const std::size_t ti = heads.top().second;
+    heads.pop();
+    const TaskTrace& t = tasks[ti];
+    Cursor& c = cursors[ti];
+    const Event& e = t.events[c.next++];
+    if (c.next < t.events.size()) heads.emplace(t.events[c.next].time_ns, ti);
+    const bool data_task = t.track.size() >= 9 && t.track.compare(t.track.size() - 9, 9, "data task") == 0;
+    const char* cycle_name = data_task ? "loop" : "command";
+    int64_t& start_ns = c.start_ns;
+    int64_t& due_ns = c.due_ns;
+    int64_t& wake_ns = c.wake_ns;
+    {
       switch (e.kind) {
         case Kind::kWake:
           due_ns = e.value;
           wake_ns = e.time_ns;
-          w.begin("i", "wake-up", "wake", t.tid);
+          w.begin("I", "wake-up", "wake", t.tid);
           w.ts("ts", e.time_ns);
           w.raw(",\"s\":\"t\",\"args\":{\"latency_us\":" + us_text(e.time_ns - e.value) + "}");
           w.end();
           break;
         case Kind::kCycleStart: start_ns = e.time_ns; break;
         case Kind::kCycleEnd: {
-          if (start_ns < 0) break;  // its start came before the trace
+          if (start_ns < 0) break;     // its start came before the trace
+          if (e.time_ns < start_ns) {  // out of order (a clock gone back): no negative "dur"
+            start_ns = -1;
+            wake_ns = -1;
+            break;
+          }
           w.begin("X", cycle_name, "cycle", t.tid);
           w.ts("ts", start_ns);
           w.ts("dur", f.origin_ns + (e.time_ns - start_ns));
@@ -226,13 +328,13 @@ std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFor
           break;
         }
         case Kind::kOverrun:
-          w.begin("i", "overrun", "overrun", t.tid);
+          w.begin("I", "overrun", "overrun", t.tid);
           w.ts("ts", e.time_ns);
           w.raw(",\"s\":\"t\",\"args\":{\"missed_periods\":" + std::to_string(e.value) + "}");
           w.end();
           break;
         case Kind::kModeSwitch:
-          w.begin("i", "mode switch", "modeswitch", t.tid);
+          w.begin("I", "mode switch", "modeswitch", t.tid);
           w.ts("ts", e.time_ns);
           w.raw(",\"s\":\"t\",\"args\":{\"reports\":" + std::to_string(e.value) + "}");
           w.end();
@@ -241,7 +343,7 @@ std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFor
         case Kind::kReceive: {
           const bool send = e.kind == Kind::kSend;
           const int type = rt::trace::aux_type(e.aux);
-          w.begin("i", std::string(send ? "send to " : "receive from ") + name_of(e.peer), "message", t.tid);
+          w.begin("I", std::string(send ? "send to " : "receive from ") + name_of(e.peer), "message", t.tid);
           w.ts("ts", e.time_ns);
           w.raw(",\"s\":\"t\",\"args\":{\"" + std::string(send ? "to" : "from") + "\":\"" +
                 json_escape(name_of(e.peer)) + "\",\"" + std::string(send ? "from" : "to") + "\":\"" +
@@ -264,7 +366,7 @@ std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFor
     for (const auto& e : tasks[ti].events) {
       if (e.kind == Kind::kCycleStart) start_ns = e.time_ns;
       if (e.kind == Kind::kCycleEnd && start_ns >= 0) {
-        cycles[ti].emplace_back(start_ns, e.time_ns);
+        if (e.time_ns >= start_ns) cycles[ti].emplace_back(start_ns, e.time_ns);
         start_ns = -1;
       }
     }

@@ -282,5 +282,74 @@ components:
   (void)sched_setaffinity(0, sizeof before, &before);  // partition_threads moved this thread too
 }
 
+// A pool that a library starts from an RT task (on first use, in loop()) inherits the
+// task's CPU and its SCHED_FIFO priority: partition_threads() moves it to the
+// housekeeping CPUs and lowers it to SCHED_OTHER, and says so.
+TEST(PartitionThreadsTest, APoolStartedByAnRtTaskLosesItsCpuAndItsPriority) {
+  Watchdog watchdog;
+  const cpu_set_t before = affinity_of(0);
+  if (!CPU_ISSET(0, &before) || !CPU_ISSET(1, &before)) GTEST_SKIP() << "needs CPUs 0 and 1 in this process's affinity";
+  {
+    test::HostUnderTest host(R"(system: 0
+lcm: false
+cpus: {rt: 1, housekeeping: 0}
+components:
+  - name: gen
+    class: Generator
+    instance: 1
+    data_task: {priority: 60, period_ms: 10}
+)");
+    std::atomic<bool> stop{false};
+    std::atomic<int> fifo{-1};
+    std::thread pool;
+    std::thread rt_caller([&] {  // as an RT task: SCHED_FIFO on the rt CPU
+      cpu_set_t one;
+      CPU_ZERO(&one);
+      CPU_SET(1, &one);
+      (void)pthread_setaffinity_np(pthread_self(), sizeof one, &one);
+      const sched_param p{.sched_priority = 20};
+      fifo = pthread_setschedparam(pthread_self(), SCHED_FIFO, &p);
+      pool = std::thread([&] {  // the library's worker, started from the task
+        pthread_setname_np(pthread_self(), "lib-pool");
+        while (!stop.load()) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      });
+    });
+    rt_caller.join();
+    if (fifo.load() != 0) {
+      stop = true;
+      pool.join();
+      GTEST_SKIP() << "needs SCHED_FIFO (root or CAP_SYS_NICE)";
+    }
+    pid_t tid = 0;
+    ASSERT_TRUE(test::eventually([&] { return (tid = thread_named("lib-pool")) != 0; }));
+    const cpu_set_t inherited = affinity_of(tid);
+    EXPECT_EQ(CPU_COUNT(&inherited), 1);
+    EXPECT_TRUE(CPU_ISSET(1, &inherited)) << "started on the RT CPU";
+    EXPECT_EQ(sched_getscheduler(tid), SCHED_FIFO) << "with the task's policy";
+    std::vector<std::string> moved;
+    ASSERT_TRUE(test::eventually([&] {
+      moved = host.executor().partition_threads();
+      return !moved.empty();
+    }));
+    std::string said;
+    for (const auto& m : moved) {
+      if (m.find("lib-pool") != std::string::npos) said = m;
+    }
+    EXPECT_NE(said.find("moved to the housekeeping CPUs"), std::string::npos) << said;
+    EXPECT_NE(said.find("SCHED_FIFO 20 (inherited) lowered to SCHED_OTHER"), std::string::npos) << said;
+    const cpu_set_t now = affinity_of(tid);
+    EXPECT_EQ(CPU_COUNT(&now), 1);
+    EXPECT_TRUE(CPU_ISSET(0, &now));
+    EXPECT_EQ(sched_getscheduler(tid), SCHED_OTHER);
+    const pid_t data = thread_named("gen:data");
+    ASSERT_NE(data, 0);
+    EXPECT_EQ(sched_getscheduler(data), SCHED_FIFO) << "the RT task keeps its policy";
+    EXPECT_TRUE(host.executor().partition_threads().empty()) << "a second pass has nothing to do";
+    stop = true;
+    pool.join();
+  }
+  (void)sched_setaffinity(0, sizeof before, &before);  // partition_threads moved this thread too
+}
+
 }  // namespace
 }  // namespace rack

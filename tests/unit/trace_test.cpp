@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <climits>
 #include <cstring>
 #include <span>
 #include <set>
@@ -171,16 +172,25 @@ TEST(TraceSessionTest, WritesTracksCyclesInstantsAndFlowsAsChromeJson) {
     if (e.at("ph").string == "M" && e.at("name").string == "thread_name") tracks.insert(e.at("args").at("name").string);
   }
   EXPECT_EQ(tracks, (std::set<std::string>{"ladar data task", "mcl data task"}));
-  const test::Json* loop = find_event(events, "X", "loop");
+  // The events are written in time order across the tracks: mcl's cycle (ends at
+  // 8.5 us) before the ladar's (ends at 9 us); the ladar's is the one that woke up.
+  const test::Json* loop = nullptr;
+  int loops = 0;
+  for (const auto& e : events.array) {
+    if (e.at("ph").string != "X" || e.at("name").string != "loop") continue;
+    ++loops;
+    if (e.at("args").at("wake_latency_us").is_number()) loop = &e;
+  }
+  EXPECT_EQ(loops, 2);
   ASSERT_NE(loop, nullptr);
   EXPECT_DOUBLE_EQ(loop->at("ts").number, 3.0);  // us since the trace start (1000 ns)
   EXPECT_DOUBLE_EQ(loop->at("dur").number, 5.0);
   EXPECT_DOUBLE_EQ(loop->at("args").at("wake_latency_us").number, 0.02);
-  const test::Json* overrun = find_event(events, "i", "overrun");
+  const test::Json* overrun = find_event(events, "I", "overrun");
   ASSERT_NE(overrun, nullptr);
   EXPECT_EQ(overrun->at("args").at("missed_periods").number, 2);
-  ASSERT_NE(find_event(events, "i", "mode switch"), nullptr);
-  const test::Json* sent = find_event(events, "i", "send to mcl#1");
+  ASSERT_NE(find_event(events, "I", "mode switch"), nullptr);
+  const test::Json* sent = find_event(events, "I", "send to mcl#1");
   ASSERT_NE(sent, nullptr);
   EXPECT_EQ(sent->at("args").at("seq").number, 17);
   EXPECT_EQ(sent->at("args").at("type").number, -6);
@@ -215,9 +225,86 @@ TEST(TraceSessionTest, CountsTheEventsAFullRingDropped) {
   const auto doc = test::parse_json(session.json());
   ASSERT_TRUE(doc.has_value());
   EXPECT_EQ(doc->at("otherData").at("dropped_events").number, 6);
-  const test::Json* note = find_event(doc->at("traceEvents"), "i", "events dropped (ring full)");
+  const test::Json* note = find_event(doc->at("traceEvents"), "I", "events dropped (ring full)");
   ASSERT_NE(note, nullptr);
   EXPECT_EQ(note->at("args").at("dropped").number, 6);
+}
+
+std::span<const std::byte> as_bytes(const std::string& s) {
+  return {reinterpret_cast<const std::byte*>(s.data()), s.size()};
+}
+
+// A TRACE_READ reply as rackctl reads it: from rackd, or from a broken peer.
+TEST(TraceSessionTest, DecodesReadRepliesOrSaysWhatIsWrongAndWhere) {
+  const std::string json = R"({"traceEvents":[]})";
+  const auto reply = [&](trace::TraceChunkHeader h, std::size_t from, std::size_t n) {
+    std::string b(reinterpret_cast<const char*>(&h), sizeof h);  // the bytes of a reply
+    b.append(json, from, n);
+    return b;
+  };
+  trace::TraceChunkHeader h;
+  h.state = static_cast<uint32_t>(trace::TraceState::kReady);
+  h.total = json.size();
+  h.length = 8;
+  auto b = reply(h, 0, 8);
+  trace::DecodedChunk d = trace::decode_chunk(as_bytes(b), false, 0, 0);
+  ASSERT_TRUE(d.ok) << d.error;
+  EXPECT_EQ(std::string(reinterpret_cast<const char*>(d.bytes.data()), d.bytes.size()), json.substr(0, 8));
+  // The rest, at offset 8, the total known from the first chunk.
+  h.offset = 8;
+  h.length = static_cast<uint32_t>(json.size() - 8);
+  b = reply(h, 8, json.size() - 8);
+  d = trace::decode_chunk(as_bytes(b), false, 8, json.size());
+  ASSERT_TRUE(d.ok) << d.error;
+  // The other byte order.
+  trace::TraceChunkHeader sw = h;
+  sw.state = __builtin_bswap32(h.state);
+  sw.length = __builtin_bswap32(h.length);
+  sw.offset = __builtin_bswap64(h.offset);
+  sw.total = __builtin_bswap64(h.total);
+  b = reply(sw, 8, json.size() - 8);
+  d = trace::decode_chunk(as_bytes(b), true, 8, json.size());
+  ASSERT_TRUE(d.ok) << d.error;
+  EXPECT_EQ(d.header.length, json.size() - 8);
+
+  const auto refused = [&](const std::string& body, uint64_t offset, uint64_t total, const char* what,
+                           const std::string& where) {
+    const trace::DecodedChunk r = trace::decode_chunk(as_bytes(body), false, offset, total);
+    EXPECT_FALSE(r.ok) << what;
+    EXPECT_NE(r.error.find(what), std::string::npos) << r.error;
+    EXPECT_NE(r.error.find(where), std::string::npos) << r.error;
+  };
+  // Truncated: inside the header, and a chunk longer than the reply.
+  b = reply(h, 8, json.size() - 8);
+  refused(b.substr(0, 20), 8, 0, "inside its 40-byte header", "byte 20");
+  refused(b.substr(0, b.size() - 1), 8, 0, "but the reply holds", "byte 4");
+  // Wrong counts: stray bytes, a chunk past the total, a total that changed.
+  auto longer = b;
+  longer += '\0';
+  refused(longer, 8, 0, "1 stray bytes", "byte " + std::to_string(b.size()));
+  trace::TraceChunkHeader past = h;
+  past.total = 10;
+  refused(reply(past, 8, json.size() - 8), 8, 0, "runs past the trace's 10 bytes", "byte 4");
+  refused(b, 8, 999, "changed from 999", "byte 16");
+  // Huge counts: a total over the limit, a time left beyond any trace.
+  trace::TraceChunkHeader huge = h;
+  huge.total = uint64_t{1} << 62;
+  refused(reply(huge, 8, json.size() - 8), 8, 0, "over the limit", "byte 16");
+  trace::TraceChunkHeader rec;
+  rec.state = static_cast<uint32_t>(trace::TraceState::kRecording);
+  rec.remaining_ns = INT64_MAX;
+  refused(reply(rec, 0, 0), 0, 0, "out of range", "byte 32");
+  rec.remaining_ns = 5;
+  rec.length = 3;
+  refused(reply(rec, 0, 3), 0, 0, "before the trace is ready", "byte 4");
+  // Out of order: a chunk at another offset than asked for, an empty chunk before the end.
+  refused(b, 0, 0, "chunk at offset 8, asked for 0", "byte 8");
+  trace::TraceChunkHeader empty = h;
+  empty.length = 0;
+  refused(reply(empty, 0, 0), 8, 0, "an empty chunk at offset 8", "byte 4");
+  trace::TraceChunkHeader odd = h;
+  odd.state = 7;
+  refused(reply(odd, 0, 0), 8, 0, "unknown state 7", "byte 0");
 }
 
 TEST(TraceSessionTest, DecodesRequestsFromTheNetworkOrSaysWhatIsWrong) {

@@ -52,12 +52,18 @@ void Backend::Impl::trace_read(uint64_t client, const Request& r, Address t, con
   rtrace::TraceReadRequest rr;
   rr.offset = text->size();
   request(t, rtrace::kTraceRead, rr, [this, client, r, t, host_name, text, give_up](const Reply* rep) {
-    rtrace::TraceChunkHeader head;
-    if (rep == nullptr || rep->header.type != msg::kOk || rep->body.size() < sizeof head) {
+    if (rep == nullptr || rep->header.type != msg::kOk) {
       result(client, r, false, failure(rep, "TRACE_READ", t));
       return;
     }
-    std::memcpy(&head, rep->body.data(), sizeof head);
+    // The reply checked as rackctl checks it (rack::trace::decode_chunk, fuzz_trace_reply;
+    // the total of the earlier chunks is not kept here: each chunk must fit its own).
+    const rtrace::DecodedChunk chunk = rtrace::decode_chunk(rep->body, !rep->native(), text->size(), 0);
+    const rtrace::TraceChunkHeader& head = chunk.header;
+    if (!chunk.ok) {
+      result(client, r, false, host_name + " (" + rep->header.source().str() + "): " + chunk.error);
+      return;
+    }
     const auto state = static_cast<rtrace::TraceState>(head.state);
     const auto again = [&](int64_t delay) {
       defer(delay,
@@ -67,17 +73,12 @@ void Backend::Impl::trace_read(uint64_t client, const Request& r, Address t, con
       again(std::clamp<int64_t>(head.remaining_ns, 10 * rt::kNsPerMs, 200 * rt::kNsPerMs));
       return;
     }
-    if (state != rtrace::TraceState::kReady || head.length > rep->body.size() - sizeof head ||
-        head.offset != text->size() || head.total > (100u << 20)) {
-      result(client, r, false, host_name + ": TRACE_READ: the trace was discarded or its chunk is malformed");
+    if (state != rtrace::TraceState::kReady || head.total > (100u << 20)) {
+      result(client, r, false, host_name + ": TRACE_READ: the trace was discarded or is over 100 MiB");
       return;
     }
-    text->append(reinterpret_cast<const char*>(rep->body.data() + sizeof head), head.length);
+    text->append(reinterpret_cast<const char*>(chunk.bytes.data()), chunk.bytes.size());
     if (text->size() < head.total) {
-      if (head.length == 0) {
-        result(client, r, false, host_name + ": TRACE_READ returned nothing before the end");
-        return;
-      }
       again(0);
       return;
     }

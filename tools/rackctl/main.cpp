@@ -9,7 +9,9 @@
 // Exit codes: 0 ok, 1 the component answered ERROR (its reason is printed), 2 usage
 // error, 3 not available (NOT_AVAILABLE reply, unknown name, no reply in time).
 #include <dirent.h>
+#include <fcntl.h>
 #include <sched.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <signal.h>
 #include <unistd.h>
@@ -500,6 +502,25 @@ int cmd_trace(Session& s, const Options& o) {
   std::memcpy(req.names, joined.data(), joined.size());
   req.duration_ns = static_cast<int64_t>(o.duration_s * 1e9);
   if (req.duration_ns <= 0) fail(kExitUsage, "--duration is below a nanosecond");
+  // The file is opened before anything is recorded: an unwritable --out is said at once,
+  // not after the trace. A file this command created is removed when it fails.
+  struct OutFile {
+    int fd = -1;
+    bool created = false;
+    bool done = false;
+    std::string path;
+    ~OutFile() {
+      if (fd >= 0) ::close(fd);
+      if (created && !done) ::unlink(path.c_str());
+    }
+  } out;
+  out.path = o.out;
+  out.created = ::access(o.out.c_str(), F_OK) != 0;
+  out.fd = ::open(o.out.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0666);
+  if (out.fd < 0) {
+    out.created = false;
+    fail(kExitUsage, "--out " + o.out + ": cannot write: " + std::strerror(errno) + " (nothing recorded)");
+  }
 
   // Which host: the one with the named components, --host, or the only one there is.
   const auto holds = [&](const tims::HostInfo& h, const std::string& n) {
@@ -535,7 +556,12 @@ int cmd_trace(Session& s, const Options& o) {
   CallResult r = s.call(t, rtrace::kTraceStart, req);
   Session::expect(t, r, msg::kOk, "TRACE_START");
   rtrace::TraceStartReply started;
-  std::memcpy(&started, r.body.data(), std::min(r.body.size(), sizeof started));
+  if (r.body.size() != sizeof started) {
+    fail(kExitError, format("%s (%s): TRACE_START reply of %zu bytes, expected %zu", t.label().c_str(),
+                            r.reply.source().str().c_str(), r.body.size(), sizeof started));
+  }
+  std::memcpy(&started, r.body.data(), sizeof started);
+  if (!tims::body_is_native(r.reply)) started.tasks = __builtin_bswap32(started.tasks);
   std::fprintf(stderr, "rackctl: recording %u task(s) of host '%s' for %.3f s\n", started.tasks, host_name.c_str(),
                o.duration_s);
 
@@ -543,6 +569,7 @@ int cmd_trace(Session& s, const Options& o) {
   std::string json;
   uint64_t dropped = 0;
   const int64_t give_up = rt::monotonic_ns() + req.duration_ns + 30 * rt::kNsPerSec;
+  uint64_t total = 0;
   for (;;) {
     if (rt::monotonic_ns() > give_up)
       fail(kExitUnavailable, t.label() + ": the trace was not ready 30 s after its end");
@@ -550,28 +577,35 @@ int cmd_trace(Session& s, const Options& o) {
     rr.offset = json.size();
     r = s.call(t, rtrace::kTraceRead, rr);
     Session::expect(t, r, msg::kOk, "TRACE_READ");
-    rtrace::TraceChunkHeader head;
-    if (r.body.size() < sizeof head) fail(kExitError, t.label() + ": TRACE_READ reply too short");
-    std::memcpy(&head, r.body.data(), sizeof head);
-    if (head.length > r.body.size() - sizeof head)
-      fail(kExitError, t.label() + ": TRACE_READ chunk longer than its reply");
-    const auto state = static_cast<rtrace::TraceState>(head.state);
+    const rtrace::DecodedChunk chunk = rtrace::decode_chunk(r.body, !tims::body_is_native(r.reply), json.size(), total);
+    if (!chunk.ok) fail(kExitError, t.label() + " (" + r.reply.source().str() + "): " + chunk.error);
+    const auto state = static_cast<rtrace::TraceState>(chunk.header.state);
     if (state == rtrace::TraceState::kRecording) {
-      rt::sleep_for(std::clamp<int64_t>(head.remaining_ns, 10 * rt::kNsPerMs, 200 * rt::kNsPerMs));
+      rt::sleep_for(std::clamp<int64_t>(chunk.header.remaining_ns, 10 * rt::kNsPerMs, 200 * rt::kNsPerMs));
       continue;
     }
     if (state != rtrace::TraceState::kReady)
       fail(kExitError, t.label() + ": the trace was discarded (see rackd's log)");
-    if (head.offset != json.size()) fail(kExitError, t.label() + ": TRACE_READ answered another offset");
-    json.append(reinterpret_cast<const char*>(r.body.data() + sizeof head), head.length);
-    dropped = head.dropped;
-    if (json.size() >= head.total) break;
-    if (head.length == 0) fail(kExitError, t.label() + ": TRACE_READ returned nothing before the end");
+    json.append(reinterpret_cast<const char*>(chunk.bytes.data()), chunk.bytes.size());
+    dropped = chunk.header.dropped;
+    total = chunk.header.total;
+    if (json.size() >= total) break;
   }
-  FILE* f = std::fopen(o.out.c_str(), "wb");
-  if (f == nullptr) fail(kExitUsage, "--out " + o.out + ": " + std::strerror(errno));
-  const bool written = std::fwrite(json.data(), 1, json.size(), f) == json.size();
-  if (std::fclose(f) != 0 || !written) fail(kExitError, "--out " + o.out + ": write failed: " + std::strerror(errno));
+  struct stat st {};
+  const bool regular = ::fstat(out.fd, &st) == 0 && S_ISREG(st.st_mode);  // not /dev/stdout, a pipe
+  bool written = !regular || ::ftruncate(out.fd, 0) == 0;
+  for (std::size_t at = 0; written && at < json.size();) {
+    const ssize_t n = ::write(out.fd, json.data() + at, json.size() - at);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) written = false;
+    else at += static_cast<std::size_t>(n);
+  }
+  const int err = errno;
+  const bool closed = ::close(out.fd) == 0;
+  out.fd = -1;
+  if (!written || !closed)
+    fail(kExitError, "--out " + o.out + ": write failed: " + std::strerror(written ? errno : err));
+  out.done = true;
   std::printf("%s: %zu bytes, %u task(s) of host '%s', %llu event(s) dropped\n", o.out.c_str(), json.size(),
               started.tasks, host_name.c_str(), static_cast<unsigned long long>(dropped));
   return kExitOk;
@@ -1881,7 +1915,10 @@ const std::vector<Command>& commands() {
        "chunks, so this works from another machine. A ring that fills between two\n"
        "drains (10 ms) drops events: the count is printed and kept in the file\n"
        "(otherData.dropped_events); the host file's trace_ring_events sets the\n"
-       "rings' size (4096). A trace already running: exit 1.\n"
+       "rings' size (4096). A trace already running: exit 1. FILE is opened\n"
+       "before the trace starts: one that cannot be written is exit 2, with nothing\n"
+       "recorded. A reply that is not a well-formed chunk of the trace (truncated,\n"
+       "at another offset, a size over 1 GiB) is exit 1, with the byte it is wrong at.\n"
        "  rackctl trace --duration 2 --out sim.json all\n"
        "  rackctl trace --duration 5 --out mcl.json mcl,ladar",
        cmd_trace},

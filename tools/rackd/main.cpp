@@ -567,11 +567,10 @@ static int run_rackd(int argc, char** argv) {
       std::fflush(stdout);
       next_status += static_cast<int64_t>(status_every * 1e9);
     }
-    // Threads that libraries start late (a pool on first use) join housekeeping.
-    for (const auto& t : executor.partition_threads()) {
-      std::fprintf(stderr, "rackd: cpus: thread %s moved to the housekeeping CPUs\n", t.c_str());
-    }
-    const int64_t wait = std::min({end, next_status, now + rack::rt::kNsPerSec}) - now;
+    // Threads that libraries start late (a pool on first use, maybe from an RT task)
+    // join housekeeping within 100 ms (a sweep of /proc/self/task).
+    for (const auto& t : executor.partition_threads()) std::fprintf(stderr, "rackd: cpus: thread %s\n", t.c_str());
+    const int64_t wait = std::min({end, next_status, now + 100 * rack::rt::kNsPerMs}) - now;
     timespec ts = rack::rt::to_timespec(wait > 0 ? wait : 0);
     const int sig = sigtimedwait(&stop_signals, nullptr, &ts);
     if (sig > 0) signal_number = sig;

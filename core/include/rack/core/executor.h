@@ -135,10 +135,11 @@ class Executor {
   // /proc/self/task. Not RT-safe; any non-RT thread.
   [[nodiscard]] std::string thread_report() const;
   // Partitioning (`cpus:`): moves every thread that is not one of the executor's tasks
-  // (library threads started after start(), helpers) onto the housekeeping CPUs.
-  // Returns the ids and names of the threads moved ("1234 (name)"); none without
-  // partitioning, or while a task has not started yet. rackd calls it after start()
-  // and once a second. Not RT-safe; main thread.
+  // (library threads started after start(), helpers) onto the housekeeping CPUs, and
+  // lowers such a thread's SCHED_FIFO/RR (inherited from the RT task that started it)
+  // to SCHED_OTHER. Returns what it did ("1234 (name): moved to the housekeeping
+  // CPUs"); none without partitioning, or while a task has not started yet. rackd
+  // calls it after start() and every 100 ms. Not RT-safe; main thread.
   std::vector<std::string> partition_threads();
   // What is questionable about the partitioning: an RT CPU that also serves
   // housekeeping, an RT task pinned (`cpu:`) to a housekeeping-only CPU, a non-RT task

@@ -70,6 +70,26 @@ struct DecodedRead {
 };
 [[nodiscard]] DecodedRead decode_read(std::span<const std::byte> body, bool swapped);
 
+// The most JSON a TRACE_READ peer may announce (kMaxTraceEvents events come to about
+// 300 MB): a larger total is refused before anything is read.
+inline constexpr uint64_t kMaxTraceJsonBytes = 1024ull * 1024 * 1024;
+
+// Decoder of a TRACE_READ reply (OK: TraceChunkHeader + bytes) as rackctl receives it
+// from the executor, or from anyone answering in its place. `offset`: the bytes read so
+// far (the request's offset); `total`: the total of the earlier chunks (0: none yet).
+// Refused, with what and the byte offset in the reply: a reply shorter than its header,
+// an unknown state, a chunk longer than the reply or followed by stray bytes, a chunk
+// at another offset or past the announced total, a total that changes between chunks
+// or is over kMaxTraceJsonBytes, an empty chunk before the end, a time left out of
+// range. Total, never throws; `bytes` points into `body`.
+struct DecodedChunk {
+  bool ok = false;
+  std::string error;
+  TraceChunkHeader header;  // in this host's byte order
+  std::span<const std::byte> bytes;
+};
+[[nodiscard]] DecodedChunk decode_chunk(std::span<const std::byte> body, bool swapped, uint64_t offset, uint64_t total);
+
 // ---------------------------------------------------------------- the trace
 
 // The events of one task, as the trace thread collected them.
@@ -96,11 +116,14 @@ struct TraceFormat {
 
 // The Chrome JSON trace (object form: traceEvents, displayTimeUnit, otherData):
 // one track per task ("M" thread_name and thread_sort_index), "X" complete events for
-// cycles (data task: "loop", command task: "command", args: wake-up latency),
-// instant events ("i", thread scope) for wake-ups, overruns, mode switches, sends and
-// receives, and flow events ("s"/"f") joining a send to the receive that took the
-// same message (source, destination, type and sequence number) when both tasks were
-// traced.
+// cycles (data task: "loop", command task: "command", args: wake-up latency; a cycle
+// cut by the trace's start or end, or whose end is stamped before its start, is left
+// out), instant events ("I", thread scope: the Trace Event Format reads "i" and "I"
+// alike, Chrome DevTools' trace engine only "I") for wake-ups, overruns, mode
+// switches, sends and receives, and flow events ("s"/"f") joining a send to the
+// receive that took the same message (source, destination, type and sequence number)
+// when both tasks were traced; each flow event has the timestamp, thread and category
+// of its send or receive instant, which is what DevTools binds a flow to.
 [[nodiscard]] std::string format_chrome_trace(std::span<const TaskTrace> tasks, const TraceFormat& format);
 
 // ---------------------------------------------------------------- the session
