@@ -7,13 +7,13 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
 
 #include "common/pose2d.h"
 #include "rack/interfaces/robot.h"
+#include "rack/rt/input_file.h"
 
 namespace rack::components {
 
@@ -94,11 +94,13 @@ std::vector<TimedPose> parse_trajectory_text(std::string_view text, const std::s
 }
 
 std::vector<TimedPose> read_trajectory_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path + ": cannot read: " + std::strerror(errno));
-  std::ostringstream all;
-  all << in.rdbuf();
-  return parse_trajectory_text(all.str(), path);
+  // A regular file of bounded size (rack/rt/input_file.h): an ifstream waited for ever
+  // on a FIFO with no writer and read /dev/zero until memory ran out.
+  std::string text, error;
+  if (!rt::read_regular_file(path, kMaxTrajectoryFileBytes, "trajectory file", text, error)) {
+    throw std::runtime_error(error);
+  }
+  return parse_trajectory_text(text, path);
 }
 
 TrajectoryWriter::TrajectoryWriter()
