@@ -2,7 +2,9 @@
 // that promises gigabytes) must not take rackd down or stall it. The start-up regime
 // decides what follows: a component whose init() refuses its file goes to ERROR with
 // the reason (file and byte) while the others run; a plug-in path is part of the host
-// file, so a bad one is a host-file error (exit 2, file:line:col).
+// file, so a bad one is a host-file error (exit 2, file:line:col). The tools likewise:
+// rack-backtrace and rack-foxglove refuse FIFOs and devices where files belong, and
+// rackd, rackctl and gdos refuse numbers they cannot keep (exit 2, saying what).
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/stat.h>
@@ -24,6 +26,7 @@ using namespace std::chrono_literals;
 
 const std::string kRackd = RACK_RACKD_PATH;
 const std::string kRackctl = RACK_RACKCTL_PATH;
+const std::string kBacktrace = RACK_BACKTRACE_PATH;
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
@@ -109,6 +112,25 @@ TEST_F(HostileFilesTest, APluginThatIsAFifoIsAHostFileErrorNotAHang) {
   EXPECT_EQ(r.exit_code, 2) << r.describe();
   EXPECT_TRUE(contains(r.err, host.string() + ":4:")) << r.describe();
   EXPECT_TRUE(contains(r.err, plugin + ": the plug-in is a FIFO, not a regular file")) << r.describe();
+}
+
+// A report names its modules by path, and reports are copied from other machines: a
+// FIFO (or a device) where a binary was is refused before libdwfl opens it (open()
+// waited for a writer for ever), and the frames stay unsymbolized.
+TEST_F(HostileFilesTest, AReportNamingAFifoAsItsBinaryIsRefusedNotWaitedOn) {
+  const std::string binary = fifo("rackd");
+  const auto report = dir_.write(
+      "fifo.report",
+      "RACK-MODESWITCH-REPORT 1 program=rackd pid=4242 start_ns=1 exe=" + binary +
+          "\nmodule 0 base=0x55d0c0000000 lo=0x55d0c000d000 hi=0x55d0c0062000 build_id=76acf9 path=" + binary +
+          "\nreport 1 reason=SYSCALL mode=warn task=demo:cmd component=demo label=ModeSwitchDemo(0/0) tid=4245 "
+          "time_ns=5 syscall=1 frames=1\nframe 0 0x55d0c000e000 rackd+0xe000\nend 1\n");
+  const RunResult r = run({kBacktrace, report.string()}, 30s);
+  EXPECT_FALSE(r.timed_out) << r.describe();
+  EXPECT_EQ(r.exit_code, 1) << r.describe();
+  EXPECT_TRUE(contains(r.err, "module 0: " + binary + ": the module file is a FIFO, not a regular file"))
+      << r.describe();
+  EXPECT_TRUE(contains(r.out, "SYSCALL")) << r.describe();  // the report itself is still shown
 }
 
 }  // namespace
