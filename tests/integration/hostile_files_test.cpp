@@ -10,6 +10,7 @@
 #include <sys/stat.h>
 
 #include <chrono>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -131,6 +132,34 @@ TEST_F(HostileFilesTest, AReportNamingAFifoAsItsBinaryIsRefusedNotWaitedOn) {
   EXPECT_TRUE(contains(r.err, "module 0: " + binary + ": the module file is a FIFO, not a regular file"))
       << r.describe();
   EXPECT_TRUE(contains(r.out, "SYSCALL")) << r.describe();  // the report itself is still shown
+}
+
+// rack-foxglove play and --record name files too: a FIFO (or /dev/zero) to play, or a
+// FIFO to record into, is refused with what it is (readFileSync waited for ever on the
+// FIFO and read /dev/zero until memory ran out; opening a FIFO to write waited for a
+// reader), exit 2 before rack-gui is even asked.
+TEST_F(HostileFilesTest, RackFoxgloveRefusesAFifoToPlayOrToRecordInto) {
+  const auto node = find_program("node");
+  if (!node) GTEST_SKIP() << "node is not installed (Debian: apt-get install nodejs); scripts/setup.sh installs it";
+  const std::string foxglove = std::string(RACK_SOURCE_DIR) + "/tools/foxglove";
+  if (!std::filesystem::exists(foxglove + "/node_modules/@mcap/core")) {
+    GTEST_SKIP() << "tools/foxglove's packages are missing: npm ci in " << foxglove << " (scripts/setup.sh does)";
+  }
+  const std::string recording = fifo("rec.mcap");
+  const std::string gui = "ws://127.0.0.1:9";  // never reached: the file is refused first
+  for (const std::string& file : {recording, std::string("/dev/zero")}) {
+    const RunResult r = run({*node, foxglove + "/rack-foxglove.mjs", "play", file, "--gui", gui}, 30s);
+    EXPECT_FALSE(r.timed_out) << r.describe();
+    EXPECT_EQ(r.exit_code, 2) << r.describe();
+    EXPECT_TRUE(contains(r.err, "play " + file + ": not a readable MCAP file: a " +
+                                    (file == recording ? "FIFO" : "character device") + ", not a regular file"))
+        << r.describe();
+  }
+  const RunResult rec = run(
+      {*node, foxglove + "/rack-foxglove.mjs", "--no-server", "--record", recording, "--gui", gui}, 30s);
+  EXPECT_FALSE(rec.timed_out) << rec.describe();
+  EXPECT_EQ(rec.exit_code, 2) << rec.describe();
+  EXPECT_TRUE(contains(rec.err, "--record " + recording + ": a FIFO, not a regular file")) << rec.describe();
 }
 
 }  // namespace

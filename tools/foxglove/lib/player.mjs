@@ -12,12 +12,32 @@ import fs from 'node:fs';
 import { McapIndexedReader, McapStreamReader, hasMcapPrefix } from '@mcap/core';
 import { decompressHandlers as codecs } from './codecs.mjs';
 
+// The bytes of a recording: a regular file of at most 2 GiB (what a Buffer holds),
+// opened without waiting (readFileSync waited for ever on a FIFO with no writer and
+// read /dev/zero until memory ran out). Throws "a FIFO, not a regular file" and the like.
+const kMaxRecordingBytes = 2 ** 31 - 1;
+function readRecording(path) {
+  const fd = fs.openSync(path, fs.constants.O_RDONLY | fs.constants.O_NONBLOCK);
+  try {
+    const st = fs.fstatSync(fd);
+    if (!st.isFile()) {
+      const kind = st.isFIFO() ? 'a FIFO' : st.isDirectory() ? 'a directory' : st.isCharacterDevice()
+        ? 'a character device' : st.isBlockDevice() ? 'a block device' : st.isSocket() ? 'a socket' : 'not a file';
+      throw new Error(`${kind}, not a regular file`);
+    }
+    if (st.size > kMaxRecordingBytes) throw new Error(`${st.size} bytes, more than the limit of ${kMaxRecordingBytes}`);
+    return new Uint8Array(fs.readFileSync(fd));
+  } finally {
+    fs.closeSync(fd);
+  }
+}
+
 // A recording's reader: @mcap/core's indexed reader, or, for a file without its summary
 // section (a recorder that was killed: rack-foxglove writes the summary when it stops),
 // every complete record read in order with the stream reader, as far as the file is
 // whole (the reader's `truncated` then says where it ends).
 export async function openMcap(path) {
-  const bytes = new Uint8Array(fs.readFileSync(path));
+  const bytes = readRecording(path);
   const decompressHandlers = await codecs();
   const readable = {
     size: async () => BigInt(bytes.length),
