@@ -28,6 +28,7 @@ using namespace std::chrono_literals;
 const std::string kRackd = RACK_RACKD_PATH;
 const std::string kRackctl = RACK_RACKCTL_PATH;
 const std::string kBacktrace = RACK_BACKTRACE_PATH;
+const std::string kGdos = RACK_GDOS_PATH;
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
@@ -160,6 +161,42 @@ TEST_F(HostileFilesTest, RackFoxgloveRefusesAFifoToPlayOrToRecordInto) {
   EXPECT_FALSE(rec.timed_out) << rec.describe();
   EXPECT_EQ(rec.exit_code, 2) << rec.describe();
   EXPECT_TRUE(contains(rec.err, "--record " + recording + ": a FIFO, not a regular file")) << rec.describe();
+}
+
+// Seconds and periods on the command line are bounded: strtod's "" (0), NaN, inf and
+// 1e300 were taken, and the last two overflowed a deadline in ns (rackd and gdos
+// stopped at once, silently; rackctl sent an unspecified period).
+TEST_F(HostileFilesTest, DurationsAndPeriodsOutOfRangeAreUsageErrors) {
+  const auto host = dir_.write("h.yaml", "host: h\nsystem: 0\ncomponents: []\n");
+  for (const char* d : {"", "nan", "inf", "1e300", "-1", "5x"}) {
+    const RunResult r = run({kRackd, "--check", host.string(), "--duration", d}, 30s);
+    EXPECT_EQ(r.exit_code, 2) << d << ": " << r.describe();
+    EXPECT_TRUE(contains(r.err, "rackd: --duration needs a number of seconds (0 to 1e+09), got '" + std::string(d)))
+        << r.describe();
+  }
+  const RunResult status = run({kRackd, "--check", host.string(), "--status", "1e-12"}, 30s);
+  EXPECT_EQ(status.exit_code, 2) << status.describe();
+  EXPECT_TRUE(contains(status.err, "--status needs a number of seconds (0, or 0.01 to 1e+09)")) << status.describe();
+  for (const char* d : {"inf", "1e300"}) {
+    const RunResult r = run({kGdos, "--lcm", bus_.url(), "--duration", d}, 30s);
+    EXPECT_EQ(r.exit_code, 2) << d << ": " << r.describe();
+    EXPECT_TRUE(contains(r.err, "--duration needs seconds in (0, 1e9]")) << r.describe();
+  }
+  const RunResult count = run({kGdos, "--lcm", bus_.url(), "--count", "99999999999999999999"}, 30s);
+  EXPECT_EQ(count.exit_code, 2) << count.describe();
+  EXPECT_TRUE(contains(count.err, "--count needs a positive number")) << count.describe();
+  const RunResult period = run(
+      {kRackctl, "--lcm", bus_.url(), "watch", "Generator(0/0)", "--period", "1e308", "--count", "1"}, 30s);
+  EXPECT_EQ(period.exit_code, 2) << period.describe();
+  EXPECT_TRUE(contains(period.err, "--period needs milliseconds in 0..86400000")) << period.describe();
+  // A wait of INT64_MAX ms ended discovery at once ("no rackd answered within
+  // 9223372036854775807 ms").
+  const RunResult wait = run({kRackctl, "--lcm", bus_.url(), "--discover-ms", "9223372036854775807", "list"}, 30s);
+  EXPECT_EQ(wait.exit_code, 2) << wait.describe();
+  EXPECT_TRUE(contains(wait.err, "--discover-ms takes 0..86400000 ms")) << wait.describe();
+  const RunResult timeout = run({kRackctl, "--lcm", bus_.url(), "--timeout", "86400001", "list"}, 30s);
+  EXPECT_EQ(timeout.exit_code, 2) << timeout.describe();
+  EXPECT_TRUE(contains(timeout.err, "--timeout takes 1..86400000 ms")) << timeout.describe();
 }
 
 }  // namespace
