@@ -1,6 +1,7 @@
 #include "evaluator/trajectory_writer.h"
 
 #include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -140,6 +141,11 @@ void TrajectoryWriter::init() {
     if (reference_poses_.empty()) throw std::runtime_error(reference + ": no poses");
   }
   const std::string path = file_.get_string();
+  // Opening a FIFO for writing waits for a reader: rackd stalled in init().
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && S_ISFIFO(st.st_mode)) {
+    throw std::runtime_error(path + ": the trajectory output is a FIFO, not a regular file");
+  }
   out_ = std::fopen(path.c_str(), "w");
   if (out_ == nullptr) throw std::runtime_error(path + ": cannot write: " + std::strerror(errno));
   std::fprintf(out_, "# t x y theta (s, m, m, rad): estimates of %s\n",

@@ -68,6 +68,7 @@ class HostileFilesTest : public ::testing::Test {
 TEST_F(HostileFilesTest, HostileMapsAndLogsPutTheirComponentInErrorAndTheRestRuns) {
   const std::string fifo_pgm = fifo("fifo.pgm");
   const std::string fifo_log = fifo("fifo.log");
+  const std::string fifo_out = fifo("fifo_out.txt");
   const std::string
       map_tail = "resolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
   const auto fifo_map = dir_.write("fifo_map.yaml", "image: " + fifo_pgm + "\n" + map_tail);
@@ -81,7 +82,11 @@ TEST_F(HostileFilesTest, HostileMapsAndLogsPutTheirComponentInErrorAndTheRestRun
                      "    data_task: {priority: 60, period_ms: 10}\n"
                      "  - name: chassis\n    class: ChassisReplay\n    instance: 0\n    autostart: false\n"
                      "    data_task: {priority: 61, period_ms: 10}\n    params:\n      log: " +
-                     fifo_log + "\n";
+                     fifo_log +
+                     "\n"
+                     "  - name: traj\n    class: TrajectoryWriter\n    instance: 0\n    autostart: false\n"
+                     "    params:\n      source: chassis\n      file: " +
+                     fifo_out + "\n";
   const std::pair<std::string, std::string> ladars[] = {
       {"ladar_fifo", fifo_map.string()}, {"ladar_zero", zero_map.string()}, {"ladar_huge", huge_map.string()}};
   int instance = 0;
@@ -97,7 +102,8 @@ TEST_F(HostileFilesTest, HostileMapsAndLogsPutTheirComponentInErrorAndTheRestRun
   EXPECT_TRUE(contains(err, fifo_pgm + ": the map image is a FIFO, not a regular file")) << err;
   EXPECT_TRUE(contains(err, "/dev/zero: the map image is a character device, not a regular file")) << err;
   EXPECT_TRUE(contains(err, "huge.pgm: byte 18: 30000x30000 = 900000000 pixels, more than the limit")) << err;
-  for (const char* name : {"chassis", "ladar_fifo", "ladar_zero", "ladar_huge"})
+  EXPECT_TRUE(contains(err, fifo_out + ": the trajectory output is a FIFO, not a regular file")) << err;
+  for (const char* name : {"chassis", "ladar_fifo", "ladar_zero", "ladar_huge", "traj"})
     EXPECT_EQ(state_of(name), "ERROR") << name;
   EXPECT_TRUE(eventually([&] { return state_of("generator") == "ENABLED"; }));
   d.signal(SIGTERM);
