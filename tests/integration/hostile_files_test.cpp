@@ -6,10 +6,15 @@
 // rack-backtrace and rack-foxglove refuse FIFOs and devices where files belong, and
 // rackd, rackctl and gdos refuse numbers they cannot keep (exit 2, saying what).
 #include <gtest/gtest.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <signal.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -29,6 +34,7 @@ const std::string kRackd = RACK_RACKD_PATH;
 const std::string kRackctl = RACK_RACKCTL_PATH;
 const std::string kBacktrace = RACK_BACKTRACE_PATH;
 const std::string kGdos = RACK_GDOS_PATH;
+const std::string kGui = RACK_GUI_PATH;
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
@@ -203,6 +209,55 @@ TEST_F(HostileFilesTest, DurationsAndPeriodsOutOfRangeAreUsageErrors) {
   const RunResult timeout = run({kRackctl, "--lcm", bus_.url(), "--timeout", "86400001", "list"}, 30s);
   EXPECT_EQ(timeout.exit_code, 2) << timeout.describe();
   EXPECT_TRUE(contains(timeout.err, "--timeout takes 1..86400000 ms")) << timeout.describe();
+}
+
+// A client holding more connections than rack-gui has file descriptors: accept() failed
+// at once, in a loop (a core spun, nothing said). Now rack-gui says so, tries again
+// every 100 ms, and serves new connections once descriptors are free again.
+TEST_F(HostileFilesTest, RackGuiOutOfDescriptorsSaysSoAndServesAgainLater) {
+  Process gui({"/bin/sh", "-c", "ulimit -n 48 && exec \"$0\" --lcm \"$1\" --port 0", kGui, bus_.url()}, dir_.path(),
+              "gui");
+  ASSERT_TRUE(gui.wait_for_stderr("rack-gui: serving http://127.0.0.1:", 30s)) << gui.err();
+  const std::string err = gui.err();
+  const auto at = err.find("http://127.0.0.1:") + 17;
+  const int port = std::atoi(err.c_str() + at);
+  ASSERT_GT(port, 0) << err;
+  const auto connect_to_gui = [port] {
+    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(static_cast<uint16_t>(port));
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (fd >= 0 && ::connect(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0) {
+      ::close(fd);
+      return -1;
+    }
+    return fd;
+  };
+  std::vector<int> held;
+  for (int i = 0; i < 100; ++i) {
+    const int fd = connect_to_gui();
+    if (fd >= 0) held.push_back(fd);
+  }
+  EXPECT_TRUE(gui.wait_for_stderr("rack-gui: cannot accept connections: Too many open files (trying again", 20s))
+      << gui.err();
+  for (const int fd : held) ::close(fd);
+  // Served again: a new connection gets an HTTP answer.
+  EXPECT_TRUE(eventually([&] {
+    const int fd = connect_to_gui();
+    if (fd < 0) return false;
+    timeval tv{2, 0};
+    ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    const std::string get = "GET / HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+    char buf[16] = {};
+    const bool ok = ::send(fd, get.data(), get.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(get.size()) &&
+                    ::recv(fd, buf, 8, MSG_WAITALL) == 8 && std::string(buf, 8) == "HTTP/1.1";
+    ::close(fd);
+    return ok;
+  }));
+  EXPECT_TRUE(gui.running()) << gui.err();
+  gui.signal(SIGTERM);
+  EXPECT_EQ(gui.wait_exit(20s), std::optional<int>(0)) << gui.err();
 }
 
 }  // namespace
