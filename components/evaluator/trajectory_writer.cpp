@@ -1,19 +1,20 @@
 #include "evaluator/trajectory_writer.h"
 
 #include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
 
 #include "common/pose2d.h"
 #include "rack/interfaces/robot.h"
+#include "rack/rt/input_file.h"
 
 namespace rack::components {
 
@@ -94,11 +95,13 @@ std::vector<TimedPose> parse_trajectory_text(std::string_view text, const std::s
 }
 
 std::vector<TimedPose> read_trajectory_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path + ": cannot read: " + std::strerror(errno));
-  std::ostringstream all;
-  all << in.rdbuf();
-  return parse_trajectory_text(all.str(), path);
+  // A regular file of bounded size (rack/rt/input_file.h): an ifstream waited for ever
+  // on a FIFO with no writer and read /dev/zero until memory ran out.
+  std::string text, error;
+  if (!rt::read_regular_file(path, kMaxTrajectoryFileBytes, "trajectory file", text, error)) {
+    throw std::runtime_error(error);
+  }
+  return parse_trajectory_text(text, path);
 }
 
 TrajectoryWriter::TrajectoryWriter()
@@ -138,6 +141,11 @@ void TrajectoryWriter::init() {
     if (reference_poses_.empty()) throw std::runtime_error(reference + ": no poses");
   }
   const std::string path = file_.get_string();
+  // Opening a FIFO for writing waits for a reader: rackd stalled in init().
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && S_ISFIFO(st.st_mode)) {
+    throw std::runtime_error(path + ": the trajectory output is a FIFO, not a regular file");
+  }
   out_ = std::fopen(path.c_str(), "w");
   if (out_ == nullptr) throw std::runtime_error(path + ": cannot write: " + std::strerror(errno));
   std::fprintf(out_, "# t x y theta (s, m, m, rad): estimates of %s\n",

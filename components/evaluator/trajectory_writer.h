@@ -66,7 +66,9 @@ struct TrajectoryError {
 // "name:line: reason" for a malformed line, a non-finite value or times that go
 // backwards (a plain function on a byte buffer, for the fuzz harnesses).
 [[nodiscard]] std::vector<TimedPose> parse_trajectory_text(std::string_view text, const std::string& name);
-// Reads and parses a file; also throws when it cannot be read.
+// Reads and parses a file; also throws ("path: why") when it cannot be read, is not a
+// regular file (a FIFO, a directory, a device) or is larger than kMaxTrajectoryFileBytes.
+inline constexpr uint64_t kMaxTrajectoryFileBytes = 256u << 20;  // 256 MiB: ~6 M poses
 [[nodiscard]] std::vector<TimedPose> read_trajectory_file(const std::string& path);
 
 class TrajectoryWriter final : public DataComponent<interfaces::EvaluatorData> {

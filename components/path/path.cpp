@@ -91,6 +91,7 @@ Pt catmull_rom(const Pt& p0, const Pt& p1, const Pt& p2, const Pt& p3, double u)
 }  // namespace
 
 const char* Path::make_path(const PathMake& w, double resolution, PathData& out) noexcept {
+  constexpr double kMaxCoordinate = 1e6;  // m: floats keep 6 cm steps there
   const uint32_t n = w.count;
   if (n < 2) return "a path needs at least 2 waypoints";
   if (n > interfaces::kPathMaxWaypoints) return "more than 32 waypoints";
@@ -98,6 +99,11 @@ const char* Path::make_path(const PathMake& w, double resolution, PathData& out)
   const bool closed = w.closed != 0 && n >= 3;
   for (uint32_t i = 0; i < n; ++i) {
     if (!std::isfinite(w.x[i]) || !std::isfinite(w.y[i])) return "waypoints must be finite";
+    // The sample carries floats: a finite double past FLT_MAX (y = 4e175 from a MAKE
+    // body, found by tests/fuzz/fuzz_path.cpp) was published as inf.
+    if (std::fabs(w.x[i]) > kMaxCoordinate || std::fabs(w.y[i]) > kMaxCoordinate) {
+      return "waypoints must lie within 1000 km of the map origin";
+    }
     const uint32_t j = i + 1 < n ? i + 1 : 0;
     if ((i + 1 < n || closed) && std::hypot(w.x[j] - w.x[i], w.y[j] - w.y[i]) < 1e-3) {
       return "two consecutive waypoints are equal";

@@ -30,7 +30,8 @@ class Path final : public DataComponent<interfaces::PathData> {
   // success, else a static reason; `item` gets the 1-based waypoint at fault. RT-safe.
   static const char* parse_waypoints(const char* text, interfaces::PathMake& out, int& item) noexcept;
   // Makes the sampled spline (waypoints, points, length, closed). nullptr on success,
-  // else a static reason (out is then unspecified). RT-safe.
+  // else a static reason (out is then unspecified): 2..32 waypoints, finite and within
+  // 1000 km of the map origin (the sample's floats), no two consecutive ones equal. RT-safe.
   static const char* make_path(const interfaces::PathMake& waypoints, double resolution,
                                interfaces::PathData& out) noexcept;
 

@@ -747,6 +747,21 @@ TEST_F(GdosRecordFileTest, FifosDevicesAndHugeLengthsAreRefusedWithTheirOffset) 
   EXPECT_NE(what.find("truncated record (15728640 bytes announced, 5 present)"), std::string::npos) << what;
 }
 
+// gdos --record into a FIFO: opening it for writing waited for a reader, for ever.
+TEST_F(GdosRecordFileTest, RecordingIntoAFifoIsRefusedNotWaitedOn) {
+  test::HostileDir d("gdosrec");
+  const std::string fifo = d.fifo("rec.gdos");
+  test::HangGuard guard("RecordWriter on a FIFO");
+  try {
+    gdos_view::RecordWriter writer(fifo, "test");
+    ADD_FAILURE() << fifo << " was opened to record into";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(fifo + ": cannot create the record file: a FIFO, not a regular file"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST_F(GdosRecordFileTest, TruncatedOrCorruptRecordsNameTheirOffset) {
   write(sample());
   const std::string full = bytes();

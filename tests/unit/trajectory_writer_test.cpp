@@ -8,8 +8,11 @@
 #include <fstream>
 #include <numbers>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 #include "evaluator/trajectory_writer.h"
+#include "hostile_files.h"
 
 namespace rack::test {
 namespace {
@@ -99,7 +102,26 @@ TEST_F(TrajectoryFileTest, MalformedLinesAreRejectedWithFileAndLine) {
     (void)read_trajectory_file("/nonexistent/ref.txt");
     ADD_FAILURE() << "no error";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("/nonexistent/ref.txt: cannot read"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/ref.txt: cannot open the trajectory file"), std::string::npos)
+        << e.what();
+  }
+}
+
+// A reference that is a FIFO with no writer, a directory or a device is refused with
+// what it is (the ifstream it replaced waited for ever on the FIFO, in rackd's init()).
+TEST_F(TrajectoryFileTest, AFifoADirectoryOrADeviceIsRefusedNotWaitedOn) {
+  HostileDir dir("traj");
+  HangGuard guard("read_trajectory_file on a FIFO");
+  const std::pair<std::string, std::string> cases[] = {{dir.fifo("ref.fifo"), "is a FIFO, not a regular file"},
+                                                       {dir.subdir("ref.d"), "is a directory, not a regular file"},
+                                                       {"/dev/zero", "is a character device, not a regular file"}};
+  for (const auto& [path, why] : cases) {
+    try {
+      (void)read_trajectory_file(path);
+      ADD_FAILURE() << path << ": no error";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(path + ": the trajectory file " + why), std::string::npos) << e.what();
+    }
   }
 }
 

@@ -9,6 +9,7 @@
 #include <dwarf.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -20,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "rack/rt/input_file.h"
 #include "report_file.h"
 #include "rack/version.h"
 
@@ -84,6 +86,9 @@ std::string basename_of(const std::string& path) {
   return slash == std::string::npos ? path : path.substr(slash + 1);
 }
 
+// Largest module file handed to libdwfl (a binary with its debug information).
+constexpr uint64_t kMaxModuleBytes = 4ull << 30;
+
 // One libdwfl session per report file: its modules at the recorded load biases.
 class Symbolizer {
  public:
@@ -100,6 +105,14 @@ class Symbolizer {
     for (const auto& m : file.modules) {
       if (m.path.empty() || m.path[0] != '/') continue;  // linux-vdso.so.1 and the like
       const std::string path = root + m.path;
+      // libdwfl opens the file itself, blocking: a report names any path (it may come
+      // from another machine), and a FIFO there hung rack-backtrace in open().
+      std::string refused;
+      if (!rack::rt::check_regular_file(path, kMaxModuleBytes, "module file", refused)) {
+        errors.push_back(file.name + ": module " + std::to_string(m.id) + ": " + refused +
+                         " (frames in it stay unsymbolized)");
+        continue;
+      }
       Dwfl_Module* mod = dwfl_report_elf(dwfl_, m.path.c_str(), path.c_str(), -1, m.base, false);
       if (mod == nullptr) {
         errors.push_back(file.name + ": module " + std::to_string(m.id) + " " + path +

@@ -202,8 +202,20 @@ class Cursor {
 FileError::FileError(const std::string& path, uint64_t offset, const std::string& what)
     : std::runtime_error(path + ": byte offset " + std::to_string(offset) + ": " + what), offset_(offset) {}
 
+namespace {
+// The path to record into, unless it is a FIFO: opening one for writing waits for a
+// reader, and gdos --record hung there, silent.
+const std::string& record_path(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && S_ISFIFO(st.st_mode)) {
+    throw std::runtime_error(path + ": cannot create the record file: a FIFO, not a regular file");
+  }
+  return path;
+}
+}  // namespace
+
 RecordWriter::RecordWriter(const std::string& path, const std::string& description)
-    : path_(path), out_(path, std::ios::binary | std::ios::trunc) {
+    : path_(record_path(path)), out_(path, std::ios::binary | std::ios::trunc) {
   if (!out_) throw std::runtime_error(path + ": cannot create the record file: " + std::strerror(errno));
   std::string fields;
   put<int64_t>(fields, rt::host_time_ns());

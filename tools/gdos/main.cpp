@@ -5,6 +5,8 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
+#include <climits>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -221,14 +223,18 @@ int main(int argc, char** argv) {
     } else if (a == "--count") {
       const std::string v = value("a number");
       char* end = nullptr;
+      errno = 0;
       count = std::strtoll(v.c_str(), &end, 10);
-      if (v.empty() || *end != '\0' || count <= 0) usage_error("--count needs a positive number, got '" + v + "'");
+      if (v.empty() || *end != '\0' || errno == ERANGE || count <= 0)
+        usage_error("--count needs a positive number (at most " + std::to_string(LLONG_MAX) + "), got '" + v + "'");
     } else if (a == "--duration") {
       const std::string v = value("seconds");
       char* end = nullptr;
       duration = std::strtod(v.c_str(), &end);
-      if (v.empty() || *end != '\0' || !(duration > 0))
-        usage_error("--duration needs positive seconds, got '" + v + "'");
+      // At most 1e9 s (31 years): "inf" or 1e300 s overflowed the deadline in ns
+      // (undefined behaviour; in practice gdos stopped at once, saying nothing).
+      if (v.empty() || *end != '\0' || !(duration > 0 && duration <= 1e9))
+        usage_error("--duration needs seconds in (0, 1e9], got '" + v + "'");
     } else {
       usage_error("unknown argument '" + a + "'");
     }

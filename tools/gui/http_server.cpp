@@ -1,6 +1,7 @@
 #include "http_server.h"
 
 #include <algorithm>
+#include <chrono>
 #include <optional>
 #include <utility>
 
@@ -60,7 +61,24 @@ struct HttpServer::Impl : std::enable_shared_from_this<HttpServer::Impl> {
 
   void accept() {
     acceptor.async_accept(net::make_strand(ioc), [self = shared_from_this()](beast::error_code ec, tcp::socket s) {
-      if (!ec) std::make_shared<HttpSession>(self, std::move(s))->start();
+      if (!ec) {
+        self->accept_failing = false;
+        std::make_shared<HttpSession>(self, std::move(s))->start();
+      } else if (self->acceptor.is_open() && ec != net::error::operation_aborted) {
+        // Out of file descriptors (EMFILE: a client holding many connections) accept
+        // fails at once, again and again: it spun a core, silently. Said once; tried
+        // again every 100 ms until it works.
+        if (!self->accept_failing) {
+          std::fprintf(stderr, "rack-gui: cannot accept connections: %s (trying again every 100 ms)\n",
+                       ec.message().c_str());
+        }
+        self->accept_failing = true;
+        self->accept_retry.expires_after(std::chrono::milliseconds(100));
+        self->accept_retry.async_wait([self](beast::error_code) {
+          if (self->acceptor.is_open()) self->accept();
+        });
+        return;
+      }
       if (self->acceptor.is_open()) self->accept();
     });
   }
@@ -264,6 +282,8 @@ struct HttpServer::Impl : std::enable_shared_from_this<HttpServer::Impl> {
   std::string web_root;
   ServerHandlers handlers;
   tcp::acceptor acceptor;
+  net::steady_timer accept_retry{ioc};  // accept() after a failed accept (EMFILE)
+  bool accept_failing = false;          // said so already (the acceptor's handlers run one at a time)
   uint64_t next_client = 0;
   std::map<uint64_t, std::weak_ptr<WsSession>> sessions;  // I/O thread only
 };

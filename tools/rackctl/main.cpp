@@ -139,7 +139,8 @@ component describes (a plug-in's too: Counter(2/0)).
 options:
   --lcm URL          TiMS/LCM network (default: $LCM_DEFAULT_URL, else
                      udpm://239.255.76.67:7667?ttl=0)
-  --timeout MS       how long to wait for each reply (default 2000)
+  --timeout MS       how long to wait for each reply (default 2000; at most a
+                     day, 86400000, as --discover-ms)
   --retries N        ask again this often when no reply came in time (default 1;
                      a datagram on a network link can be lost)
   --discover-ms MS   how long to wait for announcements (default 300)
@@ -1803,9 +1804,10 @@ const std::vector<Command>& commands() {
        1,
        {"--period", "--count"},
        "Subscribes (GET_CONT_DATA) and prints one JSON line per sample (as get-data).\n"
-       "--period MS: the wanted period (the producer sends every n-th sample; the real\n"
-       "period is printed on stderr); default 0 = every sample. --count N: stop after\n"
-       "N samples. SIGINT/SIGTERM stop it too (exit 0). The producer going off: exit 1.\n"
+       "--period MS: the wanted period, 0..86400000 (the producer sends every n-th\n"
+       "sample; the real period is printed on stderr); default 0 = every sample.\n"
+       "--count N: stop after N samples. SIGINT/SIGTERM stop it too (exit 0). The\n"
+       "producer going off: exit 1.\n"
        "The producer's stream ending (a replay at the end of its log): exit 0.\n"
        "No sample for 5 s: exit 3. The subscription is a lease (the producer's\n"
        "lease_ms): renewed every lease / 4, so a killed watch frees its slot in time.\n"
@@ -1997,6 +1999,10 @@ int cmd_help(Session&, const Options&) { return kExitOk; }
 
 // ---------------------------------------------------------------- arguments
 
+// Longest wait an option may ask for: 9223372036854775807 ms overflowed the deadline in
+// ns (undefined behaviour; discovery gave up at once, saying it had waited that long).
+constexpr int64_t kMaxWaitMs = 86'400'000;
+
 bool looks_like_option(const std::string& a) {
   if (a.size() < 2 || a[0] != '-') return false;
   // "-5" and "-.5" are values (set-param NAME KEY -5), not options.
@@ -2048,9 +2054,11 @@ Options parse_arguments(int argc, char** argv) {
     } else if (a == "--host-file") host_file = value("a host file");
     else if (a == "--timeout") {
       o.timeout_ms = non_negative("a number of milliseconds");
-      if (o.timeout_ms == 0) fail(kExitUsage, "--timeout needs at least 1 ms");
-    } else if (a == "--discover-ms") o.discover_ms = non_negative("a number of milliseconds");
-    else if (a == "--i64") {
+      if (o.timeout_ms == 0 || o.timeout_ms > kMaxWaitMs) fail(kExitUsage, "--timeout takes 1..86400000 ms (a day)");
+    } else if (a == "--discover-ms") {
+      o.discover_ms = non_negative("a number of milliseconds");
+      if (o.discover_ms > kMaxWaitMs) fail(kExitUsage, "--discover-ms takes 0..86400000 ms (a day)");
+    } else if (a == "--i64") {
       const std::string v = value("a 64-bit integer");
       o.i64 = parse_int(v);
       if (!o.i64) fail(kExitUsage, "--i64 needs a 64-bit integer, got '" + v + "'");
@@ -2072,7 +2080,11 @@ Options parse_arguments(int argc, char** argv) {
     } else if (a == "--period") {
       const std::string v = value("a period in milliseconds");
       const auto p = parse_double(v);
-      if (!p || *p < 0) fail(kExitUsage, "--period needs a period in milliseconds >= 0, got '" + v + "'");
+      // At most a day (as a host file's *_ms): 1e308 ms was rounded to nanoseconds
+      // out of int64_t's range (an unspecified period sent to the component).
+      if (!p || *p < 0 || *p > 86400000.0) {
+        fail(kExitUsage, "--period needs milliseconds in 0..86400000 (a day), got '" + v + "'");
+      }
       o.period_ms = *p;
       o.given.insert(a);
     } else if (a == "--duration") {

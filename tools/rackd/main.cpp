@@ -45,8 +45,9 @@ options:
                      checks that the files and folders it names exist
   --duration SEC     shut down by itself after SEC seconds (as on SIGTERM)
   --status SEC       print each component's state and timing every SEC seconds
-                     (default 0: only at shutdown), and each task's page faults
-                     since its start-up (0 is the target for an RT task)
+                     (at least 0.01; default 0: only at shutdown), and each
+                     task's page faults since its start-up (0 is the target for
+                     an RT task)
   --lcm URL          TiMS/LCM network, instead of the host file's lcm_url (or of
                      the first network under 'tims: networks:')
   --crash-dir DIR    where mode-switch and crash reports go, instead of the host
@@ -352,12 +353,21 @@ static int run_rackd(int argc, char** argv) {
       }
       return argv[++i];
     };
-    auto number = [&](const char* what) {
+    // Seconds: 0, or min_s up to kMaxSeconds. Empty, "nan", "inf" and 1e300 are refused:
+    // strtod read "" as 0 (stop at once), NaN passed `d < 0` (never stop), and 1e300 s
+    // overflowed the deadline in ns (undefined behaviour; in practice it stopped at once).
+    auto number = [&](const char* what, double min_s) {
+      constexpr double kMaxSeconds = 1e9;  // 31 years: the deadline in ns stays far from INT64_MAX
       const std::string v = value(what);
       char* end = nullptr;
       const double d = std::strtod(v.c_str(), &end);
-      if (*end != '\0' || d < 0) {
-        std::fprintf(stderr, "rackd: %s needs %s, got '%s'\n", a.c_str(), what, v.c_str());
+      if (v.empty() || *end != '\0' || !(d == 0 || (d >= min_s && d <= kMaxSeconds))) {
+        if (min_s > 0) {
+          std::fprintf(stderr, "rackd: %s needs %s (0, or %g to %g), got '%s'\n", a.c_str(), what, min_s, kMaxSeconds,
+                       v.c_str());
+        } else {
+          std::fprintf(stderr, "rackd: %s needs %s (0 to %g), got '%s'\n", a.c_str(), what, kMaxSeconds, v.c_str());
+        }
         std::exit(2);
       }
       return d;
@@ -373,8 +383,9 @@ static int run_rackd(int argc, char** argv) {
     if (a == "--check") check = true;
     else if (a == "--list-classes") classes = true;
     else if (a == "--json") json = true;
-    else if (a == "--duration") duration = number("a number of seconds");
-    else if (a == "--status") status_every = number("a number of seconds");
+    else if (a == "--duration") duration = number("a number of seconds", 0.0);
+    // At most 100 reports a second: a period that rounds to 0 ns printed without pause.
+    else if (a == "--status") status_every = number("a number of seconds", 0.01);
     else if (a == "--lcm") lcm_url = value("an LCM URL");
     else if (a == "--crash-dir") crash_dir = value("a directory");
     else if (!a.empty() && a[0] == '-') {

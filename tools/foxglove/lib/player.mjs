@@ -18,6 +18,26 @@ import { McapIndexedReader, McapStreamReader } from '@mcap/core';
 import { decompressHandlers as codecs } from './codecs.mjs';
 import { parseExact } from './exact_json.mjs';
 
+// The bytes of a recording: a regular file of at most 2 GiB (what a Buffer holds),
+// opened without waiting (readFileSync waited for ever on a FIFO with no writer and
+// read /dev/zero until memory ran out). Throws "a FIFO, not a regular file" and the like.
+const kMaxRecordingBytes = 2 ** 31 - 1;
+function readRecording(path) {
+  const fd = fs.openSync(path, fs.constants.O_RDONLY | fs.constants.O_NONBLOCK);
+  try {
+    const st = fs.fstatSync(fd);
+    if (!st.isFile()) {
+      const kind = st.isFIFO() ? 'a FIFO' : st.isDirectory() ? 'a directory' : st.isCharacterDevice()
+        ? 'a character device' : st.isBlockDevice() ? 'a block device' : st.isSocket() ? 'a socket' : 'not a file';
+      throw new Error(`${kind}, not a regular file`);
+    }
+    if (st.size > kMaxRecordingBytes) throw new Error(`${st.size} bytes, more than the limit of ${kMaxRecordingBytes}`);
+    return new Uint8Array(fs.readFileSync(fd));
+  } finally {
+    fs.closeSync(fd);
+  }
+}
+
 // Kept out: a chunk that says it holds more than this uncompressed (the recorder writes
 // chunks of 1 MiB before compression); a corrupt size would otherwise be allocated.
 export const kMaxChunkBytes = 256 * 1024 * 1024;
@@ -109,7 +129,7 @@ function scanMcap(bytes, decompressHandlers, keepMessages) {
 export async function openMcap(path) {
   let bytes;
   try {
-    bytes = new Uint8Array(fs.readFileSync(path));
+    bytes = readRecording(path);
   } catch (e) {
     throw new MalformedMcap(`cannot read it: ${e.message}`);
   }

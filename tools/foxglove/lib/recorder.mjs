@@ -27,6 +27,10 @@ export const kMaxPending = 10000;
 // A file handle as McapWriter wants it (position and write).
 class FileSink {
   constructor(path) {
+    // Opening a FIFO for writing waits for a reader: rack-foxglove hung there, silent.
+    let st = null;
+    try { st = fs.statSync(path); } catch { /* not there yet: a new file */ }
+    if (st?.isFIFO()) throw new Error('a FIFO, not a regular file (a recording is written to a file)');
     this.fd = fs.openSync(path, 'w');
     this.pos = 0n;
   }
