@@ -164,7 +164,7 @@ TEST_F(HostileFilesTest, RackFoxgloveRefusesAFifoToPlayOrToRecordInto) {
     const RunResult r = run({*node, foxglove + "/rack-foxglove.mjs", "play", file, "--gui", gui}, 30s);
     EXPECT_FALSE(r.timed_out) << r.describe();
     EXPECT_EQ(r.exit_code, 2) << r.describe();
-    EXPECT_TRUE(contains(r.err, "play " + file + ": not a readable MCAP file: a " +
+    EXPECT_TRUE(contains(r.err, "play " + file + ": refused: cannot read it: a " +
                                     (file == recording ? "FIFO" : "character device") + ", not a regular file"))
         << r.describe();
   }
