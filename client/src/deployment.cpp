@@ -13,6 +13,7 @@
 
 #include "rack/core/payload_json.h"
 #include "rack/core/wire.h"
+#include "rack/core/wire_tasks.h"
 #include "rack/tims/address.h"
 #include "yaml_tree.h"
 
@@ -245,21 +246,53 @@ std::string quoted(const std::string& s) { return "\"" + json_escape(s) + "\""; 
 
 // A priority in JSON: null when not known.
 std::string priority_json(int priority) { return priority < 0 ? std::string("null") : std::to_string(priority); }
-// A task's cpu in JSON: -1 not pinned, null when not known (Host::tasks_known).
+// "[0,2]".
+std::string int_list_json(const std::vector<int>& v) {
+  std::string s = "[";
+  for (std::size_t i = 0; i < v.size(); ++i) s += (i == 0 ? "" : ",") + std::to_string(v[i]);
+  return s + "]";
+}
+// A task's cpu in JSON: -1 not pinned, null when not known (Host::tasks_known, a
+// priority not known); a running task on a set of CPUs adds "cpus".
 std::string cpu_json(const Host& h, const Task& t) {
-  return h.tasks_known ? std::to_string(t.cpu) : std::string("null");
+  if (!h.tasks_known || t.priority < 0) return "null";
+  return std::to_string(t.cpu) + (t.cpus.empty() ? "" : ",\"cpus\":" + int_list_json(t.cpus));
+}
+// One task as it runs (GET_TASKS) in JSON.
+std::string running_json(const RunningTask& r) {
+  return "{\"measured\":" + std::string(r.measured ? "true" : "false") +
+         ",\"policy\":" + (r.measured ? "\"" + r.policy + "\"" : std::string("null")) +
+         ",\"priority\":" + priority_json(r.priority) + ",\"cpus\":" + int_list_json(r.cpus) +
+         ",\"last_cpu\":" + (r.last_cpu >= 0 ? std::to_string(r.last_cpu) : std::string("null")) +
+         ",\"configured_priority\":" + priority_json(r.configured_priority) +
+         ",\"configured_cpu\":" + std::to_string(r.configured_cpu) + ",\"period_ns\":" + std::to_string(r.period_ns) +
+         ",\"measured_period_ns\":" + std::to_string(r.measured_period_ns) + "}";
 }
 
-// What a host found by discovery alone cannot say (its tasks' priorities and CPUs are
-// in its host file; discovery and GET_STATS do not carry them).
+// What a component found by discovery alone cannot say when it does not answer
+// GET_TASKS (an older rackd): its tasks' priorities and CPUs are in its host file.
 constexpr const char* kTasksNotKnown = "priority and cpu not known without the host file";
 
 // "30", or "?" when not known.
 std::string priority_text(int priority) { return priority < 0 ? std::string("?") : std::to_string(priority); }
 
+// "0-3,5" for sorted CPU numbers.
+std::string cpu_list_text(const std::vector<int>& cpus) {
+  std::string s;
+  for (std::size_t i = 0; i < cpus.size();) {
+    std::size_t j = i;
+    while (j + 1 < cpus.size() && cpus[j + 1] == cpus[j] + 1) ++j;
+    s += (s.empty() ? "" : ",") + std::to_string(cpus[i]);
+    if (j > i) s += (j == i + 1 ? "," : "-") + std::to_string(cpus[j]);
+    i = j + 1;
+  }
+  return s;
+}
+
 std::string cpu_label(const Host& h, const Task& t) {
-  if (!h.tasks_known) return kTasksNotKnown;
+  if (!h.tasks_known || t.priority < 0) return kTasksNotKnown;
   if (t.cpu >= 0) return "cpu " + std::to_string(t.cpu);
+  if (!t.cpus.empty()) return "cpus " + cpu_list_text(t.cpus);
   if (t.priority > 0 && !h.rt_cpus.empty()) {
     std::string s = "rt cpus ";
     for (std::size_t i = 0; i < h.rt_cpus.size(); ++i) s += (i == 0 ? "" : ",") + std::to_string(h.rt_cpus[i]);
@@ -269,7 +302,7 @@ std::string cpu_label(const Host& h, const Task& t) {
 }
 
 std::string task_text(const Host& h, const Component& c) {
-  if (!h.tasks_known) {
+  if (!h.tasks_known || c.command_task.priority < 0) {
     std::string s = "tasks: priority and cpu not known";
     if (c.has_data_task) s += c.period_ns > 0 ? "\ndata task every " + ms_text(c.period_ns) : "\ndata task triggered";
     return s;
@@ -299,7 +332,32 @@ std::string live_text(const LiveTask& t) {
     std::snprintf(buf, sizeof buf, "%.0f us", static_cast<double>(t.worst_latency_ns) / 1e3);
     s += std::string(", worst wake-up ") + buf;
   }
+  if (t.tasks_known && t.has_data_task && t.data.measured_period_ns > 0) {
+    char buf[48];
+    std::snprintf(buf, sizeof buf, "%.1f ms", static_cast<double>(t.data.measured_period_ns) / 1e6);
+    s += std::string(", runs every ") + buf;
+  }
   return s;
+}
+
+// A task's CPUs as it runs: the one CPU, else the set ("" when it may run on any).
+std::string running_cpus_text(const RunningTask& t, int online_cpus) {
+  if (t.cpus.size() == 1) return "cpu " + std::to_string(t.cpus.front());
+  if (t.cpus.empty() || (online_cpus > 0 && t.cpus.size() >= static_cast<std::size_t>(online_cpus))) return "";
+  return "cpus " + cpu_list_text(t.cpus);
+}
+
+// The kernel's name of a policy number (sched.h).
+const char* policy_name(int policy) {
+  switch (policy) {
+    case 0: return "SCHED_OTHER";
+    case 1: return "SCHED_FIFO";
+    case 2: return "SCHED_RR";
+    case 3: return "SCHED_BATCH";
+    case 5: return "SCHED_IDLE";
+    case 6: return "SCHED_DEADLINE";
+    default: return "?";
+  }
 }
 
 // The network of `h` with `scope`, else its first, else its lcm_url's name.
@@ -452,6 +510,78 @@ std::vector<std::string> host_file_paths(const std::vector<std::string>& args, s
   return out;
 }
 
+// The allocation: RT tasks (priority > 0) per CPU group of each host, and the
+// configuration's priority inversions among them (d.cpus, made anew).
+static void allocate(Deployment& d) {
+  d.cpus.clear();
+  for (std::size_t h = 0; h < d.hosts.size(); ++h) {
+    const Host& host = d.hosts[h];
+    std::map<std::string, CpuGroup> groups;
+    for (std::size_t c = 0; c < host.components.size(); ++c) {
+      const Component& comp = host.components[c];
+      // A task whose priority is not known: under one label. A task that runs under
+      // normal scheduling although its host file asked for a priority is listed too.
+      const auto place = [&](const Task& t, bool data) {
+        if (t.priority == 0 && t.configured_priority <= 0) return;
+        CpuGroup& g = groups[cpu_label(host, t)];
+        g.host = h;
+        g.cpus = cpu_label(host, t);
+        g.tasks.push_back({h, c, data, t.priority, data ? comp.period_ns : 0});
+      };
+      place(comp.command_task, false);
+      if (comp.has_data_task) place(comp.data_task, true);
+    }
+    for (auto& [label, g] : groups) {
+      if (!host.tasks_known || label == kTasksNotKnown) {  // nothing to compare: no flags
+        d.cpus.push_back(std::move(g));
+        continue;
+      }
+      // Several CPUs (or any): the tasks share one only when the others are busy.
+      const bool one_cpu = label.rfind("cpu ", 0) == 0 || (label.rfind("rt cpus ", 0) == 0 && host.rt_cpus.size() == 1);
+      const std::string where = one_cpu ? " on " + label : " on " + label + " (not pinned: when they share a CPU)";
+      std::stable_sort(g.tasks.begin(), g.tasks.end(),
+                       [](const PlacedTask& a, const PlacedTask& b) { return a.priority > b.priority; });
+      // Two data tasks with one priority on one CPU: FIFO order between them, not
+      // the configuration, decides who waits.
+      for (std::size_t i = 0; i < g.tasks.size(); ++i) {
+        for (std::size_t j = i + 1; j < g.tasks.size(); ++j) {
+          const PlacedTask& a = g.tasks[i];
+          const PlacedTask& b = g.tasks[j];
+          if (!a.data || !b.data || a.priority != b.priority) continue;
+          g.flags.push_back("same priority " + std::to_string(a.priority) + where + ": data tasks of '" +
+                            host.components[a.component].name + "' and '" + host.components[b.component].name + "'");
+        }
+      }
+      // A task that does not run at the priority its host file asked for.
+      for (const PlacedTask& t : g.tasks) {
+        const Component& comp = host.components[t.component];
+        const Task& task = t.data ? comp.data_task : comp.command_task;
+        if (task.configured_priority < 0 || task.configured_priority == task.priority) continue;
+        g.flags.push_back("'" + comp.name + "' " + (t.data ? "data" : "command") + " task runs at priority " +
+                          std::to_string(task.priority) + (task.priority == 0 ? " (normal scheduling)" : "") +
+                          ", its host file asks for " + std::to_string(task.configured_priority));
+      }
+      // A consumer above its producer on one CPU.
+      for (const Flow& f : d.flows) {
+        if (f.consumer_host != h || f.producer_host != h) continue;
+        const Component& cons = host.components[f.consumer];
+        const Component& prod = host.components[f.producer];
+        if (!cons.has_data_task || !prod.has_data_task || prod.data_task.priority <= 0) continue;
+        if (cpu_label(host, cons.data_task) != label || cpu_label(host, prod.data_task) != label) continue;
+        if (cons.data_task.priority > prod.data_task.priority) {
+          const std::string through = f.live ? "a running subscription"
+                                             : "'" + f.param + "' (" + host.file + ":" + std::to_string(f.line) + ":" +
+                                                   std::to_string(f.column) + ")";
+          g.flags.push_back("consumer above its producer" + where + ": '" + cons.name + "' (data p" +
+                            std::to_string(cons.data_task.priority) + ") reads '" + prod.name + "' (data p" +
+                            std::to_string(prod.data_task.priority) + ") through " + through);
+        }
+      }
+      d.cpus.push_back(std::move(g));
+    }
+  }
+}
+
 Deployment build(std::vector<Host> hosts, const std::vector<ClassInfo>* classes) {
   Deployment d;
   d.hosts = std::move(hosts);
@@ -544,61 +674,7 @@ Deployment build(std::vector<Host> hosts, const std::vector<ClassInfo>* classes)
       }
     }
   }
-  // Allocation: RT tasks (priority > 0) per CPU group of each host.
-  for (std::size_t h = 0; h < d.hosts.size(); ++h) {
-    const Host& host = d.hosts[h];
-    std::map<std::string, CpuGroup> groups;
-    for (std::size_t c = 0; c < host.components.size(); ++c) {
-      const Component& comp = host.components[c];
-      // A host whose priorities are not known: every task, under one label.
-      const auto place = [&](const Task& t, bool data) {
-        if (host.tasks_known && t.priority <= 0) return;
-        CpuGroup& g = groups[cpu_label(host, t)];
-        g.host = h;
-        g.cpus = cpu_label(host, t);
-        g.tasks.push_back({h, c, data, t.priority, data ? comp.period_ns : 0});
-      };
-      place(comp.command_task, false);
-      if (comp.has_data_task) place(comp.data_task, true);
-    }
-    for (auto& [label, g] : groups) {
-      if (!host.tasks_known) {  // nothing to compare: no flags
-        d.cpus.push_back(std::move(g));
-        continue;
-      }
-      // Several CPUs (or any): the tasks share one only when the others are busy.
-      const bool one_cpu = label.rfind("cpu ", 0) == 0 || (label.rfind("rt cpus ", 0) == 0 && host.rt_cpus.size() == 1);
-      const std::string where = one_cpu ? " on " + label : " on " + label + " (not pinned: when they share a CPU)";
-      std::stable_sort(g.tasks.begin(), g.tasks.end(),
-                       [](const PlacedTask& a, const PlacedTask& b) { return a.priority > b.priority; });
-      // Two data tasks with one priority on one CPU: FIFO order between them, not
-      // the configuration, decides who waits.
-      for (std::size_t i = 0; i < g.tasks.size(); ++i) {
-        for (std::size_t j = i + 1; j < g.tasks.size(); ++j) {
-          const PlacedTask& a = g.tasks[i];
-          const PlacedTask& b = g.tasks[j];
-          if (!a.data || !b.data || a.priority != b.priority) continue;
-          g.flags.push_back("same priority " + std::to_string(a.priority) + where + ": data tasks of '" +
-                            host.components[a.component].name + "' and '" + host.components[b.component].name + "'");
-        }
-      }
-      // A consumer above its producer on one CPU.
-      for (const Flow& f : d.flows) {
-        if (f.consumer_host != h || f.producer_host != h) continue;
-        const Component& cons = host.components[f.consumer];
-        const Component& prod = host.components[f.producer];
-        if (!cons.has_data_task || !prod.has_data_task || prod.data_task.priority <= 0) continue;
-        if (cpu_label(host, cons.data_task) != label || cpu_label(host, prod.data_task) != label) continue;
-        if (cons.data_task.priority > prod.data_task.priority) {
-          g.flags.push_back("consumer above its producer" + where + ": '" + cons.name + "' (data p" +
-                            std::to_string(cons.data_task.priority) + ") reads '" + prod.name + "' (data p" +
-                            std::to_string(prod.data_task.priority) + ") through '" + f.param + "' (" + host.file +
-                            ":" + std::to_string(f.line) + ":" + std::to_string(f.column) + ")");
-        }
-      }
-      d.cpus.push_back(std::move(g));
-    }
-  }
+  allocate(d);
   return d;
 }
 
@@ -620,6 +696,106 @@ const char* add_listeners(const Deployment& d, std::size_t h, std::size_t c, std
     live.flows.push_back(f);
   }
   return nullptr;
+}
+
+const char* add_tasks(const Deployment& d, std::size_t h, std::size_t c, std::span<const std::byte> body, bool native,
+                      Live& live) {
+  if (h >= d.hosts.size() || c >= d.hosts[h].components.size()) return "no such component in the deployment";
+  wire::TasksReply r;
+  if (const char* bad = wire::decode_tasks(body, native, r)) return bad;
+  if (live.tasks.size() < d.hosts.size()) live.tasks.resize(d.hosts.size());
+  if (live.tasks[h].size() < d.hosts[h].components.size()) live.tasks[h].resize(d.hosts[h].components.size());
+  LiveTask& t = live.tasks[h][c];
+  t.tasks_known = true;
+  t.has_data_task = r.data_task != 0;
+  t.online_cpus = static_cast<int>(r.online_cpus);
+  for (std::size_t i = 0; i < r.task_count && i < wire::kTaskRecords; ++i) {
+    RunningTask& run = i == 0 ? t.command : t.data;
+    run = RunningTask{};
+    run.configured_priority = r.configured_priority[i];
+    run.configured_cpu = r.configured_cpu[i];
+    run.period_ns = r.period_ns[i];
+    run.measured_period_ns = r.measured_period_ns[i];
+    if (r.measured[i] != wire::kTaskMeasured) continue;
+    run.measured = true;
+    run.policy = policy_name(r.policy[i]);
+    run.priority = r.priority[i];
+    run.last_cpu = r.last_cpu[i];
+    for (std::size_t cpu = 0; cpu < wire::kTaskCpuWords * 64; ++cpu) {
+      if ((r.affinity[i * wire::kTaskCpuWords + cpu / 64] >> (cpu % 64)) & 1u)
+        run.cpus.push_back(static_cast<int>(cpu));
+    }
+  }
+  t.networks.clear();
+  for (std::size_t j = 0; j < r.network_count; ++j) {
+    t.networks.push_back({r.name_of_network(j), r.url_of_network(j), r.network_scope[j] == 1 ? "fleet" : "robot"});
+  }
+  return nullptr;
+}
+
+namespace {
+
+// A task as it runs: its priority and CPUs from the kernel's reading, else (not read
+// yet) what its host file asked for.
+Task running_task(const RunningTask& r, int online_cpus) {
+  Task t;
+  t.priority = r.measured ? r.priority : r.configured_priority;
+  t.cpu = r.measured ? -1 : r.configured_cpu;
+  if (r.measured && r.cpus.size() == 1) {
+    t.cpu = r.cpus.front();
+  } else if (r.measured && !(online_cpus > 0 && r.cpus.size() >= static_cast<std::size_t>(online_cpus))) {
+    t.cpus = r.cpus;
+  }
+  if (r.measured && r.configured_priority != r.priority) t.configured_priority = r.configured_priority;
+  return t;
+}
+
+}  // namespace
+
+void adopt_running(Deployment& d, Live& live) {
+  bool changed = false;
+  for (std::size_t h = 0; h < d.hosts.size() && h < live.tasks.size(); ++h) {
+    Host& host = d.hosts[h];
+    if (host.tasks_known) continue;  // its host file says how it is configured
+    bool any = false;                // a component that does not answer keeps priority -1: not known
+    for (std::size_t c = 0; c < host.components.size(); ++c) {
+      const LiveTask* t = c < live.tasks[h].size() ? &live.tasks[h][c] : nullptr;
+      if (t == nullptr || !t->tasks_known) continue;
+      any = true;
+      Component& comp = host.components[c];
+      comp.command_task = running_task(t->command, t->online_cpus);
+      comp.has_data_task = t->has_data_task;
+      if (t->has_data_task) {
+        comp.data_task = running_task(t->data, t->online_cpus);
+        comp.period_ns = t->data.period_ns;
+      }
+      if (host.networks.empty()) host.networks = t->networks;
+      changed = true;
+    }
+    host.tasks_known = any;
+  }
+  // The networks crossed need every host's networks: after the loop above.
+  for (LiveFlow& lf : live.flows) {
+    if (lf.flow != kNone || lf.consumer == kNone || lf.consumer_host >= d.hosts.size() ||
+        lf.producer_host >= d.hosts.size()) {
+      continue;
+    }
+    Flow f;
+    f.consumer_host = lf.consumer_host;
+    f.consumer = lf.consumer;
+    f.producer_host = lf.producer_host;
+    f.producer = lf.producer;
+    f.target = d.hosts[lf.producer_host].components[lf.producer].address_text;
+    f.period_ns = lf.period_ns;
+    f.networks = crossed(d.hosts, lf.producer_host, lf.consumer_host);
+    f.live = true;
+    lf.flow = d.flows.size();
+    d.flows.push_back(std::move(f));
+    if (live.flow_state.size() < d.flows.size()) live.flow_state.resize(d.flows.size(), -1);
+    live.flow_state[lf.flow] = 1;
+    changed = true;
+  }
+  if (changed) allocate(d);
 }
 
 void match_live_flows(const Deployment& d, Live& live) {
@@ -723,7 +899,7 @@ std::string to_dot(const Deployment& d, const Live* live) {
     } else {
       from = "c" + std::to_string(f.producer_host) + "_" + std::to_string(f.producer);
     }
-    std::string label = f.param;
+    std::string label = f.live ? "subscribed" : f.param;
     if (f.period_ns > 0) label += ", " + ms_text(f.period_ns);
     std::string attrs;
     if (!f.networks.empty()) {
@@ -782,33 +958,58 @@ std::string allocation_text(const Deployment& d, const Live* live) {
       if (g.host != h) continue;
       any = true;
       s += "  " + g.cpus;
-      if (!host.tasks_known) s += " (discovery does not carry them: rackctl alloc --live FILE|DIR ... shows them)";
+      if (g.cpus == kTasksNotKnown) {
+        s += " (no GET_TASKS answer, an older rackd: rackctl alloc --live FILE|DIR ... shows its host file's)";
+      }
       s += "\n";
-      char line[256];
+      char line[320];
       std::snprintf(line, sizeof line, "    %-4s %-20s %-5s %-10s", "PRIO", "COMPONENT", "TASK", "PERIOD");
       s += line;
-      s += live != nullptr ? " UTIL    WORST WAKE-UP  STATE\n" : "\n";
+      s += live != nullptr ? " RUNS EVERY UTIL    WORST WAKE-UP  STATE\n" : "\n";
+      std::vector<std::string> running_flags;  // the host file's values against what runs
       for (const PlacedTask& t : g.tasks) {
         const Component& c = host.components[t.component];
         const std::string period = !t.data ? "-" : t.period_ns > 0 ? ms_text(t.period_ns) : "triggered";
         std::snprintf(line, sizeof line, "    %-4s %-20s %-5s %-10s", priority_text(t.priority).c_str(), c.name.c_str(),
                       t.data ? "data" : "cmd", period.c_str());
         s += line;
-        if (const LiveTask* lt = live_task(live, h, t.component); lt != nullptr && t.data) {
+        const LiveTask* lt = live_task(live, h, t.component);
+        if (lt != nullptr && t.data) {
+          char every[24] = "-";
           char util[16] = "-";
           char worst[24] = "-";
+          if (lt->tasks_known && lt->data.measured_period_ns > 0) {
+            std::snprintf(every, sizeof every, "%.1f ms", static_cast<double>(lt->data.measured_period_ns) / 1e6);
+          }
           if (lt->utilisation >= 0) std::snprintf(util, sizeof util, "%.1f%%", lt->utilisation * 100.0);
           if (lt->worst_latency_ns >= 0) {
             std::snprintf(worst, sizeof worst, "%.0f us", static_cast<double>(lt->worst_latency_ns) / 1e3);
           }
-          std::snprintf(line, sizeof line, " %-7s %-14s %s", util, worst, lt->state.c_str());
+          std::snprintf(line, sizeof line, " %-10s %-7s %-14s %s", every, util, worst, lt->state.c_str());
           s += line;
         } else if (lt != nullptr) {
-          s += " -       -              " + lt->state;
+          s += " -          -       -              " + lt->state;
         }
         s += "\n";
+        // A host file's task that runs otherwise (RT refused, moved by chrt/taskset).
+        if (lt != nullptr && lt->tasks_known) {  // (adopt_running's hosts: the same values)
+          const RunningTask& run = t.data ? lt->data : lt->command;
+          const Task& want = t.data ? c.data_task : c.command_task;
+          if (run.measured && run.priority != want.priority) {
+            running_flags.push_back("'" + c.name + "' " + (t.data ? "data" : "command") + " task runs at priority " +
+                                    std::to_string(run.priority) + " (" + run.policy + "), its host file asks for " +
+                                    std::to_string(want.priority));
+          }
+          const std::string cpus = running_cpus_text(run, lt->online_cpus);
+          if (run.measured && want.cpu >= 0 && cpus != "cpu " + std::to_string(want.cpu)) {
+            running_flags.push_back("'" + c.name + "' " + (t.data ? "data" : "command") + " task runs on " +
+                                    (cpus.empty() ? std::string("any cpu") : cpus) + ", its host file pins it to cpu " +
+                                    std::to_string(want.cpu));
+          }
+        }
       }
       for (const auto& f : g.flags) s += "    ! " + f + "\n";
+      for (const auto& f : running_flags) s += "    ! " + f + "\n";
     }
     if (!any) s += "  no RT tasks\n";
   }
@@ -852,7 +1053,13 @@ std::string to_json(const Deployment& d, const Live* live) {
         s += ",\"live\":{\"state\":" + quoted(t->state) +
              ",\"utilisation\":" + (t->utilisation >= 0 ? std::to_string(t->utilisation) : std::string("null")) +
              ",\"worst_latency_ns\":" +
-             (t->worst_latency_ns >= 0 ? std::to_string(t->worst_latency_ns) : std::string("null")) + "}";
+             (t->worst_latency_ns >= 0 ? std::to_string(t->worst_latency_ns) : std::string("null"));
+        if (t->tasks_known) {
+          s += ",\"running\":{\"command_task\":" + running_json(t->command);
+          if (t->has_data_task) s += ",\"data_task\":" + running_json(t->data);
+          s += ",\"online_cpus\":" + std::to_string(t->online_cpus) + "}";
+        }
+        s += "}";
       }
       s += "}";
     }
@@ -875,7 +1082,7 @@ std::string to_json(const Deployment& d, const Live* live) {
       const int state = i < live->flow_state.size() ? live->flow_state[i] : -1;
       s += ",\"running\":" + std::string(state == 1 ? "true" : state == 0 ? "false" : "null");
     }
-    s += "}";
+    s += ",\"live\":" + std::string(f.live ? "true" : "false") + "}";
   }
   if (live != nullptr) {
     s += "],\"live_flows\":[";
@@ -888,8 +1095,8 @@ std::string to_json(const Deployment& d, const Live* live) {
            ",\"listener\":" + quoted(tims::Address(lf.listener).str()) + ",\"consumer\":" +
            (placed ? quoted(d.hosts[lf.consumer_host].components[lf.consumer].name) : std::string("null")) +
            ",\"consumer_host\":" + (placed ? quoted(d.hosts[lf.consumer_host].label()) : std::string("null")) +
-           ",\"period_ns\":" + std::to_string(lf.period_ns) + ",\"in_files\":" + (lf.flow != kNone ? "true" : "false") +
-           "}";
+           ",\"period_ns\":" + std::to_string(lf.period_ns) + ",\"in_files\":" +
+           (lf.flow != kNone && lf.flow < d.flows.size() && !d.flows[lf.flow].live ? "true" : "false") + "}";
     }
   }
   s += "],\"cpus\":[";

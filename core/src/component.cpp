@@ -327,6 +327,36 @@ void Component::sample_faults() const noexcept {
   (void)data_faults_.sample();
 }
 
+void Component::sample_tasks() noexcept {
+  command_sched_.sample(command_faults_.tid());
+  data_sched_.sample(data_faults_.tid());
+}
+
+void Component::fill_task_record(wire::TasksReply& out, std::size_t i, const rt::TaskSched& sched) const noexcept {
+  const TaskSettings& t = i == 0 ? settings_.command_task : settings_.data_task;
+  out.configured_priority[i] = t.priority;
+  out.configured_cpu[i] = t.cpu;
+  out.last_cpu[i] = -1;
+  const rt::SchedInfo s = sched.last();
+  if (!s.measured) return;
+  out.measured[i] = wire::kTaskMeasured;
+  out.policy[i] = static_cast<uint8_t>(s.policy);
+  out.priority[i] = s.priority;
+  out.last_cpu[i] = s.last_cpu;
+  for (std::size_t w = 0; w < wire::kTaskCpuWords; ++w) out.affinity[i * wire::kTaskCpuWords + w] = s.affinity[w];
+  const int64_t now = rt::monotonic_ns();
+  out.sampled_ago_ns[i] = now > s.time_ns ? now - s.time_ns : 0;
+  if (s.online_cpus > 0) out.online_cpus = static_cast<uint32_t>(s.online_cpus);
+}
+
+void Component::fill_tasks(wire::TasksReply& out) const noexcept {
+  out = host_networks_;  // the network_* fields; the rest as a fresh reply
+  out.version = wire::kTasksVersion;
+  out.data_task = static_cast<uint8_t>(data_task_mode());
+  out.task_count = 1;
+  fill_task_record(out, 0, command_sched_);
+}
+
 void Component::handle_get_param(const MessageHeader& h, std::span<const std::byte> body) noexcept {
   if (body.empty()) {
     for (std::size_t i = 0; i < params_.size(); ++i) params_.at(i).to_record(param_records_[i]);
@@ -474,6 +504,12 @@ void Component::handle(const MessageHeader& h, std::span<const std::byte> body) 
       wire::ListenersReply listeners;  // 792 bytes on the command task's stack
       fill_listeners(listeners);
       return reply_with(h, msg::kListeners, listeners);
+    }
+    case msg::kGetTasks: {
+      if (!body.empty()) return reject_malformed(h, "GET_TASKS takes no body");
+      wire::TasksReply tasks;  // 680 bytes on the command task's stack
+      fill_tasks(tasks);
+      return reply_with(h, msg::kTasks, tasks);
     }
     case msg::kGetLatency: {
       if (!body.empty()) return reject_malformed(h, "GET_LATENCY takes no body");

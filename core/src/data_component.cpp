@@ -602,6 +602,40 @@ void DataComponentBase::fill_listeners(wire::ListenersReply& out) const noexcept
   }
 }
 
+void DataComponentBase::fill_tasks(wire::TasksReply& out) const noexcept {
+  Component::fill_tasks(out);
+  out.task_count = 2;
+  fill_task_record(out, 1, data_sched_);
+  out.period_ns[1] = mode_ == DataTaskMode::kPeriodic ? settings().period_ns : 0;
+  out.measured_period_ns[1] = measured_period_ns_.load(std::memory_order_relaxed);
+}
+
+void DataComponentBase::sample_tasks() noexcept {
+  Component::sample_tasks();
+  const uint64_t runs = loop_runs_.load(std::memory_order_acquire);  // pairs with the data task's release
+  const int64_t started = loop_started_ns_.load(std::memory_order_relaxed);
+  if (state() != ComponentState::kEnabled) {
+    // Not running: the next window begins at the first sample with a run after ON
+    // (started 0: no base yet), so that the time it was off does not count.
+    measured_period_ns_.store(0, std::memory_order_relaxed);
+    period_base_runs_ = runs;
+    period_base_started_ns_ = 0;
+    return;
+  }
+  if (runs == period_base_runs_) {
+    // No run since the last sample: a period above a second keeps its last figure
+    // until a run comes, an input that went silent shows nothing.
+    if (rt::monotonic_ns() - started > 10 * rt::kNsPerSec) measured_period_ns_.store(0, std::memory_order_relaxed);
+    return;
+  }
+  if (period_base_started_ns_ != 0 && started > period_base_started_ns_) {
+    measured_period_ns_.store((started - period_base_started_ns_) / static_cast<int64_t>(runs - period_base_runs_),
+                              std::memory_order_relaxed);
+  }
+  period_base_runs_ = runs;
+  period_base_started_ns_ = started;
+}
+
 // GET_LATENCY's open bucket (>= 10 ms) is the 1-us histogram's last one.
 static_assert(wire::kLatencyLowerNs.back() ==
               static_cast<int64_t>(rt::LatencyStats::kBuckets - 1) * rt::LatencyStats::kBucketNs);
@@ -631,6 +665,9 @@ void DataComponentBase::run_one_cycle() noexcept {
     rt::modeswitch::enter_cycle();  // primary mode: loop() and nothing else
     const int64_t started = rt::monotonic_ns();
     rt::trace::record_at(started, rt::trace::Kind::kCycleStart);
+    // GET_TASKS' measured period (sample_tasks()): the data task is the only writer.
+    loop_started_ns_.store(started, std::memory_order_relaxed);
+    loop_runs_.store(loop_runs_.load(std::memory_order_relaxed) + 1, std::memory_order_release);
     try {
       r = loop();
     } catch (...) {

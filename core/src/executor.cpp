@@ -29,6 +29,41 @@ namespace msg = tims::msg;
 
 namespace {
 
+// The host's (first) TiMS network: --lcm, else the first of `tims: networks:`, else lcm_url.
+std::string first_network_url(const HostSettings& hs, const std::string& lcm_url_override) {
+  return !lcm_url_override.empty() ? lcm_url_override : !hs.networks.empty() ? hs.networks.front().url : hs.lcm_url;
+}
+
+// The networks GET_TASKS names (wire::TasksReply network_*): the ones the transport
+// joins (join_network: --lcm replaces the first one's URL; none listed: one robot
+// network on `url`), none when the host does not use LCM.
+void fill_host_networks(wire::TasksReply& out, const HostSettings& hs, const std::string& url) {
+  if (!hs.lcm || (url.empty() && hs.networks.empty())) return;
+  std::vector<tims::NetworkConfig> nets = hs.networks;
+  if (nets.empty()) {
+    tims::NetworkConfig n;
+    n.url = url;
+    nets.push_back(n);
+  } else if (!url.empty()) {
+    nets.front().url = url;
+  }
+  for (const auto& n : nets) {
+    if (out.network_count >= wire::kMaxTaskNetworks) break;
+    const std::size_t j = out.network_count++;
+    const auto copy = [](char* dst, std::size_t len, const std::string& text) {
+      std::size_t i = 0;
+      for (; i + 1 < len && i < text.size(); ++i) {
+        const auto c = static_cast<unsigned char>(text[i]);
+        dst[i] = c >= 0x20 && c <= 0x7e ? text[i] : '?';
+      }
+      dst[i] = '\0';
+    };
+    copy(out.network_name + j * wire::kTaskNetworkNameLen, wire::kTaskNetworkNameLen, n.name.empty() ? "?" : n.name);
+    copy(out.network_url + j * wire::kTaskNetworkUrlLen, wire::kTaskNetworkUrlLen, n.url);
+    out.network_scope[j] = n.scope == tims::NetworkScope::kFleet ? 1 : 0;
+  }
+}
+
 // Keeps the executor's own non-RT threads (the GDOS thread, the TiMS/LCM transport's
 // threads) off the CPUs that the host file pins RT tasks to. On a kernel that is not
 // PREEMPT_RT a normal thread inside a system call (a /proc read, a socket send, a log
@@ -183,7 +218,10 @@ void Executor::gdos_loop() {
     // The RT tasks' page faults since start-up, for GET_STATS (rackctl status): read
     // from /proc here, by a non-RT thread, so that the tasks make no system call for it.
     if (const int64_t now = rt::monotonic_ns(); now >= next_fault_sample) {
-      for (const auto& v : views_) v.component->sample_faults();
+      for (const auto& v : views_) {
+        v.component->sample_faults();
+        v.component->sample_tasks();  // how the tasks run (GET_TASKS): policy, priority, CPUs, period
+      }
       next_fault_sample = now + rt::kNsPerSec;
     }
   }
@@ -237,10 +275,7 @@ void Executor::step(const std::string& what) {
 void Executor::start() {
   if (started_) return;
   const HostSettings& hs = host_->settings;
-  // The host's (first) TiMS network: --lcm, else the first of `tims: networks:`, else lcm_url.
-  const std::string url = !options_.lcm_url_override.empty() ? options_.lcm_url_override
-                          : !hs.networks.empty()             ? hs.networks.front().url
-                                                             : hs.lcm_url;
+  const std::string url = first_network_url(hs, options_.lcm_url_override);
   // Checked before anything opens them (the host file loader checked its own; this
   // catches --lcm and hosts built in code): LCM itself only prints "invalid URL".
   if (hs.lcm) {
@@ -349,7 +384,10 @@ void Executor::install_access(Address self) {
 }
 
 void Executor::attach_components() {
+  const HostSettings& hs = host_->settings;
   for (auto& v : views_) {
+    // Before its tasks start: GET_TASKS reads it from the command task.
+    fill_host_networks(v.component->host_networks_, hs, first_network_url(hs, options_.lcm_url_override));
     v.component->attach(router_);
     v.attached = true;
   }

@@ -232,3 +232,42 @@ write("listeners", [b"\3" + listeners("<", 1, 10 * ms, []),
                     b"\1" + listeners("<", 0, 0, []),
                     b"\3" + listeners("<", 2, 0, [(tool_data, 1, 0, 0)]),
                     b"\3" + listeners("<", 1, 10 * ms, two)[:700]])
+
+
+# GET_TASKS' reply (wire::TasksReply version 1, 680 bytes; rack/core/wire_tasks.h),
+# after one byte: bit 0 the body is in the host's (little-endian) byte order, bit 1
+# from the generator, bit 2 the hosts were found by discovery (adopt_running).
+def tasks(e, data_task, records, networks, online=2, version=1):
+    # records: [(measured, policy, prio, last_cpu, conf_prio, conf_cpu, [4 affinity words],
+    #            period, measured_period, sampled_ago)] for the command task, then the data task.
+    recs = records + [(0, 0, 0, 0, 0, 0, [0, 0, 0, 0], 0, 0, 0)] * (2 - len(records))
+    body = struct.pack(e + "BBBBI", version, data_task, len(records), len(networks), online)
+    body += struct.pack(e + "2B2B4x", *[r[0] for r in recs], *[r[1] for r in recs])
+    for k in (2, 3, 4, 5):
+        body += struct.pack(e + "2i", *[r[k] for r in recs])
+    body += struct.pack(e + "8Q", *(recs[0][6] + recs[1][6]))
+    for k in (7, 8, 9):
+        body += struct.pack(e + "2q", *[r[k] for r in recs])
+    body += struct.pack(e + "4B4x", *([s for _, _, s in networks] + [0] * (4 - len(networks))))
+    body += b"".join(n.encode().ljust(32, b"\0") for n, _, _ in networks).ljust(128, b"\0")
+    body += b"".join(u.encode().ljust(96, b"\0") for _, u, _ in networks).ljust(384, b"\0")
+    assert len(body) == 680, len(body)
+    return body
+
+
+cmd_run = (1, 1, 30, 1, 30, -1, [3, 0, 0, 0], 0, 0, 2 * ms)
+gen_run = (1, 1, 40, 0, 40, 0, [1, 0, 0, 0], 10 * ms, 10 * ms + 20000, 2 * ms)
+mon_run = (1, 1, 45, 0, 45, 0, [1, 0, 0, 0], 0, 100 * ms, 2 * ms)
+fallback = (1, 0, 0, 1, 45, 0, [3, 0, 0, 0], 0, 0, 2 * ms)
+unmeasured = (0, 0, 0, -1, 40, 0, [0, 0, 0, 0], 10 * ms, 0, 0)
+robot = [("robot", "udpm://239.255.76.67:7667?ttl=0", 0)]
+fleet = robot + [("fleet", "udpm://239.255.76.68:7700?ttl=1", 1)]
+write("tasks", [b"\3" + tasks("<", 1, [cmd_run, gen_run], robot),
+                b"\1" + tasks("<", 2, [cmd_run, mon_run], fleet),
+                b"\7" + tasks("<", 1, [cmd_run, gen_run], robot),
+                b"\5" + tasks("<", 2, [cmd_run, fallback], robot),
+                b"\2" + tasks(">", 1, [cmd_run, gen_run], fleet),
+                b"\7" + tasks("<", 1, [cmd_run, unmeasured], []),
+                b"\5" + tasks("<", 0, [cmd_run], robot),
+                b"\3" + tasks("<", 1, [cmd_run, gen_run], robot, version=2) + b"\0" * 16,
+                b"\3" + tasks("<", 1, [cmd_run, gen_run], robot)[:600]])

@@ -106,38 +106,112 @@ TEST(GraphTest, LiveShowsMeasurementsAndStaleHosts) {
   EXPECT_EQ(rackd.wait_exit(30s), std::optional<int>(0)) << rackd.err();
 }
 
-// `alloc --live` without host files: discovery and GET_STATS say which tasks run (a
-// data task and its period), not their priorities or CPUs (those are in the host files),
-// so it says it does not know them instead of printing the defaults (30 and 40).
-TEST(GraphTest, LiveAllocWithoutHostFilesSaysWhatItDoesNotKnow) {
-  Watchdog watchdog(60s, "GraphTest");
+// From discovery alone (no host file): two hosts of one robot on one bus, their
+// components, the flows that run (GET_LISTENERS) with their periods and the network
+// they cross, each task's priority and CPU as it runs (GET_TASKS), and the allocation
+// per CPU with the inversions of what runs flagged: all checked against the host
+// files the two rackd were started with.
+TEST(GraphTest, TwoHostsFromDiscoveryAloneAsTheyRun) {
+  Watchdog watchdog(90s, "GraphTest");
   LcmBus bus;
   TempDir dir;
-  Process rackd({kRackd, kConfigs + "/demo.yaml", "--lcm", bus.url()}, dir.path(), "rackd");
-  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
-  const RunResult r = run({kRackctl, "--lcm", bus.url(), "--discover-ms", "1500", "alloc", "--live"}, 30s);
-  ASSERT_EQ(r.exit_code, 0) << r.describe();
-  EXPECT_NE(r.out.find("  priority and cpu not known without the host file (discovery does not carry them"),
+  const auto alpha = dir.write("alpha.yaml",
+                               "host: alpha\nsystem: 1\nhost_id: 0\ncomponents:\n"
+                               "  - {name: src, class: Generator, instance: 0, autostart: true, "
+                               "command_task: {priority: 30}, data_task: {priority: 60, period_ms: 10, cpu: 0}}\n");
+  // On beta: a consumer of alpha's src across the bus; a local pair whose consumer is
+  // above its producer on CPU 0, and two data tasks at priority 50 on CPU 0.
+  const auto beta = dir.write(
+      "beta.yaml",
+      "host: beta\nsystem: 1\nhost_id: 1\ncomponents:\n"
+      "  - {name: mon, class: Monitor, instance: 0, autostart: true, retry_ms: 500, command_task: {priority: 25}, "
+      "data_task: {priority: 50, cpu: 0}, params: {source: \"Generator(1/0)\", source_period_ms: 20}}\n"
+      "  - {name: g2, class: Generator, instance: 1, autostart: true, command_task: {priority: 25}, "
+      "data_task: {priority: 50, period_ms: 20, cpu: 0}}\n"
+      "  - {name: m2, class: Monitor, instance: 2, autostart: true, command_task: {priority: 25}, "
+      "data_task: {priority: 55, cpu: 0}, params: {source: g2}}\n");
+  Process a({kRackd, alpha.string(), "--lcm", bus.url()}, dir.path(), "rackd-alpha");
+  ASSERT_TRUE(a.wait_for_stderr("rackd: running", 30s)) << a.err();
+  Process b({kRackd, beta.string(), "--lcm", bus.url()}, dir.path(), "rackd-beta");
+  ASSERT_TRUE(b.wait_for_stderr("rackd: running", 30s)) << b.err();
+  const std::vector<std::string> ctl{kRackctl, "--lcm", bus.url(), "--discover-ms", "1500"};
+  const auto rackctl = [&](std::vector<std::string> tail) {
+    std::vector<std::string> args = ctl;
+    args.insert(args.end(), tail.begin(), tail.end());
+    return run(args, 30s);
+  };
+  // Both subscriptions run and the data tasks' intervals are measured (once a second).
+  const std::string
+      cross = R"("producer":"src","producer_host":"alpha","period_ns":20000000,"networks":["robot"],"running":true,)"
+              R"("live":true})";
+  const std::string local = R"("producer":"g2","producer_host":"beta","period_ns":20000000,"networks":[],)"
+                            R"("running":true,"live":true})";
+  RunResult g;
+  const auto deadline = std::chrono::steady_clock::now() + 40s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    g = rackctl({"graph", "--live", "--format", "json"});
+    ASSERT_EQ(g.exit_code, 0) << g.describe();
+    if (g.out.find(cross) != std::string::npos && g.out.find(local) != std::string::npos) break;
+    std::this_thread::sleep_for(300ms);
+  }
+  EXPECT_NE(g.out.find(cross), std::string::npos) << "src -> mon over the robot's bus: " << g.out;
+  EXPECT_NE(g.out.find(local), std::string::npos) << "g2 -> m2 inside beta: " << g.out;
+  EXPECT_NE(g.out.find(R"("consumer":"mon","consumer_host":"beta","param":"")"), std::string::npos) << g.out;
+  EXPECT_NE(g.out.find(R"("consumer":"m2","consumer_host":"beta","param":"")"), std::string::npos) << g.out;
+  // Every component on every host, with its tasks as they run (the files' values).
+  for (const char* want :
+       {R"("host":"alpha","system":1,"host_id":0,"role":"executor","networks":[{"name":"robot","scope":"robot",)",
+        R"("host":"beta","system":1,"host_id":1,)", R"x("name":"src","impl":"Generator","address":"Generator(1/0)")x",
+        R"("command_task":{"priority":30,)", R"("data_task":{"priority":60,"cpu":0,"period_ns":10000000})",
+        R"x("name":"mon","impl":"Monitor","address":"Monitor(1/0)")x",
+        R"("data_task":{"priority":50,"cpu":0,"period_ns":0})",
+        R"("data_task":{"priority":50,"cpu":0,"period_ns":20000000})",
+        R"("data_task":{"priority":55,"cpu":0,"period_ns":0})", R"("policy":"SCHED_FIFO","priority":60,"cpus":[0])"}) {
+    EXPECT_NE(g.out.find(want), std::string::npos) << want << "\n" << g.out;
+  }
+  EXPECT_EQ(g.out.find(R"("priority":null)"), std::string::npos) << g.out;
+  EXPECT_EQ(g.out.find(R"("answered":false)"), std::string::npos) << g.out;
+
+  // The data task's interval as it runs (measured once a second) follows its period.
+  const std::string src_row = "    60   src                  data  10 ms      ";
+  RunResult al;
+  std::string measured;
+  for (const auto until = std::chrono::steady_clock::now() + 15s; std::chrono::steady_clock::now() < until;) {
+    al = rackctl({"alloc", "--live"});
+    ASSERT_EQ(al.exit_code, 0) << al.describe();
+    const auto at = al.out.find(src_row);
+    ASSERT_NE(at, std::string::npos) << al.out;
+    measured = al.out.substr(at + src_row.size(), al.out.find('\n', at) - at - src_row.size());
+    if (!measured.empty() && measured[0] != '-') break;
+    std::this_thread::sleep_for(300ms);
+  }
+  EXPECT_NE(measured.rfind("-", 0), 0u) << "no measured interval: " << al.out;
+  EXPECT_NE(measured.find(" ms "), std::string::npos) << measured;
+  EXPECT_NE(measured.find("ENABLED"), std::string::npos) << measured;
+  EXPECT_NE(al.out.find("alpha (discovery on "), std::string::npos) << al.out;
+  EXPECT_NE(al.out.find("  cpu 0\n"), std::string::npos) << al.out;
+  EXPECT_NE(al.out.find("    55   m2                   data  triggered  "), std::string::npos) << al.out;
+  EXPECT_NE(al.out.find("! same priority 50 on cpu 0: data tasks of 'mon' and 'g2'"), std::string::npos) << al.out;
+  EXPECT_NE(al.out.find("! consumer above its producer on cpu 0: 'm2' (data p55) reads 'g2' (data p50) through a "
+                        "running subscription"),
             std::string::npos)
-      << r.out;
-  // The generator's data task, its period from GET_STATS, its priority '?'.
-  EXPECT_NE(r.out.find("    ?    generator            data  10 ms      "), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("    ?    generator            cmd   -          "), std::string::npos) << r.out;
-  EXPECT_EQ(r.out.find("    30   "), std::string::npos) << "a default shown as what runs: " << r.out;
-  EXPECT_EQ(r.out.find("    40   "), std::string::npos) << "a default shown as what runs: " << r.out;
-  const RunResult j = run({kRackctl, "--lcm", bus.url(), "--discover-ms", "1500", "alloc", "--live", "--json"}, 30s);
-  ASSERT_EQ(j.exit_code, 0) << j.describe();
-  EXPECT_NE(j.out.find(R"("command_task":{"priority":null,"cpu":null},"data_task":{"priority":null,"cpu":null,)"
-                       R"("period_ns":10000000})"),
-            std::string::npos)
-      << j.out;
-  // With the host file the priorities are the file's.
-  const RunResult f = run(
-      {kRackctl, "--lcm", bus.url(), "--discover-ms", "1500", "alloc", "--live", kConfigs + "/demo.yaml"}, 30s);
+      << al.out;
+  EXPECT_EQ(al.out.find("not known"), std::string::npos) << al.out;
+  EXPECT_EQ(al.out.find("asks for"), std::string::npos) << "every task runs as configured: " << al.out;
+  const RunResult dot = rackctl({"graph", "--live"});
+  ASSERT_EQ(dot.exit_code, 0) << dot.describe();
+  EXPECT_NE(dot.out.find(R"(subscribed, 20 ms\nvia robot\nrunning)"), std::string::npos) << dot.out;
+  EXPECT_NE(dot.out.find(R"(subscribed, 20 ms\nrunning)"), std::string::npos) << dot.out;
+  EXPECT_NE(dot.out.find("runs every "), std::string::npos) << dot.out;
+  // With the host files: the same flows as the files declare, running.
+  const RunResult f = rackctl({"alloc", "--live", alpha.string(), beta.string()});
   ASSERT_EQ(f.exit_code, 0) << f.describe();
   EXPECT_EQ(f.out.find("not known"), std::string::npos) << f.out;
-  rackd.signal(SIGTERM);
-  EXPECT_EQ(rackd.wait_exit(30s), std::optional<int>(0)) << rackd.err();
+  EXPECT_EQ(f.out.find("asks for"), std::string::npos) << f.out;
+  b.signal(SIGTERM);
+  EXPECT_EQ(b.wait_exit(30s), std::optional<int>(0)) << b.err();
+  a.signal(SIGTERM);
+  EXPECT_EQ(a.wait_exit(30s), std::optional<int>(0)) << a.err();
 }
 
 // Live flows from the producers' listener tables (GET_LISTENERS): with no host file,
@@ -185,7 +259,7 @@ TEST(GraphTest, LiveFlowsComeFromTheRunningSubscriptions) {
   r = graph({kConfigs + "/demo.yaml"}, "json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find(R"("param":"source","target":"generator")"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find(R"("networks":[],"running":true})"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(R"("networks":[],"running":true,"live":false})"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find(monitor_flow + R"("in_files":true})"), std::string::npos) << r.out;
   r = graph({kConfigs + "/demo.yaml"}, "dot");
   ASSERT_EQ(r.exit_code, 0) << r.err;

@@ -1,7 +1,8 @@
 // End to end: rack-gui's configuration tool (issue 25) in headless Chromium (Debian's
 // chromium, driven by playwright-core): rack-gui serves a copy of configs/two_robots/
 // (--config), the page draws the deployment graph (and, live, robot1_aux.yaml's
-// running rackd measured, the other hosts stale), an invalid priority set in the
+// running rackd measured, the other hosts stale; and from discovery alone, without
+// host files, its tasks' priorities and period as they run), an invalid priority set in the
 // editor's form is shown at its line by rackd --check, the fixed file is saved, and
 // rackd --check accepts the file on disk, with only that value changed (comments and
 // layout kept). The browser part is tools/gui/web/e2e/config_e2e.mjs; screenshots
@@ -67,7 +68,8 @@ TEST(GuiConfigE2eTest, EditsAHostFileWithTheValidatorInTheLoop) {
                           120s);
   std::printf("%s", r.out.c_str());
   EXPECT_EQ(r.exit_code, 0) << r.describe() << "\nrack-gui:\n" << gui.err();
-  for (const char* shot : {"config-graph.png", "config-live.png", "config-error.png", "config-saved.png"}) {
+  for (const char* shot :
+       {"config-graph.png", "config-live.png", "config-running.png", "config-error.png", "config-saved.png"}) {
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(artifacts) / shot)) << shot;
   }
   // The saved file: valid for rackd, the priority changed, everything else as it was.

@@ -395,5 +395,38 @@ TEST_F(TwoRobotsTest, RoutersCarryFleetTrafficAndKeepRobotTrafficHome) {
       << "fleet link carried " << fleet_packets << " TiMS packets while robot 1's consumer got " << internal;
 }
 
+// The shipped example as it runs, from the base station's fleet link with no host
+// file (rackctl graph --live, issue 25): every host and component of both robots,
+// the scanner's two subscriptions with the networks they cross (robot 1's bus inside
+// robot 1; robot1 > fleet > robot2 through the system routers) and each task's
+// priority and period as the host files configure them.
+TEST_F(TwoRobotsTest, GraphFromDiscoveryAloneShowsFlowsNetworksAndTasksAsTheyRun) {
+  ASSERT_NE(start_host(3, example("base_station.yaml")), nullptr);
+  ASSERT_NE(start_host(1, example("robot1_aux.yaml")), nullptr);
+  ASSERT_NE(start_host(0, example("robot1_main.yaml")), nullptr);
+  ASSERT_NE(start_host(2, example("robot2_main.yaml")), nullptr);
+  const std::string fleet = url(fleet_);
+  const std::string internal = R"("consumer":"nav-monitor","consumer_host":"robot1-main","param":"",)";
+  const std::string crossing = R"("consumer":"fleet-monitor","consumer_host":"robot2-main","param":"",)";
+  std::string out;
+  EXPECT_TRUE(eventually([&] {
+    const RunResult r = ctl_on(3, fleet, {"graph", "--live", "--format", "json"});
+    out = r.out;
+    return r.exit_code == 0 && contains(out, internal) && contains(out, crossing);
+  })) << out;
+  for (const char* want :
+       {R"("producer":"scanner","producer_host":"robot1-aux","period_ns":10000000,"networks":["robot1"],)",
+        R"("producer":"scanner","producer_host":"robot1-aux","period_ns":100000000,)"
+        R"("networks":["robot1","fleet","robot2"],)",
+        R"("host":"robot1-aux","system":1,"host_id":1,"role":"executor","networks":[{"name":"robot1","scope":"robot",)",
+        R"("host":"robot2-main","system":2,"host_id":0,"role":"system_router","networks":[{"name":"robot2",)",
+        R"("host":"base-station",)", R"("name":"scanner","impl":"Generator")", R"("command_task":{"priority":30,)",
+        R"("data_task":{"priority":60,)", R"("data_task":{"priority":50,)", R"("policy":"SCHED_FIFO","priority":60,)",
+        R"("period_ns":10000000,"measured_period_ns":)"}) {
+    EXPECT_TRUE(contains(out, want)) << want << "\n" << out;
+  }
+  EXPECT_FALSE(contains(out, R"("priority":null)")) << out;
+}
+
 }  // namespace
 }  // namespace rack::test

@@ -136,6 +136,44 @@ TEST_F(ConfigServiceTest, SavesOnlyWhatRackdAccepts) {
   EXPECT_EQ(slurp(root_ / "outside.yaml"), kValid);
 }
 
+// The diff is against the file on disk: a file changed on disk after the client loaded
+// it (another editor) is reported by a check and not overwritten by a save made against
+// the old text; a save against the present version goes through and gives the new one.
+TEST_F(ConfigServiceTest, ASaveAgainstATextNoLongerOnDiskIsRefused) {
+  const std::string file = (served_ / "host.yaml").string();
+  const json load = call({{"op", "config_load"}, {"file", file}});
+  ASSERT_EQ(load["ok"], true) << load;
+  const std::string loaded = load["disk_version"].get<std::string>();
+  ASSERT_FALSE(loaded.empty());
+  std::string mine = kValid;
+  mine.replace(mine.find("priority: 60"), 12, "priority: 65");
+  // Someone else changes the file meanwhile.
+  std::string theirs = kValid;
+  theirs += "# their change\n";
+  {
+    const std::string other = (served_ / ".other.tmp").string();
+    std::ofstream(other) << theirs;
+    fs::rename(other, file);  // a new inode, as editors save
+  }
+  const json checked = call({{"op", "config_check"}, {"file", file}, {"text", mine}, {"base_version", loaded}});
+  EXPECT_EQ(checked["valid"], true) << checked;
+  EXPECT_EQ(checked["disk_changed"], true) << checked;
+  const json refused = call({{"op", "config_save"}, {"file", file}, {"text", mine}, {"base_version", loaded}});
+  ASSERT_EQ(refused["ok"], true) << refused;
+  EXPECT_EQ(refused["saved"], false) << refused;
+  EXPECT_NE(refused["save_error"].get<std::string>().find("changed on disk since it was loaded"), std::string::npos);
+  EXPECT_EQ(slurp(file), theirs) << "their change is kept";
+  EXPECT_EQ(entries(), 2u) << "no temporary file left";
+  // Loaded again: the save goes through and answers the new version.
+  const std::string now = call({{"op", "config_load"}, {"file", file}})["disk_version"].get<std::string>();
+  EXPECT_NE(now, loaded);
+  const json saved = call({{"op", "config_save"}, {"file", file}, {"text", mine}, {"base_version", now}});
+  EXPECT_EQ(saved["saved"], true) << saved;
+  EXPECT_EQ(saved["disk_changed"], false);
+  EXPECT_EQ(slurp(file), mine);
+  EXPECT_NE(saved["disk_version"].get<std::string>(), now);
+}
+
 // A host file above one WebSocket message (64 KiB): sent in parts (config_part), then
 // checked and saved as one text; parts out of order, an unknown or incomplete upload,
 // and a text above a host file's 1 MiB are refused and drop the upload.
@@ -204,8 +242,10 @@ TEST_F(ConfigServiceTest, ATextAboveOneMessageIsSentInParts) {
 }
 
 TEST_F(ConfigServiceTest, MalformedRequestsAreAnsweredNotActedOn) {
-  for (const char* text : {"{", "[]", R"({"op":"config_nothing"})", R"({"op":"config_save","file":3,"text":"x"})",
-                           R"({"op":"config_graph","dir":"/"})", R"({"op":"config_load"})"}) {
+  for (const char* text :
+       {"{", "[]", R"({"op":"config_nothing"})", R"({"op":"config_save","file":3,"text":"x"})",
+        R"({"op":"config_graph","dir":"/"})", R"({"op":"config_graph"})", R"({"op":"config_graph","live":false})",
+        R"({"op":"config_graph","dir":"/","live":true})", R"({"op":"config_load"})"}) {
     const json r = json::parse(service_->handle(text));
     EXPECT_EQ(r["type"], "config") << text;
     EXPECT_EQ(r["ok"], false) << text;

@@ -3,6 +3,7 @@
 // rackctl alloc).
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <span>
 #include <string>
 #include <vector>
@@ -10,6 +11,7 @@
 #include "rack/client/deployment.h"
 #include "rack/components/class_ids.h"
 #include "rack/core/wire.h"
+#include "rack/core/wire_tasks.h"
 #include "rack/tims/address.h"
 
 namespace rack::deploy {
@@ -318,6 +320,197 @@ components:
   EXPECT_STREQ(why, "a listener's factor is 0");
   EXPECT_TRUE(bad.flows.empty());
   EXPECT_NE(add_listeners(d, 0, 7, std::as_bytes(std::span(&r, 1)), true, bad), nullptr) << "no component 7";
+}
+
+// A TASKS reply (GET_TASKS) as a rackd's component sends it: the host file's priority
+// and cpu, the kernel's reading (SCHED_FIFO at `prio` on `cpu`, or on CPUs 0 and 1),
+// the host's one network.
+wire::TasksReply tasks_reply(int cmd_prio, int data_prio, int cpu, int64_t period_ns, bool data = true) {
+  wire::TasksReply r;
+  r.data_task = static_cast<uint8_t>(data ? (period_ns > 0 ? 1 : 2) : 0);
+  r.task_count = static_cast<uint8_t>(data ? 2 : 1);
+  r.online_cpus = 2;
+  for (std::size_t i = 0; i < r.task_count; ++i) {
+    const int prio = i == 0 ? cmd_prio : data_prio;
+    r.measured[i] = wire::kTaskMeasured;
+    r.policy[i] = 1;  // SCHED_FIFO
+    r.priority[i] = prio;
+    r.configured_priority[i] = prio;
+    r.configured_cpu[i] = i == 1 ? cpu : -1;
+    r.last_cpu[i] = 0;
+    r.affinity[i * wire::kTaskCpuWords] = i == 1 && cpu >= 0 ? uint64_t{1} << cpu : 3u;  // else CPUs 0 and 1
+  }
+  if (data) {
+    r.period_ns[1] = period_ns;
+    r.measured_period_ns[1] = period_ns > 0 ? period_ns + 20'000 : 30'000'000;
+  }
+  r.network_count = 1;
+  std::memcpy(r.network_name, "robot", 6);
+  std::memcpy(r.network_url, "udpm://239.255.76.67:7667?ttl=0", 32);
+  return r;
+}
+
+// Discovery alone (no host file): two hosts of one robot, their tasks as GET_TASKS
+// says they run and their flows from GET_LISTENERS: the cross-host flow crosses the
+// robot's network, the local one none; the allocation per CPU with its inversions
+// (a consumer above its producer, two data tasks with one priority) comes from what runs.
+TEST(DeploymentTest, AdoptRunningTakesTasksFlowsAndNetworksFromWhatRuns) {
+  const auto discovered = [](const char* name, int host_id, std::vector<std::pair<const char*, uint8_t>> comps) {
+    Host h;
+    h.file = "discovery on test";
+    h.host = name;
+    h.system = 1;
+    h.host_id = host_id;
+    h.tasks_known = false;
+    uint8_t instance = 0;
+    for (const auto& [cname, cls] : comps) {
+      Component c;
+      c.name = cname;
+      c.impl = cls == class_ids::kMonitor ? "Monitor" : "Generator";
+      c.class_name = c.impl;
+      c.instance = instance;
+      c.address = tims::Address::make(1, cls, instance, 0).raw();
+      c.address_text = c.impl + "(1/" + std::to_string(instance) + ")";
+      c.command_task.priority = -1;  // not known (cpu: -1)
+      c.data_task.priority = -1;
+      h.components.push_back(c);
+      ++instance;
+    }
+    return h;
+  };
+  Deployment d = build(
+      {discovered("alpha", 0, {{"src", class_ids::kGenerator}}),
+       discovered("beta", 1,
+                  {{"mon", class_ids::kMonitor}, {"g2", class_ids::kGenerator}, {"m2", class_ids::kMonitor}})});
+  // g2 is Generator(1/1), m2 Monitor(1/2) on beta; src Generator(1/0) on alpha.
+  ASSERT_TRUE(d.flows.empty());
+  Live live;
+  live.tasks.resize(2);
+  live.tasks[0].resize(1);
+  live.tasks[1].resize(3);
+  const auto add = [&](std::size_t h, std::size_t c, const wire::TasksReply& r) {
+    const char* bad = add_tasks(d, h, c, std::as_bytes(std::span(&r, 1)), true, live);
+    EXPECT_EQ(bad, nullptr) << bad;
+  };
+  add(0, 0, tasks_reply(30, 60, 0, 10'000'000));
+  add(1, 0, tasks_reply(25, 50, 0, 0));
+  add(1, 1, tasks_reply(25, 50, 0, 20'000'000));
+  add(1, 2, tasks_reply(25, 55, 0, 0));
+  EXPECT_EQ(live.tasks[0][0].data.cpus, (std::vector<int>{0}));
+  EXPECT_EQ(live.tasks[0][0].command.cpus, (std::vector<int>{0, 1}));
+  EXPECT_EQ(live.tasks[0][0].data.policy, "SCHED_FIFO");
+  // src -> mon (every 2nd sample), g2 -> m2.
+  const auto listeners = [&](std::size_t h, std::size_t c, uint32_t mailbox, int64_t period) {
+    wire::ListenersReply r;
+    r.data_task = 1;
+    r.count = r.total = 1;
+    r.period_ns = period;
+    r.mailbox[0] = mailbox;
+    r.factor[0] = 1;
+    r.listener_period_ns[0] = period;
+    EXPECT_EQ(add_listeners(d, h, c, std::as_bytes(std::span(&r, 1)), true, live), nullptr);
+  };
+  listeners(0, 0, tims::Address::make(1, class_ids::kMonitor, 0, 3).raw(), 20'000'000);
+  listeners(1, 1, tims::Address::make(1, class_ids::kMonitor, 2, 3).raw(), 20'000'000);
+  match_live_flows(d, live);
+  adopt_running(d, live);
+
+  EXPECT_TRUE(d.hosts[0].tasks_known);
+  EXPECT_EQ(d.hosts[1].components[2].data_task.priority, 55);
+  EXPECT_EQ(d.hosts[1].components[2].data_task.cpu, 0);
+  EXPECT_EQ(d.hosts[1].components[2].command_task.cpu, -1) << "CPUs 0 and 1 of 2: any";
+  ASSERT_EQ(d.hosts[0].networks.size(), 1u);
+  EXPECT_EQ(d.hosts[0].networks[0].name, "robot");
+  ASSERT_EQ(d.flows.size(), 2u);
+  EXPECT_TRUE(d.flows[0].live);
+  EXPECT_EQ(d.flows[0].producer_host, 0u);
+  EXPECT_EQ(d.flows[0].consumer_host, 1u);
+  EXPECT_EQ(d.flows[0].period_ns, 20'000'000);
+  EXPECT_EQ(d.flows[0].networks, (std::vector<std::string>{"robot"})) << "alpha -> beta over the robot's bus";
+  EXPECT_TRUE(d.flows[1].networks.empty()) << "g2 -> m2 stays inside beta";
+  EXPECT_EQ(live.flow_state, (std::vector<int>{1, 1}));
+
+  const std::string alloc = allocation_text(d, &live);
+  EXPECT_NE(alloc.find("  cpu 0\n"), std::string::npos) << alloc;
+  EXPECT_NE(alloc.find("    60   src                  data  10 ms      10.0 ms"), std::string::npos) << alloc;
+  EXPECT_NE(alloc.find("! same priority 50 on cpu 0: data tasks of 'mon' and 'g2'"), std::string::npos) << alloc;
+  EXPECT_NE(alloc.find("! consumer above its producer on cpu 0: 'm2' (data p55) reads 'g2' (data p50) through a "
+                       "running subscription"),
+            std::string::npos)
+      << alloc;
+  EXPECT_EQ(alloc.find("not known"), std::string::npos) << alloc;
+  EXPECT_EQ(alloc.find("its host file asks"), std::string::npos) << alloc;
+  const std::string json = to_json(d, &live);
+  EXPECT_NE(json.find(R"("networks":["robot"],"running":true,"live":true})"), std::string::npos) << json;
+  EXPECT_NE(json.find(R"("consumer":"mon","consumer_host":"beta","period_ns":20000000,"in_files":false})"),
+            std::string::npos)
+      << json;
+  EXPECT_NE(json.find(R"("data_task":{"priority":60,"cpu":0,"period_ns":10000000})"), std::string::npos) << json;
+  const std::string dot = to_dot(d, &live);
+  EXPECT_NE(dot.find("subscribed, 20 ms\\nvia robot\\nrunning"), std::string::npos) << dot;
+  EXPECT_NE(dot.find("runs every 10.0 ms"), std::string::npos) << dot;
+
+  // A task that fell back to normal scheduling is listed and flagged.
+  wire::TasksReply fallback = tasks_reply(25, 50, 0, 0);
+  fallback.policy[1] = 0;
+  fallback.priority[1] = 0;
+  Deployment d2 = build({discovered("gamma", 2, {{"mon", class_ids::kMonitor}})});
+  Live l2;
+  ASSERT_EQ(add_tasks(d2, 0, 0, std::as_bytes(std::span(&fallback, 1)), true, l2), nullptr);
+  match_live_flows(d2, l2);
+  adopt_running(d2, l2);
+  const std::string a2 = allocation_text(d2, &l2);
+  EXPECT_NE(a2.find("! 'mon' data task runs at priority 0 (normal scheduling), its host file asks for 50"),
+            std::string::npos)
+      << a2;
+}
+
+// The TASKS decoder: what does not add up is refused with the reason; a later version
+// with appended fields is read by its version-1 part.
+TEST(DeploymentTest, TasksReplyDecoderRefusesWhatDoesNotAddUp) {
+  const wire::TasksReply good = tasks_reply(30, 60, 1, 10'000'000);
+  const auto decode = [](const wire::TasksReply& r) -> std::string {
+    wire::TasksReply out;
+    const char* bad = wire::decode_tasks(std::as_bytes(std::span(&r, 1)), true, out);
+    return bad == nullptr ? "" : bad;
+  };
+  EXPECT_EQ(decode(good), "");
+  wire::TasksReply b = good;
+  b.task_count = 1;
+  EXPECT_EQ(decode(b), "task_count is not 1 without a data task, 2 with one");
+  b = good;
+  b.priority[1] = 0;
+  EXPECT_EQ(decode(b), "a priority does not go with its policy");
+  b = good;
+  b.affinity[4] = 0;
+  EXPECT_EQ(decode(b), "a task may run on no CPU");
+  b = good;
+  b.network_name[5] = 'x';
+  std::memset(b.network_name, 'x', wire::kTaskNetworkNameLen);
+  EXPECT_EQ(decode(b), "a network's name is empty, unterminated or not printable");
+  b = good;
+  b.version = 0;
+  EXPECT_EQ(decode(b), "version is 0");
+  b = good;
+  b.period_ns[0] = 5;
+  EXPECT_EQ(decode(b), "the command task has a period");
+  // Version 2 with 8 more bytes: its version-1 part is used; version 1 must be exact.
+  std::vector<std::byte> longer(sizeof(wire::TasksReply) + 8);
+  b = good;
+  b.version = 2;
+  std::memcpy(longer.data(), &b, sizeof b);
+  wire::TasksReply out;
+  EXPECT_EQ(wire::decode_tasks(longer, true, out), nullptr);
+  EXPECT_EQ(out.priority[1], 60);
+  std::memcpy(longer.data(), &good, sizeof good);
+  EXPECT_STREQ(wire::decode_tasks(longer, true, out), "a version-1 TASKS reply is 680 bytes");
+  EXPECT_NE(wire::decode_tasks(std::span(longer).first(100), true, out), nullptr);
+  // The other byte order: swapped fields come back.
+  wire::TasksReply swapped = good;
+  tims::swap_fields(tims::fields_of<wire::TasksReply>, reinterpret_cast<std::byte*>(&swapped), sizeof swapped);
+  ASSERT_EQ(wire::decode_tasks(std::as_bytes(std::span(&swapped, 1)), false, out), nullptr);
+  EXPECT_EQ(out.period_ns[1], 10'000'000);
+  EXPECT_EQ(out.affinity[4], 2u);
 }
 
 TEST(DeploymentTest, HostileTextNeverThrows) {

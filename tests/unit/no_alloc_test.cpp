@@ -396,6 +396,9 @@ components:
     // Who subscribes to the generator: the tool's data mailbox (GET_LISTENERS).
     r = ep.call(gen, msg::kGetListeners, buf, test::kCallTimeoutNs);
     bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kListeners ? 0 : 1;
+    // How its tasks run (GET_TASKS: the GDOS thread's last kernel reading, the networks).
+    r = ep.call(gen, msg::kGetTasks, buf, test::kCallTimeoutNs);
+    bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kTasks ? 0 : 1;
     // The class description's first page (encoded before the tasks started).
     r = ep.call(gen, msg::kGetClass, class_page, buf, test::kCallTimeoutNs);
     bad += r.status == tims::CallStatus::kOk && r.reply.type == msg::kClass ? 0 : 1;

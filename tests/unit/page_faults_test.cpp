@@ -18,7 +18,9 @@
 #include <gtest/gtest.h>
 
 #include "rack/rt/memory.h"
+#include "rack/core/wire_tasks.h"
 #include "rack/rt/page_faults.h"
+#include "rack/rt/task_sched.h"
 #include "test_support.h"
 
 namespace rack {
@@ -218,6 +220,94 @@ components:
   const cpu_set_t t = affinity_of(io);
   EXPECT_FALSE(CPU_ISSET(static_cast<std::size_t>(pinned), &t))
       << "init()'s thread may run on CPU " << pinned << ", where RT tasks are pinned";
+}
+
+// How a thread runs, as the kernel says (rack/rt/task_sched.h): this test's thread
+// runs under normal scheduling somewhere it may; a thread that does not exist is no
+// reading; TaskSched keeps the last reading.
+TEST(TaskSchedTest, ReadsPolicyPriorityAndCpusOfAThread) {
+  const pid_t self = static_cast<pid_t>(::gettid());
+  const rt::SchedInfo s = rt::read_thread_sched(self);
+  ASSERT_TRUE(s.measured);
+  const int policy = sched_getscheduler(0);
+  EXPECT_EQ(s.policy, policy);
+  EXPECT_EQ(s.priority, policy == SCHED_FIFO || policy == SCHED_RR ? s.priority : 0);
+  const cpu_set_t mine = affinity_of(0);
+  for (std::size_t c = 0; c < rt::SchedInfo::kCpuWords * 64; ++c) {
+    EXPECT_EQ(((s.affinity[c / 64] >> (c % 64)) & 1u) != 0, CPU_ISSET(c, &mine) != 0) << "CPU " << c;
+  }
+  EXPECT_TRUE(CPU_ISSET(static_cast<std::size_t>(s.last_cpu), &mine)) << s.last_cpu;
+  EXPECT_GE(s.online_cpus, 1);
+  EXPECT_FALSE(rt::read_thread_sched(0).measured);
+  EXPECT_FALSE(rt::read_thread_sched(0x7ffffff0).measured);
+  rt::TaskSched t;
+  EXPECT_FALSE(t.last().measured);
+  t.sample(0x7ffffff0);
+  EXPECT_FALSE(t.last().measured) << "a thread that does not exist";
+  t.sample(self);
+  EXPECT_TRUE(t.last().measured);
+  EXPECT_EQ(t.last().affinity, s.affinity);
+}
+
+// GET_TASKS (wire::TasksReply): a running generator says how its tasks run: the host
+// file's priorities and CPU, the kernel's policy, priority and CPUs (its data task
+// pinned), its timer period and the interval its loop() runs at (tolerant: only that
+// it is measured and near 10 ms, not how near).
+TEST(TaskSchedTest, GetTasksSaysHowTheTasksRunTolerant) {
+  Watchdog watchdog;
+  const cpu_set_t before = affinity_of(0);
+  int pinned = -1;
+  for (int cpu = CPU_SETSIZE - 1; cpu >= 0 && pinned < 0; --cpu) {
+    if (CPU_ISSET(static_cast<std::size_t>(cpu), &before)) pinned = cpu;  // the highest allowed CPU
+  }
+  test::HostUnderTest host(R"(system: 0
+lcm: false
+components:
+  - name: gen
+    class: Generator
+    instance: 1
+    autostart: true
+    command_task: {priority: 30}
+    data_task: {priority: 60, cpu: )" +
+                           std::to_string(pinned) + R"(, period_ms: 10}
+)");
+  const tims::Address gen = host.address_of("gen");
+  wire::TasksReply r;
+  ASSERT_TRUE(test::eventually(
+      [&] {
+        const auto reply = host.call(gen, tims::msg::kGetTasks);
+        if (reply.type != tims::msg::kTasks) return false;
+        const char* bad = wire::decode_tasks(std::as_bytes(std::span(reply.body.data(), reply.body.size())), true, r);
+        EXPECT_EQ(bad, nullptr) << bad;
+        return bad == nullptr && r.measured[0] == 1 && r.measured[1] == 1 && r.measured_period_ns[1] > 0;
+      },
+      std::chrono::seconds(10)))
+      << "no measured TASKS reply";
+  EXPECT_EQ(r.version, wire::kTasksVersion);
+  EXPECT_EQ(r.data_task, 1u);
+  EXPECT_EQ(r.task_count, 2u);
+  EXPECT_EQ(r.network_count, 0u) << "lcm: false";
+  EXPECT_EQ(r.configured_priority[0], 30);
+  EXPECT_EQ(r.configured_priority[1], 60);
+  EXPECT_EQ(r.configured_cpu[0], -1);
+  EXPECT_EQ(r.configured_cpu[1], pinned);
+  // SCHED_FIFO as asked, or normal scheduling where RT is refused (the fallback).
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_TRUE(r.policy[i] == 1 || r.policy[i] == 0) << int{r.policy[i]};
+    EXPECT_EQ(r.priority[i], r.policy[i] == 1 ? r.configured_priority[i] : 0);
+  }
+  for (std::size_t w = 0; w < wire::kTaskCpuWords; ++w) {
+    EXPECT_EQ(r.affinity[wire::kTaskCpuWords + w],
+              pinned / 64 == static_cast<int>(w) ? uint64_t{1} << (pinned % 64) : 0u)
+        << "the data task is pinned to CPU " << pinned;
+  }
+  EXPECT_EQ(r.last_cpu[1], pinned);
+  EXPECT_EQ(r.period_ns[0], 0);
+  EXPECT_EQ(r.period_ns[1], 10 * rt::kNsPerMs);
+  EXPECT_GT(r.measured_period_ns[1], 5 * rt::kNsPerMs);
+  EXPECT_LT(r.measured_period_ns[1], 50 * rt::kNsPerMs);
+  const uint64_t x = 1;
+  EXPECT_EQ(host.call_with(gen, tims::msg::kGetTasks, x).type, tims::msg::kError) << "GET_TASKS takes no body";
 }
 
 }  // namespace

@@ -344,6 +344,8 @@ bool parse_message_type(const std::string& text, int8_t& out) noexcept {
       {"class", msg::kClass},
       {"get_listeners", msg::kGetListeners},
       {"listeners", msg::kListeners},
+      {"get_tasks", msg::kGetTasks},
+      {"tasks", msg::kTasks},
       {"ok", msg::kOk},
       {"error", msg::kError},
       {"timeout", msg::kTimeout},

@@ -23,6 +23,7 @@ const char* msg::name(int8_t type) noexcept {
     case kGetLatency: return "GET_LATENCY";
     case kGetClass: return "GET_CLASS";
     case kGetListeners: return "GET_LISTENERS";
+    case kGetTasks: return "GET_TASKS";
     case kOk: return "OK";
     case kError: return "ERROR";
     case kTimeout: return "TIMEOUT";
@@ -36,6 +37,7 @@ const char* msg::name(int8_t type) noexcept {
     case kLatency: return "LATENCY";
     case kClass: return "CLASS";
     case kListeners: return "LISTENERS";
+    case kTasks: return "TASKS";
     default: return nullptr;
   }
 }

@@ -113,6 +113,16 @@ json reply(const json& request, const std::string& op) {
 
 // rackd --check's complaints about `checked` (the temporary file), as the editor shows
 // them: line, column (0: the whole file) and message.
+// What identifies the file on disk as the client saw it (config_load, a save): its
+// modification time in ns, size and inode; "" when it does not exist. A save whose
+// base_version differs was made against a text that is no longer on disk.
+std::string disk_version(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return "";
+  return std::to_string(static_cast<long long>(st.st_mtim.tv_sec)) + "." + std::to_string(st.st_mtim.tv_nsec) + ":" +
+         std::to_string(static_cast<long long>(st.st_size)) + ":" + std::to_string(st.st_ino);
+}
+
 json check_errors(const std::string& output, const std::string& checked, const std::string& shown) {
   json errors = json::array();
   std::size_t at = 0;
@@ -301,13 +311,20 @@ std::string ConfigService::handle(std::string_view text) {
       r["dirs"] = dirs;
     } else if (op == "config_graph") {
       std::string dir;
-      if (!text_of("dir", dir)) return refuse("config_graph needs \"dir\": a directory config_files listed");
-      bool served = false;
+      const auto live = request.find("live");
+      const bool want_live = live != request.end() && live->is_boolean() && live->get<bool>();
+      // Without "dir", live: the deployment as it runs, from discovery alone.
+      const bool discovery = request.find("dir") == request.end() && want_live;
+      if (!discovery && !text_of("dir", dir)) {
+        return refuse(
+            "config_graph needs \"dir\": a directory config_files listed (or only \"live\": true: what runs)");
+      }
+      bool served = discovery;
       for (const auto& d : config_.dirs) served = served || d == dir;
       if (!served) return refuse("'" + dir + "' is not a directory rack-gui serves (--config)");
       std::vector<std::string> problems, paths;
       std::vector<rack::deploy::Host> hosts;
-      for (const auto& path : rack::deploy::host_file_paths({dir}, problems)) {
+      for (const auto& path : discovery ? std::vector<std::string>{} : rack::deploy::host_file_paths({dir}, problems)) {
         if (!valid_name(fs::path(path).filename().string())) continue;
         hosts.push_back(rack::deploy::read_host(path));
         paths.push_back(path);
@@ -315,7 +332,7 @@ std::string ConfigService::handle(std::string_view text) {
       // The classes' component references (rackd --list-classes --json with the
       // directory's host files: their plug-in classes too), learnt once per directory.
       auto known = class_info_.find(dir);
-      if (known == class_info_.end()) {
+      if (!discovery && known == class_info_.end()) {
         std::vector<rack::deploy::ClassInfo> classes;
         std::string why;
         if (rack::tools::classes_from_rackd(rackd_program(), classes, why, config_.timeout_ms, paths)) {
@@ -330,8 +347,7 @@ std::string ConfigService::handle(std::string_view text) {
       r["ok"] = true;
       r["deployment"] = json::parse(rack::deploy::to_json(d), nullptr, false);
       r["allocation"] = rack::deploy::allocation_text(d);
-      const auto live = request.find("live");
-      if (live != request.end() && live->is_boolean() && live->get<bool>()) {
+      if (want_live) {
         // What the network says, by rackctl on rack-gui's network (two discoveries).
         std::vector<std::string> base{rackctl_program(), "--lcm", config_.lcm_url, "--discover-ms", "500",
                                       "--timeout",       "500"};
@@ -339,13 +355,14 @@ std::string ConfigService::handle(std::string_view text) {
         auto with = [&](std::vector<std::string> tail) {
           std::vector<std::string> args = base;
           args.insert(args.end(), tail.begin(), tail.end());
+          if (!discovery) args.push_back(dir);
           return args;
         };
-        const ChildResult g = run_child(with({"graph", "--live", "--format", "json", "--rackd", rackd_program(), dir}),
-                                        "", false, config_.timeout_ms);
-        const ChildResult dd = run_child(with({"graph", "--live", "--rackd", rackd_program(), dir}), "", false,
+        const ChildResult g = run_child(with({"graph", "--live", "--format", "json", "--rackd", rackd_program()}), "",
+                                        false, config_.timeout_ms);
+        const ChildResult dd = run_child(with({"graph", "--live", "--rackd", rackd_program()}), "", false,
                                          config_.timeout_ms);
-        const ChildResult a = run_child(with({"alloc", "--live", "--rackd", rackd_program(), dir}), "", false,
+        const ChildResult a = run_child(with({"alloc", "--live", "--rackd", rackd_program()}), "", false,
                                         config_.timeout_ms);
         json lj = json::parse(g.out, nullptr, false);
         // Exit 1 is a host file with errors: the picture is still made.
@@ -357,7 +374,10 @@ std::string ConfigService::handle(std::string_view text) {
           r["live"] = true;
         } else {
           r["live"] = false;
-          r["live_error"] = "rackctl --live failed (exit " + std::to_string(g.exit_code) + "): " + g.out.substr(0, 512);
+          r["live_error"] = discovery && g.exit_code == 3
+                                ? std::string("no host answered discovery on ") + config_.lcm_url
+                                : "rackctl --live failed (exit " + std::to_string(g.exit_code) +
+                                      "): " + g.out.substr(0, 512);
         }
       }
       r["dot"] = dot;
@@ -402,6 +422,7 @@ std::string ConfigService::handle(std::string_view text) {
       r["ok"] = true;
       r["file"] = path;
       r["text"] = *bytes;
+      r["disk_version"] = disk_version(path);
     } else if (op == "config_part") {
       // A text above one WebSocket message, in parts (config_service.h: uploads).
       std::string upload, part;
@@ -515,13 +536,21 @@ std::string ConfigService::handle(std::string_view text) {
                                                                 : c.out.substr(0, 1024)}});
       }
       r["ok"] = true;
+      // The file changed on disk since the client loaded it (another editor, a
+      // checkout): its diff is not against the disk, and a save would lose that change.
+      std::string base;
+      const bool disk_changed = text_of("base_version", base) && base != disk_version(path);
+      r["disk_changed"] = disk_changed;
       if (op == "config_save") {
         r["saved"] = false;
-        if (c.exit_code == 0) {
+        if (disk_changed) {
+          r["save_error"] = path + " changed on disk since it was loaded: not saved (load it again, or copy the text)";
+        } else if (c.exit_code == 0) {
           if (::rename(tmp.c_str(), path.c_str()) != 0)
             return refuse("cannot replace " + path + ": " + std::strerror(errno));
           keep = true;
           r["saved"] = true;
+          r["disk_version"] = disk_version(path);
         }
       }
     } else {

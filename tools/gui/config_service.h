@@ -11,11 +11,18 @@
 //   {"op":"config_graph","dir":D}                 D's deployment: JSON, DOT, SVG (graphviz), allocation
 //   {"op":"config_graph","dir":D,"live":true}     the same with what the network says (rackctl --live:
 //                                                 stale hosts, state, utilisation, worst wake-up latency)
+//   {"op":"config_graph","live":true}             no "dir": the deployment as it runs, from discovery
+//                                                 alone (rackctl graph/alloc --live without host files:
+//                                                 tasks, CPUs, flows and networks as they run)
 //   {"op":"config_classes"}                       `rackd --list-classes --json` with every served host file
 //                                                 (the editor's forms; the plug-in classes they name described too)
 //   {"op":"config_load","file":F}                 F's text
 //   {"op":"config_check","file":F,"text":T}       rackd --check on T (as F): errors with line and column
 //   {"op":"config_save","file":F,"text":T}        the same, and T replaces F only when rackd accepts it
+//                                                 (config_load and a save answer F's "disk_version";
+//                                                 check and save with "base_version":V answer
+//                                                 "disk_changed": F is no longer what V was, and a
+//                                                 save is then refused: "save_error")
 //   {"op":"config_part","upload":U,"index":I,"count":N,"text":T}
 //                                                 part I (0..N-1, in order) of a text above one WebSocket
 //                                                 message (64 KiB); answered {"received":I+1}. Then

@@ -129,7 +129,8 @@ commands:
   alloc [--live] [--json] FILE|DIR ...
                                 RT tasks per CPU of each host, priority
                                 inversions flagged (--live: utilisation, latency;
-                                without FILE, what discovery finds, priorities '?')
+                                without FILE, what runs: priorities and CPUs as
+                                the tasks run, GET_TASKS)
   help [COMMAND]                this text, or a command's
 
 NAME is a component's name from its host file (found by discovery), or an address
@@ -1391,9 +1392,10 @@ bool write_text_file(const std::string& path, const std::string& text) {
 // The hosts discovery found, as a deployment without host files (graph/alloc --live
 // with no FILE): each host with its components' names, classes and addresses, and
 // whether each has a data task and its period (GET_STATS); no parameters, so every
-// flow drawn is a live one (GET_LISTENERS). The tasks' priorities and CPUs are in the
-// host files only (neither discovery nor GET_STATS carries them): they are marked not
-// known (Host::tasks_known), not shown as the defaults.
+// flow drawn is a live one (GET_LISTENERS). The tasks' priorities and CPUs start as not
+// known (Host::tasks_known); live_view asks GET_TASKS and run_graph/run_alloc take
+// what runs (rack::deploy::adopt_running). A component that does not answer it (an
+// older rackd) stays not known, not shown as the defaults.
 std::vector<rack::deploy::Host> discovered_hosts(Session& s) {
   std::vector<rack::deploy::Host> hosts;
   std::vector<Address> dests;
@@ -1414,8 +1416,8 @@ std::vector<rack::deploy::Host> discovered_hosts(Session& s) {
       c.instance = ci.address.instance();
       c.address = ci.address.component().raw();
       c.address_text = rack::client::address_text(ci.address.component(), c.class_name);
-      c.command_task = {-1, -1, 0, 0};
-      c.data_task = {-1, -1, 0, 0};
+      c.command_task.priority = -1;  // not known (cpu: -1)
+      c.data_task.priority = -1;
       dests.push_back(ci.address.component());
       who.emplace_back(hosts.size(), h.components.size());
       h.components.push_back(std::move(c));
@@ -1498,6 +1500,16 @@ rack::deploy::Live live_view(Session& s, const rack::deploy::Deployment& d, cons
     }
   });
   rack::deploy::match_live_flows(d, live);
+  // How each component's tasks run and its host's networks (GET_TASKS). A rackd from
+  // before GET_TASKS answers ERROR: its tasks stay as its host file says (or not known).
+  s.fan_out(dests, msg::kGetTasks, [&](std::size_t i, const MessageHeader& h, std::span<const std::byte> body) {
+    if (h.type != msg::kTasks) return;
+    const auto& [host, comp] = who[i];
+    if (const char* bad = rack::deploy::add_tasks(d, host, comp, body, tims::body_is_native(h), live)) {
+      std::fprintf(stderr, "rackctl: %s: %s: malformed TASKS reply (%zu bytes): %s\n", command.c_str(),
+                   d.hosts[host].components[comp].name.c_str(), body.size(), bad);
+    }
+  });
   s.fan_out(dests, msg::kGetStats, [&](std::size_t i, const MessageHeader& h, std::span<const std::byte> body) {
     auto& t = live.tasks[who[i].first][who[i].second];
     t.answered = true;
@@ -1558,9 +1570,10 @@ int write_svg(const std::string& dot_text, const std::string& out) {
 }
 
 int run_graph(Session* s, const Options& o) {
-  const auto d = read_deployment(o, s);
+  auto d = read_deployment(o, s);
   std::optional<rack::deploy::Live> live;
   if (s != nullptr) live = live_view(*s, d, o.command);
+  if (live && o.args.empty()) rack::deploy::adopt_running(d, *live);  // no host file: what runs
   const rack::deploy::Live* lp = live ? &*live : nullptr;
   for (const auto& h : d.hosts) {
     for (const auto& e : h.errors) std::fprintf(stderr, "rackctl: graph: %s\n", e.str().c_str());
@@ -1581,9 +1594,10 @@ int run_graph(Session* s, const Options& o) {
 }
 
 int run_alloc(Session* s, const Options& o) {
-  const auto d = read_deployment(o, s);
+  auto d = read_deployment(o, s);
   std::optional<rack::deploy::Live> live;
   if (s != nullptr) live = live_view(*s, d, o.command);
+  if (live && o.args.empty()) rack::deploy::adopt_running(d, *live);  // no host file: what runs
   const rack::deploy::Live* lp = live ? &*live : nullptr;
   if (o.json) std::printf("%s\n", rack::deploy::to_json(d, lp).c_str());
   else std::fputs(rack::deploy::allocation_text(d, lp).c_str(), stdout);
@@ -1948,9 +1962,12 @@ const std::vector<Command>& commands() {
        "run is grey and dotted ('not running'), one that runs says 'running'; a\n"
        "subscription no file declares is green ('live only', with its period), to\n"
        "its listener's box (a tool's, e.g. a 'rackctl watch', when no file places it).\n"
-       "--live without FILE draws what discovery finds: every host and component that\n"
-       "answers, and its live flows. Offline it needs no network. --format svg runs\n"
-       "graphviz's dot (apt-get install graphviz).\n"
+       "--live without FILE draws the deployment as it runs, from discovery alone:\n"
+       "every host and component that answers, each task's priority, CPUs and period\n"
+       "as the kernel runs them (GET_TASKS), each running subscription as a flow\n"
+       "('subscribed', the period its consumer gets) with the networks it crosses\n"
+       "(the hosts' networks, from GET_TASKS). Offline it needs no network.\n"
+       "--format svg runs graphviz's dot (apt-get install graphviz).\n"
        "  rackctl graph configs/two_robots/ | dot -Tsvg > fleet.svg\n"
        "  rackctl graph --live --format svg --out now.svg\n"
        "  rackctl graph --format svg --out fleet.svg configs/two_robots/",
@@ -1966,12 +1983,15 @@ const std::vector<Command>& commands() {
        "'!': a consumer's data task above its producer's on one CPU, and two data\n"
        "tasks with the same priority on one CPU. --live adds each data task's\n"
        "measured utilisation (execution p50 / period), worst wake-up latency and\n"
-       "state, and marks hosts that did not answer discovery as STALE. --live without\n"
-       "FILE lists what discovery finds: every component's tasks (a data task and its\n"
-       "period from GET_STATS) with priority '?' and 'priority and cpu not known', as\n"
-       "only the host files say them. --json: the deployment as one JSON object (what\n"
-       "'graph --format json' prints; a priority or cpu not known is null). Exit 1\n"
-       "when a host file has errors.",
+       "state, the interval its loop() runs at (RUNS EVERY), marks hosts that did not\n"
+       "answer discovery as STALE, and flags a task that does not run at the priority\n"
+       "or on the CPU its host file says (GET_TASKS: RT refused, chrt, taskset).\n"
+       "--live without FILE lists what runs, from discovery alone: every task with\n"
+       "its priority and CPUs as the kernel runs them, and the inversions among them\n"
+       "(a consumer above its producer through a running subscription); a component\n"
+       "of an older rackd (no GET_TASKS) shows priority '?', 'not known'. --json: the\n"
+       "deployment as one JSON object (what 'graph --format json' prints; a priority\n"
+       "or cpu not known is null). Exit 1 when a host file has errors.",
        cmd_alloc},
       {"help", "help [COMMAND]", 0, 1, {}, "Prints the usage, or a command's help.", cmd_help},
   };

@@ -1,8 +1,10 @@
 // A deployment as the tools see it (issue 25): a set of host files read without the
 // executor, the data flows between their components, and the allocation of their RT
 // tasks per CPU. `rackctl graph` and `rackctl alloc` print it (DOT, text, JSON); the
-// live view adds what discovery and GET_STATS report (stale hosts, utilisation,
-// worst wake-up latency).
+// live view adds what discovery and the components report (stale hosts; GET_STATS:
+// utilisation, worst wake-up latency; GET_LISTENERS: the flows that run; GET_TASKS:
+// each task's priority, CPUs and period as it runs, the hosts' networks). Without
+// host files (adopt_running) the deployment is what runs.
 //
 // The reader is lenient where `rackd --check` is strict: it reads what a picture
 // needs (host, system, host_id, role, networks, cpus, each component's name, class,
@@ -47,6 +49,11 @@ struct Task {
   int cpu = -1;      // -1: not pinned (the host's rt cpus, else any)
   int line = 0;      // where the file gives it (0: the default)
   int column = 0;
+  // A task as it runs (adopt_running): the CPUs it may run on when that is neither
+  // one CPU (cpu) nor every CPU (empty), and the priority its host file asked for when
+  // that is not the one it runs at (-1: the same, or not known).
+  std::vector<int> cpus{};
+  int configured_priority = -1;
 };
 
 struct Param {
@@ -87,8 +94,8 @@ struct Host {
   std::vector<Network> networks;  // empty: one network, lcm_url (or LCM's default)
   std::string lcm_url;
   // false: a host found by discovery without its host file (rackctl graph/alloc --live
-  // with no FILE): its components' tasks have priority -1 and cpu -1, drawn and listed
-  // as not known rather than as the defaults.
+  // with no FILE) until adopt_running() takes its tasks as they run: a task of priority
+  // -1 is drawn and listed as not known rather than as the defaults.
   bool tasks_known = true;
   std::vector<int> rt_cpus;  // the `cpus:` partitioning (empty: none)
   std::vector<int> housekeeping_cpus;
@@ -117,6 +124,9 @@ struct Flow {
   std::vector<std::string> networks;  // empty: inside one host; else the networks it crosses
   int line = 0;
   int column = 0;
+  // A running subscription taken as a flow (adopt_running: no host file declares it);
+  // param is "" then and period_ns what the listener gets.
+  bool live = false;
 };
 
 // One RT task on a CPU of a host (a CPU group: "cpu 2", "rt cpus 2,3", "any").
@@ -163,6 +173,18 @@ struct LiveHost {
   bool answered = false;     // announced within the discovery window
   int64_t seen_ms_ago = -1;  // -1: never
 };
+// One task as it runs (GET_TASKS, wire::TasksReply; add_tasks).
+struct RunningTask {
+  bool measured = false;           // the kernel's reading came with the reply
+  std::string policy;              // SCHED_FIFO, SCHED_OTHER, ... ("" not measured)
+  int priority = -1;               // as it runs: 1..99 FIFO/RR, 0 otherwise; -1 not measured
+  std::vector<int> cpus;           // the CPUs it may run on (empty: not measured)
+  int last_cpu = -1;               // the one it ran on last
+  int configured_priority = -1;    // what its host file asked for
+  int configured_cpu = -1;         // -1: not pinned
+  int64_t period_ns = 0;           // the timer's period (a periodic data task), else 0
+  int64_t measured_period_ns = 0;  // the mean interval between its loop() runs lately (0: unknown)
+};
 struct LiveTask {
   bool answered = false;
   std::string state;              // ENABLED | DISABLED | ERROR | NOT_AVAILABLE | no reply
@@ -170,6 +192,13 @@ struct LiveTask {
   int64_t worst_latency_ns = -1;  // the data task's worst wake-up latency, -1 unknown
   int64_t exec_p50_ns = -1;
   int64_t period_ns = 0;
+  // GET_TASKS (add_tasks): how its tasks run and its host's networks; false: not
+  // asked, or no usable answer (an older rackd answers ERROR).
+  bool tasks_known = false;
+  bool has_data_task = false;
+  RunningTask command{}, data{};
+  int online_cpus = 0;              // CPUs of its host (0: not measured)
+  std::vector<Network> networks{};  // its host's TiMS networks
 };
 // A subscription that runs (a producer's GET_LISTENERS, wire::ListenersReply): the
 // live data flow from producer to listener, whatever the host files say.
@@ -199,6 +228,20 @@ struct Live {
 // body (wire::decode_listeners; then nothing is added). Decodes outside input.
 [[nodiscard]] const char* add_listeners(const Deployment& d, std::size_t h, std::size_t c,
                                         std::span<const std::byte> body, bool native, Live& live);
+// Takes the TASKS reply body of the component `c` of host `h` (GET_TASKS,
+// wire::TasksReply) into live.tasks[h][c]: nullptr, or what is wrong with the body
+// (wire::decode_tasks; then nothing changes). Decodes outside input.
+[[nodiscard]] const char* add_tasks(const Deployment& d, std::size_t h, std::size_t c, std::span<const std::byte> body,
+                                    bool native, Live& live);
+// The deployment as it runs, for hosts found by discovery without their host file
+// (Host::tasks_known false; rackctl graph/alloc --live with no FILE): each component
+// whose GET_TASKS answered gets its tasks' priorities and CPUs as they run (a task the
+// kernel has not been asked about yet: as its host file asked), its data task and
+// period; its host gets its networks. Every running subscription between two placed
+// components that no flow declares becomes a Flow (live, the listener's period, the
+// networks it crosses), and the allocation with its flags is made again from these.
+// Call after match_live_flows(); hosts read from files keep their files' values.
+void adopt_running(Deployment& d, Live& live);
 // Names the consumer of every live flow (the component whose address the listener's
 // mailbox is on) and matches live flows with the host files' flows (the same producer
 // and consumer): sets LiveFlow::flow and Live::flow_state.

@@ -73,10 +73,12 @@
 #include "rack/core/gdos.h"
 #include "rack/core/parameters.h"
 #include "rack/core/wire.h"
+#include "rack/core/wire_tasks.h"
 #include "rack/rt/clock.h"
 #include "rack/rt/modeswitch.h"
 #include "rack/rt/page_faults.h"
 #include "rack/rt/pi_mutex.h"
+#include "rack/rt/task_sched.h"
 #include "rack/tims/endpoint.h"
 
 namespace rack {
@@ -154,6 +156,16 @@ class Component {
   // thread, RT-safe: no allocation; a data component reads its listener table under
   // its priority-inheritance mutex (rt::PiMutex), O(max_listeners).
   virtual void fill_listeners(wire::ListenersReply& out) const noexcept;
+  // How its tasks run (GET_TASKS, wire::TasksReply): per task the host file's priority
+  // and CPU, the kernel's policy, priority and CPUs as of the last sample_tasks(), the
+  // data task's period and measured interval; and its host's TiMS networks (set by the
+  // executor before the tasks start; none without an executor). Any thread, RT-safe:
+  // no allocation, atomic loads.
+  virtual void fill_tasks(wire::TasksReply& out) const noexcept;
+  // Reads how its tasks run from the kernel (rack/rt/task_sched.h) and, for a data
+  // component, the mean interval of its loop() runs since the last call. Not RT-safe:
+  // one non-RT thread (the executor's GDOS thread once a second).
+  virtual void sample_tasks() noexcept;
   // Class-specific progress for rackd's --status lines ("" for none): appended to
   // `out` as one short line. Called from rackd's main thread while the tasks run, so
   // it reads only atomics or other thread-safe state. Not RT-safe (it may allocate).
@@ -403,6 +415,14 @@ class Component {
   // Marked by each task at the end of its start-up (the executor's task bodies);
   // mutable: sampling from a const status path updates the figures only.
   mutable rt::TaskFaults command_faults_, data_faults_;
+  // How the tasks run, as the kernel says (sample_tasks(), GET_TASKS).
+  rt::TaskSched command_sched_, data_sched_;
+  // Its host's networks for GET_TASKS (the network_* fields only): written by the
+  // executor before the tasks start, read-only afterwards.
+  wire::TasksReply host_networks_{};
+  // The kernel's reading of one task into record `i` of `out` (measured 0 when there
+  // is none yet; DataComponentBase::fill_tasks uses it for the data task). RT-safe.
+  void fill_task_record(wire::TasksReply& out, std::size_t i, const rt::TaskSched& sched) const noexcept;
 };
 
 }  // namespace rack

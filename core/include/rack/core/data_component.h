@@ -293,6 +293,12 @@ class DataComponentBase : public Component {
   // wire::kMaxListenerRecords of them), read under listeners_mutex_ (priority
   // inheritance) without allocation: RT-safe, the command task answers it.
   void fill_listeners(wire::ListenersReply& out) const noexcept override;
+  // GET_TASKS: adds the data task's record (its timer period, the mean interval of
+  // its loop() runs as sample_tasks() last measured it). RT-safe.
+  void fill_tasks(wire::TasksReply& out) const noexcept override;
+  // Also measures the mean interval between loop() runs since the previous call
+  // (0 when loop() did not run twice: a disabled component, a silent input). Non-RT thread.
+  void sample_tasks() noexcept override;
   [[nodiscard]] const SampleRing* ring() const noexcept { return ring_.get(); }
   [[nodiscard]] std::span<const tims::FieldDesc> payload_fields() const noexcept { return fields_; }
   [[nodiscard]] uint32_t payload_size() const noexcept { return payload_size_; }
@@ -543,6 +549,15 @@ class DataComponentBase : public Component {
   std::atomic<bool> in_loop_{false};
   std::atomic<int64_t> last_time_ns_{0};
   std::atomic<int64_t> last_interval_ns_{0};
+  // loop() runs and the start of the latest (data task writes, sample_tasks() reads:
+  // the start is stored before the count, the count with release, so a reader that
+  // sees run n sees its start or a later one: within one interval).
+  std::atomic<uint64_t> loop_runs_{0};
+  std::atomic<int64_t> loop_started_ns_{0};
+  // sample_tasks()' state (its thread only) and result (relaxed: one value, any reader).
+  uint64_t period_base_runs_ = 0;
+  int64_t period_base_started_ns_ = 0;
+  std::atomic<int64_t> measured_period_ns_{0};
   std::atomic<uint64_t> published_{0}, listener_drops_{0}, listeners_expired_{0};
   // end_stream() was called since the last ENABLED (release: the command task then
   // tells a new listener; acquire in stream_ended()).

@@ -66,6 +66,7 @@ inline constexpr int8_t kGetStats = 11;      // RACK-RT: task timing statistics
 inline constexpr int8_t kGetLatency = 12;    // RACK-RT: the data task's wake-up latency histogram
 inline constexpr int8_t kGetClass = 13;      // RACK-RT: a page of the class description (rack/core/class_description.h)
 inline constexpr int8_t kGetListeners = 14;  // RACK-RT: a data component's subscribers (wire::ListenersReply)
+inline constexpr int8_t kGetTasks = 15;      // RACK-RT: how its tasks run and its host's networks (wire::TasksReply)
 inline constexpr int8_t kFirstClassCommand = 21;
 // Executor requests (sent to Executor(sys/host)).
 inline constexpr int8_t kExecList = 21;
@@ -87,6 +88,7 @@ inline constexpr int8_t kStats = -11;
 inline constexpr int8_t kLatency = -12;
 inline constexpr int8_t kClass = -13;
 inline constexpr int8_t kListeners = -14;
+inline constexpr int8_t kTasks = -15;
 inline constexpr int8_t kFirstClassReply = -21;
 // Name of a generic message number, or nullptr. RT-safe.
 [[nodiscard]] const char* name(int8_t type) noexcept;

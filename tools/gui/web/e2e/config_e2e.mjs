@@ -5,7 +5,8 @@
 //   node e2e/config_e2e.mjs --url http://127.0.0.1:8080/ --file robot1_aux.yaml [--live 1] [--padding N] [--shots DIR] [--chromium PATH]
 //
 // Steps: the deployment graph of the directory is drawn (--live: and with what the
-// network says, robot1_aux.yaml's rackd running); FILE is opened; its data
+// network says, robot1_aux.yaml's rackd running, and what runs from discovery alone,
+// without host files); FILE is opened; its data
 // task's priority set to 300 in the form shows rackd --check's error on its line and
 // Save stays disabled; 65 makes the file valid; Save writes it; the form sets amplitude,
 // written in a one-line flow map (params: {...}), to 1.5 in place; --padding N: N
@@ -83,7 +84,7 @@ try {
     await page.check('[data-testid="cfg-live"]');
     const live = await until('the live allocation', async () => {
       const t = await page.locator('[data-testid="cfg-alloc"]').innerText();  // a line per row
-      return /scanner +data +10 ms +[0-9.]+% +[0-9]+ us +ENABLED/.test(t) && t.includes('STALE') ? t : null;
+      return /scanner +data +10 ms +([0-9.]+ ms|-) +[0-9.]+% +[0-9]+ us +ENABLED/.test(t) && t.includes('STALE') ? t : null;
     }, 30000);
     const stale = live.split('\n').filter((l) => l.includes('STALE')).map((l) => l.split(' ')[0]).sort();
     if (JSON.stringify(stale) !== JSON.stringify(['base-station', 'robot1-main', 'robot2-main'])) {
@@ -92,6 +93,25 @@ try {
     log(`live: ${live.split('\n').find((l) => /scanner +data/.test(l)).trim()}; stale: ${stale.join(', ')}`);
     await shot('config-live.png');
     await page.uncheck('[data-testid="cfg-live"]');
+
+    // 1c. What runs, from discovery alone (no host file): robot1_aux.yaml's rackd with
+    // its scanner's tasks as they run (GET_TASKS: data task priority 60, every 10 ms).
+    const dir = await page.inputValue('[data-testid="cfg-dir"]');
+    await page.selectOption('[data-testid="cfg-dir"]', ':discovery');
+    const running = await until('the deployment as it runs', () => page.evaluate(() => {
+      const d = window.__rackConfig.deployment;
+      const h = d?.hosts?.find((x) => x.host === 'robot1-aux');
+      const c = h?.components?.find((x) => x.name === 'scanner');
+      return d && !d.hosts.some((x) => x.file && !x.file.startsWith('discovery on ')) && c?.data_task?.priority === 60
+        ? d : null;
+    }), 30000);
+    const ranAlloc = await page.locator('[data-testid="cfg-alloc"]').innerText();
+    if (!/60 +scanner +data +10 ms/.test(ranAlloc)) throw new Error(`allocation as it runs: ${ranAlloc}`);
+    const scanner = running.hosts.find((x) => x.host === 'robot1-aux').components.find((x) => x.name === 'scanner');
+    log(`discovery alone: ${running.hosts.length} host(s), scanner data p${scanner.data_task.priority} ` +
+        `cmd p${scanner.command_task.priority}, ${scanner.data_task.period_ns / 1e6} ms`);
+    await shot('config-running.png');
+    await page.selectOption('[data-testid="cfg-dir"]', dir);
   }
 
   // 2. Open the file; its text and a form for the component under the cursor.

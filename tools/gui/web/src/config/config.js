@@ -68,6 +68,7 @@ export function setupConfig(send) {
     dir: null,
     file: null,
     disk: '',          // the file as loaded or last saved
+    diskVersion: '',   // config_load's disk_version of it: a save against another one is refused
     classes: null,     // impl -> description
     errors: [],        // of the last check: {line, column, message}
     checked: null,     // the text the last check was about
@@ -176,7 +177,7 @@ export function setupConfig(send) {
   // and then the op names the upload. A part refused ends the upload (its error shows).
   function sendText(op) {
     const body = text.value;
-    const whole = { op, file: cs.file, text: body };
+    const whole = { op, file: cs.file, text: body, base_version: cs.diskVersion };
     if (new TextEncoder().encode(JSON.stringify(whole)).length <= MAX_SEND) { request(whole); return; }
     const parts = [];
     for (let i = 0; i < body.length;) {
@@ -194,7 +195,7 @@ export function setupConfig(send) {
       if (id === null) return;
       cs.pending.set(id, { ...obj, after: () => {
         if (i + 1 < parts.length) { sendPart(i + 1); return; }
-        const last = send({ op, file, upload });
+        const last = send({ op, file, upload, base_version: whole.base_version });
         if (last !== null) cs.pending.set(last, whole);  // its answer is about this text
       } });
     };
@@ -289,6 +290,8 @@ export function setupConfig(send) {
   };
   $('cfg-revert').onclick = () => { if (cs.file) { text.value = cs.disk; changed(); renderForm(); } };
 
+  // The directory choice that draws what runs, from discovery alone (no host files).
+  const kDiscovery = ':discovery';
   function fillFiles() {
     const sel = $('cfg-file');
     sel.replaceChildren(new Option('(choose a host file)', ''));
@@ -305,11 +308,15 @@ export function setupConfig(send) {
   }
   function graph() {
     if (!cs.dir || cs.graphPending) return;
-    cs.graphPending = request({ op: 'config_graph', dir: cs.dir, live: $('cfg-live').checked }) !== null;
+    const req = cs.dir === kDiscovery ? { op: 'config_graph', live: true }
+      : { op: 'config_graph', dir: cs.dir, live: $('cfg-live').checked };
+    cs.graphPending = request(req) !== null;
   }
   $('cfg-live').onchange = () => graph();
   // Live: refreshed every 5 s while the view is shown.
-  setInterval(() => { if ($('cfg-live').checked && view.classList.contains('active')) graph(); }, 5000);
+  setInterval(() => {
+    if (($('cfg-live').checked || cs.dir === kDiscovery) && view.classList.contains('active')) graph();
+  }, 5000);
 
   function renderGraph(m) {
     const box = view.querySelector('.cfg-graph');
@@ -361,8 +368,9 @@ export function setupConfig(send) {
     switch (m.op) {
       case 'config_files':
         cs.dirs = m.dirs || [];
-        $('cfg-dir').replaceChildren(...cs.dirs.map((d) => new Option(d.dir, d.dir)));
-        if (cs.dirs.length && !cs.dir) cs.dir = cs.dirs[0].dir;
+        $('cfg-dir').replaceChildren(...cs.dirs.map((d) => new Option(d.dir, d.dir)),
+          new Option('(what runs: discovery, no host files)', kDiscovery));
+        if (!cs.dir) cs.dir = cs.dirs.length ? cs.dirs[0].dir : kDiscovery;
         if (cs.dir) $('cfg-dir').value = cs.dir;
         fillFiles();
         graph();
@@ -380,6 +388,7 @@ export function setupConfig(send) {
       case 'config_load':
         cs.file = m.file;
         cs.disk = m.text;
+        cs.diskVersion = m.disk_version ?? '';
         text.value = m.text;
         $('cfg-file').value = m.file;
         cs.errors = [];
@@ -399,9 +408,13 @@ export function setupConfig(send) {
         cs.valid = m.valid === true && cs.checked === text.value;
         if (m.op === 'config_save' && m.saved) {
           cs.disk = req.text;
+          cs.diskVersion = m.disk_version ?? '';
           renderDiff();
           status(`saved ${cs.file} (rackd --check: valid)`, true);
           graph();
+        } else if (m.disk_changed) {
+          // The diff is against the text loaded, which is no longer on disk.
+          status(m.save_error || `${cs.file} changed on disk since it was loaded: load it again before saving`, false);
         } else if (cs.checked !== text.value) {
           status('checking…');
         } else if (m.valid) {
