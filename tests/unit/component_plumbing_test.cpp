@@ -24,6 +24,7 @@
 #include "rack/components/builtin.h"
 #include "rack/core/data_component.h"
 #include "rack/core/host_config.h"
+#include "monitor/monitor_types.h"
 #include "rack/interfaces/demo.h"
 #include "rack/interfaces/devices.h"
 #include "test_support.h"

@@ -15,6 +15,7 @@
 #include "mcl_sim.h"
 #include "rack/components/class_ids.h"
 #include "rack/core/data_component.h"
+#include "mcl/mcl_types.h"
 #include "rack/interfaces/robot.h"
 #include "rack/maps/occupancy_map.h"
 #include "test_support.h"
