@@ -19,7 +19,7 @@ class BuiltinClassNames final : public ::testing::Environment {
 };
 
 // Before main(): gtest_main's RUN_ALL_TESTS() sets it up before the first test.
-[[maybe_unused]] ::testing::Environment* const kBuiltinClassNames =
-    ::testing::AddGlobalTestEnvironment(new BuiltinClassNames);
+[[maybe_unused]] ::testing::Environment* const kBuiltinClassNames = ::testing::AddGlobalTestEnvironment(
+    new BuiltinClassNames);
 
 }  // namespace
