@@ -33,7 +33,7 @@
 #include <vector>
 
 #include "bench_common.h"
-#include "rack/interfaces/perception.h"
+#include "scan3d/scan3d_types.h"
 #include "rack/interfaces/robot.h"
 #include "rack/scan3d/scan3d_pipeline.h"
 

@@ -2,8 +2,8 @@
 #   bin/            rackd, rackctl, gdos, rack-gui, rack-backtrace, rack-devsim,
 #                   rack-foxglove (a shell script: node on share/rack/foxglove)
 #   include/rack/   the public headers (rt, tims, client, core, interfaces)
-#   lib/            the libraries (rack::rt, rack::tims, rack::client, rack::core,
-#                   rack::interfaces)
+#   lib/            the libraries (rack::rt, rack::tims, rack::client, rack::core;
+#                   rack::interfaces is header only)
 #   lib/rack/plugins/        component-class plug-ins (RACK_INSTALL_PLUGINDIR)
 #   lib/cmake/rack/          rackConfig.cmake, rackConfigVersion.cmake, rackTargets.cmake,
 #                            RackPlugin.cmake (rack_add_plugin), rack_plugin_abi_note.cpp
@@ -83,9 +83,10 @@ target_compile_features(rack_plugin_api INTERFACE cxx_std_20)
 
 # Libraries and the CMake package.
 # Their headers are C++20: users of the exported targets compile as C++20 too.
-foreach(_lib rack_rt rack_tims rack_client rack_core rack_interfaces)
+foreach(_lib rack_rt rack_tims rack_client rack_core)
   target_compile_features(${_lib} PUBLIC cxx_std_20)
 endforeach()
+target_compile_features(rack_interfaces INTERFACE cxx_std_20)
 set_target_properties(rack_rt PROPERTIES EXPORT_NAME rt)
 set_target_properties(rack_tims PROPERTIES EXPORT_NAME tims)
 set_target_properties(rack_core PROPERTIES EXPORT_NAME core)

@@ -23,7 +23,19 @@
 #include <cmath>
 #include <cstdint>
 
-#include "rack/interfaces/perception.h"
+// The scan modes (RACK's), as Scan3dData's `mode` carries them (namespace
+// rack::interfaces, where they were declared before Scan3D's types moved into its folder).
+namespace rack::interfaces {
+
+// How the scan was made (RACK's scan modes). The drive angle turns the ladar's scan
+// plane about the robot's x axis (roll), y axis (pitch) or z axis (yaw): exactly as
+// above and in scan3d_direction() below.
+inline constexpr uint8_t kScan3dModeRoll = 0;
+inline constexpr uint8_t kScan3dModePitch = 1;
+inline constexpr uint8_t kScan3dModeYaw = 2;
+inline constexpr uint8_t kScan3dModeFile = 3;  // played from PCD files
+
+}  // namespace rack::interfaces
 
 namespace rack::components {
 

@@ -19,7 +19,7 @@
 #include <cstdint>
 
 #include "rack/core/data_component.h"
-#include "rack/interfaces/evaluation.h"
+#include "evaluator_types.h"
 #include "rack/interfaces/robot.h"
 
 namespace rack::components {

@@ -36,7 +36,7 @@
 #include <vector>
 
 #include "rack/core/data_component.h"
-#include "rack/interfaces/evaluation.h"
+#include "evaluator_types.h"
 #include "rack/interfaces/robot.h"
 #include "rack/rt/pi_mutex.h"
 

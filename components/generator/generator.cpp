@@ -1,4 +1,5 @@
 #include "generator.h"
+#include "generator_types.h"
 
 #include <cmath>
 #include <numbers>

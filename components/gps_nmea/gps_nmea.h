@@ -27,6 +27,7 @@
 #include "rack/core/data_component.h"
 #include "rack/devices/nmea.h"
 #include "rack/devices/serial_port.h"
+#include "gps_nmea_types.h"
 #include "rack/interfaces/devices.h"
 
 namespace rack::components {

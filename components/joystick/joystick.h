@@ -30,6 +30,7 @@
 #include <array>
 
 #include "rack/core/data_component.h"
+#include "joystick_types.h"
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/robot.h"
 

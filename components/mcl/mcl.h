@@ -26,6 +26,7 @@
 
 #include "rack/core/data_component.h"
 #include "rack/core/handoff.h"
+#include "mcl_types.h"
 #include "rack/interfaces/robot.h"
 #include "rack/rt/pi_mutex.h"
 

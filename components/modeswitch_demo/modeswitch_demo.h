@@ -13,6 +13,7 @@
 #include <mutex>
 
 #include "rack/core/data_component.h"
+#include "modeswitch_demo_types.h"
 #include "rack/interfaces/demo.h"
 
 namespace rack::components {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "rack/core/data_component.h"
+#include "monitor_types.h"
 #include "rack/interfaces/demo.h"
 
 namespace rack::components {

@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "obj_recog_types.h"
 #include "rack/interfaces/devices.h"
-#include "rack/interfaces/perception.h"
 
 namespace rack::components {
 

@@ -28,8 +28,8 @@
 #include <string>
 
 #include "rack/core/data_component.h"
+#include "obj_recog_types.h"
 #include "rack/interfaces/devices.h"
-#include "rack/interfaces/perception.h"
 
 namespace rack::components {
 

@@ -15,7 +15,7 @@
 
 #include "obj_recog/laser_tracker.h"
 #include "rack/core/data_component.h"
-#include "rack/interfaces/perception.h"
+#include "obj_recog_types.h"
 
 namespace rack::components {
 

@@ -1,4 +1,5 @@
 #include "odometry/odometry.h"
+#include "odometry_types.h"
 
 #include <cmath>
 

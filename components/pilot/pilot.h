@@ -50,6 +50,7 @@
 #include "path/planner.h"
 #include "rack/core/data_component.h"
 #include "rack/core/handoff.h"
+#include "pilot_types.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"
 

@@ -1,5 +1,5 @@
 // Probe's declaration (rack_add_class DATA and COMMANDS in CMakeLists.txt): the sample
-// type it publishes (rack/interfaces/demo.h's ProbeData) and its class commands.
+// type it publishes (ProbeData) and its class commands.
 //
 // Real-time contract: constant data; reading it is RT-safe.
 #pragma once
@@ -8,7 +8,25 @@
 #include <cstdint>
 
 #include "rack/core/class_types.h"
-#include "rack/interfaces/demo.h"
+#include "rack/tims/payload.h"
+
+// The payload types (namespace rack::interfaces, as every sample type's, so that code
+// naming them did not change when they moved here from components/interfaces).
+namespace rack::interfaces {
+
+// Probe: counts of its hook calls, so tests see the life cycle from outside.
+struct ProbeData {
+  int64_t loops = 0;
+  int64_t on_calls = 0;
+  int64_t off_calls = 0;
+  static constexpr auto fields() noexcept {
+    return std::array{RACK_FIELD(ProbeData, loops), RACK_FIELD(ProbeData, on_calls), RACK_FIELD(ProbeData, off_calls)};
+  }
+};
+inline constexpr int8_t kProbeEcho = 21;   // request with an 8-byte body; replied OK with the same body
+inline constexpr int8_t kProbeThrow = 22;  // request: command() throws (the component goes to ERROR)
+
+}  // namespace rack::interfaces
 
 namespace rack::components {
 

@@ -1,7 +1,7 @@
 // Scan3D (class Scan3D): 3-D scans from a 2-D Ladar turned by a ServoDrive (RACK's
 // roll, pitch and yaw scan modes), or played from PCD files; processed with PCL
 // (voxel grid, statistical outlier removal, RANSAC ground plane, point types) and
-// published as Scan3dData (rack/interfaces/perception.h).
+// published as Scan3dData (scan3d_types.h).
 //
 // Ladar + ServoDrive (declared inputs: the framework switches both on and subscribes
 // before on()): on() sends the drive to angle_min. Then it sweeps: MOVE_POS to angle_max, and every
@@ -60,8 +60,9 @@
 
 #include "rack/core/data_component.h"
 #include "rack/core/handoff.h"
+#include "scan3d_types.h"
+#include "common/scan3d_geometry.h"
 #include "rack/interfaces/devices.h"
-#include "rack/interfaces/perception.h"
 #include "rack/interfaces/robot.h"
 
 namespace rack::scan3d {

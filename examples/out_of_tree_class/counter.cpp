@@ -99,7 +99,9 @@ constexpr std::array kCounterCommands{
 }  // namespace example
 
 extern "C" void rack_register_components(rack::ComponentRegistry& registry) {
+  // The last field is its TiMS class name: rackd's own log lines then name its
+  // addresses Counter(0/0), as the tools do from its description (not Class0x91(0/0)).
   registry.add({"Counter", example::kCounterClassId, "example: a counter built outside the tree",
                 [] { return std::make_unique<example::Counter>(); }, &example::kCounterDataInfo,
-                example::kCounterCommands});
+                example::kCounterCommands, "Counter"});
 }

@@ -24,6 +24,8 @@
 #include "joystick/obstacle.h"
 #include "rack/components/class_ids.h"
 #include "rack/devices/canopen.h"
+#include "gps_nmea/gps_nmea_types.h"
+#include "joystick/joystick_types.h"
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/robot.h"
 #include "rack/sims/cia402_sim.h"

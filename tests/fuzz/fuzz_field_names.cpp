@@ -16,14 +16,17 @@
 #include <nlohmann/json.hpp>
 
 #include "field_names.h"
-#include "rack/interfaces/data_types.h"
+#include "rack/components/class_declarations.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size < 2) return 0;
   const uint8_t class_id = data[0];
   const bool native = (data[1] & 1u) == 0;
   const std::span<const std::byte> sample(reinterpret_cast<const std::byte*>(data + 2), size - 2);
-  const rack::DataTypeInfo* type = rack::interfaces::data_type_for_class(class_id);
+  const rack::DataTypeInfo* type = nullptr;  // the class's declared data type
+  for (const rack::components::ClassDeclaration& d : rack::components::class_declarations()) {
+    if (d.class_id == class_id && d.data != nullptr) type = d.data;
+  }
   if (type == nullptr) return 0;
   // The value names as the class's description carries them (GET_CLASS).
   std::vector<rack::FieldNamesDescription> names;

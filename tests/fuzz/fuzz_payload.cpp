@@ -1,6 +1,7 @@
 // Every payload type in both byte orders, decoded as receivers decode it and printed
 // as the tools print it: the generic bodies of rack/core/wire.h and every data type
-// and command body of components/interfaces.
+// and command body the classes declare (components/interfaces and each class's
+// <class>_types.h).
 //
 // Input: byte 0 picks the type, byte 1 the mode and byte order (bit 0 set: the body
 // is in the other byte order), the rest is the body. Modes:
@@ -12,8 +13,9 @@
 //   1  text: set_field_from_text() (rackctl send, set-param) on one field of the type
 //      (byte 2 picks it), the text being the rest; a refused text leaves the payload
 //      as it was;
-//   2  table: the class tables the tools use (data_type_for_class,
-//      commands_for_class; byte 0 is the class id) and payload_to_json() through them.
+//   2  declarations: every class's declared data type and command bodies, as its
+//      class description carries them (rack::class_declarations; byte 0 is the class
+//      id), and payload_to_json() through them.
 // Types larger than 16 KiB (camera frames, 3-D and 2-D scans, range images, paths) are
 // printed from the bytes the input has rather than their whole size, which keeps a run
 // fast; every field kind and array form is in the smaller types.
@@ -31,12 +33,20 @@
 #include "rack/core/data_component.h"
 #include "rack/core/payload_json.h"
 #include "rack/core/wire.h"
-#include "rack/interfaces/data_types.h"
+#include "monitor/monitor_types.h"
+#include "probe/probe_types.h"
+#include "modeswitch_demo/modeswitch_demo_types.h"
+#include "evaluator/evaluator_types.h"
+#include "pilot/pilot_types.h"
+#include "scan3d/scan3d_types.h"
+#include "obj_recog/obj_recog_types.h"
+#include "gps_nmea/gps_nmea_types.h"
+#include "joystick/joystick_types.h"
+#include "mcl/mcl_types.h"
+#include "rack/components/class_declarations.h"
 #include "rack/interfaces/demo.h"
 #include "rack/interfaces/devices.h"
-#include "rack/interfaces/evaluation.h"
 #include "rack/interfaces/navigation.h"
-#include "rack/interfaces/perception.h"
 #include "rack/interfaces/robot.h"
 #include "rack/tims/message.h"
 #include "rack/tims/payload.h"
@@ -127,15 +137,19 @@ constexpr TypeOps kTypes[] = {
     ops<ifc::PositionUpdate>(), ops<ifc::Scan2dData>(), ops<ifc::MclData>(), ops<ifc::MclInit>()};
 constexpr std::size_t kTypeCount = sizeof kTypes / sizeof kTypes[0];
 
-void through_tables(uint8_t class_id, std::span<const uint8_t> input, bool native) {
-  if (const ifc::DataTypeInfo* t = ifc::data_type_for_class(class_id)) {
-    const std::vector<std::byte> body = exact_body(input, t->size);
-    if (t->size <= kWholeJsonLimit) check_json(t->fields, body, native);
-    check_json(t->fields, std::span<const std::byte>(body).first(std::min<std::size_t>(t->size, input.size())), native);
-  }
-  for (const ifc::CommandInfo& c : ifc::commands_for_class(class_id)) {
-    FUZZ_CHECK(c.name != nullptr && c.type > 0);
-    if (c.body != nullptr) check_json(c.body->fields, exact_body(input, c.body->size), native);
+void through_declarations(uint8_t class_id, std::span<const uint8_t> input, bool native) {
+  for (const rack::components::ClassDeclaration& d : rack::components::class_declarations()) {
+    if (d.class_id != class_id) continue;
+    if (const rack::DataTypeInfo* t = d.data) {
+      const std::vector<std::byte> body = exact_body(input, t->size);
+      if (t->size <= kWholeJsonLimit) check_json(t->fields, body, native);
+      check_json(t->fields, std::span<const std::byte>(body).first(std::min<std::size_t>(t->size, input.size())),
+                 native);
+    }
+    for (const rack::CommandInfo& c : d.commands) {
+      FUZZ_CHECK(c.name != nullptr && c.type > 0);
+      if (c.body != nullptr) check_json(c.body->fields, exact_body(input, c.body->size), native);
+    }
   }
 }
 
@@ -149,7 +163,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   switch ((mode >> 1) % 3) {
     case 0: kTypes[selector % kTypeCount].decode(in.rest(), native); break;
     case 1: kTypes[selector % kTypeCount].set_field(in); break;
-    default: through_tables(selector, in.rest(), native); break;
+    default: through_declarations(selector, in.rest(), native); break;
   }
   return 0;
 }

@@ -142,6 +142,8 @@ TEST_F(SdkOutOfTreeTest, ExampleClassBuiltFromTheInstalledTreeRunsInRackd) {
   EXPECT_TRUE(contains(classes.out, "added to the count every period")) << classes.out;
   Process rackd({(prefix() / "bin/rackd").string(), host.string(), "--lcm", bus_.url()}, dir_.path(), "rackd");
   ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 30s)) << rackd.err();
+  // rackd's own lines name it by the TiMS class name it registered, as the tools do.
+  EXPECT_TRUE(rackd.wait_for_stderr("Counter(0/0): ON", 15s)) << rackd.err();
 
   // 4. The installed rackctl drives it.
   r = ctl({"status", "counter", "--json"});

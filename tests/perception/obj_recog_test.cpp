@@ -21,8 +21,8 @@
 #include "obj_recog/obj_recog_camera.h"
 #include "obj_recog/obj_recog_laser.h"
 #include "rack/components/class_ids.h"
+#include "obj_recog/obj_recog_types.h"
 #include "rack/interfaces/devices.h"
-#include "rack/interfaces/perception.h"
 #include "../unit/test_support.h"
 #include "wrong_type_producer.h"
 

@@ -16,7 +16,7 @@
 #include <sstream>
 #include <string>
 
-#include "rack/interfaces/perception.h"
+#include "scan3d/scan3d_types.h"
 #include "rack/scan3d/pcd_file.h"
 
 namespace rack::test {

@@ -27,7 +27,7 @@ void rack_test_note_free() noexcept {}
 #include "common/pose2d.h"
 #include "obj_recog/laser_tracker.h"
 #include "obj_recog/obj_recog_laser.h"
-#include "rack/interfaces/perception.h"
+#include "obj_recog/obj_recog_types.h"
 #include "rack/scan3d/scan3d_assembler.h"
 
 namespace rack::test {

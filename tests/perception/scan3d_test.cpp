@@ -21,7 +21,7 @@
 #include "common/pose2d.h"
 #include "common/pose_series.h"
 #include "common/scan3d_geometry.h"
-#include "rack/interfaces/perception.h"
+#include "scan3d/scan3d_types.h"
 #include "rack/interfaces/robot.h"
 #include "rack/scan3d/pcd_file.h"
 #include "rack/scan3d/scan3d_assembler.h"

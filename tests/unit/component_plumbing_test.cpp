@@ -23,6 +23,7 @@
 
 #include "rack/core/data_component.h"
 #include "rack/core/host_config.h"
+#include "monitor/monitor_types.h"
 #include "rack/interfaces/demo.h"
 #include "rack/interfaces/devices.h"
 #include "test_support.h"

@@ -11,6 +11,7 @@
 
 #include "rack/core/handoff.h"
 #include "rack/core/host_config.h"
+#include "monitor/monitor_types.h"
 #include "rack/interfaces/demo.h"
 #include "test_support.h"
 

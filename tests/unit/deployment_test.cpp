@@ -93,7 +93,7 @@ TEST(DeploymentTest, ReadsHostsComponentsAndTasks) {
   ASSERT_EQ(h.components.size(), 1u);
   const Component& c = h.components[0];
   EXPECT_EQ(c.impl, "Generator");
-  // "Generator(1/0)" when TiMS knows the class (rackctl links rack::interfaces), else
+  // "Generator(1/0)" when TiMS knows the class, else
   // marked as a guess.
   EXPECT_EQ(c.address_text.rfind("Generator(1/0)", 0), 0u) << c.address_text;
   EXPECT_EQ(c.command_task.priority, 30);  // rackd's default when the file gives none

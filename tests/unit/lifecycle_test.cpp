@@ -8,6 +8,8 @@
 #include <vector>
 
 #include "rack/components/class_ids.h"
+#include "monitor/monitor_types.h"
+#include "probe/probe_types.h"
 #include "rack/interfaces/demo.h"
 #include "test_support.h"
 

@@ -20,6 +20,7 @@
 #include "mcl_sim.h"
 #include "rack/components/class_ids.h"
 #include "rack/core/data_component.h"
+#include "mcl/mcl_types.h"
 #include "rack/core/stepper.h"
 #include "rack/interfaces/robot.h"
 #include "rack/maps/occupancy_map.h"

@@ -13,6 +13,7 @@
 
 #include "rack/core/data_component.h"
 #include "rack/core/wire.h"
+#include "probe/probe_types.h"
 #include "rack/interfaces/demo.h"
 #include "rack/tims/address.h"
 #include "rack/tims/payload.h"
@@ -247,7 +248,7 @@ TEST_F(PayloadByteOrderTest, ReadSampleConvertsAForeignDataMessage) {
   EXPECT_FALSE(read_sample(h, std::span<const std::byte>(body).first(kSize - 1), sh, d));
 }
 
-class AddressTest : public ::testing::Test {};
+class AddressTest : public ::testing::Test {};  // class names: builtin_class_names.cpp
 
 TEST_F(AddressTest, FormatsKnownAndUnknownClasses) {
   EXPECT_EQ(Address::make(0, class_ids::kGenerator, 1).str(), "Generator(0/1)");

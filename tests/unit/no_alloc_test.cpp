@@ -21,6 +21,8 @@
 #include "rack/components/class_ids.h"
 #include "rack/core/class_description.h"
 #include "rack/core/gdos.h"
+#include "probe/probe_types.h"
+#include "pilot/pilot_types.h"
 #include "rack/interfaces/demo.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"

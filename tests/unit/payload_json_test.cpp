@@ -8,6 +8,7 @@
 #include <string>
 
 #include "rack/core/payload_json.h"
+#include "mcl/mcl_types.h"
 #include "rack/interfaces/robot.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/tims/payload.h"

@@ -20,6 +20,8 @@
 #include "path/path.h"
 #include "pilot/pilot.h"
 #include "rack/components/class_ids.h"
+#include "pilot/pilot_types.h"
+#include "odometry/odometry_types.h"
 #include "rack/interfaces/demo.h"
 #include "rack/interfaces/navigation.h"
 #include "rack/interfaces/robot.h"

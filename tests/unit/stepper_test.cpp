@@ -9,6 +9,7 @@
 #include <string>
 
 #include "rack/core/stepper.h"
+#include "monitor/monitor_types.h"
 #include "rack/interfaces/demo.h"
 #include "test_support.h"
 

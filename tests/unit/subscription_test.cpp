@@ -16,6 +16,7 @@
 #include "rack/components/class_ids.h"
 #include "rack/core/data_component.h"
 #include "rack/core/wire.h"
+#include "monitor/monitor_types.h"
 #include "rack/interfaces/demo.h"
 #include "rack/tims/router.h"
 #include "rack/tims/trusted_sources.h"

@@ -2,6 +2,7 @@
 #include "obj_recog/camera_detector.h"
 
 #include "rack/rt/input_file.h"
+#include "obj_recog/obj_recog_types.h"
 
 #include <opencv2/aruco.hpp>
 #include <opencv2/calib3d.hpp>

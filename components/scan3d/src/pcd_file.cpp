@@ -1,6 +1,7 @@
 #include "rack/scan3d/pcd_file.h"
 
 #include "rack/rt/input_file.h"
+#include "scan3d/scan3d_types.h"
 
 #include <algorithm>
 #include <cerrno>

@@ -16,6 +16,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "scan3d/scan3d_types.h"
 #include "rack/interfaces/robot.h"
 
 namespace rack::scan3d {

@@ -21,7 +21,7 @@
 // file places is drawn as an unplaced producer. An address names a component when
 // system and instance match and its class is the component's: TiMS' name of the
 // class (the longest registered class name that begins the implementation's,
-// ChassisSim: Chassis; programs that link rack::interfaces know the built-in ones),
+// ChassisSim: Chassis; a program knows the classes its registry added),
 // else any implementation that begins with the address's class name. A component
 // whose class TiMS does not know has no numeric address offline (address_text ends
 // in '?', and the live view cannot ask it for statistics).

@@ -1,7 +1,15 @@
-// Data types and class commands of RACK's mobile-robot classes: Chassis, Ladar,
-// Odometry, Position, Scan2D, MCL (Path and Pilot: rack/interfaces/navigation.h).
+// The interfaces of RACK's mobile-robot classes: the data types and class commands
+// that classes in more than one folder publish, read or send, so that none of them
+// includes another class's folder. Chassis (ChassisSim, ChassisCan, ChassisReplay),
+// Ladar (LadarSim, LadarHokuyo, LadarSick, LadarReplay, LadarPlayback) and Scan2D
+// (Scan2D, Scan2dPlayback) have several implementations; Odometry (read by Position,
+// Scan2D, Scan3D; played back), Position (read by Pilot, Evaluator, Scan3D; MCL sends
+// UPDATE) and MCL's estimate (read by Evaluator and TrajectoryWriter) are read by other
+// classes. Path: rack/interfaces/navigation.h. A type or command only its own class
+// uses is declared in that class's folder (components/<class>/<class>_types.h), as
+// Odometry's RESET and MCL's INIT are.
 //
-// Conventions, for every type here:
+// Conventions, for every type of a class (here and in the folders):
 // - SI units: metres, radians, seconds, metres per second, volts. RACK used
 //   millimetres and integer angles; doubles keep the maths out of every consumer.
 // - Poses are 2-D (x, y, phi) in a right-handed frame, phi counter-clockwise from x,
@@ -152,8 +160,6 @@ struct OdometryData {
                       RACK_FIELD(OdometryData, resets)};
   }
 };
-// RESET (request, no body): the pose to zero. Reply OK.
-inline constexpr int8_t kOdometryReset = 21;
 
 // ---------------------------------------------------------------------------
 // Position (class Position): the robot's pose in the map frame = the reference pose
@@ -209,7 +215,7 @@ inline constexpr uint8_t kScanPointNormal = 0;
 inline constexpr uint8_t kScanPointObstacle = 1;
 inline constexpr uint8_t kScanPointDynObstacle = 2;
 inline constexpr uint8_t kScanPointMaxRange = 3;  // no echo within max_range (x/y at max range)
-// Scan3D (rack/interfaces/perception.h) types its points against the ground plane:
+// Scan3D (components/scan3d/scan3d_types.h) types its points against the ground plane:
 // ground, ceiling, and kScanPointObstacle for everything in between (objects).
 inline constexpr uint8_t kScanPointGround = 4;
 inline constexpr uint8_t kScanPointCeiling = 5;
@@ -288,21 +294,4 @@ struct MclData {
                       RACK_FIELD(MclData, fit)};
   }
 };
-// INIT (request): re-initialise the filter around a pose with a spread (global = 1:
-// spread over the whole free space, the pose is ignored). Reply OK.
-inline constexpr int8_t kMclInit = 21;
-struct MclInit {
-  double x = 0.0;
-  double y = 0.0;
-  double phi = 0.0;
-  double sigma_xy = 0.0;   // m
-  double sigma_phi = 0.0;  // rad
-  uint8_t global = 0;
-  uint8_t pad_[7] = {};
-  static constexpr auto fields() noexcept {
-    return std::array{RACK_FIELD(MclInit, x),        RACK_FIELD(MclInit, y),         RACK_FIELD(MclInit, phi),
-                      RACK_FIELD(MclInit, sigma_xy), RACK_FIELD(MclInit, sigma_phi), RACK_FIELD(MclInit, global)};
-  }
-};
-
 }  // namespace rack::interfaces

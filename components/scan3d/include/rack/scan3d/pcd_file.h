@@ -24,7 +24,7 @@
 #include <string>
 #include <vector>
 
-#include "rack/interfaces/perception.h"
+#include "scan3d/scan3d_types.h"
 
 namespace rack::scan3d {
 

@@ -16,7 +16,7 @@
 #include <memory>
 #include <string>
 
-#include "rack/interfaces/perception.h"
+#include "scan3d/scan3d_types.h"
 
 namespace rack::scan3d {
 
