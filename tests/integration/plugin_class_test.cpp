@@ -115,6 +115,24 @@ TEST_F(PluginClassTest, AHostFileWithoutHeavyClassesMapsNoHeavyLibrary) {
   EXPECT_EQ(rackd.wait_exit(20s), std::optional<int>(0)) << rackd.err();
 }
 
+// A host that loads no plug-in still knows the TiMS names of the tree's plug-in classes:
+// a Monitor here may take its input from a Scan3D or a Camera on another host, by class
+// name, without rackd mapping PCL or OpenCV (rack::class_ids::kTreeClasses).
+TEST_F(PluginClassTest, AHostAddressesAPluginClassOnAnotherHostByNameWithoutLoadingIt) {
+  std::string text = "host: it-remote-names\nsystem: 0\nlcm: false\ncomponents:\n";
+  int instance = 0;
+  for (const char* source : {"Scan3D(1/0)", "Camera(1/0)", "MCL(1/0)"}) {
+    text += "  - name: mon" + std::to_string(instance) +
+            "\n    class: Monitor\n    instance: " + std::to_string(instance) + "\n    params: {source: \"" + source +
+            "\"}\n";
+    ++instance;
+  }
+  const auto host = dir_.write("remote.yaml", text);
+  const auto check = run({kRackd, "--check", host.string()}, 30s);
+  EXPECT_EQ(check.exit_code, 0) << check.describe();
+  EXPECT_FALSE(contains(check.out + check.err, "no component named")) << check.describe();
+}
+
 TEST_F(PluginClassTest, APluginClassIsFoundByNameThroughPluginsAndRuns) {
   LcmBus bus;
   const auto host = dir_.write("counter.yaml", counter_host("plugins: [" + kTestPlugins + "]\n"));

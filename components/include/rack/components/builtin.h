@@ -7,7 +7,8 @@
 
 namespace rack::components {
 
-// Registers every built-in class (Generator, Monitor, Probe, ...).
+// Registers every built-in class (Generator, Monitor, Probe, ...), and the TiMS class
+// name of every class of the tree, plug-ins included (rack::class_ids::kTreeClasses).
 void register_builtin(ComponentRegistry& registry);
 
 }  // namespace rack::components
