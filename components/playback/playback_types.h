@@ -37,58 +37,26 @@ struct PlaybackSample {
   }
 };
 
-inline constexpr DataTypeInfo kScan2dPlaybackBody = data_type_info<PlaybackSample<interfaces::Scan2dData>>(
-    "Scan2dPlaybackSample");
-inline constexpr CommandInfo kScan2dPlaybackCommands[] = {
-    {"PUBLISH", kPlaybackPublish, &kScan2dPlaybackBody,
-     "publish this sample (time_ns as recorded, then the Scan2D fields) as if the recorded producer had"}};
+// Each playback class's PUBLISH: its body (the recorded time, then the sample of the
+// class it plays back, under the type name <Class>PlaybackSample) and the command table
+// its declaration names (k<Class>PlaybackBody, k<Class>PlaybackCommands).
+#define RACK_PLAYBACK_COMMANDS(Class, Data, Fields)                                                        \
+  inline constexpr DataTypeInfo k##Class##PlaybackBody = data_type_info<PlaybackSample<interfaces::Data>>( \
+      #Class "PlaybackSample");                                                                            \
+  inline constexpr CommandInfo k##Class##PlaybackCommands[] = {                                            \
+      {"PUBLISH", kPlaybackPublish, &k##Class##PlaybackBody,                                               \
+       "publish this sample (time_ns as recorded, then the " Fields " fields) as if the recorded producer had"}}
 
-inline constexpr DataTypeInfo kLadarPlaybackBody = data_type_info<PlaybackSample<interfaces::LadarData>>(
-    "LadarPlaybackSample");
-inline constexpr CommandInfo kLadarPlaybackCommands[] = {
-    {"PUBLISH", kPlaybackPublish, &kLadarPlaybackBody,
-     "publish this sample (time_ns as recorded, then the Ladar fields) as if the recorded producer had"}};
+RACK_PLAYBACK_COMMANDS(Scan2d, Scan2dData, "Scan2D");
+RACK_PLAYBACK_COMMANDS(Ladar, LadarData, "Ladar");
+RACK_PLAYBACK_COMMANDS(Odometry, OdometryData, "Odometry");
+RACK_PLAYBACK_COMMANDS(Chassis, ChassisData, "Chassis");
+RACK_PLAYBACK_COMMANDS(Position, PositionData, "Position");
+RACK_PLAYBACK_COMMANDS(Mcl, MclData, "MCL");
+RACK_PLAYBACK_COMMANDS(Path, PathData, "Path");
+RACK_PLAYBACK_COMMANDS(ServoDrive, ServoDriveData, "ServoDrive");
+RACK_PLAYBACK_COMMANDS(Generator, GeneratorData, "Generator");
 
-inline constexpr DataTypeInfo kOdometryPlaybackBody = data_type_info<PlaybackSample<interfaces::OdometryData>>(
-    "OdometryPlaybackSample");
-inline constexpr CommandInfo kOdometryPlaybackCommands[] = {
-    {"PUBLISH", kPlaybackPublish, &kOdometryPlaybackBody,
-     "publish this sample (time_ns as recorded, then the Odometry fields) as if the recorded producer had"}};
-
-inline constexpr DataTypeInfo kChassisPlaybackBody = data_type_info<PlaybackSample<interfaces::ChassisData>>(
-    "ChassisPlaybackSample");
-inline constexpr CommandInfo kChassisPlaybackCommands[] = {
-    {"PUBLISH", kPlaybackPublish, &kChassisPlaybackBody,
-     "publish this sample (time_ns as recorded, then the Chassis fields) as if the recorded producer had"}};
-
-inline constexpr DataTypeInfo kPositionPlaybackBody = data_type_info<PlaybackSample<interfaces::PositionData>>(
-    "PositionPlaybackSample");
-inline constexpr CommandInfo kPositionPlaybackCommands[] = {
-    {"PUBLISH", kPlaybackPublish, &kPositionPlaybackBody,
-     "publish this sample (time_ns as recorded, then the Position fields) as if the recorded producer had"}};
-
-inline constexpr DataTypeInfo kMclPlaybackBody = data_type_info<PlaybackSample<interfaces::MclData>>(
-    "MclPlaybackSample");
-inline constexpr CommandInfo kMclPlaybackCommands[] = {
-    {"PUBLISH", kPlaybackPublish, &kMclPlaybackBody,
-     "publish this sample (time_ns as recorded, then the MCL fields) as if the recorded producer had"}};
-
-inline constexpr DataTypeInfo kPathPlaybackBody = data_type_info<PlaybackSample<interfaces::PathData>>(
-    "PathPlaybackSample");
-inline constexpr CommandInfo kPathPlaybackCommands[] = {
-    {"PUBLISH", kPlaybackPublish, &kPathPlaybackBody,
-     "publish this sample (time_ns as recorded, then the Path fields) as if the recorded producer had"}};
-
-inline constexpr DataTypeInfo kServoDrivePlaybackBody = data_type_info<PlaybackSample<interfaces::ServoDriveData>>(
-    "ServoDrivePlaybackSample");
-inline constexpr CommandInfo kServoDrivePlaybackCommands[] = {
-    {"PUBLISH", kPlaybackPublish, &kServoDrivePlaybackBody,
-     "publish this sample (time_ns as recorded, then the ServoDrive fields) as if the recorded producer had"}};
-
-inline constexpr DataTypeInfo kGeneratorPlaybackBody = data_type_info<PlaybackSample<interfaces::GeneratorData>>(
-    "GeneratorPlaybackSample");
-inline constexpr CommandInfo kGeneratorPlaybackCommands[] = {
-    {"PUBLISH", kPlaybackPublish, &kGeneratorPlaybackBody,
-     "publish this sample (time_ns as recorded, then the Generator fields) as if the recorded producer had"}};
+#undef RACK_PLAYBACK_COMMANDS
 
 }  // namespace rack::components
