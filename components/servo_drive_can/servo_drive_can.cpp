@@ -1,6 +1,7 @@
 #include "servo_drive_can.h"
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <string>
 
@@ -83,7 +84,9 @@ HookResult ServoDriveCan::on() {
   last_position_.store(position_, std::memory_order_relaxed);
   target_counts_ = position_;
   last_heartbeat_ns_ = rt::monotonic_ns();
+  on_ns_ = last_heartbeat_ns_;
   nmt_left_operational_ = false;
+  seen_operational_ = false;
   setpoint_high_ = moving_ = false;
   move_.clear();
   moves_.store(0, std::memory_order_relaxed);
@@ -99,6 +102,13 @@ void ServoDriveCan::off() {
   port_.close();
 }
 
+HookResult ServoDriveCan::port_failed(const char* doing) noexcept {
+  char reason[192];
+  std::snprintf(reason, sizeof reason, "CAN port %s failed while %s", spec_, doing);
+  set_error_reason(reason);
+  return HookResult::kError;
+}
+
 HookResult ServoDriveCan::loop() {
   // Stale frames first (see ChassisCan::loop).
   auto handle = [this](const can_frame& f) {
@@ -106,7 +116,8 @@ HookResult ServoDriveCan::loop() {
     const canid_t id = f.can_id & CAN_SFF_MASK;
     if (id == co::kHeartbeat + node_id_ && f.len >= 1) {
       last_heartbeat_ns_ = rt::monotonic_ns();
-      if (f.data[0] != co::kStateOperational) nmt_left_operational_ = true;
+      if (f.data[0] == co::kStateOperational) seen_operational_ = true;
+      else if (seen_operational_) nmt_left_operational_ = true;
     } else if (id == co::kTpdo1 + node_id_ && f.len == 8) {
       velocity_ = static_cast<int32_t>(co::get_u32(&f.data[0]));
       position_ = static_cast<int32_t>(co::get_u32(&f.data[4]));
@@ -120,7 +131,7 @@ HookResult ServoDriveCan::loop() {
     can_frame f{};
     const devices::IoResult r = port_.receive(f, 0);
     if (r.status == IoStatus::kTimeout) break;
-    if (r.status != IoStatus::kOk) return HookResult::kError;
+    if (r.status != IoStatus::kOk) return port_failed("receiving");
     handle(f);
   }
   // The set-point handshake: raise bit 4 with a new target; drop it once acknowledged.
@@ -129,7 +140,7 @@ HookResult ServoDriveCan::loop() {
     target_counts_ = m.target;
     notify_ = m.requester;
     if (port_.send(co::rpdo2_profile_velocity(node_id_, m.velocity)).status == IoStatus::kClosed) {
-      return HookResult::kError;
+      return port_failed("sending the profile velocity");
     }
     if (setpoint_high_) {
       // Still high from the previous move: drop it for one cycle so the next rises.
@@ -145,7 +156,7 @@ HookResult ServoDriveCan::loop() {
   got_tpdo1_ = got_tpdo2_ = false;
   if (port_.send(co::rpdo1(node_id_, cw, target_counts_)).status == IoStatus::kClosed ||
       port_.send(co::sync()).status == IoStatus::kClosed) {
-    return HookResult::kError;
+    return port_failed("sending the set-point and SYNC");
   }
   const int64_t deadline = rt::monotonic_ns() + period_ns() / 2;
   while (!(got_tpdo1_ && got_tpdo2_)) {
@@ -154,15 +165,34 @@ HookResult ServoDriveCan::loop() {
     can_frame f{};
     const devices::IoResult r = port_.receive(f, wait);
     if (r.status == IoStatus::kTimeout) break;
-    if (r.status != IoStatus::kOk) return HookResult::kError;
+    if (r.status != IoStatus::kOk) return port_failed("receiving the PDOs");
     handle(f);
   }
   const bool silent = rt::monotonic_ns() - last_heartbeat_ns_ >
                       static_cast<int64_t>(heartbeat_timeout_ms_.get_float() * 1e6);
   const bool faulted = got_tpdo2_ && ((statusword_ & co::kSwFault) != 0 ||
                                       (statusword_ & co::kSwStateMask) != co::kSwOperationEnabled);
-  if (silent || faulted || nmt_left_operational_) {
+  const int64_t timeout_ns = static_cast<int64_t>(heartbeat_timeout_ms_.get_float() * 1e6);
+  const bool never_operational = !seen_operational_ && rt::monotonic_ns() - on_ns_ > timeout_ns;
+  if (silent || faulted || nmt_left_operational_ || never_operational) {
     (void)port_.send(co::rpdo1(node_id_, co::kCwQuickStop, target_counts_));
+    // The ERROR's reason (snprintf of integers into a fixed buffer: RT-safe).
+    char reason[112];
+    if (silent) {
+      std::snprintf(reason, sizeof reason,
+                    "drive node %u silent: no heartbeat for more than %.0f ms (heartbeat_timeout_ms)",
+                    static_cast<unsigned>(node_id_), heartbeat_timeout_ms_.get_float());
+    } else if (faulted) {
+      std::snprintf(reason, sizeof reason, "drive node %u not operation-enabled: statusword 0x%04x",
+                    static_cast<unsigned>(node_id_), static_cast<unsigned>(statusword_));
+    } else if (nmt_left_operational_) {
+      std::snprintf(reason, sizeof reason, "drive node %u left NMT operational (its heartbeat says so)",
+                    static_cast<unsigned>(node_id_));
+    } else {
+      std::snprintf(reason, sizeof reason, "drive node %u: no heartbeat said NMT operational within %.0f ms of ON",
+                    static_cast<unsigned>(node_id_), heartbeat_timeout_ms_.get_float());
+    }
+    set_error_reason(reason);
     return HookResult::kError;
   }
   last_position_.store(position_, std::memory_order_relaxed);

@@ -51,6 +51,8 @@ class ServoDriveCan final : public DataComponent<interfaces::ServoDriveData> {
 
   devices::CanPort port_;
   char spec_[128] = {};
+  // The ERROR's reason for a CAN port that failed while `doing`, and kError. RT-safe.
+  HookResult port_failed(const char* doing) noexcept;
   uint8_t node_id_ = 1;
 
   // Data task only.
@@ -59,6 +61,10 @@ class ServoDriveCan final : public DataComponent<interfaces::ServoDriveData> {
   bool got_tpdo1_ = false, got_tpdo2_ = false;
   int64_t last_heartbeat_ns_ = 0;
   bool nmt_left_operational_ = false;
+  // A heartbeat said NMT operational since on(): a pre-operational one before that is the
+  // drive's start-up (sent before it took on()'s NMT start), not a fault.
+  bool seen_operational_ = false;
+  int64_t on_ns_ = 0;
   bool setpoint_high_ = false;  // bit 4 raised, waiting for the acknowledgement
   bool moving_ = false;         // a set-point taken, not yet reached
   int32_t target_counts_ = 0;
