@@ -316,13 +316,35 @@ components:
 namespace rack {
 namespace {
 
+// The partitioning tests need CPUs 0 and 1; partition_threads() moves this thread too,
+// so its affinity is given back after each test.
+class PartitionThreadsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!CPU_ISSET(0, &before_) || !CPU_ISSET(1, &before_)) {
+      GTEST_SKIP() << "needs CPUs 0 and 1 in this process's affinity";
+    }
+  }
+  void TearDown() override { (void)sched_setaffinity(0, sizeof before_, &before_); }
+
+  // What partition_threads() says it did, once it did something.
+  static std::vector<std::string> first_moves(test::HostUnderTest& host) {
+    std::vector<std::string> moved;
+    EXPECT_TRUE(test::eventually([&] {
+      moved = host.executor().partition_threads();  // empty until both tasks marked their start-up
+      return !moved.empty();
+    }));
+    return moved;
+  }
+
+  Watchdog watchdog_;
+  const cpu_set_t before_ = affinity_of(0);
+};
+
 // Partitioning (`cpus:`): a thread that appears after start() (a library's pool
 // started on first use) is moved onto the housekeeping CPUs by partition_threads();
 // the tasks keep theirs; partition_threads() reports what it moved, once.
-TEST(PartitionThreadsTest, LateThreadsAreMovedToTheHousekeepingCpusAndTasksAreNot) {
-  Watchdog watchdog;
-  const cpu_set_t before = affinity_of(0);
-  if (!CPU_ISSET(0, &before) || !CPU_ISSET(1, &before)) GTEST_SKIP() << "needs CPUs 0 and 1 in this process's affinity";
+TEST_F(PartitionThreadsTest, LateThreadsAreMovedToTheHousekeepingCpusAndTasksAreNot) {
   {
     test::HostUnderTest host(R"(system: 0
 lcm: false
@@ -344,11 +366,8 @@ components:
     ASSERT_TRUE(test::eventually([&] { return (late_tid = thread_named("late-pool")) != 0; }));
     const cpu_set_t inherited = affinity_of(late_tid);
     EXPECT_TRUE(CPU_ISSET(1, &inherited));
-    std::vector<std::string> moved;
-    ASSERT_TRUE(test::eventually([&] {
-      moved = host.executor().partition_threads();  // empty until both tasks marked their start-up
-      return !moved.empty();
-    }));
+    const std::vector<std::string> moved = first_moves(host);
+    ASSERT_FALSE(moved.empty());
     bool named = false;
     for (const auto& m : moved) named = named || m.find("late-pool") != std::string::npos;
     EXPECT_TRUE(named);
@@ -369,16 +388,12 @@ components:
     stop = true;
     late.join();
   }
-  (void)sched_setaffinity(0, sizeof before, &before);  // partition_threads moved this thread too
 }
 
 // A pool that a library starts from an RT task (on first use, in loop()) inherits the
 // task's CPU and its SCHED_FIFO priority: partition_threads() moves it to the
 // housekeeping CPUs and lowers it to SCHED_OTHER, and says so.
-TEST(PartitionThreadsTest, APoolStartedByAnRtTaskLosesItsCpuAndItsPriority) {
-  Watchdog watchdog;
-  const cpu_set_t before = affinity_of(0);
-  if (!CPU_ISSET(0, &before) || !CPU_ISSET(1, &before)) GTEST_SKIP() << "needs CPUs 0 and 1 in this process's affinity";
+TEST_F(PartitionThreadsTest, APoolStartedByAnRtTaskLosesItsCpuAndItsPriority) {
   {
     test::HostUnderTest host(R"(system: 0
 lcm: false
@@ -416,11 +431,8 @@ components:
     EXPECT_EQ(CPU_COUNT(&inherited), 1);
     EXPECT_TRUE(CPU_ISSET(1, &inherited)) << "started on the RT CPU";
     EXPECT_EQ(sched_getscheduler(tid), SCHED_FIFO) << "with the task's policy";
-    std::vector<std::string> moved;
-    ASSERT_TRUE(test::eventually([&] {
-      moved = host.executor().partition_threads();
-      return !moved.empty();
-    }));
+    const std::vector<std::string> moved = first_moves(host);
+    ASSERT_FALSE(moved.empty());
     std::string said;
     for (const auto& m : moved) {
       if (m.find("lib-pool") != std::string::npos) said = m;
@@ -438,7 +450,6 @@ components:
     stop = true;
     pool.join();
   }
-  (void)sched_setaffinity(0, sizeof before, &before);  // partition_threads moved this thread too
 }
 
 }  // namespace
