@@ -47,6 +47,7 @@
 #include <pthread.h>
 #include <sched.h>
 #include <signal.h>
+#include <sys/mman.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -115,6 +116,9 @@ constexpr const char* kUsage =
     "  --bare-lib       --bare-side, but the bare thread sleeps and reads the clock through\n"
     "                   librack_rt (rt::sleep_until_monotonic, rt::monotonic_ns) as the\n"
     "                   data task does\n"
+    "  --bare-pages N   --bare-side, and after each wake-up the bare thread writes one cache\n"
+    "                   line in each of N separate 4-KiB pages (no huge pages): a cycle's\n"
+    "                   page (TLB) footprint rather than its byte count\n"
     "  --bare-touch KB  --bare-side, and after each wake-up the bare thread reads and writes\n"
     "                   KB KiB of its own locked memory (a stand-in for a cycle's work), to\n"
     "                   tell how much a cycle's cache footprint moves the next wake-up\n";
@@ -144,6 +148,7 @@ struct Options {
   bool bare_side = false;
   bool bare_lib = false;
   int bare_touch_kib = 0;  // --bare-touch: KiB written after each bare wake-up
+  int bare_pages = 0;      // --bare-pages: 4-KiB pages (one line each) written after each bare wake-up
 };
 
 // The background load: a shell command in its own process group, so that stopping it
@@ -357,10 +362,29 @@ void run_bare_segment(const Options& o, int seconds, Side& side) {
     std::string error;
     unsigned char* touch;  // --bare-touch: written after each wake-up (nullptr: none)
     std::size_t touch_bytes;
+    unsigned char* pages;  // --bare-pages: one line of each page written after each wake-up
+    std::size_t page_count;
   };
   // Allocated and written here, before the thread starts (memory is locked: no fault later).
   std::vector<unsigned char> touch(static_cast<std::size_t>(o.bare_touch_kib) * 1024, 1);
-  Ctx ctx{&o, seconds, &side, {}, touch.empty() ? nullptr : touch.data(), touch.size()};
+  // --bare-pages: small pages on purpose (no transparent huge page), so that each one
+  // needs its own TLB entry: a cycle's page footprint, not its byte count.
+  const std::size_t page_count = static_cast<std::size_t>(o.bare_pages);
+  void* pages = MAP_FAILED;
+  if (page_count > 0) {
+    pages = mmap(nullptr, page_count * 4096, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (pages == MAP_FAILED) throw std::runtime_error("--bare-pages: mmap failed");
+    (void)madvise(pages, page_count * 4096, MADV_NOHUGEPAGE);
+    std::memset(pages, 1, page_count * 4096);
+  }
+  Ctx ctx{&o,
+          seconds,
+          &side,
+          {},
+          touch.empty() ? nullptr : touch.data(),
+          touch.size(),
+          page_count > 0 ? static_cast<unsigned char*>(pages) : nullptr,
+          page_count};
   auto body = [](void* arg) -> void* {
     auto& c = *static_cast<Ctx*>(arg);
     const int64_t period = static_cast<int64_t>(c.o->interval_us) * rt::kNsPerUs;
@@ -376,8 +400,7 @@ void run_bare_segment(const Options& o, int seconds, Side& side) {
     while (next < end) {
       timespec woke{};
       if (c.o->bare_lib) {  // the library's sleep and clock, as the data task calls them
-        rt::sleep_until_monotonic(next);
-        woke = rt::to_timespec(rt::monotonic_ns());
+        woke = rt::to_timespec(rt::sleep_until_monotonic(next));
       } else {
         const timespec ts = rt::to_timespec(next);
         while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
@@ -391,6 +414,10 @@ void run_bare_segment(const Options& o, int seconds, Side& side) {
       // A cycle's work stand-in: one read-modify-write per cache line of the buffer.
       for (std::size_t i = 0; i < c.touch_bytes; i += 64) {
         c.touch[i] = static_cast<unsigned char>(c.touch[i] + 1);
+      }
+      for (std::size_t i = 0; i < c.page_count; ++i) {  // a line at a different offset in each page
+        unsigned char& b = c.pages[i * 4096 + (i % 64) * 64];
+        b = static_cast<unsigned char>(b + 1);
       }
       asm volatile("" ::: "memory");  // the stores are the point: keep them
       next += period;
@@ -414,8 +441,9 @@ void run_bare_segment(const Options& o, int seconds, Side& side) {
   pthread_t th{};
   const int rc = pthread_create(&th, &attr, body, &ctx);
   pthread_attr_destroy(&attr);
+  if (rc == 0) pthread_join(th, nullptr);
+  if (pages != MAP_FAILED) munmap(pages, page_count * 4096);
   if (rc != 0) throw std::runtime_error(std::string("bare side: pthread_create: ") + std::strerror(rc));
-  pthread_join(th, nullptr);
 }
 
 // Runs cyclictest and adds its histogram to `side`.
@@ -525,6 +553,10 @@ void parse(int argc, char** argv, Options& o) {
       o.bare_touch_kib = std::stoi(next());
       if (o.bare_touch_kib < 0 || o.bare_touch_kib > 65536)
         throw std::invalid_argument("--bare-touch takes 0..65536 KiB");
+    } else if (a == "--bare-pages") {
+      o.bare_side = true;
+      o.bare_pages = std::stoi(next());
+      if (o.bare_pages < 0 || o.bare_pages > 65536) throw std::invalid_argument("--bare-pages takes 0..65536 pages");
     } else if (a == "--free-phase") o.aligned = false;
     else if (a == "--modeswitch-only") {
       o.modeswitch_only = next();

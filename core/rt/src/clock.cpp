@@ -40,21 +40,21 @@ int64_t os_monotonic_ns() noexcept { return read(CLOCK_MONOTONIC); }
 
 VirtualClock* virtual_clock() noexcept { return g_virtual.load(std::memory_order_acquire); }
 
-void sleep_until_monotonic(int64_t deadline_ns) noexcept {
+int64_t sleep_until_monotonic(int64_t deadline_ns) noexcept {
   if (VirtualClock* v = g_virtual.load(std::memory_order_acquire); v != nullptr) [[unlikely]] {
-    (void)v->advance_to(deadline_ns);
-    return;
+    return v->advance_to(deadline_ns);
   }
   const timespec ts = to_timespec(deadline_ns);
   modeswitch::TrustedScope trusted(true);  // the one blocking call a periodic task makes
   // clock_nanosleep returns the error number directly (not via errno).
   while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
   }
+  return read(CLOCK_MONOTONIC);
 }
 
 void sleep_for(int64_t duration_ns) noexcept {
   if (duration_ns <= 0) return;
-  sleep_until_monotonic(monotonic_ns() + duration_ns);
+  (void)sleep_until_monotonic(monotonic_ns() + duration_ns);
 }
 
 VirtualClock::VirtualClock(int64_t start_ns, int64_t host_start_ns)

@@ -435,12 +435,14 @@ class DataComponentBase : public Component {
   void stop_data_task() noexcept override;
   // The data task. The thread (run_data_task) and a stepped executor (step_data,
   // rack/core/stepper.h) run the same pieces: begin_data_task() once, then for a
-  // periodic task periodic_cycle() at each deadline, for a triggered one
+  // periodic task periodic_cycle(woke) at each deadline (`woke`: the monotonic time the
+  // sleep returned, rt::sleep_until_monotonic's; the wake-up latency is woke - deadline),
+  // for a triggered one
   // triggered_plan() (what to wait for, until when) and triggered_after() (a cycle
   // when input came or the deadline passed). Data task (RT-safe).
   void run_data_task() noexcept;
   void begin_data_task() noexcept;
-  void periodic_cycle() noexcept;
+  void periodic_cycle(int64_t woke_ns) noexcept;
   struct TriggeredPlan {
     enum What : uint8_t { kWaitInput, kSleep, kGatedOff } what;  // kSleep: no input mailbox
     int64_t until_ns;                                            // monotonic

@@ -47,11 +47,13 @@ inline constexpr int64_t kNsPerSec = 1'000'000'000;
   return static_cast<int64_t>(ts.tv_sec) * kNsPerSec + ts.tv_nsec;
 }
 
-// Sleeps until the absolute CLOCK_MONOTONIC time (TIMER_ABSTIME), retrying on EINTR.
-// With a VirtualClock installed: moves it to `deadline_ns` (if that is later) and
-// returns at once (a stepped executor has one thread: sleeping is time passing).
+// Sleeps until the absolute CLOCK_MONOTONIC time (TIMER_ABSTIME), retrying on EINTR,
+// and returns the monotonic time read right after the kernel returned: the wake-up, taken
+// where cyclictest takes it, before the caller's own code touches its (possibly cold)
+// state. With a VirtualClock installed: moves it to `deadline_ns` (if that is later) and
+// returns its time at once (a stepped executor has one thread: sleeping is time passing).
 // RT-safe (clock_nanosleep is the one blocking call a periodic task makes).
-void sleep_until_monotonic(int64_t deadline_ns) noexcept;
+int64_t sleep_until_monotonic(int64_t deadline_ns) noexcept;
 
 // Relative sleep on CLOCK_MONOTONIC (or the VirtualClock, as above). RT-safe.
 void sleep_for(int64_t duration_ns) noexcept;
