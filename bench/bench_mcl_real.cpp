@@ -12,14 +12,16 @@
 // translation and rotation error of the estimated motion against the reference's),
 // recovery injections, updates where the odometry check disagreed (rack), update time
 // (p50/p95, wall and CPU time). Then kidnapping on the real data: the robot is carried from a third of the
-// log to two thirds while its odometry goes on as if it had driven one normal step; how
-// far it travels until the estimate is within 0.5 m again and stays (rack with its
-// recovery; MRPT alone has none).
+// log to two thirds (or the points --kidnap gives) while its odometry goes on as if it had
+// driven one normal step; how far it travels until the estimate is within 0.5 m again and
+// stays (rack with its recovery; MRPT alone has none).
 //
 //   bench_mcl_real [--quick] [--seeds N] [--particles N] [--datasets a,b,...]
 //                  [--parts track,kidnap,global] [--global-seeds N] [--global-particles N]
 //                  [--global-scans N] [--json FILE] [--markdown FILE] [--perfect-odometry]
-//   (default parts: track,kidnap; global: 10 seeds, 300..20000 particles, first 200 scans)
+//                  [--kidnap FROM:TO[,FROM:TO...]]
+//   (default parts: track,kidnap; global: 10 seeds, 300..20000 particles, first 200 scans;
+//   kidnap 1/3:2/3, fractions of each log as a/b or decimals)
 //
 // Experiment knobs (environment, for choosing defaults; not used by bench/run):
 // MCL_TRACE=1 prints every scan of rack's filter to stderr (error, fit, consistency,
@@ -29,7 +31,9 @@
 // both sides); MCL_TRACE also traces the global part. MCL_CHECK, MCL_CHECK_FRAC,
 // MCL_CHECK_GOOD set odometry_check, odometry_check_fraction, odometry_check_goodness
 // (rack only: MRPT alone has no such check). MCL_RACK_ONLY=1 leaves MRPT alone out of the
-// tracking and global parts (quicker experiments on rack's side; no target lines).
+// tracking, kidnap and global parts (quicker experiments on rack's side; no target lines).
+// In the kidnap part MCL_TRACE prints every scan from the kidnap on: the fit at the true
+// pose beside the cloud's, and the particles (and this update's injected ones) near it.
 //
 // Not RT code; needs no privileges.
 #include <algorithm>
@@ -37,6 +41,7 @@
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <map>
@@ -366,55 +371,172 @@ double recovered_after(const std::vector<DatasetStep>& steps, std::size_t from, 
   return at;
 }
 
-void part_kidnap(const std::vector<Data>& sets, int seeds, uint32_t particles) {
-  out("\n### Kidnapping on real data: carried from 1/3 of the log to 2/3, odometry unaware\n\n");
-  out("Travel (reference, m) after the kidnap until the estimate is within %.1f m and stays so to the end of the "
-      "log (never: not recovered); seeds 1..%d, %u particles; lost poses before the kidnap in brackets.\n\n",
-      kLost, seeds, particles);
-  out("| dataset | jump m | RACK-RT MCL | MRPT alone |\n|---|---|---|---|\n");
-  for (const auto& d : sets) {
-    if (!d.real) continue;
-    const std::size_t from = d.steps.size() / 3, to = 2 * d.steps.size() / 3;
-    const auto steps = kidnapped(d.steps, from, to);
-    const double jump = std::hypot(d.steps[to].truth.x - d.steps[from - 1].truth.x,
-                                   d.steps[to].truth.y - d.steps[from - 1].truth.y);
-    std::string rr, mm;
-    for (int seed = 1; seed <= seeds; ++seed) {
-      const MclOptions o = bench_options(particles, static_cast<uint64_t>(seed));
-      std::vector<SimPose> er, em;
-      std::size_t lost_r = 0, lost_m = 0;
-      {
-        MclFilter f(*d.map, o, rack::bench::mcl_compute_worker());
-        f.init_pose({steps[0].truth.x, steps[0].truth.y, steps[0].truth.phi}, 0.2, 0.1);
-        for (std::size_t i = 0; i < steps.size(); ++i) {
-          (void)f.update({steps[i].odometry.x, steps[i].odometry.y, steps[i].odometry.phi}, steps[i].scan.xs,
-                         steps[i].scan.ys);
-          const auto e = f.estimate();
-          er.push_back({e.pose.x, e.pose.y, e.pose.phi});
-          if (i < from && std::hypot(e.pose.x - steps[i].truth.x, e.pose.y - steps[i].truth.y) > kLost) ++lost_r;
-        }
-      }
-      {
-        mrpt::random::getRandomGenerator().randomize(static_cast<uint32_t>(seed));
-        MrptReference ref(*d.map, o);
-        ref.set_decimation(decimation_for(steps[0], o.beams));
-        ref.init_pose(steps[0].truth, 0.2, 0.1, o.seed);
-        for (std::size_t i = 0; i < steps.size(); ++i) {
-          (void)ref.update(steps[i].odometry, steps[i].scan, true);
-          em.push_back(ref.estimate());
-          if (i < from && std::hypot(em.back().x - steps[i].truth.x, em.back().y - steps[i].truth.y) > kLost) ++lost_m;
-        }
-      }
-      const double ar = recovered_after<int>(steps, from, er), am = recovered_after<int>(steps, from, em);
-      char buf[96];
-      std::snprintf(buf, sizeof buf, "%s%s [%zu]", seed > 1 ? ", " : "",
-                    ar < 0 ? "never" : (std::to_string(static_cast<int>(std::lround(ar))) + " m").c_str(), lost_r);
-      rr += buf;
-      std::snprintf(buf, sizeof buf, "%s%s [%zu]", seed > 1 ? ", " : "",
-                    am < 0 ? "never" : (std::to_string(static_cast<int>(std::lround(am))) + " m").c_str(), lost_m);
-      mm += buf;
+// A kidnap point: the robot is carried from `from` to `to` (fractions of the log).
+struct KidnapPoint {
+  double from = 1.0 / 3.0, to = 2.0 / 3.0;
+  std::string text = "1/3:2/3";
+};
+
+// "a/b" or a decimal fraction in (0, 1); negative when malformed.
+double parse_fraction(const std::string& t) {
+  char* end = nullptr;
+  const double a = std::strtod(t.c_str(), &end);
+  if (end == t.c_str()) return -1.0;
+  if (*end == '\0') return a > 0.0 && a < 1.0 ? a : -1.0;
+  if (*end != '/') return -1.0;
+  const char* b_text = end + 1;
+  const double b = std::strtod(b_text, &end);
+  if (end == b_text || *end != '\0' || !(b > 0.0)) return -1.0;
+  const double f = a / b;
+  return f > 0.0 && f < 1.0 ? f : -1.0;
+}
+
+// "1/3:2/3,1/2:5/6": kidnap points, FROM before TO; empty when malformed.
+std::vector<KidnapPoint> parse_kidnap_points(const std::string& text) {
+  std::vector<KidnapPoint> points;
+  std::size_t at = 0;
+  while (at <= text.size()) {
+    const std::size_t comma = std::min(text.find(',', at), text.size());
+    const std::string item = text.substr(at, comma - at);
+    const std::size_t colon = item.find(':');
+    if (colon == std::string::npos) return {};
+    KidnapPoint k;
+    k.from = parse_fraction(item.substr(0, colon));
+    k.to = parse_fraction(item.substr(colon + 1));
+    k.text = item;
+    if (k.from < 0.0 || k.to < 0.0 || !(k.from < k.to)) return {};
+    points.push_back(k);
+    at = comma + 1;
+  }
+  return points;
+}
+
+// The scan fit (MclEstimate::fit) of one given pose: a one-particle filter put there
+// without motion noise, for MCL_TRACE's "fit at the true pose".
+class FitProbe {
+ public:
+  FitProbe(const rack::maps::OccupancyMap& map, MclOptions o) : f_(map, probe_options(o)) {}
+  double fit_at(const SimPose& p, const DatasetStep& s) {
+    f_.init_pose({p.x, p.y, p.phi}, 0.0, 0.0);
+    (void)f_.update({0.0, 0.0, 0.0}, s.scan.xs, s.scan.ys);
+    return f_.estimate().fit;
+  }
+
+ private:
+  static MclOptions probe_options(MclOptions o) {
+    o.particles_min = o.particles_max = 1;
+    o.odom_min_std_xy = o.odom_min_std_phi = 1e-9;
+    o.odom_outlier_fraction = 0.0;
+    o.odometry_check = 0.0;
+    o.inject_max_fraction = 0.0;
+    o.global_candidates = 1;
+    o.threads = 1;
+    return o;
+  }
+  MclFilter f_;
+};
+
+// MCL_TRACE: one line per scan after the kidnap: the error, the cloud's mean fit beside
+// the fit at the true pose, the recovery state, and how the particles stand near the
+// true pose (within 0.5 m and 0.3 rad): their weight share, and how many of this
+// update's injected ones (the last `injected` of the set) landed there.
+void trace_kidnap(MclFilter& f, FitProbe& probe, const DatasetStep& s, std::size_t i) {
+  const auto e = f.estimate();
+  std::vector<float> x(e.particles), y(e.particles), phi(e.particles), w(e.particles);
+  const std::size_t n = f.sample_particles(x, y, phi, w);
+  double near_w = 0.0;
+  std::size_t inj_near = 0;
+  double inj_best = 1e9;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double d = std::hypot(x[k] - s.truth.x, y[k] - s.truth.y);
+    const double a = std::fabs(rack::test::angle_diff(phi[k], s.truth.phi));
+    const bool near = d < kLost && a < 0.3;
+    near_w += near ? w[k] : 0.0;
+    if (n == e.particles && k + e.injected >= n) {
+      inj_near += near ? 1 : 0;
+      inj_best = std::min(inj_best, d + a);  // m + rad: a rough pose distance
     }
-    out("| %s | %.1f | %s | %s |\n", d.name.c_str(), jump, rr.c_str(), mm.c_str());
+  }
+  std::fprintf(stderr,
+               "kidnap %zu err %.2f fit %.3f fit_truth %.3f cons %.2f ratio %.2f low %u inj %u n %u sd %.2f "
+               "near_w %.3f inj_near %zu inj_best %.2f\n",
+               i, std::hypot(e.pose.x - s.truth.x, e.pose.y - s.truth.y), e.fit, probe.fit_at(s.truth, s),
+               e.consistency, e.w_fast / e.w_slow, e.low_updates, e.injected, e.particles,
+               std::sqrt(e.covariance[0] + e.covariance[4]), near_w, inj_near, e.injected > 0 ? inj_best : 0.0);
+}
+
+void part_kidnap(const std::vector<Data>& sets, int seeds, uint32_t particles, const std::vector<KidnapPoint>& points) {
+  const bool mrpt = !rack_only();
+  const char* trace = std::getenv("MCL_TRACE");
+  for (const KidnapPoint& kp : points) {
+    out("\n### Kidnapping on real data: carried from %s of the log to %s, odometry unaware\n\n",
+        kp.text.substr(0, kp.text.find(':')).c_str(), kp.text.substr(kp.text.find(':') + 1).c_str());
+    out("Travel (reference, m) after the kidnap until the estimate is within %.1f m and stays so to the end of the "
+        "log (never: not recovered); seeds 1..%d, %u particles; lost poses before the kidnap in brackets.%s\n\n",
+        kLost, seeds, particles, mrpt ? "" : " MRPT alone not run (MCL_RACK_ONLY).");
+    out("| dataset | jump m | travel after it m | RACK-RT MCL | recovered | MRPT alone |\n|---|---|---|---|---|---|\n");
+    for (const auto& d : sets) {
+      if (!d.real) continue;
+      const auto from = static_cast<std::size_t>(kp.from * static_cast<double>(d.steps.size()));
+      const auto to = static_cast<std::size_t>(kp.to * static_cast<double>(d.steps.size()));
+      if (from < 2 || to <= from || to + 2 >= d.steps.size()) continue;
+      const auto steps = kidnapped(d.steps, from, to);
+      const double jump = std::hypot(d.steps[to].truth.x - d.steps[from - 1].truth.x,
+                                     d.steps[to].truth.y - d.steps[from - 1].truth.y);
+      double after = 0.0;
+      for (std::size_t i = from + 1; i < steps.size(); ++i)
+        after += std::hypot(steps[i].truth.x - steps[i - 1].truth.x, steps[i].truth.y - steps[i - 1].truth.y);
+      std::string rr, mm;
+      int recovered = 0;
+      for (int seed = 1; seed <= seeds; ++seed) {
+        const MclOptions o = bench_options(particles, static_cast<uint64_t>(seed));
+        std::vector<SimPose> er, em;
+        std::size_t lost_r = 0, lost_m = 0;
+        {
+          MclFilter f(*d.map, o, rack::bench::mcl_compute_worker());
+          std::optional<FitProbe> probe;
+          if (trace != nullptr) probe.emplace(*d.map, o);
+          f.init_pose({steps[0].truth.x, steps[0].truth.y, steps[0].truth.phi}, 0.2, 0.1);
+          for (std::size_t i = 0; i < steps.size(); ++i) {
+            (void)f.update({steps[i].odometry.x, steps[i].odometry.y, steps[i].odometry.phi}, steps[i].scan.xs,
+                           steps[i].scan.ys);
+            const auto e = f.estimate();
+            er.push_back({e.pose.x, e.pose.y, e.pose.phi});
+            if (i < from && std::hypot(e.pose.x - steps[i].truth.x, e.pose.y - steps[i].truth.y) > kLost) ++lost_r;
+            if (probe && i + 1 >= from) {
+              if (i + 1 == from) std::fprintf(stderr, "kidnap %s %s seed %d\n", d.name.c_str(), kp.text.c_str(), seed);
+              trace_kidnap(f, *probe, steps[i], i);
+            }
+          }
+        }
+        if (mrpt) {
+          mrpt::random::getRandomGenerator().randomize(static_cast<uint32_t>(seed));
+          MrptReference ref(*d.map, o);
+          ref.set_decimation(decimation_for(steps[0], o.beams));
+          ref.init_pose(steps[0].truth, 0.2, 0.1, o.seed);
+          for (std::size_t i = 0; i < steps.size(); ++i) {
+            (void)ref.update(steps[i].odometry, steps[i].scan, true);
+            em.push_back(ref.estimate());
+            if (i < from && std::hypot(em.back().x - steps[i].truth.x, em.back().y - steps[i].truth.y) > kLost)
+              ++lost_m;
+          }
+        }
+        const double ar = recovered_after<int>(steps, from, er);
+        recovered += ar >= 0 ? 1 : 0;
+        char buf[96];
+        std::snprintf(buf, sizeof buf, "%s%s [%zu]", seed > 1 ? ", " : "",
+                      ar < 0 ? "never" : (std::to_string(static_cast<int>(std::lround(ar))) + " m").c_str(), lost_r);
+        rr += buf;
+        if (mrpt) {
+          const double am = recovered_after<int>(steps, from, em);
+          std::snprintf(buf, sizeof buf, "%s%s [%zu]", seed > 1 ? ", " : "",
+                        am < 0 ? "never" : (std::to_string(static_cast<int>(std::lround(am))) + " m").c_str(), lost_m);
+          mm += buf;
+        }
+      }
+      out("| %s | %.1f | %.0f | %s | %d of %d | %s |\n", d.name.c_str(), jump, after, rr.c_str(), recovered, seeds,
+          mrpt ? mm.c_str() : "-");
+    }
   }
 }
 
@@ -499,6 +621,7 @@ int main(int argc, char** argv) {
   uint32_t particles = 1000;
   std::string json, markdown, only;
   std::string parts = ",track,kidnap,";
+  std::vector<KidnapPoint> kidnap_points{KidnapPoint{}};
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--quick") quick = true;
@@ -509,7 +632,16 @@ int main(int argc, char** argv) {
     else if (a == "--json" && i + 1 < argc) json = argv[++i];
     else if (a == "--markdown" && i + 1 < argc) markdown = argv[++i];
     else if (a == "--perfect-odometry") perfect = true;
-    else if (a == "--global-seeds" && i + 1 < argc) global_seeds = std::max(1, std::atoi(argv[++i]));
+    else if (a == "--kidnap" && i + 1 < argc) {
+      kidnap_points = parse_kidnap_points(argv[++i]);
+      if (kidnap_points.empty()) {
+        std::fprintf(stderr,
+                     "bench_mcl_real: --kidnap %s: expected FROM:TO[,FROM:TO...], fractions of the log "
+                     "(a/b or decimals in (0, 1)), FROM before TO\n",
+                     argv[i]);
+        return 2;
+      }
+    } else if (a == "--global-seeds" && i + 1 < argc) global_seeds = std::max(1, std::atoi(argv[++i]));
     else if (a == "--global-particles" && i + 1 < argc)
       global_particles = static_cast<uint32_t>(std::max(300, std::atoi(argv[++i])));
     else if (a == "--global-scans" && i + 1 < argc)
@@ -518,7 +650,13 @@ int main(int argc, char** argv) {
       std::printf(
           "bench_mcl_real [--quick] [--seeds N] [--particles N] [--datasets intel,aces,fhw,seattle,sim]\n"
           "               [--parts track,kidnap,global] [--global-seeds N] [--global-particles N]\n"
-          "               [--global-scans N] [--json FILE] [--markdown FILE] [--perfect-odometry]\n");
+          "               [--global-scans N] [--json FILE] [--markdown FILE] [--perfect-odometry]\n"
+          "               [--kidnap FROM:TO[,FROM:TO...]]\n"
+          "  --kidnap: where the kidnap part carries the robot, as fractions of each log (a/b or\n"
+          "            decimals), one table per point; default 1/3:2/3\n"
+          "  MCL_RACK_ONLY=1: rack's filter alone in the tracking, kidnap and global parts\n"
+          "  MCL_TRACE=1: every scan of rack's filter on stderr (after the kidnap: the fit at the\n"
+          "               true pose and the particles near it)\n");
       return 0;
     } else {
       std::fprintf(stderr, "bench_mcl_real: unknown option %s\n", a.c_str());
@@ -566,7 +704,7 @@ int main(int argc, char** argv) {
   for (const auto& d : sets) out("%s (%zu scans) ", d.name.c_str(), d.steps.size());
   out("\n");
   if (parts.find(",track,") != std::string::npos) part_track(sets, seeds, particles);
-  if (parts.find(",kidnap,") != std::string::npos) part_kidnap(sets, seeds, particles);
+  if (parts.find(",kidnap,") != std::string::npos) part_kidnap(sets, seeds, particles, kidnap_points);
   if (parts.find(",global,") != std::string::npos) part_global(sets, global_seeds, global_particles, global_scans);
   if (!markdown.empty()) {
     std::FILE* f = std::fopen(markdown.c_str(), "w");

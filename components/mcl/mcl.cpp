@@ -66,7 +66,7 @@ Mcl::Mcl()
       global_candidates_(declare_int(
           "global_candidates", 5,
           {.doc =
-               "global start: the first scan weighs this many times particles_max poses over the free space and keeps the particles_max that fit best (more: surer to find the place, one costlier update)",
+               "global start: the first scan weighs this many times particles_max poses over the free space and keeps the particles_max that fit best (more: surer to find the place, one costlier update); recovery likewise injects the best of this many random poses per injected particle",
            .min = 1,
            .max = 100})),
       update_distance_(declare_float("update_distance", 0.10,

@@ -64,6 +64,30 @@ RunResult run(MclFilter& f, const std::vector<DatasetStep>& steps) {
   return r;
 }
 
+// The robot carried from scan `from` to scan `to`: the scans jump, the odometry goes on
+// from where it was with the increments of the part the robot was carried to.
+std::vector<DatasetStep> kidnapped(const std::vector<DatasetStep>& all, std::size_t from, std::size_t to) {
+  std::vector<DatasetStep> steps(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(from));
+  const auto compose = [](const SimPose& a, const SimPose& d) {
+    return SimPose{a.x + std::cos(a.phi) * d.x - std::sin(a.phi) * d.y,
+                   a.y + std::sin(a.phi) * d.x + std::cos(a.phi) * d.y,
+                   std::remainder(a.phi + d.phi, 2 * std::numbers::pi)};
+  };
+  const auto between = [](const SimPose& a, const SimPose& b) {
+    const double dx = b.x - a.x, dy = b.y - a.y;
+    return SimPose{std::cos(a.phi) * dx + std::sin(a.phi) * dy, -std::sin(a.phi) * dx + std::cos(a.phi) * dy,
+                   std::remainder(b.phi - a.phi, 2 * std::numbers::pi)};
+  };
+  SimPose odo = all[from - 1].odometry;
+  for (std::size_t i = to; i < all.size(); ++i) {
+    DatasetStep s = all[i];
+    odo = compose(odo, between(all[i - 1].odometry, all[i].odometry));
+    s.odometry = odo;
+    steps.push_back(std::move(s));
+  }
+  return steps;
+}
+
 // Scans 40..70 of FHW: visitors stand round the robot (up to 100 of 180 readings
 // shorter than 1 m), the scan fit drops a hundredfold for a dozen scans in a row. The
 // old injection (weighted by one scan) threw the estimate 25-40 m away here. Now: no
@@ -106,27 +130,8 @@ TEST(MclRecoveryTest, NoInjectionOverTheIntelLog) {
 TEST(MclRecoveryTest, KidnapOnRealDataIsRecovered) {
   const RealSet set = load("fhw");
   const std::size_t from = set.steps.size() / 3, to = 2 * set.steps.size() / 3;
-  std::vector<DatasetStep> steps(set.steps.begin(), set.steps.begin() + static_cast<std::ptrdiff_t>(from));
-  // Odometry after the kidnap: continues from where it was, with the increments of the
-  // part the robot was carried to.
-  const auto compose = [](const SimPose& a, const SimPose& d) {
-    return SimPose{a.x + std::cos(a.phi) * d.x - std::sin(a.phi) * d.y,
-                   a.y + std::sin(a.phi) * d.x + std::cos(a.phi) * d.y,
-                   std::remainder(a.phi + d.phi, 2 * std::numbers::pi)};
-  };
-  const auto between = [](const SimPose& a, const SimPose& b) {
-    const double dx = b.x - a.x, dy = b.y - a.y;
-    return SimPose{std::cos(a.phi) * dx + std::sin(a.phi) * dy, -std::sin(a.phi) * dx + std::cos(a.phi) * dy,
-                   std::remainder(b.phi - a.phi, 2 * std::numbers::pi)};
-  };
   ASSERT_GT(from, 1U);
-  SimPose odo = set.steps[from - 1].odometry;
-  for (std::size_t i = to; i < set.steps.size(); ++i) {
-    DatasetStep s = set.steps[i];
-    odo = compose(odo, between(set.steps[i - 1].odometry, set.steps[i].odometry));
-    s.odometry = odo;
-    steps.push_back(std::move(s));
-  }
+  const std::vector<DatasetStep> steps = kidnapped(set.steps, from, to);
   int recovered = 0;
   std::string report;
   for (uint64_t seed = 1; seed <= 3; ++seed) {
@@ -143,6 +148,35 @@ TEST(MclRecoveryTest, KidnapOnRealDataIsRecovered) {
     recovered += ok ? 1 : 0;
   }
   EXPECT_GE(recovered, 2) << report;
+}
+
+// Kidnapping where uniform injection rarely found the robot again: UW Seattle, carried
+// from half the log to five sixths (a few metres, into a look-alike corridor), 32 m of
+// travel left. With random poses over the free space the estimate came back in 2 of
+// seeds 1..6; each injected pose now the best of global_candidates random ones by the
+// scan, and the long-term fit held while lost: 6 of 6, within 4-8 m (bench/RESULTS.md).
+// Required: back within 0.5 m for the last 10 scans of the log in at least 5 of 6.
+TEST(MclRecoveryTest, InjectionGuidedByTheScanFindsAKidnappedRobot) {
+  const RealSet set = load("seattle");
+  const std::size_t from = set.steps.size() / 2, to = 5 * set.steps.size() / 6;
+  ASSERT_GT(from, 1U);
+  const std::vector<DatasetStep> steps = kidnapped(set.steps, from, to);
+  int recovered = 0;
+  std::string report;
+  for (uint64_t seed = 1; seed <= 6; ++seed) {
+    MclFilter f(set.map, options(seed));
+    const SimPose& t0 = steps[0].truth;
+    f.init_pose({t0.x, t0.y, t0.phi}, 0.2, 0.1);
+    const RunResult r = run(f, steps);
+    EXPECT_GT(r.injections, 0U) << "seed " << seed << ": the kidnap was not noticed";
+    std::size_t good_from = steps.size();
+    while (good_from > from && r.errors[good_from - 1] < 0.5) --good_from;
+    const bool ok = good_from + 10 <= steps.size();
+    report += " seed " + std::to_string(seed) + ": " + (ok ? "back at scan " + std::to_string(good_from) : "not back") +
+              ";";
+    recovered += ok ? 1 : 0;
+  }
+  EXPECT_GE(recovered, 5) << report;
 }
 
 // KLD-sampling shrinks the set once the filter is sure: tracking the Intel lab log from

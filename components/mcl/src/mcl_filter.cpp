@@ -177,6 +177,9 @@ struct MclFilter::Impl {
   double check_slow = 0.0;
   bool check_converged = false;    // this update's check found the estimate converged
   mrpt::poses::CPose2D scan_incr;  // the scan-to-scan increment (ICP)
+  // Recovery: the filter has tracked as usual (not lost, estimate converged) since the
+  // last init; from then on the long-term averages hold while it is lost.
+  bool settled = false;
 
   static bool same_field(const MclOptions& a, const MclOptions& b) {
     return a.sigma_hit == b.sigma_hit && a.z_hit == b.z_hit && a.z_random == b.z_random && a.max_range == b.max_range &&
@@ -509,6 +512,7 @@ struct MclFilter::Impl {
     c_slow = c_fast = global ? 1.0 : 0.0;
     check_slow = 0.0;
     check_converged = false;
+    settled = false;
     if (global) est.w_slow = est.w_fast = 1.0;
     force_update = true;
   }
@@ -631,13 +635,20 @@ struct MclFilter::Impl {
     pdf.getMean(mean);
     const double w_avg = consistency(mrpt::math::TPose2D(mean.x(), mean.y(), mean.phi()));
     est.consistency = w_avg;
+    // While lost (the previous update was low), the long-term averages hold what
+    // tracking gave, instead of drifting down to the lost filter's own poor fit: with
+    // alpha_slow 0.01 they met it after 40-140 updates and injection stopped while the
+    // estimate was still tens of metres off (bench/RESULTS.md, "Kidnapping on real
+    // data"). Not after a global start until the filter once tracked as usual: there
+    // the long-term averages start at a perfect fit, which no real scan keeps.
+    const bool hold = settled && est.low_updates > 0;
     if (est.w_slow == 0.0) {  // first update after init_pose: start the averages at the first values
       est.w_slow = est.w_fast = est.fit;
       c_slow = c_fast = w_avg;
     } else {
-      est.w_slow += opt.alpha_slow * (est.fit - est.w_slow);
+      if (!hold) est.w_slow += opt.alpha_slow * (est.fit - est.w_slow);
       est.w_fast += opt.alpha_fast * (est.fit - est.w_fast);
-      c_slow += opt.alpha_slow * (w_avg - c_slow);
+      if (!hold) c_slow += opt.alpha_slow * (w_avg - c_slow);
       c_fast += opt.alpha_fast * (w_avg - c_fast);
     }
     if (check_slow > 0.0) {
@@ -658,6 +669,7 @@ struct MclFilter::Impl {
     const bool low = (fr < opt.recovery_ratio && cr < opt.recovery_consistency) ||
                      (opt.fit_min > 0.0 && est.w_fast < opt.fit_min);
     est.low_updates = low ? est.low_updates + 1 : 0;
+    if (!low && check_converged) settled = true;
     if (est.low_updates < opt.recovery_updates || opt.inject_max_fraction <= 0.0 || free_cells.empty()) return;
     const double p_drop = 1.0 - est.w_fast / est.w_slow;
     const double p_low = opt.fit_min > 0.0 ? 1.0 - est.w_fast / opt.fit_min : 0.0;
@@ -669,15 +681,33 @@ struct MclFilter::Impl {
     // They are added; the next KLD-sampling step brings the count back within
     // particles_min..max.
     const std::size_t first = m;
-    pdf.m_particles.resize(m + n);
-    log_lik.resize(m + n);
-    for (std::size_t k = first; k < m + n; ++k) {
+    // Each injected pose is the best fitting of global_candidates random ones (the
+    // candidates all weighed by this scan, the n best kept): on a large map a uniform
+    // pose rarely lands in the few tenths of a metre and degree around the true pose
+    // where the scan can tell it; the scan picks where to look.
+    const std::size_t cand = n * std::max<std::size_t>(1, opt.global_candidates);
+    pdf.m_particles.resize(m + cand);
+    log_lik.resize(m + cand);
+    for (std::size_t k = first; k < m + cand; ++k) {
       double x = 0, y = 0, phi = 0;
       random_free_pose(x, y, phi);
       pdf.m_particles[k].d = mrpt::math::TPose2D(x, y, phi);
       pdf.m_particles[k].log_w = 0.0;
     }
-    weigh(first, m + n);
+    weigh(first, m + cand);
+    if (cand > n) {  // keep the n candidates the scan fits best
+      order.resize(cand);
+      for (std::size_t i = 0; i < cand; ++i) order[i] = static_cast<uint32_t>(first + i);
+      std::nth_element(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(n), order.end(),
+                       [this](uint32_t a, uint32_t b) { return log_lik[a] > log_lik[b]; });
+      std::sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(n));
+      for (std::size_t j = 0; j < n; ++j) {
+        pdf.m_particles[first + j].d = pdf.m_particles[order[j]].d;
+        log_lik[first + j] = log_lik[order[j]];
+      }
+      pdf.m_particles.resize(m + n);
+      log_lik.resize(m + n);
+    }
     for (std::size_t k = first; k < m + n; ++k) pdf.m_particles[k].log_w = opt.likelihood_power * log_lik[k];
     est.injected = static_cast<uint32_t>(n);
     ++est.recoveries;

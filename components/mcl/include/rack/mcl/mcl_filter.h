@@ -132,10 +132,16 @@ struct MclOptions {
   // elsewhere sees through the map's walls). The robot counts as lost only when both
   // dropped, w_fast < recovery_ratio * w_slow and c_fast < recovery_consistency * c_slow,
   // for recovery_updates consecutive updates; then, while it stays so, (1 - w_fast /
-  // w_slow) * particles_max random poses over the free space (at most
-  // inject_max_fraction of particles_max) are added per update, weighted by the scan
-  // like the others. After init_global() the long-term averages start at a perfect fit,
-  // so a cloud that converged to a wrong place counts as lost too.
+  // w_slow) * particles_max poses (at most inject_max_fraction of particles_max) are
+  // added per update, weighted by the scan like the others: each the best fitting of
+  // global_candidates random poses over the free space (all weighed by the scan; a
+  // uniform pose rarely lands near enough to the true one for the scan to tell it).
+  // While lost, the long-term averages hold the values tracking gave them (they no
+  // longer sink to the lost filter's poor fit, which stopped the injection after 40-140
+  // updates, tens of metres off: bench/RESULTS.md). After init_global() the long-term
+  // averages start at a perfect fit, so a cloud that converged to a wrong place counts
+  // as lost too; they hold only once the filter has tracked as usual (not lost, the
+  // estimate converged).
   double alpha_slow = 0.01;
   double alpha_fast = 0.2;
   double recovery_ratio = 0.5;
@@ -152,6 +158,8 @@ struct MclOptions {
   // near it: more candidates, once, for one costlier update. 5 (bench/RESULTS.md,
   // issue 18): within 2x MRPT alone's travel in 9-10 of 10 seeds on each real log
   // (1: seattle 5-7), the simulated office within 15 m in 18 of 20 seeds (1: 16).
+  // Recovery (above) also draws this many random poses per injected one and keeps
+  // the best (1: uniform injection).
   uint32_t global_candidates = 5;
   // Threads evaluating the likelihood (1: the caller's only; 2: the caller's and the
   // compute worker given to the constructor, used for an update of at least 100 000
