@@ -1,5 +1,6 @@
 #include "js_events.h"
 
+#include <algorithm>
 #include <cstring>
 
 namespace rack::components {
@@ -9,7 +10,8 @@ using interfaces::kJoystickMaxAxes;
 void apply_js_event(const js_event& e, interfaces::JoystickData& state) noexcept {
   const uint8_t type = e.type & static_cast<uint8_t>(~JS_EVENT_INIT);  // INIT: the state at open
   if (type == JS_EVENT_AXIS && e.number < kJoystickMaxAxes) {
-    state.axis[e.number] = static_cast<float>(e.value) / 32767.0F;
+    // -32768 (a FIFO or a broken driver; the kernel reports -32767..32767) is -1, not below it.
+    state.axis[e.number] = std::max(-1.0F, static_cast<float>(e.value) / 32767.0F);
     if (e.number + 1U > state.axis_count) state.axis_count = e.number + 1U;
   } else if (type == JS_EVENT_BUTTON && e.number < 32 && (e.value == 0 || e.value == 1)) {
     const uint32_t bit = 1U << e.number;

@@ -5,7 +5,8 @@
 //
 // Bad input: an unknown event type, an axis number >= kJoystickMaxAxes, a button number
 // >= 32 or a button value other than 0/1 is counted in bad_events and changes nothing
-// else.
+// else. The axis value -32768 (a FIFO or a broken driver can send it; the kernel's
+// range is -32767..32767) reads as -1.
 //
 // Real-time contract: RT-safe (no allocation, no system call); one thread per decoder.
 #pragma once
