@@ -18,6 +18,11 @@ CameraIntrinsics parse_camera_calibration(std::string_view text, const std::stri
   const auto fail = [&name](const std::string& why) {
     return std::runtime_error("calibration '" + name + "': " + why);
   };
+  // A text file: OpenCV's XML parser dereferenced a null pointer on a NUL byte in its
+  // header (SEGV, found by fuzz_calibration); no YAML, XML or JSON text holds one.
+  if (const auto nul = text.find('\0'); nul != std::string_view::npos) {
+    throw fail("byte " + std::to_string(nul) + " is a NUL: not a YAML, XML or JSON text");
+  }
   cv::Mat km, dm;
   CameraIntrinsics k;
   try {
