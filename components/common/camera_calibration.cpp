@@ -25,16 +25,22 @@ CameraIntrinsics parse_camera_calibration(std::string_view text, const std::stri
   }
   cv::Mat km, dm;
   CameraIntrinsics k;
+  bool opened = false;
   try {
     cv::FileStorage fs(std::string(text), cv::FileStorage::READ | cv::FileStorage::MEMORY);
-    if (!fs.isOpened()) throw fail("cannot parse it (not OpenCV's YAML, XML or JSON)");
-    fs["camera_matrix"] >> km;
-    fs["distortion_coefficients"] >> dm;
-    fs["image_width"] >> k.width;
-    fs["image_height"] >> k.height;
-  } catch (const cv::Exception& e) {
+    opened = fs.isOpened();
+    if (opened) {
+      fs["camera_matrix"] >> km;
+      fs["distortion_coefficients"] >> dm;
+      fs["image_width"] >> k.width;
+      fs["image_height"] >> k.height;
+    }
+  } catch (const std::exception& e) {
+    // cv::Exception, and the standard library's own: OpenCV's YAML parser threw
+    // std::length_error on a text found by fuzz_calibration.
     throw fail(e.what());
   }
+  if (!opened) throw fail("cannot parse it (not OpenCV's YAML, XML or JSON)");
   if (km.rows != 3 || km.cols != 3) throw fail("camera_matrix missing or not 3x3");
   if (k.width <= 0 || k.height <= 0) throw fail("image_width/image_height missing");
   km.convertTo(km, CV_64F);
