@@ -1,5 +1,6 @@
 #include "camera.h"
 
+#include "common/camera_calibration.h"
 #include "rack/rt/input_file.h"
 
 #include <opencv2/core.hpp>
@@ -16,9 +17,6 @@
 namespace rack::components {
 
 namespace {
-
-// An OpenCV calibration file holds a few matrices: kilobytes.
-constexpr uint64_t kMaxCalibrationBytes = 16u << 20;
 
 // "frames/img_%04d.png" or "rtsp://...": not one file of that name.
 bool is_pattern_or_url(const std::string& src) {
@@ -76,33 +74,18 @@ void Camera::init() {
   buffers_ = std::make_unique<CameraData[]>(3);  // 3 x 0.9 MB, allocated once
   const std::string calib = calibration_.get_string();
   if (!calib.empty()) {
-    cv::FileStorage fs;
-    std::string refused;
-    if (!rt::check_regular_file(calib, kMaxCalibrationBytes, "calibration file", refused)) {
-      throw std::runtime_error("calibration: " + refused);
-    }
-    try {
-      fs.open(calib, cv::FileStorage::READ);
-    } catch (const cv::Exception& e) {
-      throw std::runtime_error("calibration '" + calib + "': " + e.what());
-    }
-    if (!fs.isOpened()) throw std::runtime_error("calibration '" + calib + "': cannot open or parse");
-    cv::Mat k, d;
-    fs["camera_matrix"] >> k;
-    fs["distortion_coefficients"] >> d;
-    fs["image_width"] >> capture_->calib_width;
-    fs["image_height"] >> capture_->calib_height;
-    if (k.rows != 3 || k.cols != 3 || d.total() < 4 || capture_->calib_width <= 0 || capture_->calib_height <= 0) {
+    const CameraIntrinsics k = load_camera_calibration(calib);
+    if (k.distortion_count == 0) {
       throw std::runtime_error("calibration '" + calib +
                                "': needs camera_matrix (3x3), distortion_coefficients (4 or 5) and image_width/height");
     }
-    k.convertTo(k, CV_64F);
-    d.convertTo(d, CV_64F);
-    capture_->fx = k.at<double>(0, 0);
-    capture_->fy = k.at<double>(1, 1);
-    capture_->cx = k.at<double>(0, 2);
-    capture_->cy = k.at<double>(1, 2);
-    for (std::size_t i = 0; i < 5 && i < d.total(); ++i) capture_->dist[i] = d.at<double>(static_cast<int>(i));
+    capture_->calib_width = k.width;
+    capture_->calib_height = k.height;
+    capture_->fx = k.fx;
+    capture_->fy = k.fy;
+    capture_->cx = k.cx;
+    capture_->cy = k.cy;
+    std::copy(std::begin(k.distortion), std::end(k.distortion), std::begin(capture_->dist));
     capture_->calibrated = true;
   }
   quit_ = false;

@@ -15,8 +15,6 @@
 
 namespace rack::components {
 
-using interfaces::kJoystickMaxAxes;
-
 Joystick::Joystick()
     : DataComponent(DataTaskMode::kPeriodic),
       device_(declare_string("device", "/dev/input/js0",
@@ -85,7 +83,7 @@ HookResult Joystick::on() {
   }
   (void)rt::modeswitch::register_rt_device(fd_);  // loop() reads it every cycle
   state_ = interfaces::JoystickData{};
-  pending_ = 0;
+  events_.reset();
   chassis_address_ = resolved(chassis_);
   if (chassis_address_.raw() != 0) {
     if (switch_on(chassis_address_) != HookResult::kOk) return HookResult::kError;  // cascading ON
@@ -134,39 +132,15 @@ void Joystick::off() {
   close_device();
 }
 
-void Joystick::apply(const js_event& e) noexcept {
-  const uint8_t type = e.type & static_cast<uint8_t>(~JS_EVENT_INIT);  // INIT: the state at open
-  if (type == JS_EVENT_AXIS && e.number < kJoystickMaxAxes) {
-    state_.axis[e.number] = static_cast<float>(e.value) / 32767.0F;
-    if (e.number + 1U > state_.axis_count) state_.axis_count = e.number + 1U;
-  } else if (type == JS_EVENT_BUTTON && e.number < 32 && (e.value == 0 || e.value == 1)) {
-    const uint32_t bit = 1U << e.number;
-    state_.buttons = e.value != 0 ? (state_.buttons | bit) : (state_.buttons & ~bit);
-    if (e.number + 1U > state_.button_count) state_.button_count = e.number + 1U;
-  } else {
-    ++state_.bad_events;
-    return;
-  }
-  ++state_.events;
-}
-
 HookResult Joystick::loop() {
   for (int i = 0; i < 8; ++i) {
-    const ssize_t n = ::read(fd_, buffer_.data() + pending_, buffer_.size() - pending_);
+    const ssize_t n = ::read(fd_, events_.space(), events_.space_size());
     if (n < 0 && (errno == EAGAIN || errno == EINTR)) break;
     if (n <= 0) {  // unplugged (ENODEV) or the FIFO's writer left
       log_error("%s: the joystick is gone; the robot stops, reopening", static_cast<const char*>(path_));
       return HookResult::kError;
     }
-    std::size_t have = pending_ + static_cast<std::size_t>(n);
-    std::size_t at = 0;
-    for (; at + sizeof(js_event) <= have; at += sizeof(js_event)) {
-      js_event e;
-      std::memcpy(&e, buffer_.data() + at, sizeof e);
-      apply(e);
-    }
-    pending_ = have - at;
-    if (pending_ > 0) std::memmove(buffer_.data(), buffer_.data() + at, pending_);
+    events_.received(static_cast<std::size_t>(n), state_);
   }
   state_.vx = state_.omega = 0.0;
   state_.free_ahead = -1.0;

@@ -25,12 +25,11 @@
 // read() on the device and one bounded MOVE call; on() opens the device.
 #pragma once
 
-#include <linux/joystick.h>
-
 #include <array>
 
 #include "rack/core/data_component.h"
 #include "joystick_types.h"
+#include "js_events.h"
 #include "rack/interfaces/devices.h"
 #include "rack/interfaces/robot.h"
 
@@ -47,7 +46,6 @@ class Joystick final : public DataComponent<interfaces::JoystickData> {
   HookResult loop() override;  // RT
 
  private:
-  void apply(const js_event& e) noexcept;
   // Takes the obstacle scans that arrived (free_ahead_); false: their source left ENABLED.
   [[nodiscard]] bool take_obstacles() noexcept;
   void close_device() noexcept;
@@ -65,8 +63,7 @@ class Joystick final : public DataComponent<interfaces::JoystickData> {
   int fd_ = -1;
   char path_[256] = {};
   interfaces::JoystickData state_{};
-  std::array<uint8_t, sizeof(js_event) * 32> buffer_{};
-  std::size_t pending_ = 0;  // bytes of an incomplete event carried to the next read
+  JsEventDecoder events_;  // the device's bytes, an event split across reads kept
   interfaces::ChassisParams limits_{};
   tims::Address chassis_address_;
   std::array<std::byte, 512> reply_{};

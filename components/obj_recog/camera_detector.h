@@ -16,17 +16,11 @@
 #include <string>
 #include <vector>
 
+#include "common/camera_calibration.h"
 #include "obj_recog_types.h"
 #include "rack/interfaces/devices.h"
 
 namespace rack::components {
-
-struct CameraIntrinsics {
-  bool valid = false;
-  int width = 0, height = 0;  // the image size they are for
-  double fx = 0, fy = 0, cx = 0, cy = 0;
-  double distortion[5] = {};  // k1 k2 p1 p2 k3
-};
 
 struct DetectorOptions {
   std::string dictionary = "DICT_4X4_50";  // any of OpenCV's predefined ArUco dictionaries
@@ -61,11 +55,6 @@ class CameraDetector {
   // does not decode, intrinsics for another aspect ratio); `out` is then untouched.
   [[nodiscard]] bool detect(const interfaces::CameraData& frame, const CameraIntrinsics& k,
                             interfaces::ObjRecogData& out, std::string& error);
-
-  // Reads an OpenCV calibration file (camera_matrix, distortion_coefficients,
-  // image_width, image_height; the format of calibrateCamera / the Camera component).
-  // Throws std::runtime_error naming the file and the key.
-  [[nodiscard]] static CameraIntrinsics load_calibration(const std::string& path);
 
  private:
   struct Impl;

@@ -62,7 +62,7 @@ void ObjRecogCamera::init() {
     throw std::runtime_error(std::string("parameters: ") + e.what());
   }
   const std::string calib = calibration_.get_string();
-  if (!calib.empty()) file_intrinsics_ = std::make_unique<CameraIntrinsics>(CameraDetector::load_calibration(calib));
+  if (!calib.empty()) file_intrinsics_ = std::make_unique<CameraIntrinsics>(load_camera_calibration(calib));
   out_ = std::make_unique<ObjRecogData>();
   prev_ = std::make_unique<ObjRecogData>();
 }

@@ -201,7 +201,7 @@ TEST(CameraDetectorTest, WrongImagesGetAClearError) {
   EXPECT_NE(error.find("is not an image"), std::string::npos) << error;
   o.dictionary = "DICT_9X9";
   EXPECT_THROW(CameraDetector bad(o), std::invalid_argument);
-  EXPECT_THROW((void)CameraDetector::load_calibration("/nonexistent/calib.yaml"), std::runtime_error);
+  EXPECT_THROW((void)components::load_camera_calibration("/nonexistent/calib.yaml"), std::runtime_error);
 }
 
 TEST(CameraDetectorTest, PeopleDetectorFindsNobodyInAnEmptyRoom) {

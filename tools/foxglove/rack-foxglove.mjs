@@ -323,9 +323,13 @@ class Bridge {
       this.subscribed.delete(id);
       for (const c of this.channels.values()) if (c.id === id && c.component) streams.drop(c.component, `channel ${id}`);
     });
-    server.on('serviceCallRequest', (req, conn) => this.call(req, conn));
-    server.on('getParameters', (req, conn) => this.getParameters(req, conn));
-    server.on('setParameters', (req, conn) => this.setParameters(req, conn));
+    // The library passes these on as the client sent them (fields of any type): each is
+    // checked before use, and whatever still goes wrong refuses that message only (an
+    // async handler's exception would otherwise end the process: an unhandled rejection).
+    const guarded = (what, f) => (req, conn) => f(req, conn).catch((e) => this.refuse(`${what}: ${e.message}`, conn));
+    server.on('serviceCallRequest', guarded('service call', (req, conn) => this.call(req, conn)));
+    server.on('getParameters', guarded('getParameters', (req, conn) => this.getParameters(req, conn)));
+    server.on('setParameters', guarded('setParameters', (req, conn) => this.setParameters(req, conn)));
     // A malformed message from a Foxglove client (the library refuses it and goes on):
     // counted, logged at most once a second, the count printed at exit.
     this.malformed = 0;
@@ -338,6 +342,22 @@ class Bridge {
         console.error(`rack-foxglove: refused a Foxglove client's message: ${e.message} (${this.malformed} so far)`);
       }
     });
+  }
+
+  // A client message the library passed on that this bridge cannot carry out: counted and
+  // logged as the library's refusals are, and the client told (a status).
+  refuse(why, conn) {
+    this.malformed += 1;
+    const now = Date.now();
+    if (now - this.lastLog >= 1000) {
+      this.lastLog = now;
+      console.error(`rack-foxglove: refused a Foxglove client's message: ${why} (${this.malformed} so far)`);
+    }
+    try {
+      this.server.sendStatus({ level: 2, message: why }, conn);
+    } catch {
+      // the client is gone
+    }
   }
 
   publish(item) {
@@ -413,6 +433,9 @@ class Bridge {
 
   // "<address>.<parameter>" names; no names: every parameter of every enabled component.
   async getParameters(req, conn) {
+    if (!Array.isArray(req.parameterNames) || !req.parameterNames.every((n) => typeof n === 'string')) {
+      return this.refuse('getParameters: parameterNames is not a list of strings', conn);
+    }
     const wanted = new Map();  // address -> Set(parameter) | null (all)
     if (req.parameterNames.length === 0) {
       for (const c of this.converter.components.values()) if (c.state === 'enabled') wanted.set(c.address, null);
@@ -435,6 +458,9 @@ class Bridge {
   }
 
   async setParameters(req, conn) {
+    if (!Array.isArray(req.parameters) || !req.parameters.every((p) => typeof p?.name === 'string')) {
+      return this.refuse('setParameters: parameters is not a list of {name, value}', conn);
+    }
     const results = [];
     for (const p of req.parameters) {
       const dot = p.name.lastIndexOf('.');

@@ -47,7 +47,10 @@ bool parse_class_list(const std::string& json_text, std::vector<rack::deploy::Cl
     if (const auto p = c.find("parameters"); p != c.end() && p->is_array()) {
       ci.described = true;
       for (const auto& prm : *p) {
-        if (prm.is_object() && prm.value("component_ref", false) && prm.contains("name") && prm["name"].is_string()) {
+        // Only a true boolean marks a reference (json::value() would throw on another type).
+        const auto ref = prm.is_object() ? prm.find("component_ref") : prm.end();
+        if (ref != prm.end() && ref->is_boolean() && ref->get<bool>() && prm.contains("name") &&
+            prm["name"].is_string()) {
           ci.refs.push_back(prm["name"].get<std::string>());
         }
       }

@@ -1,7 +1,6 @@
 // The only translation unit of ObjRecog that includes OpenCV.
 #include "obj_recog/camera_detector.h"
 
-#include "rack/rt/input_file.h"
 #include "obj_recog/obj_recog_types.h"
 
 #include <opencv2/aruco.hpp>
@@ -237,52 +236,6 @@ bool CameraDetector::detect(const CameraData& f, const CameraIntrinsics& k0, Obj
   out.object_count = n;
   out.frame = interfaces::kObjFrameCamera;
   return true;
-}
-
-CameraIntrinsics CameraDetector::load_calibration(const std::string& path) {
-  // A regular file of sane size: OpenCV would wait for ever on a FIFO.
-  constexpr uint64_t kMaxCalibrationBytes = 16u << 20;
-  std::string refused;
-  if (!rt::check_regular_file(path, kMaxCalibrationBytes, "calibration file", refused)) {
-    throw std::runtime_error("calibration: " + refused);
-  }
-  cv::FileStorage fs;
-  try {
-    fs.open(path, cv::FileStorage::READ);
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error("calibration '" + path + "': " + e.what());
-  }
-  if (!fs.isOpened()) throw std::runtime_error("calibration '" + path + "': cannot open or parse");
-  cv::Mat km, dm;
-  CameraIntrinsics k;
-  try {
-    fs["camera_matrix"] >> km;
-    fs["distortion_coefficients"] >> dm;
-    fs["image_width"] >> k.width;
-    fs["image_height"] >> k.height;
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error("calibration '" + path + "': " + e.what());
-  }
-  if (km.rows != 3 || km.cols != 3)
-    throw std::runtime_error("calibration '" + path + "': camera_matrix missing or not 3x3");
-  if (k.width <= 0 || k.height <= 0)
-    throw std::runtime_error("calibration '" + path + "': image_width/image_height missing");
-  km.convertTo(km, CV_64F);
-  k.fx = km.at<double>(0, 0);
-  k.fy = km.at<double>(1, 1);
-  k.cx = km.at<double>(0, 2);
-  k.cy = km.at<double>(1, 2);
-  if (!(k.fx > 0.0) || !(k.fy > 0.0))
-    throw std::runtime_error("calibration '" + path + "': camera_matrix focal lengths must be > 0");
-  if (!dm.empty()) {
-    dm.convertTo(dm, CV_64F);
-    if (dm.total() < 4)
-      throw std::runtime_error("calibration '" + path + "': distortion_coefficients needs 4 or 5 values");
-    for (std::size_t i = 0; i < std::min<std::size_t>(5, dm.total()); ++i)
-      k.distortion[i] = dm.at<double>(static_cast<int>(i));
-  }
-  k.valid = true;
-  return k;
 }
 
 }  // namespace rack::components

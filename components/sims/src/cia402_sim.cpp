@@ -339,6 +339,16 @@ void Cia402DriveSim::tick(double dt, int64_t now) {
   }
 }
 
+void Cia402DriveSim::receive(const uint8_t* data, std::size_t len) {
+  std::lock_guard lock(mutex_);
+  handle(data, len);
+}
+
+void Cia402DriveSim::advance(double dt_s, int64_t now_ns) {
+  std::lock_guard lock(mutex_);
+  tick(dt_s, now_ns);
+}
+
 void Cia402DriveSim::run() {
   int64_t last = rt::monotonic_ns();
   int64_t next = last + config_.tick_ns;

@@ -150,6 +150,21 @@ void HokuyoScipSim::handle_line(const std::string& line) {
   ack("0E");  // unknown command
 }
 
+void HokuyoScipSim::receive(const char* data, std::size_t n) {
+  std::lock_guard lock(mutex_);
+  take(data, n);
+}
+
+void HokuyoScipSim::take(const char* data, std::size_t n) {
+  input_.append(data, n);
+  for (std::size_t nl = input_.find_first_of("\r\n"); nl != std::string::npos; nl = input_.find_first_of("\r\n")) {
+    const std::string line = input_.substr(0, nl);
+    input_.erase(0, nl + 1);
+    if (!line.empty()) handle_line(line);
+  }
+  if (input_.size() > 1024) input_.clear();  // noise without line ends
+}
+
 void HokuyoScipSim::run() {
   const int64_t period = static_cast<int64_t>(60e9 / config_.scan_rpm);
   int64_t next_scan = rt::monotonic_ns() + period;
@@ -172,16 +187,7 @@ void HokuyoScipSim::run() {
     std::lock_guard lock(mutex_);
     if (pty_->master() >= 0) {
       const ssize_t n = ::read(pty_->master(), buf, sizeof buf);
-      if (n > 0) {
-        input_.append(buf, static_cast<std::size_t>(n));
-        for (std::size_t nl = input_.find_first_of("\r\n"); nl != std::string::npos;
-             nl = input_.find_first_of("\r\n")) {
-          const std::string line = input_.substr(0, nl);
-          input_.erase(0, nl + 1);
-          if (!line.empty()) handle_line(line);
-        }
-        if (input_.size() > 1024) input_.clear();  // noise without line ends
-      }
+      if (n > 0) take(buf, static_cast<std::size_t>(n));
     }
     if (rt::monotonic_ns() >= next_scan) {
       next_scan += period;

@@ -113,6 +113,18 @@ void SickLms1xxSim::handle(const std::string& t) {
   send("sFA 2");  // "method unknown"
 }
 
+void SickLms1xxSim::receive(const char* data, std::size_t n) {
+  input_.append(data, n);
+  for (;;) {
+    const std::size_t s = input_.find('\x02');
+    const std::size_t e = s == std::string::npos ? s : input_.find('\x03', s);
+    if (e == std::string::npos) break;
+    handle(input_.substr(s + 1, e - s - 1));
+    input_.erase(0, e + 1);
+  }
+  if (input_.size() > 4096) input_.clear();
+}
+
 void SickLms1xxSim::run() {
   const auto period = static_cast<int64_t>(1e11 / config_.frequency_centihz);
   int64_t next = rt::monotonic_ns() + period;
@@ -135,15 +147,7 @@ void SickLms1xxSim::run() {
     } else if ((p.revents & (POLLIN | POLLHUP | POLLERR)) != 0) {
       const ssize_t n = ::recv(client_, buf, sizeof buf, MSG_DONTWAIT);
       if (n > 0) {
-        input_.append(buf, static_cast<std::size_t>(n));
-        for (;;) {
-          const std::size_t s = input_.find('\x02');
-          const std::size_t e = s == std::string::npos ? s : input_.find('\x03', s);
-          if (e == std::string::npos) break;
-          handle(input_.substr(s + 1, e - s - 1));
-          input_.erase(0, e + 1);
-        }
-        if (input_.size() > 4096) input_.clear();
+        receive(buf, static_cast<std::size_t>(n));
       } else if (n == 0 || (errno != EAGAIN && errno != EINTR)) {
         ::close(client_);
         client_ = -1;

@@ -42,6 +42,9 @@ std::string read_first_line(const char* path) {
 }  // namespace
 
 bool parse_cpu_list(const std::string& text, std::vector<int>& out) {
+  // The kernel's NR_CPUS is at most 8192: a larger number is no CPU, and a list of more
+  // (a range up to INT_MAX, or ranges repeated) would fill memory before it ended.
+  constexpr int kMaxCpus = 8192;
   out.clear();
   std::stringstream ss(text);
   std::string part;
@@ -52,13 +55,14 @@ bool parse_cpu_list(const std::string& text, std::vector<int>& out) {
       std::size_t used = 0;
       if (dash == std::string::npos) {
         const int cpu = std::stoi(part, &used);
-        if (used != part.size() || cpu < 0) return false;
+        if (used != part.size() || cpu < 0 || cpu >= kMaxCpus || out.size() >= kMaxCpus) return false;
         out.push_back(cpu);
       } else {
         const std::string a = part.substr(0, dash), b = part.substr(dash + 1);
         std::size_t ua = 0, ub = 0;
         const int lo = std::stoi(a, &ua), hi = std::stoi(b, &ub);
-        if (ua != a.size() || ub != b.size() || lo < 0 || hi < lo) return false;
+        if (ua != a.size() || ub != b.size() || lo < 0 || hi < lo || hi >= kMaxCpus) return false;
+        if (out.size() + static_cast<std::size_t>(hi - lo + 1) > kMaxCpus) return false;
         for (int c = lo; c <= hi; ++c) out.push_back(c);
       }
     } catch (const std::exception&) {

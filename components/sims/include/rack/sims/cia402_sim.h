@@ -21,6 +21,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <mutex>
 #include <string>
@@ -75,6 +76,11 @@ class Cia402DriveSim {
   void drop_client();
   [[nodiscard]] DriveState state(uint8_t node) const;
   [[nodiscard]] bool has_client() const;
+  // For tests and tests/fuzz/fuzz_devsim.cpp, without start(): one packet from the bus
+  // as run() receives it (answers go to the attached socket, if any), and one tick of
+  // the drives' motion, dt_s after the last, at monotonic time now_ns (heartbeats).
+  void receive(const uint8_t* data, std::size_t len);
+  void advance(double dt_s, int64_t now_ns);
 
  private:
   struct Drive {

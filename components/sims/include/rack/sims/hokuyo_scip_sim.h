@@ -12,6 +12,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -50,9 +51,14 @@ class HokuyoScipSim {
   [[nodiscard]] bool streaming() const { return streaming_.load(); }
   // The range the simulator reports for a step (mm), for tests.
   [[nodiscard]] uint32_t range_mm(uint32_t step) const;
+  // Bytes from the driver, as run() reads them from the pty: each line (CR or LF) is a
+  // command, answered on the pty (nowhere before start()). For tests and
+  // tests/fuzz/fuzz_devsim.cpp, which drive the command parser without a pty.
+  void receive(const char* data, std::size_t n);
 
  private:
   void run();
+  void take(const char* data, std::size_t n);  // receive() with mutex_ held
   void handle_line(const std::string& line);
   void send_scan(const std::string& echo, const char* status, uint32_t first, uint32_t last, uint32_t cluster);
   void write(const std::string& s);

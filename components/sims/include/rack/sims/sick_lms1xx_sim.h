@@ -12,6 +12,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <mutex>
 #include <string>
@@ -44,6 +45,10 @@ class SickLms1xxSim {
   [[nodiscard]] bool streaming() const { return streaming_.load(); }
   [[nodiscard]] uint64_t scans_sent() const { return scans_.load(); }
   [[nodiscard]] double range_m(uint32_t index) const;  // what point `index` reports
+  // Bytes from the driver, as run() receives them from the client: each STX..ETX
+  // telegram is a command, answered to the client (nowhere without one). Only before
+  // start() (run() owns the input then): for tests and tests/fuzz/fuzz_devsim.cpp.
+  void receive(const char* data, std::size_t n);
 
  private:
   void run();

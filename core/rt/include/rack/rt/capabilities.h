@@ -21,7 +21,8 @@ struct RtCapabilities {
 
 [[nodiscard]] RtCapabilities probe_capabilities();
 
-// Parses a kernel CPU list such as "0-3,6,8-9". Returns false on malformed text.
+// Parses a kernel CPU list such as "0-3,6,8-9". Returns false on malformed text, on a
+// CPU number of 8192 or more (the kernel's NR_CPUS limit) and on more than 8192 CPUs.
 bool parse_cpu_list(const std::string& text, std::vector<int>& out);
 
 }  // namespace rack::rt
