@@ -385,10 +385,14 @@ int main(int argc, char** argv) {
       o.rpcs = 400;
       o.flood_seconds = 2;
     } else {
-      std::fprintf(stderr,
-                   "usage: bench_access [--cpu N] [--priority P] [--samples N] [--rpcs N] [--flood-seconds S]\n"
-                   "                    [--port PORT] [--quick] [--json FILE]\n");
-      return 2;
+      // -h: the usage on stdout, exit 0, as every other benchmark; anything else: exit 2.
+      const bool help = a == "-h" || a == "--help";
+      if (!help) std::fprintf(stderr, "bench_access: unknown option '%s'\n", a.c_str());
+      std::fputs(
+          "usage: bench_access [--cpu N] [--priority P] [--samples N] [--rpcs N] [--flood-seconds S]\n"
+          "                    [--port PORT] [--quick] [--json FILE]\n",
+          help ? stdout : stderr);
+      return help ? 0 : 2;
     }
   }
   (void)rack::rt::apply_memory_policy(64u << 20);

@@ -23,7 +23,15 @@ std::optional<std::string> read_host_bytes(const std::string& path, std::string&
   // O_NONBLOCK: opening a FIFO with no writer returns at once (then refused below).
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
   if (fd < 0) {
-    error = std::string("cannot read the host file: ") + std::strerror(errno);
+    const int e = errno;
+    error = std::string("cannot read the host file: ") + std::strerror(e);
+    // A relative name from another folder (`rackd configs/demo.yaml` outside the
+    // source tree) is the usual miss: say where it was looked for.
+    if (e == ENOENT && !path.empty() && path.front() != '/') {
+      char cwd[4096];
+      if (::getcwd(cwd, sizeof cwd) != nullptr)
+        error += std::string(" (looked for from the working directory ") + cwd + ")";
+    }
     return std::nullopt;
   }
   struct Closer {

@@ -39,6 +39,11 @@ void HostPaths::check_parameter_paths(const YAML::Node& node, const std::string&
     if (::stat(target.c_str(), &st) != 0) {
       const int e = errno;
       problem = std::string(what) + target + ": " + std::strerror(e);
+      // A log shipped compressed (bench/data/carmen): say how to get the file read.
+      struct stat gz {};
+      if (e == ENOENT && role == PathRole::kInput && ::stat((target + ".gz").c_str(), &gz) == 0) {
+        problem += " (" + target + ".gz is beside it: unpack it with gunzip -k " + target + ".gz)";
+      }
     } else if (role != PathRole::kInput && !S_ISDIR(st.st_mode)) {
       problem = target + ": not a folder";
     }

@@ -99,6 +99,11 @@ KeyFile load_key_file(const std::string& path) {
   if (!file.open(path, kMaxKeyFileBytes, "key file", error)) {
     out.keys.clear();
     out.error = error;
+    // The first run of a keyed host file (configs/access_control.yaml): say how to make one.
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0 && errno == ENOENT) {
+      out.error += " (make one with: rackctl keygen " + path + "; the same file on every host of the network)";
+    }
     return out;
   }
   if ((file.mode() & 077) != 0) {

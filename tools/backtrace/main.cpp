@@ -7,6 +7,7 @@
 #include <elfutils/libdw.h>
 #include <elfutils/libdwfl.h>
 #include <dwarf.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -379,6 +380,14 @@ int main(int argc, char** argv) {
       o.inputs.push_back(a);
     }
   }
-  if (o.inputs.empty()) o.inputs.push_back("-");
+  if (o.inputs.empty()) {
+    o.inputs.push_back("-");
+    // Run by hand without a file it waits for a report on the terminal: say so.
+    if (::isatty(STDIN_FILENO) != 0) {
+      std::fprintf(stderr,
+                   "rack-backtrace: no report file given: reading a report from standard input (Ctrl-D ends it);\n"
+                   "  rack-backtrace /var/tmp/rack/rackd-PID.report (rackd's crash_dir) for a file, --help for more\n");
+    }
+  }
   return run(o);
 }

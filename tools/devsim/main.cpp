@@ -133,7 +133,28 @@ int main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &s, nullptr);
   const std::string device = argv[1];
   const auto o = parse_options(argc, argv, 2);
+  // The options each device takes (kUsage): another one is a usage error, never
+  // ignored (a typo such as --rat 10 ran at the default rate, saying nothing).
+  static const std::map<std::string, std::vector<std::string>> kDeviceOptions = {
+      {"gps", {"link", "rate", "lat", "lon", "alt", "speed", "course", "fault", "duration"}},
+      {"cia402", {"socket", "can", "nodes", "duration"}},
+      {"hokuyo", {"link", "rpm", "front", "side", "fault", "duration"}},
+      {"sick", {"port", "fault", "duration"}},
+      {"joystick", {"fifo", "forward", "turn", "deadman", "period-ms", "duration"}}};
+  if (const auto known = kDeviceOptions.find(device); known != kDeviceOptions.end()) {
+    for (const auto& option : o) {
+      if (std::find(known->second.begin(), known->second.end(), option.first) == known->second.end()) {
+        std::fprintf(stderr, "rack-devsim %s: unknown option '--%s' (rack-devsim --help lists each device's)\n",
+                     device.c_str(), option.first.c_str());
+        return 2;
+      }
+    }
+  }
   const double duration = number(o, "duration", 0.0);
+  if (duration < 0) {
+    std::fprintf(stderr, "rack-devsim: --duration needs seconds >= 0 (0: until SIGINT/SIGTERM)\n");
+    return 2;
+  }
   try {
     if (device == "gps") {
       rack::sims::NmeaGpsSim::Config c;
@@ -256,7 +277,10 @@ int main(int argc, char** argv) {
       const double fwd = std::clamp(number(o, "forward", 0.5), -1.0, 1.0);
       const double turn = std::clamp(number(o, "turn", 0.0), -1.0, 1.0);
       const int deadman = static_cast<int>(number(o, "deadman", -1));
-      const auto period = static_cast<int64_t>(number(o, "period-ms", 100));
+      const double period_ms = number(o, "period-ms", 100);
+      // 0 or less repeated the state without pause (a core spinning on the FIFO).
+      if (period_ms < 1 || period_ms > 60000) throw std::runtime_error("--period-ms must be in 1..60000");
+      const auto period = static_cast<int64_t>(period_ms);
       auto write_state = [&] {
         auto ev = [&](uint8_t type, uint8_t n, double v) {
           js_event e{};

@@ -55,7 +55,19 @@ struct HttpServer::Impl : std::enable_shared_from_this<HttpServer::Impl> {
     if (!ec) acceptor.bind(ep, ec);
     if (!ec) acceptor.listen(net::socket_base::max_listen_connections, ec);
     if (ec) {
-      throw std::runtime_error("cannot listen on " + address + ":" + std::to_string(port) + ": " + ec.message());
+      // What to do about the two a user meets (another program on the port, a port
+      // below 1024), beside the system's text.
+      std::string hint;
+      if (ec == net::error::address_in_use) {
+        hint =
+            " (another program, maybe another rack-gui, listens there: --port PORT for another, --port 0 for "
+            "any free one)";
+      } else if (ec == net::error::access_denied) {
+        hint = " (a port below 1024 needs root or CAP_NET_BIND_SERVICE: --port 8080, or any above 1023)";
+      } else if (ec == boost::system::errc::address_not_available) {
+        hint = " (not an address of this machine: --address 127.0.0.1, or 0.0.0.0 for every interface)";
+      }
+      throw std::runtime_error("cannot listen on " + address + ":" + std::to_string(port) + ": " + ec.message() + hint);
     }
   }
 

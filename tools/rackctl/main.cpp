@@ -94,15 +94,15 @@ constexpr const char* kUsage = R"(usage: rackctl [options] COMMAND [ARGS]
 Controls the components of running rackd executors over TiMS/LCM.
 
 commands:
-  list                          every component that answers discovery, with its state
-  classes [HOST]                the component classes running (on HOST) as they
+  list [--json]                 every component that answers discovery, with its state
+  classes [HOST] [--json]       the component classes running (on HOST) as they
                                 describe themselves: data fields, commands, parameters
-  hosts                         every host that answers discovery: system, role, network
+  hosts [--json]                every host that answers discovery: system, role, network
   on NAME                       switch a component on (answered when its on() finished)
   off NAME                      switch a component off
-  status NAME                   state and timing statistics (--json: one JSON object)
-  latency NAME                  the data task's wake-up latency histogram, overruns
-  params NAME                   the component's runtime parameters
+  status NAME [--json]          state and timing statistics (--json: one JSON object)
+  latency NAME [--json]         the data task's wake-up latency histogram, overruns
+  params NAME [--json]          the component's runtime parameters
   set-param NAME KEY VALUE      set one parameter (VALUE is parsed as the parameter's kind)
   get-data NAME [--time T]      one sample as a JSON line
   watch NAME [--period MS] [--count N]
@@ -110,23 +110,25 @@ commands:
   send NAME CMD [FIELD=VALUE ...] [--i64 N]
                                 a class command (number 21..127 or its name, e.g.
                                 INIT) with its body, and the reply
-  hz NAME [--window N]          rate of a data stream: min/max/mean/std of its period
-  bw NAME [--window N]          bandwidth of a data stream, message sizes
+  hz NAME [--window N] [--period MS] [--count N] [--json]
+                                rate of a data stream: min/max/mean/std of its period
+  bw NAME [--window N] [--period MS] [--count N] [--json]
+                                bandwidth of a data stream, message sizes
   doctor [--json]               check this host for real time (RT limits, memlock,
                                 multicast route, rmem_max, PREEMPT_RT, ...), each
                                 with the fix
   keygen FILE                   write a new TiMS link key file (mode 0600) for key_file
   threads [PID]                 where each thread of a rackd on this machine runs (CPUs,
                                 scheduling): checks the host file's 'cpus:' partitioning
-  trace --duration S --out FILE [NAME ...|all]
+  trace --duration S --out FILE [--host HOST] [NAME ...|all]
                                 record the task timeline of one host (Chrome JSON
                                 trace: open it in ui.perfetto.dev or chrome://tracing)
-  graph [--live] [--format dot|svg|json] FILE|DIR ...
+  graph [--live] [--format dot|svg|json] [--out FILE] [--rackd PATH] FILE|DIR ...
                                 the deployment of these host files as a graph:
                                 hosts, components, tasks, data flows, networks
                                 (--live: the flows that run too; without FILE,
                                 what discovery finds)
-  alloc [--live] [--json] FILE|DIR ...
+  alloc [--live] [--json] [--rackd PATH] FILE|DIR ...
                                 RT tasks per CPU of each host, priority
                                 inversions flagged (--live: utilisation, latency;
                                 without FILE, what runs: priorities and CPUs as
@@ -242,6 +244,12 @@ std::string double_text(double v) {
 
 std::string quoted(const std::string& s) { return "\"" + rack::json_escape(s) + "\""; }
 
+// What a user whose discovery found nothing can do (the first thing a new user meets
+// when no rackd runs, or it runs on another network).
+constexpr const char* kNoneAnsweredHint =
+    ": is a rackd running on this network? (start one: rackd configs/demo.yaml; another network: --lcm URL or "
+    "--host-file FILE; a slow one: --discover-ms MS)";
+
 using rack::client::error_reason;
 
 const char* reply_name(int8_t type) {
@@ -311,7 +319,7 @@ class Session : public rack::client::Session {
       const auto found = find_by_class(cls, numeric.system(), numeric.instance());
       if (!found) {
         fail(kExitUnavailable, format("no component of a class named '%s' at system %u, instance %u answered "
-                                      "discovery within %lld ms on %s",
+                                      "discovery within %lld ms on %s (rackctl list shows the components that answer)",
                                       cls.c_str(), numeric.system(), numeric.instance(),
                                       static_cast<long long>(options_.discover_ms), url().c_str()));
       }
@@ -322,8 +330,9 @@ class Session : public rack::client::Session {
     }
     const auto found = find_component(text);
     if (!found) {
-      fail(kExitUnavailable, format("no component named '%s' answered discovery within %lld ms on %s", text.c_str(),
-                                    static_cast<long long>(options_.discover_ms), url().c_str()));
+      fail(kExitUnavailable, format("no component named '%s' answered discovery within %lld ms on %s (rackctl list "
+                                    "shows the components that answer)",
+                                    text.c_str(), static_cast<long long>(options_.discover_ms), url().c_str()));
     }
     Target t{found->address.component(), found->name, ""};
     name_class(t);
@@ -399,8 +408,8 @@ int cmd_list(Session& s, const Options& o) {
   std::sort(rows.begin(), rows.end(),
             [](const Row& a, const Row& b) { return a.info.address.raw() < b.info.address.raw(); });
   if (rows.empty()) {
-    fail(kExitUnavailable, format("no rackd answered discovery within %lld ms on %s",
-                                  static_cast<long long>(o.discover_ms), s.url().c_str()));
+    fail(kExitUnavailable, format("no rackd answered discovery within %lld ms on %s%s",
+                                  static_cast<long long>(o.discover_ms), s.url().c_str(), kNoneAnsweredHint));
   }
   // GET_STATUS to every component, a window of them at a time, each retried when
   // its reply did not come within --timeout (Session::fan_out).
@@ -455,8 +464,8 @@ int cmd_list(Session& s, const Options& o) {
 int cmd_hosts(Session& s, const Options& o) {
   auto hosts = s.discover([](const std::vector<tims::HostInfo>&) { return false; });
   if (hosts.empty()) {
-    fail(kExitUnavailable, format("no host answered discovery within %lld ms on %s",
-                                  static_cast<long long>(o.discover_ms), s.url().c_str()));
+    fail(kExitUnavailable, format("no host answered discovery within %lld ms on %s%s",
+                                  static_cast<long long>(o.discover_ms), s.url().c_str(), kNoneAnsweredHint));
   }
   std::sort(hosts.begin(), hosts.end(), [](const tims::HostInfo& a, const tims::HostInfo& b) {
     return a.system != b.system ? a.system < b.system : a.host_id < b.host_id;
@@ -544,6 +553,10 @@ int cmd_trace(Session& s, const Options& o) {
     fail(kExitUsage, "several hosts answered (" + list + "): say which with --host HOST, or name components");
   }
   const tims::HostInfo* host = pick(hosts);
+  if (hosts.empty()) {
+    fail(kExitUnavailable, format("no rackd answered discovery within %lld ms on %s%s",
+                                  static_cast<long long>(o.discover_ms), s.url().c_str(), kNoneAnsweredHint));
+  }
   if (host == nullptr) {
     std::string what = all ? "no host" : "no host with every component of '" + joined + "'";
     if (!o.host.empty()) what += " named '" + o.host + "'";
@@ -907,10 +920,11 @@ int cmd_classes(Session& s, const Options& o) {
     for (const auto& c : h.components) seen.try_emplace(c.address.raw() & 0xFFFF0000u, c.address.component(), h.host);
   }
   if (seen.empty()) {
-    fail(kExitUnavailable, only.empty() ? format("no rackd answered discovery within %lld ms on %s",
-                                                 static_cast<long long>(o.discover_ms), s.url().c_str())
-                                        : format("no host '%s' with components answered discovery within %lld ms on %s",
-                                                 only.c_str(), static_cast<long long>(o.discover_ms), s.url().c_str()));
+    fail(kExitUnavailable, only.empty()
+                               ? format("no rackd answered discovery within %lld ms on %s%s",
+                                        static_cast<long long>(o.discover_ms), s.url().c_str(), kNoneAnsweredHint)
+                               : format("no host '%s' with components answered discovery within %lld ms on %s",
+                                        only.c_str(), static_cast<long long>(o.discover_ms), s.url().c_str()));
   }
   std::vector<Address> components;
   for (const auto& [key, where] : seen) components.push_back(where.first);

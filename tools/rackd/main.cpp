@@ -348,7 +348,7 @@ static int run_rackd(int argc, char** argv) {
     const std::string a = argv[i];
     auto value = [&](const char* what) -> std::string {
       if (i + 1 >= argc) {
-        std::fprintf(stderr, "rackd: %s needs %s\n%s", a.c_str(), what, kUsage);
+        std::fprintf(stderr, "rackd: %s needs %s (rackd --help lists the options)\n", a.c_str(), what);
         std::exit(2);
       }
       return argv[++i];
@@ -389,7 +389,7 @@ static int run_rackd(int argc, char** argv) {
     else if (a == "--lcm") lcm_url = value("an LCM URL");
     else if (a == "--crash-dir") crash_dir = value("a directory");
     else if (!a.empty() && a[0] == '-') {
-      std::fprintf(stderr, "rackd: unknown option '%s'\n%s", a.c_str(), kUsage);
+      std::fprintf(stderr, "rackd: unknown option '%s' (rackd --help lists the options)\n", a.c_str());
       return 2;
     } else if (file.empty()) file = a;
     else more_files.push_back(a);
@@ -403,7 +403,14 @@ static int run_rackd(int argc, char** argv) {
     return 2;
   }
   if (file.empty() && !classes) {
-    std::fprintf(stderr, "rackd: no host file given\n%s", kUsage);
+    // What to do, in a few lines: the whole usage would scroll this line away.
+    std::fprintf(stderr,
+                 "rackd: no host file given: rackd HOSTFILE.yaml [options]\n"
+                 "  e.g. rackd configs/demo.yaml --status 1     (every key, commented; installed: in\n"
+                 "                                               <prefix>/share/rack/configs)\n"
+                 "       rackd --check FILE.yaml                 (validate a host file only)\n"
+                 "       rackd --list-classes                    (the component classes)\n"
+                 "  rackd --help for every option\n");
     return 2;
   }
   // Before the first thread: service threads get 1 MiB stacks (locked whole by
@@ -488,7 +495,9 @@ static int run_rackd(int argc, char** argv) {
     if (!caps.sched_fifo) missing += " SCHED_FIFO rights (CAP_SYS_NICE or an rtprio limit);";
     if (!caps.memlock) missing += " memory locking (CAP_IPC_LOCK or an unlimited memlock limit);";
     if (!caps.preempt_rt) missing += " a PREEMPT_RT kernel;";
-    std::fprintf(stderr, "rackd: %s demands real time (require_rt: true) but this host lacks:%s refusing to start.\n",
+    std::fprintf(stderr,
+                 "rackd: %s demands real time (require_rt: true) but this host lacks:%s refusing to start. "
+                 "`rackctl doctor` prints the fix for each.\n",
                  file.c_str(), missing.c_str());
     return 1;
   }
@@ -498,7 +507,9 @@ static int run_rackd(int argc, char** argv) {
     if (!caps.memlock) why += std::string(why.empty() ? "" : ", ") + "memory cannot be locked";
     std::fprintf(stderr,
                  "rackd: WARNING: no real-time rights (%s): tasks run with normal scheduling and timing is not "
-                 "guaranteed. Run as root or grant CAP_SYS_NICE and CAP_IPC_LOCK.\n",
+                 "guaranteed. Run as root, grant CAP_SYS_NICE and CAP_IPC_LOCK, or give this user 'rtprio 99' and "
+                 "'memlock unlimited' in /etc/security/limits.conf (log in again); `rackctl doctor` checks this "
+                 "machine and prints each fix (README \"Real-time set-up on a robot\").\n",
                  why.c_str());
   }
   if (!caps.preempt_rt) {

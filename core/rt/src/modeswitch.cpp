@@ -1148,7 +1148,11 @@ StartResult start(const Config& config) {
     const std::string path = config.crash_dir + "/" + config.program + "-" + std::to_string(getpid()) + ".report";
     g_report_fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
     if (g_report_fd < 0) {
-      result.notes.push_back("report file " + path + ": " + std::strerror(errno) + " (reports go to stderr only)");
+      const int e = errno;
+      // A user without write access to the default /var/tmp/rack (not root): say how to choose another.
+      result.notes.push_back("report file " + path + ": " + std::strerror(e) +
+                             " (reports go to stderr only; rackd --crash-dir DIR or the host file's modeswitch: "
+                             "crash_dir: names a folder this user may write)");
     } else {
       copy_text(g_report_path, sizeof g_report_path, path.c_str());
       result.report_path = path;
