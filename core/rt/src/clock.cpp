@@ -1,5 +1,7 @@
 #include "rack/rt/clock.h"
 
+#include <pthread.h>
+
 #include <cerrno>
 #include <stdexcept>
 
@@ -12,6 +14,19 @@ namespace {
 // pointer load); acquire pairs with the release in the constructor so that a task
 // that sees the pointer also sees the clock's initial time.
 std::atomic<VirtualClock*> g_virtual{nullptr};
+// The thread that installed it: the one that steps (rack/core/stepper.h), whose sleeps
+// are time passing. pthread_t is an unsigned long here (lock-free); written after the
+// install, so another thread may read the previous owner a moment: it is not this one.
+std::atomic<pthread_t> g_owner{};
+
+// Sleeps on the kernel's clock until `deadline_ns` of CLOCK_MONOTONIC, retrying on EINTR.
+void kernel_sleep_until(int64_t deadline_ns) noexcept {
+  const timespec ts = to_timespec(deadline_ns);
+  modeswitch::TrustedScope trusted(true);  // the one blocking call a periodic task makes
+  // clock_nanosleep returns the error number directly (not via errno).
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
 
 int64_t read(clockid_t id) noexcept {
   timespec ts{};
@@ -42,14 +57,20 @@ VirtualClock* virtual_clock() noexcept { return g_virtual.load(std::memory_order
 
 void sleep_until_monotonic(int64_t deadline_ns) noexcept {
   if (VirtualClock* v = g_virtual.load(std::memory_order_acquire); v != nullptr) [[unlikely]] {
-    (void)v->advance_to(deadline_ns);
+    // Only the stepping thread's sleep is time passing. Any other thread (LCM's, an I/O
+    // worker) sleeps as long on the kernel's clock and moves nothing: LcmTransport's
+    // maintenance loop (rt::sleep_for(50 ms) a turn) moved the clock 50 ms a turn at
+    // full speed, minutes of virtual time within a stepped test's 51 ms (the CI failure
+    // of PlaybackTest.LadarAndOdometryPlaybackFeedALiveScan2d...).
+    if (pthread_equal(g_owner.load(std::memory_order_acquire), pthread_self()) != 0) {
+      (void)v->advance_to(deadline_ns);
+      return;
+    }
+    const int64_t left = deadline_ns - v->now_ns();
+    if (left > 0) kernel_sleep_until(os_monotonic_ns() + left);
     return;
   }
-  const timespec ts = to_timespec(deadline_ns);
-  modeswitch::TrustedScope trusted(true);  // the one blocking call a periodic task makes
-  // clock_nanosleep returns the error number directly (not via errno).
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
+  kernel_sleep_until(deadline_ns);
 }
 
 void sleep_for(int64_t duration_ns) noexcept {
@@ -63,6 +84,7 @@ VirtualClock::VirtualClock(int64_t start_ns, int64_t host_start_ns)
   if (!g_virtual.compare_exchange_strong(expected, this, std::memory_order_acq_rel)) {
     throw std::logic_error("rt::VirtualClock: another virtual clock is installed already");
   }
+  g_owner.store(pthread_self(), std::memory_order_release);  // pairs with the sleeps' acquire
 }
 
 VirtualClock::~VirtualClock() {
