@@ -21,6 +21,7 @@
 #include <cstring>
 #include <iostream>
 #include <stdexcept>
+#include <thread>
 
 namespace rack {
 
@@ -275,6 +276,14 @@ void Executor::step(const std::string& what) {
 void Executor::start() {
   if (started_) return;
   const HostSettings& hs = host_->settings;
+  // Stepped: the stepping thread alone runs the components (rack/core/stepper.h). LCM's
+  // threads would deliver messages and run command passes beside it, and a host on the
+  // default bus hears every other process on it. PlaybackTest's pipeline host had LCM on
+  // (its transport's threads moved the virtual clock: the CI failure of 38aa000).
+  if (options_.stepped && hs.lcm) {
+    throw std::logic_error(
+        "a stepped executor (ExecutorOptions::stepped) runs without LCM: its host file needs 'lcm: false'");
+  }
   const std::string url = first_network_url(hs, options_.lcm_url_override);
   // Checked before anything opens them (the host file loader checked its own; this
   // catches --lcm and hosts built in code): LCM itself only prints "invalid URL".
@@ -443,8 +452,12 @@ void Executor::start_io_workers() {
             }
           },
           false);
-      // Its id for thread_report(): the worker sets it first thing (bounded wait).
-      for (int i = 0; i < 1000 && self->tid.load(std::memory_order_acquire) == 0; ++i) rt::sleep_for(rt::kNsPerMs);
+      // Its id for thread_report(): the worker sets it first thing (bounded wait). On the
+      // kernel's clock: waiting for a real thread is not time passing on a stepped
+      // executor's virtual clock (rt::sleep_for moved it up to 1 s here).
+      for (int i = 0; i < 1000 && self->tid.load(std::memory_order_acquire) == 0; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
     }
   }
 }

@@ -112,6 +112,7 @@ class IoWorkerComponent final : public Component {
   static inline std::atomic<int> running{0};               // bodies running now
   static inline std::atomic<int> ran{0};                   // bodies that ran
   static inline std::atomic<bool> body_at_cleanup{false};  // a body still ran when cleanup() came
+  static inline std::atomic<int> turns{0};                 // sleeps the bodies have ended
   explicit IoWorkerComponent(bool fail_init) : fail_init_(fail_init) {}
 
  protected:
@@ -121,7 +122,10 @@ class IoWorkerComponent final : public Component {
         [this] {
           running.fetch_add(1);
           ran.fetch_add(1);
-          while (!stop_.load(std::memory_order_acquire)) rt::sleep_for(2 * rt::kNsPerMs);
+          while (!stop_.load(std::memory_order_acquire)) {
+            rt::sleep_for(2 * rt::kNsPerMs);
+            turns.fetch_add(1);
+          }
           running.fetch_sub(1);
         },
         [this] { stop_.store(true, std::memory_order_release); });
@@ -216,6 +220,34 @@ components:
     EXPECT_FALSE(IoWorkerComponent::body_at_cleanup.load()) << "the worker ended before cleanup()";
   }
   EXPECT_EQ(IoWorkerComponent::ran.load(), 1) << "the worker of the component whose init() failed never ran";
+}
+
+// A stepped executor (rack/core/stepper.h) keeps the I/O workers' real threads: they
+// run on the kernel's clock and never move the virtual one. Neither start-up's wait for
+// the worker's thread id nor the worker's own rt::sleep_for() is time passing for the
+// stepped components (a real thread that sleeps in a loop moved it at full speed).
+TEST(IoWorkerTest, ASteppedExecutorsWorkerLeavesTheVirtualClockAlone) {
+  Watchdog watchdog;
+  IoWorkerComponent::running = 0;
+  IoWorkerComponent::turns = 0;
+  {
+    HostUnderTest host(R"(system: 0
+lcm: false
+components:
+  - {name: io, class: IoWorkerOk, instance: 1}
+)",
+                       register_io_classes, false, test::Stepping::kStepped);
+    Stepper& s = host.stepper();
+    const int64_t t0 = rt::VirtualClock::kDefaultStartNs;
+    EXPECT_EQ(s.now_ns(), t0) << "start-up's wait for the worker's thread moved the virtual clock";
+    ASSERT_TRUE(test::eventually([] { return IoWorkerComponent::turns.load() >= 5; }));
+    EXPECT_EQ(s.now_ns(), t0) << IoWorkerComponent::turns.load()
+                              << " turns of the worker's rt::sleep_for(2 ms) moved the virtual clock";
+    EXPECT_EQ(s.run_for(100 * rt::kNsPerMs), 0u);  // no data task
+    EXPECT_EQ(s.now_ns(), t0 + 100 * rt::kNsPerMs) << "only the stepper moves it";
+    host.executor().stop();
+    EXPECT_EQ(IoWorkerComponent::running.load(), 0) << "stop() stopped and joined the worker";
+  }
 }
 
 // ---- compute workers -----------------------------------------------------------

@@ -84,6 +84,7 @@ TEST(PlaybackTest, PublishesWhatItIsSentWithTheRecordedTimeAndRefusesTheRest) {
 
 const char* kPipeline = R"(host: playback-pipeline-test
 system: 0
+lcm: false
 components:
   - name: ladar
     class: LadarPlayback

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "rack/core/stepper.h"
 #include "monitor/monitor_types.h"
@@ -51,6 +52,48 @@ TEST(VirtualClockTest, ClockReadsAndSleepsFollowItWhileItIsInstalled) {
   EXPECT_EQ(rt::virtual_clock(), nullptr);
   const int64_t a = rt::monotonic_ns();
   EXPECT_GE(rt::os_monotonic_ns(), a);
+}
+
+// Only the stepping thread's sleeps are time passing. Another thread's (LCM's, an I/O
+// worker's) sleeps as long on the kernel's clock and leaves the virtual one alone:
+// LcmTransport's maintenance loop, rt::sleep_for(50 ms) a turn, used to move it at
+// full speed (minutes of virtual time in PlaybackTest's 51 ms on CI).
+TEST(VirtualClockTest, AnotherThreadsSleepWaitsOnTheKernelsClockAndMovesNothing) {
+  Watchdog dog;
+  rt::VirtualClock clock(5 * rt::kNsPerSec, 100 * rt::kNsPerSec);
+  int64_t seen = 0;
+  int64_t slept_ns = 0;
+  std::thread other([&] {
+    const int64_t before = rt::os_monotonic_ns();
+    rt::sleep_for(3 * kMs);
+    rt::sleep_until_monotonic(5 * rt::kNsPerSec + 2 * kMs);  // 2 ms of virtual time ahead
+    rt::sleep_until_monotonic(rt::kNsPerSec);                // past: no wait
+    slept_ns = rt::os_monotonic_ns() - before;
+    seen = rt::monotonic_ns();
+  });
+  other.join();
+  EXPECT_EQ(clock.now_ns(), 5 * rt::kNsPerSec) << "another thread's sleep moved the virtual clock";
+  EXPECT_EQ(seen, 5 * rt::kNsPerSec);
+  EXPECT_GE(slept_ns, 5 * kMs) << "it did not sleep on the kernel's clock as long as asked";
+  rt::sleep_for(3 * kMs);  // the installing thread's sleep still is time passing
+  EXPECT_EQ(clock.now_ns(), 5 * rt::kNsPerSec + 3 * kMs);
+}
+
+// A stepped executor runs without LCM: its transport's threads would serve messages
+// beside the stepping thread (and move the clock, see above).
+TEST(StepperTest, ASteppedExecutorRefusesAHostWithLcm) {
+  Watchdog dog;
+  const std::string yaml = R"(system: 0
+components:
+  - {name: gen, class: Generator, instance: 1, data_task: {period_ms: 10, ring: 8}}
+)";
+  try {
+    HostUnderTest host(yaml, {}, false, Stepping::kStepped);
+    ADD_FAILURE() << "a stepped executor started with LCM on";
+  } catch (const std::logic_error& e) {
+    EXPECT_NE(std::string(e.what()).find("lcm: false"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(rt::virtual_clock(), nullptr);
 }
 
 TEST(StepperTest, RequestsAreAnsweredAtOnceWithoutTaskThreads) {

@@ -1,5 +1,7 @@
 #include "rack/rt/clock.h"
 
+#include <pthread.h>
+
 #include <cerrno>
 #include <stdexcept>
 
@@ -12,11 +14,26 @@ namespace {
 // pointer load); acquire pairs with the release in the constructor so that a task
 // that sees the pointer also sees the clock's initial time.
 std::atomic<VirtualClock*> g_virtual{nullptr};
+// The thread that installed it: the one that steps (rack/core/stepper.h), whose sleeps
+// are time passing. pthread_t is an unsigned long here (lock-free); written after the
+// install, so another thread may read the previous owner a moment: it is not this one.
+std::atomic<pthread_t> g_owner{};
 
 int64_t read(clockid_t id) noexcept {
   timespec ts{};
   clock_gettime(id, &ts);
   return from_timespec(ts);
+}
+
+// Sleeps on the kernel's clock until `deadline_ns` of CLOCK_MONOTONIC, retrying on EINTR,
+// and returns CLOCK_MONOTONIC read right after the kernel returned (the wake-up).
+int64_t kernel_sleep_until(int64_t deadline_ns) noexcept {
+  const timespec ts = to_timespec(deadline_ns);
+  modeswitch::TrustedScope trusted(true);  // the one blocking call a periodic task makes
+  // clock_nanosleep returns the error number directly (not via errno).
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+  return read(CLOCK_MONOTONIC);
 }
 }  // namespace
 
@@ -42,14 +59,19 @@ VirtualClock* virtual_clock() noexcept { return g_virtual.load(std::memory_order
 
 int64_t sleep_until_monotonic(int64_t deadline_ns) noexcept {
   if (VirtualClock* v = g_virtual.load(std::memory_order_acquire); v != nullptr) [[unlikely]] {
-    return v->advance_to(deadline_ns);
+    // Only the stepping thread's sleep is time passing. Any other thread (LCM's, an I/O
+    // worker) sleeps as long on the kernel's clock and moves nothing: LcmTransport's
+    // maintenance loop (rt::sleep_for(50 ms) a turn) moved the clock 50 ms a turn at
+    // full speed, minutes of virtual time within a stepped test's 51 ms (the CI failure
+    // of PlaybackTest.LadarAndOdometryPlaybackFeedALiveScan2d...).
+    if (pthread_equal(g_owner.load(std::memory_order_acquire), pthread_self()) != 0) {
+      return v->advance_to(deadline_ns);
+    }
+    const int64_t left = deadline_ns - v->now_ns();
+    if (left > 0) (void)kernel_sleep_until(os_monotonic_ns() + left);
+    return v->now_ns();
   }
-  const timespec ts = to_timespec(deadline_ns);
-  modeswitch::TrustedScope trusted(true);  // the one blocking call a periodic task makes
-  // clock_nanosleep returns the error number directly (not via errno).
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
-  return read(CLOCK_MONOTONIC);
+  return kernel_sleep_until(deadline_ns);
 }
 
 void sleep_for(int64_t duration_ns) noexcept {
@@ -63,6 +85,7 @@ VirtualClock::VirtualClock(int64_t start_ns, int64_t host_start_ns)
   if (!g_virtual.compare_exchange_strong(expected, this, std::memory_order_acq_rel)) {
     throw std::logic_error("rt::VirtualClock: another virtual clock is installed already");
   }
+  g_owner.store(pthread_self(), std::memory_order_release);  // pairs with the sleeps' acquire
 }
 
 VirtualClock::~VirtualClock() {

@@ -88,7 +88,7 @@ struct ExecutorOptions {
   // Stepped (tests; rack/core/stepper.h): no task threads. The command tasks serve a
   // request in the sender's thread as it is sent, the data tasks run when a Stepper
   // steps them, on the rt::VirtualClock the test installed before start(). For hosts
-  // without LCM (`lcm: false`).
+  // without LCM (`lcm: false`): start() throws std::logic_error for one with LCM.
   bool stepped = false;
 };
 

@@ -37,8 +37,8 @@
 //
 // What differs from the threads: a command for a component whose data task is in
 // loop() at that moment (a loop() that calls its own component) waits until loop()
-// returns, so such a call times out (real time: rpc_timeout). Messages over LCM are
-// not served synchronously: use `lcm: false`. A compute worker's job runs after the
+// returns, so such a call times out (real time: rpc_timeout). A host with LCM is
+// refused (start() throws: use `lcm: false`). A compute worker's job runs after the
 // poster's own share of the work instead of beside it (the same result, not in
 // parallel); rackd's thread listing has no compute worker to show.
 //

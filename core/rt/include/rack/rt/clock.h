@@ -5,7 +5,7 @@
 //
 // A virtual clock for tests (Orocos' SlaveActivity, rack/core/stepper.h): while a
 // VirtualClock exists, monotonic_ns() and host_time_ns() read it instead of the
-// kernel, and the sleeps below move it forward instead of sleeping. The task loops,
+// kernel, and the stepping thread's sleeps move it instead of sleeping. The task loops,
 // the components and the mailboxes' logic all ask monotonic_ns(), so a test that
 // steps an executor (ExecutorOptions::stepped) drives every deadline, period,
 // watchdog and silence limit with advance(). Without one installed (rackd, every
@@ -50,8 +50,9 @@ inline constexpr int64_t kNsPerSec = 1'000'000'000;
 // Sleeps until the absolute CLOCK_MONOTONIC time (TIMER_ABSTIME), retrying on EINTR,
 // and returns the monotonic time read right after the kernel returned: the wake-up, taken
 // where cyclictest takes it, before the caller's own code touches its (possibly cold)
-// state. With a VirtualClock installed: moves it to `deadline_ns` (if that is later) and
-// returns its time at once (a stepped executor has one thread: sleeping is time passing).
+// state. With a VirtualClock installed, on the thread that installed it (the stepping
+// one): moves it to `deadline_ns` (if later) and returns its time at once; elsewhere see
+// VirtualClock.
 // RT-safe (clock_nanosleep is the one blocking call a periodic task makes).
 int64_t sleep_until_monotonic(int64_t deadline_ns) noexcept;
 
@@ -59,9 +60,9 @@ int64_t sleep_until_monotonic(int64_t deadline_ns) noexcept;
 void sleep_for(int64_t duration_ns) noexcept;
 
 // A clock that moves only when told to, installed for the process while it exists
-// (one at a time: a second one throws std::logic_error). For tests that step an
-// executor (rack/core/stepper.h); threaded executors keep running on it, but their
-// kernel waits do not follow it, so install it only around stepped ones.
+// (one at a time: a second one throws std::logic_error), for tests that step an executor
+// (rack/core/stepper.h). Only its installing thread's sleeps move it; another thread's
+// sleep waits as long on the kernel's clock (a real thread's sleep is not time passing).
 //
 //   rt::VirtualClock clock;                 // monotonic_ns() == clock.now_ns() now
 //   clock.advance(10 * rt::kNsPerMs);       // 10 ms later, for every reader
