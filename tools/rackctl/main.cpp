@@ -48,6 +48,7 @@
 #include "rack/core/wire.h"
 #include "rack/rt/clock.h"
 #include "rack/rt/latency_stats.h"
+#include "rack/rt/output_file.h"
 #include "rack/tims/address.h"
 #include "rack/tims/endpoint.h"
 #include "rack/tims/lcm_transport.h"
@@ -241,6 +242,22 @@ std::string double_text(double v) {
 }
 
 std::string quoted(const std::string& s) { return "\"" + rack::json_escape(s) + "\""; }
+
+// Writes all of `n` bytes to `fd` (standard output). false with `error`.
+bool write_all(int fd, const void* data, std::size_t n, std::string& error) {
+  const auto* p = static_cast<const char*>(data);
+  while (n > 0) {
+    const ssize_t k = ::write(fd, p, n);
+    if (k < 0 && errno == EINTR) continue;
+    if (k <= 0) {
+      error = std::string("- (standard output): ") + (k < 0 ? std::strerror(errno) : "nothing written");
+      return false;
+    }
+    p += k;
+    n -= static_cast<std::size_t>(k);
+  }
+  return true;
+}
 
 using rack::client::error_reason;
 
@@ -504,25 +521,16 @@ int cmd_trace(Session& s, const Options& o) {
   std::memcpy(req.names, joined.data(), joined.size());
   req.duration_ns = static_cast<int64_t>(o.duration_s * 1e9);
   if (req.duration_ns <= 0) fail(kExitUsage, "--duration is below a nanosecond");
-  // The file is opened before anything is recorded: an unwritable --out is said at once,
-  // not after the trace. A file this command created is removed when it fails.
-  struct OutFile {
-    int fd = -1;
-    bool created = false;
-    bool done = false;
-    std::string path;
-    ~OutFile() {
-      if (fd >= 0) ::close(fd);
-      if (created && !done) ::unlink(path.c_str());
-    }
-  } out;
-  out.path = o.out;
-  out.created = ::access(o.out.c_str(), F_OK) != 0;
-  out.fd = ::open(o.out.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0666);
-  if (out.fd < 0) {
-    out.created = false;
-    fail(kExitUsage, "--out " + o.out + ": cannot write: " + std::strerror(errno) + " (nothing recorded)");
-  }
+  // The file is opened before anything is recorded: an unwritable --out (a missing
+  // folder, a FIFO, a directory) is said at once, not after the trace. The chunks go to
+  // a temporary file beside it as they come, so rackctl holds one chunk, not the trace;
+  // it becomes FILE when the whole trace is there (rack/rt/output_file.h), and a trace
+  // that fails leaves no FILE, whole or partial. '-': standard output.
+  const bool to_stdout = o.out == "-";
+  rt::OutputFile out;
+  std::string out_error;
+  if (!to_stdout && !out.open(o.out, "trace", rt::OutputMode::kReplace, out_error))
+    fail(kExitUsage, "--out " + out_error + " (nothing recorded)");
 
   // Which host: the one with the named components, --host, or the only one there is.
   const auto holds = [&](const tims::HostInfo& h, const std::string& n) {
@@ -567,8 +575,11 @@ int cmd_trace(Session& s, const Options& o) {
   std::fprintf(stderr, "rackctl: recording %u task(s) of host '%s' for %.3f s\n", started.tasks, host_name.c_str(),
                o.duration_s);
 
-  // Wait for the trace, then read it chunk by chunk.
-  std::string json;
+  // Wait for the trace, then read it chunk by chunk, each written out as it comes. What
+  // the peer says is bounded by what was asked: no more time left than the duration
+  // asked for, no chunk longer than a TRACE_READ asks for (decode_chunk), no total over
+  // kMaxTraceJsonBytes.
+  uint64_t received = 0;
   uint64_t dropped = 0;
   const int64_t give_up = rt::monotonic_ns() + req.duration_ns + 30 * rt::kNsPerSec;
   uint64_t total = 0;
@@ -576,40 +587,36 @@ int cmd_trace(Session& s, const Options& o) {
     if (rt::monotonic_ns() > give_up)
       fail(kExitUnavailable, t.label() + ": the trace was not ready 30 s after its end");
     rtrace::TraceReadRequest rr;
-    rr.offset = json.size();
+    rr.offset = received;
     r = s.call(t, rtrace::kTraceRead, rr);
     Session::expect(t, r, msg::kOk, "TRACE_READ");
-    const rtrace::DecodedChunk chunk = rtrace::decode_chunk(r.body, !tims::body_is_native(r.reply), json.size(), total);
+    const rtrace::DecodedChunk chunk = rtrace::decode_chunk(r.body, !tims::body_is_native(r.reply), received, total);
     if (!chunk.ok) fail(kExitError, t.label() + " (" + r.reply.source().str() + "): " + chunk.error);
     const auto state = static_cast<rtrace::TraceState>(chunk.header.state);
     if (state == rtrace::TraceState::kRecording) {
+      if (chunk.header.remaining_ns > req.duration_ns) {
+        fail(kExitError,
+             format("%s (%s): TRACE_READ says %lld ms are left of a trace of %lld ms", t.label().c_str(),
+                    r.reply.source().str().c_str(), static_cast<long long>(chunk.header.remaining_ns / rt::kNsPerMs),
+                    static_cast<long long>(req.duration_ns / rt::kNsPerMs)));
+      }
       rt::sleep_for(std::clamp<int64_t>(chunk.header.remaining_ns, 10 * rt::kNsPerMs, 200 * rt::kNsPerMs));
       continue;
     }
     if (state != rtrace::TraceState::kReady)
       fail(kExitError, t.label() + ": the trace was discarded (see rackd's log)");
-    json.append(reinterpret_cast<const char*>(chunk.bytes.data()), chunk.bytes.size());
+    const bool written = to_stdout ? write_all(STDOUT_FILENO, chunk.bytes.data(), chunk.bytes.size(), out_error)
+                                   : out.write(chunk.bytes.data(), chunk.bytes.size(), out_error);
+    if (!written) fail(kExitError, "--out " + out_error);
+    received += chunk.bytes.size();
     dropped = chunk.header.dropped;
     total = chunk.header.total;
-    if (json.size() >= total) break;
+    if (received >= total) break;
   }
-  struct stat st {};
-  const bool regular = ::fstat(out.fd, &st) == 0 && S_ISREG(st.st_mode);  // not /dev/stdout, a pipe
-  bool written = !regular || ::ftruncate(out.fd, 0) == 0;
-  for (std::size_t at = 0; written && at < json.size();) {
-    const ssize_t n = ::write(out.fd, json.data() + at, json.size() - at);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) written = false;
-    else at += static_cast<std::size_t>(n);
-  }
-  const int err = errno;
-  const bool closed = ::close(out.fd) == 0;
-  out.fd = -1;
-  if (!written || !closed)
-    fail(kExitError, "--out " + o.out + ": write failed: " + std::strerror(written ? errno : err));
-  out.done = true;
-  std::printf("%s: %zu bytes, %u task(s) of host '%s', %llu event(s) dropped\n", o.out.c_str(), json.size(),
-              started.tasks, host_name.c_str(), static_cast<unsigned long long>(dropped));
+  if (!to_stdout && !out.commit(out_error)) fail(kExitError, "--out " + out_error);
+  std::fprintf(to_stdout ? stderr : stdout, "%s: %llu bytes, %u task(s) of host '%s', %llu event(s) dropped\n",
+               to_stdout ? "standard output" : o.out.c_str(), static_cast<unsigned long long>(received), started.tasks,
+               host_name.c_str(), static_cast<unsigned long long>(dropped));
   return kExitOk;
 }
 
@@ -1382,11 +1389,17 @@ int run_doctor_command(const Options& o) {
 
 // ---------------------------------------------------------------- graph, alloc
 
-bool write_text_file(const std::string& path, const std::string& text) {
-  FILE* f = std::fopen(path.c_str(), "w");
-  if (f == nullptr) return false;
-  const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
-  return std::fclose(f) == 0 && ok;
+// `text` to --out through a temporary file (rack/rt/output_file.h: a FIFO or directory
+// is refused, a failed write leaves no file), or to standard output (none, or '-').
+void write_output(const std::string& path, const std::string& text, const char* what) {
+  std::string error;
+  if (path.empty() || path == "-") {
+    if (!write_all(STDOUT_FILENO, text.data(), text.size(), error)) fail(kExitError, error);
+    return;
+  }
+  rt::OutputFile f;
+  if (!f.open(path, what, rt::OutputMode::kReplace, error) || !f.write(text, error) || !f.commit(error))
+    fail(kExitError, "--out " + error);
 }
 
 // The hosts discovery found, as a deployment without host files (graph/alloc --live
@@ -1540,8 +1553,13 @@ bool has_errors(const rack::deploy::Deployment& d) {
   return !d.problems.empty();
 }
 
-// DOT through graphviz's dot into SVG, on stdout or into `out`.
-int write_svg(const std::string& dot_text, const std::string& out) {
+// DOT through graphviz's dot into SVG, on stdout or into `out` (dot writes the
+// temporary file of an OutputFile, which becomes `out` when dot succeeded).
+int write_svg(const std::string& dot_text, const std::string& out_path) {
+  const std::string out = out_path == "-" ? std::string() : out_path;
+  rt::OutputFile svg;
+  std::string error;
+  if (!out.empty() && !svg.open(out, "graph", rt::OutputMode::kReplace, error)) fail(kExitError, "--out " + error);
   char tmp[] = "/tmp/rackctl-graph-XXXXXX";
   const int fd = ::mkstemp(tmp);
   if (fd < 0) fail(kExitError, std::string("graph: cannot make a temporary file: ") + std::strerror(errno));
@@ -1553,7 +1571,7 @@ int write_svg(const std::string& dot_text, const std::string& out) {
     const pid_t pid = ::fork();
     if (pid == 0) {
       if (out.empty()) ::execlp("dot", "dot", "-Tsvg", tmp, static_cast<char*>(nullptr));
-      else ::execlp("dot", "dot", "-Tsvg", "-o", out.c_str(), tmp, static_cast<char*>(nullptr));
+      else ::execlp("dot", "dot", "-Tsvg", "-o", svg.temp_path().c_str(), tmp, static_cast<char*>(nullptr));
       ::_exit(127);
     }
     int status = 0;
@@ -1566,6 +1584,7 @@ int write_svg(const std::string& dot_text, const std::string& out) {
          "--format dot prints the DOT text");
   }
   if (rc != 0) fail(kExitError, "graph: dot did not make the SVG (exit " + std::to_string(rc) + ")");
+  if (!out.empty() && !svg.commit(error)) fail(kExitError, "--out " + error);
   return kExitOk;
 }
 
@@ -1580,15 +1599,11 @@ int run_graph(Session* s, const Options& o) {
   }
   for (const auto& p : d.problems) std::fprintf(stderr, "rackctl: graph: %s\n", p.c_str());
   if (o.format == "json") {
-    const std::string j = rack::deploy::to_json(d, lp) + "\n";
-    if (o.out.empty()) std::fputs(j.c_str(), stdout);
-    else if (!write_text_file(o.out, j)) fail(kExitError, "graph: cannot write " + o.out);
+    write_output(o.out, rack::deploy::to_json(d, lp) + "\n", "graph");
   } else if (o.format == "svg") {
     write_svg(rack::deploy::to_dot(d, lp), o.out);
   } else {
-    const std::string dot = rack::deploy::to_dot(d, lp);
-    if (o.out.empty()) std::fputs(dot.c_str(), stdout);
-    else if (!write_text_file(o.out, dot)) fail(kExitError, "graph: cannot write " + o.out);
+    write_output(o.out, rack::deploy::to_dot(d, lp), "graph");
   }
   return has_errors(d) ? kExitError : kExitOk;
 }
@@ -1908,7 +1923,8 @@ const std::vector<Command>& commands() {
        1,
        {},
        "Writes a new key file for authenticated TiMS links: one random 32-byte key as\n"
-       "64 hex digits, mode 0600; an existing file is never overwritten. Copy it to\n"
+       "64 hex digits, mode 0600; an existing file is never overwritten, and a write\n"
+       "that fails (disk full) leaves no file. Copy it to\n"
        "every host of the network (keeping mode 0600) and name it in the host files\n"
        "(tims: networks: - key_file: PATH); tools take it with --key-file. Rotation:\n"
        "a file may hold two keys (two lines): the first signs, both are accepted;\n"
@@ -1932,9 +1948,12 @@ const std::vector<Command>& commands() {
        "drains (10 ms) drops events: the count is printed and kept in the file\n"
        "(otherData.dropped_events); the host file's trace_ring_events sets the\n"
        "rings' size (4096). A trace already running: exit 1. FILE is opened\n"
-       "before the trace starts: one that cannot be written is exit 2, with nothing\n"
-       "recorded. A reply that is not a well-formed chunk of the trace (truncated,\n"
-       "at another offset, a size over 1 GiB) is exit 1, with the byte it is wrong at.\n"
+       "before the trace starts: one that cannot be written (a missing folder; a FIFO,\n"
+       "directory or device) is exit 2, with nothing recorded; '-' is standard output.\n"
+       "The chunks go to a temporary file beside FILE, which becomes FILE once the\n"
+       "trace is whole: a failed trace leaves none. A reply that is not a well-formed\n"
+       "chunk of the trace (truncated, at another offset, a chunk over 32 KiB, a size\n"
+       "over 1 GiB, more time left than asked for) is exit 1, with the byte it is wrong at.\n"
        "  rackctl trace --duration 2 --out sim.json all\n"
        "  rackctl trace --duration 5 --out mcl.json mcl,ladar",
        cmd_trace},
@@ -1967,7 +1986,9 @@ const std::vector<Command>& commands() {
        "as the kernel runs them (GET_TASKS), each running subscription as a flow\n"
        "('subscribed', the period its consumer gets) with the networks it crosses\n"
        "(the hosts' networks, from GET_TASKS). Offline it needs no network.\n"
-       "--format svg runs graphviz's dot (apt-get install graphviz).\n"
+       "--format svg runs graphviz's dot (apt-get install graphviz). --out FILE is\n"
+       "written whole or not at all (a FIFO or directory is refused); '-' or none:\n"
+       "standard output.\n"
        "  rackctl graph configs/two_robots/ | dot -Tsvg > fleet.svg\n"
        "  rackctl graph --live --format svg --out now.svg\n"
        "  rackctl graph --format svg --out fleet.svg configs/two_robots/",
@@ -2149,6 +2170,9 @@ Options parse_arguments(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // A file size limit (ulimit -f) makes write() fail with EFBIG, which is said, and the
+  // temporary file removed; SIGXFSZ would have killed rackctl half-way through instead.
+  ::signal(SIGXFSZ, SIG_IGN);
   Options o;
   try {
     o = parse_arguments(argc, argv);
