@@ -301,5 +301,24 @@ TEST_F(HostileFilesTest, RackctlLeavesNoPartialFileAndRefusesFifosAndDirectories
   EXPECT_TRUE(contains(r.out, "digraph")) << r.describe();
 }
 
+// A bad value is quoted short in rackctl's messages, with its length: a 100 kB argument
+// was echoed back whole (and a megabyte-long reason from a peer would have been too).
+TEST_F(HostileFilesTest, RackctlQuotesAHugeBadValueShortWithItsLength) {
+  const std::string huge(100000, '7');
+  const std::vector<std::vector<std::string>> cases = {
+      {kRackctl, "--timeout", huge, "list"},
+      {kRackctl, "--" + std::string(100000, 'x')},
+      {kRackctl, std::string(100000, 'c')},
+      {kRackctl, "--lcm", bus_.url(), "--discover-ms", "0", "status", "Generator(" + huge + ")"},
+      {kRackctl, "--lcm", bus_.url(), "--discover-ms", "0", "status", std::string(100000, 'n')},
+  };
+  for (const auto& args : cases) {
+    const RunResult r = run(args, 30s);
+    EXPECT_NE(r.exit_code, 0) << r.describe().substr(0, 300);
+    EXPECT_LT(r.err.size(), 1000u) << r.err.substr(0, 300);
+    EXPECT_TRUE(contains(r.err, "... (1000")) << "its length is not said: " << r.err.substr(0, 300);
+  }
+}
+
 }  // namespace
 }  // namespace rack::test

@@ -243,6 +243,19 @@ std::string double_text(double v) {
 
 std::string quoted(const std::string& s) { return "\"" + rack::json_escape(s) + "\""; }
 
+// A value from the command line or from the network as a message quotes it: its first
+// `max` bytes, and its length when it is longer (a 100 kB argument, or a peer's
+// megabyte-long text, is not echoed back whole).
+constexpr std::size_t kShownBytes = 64;
+std::string shown(const std::string& text, std::size_t max = kShownBytes) {
+  if (text.size() <= max) return text;
+  std::size_t cut = max;
+  while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) --cut;  // not inside a UTF-8 character
+  return text.substr(0, cut) + "... (" + std::to_string(text.size()) + " bytes)";
+}
+// A whole message on stderr, at most 4 kB of it.
+void print_failure(const std::string& message) { std::fprintf(stderr, "rackctl: %s\n", shown(message, 4096).c_str()); }
+
 // Writes all of `n` bytes to `fd` (standard output). false with `error`.
 bool write_all(int fd, const void* data, std::size_t n, std::string& error) {
   const auto* p = static_cast<const char*>(data);
@@ -329,18 +342,19 @@ class Session : public rack::client::Session {
       if (!found) {
         fail(kExitUnavailable, format("no component of a class named '%s' at system %u, instance %u answered "
                                       "discovery within %lld ms on %s",
-                                      cls.c_str(), numeric.system(), numeric.instance(),
+                                      shown(cls).c_str(), numeric.system(), numeric.instance(),
                                       static_cast<long long>(options_.discover_ms), url().c_str()));
       }
       return Target{found->first.address.component(), "", found->second};
     }
     if (text.find('(') != std::string::npos) {
-      fail(kExitUsage, "'" + text + "' is not an address (expected Class(system/instance), e.g. Generator(0/0))");
+      fail(kExitUsage,
+           "'" + shown(text) + "' is not an address (expected Class(system/instance), e.g. Generator(0/0))");
     }
     const auto found = find_component(text);
     if (!found) {
-      fail(kExitUnavailable, format("no component named '%s' answered discovery within %lld ms on %s", text.c_str(),
-                                    static_cast<long long>(options_.discover_ms), url().c_str()));
+      fail(kExitUnavailable, format("no component named '%s' answered discovery within %lld ms on %s",
+                                    shown(text).c_str(), static_cast<long long>(options_.discover_ms), url().c_str()));
     }
     Target t{found->address.component(), found->name, ""};
     name_class(t);
@@ -554,7 +568,7 @@ int cmd_trace(Session& s, const Options& o) {
   const tims::HostInfo* host = pick(hosts);
   if (host == nullptr) {
     std::string what = all ? "no host" : "no host with every component of '" + joined + "'";
-    if (!o.host.empty()) what += " named '" + o.host + "'";
+    if (!o.host.empty()) what += " named '" + shown(o.host) + "'";
     fail(kExitUnavailable, format("%s answered discovery within %lld ms on %s (components on several hosts: trace "
                                   "each host on its own)",
                                   what.c_str(), static_cast<long long>(o.discover_ms), s.url().c_str()));
@@ -1020,7 +1034,8 @@ int cmd_set_param(Session& s, const Options& o) {
   const std::string& key = o.args[1];
   const std::string& text = o.args[2];
   if (key.empty() || key.size() >= wire::kParamNameLen) {
-    fail(kExitUsage, format("parameter name '%s' must be 1..%zu characters", key.c_str(), wire::kParamNameLen - 1));
+    fail(kExitUsage,
+         format("parameter name '%s' must be 1..%zu characters", shown(key).c_str(), wire::kParamNameLen - 1));
   }
   const Target t = s.resolve(o.args[0]);
   // Learn the parameter's kind first.
@@ -1035,8 +1050,8 @@ int cmd_set_param(Session& s, const Options& o) {
   }
   const auto kind = static_cast<wire::ParamKind>(record.kind);
   const auto bad = [&](const char* what) {
-    return Failure{kExitUsage, format("'%s' is not %s (parameter '%s' of %s is a %s)", text.c_str(), what, key.c_str(),
-                                      t.label().c_str(), rack::describe(kind))};
+    return Failure{kExitUsage, format("'%s' is not %s (parameter '%s' of %s is a %s)", shown(text).c_str(), what,
+                                      key.c_str(), t.label().c_str(), rack::describe(kind))};
   };
   switch (kind) {
     case wire::ParamKind::kInt: {
@@ -1252,7 +1267,7 @@ int cmd_send(Session& s, const Options& o) {
   const auto number = parse_int(o.args[1]);
   if (number && (*number < msg::kFirstClassCommand || *number > 127)) {
     fail(kExitUsage, "CMD must be a class command number " + std::to_string(msg::kFirstClassCommand) +
-                         "..127 (generic commands have their own rackctl commands), got '" + o.args[1] + "'");
+                         "..127 (generic commands have their own rackctl commands), got '" + shown(o.args[1]) + "'");
   }
   const Target t = s.resolve(o.args[0]);
   // The class's commands as it describes them (GET_CLASS).
@@ -1280,7 +1295,7 @@ int cmd_send(Session& s, const Options& o) {
     if (info == nullptr) {
       fail(kExitUsage,
            format("%s: class %s has no command '%s' (%s)", t.label().c_str(),
-                  described != nullptr ? described->class_name.c_str() : "(not described)", o.args[1].c_str(),
+                  described != nullptr ? described->class_name.c_str() : "(not described)", shown(o.args[1]).c_str(),
                   names.empty() ? "no named commands known: give the number" : ("known: " + names).c_str()));
     }
     cmd = info->type;
@@ -1297,7 +1312,7 @@ int cmd_send(Session& s, const Options& o) {
     body.assign(info->body->size, std::byte{0});
     for (const std::string& arg : fields_given) {
       const auto eq = arg.find('=');
-      if (eq == std::string::npos || eq == 0) fail(kExitUsage, "send: '" + arg + "' is not FIELD=VALUE");
+      if (eq == std::string::npos || eq == 0) fail(kExitUsage, "send: '" + shown(arg) + "' is not FIELD=VALUE");
       const std::string key = arg.substr(0, eq);
       const tims::FieldDesc* field = nullptr;
       std::string names;
@@ -1307,7 +1322,7 @@ int cmd_send(Session& s, const Options& o) {
       }
       if (field == nullptr) {
         fail(kExitUsage, format("send %s: %s has no field '%s' (fields: %s)", info->name.c_str(),
-                                info->body->name.c_str(), key.c_str(), names.c_str()));
+                                info->body->name.c_str(), shown(key).c_str(), names.c_str()));
       }
       if (const std::string why = rack::set_field_from_text(*field, body, arg.substr(eq + 1)); !why.empty()) {
         fail(kExitUsage, format("send %s: field '%s': %s", info->name.c_str(), key.c_str(), why.c_str()));
@@ -1656,7 +1671,7 @@ int cmd_threads(const Options& o) {
   if (!o.args.empty()) {
     const auto pid = parse_int(o.args[0]);
     if (!pid || *pid <= 0 || *pid > INT_MAX) {
-      std::fprintf(stderr, "rackctl: threads: '%s' is not a process id\n", o.args[0].c_str());
+      std::fprintf(stderr, "rackctl: threads: '%s' is not a process id\n", shown(o.args[0]).c_str());
       return kExitUsage;
     }
     pids.push_back(static_cast<long>(*pid));
@@ -2080,7 +2095,7 @@ Options parse_arguments(int argc, char** argv) {
     const auto non_negative = [&](const char* what) -> int64_t {
       const std::string v = value(what);
       const auto n = parse_int(v);
-      if (!n || *n < 0) fail(kExitUsage, a + " needs " + what + ", got '" + v + "'");
+      if (!n || *n < 0) fail(kExitUsage, a + " needs " + what + ", got '" + shown(v) + "'");
       return *n;
     };
     if (a == "-h" || a == "--help") o.help = true;
@@ -2102,7 +2117,7 @@ Options parse_arguments(int argc, char** argv) {
     } else if (a == "--i64") {
       const std::string v = value("a 64-bit integer");
       o.i64 = parse_int(v);
-      if (!o.i64) fail(kExitUsage, "--i64 needs a 64-bit integer, got '" + v + "'");
+      if (!o.i64) fail(kExitUsage, "--i64 needs a 64-bit integer, got '" + shown(v) + "'");
       o.given.insert(a);
     } else if (a == "--retries") {
       o.retries = non_negative("a number of retries");
@@ -2124,14 +2139,14 @@ Options parse_arguments(int argc, char** argv) {
       // At most a day (as a host file's *_ms): 1e308 ms was rounded to nanoseconds
       // out of int64_t's range (an unspecified period sent to the component).
       if (!p || *p < 0 || *p > 86400000.0) {
-        fail(kExitUsage, "--period needs milliseconds in 0..86400000 (a day), got '" + v + "'");
+        fail(kExitUsage, "--period needs milliseconds in 0..86400000 (a day), got '" + shown(v) + "'");
       }
       o.period_ms = *p;
       o.given.insert(a);
     } else if (a == "--duration") {
       const std::string v = value("a number of seconds");
       const auto d = parse_double(v);
-      if (!d || *d <= 0 || *d > 60) fail(kExitUsage, "--duration needs seconds in (0, 60], got '" + v + "'");
+      if (!d || *d <= 0 || *d > 60) fail(kExitUsage, "--duration needs seconds in (0, 60], got '" + shown(v) + "'");
       o.duration_s = *d;
       o.given.insert(a);
     } else if (a == "--out") {
@@ -2143,7 +2158,7 @@ Options parse_arguments(int argc, char** argv) {
     } else if (a == "--format") {
       o.format = value("dot, svg or json");
       if (o.format != "dot" && o.format != "svg" && o.format != "json") {
-        fail(kExitUsage, "--format takes dot, svg or json, got '" + o.format + "'");
+        fail(kExitUsage, "--format takes dot, svg or json, got '" + shown(o.format) + "'");
       }
       o.given.insert(a);
     } else if (a == "--live") {
@@ -2153,7 +2168,7 @@ Options parse_arguments(int argc, char** argv) {
       o.rackd = value("the rackd program");
       o.given.insert(a);
     } else {
-      fail(kExitUsage, "unknown option '" + a + "' (rackctl --help lists them)");
+      fail(kExitUsage, "unknown option '" + shown(a) + "' (rackctl --help lists them)");
     }
   }
   if (!host_file.empty()) {
@@ -2177,7 +2192,7 @@ int main(int argc, char** argv) {
   try {
     o = parse_arguments(argc, argv);
   } catch (const Failure& f) {
-    std::fprintf(stderr, "rackctl: %s\n", f.message.c_str());
+    print_failure(f.message);
     return f.code;
   }
   if (o.version) {
@@ -2194,7 +2209,7 @@ int main(int argc, char** argv) {
   }
   const Command* cmd = find_command(o.command);
   if (cmd == nullptr) {
-    std::fprintf(stderr, "rackctl: unknown command '%s' (rackctl --help lists them)\n", o.command.c_str());
+    std::fprintf(stderr, "rackctl: unknown command '%s' (rackctl --help lists them)\n", shown(o.command).c_str());
     return kExitUsage;
   }
   if (std::string(cmd->name) == "help") {
@@ -2204,7 +2219,7 @@ int main(int argc, char** argv) {
     }
     const Command* about = find_command(o.args[0]);
     if (about == nullptr || o.args.size() > 1) {
-      std::fprintf(stderr, "rackctl: no command '%s' (rackctl --help lists them)\n", o.args[0].c_str());
+      std::fprintf(stderr, "rackctl: no command '%s' (rackctl --help lists them)\n", shown(o.args[0]).c_str());
       return kExitUsage;
     }
     print_command_help(*about, stdout);
@@ -2232,7 +2247,7 @@ int main(int argc, char** argv) {
     try {  // offline: from the host files alone, no network joined
       return std::string(cmd->name) == "graph" ? run_graph(nullptr, o) : run_alloc(nullptr, o);
     } catch (const Failure& f) {
-      std::fprintf(stderr, "rackctl: %s\n", f.message.c_str());
+      print_failure(f.message);
       return f.code;
     }
   }
@@ -2249,11 +2264,11 @@ int main(int argc, char** argv) {
     Session session(o);
     return cmd->run(session, o);
   } catch (const Failure& f) {
-    std::fprintf(stderr, "rackctl: %s\n", f.message.c_str());
+    print_failure(f.message);
     return f.code;
   } catch (const std::exception& e) {
     // Set-up failures: the LCM network cannot be joined, a mailbox is taken.
-    std::fprintf(stderr, "rackctl: %s\n", e.what());
+    print_failure(e.what());
     return kExitUnavailable;
   }
 }
