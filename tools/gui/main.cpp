@@ -87,7 +87,9 @@ binary), logged at most once a second and counted by reason in the line printed 
 exit; nothing reaches a robot. Over 64 KiB or not UTF-8 also ends that connection
 (close code 1009 or 1007). At most 256 requests wait for the robots; more are
 refused as busy. A client that does not read keeps at most 16 MiB of messages
-waiting (the oldest are dropped, counted).
+waiting (the oldest are dropped, counted). A robot's reply is taken only by the
+request it answers (mailbox, sequence number, a reply); one that comes after its
+request timed out is dropped and counted.
 
 environment:
   RACK_TOOL_REGISTRY  where tools on this machine claim their TiMS address (default
@@ -284,6 +286,11 @@ int main(int argc, char** argv) {
                  "that did not read\n",
                  static_cast<unsigned long long>(server.refused_clients()),
                  static_cast<unsigned long long>(server.dropped_messages()));
+    std::fprintf(stderr,
+                 "rack-gui: %llu late and %llu unmatched TiMS reply(ies) dropped, %llu request(s) not sent (every "
+                 "sequence number of the mailbox taken)\n",
+                 static_cast<unsigned long long>(c.late_replies), static_cast<unsigned long long>(c.unmatched_replies),
+                 static_cast<unsigned long long>(c.no_sequence));
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rack-gui: %s\n", e.what());
     return 1;
