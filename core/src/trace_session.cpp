@@ -118,6 +118,11 @@ DecodedChunk decode_chunk(std::span<const std::byte> body, bool swapped, uint64_
         return fail(offsetof(TraceChunkHeader, offset),
                     "chunk at offset " + std::to_string(h.offset) + ", asked for " + std::to_string(offset));
       }
+      if (h.length > kTraceChunkBytes) {
+        return fail(offsetof(TraceChunkHeader, length),
+                    "a chunk of " + std::to_string(h.length) + " bytes, more than the " +
+                        std::to_string(kTraceChunkBytes) + " a TRACE_READ asks for");
+      }
       if (h.length > room) {
         return fail(offsetof(TraceChunkHeader, length),
                     "a chunk of " + std::to_string(h.length) + " bytes, but the reply holds " + std::to_string(room));

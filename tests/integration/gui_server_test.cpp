@@ -10,6 +10,7 @@
 #include <boost/beast/websocket.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <mutex>
@@ -143,6 +144,80 @@ TEST_F(HttpServerTest, WebSocketCarriesTextRefusesBinaryAndClosesOnOversizedMess
   EXPECT_EQ(refused_[0], std::make_pair(gui::FrameRefusal::kBinary, std::size_t{2}));
   EXPECT_EQ(refused_[1].first, gui::FrameRefusal::kTooLarge);
   EXPECT_GT(refused_[1].second, gui::HttpServer::kMaxMessage);
+}
+
+// What one peer may hold of the server (ServerLimits): a client over max_clients is
+// closed after its handshake with 1013 and the reason, counted, and the others are
+// served on; there was no cap (a peer opening thousands of connections held thousands
+// of sessions).
+TEST(HttpServerLimitsTest, ClientsOverTheCapAreClosedWithTheReasonAndCounted) {
+  TempDir dir;
+  Watchdog watchdog(60s, "HttpServerLimitsTest");
+  std::filesystem::create_directories(dir.path() / "web");
+  gui::HttpServer* server_ptr = nullptr;
+  gui::ServerHandlers h;
+  h.opened = [&server_ptr](uint64_t c) { server_ptr->send(c, "welcome"); };
+  gui::ServerLimits limits;
+  limits.max_clients = 2;
+  gui::HttpServer server("127.0.0.1", 0, (dir.path() / "web").string(), h, limits);
+  server_ptr = &server;
+  std::thread io([&server] { server.run(); });
+  {
+    WsClient a(server.port());
+    WsClient b(server.port());
+    EXPECT_EQ(a.read(), "welcome");
+    EXPECT_EQ(b.read(), "welcome");
+    WsClient c(server.port());
+    EXPECT_EQ(c.read(), "") << "a third client is closed";
+    EXPECT_EQ(c.ws.reason().code, static_cast<uint16_t>(websocket::close_code::try_again_later));
+    EXPECT_NE(std::string(c.ws.reason().reason.c_str()).find("at most 2 clients"), std::string::npos)
+        << c.ws.reason().reason.c_str();
+    EXPECT_EQ(server.refused_clients(), 1u);
+    server.send(0, "still served");
+    EXPECT_EQ(a.read(), "still served");
+    EXPECT_EQ(b.read(), "still served");
+  }
+  // Once they left, a new client is served (the server sees them go asynchronously).
+  EXPECT_TRUE(eventually([&server] {
+    WsClient d(server.port());
+    return d.read() == "welcome";
+  }));
+  server.stop();
+  io.join();
+}
+
+// A client that never reads: what waits for it is bounded in bytes, the oldest
+// messages dropped (counted), the newest delivered once it reads. Before, 256 messages
+// of any size waited (256 camera images: hundreds of MB per client).
+TEST(HttpServerLimitsTest, AClientThatDoesNotReadHoldsABoundedQueue) {
+  TempDir dir;
+  Watchdog watchdog(60s, "HttpServerLimitsTest");
+  std::filesystem::create_directories(dir.path() / "web");
+  std::atomic<int> opened{0};
+  gui::ServerHandlers h;
+  h.opened = [&opened](uint64_t) { ++opened; };
+  gui::ServerLimits limits;
+  limits.max_queued_bytes = 2u << 20;  // two messages: the newest and "end" fit
+  gui::HttpServer server("127.0.0.1", 0, (dir.path() / "web").string(), h, limits);
+  std::thread io([&server] { server.run(); });
+  WsClient c(server.port());
+  ASSERT_TRUE(eventually([&opened] { return opened == 1; }));
+  constexpr int kSent = 64;  // 64 MiB, far more than the socket buffers take
+  for (int i = 0; i < kSent; ++i) server.send(0, std::to_string(i) + ":" + std::string(1u << 20, 'x'));
+  server.send(0, "end");
+  ASSERT_TRUE(eventually([&server] { return server.dropped_messages() >= kSent / 2; }))
+      << server.dropped_messages() << " dropped";
+  int received = 0;
+  std::string last;
+  for (std::string m = c.read(); !m.empty() && m != "end"; m = c.read()) {
+    ++received;
+    last = m.substr(0, m.find(':'));
+  }
+  EXPECT_LT(received, kSent / 2) << "the queue was not bounded";
+  EXPECT_EQ(static_cast<uint64_t>(received) + server.dropped_messages(), static_cast<uint64_t>(kSent));
+  EXPECT_EQ(last, std::to_string(kSent - 1)) << "the newest is delivered";
+  server.stop();
+  io.join();
 }
 
 // The real rack-gui (no robot on its bus): malformed messages get an error naming the

@@ -260,5 +260,65 @@ TEST_F(HostileFilesTest, RackGuiOutOfDescriptorsSaysSoAndServesAgainLater) {
   EXPECT_EQ(gui.wait_exit(20s), std::optional<int>(0)) << gui.err();
 }
 
+// rackctl writes files that later runs trust (a key file, a trace, a graph): through a
+// temporary file beside the target, renamed when whole (rack/rt/output_file.h). A write
+// that fails (here a file size limit, as a full disk) left a partial key file that the
+// next keygen refused to replace and rackd refused to read; a FIFO as --out waited for
+// a reader for ever; a directory was said only after the trace.
+TEST_F(HostileFilesTest, RackctlLeavesNoPartialFileAndRefusesFifosAndDirectories) {
+  const std::string key = (dir_.path() / "net.key").string();
+  // `ulimit -f 0`: write() fails with EFBIG (rackctl ignores SIGXFSZ, which would kill it).
+  RunResult r = run({"/bin/sh", "-c", "ulimit -f 0 && exec \"$0\" keygen \"$1\"", kRackctl, key}, 30s);
+  EXPECT_EQ(r.exit_code, 1) << r.describe();
+  EXPECT_TRUE(contains(r.err, key + ": cannot write the key file: File too large")) << r.describe();
+  EXPECT_TRUE(std::filesystem::is_empty(dir_.path())) << "a partial key file or a temporary file was left";
+  // The next keygen is not refused by a leftover, and makes a whole key.
+  r = run({kRackctl, "keygen", key}, 30s);
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+  const std::string made = read_file(key);
+  EXPECT_EQ(made.size() - made.find('\n') - 1, 65u) << made;  // a comment line, then 64 hex digits
+
+  const std::string pipe = fifo("out.fifo");
+  r = run({kRackctl, "keygen", pipe}, 30s);
+  EXPECT_FALSE(r.timed_out) << r.describe();
+  EXPECT_EQ(r.exit_code, 1) << r.describe();
+  EXPECT_TRUE(contains(r.err, pipe + ": cannot write the key file: it is a FIFO, not a regular file")) << r.describe();
+  for (const std::string& out : {pipe, dir_.path().string()}) {
+    r = run({kRackctl, "--lcm", bus_.url(), "trace", "--duration", "1", "--out", out, "all"}, 30s);
+    EXPECT_FALSE(r.timed_out) << r.describe();
+    EXPECT_EQ(r.exit_code, 2) << r.describe();
+    EXPECT_TRUE(contains(r.err, "--out " + out + ": cannot write the trace: it is a")) << r.describe();
+    EXPECT_TRUE(contains(r.err, "not a regular file (nothing recorded)")) << r.describe();
+  }
+  const auto host = dir_.write("h.yaml", "host: h\nsystem: 0\ncomponents: []\n");
+  r = run({kRackctl, "graph", "--rackd", kRackd, "--out", pipe, host.string()}, 30s);
+  EXPECT_FALSE(r.timed_out) << r.describe();
+  EXPECT_EQ(r.exit_code, 1) << r.describe();
+  EXPECT_TRUE(contains(r.err, "--out " + pipe + ": cannot write the graph: it is a FIFO")) << r.describe();
+  // '-' is standard output.
+  r = run({kRackctl, "graph", "--rackd", kRackd, "--out", "-", host.string()}, 30s);
+  EXPECT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(contains(r.out, "digraph")) << r.describe();
+}
+
+// A bad value is quoted short in rackctl's messages, with its length: a 100 kB argument
+// was echoed back whole (and a megabyte-long reason from a peer would have been too).
+TEST_F(HostileFilesTest, RackctlQuotesAHugeBadValueShortWithItsLength) {
+  const std::string huge(100000, '7');
+  const std::vector<std::vector<std::string>> cases = {
+      {kRackctl, "--timeout", huge, "list"},
+      {kRackctl, "--" + std::string(100000, 'x')},
+      {kRackctl, std::string(100000, 'c')},
+      {kRackctl, "--lcm", bus_.url(), "--discover-ms", "0", "status", "Generator(" + huge + ")"},
+      {kRackctl, "--lcm", bus_.url(), "--discover-ms", "0", "status", std::string(100000, 'n')},
+  };
+  for (const auto& args : cases) {
+    const RunResult r = run(args, 30s);
+    EXPECT_NE(r.exit_code, 0) << r.describe().substr(0, 300);
+    EXPECT_LT(r.err.size(), 1000u) << r.err.substr(0, 300);
+    EXPECT_TRUE(contains(r.err, "... (1000")) << "its length is not said: " << r.err.substr(0, 300);
+  }
+}
+
 }  // namespace
 }  // namespace rack::test

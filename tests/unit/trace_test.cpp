@@ -297,6 +297,13 @@ TEST(TraceSessionTest, DecodesReadRepliesOrSaysWhatIsWrongAndWhere) {
   rec.remaining_ns = 5;
   rec.length = 3;
   refused(reply(rec, 0, 3), 0, 0, "before the trace is ready", "byte 4");
+  // A chunk longer than a TRACE_READ asks for: a peer sends no more than that at once.
+  trace::TraceChunkHeader big = h;
+  big.length = trace::kTraceChunkBytes + 1;
+  big.total = 8 + big.length;
+  std::string bigger(reinterpret_cast<const char*>(&big), sizeof big);
+  bigger.append(big.length, 'x');
+  refused(bigger, 8, 0, "more than the 32768 a TRACE_READ asks for", "byte 4");
   // Out of order: a chunk at another offset than asked for, an empty chunk before the end.
   refused(b, 0, 0, "chunk at offset 8, asked for 0", "byte 8");
   trace::TraceChunkHeader empty = h;

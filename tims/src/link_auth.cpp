@@ -1,6 +1,7 @@
 #include "rack/tims/link_auth.h"
 
 #include "rack/rt/input_file.h"
+#include "rack/rt/output_file.h"
 
 #include <fcntl.h>
 #include <sodium.h>
@@ -150,22 +151,23 @@ KeyFile load_key_file(const std::string& path) {
 
 std::string generate_key_file(const std::string& path) {
   init_sodium();
-  const int fd = open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
-  if (fd < 0) return path + ": " + std::strerror(errno) + (errno == EEXIST ? " (not overwritten)" : "");
+  // Written beside the target and linked into place when whole (rack/rt/output_file.h):
+  // a write that fails (disk full) leaves no partial key file that the next keygen would
+  // refuse to replace and a host would refuse to load; a FIFO is refused, not waited on.
+  rt::OutputFile out;
+  std::string error;
+  if (!out.open(path, "key file", rt::OutputMode::kNewPrivate, error)) return error;
   uint8_t key[kLinkKeyBytes];
   randombytes_buf(key, sizeof key);
   char hex[kHexLen + 1];
   sodium_bin2hex(hex, sizeof hex, key, sizeof key);
   sodium_memzero(key, sizeof key);
-  const std::string text = "# RACK-RT TiMS link key (the first key signs; a second line is accepted too)\n" +
-                           std::string(hex) + "\n";
+  std::string text = "# RACK-RT TiMS link key (the first key signs; a second line is accepted too)\n" +
+                     std::string(hex) + "\n";
   sodium_memzero(hex, sizeof hex);
-  const ssize_t n = write(fd, text.data(), text.size());
-  const int e = errno;
-  fchmod(fd, 0600);  // whatever the umask did
-  close(fd);
-  if (n != static_cast<ssize_t>(text.size())) return path + ": write failed: " + std::strerror(e);
-  return {};
+  const bool ok = out.write(text, error) && out.commit(error);
+  sodium_memzero(text.data(), text.size());
+  return ok ? std::string() : error;
 }
 
 KeyRing::KeyRing(std::string path) : path_(std::move(path)) {

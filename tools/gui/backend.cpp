@@ -5,12 +5,17 @@
 namespace rack::gui {
 
 void Backend::Impl::dispatch(const tims::Mailbox::Received& got, std::span<const std::byte> buf) {
-  const Address from = got.header.source().component();
-  const auto it = std::find_if(pending.begin(), pending.end(),
-                               [&](const Pending& p) { return p.dest.component() == from && p.seq == got.header.seq; });
-  if (it == pending.end()) return;  // late: its request timed out
-  ReplyHandler done = std::move(it->done);
-  pending.erase(it);
+  const ReplyMatcher::Match m = replies.match(got.header.source().component().raw(), got.header.seq, got.header.type);
+  if (m.outcome != ReplyMatcher::Outcome::kAnswered) {
+    const std::lock_guard lock(counters_mutex);
+    if (m.outcome == ReplyMatcher::Outcome::kLate) ++counters.late_replies;
+    else ++counters.unmatched_replies;
+    return;
+  }
+  const auto it = reply_handlers.find(m.token);
+  if (it == reply_handlers.end()) return;
+  ReplyHandler done = std::move(it->second);
+  reply_handlers.erase(it);
   Reply r;
   r.header = got.header;
   r.body = buf.subspan(sizeof(tims::MessageHeader), got.length - sizeof(tims::MessageHeader));
@@ -35,13 +40,11 @@ void Backend::Impl::receive_replies(int64_t wait_ns) {
   }
   const int64_t now = rt::monotonic_ns();
   std::vector<ReplyHandler> expired;
-  for (auto it = pending.begin(); it != pending.end();) {
-    if (now >= it->deadline_ns) {
-      expired.push_back(std::move(it->done));
-      it = pending.erase(it);
-    } else {
-      ++it;
-    }
+  for (const uint64_t token : replies.expire(now)) {
+    const auto it = reply_handlers.find(token);
+    if (it == reply_handlers.end()) continue;
+    expired.push_back(std::move(it->second));
+    reply_handlers.erase(it);
   }
   if (!expired.empty()) {
     const std::lock_guard lock(counters_mutex);

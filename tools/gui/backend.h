@@ -109,6 +109,9 @@ class Backend {
     std::array<uint64_t, kRefusalKinds> refused{};  // by Refusal
     uint64_t requests = 0;                          // TiMS requests sent
     uint64_t timeouts = 0;                          // TiMS requests not answered in time
+    uint64_t no_sequence = 0;                       // requests not sent: every sequence number of the mailbox taken
+    uint64_t late_replies = 0;                      // replies after their request timed out, dropped
+    uint64_t unmatched_replies = 0;                 // replies to no request of rack-gui (or not replies), dropped
     uint64_t bad_replies = 0;                       // replies that did not decode (GET_LATENCY), not passed on
     uint64_t streamed = 0;                          // stream samples passed on ("subscribe")
     uint64_t stream_lost = 0;                       // stream samples lost: the stream mailboxes were full

@@ -20,11 +20,13 @@
 #include <optional>
 #include <set>
 #include <span>
+#include <unordered_map>
 #include <string_view>
 #include <utility>
 
 #include "gdos_relay.h"
 #include "report_watcher.h"
+#include "reply_matcher.h"
 #include "rack/client/session.h"
 #include "rack/core/class_description.h"
 #include "rack/core/trace_session.h"
@@ -200,13 +202,6 @@ struct Reply {
 // nullptr: no reply in time (or not sent).
 using ReplyHandler = std::function<void(const Reply*)>;
 
-struct Pending {
-  Address dest;
-  uint8_t seq = 0;
-  int64_t deadline_ns = 0;
-  ReplyHandler done;
-};
-
 struct Component {
   tims::ComponentInfo info;
   uint8_t system = 0;
@@ -356,36 +351,32 @@ struct Backend::Impl {
   // ------------------------------------------------------------ requests
   void request(Address dest, int8_t type, std::span<const tims::ConstBuffer> body, int64_t timeout_ns,
                ReplyHandler done, Address reply_to = Address()) {
-    uint8_t seq = 0;
-    const auto st = endpoint.send(dest, type, body, reply_to, &seq);
+    // A sequence number that no other request to this mailbox holds, waiting or timed
+    // out recently (reply_matcher.h): a late reply takes no later request. A mailbox
+    // with every number taken is not asked: the request fails at once, as a timeout.
+    const uint32_t key = dest.component().raw();
+    const int64_t now = rt::monotonic_ns();
+    const uint64_t token = next_token++;
+    const std::optional<uint8_t> seq = replies.open(key, token, now + timeout_ns, now);
     {
       const std::lock_guard lock(counters_mutex);
       ++counters.requests;
+      if (!seq) ++counters.no_sequence;
     }
-    if (!tims::delivered(st)) {
+    if (!seq) {
       done(nullptr);
       return;
     }
-    // An older request to the same mailbox with the same sequence number (256 sends
-    // ago) would take this reply: it is given up now, its handler told "no reply" as at
-    // its deadline. Dropped without a word, it left its flag (status_pending,
-    // ClassInfo::pending, a stream's pending) set for good: a player's 250 PUBLISH a
-    // second wrap the sequence numbers within one reply timeout.
-    std::vector<ReplyHandler> displaced;
-    for (auto it = pending.begin(); it != pending.end();) {
-      if (it->dest == dest && it->seq == seq) {
-        displaced.push_back(std::move(it->done));
-        it = pending.erase(it);
-      } else {
-        ++it;
-      }
+    std::size_t length = 0;
+    for (const auto& part : body) length += part.size;
+    const tims::MessageHeader h = tims::make_header(dest, reply_to == Address() ? endpoint.address() : reply_to, type,
+                                                    endpoint.priority(), *seq, length);
+    if (!tims::delivered(endpoint.router().send(h, body))) {
+      replies.cancel(key, *seq);
+      done(nullptr);
+      return;
     }
-    pending.push_back(Pending{dest, seq, rt::monotonic_ns() + timeout_ns, std::move(done)});
-    if (!displaced.empty()) {
-      const std::lock_guard lock(counters_mutex);
-      counters.timeouts += displaced.size();
-    }
-    for (auto& d : displaced) d(nullptr);
+    reply_handlers.emplace(token, std::move(done));
   }
   void request(Address dest, int8_t type, ReplyHandler done, int64_t timeout_ns = 0) {
     request(dest, type, {}, timeout_ns > 0 ? timeout_ns : default_timeout(), std::move(done));
@@ -399,7 +390,8 @@ struct Backend::Impl {
   }
   [[nodiscard]] int64_t default_timeout() const { return int64_t{config.timeout_ms} * rt::kNsPerMs; }
 
-  // Hands a received reply to the request it answers (by source and sequence number).
+  // Hands a received reply to the request it answers (reply_matcher.h: by source,
+  // sequence number and being a reply); a late or unmatched one is counted and dropped.
   void dispatch(const tims::Mailbox::Received& got, std::span<const std::byte> buf);
 
   void receive_replies(int64_t wait_ns);
@@ -582,7 +574,14 @@ struct Backend::Impl {
   ReportWatcher reports{config.reports_dir, config.backtrace_path, [this](std::string m) { broadcast(std::move(m)); }};
 
   // Worker thread only.
-  std::vector<Pending> pending;
+  // The requests waiting for their replies: their numbers, and their handlers by token.
+  // A late reply can still come this long after its request timed out (a host that was
+  // busy or cut off): its number is not given to another request to that mailbox
+  // before.
+  static constexpr int64_t kReplyQuarantineNs = 30 * rt::kNsPerSec;
+  ReplyMatcher replies{kReplyQuarantineNs};
+  std::unordered_map<uint64_t, ReplyHandler> reply_handlers;
+  uint64_t next_token = 1;
   std::map<uint32_t, Component> components;
   std::map<uint32_t, ClassInfo> class_infos;  // system << 24 | class id << 16 (described())
   std::map<uint32_t, std::vector<std::pair<uint64_t, Request>>> class_waiters;

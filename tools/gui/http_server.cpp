@@ -1,6 +1,7 @@
 #include "http_server.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <optional>
 #include <utility>
@@ -44,8 +45,8 @@ std::string mime_type(const std::string& path) {
 struct HttpServer::Impl : std::enable_shared_from_this<HttpServer::Impl> {
   class WsSession;
 
-  Impl(const std::string& address, uint16_t port, std::string root, ServerHandlers h)
-      : web_root(std::move(root)), handlers(std::move(h)), acceptor(ioc) {
+  Impl(const std::string& address, uint16_t port, std::string root, ServerHandlers h, ServerLimits l)
+      : web_root(std::move(root)), handlers(std::move(h)), limits(l), acceptor(ioc) {
     beast::error_code ec;
     const auto addr = net::ip::make_address(address, ec);
     if (ec) throw std::runtime_error("'" + address + "' is not an IP address: " + ec.message());
@@ -189,6 +190,10 @@ struct HttpServer::Impl : std::enable_shared_from_this<HttpServer::Impl> {
       ws_.read_message_max(kMaxMessage);
       ws_.async_accept(req, [self = shared_from_this()](beast::error_code ec) {
         if (ec) return;
+        if (self->server_->sessions.size() >= self->server_->limits.max_clients) {
+          self->refuse_full();
+          return;
+        }
         self->id_ = ++self->server_->next_client;
         self->server_->sessions[self->id_] = self;
         if (self->server_->handlers.opened) self->server_->handlers.opened(self->id_);
@@ -196,18 +201,39 @@ struct HttpServer::Impl : std::enable_shared_from_this<HttpServer::Impl> {
       });
     }
 
-    // I/O thread only.
+    // I/O thread only. The oldest waiting messages make room (never the one being
+    // written: write() took it off the queue).
     void send(std::shared_ptr<const std::string> m) {
       if (closed_) return;
-      if (queue_.size() >= kMaxQueue) {
-        queue_.pop_front();  // never the one being written: writing_ keeps it at front
+      while (!queue_.empty() &&
+             (queue_.size() >= kMaxQueue || queued_bytes_ + m->size() > server_->limits.max_queued_bytes)) {
+        queued_bytes_ -= queue_.front()->size();
+        queue_.pop_front();
         ++dropped_;
+        server_->dropped_messages.fetch_add(1, std::memory_order_relaxed);  // relaxed: a statistic
       }
+      queued_bytes_ += m->size();
       queue_.push_back(std::move(m));
       if (!writing_) write();
     }
 
    private:
+    // One client more than limits.max_clients: closed at once with the reason, counted.
+    void refuse_full() {
+      closed_ = true;
+      const std::size_t max = server_->limits.max_clients;
+      const uint64_t n = server_->refused_clients.fetch_add(1, std::memory_order_relaxed) + 1;  // a statistic
+      if (n == 1 || n % 100 == 0) {
+        std::fprintf(stderr,
+                     "rack-gui: WebSocket client refused: %zu connected, the most --max-clients allows (%llu "
+                     "refused so far)\n",
+                     max, static_cast<unsigned long long>(n));
+      }
+      const std::string why = "rack-gui serves at most " + std::to_string(max) + " clients at once (--max-clients)";
+      ws_.async_close(websocket::close_reason(websocket::close_code::try_again_later, why),
+                      [self = shared_from_this()](beast::error_code) {});
+    }
+
     void read() {
       ws_.async_read(buffer_, [self = shared_from_this()](beast::error_code ec, std::size_t bytes) {
         const auto& h = self->server_->handlers;
@@ -258,6 +284,7 @@ struct HttpServer::Impl : std::enable_shared_from_this<HttpServer::Impl> {
       // The message being written stays alive in `current_` (the queue may drop it).
       current_ = queue_.front();
       queue_.pop_front();
+      queued_bytes_ -= current_->size();
       ws_.text(true);
       ws_.async_write(net::buffer(*current_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
         if (ec) {
@@ -288,11 +315,15 @@ struct HttpServer::Impl : std::enable_shared_from_this<HttpServer::Impl> {
     bool closed_ = false;
     uint64_t id_ = 0;
     uint64_t dropped_ = 0;
+    std::size_t queued_bytes_ = 0;  // of the messages in queue_
   };
 
   net::io_context ioc{1};
   std::string web_root;
   ServerHandlers handlers;
+  ServerLimits limits;
+  std::atomic<uint64_t> refused_clients{0};
+  std::atomic<uint64_t> dropped_messages{0};
   tcp::acceptor acceptor;
   net::steady_timer accept_retry{ioc};  // accept() after a failed accept (EMFILE)
   bool accept_failing = false;          // said so already (the acceptor's handlers run one at a time)
@@ -300,8 +331,12 @@ struct HttpServer::Impl : std::enable_shared_from_this<HttpServer::Impl> {
   std::map<uint64_t, std::weak_ptr<WsSession>> sessions;  // I/O thread only
 };
 
-HttpServer::HttpServer(const std::string& address, uint16_t port, std::string web_root, ServerHandlers handlers)
-    : impl_(std::make_shared<Impl>(address, port, std::move(web_root), std::move(handlers))) {}
+HttpServer::HttpServer(const std::string& address, uint16_t port, std::string web_root, ServerHandlers handlers,
+                       ServerLimits limits)
+    : impl_(std::make_shared<Impl>(address, port, std::move(web_root), std::move(handlers), limits)) {}
+
+uint64_t HttpServer::refused_clients() const { return impl_->refused_clients.load(std::memory_order_relaxed); }
+uint64_t HttpServer::dropped_messages() const { return impl_->dropped_messages.load(std::memory_order_relaxed); }
 
 HttpServer::~HttpServer() { stop(); }
 

@@ -11,8 +11,12 @@
 // cannot be skipped), a text message that is not UTF-8 with 1007 (RFC 6455 8.1), both
 // reported through handlers.refused too. Neither stalls the
 // server or the other clients. Outgoing messages queue per client;
-// a client that does not keep up loses the oldest queued messages beyond kMaxQueue
-// (counted), so a slow browser never stalls the others or grows memory.
+// a client that does not keep up (or never reads) loses the oldest queued messages
+// beyond kMaxQueue messages or ServerLimits::max_queued_bytes (counted), so a slow
+// browser never stalls the others or grows memory. At most ServerLimits::max_clients
+// WebSocket clients are served at once: one more is closed after its handshake with
+// 1013 "try again later" and the reason (RFC 6455 7.4.1), counted, the first and
+// every 100th said on stderr.
 //
 // Not RT code (a tool). Thread-safety: send() may be called from any thread (it
 // posts to the I/O thread); everything else runs on the I/O thread.
@@ -39,6 +43,13 @@ struct ServerHandlers {
   std::function<void(uint64_t client, FrameRefusal why, std::size_t bytes)> refused;
 };
 
+// What one peer may hold of rack-gui (rack-gui --max-clients sets the first).
+struct ServerLimits {
+  std::size_t max_clients = 64;              // WebSocket clients served at once
+  std::size_t max_queued_bytes = 16u << 20;  // per client: output waiting to be sent (a
+                                             // larger message alone still goes)
+};
+
 class HttpServer {
  public:
   static constexpr std::size_t kMaxMessage = 64 * 1024;
@@ -46,7 +57,8 @@ class HttpServer {
 
   // Binds address:port (port 0: any free port). Throws std::runtime_error with the
   // address on failure (in use, not an address of this machine).
-  HttpServer(const std::string& address, uint16_t port, std::string web_root, ServerHandlers handlers);
+  HttpServer(const std::string& address, uint16_t port, std::string web_root, ServerHandlers handlers,
+             ServerLimits limits = {});
   ~HttpServer();
   HttpServer(const HttpServer&) = delete;
   HttpServer& operator=(const HttpServer&) = delete;
@@ -57,6 +69,10 @@ class HttpServer {
   void stop();
   // To one client, or to every client when `client` is 0. Any thread.
   void send(uint64_t client, std::string message);
+  // WebSocket clients refused (max_clients were connected), and messages dropped for
+  // clients that did not keep up. Any thread.
+  [[nodiscard]] uint64_t refused_clients() const;
+  [[nodiscard]] uint64_t dropped_messages() const;
 
  private:
   struct Impl;

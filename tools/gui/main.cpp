@@ -71,6 +71,9 @@ options:
   --poll-ms MS       state and data poll period (default 200)
   --timeout-ms MS    a robot that does not answer within this is shown as
                      "no reply" (default 1000)
+  --max-clients N    browsers and tools served at once (default 64, 1..10000): one
+                     more is closed with WebSocket close code 1013 (try again
+                     later) and the reason, and counted
   --forget-s SEC     a host the network no longer announces (it stopped) is shown
                      as NOT ANSWERING for SEC seconds, then leaves the list with
                      its components (default 30; -1: never)
@@ -83,7 +86,10 @@ not_json, too_deep, duplicate_key, not_object, bad_op, bad_key, bad_value, busy,
 binary), logged at most once a second and counted by reason in the line printed at
 exit; nothing reaches a robot. Over 64 KiB or not UTF-8 also ends that connection
 (close code 1009 or 1007). At most 256 requests wait for the robots; more are
-refused as busy.
+refused as busy. A client that does not read keeps at most 16 MiB of messages
+waiting (the oldest are dropped, counted). A robot's reply is taken only by the
+request it answers (mailbox, sequence number, a reply); one that comes after its
+request timed out is dropped and counted.
 
 environment:
   RACK_TOOL_REGISTRY  where tools on this machine claim their TiMS address (default
@@ -120,6 +126,7 @@ int main(int argc, char** argv) {
   long port = 8080;
   std::string web = RACK_GUI_WEB_ROOT;
   rack::gui::ConfigServiceConfig config_dirs;
+  rack::gui::ServerLimits limits;
   bool web_given = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -169,6 +176,8 @@ int main(int argc, char** argv) {
       config_dirs.rackd_path = value("the rackd program");
     } else if (a == "--poll-ms") {
       config.poll_ms = static_cast<int>(number(a, value("milliseconds"), 20, 10000));
+    } else if (a == "--max-clients") {
+      limits.max_clients = static_cast<std::size_t>(number(a, value("a number of clients"), 1, 10000));
     } else if (a == "--forget-s") {
       const long sec = number(a, value("seconds"), -1, 86400);
       config.host_forget_ms = sec < 0 ? -1 : static_cast<int>(sec * 1000);
@@ -240,7 +249,7 @@ int main(int argc, char** argv) {
                             " bytes; connection closed (1009)");
       }
     };
-    rack::gui::HttpServer server(address, static_cast<uint16_t>(port), web, handlers);
+    rack::gui::HttpServer server(address, static_cast<uint16_t>(port), web, handlers, limits);
     server_ptr = &server;
     backend.start();
     std::thread signals([&server, set] {
@@ -272,6 +281,16 @@ int main(int argc, char** argv) {
         static_cast<unsigned long long>(c.requests), static_cast<unsigned long long>(c.timeouts),
         static_cast<unsigned long long>(c.malformed), by_reason.c_str(), static_cast<unsigned long long>(c.bad_replies),
         static_cast<unsigned long long>(c.streamed), static_cast<unsigned long long>(c.stream_lost));
+    std::fprintf(stderr,
+                 "rack-gui: %llu WebSocket client(s) refused (--max-clients), %llu message(s) dropped for clients "
+                 "that did not read\n",
+                 static_cast<unsigned long long>(server.refused_clients()),
+                 static_cast<unsigned long long>(server.dropped_messages()));
+    std::fprintf(stderr,
+                 "rack-gui: %llu late and %llu unmatched TiMS reply(ies) dropped, %llu request(s) not sent (every "
+                 "sequence number of the mailbox taken)\n",
+                 static_cast<unsigned long long>(c.late_replies), static_cast<unsigned long long>(c.unmatched_replies),
+                 static_cast<unsigned long long>(c.no_sequence));
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rack-gui: %s\n", e.what());
     return 1;

@@ -48,6 +48,7 @@
 #include "rack/core/wire.h"
 #include "rack/rt/clock.h"
 #include "rack/rt/latency_stats.h"
+#include "rack/rt/output_file.h"
 #include "rack/tims/address.h"
 #include "rack/tims/endpoint.h"
 #include "rack/tims/lcm_transport.h"
@@ -250,6 +251,35 @@ constexpr const char* kNoneAnsweredHint =
     ": is a rackd running on this network? (start one: rackd configs/demo.yaml; another network: --lcm URL or "
     "--host-file FILE; a slow one: --discover-ms MS)";
 
+// A value from the command line or from the network as a message quotes it: its first
+// `max` bytes, and its length when it is longer (a 100 kB argument, or a peer's
+// megabyte-long text, is not echoed back whole).
+constexpr std::size_t kShownBytes = 64;
+std::string shown(const std::string& text, std::size_t max = kShownBytes) {
+  if (text.size() <= max) return text;
+  std::size_t cut = max;
+  while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) --cut;  // not inside a UTF-8 character
+  return text.substr(0, cut) + "... (" + std::to_string(text.size()) + " bytes)";
+}
+// A whole message on stderr, at most 4 kB of it.
+void print_failure(const std::string& message) { std::fprintf(stderr, "rackctl: %s\n", shown(message, 4096).c_str()); }
+
+// Writes all of `n` bytes to `fd` (standard output). false with `error`.
+bool write_all(int fd, const void* data, std::size_t n, std::string& error) {
+  const auto* p = static_cast<const char*>(data);
+  while (n > 0) {
+    const ssize_t k = ::write(fd, p, n);
+    if (k < 0 && errno == EINTR) continue;
+    if (k <= 0) {
+      error = std::string("- (standard output): ") + (k < 0 ? std::strerror(errno) : "nothing written");
+      return false;
+    }
+    p += k;
+    n -= static_cast<std::size_t>(k);
+  }
+  return true;
+}
+
 using rack::client::error_reason;
 
 const char* reply_name(int8_t type) {
@@ -320,19 +350,20 @@ class Session : public rack::client::Session {
       if (!found) {
         fail(kExitUnavailable, format("no component of a class named '%s' at system %u, instance %u answered "
                                       "discovery within %lld ms on %s (rackctl list shows the components that answer)",
-                                      cls.c_str(), numeric.system(), numeric.instance(),
+                                      shown(cls).c_str(), numeric.system(), numeric.instance(),
                                       static_cast<long long>(options_.discover_ms), url().c_str()));
       }
       return Target{found->first.address.component(), "", found->second};
     }
     if (text.find('(') != std::string::npos) {
-      fail(kExitUsage, "'" + text + "' is not an address (expected Class(system/instance), e.g. Generator(0/0))");
+      fail(kExitUsage,
+           "'" + shown(text) + "' is not an address (expected Class(system/instance), e.g. Generator(0/0))");
     }
     const auto found = find_component(text);
     if (!found) {
       fail(kExitUnavailable, format("no component named '%s' answered discovery within %lld ms on %s (rackctl list "
                                     "shows the components that answer)",
-                                    text.c_str(), static_cast<long long>(options_.discover_ms), url().c_str()));
+                                    shown(text).c_str(), static_cast<long long>(options_.discover_ms), url().c_str()));
     }
     Target t{found->address.component(), found->name, ""};
     name_class(t);
@@ -513,25 +544,16 @@ int cmd_trace(Session& s, const Options& o) {
   std::memcpy(req.names, joined.data(), joined.size());
   req.duration_ns = static_cast<int64_t>(o.duration_s * 1e9);
   if (req.duration_ns <= 0) fail(kExitUsage, "--duration is below a nanosecond");
-  // The file is opened before anything is recorded: an unwritable --out is said at once,
-  // not after the trace. A file this command created is removed when it fails.
-  struct OutFile {
-    int fd = -1;
-    bool created = false;
-    bool done = false;
-    std::string path;
-    ~OutFile() {
-      if (fd >= 0) ::close(fd);
-      if (created && !done) ::unlink(path.c_str());
-    }
-  } out;
-  out.path = o.out;
-  out.created = ::access(o.out.c_str(), F_OK) != 0;
-  out.fd = ::open(o.out.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0666);
-  if (out.fd < 0) {
-    out.created = false;
-    fail(kExitUsage, "--out " + o.out + ": cannot write: " + std::strerror(errno) + " (nothing recorded)");
-  }
+  // The file is opened before anything is recorded: an unwritable --out (a missing
+  // folder, a FIFO, a directory) is said at once, not after the trace. The chunks go to
+  // a temporary file beside it as they come, so rackctl holds one chunk, not the trace;
+  // it becomes FILE when the whole trace is there (rack/rt/output_file.h), and a trace
+  // that fails leaves no FILE, whole or partial. '-': standard output.
+  const bool to_stdout = o.out == "-";
+  rt::OutputFile out;
+  std::string out_error;
+  if (!to_stdout && !out.open(o.out, "trace", rt::OutputMode::kReplace, out_error))
+    fail(kExitUsage, "--out " + out_error + " (nothing recorded)");
 
   // Which host: the one with the named components, --host, or the only one there is.
   const auto holds = [&](const tims::HostInfo& h, const std::string& n) {
@@ -559,7 +581,7 @@ int cmd_trace(Session& s, const Options& o) {
   }
   if (host == nullptr) {
     std::string what = all ? "no host" : "no host with every component of '" + joined + "'";
-    if (!o.host.empty()) what += " named '" + o.host + "'";
+    if (!o.host.empty()) what += " named '" + shown(o.host) + "'";
     fail(kExitUnavailable, format("%s answered discovery within %lld ms on %s (components on several hosts: trace "
                                   "each host on its own)",
                                   what.c_str(), static_cast<long long>(o.discover_ms), s.url().c_str()));
@@ -580,8 +602,11 @@ int cmd_trace(Session& s, const Options& o) {
   std::fprintf(stderr, "rackctl: recording %u task(s) of host '%s' for %.3f s\n", started.tasks, host_name.c_str(),
                o.duration_s);
 
-  // Wait for the trace, then read it chunk by chunk.
-  std::string json;
+  // Wait for the trace, then read it chunk by chunk, each written out as it comes. What
+  // the peer says is bounded by what was asked: no more time left than the duration
+  // asked for, no chunk longer than a TRACE_READ asks for (decode_chunk), no total over
+  // kMaxTraceJsonBytes.
+  uint64_t received = 0;
   uint64_t dropped = 0;
   const int64_t give_up = rt::monotonic_ns() + req.duration_ns + 30 * rt::kNsPerSec;
   uint64_t total = 0;
@@ -589,40 +614,36 @@ int cmd_trace(Session& s, const Options& o) {
     if (rt::monotonic_ns() > give_up)
       fail(kExitUnavailable, t.label() + ": the trace was not ready 30 s after its end");
     rtrace::TraceReadRequest rr;
-    rr.offset = json.size();
+    rr.offset = received;
     r = s.call(t, rtrace::kTraceRead, rr);
     Session::expect(t, r, msg::kOk, "TRACE_READ");
-    const rtrace::DecodedChunk chunk = rtrace::decode_chunk(r.body, !tims::body_is_native(r.reply), json.size(), total);
+    const rtrace::DecodedChunk chunk = rtrace::decode_chunk(r.body, !tims::body_is_native(r.reply), received, total);
     if (!chunk.ok) fail(kExitError, t.label() + " (" + r.reply.source().str() + "): " + chunk.error);
     const auto state = static_cast<rtrace::TraceState>(chunk.header.state);
     if (state == rtrace::TraceState::kRecording) {
+      if (chunk.header.remaining_ns > req.duration_ns) {
+        fail(kExitError,
+             format("%s (%s): TRACE_READ says %lld ms are left of a trace of %lld ms", t.label().c_str(),
+                    r.reply.source().str().c_str(), static_cast<long long>(chunk.header.remaining_ns / rt::kNsPerMs),
+                    static_cast<long long>(req.duration_ns / rt::kNsPerMs)));
+      }
       rt::sleep_for(std::clamp<int64_t>(chunk.header.remaining_ns, 10 * rt::kNsPerMs, 200 * rt::kNsPerMs));
       continue;
     }
     if (state != rtrace::TraceState::kReady)
       fail(kExitError, t.label() + ": the trace was discarded (see rackd's log)");
-    json.append(reinterpret_cast<const char*>(chunk.bytes.data()), chunk.bytes.size());
+    const bool written = to_stdout ? write_all(STDOUT_FILENO, chunk.bytes.data(), chunk.bytes.size(), out_error)
+                                   : out.write(chunk.bytes.data(), chunk.bytes.size(), out_error);
+    if (!written) fail(kExitError, "--out " + out_error);
+    received += chunk.bytes.size();
     dropped = chunk.header.dropped;
     total = chunk.header.total;
-    if (json.size() >= total) break;
+    if (received >= total) break;
   }
-  struct stat st {};
-  const bool regular = ::fstat(out.fd, &st) == 0 && S_ISREG(st.st_mode);  // not /dev/stdout, a pipe
-  bool written = !regular || ::ftruncate(out.fd, 0) == 0;
-  for (std::size_t at = 0; written && at < json.size();) {
-    const ssize_t n = ::write(out.fd, json.data() + at, json.size() - at);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) written = false;
-    else at += static_cast<std::size_t>(n);
-  }
-  const int err = errno;
-  const bool closed = ::close(out.fd) == 0;
-  out.fd = -1;
-  if (!written || !closed)
-    fail(kExitError, "--out " + o.out + ": write failed: " + std::strerror(written ? errno : err));
-  out.done = true;
-  std::printf("%s: %zu bytes, %u task(s) of host '%s', %llu event(s) dropped\n", o.out.c_str(), json.size(),
-              started.tasks, host_name.c_str(), static_cast<unsigned long long>(dropped));
+  if (!to_stdout && !out.commit(out_error)) fail(kExitError, "--out " + out_error);
+  std::fprintf(to_stdout ? stderr : stdout, "%s: %llu bytes, %u task(s) of host '%s', %llu event(s) dropped\n",
+               to_stdout ? "standard output" : o.out.c_str(), static_cast<unsigned long long>(received), started.tasks,
+               host_name.c_str(), static_cast<unsigned long long>(dropped));
   return kExitOk;
 }
 
@@ -1027,7 +1048,8 @@ int cmd_set_param(Session& s, const Options& o) {
   const std::string& key = o.args[1];
   const std::string& text = o.args[2];
   if (key.empty() || key.size() >= wire::kParamNameLen) {
-    fail(kExitUsage, format("parameter name '%s' must be 1..%zu characters", key.c_str(), wire::kParamNameLen - 1));
+    fail(kExitUsage,
+         format("parameter name '%s' must be 1..%zu characters", shown(key).c_str(), wire::kParamNameLen - 1));
   }
   const Target t = s.resolve(o.args[0]);
   // Learn the parameter's kind first.
@@ -1042,8 +1064,8 @@ int cmd_set_param(Session& s, const Options& o) {
   }
   const auto kind = static_cast<wire::ParamKind>(record.kind);
   const auto bad = [&](const char* what) {
-    return Failure{kExitUsage, format("'%s' is not %s (parameter '%s' of %s is a %s)", text.c_str(), what, key.c_str(),
-                                      t.label().c_str(), rack::describe(kind))};
+    return Failure{kExitUsage, format("'%s' is not %s (parameter '%s' of %s is a %s)", shown(text).c_str(), what,
+                                      key.c_str(), t.label().c_str(), rack::describe(kind))};
   };
   switch (kind) {
     case wire::ParamKind::kInt: {
@@ -1259,7 +1281,7 @@ int cmd_send(Session& s, const Options& o) {
   const auto number = parse_int(o.args[1]);
   if (number && (*number < msg::kFirstClassCommand || *number > 127)) {
     fail(kExitUsage, "CMD must be a class command number " + std::to_string(msg::kFirstClassCommand) +
-                         "..127 (generic commands have their own rackctl commands), got '" + o.args[1] + "'");
+                         "..127 (generic commands have their own rackctl commands), got '" + shown(o.args[1]) + "'");
   }
   const Target t = s.resolve(o.args[0]);
   // The class's commands as it describes them (GET_CLASS).
@@ -1287,7 +1309,7 @@ int cmd_send(Session& s, const Options& o) {
     if (info == nullptr) {
       fail(kExitUsage,
            format("%s: class %s has no command '%s' (%s)", t.label().c_str(),
-                  described != nullptr ? described->class_name.c_str() : "(not described)", o.args[1].c_str(),
+                  described != nullptr ? described->class_name.c_str() : "(not described)", shown(o.args[1]).c_str(),
                   names.empty() ? "no named commands known: give the number" : ("known: " + names).c_str()));
     }
     cmd = info->type;
@@ -1304,7 +1326,7 @@ int cmd_send(Session& s, const Options& o) {
     body.assign(info->body->size, std::byte{0});
     for (const std::string& arg : fields_given) {
       const auto eq = arg.find('=');
-      if (eq == std::string::npos || eq == 0) fail(kExitUsage, "send: '" + arg + "' is not FIELD=VALUE");
+      if (eq == std::string::npos || eq == 0) fail(kExitUsage, "send: '" + shown(arg) + "' is not FIELD=VALUE");
       const std::string key = arg.substr(0, eq);
       const tims::FieldDesc* field = nullptr;
       std::string names;
@@ -1314,7 +1336,7 @@ int cmd_send(Session& s, const Options& o) {
       }
       if (field == nullptr) {
         fail(kExitUsage, format("send %s: %s has no field '%s' (fields: %s)", info->name.c_str(),
-                                info->body->name.c_str(), key.c_str(), names.c_str()));
+                                info->body->name.c_str(), shown(key).c_str(), names.c_str()));
       }
       if (const std::string why = rack::set_field_from_text(*field, body, arg.substr(eq + 1)); !why.empty()) {
         fail(kExitUsage, format("send %s: field '%s': %s", info->name.c_str(), key.c_str(), why.c_str()));
@@ -1396,11 +1418,17 @@ int run_doctor_command(const Options& o) {
 
 // ---------------------------------------------------------------- graph, alloc
 
-bool write_text_file(const std::string& path, const std::string& text) {
-  FILE* f = std::fopen(path.c_str(), "w");
-  if (f == nullptr) return false;
-  const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
-  return std::fclose(f) == 0 && ok;
+// `text` to --out through a temporary file (rack/rt/output_file.h: a FIFO or directory
+// is refused, a failed write leaves no file), or to standard output (none, or '-').
+void write_output(const std::string& path, const std::string& text, const char* what) {
+  std::string error;
+  if (path.empty() || path == "-") {
+    if (!write_all(STDOUT_FILENO, text.data(), text.size(), error)) fail(kExitError, error);
+    return;
+  }
+  rt::OutputFile f;
+  if (!f.open(path, what, rt::OutputMode::kReplace, error) || !f.write(text, error) || !f.commit(error))
+    fail(kExitError, "--out " + error);
 }
 
 // The hosts discovery found, as a deployment without host files (graph/alloc --live
@@ -1554,8 +1582,13 @@ bool has_errors(const rack::deploy::Deployment& d) {
   return !d.problems.empty();
 }
 
-// DOT through graphviz's dot into SVG, on stdout or into `out`.
-int write_svg(const std::string& dot_text, const std::string& out) {
+// DOT through graphviz's dot into SVG, on stdout or into `out` (dot writes the
+// temporary file of an OutputFile, which becomes `out` when dot succeeded).
+int write_svg(const std::string& dot_text, const std::string& out_path) {
+  const std::string out = out_path == "-" ? std::string() : out_path;
+  rt::OutputFile svg;
+  std::string error;
+  if (!out.empty() && !svg.open(out, "graph", rt::OutputMode::kReplace, error)) fail(kExitError, "--out " + error);
   char tmp[] = "/tmp/rackctl-graph-XXXXXX";
   const int fd = ::mkstemp(tmp);
   if (fd < 0) fail(kExitError, std::string("graph: cannot make a temporary file: ") + std::strerror(errno));
@@ -1567,7 +1600,7 @@ int write_svg(const std::string& dot_text, const std::string& out) {
     const pid_t pid = ::fork();
     if (pid == 0) {
       if (out.empty()) ::execlp("dot", "dot", "-Tsvg", tmp, static_cast<char*>(nullptr));
-      else ::execlp("dot", "dot", "-Tsvg", "-o", out.c_str(), tmp, static_cast<char*>(nullptr));
+      else ::execlp("dot", "dot", "-Tsvg", "-o", svg.temp_path().c_str(), tmp, static_cast<char*>(nullptr));
       ::_exit(127);
     }
     int status = 0;
@@ -1580,6 +1613,7 @@ int write_svg(const std::string& dot_text, const std::string& out) {
          "--format dot prints the DOT text");
   }
   if (rc != 0) fail(kExitError, "graph: dot did not make the SVG (exit " + std::to_string(rc) + ")");
+  if (!out.empty() && !svg.commit(error)) fail(kExitError, "--out " + error);
   return kExitOk;
 }
 
@@ -1594,15 +1628,11 @@ int run_graph(Session* s, const Options& o) {
   }
   for (const auto& p : d.problems) std::fprintf(stderr, "rackctl: graph: %s\n", p.c_str());
   if (o.format == "json") {
-    const std::string j = rack::deploy::to_json(d, lp) + "\n";
-    if (o.out.empty()) std::fputs(j.c_str(), stdout);
-    else if (!write_text_file(o.out, j)) fail(kExitError, "graph: cannot write " + o.out);
+    write_output(o.out, rack::deploy::to_json(d, lp) + "\n", "graph");
   } else if (o.format == "svg") {
     write_svg(rack::deploy::to_dot(d, lp), o.out);
   } else {
-    const std::string dot = rack::deploy::to_dot(d, lp);
-    if (o.out.empty()) std::fputs(dot.c_str(), stdout);
-    else if (!write_text_file(o.out, dot)) fail(kExitError, "graph: cannot write " + o.out);
+    write_output(o.out, rack::deploy::to_dot(d, lp), "graph");
   }
   return has_errors(d) ? kExitError : kExitOk;
 }
@@ -1655,7 +1685,7 @@ int cmd_threads(const Options& o) {
   if (!o.args.empty()) {
     const auto pid = parse_int(o.args[0]);
     if (!pid || *pid <= 0 || *pid > INT_MAX) {
-      std::fprintf(stderr, "rackctl: threads: '%s' is not a process id\n", o.args[0].c_str());
+      std::fprintf(stderr, "rackctl: threads: '%s' is not a process id\n", shown(o.args[0]).c_str());
       return kExitUsage;
     }
     pids.push_back(static_cast<long>(*pid));
@@ -1922,7 +1952,8 @@ const std::vector<Command>& commands() {
        1,
        {},
        "Writes a new key file for authenticated TiMS links: one random 32-byte key as\n"
-       "64 hex digits, mode 0600; an existing file is never overwritten. Copy it to\n"
+       "64 hex digits, mode 0600; an existing file is never overwritten, and a write\n"
+       "that fails (disk full) leaves no file. Copy it to\n"
        "every host of the network (keeping mode 0600) and name it in the host files\n"
        "(tims: networks: - key_file: PATH); tools take it with --key-file. Rotation:\n"
        "a file may hold two keys (two lines): the first signs, both are accepted;\n"
@@ -1946,9 +1977,12 @@ const std::vector<Command>& commands() {
        "drains (10 ms) drops events: the count is printed and kept in the file\n"
        "(otherData.dropped_events); the host file's trace_ring_events sets the\n"
        "rings' size (4096). A trace already running: exit 1. FILE is opened\n"
-       "before the trace starts: one that cannot be written is exit 2, with nothing\n"
-       "recorded. A reply that is not a well-formed chunk of the trace (truncated,\n"
-       "at another offset, a size over 1 GiB) is exit 1, with the byte it is wrong at.\n"
+       "before the trace starts: one that cannot be written (a missing folder; a FIFO,\n"
+       "directory or device) is exit 2, with nothing recorded; '-' is standard output.\n"
+       "The chunks go to a temporary file beside FILE, which becomes FILE once the\n"
+       "trace is whole: a failed trace leaves none. A reply that is not a well-formed\n"
+       "chunk of the trace (truncated, at another offset, a chunk over 32 KiB, a size\n"
+       "over 1 GiB, more time left than asked for) is exit 1, with the byte it is wrong at.\n"
        "  rackctl trace --duration 2 --out sim.json all\n"
        "  rackctl trace --duration 5 --out mcl.json mcl,ladar",
        cmd_trace},
@@ -1981,7 +2015,9 @@ const std::vector<Command>& commands() {
        "as the kernel runs them (GET_TASKS), each running subscription as a flow\n"
        "('subscribed', the period its consumer gets) with the networks it crosses\n"
        "(the hosts' networks, from GET_TASKS). Offline it needs no network.\n"
-       "--format svg runs graphviz's dot (apt-get install graphviz).\n"
+       "--format svg runs graphviz's dot (apt-get install graphviz). --out FILE is\n"
+       "written whole or not at all (a FIFO or directory is refused); '-' or none:\n"
+       "standard output.\n"
        "  rackctl graph configs/two_robots/ | dot -Tsvg > fleet.svg\n"
        "  rackctl graph --live --format svg --out now.svg\n"
        "  rackctl graph --format svg --out fleet.svg configs/two_robots/",
@@ -2073,7 +2109,7 @@ Options parse_arguments(int argc, char** argv) {
     const auto non_negative = [&](const char* what) -> int64_t {
       const std::string v = value(what);
       const auto n = parse_int(v);
-      if (!n || *n < 0) fail(kExitUsage, a + " needs " + what + ", got '" + v + "'");
+      if (!n || *n < 0) fail(kExitUsage, a + " needs " + what + ", got '" + shown(v) + "'");
       return *n;
     };
     if (a == "-h" || a == "--help") o.help = true;
@@ -2095,7 +2131,7 @@ Options parse_arguments(int argc, char** argv) {
     } else if (a == "--i64") {
       const std::string v = value("a 64-bit integer");
       o.i64 = parse_int(v);
-      if (!o.i64) fail(kExitUsage, "--i64 needs a 64-bit integer, got '" + v + "'");
+      if (!o.i64) fail(kExitUsage, "--i64 needs a 64-bit integer, got '" + shown(v) + "'");
       o.given.insert(a);
     } else if (a == "--retries") {
       o.retries = non_negative("a number of retries");
@@ -2117,14 +2153,14 @@ Options parse_arguments(int argc, char** argv) {
       // At most a day (as a host file's *_ms): 1e308 ms was rounded to nanoseconds
       // out of int64_t's range (an unspecified period sent to the component).
       if (!p || *p < 0 || *p > 86400000.0) {
-        fail(kExitUsage, "--period needs milliseconds in 0..86400000 (a day), got '" + v + "'");
+        fail(kExitUsage, "--period needs milliseconds in 0..86400000 (a day), got '" + shown(v) + "'");
       }
       o.period_ms = *p;
       o.given.insert(a);
     } else if (a == "--duration") {
       const std::string v = value("a number of seconds");
       const auto d = parse_double(v);
-      if (!d || *d <= 0 || *d > 60) fail(kExitUsage, "--duration needs seconds in (0, 60], got '" + v + "'");
+      if (!d || *d <= 0 || *d > 60) fail(kExitUsage, "--duration needs seconds in (0, 60], got '" + shown(v) + "'");
       o.duration_s = *d;
       o.given.insert(a);
     } else if (a == "--out") {
@@ -2136,7 +2172,7 @@ Options parse_arguments(int argc, char** argv) {
     } else if (a == "--format") {
       o.format = value("dot, svg or json");
       if (o.format != "dot" && o.format != "svg" && o.format != "json") {
-        fail(kExitUsage, "--format takes dot, svg or json, got '" + o.format + "'");
+        fail(kExitUsage, "--format takes dot, svg or json, got '" + shown(o.format) + "'");
       }
       o.given.insert(a);
     } else if (a == "--live") {
@@ -2146,7 +2182,7 @@ Options parse_arguments(int argc, char** argv) {
       o.rackd = value("the rackd program");
       o.given.insert(a);
     } else {
-      fail(kExitUsage, "unknown option '" + a + "' (rackctl --help lists them)");
+      fail(kExitUsage, "unknown option '" + shown(a) + "' (rackctl --help lists them)");
     }
   }
   if (!host_file.empty()) {
@@ -2163,11 +2199,14 @@ Options parse_arguments(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // A file size limit (ulimit -f) makes write() fail with EFBIG, which is said, and the
+  // temporary file removed; SIGXFSZ would have killed rackctl half-way through instead.
+  ::signal(SIGXFSZ, SIG_IGN);
   Options o;
   try {
     o = parse_arguments(argc, argv);
   } catch (const Failure& f) {
-    std::fprintf(stderr, "rackctl: %s\n", f.message.c_str());
+    print_failure(f.message);
     return f.code;
   }
   if (o.version) {
@@ -2184,7 +2223,7 @@ int main(int argc, char** argv) {
   }
   const Command* cmd = find_command(o.command);
   if (cmd == nullptr) {
-    std::fprintf(stderr, "rackctl: unknown command '%s' (rackctl --help lists them)\n", o.command.c_str());
+    std::fprintf(stderr, "rackctl: unknown command '%s' (rackctl --help lists them)\n", shown(o.command).c_str());
     return kExitUsage;
   }
   if (std::string(cmd->name) == "help") {
@@ -2194,7 +2233,7 @@ int main(int argc, char** argv) {
     }
     const Command* about = find_command(o.args[0]);
     if (about == nullptr || o.args.size() > 1) {
-      std::fprintf(stderr, "rackctl: no command '%s' (rackctl --help lists them)\n", o.args[0].c_str());
+      std::fprintf(stderr, "rackctl: no command '%s' (rackctl --help lists them)\n", shown(o.args[0]).c_str());
       return kExitUsage;
     }
     print_command_help(*about, stdout);
@@ -2222,7 +2261,7 @@ int main(int argc, char** argv) {
     try {  // offline: from the host files alone, no network joined
       return std::string(cmd->name) == "graph" ? run_graph(nullptr, o) : run_alloc(nullptr, o);
     } catch (const Failure& f) {
-      std::fprintf(stderr, "rackctl: %s\n", f.message.c_str());
+      print_failure(f.message);
       return f.code;
     }
   }
@@ -2239,11 +2278,11 @@ int main(int argc, char** argv) {
     Session session(o);
     return cmd->run(session, o);
   } catch (const Failure& f) {
-    std::fprintf(stderr, "rackctl: %s\n", f.message.c_str());
+    print_failure(f.message);
     return f.code;
   } catch (const std::exception& e) {
     // Set-up failures: the LCM network cannot be joined, a mailbox is taken.
-    std::fprintf(stderr, "rackctl: %s\n", e.what());
+    print_failure(e.what());
     return kExitUnavailable;
   }
 }

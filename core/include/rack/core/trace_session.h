@@ -79,7 +79,8 @@ inline constexpr uint64_t kMaxTraceJsonBytes = 1024ull * 1024 * 1024;
 // far (the request's offset); `total`: the total of the earlier chunks (0: none yet).
 // Refused, with what and the byte offset in the reply: a reply shorter than its header,
 // an unknown state, a chunk longer than the reply or followed by stray bytes, a chunk
-// at another offset or past the announced total, a total that changes between chunks
+// longer than kTraceChunkBytes (what a TRACE_READ asks for), a chunk at another offset
+// or past the announced total, a total that changes between chunks
 // or is over kMaxTraceJsonBytes, an empty chunk before the end, a time left out of
 // range. Total, never throws; `bytes` points into `body`.
 struct DecodedChunk {
