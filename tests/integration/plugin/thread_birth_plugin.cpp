@@ -5,7 +5,8 @@
 // with this plug-in by dlopen()). Each new thread reads where it was born from
 // /proc/self/task/TID/ before it does anything else and writes one line to stderr:
 //   thread-birth: KIND: tid T, CPUs LIST, policy P, priority R[, detached D, stack S]
-// so that the test sees the thread as glibc started it, before any sweep could move it.
+// so that the test sees the thread as glibc started it, before any sweep could move it,
+// and names itself tb-KIND (libgomp's worker lives on, with the data task's name otherwise).
 // Deliberately not RT code: creating threads in a cycle is a mode switch (the host file
 // of the test switches detection off for this task).
 #include <pthread.h>
@@ -73,6 +74,9 @@ void report_birth(const char* kind, bool with_attributes) {
               std::to_string(stack / 1024) + " KiB";
     }
   }
+  // A name of its own (it inherited the data task's): the test tells the task from it.
+  // Before the line, so that the name is set when the test reads it.
+  pthread_setname_np(pthread_self(), ("tb-" + std::string(kind)).substr(0, 15).c_str());
   char text[256];
   const int n = std::snprintf(text, sizeof text, "thread-birth: %s: tid %ld, CPUs %s, policy %ld, priority %ld%s\n",
                               kind, tid, cpus.c_str(), policy, priority, extra.c_str());
