@@ -5,6 +5,7 @@
 #include <algorithm>
 
 #include "rack/core/stepper.h"
+#include "rack/rt/thread_birth.h"
 #include "rack/tims/lcm_url.h"
 
 #include <dirent.h>
@@ -306,6 +307,12 @@ void Executor::start() {
 
 void Executor::start_steps(const std::string& url) {
   const Address self = Address::make(host_->settings.system, tims::classes::kExecutor, host_->settings.host_id, 1);
+  // Partitioning: from here on every thread that is not one of our tasks or workers
+  // (rt::Thread) is born on the housekeeping CPUs with SCHED_OTHER, whoever creates it
+  // (where the program links rack::rt_hooks, as rackd does).
+  if (!host_->settings.housekeeping_cpus.empty()) {
+    placing_threads_ = rt::thread_birth::place_on(host_->settings.housekeeping_cpus) == 0;
+  }
   open_mailboxes(self);
   start_gdos(url, self);  // first, so that everything from here on is logged
   install_access(self);
@@ -733,6 +740,8 @@ void Executor::stop() {
   if (gdos_thread_.joinable()) gdos_thread_.join();
   gdos_publisher_.reset();
   if (gdos::Hub::process_hub() == &hub_) gdos::Hub::set_process_hub(nullptr);
+  if (placing_threads_) rt::thread_birth::stop_placing();
+  placing_threads_ = false;
 }
 
 void Executor::trace_loop() {
@@ -1029,6 +1038,8 @@ std::vector<std::string> Executor::partition_threads() {
   // A task that has not marked its start-up yet cannot be told from a helper thread:
   // try again at the next call rather than move an RT task.
   if (std::find(tasks.begin(), tasks.end(), 0) != tasks.end()) return moved;
+  // Read before the listing: a thread born during the pass changes the count again.
+  swept_thread_count_ = rt::process_thread_count();
   for (const pid_t tid : own_threads()) {
     if (std::find(tasks.begin(), tasks.end(), tid) != tasks.end()) continue;
     std::string what;
@@ -1051,6 +1062,13 @@ std::vector<std::string> Executor::partition_threads() {
     if (!what.empty()) moved.push_back(std::to_string(tid) + " (" + thread_name(tid) + "): " + what);
   }
   return moved;
+}
+
+std::vector<std::string> Executor::partition_new_threads() {
+  if (host_->settings.housekeeping_cpus.empty() || !started_) return {};
+  const long count = rt::process_thread_count();
+  if (count > 0 && count == swept_thread_count_) return {};
+  return partition_threads();
 }
 
 std::vector<std::string> Executor::partition_warnings() const {

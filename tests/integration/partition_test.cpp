@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -159,6 +160,73 @@ TEST_F(PartitionTest, ADriversIoWorkerRunsOnTheHousekeepingCpus) {
   const auto at = err.find("tcp-sensor");
   ASSERT_NE(at, std::string::npos) << err;
   EXPECT_NE(err.substr(at, err.find('\n', at) - at).find("I/O worker, not RT"), std::string::npos) << err;
+  rackd.signal(SIGTERM);
+  EXPECT_EQ(rackd.wait_exit(20s), 0) << rackd.err();
+}
+
+// The line of `text` that holds `part` ("" when none).
+std::string line_with(const std::string& text, const std::string& part) {
+  const auto at = text.find(part);
+  if (at == std::string::npos) return "";
+  const auto begin = text.rfind('\n', at);
+  const auto start = begin == std::string::npos ? 0 : begin + 1;
+  return text.substr(start, text.find('\n', at) - start);
+}
+
+// Threads that an RT task of a plug-in starts in a cycle (rack_thread_birth_plugin: a
+// pthread, a detached one with a 512 KiB stack, a std::thread and an OpenMP region's
+// worker, libgomp coming in with the plug-in's dlopen()) are born on the housekeeping
+// CPU with SCHED_OTHER: each reads /proc/self/task/TID/ first thing, before any sweep
+// could have moved it. rackd's pthread_create placed them (rack/rt/thread_birth.h), so
+// the sweep names none; the detached thread keeps the attributes its creator gave it.
+TEST_F(PartitionTest, ThreadsAnRtTaskStartsAreBornOnTheHousekeepingCpus) {
+  // Threads created in a cycle are a mode switch, here on purpose: detection is off for
+  // that task.
+  const std::string text = "host: partition-test\nsystem: 0\nlcm_url: \"" + bus_.url() + "\"\n" + "plugins: [" +
+                           RACK_THREAD_BIRTH_PLUGIN_PATH + "]\n" +
+                           "cpus: {rt: 1, housekeeping: 0}\n"
+                           "components:\n"
+                           "  - name: starter\n"
+                           "    class: ThreadStarter\n"
+                           "    instance: 0\n"
+                           "    autostart: true\n"
+                           "    command_task: {priority: 70}\n"
+                           "    data_task: {priority: 80, period_ms: 10, modeswitch: off}\n";
+  const auto file = dir_.write("birth.yaml", text);
+  Process rackd({kRackd, file.string()}, dir_.path(), "rackd");
+  ASSERT_TRUE(rackd.wait_for_stderr("rackd: running", 20s)) << rackd.err();
+  if (contains(rackd.err(), "pthread_create is not rackd's in this build")) {
+    GTEST_SKIP() << "rackd was built without rack::rt_hooks (a sanitizer build): threads are moved, not born right";
+  }
+  std::vector<std::string> kinds{"pthread", "pthread-attr", "std::thread"};
+#ifdef RACK_TEST_OPENMP
+  kinds.emplace_back("openmp");
+#endif
+  for (const auto& kind : kinds) {
+    ASSERT_TRUE(rackd.wait_for_stderr("thread-birth: " + kind + ": ", 20s)) << kind << "\n" << rackd.err();
+  }
+  const std::string err = rackd.err();
+  for (const auto& kind : kinds) {
+    const std::string line = line_with(err, "thread-birth: " + kind + ": ");
+    EXPECT_TRUE(contains(line, "CPUs 0, policy 0, priority 0")) << line;
+  }
+  const std::string attr = line_with(err, "thread-birth: pthread-attr: ");
+  EXPECT_TRUE(contains(attr, "detached 1")) << attr;
+  const auto stack_at = attr.find("stack ");
+  ASSERT_NE(stack_at, std::string::npos) << attr;
+  const long stack_kib = std::strtol(attr.c_str() + stack_at + 6, nullptr, 10);
+  EXPECT_GE(stack_kib, 512) << attr;
+  EXPECT_LT(stack_kib, 1024) << "the creator's 512 KiB, not the 8 MiB default: " << attr;
+  EXPECT_TRUE(contains(err, "is born on the housekeeping CPUs (0) with SCHED_OTHER (rackd's pthread_create)")) << err;
+  EXPECT_FALSE(contains(err, "(it was not born there)")) << err;
+  // The task that started them is still the RT task on CPU 1.
+  bool seen = false;
+  for (const auto& [tid, t] : threads_of(rackd.pid())) {
+    if (t.name != "starter:data") continue;
+    seen = true;
+    EXPECT_EQ(t.cpus, "1") << "RT task starter:data (" << tid << ")";
+  }
+  EXPECT_TRUE(seen) << "no thread named starter:data";
   rackd.signal(SIGTERM);
   EXPECT_EQ(rackd.wait_exit(20s), 0) << rackd.err();
 }

@@ -317,7 +317,10 @@ namespace rack {
 namespace {
 
 // The partitioning tests need CPUs 0 and 1; partition_threads() moves this thread too,
-// so its affinity is given back after each test.
+// so its affinity is given back after each test. This binary does not link rackd's
+// pthread_create (rack::rt_hooks, rack/rt/thread_birth.h): its threads are born where
+// their creator runs, as glibc's own helper threads are in rackd, which is what the
+// sweep is the backstop for (Integration.PartitionTest checks the births in rackd).
 class PartitionThreadsTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -385,6 +388,47 @@ components:
     const std::string report = host.executor().thread_report();
     EXPECT_NE(report.find("threads (cpus: rt 1, housekeeping 0)"), std::string::npos) << report;
     EXPECT_NE(report.find("gen:data"), std::string::npos) << report;
+    stop = true;
+    late.join();
+  }
+}
+
+// The backstop as rackd runs it every 100 ms: partition_new_threads() sweeps only when
+// the process's thread count differs from the last complete pass's (one read of
+// /proc/self/stat instead of a pass over /proc/self/task). A thread that moves itself
+// onto the RT CPU without a thread being born is left until the count changes.
+TEST_F(PartitionThreadsTest, TheBackstopSweepsOnlyWhenTheThreadCountChanges) {
+  {
+    test::HostUnderTest host(R"(system: 0
+lcm: false
+cpus: {rt: 1, housekeeping: 0}
+components:
+  - name: gen
+    class: Generator
+    instance: 1
+    data_task: {priority: 60, period_ms: 10}
+)");
+    (void)first_moves(host);  // a complete pass (it moves this thread, on CPUs 0-1)
+    EXPECT_TRUE(host.executor().partition_new_threads().empty()) << "no thread born since: no sweep";
+    cpu_set_t rt_cpu;
+    CPU_ZERO(&rt_cpu);
+    CPU_SET(1, &rt_cpu);
+    ASSERT_EQ(sched_setaffinity(0, sizeof rt_cpu, &rt_cpu), 0);
+    EXPECT_TRUE(host.executor().partition_new_threads().empty()) << "the count did not change";
+    const cpu_set_t still = affinity_of(0);
+    EXPECT_TRUE(CPU_ISSET(1, &still) && CPU_COUNT(&still) == 1) << "not swept";
+    std::atomic<bool> stop{false};
+    std::thread late([&] {  // born on this thread's CPU 1
+      while (!stop.load()) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    });
+    pthread_setname_np(late.native_handle(), "late-count");
+    const std::vector<std::string> moved = host.executor().partition_new_threads();
+    std::string said;
+    for (const auto& m : moved) said += m + "\n";
+    EXPECT_NE(said.find("(late-count): moved to the housekeeping CPUs"), std::string::npos) << said;
+    const cpu_set_t me = affinity_of(0);
+    EXPECT_TRUE(CPU_ISSET(0, &me) && CPU_COUNT(&me) == 1) << "this thread went with the same pass";
+    EXPECT_TRUE(host.executor().partition_new_threads().empty()) << "the count is the same again";
     stop = true;
     late.join();
   }

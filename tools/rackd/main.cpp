@@ -29,6 +29,7 @@
 #include "rack/rt/memory.h"
 #include "rack/rt/pm_qos.h"
 #include "rack/rt/modeswitch.h"
+#include "rack/rt/thread_birth.h"
 #include "rack/tims/lcm_url.h"
 #include "rack/version.h"
 
@@ -75,8 +76,10 @@ changes a component's level at run time.
 
 CPU partitioning (the host file's cpus: block, configs/partitioned.yaml): RT
 tasks on the 'rt' CPUs, every other thread of rackd (non-RT tasks, GDOS, TiMS/LCM,
-library threads) on the 'housekeeping' CPUs; rackd prints where each thread runs
-at start and warns when an RT CPU also serves housekeeping (rackctl threads).
+library threads) on the 'housekeeping' CPUs; a thread that a library or an RT task
+starts is born there with SCHED_OTHER (rackd's pthread_create), one born otherwise
+is moved and named. rackd prints where each thread runs at start and warns when an
+RT CPU also serves housekeeping (rackctl threads).
 
 Access control (the host file's access: section, configs/access_control.yaml):
 which sources may send which messages to which component, at what priority and
@@ -568,6 +571,9 @@ static int run_rackd(int argc, char** argv) {
   }
   for (const auto& w : executor.partition_warnings()) std::fprintf(stderr, "rackd: WARNING: %s\n", w.c_str());
   (void)executor.partition_threads();  // threads started before the main thread's affinity was set
+  if (!settings.housekeeping_cpus.empty()) {
+    std::fprintf(stderr, "rackd: cpus: %s\n", rack::rt::thread_birth::describe().c_str());
+  }
   std::fprintf(stderr, "rackd: %s", executor.thread_report().c_str());
   std::fprintf(stderr, "rackd: running%s%s; SIGINT or SIGTERM stops\n", executor.transport() ? ", TiMS on " : "",
                executor.transport() ? executor.transport()->url().c_str() : "");
@@ -590,8 +596,11 @@ static int run_rackd(int argc, char** argv) {
       next_status += static_cast<int64_t>(status_every * 1e9);
     }
     // Threads that libraries start late (a pool on first use, maybe from an RT task)
-    // join housekeeping within 100 ms (a sweep of /proc/self/task).
-    for (const auto& t : executor.partition_threads()) std::fprintf(stderr, "rackd: cpus: thread %s\n", t.c_str());
+    // are born on the housekeeping CPUs (rack/rt/thread_birth.h). The backstop for any
+    // born otherwise: a sweep of /proc/self/task when the thread count changed.
+    for (const auto& t : executor.partition_new_threads()) {
+      std::fprintf(stderr, "rackd: cpus: thread %s (it was not born there)\n", t.c_str());
+    }
     const int64_t wait = std::min({end, next_status, now + 100 * rack::rt::kNsPerMs}) - now;
     timespec ts = rack::rt::to_timespec(wait > 0 ? wait : 0);
     const int sig = sigtimedwait(&stop_signals, nullptr, &ts);

@@ -10,6 +10,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "rack/rt/thread_birth.h"
+
 namespace rack::rt {
 
 namespace {
@@ -25,6 +27,7 @@ bool try_fifo_thread() {
   param.sched_priority = 1;
   pthread_attr_setschedparam(&attr, &param);
   pthread_t t;
+  const thread_birth::OwnThreads own;  // the probe asks for SCHED_FIFO: not to be placed
   const int rc = pthread_create(&t, &attr, &noop, nullptr);
   pthread_attr_destroy(&attr);
   if (rc != 0) return false;

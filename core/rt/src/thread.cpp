@@ -1,12 +1,17 @@
 #include "rack/rt/thread.h"
 
+#include <fcntl.h>
 #include <sched.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
+#include <cstring>
 #include <system_error>
 
 #include "rack/rt/memory.h"
+#include "rack/rt/thread_birth.h"
 
 namespace rack::rt {
 
@@ -71,6 +76,9 @@ ThreadStart Thread::start(const ThreadConfig& config, std::function<void()> body
   body_ = std::move(body);
   note_sanitizer_memory_policy();
   const bool want_rt = config.priority > 0;
+  // The executor's own threads get their CPUs and policy from the host file, not the
+  // housekeeping placement of threads that others start (rack/rt/thread_birth.h).
+  const thread_birth::OwnThreads own;
   int rc = create(&handle_, config_, want_rt, &Thread::trampoline, this);
   ThreadStart how = want_rt ? ThreadStart::kRealTime : ThreadStart::kNormal;
   if (rc == EPERM && want_rt && allow_fallback) {
@@ -121,6 +129,29 @@ std::string cpu_list_string(std::vector<int> cpus) {
     i = j + 1;
   }
   return out;
+}
+
+long process_thread_count() noexcept {
+  const int fd = ::open("/proc/self/stat", O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return -1;
+  char line[1024];  // num_threads (field 20) is well within the first 1024 bytes
+  const ssize_t n = ::read(fd, line, sizeof line - 1);
+  ::close(fd);
+  if (n <= 0) return -1;
+  line[n] = '\0';
+  // Field 2, the name, is in parentheses and may hold spaces and ')': count from the last one.
+  const char* p = std::strrchr(line, ')');
+  if (p == nullptr) return -1;
+  int field = 2;
+  for (; *p != '\0'; ++p) {
+    if (*p != ' ') continue;
+    if (++field == 20) {
+      char* end = nullptr;
+      const long count = std::strtol(p + 1, &end, 10);
+      return end != p + 1 && count > 0 ? count : -1;
+    }
+  }
+  return -1;
 }
 
 }  // namespace rack::rt

@@ -26,7 +26,8 @@
 // the CPUs that RT tasks are pinned to (`cpu:`), when another CPU is left. With the
 // host file's `cpus:` block (partitioning), RT tasks without a `cpu:` run on its `rt`
 // CPUs and everything else (non-RT tasks, the executor's threads, threads libraries
-// start: partition_threads()) on its `housekeeping` CPUs.
+// start: they are born there, rack/rt/thread_birth.h; partition_threads() moves what was
+// not) on its `housekeeping` CPUs.
 // Page faults: each task marks the end of its start-up; the GDOS thread samples every
 // task's faults since then once a second (Component::sample_faults, GET_STATS).
 //
@@ -139,8 +140,15 @@ class Executor {
   // lowers such a thread's SCHED_FIFO/RR (inherited from the RT task that started it)
   // to SCHED_OTHER. Returns what it did ("1234 (name): moved to the housekeeping
   // CPUs"); none without partitioning, or while a task has not started yet. rackd
-  // calls it after start() and every 100 ms. Not RT-safe; main thread.
+  // calls it after start(). Not RT-safe; main thread.
   std::vector<std::string> partition_threads();
+  // partition_threads() when the process's thread count (/proc/self/stat, one read)
+  // differs from the last complete pass's; else nothing. With rackd's pthread_create
+  // (rack/rt/thread_birth.h) threads are born on the housekeeping CPUs, so this is
+  // the backstop for those born otherwise (glibc's own helpers, a raw clone(), a
+  // sanitizer build): rackd calls it every 100 ms and says what it moved. Not RT-safe;
+  // main thread.
+  std::vector<std::string> partition_new_threads();
   // What is questionable about the partitioning: an RT CPU that also serves
   // housekeeping, an RT task pinned (`cpu:`) to a housekeeping-only CPU, a non-RT task
   // pinned to an RT CPU. Empty without partitioning. Not RT-safe.
@@ -208,6 +216,8 @@ class Executor {
   std::vector<std::unique_ptr<IoWorkerThread>> compute_workers_;
   bool started_ = false;
   bool fallback_ = false;
+  bool placing_threads_ = false;  // start() put rt::thread_birth::place_on() in force
+  long swept_thread_count_ = -1;  // threads at the last complete partition_threads()
 
   gdos::Hub hub_;
   gdos::LogSource log_source_;

@@ -64,4 +64,8 @@ int set_thread_affinity(pid_t tid, const std::vector<int>& cpus) noexcept;
 // Gives the calling thread SCHED_FIFO `priority` (0: SCHED_OTHER). Returns errno or 0.
 int set_current_thread_priority(int priority) noexcept;
 
+// The number of threads of this process (/proc/self/stat, field 20: one open and read),
+// or -1 when it cannot be read. Not RT-safe (system calls); allocates nothing.
+[[nodiscard]] long process_thread_count() noexcept;
+
 }  // namespace rack::rt
