@@ -39,15 +39,6 @@ const std::vector<Tool>& tools() {
   return kTools;
 }
 
-std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> out;
-  std::istringstream in(text);
-  for (std::string line; std::getline(in, line);) {
-    if (!line.empty()) out.push_back(line);
-  }
-  return out;
-}
-
 // Every --long-option a text mentions.
 std::set<std::string> long_options(const std::string& text) {
   std::set<std::string> out;

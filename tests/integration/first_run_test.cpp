@@ -33,15 +33,6 @@ const std::filesystem::path kConfigs = RACK_CONFIGS_DIR;
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
-std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> out;
-  std::istringstream in(text);
-  for (std::string line; std::getline(in, line);) {
-    if (!line.empty()) out.push_back(line);
-  }
-  return out;
-}
-
 // Every host file of configs/, as paths relative to the source tree
 // ("configs/two_robots/robot1_aux.yaml"); configs/maps/ holds map_server YAML.
 std::vector<std::string> shipped_host_files() {

@@ -36,15 +36,6 @@ constexpr auto kSettleLimit = 20s;
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
-std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> out;
-  std::istringstream in(text);
-  for (std::string line; std::getline(in, line);) {
-    if (!line.empty()) out.push_back(line);
-  }
-  return out;
-}
-
 class GdosViewerTest : public ::testing::Test {
  protected:
   GdosViewerTest() : watchdog_(kTestLimit, ::testing::UnitTest::GetInstance()->current_test_info()->name()) {}

@@ -34,15 +34,6 @@ constexpr auto kCommandLimit = 30s;  // one rackd --check or rackctl run
 constexpr auto kStartLimit = 30s;    // rackd until "running"
 constexpr auto kSettleLimit = 20s;   // a state change we wait for
 
-std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> out;
-  std::istringstream in(text);
-  for (std::string line; std::getline(in, line);) {
-    if (!line.empty()) out.push_back(line);
-  }
-  return out;
-}
-
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 // ------------------------------------------------------------------ base fixture
