@@ -23,6 +23,7 @@ import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
+import { seededRandom } from './fuzz_random.mjs';
 
 
 // The player's and the recorder's modules import the npm packages: without `npm ci`
@@ -66,16 +67,7 @@ const work = fs.mkdtempSync(path.join(os.tmpdir(), 'mcap-fuzz-'));
 const out = o.out || work;
 fs.mkdirSync(out, { recursive: true });
 
-// A small deterministic generator (mulberry32), so that a seed repeats a run.
-let state = o.seed >>> 0;
-const rand = () => {
-  state = (state + 0x6d2b79f5) >>> 0;
-  let t = state;
-  t = Math.imul(t ^ (t >>> 15), t | 1);
-  t ^= t + Math.imul(t ^ (t >>> 7), t | 61);
-  return ((t ^ (t >>> 14)) >>> 0) / 4294967296;
-};
-const below = (n) => Math.floor(rand() * n);
+const { rand, below } = seededRandom(o.seed);  // a seed repeats a run
 
 // Seeds: recordings as rack-foxglove writes them, one per compression, two chunks each.
 async function record(compression) {

@@ -24,6 +24,7 @@ import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
+import { seededRandom } from './fuzz_random.mjs';
 
 let WebSocket;
 let WebSocketServer;
@@ -64,17 +65,7 @@ for (let i = 0; i < args.length; i += 1) {
 const out = o.out || fs.mkdtempSync(path.join(os.tmpdir(), 'foxglove-ws-fuzz-'));
 fs.mkdirSync(out, { recursive: true });
 
-// A small deterministic generator (mulberry32), so that a seed repeats a run.
-let state = o.seed >>> 0;
-const rand = () => {
-  state = (state + 0x6d2b79f5) >>> 0;
-  let t = state;
-  t = Math.imul(t ^ (t >>> 15), t | 1);
-  t ^= t + Math.imul(t ^ (t >>> 7), t | 61);
-  return ((t ^ (t >>> 14)) >>> 0) / 4294967296;
-};
-const below = (n) => Math.floor(rand() * n);
-const pick = (a) => a[below(a.length)];
+const { rand, below, pick } = seededRandom(o.seed);  // a seed repeats a run
 
 // The stand-in rack-gui: one robot, one enabled component, every request answered.
 const kComponent = 'Pilot(0/0)';
