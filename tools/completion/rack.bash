@@ -143,10 +143,10 @@ _rack_gui() {
     --host-file) _rack_files '*.@(yaml|yml)'; return ;;
     --key-file|--map|--backtrace|--rackd) _rack_files; return ;;
     --web|--reports|--map-root|--config) COMPREPLY=($(compgen -d -- "$cur")); compopt -o filenames 2>/dev/null; return ;;
-    --address|--port|--lcm|--gdos-lcm|--gdos-channel|--poll-ms|--timeout-ms|--forget-s) return ;;
+    --address|--port|--lcm|--gdos-lcm|--gdos-channel|--poll-ms|--timeout-ms|--forget-s|--max-clients) return ;;
   esac
   _rack_words "--address --port --lcm --host-file --key-file --web --map --map-root --reports --backtrace
-               --gdos-lcm --gdos-channel --config --rackd --poll-ms --timeout-ms --forget-s --help --version"
+               --gdos-lcm --gdos-channel --config --rackd --poll-ms --timeout-ms --forget-s --max-clients --help --version"
 }
 
 _rack_backtrace() {
