@@ -23,8 +23,14 @@ struct CameraIntrinsics {
 // The calibration in `text`, the bytes of the file `name` (named in errors).
 [[nodiscard]] CameraIntrinsics parse_camera_calibration(std::string_view text, const std::string& name);
 
+// The same, in a forked child process: OpenCV's FileStorage parsers are not total (a
+// SEGV inside its XML reader on a truncated header, found by fuzz_calibration), so a file
+// that crashes or exhausts them ends only the child, and this throws saying so. What
+// rackd uses (load_camera_calibration) and what the fuzz harness drives.
+[[nodiscard]] CameraIntrinsics parse_camera_calibration_isolated(std::string_view text, const std::string& name);
+
 // Reads the file (a regular file of at most 16 MiB: a FIFO would block OpenCV for
-// ever) and parses it.
+// ever) and parses it in a child process (parse_camera_calibration_isolated).
 [[nodiscard]] CameraIntrinsics load_camera_calibration(const std::string& path);
 
 }  // namespace rack::components
